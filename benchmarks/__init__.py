@@ -1,0 +1,1 @@
+"""psns-hil benchmarks: ``python -m benchmarks`` (``make bench``)."""

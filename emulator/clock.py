@@ -1,0 +1,132 @@
+"""The emulator's event loop and its two time modes.
+
+One asyncio event loop drives everything (DESIGN.md section 4). Its ``time()`` is the
+scenario clock in seconds since scenario start.
+
+``fast``
+    Virtual time. When every task waits and no I/O is ready, the clock jumps straight to the
+    next timer, so a run is as fast as the CPU allows. With ``mem://`` links and a seed it is
+    bit-for-bit deterministic. Real file descriptors (ptys, sockets) are still polled without
+    blocking on every iteration.
+``realtime``
+    The clock follows the wall clock, scaled by ``speed`` (2.0 runs twice as fast as real
+    time). Select timeouts are divided by ``speed``.
+
+Devices use only ``loop.time()`` and ``loop.call_at()`` / ``asyncio.sleep``, so the same code
+runs in both modes. :func:`sleep_until` waits for an absolute scenario time without the drift
+that repeated relative sleeps accumulate.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import selectors
+import time as _time
+from typing import Any
+
+__all__ = ["EmulatorLoop", "new_loop", "sleep_until"]
+
+
+class _ClockSelector(selectors.BaseSelector):
+    """Selector wrapper that implements virtual or scaled time for :class:`EmulatorLoop`."""
+
+    def __init__(self, loop: "EmulatorLoop") -> None:
+        self._real = selectors.DefaultSelector()
+        self._loop = loop
+
+    # delegation ------------------------------------------------------------------
+    def register(self, fileobj: Any, events: int, data: Any = None) -> selectors.SelectorKey:
+        return self._real.register(fileobj, events, data)
+
+    def unregister(self, fileobj: Any) -> selectors.SelectorKey:
+        return self._real.unregister(fileobj)
+
+    def modify(self, fileobj: Any, events: int, data: Any = None) -> selectors.SelectorKey:
+        return self._real.modify(fileobj, events, data)
+
+    def get_key(self, fileobj: Any) -> selectors.SelectorKey:
+        return self._real.get_key(fileobj)
+
+    def get_map(self) -> Any:
+        return self._real.get_map()
+
+    def close(self) -> None:
+        self._real.close()
+
+    # the clock -------------------------------------------------------------------
+    def select(self, timeout: float | None = None) -> list[tuple[selectors.SelectorKey, int]]:
+        loop = self._loop
+        if loop.mode == "fast":
+            events = self._real.select(0)
+            if events or timeout == 0:
+                return events
+            sched = loop._scheduled  # noqa: SLF001 - the virtual clock needs the timer heap
+            if sched:
+                when = sched[0]._when  # noqa: SLF001
+                if when > loop._now:
+                    loop._now = when
+                return events
+            # Nothing scheduled and nothing ready: only I/O or another thread can wake us.
+            return self._real.select(timeout)
+        if timeout is not None and timeout > 0:
+            timeout = timeout / loop.speed
+        return self._real.select(timeout)
+
+
+class EmulatorLoop(asyncio.SelectorEventLoop):
+    """Selector event loop whose clock is the scenario clock (s since scenario start).
+
+    Parameters
+    ----------
+    mode:
+        ``"fast"`` (virtual time) or ``"realtime"`` (wall clock times ``speed``).
+    speed:
+        Real-time scale factor; only used in realtime mode.
+    """
+
+    def __init__(self, mode: str = "fast", speed: float = 1.0) -> None:
+        if mode not in ("fast", "realtime"):
+            raise ValueError(f"mode must be 'fast' or 'realtime', got {mode!r}")
+        if speed <= 0:
+            raise ValueError(f"speed must be > 0, got {speed}")
+        self.mode = mode
+        self.speed = float(speed)
+        self._now = 0.0
+        self._wall0 = _time.monotonic()
+        super().__init__(selector=_ClockSelector(self))
+        self._clock_resolution = 1e-9
+
+    def time(self) -> float:
+        if self.mode == "fast":
+            return self._now
+        return (_time.monotonic() - self._wall0) * self.speed
+
+    def restart_clock(self) -> None:
+        """Make the current instant scenario time 0 (realtime) or reset virtual time to 0 (fast)."""
+        self._wall0 = _time.monotonic()
+        self._now = 0.0
+
+    def wall_elapsed(self) -> float:
+        """Wall-clock seconds since the clock was (re)started."""
+        return _time.monotonic() - self._wall0
+
+
+def new_loop(mode: str = "fast", speed: float = 1.0) -> EmulatorLoop:
+    """Create an :class:`EmulatorLoop` (not set as the current loop)."""
+    return EmulatorLoop(mode, speed)
+
+
+async def sleep_until(when: float) -> None:
+    """Sleep until scenario time ``when`` (s), exactly, in either mode."""
+    loop = asyncio.get_running_loop()
+    fut = loop.create_future()
+    handle = loop.call_at(when, _set_done, fut)
+    try:
+        await fut
+    finally:
+        handle.cancel()
+
+
+def _set_done(fut: asyncio.Future[None]) -> None:
+    if not fut.done():
+        fut.set_result(None)

@@ -1,0 +1,177 @@
+"""The virtual Spartan-3E FPGA: acquisition, time stamps, IMU-frame assembly and UART routing.
+
+* A free-running 1 MHz time-stamp counter (``t_us = floor(t * 1e6)`` mod 2^32).
+* The IMU trigger: every ``1/imu_rate_hz`` s the FPGA strobes the STIM ExtTrig line and latches
+  the accelerometer ADC (boxcar average of its oversampled conversions since the previous
+  trigger). When the gyro datagram for that trigger arrives on the GYRO port it packs one
+  :mod:`protocols.imu_frame` frame and sends it to DSP UART1. No datagram within
+  ``gyro_timeout_s`` gives a frame flagged ``GYRO_MISSING`` that repeats the last gyro words.
+* PPS rising edges latch the counter (``t_pps_us``, ``pps_count``), carried in every IMU frame.
+* Byte routing (the crossbar): each external serial port is forwarded to its DSP UART and
+  back; baud conversion happens because the two sides are separate links with their own
+  line models (and their own queues, which overflow when the DSP side is slower).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+from dataclasses import dataclass, field
+
+from protocols.imu_frame import ADC_CODE_MAX, FpgaStatus, ImuFrame, ImuFrameFormat
+from protocols.stim import Stim210Format
+from protocols.stream import StreamDecoder
+
+from ..links.base import Link
+from .base import EventSink, NullEvents
+from .imu import AnalogAccelerometers, Stim210Gyro
+
+__all__ = ["FpgaConfig", "VirtualFpga", "DEFAULT_ROUTING"]
+
+#: external port -> DSP UART (DESIGN.md section 2: PSNS = RS232 -> UART2, GNSS = RS422 -> UART3)
+DEFAULT_ROUTING = {"host": "uart0", "psns": "uart2", "gnss": "uart3"}
+
+
+@dataclass
+class FpgaConfig:
+    imu_rate_hz: float = 200.0
+    gyro_timeout_s: float = 0.004
+    gyro_format: str = "m"
+    gyro_counter_step: int = 10
+    routing: dict[str, str] = field(default_factory=lambda: dict(DEFAULT_ROUTING))
+
+
+class VirtualFpga:
+    """See module docstring.
+
+    Parameters
+    ----------
+    ports : external-side links by port name (``gyro``, ``gnss``, ``psns``, ``host``).
+    uarts : FPGA-side ends of the DSP links by name (``uart0`` .. ``uart3``).
+    gyro : the internal STIM model to trigger (None when the gyro port is external).
+    accel : the accelerometers behind the ADC.
+    """
+
+    def __init__(self, loop: asyncio.AbstractEventLoop, cfg: FpgaConfig, ports: dict[str, Link],
+                 uarts: dict[str, Link], gyro: Stim210Gyro | None, accel: AnalogAccelerometers | None,
+                 events: EventSink | None = None) -> None:
+        self.loop = loop
+        self.cfg = cfg
+        self.ports = ports
+        self.uarts = uarts
+        self.gyro = gyro
+        self.accel = accel
+        self.events = events or NullEvents()
+        self.period = 1.0 / cfg.imu_rate_hz
+        self._imu_fmt = ImuFrameFormat()
+        self._k = 0
+        self._pending: tuple[int, int, tuple[int, int, int], asyncio.TimerHandle] | None = None
+        self._last_gyro: tuple[tuple[int, int, int], int, int, int] = ((0, 0, 0), 0, 0, 0)
+        self._last_counter: int | None = None
+        self._flags = 0
+        self.t_pps_us = 0
+        self.pps_count = 0
+        self._t_pps = -1e9
+        self.seq = 0
+        self.imu_frames = 0
+        self.gyro_missing = 0
+        self.routes: dict[str, str] = {}
+        self._crc_seen = 0
+        self._gyro_dec: StreamDecoder | None = None
+        if "gyro" in ports:
+            self._gyro_dec = StreamDecoder([Stim210Format(cfg.gyro_format)])
+            ports["gyro"].on_receive = self._on_gyro_bytes
+        for port, uart in cfg.routing.items():
+            if port in ports and uart in uarts:
+                self._route(ports[port], uarts[uart])
+                self.routes[port] = uart
+
+    # -- time stamps ----------------------------------------------------------------------
+    @staticmethod
+    def counter_us(t: float) -> int:
+        """The FPGA's 1 MHz counter at scenario time ``t`` (wraps at 2^32 us)."""
+        return int(math.floor(t * 1e6 + 1e-6)) & 0xFFFFFFFF
+
+    def start(self) -> None:
+        self.loop.call_at(0.0, self._trigger)
+
+    def pps_edge(self, t: float) -> None:
+        """PPS rising edge (from the GNSS receiver's PPS line)."""
+        self.t_pps_us = self.counter_us(t)
+        self.pps_count = (self.pps_count + 1) & 0xFF
+        self._t_pps = t
+
+    # -- IMU acquisition ------------------------------------------------------------------
+    def _trigger(self) -> None:
+        t = self._k * self.period
+        t_prev = t - self.period
+        self._k += 1
+        self.loop.call_at(self._k * self.period, self._trigger)
+        codes = self.accel.sample(t, t_prev) if self.accel is not None else (0, 0, 0)
+        if self._pending is not None:  # previous datagram never came
+            self._emit_frame(None)
+        handle = self.loop.call_at(t + self.cfg.gyro_timeout_s, self._gyro_timeout)
+        self._pending = (self.counter_us(t), self.seq, codes, handle)
+        if self.gyro is not None:
+            self.gyro.trigger(t, t_prev)
+
+    def _gyro_timeout(self) -> None:
+        if self._pending is not None:
+            self._emit_frame(None)
+
+    def _on_gyro_bytes(self, data: bytes) -> None:
+        assert self._gyro_dec is not None
+        for d in self._gyro_dec.feed(data):
+            self._emit_frame(d)
+
+    def _emit_frame(self, d: object | None) -> None:
+        flags = self._flags
+        self._flags = 0
+        if d is not None:
+            gyro = d.gyro  # type: ignore[attr-defined]
+            if self._last_counter is not None and d.counter is not None:  # type: ignore[attr-defined]
+                if (d.counter - self._last_counter) % 256 != self.cfg.gyro_counter_step:  # type: ignore[attr-defined]
+                    flags |= FpgaStatus.GYRO_COUNTER_JUMP
+            if d.counter is not None:  # type: ignore[attr-defined]
+                self._last_counter = d.counter  # type: ignore[attr-defined]
+            self._last_gyro = (gyro, d.status, d.counter or 0, d.latency_us or 0)  # type: ignore[attr-defined]
+        else:
+            flags |= FpgaStatus.GYRO_MISSING
+            self.gyro_missing += 1
+        if self._gyro_dec is not None and self._gyro_dec.stats.crc_errors != self._crc_seen:
+            flags |= FpgaStatus.GYRO_CRC_ERROR
+            self._crc_seen = self._gyro_dec.stats.crc_errors
+        if self._pending is None:
+            t_trig, seq, codes = self.counter_us(self.loop.time()), self.seq, (0, 0, 0)
+        else:
+            t_trig, seq, codes, handle = self._pending
+            handle.cancel()
+            self._pending = None
+        if any(abs(c) >= ADC_CODE_MAX for c in codes):
+            flags |= FpgaStatus.ADC_OVERRANGE
+        if self.loop.time() - self._t_pps < 1.5:
+            flags |= FpgaStatus.PPS_VALID
+        g, status, counter, latency = self._last_gyro
+        frame = ImuFrame(
+            seq=seq & 0xFFFF,
+            t_trigger_us=t_trig,
+            t_pps_us=self.t_pps_us,
+            pps_count=self.pps_count,
+            gyro=g,
+            gyro_status=status,
+            gyro_counter=counter,
+            gyro_latency_us=latency,
+            accel=codes,
+            fpga_status=int(flags),
+        )
+        self.seq += 1
+        self.imu_frames += 1
+        uart1 = self.uarts.get("uart1")
+        if uart1 is not None:
+            uart1.send(self._imu_fmt.build(frame))
+
+    # -- crossbar ---------------------------------------------------------------------------
+    @staticmethod
+    def _route(port: Link, uart: Link) -> None:
+        port.on_receive = uart.send
+        uart.on_receive = port.send

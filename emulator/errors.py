@@ -1,0 +1,82 @@
+"""Emulator-layer errors; the whole tree is drawn in :mod:`protocols.errors`."""
+
+from __future__ import annotations
+
+from protocols.errors import PsnsHilError
+
+__all__ = [
+    "EmulatorError",
+    "ScenarioError",
+    "ScenarioIssue",
+    "LinkError",
+    "LinkConfigError",
+    "LinkClosedError",
+    "LinkBrokenError",
+    "LinkTimeoutError",
+    "RecordingError",
+]
+
+
+class EmulatorError(PsnsHilError):
+    """Base of the emulator's errors."""
+
+
+class ScenarioIssue:
+    """One problem in a scenario file: where (file, line, column, field path) and what."""
+
+    __slots__ = ("file", "line", "column", "path", "message")
+
+    def __init__(self, file: str, line: int | None, column: int | None, path: str, message: str) -> None:
+        self.file = file
+        self.line = line
+        self.column = column
+        self.path = path
+        self.message = message
+
+    def __str__(self) -> str:
+        where = self.file
+        if self.line is not None:
+            where += f":{self.line}"
+            if self.column is not None:
+                where += f":{self.column}"
+        field = f" {self.path}:" if self.path else ""
+        return f"{where}:{field} {self.message}"
+
+    def __repr__(self) -> str:
+        return f"ScenarioIssue({str(self)!r})"
+
+
+class ScenarioError(EmulatorError):
+    """A scenario that cannot be loaded; ``issues`` lists every problem found (all at once)."""
+
+    def __init__(self, issues: list[ScenarioIssue] | ScenarioIssue | str, file: str = "<scenario>") -> None:
+        if isinstance(issues, str):
+            issues = [ScenarioIssue(file, None, None, "", issues)]
+        elif isinstance(issues, ScenarioIssue):
+            issues = [issues]
+        self.issues = issues
+        super().__init__("\n".join(str(i) for i in issues))
+
+
+class LinkError(EmulatorError):
+    """A link could not be opened or used."""
+
+
+class LinkConfigError(LinkError, ValueError):
+    """Bad link URL or option; the message shows the accepted form."""
+
+
+class LinkClosedError(LinkError):
+    """The link was closed by us."""
+
+
+class LinkBrokenError(LinkError):
+    """The peer or the hardware went away (``__cause__`` holds the OS/driver error)."""
+
+
+class LinkTimeoutError(LinkError, TimeoutError):
+    """Waiting on a link timed out (in the emulator's clock)."""
+
+
+class RecordingError(EmulatorError):
+    """A capture or recorded-data file is malformed (names file, line and column)."""

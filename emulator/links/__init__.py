@@ -1,0 +1,143 @@
+"""Links addressed by URL, one transport module per scheme, imported lazily.
+
+=============================================  =================================================
+URL                                            transport
+=============================================  =================================================
+``mem://NAME``                                 in-process pair (:mod:`emulator.links.mem`)
+``pty://NAME``                                 pseudo-terminal with a stable symlink
+                                               ``<run_dir>/NAME`` (:mod:`emulator.links.pty`)
+``serial:///dev/ttyUSB0``                      a real serial device (:mod:`emulator.links.serial`)
+=============================================  =================================================
+
+Common options (query string): ``baud=N``, ``mode=8N1``, ``queue=BYTES`` (TX queue size).
+Unknown options are errors that show the accepted form. "Unknown scheme" and "the transport
+module failed to import" are different errors, and the import failure keeps its cause.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import importlib
+from typing import Any
+from urllib.parse import parse_qsl, urlsplit
+
+from ..errors import LinkConfigError
+from .base import ByteFault, LineConfig, LineModel, Link, LinkListener, LinkStats, parse_mode
+from .mem import MemHub, MemLink
+
+__all__ = [
+    "LINK_SCHEMES",
+    "LinkUrl",
+    "parse_link_url",
+    "open_link",
+    "Link",
+    "LineConfig",
+    "LineModel",
+    "LinkStats",
+    "LinkListener",
+    "ByteFault",
+    "MemHub",
+    "MemLink",
+    "parse_mode",
+]
+
+#: scheme -> "module:Class"
+LINK_SCHEMES: dict[str, str] = {
+    "mem": "emulator.links.mem:MemLink",
+    "pty": "emulator.links.pty:PtyLink",
+    "serial": "emulator.links.serial:SerialLink",
+}
+
+_COMMON_OPTIONS = {"baud", "mode", "queue"}
+_USAGE = {
+    "mem": "mem://NAME[?baud=N&mode=8N1&queue=BYTES]",
+    "pty": "pty://NAME[?baud=N&mode=8N1&queue=BYTES]",
+    "serial": "serial:///dev/ttyXXX[?baud=N&mode=8N1&queue=BYTES]",
+}
+
+
+class LinkUrl:
+    """A parsed link URL: scheme, target (name or device path) and options."""
+
+    __slots__ = ("url", "scheme", "target", "options")
+
+    def __init__(self, url: str, scheme: str, target: str, options: dict[str, str]) -> None:
+        self.url = url
+        self.scheme = scheme
+        self.target = target
+        self.options = options
+
+    def line_config(self, default: LineConfig) -> LineConfig:
+        """The line parameters, the URL's options overriding ``default``."""
+        kw: dict[str, Any] = {
+            "baud": default.baud,
+            "data_bits": default.data_bits,
+            "parity": default.parity,
+            "stop_bits": default.stop_bits,
+            "tx_queue_bytes": default.tx_queue_bytes,
+        }
+        try:
+            if "baud" in self.options:
+                kw["baud"] = int(self.options["baud"])
+            if "mode" in self.options:
+                kw["data_bits"], kw["parity"], kw["stop_bits"] = parse_mode(self.options["mode"])
+            if "queue" in self.options:
+                kw["tx_queue_bytes"] = int(self.options["queue"])
+            return LineConfig(**kw)
+        except ValueError as exc:
+            raise LinkConfigError(f"{self.url}: {exc}; expected {_USAGE.get(self.scheme, self.scheme + '://...')}") from exc
+
+
+def parse_link_url(url: str, extra_options: frozenset[str] = frozenset()) -> LinkUrl:
+    """Split and validate a link URL (scheme known, options known)."""
+    parts = urlsplit(url)
+    scheme = parts.scheme
+    if scheme not in LINK_SCHEMES:
+        raise LinkConfigError(
+            f"unknown link scheme {scheme!r} in {url!r}; known schemes: {', '.join(sorted(LINK_SCHEMES))}"
+        )
+    target = parts.netloc + parts.path if scheme != "serial" else parts.path or parts.netloc
+    if not target:
+        raise LinkConfigError(f"{url!r} names no target; expected {_USAGE.get(scheme, scheme + '://NAME')}")
+    options = dict(parse_qsl(parts.query, keep_blank_values=True))
+    unknown = set(options) - _COMMON_OPTIONS - extra_options
+    if unknown:
+        raise LinkConfigError(
+            f"{url!r}: unknown option(s) {', '.join(sorted(unknown))}; expected {_USAGE.get(scheme, scheme + '://...')}"
+        )
+    return LinkUrl(url, scheme, target, options)
+
+
+def _transport_class(scheme: str) -> type[Link]:
+    target = LINK_SCHEMES[scheme]
+    mod_name, cls_name = target.split(":")
+    try:
+        mod = importlib.import_module(mod_name)
+    except ImportError as exc:
+        raise LinkConfigError(f"the {scheme}:// transport could not be loaded: {exc}") from exc
+    return getattr(mod, cls_name)
+
+
+def open_link(
+    url: str,
+    name: str,
+    loop: asyncio.AbstractEventLoop,
+    default_line: LineConfig = LineConfig(),
+    hub: MemHub | None = None,
+    **transport_kw: Any,
+) -> Link:
+    """Create (not yet open) the link for port ``name`` at ``url``.
+
+    ``hub`` pairs ``mem://`` ends; ``transport_kw`` goes to the transport (e.g. ``run_dir``
+    for ptys).
+    """
+    u = parse_link_url(url)
+    line = u.line_config(default_line)
+    cls = _transport_class(u.scheme)
+    if u.scheme == "mem":
+        link = MemLink(name, url, line, loop)
+        if hub is None:
+            raise LinkConfigError(f"{url}: mem:// links need a MemHub to find their peer")
+        hub.attach(u.target, link)
+        return link
+    return cls(name, url, line, loop, target=u.target, **transport_kw)  # type: ignore[call-arg]

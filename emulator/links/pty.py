@@ -1,0 +1,188 @@
+"""``pty://NAME``: a pseudo-terminal that real serial tools attach to.
+
+The master side stays in the emulator; the slave side is what a user opens, through a stable
+symlink ``<run_dir>/NAME`` (the run directory is private: mode 0700; the pty node is 0600).
+Measured behaviour this module is built around (``shared/reference/protocols.md`` section 5):
+
+* with no peer holding the slave open, reading the master gives EIO and ``poll`` reports
+  POLLHUP; an fd reader would spin, so the link polls for attachment instead and only reads
+  while a peer is attached;
+* bytes written while nobody listens would be read by the next opener: they are dropped (and
+  counted) instead, so a new peer never sees stale data;
+* a peer that opens but does not read makes the master's writes fail with EAGAIN after
+  ~18 KiB: the excess is dropped and counted, memory stays bounded;
+* a pty ignores the baud rate; pacing comes from the link's line model. The client's termios
+  speed is readable and reported (``peer_baud``).
+
+URL form: ``pty://NAME[?baud=N&mode=8N1&queue=BYTES]``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import errno
+import os
+import select
+import termios
+import tty
+from pathlib import Path
+from typing import Any
+
+from ..errors import LinkBrokenError, LinkConfigError
+from .base import LineConfig, Link
+
+__all__ = ["PtyLink", "ATTACH_POLL_S"]
+
+#: Attachment poll period, s of scenario time.
+ATTACH_POLL_S = 0.02
+
+_BAUD_CONST = {getattr(termios, f"B{b}"): b for b in (
+    50, 75, 110, 134, 150, 200, 300, 600, 1200, 1800, 2400, 4800, 9600, 19200, 38400, 57600,
+    115200, 230400, 460800, 500000, 576000, 921600, 1000000, 1152000, 1500000, 2000000,
+    2500000, 3000000, 3500000, 4000000) if hasattr(termios, f"B{b}")}
+
+
+class PtyLink(Link):
+    """A pseudo-terminal endpoint (see module docstring)."""
+
+    scheme = "pty"
+    paces_input = True
+
+    def __init__(
+        self,
+        name: str,
+        url: str,
+        line: LineConfig,
+        loop: asyncio.AbstractEventLoop,
+        target: str = "",
+        run_dir: str | os.PathLike[str] | None = None,
+        **_: Any,
+    ) -> None:
+        super().__init__(name, url, line, loop)
+        if not target or "/" in target:
+            raise LinkConfigError(f"{url!r}: expected pty://NAME with a plain name (no '/')")
+        if run_dir is None:
+            raise LinkConfigError(f"{url!r}: pty links need a run directory")
+        self.port_dir = Path(run_dir)
+        self.link_path = self.port_dir / target
+        self.master_fd: int | None = None
+        self.slave_path: str | None = None
+        self.attached = False
+        self.attach_count = 0
+        self._poll_handle: asyncio.TimerHandle | None = None
+        self._reading = False
+
+    async def open(self) -> None:
+        self.port_dir.mkdir(parents=True, exist_ok=True)
+        os.chmod(self.port_dir, 0o700)
+        master, slave = os.openpty()
+        tty.setraw(slave)
+        self.slave_path = os.ttyname(slave)
+        os.chmod(self.slave_path, 0o600)
+        os.set_blocking(master, False)
+        os.close(slave)  # the user opens it; holding it would hide attach/detach
+        self.master_fd = master
+        tmp = self.link_path.with_name(self.link_path.name + ".tmp")
+        if tmp.is_symlink() or tmp.exists():
+            tmp.unlink()
+        os.symlink(self.slave_path, tmp)
+        os.replace(tmp, self.link_path)
+        self._poll()
+
+    def describe(self) -> str:
+        return f"{self.link_path} -> {self.slave_path}"
+
+    @property
+    def peer_baud(self) -> int | None:
+        """The baud the attached client set with termios (None if unknown)."""
+        if self.master_fd is None:
+            return None
+        try:
+            attrs = termios.tcgetattr(self.master_fd)
+        except termios.error:
+            return None
+        return _BAUD_CONST.get(attrs[5])
+
+    # attach / detach ------------------------------------------------------------------
+    def _hung_up(self) -> bool:
+        assert self.master_fd is not None
+        p = select.poll()
+        p.register(self.master_fd, select.POLLIN | select.POLLHUP)
+        for _fd, ev in p.poll(0):
+            if ev & select.POLLHUP:
+                return True
+        return False
+
+    def _poll(self) -> None:
+        self._poll_handle = None
+        if self.closed or self.master_fd is None:
+            return
+        hup = self._hung_up()
+        if not hup and not self.attached:
+            self.attached = True
+            self.attach_count += 1
+            self._start_reading()
+        elif hup and self.attached:
+            self._detach()
+        self._poll_handle = self.loop.call_later(ATTACH_POLL_S, self._poll)
+
+    def _start_reading(self) -> None:
+        if not self._reading and self.master_fd is not None:
+            self.loop.add_reader(self.master_fd, self._on_readable)
+            self._reading = True
+
+    def _stop_reading(self) -> None:
+        if self._reading and self.master_fd is not None:
+            self.loop.remove_reader(self.master_fd)
+        self._reading = False
+
+    def _detach(self) -> None:
+        self.attached = False
+        self._stop_reading()
+
+    def _on_readable(self) -> None:
+        assert self.master_fd is not None
+        try:
+            data = os.read(self.master_fd, 4096)
+        except BlockingIOError:
+            return
+        except OSError as exc:
+            if exc.errno == errno.EIO:
+                self._detach()
+                return
+            raise LinkBrokenError(f"{self.name}: reading {self.slave_path} failed") from exc
+        if data:
+            self._input(data)
+
+    # transport --------------------------------------------------------------------------
+    def _write_raw(self, data: bytes) -> None:
+        if self.master_fd is None or not self.attached:
+            self.stats.dropped_out += len(data)
+            return
+        try:
+            n = os.write(self.master_fd, data)
+        except BlockingIOError:
+            n = 0
+        except OSError as exc:
+            if exc.errno == errno.EIO:
+                self._detach()
+                self.stats.dropped_out += len(data)
+                return
+            raise LinkBrokenError(f"{self.name}: writing {self.slave_path} failed") from exc
+        if n < len(data):
+            self.stats.dropped_out += len(data) - n
+
+    async def close(self) -> None:
+        await super().close()
+        if self._poll_handle is not None:
+            self._poll_handle.cancel()
+            self._poll_handle = None
+        self._stop_reading()
+        if self.master_fd is not None:
+            os.close(self.master_fd)
+            self.master_fd = None
+        try:
+            if self.link_path.is_symlink():
+                self.link_path.unlink()
+        except OSError:
+            pass

@@ -1,0 +1,171 @@
+"""Load a scenario YAML file, keeping the line and column of every key, and validate it.
+
+Every problem is reported at once, each with ``file:line:column``, the field path and a
+message; unknown keys are errors with a "did you mean" hint. Nothing runs from a scenario
+that did not validate.
+"""
+
+from __future__ import annotations
+
+import difflib
+from pathlib import Path
+from typing import Any
+
+import yaml
+from pydantic import BaseModel, ValidationError
+
+from ..errors import ScenarioError, ScenarioIssue
+from .schema import Scenario
+
+__all__ = ["load_scenario", "load_yaml_with_marks", "validate_scenario_data"]
+
+Loc = tuple[Any, ...]
+
+
+def _construct(node: yaml.Node, path: Loc, marks: dict[Loc, tuple[int, int]], file: str) -> Any:
+    """Build Python data from a composed YAML node, recording where each path is."""
+    if isinstance(node, yaml.MappingNode):
+        out: dict[Any, Any] = {}
+        for knode, vnode in node.value:
+            key = _scalar(knode)
+            if isinstance(key, (dict, list)):
+                raise ScenarioError(ScenarioIssue(file, knode.start_mark.line + 1, knode.start_mark.column + 1,
+                                                  _fmt_path(path), "mapping keys must be plain scalars"))
+            if key in out:
+                raise ScenarioError(ScenarioIssue(file, knode.start_mark.line + 1, knode.start_mark.column + 1,
+                                                  _fmt_path(path + (key,)), f"duplicate key {key!r}"))
+            marks[path + (key,)] = (knode.start_mark.line + 1, knode.start_mark.column + 1)
+            out[key] = _construct(vnode, path + (key,), marks, file)
+        return out
+    if isinstance(node, yaml.SequenceNode):
+        items = []
+        for i, item in enumerate(node.value):
+            marks[path + (i,)] = (item.start_mark.line + 1, item.start_mark.column + 1)
+            items.append(_construct(item, path + (i,), marks, file))
+        return items
+    return _scalar(node)
+
+
+def _scalar(node: yaml.Node) -> Any:
+    loader = yaml.SafeLoader("")
+    try:
+        return loader.construct_object(node, deep=True)
+    finally:
+        loader.dispose()
+
+
+def load_yaml_with_marks(text: str, file: str = "<scenario>") -> tuple[Any, dict[Loc, tuple[int, int]]]:
+    """Parse YAML text; return the data and a map from field path to (line, column), 1-based."""
+    try:
+        root = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        line = mark.line + 1 if mark else None
+        col = mark.column + 1 if mark else None
+        problem = exc.problem or str(exc)
+        raise ScenarioError(ScenarioIssue(file, line, col, "", f"invalid YAML: {problem}")) from exc
+    except yaml.YAMLError as exc:
+        raise ScenarioError(ScenarioIssue(file, None, None, "", f"invalid YAML: {exc}")) from exc
+    if root is None:
+        raise ScenarioError(ScenarioIssue(file, 1, 1, "", "the file is empty"))
+    marks: dict[Loc, tuple[int, int]] = {(): (root.start_mark.line + 1, root.start_mark.column + 1)}
+    data = _construct(root, (), marks, file)
+    return data, marks
+
+
+def _fmt_path(loc: Loc) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += ("." if out else "") + str(part)
+    return out
+
+
+def _model_at(loc: Loc) -> type[BaseModel] | None:
+    """The pydantic model class that owns the field at ``loc`` (best effort, for hints)."""
+    model: Any = Scenario
+    for part in loc:
+        if isinstance(part, int):
+            continue
+        if not (isinstance(model, type) and issubclass(model, BaseModel)):
+            return None
+        field = model.model_fields.get(str(part))
+        if field is None:
+            return None
+        ann = field.annotation
+        model = _unwrap(ann)
+    return model if isinstance(model, type) and issubclass(model, BaseModel) else None
+
+
+def _unwrap(ann: Any) -> Any:
+    args = getattr(ann, "__args__", None)
+    if isinstance(ann, type) and issubclass(ann, BaseModel):
+        return ann
+    if args:
+        for a in args:
+            u = _unwrap(a)
+            if isinstance(u, type) and issubclass(u, BaseModel):
+                return u
+    return ann
+
+
+def _issue_from_error(err: dict[str, Any], marks: dict[Loc, tuple[int, int]], file: str) -> ScenarioIssue:
+    loc: Loc = tuple(p for p in err.get("loc", ()) if not (isinstance(p, str) and p.startswith("function-")))
+    # drop pydantic's union-member tags ("static", "Static[...]") that are not data keys
+    probe = loc
+    while probe and probe not in marks:
+        probe = probe[:-1]
+    line, col = marks.get(probe, (None, None))
+    msg = err.get("msg", "invalid value")
+    if err.get("type") == "extra_forbidden" and loc:
+        key = str(loc[-1])
+        owner = _model_at(loc[:-1])
+        hint = ""
+        if owner is not None:
+            close = difflib.get_close_matches(key, list(owner.model_fields), n=1, cutoff=0.6)
+            if close:
+                hint = f"; did you mean {close[0]!r}?"
+            else:
+                hint = f"; allowed keys: {', '.join(owner.model_fields)}"
+        msg = f"unknown key {key!r}{hint}"
+    elif "input" in err and err.get("type") not in ("missing",):
+        inp = err["input"]
+        if not isinstance(inp, (dict, list)):
+            msg = f"{msg} (got {inp!r})"
+    return ScenarioIssue(file, line, col, _fmt_path(loc), msg)
+
+
+def validate_scenario_data(data: Any, marks: dict[Loc, tuple[int, int]], file: str = "<scenario>",
+                           base_dir: Path | None = None) -> Scenario:
+    """Validate parsed YAML against the schema; raise :class:`ScenarioError` with every issue."""
+    if not isinstance(data, dict):
+        raise ScenarioError(ScenarioIssue(file, 1, 1, "", "a scenario must be a mapping of keys to values"))
+    try:
+        scn = Scenario.model_validate(data, context={"base_dir": base_dir})
+    except ValidationError as exc:
+        issues = [_issue_from_error(e, marks, file) for e in exc.errors(include_url=False)]
+        issues.sort(key=lambda i: (i.line or 0, i.column or 0))
+        raise ScenarioError(issues) from None
+    scn._source_file = file
+    scn._base_dir = str(base_dir) if base_dir is not None else None
+    return scn
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read, parse and validate a scenario file."""
+    p = Path(path)
+    file = str(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ScenarioError(ScenarioIssue(file, None, None, "", "no such file")) from None
+    except IsADirectoryError:
+        raise ScenarioError(ScenarioIssue(file, None, None, "", "is a directory, not a scenario file")) from None
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(ScenarioIssue(file, None, None, "", f"not UTF-8 text ({exc.reason})")) from None
+    except OSError as exc:
+        raise ScenarioError(ScenarioIssue(file, None, None, "", f"cannot read: {exc.strerror}")) from None
+    data, marks = load_yaml_with_marks(text, file)
+    return validate_scenario_data(data, marks, file, base_dir=p.resolve().parent)

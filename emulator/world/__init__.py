@@ -1,0 +1,1 @@
+"""Truth models: trajectory (and, later, Sun and sky)."""

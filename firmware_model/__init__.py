@@ -1,0 +1,22 @@
+"""The DSP firmware as a pure, synchronous model (numpy only; no asyncio, no emulator).
+
+This is the code a firmware team would port to C for the TMS320C6747: kernels over numpy
+arrays with their units, frames and the source paper's equation numbers in the docstrings,
+and their C674x cycle costs charged through :mod:`firmware_model.c674x`.
+"""
+
+from __future__ import annotations
+
+from .errors import FirmwareError
+from .firmware import UART_GNSS, UART_HOST, UART_IMU, UART_PSNS, Firmware, FirmwareConfig, TickResult
+
+__all__ = [
+    "Firmware",
+    "FirmwareConfig",
+    "FirmwareError",
+    "TickResult",
+    "UART_HOST",
+    "UART_IMU",
+    "UART_PSNS",
+    "UART_GNSS",
+]

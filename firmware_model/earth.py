@@ -1,0 +1,98 @@
+"""WGS-84 Earth model: radii, normal gravity, Earth and transport rates (ENU).
+
+The truth model in ``emulator.world`` imports these same functions, so truth and firmware use
+one gravity model (``shared/reference/algorithms.md`` section 1.1, which requires it).
+
+Conventions: navigation frame n = ENU; position ``p = [L, lambda, h]`` = latitude (rad),
+longitude (rad), ellipsoidal height (m).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = [
+    "A_WGS84",
+    "F_WGS84",
+    "E2_WGS84",
+    "OMEGA_IE",
+    "G0",
+    "radii",
+    "gravity",
+    "gravity_n",
+    "omega_ie_n",
+    "omega_en_n",
+    "m_pv",
+    "geodetic_to_ecef",
+]
+
+#: Semi-major axis, m (WGS-84).
+A_WGS84 = 6378137.0
+#: Flattening (WGS-84).
+F_WGS84 = 1.0 / 298.257223563
+#: First eccentricity squared, e^2 = f(2 - f).
+E2_WGS84 = F_WGS84 * (2.0 - F_WGS84)
+#: Earth rotation rate, rad/s (WGS-84 value; PSINS uses 7.2921151467e-5).
+OMEGA_IE = 7.2921151467e-5
+#: Equatorial normal gravity, m/s^2 (PSINS ``G0``).
+G0 = 9.7803267714
+#: Gravity-model coefficients (PSINS ``pos2g``, "grs80" in ``earth.m``).
+_G_B1 = 5.27094e-3
+_G_B2 = 2.32718e-5
+_G_H = 3.086e-6
+
+
+def radii(lat: float) -> tuple[float, float]:
+    """Meridian and prime-vertical radii of curvature ``(R_M, R_N)`` in m at latitude ``lat`` (rad)."""
+    s2 = math.sin(lat) ** 2
+    d = 1.0 - E2_WGS84 * s2
+    rn = A_WGS84 / math.sqrt(d)
+    rm = rn * (1.0 - E2_WGS84) / d
+    return rm, rn
+
+
+def gravity(lat: float, h: float) -> float:
+    """Magnitude of normal gravity, m/s^2 (algorithms.md 1.1, PSINS classic model).
+
+    ``g = g0 (1 + 5.27094e-3 sin^2 L + 2.32718e-5 sin^4 L) - 3.086e-6 h``.
+    At 39.979 deg, 50 m this is 9.801492 m/s^2.
+    """
+    s2 = math.sin(lat) ** 2
+    return G0 * (1.0 + _G_B1 * s2 + _G_B2 * s2 * s2) - _G_H * h
+
+
+def gravity_n(lat: float, h: float) -> np.ndarray:
+    """Gravity vector in ENU, ``[0, 0, -g]`` m/s^2."""
+    return np.array([0.0, 0.0, -gravity(lat, h)])
+
+
+def omega_ie_n(lat: float) -> np.ndarray:
+    """Earth rate in ENU, ``[0, w cos L, w sin L]`` rad/s."""
+    return np.array([0.0, OMEGA_IE * math.cos(lat), OMEGA_IE * math.sin(lat)])
+
+
+def omega_en_n(lat: float, h: float, v_enu: np.ndarray) -> np.ndarray:
+    """Transport rate in ENU, ``[-vN/R_Mh, vE/R_Nh, vE tan L/R_Nh]`` rad/s."""
+    rm, rn = radii(lat)
+    rmh, rnh = rm + h, rn + h
+    ve, vn = float(v_enu[0]), float(v_enu[1])
+    return np.array([-vn / rmh, ve / rnh, ve * math.tan(lat) / rnh])
+
+
+def m_pv(lat: float, h: float) -> np.ndarray:
+    """Map ENU velocity to ``[dL/dt, dlambda/dt, dh/dt]``: ``[[0,1/R_Mh,0],[1/(R_Nh cos L),0,0],[0,0,1]]``."""
+    rm, rn = radii(lat)
+    return np.array(
+        [[0.0, 1.0 / (rm + h), 0.0], [1.0 / ((rn + h) * math.cos(lat)), 0.0, 0.0], [0.0, 0.0, 1.0]]
+    )
+
+
+def geodetic_to_ecef(lat: float, lon: float, h: float) -> np.ndarray:
+    """WGS-84 geodetic (rad, rad, m) to ECEF (m)."""
+    _, rn = radii(lat)
+    cl, sl = math.cos(lat), math.sin(lat)
+    return np.array(
+        [(rn + h) * cl * math.cos(lon), (rn + h) * cl * math.sin(lon), (rn * (1.0 - E2_WGS84) + h) * sl]
+    )

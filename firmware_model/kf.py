@@ -1,0 +1,160 @@
+"""15-state error-state Kalman filter in ENU (base paper, Liang & Bai, Eqs. 15-20, 44-49).
+
+State order (Eq. 15)::
+
+    x = [phi_E phi_N phi_U | dv_E dv_N dv_U | dL dlambda dh | eps_x eps_y eps_z | nab_x nab_y nab_z]
+
+phi in rad (misalignment, ``C_b^{n'} = (I - [phi x]) C_b^n``), dv in m/s, dL and dlambda in
+rad, dh in m, gyro drift eps in rad/s (body), accelerometer bias nabla in m/s^2 (body).
+Errors are "computed minus true".
+
+F follows the element list of ``shared/reference/algorithms.md`` section 1.3 (PSINS ``etm``,
+checked there against numerical Jacobians); the base paper's F_S block (Eq. 18) is
+``[[-C_b^n, 0], [0, C_b^n], [0, 0]]`` in this sign convention. Discretisation
+``Phi = I + F T`` (PSINS ``kffk``), ``Q_k = Q_t T``.
+
+Measurement updates are processed one scalar at a time in Joseph form, written in O(n^2):
+with ``a = P h``, ``s = h a + r``, ``K = a / s``::
+
+    P' = (I - K h) P (I - K h)^T + r K K^T = P - K a^T - a K^T + s K K^T
+
+which holds for any gain K and keeps P symmetric positive semi-definite in float32.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import earth
+
+__all__ = [
+    "N_STATES",
+    "IDX_ATT",
+    "IDX_VEL",
+    "IDX_POS",
+    "IDX_GYRO",
+    "IDX_ACC",
+    "error_transition_matrix",
+    "kf_predict",
+    "kf_update_scalar",
+]
+
+N_STATES = 15
+IDX_ATT = slice(0, 3)
+IDX_VEL = slice(3, 6)
+IDX_POS = slice(6, 9)
+IDX_GYRO = slice(9, 12)
+IDX_ACC = slice(12, 15)
+
+
+def error_transition_matrix(
+    cbn: np.ndarray, v_enu: np.ndarray, pos: np.ndarray, f_n: np.ndarray, dtype: type = np.float32
+) -> np.ndarray:
+    """Continuous-time error dynamics F (15x15), algorithms.md 1.3 element list.
+
+    Parameters
+    ----------
+    cbn : (3, 3) ``C_b^n``.
+    v_enu : (3,) ENU velocity, m/s.
+    pos : (3,) ``[L rad, lambda rad, h m]``.
+    f_n : (3,) specific force in n, m/s^2.
+    """
+    lat, h = float(pos[0]), float(pos[2])
+    ve, vn, vu = (float(x) for x in v_enu)
+    fe, fn, fu = (float(x) for x in f_n)
+    s, c = math.sin(lat), math.cos(lat)
+    t = s / c
+    sec = 1.0 / c
+    W = earth.OMEGA_IE
+    rm, rn = earth.radii(lat)
+    rmh, rnh = rm + h, rn + h
+    F = np.zeros((15, 15), dtype=np.float64)
+    # attitude rows (1-3)
+    F[0, 1] = W * s + ve * t / rnh
+    F[0, 2] = -(W * c + ve / rnh)
+    F[0, 4] = -1.0 / rmh
+    F[0, 8] = vn / rmh**2
+    F[1, 0] = -(W * s + ve * t / rnh)
+    F[1, 2] = -vn / rmh
+    F[1, 3] = 1.0 / rnh
+    F[1, 6] = -W * s
+    F[1, 8] = -ve / rnh**2
+    F[2, 0] = W * c + ve / rnh
+    F[2, 1] = vn / rmh
+    F[2, 3] = t / rnh
+    F[2, 6] = W * c + ve * sec**2 / rnh
+    F[2, 8] = -ve * t / rnh**2
+    F[0:3, 9:12] = -cbn
+    # velocity rows (4-6)
+    F[3, 1] = -fu
+    F[3, 2] = fn
+    F[4, 0] = fu
+    F[4, 2] = -fe
+    F[5, 0] = -fn
+    F[5, 1] = fe
+    F[3, 3] = (vn * t - vu) / rnh
+    F[3, 4] = 2 * W * s + ve * t / rnh
+    F[3, 5] = -(2 * W * c + ve / rnh)
+    F[3, 6] = 2 * W * (vu * s + vn * c) + ve * vn * sec**2 / rnh
+    F[3, 8] = ve * (vu - vn * t) / rnh**2
+    F[4, 3] = -2 * (W * s + ve * t / rnh)
+    F[4, 4] = -vu / rmh
+    F[4, 5] = -vn / rmh
+    F[4, 6] = -2 * W * ve * c - ve**2 * sec**2 / rnh
+    F[4, 8] = vu * vn / rmh**2 + ve**2 * t / rnh**2
+    F[5, 3] = 2 * (W * c + ve / rnh)
+    F[5, 4] = 2 * vn / rmh
+    F[5, 6] = -2 * W * ve * s - earth.G0 * (2 * 5.27094e-3 + 4 * 2.32718e-5 * s * s) * s * c
+    F[5, 8] = -(vn**2) / rmh**2 - ve**2 / rnh**2 + 3.086e-6
+    F[3:6, 12:15] = cbn
+    # position rows (7-9)
+    F[6, 4] = 1.0 / rmh
+    F[6, 8] = -vn / rmh**2
+    F[7, 3] = sec / rnh
+    F[7, 6] = ve * t * sec / rnh
+    F[7, 8] = -ve * sec / rnh**2
+    F[8, 5] = 1.0
+    return F.astype(dtype)
+
+
+def kf_predict(
+    x: np.ndarray, P: np.ndarray, Phi: np.ndarray, Qk: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Time update (Eqs. 45, 48): ``x = Phi x``, ``P = Phi P Phi^T + Q_k``, symmetrised.
+
+    Shapes: x (n,), P (n, n), Phi (n, n), Qk (n, n) or (n,) diagonal.
+    """
+    x = Phi @ x
+    P = Phi @ P @ Phi.T
+    if Qk.ndim == 1:
+        P[np.diag_indices_from(P)] += Qk
+    else:
+        P = P + Qk
+    P = 0.5 * (P + P.T)
+    return x, P
+
+
+def kf_update_scalar(
+    x: np.ndarray, P: np.ndarray, h: np.ndarray, z: float, r: float
+) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """One scalar measurement update in O(n^2) Joseph form (Eqs. 46, 47, 49).
+
+    Parameters
+    ----------
+    h : (n,) measurement row; z : measurement; r : its noise variance.
+
+    Returns
+    -------
+    x, P, innovation ``z - h x``, innovation variance ``s = h P h^T + r``.
+    """
+    dt = P.dtype
+    a = P @ h
+    s = float(h @ a) + r
+    innov = float(z - h @ x)
+    K = (a / dt.type(s)).astype(dt)
+    x = x + K * dt.type(innov)
+    P = P - np.outer(K, a) - np.outer(a, K) + dt.type(s) * np.outer(K, K)
+    P = 0.5 * (P + P.T)
+    return x, P.astype(dt), innov, s

@@ -1,0 +1,27 @@
+"""Wire formats of psns-hil: frame specs, checksums and the one streaming decoder.
+
+Depends on nothing else of ours. Every frame family is a module with a declarative
+``construct`` layout, a :class:`~protocols.stream.FrameFormat` for the streaming decoder and
+an encoder; ``docs/icd.md`` is the byte-by-byte interface control document.
+"""
+
+from __future__ import annotations
+
+from .errors import ChecksumError, FrameError, ProtocolError, PsnsHilError
+from .stream import BAD_LENGTH, NEED_MORE, DecoderStats, FrameFormat, StreamDecoder, parse_one
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "PsnsHilError",
+    "ProtocolError",
+    "FrameError",
+    "ChecksumError",
+    "StreamDecoder",
+    "FrameFormat",
+    "DecoderStats",
+    "NEED_MORE",
+    "BAD_LENGTH",
+    "parse_one",
+    "__version__",
+]

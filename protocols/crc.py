@@ -1,0 +1,92 @@
+"""Checksums used on the wire.
+
+=====================  ==================================================================  ==========
+function               algorithm                                                           check(*)
+=====================  ==================================================================  ==========
+``crc8_stim``          CRC-8, poly 0x07, init 0xFF, no reflection, no xor (STIM210/300)     0xFB
+``crc16_ccitt``        CRC-16/CCITT-FALSE, poly 0x1021, init 0xFFFF, no refl., no xor       0x29B1
+``crc32_mpeg2``        CRC-32/MPEG-2, poly 0x04C11DB7, init 0xFFFFFFFF, no refl., no xor    0x0376E6E7
+``nmea_checksum``      XOR of every byte between ``$`` and ``*``                            --
+``ubx_fletcher``       8-bit Fletcher over class, id, length, payload (u-blox)              --
+=====================  ==================================================================  ==========
+
+(*) ``check`` is the CRC of the ASCII bytes ``b"123456789"`` (the catalogue convention).
+Sources: ``shared/reference/protocols.md`` section 1.7 (STIM CRCs, from TS1524 r31 and the
+c2a-aobc STIM210 driver); CRC-16/CCITT is ``binascii.crc_hqx`` seeded with 0xFFFF.
+"""
+
+from __future__ import annotations
+
+import binascii
+
+__all__ = ["crc8_stim", "crc16_ccitt", "crc32_mpeg2", "nmea_checksum", "ubx_fletcher"]
+
+
+def _crc8_table(poly: int) -> bytes:
+    table = bytearray(256)
+    for i in range(256):
+        c = i
+        for _ in range(8):
+            c = ((c << 1) ^ poly) & 0xFF if c & 0x80 else (c << 1) & 0xFF
+        table[i] = c
+    return bytes(table)
+
+
+def _crc32_table(poly: int) -> tuple[int, ...]:
+    table = []
+    for i in range(256):
+        c = i << 24
+        for _ in range(8):
+            c = ((c << 1) ^ poly) & 0xFFFFFFFF if c & 0x80000000 else (c << 1) & 0xFFFFFFFF
+        table.append(c)
+    return tuple(table)
+
+
+_CRC8_07 = _crc8_table(0x07)
+_CRC32_04C11DB7 = _crc32_table(0x04C11DB7)
+
+
+def crc8_stim(data: bytes | bytearray | memoryview, init: int = 0xFF) -> int:
+    """CRC-8 (poly 0x07, init 0xFF) as used by the STIM210 normal datagram and STIM utility mode."""
+    c = init
+    table = _CRC8_07
+    for b in data:
+        c = table[c ^ b]
+    return c
+
+
+def crc16_ccitt(data: bytes | bytearray | memoryview, init: int = 0xFFFF) -> int:
+    """CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF); used by the FPGA, PSNS and host frames."""
+    return binascii.crc_hqx(data, init)
+
+
+def crc32_mpeg2(data: bytes | bytearray | memoryview, init: int = 0xFFFFFFFF) -> int:
+    """CRC-32/MPEG-2 (poly 0x04C11DB7, init 0xFFFFFFFF, MSB first) of the STIM300 datagrams.
+
+    The STIM300 appends N dummy 0x00 bytes to the covered bytes (never sent) so that the
+    CRC input is a multiple of four bytes; pass them in ``data``.
+    """
+    c = init
+    table = _CRC32_04C11DB7
+    for b in data:
+        c = ((c << 8) & 0xFFFFFFFF) ^ table[((c >> 24) ^ b) & 0xFF]
+    return c
+
+
+def nmea_checksum(body: bytes | str) -> int:
+    """XOR of the sentence body: every character strictly between ``$`` and ``*``."""
+    if isinstance(body, str):
+        body = body.encode("ascii")
+    c = 0
+    for b in body:
+        c ^= b
+    return c
+
+
+def ubx_fletcher(data: bytes | bytearray | memoryview) -> tuple[int, int]:
+    """u-blox 8-bit Fletcher checksum (CK_A, CK_B) over class, id, length and payload."""
+    a = b = 0
+    for x in data:
+        a = (a + x) & 0xFF
+        b = (b + a) & 0xFF
+    return a, b

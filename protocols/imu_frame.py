@@ -1,0 +1,171 @@
+"""FPGA-to-DSP IMU frame on DSP UART1, and the accelerometer ADC words it carries.
+
+The virtual FPGA strobes the STIM210 external trigger every 5 ms (200 Hz), samples the three
+analog accelerometers with a 24-bit ADC on the same edge, latches its free-running 1 MHz
+counter on the trigger and on every GNSS PPS rising edge, and packs one IMU frame per
+trigger. Layout (little-endian, the C6747's native byte order; ICD section "IMU frame")::
+
+    off  size  field            type   unit / meaning
+    0    2     sync             0x55 0xAA
+    2    1     msg_type         u8     0x01 = IMU frame
+    3    1     payload_len      u8     34 (bytes 4..37)
+    4    2     seq              u16    frame sequence, wraps
+    6    4     t_trigger_us     u32    FPGA counter at the ExtTrig edge, us (wraps after 71.6 min)
+    10   4     t_pps_us         u32    FPGA counter latched at the last PPS rising edge, us
+    14   1     pps_count        u8     number of PPS edges seen, wraps
+    15   9     gyro             3x s24 STIM words X, Y, Z as received (2^-14 deg/s or 2^-21 deg)
+    24   1     gyro_status      u8     STIM STATUS byte
+    25   1     gyro_counter     u8     STIM 2000 Hz sample counter (steps by 10 at 200 Hz)
+    26   2     gyro_latency_us  u16    STIM latency, us
+    28   9     accel            3x s24 ADC codes X, Y, Z (see ADC scale below)
+    37   1     fpga_status      u8     bit flags, :class:`FpgaStatus`
+    38   2     crc              u16    CRC-16/CCITT-FALSE over bytes 2..37
+
+Accelerometer ADC (documented design values; ICD "Accelerometer acquisition"):
+24-bit two's-complement, +-4.096 V differential reference, so ``ADC_VOLTS_PER_LSB`` =
+4.096 / 2^23 V. Accelerometers: Colibrys MS9030 on x (+-30 g, +-2.7 V differential output,
+90 mV/g, the MS1000/MS9000 family table), and the +-25 g parts on y and z scaled to the
+same +-2.7 V swing (108 mV/g).
+"""
+
+from __future__ import annotations
+
+import enum
+import struct
+from dataclasses import dataclass
+
+from construct import Array, Const, Int8ul, Int16ul, Int24sl, Int32ul, Struct
+
+from .crc import crc16_ccitt
+from .stream import BAD_LENGTH, NEED_MORE
+
+__all__ = [
+    "IMU_SYNC",
+    "IMU_MSG_TYPE",
+    "IMU_FRAME_LEN",
+    "ADC_VREF_V",
+    "ADC_VOLTS_PER_LSB",
+    "ACCEL_VOLTS_PER_G",
+    "ADC_CODE_MAX",
+    "FpgaStatus",
+    "ImuFrame",
+    "ImuFrameFormat",
+    "IMU_FRAME_SPEC",
+]
+
+IMU_SYNC = b"\x55\xaa"
+IMU_MSG_TYPE = 0x01
+IMU_PAYLOAD_LEN = 34
+IMU_FRAME_LEN = 40
+
+#: ADC reference, V (full scale is +-ADC_VREF_V).
+ADC_VREF_V = 4.096
+#: Volts per ADC LSB.
+ADC_VOLTS_PER_LSB = ADC_VREF_V / 2**23
+#: Largest positive 24-bit code.
+ADC_CODE_MAX = 2**23 - 1
+#: Accelerometer sensitivity per axis, V/g (x: MS9030 90 mV/g; y, z: +-25 g over +-2.7 V).
+ACCEL_VOLTS_PER_G = (0.090, 2.7 / 25.0, 2.7 / 25.0)
+
+
+class FpgaStatus(enum.IntFlag):
+    """``fpga_status`` bits of the IMU frame."""
+
+    GYRO_MISSING = 0x01  #: no valid gyro datagram since the previous trigger (fields repeat the last one)
+    GYRO_CRC_ERROR = 0x02  #: at least one gyro datagram failed its CRC since the previous frame
+    GYRO_COUNTER_JUMP = 0x04  #: gyro counter did not step by the expected amount
+    ADC_OVERRANGE = 0x08  #: an ADC code is at full scale
+    PPS_VALID = 0x10  #: a PPS edge was seen within the last 1.5 s
+
+
+IMU_FRAME_SPEC = Struct(
+    "sync" / Const(IMU_SYNC),
+    "msg_type" / Const(IMU_MSG_TYPE, Int8ul),
+    "payload_len" / Const(IMU_PAYLOAD_LEN, Int8ul),
+    "seq" / Int16ul,
+    "t_trigger_us" / Int32ul,
+    "t_pps_us" / Int32ul,
+    "pps_count" / Int8ul,
+    "gyro" / Array(3, Int24sl),
+    "gyro_status" / Int8ul,
+    "gyro_counter" / Int8ul,
+    "gyro_latency_us" / Int16ul,
+    "accel" / Array(3, Int24sl),
+    "fpga_status" / Int8ul,
+    "crc" / Int16ul,
+)
+
+
+@dataclass(frozen=True, slots=True)
+class ImuFrame:
+    """One decoded FPGA IMU frame (raw integer fields; see module docstring for units)."""
+
+    seq: int
+    t_trigger_us: int
+    t_pps_us: int
+    pps_count: int
+    gyro: tuple[int, int, int]
+    gyro_status: int
+    gyro_counter: int
+    gyro_latency_us: int
+    accel: tuple[int, int, int]
+    fpga_status: int
+
+
+_HEAD = struct.Struct("<HIIB")
+_MID = struct.Struct("<BBH")
+
+
+def _s24le(b: bytes, i: int) -> int:
+    v = b[i] | (b[i + 1] << 8) | (b[i + 2] << 16)
+    return v - 0x1000000 if v & 0x800000 else v
+
+
+def _p24le(v: int) -> bytes:
+    if not -0x800000 <= v <= 0x7FFFFF:
+        raise ValueError(f"value {v} outside s24")
+    return (v & 0xFFFFFF).to_bytes(3, "little")
+
+
+class ImuFrameFormat:
+    """:class:`~protocols.stream.FrameFormat` of the FPGA IMU frame."""
+
+    name = "imu"
+    sync = IMU_SYNC
+
+    def frame_length(self, buf: bytearray, start: int) -> int:
+        if len(buf) - start < 4:
+            return NEED_MORE
+        if buf[start + 2] != IMU_MSG_TYPE or buf[start + 3] != IMU_PAYLOAD_LEN:
+            return BAD_LENGTH
+        return IMU_FRAME_LEN
+
+    def check(self, frame: bytes) -> bool:
+        return crc16_ccitt(frame[2:38]) == (frame[38] | (frame[39] << 8))
+
+    def parse(self, frame: bytes) -> ImuFrame:
+        seq, t_trig, t_pps, pps_count = _HEAD.unpack_from(frame, 4)
+        gstat, gcnt, glat = _MID.unpack_from(frame, 24)
+        return ImuFrame(
+            seq=seq,
+            t_trigger_us=t_trig,
+            t_pps_us=t_pps,
+            pps_count=pps_count,
+            gyro=(_s24le(frame, 15), _s24le(frame, 18), _s24le(frame, 21)),
+            gyro_status=gstat,
+            gyro_counter=gcnt,
+            gyro_latency_us=glat,
+            accel=(_s24le(frame, 28), _s24le(frame, 31), _s24le(frame, 34)),
+            fpga_status=frame[37],
+        )
+
+    def build(self, f: ImuFrame) -> bytes:
+        body = bytearray((IMU_MSG_TYPE, IMU_PAYLOAD_LEN))
+        body += _HEAD.pack(f.seq & 0xFFFF, f.t_trigger_us & 0xFFFFFFFF, f.t_pps_us & 0xFFFFFFFF, f.pps_count & 0xFF)
+        for w in f.gyro:
+            body += _p24le(w)
+        body += _MID.pack(f.gyro_status & 0xFF, f.gyro_counter & 0xFF, f.gyro_latency_us & 0xFFFF)
+        for w in f.accel:
+            body += _p24le(w)
+        body.append(f.fpga_status & 0xFF)
+        return IMU_SYNC + bytes(body) + crc16_ccitt(body).to_bytes(2, "little")

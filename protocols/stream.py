@@ -1,0 +1,228 @@
+"""The one sans-IO streaming decoder shared by every interface.
+
+A :class:`StreamDecoder` is given byte chunks of any size with :meth:`StreamDecoder.feed`
+and returns the whole frames found so far. It never raises on bad bytes: it counts garbage
+bytes, checksum failures, bad lengths and resynchronisations (:class:`DecoderStats`) and
+carries on. After a failed candidate it resynchronises at *header + 1*, never after a
+declared length that may itself be corrupt, so the next good frame is found within one
+frame length of the corruption.
+
+What a frame looks like is told by :class:`FrameFormat` objects (one per frame family:
+a STIM datagram format, the FPGA IMU frame, NMEA sentences, UBX, ...). A port that carries
+several families (a GNSS port with NMEA and UBX) gives the decoder several formats; the
+earliest sync in the buffer wins.
+
+The firmware model (``firmware_model``) and the emulator's monitor use this same class.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Protocol, Sequence, runtime_checkable
+
+__all__ = ["NEED_MORE", "BAD_LENGTH", "FrameFormat", "DecoderStats", "StreamDecoder", "parse_one"]
+
+#: ``FrameFormat.frame_length`` result: not enough bytes yet to know the length.
+NEED_MORE = -1
+#: ``FrameFormat.frame_length`` result: the header declares an impossible length.
+BAD_LENGTH = -2
+
+
+@runtime_checkable
+class FrameFormat(Protocol):
+    """How one frame family is delimited, checked and parsed.
+
+    Attributes
+    ----------
+    name:
+        Short name used in statistics (``"stim210"``, ``"nmea"``, ...).
+    sync:
+        The byte string that starts every frame of this family.
+    """
+
+    name: str
+    sync: bytes
+
+    def frame_length(self, buf: bytearray, start: int) -> int:
+        """Length in bytes of the frame starting at ``buf[start]``.
+
+        Returns :data:`NEED_MORE` when more bytes are needed to tell, :data:`BAD_LENGTH`
+        when the header is impossible.
+        """
+
+    def check(self, frame: bytes) -> bool:
+        """True when the frame's checksum (or other integrity check) holds."""
+
+    def parse(self, frame: bytes) -> Any:
+        """Decode a checked frame into its frame object. May raise ``ValueError``."""
+
+
+@dataclass
+class DecoderStats:
+    """Counters of a :class:`StreamDecoder` (monotonic, never reset implicitly)."""
+
+    bytes_in: int = 0
+    frames: int = 0
+    garbage_bytes: int = 0
+    crc_errors: int = 0
+    length_errors: int = 0
+    parse_errors: int = 0
+    resyncs: int = 0
+    per_format: dict[str, int] = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "bytes_in": self.bytes_in,
+            "frames": self.frames,
+            "garbage_bytes": self.garbage_bytes,
+            "crc_errors": self.crc_errors,
+            "length_errors": self.length_errors,
+            "parse_errors": self.parse_errors,
+            "resyncs": self.resyncs,
+            "per_format": dict(self.per_format),
+        }
+
+
+class StreamDecoder:
+    """Incremental framer over one byte stream.
+
+    Parameters
+    ----------
+    formats:
+        The frame families expected on this stream.
+    max_buffer:
+        Bytes kept while waiting for the end of a candidate frame; beyond it the oldest
+        candidate is abandoned (counted as a length error) so memory stays bounded.
+    """
+
+    def __init__(self, formats: Sequence[FrameFormat], max_buffer: int = 65536) -> None:
+        if not formats:
+            raise ValueError("StreamDecoder needs at least one FrameFormat")
+        self.formats = tuple(formats)
+        self.stats = DecoderStats(per_format={f.name: 0 for f in self.formats})
+        self._buf = bytearray()
+        self._pos = 0
+        self._in_garbage = False
+        self._max_buffer = max_buffer
+        self._max_sync = max(len(f.sync) for f in self.formats)
+        self._single = self.formats[0] if len(self.formats) == 1 else None
+
+    # -- public API -----------------------------------------------------------------
+    def feed(self, data: bytes | bytearray | memoryview) -> list[Any]:
+        """Append ``data`` and return every whole, checked frame now available, in order."""
+        if data:
+            self.stats.bytes_in += len(data)
+            self._buf += data
+        out: list[Any] = []
+        self._scan(out)
+        return out
+
+    def pending(self) -> int:
+        """Bytes held waiting for more input."""
+        return len(self._buf) - self._pos
+
+    def flush(self) -> None:
+        """Drop everything buffered, counting it as garbage (end of stream)."""
+        n = len(self._buf) - self._pos
+        if n:
+            self.stats.garbage_bytes += n
+        self._buf.clear()
+        self._pos = 0
+
+    # -- internals ----------------------------------------------------------------
+    def _garbage(self, n: int) -> None:
+        if n <= 0:
+            return
+        self.stats.garbage_bytes += n
+        if not self._in_garbage:
+            self._in_garbage = True
+            self.stats.resyncs += 1
+
+    def _find(self, pos: int) -> tuple[int, FrameFormat | None]:
+        buf = self._buf
+        if self._single is not None:
+            return buf.find(self._single.sync, pos), self._single
+        best = -1
+        best_fmt = None
+        for fmt in self.formats:
+            p = buf.find(fmt.sync, pos)
+            if p >= 0 and (best < 0 or p < best):
+                best, best_fmt = p, fmt
+        return best, best_fmt
+
+    def _scan(self, out: list[Any]) -> None:
+        buf = self._buf
+        pos = self._pos
+        stats = self.stats
+        while True:
+            p, fmt = self._find(pos)
+            if p < 0 or fmt is None:
+                # Keep a tail that might be the beginning of a sync sequence.
+                keep_from = max(pos, len(buf) - (self._max_sync - 1))
+                self._garbage(keep_from - pos)
+                pos = keep_from
+                break
+            self._garbage(p - pos)
+            pos = p
+            n = fmt.frame_length(buf, p)
+            if n == NEED_MORE:
+                if len(buf) - p > self._max_buffer:
+                    stats.length_errors += 1
+                    self._garbage(1)
+                    pos = p + 1
+                    continue
+                break
+            if n == BAD_LENGTH or n <= 0:
+                stats.length_errors += 1
+                self._garbage(1)
+                pos = p + 1
+                continue
+            if len(buf) - p < n:
+                if n > self._max_buffer:
+                    stats.length_errors += 1
+                    self._garbage(1)
+                    pos = p + 1
+                    continue
+                break
+            frame = bytes(buf[p : p + n])
+            if not fmt.check(frame):
+                stats.crc_errors += 1
+                self._garbage(1)
+                pos = p + 1
+                continue
+            try:
+                obj = fmt.parse(frame)
+            except (ValueError, KeyError, IndexError, UnicodeDecodeError):
+                stats.parse_errors += 1
+                self._garbage(1)
+                pos = p + 1
+                continue
+            out.append(obj)
+            stats.frames += 1
+            stats.per_format[fmt.name] += 1
+            self._in_garbage = False
+            pos = p + n
+        # Compact the buffer.
+        if pos:
+            del buf[:pos]
+        self._pos = 0
+
+
+def parse_one(fmt: FrameFormat, frame: bytes) -> Any:
+    """Strictly parse exactly one frame, raising :class:`~protocols.errors.ProtocolError`.
+
+    For tests and tools that hold one frame; streams go through :class:`StreamDecoder`.
+    """
+    from .errors import ChecksumError, FrameError
+
+    if not frame.startswith(fmt.sync):
+        raise FrameError(f"{fmt.name}: frame does not start with sync {fmt.sync.hex()}")
+    n = fmt.frame_length(bytearray(frame), 0)
+    if n != len(frame):
+        raise FrameError(f"{fmt.name}: expected {n} bytes from the header, got {len(frame)}")
+    if not fmt.check(frame):
+        raise ChecksumError(f"{fmt.name}: checksum mismatch in {frame.hex()}")
+    try:
+        return fmt.parse(frame)
+    except (ValueError, KeyError, IndexError, UnicodeDecodeError) as exc:
+        raise FrameError(f"{fmt.name}: {exc}") from exc

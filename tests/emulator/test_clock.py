@@ -1,0 +1,55 @@
+"""Virtual time jumps when everything waits; realtime follows the wall clock."""
+
+import asyncio
+import time
+
+from emulator.clock import EmulatorLoop, sleep_until
+
+
+def run(loop, coro):
+    try:
+        return loop.run_until_complete(coro)
+    finally:
+        loop.close()
+
+
+def test_fast_mode_sixty_virtual_seconds_take_no_wall_time():
+    loop = EmulatorLoop("fast")
+    seen = []
+
+    async def main():
+        for k in range(1, 61):
+            await sleep_until(float(k))
+            seen.append(loop.time())
+
+    t0 = time.perf_counter()
+    run(loop, main())
+    assert time.perf_counter() - t0 < 1.0
+    assert seen == [float(k) for k in range(1, 61)]
+
+
+def test_fast_mode_orders_timers_by_time():
+    loop = EmulatorLoop("fast")
+    order = []
+
+    async def main():
+        lp = asyncio.get_running_loop()
+        for t in (0.3, 0.1, 0.2):
+            lp.call_at(t, order.append, t)
+        await asyncio.sleep(1.0)
+
+    run(loop, main())
+    assert order == [0.1, 0.2, 0.3]
+
+
+def test_realtime_speed_scales_the_clock():
+    loop = EmulatorLoop("realtime", speed=20.0)
+
+    async def main():
+        lp = asyncio.get_running_loop()
+        t0w = time.perf_counter()
+        await sleep_until(lp.time() + 1.0)  # one scenario second = 50 ms of wall time
+        return time.perf_counter() - t0w
+
+    wall = run(loop, main())
+    assert 0.04 < wall < 0.5

@@ -1,0 +1,94 @@
+"""The quickstart slice end to end: sensors -> FPGA -> DSP firmware -> host, against truth."""
+
+import json
+
+import pytest
+
+from emulator.recorder import read_capture
+from emulator.runner import run_scenario
+from emulator.scenario import load_scenario
+from protocols.imu_frame import ImuFrameFormat
+from protocols.nmea import Gga, NmeaFormat
+from protocols.stim import Stim210Format
+from protocols.stream import StreamDecoder
+
+
+@pytest.fixture(scope="module")
+def short_run(tmp_path_factory):
+    from tests.conftest import SCENARIOS
+
+    scn = load_scenario(SCENARIOS / "quickstart.yaml")
+    scn.duration_s = 30.0
+    out = tmp_path_factory.mktemp("qs")
+    summary = run_scenario(scn, out / "run")
+    return scn, summary, out / "run"
+
+
+def test_dsp_decoded_exactly_the_frames_the_devices_sent(short_run):
+    scn, s, run_dir = short_run
+    header, records = read_capture(run_dir / "capture.psnscap")
+    gyro_in = b"".join(r.data for r in records if r.link == "gyro" and r.direction == "in")
+    uart1_in = b"".join(r.data for r in records if r.link == "uart1" and r.direction == "in")
+    datagrams = StreamDecoder([Stim210Format("m")]).feed(gyro_in)
+    imu_frames = StreamDecoder([ImuFrameFormat()]).feed(uart1_in)
+    # every datagram the STIM model transmitted arrived, in order, unaltered, inside an IMU frame
+    assert len(datagrams) == s["devices"]["gyro_datagrams"]
+    assert len(imu_frames) in (len(datagrams), len(datagrams) - 1)  # the last may still be in flight
+    assert [f.gyro for f in imu_frames] == [d.gyro for d in datagrams[: len(imu_frames)]]
+    assert [f.gyro_counter for f in imu_frames] == [d.counter for d in datagrams[: len(imu_frames)]]
+    assert all((b.gyro_counter - a.gyro_counter) % 256 == 10 for a, b in zip(imu_frames, imu_frames[1:]))
+    # the firmware decoded each of them once and nothing else
+    fw = s["firmware"]
+    assert fw["counters"]["imu_frames"] == len(imu_frames)
+    assert fw["decoders"]["uart1"]["frames"] == len(imu_frames)
+    assert fw["decoders"]["uart1"]["crc_errors"] == 0 and fw["decoders"]["uart1"]["garbage_bytes"] == 0
+    assert fw["counters"]["gyro_counter_jumps"] == 0
+    # GNSS: every sentence pair the receiver sent reached the firmware through the FPGA
+    gnss_in = b"".join(r.data for r in records if r.link == "gnss" and r.direction == "in")
+    sentences = StreamDecoder([NmeaFormat()]).feed(gnss_in)
+    ggas = [x for x in sentences if isinstance(x, Gga)]
+    assert len(ggas) == s["devices"]["gnss_epochs"]
+    assert fw["counters"]["gnss_fixes"] == len(ggas)
+    assert fw["decoders"]["uart3"]["frames"] == len(sentences)
+    # the host saw the navigation frames the DSP sent (100 Hz)
+    assert s["links"]["uart0"]["frames"] >= 100 * 30 - 2
+    assert s["links"]["host"]["crc_errors"] == 0
+
+
+def test_navigation_error_is_bounded_against_truth(short_run):
+    _, s, _ = short_run
+    e = s["nav_error"]
+    assert e["position_m"]["rms"] < 20.0
+    assert e["velocity_mps"]["rms"] < 0.5
+    assert e["attitude_deg"]["max"] < 2.0
+    assert s["dsp"]["deadline_misses"] == 0
+    assert 0 < s["dsp"]["tick_utilization_max_pct"] < 20.0
+
+
+def test_run_directory_contents(short_run):
+    _, s, run_dir = short_run
+    summary = json.loads((run_dir / "summary.json").read_text())
+    for key in ("scenario", "seed", "mode", "sim_duration_s", "wall_s", "realtime_factor", "nav_error", "links", "dsp"):
+        assert key in summary
+    for m in ("attitude_deg", "heading_deg", "position_m", "velocity_mps"):
+        assert set(summary["nav_error"][m]) == {"rms", "max"}
+    for name in ("gyro", "gnss", "host", "uart0", "uart1", "uart3"):
+        assert set(summary["links"][name]) >= {"bytes", "frames", "crc_errors", "dropped"}
+    assert set(summary["dsp"]) >= {"clock_hz", "cpu_load_pct_max", "deadline_misses"}
+    nav_head = (run_dir / "nav.csv").read_text().splitlines()[0].split(",")
+    truth_head = (run_dir / "truth.csv").read_text().splitlines()[0].split(",")
+    assert "lat_deg" in nav_head and "vel_e_mps" in nav_head and "err_pos_m" in nav_head
+    assert truth_head[:4] == ["time_s", "lat_deg", "lon_deg", "height_m"]
+
+
+def test_same_seed_gives_identical_bytes(tmp_path):
+    from tests.conftest import SCENARIOS
+
+    scn = load_scenario(SCENARIOS / "quickstart.yaml")
+    scn.duration_s = 5.0
+    run_scenario(scn, tmp_path / "a")
+    run_scenario(scn, tmp_path / "b")
+    assert (tmp_path / "a" / "nav.csv").read_bytes() == (tmp_path / "b" / "nav.csv").read_bytes()
+    ha, ra = read_capture(tmp_path / "a" / "capture.psnscap")
+    hb, rb = read_capture(tmp_path / "b" / "capture.psnscap")
+    assert [(r.t_s, r.link, r.data) for r in ra] == [(r.t_s, r.link, r.data) for r in rb]

@@ -1,0 +1,40 @@
+"""Checksums against catalogue check values and the STIM300 datasheet's own examples."""
+
+from protocols.crc import crc8_stim, crc16_ccitt, crc32_mpeg2, nmea_checksum, ubx_fletcher
+
+CHECK = b"123456789"
+
+
+def test_crc8_check_value():
+    # CRC-8 poly 0x07 init 0xFF: check("123456789") = 0xFB (protocols.md 1.7)
+    assert crc8_stim(CHECK) == 0xFB
+
+
+def test_crc8_stim_utility_mode_datasheet_examples():
+    # TS1524 r31 Figure 10-2: "$isn," -> 28 and "#isn,0,N2558184602002," -> 32 (decimal ASCII)
+    assert crc8_stim(b"$isn,") == 28
+    assert crc8_stim(b"#isn,0,N2558184602002,") == 32
+
+
+def test_crc16_ccitt_false_check_value():
+    assert crc16_ccitt(CHECK) == 0x29B1
+
+
+def test_crc32_mpeg2_check_value_and_residue():
+    assert crc32_mpeg2(CHECK) == 0x0376E6E7
+    data = bytes(range(1, 17))
+    crc = crc32_mpeg2(data)
+    # running data + the big-endian CRC through the CRC leaves residue 0 (fprime's check)
+    assert crc32_mpeg2(data + crc.to_bytes(4, "big")) == 0
+
+
+def test_nmea_checksum_known_sentence():
+    # $GPGGA,...*5B from protocols.md 2.4 (built and parsed by pynmea2 there)
+    body = "GPGGA,120000.00,3952.95000,N,11623.91600,E,1,12,0.80,44.0,M,6.1,M,,"
+    assert nmea_checksum(body) == 0x5B
+
+
+def test_ubx_fletcher_known_polls():
+    # Well-known poll frames: CFG-PRT "B5 62 06 00 00 00 06 18", NAV-PVT "B5 62 01 07 00 00 08 19"
+    assert ubx_fletcher(bytes([0x06, 0x00, 0x00, 0x00])) == (0x06, 0x18)
+    assert ubx_fletcher(bytes([0x01, 0x07, 0x00, 0x00])) == (0x08, 0x19)

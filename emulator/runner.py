@@ -16,7 +16,7 @@ import signal
 from pathlib import Path
 from typing import Any, Callable
 
-from firmware_model import UART_GNSS, UART_HOST, UART_IMU, UART_PSNS, Firmware, FirmwareConfig
+from firmware_model import UART_GNSS, UART_HOST, UART_IMU, UART_PSNS, Firmware
 from firmware_model.c674x import COST_MODEL_VERSION
 from protocols import __version__ as VERSION
 from protocols.host import HostFormat
@@ -25,16 +25,17 @@ from protocols.nmea import NmeaFormat
 from protocols.stim import Stim210Format
 
 from .clock import EmulatorLoop
-from .devices.base import device_rng
 from .devices.dsp import VirtualDsp
 from .devices.fpga import FpgaConfig, VirtualFpga
-from .devices.gnss import GnssConfig, GnssErrors, GnssReceiver
-from .devices.imu import AccelErrors, AnalogAccelerometers, GyroErrors, ImuTruthTap, Stim210Gyro
+from .devices.gnss import GnssReceiver
+from .devices.imu import Stim210Gyro
+from .devices.sensors import build_sensors
 from .expectations import evaluate_expectations
+from .firmware_setup import build_firmware
 from .links import LineConfig, Link, MemHub, open_link, parse_link_url, parse_mode
 from .recorder import Recorder
 from .scenario.schema import LinkSpec, Scenario
-from .world.trajectory import StaticTrajectory, Trajectory
+from .world.build import build_trajectory
 
 __all__ = ["Emulator", "run_scenario", "default_run_dir", "PortInfo"]
 
@@ -56,78 +57,10 @@ def default_run_dir(name: str, base: str | Path = "runs") -> Path:
     return Path(base) / f"{name}-{stamp}"
 
 
-def build_trajectory(scn: Scenario) -> Trajectory:
-    """The truth trajectory of a scenario (static in this build)."""
-    o, a = scn.origin, scn.attitude
-    return StaticTrajectory(o.lat_deg, o.lon_deg, o.height_m, a.heading_deg, a.pitch_deg, a.roll_deg,
-                            duration=scn.duration_s)
-
-
 def _line(spec: LinkSpec, default_baud: int) -> LineConfig:
     bits, parity, stop = parse_mode(spec.mode)
     return LineConfig(baud=spec.baud or default_baud, data_bits=bits, parity=parity, stop_bits=stop,
                       tx_queue_bytes=spec.queue_bytes)
-
-
-def _gyro_errors(scn: Scenario) -> GyroErrors:
-    imu = scn.sensors.imu
-    e = GyroErrors() if imu.preset == "paper" else GyroErrors(0.0, 0.0, 0.0, 600.0, 400.0)
-    for k, v in imu.gyro.model_dump(exclude_none=True).items():
-        setattr(e, k, v)
-    return e
-
-
-def _accel_errors(scn: Scenario) -> AccelErrors:
-    imu = scn.sensors.imu
-    e = AccelErrors()
-    if imu.preset == "perfect":
-        e.bias_repeatability_mg = (0.0, 0.0, 0.0)
-        e.bias_instability_mg = (0.0, 0.0, 0.0)
-        e.noise_ug_rt_hz = 0.0
-    for k, v in imu.accel.model_dump(exclude_none=True).items():
-        setattr(e, k, tuple(v) if isinstance(v, list) else v)
-    return e
-
-
-def _gnss_config(scn: Scenario) -> GnssConfig:
-    g = scn.sensors.gnss
-    err = GnssErrors()
-    if g.preset == "perfect":
-        err = GnssErrors(0.0, 0.0, 0.0, 300.0, 0.0, 0.0)
-    for k, v in g.errors.model_dump(exclude_none=True).items():
-        setattr(err, k, v)
-    return GnssConfig(rate_hz=g.rate_hz, latency_s=g.latency_s, sentences=tuple(g.sentences),
-                      geoid_sep_m=g.geoid_sep_m, errors=err)
-
-
-def firmware_config(scn: Scenario) -> FirmwareConfig:
-    fw = scn.firmware
-    gnss = _gnss_config(scn).errors
-    gyro = _gyro_errors(scn)
-    acc = _accel_errors(scn)
-    return FirmwareConfig(
-        clock_hz=scn.dsp.clock_hz,
-        imu_rate_hz=scn.sensors.imu.rate_hz,
-        gyro_output=scn.sensors.imu.output,
-        gyro_counter_step=int(round(2000 / scn.sensors.imu.rate_hz)),
-        kf_predict_every=fw.kf_predict_every,
-        output_rate_hz=fw.output_rate_hz,
-        align_time_s=fw.alignment.time_s,
-        initial_heading_deg=fw.alignment.heading_deg,
-        initial_heading_sigma_deg=fw.alignment.heading_sigma_deg,
-        precision=fw.precision,
-        filter=fw.filter,
-        gyro_arw_deg_rt_h=max(gyro.arw_deg_rt_h, 0.01),
-        gyro_bias_sigma_deg_h=max(gyro.bias_repeatability_deg_h, 1.0),
-        gyro_bias_instability_deg_h=max(gyro.bias_instability_deg_h, 0.1),
-        accel_noise_ug_rt_hz=max(acc.noise_ug_rt_hz, 10.0),
-        accel_bias_sigma_mg=max(max(acc.bias_repeatability_mg), 0.1),
-        accel_bias_instability_mg=max(max(acc.bias_instability_mg), 0.01),
-        bias_corr_time_s=gyro.bias_corr_time_s,
-        gnss_pos_sigma_h_m=max(gnss.pos_sigma_h_m, 0.5),
-        gnss_pos_sigma_v_m=max(gnss.pos_sigma_v_m, 0.5),
-        gnss_vel_sigma_h_mps=max(gnss.vel_sigma_h_mps, 0.01),
-    )
 
 
 class Emulator:
@@ -185,21 +118,14 @@ class Emulator:
             uart_fpga[uname], uart_dsp[UART_NUM[uname]] = a, b
             self.links[uname] = b
         # sensors
-        tap = ImuTruthTap(traj)
-        if "gyro" in internal:
-            self.gyro = Stim210Gyro(internal["gyro"], tap, device_rng(self.seed, "gyro"), _gyro_errors(scn),
-                                    fmt=scn.sensors.imu.format, output=scn.sensors.imu.output,
-                                    trigger_rate_hz=scn.sensors.imu.rate_hz)
-        accel = AnalogAccelerometers(tap, device_rng(self.seed, "accel"), _accel_errors(scn))
+        sensors = build_sensors(scn, self.seed, traj, internal, pps=lambda t: self.fpga.pps_edge(t))  # type: ignore[union-attr]
+        self.gyro, self.gnss = sensors.gyro, sensors.gnss
         fcfg = FpgaConfig(imu_rate_hz=scn.sensors.imu.rate_hz, gyro_timeout_s=scn.fpga.gyro_timeout_s,
                           gyro_format=scn.sensors.imu.format,
                           gyro_counter_step=int(round(2000 / scn.sensors.imu.rate_hz)),
                           routing=dict(scn.fpga.routing))
-        self.fpga = VirtualFpga(loop, fcfg, ext, uart_fpga, self.gyro, accel, rec)
-        if "gnss" in internal and scn.sensors.gnss.enabled:
-            self.gnss = GnssReceiver(internal["gnss"], traj, scn.epoch, device_rng(self.seed, "gnss"),
-                                     _gnss_config(scn), pps=self.fpga.pps_edge)
-        self.fw = Firmware(firmware_config(scn))
+        self.fpga = VirtualFpga(loop, fcfg, ext, uart_fpga, self.gyro, sensors.accel, rec)
+        self.fw = build_firmware(scn)
         self.dsp = VirtualDsp(loop, self.fw, uart_dsp, scn.dsp.clock_hz, rec,
                               tick_period_s=1.0 / scn.sensors.imu.rate_hz)
         # recorder taps

@@ -1,0 +1,237 @@
+"""Polarization sensor (PSNS) frames on the RS232 PSNS port (FPGA -> DSP UART2).
+
+Framing (little-endian), shared by the three messages::
+
+    off  size  field
+    0    2     sync 0xEB 0x90
+    2    1     msg_id
+    3    2     payload length N, u16
+    5    N     payload
+    5+N  2     CRC-16/CCITT-FALSE over bytes 2 .. 4+N (msg_id, length, payload)
+
+Every payload starts with the same 13-byte header::
+
+    0   u16  seq          frame counter, wraps
+    2   u32  exposure_us  exposure time, us
+    6   u32  latency_us   from the middle of the exposure to the start bit of this frame's first byte, us
+    10  u8   status       :class:`PsnsStatus` bits
+    11  u16  count        N points (0x10), l units (0x11), points used (0x12)
+
+``0x10`` POLARIZATION_OBS: then ``count`` points of 10 bytes each::
+
+    u16 x_px, u16 y_px    pixel of the observation point (full-resolution, 1-based: column, row)
+    i16 aop_cdeg          AOP in 0.01 deg, (-9000, 9000]; the angle of the E-vector's projection on
+                          the image plane, measured from the image +y axis towards +x (base paper Eq. 5)
+    u16 dop               DOP in 1/65535
+    u16 intensity         S0 in DN (12-bit camera: 0..8190 after the (I0+I45+I90+I135)/2 sum)
+
+``0x11`` COMPASS (multi-unit polarization compass): then ``count`` units of 5 bytes::
+
+    u8 unit, i16 aop_cdeg, u16 dop        (AOP in each unit's own sensor frame, same convention)
+
+``0x12`` SOLAR_VECTOR (on-sensor solve): then::
+
+    3 x f32 s_x, s_y, s_z   unit solar vector (sign ambiguous: +-S) in the sensor frame
+    f32 quality             lambda_min / lambda_mid of K (smaller is better), 1.0 if invalid
+
+Camera frame (DESIGN.md section 5): origin at the imager centre, z along the optical axis, x along
+image columns, y along rows; pixel (x, y) looks along ``(Dx (x - (nx+1)/2), Dy (y - (ny+1)/2), f)``.
+"""
+
+from __future__ import annotations
+
+import enum
+import struct
+from dataclasses import dataclass
+
+from construct import Array, Float32l, Int8ul, Int16sl, Int16ul, Int32ul, Struct, this
+
+from .crc import crc16_ccitt
+from .stream import BAD_LENGTH, NEED_MORE
+
+__all__ = [
+    "PSNS_SYNC",
+    "MSG_POLARIZATION_OBS",
+    "MSG_COMPASS",
+    "MSG_SOLAR_VECTOR",
+    "PSNS_MAX_PAYLOAD",
+    "PsnsStatus",
+    "PsnsHeader",
+    "PolarizationPoint",
+    "PolarizationObs",
+    "CompassUnit",
+    "CompassFrame",
+    "SolarVectorFrame",
+    "PsnsFormat",
+    "encode_polarization_obs",
+    "encode_compass",
+    "encode_solar_vector",
+    "max_points",
+    "POLARIZATION_OBS_SPEC",
+    "COMPASS_SPEC",
+    "SOLAR_VECTOR_SPEC",
+]
+
+PSNS_SYNC = b"\xeb\x90"
+MSG_POLARIZATION_OBS = 0x10
+MSG_COMPASS = 0x11
+MSG_SOLAR_VECTOR = 0x12
+PSNS_MAX_PAYLOAD = 65535
+FRAME_OVERHEAD = 7  # sync 2 + id 1 + len 2 + crc 2
+HEADER_LEN = 13
+POINT_LEN = 10
+UNIT_LEN = 5
+
+
+class PsnsStatus(enum.IntFlag):
+    """``status`` bits common to every PSNS frame."""
+
+    VALID = 0x01  #: the measurement is usable (sun above the horizon, enough points)
+    SUN_BELOW_HORIZON = 0x02
+    SATURATED = 0x04  #: some pixels saturated
+    LOW_DOP = 0x08  #: too few points above the DOP threshold
+    OCCLUDED = 0x10  #: cloud / occlusion detected
+
+
+_HDR = struct.Struct("<HIIBH")
+_PT = struct.Struct("<HHhHH")
+_UNIT = struct.Struct("<BhH")
+_SV = struct.Struct("<4f")
+
+_HEADER_FIELDS = (
+    "seq" / Int16ul,
+    "exposure_us" / Int32ul,
+    "latency_us" / Int32ul,
+    "status" / Int8ul,
+    "count" / Int16ul,
+)
+POLARIZATION_OBS_SPEC = Struct(
+    *_HEADER_FIELDS,
+    "points" / Array(this.count, Struct("x_px" / Int16ul, "y_px" / Int16ul, "aop_cdeg" / Int16sl,
+                                         "dop" / Int16ul, "intensity" / Int16ul)),
+)
+COMPASS_SPEC = Struct(
+    *_HEADER_FIELDS,
+    "units" / Array(this.count, Struct("unit" / Int8ul, "aop_cdeg" / Int16sl, "dop" / Int16ul)),
+)
+SOLAR_VECTOR_SPEC = Struct(*_HEADER_FIELDS, "s" / Array(3, Float32l), "quality" / Float32l)
+
+
+@dataclass(frozen=True, slots=True)
+class PsnsHeader:
+    seq: int
+    exposure_us: int
+    latency_us: int
+    status: int
+    count: int
+
+
+@dataclass(frozen=True, slots=True)
+class PolarizationPoint:
+    """One observation point: pixel (1-based column, row), AOP (0.01 deg), DOP (1/65535), S0 (DN)."""
+
+    x_px: int
+    y_px: int
+    aop_cdeg: int
+    dop: int
+    intensity: int
+
+
+@dataclass(frozen=True, slots=True)
+class PolarizationObs:
+    header: PsnsHeader
+    points: tuple[PolarizationPoint, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class CompassUnit:
+    unit: int
+    aop_cdeg: int
+    dop: int
+
+
+@dataclass(frozen=True, slots=True)
+class CompassFrame:
+    header: PsnsHeader
+    units: tuple[CompassUnit, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class SolarVectorFrame:
+    header: PsnsHeader
+    s: tuple[float, float, float]
+    quality: float
+
+
+def _frame(msg_id: int, payload: bytes) -> bytes:
+    if len(payload) > PSNS_MAX_PAYLOAD:
+        raise ValueError(f"PSNS payload of {len(payload)} bytes exceeds {PSNS_MAX_PAYLOAD}")
+    body = struct.pack("<BH", msg_id, len(payload)) + payload
+    return PSNS_SYNC + body + struct.pack("<H", crc16_ccitt(body))
+
+
+def _hdr(h: PsnsHeader, count: int) -> bytes:
+    return _HDR.pack(h.seq & 0xFFFF, h.exposure_us & 0xFFFFFFFF, h.latency_us & 0xFFFFFFFF, h.status & 0xFF, count)
+
+
+def encode_polarization_obs(h: PsnsHeader, points: tuple[PolarizationPoint, ...] | list[PolarizationPoint]) -> bytes:
+    """Whole POLARIZATION_OBS frame (``h.count`` is replaced by ``len(points)``)."""
+    out = bytearray(_hdr(h, len(points)))
+    for p in points:
+        out += _PT.pack(p.x_px, p.y_px, p.aop_cdeg, p.dop, p.intensity)
+    return _frame(MSG_POLARIZATION_OBS, bytes(out))
+
+
+def encode_compass(h: PsnsHeader, units: tuple[CompassUnit, ...] | list[CompassUnit]) -> bytes:
+    out = bytearray(_hdr(h, len(units)))
+    for u in units:
+        out += _UNIT.pack(u.unit, u.aop_cdeg, u.dop)
+    return _frame(MSG_COMPASS, bytes(out))
+
+
+def encode_solar_vector(h: PsnsHeader, s: tuple[float, float, float], quality: float) -> bytes:
+    return _frame(MSG_SOLAR_VECTOR, _hdr(h, h.count) + _SV.pack(s[0], s[1], s[2], quality))
+
+
+def max_points(baud: int, rate_hz: float, bits_per_byte: int = 10) -> int:
+    """Largest POLARIZATION_OBS point count that fits a line of ``baud`` at ``rate_hz`` frames/s."""
+    budget = int(baud / bits_per_byte / rate_hz)
+    return max(0, (budget - FRAME_OVERHEAD - HEADER_LEN) // POINT_LEN)
+
+
+class PsnsFormat:
+    """:class:`~protocols.stream.FrameFormat` of PSNS frames (all three messages)."""
+
+    name = "psns"
+    sync = PSNS_SYNC
+
+    def frame_length(self, buf: bytearray, start: int) -> int:
+        if len(buf) - start < 5:
+            return NEED_MORE
+        msg_id = buf[start + 2]
+        n = buf[start + 3] | (buf[start + 4] << 8)
+        if msg_id not in (MSG_POLARIZATION_OBS, MSG_COMPASS, MSG_SOLAR_VECTOR) or n < HEADER_LEN:
+            return BAD_LENGTH
+        return FRAME_OVERHEAD + n
+
+    def check(self, frame: bytes) -> bool:
+        return crc16_ccitt(frame[2:-2]) == (frame[-2] | (frame[-1] << 8))
+
+    def parse(self, frame: bytes) -> PolarizationObs | CompassFrame | SolarVectorFrame:
+        msg_id = frame[2]
+        payload = frame[5:-2]
+        h = PsnsHeader(*_HDR.unpack_from(payload, 0))
+        body = payload[HEADER_LEN:]
+        if msg_id == MSG_POLARIZATION_OBS:
+            if len(body) != h.count * POINT_LEN:
+                raise ValueError(f"POLARIZATION_OBS: {h.count} points need {h.count * POINT_LEN} bytes, got {len(body)}")
+            pts = tuple(PolarizationPoint(*v) for v in _PT.iter_unpack(body))
+            return PolarizationObs(h, pts)
+        if msg_id == MSG_COMPASS:
+            if len(body) != h.count * UNIT_LEN:
+                raise ValueError(f"COMPASS: {h.count} units need {h.count * UNIT_LEN} bytes, got {len(body)}")
+            return CompassFrame(h, tuple(CompassUnit(*v) for v in _UNIT.iter_unpack(body)))
+        if len(body) != _SV.size:
+            raise ValueError(f"SOLAR_VECTOR payload must be {HEADER_LEN + _SV.size} bytes")
+        sx, sy, sz, q = _SV.unpack(body)
+        return SolarVectorFrame(h, (sx, sy, sz), q)

@@ -1,0 +1,53 @@
+"""PSNS frames: round trips, declarative specs, and the RS232 point budget."""
+
+import pytest
+
+from protocols.psns import (
+    COMPASS_SPEC,
+    POLARIZATION_OBS_SPEC,
+    SOLAR_VECTOR_SPEC,
+    CompassUnit,
+    PolarizationPoint,
+    PsnsFormat,
+    PsnsHeader,
+    encode_compass,
+    encode_polarization_obs,
+    encode_solar_vector,
+    max_points,
+)
+from protocols.stream import StreamDecoder, parse_one
+
+H = PsnsHeader(seq=7, exposure_us=1000, latency_us=45000, status=1, count=0)
+
+
+def test_obs_round_trip_and_spec():
+    pts = (PolarizationPoint(1, 2, -8999, 65535, 4095), PolarizationPoint(2448, 2048, 9000, 0, 0))
+    raw = encode_polarization_obs(H, pts)
+    obs = parse_one(PsnsFormat(), raw)
+    assert obs.points == pts and obs.header.count == 2 and obs.header.latency_us == 45000
+    c = POLARIZATION_OBS_SPEC.parse(raw[5:-2])
+    assert c.points[0].aop_cdeg == -8999 and c.points[1].x_px == 2448
+
+
+def test_compass_and_solar_vector():
+    units = tuple(CompassUnit(i, 100 * i - 400, 1000 * i) for i in range(9))
+    raw = encode_compass(H, units)
+    assert parse_one(PsnsFormat(), raw).units == units
+    assert COMPASS_SPEC.parse(raw[5:-2]).count == 9
+    sv = parse_one(PsnsFormat(), encode_solar_vector(H, (0.5, -0.25, 0.75), 0.01))
+    assert sv.s == (0.5, -0.25, 0.75) and sv.quality == pytest.approx(0.01)
+    assert SOLAR_VECTOR_SPEC.sizeof() == 13 + 16
+
+
+def test_stream_with_noise():
+    raw = encode_polarization_obs(H, [PolarizationPoint(10, 10, 0, 30000, 2000)] * 50)
+    dec = StreamDecoder([PsnsFormat()])
+    out = dec.feed(b"\xeb\x90\x77" + raw[:100]) + dec.feed(raw[100:] + raw)
+    assert len(out) == 2 and dec.stats.length_errors >= 1
+
+
+def test_max_points_on_rs232_115200():
+    # 11520 B/s; at 5 Hz 2304 B per frame -> (2304 - 7 - 13) // 10 = 228 points
+    assert max_points(115200, 5.0) == 228
+    assert max_points(115200, 10.0) == 113
+    assert max_points(115200, 1.0) == 1150

@@ -155,8 +155,13 @@ class Firmware:
                          "fpga_gyro_missing": 0, "imu_time_gaps": 0}
 
     # -- ISR side ----------------------------------------------------------------------
-    def receive(self, uart: int, data: bytes) -> None:
-        """Bytes received on ``uart`` (the ISR copies the 16550 FIFO into the ring buffer)."""
+    def receive(self, uart: int, data: bytes, t_rx_s: float | None = None) -> None:
+        """Bytes received on ``uart`` (the ISR copies the 16550 FIFO into the ring buffer).
+
+        ``t_rx_s`` is the DSP's time (s, FPGA time base) when the last byte arrived, as the ISR
+        reads it from the time-stamp counter; frames that carry a latency (PSNS) are time-tagged
+        from it.
+        """
         if uart == UART_IMU:
             for f in self._dec_imu.feed(data):
                 self._pending_imu.append(f)

@@ -64,7 +64,7 @@ class VirtualDsp:
 
     def _make_rx(self, uart: int):  # noqa: ANN202
         def rx(data: bytes) -> None:
-            self.fw.receive(uart, data)
+            self.fw.receive(uart, data, self.loop.time())
             if uart == UART_IMU and not self._scheduled:
                 self._scheduled = True
                 self._arrival = self.loop.time()

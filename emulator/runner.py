@@ -22,6 +22,7 @@ from protocols import __version__ as VERSION
 from protocols.host import HostFormat
 from protocols.imu_frame import ImuFrameFormat
 from protocols.nmea import NmeaFormat
+from protocols.psns import PsnsFormat
 from protocols.stim import Stim210Format
 
 from .clock import EmulatorLoop
@@ -119,6 +120,7 @@ class Emulator:
             self.links[uname] = b
         # sensors
         sensors = build_sensors(scn, self.seed, traj, internal, pps=lambda t: self.fpga.pps_edge(t))  # type: ignore[union-attr]
+        self.sensors = sensors
         self.gyro, self.gnss = sensors.gyro, sensors.gnss
         fcfg = FpgaConfig(imu_rate_hz=scn.sensors.imu.rate_hz, gyro_timeout_s=scn.fpga.gyro_timeout_s,
                           gyro_format=scn.sensors.imu.format,
@@ -134,10 +136,10 @@ class Emulator:
         rec.tap("gnss", ext["gnss"], {"in": [NmeaFormat()]})
         rec.tap("host", ext["host"], {"out": [HostFormat()], "in": [HostFormat()]})
         if "psns" in ext:
-            rec.tap("psns", ext["psns"], {})
+            rec.tap("psns", ext["psns"], {"in": [PsnsFormat()]})
         rec.tap("uart0", self.links["uart0"], {"out": [HostFormat()], "in": [HostFormat()]})
         rec.tap("uart1", self.links["uart1"], {"in": [ImuFrameFormat()]})
-        rec.tap("uart2", self.links["uart2"], {})
+        rec.tap("uart2", self.links["uart2"], {"in": [PsnsFormat()]})
         rec.tap("uart3", self.links["uart3"], {"in": [NmeaFormat()]})
         for link in ext.values():
             await link.open()
@@ -149,8 +151,7 @@ class Emulator:
         loop.restart_clock()
         self._wall0 = loop.wall_elapsed()
         self.fpga.start()
-        if self.gnss is not None:
-            self.gnss.start()
+        sensors.start()
         if self.progress is not None:
             self._progress_tick()
         self._started = True
@@ -234,10 +235,7 @@ class Emulator:
                          "decoders": fw.decoder_stats()},
             "fpga": {"imu_frames": self.fpga.imu_frames, "gyro_missing": self.fpga.gyro_missing,
                      "routes": self.fpga.routes},
-            "devices": {
-                "gyro_datagrams": self.gyro.datagrams_sent if self.gyro else None,
-                "gnss_epochs": self.gnss.epochs_sent if self.gnss else None,
-            },
+            "devices": self.sensors.counters(),
             "ports": [dict(p) for p in self.ports],
             "events": dict(rec.event_counts),
         }

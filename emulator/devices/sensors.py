@@ -23,6 +23,18 @@ class SensorSet:
     accel: AnalogAccelerometers
     gnss: GnssReceiver | None
 
+    def start(self) -> None:
+        """Start the devices that schedule themselves (everything not driven by an FPGA trigger)."""
+        if self.gnss is not None:
+            self.gnss.start()
+
+    def counters(self) -> dict[str, int | None]:
+        """Frames each device has sent (for the summary)."""
+        return {
+            "gyro_datagrams": self.gyro.datagrams_sent if self.gyro else None,
+            "gnss_epochs": self.gnss.epochs_sent if self.gnss else None,
+        }
+
 
 def gyro_errors(scn: Scenario) -> GyroErrors:
     imu = scn.sensors.imu

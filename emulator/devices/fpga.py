@@ -7,9 +7,16 @@
   :mod:`protocols.imu_frame` frame and sends it to DSP UART1. No datagram within
   ``gyro_timeout_s`` gives a frame flagged ``GYRO_MISSING`` that repeats the last gyro words.
 * PPS rising edges latch the counter (``t_pps_us``, ``pps_count``), carried in every IMU frame.
-* Byte routing (the crossbar): each external serial port is forwarded to its DSP UART and
-  back; baud conversion happens because the two sides are separate links with their own
-  line models (and their own queues, which overflow when the DSP side is slower).
+* Byte routing (the crossbar, scenario ``fpga.routing``): each external serial port is
+  forwarded to its DSP UART and back, cut-through (a byte leaves as soon as it has arrived and
+  the output line is free). Baud conversion happens because the two sides are separate links
+  with their own line models; each output has its own FIFO (the TX queue of that side), which
+  overflows, counted, when the output is slower than the input for long enough.
+* The MONITOR port (``links.monitor``): every chunk on every channel (external ports and DSP
+  UARTs, both directions) is mirrored as a :class:`protocols.monitor.MonitorRecord` (channel id,
+  direction 0 = towards the DSP / 1 = away from it, FPGA time stamp in us, the bytes),
+  COBS-framed by :func:`protocols.monitor.encode_monitor` (CONTRACTS C2). A monitor line slower
+  than the traffic overflows and counts, like any other.
 """
 
 from __future__ import annotations
@@ -17,16 +24,18 @@ from __future__ import annotations
 import asyncio
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 from protocols.imu_frame import ADC_CODE_MAX, FpgaStatus, ImuFrame, ImuFrameFormat
 from protocols.stim import Stim210Format
 from protocols.stream import StreamDecoder
 
+from ..errors import EmulatorError
 from ..links.base import Link
 from .base import EventSink, NullEvents
 from .imu import AnalogAccelerometers, Stim210Gyro
 
-__all__ = ["FpgaConfig", "VirtualFpga", "DEFAULT_ROUTING"]
+__all__ = ["FpgaConfig", "VirtualFpga", "DEFAULT_ROUTING", "MONITOR_DIRECTIONS", "monitor_api"]
 
 #: external port -> DSP UART (DESIGN.md section 2: PSNS = RS232 -> UART2, GNSS = RS422 -> UART3)
 DEFAULT_ROUTING = {"host": "uart0", "psns": "uart2", "gnss": "uart3"}
@@ -39,7 +48,36 @@ class FpgaConfig:
     gyro_format: str = "m"
     gyro_counter_step: int = 10
     routing: dict[str, str] = field(default_factory=lambda: dict(DEFAULT_ROUTING))
+    #: channels mirrored on the MONITOR port (None = every channel)
+    monitor_channels: tuple[str, ...] | None = None
 
+
+#: (link end held by the FPGA, link direction) -> monitor direction (C2: 0 towards the DSP, 1 away)
+MONITOR_DIRECTIONS = {("port", "in"): 0, ("port", "out"): 1, ("uart", "out"): 0, ("uart", "in"): 1}
+
+
+def monitor_api() -> tuple[Any, Any, dict[str, int]] | None:
+    """``(MonitorRecord, encode_monitor, MONITOR_CHANNELS)`` from :mod:`protocols.monitor` (C2),
+    or None while that module is not part of this build."""
+    try:
+        from protocols.monitor import MONITOR_CHANNELS, MonitorRecord, encode_monitor
+    except ImportError:
+        return None
+    return MonitorRecord, encode_monitor, dict(MONITOR_CHANNELS)
+
+
+class _MonitorTap:
+    """Listener on one FPGA-held link end that mirrors its chunks to the MONITOR port."""
+
+    __slots__ = ("fpga", "channel", "dirs")
+
+    def __init__(self, fpga: "VirtualFpga", channel: int, side: str) -> None:
+        self.fpga = fpga
+        self.channel = channel
+        self.dirs = {"in": MONITOR_DIRECTIONS[(side, "in")], "out": MONITOR_DIRECTIONS[(side, "out")]}
+
+    def on_link_bytes(self, link: Link, direction: str, t: float, data: bytes) -> None:
+        self.fpga._mirror(self.channel, self.dirs[direction], t, data)  # noqa: SLF001
 
 class VirtualFpga:
     """See module docstring.
@@ -54,7 +92,7 @@ class VirtualFpga:
 
     def __init__(self, loop: asyncio.AbstractEventLoop, cfg: FpgaConfig, ports: dict[str, Link],
                  uarts: dict[str, Link], gyro: Stim210Gyro | None, accel: AnalogAccelerometers | None,
-                 events: EventSink | None = None) -> None:
+                 events: EventSink | None = None, monitor: Link | None = None) -> None:
         self.loop = loop
         self.cfg = cfg
         self.ports = ports
@@ -85,6 +123,20 @@ class VirtualFpga:
             if port in ports and uart in uarts:
                 self._route(ports[port], uarts[uart])
                 self.routes[port] = uart
+        self.monitor = monitor
+        self.monitor_records = 0
+        self._mon_record: Any = None
+        self._mon_encode: Any = None
+        if monitor is not None:
+            api = monitor_api()
+            if api is None:
+                raise EmulatorError("links.monitor needs protocols.monitor (CONTRACTS C2), which this build lacks")
+            self._mon_record, self._mon_encode, channels = api
+            wanted = set(cfg.monitor_channels) if cfg.monitor_channels is not None else None
+            for side, links in (("port", ports), ("uart", uarts)):
+                for name, link in links.items():
+                    if name in channels and (wanted is None or name in wanted):
+                        link.listeners.append(_MonitorTap(self, channels[name], side))
 
     # -- time stamps ----------------------------------------------------------------------
     @staticmethod
@@ -173,5 +225,20 @@ class VirtualFpga:
     # -- crossbar ---------------------------------------------------------------------------
     @staticmethod
     def _route(port: Link, uart: Link) -> None:
-        port.on_receive = uart.send
-        uart.on_receive = port.send
+        def to_dsp(data: bytes) -> None:
+            uart.forward(data, port)
+
+        def from_dsp(data: bytes) -> None:
+            port.forward(data, uart)
+
+        port.on_receive = to_dsp
+        uart.on_receive = from_dsp
+
+    # -- monitor port -------------------------------------------------------------------------
+    def _mirror(self, channel: int, direction: int, t: float, data: bytes) -> None:
+        mon = self.monitor
+        if mon is None:
+            return
+        rec = self._mon_record(channel=channel, direction=direction, t_us=self.counter_us(t), data=bytes(data))
+        mon.send(self._mon_encode(rec))
+        self.monitor_records += 1

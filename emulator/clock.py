@@ -7,7 +7,9 @@ scenario clock in seconds since scenario start.
     Virtual time. When every task waits and no I/O is ready, the clock jumps straight to the
     next timer, so a run is as fast as the CPU allows. With ``mem://`` links and a seed it is
     bit-for-bit deterministic. Real file descriptors (ptys, sockets) are still polled without
-    blocking on every iteration.
+    blocking on every iteration; with none registered, the loop's own self-pipe (signals,
+    ``call_soon_threadsafe``) is polled every 64 iterations. Real peers move in wall time while
+    virtual time races ahead, so runs with ``pty``/``serial`` endpoints use ``realtime``.
 ``realtime``
     The clock follows the wall clock, scaled by ``speed`` (2.0 runs twice as fast as real
     time). Select timeouts are divided by ``speed``.
@@ -30,16 +32,27 @@ __all__ = ["EmulatorLoop", "new_loop", "sleep_until"]
 class _ClockSelector(selectors.BaseSelector):
     """Selector wrapper that implements virtual or scaled time for :class:`EmulatorLoop`."""
 
+    #: In fast mode with no file descriptor but the loop's own self-pipe registered, poll that
+    #: pipe (signals, call_soon_threadsafe) only every this many iterations: nothing else can
+    #: become ready, and the syscall is a large share of an iteration's cost.
+    SELF_PIPE_POLL_EVERY = 64
+
     def __init__(self, loop: "EmulatorLoop") -> None:
         self._real = selectors.DefaultSelector()
         self._loop = loop
+        self._nfds = 0
+        self._skipped = 0
 
     # delegation ------------------------------------------------------------------
     def register(self, fileobj: Any, events: int, data: Any = None) -> selectors.SelectorKey:
-        return self._real.register(fileobj, events, data)
+        key = self._real.register(fileobj, events, data)
+        self._nfds += 1
+        return key
 
     def unregister(self, fileobj: Any) -> selectors.SelectorKey:
-        return self._real.unregister(fileobj)
+        key = self._real.unregister(fileobj)
+        self._nfds -= 1
+        return key
 
     def modify(self, fileobj: Any, events: int, data: Any = None) -> selectors.SelectorKey:
         return self._real.modify(fileobj, events, data)
@@ -57,10 +70,17 @@ class _ClockSelector(selectors.BaseSelector):
     def select(self, timeout: float | None = None) -> list[tuple[selectors.SelectorKey, int]]:
         loop = self._loop
         if loop.mode == "fast":
-            events = self._real.select(0)
-            if events or timeout == 0:
-                return events
             sched = loop._scheduled  # noqa: SLF001 - the virtual clock needs the timer heap
+            if self._nfds > 1 or self._skipped >= self.SELF_PIPE_POLL_EVERY or not sched:
+                self._skipped = 0
+                events = self._real.select(0)
+                if events:
+                    return events
+            else:
+                self._skipped += 1
+                events = []
+            if timeout == 0:
+                return events
             if sched:
                 when = sched[0]._when  # noqa: SLF001
                 if when > loop._now:

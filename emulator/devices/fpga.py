@@ -115,6 +115,8 @@ class VirtualFpga:
         self.gyro_missing = 0
         self.routes: dict[str, str] = {}
         self._crc_seen = 0
+        self._stopped = False
+        self._trigger_handle: asyncio.TimerHandle | None = None
         self._gyro_dec: StreamDecoder | None = None
         if "gyro" in ports:
             self._gyro_dec = StreamDecoder([Stim210Format(cfg.gyro_format)])
@@ -145,7 +147,16 @@ class VirtualFpga:
         return int(math.floor(t * 1e6 + 1e-6)) & 0xFFFFFFFF
 
     def start(self) -> None:
-        self.loop.call_at(0.0, self._trigger)
+        self._trigger_handle = self.loop.call_at(0.0, self._trigger)
+
+    def stop(self) -> None:
+        """Stop the trigger (and so the IMU frames and the triggered sensors)."""
+        self._stopped = True
+        if self._trigger_handle is not None:
+            self._trigger_handle.cancel()
+        if self._pending is not None:
+            self._pending[3].cancel()
+            self._pending = None
 
     def pps_edge(self, t: float) -> None:
         """PPS rising edge (from the GNSS receiver's PPS line)."""
@@ -158,7 +169,9 @@ class VirtualFpga:
         t = self._k * self.period
         t_prev = t - self.period
         self._k += 1
-        self.loop.call_at(self._k * self.period, self._trigger)
+        if self._stopped:
+            return
+        self._trigger_handle = self.loop.call_at(self._k * self.period, self._trigger)
         codes = self.accel.sample(t, t_prev) if self.accel is not None else (0, 0, 0)
         if self._pending is not None:  # previous datagram never came
             self._emit_frame(None)

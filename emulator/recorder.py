@@ -50,6 +50,10 @@ __all__ = ["CAPTURE_MAGIC", "Recorder", "ErrorStats", "CaptureRecord", "read_cap
 
 CAPTURE_MAGIC = b"PSNSCAP1\n"
 _REC = struct.Struct("<dHBBI")
+_PITCH = struct.Struct("<d")
+#: record flag: an f64 byte pitch (s, start-to-start spacing of the chunk's bytes) follows the header
+FLAG_PITCH = 0x01
+CAPTURE_VERSION = 2
 DEG = math.pi / 180.0
 
 NAV_COLUMNS = [
@@ -74,6 +78,8 @@ class CaptureRecord:
     link: str
     direction: str
     data: bytes
+    #: spacing of the bytes on the wire when it differs from the link's byte time (None otherwise)
+    pitch_s: float | None = None
 
 
 def _read_header(f: IO[bytes], path: str | Path) -> dict[str, Any]:
@@ -114,12 +120,18 @@ def iter_capture(path: str | Path) -> tuple[dict[str, Any], Iterator[CaptureReco
                 head = f.read(size)
                 if len(head) < size:
                     return
-                t, idx, d, _r, n = _REC.unpack(head)
+                t, idx, d, flags, n = _REC.unpack(head)
+                pitch = None
+                if flags & FLAG_PITCH:
+                    raw = f.read(_PITCH.size)
+                    if len(raw) < _PITCH.size:
+                        return
+                    pitch = _PITCH.unpack(raw)[0]
                 data = f.read(n)
                 if len(data) < n:
                     return
                 name = links[idx] if idx < len(links) else f"link{idx}"
-                yield CaptureRecord(t, name, "out" if d == 0 else "in", data)
+                yield CaptureRecord(t, name, "out" if d == 0 else "in", data, pitch)
 
     return header, gen()
 
@@ -219,7 +231,7 @@ class Recorder:
     def start(self, header: dict[str, Any]) -> None:
         self._cap = open(self.run_dir / "capture.psnscap", "wb")
         hdr = dict(header)
-        hdr["version"] = 1
+        hdr["version"] = CAPTURE_VERSION
         hdr["links"] = list(self._link_index)
         self._cap.write(CAPTURE_MAGIC + json.dumps(hdr, sort_keys=True, default=_json_default).encode() + b"\n")
         self._cap.flush()
@@ -232,7 +244,15 @@ class Recorder:
     def _record(self, index: int, tap: _Tap, direction: str, t: float, data: bytes) -> None:
         cap = self._cap
         if cap is not None:
-            cap.write(_REC.pack(t, index, 0 if direction == "out" else 1, 0, len(data)))
+            if direction == "out":
+                cap.write(_REC.pack(t, index, 0, 0, len(data)))
+            else:
+                link = tap.link
+                pitch = link.last_rx_pitch
+                if pitch != link.line.byte_time:
+                    cap.write(_REC.pack(t, index, 1, FLAG_PITCH, len(data)) + _PITCH.pack(pitch))
+                else:
+                    cap.write(_REC.pack(t, index, 1, 0, len(data)))
             cap.write(data)
         buf = tap.pending.get(direction)
         if buf is not None:

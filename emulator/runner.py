@@ -171,6 +171,7 @@ class Emulator:
         self.sensors: Any = None
         self.summary: dict[str, Any] = {}
         self.replayed_records = 0
+        self.replay_source: str | None = None
         self._fw0: Firmware | None = None
         self._started = False
         self._stopped = False
@@ -205,6 +206,7 @@ class Emulator:
             u = parse_link_url(spec.url)
             if u.scheme == "mem" or self.replay is not None:
                 a, b = hub.pair(port, line, loop, line_b=_device_line(spec, line), key=f"{port}:{u.target}")
+                a.url = b.url = spec.url if u.scheme == "mem" else f"mem://{port}"
                 ext[port], internal[port] = a, b
                 self.device_ends[port] = b
             else:
@@ -289,10 +291,12 @@ class Emulator:
             uart_fpga[uname], uart_dsp[UART_NUM[uname]] = a, b
             self.links[uname] = b
             # fastest byte arrival: the DSP line, or the routed port's line feeding an EMIFA core
+            # (from the scenario, so that a replay, which has no such port, decides the same)
             min_pitch = d_line.byte_time
             src = routed_from.get(uname)
-            if uspec.baud is None and src in ext:
-                min_pitch = max(min_pitch, ext[src].line.byte_time)
+            src_spec = _port_specs(scn).get(src) if src is not None else None
+            if uspec.baud is None and src_spec is not None:
+                min_pitch = max(min_pitch, _line(src_spec, PORT_BAUD[src]).byte_time)
             rx_cfg[UART_NUM[uname]] = UartRxConfig(
                 fifo_bytes=dspec.fifo_bytes, trigger_level=dspec.trigger_level, service=dspec.service,
                 service_latency_s=dspec.latency_s, rx_ring_bytes=dspec.rx_ring_bytes, min_pitch_s=min_pitch)
@@ -332,7 +336,7 @@ class Emulator:
         while i < len(recs) and recs[i].t_s == t:
             r = recs[i]
             link = self.links[r.link]
-            link.last_rx_pitch = link.line.byte_time
+            link.last_rx_pitch = r.pitch_s if r.pitch_s is not None else link.line.byte_time
             link._deliver(r.data)  # noqa: SLF001 - the bytes arrived: deliver as the link did
             self.replayed_records += 1
             i += 1
@@ -430,7 +434,8 @@ class Emulator:
             "wall_s": wall,
             "realtime_factor": sim_t / wall if wall > 0 else None,
             "interrupted": interrupted,
-            "replay": self.replay is not None,
+            "replay": {"source": self.replay_source, "records": self.replayed_records} if self.replay is not None
+            else None,
             "run_dir": str(self.run_dir),
             "nav_error": {k: v.as_dict() for k, v in rec.errors.items()},
             "nav_frames": rec.nav_count,

@@ -12,7 +12,11 @@ scenario clock in seconds since scenario start.
     virtual time races ahead, so runs with ``pty``/``serial`` endpoints use ``realtime``.
 ``realtime``
     The clock follows the wall clock, scaled by ``speed`` (2.0 runs twice as fast as real
-    time). Select timeouts are divided by ``speed``.
+    time). Select timeouts are divided by ``speed``. When the host is busy and timers are
+    overdue, each loop iteration runs only the earliest overdue instant, and ``time()`` reads
+    that instant while its callbacks run (logical time). So late events keep their order and
+    spacing and the loop catches up: asyncio alone would run every overdue timer in one batch,
+    and a sensor datagram scheduled during the batch would land after the FPGA's timeout for it.
 
 Devices use only ``loop.time()`` and ``loop.call_at()`` / ``asyncio.sleep``, so the same code
 runs in both modes. :func:`sleep_until` waits for an absolute scenario time without the drift
@@ -90,7 +94,13 @@ class _ClockSelector(selectors.BaseSelector):
             return self._real.select(timeout)
         if timeout is not None and timeout > 0:
             timeout = timeout / loop.speed
-        return self._real.select(timeout)
+        events = self._real.select(timeout)
+        sched = loop._scheduled  # noqa: SLF001
+        if sched:
+            when = sched[0]._when  # noqa: SLF001
+            if when < loop.time():
+                loop._cap = when  # noqa: SLF001 - overdue: this iteration is the instant `when`
+        return events
 
 
 class EmulatorLoop(asyncio.SelectorEventLoop):
@@ -113,16 +123,32 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
         self.speed = float(speed)
         self._now = 0.0
         self._wall0 = _time.monotonic()
+        self._cap: float | None = None  # realtime: the overdue instant this iteration runs
         super().__init__(selector=_ClockSelector(self))
         self._clock_resolution = 1e-9
 
     def time(self) -> float:
         if self.mode == "fast":
             return self._now
+        cap = self._cap
+        if cap is not None:
+            return cap
         return (_time.monotonic() - self._wall0) * self.speed
 
+    def _run_once(self) -> None:
+        self._cap = None
+        super()._run_once()  # type: ignore[misc]
+
     def restart_clock(self) -> None:
-        """Make the current instant scenario time 0 (realtime) or reset virtual time to 0 (fast)."""
+        """Make the current instant scenario time 0 (realtime) or reset virtual time to 0 (fast).
+
+        Timers already scheduled keep their remaining delay (their deadlines move with the
+        origin), so a pty's attach poll set up before the restart still runs 20 ms later.
+        """
+        delta = self.time()
+        for h in self._scheduled:  # a uniform shift keeps the heap ordered
+            h._when -= delta  # noqa: SLF001
+        self._cap = None
         self._wall0 = _time.monotonic()
         self._now = 0.0
 

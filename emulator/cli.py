@@ -53,15 +53,15 @@ def _fmt(v: Any, digits: int = 3) -> str:
 
 
 def print_port_map(ports: list[dict[str, Any]]) -> None:
-    from rich.table import Table
-
-    t = Table(title="ports", title_justify="left")
-    for col in ("port", "role", "baud", "mode", "endpoint"):
-        t.add_column(col, overflow="fold")
-    for p in ports:
-        t.add_row(p["name"], p["role"], str(p["baud"]), p["mode"], p["path"])
-    _console().print(t)
-    sys.stdout.flush()  # tools waiting for the pty paths must see them now, even through a pipe
+    """One plain line per port (never wrapped: users copy the pty paths from here)."""
+    rows = [("port", "role", "baud", "mode", "endpoint")]
+    rows += [(p["name"], p["role"], str(p["baud"]), p["mode"], p["path"]) for p in ports]
+    w = [max(len(r[i]) for r in rows) for i in range(4)]
+    out = sys.stdout
+    out.write("ports:\n")
+    for r in rows:
+        out.write("  " + "  ".join(r[i].ljust(w[i]) for i in range(4)) + "  " + r[4] + "\n")
+    out.flush()  # tools waiting for the pty paths must see them now, even through a pipe
 
 
 def status_line(st: dict[str, Any]) -> str:

@@ -156,6 +156,10 @@ class FrameRow:
                 return {f.name: conv(getattr(v, f.name)) for f in dataclasses.fields(v)}
             if isinstance(v, (tuple, list)):
                 return [conv(x) for x in v]
+            if isinstance(v, dict):
+                return {str(k): conv(x) for k, x in v.items()}
+            if isinstance(v, float) and v - v != 0.0:
+                return None  # NaN / infinity are not JSON
             if isinstance(v, (int, float, str, bool)) or v is None:
                 return v
             return str(v)

@@ -390,14 +390,32 @@ class Emulator:
             await self.run_until(self.scn.duration_s)
         except asyncio.CancelledError:
             interrupted = True
-        finally:
-            summary = await self.stop(interrupted=interrupted)
-        return summary
+        except BaseException:
+            await self._abort()
+            raise
+        return await self.stop(interrupted=interrupted)
+
+    async def _abort(self) -> None:
+        """Start failed: release what was opened (ptys, files); no summary."""
+        self._stopped = True
+        for link in list(self.links.values()) + list(self.device_ends.values()):
+            try:
+                await link.close()
+            except Exception:  # noqa: BLE001
+                pass
+        if self.recorder is not None:
+            self.recorder.close()
 
     async def stop(self, interrupted: bool = False) -> dict[str, Any]:
         loop = self.loop
         rec = self.recorder
         if loop is None or rec is None or self._stopped:
+            return self.summary
+        if not self._started:  # interrupted while starting
+            await self._abort()
+            self.summary = {"scenario": self.scn.name, "interrupted": interrupted, "started": False,
+                            "run_dir": str(self.run_dir), "passed": False}
+            rec.write_summary(self.summary)
             return self.summary
         self._stopped = True
         for link in list(self.links.values()) + list(self.device_ends.values()):
@@ -471,6 +489,13 @@ def run_emulator(emu: Emulator, speed: float = 1.0, on_started: Callable[[Emulat
     """
     loop = EmulatorLoop(emu.mode, speed)
     asyncio.set_event_loop(loop)
+    failure: list[dict[str, Any]] = []
+
+    def on_error(lp: asyncio.AbstractEventLoop, context: dict[str, Any]) -> None:
+        # an exception in a device callback is a bug: end the run (summary kept) and report it
+        if not failure:
+            failure.append(context)
+            task.cancel()
 
     async def main() -> dict[str, Any]:
         if on_started is not None:
@@ -482,13 +507,23 @@ def run_emulator(emu: Emulator, speed: float = 1.0, on_started: Callable[[Emulat
         return await emu.run()
 
     task = loop.create_task(main())
+    loop.set_exception_handler(on_error)
     for sig in (signal.SIGINT, signal.SIGTERM):
         try:
             loop.add_signal_handler(sig, task.cancel)
         except (NotImplementedError, RuntimeError, ValueError):
             pass
     try:
-        return loop.run_until_complete(task)
+        summary = loop.run_until_complete(task)
+        if failure:
+            from .errors import EmulatorError
+
+            ctx = failure[0]
+            exc = ctx.get("exception")
+            raise EmulatorError(f"the run stopped at t = {summary.get('sim_duration_s', 0):.6f} s: "
+                                f"{ctx.get('message', 'error')}: {exc!r} (summary and captures kept in "
+                                f"{emu.run_dir})") from exc
+        return summary
     finally:
         for sig in (signal.SIGINT, signal.SIGTERM):
             try:

@@ -34,7 +34,8 @@ Running the loop: the ``psns_emulator`` marker (this module is a pytest plugin, 
 the ``pytest11`` entry point) runs an ``async def`` test on a fresh ``EmulatorLoop`` of its
 own, independently of pytest-asyncio (``@pytest.mark.psns_emulator(mode="realtime",
 speed=1.0)`` for real time). Emulators still running when the test returns are stopped.
-Outside pytest, :func:`run` does the same for a coroutine function.
+Outside pytest, :func:`run` does the same for a coroutine function. An exception in any
+event-loop callback (a device bug) fails the test after the coroutine ends.
 """
 
 from __future__ import annotations
@@ -531,6 +532,8 @@ def run(main: Callable[..., Awaitable[Any]], *args: Any, mode: str = "fast", spe
     from .clock import EmulatorLoop
 
     loop = EmulatorLoop(mode, speed)
+    errors: list[dict[str, Any]] = []
+    loop.set_exception_handler(lambda lp, ctx: errors.append(ctx))
     try:
         asyncio.set_event_loop(loop)
 
@@ -540,7 +543,12 @@ def run(main: Callable[..., Awaitable[Any]], *args: Any, mode: str = "fast", spe
             finally:
                 await _stop_all(loop)
 
-        return loop.run_until_complete(wrapper())
+        result = loop.run_until_complete(wrapper())
+        if errors:  # a device callback raised: the emulated system is broken, say so
+            ctx = errors[0]
+            raise AssertionError(f"{len(errors)} error(s) in event-loop callbacks; first: "
+                                 f"{ctx.get('message')}: {ctx.get('exception')!r}") from ctx.get("exception")
+        return result
     finally:
         try:
             pending = [t for t in asyncio.all_tasks(loop) if not t.done()]

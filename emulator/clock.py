@@ -40,6 +40,8 @@ class _ClockSelector(selectors.BaseSelector):
     #: pipe (signals, call_soon_threadsafe) only every this many iterations: nothing else can
     #: become ready, and the syscall is a large share of an iteration's cost.
     SELF_PIPE_POLL_EVERY = 64
+    #: realtime: waits shorter than this are slept precisely (epoll has 1 ms resolution)
+    FINE_S = 0.0015
 
     def __init__(self, loop: "EmulatorLoop") -> None:
         self._real = selectors.DefaultSelector()
@@ -94,7 +96,17 @@ class _ClockSelector(selectors.BaseSelector):
             return self._real.select(timeout)
         if timeout is not None and timeout > 0:
             timeout = timeout / loop.speed
-        events = self._real.select(timeout)
+            if timeout > self.FINE_S:
+                # epoll rounds its timeout up to whole milliseconds: wake a bit early and let
+                # the next iteration sleep the rest precisely
+                events = self._real.select(timeout - self.FINE_S)
+            else:
+                events = self._real.select(0)
+                if not events:
+                    _time.sleep(timeout)  # sub-millisecond precision; no I/O for < FINE_S
+                    events = self._real.select(0)
+        else:
+            events = self._real.select(timeout)
         sched = loop._scheduled  # noqa: SLF001
         if sched:
             when = sched[0]._when  # noqa: SLF001

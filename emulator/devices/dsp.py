@@ -281,8 +281,8 @@ class VirtualDsp:
                 self.events.emit(start, "firmware", kind, **ev)
             for uart, data, cyc in r.outputs:
                 link = self.uarts.get(uart)
-                if link is not None:
-                    self.loop.call_at(start + cyc / self.clock_hz, link.send, data, True)
+                if link is not None:  # the firmware's driver is the UART's only writer, in time order
+                    link.send_at(start + cyc / self.clock_hz, data, True)
             arrival += self.period
 
     def _watchdog(self, start: float, r: Any) -> None:
@@ -305,14 +305,14 @@ class VirtualDsp:
             for uart, data, cyc in r.outputs:
                 link = self.uarts.get(uart)
                 if link is not None:
-                    self.loop.call_at(start + cyc / self.clock_hz, link.send, data, True)
+                    link.send_at(start + cyc / self.clock_hz, data, True)
             return
         # reset: outputs the tick would have produced after the bite never happen
         for uart, data, cyc in r.outputs:
             t_out = start + cyc / self.clock_hz
             link = self.uarts.get(uart)
             if t_out <= t_bite and link is not None:
-                self.loop.call_at(t_out, link.send, data, True)
+                link.send_at(t_out, data, True)
             else:
                 self.outputs_dropped_by_reset += 1
         self.resets += 1

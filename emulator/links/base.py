@@ -328,6 +328,26 @@ class Link:
             self.loop.call_at(end, self._emit, data, start, bt)
         return accepted
 
+    def send_at(self, t: float, data: bytes, atomic: bool = False) -> int:
+        """:meth:`send` as if called at scenario time ``t`` (>= now), decided now.
+
+        Only for a link's sole writer that schedules its chunks in time order (the DSP's
+        firmware driver): the queue state at ``t`` is then already known, and one timer (the
+        delivery) replaces two.
+        """
+        if self.closed or not data:
+            return 0
+        n = len(data)
+        accepted, start, end = self.out_line.admit(t, n, atomic)
+        if accepted < n:
+            self.stats.dropped_out += n - accepted
+            if not accepted:
+                self.stats.dropped_chunks_out += 1
+                return 0
+            data = data[:accepted]
+        self.loop.call_at(end, self._emit, data, start, self.out_line._bt)  # noqa: SLF001
+        return accepted
+
     def forward(self, data: bytes, src: "Link") -> int:
         """Cut-through transmit of a chunk that has just arrived on ``src`` (see module docstring)."""
         if self.closed or not data:

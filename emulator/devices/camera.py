@@ -506,7 +506,11 @@ class PolarizationCamera:
         self._k += 1
         self._schedule()
         t_mid = t_start + 0.5 * self.exposure_s
-        mosaic = self.mosaic_source(t_mid) if self.mosaic_source is not None else None
+        mosaic = None
+        if self.mosaic_source is not None:
+            mosaic = self.mosaic_source(t_mid)
+            if mosaic is None:  # no recorded frame for this capture
+                return
         obs = self.model.observe(t_mid, mosaic)
         self.last = obs
         self.link.send(self.encode(obs, t_mid))

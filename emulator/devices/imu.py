@@ -207,7 +207,10 @@ class InertialErrorModel:
         self._block_i = 0
         self._block_dt = 0.0
         self._stochastic = bool(np.any(self.white) or np.any(self.flicker.sigma) or np.any(self.rrw))
-        self._deterministic = bool(np.any(self.m != np.eye(3)) or np.any(self.asym) or np.any(self.nl))
+        self._deterministic = bool(np.any(self.m != np.eye(3)))
+        self._has_asym = bool(np.any(self.asym))
+        self._has_nl = bool(np.any(self.nl))
+        self._has_temp = bool(np.any(self.temp_coeff) or np.any(self.temp_gradient))
 
     # -- stochastic part ---------------------------------------------------------------------
     def noise(self, n: int, dt: float) -> np.ndarray:
@@ -226,7 +229,7 @@ class InertialErrorModel:
         """The stochastic error of one interval (from a vectorised block of 200)."""
         if not self._stochastic:
             return np.zeros(3)
-        if self._block is None or self._block_i >= BLOCK or dt != self._block_dt:
+        if self._block is None or self._block_i >= BLOCK or abs(dt - self._block_dt) > 1e-9 * dt:
             self._block = self.noise(BLOCK, dt)
             self._block_i = 0
             self._block_dt = dt
@@ -239,14 +242,16 @@ class InertialErrorModel:
                       cal_c: float = 25.0, f_b: np.ndarray | None = None) -> np.ndarray:
         """Input ``x`` (.., 3) through scale, misalignment, asymmetry, nonlinearity and the constant biases."""
         y = x @ self.m.T if self._deterministic else np.array(x, dtype=np.float64)
-        if np.any(self.asym):
+        if self._has_asym:
             y = y + self.asym * np.abs(x)
-        if np.any(self.nl):
+        if self._has_nl:
             u = x / self.fs
             y = y + self.nl * (1.5 * math.sqrt(3.0)) * (u * u * u - u)
-        y = y + self.bias0 + self.temp_coeff * (temp_c - cal_c) + self.temp_gradient * temp_rate_c_per_min
+        y = y + self.bias0
+        if self._has_temp:
+            y = y + self.temp_coeff * (temp_c - cal_c) + self.temp_gradient * temp_rate_c_per_min
         if self.g_sens is not None and f_b is not None:
-            y = y + f_b @ self.g_sens.T
+            y = y + self.g_sens @ f_b if np.ndim(f_b) == 1 else y + f_b @ self.g_sens.T
         return y
 
     def measure(self, x: np.ndarray, dt: float, temp_c: float = 25.0, temp_rate_c_per_min: float = 0.0,

@@ -1,8 +1,11 @@
 """``serial:///dev/ttyXXX``: a real serial device (real hardware in the loop), via pyserial.
 
 The device's own UART paces what we write; bytes we read are paced again by the line model
-(they arrive in bursts from the driver). pyserial errors are mapped to
-:class:`~emulator.errors.LinkBrokenError` at this boundary.
+(they arrive in bursts from the driver). Writes go straight to pyserial's non-blocking file
+descriptor: a full driver buffer is counted overflow, never a blocked event loop. A device that
+cannot be opened raises :class:`~emulator.errors.LinkBrokenError` (the pyserial error as its
+cause); one that goes away later (USB unplugged, the other end of a pty pair closed) stops the
+link without a busy loop and leaves the reason in ``Link.error`` (reported in the summary).
 
 URL form: ``serial:///dev/ttyUSB0[?baud=460800&mode=8N1&queue=BYTES]``.
 """

@@ -203,7 +203,12 @@ class LineModel:
 
 @dataclass
 class LinkStats:
-    """Byte counters of one link end (directions named from the owning device)."""
+    """Byte counters of one link end (directions named from the owning device).
+
+    ``bytes_out`` counts what left the line model (and the listeners saw); ``dropped_out`` counts
+    both what the TX queue could not hold and what the transport then could not hand over (no
+    peer on a pty, a full kernel buffer). ``bytes_in`` counts what reached the device.
+    """
 
     bytes_out: int = 0
     bytes_in: int = 0

@@ -129,11 +129,15 @@ class VirtualFpga:
         self.monitor_records = 0
         self._mon_record: Any = None
         self._mon_encode: Any = None
+        self._mon_max = 1 << 30
         if monitor is not None:
             api = monitor_api()
             if api is None:
                 raise EmulatorError("links.monitor needs protocols.monitor (CONTRACTS C2), which this build lacks")
             self._mon_record, self._mon_encode, channels = api
+            import protocols.monitor as _pm
+
+            self._mon_max = int(getattr(_pm, "MONITOR_MAX_DATA", 1 << 30))
             wanted = set(cfg.monitor_channels) if cfg.monitor_channels is not None else None
             for side, links in (("port", ports), ("uart", uarts)):
                 for name, link in links.items():
@@ -252,6 +256,9 @@ class VirtualFpga:
         mon = self.monitor
         if mon is None:
             return
-        rec = self._mon_record(channel=channel, direction=direction, t_us=self.counter_us(t), data=bytes(data))
-        mon.send(self._mon_encode(rec))
-        self.monitor_records += 1
+        t_us = self.counter_us(t)
+        step = self._mon_max
+        for i in range(0, len(data), step):  # records carry at most MONITOR_MAX_DATA bytes
+            rec = self._mon_record(channel=channel, direction=direction, t_us=t_us, data=bytes(data[i:i + step]))
+            mon.send(self._mon_encode(rec))
+            self.monitor_records += 1

@@ -81,6 +81,12 @@ def port_formats(name: str) -> dict[str, list[Any]]:
         from protocols.monitor import MonitorFormat
 
         table["monitor"] = {"out": [MonitorFormat()]}
+    try:  # C2: UART1 carries MAG frames too
+        from protocols.imu_frame import FpgaFrameFormat  # type: ignore[attr-defined]
+
+        table["uart1"] = {"in": [FpgaFrameFormat()]}
+    except ImportError:
+        pass
     return {d: list(f) for d, f in table.get(name, {}).items()}
 
 
@@ -227,7 +233,9 @@ class Emulator:
                           routing=dict(scn.fpga.routing),
                           monitor_channels=tuple(scn.fpga.monitor_channels) if scn.fpga.monitor_channels else None)
         fpga_ports = {k: v for k, v in ext.items() if k != "monitor"}
-        self.fpga = VirtualFpga(loop, fcfg, fpga_ports, uart_fpga, gyro, accel, rec, monitor=ext.get("monitor"))
+        mag = getattr(self.sensors, "mag", None) if self.replay is None else None
+        self.fpga = VirtualFpga(loop, fcfg, fpga_ports, uart_fpga, gyro, accel, rec, monitor=ext.get("monitor"),
+                                mag=mag)
         self._fw0 = build_firmware(scn)
         wd = scn.dsp.watchdog
         self.dsp = VirtualDsp(loop, self._fw0, uart_dsp, scn.dsp.clock_hz, rec,
@@ -473,7 +481,8 @@ class Emulator:
             "firmware": {"filter": fw.cfg.filter, "precision": fw.cfg.precision, "counters": dict(fw.counters),
                          "decoders": fw.decoder_stats()},
             "fpga": {"imu_frames": self.fpga.imu_frames, "gyro_missing": self.fpga.gyro_missing,
-                     "routes": self.fpga.routes, "monitor_records": self.fpga.monitor_records},
+                     "mag_frames": self.fpga.mag_frames, "routes": self.fpga.routes,
+                     "monitor_records": self.fpga.monitor_records},
             "devices": self.sensors.counters() if self.sensors is not None else {},
             "ports": [dict(p) for p in self.ports],
             "events": dict(rec.event_counts),

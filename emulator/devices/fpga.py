@@ -7,6 +7,11 @@
   :mod:`protocols.imu_frame` frame and sends it to DSP UART1. No datagram within
   ``gyro_timeout_s`` gives a frame flagged ``GYRO_MISSING`` that repeats the last gyro words.
 * PPS rising edges latch the counter (``t_pps_us``, ``pps_count``), carried in every IMU frame.
+* A magnetometer (when the scenario has one) is sampled on the same trigger; its MAG frame
+  (:class:`protocols.imu_frame.MagFrame`, CONTRACTS C2: sequence, trigger time stamp, field in
+  0.1 nT, status) follows the IMU frame on UART1. This needs the C2 MAG frame in
+  :mod:`protocols.imu_frame`; without it no MAG frame is sent and a ``mag_frames_unavailable``
+  event says so once.
 * Byte routing (the crossbar, scenario ``fpga.routing``): each external serial port is
   forwarded to its DSP UART and back, cut-through (a byte leaves as soon as it has arrived and
   the output line is free). Baud conversion happens because the two sides are separate links
@@ -56,6 +61,15 @@ class FpgaConfig:
 MONITOR_DIRECTIONS = {("port", "in"): 0, ("port", "out"): 1, ("uart", "out"): 0, ("uart", "in"): 1}
 
 
+def mag_api() -> tuple[Any, Any] | None:
+    """``(MagFrame, encode_mag_frame)`` from :mod:`protocols.imu_frame` (C2), or None without them."""
+    try:
+        from protocols.imu_frame import MagFrame, encode_mag_frame  # type: ignore[attr-defined]
+    except ImportError:
+        return None
+    return MagFrame, encode_mag_frame
+
+
 def monitor_api() -> tuple[Any, Any, dict[str, int]] | None:
     """``(MonitorRecord, encode_monitor, MONITOR_CHANNELS)`` from :mod:`protocols.monitor` (C2),
     or None while that module is not part of this build."""
@@ -92,7 +106,7 @@ class VirtualFpga:
 
     def __init__(self, loop: asyncio.AbstractEventLoop, cfg: FpgaConfig, ports: dict[str, Link],
                  uarts: dict[str, Link], gyro: Stim210Gyro | None, accel: AnalogAccelerometers | None,
-                 events: EventSink | None = None, monitor: Link | None = None) -> None:
+                 events: EventSink | None = None, monitor: Link | None = None, mag: Any = None) -> None:
         self.loop = loop
         self.cfg = cfg
         self.ports = ports
@@ -125,6 +139,14 @@ class VirtualFpga:
             if port in ports and uart in uarts:
                 self._route(ports[port], uarts[uart])
                 self.routes[port] = uart
+        self.mag = mag
+        self.mag_frames = 0
+        self._mag_seq = 0
+        self._mag_api = mag_api() if mag is not None else None
+        self._mag_pending: bytes | None = None
+        if mag is not None and self._mag_api is None:
+            self.events.emit(0.0, "fpga", "mag_frames_unavailable",
+                             reason="protocols.imu_frame has no MagFrame (CONTRACTS C2) in this build")
         self.monitor = monitor
         self.monitor_records = 0
         self._mon_record: Any = None
@@ -179,6 +201,11 @@ class VirtualFpga:
         codes = self.accel.sample(t, t_prev) if self.accel is not None else (0, 0, 0)
         if self._pending is not None:  # previous datagram never came
             self._emit_frame(None)
+        if self._mag_api is not None:
+            words, status = self.mag.sample(t, t_prev)
+            mag_frame_cls, encode = self._mag_api
+            self._mag_pending = encode(mag_frame_cls(self._mag_seq & 0xFFFF, self.counter_us(t), words, status))
+            self._mag_seq += 1
         handle = self.loop.call_at(t + self.cfg.gyro_timeout_s, self._gyro_timeout)
         self._pending = (self.counter_us(t), self.seq, codes, handle)
         if self.gyro is not None:
@@ -238,6 +265,10 @@ class VirtualFpga:
         uart1 = self.uarts.get("uart1")
         if uart1 is not None:
             uart1.send(self._imu_fmt.build(frame))
+            if self._mag_pending is not None:  # the trigger's MAG frame follows its IMU frame
+                uart1.send(self._mag_pending)
+                self._mag_pending = None
+                self.mag_frames += 1
 
     # -- crossbar ---------------------------------------------------------------------------
     @staticmethod

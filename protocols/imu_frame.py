@@ -1,4 +1,4 @@
-"""FPGA-to-DSP IMU frame on DSP UART1, and the accelerometer ADC words it carries.
+"""FPGA-to-DSP frames on DSP UART1 (IMU frame, MAG frame) and the accelerometer ADC words.
 
 The virtual FPGA strobes the STIM210 external trigger every 5 ms (200 Hz), samples the three
 analog accelerometers with a 24-bit ADC on the same edge, latches its free-running 1 MHz
@@ -25,7 +25,23 @@ Accelerometer ADC (documented design values; ICD "Accelerometer acquisition"):
 24-bit two's-complement, +-4.096 V differential reference, so ``ADC_VOLTS_PER_LSB`` =
 4.096 / 2^23 V. Accelerometers: Colibrys MS9030 on x (+-30 g, +-2.7 V differential output,
 90 mV/g, the MS1000/MS9000 family table), and the +-25 g parts on y and z scaled to the
-same +-2.7 V swing (108 mV/g).
+same +-2.7 V swing (108 mV/g). So one code is ``ADC_VOLTS_PER_LSB / ACCEL_VOLTS_PER_G[axis]``
+g: 5.43 ug on x, 4.52 ug on y and z (:func:`accel_code_to_g`).
+
+MAG frame (msg_type 0x02, same framing; CONTRACTS C2), one per magnetometer sample::
+
+    off  size  field            type   unit / meaning
+    0    2     sync             0x55 0xAA
+    2    1     msg_type         u8     0x02 = MAG frame
+    3    1     payload_len      u8     19 (bytes 4..22)
+    4    2     seq              u16    frame sequence, wraps
+    6    4     t_sample_us      u32    FPGA counter at the magnetometer sample, us
+    10   12    field            3x i32 magnetic field, body axes x, y, z, 0.1 nT per LSB
+    22   1     status           u8     :class:`MagStatus` bits
+    23   2     crc              u16    CRC-16/CCITT-FALSE over bytes 2..22
+
+:class:`ImuFrameFormat` accepts the IMU frame only (as before); :class:`FpgaFrameFormat`
+accepts both frame types on one stream.
 """
 
 from __future__ import annotations
@@ -34,7 +50,7 @@ import enum
 import struct
 from dataclasses import dataclass
 
-from construct import Array, Const, Int8ul, Int16ul, Int24sl, Int32ul, Struct
+from construct import Array, Const, Int8ul, Int16ul, Int24sl, Int32sl, Int32ul, Struct
 
 from .crc import crc16_ccitt
 from .stream import BAD_LENGTH, NEED_MORE
@@ -51,6 +67,16 @@ __all__ = [
     "ImuFrame",
     "ImuFrameFormat",
     "IMU_FRAME_SPEC",
+    "MAG_MSG_TYPE",
+    "MAG_FRAME_LEN",
+    "MAG_LSB_T",
+    "MAG_FRAME_SPEC",
+    "MagStatus",
+    "MagFrame",
+    "FpgaFrameFormat",
+    "encode_mag_frame",
+    "adc_code_to_volts",
+    "accel_code_to_g",
 ]
 
 IMU_SYNC = b"\x55\xaa"
@@ -66,6 +92,23 @@ ADC_VOLTS_PER_LSB = ADC_VREF_V / 2**23
 ADC_CODE_MAX = 2**23 - 1
 #: Accelerometer sensitivity per axis, V/g (x: MS9030 90 mV/g; y, z: +-25 g over +-2.7 V).
 ACCEL_VOLTS_PER_G = (0.090, 2.7 / 25.0, 2.7 / 25.0)
+
+
+MAG_MSG_TYPE = 0x02
+MAG_PAYLOAD_LEN = 19
+MAG_FRAME_LEN = 25
+#: Tesla per LSB of the MAG frame's field words (0.1 nT).
+MAG_LSB_T = 1e-10
+
+
+def adc_code_to_volts(code: int) -> float:
+    """Differential input voltage, V, of one 24-bit ADC code."""
+    return code * ADC_VOLTS_PER_LSB
+
+
+def accel_code_to_g(code: int, axis: int) -> float:
+    """Specific force, g, of one ADC code on accelerometer ``axis`` (0 = x, 1 = y, 2 = z)."""
+    return code * ADC_VOLTS_PER_LSB / ACCEL_VOLTS_PER_G[axis]
 
 
 class FpgaStatus(enum.IntFlag):
@@ -92,6 +135,26 @@ IMU_FRAME_SPEC = Struct(
     "gyro_latency_us" / Int16ul,
     "accel" / Array(3, Int24sl),
     "fpga_status" / Int8ul,
+    "crc" / Int16ul,
+)
+
+
+class MagStatus(enum.IntFlag):
+    """``status`` bits of the MAG frame."""
+
+    OVERFLOW = 0x01  #: an axis is at its measurement-range limit
+    STALE = 0x02  #: no new magnetometer sample since the previous frame (fields repeat the last one)
+    SENSOR_ERROR = 0x04  #: the magnetometer reported an error or did not answer
+
+
+MAG_FRAME_SPEC = Struct(
+    "sync" / Const(IMU_SYNC),
+    "msg_type" / Const(MAG_MSG_TYPE, Int8ul),
+    "payload_len" / Const(MAG_PAYLOAD_LEN, Int8ul),
+    "seq" / Int16ul,
+    "t_sample_us" / Int32ul,
+    "field" / Array(3, Int32sl),
+    "status" / Int8ul,
     "crc" / Int16ul,
 )
 
@@ -169,3 +232,65 @@ class ImuFrameFormat:
             body += _p24le(w)
         body.append(f.fpga_status & 0xFF)
         return IMU_SYNC + bytes(body) + crc16_ccitt(body).to_bytes(2, "little")
+
+
+@dataclass(frozen=True, slots=True)
+class MagFrame:
+    """One decoded FPGA MAG frame: ``field`` in 0.1 nT (body x, y, z); times in FPGA us."""
+
+    seq: int
+    t_sample_us: int
+    field: tuple[int, int, int]
+    status: int
+
+
+_MAG = struct.Struct("<BBHI3iB")
+
+
+def encode_mag_frame(f: MagFrame) -> bytes:
+    """Whole MAG frame for ``f`` (seq and time wrap like the FPGA counters)."""
+    for w in f.field:
+        if not -0x80000000 <= w <= 0x7FFFFFFF:
+            raise ValueError(f"field word {w} outside i32")
+    body = _MAG.pack(MAG_MSG_TYPE, MAG_PAYLOAD_LEN, f.seq & 0xFFFF, f.t_sample_us & 0xFFFFFFFF, *f.field,
+                     f.status & 0xFF)
+    return IMU_SYNC + body + crc16_ccitt(body).to_bytes(2, "little")
+
+
+def _parse_mag(frame: bytes) -> MagFrame:
+    _, _, seq, t, fx, fy, fz, st = _MAG.unpack_from(frame, 2)
+    return MagFrame(seq, t, (fx, fy, fz), st)
+
+
+class FpgaFrameFormat:
+    """:class:`~protocols.stream.FrameFormat` of every FPGA-to-DSP frame on UART1 (IMU and MAG)."""
+
+    name = "fpga"
+    sync = IMU_SYNC
+
+    def __init__(self) -> None:
+        self._imu = ImuFrameFormat()
+
+    def frame_length(self, buf: bytearray, start: int) -> int:
+        if len(buf) - start < 4:
+            return NEED_MORE
+        t, n = buf[start + 2], buf[start + 3]
+        if t == IMU_MSG_TYPE and n == IMU_PAYLOAD_LEN:
+            return IMU_FRAME_LEN
+        if t == MAG_MSG_TYPE and n == MAG_PAYLOAD_LEN:
+            return MAG_FRAME_LEN
+        return BAD_LENGTH
+
+    def check(self, frame: bytes) -> bool:
+        return crc16_ccitt(frame[2:-2]) == (frame[-2] | (frame[-1] << 8))
+
+    def parse(self, frame: bytes) -> ImuFrame | MagFrame:
+        if frame[2] == IMU_MSG_TYPE:
+            return self._imu.parse(frame)
+        return _parse_mag(frame)
+
+    def build(self, f: ImuFrame | MagFrame) -> bytes:
+        """Encode either frame type."""
+        if isinstance(f, MagFrame):
+            return encode_mag_frame(f)
+        return self._imu.build(f)

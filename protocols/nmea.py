@@ -1,12 +1,29 @@
-"""NMEA 0183 sentences: framing, checksum, GGA and RMC.
+"""NMEA 0183 sentences: framing, checksum, GGA, RMC, VTG, GSA and ZDA.
 
 Source: ``shared/reference/protocols.md`` section 2.3 (gpsd NMEA notes; field order as in
 pynmea2). A sentence is ``$`` + talker (2 letters) + type (3 letters) + ``,``-separated fields
 + ``*`` + two upper-case hex digits (XOR of every byte strictly between ``$`` and ``*``)
-+ ``<CR><LF>``; at most 82 characters including ``$`` and ``<CR><LF>``.
++ ``<CR><LF>``; at most 82 characters including ``$`` and ``<CR><LF>``. Proprietary sentences
+start ``$P`` + a three-letter maker code (``$PSNSPOS``: maker ``SNS``); they are framed and
+checked the same way and come out as :class:`NmeaSentence` with ``talker="PSNS"``.
 
-Latitude is written ``ddmm.mmmmm`` and longitude ``dddmm.mmmmm`` (5 decimals of arc-minutes,
-1.85 cm), heights and speeds with the decimals of a u-blox receiver.
+Number formats written by the builders (a u-blox-like rendering, and the one that the
+golden vectors pin down):
+
+==========  =======================================================================
+field       format
+==========  =======================================================================
+time        ``hhmmss.ss`` (UTC)
+lat / lon   ``ddmm.mmmmm`` / ``dddmm.mmmmm`` (5 decimals of arc-minutes, 1.85 cm) + N/S, E/W
+altitude    metres, 3 decimals (GGA altitude above MSL and geoid separation)
+HDOP etc.   2 decimals
+speed       knots, 3 decimals (RMC, VTG); VTG km/h is derived from the *rounded* knots, so a
+            decoded sentence re-encodes to the same bytes
+course      degrees true, 2 decimals, [0, 360)
+==========  =======================================================================
+
+Every typed sentence re-encodes with :func:`encode_nmea`; for sentences written by these
+builders ``encode_nmea(parse(b)) == b`` holds byte for byte (the golden vectors check it).
 """
 
 from __future__ import annotations
@@ -23,10 +40,17 @@ __all__ = [
     "NmeaSentence",
     "Gga",
     "Rmc",
+    "Vtg",
+    "Gsa",
+    "Zda",
     "NmeaFormat",
     "build_sentence",
     "build_gga",
     "build_rmc",
+    "build_vtg",
+    "build_gsa",
+    "build_zda",
+    "encode_nmea",
     "format_lat",
     "format_lon",
 ]
@@ -39,7 +63,7 @@ KNOT_MPS = 1852.0 / 3600.0
 
 @dataclass(frozen=True, slots=True)
 class NmeaSentence:
-    """Any checked NMEA sentence: talker (``GP``), type (``GGA``) and the raw field strings."""
+    """Any checked NMEA sentence: talker (``GP``, or ``PSNS`` for proprietary), type and raw fields."""
 
     talker: str
     kind: str
@@ -76,6 +100,41 @@ class Rmc:
     mode: str | None
 
 
+@dataclass(frozen=True, slots=True)
+class Vtg:
+    """VTG course over ground and ground speed (m/s, from the knots field), FAA mode letter."""
+
+    talker: str
+    course_true_deg: float | None
+    course_mag_deg: float | None
+    speed_mps: float | None
+    mode: str | None
+
+
+@dataclass(frozen=True, slots=True)
+class Gsa:
+    """GSA DOP and active satellites: ``mode`` M/A, ``fix_type`` 1 none / 2 2D / 3 3D, 12 ID slots."""
+
+    talker: str
+    mode: str
+    fix_type: int
+    sat_ids: tuple[int | None, ...]
+    pdop: float | None
+    hdop: float | None
+    vdop: float | None
+
+
+@dataclass(frozen=True, slots=True)
+class Zda:
+    """ZDA UTC time and date with the local zone offset (hours, minutes)."""
+
+    talker: str
+    time_utc: _dt.time | None
+    date: _dt.date | None
+    zone_hours: int | None
+    zone_minutes: int | None
+
+
 def _parse_time(s: str) -> _dt.time | None:
     if not s:
         return None
@@ -90,12 +149,12 @@ def _parse_latlon(value: str, hemi: str, deg_digits: int) -> float | None:
         return None
     deg = int(value[:deg_digits])
     minutes = float(value[deg_digits:])
-    if minutes >= 60.0:
-        raise ValueError(f"minutes {minutes} >= 60")
+    if not 0.0 <= minutes < 60.0:
+        raise ValueError(f"minutes {minutes} outside [0, 60)")
     v = deg + minutes / 60.0
-    if hemi in ("S", "W"):
-        v = -v
-    elif hemi not in ("N", "E"):
+    if hemi == "S" or hemi == "W":
+        return -v
+    if hemi != "N" and hemi != "E":
         raise ValueError(f"bad hemisphere {hemi!r}")
     return v
 
@@ -132,6 +191,10 @@ def _format_time(t: _dt.time, decimals: int = 2) -> str:
     frac = t.microsecond / 1e6
     sec = t.second + frac
     return f"{t.hour:02d}{t.minute:02d}{sec:0{3 + decimals}.{decimals}f}"
+
+
+def _opt(v: float | None, fmt: str) -> str:
+    return "" if v is None else format(v, fmt)
 
 
 def build_sentence(talker: str, kind: str, fields: list[str] | tuple[str, ...]) -> bytes:
@@ -217,11 +280,174 @@ def build_rmc(
     )
 
 
+def build_vtg(
+    course_true_deg: float | None,
+    speed_mps: float | None,
+    mode: str = "A",
+    course_mag_deg: float | None = None,
+    talker: str = "GP",
+) -> bytes:
+    """VTG sentence: course true/magnetic (deg, 2 decimals), speed in knots and km/h.
+
+    The km/h field is derived from the knots value after rounding to 3 decimals, so the
+    sentence round-trips through :class:`NmeaFormat`. ``None`` leaves a field empty
+    (a receiver without a fix: ``mode="N"``).
+    """
+    if speed_mps is None:
+        kn = kmh = ""
+    else:
+        knots = round(speed_mps / KNOT_MPS, 3)
+        kn = f"{knots:.3f}"
+        kmh = f"{knots * 1.852:.3f}"
+    return build_sentence(
+        talker,
+        "VTG",
+        [
+            _opt(None if course_true_deg is None else course_true_deg % 360.0, ".2f"),
+            "T",
+            _opt(None if course_mag_deg is None else course_mag_deg % 360.0, ".2f"),
+            "M",
+            kn,
+            "N",
+            kmh,
+            "K",
+            mode,
+        ],
+    )
+
+
+def build_gsa(
+    fix_type: int,
+    sat_ids: list[int | None] | tuple[int | None, ...],
+    pdop: float | None,
+    hdop: float | None,
+    vdop: float | None,
+    mode: str = "A",
+    talker: str = "GP",
+) -> bytes:
+    """GSA sentence: ``mode`` A (automatic) / M (manual), ``fix_type`` 1 none / 2 2D / 3 3D.
+
+    ``sat_ids`` fills the 12 satellite slots in order (``None`` = empty slot; fewer than 12
+    entries leave the remaining slots empty). DOPs with 2 decimals.
+    """
+    slots = list(sat_ids)
+    if len(slots) > 12:
+        raise ValueError(f"GSA has 12 satellite slots, got {len(slots)}")
+    slots += [None] * (12 - len(slots))
+    ids = ["" if s is None else f"{s:02d}" for s in slots]
+    return build_sentence(talker, "GSA", [mode, str(fix_type), *ids, _opt(pdop, ".2f"), _opt(hdop, ".2f"),
+                                          _opt(vdop, ".2f")])
+
+
+def build_zda(
+    time_utc: _dt.time,
+    date: _dt.date,
+    zone_hours: int | None = 0,
+    zone_minutes: int | None = 0,
+    talker: str = "GP",
+) -> bytes:
+    """ZDA sentence: UTC time, day, month, 4-digit year, local zone hours and minutes."""
+    zh = "" if zone_hours is None else (f"{zone_hours:03d}" if zone_hours < 0 else f"{zone_hours:02d}")
+    zm = "" if zone_minutes is None else f"{zone_minutes:02d}"
+    return build_sentence(talker, "ZDA", [_format_time(time_utc), f"{date.day:02d}", f"{date.month:02d}",
+                                          f"{date.year:04d}", zh, zm])
+
+
+def encode_nmea(obj: Gga | Rmc | Vtg | Gsa | Zda | NmeaSentence) -> bytes:
+    """Encode any object :class:`NmeaFormat` decodes (the inverse of its ``parse``)."""
+    if isinstance(obj, Gga):
+        if obj.quality == 0:
+            return build_gga(obj.time_utc or _dt.time(), 0.0, 0.0, 0.0, 0.0, quality=0, talker=obj.talker)
+        return build_gga(obj.time_utc or _dt.time(), obj.lat_deg or 0.0, obj.lon_deg or 0.0, obj.altitude_msl_m or 0.0,
+                         obj.geoid_sep_m or 0.0, obj.quality, obj.num_sats or 0, obj.hdop or 0.0, obj.talker)
+    if isinstance(obj, Rmc):
+        date = obj.date or _dt.date(2000, 1, 1)
+        return build_rmc(obj.time_utc or _dt.time(), date, obj.lat_deg or 0.0, obj.lon_deg or 0.0, obj.speed_mps or 0.0,
+                         obj.course_deg or 0.0, valid=obj.valid, mode=obj.mode or "", talker=obj.talker)
+    if isinstance(obj, Vtg):
+        return build_vtg(obj.course_true_deg, obj.speed_mps, obj.mode or "", obj.course_mag_deg, obj.talker)
+    if isinstance(obj, Gsa):
+        return build_gsa(obj.fix_type, obj.sat_ids, obj.pdop, obj.hdop, obj.vdop, obj.mode, obj.talker)
+    if isinstance(obj, Zda):
+        return build_zda(obj.time_utc or _dt.time(), obj.date or _dt.date(2000, 1, 1), obj.zone_hours,
+                         obj.zone_minutes, obj.talker)
+    return build_sentence(obj.talker, obj.kind, obj.fields)
+
+
+def _date_ddmmyy(d: str) -> _dt.date | None:
+    if not d:
+        return None
+    return _dt.date(2000 + int(d[4:6]), int(d[2:4]), int(d[0:2]))
+
+
+def _gga(talker: str, f: list[str]) -> Gga:
+    if len(f) < 14:
+        raise ValueError("GGA needs 14 fields")
+    return Gga(
+        talker,
+        _parse_time(f[0]),
+        _parse_latlon(f[1], f[2], 2),
+        _parse_latlon(f[3], f[4], 3),
+        int(f[5] or 0),
+        _opt_int(f[6]),
+        _opt_float(f[7]),
+        _opt_float(f[8]),
+        _opt_float(f[10]),
+    )
+
+
+def _rmc(talker: str, f: list[str]) -> Rmc:
+    if len(f) < 11:
+        raise ValueError("RMC needs at least 11 fields")
+    speed = f[6]
+    return Rmc(
+        talker,
+        _parse_time(f[0]),
+        f[1] == "A",
+        _parse_latlon(f[2], f[3], 2),
+        _parse_latlon(f[4], f[5], 3),
+        float(speed) * KNOT_MPS if speed else None,
+        _opt_float(f[7]),
+        _date_ddmmyy(f[8]),
+        f[11] if len(f) > 11 and f[11] else None,
+    )
+
+
+def _vtg(talker: str, f: list[str]) -> Vtg:
+    if len(f) < 8:
+        raise ValueError("VTG needs at least 8 fields")
+    if f[4]:
+        speed: float | None = float(f[4]) * KNOT_MPS
+    elif f[6]:
+        speed = float(f[6]) / 3.6
+    else:
+        speed = None
+    return Vtg(talker, _opt_float(f[0]), _opt_float(f[2]), speed, f[8] if len(f) > 8 and f[8] else None)
+
+
+def _gsa(talker: str, f: list[str]) -> Gsa:
+    if len(f) < 17:
+        raise ValueError("GSA needs at least 17 fields")
+    return Gsa(talker, f[0], int(f[1] or 1), tuple(int(s) if s else None for s in f[2:14]), _opt_float(f[14]),
+               _opt_float(f[15]), _opt_float(f[16]))
+
+
+def _zda(talker: str, f: list[str]) -> Zda:
+    if len(f) < 6:
+        raise ValueError("ZDA needs 6 fields")
+    date = _dt.date(int(f[3]), int(f[2]), int(f[1])) if f[1] and f[2] and f[3] else None
+    return Zda(talker, _parse_time(f[0]), date, _opt_int(f[4]), _opt_int(f[5]))
+
+
+_PARSERS = {"GGA": _gga, "RMC": _rmc, "VTG": _vtg, "GSA": _gsa, "ZDA": _zda}
+
+
 class NmeaFormat:
     """:class:`~protocols.stream.FrameFormat` for NMEA 0183 sentences.
 
-    Parses GGA and RMC into :class:`Gga` / :class:`Rmc`; any other checked sentence comes out
-    as :class:`NmeaSentence`.
+    Parses GGA, RMC, VTG, GSA and ZDA into :class:`Gga`, :class:`Rmc`, :class:`Vtg`,
+    :class:`Gsa` and :class:`Zda`; any other checked sentence (also proprietary ``$P...``)
+    comes out as :class:`NmeaSentence`.
     """
 
     name = "nmea"
@@ -239,54 +465,28 @@ class NmeaFormat:
         return end + 1 - start
 
     def check(self, frame: bytes) -> bool:
-        if len(frame) < 11 or frame[-2:] != b"\r\n" or frame[-5] != 0x2A:  # '*'
+        if len(frame) < 11 or frame[-2] != 0x0D or frame[-5] != 0x2A:  # '\r', '*'
             return False
         try:
             want = int(frame[-4:-2], 16)
         except ValueError:
             return False
-        return nmea_checksum(frame[1:-5]) == want
+        c = 0
+        for b in frame[1:-5]:
+            c ^= b
+        return c == want
 
-    def parse(self, frame: bytes) -> NmeaSentence | Gga | Rmc:
-        body = frame[1:-5].decode("ascii")
-        parts = body.split(",")
+    def parse(self, frame: bytes) -> NmeaSentence | Gga | Rmc | Vtg | Gsa | Zda:
+        parts = frame[1:-5].decode("ascii").split(",")
         head = parts[0]
-        if len(head) != 5 or not head.isalnum():
+        if len(head) == 5 and head.isalnum() and head.isupper():
+            talker, kind = head[:2], head[2:]
+        elif len(head) > 4 and head[0] == "P" and head.isalnum() and head.isupper():
+            talker, kind = head[:4], head[4:]  # proprietary: 'P' + maker code, then the type
+        else:
             raise ValueError(f"bad NMEA address field {head!r}")
-        talker, kind = head[:2], head[2:]
-        f = parts[1:]
-        if kind == "GGA":
-            if len(f) < 14:
-                raise ValueError("GGA needs 14 fields")
-            return Gga(
-                talker=talker,
-                time_utc=_parse_time(f[0]),
-                lat_deg=_parse_latlon(f[1], f[2], 2),
-                lon_deg=_parse_latlon(f[3], f[4], 3),
-                quality=int(f[5] or 0),
-                num_sats=_opt_int(f[6]),
-                hdop=_opt_float(f[7]),
-                altitude_msl_m=_opt_float(f[8]),
-                geoid_sep_m=_opt_float(f[10]),
-            )
-        if kind == "RMC":
-            if len(f) < 11:
-                raise ValueError("RMC needs at least 11 fields")
-            speed = _opt_float(f[6])
-            date = None
-            if f[8]:
-                d = f[8]
-                date = _dt.date(2000 + int(d[4:6]), int(d[2:4]), int(d[0:2]))
-            return Rmc(
-                talker=talker,
-                time_utc=_parse_time(f[0]),
-                valid=f[1] == "A",
-                lat_deg=_parse_latlon(f[2], f[3], 2),
-                lon_deg=_parse_latlon(f[4], f[5], 3),
-                speed_mps=None if speed is None else speed * KNOT_MPS,
-                course_deg=_opt_float(f[7]),
-                date=date,
-                mode=f[11] if len(f) > 11 and f[11] else None,
-            )
-        return NmeaSentence(talker, kind, tuple(f))
-
+        del parts[0]
+        p = _PARSERS.get(kind) if len(talker) == 2 else None
+        if p is not None:
+            return p(talker, parts)
+        return NmeaSentence(talker, kind, tuple(parts))

@@ -67,6 +67,8 @@ __all__ = [
     "encode_compass",
     "encode_solar_vector",
     "max_points",
+    "frame_bytes_obs",
+    "encode_psns",
     "POLARIZATION_OBS_SPEC",
     "COMPASS_SPEC",
     "SOLAR_VECTOR_SPEC",
@@ -81,6 +83,7 @@ FRAME_OVERHEAD = 7  # sync 2 + id 1 + len 2 + crc 2
 HEADER_LEN = 13
 POINT_LEN = 10
 UNIT_LEN = 5
+SOLAR_VECTOR_PAYLOAD_LEN = HEADER_LEN + 16
 
 
 class PsnsStatus(enum.IntFlag):
@@ -193,8 +196,26 @@ def encode_solar_vector(h: PsnsHeader, s: tuple[float, float, float], quality: f
     return _frame(MSG_SOLAR_VECTOR, _hdr(h, h.count) + _SV.pack(s[0], s[1], s[2], quality))
 
 
+def encode_psns(obj: PolarizationObs | CompassFrame | SolarVectorFrame) -> bytes:
+    """Encode any object :class:`PsnsFormat` decodes (the inverse of its ``parse``)."""
+    if isinstance(obj, PolarizationObs):
+        return encode_polarization_obs(obj.header, obj.points)
+    if isinstance(obj, CompassFrame):
+        return encode_compass(obj.header, obj.units)
+    return encode_solar_vector(obj.header, obj.s, obj.quality)
+
+
+def frame_bytes_obs(n_points: int) -> int:
+    """Wire bytes of a POLARIZATION_OBS frame with ``n_points`` points."""
+    return FRAME_OVERHEAD + HEADER_LEN + POINT_LEN * n_points
+
+
 def max_points(baud: int, rate_hz: float, bits_per_byte: int = 10) -> int:
-    """Largest POLARIZATION_OBS point count that fits a line of ``baud`` at ``rate_hz`` frames/s."""
+    """Largest POLARIZATION_OBS point count that fits a line of ``baud`` at ``rate_hz`` frames/s.
+
+    ``bits_per_byte`` is 10 for 8N1 (start + 8 data + stop). Example: 115200 baud at 5 Hz
+    gives 2304 bytes per frame period, so (2304 - 7 - 13) // 10 = 228 points.
+    """
     budget = int(baud / bits_per_byte / rate_hz)
     return max(0, (budget - FRAME_OVERHEAD - HEADER_LEN) // POINT_LEN)
 
@@ -206,11 +227,26 @@ class PsnsFormat:
     sync = PSNS_SYNC
 
     def frame_length(self, buf: bytearray, start: int) -> int:
-        if len(buf) - start < 5:
+        # The payload length must agree with the header's count (bytes 16-17), so a corrupt
+        # length is refused after 18 bytes instead of holding the stream for up to 64 KiB.
+        avail = len(buf) - start
+        if avail < 5:
             return NEED_MORE
         msg_id = buf[start + 2]
         n = buf[start + 3] | (buf[start + 4] << 8)
-        if msg_id not in (MSG_POLARIZATION_OBS, MSG_COMPASS, MSG_SOLAR_VECTOR) or n < HEADER_LEN:
+        if msg_id == MSG_SOLAR_VECTOR:
+            return FRAME_OVERHEAD + n if n == SOLAR_VECTOR_PAYLOAD_LEN else BAD_LENGTH
+        if msg_id == MSG_POLARIZATION_OBS:
+            item = POINT_LEN
+        elif msg_id == MSG_COMPASS:
+            item = UNIT_LEN
+        else:
+            return BAD_LENGTH
+        if n < HEADER_LEN or (n - HEADER_LEN) % item:
+            return BAD_LENGTH
+        if avail < 18:
+            return NEED_MORE
+        if n != HEADER_LEN + item * (buf[start + 16] | (buf[start + 17] << 8)):
             return BAD_LENGTH
         return FRAME_OVERHEAD + n
 

@@ -76,9 +76,11 @@ from __future__ import annotations
 import enum
 import struct
 from dataclasses import dataclass
+from typing import Any
 
 from construct import Array, Float32l, Float64l, Int8ul, Int16ul, Int32ul, Struct
 
+from ._fastinit import fast_frozen_init
 from .crc import crc16_ccitt
 from .stream import BAD_LENGTH, NEED_MORE
 
@@ -196,6 +198,7 @@ _NAV = struct.Struct("<Idddf3f3f9fHBBHI")
 NAV_SOLUTION_LEN = _NAV.size  # 102
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class NavSolution:
     """Decoded NAV_SOLUTION (see module docstring for units)."""
@@ -217,6 +220,7 @@ class NavSolution:
     deadline_misses: int
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class HostFrame:
     """A checked host frame whose message id has no typed decoder here."""
@@ -321,6 +325,7 @@ STATUS_LEN = _STATUS.size  # 64
 _ACK = struct.Struct("<BBB")
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class HostStatus:
     """Decoded STATUS (see module docstring for units)."""
@@ -346,6 +351,7 @@ class HostStatus:
     commands_rejected: int
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class Ack:
     """ACK of one command: the command's id, its token and an :class:`AckResult`."""
@@ -355,6 +361,7 @@ class Ack:
     result: int
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class ResetFilter:
     """RESET_FILTER: ``scope`` 0 restarts alignment, 1 resets the covariance only."""
@@ -363,6 +370,7 @@ class ResetFilter:
     scope: int = 0
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class SelectVariant:
     """SELECT_VARIANT: switch to :class:`FilterVariant` ``variant`` (the filter restarts)."""
@@ -371,6 +379,7 @@ class SelectVariant:
     variant: int
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class SetOutputRate:
     """SET_OUTPUT_RATE: NAV_SOLUTION rate, Hz (200 Hz / k; 0 stops the output)."""
@@ -379,6 +388,7 @@ class SetOutputRate:
     rate_hz: float
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class RequestStatus:
     """REQUEST_STATUS: answered by ACK and one STATUS frame."""
@@ -472,6 +482,11 @@ class HostFormat:
     name = "host"
     sync = HOST_SYNC
 
+    @staticmethod
+    def encode(obj: Any) -> bytes:
+        """Encode a decoded object back to its frame (:func:`encode_host`)."""
+        return encode_host(obj)
+
     def frame_length(self, buf: bytearray, start: int) -> int:
         if len(buf) - start < 5:
             return NEED_MORE
@@ -502,6 +517,7 @@ class HostFormat:
 # -- text sentences for terminal users ----------------------------------------------------------
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class NavText:
     """One decoded ``$PSNS...`` sentence: ``kind`` (POS, VEL, ATT, STA) and its typed values."""
@@ -560,6 +576,15 @@ class HostTextFormat:
         self._nmea = NmeaFormat()
         self.frame_length = self._nmea.frame_length
         self.check = self._nmea.check
+
+    @staticmethod
+    def encode(obj: Any) -> bytes:
+        """Encode a :class:`NavText` (or any NMEA object) back to its sentence."""
+        if isinstance(obj, NavText):
+            return encode_nav_text(obj)
+        from .nmea import encode_nmea
+
+        return encode_nmea(obj)
 
     def parse(self, frame: bytes) -> NavText | object:
         s = self._nmea.parse(frame)

@@ -52,6 +52,7 @@ from dataclasses import dataclass
 
 from construct import Array, Const, Int8ul, Int16ul, Int24sl, Int32sl, Int32ul, Struct
 
+from ._fastinit import fast_frozen_init
 from .crc import crc16_ccitt
 from .stream import BAD_LENGTH, NEED_MORE
 
@@ -159,6 +160,7 @@ MAG_FRAME_SPEC = Struct(
 )
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class ImuFrame:
     """One decoded FPGA IMU frame (raw integer fields; see module docstring for units)."""
@@ -233,7 +235,10 @@ class ImuFrameFormat:
         body.append(f.fpga_status & 0xFF)
         return IMU_SYNC + bytes(body) + crc16_ccitt(body).to_bytes(2, "little")
 
+    encode = build
 
+
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class MagFrame:
     """One decoded FPGA MAG frame: ``field`` in 0.1 nT (body x, y, z); times in FPGA us."""
@@ -294,3 +299,5 @@ class FpgaFrameFormat:
         if isinstance(f, MagFrame):
             return encode_mag_frame(f)
         return self._imu.build(f)
+
+    encode = build

@@ -27,9 +27,11 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
+from typing import Any
 
 from construct import Bytes, Int8ul, Int16ul, Int32ul, Struct, this
 
+from ._fastinit import fast_frozen_init
 from .crc import crc16_ccitt
 from .stream import BAD_LENGTH, NEED_MORE
 
@@ -67,6 +69,7 @@ MONITOR_RECORD_SPEC = Struct(
 )
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class MonitorRecord:
     """One tapped chunk: channel id, direction (0 to / 1 from the DSP), FPGA time (us), bytes."""
@@ -139,6 +142,11 @@ class MonitorFormat:
 
     name = "monitor"
     sync = b"\x00"
+
+    @staticmethod
+    def encode(obj: Any) -> bytes:
+        """Encode a decoded object back to its frame (:func:`encode_monitor`)."""
+        return encode_monitor(obj)
 
     def frame_length(self, buf: bytearray, start: int) -> int:
         i = start + 1

@@ -30,7 +30,9 @@ from __future__ import annotations
 
 import datetime as _dt
 from dataclasses import dataclass
+from typing import Any
 
+from ._fastinit import fast_frozen_init
 from .crc import nmea_checksum
 from .stream import BAD_LENGTH, NEED_MORE
 
@@ -61,6 +63,7 @@ NMEA_MAX_LEN = 82
 KNOT_MPS = 1852.0 / 3600.0
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class NmeaSentence:
     """Any checked NMEA sentence: talker (``GP``, or ``PSNS`` for proprietary), type and raw fields."""
@@ -70,6 +73,7 @@ class NmeaSentence:
     fields: tuple[str, ...]
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class Gga:
     """GGA fix data. Angles in degrees (south/west negative); ``altitude_msl_m`` above MSL."""
@@ -85,6 +89,7 @@ class Gga:
     geoid_sep_m: float | None
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class Rmc:
     """RMC recommended minimum data. Speed in m/s, course in degrees clockwise from true north."""
@@ -100,6 +105,7 @@ class Rmc:
     mode: str | None
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class Vtg:
     """VTG course over ground and ground speed (m/s, from the knots field), FAA mode letter."""
@@ -111,6 +117,7 @@ class Vtg:
     mode: str | None
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class Gsa:
     """GSA DOP and active satellites: ``mode`` M/A, ``fix_type`` 1 none / 2 2D / 3 3D, 12 ID slots."""
@@ -124,6 +131,7 @@ class Gsa:
     vdop: float | None
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class Zda:
     """ZDA UTC time and date with the local zone offset (hours, minutes)."""
@@ -135,13 +143,30 @@ class Zda:
     zone_minutes: int | None
 
 
-def _parse_time(s: str) -> _dt.time | None:
-    if not s:
-        return None
+def _parse_time_uncached(s: str) -> _dt.time:
     hh, mm = int(s[0:2]), int(s[2:4])
     sec = float(s[4:])
     whole = int(sec)
     return _dt.time(hh, mm, whole, int(round((sec - whole) * 1e6)) if sec != whole else 0)
+
+
+# A receiver repeats one epoch's time and date in several sentences (RMC, GGA, ZDA): small
+# caches of the last few strings save most of the datetime work on a stream.
+_TIME_CACHE: dict[str, _dt.time] = {}
+_DATE_CACHE: dict[str, _dt.date] = {}
+_CACHE_MAX = 64
+
+
+def _parse_time(s: str) -> _dt.time | None:
+    if not s:
+        return None
+    t = _TIME_CACHE.get(s)
+    if t is None:
+        t = _parse_time_uncached(s)
+        if len(_TIME_CACHE) >= _CACHE_MAX:
+            _TIME_CACHE.clear()
+        _TIME_CACHE[s] = t
+    return t
 
 
 def _parse_latlon(value: str, hemi: str, deg_digits: int) -> float | None:
@@ -377,67 +402,133 @@ def encode_nmea(obj: Gga | Rmc | Vtg | Gsa | Zda | NmeaSentence) -> bytes:
 def _date_ddmmyy(d: str) -> _dt.date | None:
     if not d:
         return None
-    return _dt.date(2000 + int(d[4:6]), int(d[2:4]), int(d[0:2]))
+    v = _DATE_CACHE.get(d)
+    if v is None:
+        v = _dt.date(2000 + int(d[4:6]), int(d[2:4]), int(d[0:2]))
+        if len(_DATE_CACHE) >= _CACHE_MAX:
+            _DATE_CACHE.clear()
+        _DATE_CACHE[d] = v
+    return v
+
+
+# The typed parsers take the whole split sentence ``f`` (``f[0]`` is the address field).
+
+
+def _lat(v: str, hemi: str) -> float | None:
+    if not v:
+        return None
+    x = float(v)  # ddmm.mmmmm
+    d = x // 100.0
+    m = x - 100.0 * d
+    if not (0.0 <= m < 60.0 and d >= 0.0):
+        raise ValueError(f"bad latitude {v!r}")
+    x = d + m / 60.0
+    if hemi == "N":
+        return x
+    if hemi == "S":
+        return -x
+    raise ValueError(f"bad hemisphere {hemi!r}")
+
+
+def _lon(v: str, hemi: str) -> float | None:
+    if not v:
+        return None
+    x = float(v)  # dddmm.mmmmm
+    d = x // 100.0
+    m = x - 100.0 * d
+    if not (0.0 <= m < 60.0 and d >= 0.0):
+        raise ValueError(f"bad longitude {v!r}")
+    x = d + m / 60.0
+    if hemi == "E":
+        return x
+    if hemi == "W":
+        return -x
+    raise ValueError(f"bad hemisphere {hemi!r}")
 
 
 def _gga(talker: str, f: list[str]) -> Gga:
-    if len(f) < 14:
+    if len(f) < 15:
         raise ValueError("GGA needs 14 fields")
     return Gga(
         talker,
-        _parse_time(f[0]),
-        _parse_latlon(f[1], f[2], 2),
-        _parse_latlon(f[3], f[4], 3),
-        int(f[5] or 0),
-        _opt_int(f[6]),
-        _opt_float(f[7]),
-        _opt_float(f[8]),
-        _opt_float(f[10]),
+        _TIME_CACHE.get(f[1]) or _parse_time(f[1]),
+        _lat(f[2], f[3]),
+        _lon(f[4], f[5]),
+        int(f[6] or 0),
+        int(f[7]) if f[7] else None,
+        float(f[8]) if f[8] else None,
+        float(f[9]) if f[9] else None,
+        float(f[11]) if f[11] else None,
     )
 
 
 def _rmc(talker: str, f: list[str]) -> Rmc:
-    if len(f) < 11:
+    if len(f) < 12:
         raise ValueError("RMC needs at least 11 fields")
-    speed = f[6]
+    speed = f[7]
     return Rmc(
         talker,
-        _parse_time(f[0]),
-        f[1] == "A",
-        _parse_latlon(f[2], f[3], 2),
-        _parse_latlon(f[4], f[5], 3),
+        _TIME_CACHE.get(f[1]) or _parse_time(f[1]),
+        f[2] == "A",
+        _lat(f[3], f[4]),
+        _lon(f[5], f[6]),
         float(speed) * KNOT_MPS if speed else None,
-        _opt_float(f[7]),
-        _date_ddmmyy(f[8]),
-        f[11] if len(f) > 11 and f[11] else None,
+        float(f[8]) if f[8] else None,
+        _DATE_CACHE.get(f[9]) or _date_ddmmyy(f[9]),
+        f[12] if len(f) > 12 and f[12] else None,
     )
 
 
 def _vtg(talker: str, f: list[str]) -> Vtg:
-    if len(f) < 8:
+    if len(f) < 9:
         raise ValueError("VTG needs at least 8 fields")
-    if f[4]:
-        speed: float | None = float(f[4]) * KNOT_MPS
-    elif f[6]:
-        speed = float(f[6]) / 3.6
+    if f[5]:
+        speed: float | None = float(f[5]) * KNOT_MPS
+    elif f[7]:
+        speed = float(f[7]) / 3.6
     else:
         speed = None
-    return Vtg(talker, _opt_float(f[0]), _opt_float(f[2]), speed, f[8] if len(f) > 8 and f[8] else None)
+    return Vtg(talker, float(f[1]) if f[1] else None, float(f[3]) if f[3] else None, speed,
+               f[9] if len(f) > 9 and f[9] else None)
 
 
 def _gsa(talker: str, f: list[str]) -> Gsa:
-    if len(f) < 17:
+    if len(f) < 18:
         raise ValueError("GSA needs at least 17 fields")
-    return Gsa(talker, f[0], int(f[1] or 1), tuple(int(s) if s else None for s in f[2:14]), _opt_float(f[14]),
-               _opt_float(f[15]), _opt_float(f[16]))
+    try:
+        ids = tuple(map(_SAT_IDS.__getitem__, f[3:15]))
+    except KeyError:
+        ids = tuple(int(s) if s else None for s in f[3:15])
+    return Gsa(talker, f[1], int(f[2] or 1), ids, float(f[15]) if f[15] else None, float(f[16]) if f[16] else None,
+               float(f[17]) if f[17] else None)
+
+
+#: Satellite-ID strings of GSA slots (NMEA writes 2 digits, some receivers 1 or 3).
+_SAT_IDS: dict[str, int | None] = {"": None, **{str(i): i for i in range(1000)}, **{f"{i:02d}": i for i in range(100)},
+                                   **{f"{i:03d}": i for i in range(1000)}}
 
 
 def _zda(talker: str, f: list[str]) -> Zda:
-    if len(f) < 6:
+    if len(f) < 7:
         raise ValueError("ZDA needs 6 fields")
-    date = _dt.date(int(f[3]), int(f[2]), int(f[1])) if f[1] and f[2] and f[3] else None
-    return Zda(talker, _parse_time(f[0]), date, _opt_int(f[4]), _opt_int(f[5]))
+    date = None
+    if f[2] and f[3] and f[4]:
+        key = f[2] + f[3] + f[4]
+        date = _DATE_CACHE.get(key)
+        if date is None:
+            date = _dt.date(int(f[4]), int(f[3]), int(f[2]))
+            if len(_DATE_CACHE) >= _CACHE_MAX:
+                _DATE_CACHE.clear()
+            _DATE_CACHE[key] = date
+    return Zda(talker, _TIME_CACHE.get(f[1]) or _parse_time(f[1]), date, int(f[5]) if f[5] else None,
+               int(f[6]) if f[6] else None)
 
+
+#: The two checksum characters -> value (upper case per NMEA 0183; lower case accepted).
+_HEX2 = {**{f"{i:02X}".encode(): i for i in range(256)}, **{f"{i:02x}".encode(): i for i in range(256)}}
+
+#: The same, pre-XORed with the framing bytes '$', '*', the two hex digits, CR and LF.
+_HEX2_FRAMED = {k: v ^ 0x24 ^ 0x2A ^ k[0] ^ k[1] ^ 0x0D ^ 0x0A for k, v in _HEX2.items()}
 
 _PARSERS = {"GGA": _gga, "RMC": _rmc, "VTG": _vtg, "GSA": _gsa, "ZDA": _zda}
 
@@ -453,6 +544,11 @@ class NmeaFormat:
     name = "nmea"
     sync = b"$"
 
+    @staticmethod
+    def encode(obj: Any) -> bytes:
+        """Encode a decoded object back to its frame (:func:`encode_nmea`)."""
+        return encode_nmea(obj)
+
     def frame_length(self, buf: bytearray, start: int) -> int:
         end = buf.find(b"\n", start + 1, start + NMEA_MAX_LEN)
         if end < 0:
@@ -467,26 +563,44 @@ class NmeaFormat:
     def check(self, frame: bytes) -> bool:
         if len(frame) < 11 or frame[-2] != 0x0D or frame[-5] != 0x2A:  # '\r', '*'
             return False
-        try:
-            want = int(frame[-4:-2], 16)
-        except ValueError:
+        want = _HEX2_FRAMED.get(frame[-4:-2])
+        if want is None:
             return False
-        c = 0
-        for b in frame[1:-5]:
-            c ^= b
-        return c == want
+        # XOR of every byte by folding the frame as one integer (frames are <= 82 bytes, so
+        # <= 1024 bits); the framing bytes $ * h h CR LF are XORed out through _HEX2_FRAMED.
+        x = int.from_bytes(frame, "little")
+        x ^= x >> 512
+        x ^= x >> 256
+        x ^= x >> 128
+        x ^= x >> 64
+        x ^= x >> 32
+        x ^= x >> 16
+        x ^= x >> 8
+        return (x & 0xFF) == want
 
     def parse(self, frame: bytes) -> NmeaSentence | Gga | Rmc | Vtg | Gsa | Zda:
         parts = frame[1:-5].decode("ascii").split(",")
-        head = parts[0]
-        if len(head) == 5 and head.isalnum() and head.isupper():
-            talker, kind = head[:2], head[2:]
-        elif len(head) > 4 and head[0] == "P" and head.isalnum() and head.isupper():
-            talker, kind = head[:4], head[4:]  # proprietary: 'P' + maker code, then the type
-        else:
-            raise ValueError(f"bad NMEA address field {head!r}")
-        del parts[0]
-        p = _PARSERS.get(kind) if len(talker) == 2 else None
+        head = _HEADS.get(parts[0])
+        if head is None:
+            head = _classify_head(parts[0])
+        talker, kind, p = head
         if p is not None:
-            return p(talker, parts)
-        return NmeaSentence(talker, kind, tuple(parts))
+            return p(talker, parts)  # type: ignore[operator]
+        return NmeaSentence(talker, kind, tuple(parts[1:]))
+
+
+_HEADS: dict[str, tuple[str, str, object]] = {}
+
+
+def _classify_head(head: str) -> tuple[str, str, object]:
+    """Split an address field into (talker, kind, typed parser or None); cache the good ones."""
+    if len(head) == 5 and head.isalnum() and head.isupper():
+        talker, kind = head[:2], head[2:]
+        r: tuple[str, str, object] = (talker, kind, _PARSERS.get(kind))
+    elif len(head) > 4 and head[0] == "P" and head.isalnum() and head.isupper():
+        r = (head[:4], head[4:], None)  # proprietary: 'P' + maker code, then the type
+    else:
+        raise ValueError(f"bad NMEA address field {head!r}")
+    if len(_HEADS) < 256:
+        _HEADS[head] = r
+    return r

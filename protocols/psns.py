@@ -43,9 +43,11 @@ from __future__ import annotations
 import enum
 import struct
 from dataclasses import dataclass
+from typing import Any
 
 from construct import Array, Float32l, Int8ul, Int16sl, Int16ul, Int32ul, Struct, this
 
+from ._fastinit import fast_frozen_init
 from .crc import crc16_ccitt
 from .stream import BAD_LENGTH, NEED_MORE
 
@@ -120,6 +122,7 @@ COMPASS_SPEC = Struct(
 SOLAR_VECTOR_SPEC = Struct(*_HEADER_FIELDS, "s" / Array(3, Float32l), "quality" / Float32l)
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class PsnsHeader:
     seq: int
@@ -129,6 +132,7 @@ class PsnsHeader:
     count: int
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class PolarizationPoint:
     """One observation point: pixel (1-based column, row), AOP (0.01 deg), DOP (1/65535), S0 (DN)."""
@@ -140,12 +144,14 @@ class PolarizationPoint:
     intensity: int
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class PolarizationObs:
     header: PsnsHeader
     points: tuple[PolarizationPoint, ...]
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class CompassUnit:
     unit: int
@@ -153,12 +159,14 @@ class CompassUnit:
     dop: int
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class CompassFrame:
     header: PsnsHeader
     units: tuple[CompassUnit, ...]
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class SolarVectorFrame:
     header: PsnsHeader
@@ -225,6 +233,11 @@ class PsnsFormat:
 
     name = "psns"
     sync = PSNS_SYNC
+
+    @staticmethod
+    def encode(obj: Any) -> bytes:
+        """Encode a decoded object back to its frame (:func:`encode_psns`)."""
+        return encode_psns(obj)
 
     def frame_length(self, buf: bytearray, start: int) -> int:
         # The payload length must agree with the header's count (bytes 16-17), so a corrupt

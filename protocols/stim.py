@@ -65,6 +65,7 @@ from dataclasses import dataclass
 
 from construct import Array, Bytes, Const, Int8ub, Int16sb, Int16ub, Int24sb, Int32ub, Struct
 
+from ._fastinit import fast_frozen_init
 from .crc import crc8_stim, crc32_mpeg2
 
 __all__ = [
@@ -159,6 +160,7 @@ STIM210_FORMATS: dict[str, tuple[int, tuple[str, ...]]] = {
 _GROUP_SIZE = {"reserved": 3, "temperature": 6, "counter": 1, "latency": 2}
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class StimDatagram:
     """One decoded STIM normal-mode gyro datagram (raw integer words).
@@ -280,6 +282,8 @@ class Stim210Format:
             out += b"\r\n"
         return bytes(out)
 
+    encode = build
+
 
 
 # --------------------------------------------------------------------------------------------
@@ -318,6 +322,7 @@ STIM300_DATAGRAMS: dict[int, tuple[tuple[str, ...], int, int, str]] = {
 }
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class Stim300Datagram:
     """One decoded STIM300 normal-mode datagram (raw integer words, see module docstring).
@@ -481,6 +486,8 @@ class Stim300Format:
         if self.crlf:
             out += b"\r\n"
         return bytes(out)
+
+    encode = build
 
 
 def _p24be(v: int) -> bytes:

@@ -40,9 +40,11 @@ from __future__ import annotations
 import itertools
 import struct
 from dataclasses import dataclass
+from typing import Any
 
 from construct import Bytes, Const, Int8ul, Int16sl, Int16ul, Int32sl, Int32ul, Struct
 
+from ._fastinit import fast_frozen_init
 from .stream import BAD_LENGTH, NEED_MORE
 
 __all__ = [
@@ -81,6 +83,7 @@ UBX_CLASSES = frozenset({0x01, 0x02, 0x04, 0x05, 0x06, 0x09, 0x0A, 0x0B, 0x0D, 0
 _FIXED_LEN = {(CLS_NAV, ID_NAV_STATUS): (NAV_STATUS_LEN,), (CLS_NAV, ID_NAV_PVT): (NAV_PVT_LEN, 84)}
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class NavPvt:
     """UBX-NAV-PVT with the u-blox field names and raw integer units (module docstring)."""
@@ -120,6 +123,7 @@ class NavPvt:
     magAcc: int
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class NavStatus:
     """UBX-NAV-STATUS with the u-blox field names and raw units (ms)."""
@@ -133,6 +137,7 @@ class NavStatus:
     msss: int
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class UbxFrame:
     """A checked UBX frame without a typed decoder here."""
@@ -248,6 +253,11 @@ class UbxFormat:
 
     name = "ubx"
     sync = UBX_SYNC
+
+    @staticmethod
+    def encode(obj: Any) -> bytes:
+        """Encode a decoded object back to its frame (:func:`encode_ubx`)."""
+        return encode_ubx(obj)
 
     def frame_length(self, buf: bytearray, start: int) -> int:
         if len(buf) - start < 6:

@@ -13,14 +13,15 @@ port as one record. A record, before framing (little-endian)::
 
 Framing: the record (with its CRC) is COBS-encoded (Cheshire & Baker, "Consistent Overhead
 Byte Stuffing", IEEE/ACM Trans. Networking 7(2), 1999: no 0x00 inside, one code byte per
-254 data bytes) and sent between two 0x00 delimiters::
+254 data bytes) and preceded by a 0x00 delimiter::
 
-    0x00 | COBS(record + crc) | 0x00
+    0x00 | COBS(record + crc)          (back to back: 00 A 00 B 00 C ...)
 
-A reader that joins mid-stream drops bytes up to the next 0x00 and is in step from the next
-record on; a damaged record costs that record only. Runs of delimiters are allowed
-(``00 00`` between two records is what back-to-back :func:`encode_monitor` outputs give).
-Overhead per record: 2 delimiters + 1 COBS code byte (+1 per 254 bytes) + 10 header/CRC bytes.
+0x00 only ever appears as a delimiter, so a reader that joins mid-stream drops bytes up to the
+next 0x00 and is in step from the next record on. The end of a record follows from its COBS code
+bytes and its length field, so it is decoded as soon as its last byte arrives. A damaged record
+costs that record only. Runs of delimiters (idle fill) are allowed. Overhead per record:
+1 delimiter + 1 COBS code byte (+1 per 254 bytes) + 10 header/CRC bytes.
 """
 
 from __future__ import annotations
@@ -56,8 +57,6 @@ DIR_FROM_DSP = 1
 MONITOR_MAX_DATA = 1024
 _HDR = struct.Struct("<BBIH")
 _REC_OVERHEAD = _HDR.size + 2  # header + CRC
-#: Longest frame on the wire: delimiters + COBS(MONITOR_MAX_DATA + 10).
-_MAX_FRAME = 2 + (MONITOR_MAX_DATA + _REC_OVERHEAD) + (MONITOR_MAX_DATA + _REC_OVERHEAD) // 254 + 1
 
 MONITOR_RECORD_SPEC = Struct(
     "channel" / Int8ul * "MONITOR_CHANNELS id",
@@ -120,24 +119,30 @@ def monitor_frame_len(n_data: int) -> int:
     (COBS then spends ``len // 254 + 1`` code bytes); a 0x00 in the record costs nothing extra.
     """
     n = n_data + _REC_OVERHEAD
-    return 2 + n + n // 254 + 1
+    return 1 + n + n // 254 + 1
 
 
 def encode_monitor(rec: MonitorRecord) -> bytes:
-    """The framed record: ``00 | COBS(record + CRC) | 00``. ``t_us`` wraps at 2^32 like the FPGA counter."""
+    """The framed record: ``00 | COBS(record + CRC)``. ``t_us`` wraps at 2^32 like the FPGA counter.
+
+    Back-to-back records are ``00 A 00 B 00 C``: each record's opening 0x00 closes the one before.
+    A sender going idle may send one more 0x00; a reader does not need it.
+    """
     if len(rec.data) > MONITOR_MAX_DATA:
         raise ValueError(f"monitor record of {len(rec.data)} bytes exceeds {MONITOR_MAX_DATA}; split it")
     body = _HDR.pack(rec.channel & 0xFF, rec.direction & 0xFF, rec.t_us & 0xFFFFFFFF, len(rec.data)) + bytes(rec.data)
     body += crc16_ccitt(body).to_bytes(2, "little")
-    return b"\x00" + cobs_encode(body) + b"\x00"
+    return b"\x00" + cobs_encode(body)
 
 
 class MonitorFormat:
     """:class:`~protocols.stream.FrameFormat` of the MONITOR port (yields :class:`MonitorRecord`).
 
-    A candidate starts at a 0x00, takes any further 0x00 of the same run, and ends with the
-    next 0x00 after some non-zero bytes. The check decodes the COBS block and verifies the
-    length field and the CRC.
+    A candidate starts at a 0x00 (with any further 0x00 of the same run) and its end follows from
+    the COBS code bytes and the record's own length field, so a record is complete as soon as its
+    last byte arrives and the 0x00 after it stays in the stream as the next record's opening
+    delimiter. A 0x00 met before that end, or a length beyond :data:`MONITOR_MAX_DATA`, refuses the
+    candidate at once; the check verifies the CRC.
     """
 
     name = "monitor"
@@ -145,24 +150,47 @@ class MonitorFormat:
 
     @staticmethod
     def encode(obj: Any) -> bytes:
-        """Encode a decoded object back to its frame (:func:`encode_monitor`)."""
+        """Encode a :class:`MonitorRecord` (:func:`encode_monitor`)."""
         return encode_monitor(obj)
 
     def frame_length(self, buf: bytearray, start: int) -> int:
-        i = start + 1
         n = len(buf)
+        i = start + 1
         while i < n and buf[i] == 0:
             i += 1
-        if i >= n:
-            return NEED_MORE
-        end = buf.find(b"\x00", i, i + _MAX_FRAME)
-        if end < 0:
-            return NEED_MORE if n - i < _MAX_FRAME else BAD_LENGTH
-        return end + 1 - start
+        z = buf.find(b"\x00", i)  # COBS data holds no 0x00: the record ends before z
+        if z < 0:
+            z = n
+        head = b""
+        want = -1  # decoded record length (header + data + CRC) once the header is known
+        decoded = 0
+        while True:
+            if i >= z:
+                return NEED_MORE if z == n else BAD_LENGTH
+            code = buf[i]
+            j = i + code
+            if j > z:
+                return NEED_MORE if z == n else BAD_LENGTH
+            decoded += code - 1
+            if want < 0:
+                head += buf[i + 1 : j]
+                if code != 0xFF:
+                    head += b"\x00"
+                if len(head) >= 8:
+                    want = _REC_OVERHEAD + (head[6] | (head[7] << 8))
+                    if want > _REC_OVERHEAD + MONITOR_MAX_DATA:
+                        return BAD_LENGTH
+            i = j
+            if code != 0xFF:
+                if decoded == want:
+                    return i - start
+                decoded += 1  # the zero this block stands for
+            if want >= 0 and decoded > want:
+                return BAD_LENGTH
 
     def check(self, frame: bytes) -> bool:
         try:
-            body = cobs_decode(frame.lstrip(b"\x00")[:-1])
+            body = cobs_decode(frame.lstrip(b"\x00"))
         except ValueError:
             return False
         if len(body) < _REC_OVERHEAD or len(body) != _REC_OVERHEAD + (body[6] | (body[7] << 8)):
@@ -170,6 +198,6 @@ class MonitorFormat:
         return crc16_ccitt(body[:-2]) == (body[-2] | (body[-1] << 8))
 
     def parse(self, frame: bytes) -> MonitorRecord:
-        body = cobs_decode(frame.lstrip(b"\x00")[:-1])
+        body = cobs_decode(frame.lstrip(b"\x00"))
         ch, d, t, _ = _HDR.unpack_from(body, 0)
         return MonitorRecord(ch, d, t, body[_HDR.size : -2])

@@ -544,15 +544,22 @@ class NmeaFormat:
     name = "nmea"
     sync = b"$"
 
+    def __init__(self, max_len: int = NMEA_MAX_LEN) -> None:
+        # Longest accepted line; 82 is the standard's limit, proprietary sentences of real
+        # receivers (u-blox PUBX,00: ~110 characters) need more.
+        if not 11 <= max_len <= 1024:
+            raise ValueError(f"max_len {max_len} outside [11, 1024]")
+        self.max_len = max_len
+
     @staticmethod
     def encode(obj: Any) -> bytes:
         """Encode a decoded object back to its frame (:func:`encode_nmea`)."""
         return encode_nmea(obj)
 
     def frame_length(self, buf: bytearray, start: int) -> int:
-        end = buf.find(b"\n", start + 1, start + NMEA_MAX_LEN)
+        end = buf.find(b"\n", start + 1, start + self.max_len)
         if end < 0:
-            if len(buf) - start >= NMEA_MAX_LEN:
+            if len(buf) - start >= self.max_len:
                 return BAD_LENGTH
             return NEED_MORE
         # A new '$' before the line end means this candidate was cut short.
@@ -566,9 +573,13 @@ class NmeaFormat:
         want = _HEX2_FRAMED.get(frame[-4:-2])
         if want is None:
             return False
-        # XOR of every byte by folding the frame as one integer (frames are <= 82 bytes, so
-        # <= 1024 bits); the framing bytes $ * h h CR LF are XORed out through _HEX2_FRAMED.
+        # XOR of every byte by folding the frame as one integer (<= 1024 bytes: 8192 bits);
+        # the framing bytes $ * h h CR LF are XORed out through _HEX2_FRAMED.
         x = int.from_bytes(frame, "little")
+        if len(frame) > 128:
+            x ^= x >> 4096
+            x ^= x >> 2048
+            x ^= x >> 1024
         x ^= x >> 512
         x ^= x >> 256
         x ^= x >> 128
@@ -597,8 +608,8 @@ def _classify_head(head: str) -> tuple[str, str, object]:
     if len(head) == 5 and head.isalnum() and head.isupper():
         talker, kind = head[:2], head[2:]
         r: tuple[str, str, object] = (talker, kind, _PARSERS.get(kind))
-    elif len(head) > 4 and head[0] == "P" and head.isalnum() and head.isupper():
-        r = (head[:4], head[4:], None)  # proprietary: 'P' + maker code, then the type
+    elif len(head) >= 4 and head[0] == "P" and head.isalnum() and head.isupper():
+        r = (head[:4], head[4:], None)  # proprietary: 'P' + maker code, then the type (may be empty)
     else:
         raise ValueError(f"bad NMEA address field {head!r}")
     if len(_HEADS) < 256:

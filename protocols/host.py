@@ -78,7 +78,7 @@ import struct
 from dataclasses import dataclass
 from typing import Any
 
-from construct import Array, Float32l, Float64l, Int8ul, Int16ul, Int32ul, Struct
+from construct import Array, Bytes, Const, Float32l, Float64l, Int8ul, Int16ul, Int32ul, Struct, this
 
 from ._fastinit import fast_frozen_init
 from .crc import crc16_ccitt
@@ -176,22 +176,30 @@ class NavMode(enum.IntFlag):
     DEGRADED = 0x0010  #: inputs missing or rejected (see status bytes)
 
 
+# Field docs are "scale | unit | meaning" (read by protocols.icd for docs/icd.md).
+HOST_FRAME_SPEC = Struct(
+    "sync" / Const(HOST_SYNC) * " |  | 0xA5 0x5A",
+    "msg_id" / Int8ul * " |  | message id",
+    "length" / Int16ul * "1 | bytes | payload length N (<= 1024)",
+    "payload" / Bytes(this.length) * " |  | N bytes",
+    "crc" / Int16ul * " |  | CRC-16/CCITT-FALSE over msg_id, length, payload",
+)
 NAV_SOLUTION_SPEC = Struct(
-    "seq" / Int32ul,
-    "time_s" / Float64l,
-    "lat_deg" / Float64l,
-    "lon_deg" / Float64l,
-    "height_m" / Float32l,
-    "vel_enu_mps" / Array(3, Float32l),
-    "roll_deg" / Float32l,
-    "pitch_deg" / Float32l,
-    "heading_deg" / Float32l,
-    "sigma" / Array(9, Float32l),
-    "mode" / Int16ul,
-    "gnss_status" / Int8ul,
-    "psns_status" / Int8ul,
-    "cpu_load" / Int16ul,
-    "deadline_misses" / Int32ul,
+    "seq" / Int32ul * "1 |  | solution counter",
+    "time_s" / Float64l * "1 | s | time of validity (FPGA time of the IMU trigger)",
+    "lat_deg" / Float64l * "1 | deg | WGS-84 latitude",
+    "lon_deg" / Float64l * "1 | deg | WGS-84 longitude",
+    "height_m" / Float32l * "1 | m | ellipsoidal height",
+    "vel_enu_mps" / Array(3, Float32l) * "1 | m/s | velocity East, North, Up",
+    "roll_deg" / Float32l * "1 | deg | roll, right wing down positive",
+    "pitch_deg" / Float32l * "1 | deg | pitch, nose up positive",
+    "heading_deg" / Float32l * "1 | deg | heading clockwise from true north, [0, 360)",
+    "sigma" / Array(9, Float32l) * "1 | deg, m/s, m | 1-sigma: attitude E,N,U; velocity E,N,U; position N,E,U",
+    "mode" / Int16ul * " |  | NavMode bits; bits 8-11 filter variant",
+    "gnss_status" / Int8ul * " |  | fix quality of the last GNSS fix used (GGA codes)",
+    "psns_status" / Int8ul * " |  | 0 none, 1 solar vector used, 2 rejected",
+    "cpu_load" / Int16ul * "0.01 | % | worst tick of the last second",
+    "deadline_misses" / Int32ul * "1 |  | cumulative",
 )
 
 _NAV = struct.Struct("<Idddf3f3f9fHBBHI")
@@ -285,39 +293,40 @@ def _decode_nav(payload: bytes) -> NavSolution:
 # -- STATUS, ACK, commands -------------------------------------------------------------------
 
 STATUS_SPEC = Struct(
-    "seq" / Int32ul * "status counter",
-    "time_s" / Float64l * "s, FPGA time",
-    "filter_variant" / Int8ul * "FilterVariant",
-    "reserved" / Int8ul * "0",
-    "mode" / Int16ul * "NavMode bits",
-    "output_rate_hz" / Float32l * "Hz, NAV_SOLUTION rate",
-    "gnss_status" / Int8ul * "as NAV_SOLUTION",
-    "psns_status" / Int8ul * "as NAV_SOLUTION",
-    "cpu_load" / Int16ul * "0.01 %, worst tick of the last second",
-    "cpu_load_max" / Int16ul * "0.01 %, worst tick since start",
-    "fw_version" / Int16ul * "major << 8 | minor",
-    "deadline_misses" / Int32ul * "cumulative",
-    "uart1_frames" / Int32ul * "IMU/MAG frames decoded",
-    "uart1_errors" / Int32ul * "checksum + length + parse errors",
-    "uart2_frames" / Int32ul * "PSNS frames decoded",
-    "uart2_errors" / Int32ul * "checksum + length + parse errors",
-    "uart3_frames" / Int32ul * "GNSS frames decoded",
-    "uart3_errors" / Int32ul * "checksum + length + parse errors",
-    "commands_accepted" / Int32ul * "cumulative",
-    "commands_rejected" / Int32ul * "cumulative",
+    "seq" / Int32ul * "1 |  | status counter",
+    "time_s" / Float64l * "1 | s | FPGA time",
+    "filter_variant" / Int8ul * " |  | FilterVariant",
+    "reserved" / Int8ul * " |  | 0",
+    "mode" / Int16ul * " |  | NavMode bits",
+    "output_rate_hz" / Float32l * "1 | Hz | NAV_SOLUTION rate in force",
+    "gnss_status" / Int8ul * " |  | as in NAV_SOLUTION",
+    "psns_status" / Int8ul * " |  | as in NAV_SOLUTION",
+    "cpu_load" / Int16ul * "0.01 | % | worst tick of the last second",
+    "cpu_load_max" / Int16ul * "0.01 | % | worst tick since start",
+    "fw_version" / Int16ul * " |  | major << 8 | minor",
+    "deadline_misses" / Int32ul * "1 |  | cumulative",
+    "uart1_frames" / Int32ul * "1 |  | IMU/MAG frames decoded",
+    "uart1_errors" / Int32ul * "1 |  | checksum + length + parse errors",
+    "uart2_frames" / Int32ul * "1 |  | PSNS frames decoded",
+    "uart2_errors" / Int32ul * "1 |  | checksum + length + parse errors",
+    "uart3_frames" / Int32ul * "1 |  | GNSS frames decoded",
+    "uart3_errors" / Int32ul * "1 |  | checksum + length + parse errors",
+    "commands_accepted" / Int32ul * "1 |  | cumulative",
+    "commands_rejected" / Int32ul * "1 |  | cumulative",
 )
 ACK_SPEC = Struct(
-    "command_id" / Int8ul * "id of the acknowledged command",
-    "token" / Int8ul * "echo of the command's token",
-    "result" / Int8ul * "AckResult",
+    "command_id" / Int8ul * " |  | id of the acknowledged command",
+    "token" / Int8ul * " |  | echo of the command's token",
+    "result" / Int8ul * " |  | AckResult",
 )
 COMMAND_SPECS = {
-    CMD_RESET_FILTER: Struct("token" / Int8ul * "host-chosen, echoed in ACK",
-                             "scope" / Int8ul * "0 restart alignment, 1 reset covariance only"),
-    CMD_SELECT_VARIANT: Struct("token" / Int8ul * "host-chosen, echoed in ACK", "variant" / Int8ul * "FilterVariant"),
-    CMD_SET_OUTPUT_RATE: Struct("token" / Int8ul * "host-chosen, echoed in ACK",
-                                "rate_hz" / Float32l * "Hz, 200/k for integer k; 0 stops"),
-    CMD_REQUEST_STATUS: Struct("token" / Int8ul * "host-chosen, echoed in ACK"),
+    CMD_RESET_FILTER: Struct("token" / Int8ul * " |  | host-chosen, echoed in ACK",
+                             "scope" / Int8ul * " |  | 0 restart alignment, 1 reset covariance only"),
+    CMD_SELECT_VARIANT: Struct("token" / Int8ul * " |  | host-chosen, echoed in ACK",
+                               "variant" / Int8ul * " |  | FilterVariant 1..5"),
+    CMD_SET_OUTPUT_RATE: Struct("token" / Int8ul * " |  | host-chosen, echoed in ACK",
+                                "rate_hz" / Float32l * "1 | Hz | 200/k for integer k; 0 stops the output"),
+    CMD_REQUEST_STATUS: Struct("token" / Int8ul * " |  | host-chosen, echoed in ACK"),
 }
 
 _STATUS = struct.Struct("<IdBBHfBBHHHIIIIIIIII")

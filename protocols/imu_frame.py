@@ -122,21 +122,22 @@ class FpgaStatus(enum.IntFlag):
     PPS_VALID = 0x10  #: a PPS edge was seen within the last 1.5 s
 
 
+# Field docs are "scale | unit | meaning" (read by protocols.icd for docs/icd.md).
 IMU_FRAME_SPEC = Struct(
-    "sync" / Const(IMU_SYNC),
-    "msg_type" / Const(IMU_MSG_TYPE, Int8ul),
-    "payload_len" / Const(IMU_PAYLOAD_LEN, Int8ul),
-    "seq" / Int16ul,
-    "t_trigger_us" / Int32ul,
-    "t_pps_us" / Int32ul,
-    "pps_count" / Int8ul,
-    "gyro" / Array(3, Int24sl),
-    "gyro_status" / Int8ul,
-    "gyro_counter" / Int8ul,
-    "gyro_latency_us" / Int16ul,
-    "accel" / Array(3, Int24sl),
-    "fpga_status" / Int8ul,
-    "crc" / Int16ul,
+    "sync" / Const(IMU_SYNC) * " |  | 0x55 0xAA",
+    "msg_type" / Const(IMU_MSG_TYPE, Int8ul) * " |  | 0x01 = IMU frame",
+    "payload_len" / Const(IMU_PAYLOAD_LEN, Int8ul) * " | bytes | 34 (bytes 4..37)",
+    "seq" / Int16ul * "1 |  | frame sequence, wraps",
+    "t_trigger_us" / Int32ul * "1 | us | FPGA 1 MHz counter at the ExtTrig edge (wraps after 71.6 min)",
+    "t_pps_us" / Int32ul * "1 | us | FPGA counter latched at the last PPS rising edge",
+    "pps_count" / Int8ul * "1 |  | PPS edges seen, wraps",
+    "gyro" / Array(3, Int24sl) * "2^-14 / 2^-21 | deg/s / deg | STIM words X, Y, Z as received (rate / incremental angle)",
+    "gyro_status" / Int8ul * " |  | STIM STATUS byte (TS1524 Table 5-23)",
+    "gyro_counter" / Int8ul * "1 |  | STIM 2000 Hz sample counter (steps by 10 at 200 Hz)",
+    "gyro_latency_us" / Int16ul * "1 | us | STIM latency",
+    "accel" / Array(3, Int24sl) * "4.096/2^23 | V | ADC codes X, Y, Z; g = V / ACCEL_VOLTS_PER_G (90 / 108 / 108 mV/g)",
+    "fpga_status" / Int8ul * " |  | FpgaStatus bits",
+    "crc" / Int16ul * " |  | CRC-16/CCITT-FALSE over bytes 2..37",
 )
 
 
@@ -149,14 +150,14 @@ class MagStatus(enum.IntFlag):
 
 
 MAG_FRAME_SPEC = Struct(
-    "sync" / Const(IMU_SYNC),
-    "msg_type" / Const(MAG_MSG_TYPE, Int8ul),
-    "payload_len" / Const(MAG_PAYLOAD_LEN, Int8ul),
-    "seq" / Int16ul,
-    "t_sample_us" / Int32ul,
-    "field" / Array(3, Int32sl),
-    "status" / Int8ul,
-    "crc" / Int16ul,
+    "sync" / Const(IMU_SYNC) * " |  | 0x55 0xAA",
+    "msg_type" / Const(MAG_MSG_TYPE, Int8ul) * " |  | 0x02 = MAG frame",
+    "payload_len" / Const(MAG_PAYLOAD_LEN, Int8ul) * " | bytes | 19 (bytes 4..22)",
+    "seq" / Int16ul * "1 |  | frame sequence, wraps",
+    "t_sample_us" / Int32ul * "1 | us | FPGA counter at the magnetometer sample",
+    "field" / Array(3, Int32sl) * "0.1 | nT | magnetic field, body axes x, y, z",
+    "status" / Int8ul * " |  | MagStatus bits",
+    "crc" / Int16ul * " |  | CRC-16/CCITT-FALSE over bytes 2..22",
 )
 
 

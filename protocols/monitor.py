@@ -58,13 +58,14 @@ MONITOR_MAX_DATA = 1024
 _HDR = struct.Struct("<BBIH")
 _REC_OVERHEAD = _HDR.size + 2  # header + CRC
 
+# Field docs are "scale | unit | meaning" (read by protocols.icd for docs/icd.md).
 MONITOR_RECORD_SPEC = Struct(
-    "channel" / Int8ul * "MONITOR_CHANNELS id",
-    "direction" / Int8ul * "0 towards the DSP, 1 away from the DSP",
-    "t_us" / Int32ul * "us, FPGA counter at the chunk's last byte",
-    "length" / Int16ul * "bytes of data",
-    "data" / Bytes(this.length) * "the bytes as they crossed the port",
-    "crc" / Int16ul * "CRC-16/CCITT-FALSE over channel..data",
+    "channel" / Int8ul * " |  | MONITOR_CHANNELS id",
+    "direction" / Int8ul * " |  | 0 towards the DSP, 1 away from the DSP",
+    "t_us" / Int32ul * "1 | us | FPGA counter when the chunk's last byte passed (wraps)",
+    "length" / Int16ul * "1 | bytes | N, bytes of data (<= 1024)",
+    "data" / Bytes(this.length) * " |  | the bytes as they crossed the port",
+    "crc" / Int16ul * " |  | CRC-16/CCITT-FALSE over channel..data",
 )
 
 
@@ -153,15 +154,22 @@ class MonitorFormat:
         """Encode a :class:`MonitorRecord` (:func:`encode_monitor`)."""
         return encode_monitor(obj)
 
+    def __init__(self) -> None:
+        # frame_length decodes the record while it walks the COBS blocks; check and parse reuse
+        # that body when they are handed the same encoded bytes (the decoder's call order).
+        self._enc = b""
+        self._body = b""
+
     def frame_length(self, buf: bytearray, start: int) -> int:
         n = len(buf)
         i = start + 1
         while i < n and buf[i] == 0:
             i += 1
+        first = i
         z = buf.find(b"\x00", i)  # COBS data holds no 0x00: the record ends before z
         if z < 0:
             z = n
-        head = b""
+        parts: list[bytes] = []
         want = -1  # decoded record length (header + data + CRC) once the header is known
         decoded = 0
         while True:
@@ -171,26 +179,36 @@ class MonitorFormat:
             j = i + code
             if j > z:
                 return NEED_MORE if z == n else BAD_LENGTH
+            parts.append(buf[i + 1 : j])
             decoded += code - 1
-            if want < 0:
-                head += buf[i + 1 : j]
-                if code != 0xFF:
-                    head += b"\x00"
-                if len(head) >= 8:
-                    want = _REC_OVERHEAD + (head[6] | (head[7] << 8))
-                    if want > _REC_OVERHEAD + MONITOR_MAX_DATA:
-                        return BAD_LENGTH
             i = j
             if code != 0xFF:
                 if decoded == want:
+                    self._enc = bytes(buf[first:i])
+                    self._body = b"".join(parts)
                     return i - start
+                parts.append(b"\x00")
                 decoded += 1  # the zero this block stands for
+            if want < 0 and decoded >= 8:
+                head = b"".join(parts)
+                want = _REC_OVERHEAD + (head[6] | (head[7] << 8))
+                if want > _REC_OVERHEAD + MONITOR_MAX_DATA:
+                    return BAD_LENGTH
+                if decoded == want + 1 and code != 0xFF:  # the record ended with this block
+                    parts.pop()
+                    self._enc = bytes(buf[first:i])
+                    self._body = b"".join(parts)
+                    return i - start
             if want >= 0 and decoded > want:
                 return BAD_LENGTH
 
+    def _decoded(self, frame: bytes) -> bytes:
+        enc = frame.lstrip(b"\x00")
+        return self._body if enc == self._enc else cobs_decode(enc)
+
     def check(self, frame: bytes) -> bool:
         try:
-            body = cobs_decode(frame.lstrip(b"\x00"))
+            body = self._decoded(frame)
         except ValueError:
             return False
         if len(body) < _REC_OVERHEAD or len(body) != _REC_OVERHEAD + (body[6] | (body[7] << 8)):
@@ -198,6 +216,6 @@ class MonitorFormat:
         return crc16_ccitt(body[:-2]) == (body[-2] | (body[-1] << 8))
 
     def parse(self, frame: bytes) -> MonitorRecord:
-        body = cobs_decode(frame.lstrip(b"\x00"))
+        body = self._decoded(frame)
         ch, d, t, _ = _HDR.unpack_from(body, 0)
-        return MonitorRecord(ch, d, t, body[_HDR.size : -2])
+        return MonitorRecord(ch, d, t, bytes(body[_HDR.size : -2]))

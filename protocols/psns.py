@@ -45,7 +45,7 @@ import struct
 from dataclasses import dataclass
 from typing import Any
 
-from construct import Array, Float32l, Int8ul, Int16sl, Int16ul, Int32ul, Struct, this
+from construct import Array, Bytes, Const, Float32l, Int8ul, Int16sl, Int16ul, Int32ul, Struct, this
 
 from ._fastinit import fast_frozen_init
 from .crc import crc16_ccitt
@@ -74,6 +74,7 @@ __all__ = [
     "POLARIZATION_OBS_SPEC",
     "COMPASS_SPEC",
     "SOLAR_VECTOR_SPEC",
+    "PSNS_FRAME_SPEC",
 ]
 
 PSNS_SYNC = b"\xeb\x90"
@@ -103,23 +104,40 @@ _PT = struct.Struct("<HHhHH")
 _UNIT = struct.Struct("<BhH")
 _SV = struct.Struct("<4f")
 
+# Field docs are "scale | unit | meaning" (read by protocols.icd for docs/icd.md).
+PSNS_FRAME_SPEC = Struct(
+    "sync" / Const(PSNS_SYNC) * " |  | 0xEB 0x90",
+    "msg_id" / Int8ul * " |  | 0x10 POLARIZATION_OBS, 0x11 COMPASS, 0x12 SOLAR_VECTOR",
+    "length" / Int16ul * "1 | bytes | payload length N (must agree with count)",
+    "payload" / Bytes(this.length) * " |  | N bytes",
+    "crc" / Int16ul * " |  | CRC-16/CCITT-FALSE over msg_id, length, payload",
+)
 _HEADER_FIELDS = (
-    "seq" / Int16ul,
-    "exposure_us" / Int32ul,
-    "latency_us" / Int32ul,
-    "status" / Int8ul,
-    "count" / Int16ul,
+    "seq" / Int16ul * "1 |  | frame counter, wraps",
+    "exposure_us" / Int32ul * "1 | us | exposure time",
+    "latency_us" / Int32ul * "1 | us | middle of the exposure to the start bit of this frame's first byte",
+    "status" / Int8ul * " |  | PsnsStatus bits",
+    "count" / Int16ul * "1 |  | N points (0x10), l units (0x11), points used (0x12)",
 )
-POLARIZATION_OBS_SPEC = Struct(
+POINT_SPEC = Struct(
+    "x_px" / Int16ul * "1 | px | column, 1-based, full resolution",
+    "y_px" / Int16ul * "1 | px | row, 1-based",
+    "aop_cdeg" / Int16sl * "0.01 | deg | AOP from image +y towards +x, (-90, 90] (Eq. 5)",
+    "dop" / Int16ul * "1/65535 |  | degree of polarization",
+    "intensity" / Int16ul * "1 | DN | S0 = (I0+I45+I90+I135)/2",
+)
+UNIT_SPEC = Struct(
+    "unit" / Int8ul * " |  | compass unit index",
+    "aop_cdeg" / Int16sl * "0.01 | deg | AOP in the unit's frame, from +y towards +x",
+    "dop" / Int16ul * "1/65535 |  | degree of polarization",
+)
+POLARIZATION_OBS_SPEC = Struct(*_HEADER_FIELDS, "points" / Array(this.count, POINT_SPEC) * " |  | count x 10 bytes")
+COMPASS_SPEC = Struct(*_HEADER_FIELDS, "units" / Array(this.count, UNIT_SPEC) * " |  | count x 5 bytes")
+SOLAR_VECTOR_SPEC = Struct(
     *_HEADER_FIELDS,
-    "points" / Array(this.count, Struct("x_px" / Int16ul, "y_px" / Int16ul, "aop_cdeg" / Int16sl,
-                                         "dop" / Int16ul, "intensity" / Int16ul)),
+    "s" / Array(3, Float32l) * "1 |  | unit solar vector x, y, z in the sensor frame (sign ambiguous)",
+    "quality" / Float32l * "1 |  | lambda_min / lambda_mid of K (smaller is better), 1.0 if invalid",
 )
-COMPASS_SPEC = Struct(
-    *_HEADER_FIELDS,
-    "units" / Array(this.count, Struct("unit" / Int8ul, "aop_cdeg" / Int16sl, "dop" / Int16ul)),
-)
-SOLAR_VECTOR_SPEC = Struct(*_HEADER_FIELDS, "s" / Array(3, Float32l), "quality" / Float32l)
 
 
 @fast_frozen_init

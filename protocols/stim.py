@@ -183,20 +183,20 @@ def stim210_spec(fmt: str) -> Struct:
     """The declarative ``construct`` layout of one STIM210 format, CRC byte included."""
     ident, groups = STIM210_FORMATS[fmt]
     fields = [
-        "ident" / Const(ident, Int8ub),
-        "gyro" / Array(3, Int24sb) * "X, Y, Z, 2^-14 deg/s or 2^-21 deg per LSB",
-        "status" / Int8ub * "STATUS, TS1524 Table 5-23",
+        "ident" / Const(ident, Int8ub) * f" |  | datagram ID 0x{ident:02X}",
+        "gyro" / Array(3, Int24sb) * "2^-14 / 2^-21 | deg/s / deg | X, Y, Z (rate / incremental angle)",
+        "status" / Int8ub * " |  | STATUS, TS1524 Table 5-23",
     ]
     for g in groups:
         if g == "reserved":
-            fields.append("reserved" / Bytes(3))
+            fields.append("reserved" / Bytes(3) * " |  | reserved")
         elif g == "temperature":
-            fields.append("temperature" / Array(3, Int16sb) * "2^-8 degC per LSB")
+            fields.append("temperature" / Array(3, Int16sb) * "2^-8 | degC | X, Y, Z")
         elif g == "counter":
-            fields.append("counter" / Int8ub * "2000 Hz sample counter, wraps")
+            fields.append("counter" / Int8ub * "1 |  | 2000 Hz sample counter, wraps")
         elif g == "latency":
-            fields.append("latency_us" / Int16ub * "us")
-    fields.append("crc" / Int8ub * "CRC-8 poly 0x07 init 0xFF over ident..last data byte")
+            fields.append("latency_us" / Int16ub * "1 | us | sampling to transmission / ExtTrig")
+    fields.append("crc" / Int8ub * " |  | CRC-8 poly 0x07 init 0xFF over ident..last data byte")
     return Struct(*fields)
 
 
@@ -374,15 +374,15 @@ def _stim300_layout(ident: int) -> list[tuple[str, str]]:
 
 _KIND_SIZE = {"s24x3": 9, "s16x3": 6, "s24": 3, "u8": 1, "u16": 2}
 _KIND_DOC = {
-    "gyro": "X, Y, Z; 2^-14 deg/s (rate) or 2^-21 deg (incremental angle) per LSB",
-    "accel": "X, Y, Z; 2^-20/2^-19/2^-18/2^-16 g per LSB for the 5/10/30/80 g range",
-    "incl": "X, Y, Z; 2^-22 g per LSB",
-    "gyro_temp": "X, Y, Z; 2^-8 degC per LSB",
-    "accel_temp": "X, Y, Z; 2^-8 degC per LSB",
-    "incl_temp": "X, Y, Z; 2^-8 degC per LSB",
-    "aux": "PPS (r31: us since the PPS edge) or AUX ADC word (older revisions)",
-    "counter": "2000 Hz sample counter, wraps; steps 2000/rate per datagram",
-    "latency_us": "us from sampling to transmission start (or ExtTrig)",
+    "gyro": "2^-14 / 2^-21 | deg/s / deg | X, Y, Z (rate / incremental angle)",
+    "accel": "2^-20, 2^-19, 2^-18, 2^-16 | g | X, Y, Z for the 5 / 10 / 30 / 80 g range",
+    "incl": "2^-22 | g | X, Y, Z",
+    "gyro_temp": "2^-8 | degC | X, Y, Z",
+    "accel_temp": "2^-8 | degC | X, Y, Z",
+    "incl_temp": "2^-8 | degC | X, Y, Z",
+    "aux": "1 | us | PPS: time since the PPS edge (r31); AUX ADC word in older revisions",
+    "counter": "1 |  | 2000 Hz sample counter, wraps; steps 2000/rate per datagram",
+    "latency_us": "1 | us | sampling to transmission start (or ExtTrig)",
 }
 
 
@@ -390,12 +390,13 @@ def stim300_spec(ident: int) -> Struct:
     """The declarative ``construct`` layout of one STIM300 datagram ID (CRC included, no CR LF)."""
     if ident not in STIM300_DATAGRAMS:
         raise ValueError(f"unknown STIM300 datagram ID 0x{ident:02X}")
-    fields = ["ident" / Const(ident, Int8ub)]
+    fields = ["ident" / Const(ident, Int8ub) * f" |  | datagram ID 0x{ident:02X}"]
     kinds = {"s24x3": Array(3, Int24sb), "s16x3": Array(3, Int16sb), "s24": Int24sb, "u8": Int8ub, "u16": Int16ub}
     for name, kind in _stim300_layout(ident):
-        doc = _KIND_DOC.get(name, "STATUS, TS1524 Table 5-23")
+        doc = _KIND_DOC.get(name, " |  | STATUS, TS1524 Table 5-23")
         fields.append(name / kinds[kind] * doc)
-    fields.append("crc" / Int32ub * "CRC-32/MPEG-2 over ident..latency + dummy 0x00 bytes")
+    dummy = STIM300_DATAGRAMS[ident][2]
+    fields.append("crc" / Int32ub * f" |  | CRC-32/MPEG-2 over ident..latency + {dummy} dummy 0x00 byte(s)")
     return Struct(*fields)
 
 

@@ -119,7 +119,10 @@ class StreamDecoder:
             self.stats.bytes_in += len(data)
             self._buf += data
         out: list[Any] = []
-        self._scan(out)
+        if self._single is None:
+            self._scan_multi(out)
+        else:
+            self._scan(out)
         return out
 
     def pending(self) -> int:
@@ -156,15 +159,12 @@ class StreamDecoder:
         return best, best_fmt
 
     def _scan(self, out: list[Any]) -> None:
-        # Hot path (200 Hz in the emulator, every link of the recorder): the single-format case
-        # runs on pre-bound methods and a local frame counter that reaches ``stats`` before return.
-        fmt = self._single
-        if fmt is None:
-            self._scan_multi(out)
-            return
+        # Hot path (200 Hz in the emulator, every link of the recorder; one format): pre-bound
+        # methods, a local frame counter that reaches ``stats`` before return, no call on the
+        # common paths. Counting is exactly that of _scan_multi.
         buf = self._buf
         pos = self._pos
-        stats = self.stats
+        fmt = self._single
         sync = fmt.sync
         frame_length = fmt.frame_length
         nframes = 0
@@ -172,9 +172,10 @@ class StreamDecoder:
             p = buf.find(sync, pos)
             if p < 0:
                 # Keep a tail that might be the beginning of a sync sequence.
-                keep_from = max(pos, len(buf) - (self._max_sync - 1))
-                self._garbage(keep_from - pos)
-                pos = keep_from
+                keep_from = len(buf) - self._max_sync + 1
+                if keep_from > pos:
+                    self._garbage(keep_from - pos)
+                    pos = keep_from
                 break
             if p != pos:
                 self._garbage(p - pos)
@@ -187,7 +188,7 @@ class StreamDecoder:
                     try:
                         obj = fmt.parse(frame)
                     except (ValueError, KeyError, IndexError, UnicodeDecodeError):
-                        stats.parse_errors += 1
+                        self.stats.parse_errors += 1
                     else:
                         out.append(obj)
                         nframes += 1
@@ -195,22 +196,26 @@ class StreamDecoder:
                         pos = end
                         continue
                 else:
-                    stats.crc_errors += 1
+                    self.stats.crc_errors += 1
             elif n == NEED_MORE or n > 0:
                 if len(buf) - p <= self._max_buffer and n <= self._max_buffer:
                     break  # wait for more bytes
-                stats.length_errors += 1
+                self.stats.length_errors += 1
             else:  # BAD_LENGTH or nonsense
-                stats.length_errors += 1
+                self.stats.length_errors += 1
             # Failed candidate: resynchronise at header + 1.
             self._garbage(1)
             pos = p + 1
         if nframes:
+            stats = self.stats
             stats.frames += nframes
             stats.per_format[fmt.name] += nframes
         # Compact the buffer.
         if pos:
-            del buf[:pos]
+            if pos >= len(buf):
+                buf.clear()
+            else:
+                del buf[:pos]
         self._pos = 0
 
     def _scan_multi(self, out: list[Any]) -> None:

@@ -179,12 +179,8 @@ class ImuFrame:
 
 
 _HEAD = struct.Struct("<HIIB")
+_I32 = struct.Struct("<i").unpack_from
 _MID = struct.Struct("<BBH")
-
-
-def _s24le(b: bytes, i: int) -> int:
-    v = b[i] | (b[i + 1] << 8) | (b[i + 2] << 16)
-    return v - 0x1000000 if v & 0x800000 else v
 
 
 def _p24le(v: int) -> bytes:
@@ -212,17 +208,18 @@ class ImuFrameFormat:
     def parse(self, frame: bytes) -> ImuFrame:
         seq, t_trig, t_pps, pps_count = _HEAD.unpack_from(frame, 4)
         gstat, gcnt, glat = _MID.unpack_from(frame, 24)
+        # s24 LE at k: the i32 LE at k-1 holds it in its top three bytes; >> 8 sign-extends it
         return ImuFrame(
-            seq=seq,
-            t_trigger_us=t_trig,
-            t_pps_us=t_pps,
-            pps_count=pps_count,
-            gyro=(_s24le(frame, 15), _s24le(frame, 18), _s24le(frame, 21)),
-            gyro_status=gstat,
-            gyro_counter=gcnt,
-            gyro_latency_us=glat,
-            accel=(_s24le(frame, 28), _s24le(frame, 31), _s24le(frame, 34)),
-            fpga_status=frame[37],
+            seq,
+            t_trig,
+            t_pps,
+            pps_count,
+            (_I32(frame, 14)[0] >> 8, _I32(frame, 17)[0] >> 8, _I32(frame, 20)[0] >> 8),
+            gstat,
+            gcnt,
+            glat,
+            (_I32(frame, 27)[0] >> 8, _I32(frame, 30)[0] >> 8, _I32(frame, 33)[0] >> 8),
+            frame[37],
         )
 
     def build(self, f: ImuFrame) -> bytes:

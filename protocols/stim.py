@@ -205,6 +205,12 @@ def _s24(b: bytes, i: int) -> int:
     return v - 0x1000000 if v & 0x800000 else v
 
 
+# s24 BE at i: the i32 BE at i holds it in its top three bytes; >> 8 sign-extends it (needs one
+# byte after the field, which every datagram has: STATUS follows each s24 group).
+_I32BE = struct.Struct(">i").unpack_from
+_T3 = struct.Struct(">3h").unpack_from
+
+
 class Stim210Format:
     """:class:`~protocols.stream.FrameFormat` for one configured STIM210 datagram format.
 
@@ -233,6 +239,8 @@ class Stim210Format:
         for g in self.groups:
             self._off[g] = off
             off += _GROUP_SIZE[g]
+        # (counter, latency, temperature, reserved) offsets for the fast parser; 0 = absent
+        self._opt = tuple(self._off.get(g, 0) for g in ("counter", "latency", "temperature", "reserved"))
 
     # FrameFormat protocol ------------------------------------------------------
     def frame_length(self, buf: bytearray, start: int) -> int:
@@ -245,18 +253,15 @@ class Stim210Format:
         return not self.crlf or frame[n + 1 : n + 3] == b"\r\n"
 
     def parse(self, frame: bytes) -> StimDatagram:
-        off = self._off
-        temp = None
-        if "temperature" in off:
-            temp = struct.unpack_from(">3h", frame, off["temperature"])
+        oc, ol, ot, orr = self._opt
         return StimDatagram(
-            ident=frame[0],
-            gyro=(_s24(frame, 1), _s24(frame, 4), _s24(frame, 7)),
-            status=frame[10],
-            counter=frame[off["counter"]] if "counter" in off else None,
-            latency_us=struct.unpack_from(">H", frame, off["latency"])[0] if "latency" in off else None,
-            temperature=temp,
-            reserved=bytes(frame[off["reserved"] : off["reserved"] + 3]) if "reserved" in off else None,
+            frame[0],
+            (_I32BE(frame, 1)[0] >> 8, _I32BE(frame, 4)[0] >> 8, _I32BE(frame, 7)[0] >> 8),
+            frame[10],
+            frame[oc] if oc else None,
+            ((frame[ol] << 8) | frame[ol + 1]) if ol else None,
+            _T3(frame, ot) if ot else None,
+            bytes(frame[orr : orr + 3]) if orr else None,
         )
 
     # Encoder -------------------------------------------------------------------
@@ -450,7 +455,7 @@ class Stim300Format:
         kw: dict[str, object] = {}
         for name, kind, off in self._offsets:
             if kind == "s24x3":
-                kw[name] = (_s24(frame, off), _s24(frame, off + 3), _s24(frame, off + 6))
+                kw[name] = (_I32BE(frame, off)[0] >> 8, _I32BE(frame, off + 3)[0] >> 8, _I32BE(frame, off + 6)[0] >> 8)
             elif kind == "u8":
                 kw[name] = frame[off]
             elif kind == "s16x3":

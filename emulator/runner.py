@@ -58,7 +58,7 @@ PORT_ROLES = {
     "monitor": "FPGA MONITOR: every channel, tagged and time-stamped",
 }
 #: default baud of each external port
-PORT_BAUD = {"gyro": 460800, "gnss": 9600, "host": 460800, "psns": 115200, "monitor": 921600}
+PORT_BAUD = {"gyro": 460800, "gnss": 9600, "host": 460800, "psns": 115200, "monitor": 3_000_000}
 #: One byte read by the DSP from the FPGA UART core over EMIFA, s [E: a few EMIFA async cycles].
 EMIFA_BYTE_TIME_S = 1e-7
 
@@ -231,7 +231,8 @@ class Emulator:
                           gyro_format=scn.sensors.imu.format,
                           gyro_counter_step=int(round(2000 / scn.sensors.imu.rate_hz)),
                           routing=dict(scn.fpga.routing),
-                          monitor_channels=tuple(scn.fpga.monitor_channels) if scn.fpga.monitor_channels else None)
+                          monitor_channels=tuple(scn.fpga.monitor_channels) if scn.fpga.monitor_channels else None,
+                          mag_rate_hz=scn.fpga.mag_rate_hz)
         fpga_ports = {k: v for k, v in ext.items() if k != "monitor"}
         mag = getattr(self.sensors, "mag", None) if self.replay is None else None
         self.fpga = VirtualFpga(loop, fcfg, fpga_ports, uart_fpga, gyro, accel, rec, monitor=ext.get("monitor"),
@@ -282,13 +283,14 @@ class Emulator:
         for uname, uspec in scn.fpga.uarts.items():
             dspec = scn.dsp.uarts[uname]
             bits, parity, stop = parse_mode(uspec.mode)
-            if uspec.baud is None:  # the FPGA's UART core, read by the DSP over EMIFA
+            emifa = uspec.effective_bus(uname) == "emifa"
+            if emifa:  # the FPGA's UART core, read by the DSP over EMIFA
                 f_line = LineConfig(baud=int(round(10 / EMIFA_BYTE_TIME_S)), tx_queue_bytes=uspec.fifo_bytes)
                 d_line = f_line.with_(tx_queue_bytes=dspec.tx_ring_bytes)
             else:
-                f_line = LineConfig(baud=uspec.baud, data_bits=bits, parity=parity, stop_bits=stop,
+                f_line = LineConfig(baud=uspec.effective_baud(uname), data_bits=bits, parity=parity, stop_bits=stop,
                                     tx_queue_bytes=uspec.fifo_bytes)
-                d_baud = dspec.baud or uspec.baud
+                d_baud = dspec.baud or f_line.baud
                 if uname != "uart3":
                     d_baud = dsp_uart_baud(d_baud, scn.dsp.uart_clock_hz, dspec.oversampling)
                 d_line = f_line.with_(baud=d_baud, tx_queue_bytes=dspec.tx_ring_bytes)
@@ -303,7 +305,7 @@ class Emulator:
             min_pitch = d_line.byte_time
             src = routed_from.get(uname)
             src_spec = _port_specs(scn).get(src) if src is not None else None
-            if uspec.baud is None and src_spec is not None:
+            if emifa and src_spec is not None:
                 min_pitch = max(min_pitch, _line(src_spec, PORT_BAUD[src]).byte_time)
             rx_cfg[UART_NUM[uname]] = UartRxConfig(
                 fifo_bytes=dspec.fifo_bytes, trigger_level=dspec.trigger_level, service=dspec.service,
@@ -319,7 +321,7 @@ class Emulator:
         routed_from = {u: p for p, u in self.scn.fpga.routing.items()}
         for uname, f_end in uart_fpga.items():
             d_end = self.links[uname]
-            emifa = self.scn.fpga.uarts[uname].baud is None
+            emifa = self.scn.fpga.uarts[uname].effective_bus(uname) == "emifa"
             src = "IMU frames" if uname == "uart1" else routed_from.get(uname, "unrouted")
             role = (f"FPGA UART core on EMIFA -> DSP {uname.upper()} ({src})" if emifa
                     else f"FPGA -> DSP {uname.upper()} 16550 ({src})")

@@ -7,9 +7,11 @@
   :mod:`protocols.imu_frame` frame and sends it to DSP UART1. No datagram within
   ``gyro_timeout_s`` gives a frame flagged ``GYRO_MISSING`` that repeats the last gyro words.
 * PPS rising edges latch the counter (``t_pps_us``, ``pps_count``), carried in every IMU frame.
-* A magnetometer (when the scenario has one) is sampled on the same trigger; its MAG frame
+* A magnetometer (when the scenario has one) is sampled on every ``imu_rate / mag_rate_hz``-th
+  trigger (100 Hz by default, the ICD's budget); its MAG frame
   (:class:`protocols.imu_frame.MagFrame`, CONTRACTS C2: sequence, trigger time stamp, field in
-  0.1 nT, status) follows the IMU frame on UART1. This needs the C2 MAG frame in
+  0.1 nT, status) follows that trigger's IMU frame on UART1 and is mirrored on the MONITOR
+  port's ``mag`` channel. This needs the C2 MAG frame in
   :mod:`protocols.imu_frame`; without it no MAG frame is sent and a ``mag_frames_unavailable``
   event says so once.
 * Byte routing (the crossbar, scenario ``fpga.routing``): each external serial port is
@@ -55,6 +57,8 @@ class FpgaConfig:
     routing: dict[str, str] = field(default_factory=lambda: dict(DEFAULT_ROUTING))
     #: channels mirrored on the MONITOR port (None = every channel)
     monitor_channels: tuple[str, ...] | None = None
+    #: magnetometer sample / MAG frame rate (a divider of the trigger rate)
+    mag_rate_hz: float = 100.0
 
 
 #: (link end held by the FPGA, link direction) -> monitor direction (C2: 0 towards the DSP, 1 away)
@@ -144,6 +148,8 @@ class VirtualFpga:
         self._mag_seq = 0
         self._mag_api = mag_api() if mag is not None else None
         self._mag_pending: bytes | None = None
+        self._mag_div = max(1, int(round(cfg.imu_rate_hz / cfg.mag_rate_hz)))
+        self._mag_channel: int | None = None
         if mag is not None and self._mag_api is None:
             self.events.emit(0.0, "fpga", "mag_frames_unavailable",
                              reason="protocols.imu_frame has no MagFrame (CONTRACTS C2) in this build")
@@ -161,6 +167,8 @@ class VirtualFpga:
 
             self._mon_max = int(getattr(_pm, "MONITOR_MAX_DATA", 1 << 30))
             wanted = set(cfg.monitor_channels) if cfg.monitor_channels is not None else None
+            if "mag" in channels and (wanted is None or "mag" in wanted):
+                self._mag_channel = channels["mag"]
             for side, links in (("port", ports), ("uart", uarts)):
                 for name, link in links.items():
                     if name in channels and (wanted is None or name in wanted):
@@ -201,7 +209,7 @@ class VirtualFpga:
         codes = self.accel.sample(t, t_prev) if self.accel is not None else (0, 0, 0)
         if self._pending is not None:  # previous datagram never came
             self._emit_frame(None)
-        if self._mag_api is not None:
+        if self._mag_api is not None and (self._k - 1) % self._mag_div == 0:
             words, status = self.mag.sample(t, t_prev)
             mag_frame_cls, encode = self._mag_api
             self._mag_pending = encode(mag_frame_cls(self._mag_seq & 0xFFFF, self.counter_us(t), words, status))
@@ -266,9 +274,12 @@ class VirtualFpga:
         if uart1 is not None:
             uart1.send(self._imu_fmt.build(frame))
             if self._mag_pending is not None:  # the trigger's MAG frame follows its IMU frame
-                uart1.send(self._mag_pending)
+                mag_frame = self._mag_pending
                 self._mag_pending = None
+                uart1.send(mag_frame)
                 self.mag_frames += 1
+                if self._mag_channel is not None:
+                    self._mirror(self._mag_channel, 0, self.loop.time(), mag_frame)
 
     # -- crossbar ---------------------------------------------------------------------------
     @staticmethod

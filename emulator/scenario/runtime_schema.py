@@ -10,7 +10,7 @@ from pydantic import AliasChoices, Field, field_validator, model_validator
 from .base import Model
 
 __all__ = ["LinkSpec", "Links", "UartSpec", "FpgaSpec", "DspUartSpec", "WatchdogSpec", "DspSpec",
-           "EXTERNAL_PORTS", "DSP_UARTS"]
+           "EXTERNAL_PORTS", "DSP_UARTS", "DEFAULT_UART_BAUD"]
 
 #: External ports of the box (FPGA connectors) that can be routed to a DSP UART.
 EXTERNAL_PORTS = ("host", "gnss", "psns")
@@ -46,14 +46,28 @@ class Links(Model):
     monitor: LinkSpec | None = Field(None, description="FPGA MONITOR port: every channel, tagged and time-stamped")
 
 
+#: serial-line baud of each FPGA -> DSP UART when a scenario gives none
+DEFAULT_UART_BAUD = {"uart0": 460800, "uart1": 460800, "uart2": 115200, "uart3": 115200}
+
+
 class UartSpec(Model):
     """The FPGA side of one FPGA -> DSP UART (``fpga.uarts.uartN``)."""
 
-    baud: int | None = Field(None, gt=0, le=3_000_000,
-                             description="serial line to the DSP; None for uart3 = the FPGA UART core on EMIFA")
+    bus: Literal["serial", "emifa"] | None = Field(
+        None, description="serial: a UART line to a DSP on-chip UART; emifa: the FPGA's UART core, whose FIFO the "
+        "DSP reads over EMIFA (default for uart3 unless a baud is given, serial otherwise)")
+    baud: int | None = Field(None, gt=0, le=3_000_000, description="serial line baud (default per UART)")
     mode: str = Field("8N1", pattern=_MODE)
     fifo_bytes: int = Field(2048, ge=1, le=1 << 24, validation_alias=AliasChoices("fifo_bytes", "queue_bytes"),
                             description="FPGA FIFO towards the DSP, bytes (Spartan-3E block RAM: 2 KiB)")
+
+    def effective_bus(self, name: str) -> str:
+        if self.bus is not None:
+            return self.bus
+        return "emifa" if name == "uart3" and "baud" not in self.model_fields_set else "serial"
+
+    def effective_baud(self, name: str) -> int:
+        return self.baud or DEFAULT_UART_BAUD[name]
 
 
 def _default_uarts() -> dict[str, UartSpec]:
@@ -61,7 +75,7 @@ def _default_uarts() -> dict[str, UartSpec]:
         "uart0": UartSpec(baud=460800),
         "uart1": UartSpec(baud=460800),
         "uart2": UartSpec(baud=115200),
-        "uart3": UartSpec(baud=None),
+        "uart3": UartSpec(bus="emifa", baud=115200),  # the baud applies only with bus: serial
     }
 
 
@@ -72,6 +86,8 @@ class FpgaSpec(Model):
     )
     uarts: dict[Literal["uart0", "uart1", "uart2", "uart3"], UartSpec] = Field(default_factory=_default_uarts)
     gyro_timeout_s: float = Field(0.004, gt=0, lt=0.1)
+    mag_rate_hz: float = Field(100.0, gt=0, le=2000,
+                               description="magnetometer sample / MAG frame rate; the trigger rate divided by an integer")
     monitor_channels: list[Literal["gyro", "gnss", "psns", "host", "uart0", "uart1", "uart2", "uart3", "mag"]] | None = (
         Field(None, description="channels mirrored on the MONITOR port (default: all)"))
 

@@ -81,3 +81,19 @@ def test_monitor_port_needs_the_c2_protocol_module(tmp_path):
     else:
         s = run_scenario(scn, tmp_path / "mon")
         assert s["fpga"]["monitor_records"] > 1000
+
+
+def test_uart3_is_an_emifa_core_unless_given_a_serial_baud(tmp_path):
+    from emulator.recorder import read_capture
+
+    s = run_scenario(_scn(), tmp_path / "emifa")
+    assert next(p for p in s["ports"] if p["name"] == "uart3")["baud"] == "EMIFA"
+    s2 = run_scenario(_scn(**{"fpga.uarts.uart3.baud": 230400}), tmp_path / "serial")
+    assert next(p for p in s2["ports"] if p["name"] == "uart3")["baud"] == "230400"
+    # over a serial hop each GNSS chunk reaches the DSP one 230400-baud byte after the port got it
+    _h, recs = read_capture(tmp_path / "serial" / "capture.psnscap")
+    gnss = [r.t_s for r in recs if r.link == "gnss" and r.direction == "in"]
+    u3 = [r.t_s for r in recs if r.link == "uart3" and r.direction == "in"]
+    assert len(gnss) == len(u3) > 3
+    assert all(abs((b - a) - 10 / 230400) < 1e-9 for a, b in zip(gnss, u3))
+    assert s2["firmware"]["counters"]["gnss_fixes"] == s["firmware"]["counters"]["gnss_fixes"] > 0

@@ -87,6 +87,12 @@ def port_formats(name: str) -> dict[str, list[Any]]:
         table["uart1"] = {"in": [FpgaFrameFormat()]}
     except ImportError:
         pass
+    try:  # a GNSS port may carry UBX after the NMEA sentences
+        from protocols.ubx import UbxFormat  # type: ignore[import-not-found]
+
+        table["gnss"] = table["uart3"] = {"in": [NmeaFormat(), UbxFormat()]}
+    except ImportError:
+        pass
     return {d: list(f) for d, f in table.get(name, {}).items()}
 
 

@@ -97,3 +97,12 @@ def test_uart3_is_an_emifa_core_unless_given_a_serial_baud(tmp_path):
     assert len(gnss) == len(u3) > 3
     assert all(abs((b - a) - 10 / 230400) < 1e-9 for a, b in zip(gnss, u3))
     assert s2["firmware"]["counters"]["gnss_fixes"] == s["firmware"]["counters"]["gnss_fixes"] > 0
+
+
+def test_gnss_port_with_ubx_counts_ubx_frames_not_garbage(tmp_path):
+    pytest.importorskip("protocols.ubx")
+    s = run_scenario(_scn(**{"sensors.gnss.ubx": ["NAV-PVT"]}), tmp_path / "ubx")
+    for name in ("gnss", "uart3"):
+        assert s["links"][name]["garbage_bytes"] == 0
+        # GGA + RMC + NAV-PVT per epoch
+        assert s["links"][name]["frames"] == 3 * s["devices"]["gnss_epochs"] > 0

@@ -10,6 +10,7 @@ URL                                            transport
 =============================================  =================================================
 
 Common options (query string): ``baud=N``, ``mode=8N1``, ``queue=BYTES`` (TX queue size).
+``pty://`` also takes ``peer_baud=ignore|check`` (model a client set to another baud).
 Unknown options are errors that show the accepted form. "Unknown scheme" and "the transport
 module failed to import" are different errors, and the import failure keeps its cause.
 """
@@ -49,9 +50,11 @@ LINK_SCHEMES: dict[str, str] = {
 }
 
 _COMMON_OPTIONS = {"baud", "mode", "queue"}
+#: options a scheme accepts beyond the common ones
+_SCHEME_OPTIONS: dict[str, frozenset[str]] = {"pty": frozenset({"peer_baud"})}
 _USAGE = {
     "mem": "mem://NAME[?baud=N&mode=8N1&queue=BYTES]",
-    "pty": "pty://NAME[?baud=N&mode=8N1&queue=BYTES]",
+    "pty": "pty://NAME[?baud=N&mode=8N1&queue=BYTES&peer_baud=ignore|check]",
     "serial": "serial:///dev/ttyXXX[?baud=N&mode=8N1&queue=BYTES]",
 }
 
@@ -100,7 +103,7 @@ def parse_link_url(url: str, extra_options: frozenset[str] = frozenset()) -> Lin
     if not target:
         raise LinkConfigError(f"{url!r} names no target; expected {_USAGE.get(scheme, scheme + '://NAME')}")
     options = dict(parse_qsl(parts.query, keep_blank_values=True))
-    unknown = set(options) - _COMMON_OPTIONS - extra_options
+    unknown = set(options) - _COMMON_OPTIONS - extra_options - _SCHEME_OPTIONS.get(scheme, frozenset())
     if unknown:
         raise LinkConfigError(
             f"{url!r}: unknown option(s) {', '.join(sorted(unknown))}; expected {_USAGE.get(scheme, scheme + '://...')}"
@@ -140,4 +143,4 @@ def open_link(
             raise LinkConfigError(f"{url}: mem:// links need a MemHub to find their peer")
         hub.attach(u.target, link)
         return link
-    return cls(name, url, line, loop, target=u.target, **transport_kw)  # type: ignore[call-arg]
+    return cls(name, url, line, loop, target=u.target, options=u.options, **transport_kw)  # type: ignore[call-arg]

@@ -34,7 +34,7 @@ __all__ = [
     "CycleMeter",
 ]
 
-COST_MODEL_VERSION = "c674x-costs-1 (DSPLIB 3.4.0.0, MATHLIB 3.1.2.1 inline, on-chip memory)"
+COST_MODEL_VERSION = "c674x-costs-2 (DSPLIB 3.4.0.0, MATHLIB 3.1.2.1 inline, on-chip memory)"
 
 #: MATHLIB single precision, Inline column, cycles per call [S, R2].
 MATHLIB_SP_INLINE: dict[str, int] = {
@@ -135,10 +135,15 @@ def dp_flops(n_mul: int, n_add: int, iterations: int = 1, overhead: int = CALL_O
 
 @dataclass
 class TaskMeter:
-    """Cycle statistics of one firmware task, TI-report style."""
+    """Cycle statistics of one firmware task, TI-report style (c6747_cycles.md section 5).
+
+    ``budget_cycles`` is the tick budget (every task of the cyclic executive must fit in one
+    200 Hz tick); ``period_s`` is the task's nominal period (for the average CPU share).
+    """
 
     name: str
     budget_cycles: int
+    period_s: float = 0.0
     calls: int = 0
     cycles_last: int = 0
     cycles_min: int = 0
@@ -154,25 +159,34 @@ class TaskMeter:
     def utilization_max_pct(self) -> float:
         return 100.0 * self.cycles_max / self.budget_cycles if self.budget_cycles else 0.0
 
+    @property
+    def utilization_avg_pct(self) -> float:
+        return 100.0 * self.cycles_avg / self.budget_cycles if self.budget_cycles else 0.0
+
     def as_dict(self) -> dict[str, object]:
         return {
             "task": self.name,
             "calls": self.calls,
+            "period_s": self.period_s,
             "cycles_last": self.cycles_last,
             "cycles_min": self.cycles_min,
             "cycles_avg": round(self.cycles_avg, 1),
             "cycles_max": self.cycles_max,
             "budget_cycles": self.budget_cycles,
-            "utilization_max_pct": round(self.utilization_max_pct, 3),
+            "utilization_avg_pct": round(self.utilization_avg_pct, 4),
+            "utilization_max_pct": round(self.utilization_max_pct, 4),
             "kernels": dict(self.kernels),
         }
 
 
 class CycleMeter:
-    """Accumulates charged cycles per task and per kernel.
+    """Accumulates charged cycles per task and per kernel, like a TSC-instrumented firmware.
 
-    Usage: ``meter.begin("imu")``; kernels call ``meter.charge("strapdown", n)``;
-    ``meter.end()`` returns the cycles of that task run.
+    Tasks nest: the cyclic executive opens ``begin("tick")`` for the whole 200 Hz tick and each
+    task inside it opens its own ``begin("imu")`` ... ``end()``. A kernel's cycles
+    (``charge("strapdown", n)``) count for the innermost open task (its kernel breakdown) and for
+    every enclosing task (their totals). ``end()`` returns the cycles of the task it closes.
+    :attr:`elapsed` is the cycle count since the outermost task began (the TSC read at an output).
     """
 
     def __init__(self, clock_hz: float, tick_hz: float) -> None:
@@ -180,33 +194,56 @@ class CycleMeter:
         self.tick_hz = tick_hz
         self.tick_budget = int(round(clock_hz / tick_hz))
         self.tasks: dict[str, TaskMeter] = {}
-        self._current: TaskMeter | None = None
+        self._stack: list[tuple[TaskMeter, int]] = []
         self._acc = 0
 
-    def begin(self, task: str) -> None:
-        if task not in self.tasks:
-            self.tasks[task] = TaskMeter(task, self.tick_budget)
-        self._current = self.tasks[task]
-        self._acc = 0
+    @property
+    def elapsed(self) -> int:
+        """Cycles charged since the outermost open task began."""
+        return self._acc
+
+    def begin(self, task: str, period_s: float = 0.0) -> None:
+        t = self.tasks.get(task)
+        if t is None:
+            t = self.tasks[task] = TaskMeter(task, self.tick_budget, period_s)
+        if not self._stack:
+            self._acc = 0
+        self._stack.append((t, self._acc))
 
     def charge(self, kernel: str, cycles: int) -> None:
         self._acc += cycles
-        if self._current is not None:
-            k = self._current.kernels
+        if self._stack:
+            k = self._stack[-1][0].kernels
             k[kernel] = k.get(kernel, 0) + cycles
 
     def end(self) -> int:
-        t = self._current
-        n = self._acc
-        if t is not None:
-            t.calls += 1
-            t.cycles_last = n
-            t.cycles_total += n
+        if not self._stack:
+            return 0
+        t, start = self._stack.pop()
+        n = self._acc - start
+        t.calls += 1
+        t.cycles_last = n
+        t.cycles_total += n
+        if t.calls == 1:
+            t.cycles_min = t.cycles_max = n
+        else:
             t.cycles_max = max(t.cycles_max, n)
-            t.cycles_min = n if t.calls == 1 else min(t.cycles_min, n)
-        self._current = None
-        self._acc = 0
+            t.cycles_min = min(t.cycles_min, n)
+        if not self._stack:
+            self._acc = 0
         return n
 
     def table(self) -> list[dict[str, object]]:
+        """One row per task (TI test-report layout: calls, min/avg/max cycles, budget, utilisation)."""
         return [t.as_dict() for t in self.tasks.values()]
+
+    def format_table(self) -> str:
+        """The table as text, the way a TSC log summary is printed on a board's console."""
+        lines = [f"C674x @ {self.clock_hz / 1e6:.0f} MHz, tick budget {self.tick_budget} cycles ({COST_MODEL_VERSION})",
+                 f"{'task':<16}{'calls':>9}{'min':>10}{'avg':>10}{'max':>10}{'avg %':>9}{'max %':>9}"]
+        for t in self.tasks.values():
+            lines.append(f"{t.name:<16}{t.calls:>9}{t.cycles_min:>10}{t.cycles_avg:>10.0f}{t.cycles_max:>10}"
+                         f"{t.utilization_avg_pct:>9.3f}{t.utilization_max_pct:>9.3f}")
+            for k, v in sorted(t.kernels.items(), key=lambda kv: -kv[1]):
+                lines.append(f"  {k:<14}{'':>9}{'':>10}{v / max(t.calls, 1):>10.0f}")
+        return "\n".join(lines)

@@ -182,7 +182,7 @@ class TaskMeter:
 class CycleMeter:
     """Accumulates charged cycles per task and per kernel, like a TSC-instrumented firmware.
 
-    Tasks nest: the cyclic executive opens ``begin("tick")`` for the whole 200 Hz tick and each
+    Tasks nest: the cyclic executive opens ``begin("imu_tick")`` for the whole 200 Hz tick and each
     task inside it opens its own ``begin("imu")`` ... ``end()``. A kernel's cycles
     (``charge("strapdown", n)``) count for the innermost open task (its kernel breakdown) and for
     every enclosing task (their totals). ``end()`` returns the cycles of the task it closes.

@@ -18,11 +18,11 @@ Heading source of the coarse alignment (``alignment_heading``): ``"psns"`` = gra
 (TRIAD, :mod:`firmware_model.alignment`), ``"config"`` = the configured heading, ``"auto"`` = PSNS
 when a valid solar vector has arrived by the end of the levelling window, else the configured heading.
 
-Tasks of one IMU tick, each metered (``meter.table()``):
+Tasks of one IMU tick (the whole tick is the task ``imu_tick``), each metered (``meter.table()``):
 
 * ``imu``: decode the IMU frame, convert to SI, coarse-align accumulation or bias compensation,
   coning/sculling (two-sample with angle increments) and strapdown (:mod:`firmware_model.strapdown`);
-* ``kf_predict``: every ``kf_predict_every`` ticks, the filter's time update;
+* ``kf_predict`` (inside ``imu``): every ``kf_predict_every`` ticks, the filter's time update;
 * ``gnss_update``: a fix is pending (1 Hz): Eqs. 23-30 at the PPS time of validity (2 s INS history);
 * ``psns_update``: a PSNS frame is pending (frame rate): E-vectors -> K -> ``+-S^b``
   (:mod:`firmware_model.psns`), ephemeris (:mod:`firmware_model.sun`) at the exposure time, Eqs. 31-42;
@@ -343,7 +343,7 @@ class Firmware:
     def _imu_tick(self, fr: ImuFrame) -> TickResult:
         cfg = self.cfg
         m = self.meter
-        m.begin("tick", self.T)
+        m.begin("imu_tick", self.T)
         m.begin("imu", self.T)
         m.charge("imu_decode", IMU_DECODE_CYCLES)
         t_us = self._unwrap_us(fr.t_trigger_us)
@@ -380,7 +380,6 @@ class Firmware:
             m.end()
         else:
             self._mechanize(t, dtheta, f_b)
-            m.end()
             if self._tick % cfg.kf_predict_every == 0 and self._fn_n:
                 m.begin("kf_predict", cfg.kf_predict_every * self.T)
                 fn = self._fn_sum / self._fn_n
@@ -388,6 +387,7 @@ class Firmware:
                 self._fn_n = 0
                 self.filter.predict(self.nav, fn, cfg.kf_predict_every * self.T)  # type: ignore[arg-type]
                 m.end()
+            m.end()
             self._measurement_tasks(t, res)
             if self.state == FirmwareState.FINE_ALIGN and t - self._t_aligned >= cfg.fine_align_time_s:
                 self.state = FirmwareState.NAVIGATE

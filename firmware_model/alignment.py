@@ -18,12 +18,17 @@ import numpy as np
 
 from . import c674x
 
-__all__ = ["level_from_specific_force", "triad", "solar_heading_alignment", "TRIAD_CYCLES", "LEVEL_CYCLES"]
+__all__ = ["level_from_specific_force", "triad", "solar_heading_alignment", "level_cycles", "triad_cycles"]
 
-#: Coarse levelling: asinsp + atan2sp + sqrtsp [S, R2 inline] + a few FLOPs.
-LEVEL_CYCLES = c674x.mathlib("asinsp") + c674x.mathlib("atan2sp") + c674x.mathlib("sqrtsp") + c674x.flops(6, 4)
-#: TRIAD: 4 cross products, 4 rsqrtsp normalisations, one 3x3 x 3x3 product [D].
-TRIAD_CYCLES = c674x.mathlib("rsqrtsp", 4) + c674x.flops(4 * 6 + 12, 4 * 3 + 6) + c674x.mat_mul(3, 3, 3)
+
+def level_cycles(c: c674x.KernelCosts) -> int:
+    """Coarse levelling: asin + atan2 + sqrt (MATHLIB inline [S, R2]) + a few FLOPs."""
+    return c.math("asin") + c.math("atan2") + c.math("sqrt") + c.flops(6, 4)
+
+
+def triad_cycles(c: c674x.KernelCosts) -> int:
+    """TRIAD: 4 cross products, 4 rsqrt normalisations, one 3x3 x 3x3 product (DSPF_sp_mat_mul) [D]."""
+    return c.math("rsqrt", 4) + c.flops(4 * 6 + 12, 4 * 3 + 6) + c.mat_mul(3, 3, 3)
 
 
 def level_from_specific_force(f_b: np.ndarray) -> tuple[float, float]:

@@ -30,6 +30,9 @@ __all__ = [
     "mathlib",
     "flops",
     "dp_flops",
+    "mat_mul_dp",
+    "w_vec_dp",
+    "KernelCosts",
     "TaskMeter",
     "CycleMeter",
 ]
@@ -131,6 +134,65 @@ def dp_flops(n_mul: int, n_add: int, iterations: int = 1, overhead: int = CALL_O
     """Double-precision code: MPYDP occupies .M for 4 cycles (2 units), ADDDP .L/.S for 2 (4 units) [S]."""
     ii = max(math.ceil(n_mul * 4 / 2), math.ceil(n_add * 2 / 4), 1)
     return iterations * ii + overhead
+
+
+def mat_mul_dp(r1: int, c1: int, c2: int) -> int:
+    """Double-precision matrix product (no C674x DSPLIB kernel: the same loop nest with MPYDP) [D].
+
+    The single-precision leading term ``1/2 r1 c2 c1`` is 2 MACs per cycle on the two .M units.
+    MPYDP occupies its .M unit for 4 cycles (2 DP multiplies every 4 clocks, section 1 [S]), so the
+    inner product runs at 0.5 MAC per cycle: ``2 r1 c2 c1``; the other terms as DSPF_sp_mat_mul, with
+    loads doubled (``12 r1 c2``).
+    """
+    r1, c2 = _even(max(r1, 2)), _even(max(c2, 2))
+    c1 = max(c1, 2)
+    return math.ceil(2.0 * r1 * c2 * c1 + 12 * r1 * c2 + 4.5 * r1 + 41)
+
+
+def w_vec_dp(n: int) -> int:
+    """Double-precision ``y = m x1 + x2``: one MPYDP per element bounds it, 2 cycles/element (2 .M) [D]."""
+    return 2 * n + 38
+
+
+class KernelCosts:
+    """Cycle costs of the firmware's kernels in one working precision (``"float32"`` or ``"float64"``).
+
+    The firmware's float32 build uses DSPLIB ``DSPF_sp_*`` and MATHLIB ``*sp`` inline figures; the
+    float64 build (the reference build used to check float32 accuracy) pays the C674x's double-precision
+    price: MATHLIB ``*dp`` inline figures [S, R2], MPYDP/ADDDP throughput for straight-line code
+    (:func:`dp_flops`) and :func:`mat_mul_dp` for matrix products. Carelessly written double precision
+    therefore shows in the budget.
+    """
+
+    _SP = {"sin": "sinsp", "cos": "cossp", "atan2": "atan2sp", "asin": "asinsp", "acos": "acossp",
+           "sqrt": "sqrtsp", "rsqrt": "rsqrtsp", "div": "divsp", "recip": "recipsp"}
+    _DP = {"sin": "sindp", "cos": "cosdp", "atan2": "atan2dp", "asin": "asindp", "acos": "acosdp",
+           "sqrt": "sqrtdp", "rsqrt": "rsqrtdp", "div": "divdp", "recip": "recipdp"}
+
+    def __init__(self, precision: str = "float32") -> None:
+        if precision not in ("float32", "float64"):
+            raise ValueError(f"precision must be float32 or float64, got {precision!r}")
+        self.precision = precision
+        self.double = precision == "float64"
+        self._names = self._DP if self.double else self._SP
+
+    def math(self, fn: str, n: int = 1) -> int:
+        """``n`` inline MATHLIB calls of ``fn`` (sin, cos, atan2, asin, acos, sqrt, rsqrt, div, recip)."""
+        return mathlib(self._names[fn], n)
+
+    def flops(self, n_mul: int, n_add: int, iterations: int = 1, overhead: int = CALL_OVERHEAD) -> int:
+        f = dp_flops if self.double else flops
+        return f(n_mul, n_add, iterations, overhead)
+
+    def mat_mul(self, r1: int, c1: int, c2: int) -> int:
+        return mat_mul_dp(r1, c1, c2) if self.double else mat_mul(r1, c1, c2)
+
+    def mat_trans(self, rows: int, cols: int) -> int:
+        """Transposes move twice the bytes in double precision [D]."""
+        return mat_trans(rows, cols) + (math.ceil(0.5 * rows * cols) if self.double else 0)
+
+    def w_vec(self, n: int) -> int:
+        return w_vec_dp(n) if self.double else w_vec(n)
 
 
 @dataclass

@@ -51,33 +51,38 @@ __all__ = [
     "BaseFilter",
     "FILTER_VARIANTS",
     "register_filter",
-    "KF_SCALAR_UPDATE_CYCLES",
-    "KF_PREDICT_CYCLES",
+    "kf_scalar_update_cycles",
+    "kf_predict_cycles",
+    "feedback_cycles",
 ]
 
 DEG = math.pi / 180.0
 DPH = DEG / 3600.0
 G_STD = 9.80665
 
-#: One scalar Joseph update over 15 states [D, section 6 fallback]: a = P h and c = B h (2 x 225 MAC),
-#: B = P - K a^T (225 MAC), P' = B - c K^T + r K K^T (450 MAC), symmetrise (105 ADD), recipsp [S].
-KF_SCALAR_UPDATE_CYCLES = (
-    2 * c674x.flops(225, 225) + c674x.flops(225, 225) + c674x.flops(450, 450) + c674x.flops(0, 105)
-    + c674x.mathlib("recipsp") + c674x.flops(30, 30)
-)
-#: Time update: F elements (~40 MPYSP/ADDSP, 4 divdp for the DP radii), Phi = I + F T (w_vec 225),
-#: Phi P (mat_mul 15^3), transpose, (Phi P) Phi^T (mat_mul 15^3), + Q on the diagonal, symmetrise [S/D].
-KF_PREDICT_CYCLES = (
-    c674x.flops(40, 40) + c674x.mathlib("divdp", 4) + c674x.mathlib("sindp") + c674x.mathlib("cosdp")
-    + c674x.w_vec(225) + 2 * c674x.mat_mul(15, 15, 15) + c674x.mat_trans(15, 15)
-    + c674x.flops(0, 15) + c674x.flops(0, 105)
-)
-#: Closed-loop feedback: rv2q (sqrtsp, sinsp, cossp, divsp), qmul (16 MPY, 12 ADD), normalise
-#: (rsqrtsp), 3 DP position subtractions, 9 SP additions [S/D].
-FEEDBACK_CYCLES = (
-    c674x.mathlib("sqrtsp") + c674x.mathlib("sinsp") + c674x.mathlib("cossp") + c674x.mathlib("divsp")
-    + c674x.mathlib("rsqrtsp") + c674x.flops(20, 24) + c674x.dp_flops(0, 3)
-)
+def kf_scalar_update_cycles(c: c674x.KernelCosts) -> int:
+    """One scalar Joseph update over 15 states [D, c6747_cycles.md section 6 fallback].
+
+    ``a = P h`` and ``c = B h`` (2 x 225 MAC), ``B = P - K a^T`` (225 MAC),
+    ``P' = B - c K^T + r K K^T`` (450 MAC), symmetrise (105 ADD), one reciprocal (MATHLIB [S]).
+    """
+    return (2 * c.flops(225, 225) + c.flops(225, 225) + c.flops(450, 450) + c.flops(0, 105)
+            + c.math("recip") + c.flops(30, 30))
+
+
+def kf_predict_cycles(c: c674x.KernelCosts) -> int:
+    """Time update [S formulas, D sum]: F elements (~40 MUL/ADD, DP sin/cos and 4 divisions of the
+    latitude terms), ``Phi = I + F T`` (DSPF_sp_w_vec, 225), ``Phi P`` and ``(Phi P) Phi^T``
+    (2 x DSPF_sp_mat_mul 15x15x15), one transpose (DSPF_sp_mat_trans), Q on the diagonal, symmetrise."""
+    return (c.flops(40, 40) + c674x.mathlib("divdp", 4) + c674x.mathlib("sindp") + c674x.mathlib("cosdp")
+            + c.w_vec(225) + 2 * c.mat_mul(15, 15, 15) + c.mat_trans(15, 15) + c.flops(0, 15) + c.flops(0, 105))
+
+
+def feedback_cycles(c: c674x.KernelCosts) -> int:
+    """Closed-loop feedback: rv2q (sqrt, sin, cos, div), qmul (16 MUL, 12 ADD), normalise (rsqrt),
+    3 DP position subtractions, 9 additions [S/D]."""
+    return (c.math("sqrt") + c.math("sin") + c.math("cos") + c.math("div") + c.math("rsqrt")
+            + c.flops(20, 24) + c674x.dp_flops(0, 3))
 
 
 @dataclass
@@ -139,6 +144,7 @@ class NavFilter:
         self.gyro_bias = np.zeros(3, dtype=dtype)
         self.accel_bias = np.zeros(3, dtype=dtype)
         self.P = np.zeros((N_STATES, N_STATES), dtype=dtype)
+        self.cost = c674x.KernelCosts("float64" if np.dtype(dtype) == np.float64 else "float32")
 
     def initialise(self, nav: NavState, heading_sigma_rad: float) -> None:
         raise NotImplementedError
@@ -190,6 +196,9 @@ class BaseFilter(NavFilter):
         qa = 2.0 * (cfg.accel_bias_instability_mg * 1e-3 * G_STD) ** 2 / tau
         self.q = process_noise_psd(arw, vrw, qg, qa)
         self._eye = np.eye(N_STATES, dtype=dtype)
+        self._cyc_update = kf_scalar_update_cycles(self.cost)
+        self._cyc_predict = kf_predict_cycles(self.cost)
+        self._cyc_feedback = feedback_cycles(self.cost)
 
     # -- initialisation -------------------------------------------------------------------------
     def initialise(self, nav: NavState, heading_sigma_rad: float) -> None:
@@ -214,7 +223,7 @@ class BaseFilter(NavFilter):
         F = error_transition_matrix(q2mat(nav.q), nav.v, nav.pos, f_n, dtype=dt)
         Phi = self._eye + F * dt(Tk)
         self.x, self.P = kf_predict(self.x, self.P, Phi, (self.q * Tk).astype(dt))
-        self.meter.charge("kf_predict", KF_PREDICT_CYCLES)
+        self.meter.charge("kf_predict", self._cyc_predict)
 
     # -- measurement updates --------------------------------------------------------------------
     def _scalar(self, h: np.ndarray, z: float, r: float) -> float:
@@ -253,7 +262,7 @@ class BaseFilter(NavFilter):
             h[:] = 0
             h[idx] = hval
             innov.append(self._scalar(h, z, r))
-        self.meter.charge("kf_update", len(rows) * KF_SCALAR_UPDATE_CYCLES)
+        self.meter.charge("kf_update", len(rows) * self._cyc_update)
         return UpdateReport("gnss", True, len(rows), max((abs(v) for v in innov), default=0.0))
 
     def update_solar(self, nav: NavState, obs: SolarObservation, s_n: np.ndarray, cbn_exp: np.ndarray) -> UpdateReport:
@@ -264,18 +273,18 @@ class BaseFilter(NavFilter):
         z, sign = solar_vector_residual(s_n, cbn_exp.astype(dt), obs.s_b.astype(dt))
         H = solar_vector_rows(s_n, dt)
         r = (cfg.psns_sigma_deg * DEG) ** 2
-        self.meter.charge("solar_residual", c674x.flops(18 + 9, 18 + 6))
+        self.meter.charge("solar_residual", self.cost.flops(18 + 9, 18 + 6))
         # innovation gate: |Z|^2 against its predicted variance tr(H P H^T) + 3 r (no 3x3 inverse)
         Pa = self.P[0:3, 0:3]
         Hs = H[:, 0:3]
         var = float(np.einsum("ij,jk,ik->", Hs, Pa, Hs)) + 3.0 * r
         z2 = float(z @ z)
-        self.meter.charge("solar_gate", c674x.flops(45, 40))
+        self.meter.charge("solar_gate", self.cost.flops(45, 40))
         nis = z2 / var
         if nis > cfg.psns_gate_chi2:
             return UpdateReport("solar", False, 0, math.sqrt(nis), {"residual_deg": math.sqrt(z2) / DEG, "sign": sign})
         innov = [self._scalar(H[i], float(z[i]), r) for i in range(3)]
-        self.meter.charge("kf_update", 3 * KF_SCALAR_UPDATE_CYCLES)
+        self.meter.charge("kf_update", 3 * self._cyc_update)
         return UpdateReport("solar", True, 3, max(abs(v) for v in innov),
                             {"residual_deg": math.sqrt(z2) / DEG, "sign": sign})
 
@@ -291,4 +300,4 @@ class BaseFilter(NavFilter):
         self.gyro_bias = (self.gyro_bias + x[IDX_GYRO]).astype(dt)
         self.accel_bias = (self.accel_bias + x[IDX_ACC]).astype(dt)
         self.x = np.zeros(N_STATES, dtype=dt)
-        self.meter.charge("kf_feedback", FEEDBACK_CYCLES)
+        self.meter.charge("kf_feedback", self._cyc_feedback)

@@ -49,7 +49,7 @@ from protocols.stim import GYRO_ANGLE_LSB_DEG, GYRO_RATE_LSB_DPS
 from protocols.stream import StreamDecoder
 
 from . import c674x, earth, psns, sun
-from .alignment import LEVEL_CYCLES, TRIAD_CYCLES, level_from_specific_force, solar_heading_alignment
+from .alignment import level_from_specific_force, solar_heading_alignment
 from .attitude import a2mat, heading_from_yaw, m2att, mat2q, q2mat, yaw_from_heading
 from .errors import FirmwareError
 from .filters import FILTER_VARIANTS, GnssMeasurement, NavFilter, SolarObservation, UpdateReport
@@ -57,7 +57,7 @@ from .psns_geometry import CameraGeometry
 from .strapdown import NavState, coning_sculling, strapdown_step
 
 __all__ = ["UART_HOST", "UART_IMU", "UART_PSNS", "UART_GNSS", "FirmwareConfig", "TickResult", "Firmware",
-           "FirmwareState"]
+           "FirmwareState", "tick_kernel_cycles"]
 
 UART_HOST, UART_IMU, UART_PSNS, UART_GNSS = 0, 1, 2, 3
 
@@ -66,28 +66,38 @@ G_STD = 9.80665
 DPH = DEG / 3600.0  # deg/h in rad/s
 
 
-# Cycle charges of the per-tick kernels (constants: the code paths are branch-free) ------------------
-#: IMU frame: CRC-16 over 36 bytes by table (~4 cycles/byte) + field unpack [E].
-IMU_DECODE_CYCLES = 36 * 4 + c674x.flops(12, 6)
-#: Raw words to SI: 6 INTSP + 6 MPYSP + 3 divisions folded into constants [D].
-IMU_CONVERT_CYCLES = c674x.flops(12, 6)
-#: Single-sample rotation compensation (one cross product) and bias compensation [D].
-CONING1_CYCLES = c674x.flops(12, 12)
-#: Two-sample coning/sculling: 4 cross products, 2/3 and 1/2 scalings, sums [D].
-CONING2_CYCLES = c674x.flops(30, 30)
-#: Strapdown step: DP sin/cos/sqrt and 3 divisions for the Earth model (latitude is float64), DP position
-#: update, two rv2q (sqrt, sin, cos, div each), quaternion normalisation (rsqrt) and ~260 SP FLOPs
-#: (c6747_cycles.md section 4) [S figures, D sum].
-STRAPDOWN_CYCLES = (
-    c674x.mathlib("sindp") + c674x.mathlib("cosdp") + c674x.mathlib("sqrtdp") + 3 * c674x.mathlib("divdp")
-    + c674x.dp_flops(12, 12)
-    + 2 * (c674x.mathlib("sqrtsp") + c674x.mathlib("sinsp") + c674x.mathlib("cossp") + c674x.mathlib("divsp"))
-    + c674x.mathlib("rsqrtsp")
-    + c674x.flops(140, 120)
-)
-#: NAV_SOLUTION: m2att (asinsp, 2 atan2sp), pack 102 bytes, CRC-16 over 109 bytes by table [S/E].
-NAV_OUTPUT_CYCLES = (c674x.mathlib("asinsp") + 2 * c674x.mathlib("atan2sp") + 9 * c674x.mathlib("sqrtsp")
-                     + 102 * 2 + 109 * 4 + c674x.CALL_OVERHEAD)
+def tick_kernel_cycles(c: c674x.KernelCosts) -> dict[str, int]:
+    """Cycle charges of the per-tick kernels in the build's precision (branch-free code paths).
+
+    * ``imu_decode``: CRC-16 over 36 bytes by table (~4 cycles/byte) + field unpack (integer work) [E].
+    * ``imu_convert``: raw words to SI, 6 INT->float conversions + 6 multiplies [D].
+    * ``coning1``: single-sample rotation compensation (one cross product) [D];
+      ``coning2``: two-sample coning/sculling, 4 cross products and the 2/3, 1/2 scalings [D].
+    * ``strapdown``: the Earth model in double precision whatever the build (latitude is a float64
+      variable: sindp, cosdp, sqrtdp, 3 divdp and DP position update [S, R2]), two rv2q (sqrt, sin,
+      cos, div), quaternion normalisation (rsqrt) and ~260 FLOPs (c6747_cycles.md section 4) [S/D].
+    * ``nav_output``: m2att (asin, 2 atan2), 9 sqrt for the sigmas, pack 102 bytes, CRC-16 over 109 [S/E].
+    * ``level``, ``triad``: :mod:`firmware_model.alignment`.
+    """
+    from .alignment import level_cycles, triad_cycles
+
+    return {
+        "imu_decode": 36 * 4 + c674x.flops(12, 6),
+        "imu_convert": c.flops(12, 6),
+        "coning1": c.flops(12, 12),
+        "coning2": c.flops(30, 30),
+        "strapdown": (c674x.mathlib("sindp") + c674x.mathlib("cosdp") + c674x.mathlib("sqrtdp")
+                      + 3 * c674x.mathlib("divdp") + c674x.dp_flops(12, 12)
+                      + 2 * (c.math("sqrt") + c.math("sin") + c.math("cos") + c.math("div"))
+                      + c.math("rsqrt") + c.flops(140, 120)),
+        "nav_output": c.math("asin") + 2 * c.math("atan2") + 9 * c.math("sqrt") + 102 * 2 + 109 * 4 + c674x.CALL_OVERHEAD,
+        "level": level_cycles(c),
+        "triad": triad_cycles(c),
+        "mounting": c.flops(9, 6),
+        "normalise": c.math("rsqrt") + c.flops(6, 2),
+    }
+
+
 _PPS_VALID = int(FpgaStatus.PPS_VALID)
 _GYRO_MISSING = int(FpgaStatus.GYRO_MISSING)
 
@@ -195,6 +205,8 @@ class Firmware:
         self.cfg = cfg = cfg or FirmwareConfig()
         self.dtype = np.float32 if cfg.precision == "float32" else np.float64
         self.meter = c674x.CycleMeter(cfg.clock_hz, cfg.imu_rate_hz)
+        self.cost = c674x.KernelCosts(cfg.precision)
+        self._cyc = tick_kernel_cycles(self.cost)
         self.T = 1.0 / cfg.imu_rate_hz
         self._nsub = cfg.subsamples
         self._out_every = int(round(cfg.imu_rate_hz / cfg.output_rate_hz))
@@ -345,7 +357,7 @@ class Firmware:
         m = self.meter
         m.begin("imu_tick", self.T)
         m.begin("imu", self.T)
-        m.charge("imu_decode", IMU_DECODE_CYCLES)
+        m.charge("imu_decode", self._cyc["imu_decode"])
         t_us = self._unwrap_us(fr.t_trigger_us)
         t = t_us / 1e6
         res = TickResult(t_fpga_s=t, cycles=0)
@@ -373,7 +385,7 @@ class Firmware:
         kv = ADC_VOLTS_PER_LSB * G_STD
         vpg = cfg.accel_volts_per_g
         f_b = np.array((a[0] * kv / vpg[0], a[1] * kv / vpg[1], a[2] * kv / vpg[2]), dtype=dt)
-        m.charge("imu_convert", IMU_CONVERT_CYCLES)
+        m.charge("imu_convert", self._cyc["imu_convert"])
 
         if self.state == FirmwareState.COARSE_ALIGN:
             self._align(t, f_b, res)
@@ -399,7 +411,7 @@ class Firmware:
         if self._tick % self._out_every == 0:
             m.begin("output", self._out_every * self.T)
             frame = self._nav_output(t)
-            m.charge("nav_output", NAV_OUTPUT_CYCLES)
+            m.charge("nav_output", self._cyc["nav_output"])
             m.end()
             res.outputs.append((UART_HOST, frame, m.elapsed))
         res.cycles = m.end()
@@ -434,7 +446,7 @@ class Firmware:
                 and t - self._align_t0 < cfg.align_time_s + cfg.psns_align_timeout_s:
             return  # wait for a solar vector
         pitch, roll = level_from_specific_force(fm)
-        self.meter.charge("coarse_level", LEVEL_CYCLES)
+        self.meter.charge("coarse_level", self._cyc["level"])
         if cbn is None:
             cbn = a2mat(pitch, roll, yaw_from_heading(cfg.initial_heading_deg * DEG))
         dt = self.dtype
@@ -481,7 +493,7 @@ class Firmware:
             cbn, _ = solar_heading_alignment(f_b, acc / np.linalg.norm(acc), s_n)
         except ValueError:
             return None, el
-        self.meter.charge("triad", TRIAD_CYCLES)
+        self.meter.charge("triad", self._cyc["triad"])
         return cbn, el
 
     # -- navigation ---------------------------------------------------------------------------------
@@ -501,7 +513,7 @@ class Firmware:
             dv_m = dv_c + dt(0.5) * np.array((phi_m[1] * dv_c[2] - phi_m[2] * dv_c[1],
                                                 phi_m[2] * dv_c[0] - phi_m[0] * dv_c[2],
                                                 phi_m[0] * dv_c[1] - phi_m[1] * dv_c[0]), dtype=dt)
-            m.charge("coning_sculling", CONING1_CYCLES)
+            m.charge("coning_sculling", self._cyc["coning1"])
             Tm = T
         else:
             self._sub.append((dtheta, dv))
@@ -514,10 +526,10 @@ class Firmware:
             Tm = T * self._nsub
             phi_m = (phi_m - flt.gyro_bias * dt(Tm)).astype(dt)
             dv_m = (dv_m - flt.accel_bias * dt(Tm)).astype(dt)
-            m.charge("coning_sculling", CONING2_CYCLES)
+            m.charge("coning_sculling", self._cyc["coning2"])
         strapdown_step(s, phi_m, dv_m, Tm, dtype=dt)
         s.t = t
-        m.charge("strapdown", STRAPDOWN_CYCLES)
+        m.charge("strapdown", self._cyc["strapdown"])
         self._accumulate_fn()
         self._hist.append((t, s.pos.copy(), s.v.copy(), s.q.copy()))
 
@@ -601,8 +613,8 @@ class Firmware:
             dop = (pts[:, 3] * (1.0 / 65535.0)).astype(dt)
             e = psns.evectors_camera(pts[:, 0], pts[:, 1], aop, cam, dtype=dt)
             sol = psns.solve_solar_vector(e, dop, cfg.psns_dop_min, max_quality=cfg.psns_quality_max)
-            m.charge("psns_evectors", psns.evector_cycles(n))
-            m.charge("psns_solve", psns.solve_cycles(n))
+            m.charge("psns_evectors", psns.evector_cycles(n, self.cost))
+            m.charge("psns_solve", psns.solve_cycles(n, self.cost))
             if not sol.valid:
                 self.counters["psns_invalid"] += 1
                 return None
@@ -615,12 +627,12 @@ class Firmware:
                 return None
             s_c = s_c / dt(nrm)
             quality, n_used, source = float(f.quality), h.count, "sensor"
-            m.charge("psns_normalise", c674x.mathlib("rsqrtsp") + c674x.flops(6, 2))
+            m.charge("psns_normalise", self._cyc["normalise"])
         else:
             return None
         self.counters["psns_solutions"] += 1
         s_b = (cam.c_c_b.astype(dt) @ s_c).astype(dt)
-        m.charge("psns_mounting", c674x.flops(9, 6))
+        m.charge("psns_mounting", self._cyc["mounting"])
         return SolarObservation(t_exp, s_b, quality, n_used, source)
 
     def _psns_update(self, t: float, t_rx: float, f: Any) -> UpdateReport | None:

@@ -207,22 +207,28 @@ def exposure_time_s(t_rx_s: float, frame_len: int, baud: float, latency_us: int,
     return t_rx_s - frame_len * bits_per_byte / baud - latency_us * 1e-6
 
 
-def evector_cycles(n: int) -> int:
+def evector_cycles(n: int, c: c674x.KernelCosts | None = None) -> int:
     """C674x cycles to build ``n`` unit E-vectors from (x, y, AOP) [D].
 
-    MATHLIB vector sinsp/cossp 9 + 9 cycles/element, rsqrtsp 6 cycles/element [S, R2 "Vector"],
-    plus the focal-plane terms and the normalisation, 8 MPYSP + 5 ADDSP per point, software-pipelined
-    (section 6 fallback: 4 cycles/point), plus 3 loop prologs.
+    Single precision: MATHLIB vector sinsp/cossp 9 + 9 cycles/element, rsqrtsp 6 cycles/element
+    [S, R2 "Vector"]; double precision: sindp/cosdp 44 + 45, rsqrtdp 28 [S, R2 "Vector"]. Plus the
+    focal-plane terms and the normalisation, 8 MPY + 5 ADD per point, software-pipelined (section 6
+    fallback), plus 3 loop prologs.
     """
-    return n * (9 + 9 + 6) + c674x.flops(8, 5, iterations=n, overhead=3 * c674x.CALL_OVERHEAD)
+    c = c or c674x.KernelCosts()
+    per = (44 + 45 + 28) if c.double else (9 + 9 + 6)
+    return n * per + c.flops(8, 5, iterations=n, overhead=3 * c674x.CALL_OVERHEAD)
 
 
-def solve_cycles(n: int) -> int:
+def solve_cycles(n: int, c: c674x.KernelCosts | None = None) -> int:
     """C674x cycles of threshold + ``K`` accumulation over ``n`` points + the closed-form eigen solve [D/E].
 
     K: 9 MPYSP + 6 ADDSP per point, bound by the 2 .M units: 5 n + 40 (c6747_cycles.md section 4).
-    Threshold/compaction: 1 cycle/point. Eigen: sqrtsp + recipsp + acossp + 2 cossp + rsqrtsp
-    (316 cycles, MATHLIB inline [S]) + ~80 FLOPs and the 3 cross products (~150 cycles) [E].
+    Threshold/compaction: 1 cycle/point. Eigen: sqrt + recip + acos + 2 cos + rsqrt (316 cycles in
+    single precision, MATHLIB inline [S]) + ~80 FLOPs and the 3 cross products (~150 cycles) [E].
+    In double precision the accumulation is MPYDP-bound: 9 MPYDP per point at 0.5/cycle = 18 n [D].
     """
-    return (6 * n + 40) + c674x.mathlib("sqrtsp") + c674x.mathlib("recipsp") + c674x.mathlib("acossp") \
-        + c674x.mathlib("cossp", 2) + c674x.mathlib("rsqrtsp") + 150
+    c = c or c674x.KernelCosts()
+    acc = (18 * n + 40) if c.double else (5 * n + 40)
+    return acc + n + c.math("sqrt") + c.math("recip") + c.math("acos") + c.math("cos", 2) + c.math("rsqrt") \
+        + c.flops(60, 60)

@@ -64,6 +64,8 @@ class Scenario(Model):
 
     name: str = Field(pattern=r"^[A-Za-z0-9_.-]+$", max_length=80)
     description: str = ""
+    tags: list[Literal["slow", "realtime", "pty", "needs-socat"]] = Field(
+        default_factory=list, description="'slow': excluded from the default test run")
     seed: int = Field(1, ge=0, lt=2**32)
     epoch: _dt.datetime
     duration_s: float = Field(gt=0, le=86400)

@@ -90,7 +90,10 @@ def test_static_gnss_psns_heading_converges_and_without_psns_it_stays(duration_s
     fw_off, s_off, ev_off, _ = run_static(cfg_off, truth, PAPER_ERRORS, StreamConfig(psns=None), duration_s)
     assert [e["heading_source"] for e in ev_off if e["event"] == "alignment_done"] == ["config"]
     he_off = _heading_errors(s_off, after_s=60.0)
-    assert np.all(np.abs(he_off - 1.0) < 0.15), (he_off.min(), he_off.max())
+    # not corrected: it stays near 1 deg (a slow wander of a few tenths comes from the weakly observable
+    # vertical gyro bias over 10 min); with PSNS the error is an order of magnitude smaller
+    assert np.all(np.abs(he_off - 1.0) < 0.4), (he_off.min(), he_off.max())
+    assert float(np.sqrt(np.mean(he_off**2))) > 5 * rms
     assert fw_off.counters["psns_updates"] == 0
     # and the filter knows it: its heading sigma stays near the configured 1 deg
     assert math.sqrt(float(fw_off.P[2, 2])) / DEG > 0.8

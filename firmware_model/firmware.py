@@ -583,7 +583,9 @@ class Firmware:
                     res.events.append({"event": "psns_rejected", "t_fpga_s": t, "kind": rep.kind,
                                        "norm_innov": rep.max_norm_innov, **(rep.detail or {})})
         if updated:
+            m.begin("kf_feedback", 0.0)
             self.filter.feedback(self.nav)  # type: ignore[arg-type]
+            m.end()
 
     # -- PSNS -------------------------------------------------------------------------------------------
     def _psns_observation(self, t_rx: float, f: Any) -> SolarObservation | None:

@@ -588,22 +588,28 @@ class Firmware:
             m.end()
 
     # -- PSNS -------------------------------------------------------------------------------------------
+    def _psns_frame_in(self, t_rx: float, f: Any) -> float:
+        """Count and charge a decoded PSNS frame; return its mid-exposure time (C1, D-5.8)."""
+        cfg = self.cfg
+        self.counters["psns_frames"] += 1
+        if isinstance(f, CompassFrame):
+            self.counters["compass_frames"] += 1
+        n_bytes = _psns_frame_len(f)
+        self.meter.charge("psns_decode", n_bytes * 4 + c674x.CALL_OVERHEAD)  # CRC-16 by table + copy [E]
+        return psns.exposure_time_s(t_rx, n_bytes, cfg.psns_baud, f.header.latency_us, cfg.psns_bits_per_byte)
+
     def _psns_observation(self, t_rx: float, f: Any) -> SolarObservation | None:
         """Decode-side work for one PSNS frame: exposure time, solve (POLARIZATION_OBS), body frame."""
         cfg = self.cfg
         m = self.meter
         dt = self.dtype
-        self.counters["psns_frames"] += 1
-        n_bytes = _psns_frame_len(f)
-        m.charge("psns_decode", n_bytes * 4 + c674x.CALL_OVERHEAD)  # CRC-16 by table + copy [E]
+        t_exp = self._psns_frame_in(t_rx, f)
         if isinstance(f, CompassFrame):
-            self.counters["compass_frames"] += 1
             return None
         h = f.header
         if not h.status & PsnsStatus.VALID:
             self.counters["psns_invalid"] += 1
             return None
-        t_exp = psns.exposure_time_s(t_rx, n_bytes, cfg.psns_baud, h.latency_us, cfg.psns_bits_per_byte)
         cam = cfg.camera
         if isinstance(f, PolarizationObs):
             n = len(f.points)
@@ -639,9 +645,10 @@ class Firmware:
 
     def _psns_update(self, t: float, t_rx: float, f: Any) -> UpdateReport | None:
         cfg = self.cfg
-        obs = self._psns_observation(t_rx, f)
         if isinstance(f, CompassFrame):
-            return self.filter.update_compass(self.nav, f, t_rx)  # type: ignore[arg-type]
+            t_exp = self._psns_frame_in(t_rx, f)
+            return self.filter.update_compass(self.nav, f, t_exp) if cfg.psns_enabled else None  # type: ignore[arg-type]
+        obs = self._psns_observation(t_rx, f)
         if obs is None or not cfg.psns_enabled:
             return None
         if t - obs.t_exposure_s > cfg.psns_max_age_s:

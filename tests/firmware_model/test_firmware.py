@@ -278,3 +278,35 @@ def test_psns_alignment_source_waits_and_falls_back():
     fw, _, events, _ = run_static(cfg, truth, PAPER_ERRORS, StreamConfig(psns=None), 10.0)
     ev = [e for e in events if e["event"] == "alignment_done"]
     assert ev and ev[0]["heading_source"] == "config" and ev[0]["t_fpga_s"] >= 2.0 + 3.0 - 0.01
+
+
+def test_compass_frames_reach_the_variant_with_their_exposure_time():
+    from protocols.psns import CompassUnit, PsnsHeader, PsnsStatus, encode_compass
+
+    seen = []
+
+    @register_filter("test_compass")
+    class CompassRecorder(BaseFilter):
+        def update_compass(self, nav, frame, t_exposure_s):
+            seen.append((len(frame.units), t_exposure_s))
+            return None
+
+    try:
+        cfg = FirmwareConfig(filter="test_compass", psns_baud=115200)
+        fw = Firmware(cfg)
+        frame = encode_compass(PsnsHeader(1, 1000, 20000, int(PsnsStatus.VALID), 9),
+                               [CompassUnit(u, 100 * u, 30000) for u in range(9)])
+        sent = False
+        for t_rx, uart, data in static_stream(StaticTruth(), SensorErrors(), StreamConfig(psns=None), 6.0):
+            fw.receive(uart, data, t_rx)
+            if uart == 1:
+                fw.service()
+                if not sent and fw.state != FirmwareState.COARSE_ALIGN:
+                    fw.receive(2, frame, t_rx)
+                    t_sent = t_rx
+                    sent = True
+        assert fw.counters["compass_frames"] == 1
+        assert len(seen) == 1 and seen[0][0] == 9
+        assert seen[0][1] == pytest.approx(t_sent - len(frame) * 10 / 115200 - 0.020)
+    finally:
+        FILTER_VARIANTS.pop("test_compass", None)

@@ -245,7 +245,7 @@ class Firmware:
         self._last_fix: tuple[float, float, float, int] | None = None
         self._last_gnss_update_t = -1e9
         self._last_psns_t = -1e9
-        self._psns_status = 0
+        self._last_psns_reject_t = -1e9
         self._out_seq = 0
         self.deadline_misses = 0
         self._load_window: deque[tuple[float, int]] = deque()
@@ -576,10 +576,9 @@ class Firmware:
                     updated = True
                     self.counters["psns_updates"] += 1
                     self._last_psns_t = t
-                    self._psns_status = 1
                 else:
                     self.counters["psns_rejected"] += 1
-                    self._psns_status = 2
+                    self._last_psns_reject_t = t
                     res.events.append({"event": "psns_rejected", "t_fpga_s": t, "kind": rep.kind,
                                        "norm_innov": rep.max_norm_innov, **(rep.detail or {})})
         if updated:
@@ -681,8 +680,12 @@ class Firmware:
         else:
             if t - self._last_gnss_update_t < 2.0:
                 mode |= NavMode.GNSS_AIDED
+            elif self.state != FirmwareState.COARSE_ALIGN and t - self._t_aligned > 3.0:
+                mode |= NavMode.DEGRADED  # GNSS missing or stale
             if t - self._last_psns_t < 2.0:
                 mode |= NavMode.PSNS_AIDED
+            if t - self._last_psns_reject_t < 2.0:
+                mode |= NavMode.DEGRADED
             lat, lon, h = (float(x) for x in s.pos)
             vel = tuple(float(x) for x in s.v)
             pitch, roll, yaw = m2att(q2mat(s.q.astype(np.float64)))
@@ -709,7 +712,7 @@ class Firmware:
             sigma=sigma,
             mode=int(mode),
             gnss_status=fix[3] if fix is not None else 0,
-            psns_status=self._psns_status if t - self._last_psns_t < 2.0 or self._psns_status == 2 else 0,
+            psns_status=1 if t - self._last_psns_t < 2.0 else 2 if t - self._last_psns_reject_t < 2.0 else 0,
             cpu_load_pct=self.cpu_load_pct(),
             deadline_misses=self.deadline_misses,
         )

@@ -99,6 +99,7 @@ def tick_kernel_cycles(c: c674x.KernelCosts) -> dict[str, int]:
 
 
 _PPS_VALID = int(FpgaStatus.PPS_VALID)
+_GNSS_AIDED, _PSNS_AIDED, _DEGRADED = int(NavMode.GNSS_AIDED), int(NavMode.PSNS_AIDED), int(NavMode.DEGRADED)
 _GYRO_MISSING = int(FpgaStatus.GYRO_MISSING)
 
 
@@ -252,7 +253,8 @@ class Firmware:
         self._load_sum = 0
         self.counters = {"imu_frames": 0, "gnss_fixes": 0, "gnss_updates": 0, "gyro_counter_jumps": 0,
                          "fpga_gyro_missing": 0, "imu_time_gaps": 0, "psns_frames": 0, "psns_solutions": 0,
-                         "psns_updates": 0, "psns_rejected": 0, "psns_invalid": 0, "compass_frames": 0}
+                         "psns_updates": 0, "psns_rejected": 0, "psns_invalid": 0, "psns_sun_low": 0,
+                         "psns_dropped": 0, "compass_frames": 0}
 
     # -- ISR side -------------------------------------------------------------------------------
     def receive(self, uart: int, data: bytes, t_rx_s: float | None = None) -> None:
@@ -276,7 +278,10 @@ class Firmware:
                 for f in reversed(frames):
                     tags.append((t_end, f))
                     t_end -= _psns_frame_len(f) * byte_s
-                self._pending_psns.extend(reversed(tags))
+                for tag in reversed(tags):
+                    if len(self._pending_psns) == self._pending_psns.maxlen:
+                        self.counters["psns_dropped"] += 1  # the solve cannot keep up: oldest frame lost
+                    self._pending_psns.append(tag)
         else:
             self._rx_other[uart] = self._rx_other.get(uart, 0) + len(data)
 
@@ -578,9 +583,10 @@ class Firmware:
                     self._last_psns_t = t
                 else:
                     self.counters["psns_rejected"] += 1
+                    if t - self._last_psns_reject_t >= 1.0:  # at most one event per second
+                        res.events.append({"event": "psns_rejected", "t_fpga_s": t, "kind": rep.kind,
+                                           "norm_innov": rep.max_norm_innov, **(rep.detail or {})})
                     self._last_psns_reject_t = t
-                    res.events.append({"event": "psns_rejected", "t_fpga_s": t, "kind": rep.kind,
-                                       "norm_innov": rep.max_norm_innov, **(rep.detail or {})})
         if updated:
             m.begin("kf_feedback", 0.0)
             self.filter.feedback(self.nav)  # type: ignore[arg-type]
@@ -659,7 +665,8 @@ class Firmware:
         s_n = sun.sun_vector_enu(days, float(p_ins[0]), float(p_ins[1]), dtype=self.dtype)
         self.meter.charge("sun_ephemeris", sun.ephemeris_cycles())
         if float(s_n[2]) < math.sin(cfg.psns_min_sun_elevation_deg * DEG):
-            return UpdateReport("solar", False, 0, 0.0, {"reason": "sun_low"})
+            self.counters["psns_sun_low"] += 1  # night or twilight: not an error, no update
+            return None
         return self.filter.update_solar(self.nav, obs, s_n, q2mat(q_exp))  # type: ignore[arg-type]
 
     # -- output -------------------------------------------------------------------------------------------
@@ -669,7 +676,7 @@ class Firmware:
 
     def _nav_output(self, t: float) -> bytes:
         s = self.nav
-        mode = self.mode | (self.filter.variant_id & 0xF) << 8
+        mode = int(self.mode) | (self.filter.variant_id & 0xF) << 8
         if s is None:
             lat = lon = h = 0.0
             if self._last_fix is not None:
@@ -679,25 +686,28 @@ class Firmware:
             sigma = (0.0,) * 9
         else:
             if t - self._last_gnss_update_t < 2.0:
-                mode |= NavMode.GNSS_AIDED
+                mode |= _GNSS_AIDED
             elif self.state != FirmwareState.COARSE_ALIGN and t - self._t_aligned > 3.0:
-                mode |= NavMode.DEGRADED  # GNSS missing or stale
+                mode |= _DEGRADED  # GNSS missing or stale
             if t - self._last_psns_t < 2.0:
-                mode |= NavMode.PSNS_AIDED
+                mode |= _PSNS_AIDED
             if t - self._last_psns_reject_t < 2.0:
-                mode |= NavMode.DEGRADED
-            lat, lon, h = (float(x) for x in s.pos)
-            vel = tuple(float(x) for x in s.v)
-            pitch, roll, yaw = m2att(q2mat(s.q.astype(np.float64)))
-            heading = heading_from_yaw(yaw)
-            d = np.sqrt(np.maximum(np.diag(self.filter.P)[:9].astype(np.float64), 0.0))
+                mode |= _DEGRADED
+            lat, lon, h = s.pos.tolist()
+            vel = tuple(s.v.tolist())
+            # PSINS m2att from the quaternion directly: C32, C31, C33, C12, C22 of C_b^n
+            q0, q1, q2, q3 = s.q.tolist()
+            c32 = 2.0 * (q2 * q3 + q0 * q1)
+            pitch = math.asin(max(-1.0, min(1.0, c32))) / DEG
+            roll = math.atan2(-2.0 * (q1 * q3 - q0 * q2), q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3) / DEG
+            yaw = math.atan2(-2.0 * (q1 * q2 - q0 * q3), q0 * q0 - q1 * q1 + q2 * q2 - q3 * q3)
+            heading = heading_from_yaw(yaw) / DEG
+            d = [math.sqrt(max(v, 0.0)) for v in self.filter.P.diagonal()[:9].tolist()]
             rm, rn = earth.radii(lat)
             sigma = (
                 d[0] / DEG, d[1] / DEG, d[2] / DEG, d[3], d[4], d[5],
                 d[6] * (rm + h), d[7] * (rn + h) * math.cos(lat), d[8],
             )
-            pitch, roll = pitch / DEG, roll / DEG
-            heading = heading / DEG
         fix = self._last_fix
         n = NavSolution(
             seq=self._out_seq,

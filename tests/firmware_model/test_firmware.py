@@ -310,3 +310,15 @@ def test_compass_frames_reach_the_variant_with_their_exposure_time():
         assert seen[0][1] == pytest.approx(t_sent - len(frame) * 10 / 115200 - 0.020)
     finally:
         FILTER_VARIANTS.pop("test_compass", None)
+
+
+def test_sun_below_horizon_no_psns_updates_no_event_spam():
+    import datetime as dt
+
+    night = StaticTruth(epoch=dt.datetime(2019, 9, 18, 20, 0, 0, tzinfo=dt.timezone.utc))  # 04:00 local, Beijing
+    assert night.sun_n(0.0)[2] < 0
+    fw, _, events, _ = run_static(FirmwareConfig(initial_heading_deg=30.0), night, PAPER_ERRORS,
+                                  StreamConfig(psns="solar_vector"), 20.0)
+    assert [e["heading_source"] for e in events if e["event"] == "alignment_done"] == ["config"]
+    assert fw.counters["psns_updates"] == 0 and fw.counters["psns_sun_low"] > 80
+    assert not [e for e in events if e["event"] == "psns_rejected"]

@@ -118,3 +118,36 @@ def test_solar_update_sign_choice_and_gate():
     bad = (q2mat(rv2q(np.array([0.0, 0.0, 20 * DEG]))) @ s_n)
     rep = flt.update_solar(nav, SolarObservation(0.0, (cbn.T @ bad).astype(np.float32), 0.01, 100, "sensor"), s_n, cbn)
     assert not rep.accepted
+
+
+def test_error_model_F_predicts_the_nonlinear_strapdown_errors():
+    """Nonlinear INS with initial errors vs Phi = prod(I + F T) over 60 s (algorithms.md 1.3 check)."""
+    from firmware_model.kf import error_transition_matrix
+    from firmware_model.strapdown import strapdown_step
+
+    lat, lon, h = 39.979 * DEG, 116.339 * DEG, 50.0
+    cbn = a2mat(0.02, -0.03, yaw_from_heading(30 * DEG))
+    w_b = cbn.T @ earth.omega_ie_n(lat)
+    f_b = cbn.T @ np.array([0.0, 0.0, earth.gravity(lat, h)])
+    rm, rn = earth.radii(lat)
+    phi0 = np.array([100.0, -80.0, 300.0]) / 206264.8  # arcsec -> rad
+    dv0 = np.array([0.03, -0.02, 0.01])
+    dp0 = np.array([3.0 / (rm + h), -2.0 / ((rn + h) * math.cos(lat)), 1.0])
+    eps = np.array([4.0, -3.0, 5.0]) * DEG / 3600.0
+    nab = np.array([1.0, -2.0, 1.5]) * 1e-3 * 9.8
+    x0 = np.concatenate([phi0, dv0, dp0, eps, nab])
+    T = 0.005
+    s = NavState(q=mat2q(q2mat(rv2q(-phi0)) @ cbn), v=dv0.copy(), pos=np.array([lat, lon, h]) + dp0)
+    n = int(60.0 / T)
+    for _ in range(n):
+        strapdown_step(s, (w_b + eps) * T, (f_b + nab) * T, T, dtype=np.float64)
+    # nonlinear errors, computed minus true
+    c_err = q2mat(s.q) @ cbn.T  # = I - [phi x]
+    phi = np.array([c_err[2, 1] - c_err[1, 2], c_err[0, 2] - c_err[2, 0], c_err[1, 0] - c_err[0, 1]]) / -2.0
+    x_nl = np.concatenate([phi, s.v, s.pos - np.array([lat, lon, h])])
+    F = error_transition_matrix(cbn, np.zeros(3), np.array([lat, lon, h]), np.array([0.0, 0.0, earth.gravity(lat, h)]),
+                                dtype=np.float64)
+    Phi = np.linalg.matrix_power(np.eye(N_STATES) + F * 0.1, 600)
+    x_lin = (Phi @ x0)[:9]
+    for blk in (slice(0, 3), slice(3, 6), slice(6, 9)):
+        assert np.linalg.norm(x_nl[blk] - x_lin[blk]) < 0.005 * np.linalg.norm(x_nl[blk]), (x_nl[blk], x_lin[blk])

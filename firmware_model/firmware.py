@@ -234,6 +234,7 @@ class Firmware:
         self._align_t0: float | None = None
         self._align_sun: list[SolarObservation] = []
         self._t_aligned = 0.0
+        self._t_last_predict = 0.0
         # navigation
         self.nav: NavState | None = None
         self.filter: NavFilter = FILTER_VARIANTS[cfg.filter](cfg, self.meter, self.dtype)
@@ -402,7 +403,9 @@ class Firmware:
                 fn = self._fn_sum / self._fn_n
                 self._fn_sum[:] = 0.0
                 self._fn_n = 0
-                self.filter.predict(self.nav, fn, cfg.kf_predict_every * self.T)  # type: ignore[arg-type]
+                Tk = t - self._t_last_predict  # the first interval after alignment may be shorter
+                self._t_last_predict = t
+                self.filter.predict(self.nav, fn, Tk)  # type: ignore[arg-type]
                 m.end()
             m.end()
             self._measurement_tasks(t, res)
@@ -460,6 +463,7 @@ class Firmware:
         self.state = FirmwareState.FINE_ALIGN
         self.mode = NavMode.NAVIGATING | NavMode.ALIGNING
         self._t_aligned = t
+        self._t_last_predict = t
         self._gnss_pending = None
         p, r, y = m2att(cbn)
         res.events.append({"event": "alignment_done", "t_fpga_s": t, "pitch_deg": p / DEG, "roll_deg": r / DEG,

@@ -5,10 +5,10 @@ from __future__ import annotations
 import math
 
 from firmware_model import Firmware, FirmwareConfig
-from firmware_model.attitude import a2mat
+from firmware_model.attitude import a2mat, yaw_from_heading
 from firmware_model.psns_geometry import CameraGeometry
 
-from .devices.sensors import accel_errors, gnss_config, gyro_errors
+from .devices.sensors import accel_errors, camera_config, gnss_config, gyro_errors
 from .scenario.schema import Scenario
 
 __all__ = ["firmware_config", "build_firmware"]
@@ -17,11 +17,24 @@ DEG = math.pi / 180.0
 
 
 def _camera(scn: Scenario) -> CameraGeometry:
-    c = scn.firmware.psns.camera
+    """The firmware's camera calibration: the nominal design of ``sensors.camera`` unless overridden."""
+    cal = scn.firmware.psns.camera
+    nominal = CameraGeometry()
+    heading = pitch = roll = 0.0
+    if scn.sensors.camera is not None:
+        cc = camera_config(scn)
+        m = scn.sensors.camera.mounting
+        nominal = CameraGeometry(nx=cc.nx, ny=cc.ny, dx_m=cc.pixel_m, dy_m=cc.pixel_m, focal_m=cc.focal_m,
+                                 projection=cc.lens)
+        heading, pitch, roll = m.heading_deg, m.pitch_deg, m.roll_deg  # installation error: unknown to the DSP
+    pick = lambda v, default: default if v is None else v  # noqa: E731
+    pixel_m = cal.pixel_um * 1e-6 if cal.pixel_um is not None else nominal.dx_m
     return CameraGeometry(
-        nx=c.nx, ny=c.ny, dx_m=c.pixel_um * 1e-6, dy_m=c.pixel_um * 1e-6, focal_m=c.focal_mm * 1e-3,
-        projection=c.projection,
-        c_c_b=a2mat(c.mounting_pitch_deg * DEG, c.mounting_roll_deg * DEG, c.mounting_yaw_deg * DEG),
+        nx=pick(cal.nx, nominal.nx), ny=pick(cal.ny, nominal.ny), dx_m=pixel_m, dy_m=pixel_m,
+        focal_m=cal.focal_mm * 1e-3 if cal.focal_mm is not None else nominal.focal_m,
+        projection=pick(cal.projection, nominal.projection),
+        c_c_b=a2mat(pick(cal.mounting_pitch_deg, pitch) * DEG, pick(cal.mounting_roll_deg, roll) * DEG,
+                    yaw_from_heading(pick(cal.mounting_heading_deg, heading) * DEG)),
     )
 
 

@@ -27,16 +27,22 @@ class AlignmentSpec(Model):
 
 
 class CameraCalibrationSpec(Model):
-    """The polarization camera as the firmware knows it (CONTRACTS C1)."""
+    """The polarization camera as the firmware knows it (CONTRACTS C1).
 
-    projection: Literal["pinhole", "fisheye"] = "pinhole"
-    focal_mm: float = Field(4.0, gt=0.1, le=100)
-    nx: int = Field(2448, ge=2, le=20000)
-    ny: int = Field(2048, ge=2, le=20000)
-    pixel_um: float = Field(3.45, gt=0.1, le=100)
-    mounting_roll_deg: float = Field(0.0, ge=-180, le=180, description="C_c^b = a2mat(pitch, roll, yaw)")
-    mounting_pitch_deg: float = Field(0.0, ge=-90, le=90)
-    mounting_yaw_deg: float = Field(0.0, ge=-180, le=180)
+    Every field left out is taken from the camera's nominal design (``sensors.camera``: lens, focal length,
+    nominal mounting without the installation error), or from the IMX250MZR defaults without a camera section.
+    The mounting uses the body-attitude convention of ``sensors.camera.mounting``:
+    ``C_c^b = a2mat(pitch, roll, yaw(heading))``.
+    """
+
+    projection: Literal["pinhole", "fisheye"] | None = None
+    focal_mm: float | None = Field(None, gt=0.1, le=100)
+    nx: int | None = Field(None, ge=2, le=20000)
+    ny: int | None = Field(None, ge=2, le=20000)
+    pixel_um: float | None = Field(None, gt=0.1, le=100)
+    mounting_heading_deg: float | None = Field(None, ge=-360, le=360)
+    mounting_pitch_deg: float | None = Field(None, ge=-90, le=90)
+    mounting_roll_deg: float | None = Field(None, ge=-180, le=180)
 
 
 class PsnsFirmwareSpec(Model):

@@ -73,6 +73,7 @@ class StreamConfig:
     gnss: bool = True
     gnss_latency_s: float = 0.05
     gnss_baud: int = 9600
+    gnss_outage_s: tuple[float, float] | None = None  # no sentences (and no PPS latch change) in [start, end)
     psns: str | None = "solar_vector"  # None, "solar_vector" or "polarization_obs"
     psns_rate_hz: float = 5.0
     psns_latency_us: int = 30000
@@ -111,7 +112,9 @@ def static_stream(truth: StaticTruth, err: SensorErrors, cfg: StreamConfig, dura
         t = k * T
         # GNSS epochs up to this trigger
         while cfg.gnss and next_gnss <= t:
-            push(next_gnss + cfg.gnss_latency_s, UART_GNSS, _nmea(truth, err, next_gnss, rng))
+            out = cfg.gnss_outage_s is not None and cfg.gnss_outage_s[0] <= next_gnss < cfg.gnss_outage_s[1]
+            if not out:
+                push(next_gnss + cfg.gnss_latency_s, UART_GNSS, _nmea(truth, err, next_gnss, rng))
             next_gnss += 1
         while cfg.psns and next_psns <= t:
             frame = _psns_frame(truth, err, cfg, next_psns, psns_seq, rng)

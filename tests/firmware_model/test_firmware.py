@@ -322,3 +322,18 @@ def test_sun_below_horizon_no_psns_updates_no_event_spam():
     assert [e["heading_source"] for e in events if e["event"] == "alignment_done"] == ["config"]
     assert fw.counters["psns_updates"] == 0 and fw.counters["psns_sun_low"] > 80
     assert not [e for e in events if e["event"] == "psns_rejected"]
+
+
+def test_gnss_outage_sets_degraded_and_psns_keeps_heading():
+    truth = StaticTruth()
+    stream = StreamConfig(psns="solar_vector", gnss_outage_s=(20.0, 40.0))
+    fw, samples, _, outputs = run_static(FirmwareConfig(fine_align_time_s=5.0), truth, PAPER_ERRORS, stream, 50.0,
+                                         keep_outputs=True)
+    navs = [f for f in StreamDecoder([HostFormat()]).feed(b"".join(outputs)) if isinstance(f, NavSolution)]
+    by_t = {round(n.time_s, 3): n for n in navs}
+    during, after = by_t[35.0], by_t[49.0]
+    assert during.mode & NavMode.DEGRADED and not during.mode & NavMode.GNSS_AIDED and during.mode & NavMode.PSNS_AIDED
+    assert after.mode & NavMode.GNSS_AIDED and not after.mode & NavMode.DEGRADED
+    assert fw.counters["gnss_updates"] < 50 - 19
+    he = _heading_errors(samples, after_s=20.0)
+    assert float(np.max(np.abs(he))) < 0.2  # the Sun keeps the heading through the outage

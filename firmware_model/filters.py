@@ -25,6 +25,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from protocols.host import FILTER_VARIANT_NAMES
+
 from . import c674x, earth
 from .attitude import q2mat, qmul, qnormalize, rv2q
 from .kf import (
@@ -134,7 +136,8 @@ class NavFilter:
     """
 
     name = "abstract"
-    #: Variant number in NAV_SOLUTION ``mode`` bits 8-11 (DESIGN.md section 6 numbering).
+    #: Variant number in NAV_SOLUTION ``mode`` bits 8-11 and STATUS (``protocols.host.FilterVariant``,
+    #: DESIGN.md section 6 numbering); set by :func:`register_filter` from the variant's name.
     variant_id = 0
 
     def __init__(self, cfg: "FirmwareConfig", meter: c674x.CycleMeter, dtype: type) -> None:
@@ -174,6 +177,8 @@ def register_filter(name: str):  # noqa: ANN201
 
     def deco(cls: type[NavFilter]) -> type[NavFilter]:
         cls.name = name
+        if name in FILTER_VARIANT_NAMES:  # the host protocol's variant number (STATUS, SELECT_VARIANT)
+            cls.variant_id = int(FILTER_VARIANT_NAMES[name])
         FILTER_VARIANTS[name] = cls
         return cls
 
@@ -184,7 +189,6 @@ def register_filter(name: str):  # noqa: ANN201
 class BaseFilter(NavFilter):
     """Bi-direction solar-vector 15-state KF (base paper): GNSS position/velocity + ``+-S`` updates."""
 
-    variant_id = 1
 
     def __init__(self, cfg: "FirmwareConfig", meter: c674x.CycleMeter, dtype: type) -> None:
         super().__init__(cfg, meter, dtype)

@@ -41,9 +41,26 @@ from typing import Any
 
 import numpy as np
 
-from protocols.host import NavMode, NavSolution, encode_nav_solution
-from protocols.imu_frame import ACCEL_VOLTS_PER_G, ADC_VOLTS_PER_LSB, FpgaStatus, ImuFrame, ImuFrameFormat
+from protocols.host import (
+    FILTER_VARIANT_NAMES,
+    Ack,
+    AckResult,
+    HostFormat,
+    HostFrame,
+    HostStatus,
+    NavMode,
+    NavSolution,
+    RequestStatus,
+    ResetFilter,
+    SelectVariant,
+    SetOutputRate,
+    encode_ack,
+    encode_nav_solution,
+    encode_status,
+)
+from protocols.imu_frame import ACCEL_VOLTS_PER_G, ADC_VOLTS_PER_LSB, FpgaFrameFormat, FpgaStatus, ImuFrame, MagFrame
 from protocols.nmea import Gga, NmeaFormat, Rmc
+from protocols.ubx import NavPvt, UbxFormat
 from protocols.psns import CompassFrame, PolarizationObs, PsnsFormat, PsnsStatus, SolarVectorFrame
 from protocols.stim import GYRO_ANGLE_LSB_DEG, GYRO_RATE_LSB_DPS
 from protocols.stream import StreamDecoder
@@ -98,6 +115,8 @@ def tick_kernel_cycles(c: c674x.KernelCosts) -> dict[str, int]:
     }
 
 
+#: Firmware version in STATUS (major << 8 | minor).
+FW_VERSION = 0x0105
 _PPS_VALID = int(FpgaStatus.PPS_VALID)
 _GNSS_AIDED, _PSNS_AIDED, _DEGRADED = int(NavMode.GNSS_AIDED), int(NavMode.PSNS_AIDED), int(NavMode.DEGRADED)
 _GYRO_MISSING = int(FpgaStatus.GYRO_MISSING)
@@ -211,8 +230,11 @@ class Firmware:
         self.T = 1.0 / cfg.imu_rate_hz
         self._nsub = cfg.subsamples
         self._out_every = int(round(cfg.imu_rate_hz / cfg.output_rate_hz))
-        self._dec_imu = StreamDecoder([ImuFrameFormat()])
-        self._dec_gnss = StreamDecoder([NmeaFormat()])
+        self._dec_imu = StreamDecoder([FpgaFrameFormat()])
+        self._dec_gnss = StreamDecoder([NmeaFormat(), UbxFormat()])
+        self._dec_host = StreamDecoder([HostFormat()])
+        self._pending_cmd: deque[Any] = deque(maxlen=16)
+        self.last_mag: MagFrame | None = None
         self._dec_psns = StreamDecoder([PsnsFormat()])
         self._pending_imu: deque[ImuFrame] = deque()
         self._pending_psns: deque[tuple[float, Any]] = deque(maxlen=8)
@@ -251,11 +273,16 @@ class Firmware:
         self._out_seq = 0
         self.deadline_misses = 0
         self._load_window: deque[tuple[float, int]] = deque()
-        self._load_sum = 0
+        self._load_max = 0
+        self._next_status_t = 1.0
+        self._status_seq = 0
+        self._heading_sigma0 = cfg.initial_heading_sigma_deg * DEG
         self.counters = {"imu_frames": 0, "gnss_fixes": 0, "gnss_updates": 0, "gyro_counter_jumps": 0,
                          "fpga_gyro_missing": 0, "imu_time_gaps": 0, "psns_frames": 0, "psns_solutions": 0,
                          "psns_updates": 0, "psns_rejected": 0, "psns_invalid": 0, "psns_sun_low": 0,
-                         "psns_dropped": 0, "compass_frames": 0}
+                         "psns_dropped": 0, "compass_frames": 0, "mag_frames": 0,
+                         "gnss_pvt": 0, "commands_accepted": 0, "commands_rejected": 0, "commands_dropped": 0,
+                         "status_frames": 0}
 
     # -- ISR side -------------------------------------------------------------------------------
     def receive(self, uart: int, data: bytes, t_rx_s: float | None = None) -> None:
@@ -265,10 +292,23 @@ class Firmware:
         reads it from the time-stamp counter; PSNS frames are time-tagged from it (C1).
         """
         if uart == UART_IMU:
-            self._pending_imu.extend(self._dec_imu.feed(data))
+            for f in self._dec_imu.feed(data):
+                if isinstance(f, ImuFrame):
+                    self._pending_imu.append(f)
+                else:  # MAG frame (same FPGA framing); kept for the variants that use a magnetometer
+                    self.last_mag = f
+                    self.counters["mag_frames"] += 1
         elif uart == UART_GNSS:
             for s in self._dec_gnss.feed(data):
-                self._on_nmea(s)
+                if isinstance(s, NavPvt):
+                    self._on_nav_pvt(s)
+                else:
+                    self._on_nmea(s)
+        elif uart == UART_HOST:
+            for c in self._dec_host.feed(data):
+                if len(self._pending_cmd) == self._pending_cmd.maxlen:
+                    self.counters["commands_dropped"] += 1
+                self._pending_cmd.append(c)
         elif uart == UART_PSNS:
             frames = self._dec_psns.feed(data)
             if frames:
@@ -287,8 +327,8 @@ class Firmware:
             self._rx_other[uart] = self._rx_other.get(uart, 0) + len(data)
 
     def decoder_stats(self) -> dict[str, dict[str, Any]]:
-        return {"uart1": self._dec_imu.stats.as_dict(), "uart2": self._dec_psns.stats.as_dict(),
-                "uart3": self._dec_gnss.stats.as_dict()}
+        return {"uart0": self._dec_host.stats.as_dict(), "uart1": self._dec_imu.stats.as_dict(),
+                "uart2": self._dec_psns.stats.as_dict(), "uart3": self._dec_gnss.stats.as_dict()}
 
     def note_deadline_miss(self) -> None:
         """Called by the host DSP when a tick started after its deadline."""
@@ -345,6 +385,26 @@ class Firmware:
             m = self._stage_gnss(t_meas)
             m.vel = np.array([s.speed_mps * math.sin(c), s.speed_mps * math.cos(c), 0.0])
             m.vel_up = False
+
+    def _on_nav_pvt(self, p: NavPvt) -> None:
+        """UBX NAV-PVT: position, full 3-D velocity (velD) and UTC, valid at the PPS edge + ``nano``."""
+        self.counters["gnss_pvt"] += 1
+        t_pps = self._t_pps_s if self._t_pps_s is not None else self._now_s()
+        t_meas = t_pps + p.nano * 1e-9 if abs(p.nano) < 500_000_000 else t_pps
+        if p.valid & 0x03 == 0x03:  # validDate | validTime
+            date = _dt.date(p.year, p.month, p.day)
+            self._date = date
+            self._set_utc(t_pps, date, _dt.time(p.hour, p.min, p.sec))
+        if not p.flags & 0x01 or p.fixType not in (3, 4):  # gnssFixOK and a 3-D (or GNSS + DR) fix
+            return
+        quality = {1: 5, 2: 4}.get((p.flags >> 6) & 0x03, 2 if p.flags & 0x02 else 1)  # RTK float/fixed, DGNSS
+        pos = (p.lat * 1e-7 * DEG, p.lon * 1e-7 * DEG, p.height * 1e-3)
+        m = self._stage_gnss(t_meas)
+        m.pos, m.quality = pos, quality
+        m.vel = np.array([p.velE * 1e-3, p.velN * 1e-3, -p.velD * 1e-3])
+        m.vel_up = True
+        self.counters["gnss_fixes"] += 1
+        self._last_fix = (pos[0], pos[1], pos[2], quality)
 
     def _stage_gnss(self, t_meas: float) -> GnssMeasurement:
         m = self._gnss_pending
@@ -416,17 +476,24 @@ class Firmware:
         if self.state == FirmwareState.COARSE_ALIGN:
             self._drain_psns_for_alignment(t)
         self._tick += 1
-        if self._tick % self._out_every == 0:
+        if self._out_every and self._tick % self._out_every == 0:
             m.begin("output", self._out_every * self.T)
             frame = self._nav_output(t)
             m.charge("nav_output", self._cyc["nav_output"])
             m.end()
             res.outputs.append((UART_HOST, frame, m.elapsed))
+        if self._pending_cmd or t >= self._next_status_t:
+            m.begin("host", 1.0)
+            self._host_task(t, res)
+            m.end()
         res.cycles = m.end()
+        # worst tick of the last second (sliding maximum) and since start, for NAV_SOLUTION / STATUS
+        while self._load_window and self._load_window[-1][1] <= res.cycles:
+            self._load_window.pop()
         self._load_window.append((t, res.cycles))
-        self._load_sum += res.cycles
-        while self._load_window and self._load_window[0][0] <= t - 1.0:
-            self._load_sum -= self._load_window.popleft()[1]
+        while self._load_window[0][0] <= t - 1.0:
+            self._load_window.popleft()
+        self._load_max = max(self._load_max, res.cycles)
         return res
 
     # -- coarse alignment ---------------------------------------------------------------------------
@@ -460,6 +527,7 @@ class Firmware:
         dt = self.dtype
         self.nav = NavState(q=mat2q(cbn).astype(dt), v=np.zeros(3, dtype=dt), pos=np.array([lat, lon, h]), t=t)
         self.filter.initialise(self.nav, heading_sigma)
+        self._heading_sigma0 = heading_sigma
         self.state = FirmwareState.FINE_ALIGN
         self.mode = NavMode.NAVIGATING | NavMode.ALIGNING
         self._t_aligned = t
@@ -675,8 +743,117 @@ class Firmware:
 
     # -- output -------------------------------------------------------------------------------------------
     def cpu_load_pct(self) -> float:
-        """Busy share of the last second, % (cycles / clock)."""
-        return 100.0 * self._load_sum / self.cfg.clock_hz
+        """Worst tick of the last second, % of the tick budget (NAV_SOLUTION / STATUS ``cpu_load``)."""
+        worst = self._load_window[0][1] if self._load_window else 0
+        return 100.0 * worst / self.meter.tick_budget
+
+    # -- host port: commands, acknowledgements, status ----------------------------------------------------
+    def _host_task(self, t: float, res: TickResult) -> None:
+        """Execute pending host commands (one ACK each) and send STATUS at 1 Hz (protocols/host.py, D-3.2)."""
+        m = self.meter
+        while self._pending_cmd:
+            c = self._pending_cmd.popleft()
+            m.charge("host_command", 40 * 4 + c674x.CALL_OVERHEAD)  # CRC + dispatch [E]
+            reply = self._command(c)
+            if reply is None:
+                continue
+            cmd_id, token, result = reply
+            if result == AckResult.ACCEPTED:
+                self.counters["commands_accepted"] += 1
+            else:
+                self.counters["commands_rejected"] += 1
+            res.outputs.append((UART_HOST, encode_ack(Ack(cmd_id, token, int(result))), m.elapsed))
+            res.events.append({"event": "host_command", "t_fpga_s": t, "command": type(c).__name__,
+                               "result": AckResult(result).name})
+            if isinstance(c, RequestStatus) and result == AckResult.ACCEPTED:
+                res.outputs.append((UART_HOST, self._status_frame(t), m.elapsed))
+        if t >= self._next_status_t:
+            self._next_status_t = math.floor(t) + 1.0
+            res.outputs.append((UART_HOST, self._status_frame(t), m.elapsed))
+
+    def _command(self, c: Any) -> tuple[int, int, int] | None:
+        """Apply one command; ``(command_id, token, AckResult)``, or None for frames that are not commands."""
+        from protocols.host import CMD_REQUEST_STATUS, CMD_RESET_FILTER, CMD_SELECT_VARIANT, CMD_SET_OUTPUT_RATE
+
+        if isinstance(c, ResetFilter):
+            if c.scope == 0:
+                self._restart_alignment()
+                return CMD_RESET_FILTER, c.token, AckResult.ACCEPTED
+            if c.scope == 1:
+                if self.nav is None:
+                    return CMD_RESET_FILTER, c.token, AckResult.NOT_ALLOWED
+                self.filter.initialise(self.nav, self._heading_sigma0)
+                return CMD_RESET_FILTER, c.token, AckResult.ACCEPTED
+            return CMD_RESET_FILTER, c.token, AckResult.BAD_ARGUMENT
+        if isinstance(c, SelectVariant):
+            names = {int(v): k for k, v in FILTER_VARIANT_NAMES.items()}
+            name = names.get(c.variant)
+            if name is None:
+                return CMD_SELECT_VARIANT, c.token, AckResult.BAD_ARGUMENT
+            if name not in FILTER_VARIANTS:
+                return CMD_SELECT_VARIANT, c.token, AckResult.NOT_ALLOWED  # not in this firmware build
+            self.filter = FILTER_VARIANTS[name](self.cfg, self.meter, self.dtype)
+            self.cfg.filter = name
+            if self.nav is not None:  # the new filter starts from the current navigation state
+                self.filter.initialise(self.nav, self._heading_sigma0)
+            return CMD_SELECT_VARIANT, c.token, AckResult.ACCEPTED
+        if isinstance(c, SetOutputRate):
+            r = float(c.rate_hz)
+            if r == 0.0:
+                self._out_every = 0
+                return CMD_SET_OUTPUT_RATE, c.token, AckResult.ACCEPTED
+            k = self.cfg.imu_rate_hz / r if r > 0 and math.isfinite(r) else 0.0
+            if k < 1.0 - 1e-9 or abs(k - round(k)) > 1e-6:
+                return CMD_SET_OUTPUT_RATE, c.token, AckResult.BAD_ARGUMENT
+            self._out_every = int(round(k))
+            return CMD_SET_OUTPUT_RATE, c.token, AckResult.ACCEPTED
+        if isinstance(c, RequestStatus):
+            return CMD_REQUEST_STATUS, c.token, AckResult.ACCEPTED
+        if isinstance(c, HostFrame) and c.msg_id >= 0x80:
+            return c.msg_id, c.payload[0] if c.payload else 0, AckResult.UNKNOWN_COMMAND
+        return None  # our own outputs echoed back, or host frames that need no answer
+
+    def _restart_alignment(self) -> None:
+        """RESET_FILTER scope 0: back to coarse alignment with a fresh filter (biases included)."""
+        self.state = FirmwareState.COARSE_ALIGN
+        self.mode = NavMode.ALIGNING
+        self.nav = None
+        self.filter = FILTER_VARIANTS[self.cfg.filter](self.cfg, self.meter, self.dtype)
+        self._align_sum[:] = 0.0
+        self._align_n = 0
+        self._align_t0 = None
+        self._align_sun.clear()
+        self._sub.clear()
+        self._fn_sum[:] = 0.0
+        self._fn_n = 0
+        self._hist.clear()
+        self._gnss_pending = None
+
+    def _status_frame(self, t: float) -> bytes:
+        self.counters["status_frames"] += 1
+        self.meter.charge("status", 64 * 2 + 71 * 4 + c674x.CALL_OVERHEAD)  # pack + CRC-16 by table [E]
+
+        def errs(d: StreamDecoder) -> int:
+            st = d.stats
+            return st.crc_errors + st.length_errors + st.parse_errors
+
+        st = HostStatus(
+            seq=self._status_seq, time_s=t, filter_variant=self.filter.variant_id, mode=int(self.mode),
+            output_rate_hz=self.cfg.imu_rate_hz / self._out_every if self._out_every else 0.0,
+            gnss_status=self._last_fix[3] if self._last_fix is not None else 0,
+            psns_status=self._psns_status_now(t), cpu_load_pct=self.cpu_load_pct(),
+            cpu_load_max_pct=100.0 * self._load_max / self.meter.tick_budget, fw_version=FW_VERSION,
+            deadline_misses=self.deadline_misses,
+            uart1_frames=self._dec_imu.stats.frames, uart1_errors=errs(self._dec_imu),
+            uart2_frames=self._dec_psns.stats.frames, uart2_errors=errs(self._dec_psns),
+            uart3_frames=self._dec_gnss.stats.frames, uart3_errors=errs(self._dec_gnss),
+            commands_accepted=self.counters["commands_accepted"], commands_rejected=self.counters["commands_rejected"],
+        )
+        self._status_seq += 1
+        return encode_status(st)
+
+    def _psns_status_now(self, t: float) -> int:
+        return 1 if t - self._last_psns_t < 2.0 else 2 if t - self._last_psns_reject_t < 2.0 else 0
 
     def _nav_output(self, t: float) -> bytes:
         s = self.nav
@@ -726,7 +903,7 @@ class Firmware:
             sigma=sigma,
             mode=int(mode),
             gnss_status=fix[3] if fix is not None else 0,
-            psns_status=1 if t - self._last_psns_t < 2.0 else 2 if t - self._last_psns_reject_t < 2.0 else 0,
+            psns_status=self._psns_status_now(t),
             cpu_load_pct=self.cpu_load_pct(),
             deadline_misses=self.deadline_misses,
         )

@@ -74,6 +74,8 @@ class StreamConfig:
     gnss_latency_s: float = 0.05
     gnss_baud: int = 9600
     gnss_outage_s: tuple[float, float] | None = None  # no sentences (and no PPS latch change) in [start, end)
+    gnss_output: str = "nmea"  # "nmea" (GGA + RMC), "ubx" (NAV-PVT) or "both"
+    gnss_vel_up_error_mps: float = 0.0  # a constant error on the GNSS vertical velocity (tests of the velD path)
     psns: str | None = "solar_vector"  # None, "solar_vector" or "polarization_obs"
     psns_rate_hz: float = 5.0
     psns_latency_us: int = 30000
@@ -114,7 +116,7 @@ def static_stream(truth: StaticTruth, err: SensorErrors, cfg: StreamConfig, dura
         while cfg.gnss and next_gnss <= t:
             out = cfg.gnss_outage_s is not None and cfg.gnss_outage_s[0] <= next_gnss < cfg.gnss_outage_s[1]
             if not out:
-                push(next_gnss + cfg.gnss_latency_s, UART_GNSS, _nmea(truth, err, next_gnss, rng))
+                push(next_gnss + cfg.gnss_latency_s, UART_GNSS, _gnss_epoch(truth, err, cfg, next_gnss, rng))
             next_gnss += 1
         while cfg.psns and next_psns <= t:
             frame = _psns_frame(truth, err, cfg, next_psns, psns_seq, rng)
@@ -142,6 +144,34 @@ def static_stream(truth: StaticTruth, err: SensorErrors, cfg: StreamConfig, dura
     while heap:
         tt, _, uart, data = heapq.heappop(heap)
         yield tt, uart, data
+
+
+def _gnss_epoch(truth: StaticTruth, err: SensorErrors, cfg: StreamConfig, k: int, rng: np.random.Generator) -> bytes:
+    out = b""
+    if cfg.gnss_output in ("nmea", "both"):
+        out += _nmea(truth, err, k, rng)
+    if cfg.gnss_output in ("ubx", "both"):
+        out += _nav_pvt(truth, err, cfg, k, rng)
+    return out
+
+
+def _nav_pvt(truth: StaticTruth, err: SensorErrors, cfg: StreamConfig, k: int, rng: np.random.Generator) -> bytes:
+    from protocols.ubx import NavPvt, encode_nav_pvt
+
+    utc = truth.epoch + dt.timedelta(seconds=k)
+    rm, rn = earth.radii(truth.lat_deg * DEG)
+    dn, de, du = rng.normal(0.0, err.gnss_pos_sigma_m, 3) if err.gnss_pos_sigma_m > 0 else (0.0, 0.0, 0.0)
+    ve, vn, vu = rng.normal(0.0, err.gnss_vel_sigma_mps, 3) if err.gnss_vel_sigma_mps > 0 else (0.0, 0.0, 0.0)
+    vu += cfg.gnss_vel_up_error_mps
+    lat = truth.lat_deg + dn / (rm + truth.height_m) / DEG
+    lon = truth.lon_deg + de / ((rn + truth.height_m) * math.cos(truth.lat_deg * DEG)) / DEG
+    p = NavPvt(iTOW=(k * 1000) % 604800000, year=utc.year, month=utc.month, day=utc.day, hour=utc.hour,
+               min=utc.minute, sec=utc.second, valid=0x07, tAcc=50, nano=0, fixType=3, flags=0x01, flags2=0xE0,
+               numSV=12, lon=round(lon * 1e7), lat=round(lat * 1e7), height=round((truth.height_m + du) * 1e3),
+               hMSL=round((truth.height_m + du - 10.0) * 1e3), hAcc=3000, vAcc=5000, velN=round(vn * 1e3),
+               velE=round(ve * 1e3), velD=round(-vu * 1e3), gSpeed=round(math.hypot(ve, vn) * 1e3), headMot=0,
+               sAcc=100, headAcc=1000000, pDOP=150, flags3=0, reserved0=0, headVeh=0, magDec=0, magAcc=0)
+    return encode_nav_pvt(p)
 
 
 def _nmea(truth: StaticTruth, err: SensorErrors, k: int, rng: np.random.Generator) -> bytes:

@@ -337,3 +337,94 @@ def test_gnss_outage_sets_degraded_and_psns_keeps_heading():
     assert fw.counters["gnss_updates"] < 50 - 19
     he = _heading_errors(samples, after_s=20.0)
     assert float(np.max(np.abs(he))) < 0.2  # the Sun keeps the heading through the outage
+
+
+# -- UBX NAV-PVT on UART3 (full 3-D velocity) ---------------------------------------------------------------
+def test_ubx_nav_pvt_gives_the_vertical_velocity_update():
+    truth = StaticTruth()
+    fw, samples, events, _ = run_static(FirmwareConfig(), truth, PAPER_ERRORS,
+                                        StreamConfig(psns="solar_vector", gnss_output="ubx"), 30.0)
+    assert fw.counters["gnss_pvt"] == 30 and fw.counters["gnss_updates"] >= 27
+    assert [e["heading_source"] for e in events if e["event"] == "alignment_done"] == ["psns"]  # UTC from NAV-PVT
+    gnss = [e for e in events if e["event"] == "gnss_update"]
+    assert all(e["n_meas"] == 6 for e in gnss)  # 3 position + 3 velocity rows (velD)
+    # NMEA has no vertical velocity: 5 rows
+    _, _, ev_nmea, _ = run_static(FirmwareConfig(), truth, PAPER_ERRORS, StreamConfig(psns="solar_vector"), 10.0)
+    assert {e["n_meas"] for e in ev_nmea if e["event"] == "gnss_update"} == {5}
+    assert samples[-1][4] < 10.0
+
+
+def test_ubx_vertical_velocity_is_used():
+    """A 0.5 m/s error on velD pulls the INS vertical velocity; without velD (NMEA) it does not."""
+    truth = StaticTruth()
+    fw, _, _, _ = run_static(FirmwareConfig(), truth, SensorErrors(),
+                             StreamConfig(psns=None, gnss_output="ubx", gnss_vel_up_error_mps=0.5), 20.0)
+    assert float(fw.nav.v[2]) > 0.2
+
+
+# -- host commands on UART0 ---------------------------------------------------------------------------------
+def _drive_with_commands(commands_at: dict[float, bytes], duration_s: float, cfg: FirmwareConfig | None = None):
+    fw = Firmware(cfg or FirmwareConfig())
+    out = []
+    pending = sorted(commands_at.items())
+    for t_rx, uart, data in static_stream(StaticTruth(), SensorErrors(), StreamConfig(psns="solar_vector"),
+                                          duration_s):
+        while pending and pending[0][0] <= t_rx:
+            fw.receive(0, pending.pop(0)[1], t_rx)
+        fw.receive(uart, data, t_rx)
+        if uart == 1:
+            for r in fw.service():
+                out.extend((r.t_fpga_s, o[1]) for o in r.outputs)
+    dec = StreamDecoder([HostFormat()])
+    frames = [(t, f) for t, b in out for f in dec.feed(b)]
+    return fw, frames
+
+
+def test_host_commands_are_acknowledged_and_applied():
+    from protocols.host import (Ack, AckResult, FilterVariant, HostStatus, RequestStatus, ResetFilter, SelectVariant,
+                                SetOutputRate, build_host_frame, encode_command)
+
+    cmds = {
+        4.0: encode_command(SetOutputRate(token=1, rate_hz=10.0)),
+        4.5: encode_command(SetOutputRate(token=2, rate_hz=30.0)),  # not 200 Hz / k
+        5.0: encode_command(RequestStatus(token=3)),
+        5.5: encode_command(SelectVariant(token=4, variant=int(FilterVariant.FEDERATED))),  # not in this build
+        6.0: encode_command(SelectVariant(token=5, variant=99)),
+        6.5: encode_command(SelectVariant(token=6, variant=int(FilterVariant.BASE))),
+        7.0: encode_command(ResetFilter(token=7, scope=1)),
+        7.5: build_host_frame(0x8F, b"\x08"),  # unknown command id
+        8.0: encode_command(ResetFilter(token=9, scope=0)),  # back to coarse alignment
+    }
+    fw, frames = _drive_with_commands(cmds, 14.0)
+    acks = {f.token: f.result for _, f in frames if isinstance(f, Ack)}
+    assert acks == {1: AckResult.ACCEPTED, 2: AckResult.BAD_ARGUMENT, 3: AckResult.ACCEPTED,
+                    4: AckResult.NOT_ALLOWED, 5: AckResult.BAD_ARGUMENT, 6: AckResult.ACCEPTED,
+                    7: AckResult.ACCEPTED, 8: AckResult.UNKNOWN_COMMAND, 9: AckResult.ACCEPTED}
+    navs = [t for t, f in frames if isinstance(f, NavSolution)]
+    # 100 Hz before the command, 10 Hz after it
+    assert sum(1 for t in navs if 3.0 <= t < 4.0) == 100 and sum(1 for t in navs if 5.0 <= t < 6.0) == 10
+    status = [(t, f) for t, f in frames if isinstance(f, HostStatus)]
+    assert len(status) >= 14  # 1 Hz plus the requested one
+    st = [f for t, f in status if 5.0 <= t < 5.1][0]
+    assert st.output_rate_hz == pytest.approx(10.0) and st.filter_variant == int(FilterVariant.BASE)
+    assert st.commands_accepted == 2 and st.commands_rejected == 1 and st.uart1_frames > 900
+    assert 0 < st.cpu_load_pct <= st.cpu_load_max_pct
+    # the reset at 8 s restarted the alignment, which completed again 2 s later
+    assert fw.counters["commands_accepted"] == 5 and fw.counters["commands_rejected"] == 4
+    assert fw.state == FirmwareState.FINE_ALIGN
+
+
+def test_mag_frames_on_uart1_are_decoded_beside_imu_frames():
+    from protocols.imu_frame import MagFrame, encode_mag_frame
+
+    fw = Firmware(FirmwareConfig())
+    for t_rx, uart, data in static_stream(StaticTruth(), SensorErrors(), StreamConfig(psns=None), 3.0):
+        if uart == 1:
+            data = data + encode_mag_frame(MagFrame(seq=1, t_sample_us=int(t_rx * 1e6), field=(200000, 300000, -400000),
+                                                    status=0))
+        fw.receive(uart, data, t_rx)
+        if uart == 1:
+            fw.service()
+    assert fw.counters["mag_frames"] == 600 and fw.counters["imu_frames"] == 600
+    assert fw.last_mag.field == (200000, 300000, -400000)
+    assert fw.decoder_stats()["uart1"]["crc_errors"] == 0

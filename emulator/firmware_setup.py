@@ -61,6 +61,7 @@ def firmware_config(scn: Scenario) -> FirmwareConfig:
         initial_heading_deg=fw.alignment.heading_deg,
         initial_heading_sigma_deg=fw.alignment.heading_sigma_deg,
         precision=fw.precision,
+        nav_state_precision=fw.nav_state_precision,
         filter=fw.filter,
         gyro_arw_deg_rt_h=max(gyro.arw_deg_rt_h, 0.01),
         gyro_bias_sigma_deg_h=max(gyro.bias_repeatability_deg_h, 1.0),

@@ -298,8 +298,8 @@ class BaseFilter(NavFilter):
         dt = self.dtype
         x = self.x
         # attitude: C_b^n = (I + [phi x]) C_b^{n'}  ->  q <- rv2q(phi) (x) q
-        nav.q = qnormalize(qmul(rv2q(x[0:3]), nav.q)).astype(dt)
-        nav.v = (nav.v - x[3:6]).astype(dt)
+        nav.q = qnormalize(qmul(rv2q(x[0:3]), nav.q)).astype(nav.q.dtype)
+        nav.v = (nav.v - x[3:6]).astype(nav.v.dtype)
         nav.pos = nav.pos - x[6:9].astype(np.float64)
         self.gyro_bias = (self.gyro_bias + x[IDX_GYRO]).astype(dt)
         self.accel_bias = (self.accel_bias + x[IDX_ACC]).astype(dt)

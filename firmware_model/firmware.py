@@ -83,7 +83,7 @@ G_STD = 9.80665
 DPH = DEG / 3600.0  # deg/h in rad/s
 
 
-def tick_kernel_cycles(c: c674x.KernelCosts) -> dict[str, int]:
+def tick_kernel_cycles(c: c674x.KernelCosts, nav_dp: bool = True) -> dict[str, int]:
     """Cycle charges of the per-tick kernels in the build's precision (branch-free code paths).
 
     * ``imu_decode``: CRC-16 over 36 bytes by table (~4 cycles/byte) + field unpack (integer work) [E].
@@ -92,7 +92,9 @@ def tick_kernel_cycles(c: c674x.KernelCosts) -> dict[str, int]:
       ``coning2``: two-sample coning/sculling, 4 cross products and the 2/3, 1/2 scalings [D].
     * ``strapdown``: the Earth model in double precision whatever the build (latitude is a float64
       variable: sindp, cosdp, sqrtdp, 3 divdp and DP position update [S, R2]), two rv2q (sqrt, sin,
-      cos, div), quaternion normalisation (rsqrt) and ~260 FLOPs (c6747_cycles.md section 4) [S/D].
+      cos, div), quaternion normalisation (rsqrt) and ~260 FLOPs (c6747_cycles.md section 4) [S/D];
+      with ``nav_dp`` (the attitude quaternion and velocity accumulators in double precision,
+      docs/decisions.md D-L.1) the rv2q, normalisation and FLOPs are charged at DP prices.
     * ``nav_output``: m2att (asin, 2 atan2), 9 sqrt for the sigmas, pack 102 bytes, CRC-16 over 109 [S/E].
     * ``level``, ``triad``: :mod:`firmware_model.alignment`.
     """
@@ -105,8 +107,11 @@ def tick_kernel_cycles(c: c674x.KernelCosts) -> dict[str, int]:
         "coning2": c.flops(30, 30),
         "strapdown": (c674x.mathlib("sindp") + c674x.mathlib("cosdp") + c674x.mathlib("sqrtdp")
                       + 3 * c674x.mathlib("divdp") + c674x.dp_flops(12, 12)
-                      + 2 * (c.math("sqrt") + c.math("sin") + c.math("cos") + c.math("div"))
-                      + c.math("rsqrt") + c.flops(140, 120)),
+                      + (2 * (c674x.mathlib("sqrtdp") + c674x.mathlib("sindp") + c674x.mathlib("cosdp")
+                              + c674x.mathlib("divdp")) + c674x.mathlib("rsqrtdp") + c674x.dp_flops(140, 120)
+                         if nav_dp else
+                         2 * (c.math("sqrt") + c.math("sin") + c.math("cos") + c.math("div"))
+                         + c.math("rsqrt") + c.flops(140, 120))),
         "nav_output": c.math("asin") + 2 * c.math("atan2") + 9 * c.math("sqrt") + 102 * 2 + 109 * 4 + c674x.CALL_OVERHEAD,
         "level": level_cycles(c),
         "triad": triad_cycles(c),
@@ -149,6 +154,9 @@ class FirmwareConfig:
     initial_heading_deg: float = 0.0
     initial_heading_sigma_deg: float = 1.0
     precision: str = "float32"
+    #: Precision of the strapdown's attitude quaternion and velocity accumulators (D-L.1): float64 keeps
+    #: the 200 Hz increments (1e-7 rad of Earth rate per step) from being rounded away in float32.
+    nav_state_precision: str = "float64"
     filter: str = "base"
     accel_volts_per_g: tuple[float, float, float] = ACCEL_VOLTS_PER_G
     # process noise (sensor specifications)
@@ -180,6 +188,8 @@ class FirmwareConfig:
     def __post_init__(self) -> None:
         if self.precision not in ("float32", "float64"):
             raise FirmwareError(f"precision must be float32 or float64, got {self.precision!r}")
+        if self.nav_state_precision not in ("float32", "float64"):
+            raise FirmwareError(f"nav_state_precision must be float32 or float64, got {self.nav_state_precision!r}")
         if self.gyro_output not in ("rate", "angle"):
             raise FirmwareError(f"gyro_output must be 'rate' or 'angle', got {self.gyro_output!r}")
         if self.filter not in FILTER_VARIANTS:
@@ -224,9 +234,11 @@ class Firmware:
     def __init__(self, cfg: FirmwareConfig | None = None) -> None:
         self.cfg = cfg = cfg or FirmwareConfig()
         self.dtype = np.float32 if cfg.precision == "float32" else np.float64
+        #: dtype of the strapdown state (q, v); position is always float64
+        self.nav_dtype = np.float64 if cfg.nav_state_precision == "float64" else self.dtype
         self.meter = c674x.CycleMeter(cfg.clock_hz, cfg.imu_rate_hz)
         self.cost = c674x.KernelCosts(cfg.precision)
-        self._cyc = tick_kernel_cycles(self.cost)
+        self._cyc = tick_kernel_cycles(self.cost, nav_dp=self.nav_dtype is np.float64)
         self.T = 1.0 / cfg.imu_rate_hz
         self._nsub = cfg.subsamples
         self._out_every = int(round(cfg.imu_rate_hz / cfg.output_rate_hz))
@@ -525,7 +537,9 @@ class Firmware:
         if cbn is None:
             cbn = a2mat(pitch, roll, yaw_from_heading(cfg.initial_heading_deg * DEG))
         dt = self.dtype
-        self.nav = NavState(q=mat2q(cbn).astype(dt), v=np.zeros(3, dtype=dt), pos=np.array([lat, lon, h]), t=t)
+        nd = self.nav_dtype
+        self.nav = NavState(q=mat2q(cbn).astype(nd), v=np.zeros(3, dtype=nd), pos=np.array([lat, lon, h]), t=t,
+                            a_prev=np.zeros(3, dtype=nd))
         self.filter.initialise(self.nav, heading_sigma)
         self._heading_sigma0 = heading_sigma
         self.state = FirmwareState.FINE_ALIGN
@@ -604,7 +618,7 @@ class Firmware:
             phi_m = (phi_m - flt.gyro_bias * dt(Tm)).astype(dt)
             dv_m = (dv_m - flt.accel_bias * dt(Tm)).astype(dt)
             m.charge("coning_sculling", self._cyc["coning2"])
-        strapdown_step(s, phi_m, dv_m, Tm, dtype=dt)
+        strapdown_step(s, phi_m, dv_m, Tm, dtype=self.nav_dtype)
         s.t = t
         m.charge("strapdown", self._cyc["strapdown"])
         self._accumulate_fn()

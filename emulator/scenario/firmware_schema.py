@@ -58,6 +58,8 @@ class PsnsFirmwareSpec(Model):
 class FirmwareSpec(Model):
     filter: Literal["base"] = "base"
     precision: Literal["float32", "float64"] = "float32"
+    nav_state_precision: Literal["float32", "float64"] = Field(
+        "float64", description="strapdown quaternion/velocity accumulators (docs/decisions.md D-L.1)")
     output_rate_hz: float = Field(100.0, gt=0, le=200)
     kf_predict_every: int = Field(20, ge=1, le=200)
     coning_samples: Literal[0, 1, 2] = Field(0, description="0: two-sample with angle increments, else one")

@@ -103,3 +103,35 @@ def test_two_sample_sculling_term():
     assert np.allclose(phi, [0, 0, 0.02])  # parallel increments: no coning term
     # 1/2 (th1+th2) x (dv1+dv2) + 2/3 (th1 x dv2 + dv1 x th2) = 1/2*0.02*0.2 y + 2/3*(0.001 - 0.001) y
     assert np.allclose(dvm, [0.2, 0.002, 0.0])
+
+
+def _firmware_precision_run(duration_s: float) -> float:
+    """Perfect increments rounded to float32 (the IMU conversion's precision), single-sample
+    rotation compensation in float32, strapdown state in the firmware's nav-state precision
+    (float64 q and v, D-L.1); returns the worst position error against truth (m)."""
+    from firmware_model.attitude import cross3
+    from tests.emulator.world.test_trajectory import manoeuvring, pos_error_m
+
+    traj = manoeuvring(600.0)
+    T = 0.005
+    st = traj.state(0.0)
+    s = NavState(mat2q(st.c_bn), st.v_enu.copy(), st.pos.copy(), a_prev=np.zeros(3))
+    worst = 0.0
+    for k in range(1, int(round(duration_s / T)) + 1):
+        dth, dv = traj.imu_increments((k - 1) * T, k * T)
+        dth, dv = dth.astype(np.float32), dv.astype(np.float32)
+        dv_m = dv + np.float32(0.5) * cross3(dth, dv)
+        strapdown_step(s, dth, dv_m, T, dtype=np.float64)
+        if k % 200 == 0:
+            worst = max(worst, float(np.linalg.norm(pos_error_m(s.pos, traj.state(k * T).pos))))
+    return worst
+
+
+def test_firmware_precision_strapdown_follows_a_manoeuvring_trajectory_for_5_min():
+    assert _firmware_precision_run(300.0) < 1.0
+
+
+@pytest.mark.slow
+def test_firmware_precision_strapdown_follows_a_manoeuvring_trajectory_for_10_min():
+    # issue 4: < 5 m after a 10 min manoeuvring trajectory, through the firmware's own precisions
+    assert _firmware_precision_run(600.0) < 5.0

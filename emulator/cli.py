@@ -1,11 +1,14 @@
 """The ``psns-hil`` command line.
 
-``run`` (a scenario), ``validate`` (a scenario file), ``monitor`` (decode a port, a serial device
-or a capture, live), ``replay`` (re-run the firmware on a capture). ``docs/runtime.md`` has them all.
+``run`` (a scenario; writes ``report.html`` into the run directory at the end), ``validate`` (a
+scenario file), ``report`` (write ``report.html`` for a run directory), ``monitor`` (decode a port, a
+serial device or a capture, live), ``replay`` (re-run the firmware on a capture).
+``docs/runtime.md`` and ``docs/scenarios.md`` have them all.
 
-Exit codes: 0 run finished and every expectation passed; 1 an expectation failed (or the run
-was interrupted, or a replay differs from its original); 2 bad input (missing or invalid
-scenario, bad link URL, unreadable capture) -- one clear message per problem, no traceback.
+Exit codes: 0 run finished and every expectation passed; 1 an expectation failed, a scheduled
+fault never took effect (the run is invalid), the run was interrupted, or a replay differs from
+its original; 2 bad input (missing or invalid scenario, bad link URL, unreadable capture) -- one
+clear message per problem, no traceback.
 """
 
 from __future__ import annotations
@@ -116,14 +119,32 @@ def print_summary(s: dict[str, Any]) -> None:
     c.print(cyc)
     c.print(f"CPU load (worst 1 s): {d['cpu_load_pct_max']:.3f} %   deadline misses: {d['deadline_misses']}")
 
+    if s.get("faults"):
+        ft = Table(title="faults", title_justify="left")
+        for col in ("#", "fault", "target", "active (s)", "evidence", "took effect"):
+            ft.add_column(col)
+        for f in s["faults"]:
+            span = "-" if f.get("active_from_s") is None else \
+                f"{f['active_from_s']:.2f} - {_fmt(f.get('active_until_s'), 2)}"
+            ev = ", ".join(f"{k} {v}" for k, v in f.get("evidence", {}).items())
+            fired = f.get("fired")
+            ft.add_row(str(f["index"]), f["kind"], f["target"], span, ev,
+                       "-" if fired is None else "[green]yes[/]" if fired else "[bold red]NO[/]")
+        c.print(ft)
     if s.get("expectations"):
         ex = Table(title="expectations", title_justify="left")
         for col in ("#", "check", "value", "result"):
             ex.add_column(col)
         for r in s["expectations"]:
-            ex.add_row(str(r["index"]), r["description"], _fmt(r["value"]),
+            note = f" ({r['message']})" if r.get("message") and not r["passed"] else ""
+            ex.add_row(str(r["index"]), r["description"] + note, _fmt(r["value"]),
                        "[green]pass[/]" if r["passed"] else "[bold red]FAIL[/]")
         c.print(ex)
+    if s.get("valid") is False:
+        for f in s.get("faults", []):
+            if f.get("fired") is False:
+                c.print(f"[bold red]run invalid:[/] fault #{f['index']} {f['kind']} on {f['target']} never took "
+                        f"effect (evidence: {', '.join(f'{k} {v}' for k, v in f['evidence'].items()) or 'none'})")
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
@@ -182,14 +203,33 @@ def _cmd_run(args: argparse.Namespace) -> int:
                                progress=on_progress, on_started=on_started)
     if realtime and tty and not args.quiet:
         err.write("\n")
+    report = None
+    if not args.no_report and (run_dir / "summary.json").exists():
+        from .report import write_report
+
+        report = write_report(run_dir)
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
         print_summary(summary)
+        if report is not None:
+            console.print(f"report: {report}")
     if summary.get("interrupted"):
         console.print("[yellow]run interrupted; captures and summary were kept[/]")
         return EXIT_FAILED
     return EXIT_OK if summary.get("passed", True) else EXIT_FAILED
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    from .errors import RecordingError
+    from .report import write_report
+
+    run_dir = Path(args.run_dir)
+    if not (run_dir / "summary.json").exists():
+        raise RecordingError(f"{run_dir}: not a run directory (no summary.json)")
+    out = write_report(run_dir)
+    _console().print(f"report: {out}")
+    return EXIT_OK
 
 
 def _cmd_monitor(args: argparse.Namespace) -> int:
@@ -253,7 +293,13 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
     r.add_argument("--json", action="store_true", help="print the summary as JSON")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.add_argument("--no-report", action="store_true", help="do not write report.html at the end")
     r.set_defaults(func=_cmd_run)
+
+    rep = sub.add_parser("report", help="write report.html (plots of errors, modes, faults, links, DSP load) "
+                                        "for a run directory")
+    rep.add_argument("run_dir", help="a run directory (with summary.json, nav.csv, events.jsonl, timeline.csv)")
+    rep.set_defaults(func=_cmd_report)
 
     v = sub.add_parser("validate", help="check a scenario file and report every problem")
     v.add_argument("scenario")

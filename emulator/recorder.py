@@ -18,6 +18,13 @@ second, so an interrupted run keeps everything up to the interruption):
     with the error against truth at its time of validity.
 ``truth.csv``
     Truth at the same times.
+``timeline.csv``
+    One row per simulated second: cumulative link counters (frames, CRC errors, dropped bytes,
+    garbage bytes, framing errors per link), the DSP's CPU load in that second and its deadline
+    misses (written by the runner through :meth:`Recorder.table_row`; ``emulator.report`` plots it).
+``filter_state.csv``
+    One row per simulated second: the firmware's mode and the diagonal of its filter covariance and
+    its bias estimates (the change indicator's state history, ``emulator.golden``).
 ``summary.json``
     Written at the end (also after an interruption, with ``"interrupted": true``).
 
@@ -205,6 +212,9 @@ class Recorder:
         self.errors = {k: ErrorStats() for k in ("attitude_deg", "heading_deg", "position_m", "velocity_mps")}
         #: flat rows of (t, attitude, heading, position, velocity) errors, 40 bytes per nav frame
         self.error_series = array("d")
+        #: flat rows of (time of validity, mode bits) of every nav frame, 16 bytes per frame
+        self.mode_series = array("d")
+        self._tables: dict[str, tuple[IO[str], list[str], list[str]]] = {}
         self.nav_count = 0
         self.event_counts: dict[str, int] = {}
         self.events: list[dict[str, Any]] = []
@@ -286,6 +296,7 @@ class Recorder:
         ve, vn, vu = (float(x) for x in st.v_enu)
         self._truth_rows.append(_row((n.time_s, lat / DEG, lon / DEG, h, ve, vn, vu,
                                       st.roll / DEG, st.pitch / DEG, st.heading / DEG)))
+        self.mode_series.extend((n.time_s, n.mode))
         navigating = bool(n.mode & NavMode.NAVIGATING)
         if navigating:
             c_nav = _c_bn(n.pitch_deg * DEG, n.roll_deg * DEG, -n.heading_deg * DEG)
@@ -346,6 +357,16 @@ class Recorder:
                 es.add(ser[k + idx])
         return es
 
+    def table_row(self, name: str, row: dict[str, Any]) -> None:
+        """Append ``row`` to ``<name>.csv`` in the run directory (the first row's keys are the header)."""
+        tab = self._tables.get(name)
+        if tab is None:
+            f = open(self.run_dir / f"{name}.csv", "w", encoding="utf-8", newline="")
+            cols = list(row)
+            tab = self._tables[name] = (f, cols, [",".join(cols) + "\r\n"])
+        f, cols, rows = tab
+        rows.append(_row([row.get(c, "") for c in cols]))
+
     def flush(self) -> None:
         """Write the batched rows and flush every file (captures included) to the OS."""
         for tap in self._taps.values():
@@ -356,7 +377,11 @@ class Recorder:
         if self._truth_rows and not self._truth_f.closed:
             self._truth_f.write("".join(self._truth_rows))
             self._truth_rows.clear()
-        for f in (self._cap, self._events, self._nav_f, self._truth_f):
+        for f, _cols, rows in self._tables.values():
+            if rows and not f.closed:
+                f.write("".join(rows))
+                rows.clear()
+        for f in (self._cap, self._events, self._nav_f, self._truth_f, *(t[0] for t in self._tables.values())):
             if f is not None and not f.closed:
                 f.flush()
 
@@ -369,7 +394,7 @@ class Recorder:
 
     def close(self) -> None:
         self.flush()
-        for f in (self._cap, self._events, self._nav_f, self._truth_f):
+        for f in (self._cap, self._events, self._nav_f, self._truth_f, *(t[0] for t in self._tables.values())):
             if f is not None and not f.closed:
                 f.close()
 

@@ -24,6 +24,8 @@ import signal
 from pathlib import Path
 from typing import Any, Callable
 
+import numpy as np
+
 from firmware_model import UART_GNSS, UART_HOST, UART_IMU, UART_PSNS, Firmware
 from firmware_model.c674x import COST_MODEL_VERSION
 from protocols import __version__ as VERSION
@@ -61,6 +63,10 @@ PORT_ROLES = {
 PORT_BAUD = {"gyro": 460800, "gnss": 9600, "host": 460800, "psns": 115200, "monitor": 3_000_000}
 #: One byte read by the DSP from the FPGA UART core over EMIFA, s [E: a few EMIFA async cycles].
 EMIFA_BYTE_TIME_S = 1e-7
+#: 1 Hz samples (timeline.csv, filter_state.csv) are taken this long after each whole second, half an IMU
+#: period, so that no tick of the 200 Hz executive coincides with them (a sample never depends on the
+#: order of callbacks scheduled for the same instant).
+SAMPLE_OFFSET_S = 0.0025
 
 
 def port_formats(name: str) -> dict[str, list[Any]]:
@@ -185,6 +191,8 @@ class Emulator:
         self.replayed_records = 0
         self.replay_source: str | None = None
         self._fw0: Firmware | None = None
+        self.faults: Any = None
+        self._last_sample_t = 0.0
         self._started = False
         self._stopped = False
         self._wall0 = 0.0
@@ -249,6 +257,10 @@ class Emulator:
                               tick_period_s=1.0 / scn.sensors.imu.rate_hz, rx=rx_cfg,
                               watchdog=WatchdogConfig(wd.enabled, wd.overrun_multiple, wd.action, wd.reset_time_s),
                               firmware_factory=lambda: build_firmware(scn))
+        if scn.faults and self.replay is None:  # bound now: a fault on a missing device fails before the run
+            from .faults import FaultScheduler
+
+            self.faults = FaultScheduler(self, scn.faults, self.seed, rec)
         # recorder taps
         for name, link in self.links.items():
             fm = port_formats(name)
@@ -266,6 +278,9 @@ class Emulator:
                    "scenario_spec": scn.model_dump(mode="json")})
         loop.restart_clock()
         self._wall0 = loop.wall_elapsed()
+        if self.faults is not None:
+            self.faults.start()
+        loop.call_at(1.0 + SAMPLE_OFFSET_S, self._sample_tick)
         if self.replay is None:
             self.fpga.start()
             self.sensors.start()
@@ -367,6 +382,48 @@ class Emulator:
         if t < self.scn.duration_s:
             self.loop.call_at(math.floor(t) + 1.0, self._progress_tick)
 
+    # -- 1 Hz samples: timeline.csv and filter_state.csv -------------------------------------------
+    def _sample_tick(self) -> None:
+        assert self.loop is not None
+        t = self.loop.time()
+        sec = int(round(t - SAMPLE_OFFSET_S))
+        self._sample(float(sec))
+        if sec + 1 + SAMPLE_OFFSET_S < self.scn.duration_s:
+            self.loop.call_at(sec + 1 + SAMPLE_OFFSET_S, self._sample_tick)
+
+    def _sample(self, t: float, final: bool = False) -> None:
+        """One row of ``timeline.csv`` (link counters, DSP load in the second before ``t``) and, except for
+        the ``final`` row at the end of the run, of ``filter_state.csv`` (the filter's state)."""
+        rec, dsp = self.recorder, self.dsp
+        if rec is None or dsp is None:
+            return
+        self._last_sample_t = t
+        row: dict[str, Any] = {"time_s": t, "nav_frames": rec.nav_count}
+        b = math.ceil(t - 1e-9) - 1  # the second [b, b + 1) that ends at or contains t
+        span = min(1.0, t - b)
+        row["cpu_load_pct"] = 100.0 * dsp.busy_per_second.get(b, 0.0) / span if span > 0 else 0.0
+        row["deadline_misses"] = dsp.deadline_misses
+        row["watchdog_trips"] = dsp.watchdog_trips
+        for name, v in rec.link_summary().items():
+            for k in ("frames", "crc_errors", "dropped", "garbage_bytes", "framing_errors"):
+                row[f"{name}_{k}"] = v[k]
+        rec.table_row("timeline", row)
+        if final:
+            return
+        fw = dsp.fw
+        flt = getattr(fw, "filter", None)
+        st: dict[str, Any] = {"time_s": t, "state": getattr(fw, "state", ""), "mode": int(getattr(fw, "mode", 0))}
+        p = getattr(flt, "P", None)
+        if p is not None:
+            for i, v in enumerate(np.asarray(p).diagonal().tolist()):
+                st[f"p{i}"] = float(v)
+        for name in ("gyro_bias", "accel_bias"):
+            b = getattr(flt, name, None)
+            if b is not None:
+                for ax, v in zip("xyz", np.asarray(b).tolist()):
+                    st[f"{name}_{ax}"] = float(v)
+        rec.table_row("filter_state", st)
+
     # -- live status -----------------------------------------------------------------------------
     def status(self) -> dict[str, Any]:
         """Sim time, real-time factor, nav frames/s and error counts since the last call."""
@@ -434,18 +491,25 @@ class Emulator:
             rec.write_summary(self.summary)
             return self.summary
         self._stopped = True
+        fault_records = self.faults.finish() if self.faults is not None else []
+        sim_t = min(loop.time(), self.scn.duration_s) if not interrupted else loop.time()
+        if sim_t > self._last_sample_t + 1e-9:
+            self._sample(sim_t, final=True)  # the end of the run
         for link in list(self.links.values()) + list(self.device_ends.values()):
             try:
                 await link.close()
             except Exception:  # noqa: BLE001 - closing must not lose the summary
                 pass
-        sim_t = min(loop.time(), self.scn.duration_s) if not interrupted else loop.time()
         wall = loop.wall_elapsed()
         try:
             self.summary = s = self._summary(sim_t, wall, interrupted)
-            results = evaluate_expectations(self.scn.expectations, rec, s)
+            s["faults"] = fault_records
+            s["valid"] = self.faults.valid if self.faults is not None else True
+            rec.flush()
+            results = evaluate_expectations(self.scn.expectations, rec, s, run_dir=self.run_dir,
+                                            base_dir=self.scn.base_dir)
             s["expectations"] = [r.as_dict() for r in results]
-            s["passed"] = all(r.passed for r in results) and not interrupted
+            s["passed"] = all(r.passed for r in results) and not interrupted and s["valid"]
             rec.write_summary(s)
         finally:
             rec.close()

@@ -1,15 +1,34 @@
 """pytest collects every scenario file here as a test: the scenario library is the regression suite.
 
-Each ``*.yaml`` runs in fast mode into a temporary run directory and passes when every one of its
-own expectations passes (and the run was valid). Scenarios tagged ``slow`` get the ``slow``
-marker (excluded from the default ``make test``; ``make test-all`` runs them).
+Each ``*.yaml`` gives two tests that share one run (fast mode, the scenario's seed, a temporary
+run directory):
+
+``<name>``
+    passes when the run was valid (every scheduled fault took effect), was not interrupted, and
+    every one of the scenario's own expectations passed. The failure text lists each failed
+    expectation with its measured value, each fault that never fired with its evidence, and the
+    run directory, which is kept (with ``report.html``) when anything failed.
+``<name>[golden]``
+    the change indicator (``emulator.golden``): the captured input bytes must match
+    ``tests/golden/<name>.inputs.txt`` exactly and the estimator's state history
+    ``tests/golden/<name>.state.csv`` within float noise. Regenerate on purpose with ``make golden``.
+
+Scenarios tagged ``slow`` get the ``slow`` marker (excluded from the default ``make test``;
+``make test-all`` runs them). A library file that does not validate is a collection error with
+every problem, file:line:column. The terminal summary lists each scenario's wall time.
 """
 
 from __future__ import annotations
 
+import shutil
+import tempfile
+import time
 from pathlib import Path
+from typing import Any
 
 import pytest
+
+_WALL: list[tuple[str, float, float, bool]] = []
 
 
 def pytest_collect_file(parent: pytest.Collector, file_path: Path):  # noqa: D103
@@ -18,48 +37,136 @@ def pytest_collect_file(parent: pytest.Collector, file_path: Path):  # noqa: D10
     return None
 
 
+class _Run:
+    """One run of a scenario, shared by its two tests."""
+
+    def __init__(self, path: Path, scenario: Any) -> None:
+        self.path = path
+        self.scenario = scenario
+        self.summary: dict[str, Any] | None = None
+        self.golden_diffs: list[str] = []
+        self.run_dir: Path | None = None
+        self.kept = False
+        self.error: BaseException | None = None
+
+    def get(self) -> "_Run":
+        if self.summary is not None or self.error is not None:
+            return self
+        from emulator.golden import compare_golden
+        from emulator.runner import run_scenario
+
+        scn = self.scenario
+        base = Path(tempfile.mkdtemp(prefix=f"scn-{scn.name}-"))
+        self.run_dir = base / "run"
+        t0 = time.perf_counter()
+        try:
+            self.summary = run_scenario(scn, self.run_dir, mode="fast")
+            self.golden_diffs = compare_golden(self.run_dir, scn.name, scn.seed, scn.duration_s)
+        except BaseException as exc:  # noqa: BLE001 - reported by both tests
+            self.error = exc
+        wall = time.perf_counter() - t0
+        s = self.summary or {}
+        ok = bool(s.get("passed")) and s.get("valid", True) is not False and not self.golden_diffs and not self.error
+        _WALL.append((scn.name, wall, scn.duration_s, "slow" in scn.tags))
+        if ok:
+            shutil.rmtree(base, ignore_errors=True)
+        else:
+            self.kept = True
+            if self.summary is not None:
+                try:
+                    from emulator.report import write_report
+
+                    write_report(self.run_dir)
+                except Exception:  # noqa: BLE001 - the report is a help, not the verdict
+                    pass
+        return self
+
+
 class ScenarioFile(pytest.File):
     def collect(self):
+        from emulator.errors import ScenarioError
         from emulator.scenario import load_scenario
 
-        scn = load_scenario(self.path)  # a broken library file fails collection loudly
-        item = ScenarioItem.from_parent(self, name=scn.name, scenario=scn)
-        for tag in scn.tags:
-            if tag == "slow":
+        try:
+            scn = load_scenario(self.path)
+        except ScenarioError as exc:  # every problem, file:line:column
+            raise self.CollectError(f"scenario file does not validate:\n{exc}") from None
+        run = _Run(self.path, scn)
+        for cls, name in ((ScenarioItem, scn.name), (GoldenItem, f"{scn.name}[golden]")):
+            item = cls.from_parent(self, name=name, scenario=scn, run=run)
+            if "slow" in scn.tags:
                 item.add_marker(pytest.mark.slow)
-        yield item
+            yield item
 
 
 class ScenarioFailed(Exception):
     pass
 
 
-class ScenarioItem(pytest.Item):
-    def __init__(self, *, scenario, **kw):
+class _Item(pytest.Item):
+    def __init__(self, *, scenario: Any, run: _Run, **kw: Any) -> None:
         super().__init__(**kw)
         self.scenario = scenario
+        self.run = run
 
-    def runtest(self) -> None:
-        import tempfile
+    def _kept(self) -> str:
+        r = self.run
+        return f"  run directory kept: {r.run_dir} (summary.json, report.html, events.jsonl)" if r.kept else ""
 
-        from emulator.runner import run_scenario
-
-        with tempfile.TemporaryDirectory(prefix=f"scn-{self.scenario.name}-") as d:
-            summary = run_scenario(self.scenario, Path(d) / "run", mode="fast")
-        self.user_properties.append(("summary", {k: summary.get(k) for k in ("nav_error", "dsp", "passed")}))
-        failed = [e for e in summary.get("expectations", []) if not e["passed"]]
-        if failed or not summary.get("passed", False):
-            raise ScenarioFailed(failed)
+    def reportinfo(self):  # noqa: D102
+        return self.path, 0, f"scenario: {self.name}"
 
     def repr_failure(self, excinfo, style=None):  # noqa: D102
         if isinstance(excinfo.value, ScenarioFailed):
-            lines = [f"scenario {self.scenario.name} ({self.path}) failed:"]
-            for e in excinfo.value.args[0]:
-                lines.append(f"  expectation #{e['index']}: {e['description']}: measured {e['value']}")
-            if len(lines) == 1:
-                lines.append("  the run was invalid or interrupted")
-            return "\n".join(lines)
+            return "\n".join(excinfo.value.args[0])
         return super().repr_failure(excinfo, style=style)
 
-    def reportinfo(self):  # noqa: D102
-        return self.path, 0, f"scenario: {self.scenario.name}"
+
+class ScenarioItem(_Item):
+    """The scenario's own expectations (and the validity of its faults)."""
+
+    def runtest(self) -> None:
+        r = self.run.get()
+        if r.error is not None:
+            raise r.error
+        s = r.summary or {}
+        self.user_properties.append(("summary", {k: s.get(k) for k in ("nav_error", "dsp", "passed", "valid")}))
+        lines = []
+        for e in s.get("expectations", []):
+            if not e["passed"]:
+                note = f" ({e['message']})" if e.get("message") else ""
+                lines.append(f"  expectation #{e['index']} {e['kind']}: {e['description']}: measured {e['value']}{note}")
+        for f in s.get("faults", []):
+            if f.get("fired") is False:
+                ev = ", ".join(f"{k} {v}" for k, v in f.get("evidence", {}).items()) or "none"
+                lines.append(f"  run invalid: fault #{f['index']} {f['kind']} on {f['target']} never took effect "
+                             f"while active {f.get('active_from_s')}-{f.get('active_until_s')} s (evidence: {ev})")
+        if s.get("interrupted"):
+            lines.append("  the run was interrupted")
+        if lines or not s.get("passed", False):
+            if not lines:
+                lines.append("  the run did not pass")
+            head = f"scenario {self.scenario.name} ({self.path}) failed:"
+            raise ScenarioFailed([head, *lines, self._kept()])
+
+
+class GoldenItem(_Item):
+    """The change indicator: captured inputs exact, estimator state history within float noise."""
+
+    def runtest(self) -> None:
+        r = self.run.get()
+        if r.error is not None:
+            raise r.error
+        if r.golden_diffs:
+            head = (f"change indicator: scenario {self.scenario.name} differs from tests/golden/{self.scenario.name}.* "
+                    f"(if the change is intended, run `make golden` and commit the diff):")
+            raise ScenarioFailed([head, *(f"  {d}" for d in r.golden_diffs), self._kept()])
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):  # noqa: D103
+    if not _WALL:
+        return
+    tr = terminalreporter
+    tr.section("scenario library: wall time (fast mode)")
+    for name, wall, sim, slow in sorted(_WALL, key=lambda x: -x[1]):
+        tr.write_line(f"{name:32s} {wall:7.1f} s wall for {sim:7.0f} s simulated{'  (slow)' if slow else ''}")

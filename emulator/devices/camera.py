@@ -292,6 +292,15 @@ class PolarizationCameraModel:
         self.traj = trajectory
         self.rng = rng
         self._mosaic: np.ndarray | None = None
+        #: injected installation error (emulator.faults): extra rotation about the camera axes, or None
+        self.mounting_error: np.ndarray | None = None
+        #: frames observed while the injected installation error was applied (fault evidence)
+        self.frames_with_mounting_error = 0
+
+    # -- injected faults (emulator.faults) ----------------------------------------------------------
+    def set_mounting_error(self, rotation_vector_rad: np.ndarray | None) -> None:
+        """Shift the mount by a small rotation about the camera axes (``C_c^b R``); None removes it."""
+        self.mounting_error = None if rotation_vector_rad is None else rotation_vector_matrix(rotation_vector_rad)
 
     # -- world -> camera -----------------------------------------------------------------------
     def camera_attitude(self, t: float) -> tuple[np.ndarray, np.ndarray, float]:
@@ -299,7 +308,8 @@ class PolarizationCameraModel:
         st = self.traj.state(t)
         lat, lon, h = float(st.pos[0]), float(st.pos[1]), float(st.pos[2])
         s_n = self.sun.sun_enu(t, lat, lon, h)
-        c_nc = self.cfg.mounting_c_b.T @ st.c_bn.T
+        c_cb = self.cfg.mounting_c_b if self.mounting_error is None else self.cfg.mounting_c_b @ self.mounting_error
+        c_nc = c_cb.T @ st.c_bn.T
         return c_nc, c_nc @ s_n, math.asin(max(-1.0, min(1.0, float(s_n[2]))))
 
     # -- full fidelity ---------------------------------------------------------------------------
@@ -426,6 +436,8 @@ class PolarizationCameraModel:
         """
         cfg = self.cfg
         _, _, sun_el = self.camera_attitude(t)
+        if self.mounting_error is not None:
+            self.frames_with_mounting_error += 1
         g = self.geo
         empty = np.zeros(0)
         if mosaic is None and sun_el < cfg.min_sun_elevation:
@@ -494,6 +506,14 @@ class PolarizationCamera:
         self.frames_sent = 0
         self.last: PointObservations | None = None
         self._k = 0
+        #: injected fault: the lens is covered (frames without points); frames sent so (fault evidence)
+        self.blocked = False
+        self.frames_blocked = 0
+
+    def set_blocked(self, blocked: bool) -> None:
+        """Cover or uncover the lens (emulator.faults): a covered camera sends frames with no points,
+        status OCCLUDED | LOW_DOP."""
+        self.blocked = blocked
 
     def start(self) -> None:
         self._schedule()
@@ -512,6 +532,11 @@ class PolarizationCamera:
             if mosaic is None:  # no recorded frame for this capture
                 return
         obs = self.model.observe(t_mid, mosaic)
+        if self.blocked:
+            e = np.zeros(0)
+            obs = PointObservations(e.astype(int), e.astype(int), e, e, e, np.zeros(0, dtype=bool),
+                                    int(PsnsStatus.OCCLUDED | PsnsStatus.LOW_DOP), obs.sun_elevation)
+            self.frames_blocked += 1
         self.last = obs
         self.link.send(self.encode(obs, t_mid))
         self.frames_sent += 1

@@ -105,6 +105,30 @@ class CompassModel:
         m = np.asarray(cfg.mountings, dtype=np.float64)
         self.mountings = m
         self.rays_b = m[:, :, 2].copy()  # (U, 3) view rays, body frame
+        self._nominal = m
+        #: injected faults (emulator.faults): blocked units (left out of the frames) and a mounting shift
+        self.blocked = np.zeros(len(m), dtype=bool)
+        self.mounting_error: np.ndarray | None = None
+        #: fault evidence: unit readings suppressed by blocking; readings taken with the mounting shift
+        self.blocked_readings = 0
+        self.readings_with_mounting_error = 0
+
+    # -- injected faults (emulator.faults) ----------------------------------------------------------
+    def set_blocked(self, units: "list[int] | None", blocked: bool = True) -> None:
+        """Block (or unblock) units (None: all): a blocked unit sees no sky and is left out of the frame."""
+        idx = range(len(self.blocked)) if units is None else units
+        for u in idx:
+            self.blocked[u] = blocked
+
+    def set_mounting_error(self, rotation_vector_rad: np.ndarray | None) -> None:
+        """Rotate the whole compass block by a small rotation about the body axes (``R C_u^b``); None removes it."""
+        if rotation_vector_rad is None:
+            self.mounting_error = None
+            self.mountings = self._nominal
+        else:
+            self.mounting_error = rotation_vector_matrix(rotation_vector_rad)
+            self.mountings = np.einsum("ij,ujk->uik", self.mounting_error, self._nominal)
+        self.rays_b = self.mountings[:, :, 2].copy()
 
     def read(self, t: float) -> CompassReading:
         cfg = self.cfg
@@ -136,6 +160,12 @@ class CompassModel:
         sat = (v @ s_b) > math.cos(cfg.fov_half)
         status = int(PsnsStatus.SATURATED) if sat.any() else 0
         keep = ~sat
+        if self.mounting_error is not None:
+            self.readings_with_mounting_error += 1
+        if self.blocked.any():
+            self.blocked_readings += int(np.count_nonzero(keep & self.blocked))
+            keep &= ~self.blocked
+            status |= int(PsnsStatus.OCCLUDED)
         if np.count_nonzero(keep & (dop >= cfg.dop_threshold)) >= 2:
             status |= PsnsStatus.VALID
         else:

@@ -202,6 +202,11 @@ class VirtualDsp:
         self.dropped_while_resetting = 0
         self.outputs_dropped_by_reset = 0
         self._booting_until = -1.0
+        #: injected fault (emulator.faults): cycles charged at the start of every tick before the
+        #: firmware's own work (a runaway task or an interrupt storm), and the ticks that paid them
+        self.extra_cycles_per_tick = 0
+        self.extra_load_ticks = 0
+        self.extra_cycles_total = 0
         self._scheduled = False
         self._arrival = 0.0
         self.busy_per_second: dict[int, float] = {}
@@ -259,13 +264,19 @@ class VirtualDsp:
             start = now if now > self.busy_until else self.busy_until
             for m in self._rx_models:
                 m.tick(start)
-            dur = r.cycles / self.clock_hz
+            extra = self.extra_cycles_per_tick
+            cycles = r.cycles
+            if extra:
+                cycles += extra
+                self.extra_load_ticks += 1
+                self.extra_cycles_total += extra
+            dur = cycles / self.clock_hz
             end = start + dur
             self.ticks += 1
-            if r.cycles > self.max_tick_cycles:
-                self.max_tick_cycles = r.cycles
+            if cycles > self.max_tick_cycles:
+                self.max_tick_cycles = cycles
             if dur > wd_limit:
-                self._watchdog(start, r)
+                self._watchdog(start, r, extra)
                 return
             self.busy_until = end
             self.busy_time += dur
@@ -274,7 +285,7 @@ class VirtualDsp:
                 self.deadline_misses += 1
                 self.fw.note_deadline_miss()
                 self.events.emit(now, "dsp", "deadline_miss", t_fpga_s=r.t_fpga_s, start_s=start, end_s=end,
-                                 cycles=r.cycles)
+                                 cycles=cycles)
             for ev in r.events:
                 ev = dict(ev)
                 kind = ev.pop("event")
@@ -282,21 +293,21 @@ class VirtualDsp:
             for uart, data, cyc in r.outputs:
                 link = self.uarts.get(uart)
                 if link is not None:  # the firmware's driver is the UART's only writer, in time order
-                    link.send_at(start + cyc / self.clock_hz, data, True)
+                    link.send_at(start + (extra + cyc) / self.clock_hz, data, True)
             arrival += self.period
 
-    def _watchdog(self, start: float, r: Any) -> None:
+    def _watchdog(self, start: float, r: Any, extra: int = 0) -> None:
         """A tick overran the watchdog period (see module docstring)."""
         wd = self.watchdog
         t_bite = start + wd.overrun_multiple * self.period
         self.watchdog_trips += 1
         reset = wd.action == "reset" and self.firmware_factory is not None
         self.events.emit(t_bite, "dsp", "watchdog", t_fpga_s=r.t_fpga_s, tick_start_s=start,
-                         tick_cycles=r.cycles, limit_s=wd.overrun_multiple * self.period,
+                         tick_cycles=r.cycles + extra, limit_s=wd.overrun_multiple * self.period,
                          action="reset" if reset else "flag")
         if not reset:
             # flag only: the tick completes late, its outputs leave when produced
-            end = start + r.cycles / self.clock_hz
+            end = start + (r.cycles + extra) / self.clock_hz
             self.busy_until = end
             self.busy_time += end - start
             self._account(start, end)
@@ -305,11 +316,11 @@ class VirtualDsp:
             for uart, data, cyc in r.outputs:
                 link = self.uarts.get(uart)
                 if link is not None:
-                    link.send_at(start + cyc / self.clock_hz, data, True)
+                    link.send_at(start + (extra + cyc) / self.clock_hz, data, True)
             return
         # reset: outputs the tick would have produced after the bite never happen
         for uart, data, cyc in r.outputs:
-            t_out = start + cyc / self.clock_hz
+            t_out = start + (extra + cyc) / self.clock_hz
             link = self.uarts.get(uart)
             if t_out <= t_bite and link is not None:
                 link.send_at(t_out, data, True)
@@ -331,6 +342,7 @@ class VirtualDsp:
 
     def counters(self) -> dict[str, Any]:
         return {"watchdog_trips": self.watchdog_trips, "resets": self.resets,
+                "extra_load_ticks": self.extra_load_ticks, "extra_cycles_total": self.extra_cycles_total,
                 "dropped_while_resetting": self.dropped_while_resetting,
                 "outputs_dropped_by_reset": self.outputs_dropped_by_reset,
                 "uarts": {f"uart{n}": m.as_dict() for n, m in self.rx.items()}}

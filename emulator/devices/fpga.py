@@ -136,12 +136,15 @@ class VirtualFpga:
         self._stopped = False
         self._trigger_handle: asyncio.TimerHandle | None = None
         self._gyro_dec: StreamDecoder | None = None
+        #: channels stalled by an injected fault (emulator.faults) and what each held back (bytes or frames)
+        self.stalled: set[str] = set()
+        self.stall_counts: dict[str, int] = {}
         if "gyro" in ports:
             self._gyro_dec = StreamDecoder([Stim210Format(cfg.gyro_format)])
             ports["gyro"].on_receive = self._on_gyro_bytes
         for port, uart in cfg.routing.items():
             if port in ports and uart in uarts:
-                self._route(ports[port], uarts[uart])
+                self._route(ports[port], uarts[uart], port)
                 self.routes[port] = uart
         self.mag = mag
         self.mag_frames = 0
@@ -192,6 +195,19 @@ class VirtualFpga:
             self._pending[3].cancel()
             self._pending = None
 
+    def set_channel_stalled(self, channel: str, stalled: bool) -> None:
+        """Stop (or resume) servicing a channel (injected fault): ``gyro`` (datagrams ignored), ``uart1``
+        (no IMU/MAG frames sent), ``mag`` (no MAG frames) or a routed port (bytes not forwarded either way).
+        ``stall_counts[channel]`` counts what was held back (bytes, or frames for uart1 and mag)."""
+        if stalled:
+            self.stalled.add(channel)
+            self.stall_counts.setdefault(channel, 0)
+        else:
+            self.stalled.discard(channel)
+
+    def _stall(self, channel: str, n: int) -> None:
+        self.stall_counts[channel] = self.stall_counts.get(channel, 0) + n
+
     def pps_edge(self, t: float) -> None:
         """PPS rising edge (from the GNSS receiver's PPS line)."""
         self.t_pps_us = self.counter_us(t)
@@ -209,7 +225,10 @@ class VirtualFpga:
         codes = self.accel.sample(t, t_prev) if self.accel is not None else (0, 0, 0)
         if self._pending is not None:  # previous datagram never came
             self._emit_frame(None)
-        if self._mag_api is not None and (self._k - 1) % self._mag_div == 0:
+        if self._mag_api is not None and (self._k - 1) % self._mag_div == 0 and self.stalled \
+                and "mag" in self.stalled:
+            self._stall("mag", 1)
+        elif self._mag_api is not None and (self._k - 1) % self._mag_div == 0:
             words, status = self.mag.sample(t, t_prev)
             mag_frame_cls, encode = self._mag_api
             self._mag_pending = encode(mag_frame_cls(self._mag_seq & 0xFFFF, self.counter_us(t), words, status))
@@ -225,6 +244,9 @@ class VirtualFpga:
 
     def _on_gyro_bytes(self, data: bytes) -> None:
         assert self._gyro_dec is not None
+        if self.stalled and "gyro" in self.stalled:
+            self._stall("gyro", len(data))
+            return
         for d in self._gyro_dec.feed(data):
             self._emit_frame(d)
 
@@ -271,7 +293,10 @@ class VirtualFpga:
         self.seq += 1
         self.imu_frames += 1
         uart1 = self.uarts.get("uart1")
-        if uart1 is not None:
+        if uart1 is not None and self.stalled and "uart1" in self.stalled:
+            self._stall("uart1", 1)
+            self._mag_pending = None
+        elif uart1 is not None:
             uart1.send(self._imu_fmt.build(frame))
             if self._mag_pending is not None:  # the trigger's MAG frame follows its IMU frame
                 mag_frame = self._mag_pending
@@ -282,12 +307,19 @@ class VirtualFpga:
                     self._mirror(self._mag_channel, 0, self.loop.time(), mag_frame)
 
     # -- crossbar ---------------------------------------------------------------------------
-    @staticmethod
-    def _route(port: Link, uart: Link) -> None:
+    def _route(self, port: Link, uart: Link, name: str) -> None:
+        stalled = self.stalled
+
         def to_dsp(data: bytes) -> None:
+            if stalled and name in stalled:
+                self._stall(name, len(data))
+                return
             uart.forward(data, port)
 
         def from_dsp(data: bytes) -> None:
+            if stalled and name in stalled:
+                self._stall(name, len(data))
+                return
             port.forward(data, uart)
 
         port.on_receive = to_dsp

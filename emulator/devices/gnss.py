@@ -154,6 +154,34 @@ class GnssReceiver:
         self.last_vel_error_enu = np.zeros(3)
         self._lost_until: float | None = None
         self._last_t: float | None = None
+        # injected faults (emulator.faults): extra outages and glitches, a degraded solution
+        self._fault_outages: list[GnssOutage] = []
+        self._fault_glitches: list[GnssGlitch] = []
+        self._degraded: dict[str, float | int | None] | None = None
+        #: evidence counters: epochs sent without a fix, fixes carrying a glitch, fixes sent while degraded
+        self.no_fix_epochs = 0
+        self.glitched_fixes = 0
+        self.degraded_fixes = 0
+
+    # -- injected faults (emulator.faults) ----------------------------------------------------------
+    def add_outage(self, start_s: float, duration_s: float) -> None:
+        """Lose lock over ``[start_s, start_s + duration_s)`` (then re-acquire as after any outage)."""
+        self._fault_outages.append(GnssOutage(start_s, duration_s))
+
+    def add_glitch(self, start_s: float, duration_s: float, offset_enu_m: tuple[float, float, float]) -> None:
+        """Add ``offset_enu_m`` to the reported position over ``[start_s, start_s + duration_s)``."""
+        self._fault_glitches.append(GnssGlitch(start_s, duration_s, offset_enu_m))
+
+    def set_degraded(self, noise_scale: float = 1.0, num_sats: int | None = None, hdop: float | None = None,
+                     fix_quality: int | None = None) -> None:
+        """A poorer solution: noise times ``noise_scale``, fewer satellites (< 4: no fix), hdop, fix quality."""
+        self._degraded = {"noise_scale": noise_scale, "num_sats": num_sats, "hdop": hdop, "fix_quality": fix_quality}
+
+    def clear_degraded(self) -> None:
+        self._degraded = None
+
+    def _deg(self, key: str) -> float | int | None:
+        return self._degraded.get(key) if self._degraded is not None else None
 
     def start(self) -> None:
         """Schedule the first epoch at the first whole UTC second at or after t = 0."""
@@ -167,9 +195,12 @@ class GnssReceiver:
     def has_fix(self, t: float) -> bool:
         """No fix inside an outage and for ``reacquisition_s`` after it."""
         cfg = self.cfg
-        for o in cfg.outages:
+        for o in (*cfg.outages, *self._fault_outages) if self._fault_outages else cfg.outages:
             if o.covers(t) or (o.start_s + o.duration_s <= t < o.start_s + o.duration_s + cfg.reacquisition_s):
                 return False
+        sats = self._deg("num_sats")
+        if sats is not None and sats < 4:  # no 3-D solution from fewer than four satellites
+            return False
         return True
 
     def _epoch(self, t: float) -> None:
@@ -181,6 +212,8 @@ class GnssReceiver:
         self._schedule(t + 1.0 / self.cfg.rate_hz)
 
     def _emit(self, t: float, fix: bool) -> None:
+        if not fix:
+            self.no_fix_epochs += 1
         out = self.sentences(t, fix)
         if out:
             self.link.send(out)
@@ -196,10 +229,15 @@ class GnssReceiver:
         """What the receiver reports for one epoch (accuracy fields from its configured error figures)."""
         cfg = self.cfg
         e = cfg.errors
+        num_sats, hdop, fq = cfg.num_sats, cfg.hdop, cfg.fix_quality
+        if self._degraded is not None:
+            num_sats = int(self._deg("num_sats") if self._deg("num_sats") is not None else num_sats)  # type: ignore[arg-type]
+            hdop = float(self._deg("hdop") if self._deg("hdop") is not None else hdop)  # type: ignore[arg-type]
+            fq = int(self._deg("fix_quality") if self._deg("fix_quality") is not None else fq)  # type: ignore[arg-type]
         return GnssFix(
             utc=utc, lat_deg=lat_deg, lon_deg=lon_deg, height_m=h_m, geoid_sep_m=cfg.geoid_sep_m, vel_enu_mps=vel_enu,
-            fix_type=fix_type, quality=cfg.fix_quality if quality is None else quality,
-            sat_ids=_SAT_IDS[: max(0, min(cfg.num_sats, len(_SAT_IDS)))] if fix_type else (), hdop=cfg.hdop,
+            fix_type=fix_type, quality=fq if quality is None else quality,
+            sat_ids=_SAT_IDS[: max(0, min(num_sats, len(_SAT_IDS)))] if fix_type else (), hdop=hdop,
             h_acc_m=e.pos_sigma_h_m * math.sqrt(2.0), v_acc_m=e.pos_sigma_v_m, s_acc_mps=e.vel_sigma_h_mps * math.sqrt(2.0),
         )
 
@@ -217,18 +255,28 @@ class GnssReceiver:
             self._lost_until = None
         perr, verr = self.errors.step(max(dt, 1e-3))
         err = perr[0].copy()
+        vel_err = verr[0]
+        if self._degraded is not None:
+            scale = float(self._deg("noise_scale") or 1.0)  # type: ignore[arg-type]
+            err = err * scale
+            vel_err = vel_err * scale
+            self.degraded_fixes += 1
         for g in cfg.glitches:
             if g.covers(t):
                 err += np.asarray(g.offset_enu_m)
+        for g in self._fault_glitches:
+            if g.covers(t):
+                err += np.asarray(g.offset_enu_m)
+                self.glitched_fixes += 1
         self.last_error_enu = err
-        self.last_vel_error_enu = verr[0]
+        self.last_vel_error_enu = vel_err
         st = self.traj.state(t)
         lat, lon, h = (float(x) for x in st.pos)
         rm, rn = earth.radii(lat)
         lat_m = lat + err[1] / (rm + h)
         lon_m = lon + err[0] / ((rn + h) * math.cos(lat))
         h_m = h + err[2]
-        v = st.v_enu + verr[0]
+        v = st.v_enu + vel_err
         out = build_epoch(self._fix(utc, lat_m / DEG, lon_m / DEG, h_m, (float(v[0]), float(v[1]), float(v[2]))),
                           self._output)
         self.fixes_sent += 1

@@ -59,6 +59,7 @@ __all__ = [
     "accel_error_model",
     "Stim210Gyro",
     "AnalogAccelerometers",
+    "InjectedFaults",
     "allan_deviation",
 ]
 
@@ -311,6 +312,66 @@ def accel_error_model(e: AccelErrors, rng: np.random.Generator) -> InertialError
     )
 
 
+class InjectedFaults:
+    """Faults injected into one sensor triad (``emulator.faults`` drives them; all off by default).
+
+    Applied to the measured mean of each interval (SI, body axes), in this order: the bias steps
+    (``bias``), the stuck axes (held at the output they had when they froze) and a reduced range
+    (``range_limit``, a scalar clipping every axis). The counters are the evidence that a fault took
+    effect: intervals that carried a bias, held a stuck axis, and had a value clipped by the reduced
+    range (only when the input really exceeded it).
+    """
+
+    __slots__ = ("bias", "_biases", "stuck", "stuck_value", "range_limit", "active", "biased", "stuck_samples",
+                 "clipped")
+
+    def __init__(self) -> None:
+        self.bias = np.zeros(3)
+        self._biases: dict[object, np.ndarray] = {}
+        self.stuck = np.zeros(3, dtype=bool)
+        self.stuck_value = np.zeros(3)
+        self.range_limit: float | None = None
+        self.active = False
+        self.biased = 0
+        self.stuck_samples = 0
+        self.clipped = 0
+
+    def _update(self) -> None:
+        self.active = bool(np.any(self.bias) or self.stuck.any() or self.range_limit is not None)
+
+    def set_bias(self, key: object, delta: np.ndarray | None) -> None:
+        """Set (or with None remove) the bias step named ``key`` (SI); ``bias`` is the sum of the steps."""
+        if delta is None:
+            self._biases.pop(key, None)
+        else:
+            self._biases[key] = np.asarray(delta, dtype=np.float64)
+        self.bias = sum(self._biases.values(), np.zeros(3)) if self._biases else np.zeros(3)
+        self._update()
+
+    def set_stuck(self, axis: int, stuck: bool, value: float = 0.0) -> None:
+        self.stuck[axis] = stuck
+        self.stuck_value[axis] = value
+        self._update()
+
+    def set_range_limit(self, limit: float | None) -> None:
+        self.range_limit = limit
+        self._update()
+
+    def apply(self, x: np.ndarray, lim: np.ndarray | float) -> tuple[np.ndarray, np.ndarray | float]:
+        """The faulted measurement and the range to clip it to."""
+        if np.any(self.bias):
+            x = x + self.bias
+            self.biased += 1
+        if self.stuck.any():
+            x = np.where(self.stuck, self.stuck_value, x)
+            self.stuck_samples += 1
+        if self.range_limit is not None:
+            if np.any(np.abs(x) > self.range_limit):
+                self.clipped += 1
+            lim = np.minimum(lim, self.range_limit)
+        return x, lim
+
+
 class ImuTruthTap:
     """Caches the exact truth increments of the last trigger interval for both sensors."""
 
@@ -363,10 +424,34 @@ class Stim210Gyro:
         self.datagrams_sent = 0
         self.last_measured = np.zeros(3)
         self._accel_hint: np.ndarray | None = None
+        #: injected faults (bias step, stuck axis, reduced range); see :class:`InjectedFaults`
+        self.faults = InjectedFaults()
+        self.drop_probability = 0.0
+        self.datagrams_dropped = 0
+        self._drop_rng: np.random.Generator | None = None
 
     @property
     def turn_on_bias(self) -> np.ndarray:
         return self.model.bias0
+
+    # -- injected faults (emulator.faults) ----------------------------------------------------------
+    def set_bias_step(self, key: object, delta_rad_s: np.ndarray | None) -> None:
+        """Step the rate bias by ``delta_rad_s`` (3,) rad/s, body axes; ``None`` removes the step ``key``."""
+        self.faults.set_bias(key, delta_rad_s)
+
+    def set_stuck_axis(self, axis: int, stuck: bool) -> None:
+        """Freeze axis ``axis`` (0..2) at its last output, or release it."""
+        self.faults.set_stuck(axis, stuck, float(self.last_measured[axis]))
+
+    def set_range_limit(self, limit_rad_s: float | None) -> None:
+        """Clip every axis at ``limit_rad_s`` (a gain fault; None restores the full range)."""
+        self.faults.set_range_limit(limit_rad_s)
+
+    def set_datagram_drop(self, probability: float, rng: np.random.Generator | None = None) -> None:
+        """Skip each datagram with ``probability`` (0 turns it off); the counter still advances."""
+        self.drop_probability = probability
+        if rng is not None:
+            self._drop_rng = rng
 
     def trigger(self, t: float, t_prev: float) -> None:
         """External-trigger falling edge at ``t`` (scenario s); interval started at ``t_prev``."""
@@ -379,6 +464,8 @@ class Stim210Gyro:
             dtheta, dv = self.tap.increments(t_prev, t)
             rate = self.model.measure(dtheta / dt, dt, t_c, temp.rate_c_per_min, temp.cal_c, dv / dt)
         lim = self.err.range_dps * DEG
+        if self.faults.active:
+            rate, lim = self.faults.apply(rate, lim)
         rate = np.clip(rate, -lim, lim)
         self.last_measured = rate
         if self.output == "rate":
@@ -397,6 +484,11 @@ class Stim210Gyro:
             temperature=(tw, tw, tw),
         )
         frame = self.format.build(d)
+        if self.drop_probability > 0.0:
+            rng = self._drop_rng if self._drop_rng is not None else self.rng
+            if rng.random() < self.drop_probability:
+                self.datagrams_dropped += 1
+                return
         self.link.loop.call_at(t + self.response_delay_s, self._send, frame)
 
     def _send(self, frame: bytes) -> None:
@@ -421,10 +513,25 @@ class AnalogAccelerometers:
         self.last_measured = np.zeros(3)
         self._range = np.array(e.range_g)
         self._vpg = np.array(e.volts_per_g)
+        #: injected faults (bias step, stuck axis, reduced range); see :class:`InjectedFaults`
+        self.faults = InjectedFaults()
 
     @property
     def turn_on_bias(self) -> np.ndarray:
         return self.model.bias0
+
+    # -- injected faults (emulator.faults) ----------------------------------------------------------
+    def set_bias_step(self, key: object, delta_mps2: np.ndarray | None) -> None:
+        """Step the bias by ``delta_mps2`` (3,) m/s^2, body axes; ``None`` removes the step ``key``."""
+        self.faults.set_bias(key, delta_mps2)
+
+    def set_stuck_axis(self, axis: int, stuck: bool) -> None:
+        """Freeze axis ``axis`` (0..2) at its last output, or release it."""
+        self.faults.set_stuck(axis, stuck, float(self.last_measured[axis]))
+
+    def set_range_limit(self, limit_mps2: float | None) -> None:
+        """Clip every axis at ``limit_mps2`` (None restores the parts' ranges)."""
+        self.faults.set_range_limit(limit_mps2)
 
     def sample(self, t: float, t_prev: float) -> tuple[int, int, int]:
         """ADC codes of the mean specific force over ``[t_prev, t]``."""
@@ -435,7 +542,11 @@ class AnalogAccelerometers:
             _, dv = self.tap.increments(t_prev, t)
             temp = self.temperature
             f = self.model.measure(dv / dt, dt, temp.at(t), temp.rate_c_per_min, temp.cal_c)
-        f_g = np.clip(f / G_STD, -self._range, self._range)
+        rng_g = self._range
+        if self.faults.active:
+            f, lim = self.faults.apply(f, self._range * G_STD)
+            rng_g = lim / G_STD
+        f_g = np.clip(f / G_STD, -rng_g, rng_g)
         self.last_measured = f_g * G_STD
         volts = f_g * self._vpg
         codes = np.clip(np.round(volts / ADC_VOLTS_PER_LSB), -ADC_CODE_MAX - 1, ADC_CODE_MAX).astype(np.int64)

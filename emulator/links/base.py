@@ -299,15 +299,24 @@ class Link:
         self._slice_bytes = max(16, int(self.slice_s / line.byte_time)) if self.slice_s > 0 else 0
 
     # -- configuration ------------------------------------------------------------------
-    def set_remote_line(self, tx: LineConfig | None) -> None:
+    def set_remote_line(self, tx: LineConfig | None, rx: LineConfig | None = None) -> None:
         """Settings of the transmitter at the far end; a mismatch beyond the UART tolerance
-        switches reception to the bit-level receiver model (``None`` = assume matched)."""
+        switches reception to the bit-level receiver model (``None`` = assume matched).
+
+        ``rx`` makes this end's receiver sample with other settings than its own line (a receiver
+        at the wrong baud, an injected fault); default: this end's line. The framing and parity
+        error counts carry over when the receiver model is replaced.
+        """
         from .framing import UartReceiver, uart_compatible
 
-        if tx is None or uart_compatible(tx, self.line):
+        rx = rx or self.line
+        if tx is None or uart_compatible(tx, rx):
             self._framer = None
         else:
-            self._framer = UartReceiver(tx, self.line)
+            fr = UartReceiver(tx, rx)
+            fr.framing_errors = self.stats.framing_errors
+            fr.parity_errors = self.stats.parity_errors
+            self._framer = fr
 
     # -- device side ----------------------------------------------------------------
     def send(self, data: bytes, atomic: bool = False) -> int:
@@ -460,6 +469,25 @@ class Link:
         cb = self.on_receive
         if cb is not None:
             cb(data)
+
+    def deliver_held(self, direction: str, data: bytes) -> None:
+        """Pass on bytes that a fault held back (a stalled line), now, without the fault hooks:
+        ``"in"`` delivers them to the device as if they had just arrived, ``"out"`` transmits them
+        (counted, seen by the listeners) as if the line had just carried them."""
+        if self.closed or not data:
+            return
+        if direction == "in":
+            hooks, self.faults_in = self.faults_in, []
+            try:
+                self._deliver(data)
+            finally:
+                self.faults_in = hooks
+        else:
+            hooks, self.faults_out = self.faults_out, []
+            try:
+                self._emit(data, self.loop.time(), self.out_line._bt)
+            finally:
+                self.faults_out = hooks
 
     # -- transport hooks --------------------------------------------------------------
     def _write_raw(self, data: bytes) -> None:

@@ -15,6 +15,7 @@ import yaml
 from pydantic import BaseModel, ValidationError
 
 from ..errors import ScenarioError, ScenarioIssue
+from .checks_schema import cross_check
 from .schema import Scenario
 
 __all__ = ["load_scenario", "load_yaml_with_marks", "validate_scenario_data"]
@@ -150,6 +151,17 @@ def validate_scenario_data(data: Any, marks: dict[Loc, tuple[int, int]], file: s
         raise ScenarioError(issues) from None
     scn._source_file = file
     scn._base_dir = str(base_dir) if base_dir is not None else None
+    problems = cross_check(scn)
+    if problems:
+        issues = []
+        for loc, msg in problems:
+            probe = loc
+            while probe and probe not in marks:
+                probe = probe[:-1]
+            line, col = marks.get(probe, (None, None))
+            issues.append(ScenarioIssue(file, line, col, _fmt_path(loc), msg))
+        issues.sort(key=lambda i: (i.line or 0, i.column or 0))
+        raise ScenarioError(issues)
     return scn
 
 

@@ -12,8 +12,8 @@ A scenario file is one YAML mapping::
     fpga        {routing: {port: uartN}, uarts: {uartN: {baud, queue_bytes}}}
     dsp         {clock_hz}
     firmware    {filter, precision, output_rate_hz, kf_predict_every, alignment: {...}}
-    faults      [ ... ]
-    expectations [ ... ]
+    faults      [ {gnss_outage: {start_s, duration_s}} ... ]    scheduled faults (checks_schema)
+    expectations [ {nav_error: {...}} ... ]                   checks at the end (checks_schema)
 
 Unknown keys anywhere are errors. ``docs/scenarios.md`` is the guide. Each section lives in the
 module of the subsystem that owns it (``world_schema``, ``sensor_schema``, ``runtime_schema``,
@@ -23,12 +23,13 @@ module of the subsystem that owns it (``world_schema``, ``sensor_schema``, ``run
 from __future__ import annotations
 
 import datetime as _dt
-from typing import Any, Literal
+from typing import Literal
 
 from pydantic import Field, PrivateAttr, field_validator, model_validator
 
 from .base import Model
-from .checks_schema import DspBound, Expectation, LinkCounterBound, NavErrorBound
+from .checks_schema import (DspBound, EventExpectation, Expectation, Fault, LinkCounterBound, NavErrorBound,
+                            NavModeExpectation, PythonHook, SummaryValueBound)
 from .firmware_schema import AlignmentSpec, FirmwareSpec
 from .runtime_schema import DspSpec, FpgaSpec, Links, LinkSpec, UartSpec
 from .sensor_schema import AccelSpec, GnssErrorSpec, GnssSpec, GyroSpec, ImuSpec, Sensors
@@ -57,7 +58,12 @@ __all__ = [
     "NavErrorBound",
     "LinkCounterBound",
     "DspBound",
+    "EventExpectation",
+    "NavModeExpectation",
+    "SummaryValueBound",
+    "PythonHook",
     "Expectation",
+    "Fault",
 ]
 
 
@@ -82,7 +88,7 @@ class Scenario(Model):
     fpga: FpgaSpec = FpgaSpec()
     dsp: DspSpec = DspSpec()
     firmware: FirmwareSpec = FirmwareSpec()
-    faults: list[dict[str, Any]] = Field(default_factory=list, max_length=0)
+    faults: list[Fault] = Field(default_factory=list, description="scheduled faults (docs/scenarios.md)")
     expectations: list[Expectation] = Field(default_factory=list)
 
     _source_file: str = PrivateAttr(default="<scenario>")

@@ -37,7 +37,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["Cloud", "Occluder", "SkyModel", "SkyField", "rayleigh_dop", "sky_from_spec"]
+__all__ = ["Cloud", "Occluder", "SunOccluder", "SkyModel", "SkyField", "rayleigh_dop", "sky_from_spec",
+           "textured_cloud"]
 
 DEG = math.pi / 180.0
 #: Radiance of the ground relative to the sky (a diffuse, unpolarized surface).
@@ -65,6 +66,8 @@ class Cloud:
     drift_az_rps: float = 0.0
     waves: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # (K, 3) wave vectors, rad^-1
     phases: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    #: view rays evaluated inside the cloud so far (evidence for an injected cloud fault)
+    hits: int = 0
 
     def centre_enu(self, t: float) -> np.ndarray:
         az = self.az + self.drift_az_rps * t
@@ -83,6 +86,23 @@ class Occluder:
     az_max: float
     el_max: float
     intensity_scale: float = 0.3
+
+
+@dataclass
+class SunOccluder:
+    """The sky within ``radius`` (rad) of the sun hidden over ``[start_s, end_s)`` (a cloud over the sun, a
+    building): DOP times ``dop_scale``, radiance times ``intensity_scale``. ``hits`` counts the view rays
+    it covered."""
+
+    radius: float
+    dop_scale: float = 0.0
+    intensity_scale: float = 0.3
+    start_s: float = 0.0
+    end_s: float = math.inf
+    hits: int = 0
+
+    def active(self, t: float) -> bool:
+        return self.start_s <= t < self.end_s
 
 
 @dataclass
@@ -116,11 +136,12 @@ class SkyModel:
         self.delta = 0.5 * float(neutral_point_sep)
         self.clouds = clouds or []
         self.occluders = occluders or []
+        self.sun_occluders: list[SunOccluder] = []
 
     @property
     def uniform(self) -> bool:
         """True for a clear Rayleigh sky without regions (the camera's fast path)."""
-        return self.model == "rayleigh" and not self.clouds and not self.occluders
+        return self.model == "rayleigh" and not self.clouds and not self.occluders and not self.sun_occluders
 
     # ------------------------------------------------------------------------------------------
     def evaluate(self, t: float, s_f: np.ndarray, vx: np.ndarray, vy: np.ndarray, vz: np.ndarray,
@@ -165,6 +186,7 @@ class SkyModel:
             inside &= ~ground
             if not np.any(inside):
                 continue
+            cl.hits += int(np.count_nonzero(inside))
             dop = np.where(inside, dop * dt.type(cl.dop_scale), dop).astype(dt)
             radiance = np.where(inside, radiance * dt.type(cl.intensity_scale), radiance).astype(dt)
             if cl.aop_sigma > 0.0 and len(cl.waves):
@@ -175,6 +197,15 @@ class SkyModel:
                 ex_i, ey_i, ez_i = _rotate_about(ex[idx], ey[idx], ez[idx], vx[idx], vy[idx], vz[idx], rot)
                 ex, ey, ez = ex.copy(), ey.copy(), ez.copy()
                 ex[idx], ey[idx], ez[idx] = ex_i, ey_i, ez_i
+        for so in self.sun_occluders:
+            if not so.active(t):
+                continue
+            near = ((sx * vx + sy * vy + sz * vz) > math.cos(so.radius)) & ~ground
+            n_near = int(np.count_nonzero(near))
+            if n_near:
+                so.hits += n_near
+                dop = np.where(near, dop * dt.type(so.dop_scale), dop).astype(dt)
+                radiance = np.where(near, radiance * dt.type(so.intensity_scale), radiance).astype(dt)
         if self.occluders:
             east, north = c_nf[:, 0], c_nf[:, 1]
             ve = east[0] * vx + east[1] * vy + east[2] * vz
@@ -254,6 +285,19 @@ def _rotate_about(ex: np.ndarray, ey: np.ndarray, ez: np.ndarray, vx: np.ndarray
     wy = vz * ex - vx * ez
     wz = vx * ey - vy * ex
     return ((ex * c + wx * s).astype(ex.dtype), (ey * c + wy * s).astype(ex.dtype), (ez * c + wz * s).astype(ex.dtype))
+
+
+def textured_cloud(rng: np.random.Generator, az: float, el: float, radius: float, dop_scale: float = 0.2,
+                   aop_sigma: float = 20.0 * DEG, intensity_scale: float = 1.5, start_s: float = 0.0,
+                   end_s: float = math.inf, drift_az_rps: float = 0.0) -> Cloud:
+    """A :class:`Cloud` (angles in rad) with its AOP texture drawn from ``rng`` as :func:`sky_from_spec` does."""
+    k = 8
+    dirs = rng.standard_normal((k, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    wavelength = rng.uniform(3.0, 10.0, k) * DEG
+    waves = dirs * (2.0 * math.pi / wavelength)[:, None]
+    return Cloud(az, el, radius, dop_scale, aop_sigma, intensity_scale, start_s, end_s, drift_az_rps, waves,
+                 rng.uniform(0, 2 * math.pi, k))
 
 
 def sky_from_spec(spec: object | None, rng: np.random.Generator | None = None) -> SkyModel:

@@ -459,7 +459,10 @@ class Stim210Gyro:
         temp = self.temperature
         t_c = temp.at(t)
         if self.source is not None:
-            rate = np.asarray(self.source(t_prev, t), dtype=np.float64)
+            rec = self.source(t_prev, t)
+            if rec is None:  # outside the record: silent (the FPGA flags the missing datagram)
+                return
+            rate = np.asarray(rec, dtype=np.float64)
         else:
             dtheta, dv = self.tap.increments(t_prev, t)
             rate = self.model.measure(dtheta / dt, dt, t_c, temp.rate_c_per_min, temp.cal_c, dv / dt)

@@ -360,7 +360,8 @@ class FieldRange(Model):
 
 
 class EventExpectation(TimeWindow):
-    """An event (``events.jsonl``) that must occur (``min_count``, default 1) or must not (``max_count: 0``)
+    """An event (``events.jsonl``) that must occur (``min_count``, default 1, or 0 when only ``max_count`` is
+    given) or must not (``max_count: 0``)
     inside a window, optionally from one ``source`` and with field values (``fields``: exact values, or
     ``{min, max}`` for numbers)."""
 
@@ -372,6 +373,8 @@ class EventExpectation(TimeWindow):
 
     @model_validator(mode="after")
     def _counts(self) -> "EventExpectation":
+        if self.max_count is not None and "min_count" not in self.model_fields_set:
+            self.min_count = 0  # "at most N" (max_count: 0 = must not occur)
         if self.max_count is not None and self.max_count < self.min_count:
             raise ValueError(f"max_count {self.max_count} is below min_count {self.min_count}")
         return self

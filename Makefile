@@ -8,7 +8,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 SCENARIO ?= scenarios/quickstart.yaml
 
-.PHONY: install run test test-all bench clean distclean check-python
+.PHONY: install run test test-all bench golden clean distclean check-python
 
 check-python:
 	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "psns-hil needs Python >= 3.11, found " + sys.version.split()[0])'
@@ -32,6 +32,10 @@ test-all: install
 
 bench: install
 	$(PY) -m benchmarks
+
+# Regenerate the change-indicator records of the scenario library (tests/golden/); review and commit the diff.
+golden: install
+	$(PY) -m emulator.golden --update
 
 clean:
 	rm -rf runs .pytest_cache .hypothesis

@@ -245,7 +245,7 @@ def compare_inputs(new: str, old: str) -> list[str]:
 
     n, o = parse(new), parse(old)
     out = []
-    for key in sorted(set(n) | set(o)):
+    for key in sorted(set(n) | set(o), key=lambda k: (k[0], k[1], k[2] != "total", k[2])):
         if n.get(key) == o.get(key):
             continue
         link, d, what = key

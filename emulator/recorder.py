@@ -279,7 +279,7 @@ class Recorder:
             self.flush()
             self._last_flush = now
 
-    def emit(self, t: float, source: str, kind: str, **data: Any) -> None:
+    def emit(self, t: float, source: str, kind: str, /, **data: Any) -> None:
         rec = {"t_s": round(t, 9), "source": source, "event": kind}
         rec.update(data)
         self._events.write(json.dumps(rec, default=_json_default) + "\n")

@@ -13,13 +13,13 @@ __all__ = ["EventSink", "NullEvents", "device_rng"]
 class EventSink(Protocol):
     """Receives device events (faults, mode switches, deadline misses, ...)."""
 
-    def emit(self, t: float, source: str, kind: str, **data: Any) -> None: ...
+    def emit(self, t: float, source: str, kind: str, /, **data: Any) -> None: ...
 
 
 class NullEvents:
     """An :class:`EventSink` that drops everything."""
 
-    def emit(self, t: float, source: str, kind: str, **data: Any) -> None:  # noqa: D102
+    def emit(self, t: float, source: str, kind: str, /, **data: Any) -> None:  # noqa: D102
         return None
 
 

@@ -1,0 +1,60 @@
+"""Fixtures for the distributed transports: free loopback ports, zenoh link pairs that always close."""
+
+from __future__ import annotations
+
+import asyncio
+import socket
+from typing import Any, Callable
+
+import pytest
+
+from emulator.clock import EmulatorLoop
+from emulator.links import LineConfig, open_link
+
+
+def free_tcp_port() -> int:
+    """A TCP port on 127.0.0.1 that was free a moment ago (the OS picks it: no fixed-port collisions)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+async def wait_until(pred: Callable[[], bool], timeout_s: float, poll_s: float = 0.002) -> bool:
+    """Wait in the emulator's clock (realtime loop here) until ``pred()``; False on timeout."""
+    loop = asyncio.get_running_loop()
+    end = loop.time() + timeout_s
+    while not pred():
+        if loop.time() >= end:
+            return False
+        await asyncio.sleep(poll_s)
+    return True
+
+
+@pytest.fixture
+def rt_loop():
+    """A realtime EmulatorLoop, closed after the test."""
+    loop = EmulatorLoop("realtime")
+    asyncio.set_event_loop(loop)
+    yield loop
+    asyncio.set_event_loop(None)
+    loop.close()
+
+
+@pytest.fixture
+def zenoh_links(rt_loop):
+    """Factory ``make(url, name, line=...) -> opened ZenohLink``; every link is closed afterwards and
+    the test fails if a zenoh session stays open."""
+    from emulator.links.zenoh import open_sessions
+
+    made: list[Any] = []
+
+    def make(url: str, name: str = "port", line: LineConfig = LineConfig(baud=460800)) -> Any:
+        link = open_link(url, name, rt_loop, default_line=line)
+        rt_loop.run_until_complete(link.open())
+        made.append(link)
+        return link
+
+    yield make
+    for link in made:
+        rt_loop.run_until_complete(link.close())
+    assert open_sessions() == 0

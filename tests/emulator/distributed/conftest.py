@@ -58,3 +58,28 @@ def zenoh_links(rt_loop):
     for link in made:
         rt_loop.run_until_complete(link.close())
     assert open_sessions() == 0
+
+
+def write_short_scenario(path, duration_s: float, name: str = "short", links: dict | None = None,
+                         mode: str | None = None, expectations: list | None = None) -> "Path":
+    """The library quickstart scenario cut to ``duration_s`` (and optionally other links/mode), as a file."""
+    from pathlib import Path
+
+    import yaml
+
+    root = Path(__file__).resolve().parents[3]
+    data = yaml.safe_load((root / "scenarios" / "quickstart.yaml").read_text())
+    data["name"] = name
+    data["duration_s"] = duration_s
+    data["motion"] = [{"static": {"duration_s": duration_s}}]
+    data["expectations"] = [e for e in data.get("expectations", [])
+                            if "nav_error" not in e or e["nav_error"].get("after_s", 0) < duration_s]
+    if expectations is not None:
+        data["expectations"] = expectations
+    if links:
+        data.setdefault("links", {}).update(links)
+    if mode is not None:
+        data["mode"] = mode
+    p = Path(path)
+    p.write_text(yaml.safe_dump(data, sort_keys=False))
+    return p

@@ -157,6 +157,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return EXIT_OK if summary.get("passed", True) else EXIT_FAILED
 
 
+def _cmd_campaign(args: argparse.Namespace) -> int:
+    from .campaign import cli_main
+
+    return cli_main(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="psns-hil", description="PSNS/GNSS/SINS navigation computer HIL emulator")
     p.add_argument("--version", action="version", version=f"psns-hil {__version__}")
@@ -176,6 +182,10 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("scenario")
     v.add_argument("--json", action="store_true", help="print the validated scenario with defaults")
     v.set_defaults(func=_cmd_validate)
+
+    from .campaign import add_cli_parser
+
+    add_cli_parser(sub).set_defaults(func=_cmd_campaign)
     return p
 
 

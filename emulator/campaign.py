@@ -342,6 +342,14 @@ def run_member(task: MemberTask) -> dict[str, Any]:
     return row
 
 
+def warm_up() -> bool:
+    """Import what a member needs (run on every worker with ``client.run(warm_up)`` before timing)."""
+    from . import runner  # noqa: F401
+    from .scenario import loader  # noqa: F401
+
+    return True
+
+
 # -- statistics -----------------------------------------------------------------------------------------
 _PCTS = (5, 50, 95)
 

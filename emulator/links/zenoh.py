@@ -303,6 +303,10 @@ class ZenohLink(Link):
 
     # -- lifecycle ------------------------------------------------------------------------------
     async def open(self) -> None:
+        self.open_now()
+
+    def open_now(self) -> None:
+        """Open synchronously (zenoh's API is synchronous; :meth:`open` is this for the async callers)."""
         zenoh = _zenoh()
         self.session = acquire_session(self.endpoint)
         try:
@@ -314,7 +318,7 @@ class ZenohLink(Link):
                 self.nav_publisher = NavJsonPublisher(self._nav_pub, self.nav_direction)
                 self.listeners.append(self.nav_publisher)
         except zenoh.ZError as exc:
-            await self.close()
+            self._release()
             raise LinkBrokenError(f"{self.name}: cannot declare zenoh entities on {self.key_prefix}: {exc}") from exc
 
     def _on_sample(self, sample: Any) -> None:
@@ -365,6 +369,10 @@ class ZenohLink(Link):
 
     async def close(self) -> None:
         await super().close()
+        self._release()
+
+    def _release(self) -> None:
+        self.closed = True
         for attr in ("_sub", "_pub", "_nav_pub"):
             ent = getattr(self, attr)
             setattr(self, attr, None)

@@ -1,11 +1,24 @@
-"""GNSS receiver: 1 Hz fixes as NMEA GGA + RMC on an RS422 link, and the PPS line.
+"""GNSS receiver: fixes as NMEA GGA + RMC on an RS422 link, the PPS line, outages and glitches.
 
-At every whole UTC second the receiver raises PPS (latched by the FPGA) and, ``latency_s``
-later, writes the sentences of that epoch; at 9600 baud a GGA + RMC pair takes ~0.15 s on the
-wire. Errors (base paper figures, DESIGN.md section 2, read as 95 % bounds, docs/decisions.md):
-horizontal position < 10 m (95 % radial: 4.08 m per axis), vertical < 15 m (95 %: 7.5 m), as a
-first-order Gauss-Markov process (``pos_corr_time_s``) plus a white part; horizontal velocity
-0.1 m/s (95 % radial: 0.041 m/s per axis) and vertical 0.2 m/s (0.1 m/s), white.
+At every epoch (whole UTC seconds at 1 Hz) the receiver raises PPS (latched by the FPGA; its
+edge carries a Gaussian jitter, the paper's "second pulse accuracy 50 ns" read as 95 %) and,
+``latency_s`` later, writes the sentences of that epoch; at 9600 baud a GGA + RMC pair takes
+~0.15 s on the wire.
+
+Errors (:class:`GnssErrorModel`; base paper figures, DESIGN.md section 2, read as 95 % bounds,
+docs/decisions.md D1): horizontal position < 10 m (95 % radial: 4.08 m per axis), vertical
+< 15 m (95 %: 7.5 m), each axis the sum of a first-order Gauss-Markov process
+(``pos_corr_time_s``) and a white part (``pos_white_fraction`` of the sigma), with the total
+variance equal to the configured sigma squared; horizontal velocity 0.1 m/s (95 % radial:
+0.041 m/s per axis), vertical 0.2 m/s (0.1 m/s), white.
+
+Fix types: GGA quality (1 GPS, 2 DGPS, 4 RTK fixed, 5 RTK float) with the matching RMC mode
+letter. Outages (``outages``: start and duration): no fix (GGA quality 0, RMC status V) and no
+PPS; after the outage the receiver re-acquires in ``reacquisition_s`` (the paper's "loss of lock
+recapture time < 1 s"), and the Gauss-Markov error restarts from a fresh draw. Glitches
+(``glitches``): a position jump (ENU metres) added during a time window, as a multipath or
+false-lock event would.
+
 Height in GGA is above MSL: ``h_msl = h - geoid_sep_m``.
 """
 
@@ -24,11 +37,12 @@ from protocols.nmea import build_gga, build_rmc
 from ..links.base import Link
 from ..world.trajectory import Trajectory
 
-__all__ = ["GnssErrors", "GnssReceiver"]
+__all__ = ["GnssErrors", "GnssConfig", "GnssOutage", "GnssGlitch", "GnssErrorModel", "GnssReceiver", "RADIAL_95"]
 
 DEG = math.pi / 180.0
 #: 95 % radius of a circular 2-D normal error, in per-axis sigmas: sqrt(-2 ln 0.05).
 RADIAL_95 = math.sqrt(-2.0 * math.log(0.05))
+RMC_MODE = {1: "A", 2: "D", 4: "R", 5: "F", 6: "E"}
 
 
 @dataclass
@@ -41,6 +55,26 @@ class GnssErrors:
     pos_corr_time_s: float = 300.0
     vel_sigma_h_mps: float = 0.1 / RADIAL_95
     vel_sigma_v_mps: float = 0.2 / 2.0
+    pps_jitter_ns: float = 50.0 / 2.0
+
+
+@dataclass
+class GnssOutage:
+    start_s: float
+    duration_s: float
+
+    def covers(self, t: float) -> bool:
+        return self.start_s <= t < self.start_s + self.duration_s
+
+
+@dataclass
+class GnssGlitch:
+    start_s: float
+    duration_s: float
+    offset_enu_m: tuple[float, float, float]
+
+    def covers(self, t: float) -> bool:
+        return self.start_s <= t < self.start_s + self.duration_s
 
 
 @dataclass
@@ -52,7 +86,44 @@ class GnssConfig:
     num_sats: int = 12
     hdop: float = 0.8
     geoid_sep_m: float = 0.0
+    fix_quality: int = 1
+    reacquisition_s: float = 0.8
+    outages: tuple[GnssOutage, ...] = ()
+    glitches: tuple[GnssGlitch, ...] = ()
     errors: GnssErrors = field(default_factory=GnssErrors)
+
+
+class GnssErrorModel:
+    """Position (GM + white) and velocity (white) errors in ENU metres; vectorised over a batch of receivers.
+
+    Parameters
+    ----------
+    e : figures.
+    rng : generator.
+    batch : number of independent receivers (1 for a device; many for statistics).
+    """
+
+    def __init__(self, e: GnssErrors, rng: np.random.Generator, batch: int = 1) -> None:
+        self.e = e
+        self.rng = rng
+        sig = np.array([e.pos_sigma_h_m, e.pos_sigma_h_m, e.pos_sigma_v_m])
+        wf = e.pos_white_fraction
+        self.sig_gm = sig * math.sqrt(max(0.0, 1.0 - wf * wf))
+        self.sig_w = sig * wf
+        self.sig_v = np.array([e.vel_sigma_h_mps, e.vel_sigma_h_mps, e.vel_sigma_v_mps])
+        self.batch = batch
+        self.gm = self.rng.standard_normal((batch, 3)) * self.sig_gm
+
+    def restart(self) -> None:
+        """Fresh Gauss-Markov draw (after re-acquisition)."""
+        self.gm = self.rng.standard_normal((self.batch, 3)) * self.sig_gm
+
+    def step(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """Advance by ``dt`` s; returns (batch, 3) position and velocity errors (E, N, U)."""
+        a = math.exp(-dt / self.e.pos_corr_time_s)
+        w = self.rng.standard_normal((3, self.batch, 3))
+        self.gm = a * self.gm + math.sqrt(1.0 - a * a) * self.sig_gm * w[0]
+        return self.gm + self.sig_w * w[1], self.sig_v * w[2]
 
 
 class GnssReceiver:
@@ -74,13 +145,13 @@ class GnssReceiver:
         self.rng = rng
         self.cfg = cfg or GnssConfig()
         self.pps = pps
-        e = self.cfg.errors
-        self._sig_gm = np.array([e.pos_sigma_h_m, e.pos_sigma_h_m, e.pos_sigma_v_m]) * math.sqrt(1 - e.pos_white_fraction**2)
-        self._sig_w = np.array([e.pos_sigma_h_m, e.pos_sigma_h_m, e.pos_sigma_v_m]) * e.pos_white_fraction
-        self.gm = rng.standard_normal(3) * self._sig_gm
+        self.errors = GnssErrorModel(self.cfg.errors, rng)
         self.epochs_sent = 0
+        self.fixes_sent = 0
         self.last_error_enu = np.zeros(3)
         self.last_vel_error_enu = np.zeros(3)
+        self._lost_until: float | None = None
+        self._last_t: float | None = None
 
     def start(self) -> None:
         """Schedule the first epoch at the first whole UTC second at or after t = 0."""
@@ -91,40 +162,69 @@ class GnssReceiver:
     def _schedule(self, t: float) -> None:
         self.link.loop.call_at(t, self._epoch, t)
 
+    def has_fix(self, t: float) -> bool:
+        """No fix inside an outage and for ``reacquisition_s`` after it."""
+        cfg = self.cfg
+        for o in cfg.outages:
+            if o.covers(t) or (o.start_s + o.duration_s <= t < o.start_s + o.duration_s + cfg.reacquisition_s):
+                return False
+        return True
+
     def _epoch(self, t: float) -> None:
-        if self.pps is not None:
-            self.pps(t)
-        self.link.loop.call_at(t + self.cfg.latency_s, self._emit, t)
+        fix = self.has_fix(t)
+        if fix and self.pps is not None:
+            jitter = self.rng.standard_normal() * self.cfg.errors.pps_jitter_ns * 1e-9
+            self.pps(t + jitter)
+        self.link.loop.call_at(t + self.cfg.latency_s, self._emit, t, fix)
         self._schedule(t + 1.0 / self.cfg.rate_hz)
 
-    def _emit(self, t: float) -> None:
+    def _emit(self, t: float, fix: bool) -> None:
+        out = self.sentences(t, fix)
+        if out:
+            self.link.send(out)
+        self.epochs_sent += 1
+
+    def sentences(self, t: float, fix: bool = True) -> bytes:
+        """The NMEA bytes of the epoch at ``t`` (advances the error model)."""
         cfg = self.cfg
-        e = cfg.errors
-        st = self.traj.state(t)
-        dt = 1.0 / cfg.rate_hz
-        a = math.exp(-dt / e.pos_corr_time_s)
-        self.gm = a * self.gm + math.sqrt(1 - a * a) * self._sig_gm * self.rng.standard_normal(3)
-        err = self.gm + self._sig_w * self.rng.standard_normal(3)  # E, N, U metres
+        dt = 1.0 / cfg.rate_hz if self._last_t is None else t - self._last_t
+        self._last_t = t
+        utc = self.epoch + _dt.timedelta(seconds=t)
+        tm = utc.time()
+        out = bytearray()
+        if not fix:
+            self._lost_until = t
+            for kind in cfg.sentences:
+                if kind == "GGA":
+                    out += build_gga(tm, 0.0, 0.0, 0.0, 0.0, quality=0, talker=cfg.talker)
+                elif kind == "RMC":
+                    out += build_rmc(tm, utc.date(), 0.0, 0.0, 0.0, 0.0, valid=False, talker=cfg.talker)
+            return bytes(out)
+        if self._lost_until is not None:
+            self.errors.restart()
+            self._lost_until = None
+        perr, verr = self.errors.step(max(dt, 1e-3))
+        err = perr[0].copy()
+        for g in cfg.glitches:
+            if g.covers(t):
+                err += np.asarray(g.offset_enu_m)
         self.last_error_enu = err
-        lat, lon, h = st.pos
+        self.last_vel_error_enu = verr[0]
+        st = self.traj.state(t)
+        lat, lon, h = (float(x) for x in st.pos)
         rm, rn = earth.radii(lat)
         lat_m = lat + err[1] / (rm + h)
         lon_m = lon + err[0] / ((rn + h) * math.cos(lat))
         h_m = h + err[2]
-        verr = self.rng.standard_normal(3) * np.array([e.vel_sigma_h_mps, e.vel_sigma_h_mps, e.vel_sigma_v_mps])
-        self.last_vel_error_enu = verr
-        v = st.v_enu + verr
-        utc = self.epoch + _dt.timedelta(seconds=t)
-        tm = utc.time()
-        out = bytearray()
+        v = st.v_enu + verr[0]
         for kind in cfg.sentences:
             if kind == "GGA":
                 out += build_gga(tm, lat_m / DEG, lon_m / DEG, h_m - cfg.geoid_sep_m, cfg.geoid_sep_m,
-                                 quality=1, num_sats=cfg.num_sats, hdop=cfg.hdop, talker=cfg.talker)
+                                 quality=cfg.fix_quality, num_sats=cfg.num_sats, hdop=cfg.hdop, talker=cfg.talker)
             elif kind == "RMC":
                 speed = math.hypot(v[0], v[1])
                 course = math.degrees(math.atan2(v[0], v[1])) % 360.0
-                out += build_rmc(tm, utc.date(), lat_m / DEG, lon_m / DEG, speed, course, talker=cfg.talker)
-        if out:
-            self.link.send(bytes(out))
-        self.epochs_sent += 1
+                out += build_rmc(tm, utc.date(), lat_m / DEG, lon_m / DEG, speed, course,
+                                 mode=RMC_MODE.get(cfg.fix_quality, "A"), talker=cfg.talker)
+        self.fixes_sent += 1
+        return bytes(out)

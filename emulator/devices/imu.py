@@ -2,18 +2,36 @@
 
 Both sample the same truth (:class:`ImuTruthTap`) over the FPGA's trigger interval
 ``[t_prev, t]``: the STIM210 in *average angular rate* output (the mean rate over the
-interval, TS1524 section 7.5.2.2 "average angular rate") and the accelerometers through the
-FPGA's oversampling ADC, whose boxcar average over the same interval is the mean specific
-force. Errors (``shared/reference`` figures from the base paper, DESIGN.md section 2):
+interval, TS1524 section 7.5.2.2) and the accelerometers through the FPGA's oversampling ADC,
+whose boxcar average over the same interval is the mean specific force (docs/decisions.md D4).
 
-* gyro: turn-on bias drawn from the bias repeatability (1 sigma), a first-order Gauss-Markov
-  bias with the bias-stability sigma, angle random walk (STIM210 datasheet 0.15 deg/sqrt(h)),
-  +-400 deg/s saturation, 2^-14 deg/s quantization (24-bit word);
-* accelerometers: turn-on bias (repeatability), Gauss-Markov bias (stability), white noise
-  (noise density), range saturation, then volts (V/g) and the 24-bit ADC code.
+Error model (:class:`InertialErrorModel`, one per sensor triad; figures in the YAML presets of
+``emulator/presets/imu.yaml``, sources in ``docs/sensors.md``). For the true mean input ``x``
+(rad/s or m/s^2, body axes) over an interval of length ``dt``::
 
-The paper's "< X" bias figures are limits that a unit meets; they are modelled as 3 sigma
-(docs/decisions.md), so ``sigma = X / 3``.
+    y = (I + S + M) x + A |x| + NL(x) + b_0 + b_T(T, dT/dt) + G f + b_flicker(t) + b_rrw(t) + n_white
+
+* ``S`` diagonal scale-factor errors and ``M`` off-diagonal axis misalignments (random constants
+  per unit), ``A`` the scale-factor asymmetry (half the difference between the positive and
+  negative scale factors), ``NL`` a terminal-based cubic nonlinearity
+  ``k FS (3 sqrt(3)/2)(u^3 - u)``, ``u = x/FS`` (zero at 0 and +-FS, peak ``k FS``);
+* ``b_0`` the turn-on bias (bias repeatability), ``b_T`` the residual temperature bias
+  (coefficient times ``T - T_cal`` plus a gradient term times ``dT/dt``), ``G f`` the gyro's
+  linear-acceleration sensitivity;
+* ``b_flicker`` the in-run bias instability: flicker (1/f) noise approximated by a bank of
+  first-order Gauss-Markov processes, two per decade of correlation time from 0.3 s to
+  ``bias_corr_time_s``, scaled so that the flat part of its Allan deviation equals
+  ``0.664 B`` (IEEE Std 952: the Allan-deviation floor of bias instability ``B``);
+* ``b_rrw`` a random walk of rate random walk ``K`` (Allan deviation ``K sqrt(tau/3)``);
+* ``n_white`` white noise of density ``N`` (angle / velocity random walk): the mean over ``dt``
+  has variance ``N^2/dt`` (Allan deviation ``N/sqrt(tau)``).
+
+Then the range (saturation) and the 24-bit words (STIM: 2^-14 deg/s; accelerometers: volts
+through the 24-bit ADC). The stochastic part is generated vectorised in blocks of 200 samples
+(:meth:`InertialErrorModel.noise`), which is the same code that the Allan-deviation test runs
+over a two-hour record.
+
+The paper's "< X" limits are 3 sigma (docs/decisions.md D1): the presets hold ``X / 3``.
 """
 
 from __future__ import annotations
@@ -22,21 +40,34 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.signal import lfilter
 
 from protocols.imu_frame import ACCEL_VOLTS_PER_G, ADC_CODE_MAX, ADC_VOLTS_PER_LSB
-from protocols.stim import GYRO_ANGLE_LSB_DEG, GYRO_RATE_LSB_DPS, STIM_COUNTER_HZ, Stim210Format, StimDatagram
+from protocols.stim import GYRO_ANGLE_LSB_DEG, GYRO_RATE_LSB_DPS, STIM_COUNTER_HZ, TEMP_LSB_DEGC, Stim210Format, StimDatagram
 
 from ..links.base import Link
 from ..world.trajectory import Trajectory
 
-__all__ = ["GyroErrors", "AccelErrors", "ImuTruthTap", "Stim210Gyro", "AnalogAccelerometers"]
+__all__ = [
+    "GyroErrors",
+    "AccelErrors",
+    "ImuTemperature",
+    "ImuTruthTap",
+    "InertialErrorModel",
+    "FlickerBank",
+    "gyro_error_model",
+    "accel_error_model",
+    "Stim210Gyro",
+    "AnalogAccelerometers",
+    "allan_deviation",
+]
 
 DEG = math.pi / 180.0
 DPH = DEG / 3600.0
 G_STD = 9.80665
+BLOCK = 200
 
-
-#: Base-paper limits (DESIGN.md section 2); the models use them as 3 sigma.
+#: Base-paper limits (DESIGN.md section 2); the presets use them as 3 sigma.
 PAPER_GYRO_BIAS_REPEATABILITY_DPH = 40.0
 PAPER_GYRO_BIAS_STABILITY_DPH = 20.0
 PAPER_ACCEL_BIAS_REPEATABILITY_MG = (7.0, 7.0, 7.0)
@@ -45,25 +76,239 @@ PAPER_ACCEL_BIAS_STABILITY_MG = (3.0, 4.0, 4.0)
 
 @dataclass
 class GyroErrors:
-    """STIM210 error figures, 1 sigma (units in the names)."""
+    """STIM210 error figures, 1 sigma per axis (units in the names). Defaults: the ``paper`` preset."""
 
     arw_deg_rt_h: float = 0.15
     bias_repeatability_deg_h: float = PAPER_GYRO_BIAS_REPEATABILITY_DPH / 3.0
     bias_instability_deg_h: float = PAPER_GYRO_BIAS_STABILITY_DPH / 3.0
     bias_corr_time_s: float = 600.0
+    rate_random_walk_deg_h_rt_h: float = 0.0
+    scale_factor_ppm: float = 500.0 / 3.0
+    scale_asymmetry_ppm: float = 500.0 / 3.0
+    misalignment_mrad: float = 1.0 / 3.0
+    nonlinearity_ppm_fs: float = 200.0 / 3.0
+    bias_temp_coeff_deg_h_per_c: float = 0.0
+    bias_temp_gradient_deg_h: float = 10.0
+    g_sensitivity_deg_h_per_g: float = 10.0
     range_dps: float = 400.0
 
 
 @dataclass
 class AccelErrors:
-    """Accelerometer error figures per axis, 1 sigma (x: MS9030, y/z: the +-25 g parts)."""
+    """Accelerometer error figures per axis (x: MS9030, y/z: the +-25 g parts), 1 sigma. Defaults: ``paper``."""
 
     bias_repeatability_mg: tuple[float, float, float] = tuple(x / 3.0 for x in PAPER_ACCEL_BIAS_REPEATABILITY_MG)  # type: ignore[assignment]
     bias_instability_mg: tuple[float, float, float] = tuple(x / 3.0 for x in PAPER_ACCEL_BIAS_STABILITY_MG)  # type: ignore[assignment]
     bias_corr_time_s: float = 600.0
     noise_ug_rt_hz: float = 100.0
+    bias_random_walk_mg_rt_h: float = 0.0
+    scale_factor_ppm: tuple[float, float, float] = (300.0, 1000.0 / 3.0, 1000.0 / 3.0)
+    scale_error_ppm: tuple[float, float, float] = (200.0 / 3.0, 200.0 / 3.0, 200.0 / 3.0)
+    misalignment_mrad: float = 1.0 / 3.0
+    bias_temp_coeff_mg_per_c: float = 0.0
     range_g: tuple[float, float, float] = (30.0, 25.0, 25.0)
     volts_per_g: tuple[float, float, float] = field(default_factory=lambda: ACCEL_VOLTS_PER_G)
+
+
+@dataclass
+class ImuTemperature:
+    """IMU temperature profile ``T(t) = start_c + rate_c_per_min t / 60`` and the calibration temperature."""
+
+    start_c: float = 25.0
+    rate_c_per_min: float = 0.0
+    cal_c: float = 25.0
+
+    def at(self, t: float) -> float:
+        return self.start_c + self.rate_c_per_min * t / 60.0
+
+
+def _av_gm(q: float, tau_c: float, T: np.ndarray) -> np.ndarray:
+    """Allan variance of a first-order Gauss-Markov process of variance ``q`` and correlation time ``tau_c``."""
+    x = T / tau_c
+    return q * tau_c**2 / T**2 * (2 * x - 3 + 4 * np.exp(-x) - np.exp(-2 * x))
+
+
+class FlickerBank:
+    """Flicker (1/f) bias noise as a bank of Gauss-Markov processes (see module docstring).
+
+    Parameters
+    ----------
+    b : bias-instability coefficient ``B`` (SI), the Allan floor is ``0.664 B``.
+    tau_max : longest correlation time, s. ``tau_min`` shortest.
+    """
+
+    FLOOR = math.sqrt(2.0 * math.log(2.0) / math.pi)  # 0.664
+
+    def __init__(self, b: np.ndarray, tau_max: float, tau_min: float = 0.3, per_decade: int = 2) -> None:
+        k = np.arange(0, 100)
+        taus = tau_max * 10.0 ** (-k / per_decade)
+        self.taus = taus[taus >= tau_min] if tau_max > tau_min else np.array([tau_max])
+        T = np.logspace(math.log10(max(self.taus.min(), 1e-3)), math.log10(self.taus.max()), 200)
+        unit = np.sqrt(sum(_av_gm(1.0, tc, T) for tc in self.taus)).max()
+        b = np.asarray(b, dtype=np.float64)
+        #: per-process standard deviation (n_axes,)
+        self.sigma = self.FLOOR * b / unit
+        self.state = np.zeros((len(self.taus), len(b)))
+
+    def init_stationary(self, rng: np.random.Generator) -> None:
+        self.state = rng.standard_normal(self.state.shape) * self.sigma[None, :]
+
+    def block(self, w: np.ndarray, dt: float) -> np.ndarray:
+        """Advance by ``len(w)`` steps of ``dt`` driven by ``w`` (n, K, axes) standard normals; returns (n, axes)."""
+        out = np.zeros((w.shape[0], w.shape[2]))
+        for i, tc in enumerate(self.taus):
+            a = math.exp(-dt / tc)
+            b = math.sqrt(1.0 - a * a)
+            for ax in range(w.shape[2]):
+                if self.sigma[ax] == 0.0:
+                    continue
+                y, zf = lfilter([b * self.sigma[ax]], [1.0, -a], w[:, i, ax], zi=[a * self.state[i, ax]])
+                out[:, ax] += y
+                self.state[i, ax] = y[-1]
+        return out
+
+    def allan_variance(self, T: np.ndarray) -> np.ndarray:
+        """Analytic Allan variance of the bank (n_T, axes)."""
+        return np.stack([sum(_av_gm(s * s, tc, T) for tc in self.taus) for s in self.sigma], axis=1)
+
+
+class InertialErrorModel:
+    """Errors of one sensor triad (see module docstring); all quantities SI.
+
+    Parameters
+    ----------
+    white : (3,) white-noise density ``N`` (SI sqrt(s): rad/sqrt(s) or m/s/sqrt(s)).
+    bias_instability : (3,) ``B`` (SI), with ``bias_corr_time_s`` the top of the flicker band.
+    rrw : (3,) rate random walk ``K`` (SI/sqrt(s)).
+    bias0 : (3,) turn-on bias (drawn by the caller).
+    m : (3, 3) ``I + S + M``; ``asym`` (3,) asymmetry; ``nl`` (3,) nonlinearity peak (SI) with ``fs`` (3,) full scale.
+    temp_coeff, temp_gradient : (3,) bias per degC and per (degC/min) (SI).
+    g_sens : (3, 3) bias per m/s^2 of specific force (gyro), or None.
+    """
+
+    def __init__(self, rng: np.random.Generator, white: np.ndarray, bias_instability: np.ndarray, bias_corr_time_s: float,
+                 rrw: np.ndarray, bias0: np.ndarray, m: np.ndarray, asym: np.ndarray, nl: np.ndarray, fs: np.ndarray,
+                 temp_coeff: np.ndarray, temp_gradient: np.ndarray, g_sens: np.ndarray | None = None) -> None:
+        self.rng = rng
+        self.white = np.asarray(white, dtype=np.float64)
+        self.flicker = FlickerBank(np.asarray(bias_instability, dtype=np.float64), bias_corr_time_s)
+        self.flicker.init_stationary(rng)
+        self.rrw = np.asarray(rrw, dtype=np.float64)
+        self.rw_state = np.zeros(3)
+        self.bias0 = np.asarray(bias0, dtype=np.float64)
+        self.m = np.asarray(m, dtype=np.float64)
+        self.asym = np.asarray(asym, dtype=np.float64)
+        self.nl = np.asarray(nl, dtype=np.float64)
+        self.fs = np.asarray(fs, dtype=np.float64)
+        self.temp_coeff = np.asarray(temp_coeff, dtype=np.float64)
+        self.temp_gradient = np.asarray(temp_gradient, dtype=np.float64)
+        self.g_sens = g_sens
+        self._block: np.ndarray | None = None
+        self._block_i = 0
+        self._block_dt = 0.0
+        self._stochastic = bool(np.any(self.white) or np.any(self.flicker.sigma) or np.any(self.rrw))
+        self._deterministic = bool(np.any(self.m != np.eye(3)))
+        self._has_asym = bool(np.any(self.asym))
+        self._has_nl = bool(np.any(self.nl))
+        self._has_temp = bool(np.any(self.temp_coeff) or np.any(self.temp_gradient))
+
+    # -- stochastic part ---------------------------------------------------------------------
+    def noise(self, n: int, dt: float) -> np.ndarray:
+        """(n, 3) stochastic errors of the next ``n`` intervals of ``dt``: white mean + flicker + random walk."""
+        k = len(self.flicker.taus)
+        w = self.rng.standard_normal((n, 2 + k, 3))
+        out = w[:, 0, :] * (self.white / math.sqrt(dt))
+        out += self.flicker.block(w[:, 2:, :], dt)
+        if np.any(self.rrw):
+            rw = self.rw_state + np.cumsum(w[:, 1, :] * (self.rrw * math.sqrt(dt)), axis=0)
+            self.rw_state = rw[-1].copy()
+            out += rw
+        return out
+
+    def next_noise(self, dt: float) -> np.ndarray:
+        """The stochastic error of one interval (from a vectorised block of 200)."""
+        if not self._stochastic:
+            return np.zeros(3)
+        if self._block is None or self._block_i >= BLOCK or abs(dt - self._block_dt) > 1e-9 * dt:
+            self._block = self.noise(BLOCK, dt)
+            self._block_i = 0
+            self._block_dt = dt
+        v = self._block[self._block_i]
+        self._block_i += 1
+        return v
+
+    # -- deterministic part ------------------------------------------------------------------
+    def deterministic(self, x: np.ndarray, temp_c: float = 25.0, temp_rate_c_per_min: float = 0.0,
+                      cal_c: float = 25.0, f_b: np.ndarray | None = None) -> np.ndarray:
+        """Input ``x`` (.., 3) through scale, misalignment, asymmetry, nonlinearity and the constant biases."""
+        y = x @ self.m.T if self._deterministic else np.array(x, dtype=np.float64)
+        if self._has_asym:
+            y = y + self.asym * np.abs(x)
+        if self._has_nl:
+            u = x / self.fs
+            y = y + self.nl * (1.5 * math.sqrt(3.0)) * (u * u * u - u)
+        y = y + self.bias0
+        if self._has_temp:
+            y = y + self.temp_coeff * (temp_c - cal_c) + self.temp_gradient * temp_rate_c_per_min
+        if self.g_sens is not None and f_b is not None:
+            y = y + self.g_sens @ f_b if np.ndim(f_b) == 1 else y + f_b @ self.g_sens.T
+        return y
+
+    def measure(self, x: np.ndarray, dt: float, temp_c: float = 25.0, temp_rate_c_per_min: float = 0.0,
+                cal_c: float = 25.0, f_b: np.ndarray | None = None) -> np.ndarray:
+        """One interval: ``x`` (3,) true mean input -> measured mean (before range and quantization)."""
+        return self.deterministic(x, temp_c, temp_rate_c_per_min, cal_c, f_b) + self.next_noise(dt)
+
+
+def _misalignment(rng: np.random.Generator, sigma: float) -> np.ndarray:
+    m = rng.standard_normal((3, 3)) * sigma
+    np.fill_diagonal(m, 0.0)
+    return m
+
+
+def gyro_error_model(e: GyroErrors, rng: np.random.Generator) -> InertialErrorModel:
+    """Draw one STIM210 unit from the figures ``e`` (turn-on constants) and return its error model."""
+    sf = rng.standard_normal(3) * e.scale_factor_ppm * 1e-6
+    m = np.eye(3) + np.diag(sf) + _misalignment(rng, e.misalignment_mrad * 1e-3)
+    fs = np.full(3, e.range_dps * DEG)
+    g_sens = rng.standard_normal((3, 3)) * (e.g_sensitivity_deg_h_per_g * DPH / G_STD / math.sqrt(3.0))
+    return InertialErrorModel(
+        rng,
+        white=np.full(3, e.arw_deg_rt_h * DEG / 60.0),
+        bias_instability=np.full(3, e.bias_instability_deg_h * DPH),
+        bias_corr_time_s=e.bias_corr_time_s,
+        rrw=np.full(3, e.rate_random_walk_deg_h_rt_h * DPH / 60.0),
+        bias0=rng.standard_normal(3) * e.bias_repeatability_deg_h * DPH,
+        m=m,
+        asym=rng.standard_normal(3) * e.scale_asymmetry_ppm * 1e-6,
+        nl=rng.standard_normal(3) * e.nonlinearity_ppm_fs * 1e-6 * fs,
+        fs=fs,
+        temp_coeff=rng.standard_normal(3) * e.bias_temp_coeff_deg_h_per_c * DPH,
+        temp_gradient=rng.standard_normal(3) * e.bias_temp_gradient_deg_h * DPH,
+        g_sens=g_sens if e.g_sensitivity_deg_h_per_g > 0 else None,
+    )
+
+
+def accel_error_model(e: AccelErrors, rng: np.random.Generator) -> InertialErrorModel:
+    """Draw one accelerometer triad from the figures ``e``."""
+    g = 1e-3 * G_STD
+    sf = rng.standard_normal(3) * np.hypot(np.array(e.scale_factor_ppm), np.array(e.scale_error_ppm)) * 1e-6
+    m = np.eye(3) + np.diag(sf) + _misalignment(rng, e.misalignment_mrad * 1e-3)
+    fs = np.array(e.range_g) * G_STD
+    return InertialErrorModel(
+        rng,
+        white=np.full(3, e.noise_ug_rt_hz * 1e-6 * G_STD),
+        bias_instability=np.array(e.bias_instability_mg) * g,
+        bias_corr_time_s=e.bias_corr_time_s,
+        rrw=np.full(3, e.bias_random_walk_mg_rt_h * g / 60.0),
+        bias0=rng.standard_normal(3) * np.array(e.bias_repeatability_mg) * g,
+        m=m,
+        asym=np.zeros(3),
+        nl=np.zeros(3),
+        fs=fs,
+        temp_coeff=rng.standard_normal(3) * e.bias_temp_coeff_mg_per_c * g,
+        temp_gradient=np.zeros(3),
+    )
 
 
 class ImuTruthTap:
@@ -81,11 +326,6 @@ class ImuTruthTap:
         return self._val
 
 
-def _gm_step(x: np.ndarray, sigma: np.ndarray, tau: float, dt: float, rng: np.random.Generator) -> np.ndarray:
-    a = math.exp(-dt / tau)
-    return a * x + np.sqrt(1.0 - a * a) * sigma * rng.standard_normal(3)
-
-
 class Stim210Gyro:
     """A STIM210 in external-trigger mode on an RS422 link.
 
@@ -93,41 +333,52 @@ class Stim210Gyro:
     ----------
     link : the gyro's serial link to the FPGA GYRO port.
     tap : truth increments.
+    errors : the unit's figures (drawn once into an :class:`InertialErrorModel`).
     fmt : datagram format letter (default ``"m"``: rate, counter, latency).
     output : ``"rate"`` (average angular rate) or ``"angle"`` (incremental angle).
     response_delay_s : trigger edge to start of transmission (<= 86 us, TS1524 5.3).
     latency_us : value reported in the latency field.
+    temperature : temperature profile (reported in formats with temperature words).
+    source : recorded data (:mod:`emulator.devices.recorded`): ``f(t0, t1) -> mean rate (3,) rad/s``
+        replaces truth and error model.
     """
 
     def __init__(self, link: Link, tap: ImuTruthTap, rng: np.random.Generator, errors: GyroErrors | None = None,
                  fmt: str = "m", output: str = "rate", response_delay_s: float = 40e-6,
-                 trigger_rate_hz: float = 200.0, latency_us: int = 0) -> None:
+                 trigger_rate_hz: float = 200.0, latency_us: int = 0, temperature: ImuTemperature | None = None,
+                 source=None) -> None:
         self.link = link
         self.tap = tap
         self.rng = rng
         self.err = errors or GyroErrors()
+        self.model = gyro_error_model(self.err, rng)
         self.format = Stim210Format(fmt)
         self.output = output
         self.response_delay_s = response_delay_s
         self.latency_us = latency_us
+        self.temperature = temperature or ImuTemperature()
+        self.source = source
         self.counter = 0
         self.counter_step = int(round(STIM_COUNTER_HZ / trigger_rate_hz))
-        e = self.err
-        self.turn_on_bias = rng.standard_normal(3) * e.bias_repeatability_deg_h * DPH
-        self.gm_bias = rng.standard_normal(3) * e.bias_instability_deg_h * DPH
-        self._t_prev: float | None = None
         self.datagrams_sent = 0
         self.last_measured = np.zeros(3)
+        self._accel_hint: np.ndarray | None = None
+
+    @property
+    def turn_on_bias(self) -> np.ndarray:
+        return self.model.bias0
 
     def trigger(self, t: float, t_prev: float) -> None:
         """External-trigger falling edge at ``t`` (scenario s); interval started at ``t_prev``."""
         dt = t - t_prev
-        dtheta, _ = self.tap.increments(t_prev, t)
-        e = self.err
-        self.gm_bias = _gm_step(self.gm_bias, np.full(3, e.bias_instability_deg_h * DPH), e.bias_corr_time_s, dt, self.rng)
-        arw = e.arw_deg_rt_h * DEG / 60.0  # rad/sqrt(s)
-        rate = dtheta / dt + self.turn_on_bias + self.gm_bias + self.rng.standard_normal(3) * (arw / math.sqrt(dt))
-        lim = e.range_dps * DEG
+        temp = self.temperature
+        t_c = temp.at(t)
+        if self.source is not None:
+            rate = np.asarray(self.source(t_prev, t), dtype=np.float64)
+        else:
+            dtheta, dv = self.tap.increments(t_prev, t)
+            rate = self.model.measure(dtheta / dt, dt, t_c, temp.rate_c_per_min, temp.cal_c, dv / dt)
+        lim = self.err.range_dps * DEG
         rate = np.clip(rate, -lim, lim)
         self.last_measured = rate
         if self.output == "rate":
@@ -136,13 +387,14 @@ class Stim210Gyro:
             words = np.round(rate * dt / (GYRO_ANGLE_LSB_DEG * DEG))
         words = np.clip(words, -0x800000, 0x7FFFFF).astype(np.int64)
         self.counter = (self.counter + self.counter_step) & 0xFF
+        tw = int(round(t_c / TEMP_LSB_DEGC))
         d = StimDatagram(
             ident=self.format.ident,
             gyro=(int(words[0]), int(words[1]), int(words[2])),
             status=0,
             counter=self.counter,
             latency_us=self.latency_us,
-            temperature=(25 * 256, 25 * 256, 25 * 256),
+            temperature=(tw, tw, tw),
         )
         frame = self.format.build(d)
         self.link.loop.call_at(t + self.response_delay_s, self._send, frame)
@@ -153,29 +405,56 @@ class Stim210Gyro:
 
 
 class AnalogAccelerometers:
-    """Three analog accelerometers behind the FPGA's 24-bit oversampling ADC."""
+    """Three analog accelerometers behind the FPGA's 24-bit oversampling ADC.
 
-    def __init__(self, tap: ImuTruthTap, rng: np.random.Generator, errors: AccelErrors | None = None) -> None:
+    ``source`` (recorded data): ``f(t0, t1) -> mean specific force (3,) m/s^2`` replaces truth and errors.
+    """
+
+    def __init__(self, tap: ImuTruthTap, rng: np.random.Generator, errors: AccelErrors | None = None,
+                 temperature: ImuTemperature | None = None, source=None) -> None:
         self.tap = tap
         self.rng = rng
         self.err = e = errors or AccelErrors()
-        self.turn_on_bias = rng.standard_normal(3) * np.array(e.bias_repeatability_mg) * 1e-3 * G_STD
-        self._gm_sigma = np.array(e.bias_instability_mg) * 1e-3 * G_STD
-        self.gm_bias = rng.standard_normal(3) * self._gm_sigma
+        self.model = accel_error_model(e, rng)
+        self.temperature = temperature or ImuTemperature()
+        self.source = source
         self.last_measured = np.zeros(3)
+        self._range = np.array(e.range_g)
+        self._vpg = np.array(e.volts_per_g)
+
+    @property
+    def turn_on_bias(self) -> np.ndarray:
+        return self.model.bias0
 
     def sample(self, t: float, t_prev: float) -> tuple[int, int, int]:
         """ADC codes of the mean specific force over ``[t_prev, t]``."""
         dt = t - t_prev
-        _, dv = self.tap.increments(t_prev, t)
-        e = self.err
-        self.gm_bias = _gm_step(self.gm_bias, self._gm_sigma, e.bias_corr_time_s, dt, self.rng)
-        # white noise of density rho over the Nyquist band of the trigger rate: sigma = rho sqrt(fs/2)
-        sigma = e.noise_ug_rt_hz * 1e-6 * G_STD * math.sqrt(0.5 / dt)
-        f = dv / dt + self.turn_on_bias + self.gm_bias + self.rng.standard_normal(3) * sigma
-        rng_g = np.array(e.range_g)
-        f_g = np.clip(f / G_STD, -rng_g, rng_g)
+        if self.source is not None:
+            f = np.asarray(self.source(t_prev, t), dtype=np.float64)
+        else:
+            _, dv = self.tap.increments(t_prev, t)
+            temp = self.temperature
+            f = self.model.measure(dv / dt, dt, temp.at(t), temp.rate_c_per_min, temp.cal_c)
+        f_g = np.clip(f / G_STD, -self._range, self._range)
         self.last_measured = f_g * G_STD
-        volts = f_g * np.array(e.volts_per_g)
+        volts = f_g * self._vpg
         codes = np.clip(np.round(volts / ADC_VOLTS_PER_LSB), -ADC_CODE_MAX - 1, ADC_CODE_MAX).astype(np.int64)
         return int(codes[0]), int(codes[1]), int(codes[2])
+
+
+def allan_deviation(y: np.ndarray, dt: float, taus: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Overlapping Allan deviation of rate samples ``y`` (n,) or (n, k) taken every ``dt``.
+
+    Returns the cluster times actually used (multiples of ``dt``) and the deviations.
+    """
+    y = np.asarray(y, dtype=np.float64)
+    theta = np.concatenate([np.zeros((1,) + y.shape[1:]), np.cumsum(y, axis=0) * dt])
+    n = len(y)
+    ms = np.unique(np.maximum(1, np.round(np.asarray(taus) / dt).astype(int)))
+    ms = ms[ms < n // 2]
+    out = []
+    for m in ms:
+        d = theta[2 * m:] - 2 * theta[m:-m] + theta[:-2 * m]
+        out.append(np.sqrt(np.mean(d * d, axis=0) / (2.0 * (m * dt) ** 2)))
+    return ms * dt, np.array(out)
+

@@ -1,83 +1,234 @@
-"""Build the sensor devices of a scenario (presets + overrides -> error models -> devices)."""
+"""Build the sensor devices of a scenario (presets + overrides -> error models -> devices).
+
+:func:`build_sensors` is the runner's single call site (contract C3). It creates every sensor
+whose port is wired in-process (an ``internal`` link end) and the FPGA-sampled devices
+(accelerometers, magnetometer), from the scenario's ``sensors`` section: each sensor takes its
+named preset (``emulator/presets/*.yaml``), applies the scenario's overrides, and reads a
+recorded file instead of its model when ``recorded:`` is given.
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Callable
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
 
+import numpy as np
+
+from ..errors import ScenarioError
 from ..links.base import Link
 from ..scenario.schema import Scenario
+from ..world.sky import SkyModel, sky_from_spec
+from ..world.sun import SunModel
 from ..world.trajectory import Trajectory
 from .base import device_rng
-from .gnss import GnssConfig, GnssErrors, GnssReceiver
-from .imu import AccelErrors, AnalogAccelerometers, GyroErrors, ImuTruthTap, Stim210Gyro
+from .camera import CameraConfig, PolarizationCamera, PolarizationCameraModel, mounting_matrix
+from .compass import CompassConfig, CompassModel, PolarizationCompass, default_mountings, perturbed_mountings
+from .gnss import GnssConfig, GnssErrors, GnssGlitch, GnssOutage, GnssReceiver
+from .imu import AccelErrors, AnalogAccelerometers, GyroErrors, ImuTemperature, ImuTruthTap, Stim210Gyro
+from .magnetometer import MagConfig, Magnetometer, soft_iron_matrix
+from .presets import merged, preset
 
-__all__ = ["SensorSet", "build_sensors", "gyro_errors", "accel_errors", "gnss_config"]
+__all__ = ["SensorSet", "build_sensors", "gyro_errors", "accel_errors", "gnss_config", "camera_config",
+           "compass_config", "mag_config", "build_sky", "build_sun"]
+
+DEG = math.pi / 180.0
 
 
 @dataclass
 class SensorSet:
-    """The sensor models of one run (None where the port is driven from outside)."""
+    """The sensor models of one run (None where the port is driven from outside or the sensor is absent)."""
 
     gyro: Stim210Gyro | None
     accel: AnalogAccelerometers
-    gnss: GnssReceiver | None
+    gnss: Any | None
+    psns: PolarizationCamera | None = None
+    compass: PolarizationCompass | None = None
+    mag: Magnetometer | None = None
+    sky: SkyModel | None = None
+    sun: SunModel | None = None
+    extra: list[Any] = field(default_factory=list)
 
     def start(self) -> None:
         """Start the devices that schedule themselves (everything not driven by an FPGA trigger)."""
-        if self.gnss is not None:
-            self.gnss.start()
+        for dev in (self.gnss, self.psns, self.compass, *self.extra):
+            if dev is not None:
+                dev.start()
 
     def counters(self) -> dict[str, int | None]:
         """Frames each device has sent (for the summary)."""
         return {
             "gyro_datagrams": self.gyro.datagrams_sent if self.gyro else None,
             "gnss_epochs": self.gnss.epochs_sent if self.gnss else None,
+            "psns_frames": self.psns.frames_sent if self.psns else None,
+            "compass_frames": self.compass.frames_sent if self.compass else None,
+            "mag_samples": self.mag.samples if self.mag else None,
         }
+
+
+def _dataclass_from(cls: type, values: dict[str, Any]) -> Any:
+    obj = cls()
+    for k, v in values.items():
+        if not hasattr(obj, k):
+            raise ValueError(f"{cls.__name__} has no field {k!r}")
+        setattr(obj, k, tuple(v) if isinstance(v, list) else v)
+    return obj
 
 
 def gyro_errors(scn: Scenario) -> GyroErrors:
     imu = scn.sensors.imu
-    e = GyroErrors() if imu.preset == "paper" else GyroErrors(0.0, 0.0, 0.0, 600.0, 400.0)
-    for k, v in imu.gyro.model_dump(exclude_none=True).items():
-        setattr(e, k, v)
-    return e
+    return _dataclass_from(GyroErrors, merged(preset("imu", imu.preset)["gyro"], imu.gyro.model_dump()))
 
 
 def accel_errors(scn: Scenario) -> AccelErrors:
     imu = scn.sensors.imu
-    e = AccelErrors()
-    if imu.preset == "perfect":
-        e.bias_repeatability_mg = (0.0, 0.0, 0.0)
-        e.bias_instability_mg = (0.0, 0.0, 0.0)
-        e.noise_ug_rt_hz = 0.0
-    for k, v in imu.accel.model_dump(exclude_none=True).items():
-        setattr(e, k, tuple(v) if isinstance(v, list) else v)
-    return e
+    return _dataclass_from(AccelErrors, merged(preset("imu", imu.preset)["accel"], imu.accel.model_dump()))
 
 
 def gnss_config(scn: Scenario) -> GnssConfig:
     g = scn.sensors.gnss
-    err = GnssErrors()
-    if g.preset == "perfect":
-        err = GnssErrors(0.0, 0.0, 0.0, 300.0, 0.0, 0.0)
-    for k, v in g.errors.model_dump(exclude_none=True).items():
-        setattr(err, k, v)
-    return GnssConfig(rate_hz=g.rate_hz, latency_s=g.latency_s, sentences=tuple(g.sentences),
-                      geoid_sep_m=g.geoid_sep_m, errors=err)
+    p = preset("gnss", g.preset)
+    err = _dataclass_from(GnssErrors, merged(p["errors"], g.errors.model_dump()))
+    return GnssConfig(
+        rate_hz=g.rate_hz, latency_s=g.latency_s, sentences=tuple(g.sentences), geoid_sep_m=g.geoid_sep_m,
+        fix_quality=g.fix_quality if g.fix_quality is not None else int(p.get("fix_quality", 1)),
+        reacquisition_s=g.reacquisition_s if g.reacquisition_s is not None else float(p.get("reacquisition_s", 0.8)),
+        num_sats=g.num_sats, hdop=g.hdop,
+        outages=tuple(GnssOutage(o.start_s, o.duration_s) for o in g.outages),
+        glitches=tuple(GnssGlitch(x.start_s, x.duration_s, tuple(x.offset_enu_m)) for x in g.glitches),
+        errors=err,
+    )
+
+
+def camera_config(scn: Scenario) -> CameraConfig:
+    c = scn.sensors.camera
+    if c is None:
+        from ..scenario.sensor_schema import CameraSpec
+
+        c = CameraSpec()
+    p = merged(preset("camera", c.preset), {k: getattr(c, k) for k in (
+        "full_well_e", "read_noise_e", "adc_bits", "extinction_ratio", "signal_e", "lens", "noise")})
+    if c.focal_length_mm is not None:
+        p["focal_length_mm"] = c.focal_length_mm
+    m = c.mounting
+    return CameraConfig(
+        lens=p["lens"], focal_m=p["focal_length_mm"] * 1e-3, fisheye_max_theta=c.fisheye_max_theta_deg * DEG,
+        mounting_c_b=mounting_matrix(m.heading_deg, m.pitch_deg, m.roll_deg, m.installation_error_deg),
+        full_well_e=p["full_well_e"], read_noise_e=p["read_noise_e"], adc_bits=int(p["adc_bits"]),
+        extinction_ratio=p["extinction_ratio"], signal_e=p["signal_e"], grid=tuple(c.grid),  # type: ignore[arg-type]
+        bin_superpixels=c.bin_superpixels, fidelity=c.fidelity, sun_glare=c.sun_glare_deg * DEG,
+        min_sun_elevation=c.min_sun_elevation_deg * DEG, dop_threshold=c.dop_threshold, min_points=c.min_points,
+        noise=bool(p.get("noise", True)),
+    )
+
+
+def compass_config(scn: Scenario, rng: np.random.Generator | None = None) -> CompassConfig:
+    c = scn.sensors.compass
+    if c is None:
+        from ..scenario.sensor_schema import CompassSpec
+
+        c = CompassSpec()
+    p = merged(preset("compass", c.preset), {k: getattr(c, k) for k in (
+        "aop_sigma_deg", "dop_ref", "extinction_ratio", "fov_half_deg")})
+    mounts = default_mountings()
+    if c.installation_error_sigma_deg > 0:
+        mounts = perturbed_mountings(mounts, c.installation_error_sigma_deg * DEG, rng or np.random.default_rng(0))
+    return CompassConfig(mountings=mounts, aop_sigma=p["aop_sigma_deg"] * DEG, dop_ref=p["dop_ref"],
+                         extinction_ratio=p["extinction_ratio"], fov_half=p["fov_half_deg"] * DEG,
+                         min_sun_elevation=c.min_sun_elevation_deg * DEG, noise=p["aop_sigma_deg"] > 0)
+
+
+def mag_config(scn: Scenario) -> MagConfig:
+    c = scn.sensors.magnetometer
+    if c is None:
+        from ..scenario.sensor_schema import MagnetometerSpec
+
+        c = MagnetometerSpec()
+    p = merged(preset("magnetometer", c.preset), {k: getattr(c, k) for k in (
+        "noise_nt", "hard_iron_nt", "soft_iron_scale", "soft_iron_cross")})
+    return MagConfig(declination_deg=c.declination_deg, inclination_deg=c.inclination_deg,
+                     intensity_nt=c.intensity_nt, noise_nt=p["noise_nt"], hard_iron_nt=tuple(p["hard_iron_nt"]),
+                     soft_iron=soft_iron_matrix(tuple(p["soft_iron_scale"]), tuple(p["soft_iron_cross"])))
+
+
+def build_sky(scn: Scenario, seed: int) -> SkyModel:
+    return sky_from_spec(scn.sky, device_rng(seed, "sky"))
+
+
+def build_sun(scn: Scenario) -> SunModel:
+    return SunModel(scn.epoch, scn.sky.delta_t_s)
+
+
+def _path(scn: Scenario, name: str) -> Path:
+    p = Path(name)
+    if not p.is_absolute() and scn.base_dir is not None:
+        p = Path(scn.base_dir) / p
+    return p
 
 
 def build_sensors(scn: Scenario, seed: int, traj: Trajectory, internal: dict[str, Link],
                   pps: Callable[[float], None]) -> SensorSet:
     """Create the sensor models whose ports are wired in-process (``internal`` link ends)."""
+    from . import recorded
+
+    s = scn.sensors
     tap = ImuTruthTap(traj)
+    temp = ImuTemperature(s.imu.temperature.start_c, s.imu.temperature.rate_c_per_min, s.imu.temperature.cal_c)
+    gyro_src = accel_src = None
+    if s.imu.recorded is not None:
+        rec = recorded.RecordedImu(_path(scn, s.imu.recorded.file), s.imu.recorded.time_offset_s)
+        gyro_src, accel_src = rec.mean_rate, rec.mean_specific_force
     gyro = None
     if "gyro" in internal:
         gyro = Stim210Gyro(internal["gyro"], tap, device_rng(seed, "gyro"), gyro_errors(scn),
-                           fmt=scn.sensors.imu.format, output=scn.sensors.imu.output,
-                           trigger_rate_hz=scn.sensors.imu.rate_hz)
-    accel = AnalogAccelerometers(tap, device_rng(seed, "accel"), accel_errors(scn))
-    gnss = None
-    if "gnss" in internal and scn.sensors.gnss.enabled:
-        gnss = GnssReceiver(internal["gnss"], traj, scn.epoch, device_rng(seed, "gnss"), gnss_config(scn), pps=pps)
-    return SensorSet(gyro, accel, gnss)
+                           fmt=s.imu.format, output=s.imu.output, trigger_rate_hz=s.imu.rate_hz,
+                           temperature=temp, source=gyro_src)
+    accel = AnalogAccelerometers(tap, device_rng(seed, "accel"), accel_errors(scn), temperature=temp,
+                                 source=accel_src)
+    gnss: Any = None
+    if "gnss" in internal and s.gnss.enabled:
+        if s.gnss.recorded is not None:
+            gnss = recorded.recorded_gnss(internal["gnss"], _path(scn, s.gnss.recorded.file), s.gnss.recorded.format,
+                                          scn.epoch, gnss_config(scn), s.gnss.recorded.time_offset_s, pps=pps,
+                                          rng=device_rng(seed, "gnss"))
+        else:
+            gnss = GnssReceiver(internal["gnss"], traj, scn.epoch, device_rng(seed, "gnss"), gnss_config(scn), pps=pps)
+    sky = sun = None
+    camera = compass = None
+    want_camera = s.camera is not None and s.camera.enabled
+    want_compass = s.compass is not None and s.compass.enabled
+    if "psns" in internal and not want_compass and s.camera is None:
+        want_camera = True  # a PSNS port with no sensor section: the default camera
+    if "psns" in internal and (want_camera or want_compass):
+        sky, sun = build_sky(scn, seed), build_sun(scn)
+        if want_camera:
+            cs = s.camera
+            model = PolarizationCameraModel(camera_config(scn), sky, sun, traj, device_rng(seed, "psns_camera"))
+            src = None
+            if cs is not None and cs.recorded is not None:
+                r = cs.recorded
+                src = recorded.RecordedImages(
+                    index=_path(scn, r.index) if r.index else None,
+                    files=str(_path(scn, r.files)) if r.files else None,
+                    rate_hz=r.rate_hz, start_s=r.start_s, shape=(model.cfg.ny, model.cfg.nx)).mosaic_at
+            rate = cs.rate_hz if cs is not None else 5.0
+            try:
+                camera = PolarizationCamera(internal["psns"], model, rate_hz=rate,
+                                            exposure_s=(cs.exposure_us if cs else 1000) * 1e-6,
+                                            processing_s=(cs.processing_ms if cs else 20.0) * 1e-3,
+                                            mosaic_source=src)
+            except ValueError as exc:
+                raise ScenarioError(f"sensors.camera: {exc}", file=scn.source_file) from exc
+        if want_compass:
+            cs2 = s.compass
+            assert cs2 is not None
+            cm = CompassModel(compass_config(scn, device_rng(seed, "compass_mount")), sky, sun, traj,
+                              device_rng(seed, "compass"))
+            compass = PolarizationCompass(internal["psns"], cm, rate_hz=cs2.rate_hz,
+                                          integration_s=cs2.integration_ms * 1e-3,
+                                          processing_s=cs2.processing_ms * 1e-3)
+    mag = None
+    if s.magnetometer is not None and s.magnetometer.enabled:
+        mag = Magnetometer(traj, device_rng(seed, "mag"), mag_config(scn))
+    return SensorSet(gyro, accel, gnss, psns=camera, compass=compass, mag=mag, sky=sky, sun=sun)

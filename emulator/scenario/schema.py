@@ -6,6 +6,7 @@ A scenario file is one YAML mapping::
     origin      {lat_deg, lon_deg, height_m}
     attitude    {heading_deg, pitch_deg, roll_deg}           initial attitude
     motion      [ {static: {duration_s}} ... ]                 motion segments
+    sky         {model, p_max, clouds, occluders, ...}          sky polarization (world_schema)
     sensors     {imu: {...}, gnss: {...}}                      presets + overrides
     links       {gyro|gnss|psns|host: {url, baud, mode, queue_bytes}}
     fpga        {routing: {port: uartN}, uarts: {uartN: {baud, queue_bytes}}}
@@ -31,7 +32,7 @@ from .checks_schema import DspBound, Expectation, LinkCounterBound, NavErrorBoun
 from .firmware_schema import AlignmentSpec, FirmwareSpec
 from .runtime_schema import DspSpec, FpgaSpec, Links, LinkSpec, UartSpec
 from .sensor_schema import AccelSpec, GnssErrorSpec, GnssSpec, GyroSpec, ImuSpec, Sensors
-from .world_schema import Attitude, MotionSegment, Origin, StaticParams
+from .world_schema import Attitude, MotionSegment, Origin, SkySpec, StaticParams
 
 __all__ = [
     "Scenario",
@@ -50,6 +51,7 @@ __all__ = [
     "GnssErrorSpec",
     "GnssSpec",
     "Sensors",
+    "SkySpec",
     "AlignmentSpec",
     "FirmwareSpec",
     "NavErrorBound",
@@ -74,6 +76,7 @@ class Scenario(Model):
     origin: Origin
     attitude: Attitude = Attitude()
     motion: list[MotionSegment] = Field(default_factory=list)
+    sky: SkySpec = SkySpec()
     sensors: Sensors = Sensors()
     links: Links = Links()
     fpga: FpgaSpec = FpgaSpec()

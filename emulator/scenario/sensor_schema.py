@@ -1,14 +1,47 @@
-"""Scenario sections owned by the sensor models: IMU, GNSS (presets + overrides)."""
+"""Scenario sections owned by the sensor models: IMU, GNSS, polarization camera and compass, magnetometer.
+
+Every sensor picks a named preset (``emulator/presets/<kind>.yaml``) and may override single
+figures; ``None`` means "take the preset's value". Any sensor may read a recorded file instead of
+its model (``recorded:``; formats in ``docs/sensors.md``). Units are in the field names.
+"""
 
 from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field
+from pydantic import Field, field_validator, model_validator
 
 from .base import Model
 
-__all__ = ["GyroSpec", "AccelSpec", "ImuSpec", "GnssErrorSpec", "GnssSpec", "Sensors"]
+__all__ = [
+    "GyroSpec",
+    "AccelSpec",
+    "ImuTemperatureSpec",
+    "RecordedImuSpec",
+    "ImuSpec",
+    "GnssErrorSpec",
+    "GnssOutageSpec",
+    "GnssGlitchSpec",
+    "RecordedGnssSpec",
+    "GnssSpec",
+    "MountingSpec",
+    "RecordedImagesSpec",
+    "CameraSpec",
+    "CompassSpec",
+    "MagnetometerSpec",
+    "Sensors",
+]
+
+Vec3 = tuple[float, float, float]
+
+
+def _check_preset(kind: str, name: str) -> str:
+    from ..devices.presets import preset_names
+
+    names = preset_names(kind)
+    if name not in names:
+        raise ValueError(f"unknown {kind} preset {name!r}; available: {', '.join(names)}")
+    return name
 
 
 class GyroSpec(Model):
@@ -16,45 +49,206 @@ class GyroSpec(Model):
     bias_repeatability_deg_h: float | None = Field(None, ge=0)
     bias_instability_deg_h: float | None = Field(None, ge=0)
     bias_corr_time_s: float | None = Field(None, gt=0)
+    rate_random_walk_deg_h_rt_h: float | None = Field(None, ge=0)
+    scale_factor_ppm: float | None = Field(None, ge=0)
+    scale_asymmetry_ppm: float | None = Field(None, ge=0)
+    misalignment_mrad: float | None = Field(None, ge=0)
+    nonlinearity_ppm_fs: float | None = Field(None, ge=0)
+    bias_temp_coeff_deg_h_per_c: float | None = Field(None, ge=0)
+    bias_temp_gradient_deg_h: float | None = Field(None, ge=0)
+    g_sensitivity_deg_h_per_g: float | None = Field(None, ge=0)
     range_dps: float | None = Field(None, gt=0)
 
 
 class AccelSpec(Model):
-    bias_repeatability_mg: tuple[float, float, float] | None = None
-    bias_instability_mg: tuple[float, float, float] | None = None
+    bias_repeatability_mg: Vec3 | None = None
+    bias_instability_mg: Vec3 | None = None
     bias_corr_time_s: float | None = Field(None, gt=0)
     noise_ug_rt_hz: float | None = Field(None, ge=0)
+    bias_random_walk_mg_rt_h: float | None = Field(None, ge=0)
+    scale_factor_ppm: Vec3 | None = None
+    scale_error_ppm: Vec3 | None = None
+    misalignment_mrad: float | None = Field(None, ge=0)
+    bias_temp_coeff_mg_per_c: float | None = Field(None, ge=0)
+    range_g: Vec3 | None = None
+
+
+class ImuTemperatureSpec(Model):
+    start_c: float = Field(25.0, ge=-60, le=125)
+    rate_c_per_min: float = Field(0.0, ge=-20, le=20)
+    cal_c: float = Field(25.0, ge=-60, le=125)
+
+
+class RecordedImuSpec(Model):
+    """IMU samples from a CSV file (columns in docs/sensors.md), replacing truth and error model."""
+
+    file: str
+    time_offset_s: float = Field(0.0, description="scenario time = file time + offset")
 
 
 class ImuSpec(Model):
-    preset: Literal["paper", "perfect"] = "paper"
+    preset: str = "paper"
     format: Literal["s", "e", "j", "k", "l", "m", "n", "o", "p"] = "m"
     output: Literal["rate", "angle"] = "rate"
     rate_hz: float = Field(200.0, gt=0, le=2000)
     gyro: GyroSpec = GyroSpec()
     accel: AccelSpec = AccelSpec()
+    temperature: ImuTemperatureSpec = ImuTemperatureSpec()
+    recorded: RecordedImuSpec | None = None
+
+    @field_validator("preset")
+    @classmethod
+    def _preset(cls, v: str) -> str:
+        return _check_preset("imu", v)
 
 
 class GnssErrorSpec(Model):
     pos_sigma_h_m: float | None = Field(None, ge=0)
     pos_sigma_v_m: float | None = Field(None, ge=0)
+    pos_white_fraction: float | None = Field(None, ge=0, le=1)
     pos_corr_time_s: float | None = Field(None, gt=0)
     vel_sigma_h_mps: float | None = Field(None, ge=0)
     vel_sigma_v_mps: float | None = Field(None, ge=0)
+    pps_jitter_ns: float | None = Field(None, ge=0)
+
+
+class GnssOutageSpec(Model):
+    start_s: float = Field(ge=0)
+    duration_s: float = Field(gt=0)
+
+
+class GnssGlitchSpec(Model):
+    start_s: float = Field(ge=0)
+    duration_s: float = Field(gt=0)
+    offset_enu_m: Vec3
+
+
+class RecordedGnssSpec(Model):
+    """Fixes from a file: ``csv`` (columns in docs/sensors.md) or an ``nmea`` log replayed sentence by sentence."""
+
+    file: str
+    format: Literal["csv", "nmea"] = "csv"
+    time_offset_s: float = 0.0
 
 
 class GnssSpec(Model):
     enabled: bool = True
-    preset: Literal["paper", "perfect"] = "paper"
+    preset: str = "paper"
     rate_hz: float = Field(1.0, gt=0, le=20)
     latency_s: float = Field(0.05, ge=0, lt=1)
     sentences: list[Literal["GGA", "RMC"]] = ["GGA", "RMC"]
     geoid_sep_m: float = 0.0
+    fix_quality: Literal[1, 2, 4, 5] | None = None
+    reacquisition_s: float | None = Field(None, ge=0, lt=1.0, description="paper: < 1 s")
+    num_sats: int = Field(12, ge=4, le=99)
+    hdop: float = Field(0.8, gt=0, le=99)
     errors: GnssErrorSpec = GnssErrorSpec()
+    outages: list[GnssOutageSpec] = Field(default_factory=list)
+    glitches: list[GnssGlitchSpec] = Field(default_factory=list)
+    recorded: RecordedGnssSpec | None = None
+
+    @field_validator("preset")
+    @classmethod
+    def _preset(cls, v: str) -> str:
+        return _check_preset("gnss", v)
+
+
+class MountingSpec(Model):
+    """Sensor-to-body rotation: a nominal mount (Euler angles, the body-attitude convention) and an installation error."""
+
+    heading_deg: float = Field(0.0, ge=-360, le=360)
+    pitch_deg: float = Field(0.0, ge=-90, le=90)
+    roll_deg: float = Field(0.0, ge=-180, le=180)
+    installation_error_deg: Vec3 = Field((0.0, 0.0, 0.0), description="small rotation vector about the sensor axes, deg")
+
+
+class RecordedImagesSpec(Model):
+    """Raw mosaics from files: an index CSV ``time_s,file`` or a glob with a frame rate."""
+
+    index: str | None = Field(None, description="CSV with columns time_s,file (paths relative to the index)")
+    files: str | None = Field(None, description="glob of 16-bit PNG/TIFF mosaics or NPZ (I0, I45, I90, I135)")
+    rate_hz: float | None = Field(None, gt=0)
+    start_s: float = 0.0
+
+    @model_validator(mode="after")
+    def _one(self) -> "RecordedImagesSpec":
+        if (self.index is None) == (self.files is None):
+            raise ValueError("recorded images need exactly one of index, files")
+        if self.files is not None and self.rate_hz is None:
+            raise ValueError("recorded files need rate_hz")
+        return self
+
+
+class CameraSpec(Model):
+    enabled: bool = True
+    preset: str = "reference"
+    fidelity: Literal["full", "binned"] = "binned"
+    lens: Literal["pinhole", "fisheye"] | None = None
+    focal_length_mm: float | None = Field(None, gt=0, le=100)
+    fisheye_max_theta_deg: float = Field(90.0, gt=0, le=120)
+    mounting: MountingSpec = MountingSpec()
+    grid: tuple[int, int] = (15, 15)
+    bin_superpixels: int = Field(8, ge=1, le=128)
+    rate_hz: float = Field(5.0, gt=0, le=100)
+    exposure_us: int = Field(1000, gt=0, le=1_000_000)
+    processing_ms: float = Field(20.0, ge=0, le=1000)
+    full_well_e: float | None = Field(None, gt=0)
+    read_noise_e: float | None = Field(None, ge=0)
+    adc_bits: int | None = Field(None, ge=8, le=16)
+    extinction_ratio: float | None = Field(None, gt=1)
+    signal_e: float | None = Field(None, gt=0)
+    noise: bool | None = None
+    sun_glare_deg: float = Field(3.0, ge=0, le=30)
+    min_sun_elevation_deg: float = Field(0.0, ge=-18, le=30)
+    dop_threshold: float = Field(0.05, ge=0, le=1)
+    min_points: int = Field(10, ge=1)
+    recorded: RecordedImagesSpec | None = None
+
+    @field_validator("preset")
+    @classmethod
+    def _preset(cls, v: str) -> str:
+        return _check_preset("camera", v)
+
+
+class CompassSpec(Model):
+    enabled: bool = True
+    preset: str = "paper"
+    rate_hz: float = Field(5.0, gt=0, le=100)
+    integration_ms: float = Field(10.0, gt=0, le=1000)
+    processing_ms: float = Field(5.0, ge=0, le=1000)
+    aop_sigma_deg: float | None = Field(None, ge=0)
+    dop_ref: float | None = Field(None, gt=0, le=1)
+    extinction_ratio: float | None = Field(None, gt=1)
+    fov_half_deg: float | None = Field(None, ge=0, le=45)
+    installation_error_sigma_deg: float = Field(0.0, ge=0, le=10, description="random per-unit mounting error")
+    min_sun_elevation_deg: float = Field(0.0, ge=-18, le=30)
+
+    @field_validator("preset")
+    @classmethod
+    def _preset(cls, v: str) -> str:
+        return _check_preset("compass", v)
+
+
+class MagnetometerSpec(Model):
+    enabled: bool = True
+    preset: str = "default"
+    declination_deg: float = Field(-7.133, ge=-180, le=180, description="east positive (default: IGRF-13 Beijing)")
+    inclination_deg: float = Field(59.215, ge=-90, le=90, description="down positive")
+    intensity_nt: float = Field(54769.0, gt=0, le=100000)
+    noise_nt: float | None = Field(None, ge=0)
+    hard_iron_nt: Vec3 | None = None
+    soft_iron_scale: Vec3 | None = None
+    soft_iron_cross: Vec3 | None = Field(None, description="off-diagonal xy, xz, yz")
+
+    @field_validator("preset")
+    @classmethod
+    def _preset(cls, v: str) -> str:
+        return _check_preset("magnetometer", v)
 
 
 class Sensors(Model):
     imu: ImuSpec = ImuSpec()
     gnss: GnssSpec = GnssSpec()
-
-
+    camera: CameraSpec | None = None
+    compass: CompassSpec | None = None
+    magnetometer: MagnetometerSpec | None = None

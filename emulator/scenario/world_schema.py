@@ -1,12 +1,50 @@
-"""Scenario sections owned by the world model: origin, initial attitude, motion segments."""
+"""Scenario sections owned by the world model: origin, initial attitude, motion segments, sky.
+
+Motion segments (a list; each item has exactly one key). Angles in degrees, rates in deg/s.
+The vehicle moves along its body +y axis (forward), so pitching while moving changes the flight
+path and turning changes the course (``emulator.world.trajectory``):
+
+``static: {duration_s}``
+    At rest (the speed must already be 0).
+``accelerate: {duration_s, to_speed_mps | accel_mps2}``
+    Forward speed changes linearly (negative ``accel_mps2`` or a lower ``to_speed_mps`` brakes).
+``cruise: {duration_s}``
+    Constant speed and attitude.
+``turn: {rate_dps, angle_deg | duration_s}``
+    Heading changes at ``|rate_dps|``; ``angle_deg`` signed (positive = clockwise, to the right),
+    or ``duration_s`` with a signed ``rate_dps``.
+``climb: {duration_s, vertical_speed_mps | pitch_deg, transition_s}`` / ``descend: {...}``
+    Pitch to the flight-path angle that gives ``vertical_speed_mps`` (or to ``pitch_deg``) in
+    ``transition_s``, hold, and pitch back in the last ``transition_s``; the segment ends at the
+    pitch it started with. For ``descend`` the values are positive downwards.
+``pitch: {by_deg | to_deg, rate_dps, duration_s}`` / ``roll: {...}``
+    Rotate at ``rate_dps`` (magnitude) by ``by_deg`` or to ``to_deg``, then hold for the rest of
+    ``duration_s``. ``to_deg`` needs ``duration_s`` (the start angle is only known at build time);
+    without ``rate_dps`` the manoeuvre takes the whole ``duration_s``.
+"""
 
 from __future__ import annotations
+
+import math
 
 from pydantic import Field, model_validator
 
 from .base import Model
 
-__all__ = ["Origin", "Attitude", "StaticParams", "MotionSegment"]
+__all__ = [
+    "Origin",
+    "Attitude",
+    "StaticParams",
+    "AccelerateParams",
+    "CruiseParams",
+    "TurnParams",
+    "ClimbParams",
+    "RotateParams",
+    "MotionSegment",
+    "CloudSpec",
+    "OccluderSpec",
+    "SkySpec",
+]
 
 
 class Origin(Model):
@@ -24,11 +62,120 @@ class Attitude(Model):
 class StaticParams(Model):
     duration_s: float = Field(gt=0.0, description="s")
 
+    @property
+    def total_s(self) -> float:
+        return self.duration_s
+
+
+class AccelerateParams(Model):
+    duration_s: float = Field(gt=0.0, description="s")
+    to_speed_mps: float | None = Field(None, ge=0.0, le=2000.0, description="forward speed at the end, m/s")
+    accel_mps2: float | None = Field(None, ge=-100.0, le=100.0, description="forward acceleration, m/s^2")
+
+    @model_validator(mode="after")
+    def _one(self) -> "AccelerateParams":
+        if (self.to_speed_mps is None) == (self.accel_mps2 is None):
+            raise ValueError("accelerate needs exactly one of to_speed_mps, accel_mps2")
+        return self
+
+    @property
+    def total_s(self) -> float:
+        return self.duration_s
+
+
+class CruiseParams(Model):
+    duration_s: float = Field(gt=0.0, description="s")
+
+    @property
+    def total_s(self) -> float:
+        return self.duration_s
+
+
+class TurnParams(Model):
+    rate_dps: float = Field(description="heading rate, deg/s (positive clockwise unless angle_deg gives the sign)")
+    angle_deg: float | None = Field(None, description="heading change, deg (positive clockwise)")
+    duration_s: float | None = Field(None, gt=0.0, description="s")
+
+    @model_validator(mode="after")
+    def _check(self) -> "TurnParams":
+        if (self.angle_deg is None) == (self.duration_s is None):
+            raise ValueError("turn needs exactly one of angle_deg, duration_s")
+        if self.rate_dps == 0.0:
+            raise ValueError("turn needs a non-zero rate_dps")
+        if self.angle_deg is not None and self.angle_deg == 0.0:
+            raise ValueError("turn angle_deg must not be 0")
+        return self
+
+    @property
+    def total_s(self) -> float:
+        if self.duration_s is not None:
+            return self.duration_s
+        return abs(float(self.angle_deg)) / abs(self.rate_dps)  # type: ignore[arg-type]
+
+    @property
+    def heading_rate_dps(self) -> float:
+        """Signed heading rate (positive clockwise)."""
+        if self.angle_deg is not None:
+            return math.copysign(abs(self.rate_dps), self.angle_deg)
+        return self.rate_dps
+
+
+class ClimbParams(Model):
+    duration_s: float = Field(gt=0.0, description="s, transitions included")
+    vertical_speed_mps: float | None = Field(None, gt=0.0, description="m/s (up for climb, down for descend)")
+    pitch_deg: float | None = Field(None, gt=0.0, lt=89.0, description="pitch during the hold, deg")
+    transition_s: float = Field(2.0, gt=0.0, description="pitch-in and pitch-out time, s each")
+
+    @model_validator(mode="after")
+    def _check(self) -> "ClimbParams":
+        if (self.vertical_speed_mps is None) == (self.pitch_deg is None):
+            raise ValueError("climb/descend needs exactly one of vertical_speed_mps, pitch_deg")
+        if 2.0 * self.transition_s > self.duration_s + 1e-9:
+            raise ValueError("climb/descend: 2 x transition_s exceeds duration_s")
+        return self
+
+    @property
+    def total_s(self) -> float:
+        return self.duration_s
+
+
+class RotateParams(Model):
+    by_deg: float | None = Field(None, description="change, deg")
+    to_deg: float | None = Field(None, description="final angle, deg")
+    rate_dps: float | None = Field(None, gt=0.0, description="rotation rate magnitude, deg/s")
+    duration_s: float | None = Field(None, gt=0.0, description="s (manoeuvre + hold)")
+
+    @model_validator(mode="after")
+    def _check(self) -> "RotateParams":
+        if (self.by_deg is None) == (self.to_deg is None):
+            raise ValueError("pitch/roll needs exactly one of by_deg, to_deg")
+        if self.to_deg is not None and self.duration_s is None:
+            raise ValueError("pitch/roll with to_deg needs duration_s")
+        if self.by_deg is not None and self.duration_s is None and self.rate_dps is None:
+            raise ValueError("pitch/roll needs rate_dps or duration_s")
+        if self.by_deg is not None and self.rate_dps is not None and self.duration_s is not None:
+            if abs(self.by_deg) / self.rate_dps > self.duration_s + 1e-9:
+                raise ValueError("pitch/roll: by_deg / rate_dps exceeds duration_s")
+        return self
+
+    @property
+    def total_s(self) -> float:
+        if self.duration_s is not None:
+            return self.duration_s
+        return abs(float(self.by_deg)) / float(self.rate_dps)  # type: ignore[arg-type]
+
 
 class MotionSegment(Model):
-    """One motion segment; exactly one key."""
+    """One motion segment; exactly one key (see module docstring)."""
 
     static: StaticParams | None = None
+    accelerate: AccelerateParams | None = None
+    cruise: CruiseParams | None = None
+    turn: TurnParams | None = None
+    climb: ClimbParams | None = None
+    descend: ClimbParams | None = None
+    pitch: RotateParams | None = None
+    roll: RotateParams | None = None
 
     @model_validator(mode="after")
     def _one(self) -> "MotionSegment":
@@ -38,11 +185,57 @@ class MotionSegment(Model):
         return self
 
     @property
+    def kind(self) -> str:
+        for k in type(self).model_fields:
+            if getattr(self, k) is not None:
+                return k
+        return ""
+
+    @property
+    def params(self) -> Model:
+        return getattr(self, self.kind)
+
+    @property
     def duration_s(self) -> float:
         for k in type(self).model_fields:
             v = getattr(self, k)
             if v is not None:
-                return float(v.duration_s)
+                return float(v.total_s)
         return 0.0
 
 
+class CloudSpec(Model):
+    """A cloud: a circular sky region (in ENU azimuth/elevation) that lowers DOP and scrambles AOP."""
+
+    az_deg: float = Field(ge=0.0, lt=360.0, description="centre azimuth, clockwise from north, deg")
+    el_deg: float = Field(ge=-90.0, le=90.0, description="centre elevation, deg")
+    radius_deg: float = Field(gt=0.0, le=180.0, description="angular radius, deg")
+    dop_scale: float = Field(0.2, ge=0.0, le=1.0, description="DOP multiplier inside the cloud")
+    aop_sigma_deg: float = Field(20.0, ge=0.0, le=180.0, description="random AOP rotation inside, deg (1 sigma)")
+    intensity_scale: float = Field(1.5, gt=0.0, le=10.0, description="radiance multiplier inside the cloud")
+    start_s: float = Field(0.0, ge=0.0, description="appears at, s")
+    end_s: float = Field(math.inf, description="disappears at, s")
+    drift_az_dps: float = Field(0.0, description="azimuth drift of the centre, deg/s")
+
+
+class OccluderSpec(Model):
+    """Something opaque in front of the sky (building, tree line): an azimuth sector up to an elevation."""
+
+    az_min_deg: float = Field(ge=0.0, lt=360.0)
+    az_max_deg: float = Field(ge=0.0, le=360.0)
+    el_max_deg: float = Field(ge=-90.0, le=90.0)
+    intensity_scale: float = Field(0.3, ge=0.0, le=10.0, description="radiance relative to the sky")
+
+
+class SkySpec(Model):
+    """Sky polarization model (``emulator.world.sky``)."""
+
+    model: str = Field("rayleigh", pattern="^(rayleigh|berry)$")
+    p_max: float = Field(0.7, gt=0.0, le=1.0, description="maximum degree of polarization")
+    neutral_point_sep_deg: float = Field(20.0, ge=0.0, le=40.0,
+                                         description="Berry model: Babinet-Brewster separation (2 delta), deg")
+    delta_t_s: float | None = Field(None, description="TT - UT1 for SPA, s (default: pvlib's estimate)")
+    pressure_hpa: float = Field(1013.25, gt=0.0)
+    temperature_c: float = Field(12.0)
+    clouds: list[CloudSpec] = Field(default_factory=list)
+    occluders: list[OccluderSpec] = Field(default_factory=list)

@@ -1,0 +1,189 @@
+"""Multi-unit polarization compass (9 single-direction units) on the PSNS port (COMPASS frames).
+
+Each unit u is a single-direction polarization analyser (contract C1): its view ray is its own
++z axis, its AOP is measured in its x-y plane from +y towards +x, and ``C_u^b`` (columns: the
+unit's x, y, z axes in body coordinates) is its mounting matrix. The default geometry (unit 0 at
+the zenith, 8 units on a ring at zenith angle 45 deg every 45 deg of azimuth from body +y towards
++x, each ring unit's +y axis up the hemisphere) is the one of ``firmware_model.psns_geometry``;
+this module uses that shared definition when the firmware package provides it and otherwise
+builds the identical matrices itself (:func:`default_mountings`; a test checks they agree).
+
+Measurement model: a unit sees the sky polarization along its ray (``emulator.world.sky``),
+analyses it with four polarizers (0/45/90/135 deg, extinction ratio ``ER``) and reports Stokes ->
+DOP/AOP exactly as the camera does. The channel noise (relative to S0) is set from the
+accuracy figure: ``aop_sigma`` (1 sigma) at ``dop_ref``, so ``sigma_I = sqrt(2) S0 DOP_ref
+sigma_AOP``, and the AOP error grows as ``sigma_I/(sqrt(2) S0 DOP)`` when the DOP falls
+(algorithms.md 2.3). The sun inside a unit's field of view (``fov_half``) saturates it (the unit
+is left out of the frame and SATURATED is set); a sun below ``min_sun_elevation`` gives frames
+with no units and SUN_BELOW_HORIZON.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from protocols.psns import CompassUnit, PsnsHeader, PsnsStatus, encode_compass
+
+from ..links.base import Link
+from ..world.sky import SkyModel
+from ..world.sun import SunModel
+from ..world.trajectory import Trajectory
+from .camera import rotation_vector_matrix, wire_aop_cdeg
+
+__all__ = ["default_mountings", "CompassConfig", "CompassReading", "CompassModel", "PolarizationCompass"]
+
+DEG = math.pi / 180.0
+N_UNITS = 9
+RING_ZENITH = 45.0 * DEG
+
+
+def _own_mountings() -> np.ndarray:
+    out = np.empty((N_UNITS, 3, 3))
+    out[0] = np.eye(3)
+    st, ct = math.sin(RING_ZENITH), math.cos(RING_ZENITH)
+    for k in range(N_UNITS - 1):
+        az = 2.0 * math.pi * k / (N_UNITS - 1)
+        sa, ca = math.sin(az), math.cos(az)
+        z = np.array([st * sa, st * ca, ct])
+        y = np.array([-ct * sa, -ct * ca, st])
+        x = np.array([y[1] * z[2] - y[2] * z[1], y[2] * z[0] - y[0] * z[2], y[0] * z[1] - y[1] * z[0]])
+        out[1 + k] = np.column_stack([x, y, z])
+    return out
+
+
+def default_mountings() -> np.ndarray:
+    """``C_u^b`` of the 9 default units, (9, 3, 3): the shared firmware definition when available."""
+    try:
+        from firmware_model.psns_geometry import compass_unit_mountings
+    except ImportError:
+        return _own_mountings()
+    return np.asarray(compass_unit_mountings(), dtype=np.float64)
+
+
+@dataclass
+class CompassConfig:
+    """Compass parameters (rad, s)."""
+
+    mountings: np.ndarray = field(default_factory=default_mountings)
+    aop_sigma: float = 0.1 * DEG
+    dop_ref: float = 0.5
+    extinction_ratio: float = 300.0
+    fov_half: float = 5.0 * DEG
+    min_sun_elevation: float = 0.0
+    dop_threshold: float = 0.05
+    noise: bool = True
+
+    @property
+    def channel_sigma(self) -> float:
+        """Per-channel noise relative to S0."""
+        return math.sqrt(2.0) * self.dop_ref * self.aop_sigma
+
+
+@dataclass
+class CompassReading:
+    """One reading: per reported unit its index, wire AOP (rad) and measured DOP; the status bits."""
+
+    units: np.ndarray
+    aop: np.ndarray
+    dop: np.ndarray
+    status: int
+
+
+class CompassModel:
+    """The measurement of all units at one instant (see module docstring)."""
+
+    def __init__(self, cfg: CompassConfig, sky: SkyModel, sun: SunModel, trajectory: Trajectory,
+                 rng: np.random.Generator) -> None:
+        self.cfg = cfg
+        self.sky = sky
+        self.sun = sun
+        self.traj = trajectory
+        self.rng = rng
+        m = np.asarray(cfg.mountings, dtype=np.float64)
+        self.mountings = m
+        self.rays_b = m[:, :, 2].copy()  # (U, 3) view rays, body frame
+
+    def read(self, t: float) -> CompassReading:
+        cfg = self.cfg
+        st = self.traj.state(t)
+        s_n = self.sun.sun_enu(t, float(st.pos[0]), float(st.pos[1]), float(st.pos[2]))
+        sun_el = math.asin(max(-1.0, min(1.0, float(s_n[2]))))
+        n_u = len(self.mountings)
+        if sun_el < cfg.min_sun_elevation:
+            return CompassReading(np.zeros(0, int), np.zeros(0), np.zeros(0), int(PsnsStatus.SUN_BELOW_HORIZON))
+        c_nb = st.c_bn.T
+        s_b = c_nb @ s_n
+        v = self.rays_b
+        fld = self.sky.evaluate(t, s_b, v[:, 0], v[:, 1], v[:, 2], c_nb)
+        e_b = np.stack([fld.ex, fld.ey, fld.ez], axis=1)
+        e_u = np.einsum("uji,uj->ui", self.mountings, e_b)  # C_b^u E^b
+        psi = np.arctan2(e_u[:, 1], e_u[:, 0])
+        d = (cfg.extinction_ratio - 1.0) / (cfg.extinction_ratio + 1.0)
+        q = d * fld.dop * np.cos(2 * psi)
+        u = d * fld.dop * np.sin(2 * psi)
+        i0, i90, i45, i135 = 0.5 * (1 + q), 0.5 * (1 - q), 0.5 * (1 + u), 0.5 * (1 - u)
+        if cfg.noise:
+            z = self.rng.standard_normal((4, n_u)) * cfg.channel_sigma
+            i0, i45, i90, i135 = i0 + z[0], i45 + z[1], i90 + z[2], i135 + z[3]
+        s0 = 0.5 * (i0 + i45 + i90 + i135)
+        s1, s2 = i0 - i90, i45 - i135
+        dop = np.hypot(s1, s2) / s0
+        aop = math.pi / 2 - 0.5 * np.arctan2(s2, s1)
+        aop = np.where(aop > math.pi / 2, aop - math.pi, aop)
+        sat = (v @ s_b) > math.cos(cfg.fov_half)
+        status = int(PsnsStatus.SATURATED) if sat.any() else 0
+        keep = ~sat
+        if np.count_nonzero(keep & (dop >= cfg.dop_threshold)) >= 2:
+            status |= PsnsStatus.VALID
+        else:
+            status |= PsnsStatus.LOW_DOP
+        idx = np.nonzero(keep)[0]
+        return CompassReading(idx, aop[idx], dop[idx], status)
+
+
+class PolarizationCompass:
+    """The compass as a device: COMPASS frames at ``rate_hz`` on the PSNS link (C1 latency tag)."""
+
+    def __init__(self, link: Link, model: CompassModel, rate_hz: float = 5.0, integration_s: float = 0.01,
+                 processing_s: float = 0.005, phase_s: float = 0.0) -> None:
+        self.link = link
+        self.model = model
+        self.rate_hz = rate_hz
+        self.integration_s = integration_s
+        self.processing_s = processing_s
+        self.phase_s = phase_s
+        self.seq = 0
+        self.frames_sent = 0
+        self.last: CompassReading | None = None
+        self._k = 0
+
+    def start(self) -> None:
+        self._schedule()
+
+    def _schedule(self) -> None:
+        t0 = self.phase_s + self._k / self.rate_hz
+        self.link.loop.call_at(t0 + self.integration_s + self.processing_s, self._measure, t0)
+
+    def _measure(self, t_start: float) -> None:
+        self._k += 1
+        self._schedule()
+        t_mid = t_start + 0.5 * self.integration_s
+        r = self.model.read(t_mid)
+        self.last = r
+        now = self.link.loop.time()
+        latency_us = int(round((max(now, self.link.busy_until()) - t_mid) * 1e6))
+        aop = wire_aop_cdeg(r.aop)
+        dop = np.clip(np.round(r.dop * 65535.0), 0, 65535).astype(np.int64)
+        units = [CompassUnit(int(u), int(a), int(d)) for u, a, d in zip(r.units, aop, dop)]
+        hdr = PsnsHeader(self.seq, int(round(self.integration_s * 1e6)), latency_us, r.status, len(units))
+        self.link.send(encode_compass(hdr, units))
+        self.frames_sent += 1
+        self.seq = (self.seq + 1) & 0xFFFF
+
+
+def perturbed_mountings(base: np.ndarray, sigma: float, rng: np.random.Generator) -> np.ndarray:
+    """Mountings with a random installation error (rotation vector, ``sigma`` rad per axis) per unit."""
+    return np.stack([m @ rotation_vector_matrix(rng.standard_normal(3) * sigma) for m in base])

@@ -1,0 +1,398 @@
+"""Recorded-data injection: a sensor reads a file instead of its model, aligned to the scenario clock.
+
+Formats (``docs/sensors.md`` has the full description):
+
+IMU CSV (``sensors.imu.recorded``)
+    Header line with these columns (any order, extra columns ignored), ``#`` comment lines::
+
+        time_s, gyro_x_dps, gyro_y_dps, gyro_z_dps, accel_x_mps2, accel_y_mps2, accel_z_mps2
+
+    Body axes (x right, y forward, z up); angular rate in deg/s, specific force in m/s^2, each
+    row the instantaneous value at ``time_s`` (file clock; scenario time = ``time_s`` +
+    ``time_offset_s``). At a trigger over ``[t0, t1]`` the sensor outputs the mean of the
+    piecewise-linear record over that interval (exact integral), then its own range and
+    24-bit words. Outside the record the gyro stays silent (the FPGA flags the missing datagram)
+    and the accelerometers hold the last value.
+
+GNSS CSV (``sensors.gnss.recorded: {format: csv}``)
+    ``time_s, lat_deg, lon_deg, height_m, vel_e_mps, vel_n_mps, vel_u_mps`` and optional
+    ``fix_quality, num_sats, hdop``. Each row is one fix at its epoch; it is sent as NMEA at the
+    receiver epoch within half an epoch of it (no row: no fix, no PPS).
+
+GNSS NMEA log (``format: nmea``)
+    One sentence per line, checksums verified. Sentences are grouped into epochs by their UTC
+    time field (GGA/RMC; other sentences join the epoch they follow) and the original bytes are
+    replayed ``latency_s`` after the epoch, with a PPS edge at each epoch that has a valid fix.
+    UTC times map to the scenario clock through the scenario epoch's date (or RMC's date).
+
+Polarization images (``sensors.camera.recorded``)
+    Raw 12/16-bit mosaics (ny x nx) as 16-bit PNG or TIFF, or NPZ with arrays ``I0, I45, I90,
+    I135`` (each either the channel planes, ny/2 x nx/2, or full-resolution demosaiced images,
+    from which each channel's own pixels are taken). Frames are timed by an index CSV
+    (``time_s, file``) or by a glob with ``rate_hz`` and ``start_s``; a camera capture uses the
+    frame within half a frame period of its exposure middle (none: no frame).
+
+A bad file raises :class:`emulator.errors.RecordingError` naming the file, the line and the column.
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime as _dt
+import glob as _glob
+import math
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from protocols.nmea import Gga, NmeaFormat, Rmc
+
+from ..errors import RecordingError
+from ..links.base import Link
+from .camera import CHANNEL_OFFSETS
+from .gnss import GnssConfig, GnssReceiver
+
+__all__ = ["IMU_COLUMNS", "GNSS_COLUMNS", "RecordedImu", "RecordedGnssCsv", "RecordedNmea", "RecordedImages",
+           "recorded_gnss", "read_mosaic"]
+
+DEG = math.pi / 180.0
+IMU_COLUMNS = ("time_s", "gyro_x_dps", "gyro_y_dps", "gyro_z_dps", "accel_x_mps2", "accel_y_mps2", "accel_z_mps2")
+GNSS_COLUMNS = ("time_s", "lat_deg", "lon_deg", "height_m", "vel_e_mps", "vel_n_mps", "vel_u_mps")
+GNSS_OPTIONAL = ("fix_quality", "num_sats", "hdop")
+
+
+def _read_csv(path: Path, required: tuple[str, ...], optional: tuple[str, ...] = ()) -> dict[str, np.ndarray]:
+    """Numeric columns of a CSV with a header; errors name file, line and column (1-based)."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise RecordingError(f"{path}: cannot read: {exc.strerror or exc}") from exc
+    lines = text.splitlines()
+    header_line = None
+    for i, ln in enumerate(lines):
+        if ln.strip() and not ln.lstrip().startswith("#"):
+            header_line = i
+            break
+    if header_line is None:
+        raise RecordingError(f"{path}: line 1, column 1: empty file (expected a header: {', '.join(required)})")
+    header = [h.strip() for h in next(csv.reader([lines[header_line]]))]
+    missing = [c for c in required if c not in header]
+    if missing:
+        raise RecordingError(f"{path}: line {header_line + 1}, column 1: missing column(s) {', '.join(missing)} "
+                             f"(header is: {', '.join(header)})")
+    want = [c for c in required + optional if c in header]
+    idx = {c: header.index(c) for c in want}
+    rows: dict[str, list[float]] = {c: [] for c in want}
+    for i in range(header_line + 1, len(lines)):
+        ln = lines[i]
+        if not ln.strip() or ln.lstrip().startswith("#"):
+            continue
+        cells = next(csv.reader([ln]))
+        starts = [0]
+        for c in cells[:-1]:
+            starts.append(starts[-1] + len(c) + 1)
+        for c in want:
+            j = idx[c]
+            if j >= len(cells):
+                raise RecordingError(f"{path}: line {i + 1}, column {len(ln) + 1}: row has {len(cells)} fields, "
+                                     f"column {c!r} is field {j + 1}")
+            try:
+                v = float(cells[j])
+            except ValueError:
+                raise RecordingError(f"{path}: line {i + 1}, column {starts[j] + 1}: {c} = {cells[j]!r} "
+                                     f"is not a number") from None
+            if not math.isfinite(v):
+                raise RecordingError(f"{path}: line {i + 1}, column {starts[j] + 1}: {c} = {cells[j]!r} is not finite")
+            rows[c].append(v)
+    out = {c: np.array(v, dtype=np.float64) for c, v in rows.items()}
+    t = out[required[0]]
+    if len(t) < 1:
+        raise RecordingError(f"{path}: line {header_line + 2}, column 1: no data rows")
+    bad = np.nonzero(np.diff(t) <= 0)[0]
+    if len(bad):
+        raise RecordingError(f"{path}: data row {bad[0] + 2}, column {idx[required[0]] + 1}: {required[0]} "
+                             f"is not increasing ({t[bad[0]]:g} then {t[bad[0] + 1]:g})")
+    return out
+
+
+class RecordedImu:
+    """Gyro and accelerometer samples from an IMU CSV (see module docstring)."""
+
+    def __init__(self, path: Path | str, time_offset_s: float = 0.0) -> None:
+        self.path = Path(path)
+        d = _read_csv(self.path, IMU_COLUMNS)
+        if len(d["time_s"]) < 2:
+            raise RecordingError(f"{self.path}: line 3, column 1: an IMU record needs at least two rows")
+        self.t = d["time_s"] + time_offset_s
+        self.w = np.stack([d["gyro_x_dps"], d["gyro_y_dps"], d["gyro_z_dps"]], axis=1) * DEG
+        self.f = np.stack([d["accel_x_mps2"], d["accel_y_mps2"], d["accel_z_mps2"]], axis=1)
+        dt = np.diff(self.t)[:, None]
+        self._cw = np.concatenate([np.zeros((1, 3)), np.cumsum(0.5 * (self.w[1:] + self.w[:-1]) * dt, axis=0)])
+        self._cf = np.concatenate([np.zeros((1, 3)), np.cumsum(0.5 * (self.f[1:] + self.f[:-1]) * dt, axis=0)])
+
+    def _integral(self, cum: np.ndarray, val: np.ndarray, t: float) -> np.ndarray:
+        i = int(np.clip(np.searchsorted(self.t, t, side="right") - 1, 0, len(self.t) - 2))
+        h = self.t[i + 1] - self.t[i]
+        s = t - self.t[i]
+        slope = (val[i + 1] - val[i]) / h
+        return cum[i] + val[i] * s + 0.5 * slope * s * s
+
+    def covers(self, t0: float, t1: float) -> bool:
+        return self.t[0] <= t0 and t1 <= self.t[-1]
+
+    def mean_rate(self, t0: float, t1: float) -> np.ndarray | None:
+        """Mean angular rate (rad/s, body) over ``[t0, t1]``; None outside the record."""
+        if not self.covers(t0, t1):
+            return None
+        return (self._integral(self._cw, self.w, t1) - self._integral(self._cw, self.w, t0)) / (t1 - t0)
+
+    def mean_specific_force(self, t0: float, t1: float) -> np.ndarray:
+        """Mean specific force (m/s^2, body) over ``[t0, t1]``; the nearest end value outside the record."""
+        if t1 <= self.t[0]:
+            return self.f[0].copy()
+        if t0 >= self.t[-1]:
+            return self.f[-1].copy()
+        a, b = max(t0, self.t[0]), min(t1, self.t[-1])
+        return (self._integral(self._cf, self.f, b) - self._integral(self._cf, self.f, a)) / (b - a)
+
+
+class RecordedGnssCsv:
+    """Fixes from a GNSS CSV; :meth:`fix_at` returns the row of an epoch or None."""
+
+    def __init__(self, path: Path | str, time_offset_s: float = 0.0) -> None:
+        self.path = Path(path)
+        d = _read_csv(self.path, GNSS_COLUMNS, GNSS_OPTIONAL)
+        self.t = d["time_s"] + time_offset_s
+        self.d = d
+
+    def fix_at(self, t: float, half_window: float = 0.5) -> dict[str, float] | None:
+        i = int(np.argmin(np.abs(self.t - t)))
+        if abs(self.t[i] - t) > half_window:
+            return None
+        return {k: float(v[i]) for k, v in self.d.items()}
+
+
+class _CsvReplayReceiver(GnssReceiver):
+    """A GNSS receiver that sends the recorded fixes instead of truth plus errors."""
+
+    def __init__(self, link: Link, src: RecordedGnssCsv, epoch: _dt.datetime, cfg: GnssConfig,
+                 pps: Callable[[float], None] | None, rng: np.random.Generator) -> None:
+        super().__init__(link, _NoTruth(), epoch, rng, cfg, pps)
+        self.src = src
+
+    def has_fix(self, t: float) -> bool:
+        return self.src.fix_at(t, 0.5 / self.cfg.rate_hz) is not None
+
+    def sentences(self, t: float, fix: bool = True) -> bytes:
+        from protocols.nmea import build_gga, build_rmc
+
+        cfg = self.cfg
+        utc = self.epoch + _dt.timedelta(seconds=t)
+        row = self.src.fix_at(t, 0.5 / cfg.rate_hz)
+        out = bytearray()
+        if row is None:
+            return super().sentences(t, False)
+        q = int(row.get("fix_quality", cfg.fix_quality))
+        for kind in cfg.sentences:
+            if kind == "GGA":
+                out += build_gga(utc.time(), row["lat_deg"], row["lon_deg"], row["height_m"] - cfg.geoid_sep_m,
+                                 cfg.geoid_sep_m, quality=q, num_sats=int(row.get("num_sats", cfg.num_sats)),
+                                 hdop=row.get("hdop", cfg.hdop), talker=cfg.talker)
+            elif kind == "RMC":
+                ve, vn = row["vel_e_mps"], row["vel_n_mps"]
+                out += build_rmc(utc.time(), utc.date(), row["lat_deg"], row["lon_deg"], math.hypot(ve, vn),
+                                 math.degrees(math.atan2(ve, vn)) % 360.0, valid=q > 0, talker=cfg.talker)
+        self.fixes_sent += 1
+        return bytes(out)
+
+
+class _NoTruth:
+    """Placeholder trajectory for replaying receivers (they never read truth)."""
+
+    duration = math.inf
+
+    def state(self, t: float):  # pragma: no cover - never called
+        raise RecordingError("a recorded GNSS source does not use truth")
+
+
+class RecordedNmea:
+    """An NMEA log grouped into epochs: ``epochs`` is a list of ``(t_s, bytes, has_fix)``."""
+
+    def __init__(self, path: Path | str, epoch: _dt.datetime, time_offset_s: float = 0.0) -> None:
+        self.path = Path(path)
+        try:
+            raw = self.path.read_bytes()
+        except OSError as exc:
+            raise RecordingError(f"{self.path}: cannot read: {exc.strerror or exc}") from exc
+        fmt = NmeaFormat()
+        groups: list[list] = []  # [t, bytearray, fix]
+        date = epoch.date()
+        for i, line in enumerate(raw.splitlines(), start=1):
+            if not line.strip():
+                continue
+            s = line.strip()
+            col = line.index(s[:1]) + 1
+            if not s.startswith(b"$"):
+                raise RecordingError(f"{self.path}: line {i}, column {col}: not an NMEA sentence (no '$')")
+            star = s.rfind(b"*")
+            if star < 0 or len(s) < star + 3:
+                raise RecordingError(f"{self.path}: line {i}, column {col + len(s)}: NMEA sentence without checksum")
+            frame = s[:star + 3] + b"\r\n"
+            if not fmt.check(frame):
+                raise RecordingError(f"{self.path}: line {i}, column {col + star}: NMEA checksum mismatch")
+            try:
+                msg = fmt.parse(frame)
+            except Exception as exc:  # noqa: BLE001 - any parser complaint is a bad record
+                raise RecordingError(f"{self.path}: line {i}, column {col}: bad NMEA sentence: {exc}") from exc
+            tm = msg.time_utc if isinstance(msg, (Gga, Rmc)) else None
+            if isinstance(msg, Rmc) and getattr(msg, "date", None) is not None:
+                date = msg.date
+            if tm is not None:
+                utc = _dt.datetime.combine(date, tm, tzinfo=_dt.timezone.utc)
+                t = (utc - epoch).total_seconds() + time_offset_s
+                if not groups or abs(groups[-1][0] - t) > 1e-6:
+                    groups.append([t, bytearray(), False])
+                if isinstance(msg, Gga):
+                    groups[-1][2] = groups[-1][2] or bool(getattr(msg, "quality", 0))
+                elif isinstance(msg, Rmc):
+                    groups[-1][2] = groups[-1][2] or bool(getattr(msg, "valid", False))
+            if not groups:
+                continue  # sentences before the first time-tagged one have no epoch
+            groups[-1][1] += frame
+        if not groups:
+            raise RecordingError(f"{self.path}: line 1, column 1: no time-tagged GGA/RMC sentence")
+        self.epochs = [(g[0], bytes(g[1]), g[2]) for g in groups]
+
+
+class _NmeaReplay:
+    """Replays a :class:`RecordedNmea` on a link with PPS edges (a GNSS device without a model)."""
+
+    def __init__(self, link: Link, log: RecordedNmea, latency_s: float, pps: Callable[[float], None] | None) -> None:
+        self.link = link
+        self.log = log
+        self.latency_s = latency_s
+        self.pps = pps
+        self.epochs_sent = 0
+
+    def start(self) -> None:
+        for t, data, fix in self.log.epochs:
+            if t < 0:
+                continue
+            if fix and self.pps is not None:
+                self.link.loop.call_at(t, self.pps, t)
+            self.link.loop.call_at(t + self.latency_s, self._send, data)
+
+    def _send(self, data: bytes) -> None:
+        self.link.send(data)
+        self.epochs_sent += 1
+
+
+def recorded_gnss(link: Link, path: Path, fmt: str, epoch: _dt.datetime, cfg: GnssConfig, time_offset_s: float,
+                  pps: Callable[[float], None] | None, rng: np.random.Generator):
+    """The GNSS device of a recorded file (``csv`` or ``nmea``)."""
+    if fmt == "nmea":
+        return _NmeaReplay(link, RecordedNmea(path, epoch, time_offset_s), cfg.latency_s, pps)
+    return _CsvReplayReceiver(link, RecordedGnssCsv(path, time_offset_s), epoch, cfg, pps, rng)
+
+
+def read_mosaic(path: Path | str, shape: tuple[int, int]) -> np.ndarray:
+    """A raw mosaic (ny, nx) uint16 from a 16-bit PNG/TIFF or an NPZ with I0/I45/I90/I135."""
+    path = Path(path)
+    ny, nx = shape
+    suffix = path.suffix.lower()
+    try:
+        if suffix == ".npz":
+            with np.load(path) as z:
+                missing = [k for k in ("I0", "I45", "I90", "I135") if k not in z]
+                if missing:
+                    raise RecordingError(f"{path}: line 1, column 1: NPZ lacks array(s) {', '.join(missing)}")
+                out = np.empty((ny, nx), dtype=np.uint16)
+                for theta, (r, c) in CHANNEL_OFFSETS.items():
+                    a = np.asarray(z[f"I{theta}"])
+                    if a.shape == (ny // 2, nx // 2):
+                        plane = a
+                    elif a.shape == (ny, nx):
+                        plane = a[r::2, c::2]
+                    else:
+                        raise RecordingError(f"{path}: line 1, column 1: I{theta} has shape {a.shape}, expected "
+                                             f"{(ny // 2, nx // 2)} or {(ny, nx)}")
+                    out[r::2, c::2] = np.clip(np.round(plane), 0, 65535).astype(np.uint16)
+                return out
+        if suffix in (".png", ".tif", ".tiff"):
+            from PIL import Image
+
+            with Image.open(path) as im:
+                a = np.array(im)
+        else:
+            raise RecordingError(f"{path}: line 1, column 1: unknown image type {suffix!r} (png, tif, tiff, npz)")
+    except RecordingError:
+        raise
+    except (OSError, ValueError) as exc:
+        raise RecordingError(f"{path}: line 1, column 1: cannot read image: {exc}") from exc
+    if a.ndim != 2 or a.shape != (ny, nx):
+        raise RecordingError(f"{path}: line 1, column 1: image has shape {a.shape}, expected a raw mosaic {(ny, nx)}")
+    if a.dtype.kind not in "ui":
+        raise RecordingError(f"{path}: line 1, column 1: image has dtype {a.dtype}, expected integer DN")
+    return a.astype(np.uint16)
+
+
+class RecordedImages:
+    """Timed raw mosaics for the camera (see module docstring); :meth:`mosaic_at` is the camera's source."""
+
+    def __init__(self, index: Path | None = None, files: str | None = None, rate_hz: float | None = None,
+                 start_s: float = 0.0, shape: tuple[int, int] = (2048, 2448)) -> None:
+        self.shape = shape
+        if index is not None:
+            d = _read_index(Path(index))
+            self.times = d[0]
+            self.files = d[1]
+        else:
+            names = sorted(_glob.glob(str(files)))
+            if not names:
+                raise RecordingError(f"{files}: line 1, column 1: no file matches")
+            self.files = [Path(n) for n in names]
+            self.times = start_s + np.arange(len(names)) / float(rate_hz)  # type: ignore[arg-type]
+        for f in self.files:
+            if not f.exists():
+                raise RecordingError(f"{f}: line 1, column 1: file not found")
+        self.period = float(np.median(np.diff(self.times))) if len(self.times) > 1 else math.inf
+        self._cache: tuple[int, np.ndarray] | None = None
+
+    def mosaic_at(self, t: float) -> np.ndarray | None:
+        i = int(np.argmin(np.abs(self.times - t)))
+        if abs(self.times[i] - t) > 0.5 * min(self.period, 1e9):
+            return None
+        if self._cache is None or self._cache[0] != i:
+            self._cache = (i, read_mosaic(self.files[i], self.shape))
+        return self._cache[1]
+
+
+def _read_index(path: Path) -> tuple[np.ndarray, list[Path]]:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise RecordingError(f"{path}: cannot read: {exc.strerror or exc}") from exc
+    times: list[float] = []
+    files: list[Path] = []
+    header_seen = False
+    for i, ln in enumerate(text.splitlines(), start=1):
+        if not ln.strip() or ln.lstrip().startswith("#"):
+            continue
+        cells = [c.strip() for c in ln.split(",")]
+        if not header_seen:
+            if cells[:2] != ["time_s", "file"]:
+                raise RecordingError(f"{path}: line {i}, column 1: the header must be 'time_s,file'")
+            header_seen = True
+            continue
+        if len(cells) < 2:
+            raise RecordingError(f"{path}: line {i}, column {len(ln) + 1}: expected 'time_s,file'")
+        try:
+            times.append(float(cells[0]))
+        except ValueError:
+            raise RecordingError(f"{path}: line {i}, column 1: time_s = {cells[0]!r} is not a number") from None
+        files.append(path.parent / cells[1])
+    if not times:
+        raise RecordingError(f"{path}: line 1, column 1: no frames listed")
+    return np.array(times), files

@@ -1,0 +1,279 @@
+"""Skylight polarization: Rayleigh single scattering, Berry's neutral-point model, clouds and occluders.
+
+Rayleigh (``shared/reference/algorithms.md`` section 2.1): for the unit sun vector ``S`` and
+view ray ``V`` with scattering angle ``gamma`` (``cos gamma = S . V``)::
+
+    DOP = P_max sin^2(gamma) / (1 + cos^2(gamma)),     E  ∝  S x V  (perpendicular to S and V)
+
+Berry, Dennis & Lee (2004, "Polarization singularities in the clear sky", New J. Phys. 6:162):
+on the stereographic plane ``zeta = (V_E + i V_N)/(1 + V_U)`` the sky is described by::
+
+    w(zeta) = -4 (zeta - zB)(zeta - zb)(zeta + 1/conj(zB))(zeta + 1/conj(zb))
+              / ((1 + |zeta|^2)^2 |zB + 1/conj(zB)| |zb + 1/conj(zb)|)
+
+with the Brewster and Babinet neutral points ``zB``, ``zb`` on the sun's vertical at ``delta``
+(half the ``neutral_point_sep_deg``) below and above the sun, and their antipodes (Arago and the
+fourth point). ``DOP = P_max |w|/(2 - |w|)`` and the E-vector makes the angle
+``arg(w exp(-2 i phi_sun))/2`` with the real axis of the zeta plane (``phi_sun = arg(zeta_sun)``) (the projection is conformal, so that direction is carried back to
+the sphere by the projection's Jacobian). With ``delta = 0`` it is exactly Rayleigh (a test
+checks this).
+
+Clouds are circular sky regions (ENU azimuth/elevation, optional azimuth drift and a time
+window): inside, DOP is multiplied by ``dop_scale``, the radiance by ``intensity_scale`` and the
+E-vector is rotated about the view ray by a smooth pseudo-random texture with standard
+deviation ``aop_sigma_deg`` (eight plane waves on the sphere with wavelengths of a few degrees,
+drawn once from the scenario seed, so every sensor and every fidelity sees the same cloud).
+Occluders (azimuth sector up to an elevation: buildings, trees) and the ground (below the
+horizon) are unpolarized with a scaled radiance.
+
+Every function here works in any frame ``f``: give ``S`` and ``V`` in ``f`` and the rotation
+``C_n^f`` (ENU to ``f``) for the region tests; the camera evaluates directly in its own frame.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["Cloud", "Occluder", "SkyModel", "SkyField", "rayleigh_dop", "sky_from_spec"]
+
+DEG = math.pi / 180.0
+#: Radiance of the ground relative to the sky (a diffuse, unpolarized surface).
+GROUND_RADIANCE = 0.3
+
+
+def rayleigh_dop(cos_gamma: np.ndarray, p_max: float) -> np.ndarray:
+    """``P_max sin^2(gamma)/(1 + cos^2(gamma))`` from ``cos(gamma)``."""
+    c2 = cos_gamma * cos_gamma
+    return p_max * (1.0 - c2) / (1.0 + c2)
+
+
+@dataclass
+class Cloud:
+    """See module docstring; angles in rad, times in s."""
+
+    az: float
+    el: float
+    radius: float
+    dop_scale: float = 0.2
+    aop_sigma: float = 20.0 * DEG
+    intensity_scale: float = 1.5
+    start_s: float = 0.0
+    end_s: float = math.inf
+    drift_az_rps: float = 0.0
+    waves: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # (K, 3) wave vectors, rad^-1
+    phases: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    def centre_enu(self, t: float) -> np.ndarray:
+        az = self.az + self.drift_az_rps * t
+        ce = math.cos(self.el)
+        return np.array([math.sin(az) * ce, math.cos(az) * ce, math.sin(self.el)])
+
+    def active(self, t: float) -> bool:
+        return self.start_s <= t < self.end_s
+
+
+@dataclass
+class Occluder:
+    """Azimuth sector ``[az_min, az_max]`` (clockwise from north, rad; may wrap through north) up to ``el_max``."""
+
+    az_min: float
+    az_max: float
+    el_max: float
+    intensity_scale: float = 0.3
+
+
+@dataclass
+class SkyField:
+    """Polarization at N view rays in frame f: DOP (N,), E-vector components (N,) each (unit, ⟂ V), radiance (N,)."""
+
+    dop: np.ndarray
+    ex: np.ndarray
+    ey: np.ndarray
+    ez: np.ndarray
+    radiance: np.ndarray
+
+
+class SkyModel:
+    """The sky of one scenario (see module docstring).
+
+    Parameters
+    ----------
+    model : ``"rayleigh"`` or ``"berry"``.
+    p_max : maximum DOP (0..1).
+    neutral_point_sep : Berry's Babinet-Brewster separation ``2 delta``, rad.
+    clouds, occluders : regions.
+    """
+
+    def __init__(self, model: str = "rayleigh", p_max: float = 0.7, neutral_point_sep: float = 20.0 * DEG,
+                 clouds: list[Cloud] | None = None, occluders: list[Occluder] | None = None) -> None:
+        if model not in ("rayleigh", "berry"):
+            raise ValueError(f"sky model must be rayleigh or berry, got {model!r}")
+        self.model = model
+        self.p_max = float(p_max)
+        self.delta = 0.5 * float(neutral_point_sep)
+        self.clouds = clouds or []
+        self.occluders = occluders or []
+
+    @property
+    def uniform(self) -> bool:
+        """True for a clear Rayleigh sky without regions (the camera's fast path)."""
+        return self.model == "rayleigh" and not self.clouds and not self.occluders
+
+    # ------------------------------------------------------------------------------------------
+    def evaluate(self, t: float, s_f: np.ndarray, vx: np.ndarray, vy: np.ndarray, vz: np.ndarray,
+                 c_nf: np.ndarray) -> SkyField:
+        """Polarization at view rays ``(vx, vy, vz)`` (unit, frame f) for the sun ``s_f`` (unit, frame f).
+
+        ``c_nf`` is ``C_n^f`` (3x3, ENU to f). Arrays may be float32 (the camera) or float64.
+        """
+        dt = vx.dtype
+        sx, sy, sz = (dt.type(s_f[0]), dt.type(s_f[1]), dt.type(s_f[2]))
+        if self.model == "rayleigh":
+            ex = sy * vz - sz * vy
+            ey = sz * vx - sx * vz
+            ez = sx * vy - sy * vx
+            cg = sx * vx + sy * vy + sz * vz
+            dop = rayleigh_dop(cg, dt.type(self.p_max))
+        else:
+            dop, ex, ey, ez = self._berry(s_f, vx, vy, vz, c_nf)
+        n = np.sqrt(ex * ex + ey * ey + ez * ez)
+        tiny = n < 1e-12
+        if np.any(tiny):  # looking straight at the sun or anti-sun: unpolarized, any E ⟂ V
+            n = np.where(tiny, 1.0, n).astype(dt)
+            ax, ay, az_ = _any_perpendicular(vx, vy, vz)
+            ex = np.where(tiny, ax, ex)
+            ey = np.where(tiny, ay, ey)
+            ez = np.where(tiny, az_, ez)
+            dop = np.where(tiny, 0.0, dop).astype(dt)
+        inv = (1.0 / n).astype(dt)
+        ex, ey, ez = ex * inv, ey * inv, ez * inv
+        radiance = np.ones_like(vx)
+        up = c_nf[:, 2]
+        vu = up[0] * vx + up[1] * vy + up[2] * vz
+        ground = vu < 0.0
+        if np.any(ground):
+            dop = np.where(ground, 0.0, dop).astype(dt)
+            radiance = np.where(ground, GROUND_RADIANCE, radiance).astype(dt)
+        for cl in self.clouds:
+            if not cl.active(t):
+                continue
+            c_f = c_nf @ cl.centre_enu(t)
+            inside = (c_f[0] * vx + c_f[1] * vy + c_f[2] * vz) > math.cos(cl.radius)
+            inside &= ~ground
+            if not np.any(inside):
+                continue
+            dop = np.where(inside, dop * dt.type(cl.dop_scale), dop).astype(dt)
+            radiance = np.where(inside, radiance * dt.type(cl.intensity_scale), radiance).astype(dt)
+            if cl.aop_sigma > 0.0 and len(cl.waves):
+                idx = np.nonzero(inside)[0]
+                v_n = c_nf.T @ np.stack([vx[idx], vy[idx], vz[idx]]).astype(np.float64)  # (3, M) ENU
+                arg = cl.waves @ v_n + cl.phases[:, None]
+                rot = cl.aop_sigma * math.sqrt(2.0 / len(cl.phases)) * np.cos(arg).sum(axis=0)
+                ex_i, ey_i, ez_i = _rotate_about(ex[idx], ey[idx], ez[idx], vx[idx], vy[idx], vz[idx], rot)
+                ex, ey, ez = ex.copy(), ey.copy(), ez.copy()
+                ex[idx], ey[idx], ez[idx] = ex_i, ey_i, ez_i
+        if self.occluders:
+            east, north = c_nf[:, 0], c_nf[:, 1]
+            ve = east[0] * vx + east[1] * vy + east[2] * vz
+            vn = north[0] * vx + north[1] * vy + north[2] * vz
+            az = np.mod(np.arctan2(ve, vn), 2.0 * math.pi)
+            el = np.arcsin(np.clip(vu, -1.0, 1.0))
+            for oc in self.occluders:
+                if oc.az_min <= oc.az_max:
+                    sector = (az >= oc.az_min) & (az <= oc.az_max)
+                else:
+                    sector = (az >= oc.az_min) | (az <= oc.az_max)
+                hit = sector & (el <= oc.el_max) & ~ground
+                if np.any(hit):
+                    dop = np.where(hit, 0.0, dop).astype(dt)
+                    radiance = np.where(hit, dt.type(oc.intensity_scale), radiance).astype(dt)
+        return SkyField(dop.astype(dt, copy=False), ex, ey, ez, radiance)
+
+    def evaluate_enu(self, t: float, s_n: np.ndarray, v_n: np.ndarray) -> SkyField:
+        """Convenience: rays ``v_n`` (N, 3) and sun ``s_n`` in ENU."""
+        v = np.asarray(v_n, dtype=np.float64)
+        return self.evaluate(t, np.asarray(s_n, dtype=np.float64), v[:, 0], v[:, 1], v[:, 2], np.eye(3))
+
+    # ------------------------------------------------------------------------------------------
+    def _berry(self, s_f: np.ndarray, vx: np.ndarray, vy: np.ndarray, vz: np.ndarray,
+               c_nf: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        c_fn = c_nf.T
+        v_n = c_fn @ np.stack([vx, vy, vz]).astype(np.float64)  # (3, N)
+        s_n = c_fn @ np.asarray(s_f, dtype=np.float64)
+        den = 1.0 + v_n[2]
+        below = den < 1e-9
+        den = np.where(below, 1.0, den)
+        zeta = (v_n[0] + 1j * v_n[1]) / den
+        zs = (s_n[0] + 1j * s_n[1]) / max(1.0 + s_n[2], 1e-12)
+        th_s = 2.0 * math.atan(abs(zs))  # sun zenith angle
+        phi_s = math.atan2(zs.imag, zs.real)
+        ph = complex(math.cos(phi_s), math.sin(phi_s))
+        zB = ph * math.tan((th_s + self.delta) / 2.0)  # Brewster: below the sun
+        zb = ph * math.tan((th_s - self.delta) / 2.0)  # Babinet: above the sun
+        aB = -1.0 / np.conj(zB)
+        ab = -1.0 / np.conj(zb) if zb != 0 else complex(1e300, 0.0)
+        w = (-4.0 * (zeta - zB) * (zeta - zb) * (zeta - aB) * (zeta - ab)
+             / ((1.0 + np.abs(zeta) ** 2) ** 2 * abs(zB - aB) * abs(zb - ab)))
+        aw = np.minimum(np.abs(w), 1.0)
+        dop = self.p_max * aw / (2.0 - aw)
+        chi = 0.5 * np.angle(w * (ph.conjugate() ** 2))  # the |.| normalisation leaves a 2 phi_sun phase
+        cx, cy = np.cos(chi), np.sin(chi)
+        x, y = zeta.real, zeta.imag
+        rho2 = x * x + y * y
+        d = 1.0 + rho2
+        d2 = d * d
+        # Jacobian of the inverse stereographic projection applied to (cos chi, sin chi)
+        e_e = (2.0 / d - 4.0 * x * x / d2) * cx - 4.0 * x * y / d2 * cy
+        e_n = -4.0 * x * y / d2 * cx + (2.0 / d - 4.0 * y * y / d2) * cy
+        e_u = -4.0 * x / d2 * cx - 4.0 * y / d2 * cy
+        e_f = c_nf @ np.stack([e_e, e_n, e_u])
+        dt = vx.dtype
+        dop = np.where(below, 0.0, dop)
+        return dop.astype(dt), e_f[0].astype(dt), e_f[1].astype(dt), e_f[2].astype(dt)
+
+
+def _any_perpendicular(vx: np.ndarray, vy: np.ndarray, vz: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A unit vector perpendicular to each V (used where E is undefined)."""
+    use_x = np.abs(vx) < 0.9
+    # V x e_x = (0, vz, -vy);  V x e_y = (-vz, 0, vx)
+    ax = np.where(use_x, 0.0, -vz)
+    ay = np.where(use_x, vz, 0.0)
+    az = np.where(use_x, -vy, vx)
+    n = np.sqrt(ax * ax + ay * ay + az * az)
+    return (ax / n).astype(vx.dtype), (ay / n).astype(vx.dtype), (az / n).astype(vx.dtype)
+
+
+def _rotate_about(ex: np.ndarray, ey: np.ndarray, ez: np.ndarray, vx: np.ndarray, vy: np.ndarray, vz: np.ndarray,
+                  ang: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rotate E (⟂ V) about V by ``ang`` (rad): ``E cos a + (V x E) sin a``."""
+    c, s = np.cos(ang), np.sin(ang)
+    wx = vy * ez - vz * ey
+    wy = vz * ex - vx * ez
+    wz = vx * ey - vy * ex
+    return ((ex * c + wx * s).astype(ex.dtype), (ey * c + wy * s).astype(ex.dtype), (ez * c + wz * s).astype(ex.dtype))
+
+
+def sky_from_spec(spec: object | None, rng: np.random.Generator | None = None) -> SkyModel:
+    """Build a :class:`SkyModel` from ``emulator.scenario.world_schema.SkySpec`` (None: clear Rayleigh sky, P_max 0.7).
+
+    ``rng`` draws the cloud textures (8 plane waves per cloud, wavelengths 3-10 deg).
+    """
+    if spec is None:
+        return SkyModel()
+    rng = rng or np.random.default_rng(0)
+    clouds = []
+    for c in spec.clouds:  # type: ignore[attr-defined]
+        k = 8
+        dirs = rng.standard_normal((k, 3))
+        dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+        wavelength = rng.uniform(3.0, 10.0, k) * DEG
+        waves = dirs * (2.0 * math.pi / wavelength)[:, None]
+        clouds.append(Cloud(c.az_deg * DEG, c.el_deg * DEG, c.radius_deg * DEG, c.dop_scale, c.aop_sigma_deg * DEG,
+                            c.intensity_scale, c.start_s, c.end_s, c.drift_az_dps * DEG, waves,
+                            rng.uniform(0, 2 * math.pi, k)))
+    occ = [Occluder(o.az_min_deg * DEG, o.az_max_deg * DEG, o.el_max_deg * DEG, o.intensity_scale)
+           for o in spec.occluders]  # type: ignore[attr-defined]
+    return SkyModel(spec.model, spec.p_max, spec.neutral_point_sep_deg * DEG, clouds, occ)  # type: ignore[attr-defined]

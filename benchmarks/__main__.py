@@ -14,7 +14,8 @@ import sys
 import time
 from pathlib import Path
 
-MODULES = ["benchmarks.bench_realtime_factor", "benchmarks.bench_camera", "benchmarks.bench_campaign"]
+MODULES = ["benchmarks.bench_realtime_factor", "benchmarks.bench_camera", "benchmarks.bench_decoders",
+           "benchmarks.bench_campaign"]
 
 
 def main() -> int:

@@ -13,13 +13,21 @@ function               algorithm                                                
 (*) ``check`` is the CRC of the ASCII bytes ``b"123456789"`` (the catalogue convention).
 Sources: ``shared/reference/protocols.md`` section 1.7 (STIM CRCs, from TS1524 r31 and the
 c2a-aobc STIM210 driver); CRC-16/CCITT is ``binascii.crc_hqx`` seeded with 0xFFFF.
+
+Speed: the CRC-16 and the CRC-32 run in C. CRC-32/MPEG-2 is the bit-reversed twin of the zlib
+CRC-32 (same polynomial, reflected, final XOR): reversing the bits of every input byte, running
+``zlib.crc32`` and reversing the 32-bit result gives the MPEG-2 value
+(``tests/protocols/test_crc.py`` checks it against a bitwise implementation and ``crccheck``).
+The Fletcher sums use ``sum`` and ``itertools.accumulate`` (CK_B is the sum of the running CK_A).
 """
 
 from __future__ import annotations
 
 import binascii
+import itertools
+import zlib
 
-__all__ = ["crc8_stim", "crc16_ccitt", "crc32_mpeg2", "nmea_checksum", "ubx_fletcher"]
+__all__ = ["crc8_stim", "crc16_ccitt", "crc32_mpeg2", "crc32_mpeg2_bitwise", "nmea_checksum", "ubx_fletcher"]
 
 
 def _crc8_table(poly: int) -> bytes:
@@ -60,12 +68,26 @@ def crc16_ccitt(data: bytes | bytearray | memoryview, init: int = 0xFFFF) -> int
     return binascii.crc_hqx(data, init)
 
 
+#: ``bytes.translate`` table reversing the bit order of one byte.
+_BITREV8 = bytes(int(f"{i:08b}"[::-1], 2) for i in range(256))
+
+
+def _bitrev32(v: int) -> int:
+    return int.from_bytes(v.to_bytes(4, "little").translate(_BITREV8), "big")
+
+
 def crc32_mpeg2(data: bytes | bytearray | memoryview, init: int = 0xFFFFFFFF) -> int:
     """CRC-32/MPEG-2 (poly 0x04C11DB7, init 0xFFFFFFFF, MSB first) of the STIM300 datagrams.
 
     The STIM300 appends N dummy 0x00 bytes to the covered bytes (never sent) so that the
     CRC input is a multiple of four bytes; pass them in ``data``.
     """
+    start = 0 if init == 0xFFFFFFFF else _bitrev32(init) ^ 0xFFFFFFFF
+    return _bitrev32(zlib.crc32(bytes(data).translate(_BITREV8), start) ^ 0xFFFFFFFF)
+
+
+def crc32_mpeg2_bitwise(data: bytes | bytearray | memoryview, init: int = 0xFFFFFFFF) -> int:
+    """Table-driven MSB-first reference of :func:`crc32_mpeg2` (slow; for tests)."""
     c = init
     table = _CRC32_04C11DB7
     for b in data:
@@ -85,8 +107,4 @@ def nmea_checksum(body: bytes | str) -> int:
 
 def ubx_fletcher(data: bytes | bytearray | memoryview) -> tuple[int, int]:
     """u-blox 8-bit Fletcher checksum (CK_A, CK_B) over class, id, length and payload."""
-    a = b = 0
-    for x in data:
-        a = (a + x) & 0xFF
-        b = (b + a) & 0xFF
-    return a, b
+    return sum(data) & 0xFF, sum(itertools.accumulate(data)) & 0xFF

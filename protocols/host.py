@@ -28,7 +28,47 @@ Messages:
     95   u8       psns_status         0 none, 1 valid solar vector used, 2 rejected
     96   u16      cpu_load            0.01 % of the tick budget (worst of the last second)
     98   u32      deadline_misses     cumulative
-    (102 bytes)
+    (102 bytes; later versions may only append fields, and decoders accept a longer payload)
+
+``0x02`` STATUS (DSP -> host, at 1 Hz and in answer to REQUEST_STATUS), payload::
+
+    off  type  field              unit / meaning
+    0    u32   seq                status counter
+    4    f64   time_s             s, FPGA time
+    12   u8    filter_variant     :class:`FilterVariant`
+    13   u8    reserved           0
+    14   u16   mode               :class:`NavMode` bits
+    16   f32   output_rate_hz     Hz, NAV_SOLUTION rate in force
+    20   u8    gnss_status        as in NAV_SOLUTION
+    21   u8    psns_status        as in NAV_SOLUTION
+    22   u16   cpu_load           0.01 %, worst tick of the last second
+    24   u16   cpu_load_max       0.01 %, worst tick since start
+    26   u16   fw_version         major << 8 | minor
+    28   u32   deadline_misses    cumulative
+    32   u32   uart1_frames       IMU/MAG frames decoded
+    36   u32   uart1_errors       checksum + length + parse errors
+    40   u32   uart2_frames       PSNS frames decoded
+    44   u32   uart2_errors
+    48   u32   uart3_frames       GNSS frames decoded
+    52   u32   uart3_errors
+    56   u32   commands_accepted
+    60   u32   commands_rejected
+    (64 bytes)
+
+``0x03`` ACK (DSP -> host, one per command, within one output period): u8 command_id,
+u8 token (echoed), u8 result (:class:`AckResult`). REQUEST_STATUS is answered by ACK, then STATUS.
+
+Commands (host -> DSP; ids >= 0x80), every payload starting with a host-chosen u8 token::
+
+    0x81 RESET_FILTER      u8 token, u8 scope (0 = restart alignment, 1 = reset covariance only)
+    0x82 SELECT_VARIANT    u8 token, u8 variant (:class:`FilterVariant`)
+    0x83 SET_OUTPUT_RATE   u8 token, f32 rate_hz (200 Hz / k for integer k; 0 stops the output)
+    0x84 REQUEST_STATUS    u8 token
+
+Text output for terminal users (optional, NMEA 0183 framing with checksum, same port): the
+proprietary sentences ``$PSNSPOS`` (time, position, mode), ``$PSNSVEL`` (time, ENU velocity),
+``$PSNSATT`` (time, roll, pitch, heading) and ``$PSNSSTA`` (time, variant, rate, CPU load, misses),
+see :func:`nav_text_sentences` and :class:`HostTextFormat`. Each stays under 82 characters.
 """
 
 from __future__ import annotations
@@ -36,15 +76,45 @@ from __future__ import annotations
 import enum
 import struct
 from dataclasses import dataclass
+from typing import Any
 
-from construct import Array, Float32l, Float64l, Int8ul, Int16ul, Int32ul, Struct
+from construct import Array, Bytes, Const, Float32l, Float64l, Int8ul, Int16ul, Int32ul, Struct, this
 
+from ._fastinit import fast_frozen_init
 from .crc import crc16_ccitt
 from .stream import BAD_LENGTH, NEED_MORE
 
 __all__ = [
     "HOST_SYNC",
+    "HOST_MAX_PAYLOAD",
     "MSG_NAV_SOLUTION",
+    "MSG_STATUS",
+    "MSG_ACK",
+    "CMD_RESET_FILTER",
+    "CMD_SELECT_VARIANT",
+    "CMD_SET_OUTPUT_RATE",
+    "CMD_REQUEST_STATUS",
+    "FilterVariant",
+    "FILTER_VARIANT_NAMES",
+    "AckResult",
+    "HostStatus",
+    "Ack",
+    "ResetFilter",
+    "SelectVariant",
+    "SetOutputRate",
+    "RequestStatus",
+    "STATUS_SPEC",
+    "ACK_SPEC",
+    "COMMAND_SPECS",
+    "encode_status",
+    "encode_ack",
+    "encode_command",
+    "encode_host",
+    "HostTextFormat",
+    "NavText",
+    "nav_text_sentences",
+    "encode_nav_text",
+    "TEXT_SENTENCES",
     "NavMode",
     "NavSolution",
     "NAV_SOLUTION_SPEC",
@@ -56,7 +126,44 @@ __all__ = [
 
 HOST_SYNC = b"\xa5\x5a"
 MSG_NAV_SOLUTION = 0x01
+MSG_STATUS = 0x02
+MSG_ACK = 0x03
+CMD_RESET_FILTER = 0x81
+CMD_SELECT_VARIANT = 0x82
+CMD_SET_OUTPUT_RATE = 0x83
+CMD_REQUEST_STATUS = 0x84
+#: Largest payload accepted from the header (every defined message is far shorter).
 HOST_MAX_PAYLOAD = 1024
+
+
+class FilterVariant(enum.IntEnum):
+    """Firmware filter variants (DESIGN.md section 6), as carried in STATUS and SELECT_VARIANT."""
+
+    BASE = 1  #: bi-direction solar vector KF (the base paper)
+    DUAL_VECTOR = 2  #: dual-vector switching over several polarization sensors
+    KMEANS_3D = 3  #: K-means sun finding + 3-D attitude
+    FEDERATED = 4  #: federated SINS/GNSS + MIMU/polarization filter
+    SUN_ELEVATION = 5  #: sun-elevation positioning, multi-unit compass, Sage-Husa KF
+
+
+#: Scenario names of the variants (``firmware.filter``) -> :class:`FilterVariant`.
+FILTER_VARIANT_NAMES = {
+    "base": FilterVariant.BASE,
+    "dual_vector": FilterVariant.DUAL_VECTOR,
+    "kmeans_3d": FilterVariant.KMEANS_3D,
+    "federated": FilterVariant.FEDERATED,
+    "sun_elevation": FilterVariant.SUN_ELEVATION,
+}
+
+
+class AckResult(enum.IntEnum):
+    """``result`` of an ACK."""
+
+    ACCEPTED = 0
+    BAD_ARGUMENT = 1  #: value out of range (variant unknown, rate not 200 Hz / k, bad scope)
+    NOT_ALLOWED = 2  #: valid but refused now (variant not in this build, filter busy)
+    UNKNOWN_COMMAND = 3
+    BAD_LENGTH = 4  #: payload length wrong for the command id
 
 
 class NavMode(enum.IntFlag):
@@ -69,28 +176,37 @@ class NavMode(enum.IntFlag):
     DEGRADED = 0x0010  #: inputs missing or rejected (see status bytes)
 
 
+# Field docs are "scale | unit | meaning" (read by protocols.icd for docs/icd.md).
+HOST_FRAME_SPEC = Struct(
+    "sync" / Const(HOST_SYNC) * " |  | 0xA5 0x5A",
+    "msg_id" / Int8ul * " |  | message id",
+    "length" / Int16ul * "1 | bytes | payload length N (<= 1024)",
+    "payload" / Bytes(this.length) * " |  | N bytes",
+    "crc" / Int16ul * " |  | CRC-16/CCITT-FALSE over msg_id, length, payload",
+)
 NAV_SOLUTION_SPEC = Struct(
-    "seq" / Int32ul,
-    "time_s" / Float64l,
-    "lat_deg" / Float64l,
-    "lon_deg" / Float64l,
-    "height_m" / Float32l,
-    "vel_enu_mps" / Array(3, Float32l),
-    "roll_deg" / Float32l,
-    "pitch_deg" / Float32l,
-    "heading_deg" / Float32l,
-    "sigma" / Array(9, Float32l),
-    "mode" / Int16ul,
-    "gnss_status" / Int8ul,
-    "psns_status" / Int8ul,
-    "cpu_load" / Int16ul,
-    "deadline_misses" / Int32ul,
+    "seq" / Int32ul * "1 |  | solution counter",
+    "time_s" / Float64l * "1 | s | time of validity (FPGA time of the IMU trigger)",
+    "lat_deg" / Float64l * "1 | deg | WGS-84 latitude",
+    "lon_deg" / Float64l * "1 | deg | WGS-84 longitude",
+    "height_m" / Float32l * "1 | m | ellipsoidal height",
+    "vel_enu_mps" / Array(3, Float32l) * "1 | m/s | velocity East, North, Up",
+    "roll_deg" / Float32l * "1 | deg | roll, right wing down positive",
+    "pitch_deg" / Float32l * "1 | deg | pitch, nose up positive",
+    "heading_deg" / Float32l * "1 | deg | heading clockwise from true north, [0, 360)",
+    "sigma" / Array(9, Float32l) * "1 | deg, m/s, m | 1-sigma: attitude E,N,U; velocity E,N,U; position N,E,U",
+    "mode" / Int16ul * " |  | NavMode bits; bits 8-11 filter variant",
+    "gnss_status" / Int8ul * " |  | fix quality of the last GNSS fix used (GGA codes)",
+    "psns_status" / Int8ul * " |  | 0 none, 1 solar vector used, 2 rejected",
+    "cpu_load" / Int16ul * "0.01 | % | worst tick of the last second",
+    "deadline_misses" / Int32ul * "1 |  | cumulative",
 )
 
 _NAV = struct.Struct("<Idddf3f3f9fHBBHI")
 NAV_SOLUTION_LEN = _NAV.size  # 102
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class NavSolution:
     """Decoded NAV_SOLUTION (see module docstring for units)."""
@@ -112,6 +228,7 @@ class NavSolution:
     deadline_misses: int
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class HostFrame:
     """A checked host frame whose message id has no typed decoder here."""
@@ -151,9 +268,9 @@ def encode_nav_solution(n: NavSolution) -> bytes:
 
 
 def _decode_nav(payload: bytes) -> NavSolution:
-    if len(payload) != NAV_SOLUTION_LEN:
-        raise ValueError(f"NAV_SOLUTION payload must be {NAV_SOLUTION_LEN} bytes, got {len(payload)}")
-    v = _NAV.unpack(payload)
+    if len(payload) < NAV_SOLUTION_LEN:
+        raise ValueError(f"NAV_SOLUTION payload must be at least {NAV_SOLUTION_LEN} bytes, got {len(payload)}")
+    v = _NAV.unpack_from(payload)
     return NavSolution(
         seq=v[0],
         time_s=v[1],
@@ -173,27 +290,318 @@ def _decode_nav(payload: bytes) -> NavSolution:
     )
 
 
+# -- STATUS, ACK, commands -------------------------------------------------------------------
+
+STATUS_SPEC = Struct(
+    "seq" / Int32ul * "1 |  | status counter",
+    "time_s" / Float64l * "1 | s | FPGA time",
+    "filter_variant" / Int8ul * " |  | FilterVariant",
+    "reserved" / Int8ul * " |  | 0",
+    "mode" / Int16ul * " |  | NavMode bits",
+    "output_rate_hz" / Float32l * "1 | Hz | NAV_SOLUTION rate in force",
+    "gnss_status" / Int8ul * " |  | as in NAV_SOLUTION",
+    "psns_status" / Int8ul * " |  | as in NAV_SOLUTION",
+    "cpu_load" / Int16ul * "0.01 | % | worst tick of the last second",
+    "cpu_load_max" / Int16ul * "0.01 | % | worst tick since start",
+    "fw_version" / Int16ul * " |  | major << 8 | minor",
+    "deadline_misses" / Int32ul * "1 |  | cumulative",
+    "uart1_frames" / Int32ul * "1 |  | IMU/MAG frames decoded",
+    "uart1_errors" / Int32ul * "1 |  | checksum + length + parse errors",
+    "uart2_frames" / Int32ul * "1 |  | PSNS frames decoded",
+    "uart2_errors" / Int32ul * "1 |  | checksum + length + parse errors",
+    "uart3_frames" / Int32ul * "1 |  | GNSS frames decoded",
+    "uart3_errors" / Int32ul * "1 |  | checksum + length + parse errors",
+    "commands_accepted" / Int32ul * "1 |  | cumulative",
+    "commands_rejected" / Int32ul * "1 |  | cumulative",
+)
+ACK_SPEC = Struct(
+    "command_id" / Int8ul * " |  | id of the acknowledged command",
+    "token" / Int8ul * " |  | echo of the command's token",
+    "result" / Int8ul * " |  | AckResult",
+)
+COMMAND_SPECS = {
+    CMD_RESET_FILTER: Struct("token" / Int8ul * " |  | host-chosen, echoed in ACK",
+                             "scope" / Int8ul * " |  | 0 restart alignment, 1 reset covariance only"),
+    CMD_SELECT_VARIANT: Struct("token" / Int8ul * " |  | host-chosen, echoed in ACK",
+                               "variant" / Int8ul * " |  | FilterVariant 1..5"),
+    CMD_SET_OUTPUT_RATE: Struct("token" / Int8ul * " |  | host-chosen, echoed in ACK",
+                                "rate_hz" / Float32l * "1 | Hz | 200/k for integer k; 0 stops the output"),
+    CMD_REQUEST_STATUS: Struct("token" / Int8ul * " |  | host-chosen, echoed in ACK"),
+}
+
+_STATUS = struct.Struct("<IdBBHfBBHHHIIIIIIIII")
+STATUS_LEN = _STATUS.size  # 64
+_ACK = struct.Struct("<BBB")
+
+
+@fast_frozen_init
+@dataclass(frozen=True, slots=True)
+class HostStatus:
+    """Decoded STATUS (see module docstring for units)."""
+
+    seq: int
+    time_s: float
+    filter_variant: int
+    mode: int
+    output_rate_hz: float
+    gnss_status: int
+    psns_status: int
+    cpu_load_pct: float
+    cpu_load_max_pct: float
+    fw_version: int
+    deadline_misses: int
+    uart1_frames: int
+    uart1_errors: int
+    uart2_frames: int
+    uart2_errors: int
+    uart3_frames: int
+    uart3_errors: int
+    commands_accepted: int
+    commands_rejected: int
+
+
+@fast_frozen_init
+@dataclass(frozen=True, slots=True)
+class Ack:
+    """ACK of one command: the command's id, its token and an :class:`AckResult`."""
+
+    command_id: int
+    token: int
+    result: int
+
+
+@fast_frozen_init
+@dataclass(frozen=True, slots=True)
+class ResetFilter:
+    """RESET_FILTER: ``scope`` 0 restarts alignment, 1 resets the covariance only."""
+
+    token: int
+    scope: int = 0
+
+
+@fast_frozen_init
+@dataclass(frozen=True, slots=True)
+class SelectVariant:
+    """SELECT_VARIANT: switch to :class:`FilterVariant` ``variant`` (the filter restarts)."""
+
+    token: int
+    variant: int
+
+
+@fast_frozen_init
+@dataclass(frozen=True, slots=True)
+class SetOutputRate:
+    """SET_OUTPUT_RATE: NAV_SOLUTION rate, Hz (200 Hz / k; 0 stops the output)."""
+
+    token: int
+    rate_hz: float
+
+
+@fast_frozen_init
+@dataclass(frozen=True, slots=True)
+class RequestStatus:
+    """REQUEST_STATUS: answered by ACK and one STATUS frame."""
+
+    token: int
+
+
+HostCommand = ResetFilter | SelectVariant | SetOutputRate | RequestStatus
+
+
+def _pct(v: float) -> int:
+    return max(0, min(0xFFFF, int(round(v * 100))))
+
+
+def encode_status(st: HostStatus) -> bytes:
+    """Whole STATUS frame for ``st``."""
+    payload = _STATUS.pack(
+        st.seq & 0xFFFFFFFF, st.time_s, st.filter_variant & 0xFF, 0, st.mode & 0xFFFF, st.output_rate_hz,
+        st.gnss_status & 0xFF, st.psns_status & 0xFF, _pct(st.cpu_load_pct), _pct(st.cpu_load_max_pct),
+        st.fw_version & 0xFFFF, st.deadline_misses & 0xFFFFFFFF,
+        *(v & 0xFFFFFFFF for v in (st.uart1_frames, st.uart1_errors, st.uart2_frames, st.uart2_errors,
+                                   st.uart3_frames, st.uart3_errors, st.commands_accepted, st.commands_rejected)),
+    )
+    return build_host_frame(MSG_STATUS, payload)
+
+
+def _decode_status(payload: bytes) -> HostStatus:
+    if len(payload) < STATUS_LEN:
+        raise ValueError(f"STATUS payload must be at least {STATUS_LEN} bytes, got {len(payload)}")
+    v = _STATUS.unpack_from(payload)
+    return HostStatus(v[0], v[1], v[2], v[4], v[5], v[6], v[7], v[8] / 100.0, v[9] / 100.0, *v[10:])
+
+
+def encode_ack(a: Ack) -> bytes:
+    """Whole ACK frame."""
+    return build_host_frame(MSG_ACK, _ACK.pack(a.command_id & 0xFF, a.token & 0xFF, a.result & 0xFF))
+
+
+def encode_command(c: HostCommand) -> bytes:
+    """Whole command frame (host -> DSP) for one of the command dataclasses."""
+    if isinstance(c, ResetFilter):
+        return build_host_frame(CMD_RESET_FILTER, bytes((c.token & 0xFF, c.scope & 0xFF)))
+    if isinstance(c, SelectVariant):
+        return build_host_frame(CMD_SELECT_VARIANT, bytes((c.token & 0xFF, c.variant & 0xFF)))
+    if isinstance(c, SetOutputRate):
+        return build_host_frame(CMD_SET_OUTPUT_RATE, struct.pack("<Bf", c.token & 0xFF, c.rate_hz))
+    if isinstance(c, RequestStatus):
+        return build_host_frame(CMD_REQUEST_STATUS, bytes((c.token & 0xFF,)))
+    raise TypeError(f"not a host command: {c!r}")
+
+
+#: command id -> exact payload length
+COMMAND_PAYLOAD_LEN = {CMD_RESET_FILTER: 2, CMD_SELECT_VARIANT: 2, CMD_SET_OUTPUT_RATE: 5, CMD_REQUEST_STATUS: 1}
+#: message id -> smallest payload length (NAV_SOLUTION and STATUS may grow by appending)
+_MIN_LEN = {MSG_NAV_SOLUTION: NAV_SOLUTION_LEN, MSG_STATUS: STATUS_LEN, MSG_ACK: _ACK.size, **COMMAND_PAYLOAD_LEN}
+_EXACT = {MSG_ACK, *COMMAND_PAYLOAD_LEN}
+
+
+def _decode_command(msg_id: int, payload: bytes) -> HostCommand:
+    if msg_id == CMD_RESET_FILTER:
+        return ResetFilter(payload[0], payload[1])
+    if msg_id == CMD_SELECT_VARIANT:
+        return SelectVariant(payload[0], payload[1])
+    if msg_id == CMD_SET_OUTPUT_RATE:
+        tok, rate = struct.unpack("<Bf", payload)
+        return SetOutputRate(tok, rate)
+    return RequestStatus(payload[0])
+
+
+def encode_host(obj: NavSolution | HostStatus | Ack | HostCommand | HostFrame) -> bytes:
+    """Encode any object :class:`HostFormat` decodes (the inverse of its ``parse``)."""
+    if isinstance(obj, NavSolution):
+        return encode_nav_solution(obj)
+    if isinstance(obj, HostStatus):
+        return encode_status(obj)
+    if isinstance(obj, Ack):
+        return encode_ack(obj)
+    if isinstance(obj, HostFrame):
+        return build_host_frame(obj.msg_id, obj.payload)
+    return encode_command(obj)
+
+
 class HostFormat:
-    """:class:`~protocols.stream.FrameFormat` of host-port frames (both directions)."""
+    """:class:`~protocols.stream.FrameFormat` of host-port frames (both directions).
+
+    Typed results: :class:`NavSolution`, :class:`HostStatus`, :class:`Ack` and the command
+    dataclasses; a checked frame with another id comes out as :class:`HostFrame`. A header
+    whose length is too short for its (known) id is refused at once.
+    """
 
     name = "host"
     sync = HOST_SYNC
+
+    @staticmethod
+    def encode(obj: Any) -> bytes:
+        """Encode a decoded object back to its frame (:func:`encode_host`)."""
+        return encode_host(obj)
 
     def frame_length(self, buf: bytearray, start: int) -> int:
         if len(buf) - start < 5:
             return NEED_MORE
         n = buf[start + 3] | (buf[start + 4] << 8)
-        if n > HOST_MAX_PAYLOAD:
+        msg_id = buf[start + 2]
+        want = _MIN_LEN.get(msg_id)
+        if n > HOST_MAX_PAYLOAD or (want is not None and (n < want or (n != want and msg_id in _EXACT))):
             return BAD_LENGTH
         return 7 + n
 
     def check(self, frame: bytes) -> bool:
         return crc16_ccitt(frame[2:-2]) == (frame[-2] | (frame[-1] << 8))
 
-    def parse(self, frame: bytes) -> NavSolution | HostFrame:
+    def parse(self, frame: bytes) -> NavSolution | HostStatus | Ack | HostCommand | HostFrame:
         msg_id = frame[2]
         payload = frame[5:-2]
         if msg_id == MSG_NAV_SOLUTION:
             return _decode_nav(payload)
+        if msg_id == MSG_STATUS:
+            return _decode_status(payload)
+        if msg_id == MSG_ACK:
+            return Ack(*_ACK.unpack(payload))
+        if msg_id in COMMAND_PAYLOAD_LEN:
+            return _decode_command(msg_id, payload)
         return HostFrame(msg_id, bytes(payload))
 
+
+# -- text sentences for terminal users ----------------------------------------------------------
+
+
+@fast_frozen_init
+@dataclass(frozen=True, slots=True)
+class NavText:
+    """One decoded ``$PSNS...`` sentence: ``kind`` (POS, VEL, ATT, STA) and its typed values."""
+
+    kind: str
+    time_s: float
+    values: tuple[float | int, ...]
+
+
+#: kind -> (value names, formats) after the time field; the formats fix the decimals on the wire.
+TEXT_SENTENCES: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
+    "POS": (("lat_deg", "lon_deg", "height_m", "mode", "gnss_status", "psns_status"),
+            (".7f", ".7f", ".2f", "04X", "d", "d")),
+    "VEL": (("vel_e_mps", "vel_n_mps", "vel_u_mps"), (".3f", ".3f", ".3f")),
+    "ATT": (("roll_deg", "pitch_deg", "heading_deg"), (".2f", ".2f", ".2f")),
+    "STA": (("filter_variant", "cpu_load_pct", "deadline_misses"), ("d", ".2f", "d")),
+}
+
+
+def _text(kind: str, time_s: float, values: tuple[float | int, ...]) -> bytes:
+    from .nmea import build_sentence
+
+    fmts = TEXT_SENTENCES[kind][1]
+    return build_sentence("PSNS", kind, [f"{time_s:.3f}"] + [format(v, f) for v, f in zip(values, fmts)])
+
+
+def encode_nav_text(t: NavText) -> bytes:
+    """One ``$PSNS<kind>`` sentence (NMEA framing and checksum, CR LF)."""
+    return _text(t.kind, t.time_s, t.values)
+
+
+def nav_text_sentences(n: NavSolution, filter_variant: int = FilterVariant.BASE,
+                       kinds: tuple[str, ...] = ("POS", "VEL", "ATT", "STA")) -> bytes:
+    """The text rendering of one solution: ``$PSNSPOS``, ``$PSNSVEL``, ``$PSNSATT``, ``$PSNSSTA``."""
+    vals: dict[str, tuple[float | int, ...]] = {
+        "POS": (n.lat_deg, n.lon_deg, n.height_m, n.mode, n.gnss_status, n.psns_status),
+        "VEL": tuple(n.vel_enu_mps),
+        "ATT": (n.roll_deg, n.pitch_deg, n.heading_deg),
+        "STA": (int(filter_variant), n.cpu_load_pct, n.deadline_misses),
+    }
+    return b"".join(_text(k, n.time_s, vals[k]) for k in kinds)
+
+
+class HostTextFormat:
+    """:class:`~protocols.stream.FrameFormat` of the ``$PSNS...`` text sentences (yields :class:`NavText`).
+
+    Other NMEA sentences on the same stream come out as :class:`~protocols.nmea.NmeaSentence`.
+    """
+
+    name = "host-text"
+    sync = b"$"
+
+    def __init__(self) -> None:
+        from .nmea import NmeaFormat
+
+        self._nmea = NmeaFormat()
+        self.frame_length = self._nmea.frame_length
+        self.check = self._nmea.check
+
+    @staticmethod
+    def encode(obj: Any) -> bytes:
+        """Encode a :class:`NavText` (or any NMEA object) back to its sentence."""
+        if isinstance(obj, NavText):
+            return encode_nav_text(obj)
+        from .nmea import encode_nmea
+
+        return encode_nmea(obj)
+
+    def parse(self, frame: bytes) -> NavText | object:
+        s = self._nmea.parse(frame)
+        if getattr(s, "talker", None) != "PSNS" or s.kind not in TEXT_SENTENCES:  # type: ignore[union-attr]
+            return s
+        names, fmts = TEXT_SENTENCES[s.kind]  # type: ignore[union-attr]
+        f = s.fields  # type: ignore[union-attr]
+        if len(f) != 1 + len(names):
+            raise ValueError(f"$PSNS{s.kind} needs {1 + len(names)} fields")  # type: ignore[union-attr]
+        vals = tuple(int(v, 16) if fm == "04X" else int(v) if fm == "d" else float(v) for v, fm in zip(f[1:], fmts))
+        return NavText(s.kind, float(f[0]), vals)  # type: ignore[union-attr]

@@ -1,4 +1,4 @@
-"""FPGA-to-DSP IMU frame on DSP UART1, and the accelerometer ADC words it carries.
+"""FPGA-to-DSP frames on DSP UART1 (IMU frame, MAG frame) and the accelerometer ADC words.
 
 The virtual FPGA strobes the STIM210 external trigger every 5 ms (200 Hz), samples the three
 analog accelerometers with a 24-bit ADC on the same edge, latches its free-running 1 MHz
@@ -25,7 +25,23 @@ Accelerometer ADC (documented design values; ICD "Accelerometer acquisition"):
 24-bit two's-complement, +-4.096 V differential reference, so ``ADC_VOLTS_PER_LSB`` =
 4.096 / 2^23 V. Accelerometers: Colibrys MS9030 on x (+-30 g, +-2.7 V differential output,
 90 mV/g, the MS1000/MS9000 family table), and the +-25 g parts on y and z scaled to the
-same +-2.7 V swing (108 mV/g).
+same +-2.7 V swing (108 mV/g). So one code is ``ADC_VOLTS_PER_LSB / ACCEL_VOLTS_PER_G[axis]``
+g: 5.43 ug on x, 4.52 ug on y and z (:func:`accel_code_to_g`).
+
+MAG frame (msg_type 0x02, same framing; CONTRACTS C2), one per magnetometer sample::
+
+    off  size  field            type   unit / meaning
+    0    2     sync             0x55 0xAA
+    2    1     msg_type         u8     0x02 = MAG frame
+    3    1     payload_len      u8     19 (bytes 4..22)
+    4    2     seq              u16    frame sequence, wraps
+    6    4     t_sample_us      u32    FPGA counter at the magnetometer sample, us
+    10   12    field            3x i32 magnetic field, body axes x, y, z, 0.1 nT per LSB
+    22   1     status           u8     :class:`MagStatus` bits
+    23   2     crc              u16    CRC-16/CCITT-FALSE over bytes 2..22
+
+:class:`ImuFrameFormat` accepts the IMU frame only (as before); :class:`FpgaFrameFormat`
+accepts both frame types on one stream.
 """
 
 from __future__ import annotations
@@ -34,8 +50,9 @@ import enum
 import struct
 from dataclasses import dataclass
 
-from construct import Array, Const, Int8ul, Int16ul, Int24sl, Int32ul, Struct
+from construct import Array, Const, Int8ul, Int16ul, Int24sl, Int32sl, Int32ul, Struct
 
+from ._fastinit import fast_frozen_init
 from .crc import crc16_ccitt
 from .stream import BAD_LENGTH, NEED_MORE
 
@@ -51,6 +68,16 @@ __all__ = [
     "ImuFrame",
     "ImuFrameFormat",
     "IMU_FRAME_SPEC",
+    "MAG_MSG_TYPE",
+    "MAG_FRAME_LEN",
+    "MAG_LSB_T",
+    "MAG_FRAME_SPEC",
+    "MagStatus",
+    "MagFrame",
+    "FpgaFrameFormat",
+    "encode_mag_frame",
+    "adc_code_to_volts",
+    "accel_code_to_g",
 ]
 
 IMU_SYNC = b"\x55\xaa"
@@ -68,6 +95,23 @@ ADC_CODE_MAX = 2**23 - 1
 ACCEL_VOLTS_PER_G = (0.090, 2.7 / 25.0, 2.7 / 25.0)
 
 
+MAG_MSG_TYPE = 0x02
+MAG_PAYLOAD_LEN = 19
+MAG_FRAME_LEN = 25
+#: Tesla per LSB of the MAG frame's field words (0.1 nT).
+MAG_LSB_T = 1e-10
+
+
+def adc_code_to_volts(code: int) -> float:
+    """Differential input voltage, V, of one 24-bit ADC code."""
+    return code * ADC_VOLTS_PER_LSB
+
+
+def accel_code_to_g(code: int, axis: int) -> float:
+    """Specific force, g, of one ADC code on accelerometer ``axis`` (0 = x, 1 = y, 2 = z)."""
+    return code * ADC_VOLTS_PER_LSB / ACCEL_VOLTS_PER_G[axis]
+
+
 class FpgaStatus(enum.IntFlag):
     """``fpga_status`` bits of the IMU frame."""
 
@@ -78,24 +122,46 @@ class FpgaStatus(enum.IntFlag):
     PPS_VALID = 0x10  #: a PPS edge was seen within the last 1.5 s
 
 
+# Field docs are "scale | unit | meaning" (read by protocols.icd for docs/icd.md).
 IMU_FRAME_SPEC = Struct(
-    "sync" / Const(IMU_SYNC),
-    "msg_type" / Const(IMU_MSG_TYPE, Int8ul),
-    "payload_len" / Const(IMU_PAYLOAD_LEN, Int8ul),
-    "seq" / Int16ul,
-    "t_trigger_us" / Int32ul,
-    "t_pps_us" / Int32ul,
-    "pps_count" / Int8ul,
-    "gyro" / Array(3, Int24sl),
-    "gyro_status" / Int8ul,
-    "gyro_counter" / Int8ul,
-    "gyro_latency_us" / Int16ul,
-    "accel" / Array(3, Int24sl),
-    "fpga_status" / Int8ul,
-    "crc" / Int16ul,
+    "sync" / Const(IMU_SYNC) * " |  | 0x55 0xAA",
+    "msg_type" / Const(IMU_MSG_TYPE, Int8ul) * " |  | 0x01 = IMU frame",
+    "payload_len" / Const(IMU_PAYLOAD_LEN, Int8ul) * " | bytes | 34 (bytes 4..37)",
+    "seq" / Int16ul * "1 |  | frame sequence, wraps",
+    "t_trigger_us" / Int32ul * "1 | us | FPGA 1 MHz counter at the ExtTrig edge (wraps after 71.6 min)",
+    "t_pps_us" / Int32ul * "1 | us | FPGA counter latched at the last PPS rising edge",
+    "pps_count" / Int8ul * "1 |  | PPS edges seen, wraps",
+    "gyro" / Array(3, Int24sl) * "2^-14 / 2^-21 | deg/s / deg | STIM words X, Y, Z as received (rate / incremental angle)",
+    "gyro_status" / Int8ul * " |  | STIM STATUS byte (TS1524 Table 5-23)",
+    "gyro_counter" / Int8ul * "1 |  | STIM 2000 Hz sample counter (steps by 10 at 200 Hz)",
+    "gyro_latency_us" / Int16ul * "1 | us | STIM latency",
+    "accel" / Array(3, Int24sl) * "4.096/2^23 | V | ADC codes X, Y, Z; g = V / ACCEL_VOLTS_PER_G (90 / 108 / 108 mV/g)",
+    "fpga_status" / Int8ul * " |  | FpgaStatus bits",
+    "crc" / Int16ul * " |  | CRC-16/CCITT-FALSE over bytes 2..37",
 )
 
 
+class MagStatus(enum.IntFlag):
+    """``status`` bits of the MAG frame."""
+
+    OVERFLOW = 0x01  #: an axis is at its measurement-range limit
+    STALE = 0x02  #: no new magnetometer sample since the previous frame (fields repeat the last one)
+    SENSOR_ERROR = 0x04  #: the magnetometer reported an error or did not answer
+
+
+MAG_FRAME_SPEC = Struct(
+    "sync" / Const(IMU_SYNC) * " |  | 0x55 0xAA",
+    "msg_type" / Const(MAG_MSG_TYPE, Int8ul) * " |  | 0x02 = MAG frame",
+    "payload_len" / Const(MAG_PAYLOAD_LEN, Int8ul) * " | bytes | 19 (bytes 4..22)",
+    "seq" / Int16ul * "1 |  | frame sequence, wraps",
+    "t_sample_us" / Int32ul * "1 | us | FPGA counter at the magnetometer sample",
+    "field" / Array(3, Int32sl) * "0.1 | nT | magnetic field, body axes x, y, z",
+    "status" / Int8ul * " |  | MagStatus bits",
+    "crc" / Int16ul * " |  | CRC-16/CCITT-FALSE over bytes 2..22",
+)
+
+
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class ImuFrame:
     """One decoded FPGA IMU frame (raw integer fields; see module docstring for units)."""
@@ -113,12 +179,8 @@ class ImuFrame:
 
 
 _HEAD = struct.Struct("<HIIB")
+_I32 = struct.Struct("<i").unpack_from
 _MID = struct.Struct("<BBH")
-
-
-def _s24le(b: bytes, i: int) -> int:
-    v = b[i] | (b[i + 1] << 8) | (b[i + 2] << 16)
-    return v - 0x1000000 if v & 0x800000 else v
 
 
 def _p24le(v: int) -> bytes:
@@ -146,17 +208,18 @@ class ImuFrameFormat:
     def parse(self, frame: bytes) -> ImuFrame:
         seq, t_trig, t_pps, pps_count = _HEAD.unpack_from(frame, 4)
         gstat, gcnt, glat = _MID.unpack_from(frame, 24)
+        # s24 LE at k: the i32 LE at k-1 holds it in its top three bytes; >> 8 sign-extends it
         return ImuFrame(
-            seq=seq,
-            t_trigger_us=t_trig,
-            t_pps_us=t_pps,
-            pps_count=pps_count,
-            gyro=(_s24le(frame, 15), _s24le(frame, 18), _s24le(frame, 21)),
-            gyro_status=gstat,
-            gyro_counter=gcnt,
-            gyro_latency_us=glat,
-            accel=(_s24le(frame, 28), _s24le(frame, 31), _s24le(frame, 34)),
-            fpga_status=frame[37],
+            seq,
+            t_trig,
+            t_pps,
+            pps_count,
+            (_I32(frame, 14)[0] >> 8, _I32(frame, 17)[0] >> 8, _I32(frame, 20)[0] >> 8),
+            gstat,
+            gcnt,
+            glat,
+            (_I32(frame, 27)[0] >> 8, _I32(frame, 30)[0] >> 8, _I32(frame, 33)[0] >> 8),
+            frame[37],
         )
 
     def build(self, f: ImuFrame) -> bytes:
@@ -169,3 +232,70 @@ class ImuFrameFormat:
             body += _p24le(w)
         body.append(f.fpga_status & 0xFF)
         return IMU_SYNC + bytes(body) + crc16_ccitt(body).to_bytes(2, "little")
+
+    encode = build
+
+
+@fast_frozen_init
+@dataclass(frozen=True, slots=True)
+class MagFrame:
+    """One decoded FPGA MAG frame: ``field`` in 0.1 nT (body x, y, z); times in FPGA us."""
+
+    seq: int
+    t_sample_us: int
+    field: tuple[int, int, int]
+    status: int
+
+
+_MAG = struct.Struct("<BBHI3iB")
+
+
+def encode_mag_frame(f: MagFrame) -> bytes:
+    """Whole MAG frame for ``f`` (seq and time wrap like the FPGA counters)."""
+    for w in f.field:
+        if not -0x80000000 <= w <= 0x7FFFFFFF:
+            raise ValueError(f"field word {w} outside i32")
+    body = _MAG.pack(MAG_MSG_TYPE, MAG_PAYLOAD_LEN, f.seq & 0xFFFF, f.t_sample_us & 0xFFFFFFFF, *f.field,
+                     f.status & 0xFF)
+    return IMU_SYNC + body + crc16_ccitt(body).to_bytes(2, "little")
+
+
+def _parse_mag(frame: bytes) -> MagFrame:
+    _, _, seq, t, fx, fy, fz, st = _MAG.unpack_from(frame, 2)
+    return MagFrame(seq, t, (fx, fy, fz), st)
+
+
+class FpgaFrameFormat:
+    """:class:`~protocols.stream.FrameFormat` of every FPGA-to-DSP frame on UART1 (IMU and MAG)."""
+
+    name = "fpga"
+    sync = IMU_SYNC
+
+    def __init__(self) -> None:
+        self._imu = ImuFrameFormat()
+
+    def frame_length(self, buf: bytearray, start: int) -> int:
+        if len(buf) - start < 4:
+            return NEED_MORE
+        t, n = buf[start + 2], buf[start + 3]
+        if t == IMU_MSG_TYPE and n == IMU_PAYLOAD_LEN:
+            return IMU_FRAME_LEN
+        if t == MAG_MSG_TYPE and n == MAG_PAYLOAD_LEN:
+            return MAG_FRAME_LEN
+        return BAD_LENGTH
+
+    def check(self, frame: bytes) -> bool:
+        return crc16_ccitt(frame[2:-2]) == (frame[-2] | (frame[-1] << 8))
+
+    def parse(self, frame: bytes) -> ImuFrame | MagFrame:
+        if frame[2] == IMU_MSG_TYPE:
+            return self._imu.parse(frame)
+        return _parse_mag(frame)
+
+    def build(self, f: ImuFrame | MagFrame) -> bytes:
+        """Encode either frame type."""
+        if isinstance(f, MagFrame):
+            return encode_mag_frame(f)
+        return self._imu.build(f)
+
+    encode = build

@@ -1,19 +1,38 @@
-"""NMEA 0183 sentences: framing, checksum, GGA and RMC.
+"""NMEA 0183 sentences: framing, checksum, GGA, RMC, VTG, GSA and ZDA.
 
 Source: ``shared/reference/protocols.md`` section 2.3 (gpsd NMEA notes; field order as in
 pynmea2). A sentence is ``$`` + talker (2 letters) + type (3 letters) + ``,``-separated fields
 + ``*`` + two upper-case hex digits (XOR of every byte strictly between ``$`` and ``*``)
-+ ``<CR><LF>``; at most 82 characters including ``$`` and ``<CR><LF>``.
++ ``<CR><LF>``; at most 82 characters including ``$`` and ``<CR><LF>``. Proprietary sentences
+start ``$P`` + a three-letter maker code (``$PSNSPOS``: maker ``SNS``); they are framed and
+checked the same way and come out as :class:`NmeaSentence` with ``talker="PSNS"``.
 
-Latitude is written ``ddmm.mmmmm`` and longitude ``dddmm.mmmmm`` (5 decimals of arc-minutes,
-1.85 cm), heights and speeds with the decimals of a u-blox receiver.
+Number formats written by the builders (a u-blox-like rendering, and the one that the
+golden vectors pin down):
+
+==========  =======================================================================
+field       format
+==========  =======================================================================
+time        ``hhmmss.ss`` (UTC)
+lat / lon   ``ddmm.mmmmm`` / ``dddmm.mmmmm`` (5 decimals of arc-minutes, 1.85 cm) + N/S, E/W
+altitude    metres, 3 decimals (GGA altitude above MSL and geoid separation)
+HDOP etc.   2 decimals
+speed       knots, 3 decimals (RMC, VTG); VTG km/h is derived from the *rounded* knots, so a
+            decoded sentence re-encodes to the same bytes
+course      degrees true, 2 decimals, [0, 360)
+==========  =======================================================================
+
+Every typed sentence re-encodes with :func:`encode_nmea`; for sentences written by these
+builders ``encode_nmea(parse(b)) == b`` holds byte for byte (the golden vectors check it).
 """
 
 from __future__ import annotations
 
 import datetime as _dt
 from dataclasses import dataclass
+from typing import Any
 
+from ._fastinit import fast_frozen_init
 from .crc import nmea_checksum
 from .stream import BAD_LENGTH, NEED_MORE
 
@@ -23,10 +42,17 @@ __all__ = [
     "NmeaSentence",
     "Gga",
     "Rmc",
+    "Vtg",
+    "Gsa",
+    "Zda",
     "NmeaFormat",
     "build_sentence",
     "build_gga",
     "build_rmc",
+    "build_vtg",
+    "build_gsa",
+    "build_zda",
+    "encode_nmea",
     "format_lat",
     "format_lon",
 ]
@@ -37,15 +63,17 @@ NMEA_MAX_LEN = 82
 KNOT_MPS = 1852.0 / 3600.0
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class NmeaSentence:
-    """Any checked NMEA sentence: talker (``GP``), type (``GGA``) and the raw field strings."""
+    """Any checked NMEA sentence: talker (``GP``, or ``PSNS`` for proprietary), type and raw fields."""
 
     talker: str
     kind: str
     fields: tuple[str, ...]
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class Gga:
     """GGA fix data. Angles in degrees (south/west negative); ``altitude_msl_m`` above MSL."""
@@ -61,6 +89,7 @@ class Gga:
     geoid_sep_m: float | None
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class Rmc:
     """RMC recommended minimum data. Speed in m/s, course in degrees clockwise from true north."""
@@ -76,13 +105,68 @@ class Rmc:
     mode: str | None
 
 
-def _parse_time(s: str) -> _dt.time | None:
-    if not s:
-        return None
+@fast_frozen_init
+@dataclass(frozen=True, slots=True)
+class Vtg:
+    """VTG course over ground and ground speed (m/s, from the knots field), FAA mode letter."""
+
+    talker: str
+    course_true_deg: float | None
+    course_mag_deg: float | None
+    speed_mps: float | None
+    mode: str | None
+
+
+@fast_frozen_init
+@dataclass(frozen=True, slots=True)
+class Gsa:
+    """GSA DOP and active satellites: ``mode`` M/A, ``fix_type`` 1 none / 2 2D / 3 3D, 12 ID slots."""
+
+    talker: str
+    mode: str
+    fix_type: int
+    sat_ids: tuple[int | None, ...]
+    pdop: float | None
+    hdop: float | None
+    vdop: float | None
+
+
+@fast_frozen_init
+@dataclass(frozen=True, slots=True)
+class Zda:
+    """ZDA UTC time and date with the local zone offset (hours, minutes)."""
+
+    talker: str
+    time_utc: _dt.time | None
+    date: _dt.date | None
+    zone_hours: int | None
+    zone_minutes: int | None
+
+
+def _parse_time_uncached(s: str) -> _dt.time:
     hh, mm = int(s[0:2]), int(s[2:4])
     sec = float(s[4:])
     whole = int(sec)
     return _dt.time(hh, mm, whole, int(round((sec - whole) * 1e6)) if sec != whole else 0)
+
+
+# A receiver repeats one epoch's time and date in several sentences (RMC, GGA, ZDA): small
+# caches of the last few strings save most of the datetime work on a stream.
+_TIME_CACHE: dict[str, _dt.time] = {}
+_DATE_CACHE: dict[str, _dt.date] = {}
+_CACHE_MAX = 64
+
+
+def _parse_time(s: str) -> _dt.time | None:
+    if not s:
+        return None
+    t = _TIME_CACHE.get(s)
+    if t is None:
+        t = _parse_time_uncached(s)
+        if len(_TIME_CACHE) >= _CACHE_MAX:
+            _TIME_CACHE.clear()
+        _TIME_CACHE[s] = t
+    return t
 
 
 def _parse_latlon(value: str, hemi: str, deg_digits: int) -> float | None:
@@ -90,12 +174,12 @@ def _parse_latlon(value: str, hemi: str, deg_digits: int) -> float | None:
         return None
     deg = int(value[:deg_digits])
     minutes = float(value[deg_digits:])
-    if minutes >= 60.0:
-        raise ValueError(f"minutes {minutes} >= 60")
+    if not 0.0 <= minutes < 60.0:
+        raise ValueError(f"minutes {minutes} outside [0, 60)")
     v = deg + minutes / 60.0
-    if hemi in ("S", "W"):
-        v = -v
-    elif hemi not in ("N", "E"):
+    if hemi == "S" or hemi == "W":
+        return -v
+    if hemi != "N" and hemi != "E":
         raise ValueError(f"bad hemisphere {hemi!r}")
     return v
 
@@ -132,6 +216,10 @@ def _format_time(t: _dt.time, decimals: int = 2) -> str:
     frac = t.microsecond / 1e6
     sec = t.second + frac
     return f"{t.hour:02d}{t.minute:02d}{sec:0{3 + decimals}.{decimals}f}"
+
+
+def _opt(v: float | None, fmt: str) -> str:
+    return "" if v is None else format(v, fmt)
 
 
 def build_sentence(talker: str, kind: str, fields: list[str] | tuple[str, ...]) -> bytes:
@@ -217,20 +305,261 @@ def build_rmc(
     )
 
 
+def build_vtg(
+    course_true_deg: float | None,
+    speed_mps: float | None,
+    mode: str = "A",
+    course_mag_deg: float | None = None,
+    talker: str = "GP",
+) -> bytes:
+    """VTG sentence: course true/magnetic (deg, 2 decimals), speed in knots and km/h.
+
+    The km/h field is derived from the knots value after rounding to 3 decimals, so the
+    sentence round-trips through :class:`NmeaFormat`. ``None`` leaves a field empty
+    (a receiver without a fix: ``mode="N"``).
+    """
+    if speed_mps is None:
+        kn = kmh = ""
+    else:
+        knots = round(speed_mps / KNOT_MPS, 3)
+        kn = f"{knots:.3f}"
+        kmh = f"{knots * 1.852:.3f}"
+    return build_sentence(
+        talker,
+        "VTG",
+        [
+            _opt(None if course_true_deg is None else course_true_deg % 360.0, ".2f"),
+            "T",
+            _opt(None if course_mag_deg is None else course_mag_deg % 360.0, ".2f"),
+            "M",
+            kn,
+            "N",
+            kmh,
+            "K",
+            mode,
+        ],
+    )
+
+
+def build_gsa(
+    fix_type: int,
+    sat_ids: list[int | None] | tuple[int | None, ...],
+    pdop: float | None,
+    hdop: float | None,
+    vdop: float | None,
+    mode: str = "A",
+    talker: str = "GP",
+) -> bytes:
+    """GSA sentence: ``mode`` A (automatic) / M (manual), ``fix_type`` 1 none / 2 2D / 3 3D.
+
+    ``sat_ids`` fills the 12 satellite slots in order (``None`` = empty slot; fewer than 12
+    entries leave the remaining slots empty). DOPs with 2 decimals.
+    """
+    slots = list(sat_ids)
+    if len(slots) > 12:
+        raise ValueError(f"GSA has 12 satellite slots, got {len(slots)}")
+    slots += [None] * (12 - len(slots))
+    ids = ["" if s is None else f"{s:02d}" for s in slots]
+    return build_sentence(talker, "GSA", [mode, str(fix_type), *ids, _opt(pdop, ".2f"), _opt(hdop, ".2f"),
+                                          _opt(vdop, ".2f")])
+
+
+def build_zda(
+    time_utc: _dt.time,
+    date: _dt.date,
+    zone_hours: int | None = 0,
+    zone_minutes: int | None = 0,
+    talker: str = "GP",
+) -> bytes:
+    """ZDA sentence: UTC time, day, month, 4-digit year, local zone hours and minutes."""
+    zh = "" if zone_hours is None else (f"{zone_hours:03d}" if zone_hours < 0 else f"{zone_hours:02d}")
+    zm = "" if zone_minutes is None else f"{zone_minutes:02d}"
+    return build_sentence(talker, "ZDA", [_format_time(time_utc), f"{date.day:02d}", f"{date.month:02d}",
+                                          f"{date.year:04d}", zh, zm])
+
+
+def encode_nmea(obj: Gga | Rmc | Vtg | Gsa | Zda | NmeaSentence) -> bytes:
+    """Encode any object :class:`NmeaFormat` decodes (the inverse of its ``parse``)."""
+    if isinstance(obj, Gga):
+        if obj.quality == 0:
+            return build_gga(obj.time_utc or _dt.time(), 0.0, 0.0, 0.0, 0.0, quality=0, talker=obj.talker)
+        return build_gga(obj.time_utc or _dt.time(), obj.lat_deg or 0.0, obj.lon_deg or 0.0, obj.altitude_msl_m or 0.0,
+                         obj.geoid_sep_m or 0.0, obj.quality, obj.num_sats or 0, obj.hdop or 0.0, obj.talker)
+    if isinstance(obj, Rmc):
+        date = obj.date or _dt.date(2000, 1, 1)
+        return build_rmc(obj.time_utc or _dt.time(), date, obj.lat_deg or 0.0, obj.lon_deg or 0.0, obj.speed_mps or 0.0,
+                         obj.course_deg or 0.0, valid=obj.valid, mode=obj.mode or "", talker=obj.talker)
+    if isinstance(obj, Vtg):
+        return build_vtg(obj.course_true_deg, obj.speed_mps, obj.mode or "", obj.course_mag_deg, obj.talker)
+    if isinstance(obj, Gsa):
+        return build_gsa(obj.fix_type, obj.sat_ids, obj.pdop, obj.hdop, obj.vdop, obj.mode, obj.talker)
+    if isinstance(obj, Zda):
+        return build_zda(obj.time_utc or _dt.time(), obj.date or _dt.date(2000, 1, 1), obj.zone_hours,
+                         obj.zone_minutes, obj.talker)
+    return build_sentence(obj.talker, obj.kind, obj.fields)
+
+
+def _date_ddmmyy(d: str) -> _dt.date | None:
+    if not d:
+        return None
+    v = _DATE_CACHE.get(d)
+    if v is None:
+        v = _dt.date(2000 + int(d[4:6]), int(d[2:4]), int(d[0:2]))
+        if len(_DATE_CACHE) >= _CACHE_MAX:
+            _DATE_CACHE.clear()
+        _DATE_CACHE[d] = v
+    return v
+
+
+# The typed parsers take the whole split sentence ``f`` (``f[0]`` is the address field).
+
+
+def _lat(v: str, hemi: str) -> float | None:
+    if not v:
+        return None
+    x = float(v)  # ddmm.mmmmm
+    d = x // 100.0
+    m = x - 100.0 * d
+    if not (0.0 <= m < 60.0 and d >= 0.0):
+        raise ValueError(f"bad latitude {v!r}")
+    x = d + m / 60.0
+    if hemi == "N":
+        return x
+    if hemi == "S":
+        return -x
+    raise ValueError(f"bad hemisphere {hemi!r}")
+
+
+def _lon(v: str, hemi: str) -> float | None:
+    if not v:
+        return None
+    x = float(v)  # dddmm.mmmmm
+    d = x // 100.0
+    m = x - 100.0 * d
+    if not (0.0 <= m < 60.0 and d >= 0.0):
+        raise ValueError(f"bad longitude {v!r}")
+    x = d + m / 60.0
+    if hemi == "E":
+        return x
+    if hemi == "W":
+        return -x
+    raise ValueError(f"bad hemisphere {hemi!r}")
+
+
+def _gga(talker: str, f: list[str]) -> Gga:
+    if len(f) < 15:
+        raise ValueError("GGA needs 14 fields")
+    return Gga(
+        talker,
+        _TIME_CACHE.get(f[1]) or _parse_time(f[1]),
+        _lat(f[2], f[3]),
+        _lon(f[4], f[5]),
+        int(f[6] or 0),
+        int(f[7]) if f[7] else None,
+        float(f[8]) if f[8] else None,
+        float(f[9]) if f[9] else None,
+        float(f[11]) if f[11] else None,
+    )
+
+
+def _rmc(talker: str, f: list[str]) -> Rmc:
+    if len(f) < 12:
+        raise ValueError("RMC needs at least 11 fields")
+    speed = f[7]
+    return Rmc(
+        talker,
+        _TIME_CACHE.get(f[1]) or _parse_time(f[1]),
+        f[2] == "A",
+        _lat(f[3], f[4]),
+        _lon(f[5], f[6]),
+        float(speed) * KNOT_MPS if speed else None,
+        float(f[8]) if f[8] else None,
+        _DATE_CACHE.get(f[9]) or _date_ddmmyy(f[9]),
+        f[12] if len(f) > 12 and f[12] else None,
+    )
+
+
+def _vtg(talker: str, f: list[str]) -> Vtg:
+    if len(f) < 9:
+        raise ValueError("VTG needs at least 8 fields")
+    if f[5]:
+        speed: float | None = float(f[5]) * KNOT_MPS
+    elif f[7]:
+        speed = float(f[7]) / 3.6
+    else:
+        speed = None
+    return Vtg(talker, float(f[1]) if f[1] else None, float(f[3]) if f[3] else None, speed,
+               f[9] if len(f) > 9 and f[9] else None)
+
+
+def _gsa(talker: str, f: list[str]) -> Gsa:
+    if len(f) < 18:
+        raise ValueError("GSA needs at least 17 fields")
+    try:
+        ids = tuple(map(_SAT_IDS.__getitem__, f[3:15]))
+    except KeyError:
+        ids = tuple(int(s) if s else None for s in f[3:15])
+    return Gsa(talker, f[1], int(f[2] or 1), ids, float(f[15]) if f[15] else None, float(f[16]) if f[16] else None,
+               float(f[17]) if f[17] else None)
+
+
+#: Satellite-ID strings of GSA slots (NMEA writes 2 digits, some receivers 1 or 3).
+_SAT_IDS: dict[str, int | None] = {"": None, **{str(i): i for i in range(1000)}, **{f"{i:02d}": i for i in range(100)},
+                                   **{f"{i:03d}": i for i in range(1000)}}
+
+
+def _zda(talker: str, f: list[str]) -> Zda:
+    if len(f) < 7:
+        raise ValueError("ZDA needs 6 fields")
+    date = None
+    if f[2] and f[3] and f[4]:
+        key = f[2] + f[3] + f[4]
+        date = _DATE_CACHE.get(key)
+        if date is None:
+            date = _dt.date(int(f[4]), int(f[3]), int(f[2]))
+            if len(_DATE_CACHE) >= _CACHE_MAX:
+                _DATE_CACHE.clear()
+            _DATE_CACHE[key] = date
+    return Zda(talker, _TIME_CACHE.get(f[1]) or _parse_time(f[1]), date, int(f[5]) if f[5] else None,
+               int(f[6]) if f[6] else None)
+
+
+#: The two checksum characters -> value (upper case per NMEA 0183; lower case accepted).
+_HEX2 = {**{f"{i:02X}".encode(): i for i in range(256)}, **{f"{i:02x}".encode(): i for i in range(256)}}
+
+#: The same, pre-XORed with the framing bytes '$', '*', the two hex digits, CR and LF.
+_HEX2_FRAMED = {k: v ^ 0x24 ^ 0x2A ^ k[0] ^ k[1] ^ 0x0D ^ 0x0A for k, v in _HEX2.items()}
+
+_PARSERS = {"GGA": _gga, "RMC": _rmc, "VTG": _vtg, "GSA": _gsa, "ZDA": _zda}
+
+
 class NmeaFormat:
     """:class:`~protocols.stream.FrameFormat` for NMEA 0183 sentences.
 
-    Parses GGA and RMC into :class:`Gga` / :class:`Rmc`; any other checked sentence comes out
-    as :class:`NmeaSentence`.
+    Parses GGA, RMC, VTG, GSA and ZDA into :class:`Gga`, :class:`Rmc`, :class:`Vtg`,
+    :class:`Gsa` and :class:`Zda`; any other checked sentence (also proprietary ``$P...``)
+    comes out as :class:`NmeaSentence`.
     """
 
     name = "nmea"
     sync = b"$"
 
+    def __init__(self, max_len: int = NMEA_MAX_LEN) -> None:
+        # Longest accepted line; 82 is the standard's limit, proprietary sentences of real
+        # receivers (u-blox PUBX,00: ~110 characters) need more.
+        if not 11 <= max_len <= 1024:
+            raise ValueError(f"max_len {max_len} outside [11, 1024]")
+        self.max_len = max_len
+
+    @staticmethod
+    def encode(obj: Any) -> bytes:
+        """Encode a decoded object back to its frame (:func:`encode_nmea`)."""
+        return encode_nmea(obj)
+
     def frame_length(self, buf: bytearray, start: int) -> int:
-        end = buf.find(b"\n", start + 1, start + NMEA_MAX_LEN)
+        end = buf.find(b"\n", start + 1, start + self.max_len)
         if end < 0:
-            if len(buf) - start >= NMEA_MAX_LEN:
+            if len(buf) - start >= self.max_len:
                 return BAD_LENGTH
             return NEED_MORE
         # A new '$' before the line end means this candidate was cut short.
@@ -239,54 +568,50 @@ class NmeaFormat:
         return end + 1 - start
 
     def check(self, frame: bytes) -> bool:
-        if len(frame) < 11 or frame[-2:] != b"\r\n" or frame[-5] != 0x2A:  # '*'
+        if len(frame) < 11 or frame[-2] != 0x0D or frame[-5] != 0x2A:  # '\r', '*'
             return False
-        try:
-            want = int(frame[-4:-2], 16)
-        except ValueError:
+        want = _HEX2_FRAMED.get(frame[-4:-2])
+        if want is None:
             return False
-        return nmea_checksum(frame[1:-5]) == want
+        # XOR of every byte by folding the frame as one integer (<= 1024 bytes: 8192 bits);
+        # the framing bytes $ * h h CR LF are XORed out through _HEX2_FRAMED.
+        x = int.from_bytes(frame, "little")
+        if len(frame) > 128:
+            x ^= x >> 4096
+            x ^= x >> 2048
+            x ^= x >> 1024
+        x ^= x >> 512
+        x ^= x >> 256
+        x ^= x >> 128
+        x ^= x >> 64
+        x ^= x >> 32
+        x ^= x >> 16
+        x ^= x >> 8
+        return (x & 0xFF) == want
 
-    def parse(self, frame: bytes) -> NmeaSentence | Gga | Rmc:
-        body = frame[1:-5].decode("ascii")
-        parts = body.split(",")
-        head = parts[0]
-        if len(head) != 5 or not head.isalnum():
-            raise ValueError(f"bad NMEA address field {head!r}")
+    def parse(self, frame: bytes) -> NmeaSentence | Gga | Rmc | Vtg | Gsa | Zda:
+        parts = frame[1:-5].decode("ascii").split(",")
+        head = _HEADS.get(parts[0])
+        if head is None:
+            head = _classify_head(parts[0])
+        talker, kind, p = head
+        if p is not None:
+            return p(talker, parts)  # type: ignore[operator]
+        return NmeaSentence(talker, kind, tuple(parts[1:]))
+
+
+_HEADS: dict[str, tuple[str, str, object]] = {}
+
+
+def _classify_head(head: str) -> tuple[str, str, object]:
+    """Split an address field into (talker, kind, typed parser or None); cache the good ones."""
+    if len(head) == 5 and head.isalnum() and head.isupper():
         talker, kind = head[:2], head[2:]
-        f = parts[1:]
-        if kind == "GGA":
-            if len(f) < 14:
-                raise ValueError("GGA needs 14 fields")
-            return Gga(
-                talker=talker,
-                time_utc=_parse_time(f[0]),
-                lat_deg=_parse_latlon(f[1], f[2], 2),
-                lon_deg=_parse_latlon(f[3], f[4], 3),
-                quality=int(f[5] or 0),
-                num_sats=_opt_int(f[6]),
-                hdop=_opt_float(f[7]),
-                altitude_msl_m=_opt_float(f[8]),
-                geoid_sep_m=_opt_float(f[10]),
-            )
-        if kind == "RMC":
-            if len(f) < 11:
-                raise ValueError("RMC needs at least 11 fields")
-            speed = _opt_float(f[6])
-            date = None
-            if f[8]:
-                d = f[8]
-                date = _dt.date(2000 + int(d[4:6]), int(d[2:4]), int(d[0:2]))
-            return Rmc(
-                talker=talker,
-                time_utc=_parse_time(f[0]),
-                valid=f[1] == "A",
-                lat_deg=_parse_latlon(f[2], f[3], 2),
-                lon_deg=_parse_latlon(f[4], f[5], 3),
-                speed_mps=None if speed is None else speed * KNOT_MPS,
-                course_deg=_opt_float(f[7]),
-                date=date,
-                mode=f[11] if len(f) > 11 and f[11] else None,
-            )
-        return NmeaSentence(talker, kind, tuple(f))
-
+        r: tuple[str, str, object] = (talker, kind, _PARSERS.get(kind))
+    elif len(head) >= 4 and head[0] == "P" and head.isalnum() and head.isupper():
+        r = (head[:4], head[4:], None)  # proprietary: 'P' + maker code, then the type (may be empty)
+    else:
+        raise ValueError(f"bad NMEA address field {head!r}")
+    if len(_HEADS) < 256:
+        _HEADS[head] = r
+    return r

@@ -43,9 +43,11 @@ from __future__ import annotations
 import enum
 import struct
 from dataclasses import dataclass
+from typing import Any
 
-from construct import Array, Float32l, Int8ul, Int16sl, Int16ul, Int32ul, Struct, this
+from construct import Array, Bytes, Const, Float32l, Int8ul, Int16sl, Int16ul, Int32ul, Struct, this
 
+from ._fastinit import fast_frozen_init
 from .crc import crc16_ccitt
 from .stream import BAD_LENGTH, NEED_MORE
 
@@ -67,9 +69,12 @@ __all__ = [
     "encode_compass",
     "encode_solar_vector",
     "max_points",
+    "frame_bytes_obs",
+    "encode_psns",
     "POLARIZATION_OBS_SPEC",
     "COMPASS_SPEC",
     "SOLAR_VECTOR_SPEC",
+    "PSNS_FRAME_SPEC",
 ]
 
 PSNS_SYNC = b"\xeb\x90"
@@ -81,6 +86,7 @@ FRAME_OVERHEAD = 7  # sync 2 + id 1 + len 2 + crc 2
 HEADER_LEN = 13
 POINT_LEN = 10
 UNIT_LEN = 5
+SOLAR_VECTOR_PAYLOAD_LEN = HEADER_LEN + 16
 
 
 class PsnsStatus(enum.IntFlag):
@@ -98,25 +104,43 @@ _PT = struct.Struct("<HHhHH")
 _UNIT = struct.Struct("<BhH")
 _SV = struct.Struct("<4f")
 
+# Field docs are "scale | unit | meaning" (read by protocols.icd for docs/icd.md).
+PSNS_FRAME_SPEC = Struct(
+    "sync" / Const(PSNS_SYNC) * " |  | 0xEB 0x90",
+    "msg_id" / Int8ul * " |  | 0x10 POLARIZATION_OBS, 0x11 COMPASS, 0x12 SOLAR_VECTOR",
+    "length" / Int16ul * "1 | bytes | payload length N (must agree with count)",
+    "payload" / Bytes(this.length) * " |  | N bytes",
+    "crc" / Int16ul * " |  | CRC-16/CCITT-FALSE over msg_id, length, payload",
+)
 _HEADER_FIELDS = (
-    "seq" / Int16ul,
-    "exposure_us" / Int32ul,
-    "latency_us" / Int32ul,
-    "status" / Int8ul,
-    "count" / Int16ul,
+    "seq" / Int16ul * "1 |  | frame counter, wraps",
+    "exposure_us" / Int32ul * "1 | us | exposure time",
+    "latency_us" / Int32ul * "1 | us | middle of the exposure to the start bit of this frame's first byte",
+    "status" / Int8ul * " |  | PsnsStatus bits",
+    "count" / Int16ul * "1 |  | N points (0x10), l units (0x11), points used (0x12)",
 )
-POLARIZATION_OBS_SPEC = Struct(
+POINT_SPEC = Struct(
+    "x_px" / Int16ul * "1 | px | column, 1-based, full resolution",
+    "y_px" / Int16ul * "1 | px | row, 1-based",
+    "aop_cdeg" / Int16sl * "0.01 | deg | AOP from image +y towards +x, (-90, 90] (Eq. 5)",
+    "dop" / Int16ul * "1/65535 |  | degree of polarization",
+    "intensity" / Int16ul * "1 | DN | S0 = (I0+I45+I90+I135)/2",
+)
+UNIT_SPEC = Struct(
+    "unit" / Int8ul * " |  | compass unit index",
+    "aop_cdeg" / Int16sl * "0.01 | deg | AOP in the unit's frame, from +y towards +x",
+    "dop" / Int16ul * "1/65535 |  | degree of polarization",
+)
+POLARIZATION_OBS_SPEC = Struct(*_HEADER_FIELDS, "points" / Array(this.count, POINT_SPEC) * " |  | count x 10 bytes")
+COMPASS_SPEC = Struct(*_HEADER_FIELDS, "units" / Array(this.count, UNIT_SPEC) * " |  | count x 5 bytes")
+SOLAR_VECTOR_SPEC = Struct(
     *_HEADER_FIELDS,
-    "points" / Array(this.count, Struct("x_px" / Int16ul, "y_px" / Int16ul, "aop_cdeg" / Int16sl,
-                                         "dop" / Int16ul, "intensity" / Int16ul)),
+    "s" / Array(3, Float32l) * "1 |  | unit solar vector x, y, z in the sensor frame (sign ambiguous)",
+    "quality" / Float32l * "1 |  | lambda_min / lambda_mid of K (smaller is better), 1.0 if invalid",
 )
-COMPASS_SPEC = Struct(
-    *_HEADER_FIELDS,
-    "units" / Array(this.count, Struct("unit" / Int8ul, "aop_cdeg" / Int16sl, "dop" / Int16ul)),
-)
-SOLAR_VECTOR_SPEC = Struct(*_HEADER_FIELDS, "s" / Array(3, Float32l), "quality" / Float32l)
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class PsnsHeader:
     seq: int
@@ -126,6 +150,7 @@ class PsnsHeader:
     count: int
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class PolarizationPoint:
     """One observation point: pixel (1-based column, row), AOP (0.01 deg), DOP (1/65535), S0 (DN)."""
@@ -137,12 +162,14 @@ class PolarizationPoint:
     intensity: int
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class PolarizationObs:
     header: PsnsHeader
     points: tuple[PolarizationPoint, ...]
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class CompassUnit:
     unit: int
@@ -150,12 +177,14 @@ class CompassUnit:
     dop: int
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class CompassFrame:
     header: PsnsHeader
     units: tuple[CompassUnit, ...]
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class SolarVectorFrame:
     header: PsnsHeader
@@ -193,8 +222,26 @@ def encode_solar_vector(h: PsnsHeader, s: tuple[float, float, float], quality: f
     return _frame(MSG_SOLAR_VECTOR, _hdr(h, h.count) + _SV.pack(s[0], s[1], s[2], quality))
 
 
+def encode_psns(obj: PolarizationObs | CompassFrame | SolarVectorFrame) -> bytes:
+    """Encode any object :class:`PsnsFormat` decodes (the inverse of its ``parse``)."""
+    if isinstance(obj, PolarizationObs):
+        return encode_polarization_obs(obj.header, obj.points)
+    if isinstance(obj, CompassFrame):
+        return encode_compass(obj.header, obj.units)
+    return encode_solar_vector(obj.header, obj.s, obj.quality)
+
+
+def frame_bytes_obs(n_points: int) -> int:
+    """Wire bytes of a POLARIZATION_OBS frame with ``n_points`` points."""
+    return FRAME_OVERHEAD + HEADER_LEN + POINT_LEN * n_points
+
+
 def max_points(baud: int, rate_hz: float, bits_per_byte: int = 10) -> int:
-    """Largest POLARIZATION_OBS point count that fits a line of ``baud`` at ``rate_hz`` frames/s."""
+    """Largest POLARIZATION_OBS point count that fits a line of ``baud`` at ``rate_hz`` frames/s.
+
+    ``bits_per_byte`` is 10 for 8N1 (start + 8 data + stop). Example: 115200 baud at 5 Hz
+    gives 2304 bytes per frame period, so (2304 - 7 - 13) // 10 = 228 points.
+    """
     budget = int(baud / bits_per_byte / rate_hz)
     return max(0, (budget - FRAME_OVERHEAD - HEADER_LEN) // POINT_LEN)
 
@@ -205,12 +252,32 @@ class PsnsFormat:
     name = "psns"
     sync = PSNS_SYNC
 
+    @staticmethod
+    def encode(obj: Any) -> bytes:
+        """Encode a decoded object back to its frame (:func:`encode_psns`)."""
+        return encode_psns(obj)
+
     def frame_length(self, buf: bytearray, start: int) -> int:
-        if len(buf) - start < 5:
+        # The payload length must agree with the header's count (bytes 16-17), so a corrupt
+        # length is refused after 18 bytes instead of holding the stream for up to 64 KiB.
+        avail = len(buf) - start
+        if avail < 5:
             return NEED_MORE
         msg_id = buf[start + 2]
         n = buf[start + 3] | (buf[start + 4] << 8)
-        if msg_id not in (MSG_POLARIZATION_OBS, MSG_COMPASS, MSG_SOLAR_VECTOR) or n < HEADER_LEN:
+        if msg_id == MSG_SOLAR_VECTOR:
+            return FRAME_OVERHEAD + n if n == SOLAR_VECTOR_PAYLOAD_LEN else BAD_LENGTH
+        if msg_id == MSG_POLARIZATION_OBS:
+            item = POINT_LEN
+        elif msg_id == MSG_COMPASS:
+            item = UNIT_LEN
+        else:
+            return BAD_LENGTH
+        if n < HEADER_LEN or (n - HEADER_LEN) % item:
+            return BAD_LENGTH
+        if avail < 18:
+            return NEED_MORE
+        if n != HEADER_LEN + item * (buf[start + 16] | (buf[start + 17] << 8)):
             return BAD_LENGTH
         return FRAME_OVERHEAD + n
 

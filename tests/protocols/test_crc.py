@@ -38,3 +38,28 @@ def test_ubx_fletcher_known_polls():
     # Well-known poll frames: CFG-PRT "B5 62 06 00 00 00 06 18", NAV-PVT "B5 62 01 07 00 00 08 19"
     assert ubx_fletcher(bytes([0x06, 0x00, 0x00, 0x00])) == (0x06, 0x18)
     assert ubx_fletcher(bytes([0x01, 0x07, 0x00, 0x00])) == (0x08, 0x19)
+
+
+def test_crcs_agree_with_crccheck_on_random_data():
+    import random
+
+    from crccheck.crc import Crc8Base, Crc16CcittFalse, Crc32Mpeg2
+
+    from protocols.crc import crc32_mpeg2_bitwise
+
+    class Crc8Stim(Crc8Base):
+        _poly, _initvalue, _reflect_input, _reflect_output, _xor_output = 0x07, 0xFF, False, False, 0x00
+
+    rng = random.Random(3)
+    for n in list(range(0, 70)) + [255, 1000]:
+        data = bytes(rng.randrange(256) for _ in range(n))
+        assert crc32_mpeg2(data) == crc32_mpeg2_bitwise(data) == Crc32Mpeg2.calc(data)
+        assert crc32_mpeg2(data, 0x12345678) == crc32_mpeg2_bitwise(data, 0x12345678)
+        assert crc16_ccitt(data) == Crc16CcittFalse.calc(data)
+        assert crc8_stim(data) == Crc8Stim.calc(data)
+        a = b = 0
+        for x in data:  # the Fletcher definition, byte by byte
+            a = (a + x) & 0xFF
+            b = (b + a) & 0xFF
+        assert ubx_fletcher(data) == (a, b)
+        assert nmea_checksum(data) == __import__("functools").reduce(lambda c, x: c ^ x, data, 0)

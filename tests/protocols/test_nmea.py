@@ -61,3 +61,84 @@ def test_bad_checksum_counted_not_raised():
 
 def test_strict_parse_of_good_sentence():
     assert isinstance(parse_one(NmeaFormat(), build_rmc(T, dt.date(2020, 1, 2), 1, 2, 0, 0)), Rmc)
+
+
+# -- VTG, GSA, ZDA, proprietary ------------------------------------------------------------------
+from protocols.nmea import Gsa, NmeaSentence, Vtg, Zda, build_gsa, build_vtg, build_zda, encode_nmea  # noqa: E402
+
+D = dt.date(2019, 9, 18)
+
+
+def test_vtg_gsa_zda_parse_in_pynmea2_to_same_values():
+    vtg = pynmea2.parse(build_vtg(271.5, 5.0, "A", 275.25).decode().strip(), check=True)
+    assert vtg.true_track == 271.5 and vtg.mag_track == 275.25 and vtg.faa_mode == "A"
+    assert float(vtg.spd_over_grnd_kts) * 1852 / 3600 == pytest.approx(5.0, abs=3e-4)
+    assert vtg.spd_over_grnd_kmph == pytest.approx(float(vtg.spd_over_grnd_kts) * 1.852, abs=5e-4)
+    gsa = pynmea2.parse(build_gsa(3, [4, 5, None, 9, 12], 2.5, 1.3, 2.1).decode().strip(), check=True)
+    assert (gsa.mode, gsa.mode_fix_type) == ("A", "3")
+    assert [gsa.sv_id01, gsa.sv_id02, gsa.sv_id03, gsa.sv_id04, gsa.sv_id05, gsa.sv_id06] == ["04", "05", "", "09", "12", ""]
+    assert (float(gsa.pdop), float(gsa.hdop), float(gsa.vdop)) == (2.5, 1.3, 2.1)
+    zda = pynmea2.parse(build_zda(T, D, -5, 30).decode().strip(), check=True)
+    assert (zda.day, zda.month, zda.year, zda.local_zone, zda.local_zone_minutes) == (18, 9, 2019, -5, 30)
+    assert zda.timestamp.replace(tzinfo=None) == T
+
+
+def test_pynmea2_built_vtg_gsa_zda_decode_in_ours():
+    vtg = pynmea2.VTG("GN", "VTG", ("77.52", "T", "", "M", "0.004", "N", "0.008", "K", "A"))
+    gsa = pynmea2.GSA("GN", "GSA", ("A", "3", "10", "32", "", "", "", "", "", "", "", "", "", "", "1.94", "1.18", "1.54"))
+    zda = pynmea2.ZDA("GP", "ZDA", ("201530.00", "04", "07", "2002", "00", "00"))
+    out = StreamDecoder([NmeaFormat()]).feed("".join(m.render(newline=True) for m in (vtg, gsa, zda)).encode())
+    assert out[0] == Vtg("GN", 77.52, None, pytest.approx(0.004 * 1852 / 3600), "A")
+    assert out[1] == Gsa("GN", "A", 3, (10, 32) + (None,) * 10, 1.94, 1.18, 1.54)
+    assert out[2] == Zda("GP", dt.time(20, 15, 30), dt.date(2002, 7, 4), 0, 0)
+
+
+def test_pynmeagps_is_a_second_peer():
+    # pyubx2's reader hands NMEA to pynmeagps, written independently of pynmea2 (protocols.md 2.4)
+    from pynmeagps import NMEAReader
+
+    for raw in (build_gga(T, 39.979123456, -116.339987654, 41.25, -8.5), build_rmc(T, D, -33.5, 70.25, 5.0, 271.5),
+                build_vtg(271.5, 5.0), build_zda(T, D, 0, 0), build_gsa(3, [4, 5, 9], 2.5, 1.3, 2.1)):
+        m = NMEAReader.parse(raw)
+        ours = parse_one(NmeaFormat(), raw)
+        if m.msgID in ("GGA", "RMC"):
+            assert m.lat == pytest.approx(ours.lat_deg, abs=1e-9) and m.lon == pytest.approx(ours.lon_deg, abs=1e-9)
+        if m.msgID == "VTG":
+            assert m.cogt == ours.course_true_deg
+        if m.msgID == "ZDA":
+            assert (m.day, m.month, m.year) == (18, 9, 2019)
+        if m.msgID == "GSA":
+            assert (m.PDOP, m.HDOP, m.VDOP) == (2.5, 1.3, 2.1)
+
+
+@pytest.mark.parametrize("raw", [
+    build_vtg(0.004, 0.0021), build_vtg(None, None, "N"), build_gsa(1, [], None, None, None),
+    build_zda(T, D, None, None), build_rmc(T, D, 0, 0, 0, 0, valid=False), build_gga(T, 0, 0, 0, 0, quality=0),
+])
+def test_typed_sentences_reencode_byte_for_byte(raw):
+    assert encode_nmea(parse_one(NmeaFormat(), raw)) == raw
+
+
+def test_proprietary_and_unknown_sentences():
+    raw = b"$PUBX,00,081350.00,4717.113210,N,00833.915187,E,546.589,G3,2.1,2.0,0.007,77.52,0.007,,0.92,1.19,0.77,9,0,0*5F\r\n"
+    assert StreamDecoder([NmeaFormat()]).feed(raw) == []  # 111 characters: beyond the standard's 82
+    s = parse_one(NmeaFormat(max_len=128), raw)
+    assert (s.talker, s.kind) == ("PUBX", "") and isinstance(s, NmeaSentence) and s.fields[0] == "00"
+    assert encode_nmea(s) == raw if len(raw) <= 82 else True
+    from protocols.nmea import build_sentence
+
+    gsv = build_sentence("GP", "GSV", ["1", "1", "01", "02", "45", "120", "40"])
+    s = parse_one(NmeaFormat(), gsv)
+    assert (s.talker, s.kind, s.fields[:2]) == ("GP", "GSV", ("1", "1"))
+    assert encode_nmea(s) == gsv
+
+
+def test_sentence_length_limit_is_enforced_both_ways():
+    from protocols.nmea import build_sentence
+
+    assert len(build_sentence("GP", "TXT", ["x" * 70])) == 82
+    with pytest.raises(ValueError):
+        build_sentence("GP", "TXT", ["x" * 71])
+    dec = StreamDecoder([NmeaFormat()])
+    assert dec.feed(b"$" + b"A" * 100 + b"\r\n" + build_zda(T, D)) != []
+    assert dec.stats.length_errors == 1

@@ -51,3 +51,34 @@ def test_max_points_on_rs232_115200():
     assert max_points(115200, 5.0) == 228
     assert max_points(115200, 10.0) == 113
     assert max_points(115200, 1.0) == 1150
+
+
+def test_length_must_agree_with_count_so_corrupt_lengths_fail_fast():
+    raw = bytearray(encode_polarization_obs(H, [PolarizationPoint(10, 10, 0, 30000, 2000)] * 3))
+    fmt = PsnsFormat()
+    assert fmt.frame_length(raw, 0) == len(raw)
+    raw[4] = 0x0A  # length 43 -> 2603 = 13 + 10 * 259: plausible alone, but count says 3
+    assert fmt.frame_length(bytearray(raw[:17]), 0) == -1  # needs the count at bytes 16-17
+    assert fmt.frame_length(raw, 0) == -2
+    raw[4] = 0x20  # length 8235: not 13 + a multiple of 10, refused from the header alone
+    assert fmt.frame_length(bytearray(raw[:5]), 0) == -2
+    sv = bytearray(encode_solar_vector(H, (0.0, 0.0, 1.0), 0.5))
+    sv[3] += 1
+    assert fmt.frame_length(sv, 0) < 0
+
+
+def test_every_frame_type_reencodes():
+    from protocols.psns import encode_psns
+
+    for raw in (encode_polarization_obs(H, [PolarizationPoint(1, 2, 3, 4, 5)]),
+                encode_compass(H, [CompassUnit(0, 1, 2)]), encode_solar_vector(H, (0.5, 0.25, -0.75), 0.125)):
+        assert encode_psns(parse_one(PsnsFormat(), raw)) == raw
+
+
+@pytest.mark.parametrize("rate_hz, expected", [(1, 1150), (2, 574), (5, 228), (10, 113), (20, 55), (25, 44), (50, 21)])
+def test_max_points_table_of_the_icd(rate_hz, expected):
+    from protocols.psns import frame_bytes_obs
+
+    n = max_points(115200, rate_hz)
+    assert n == expected
+    assert frame_bytes_obs(n) * 10 * rate_hz <= 115200 < frame_bytes_obs(n + 1) * 10 * rate_hz

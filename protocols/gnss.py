@@ -1,0 +1,153 @@
+"""One GNSS receiver epoch as bytes: a configurable NMEA/UBX output set at 1 Hz.
+
+A receiver model hands :func:`build_epoch` one :class:`GnssFix` (what the receiver knows at
+the epoch) and a :class:`GnssOutputSet` (which messages it is configured to send, in which
+order); the result is the burst the receiver writes once per epoch. The ICD's GNSS budget is
+computed from the same function, so the numbers there are the bytes a run really sends.
+
+Defaults follow a u-blox receiver (protocols.md 2.3: NEO-class units print RMC, VTG, GGA, GSA
+and more at 9600 8N1; ZDA is off by default on real units but part of the issue's set here).
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import math
+from dataclasses import dataclass
+
+from .nmea import build_gga, build_gsa, build_rmc, build_vtg, build_zda
+from .ubx import NavPvt, NavStatus, encode_nav_pvt, encode_nav_status
+
+__all__ = [
+    "GPS_EPOCH",
+    "GPS_UTC_LEAP_S",
+    "NMEA_SENTENCES",
+    "UBX_MESSAGES",
+    "GnssFix",
+    "GnssOutputSet",
+    "build_epoch",
+    "nav_pvt_from_fix",
+    "nav_status_from_fix",
+    "gps_time_of_week_ms",
+]
+
+GPS_EPOCH = _dt.datetime(1980, 1, 6, tzinfo=_dt.timezone.utc)
+#: GPS - UTC in seconds since 2017-01-01 (IERS Bulletin C: no leap second announced since).
+GPS_UTC_LEAP_S = 18
+NMEA_SENTENCES = ("RMC", "VTG", "GGA", "GSA", "ZDA")
+UBX_MESSAGES = ("NAV-PVT", "NAV-STATUS")
+
+
+@dataclass(frozen=True, slots=True)
+class GnssFix:
+    """What a receiver reports at one epoch (SI units, degrees for angles as on the wire).
+
+    ``utc`` is the epoch (timezone-aware UTC); ``height_m`` is ellipsoidal and
+    ``height_m - geoid_sep_m`` the height above MSL; ``vel_enu_mps`` is East, North, Up.
+    ``fix_type`` uses the UBX codes (0 none, 2 2D, 3 3D); ``quality`` the GGA codes.
+    """
+
+    utc: _dt.datetime
+    lat_deg: float
+    lon_deg: float
+    height_m: float
+    geoid_sep_m: float = 0.0
+    vel_enu_mps: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    fix_type: int = 3
+    quality: int = 1
+    sat_ids: tuple[int, ...] = (2, 5, 6, 12, 13, 15, 17, 19, 24, 25, 29, 30)
+    hdop: float = 0.8
+    vdop: float = 1.2
+    pdop: float = 1.44
+    h_acc_m: float = 2.5
+    v_acc_m: float = 4.0
+    s_acc_mps: float = 0.1
+    head_acc_deg: float = 1.0
+    t_acc_ns: int = 20
+    ttff_ms: int = 28000
+    msss_ms: int = 60000
+
+
+@dataclass(frozen=True, slots=True)
+class GnssOutputSet:
+    """Messages sent once per epoch, in this order: NMEA sentences then UBX messages.
+
+    ``nmea`` is any ordered subset of :data:`NMEA_SENTENCES`; ``ubx`` of :data:`UBX_MESSAGES`;
+    ``talker`` the NMEA talker (``GP`` GPS only, ``GN`` multi-GNSS).
+    """
+
+    nmea: tuple[str, ...] = ("RMC", "VTG", "GGA", "GSA", "ZDA")
+    ubx: tuple[str, ...] = ()
+    talker: str = "GP"
+    rate_hz: float = 1.0
+
+    def __post_init__(self) -> None:
+        bad = [s for s in self.nmea if s not in NMEA_SENTENCES] + [m for m in self.ubx if m not in UBX_MESSAGES]
+        if bad:
+            raise ValueError(f"unknown GNSS output message(s) {bad}; NMEA: {NMEA_SENTENCES}, UBX: {UBX_MESSAGES}")
+        if not 0 < self.rate_hz <= 25:
+            raise ValueError(f"GNSS output rate {self.rate_hz} Hz outside (0, 25]")
+
+
+def gps_time_of_week_ms(utc: _dt.datetime) -> int:
+    """GPS time of week, ms, of a UTC instant (GPS = UTC + :data:`GPS_UTC_LEAP_S`)."""
+    dt = utc - GPS_EPOCH + _dt.timedelta(seconds=GPS_UTC_LEAP_S)
+    ms = dt.days * 86_400_000 + dt.seconds * 1000 + dt.microseconds // 1000
+    return ms % (7 * 86_400_000)
+
+
+def _course_speed(vel_enu: tuple[float, float, float]) -> tuple[float, float]:
+    ve, vn = vel_enu[0], vel_enu[1]
+    return math.degrees(math.atan2(ve, vn)) % 360.0, math.hypot(ve, vn)
+
+
+def nav_pvt_from_fix(fix: GnssFix) -> NavPvt:
+    """UBX-NAV-PVT content of ``fix`` (rounded to the message's integer units)."""
+    t = fix.utc
+    course, speed = _course_speed(fix.vel_enu_mps)
+    ok = fix.fix_type >= 2
+    return NavPvt(
+        iTOW=gps_time_of_week_ms(t), year=t.year, month=t.month, day=t.day, hour=t.hour, min=t.minute, sec=t.second,
+        valid=0x07, tAcc=fix.t_acc_ns, nano=t.microsecond * 1000, fixType=fix.fix_type,
+        flags=0x01 if ok else 0x00, flags2=0xE0, numSV=len(fix.sat_ids),
+        lon=round(fix.lon_deg * 1e7), lat=round(fix.lat_deg * 1e7), height=round(fix.height_m * 1e3),
+        hMSL=round((fix.height_m - fix.geoid_sep_m) * 1e3), hAcc=round(fix.h_acc_m * 1e3),
+        vAcc=round(fix.v_acc_m * 1e3), velN=round(fix.vel_enu_mps[1] * 1e3), velE=round(fix.vel_enu_mps[0] * 1e3),
+        velD=round(-fix.vel_enu_mps[2] * 1e3), gSpeed=round(speed * 1e3), headMot=round(course * 1e5),
+        sAcc=round(fix.s_acc_mps * 1e3), headAcc=round(fix.head_acc_deg * 1e5), pDOP=round(fix.pdop * 100),
+        flags3=0 if ok else 0x01, reserved0=0, headVeh=0, magDec=0, magAcc=0,
+    )
+
+
+def nav_status_from_fix(fix: GnssFix) -> NavStatus:
+    """UBX-NAV-STATUS content of ``fix`` (gpsFixOk, week and time-of-week set)."""
+    ok = fix.fix_type >= 2
+    return NavStatus(iTOW=gps_time_of_week_ms(fix.utc), gpsFix=fix.fix_type, flags=(0x01 if ok else 0) | 0x0C,
+                     fixStat=0, flags2=0, ttff=fix.ttff_ms, msss=fix.msss_ms)
+
+
+def build_epoch(fix: GnssFix, output: GnssOutputSet = GnssOutputSet()) -> bytes:
+    """The bytes the receiver sends for one epoch: ``output.nmea`` sentences, then ``output.ubx``."""
+    t = fix.utc.timetz().replace(tzinfo=None)
+    d = fix.utc.date()
+    course, speed = _course_speed(fix.vel_enu_mps)
+    ok = fix.fix_type >= 2
+    tk = output.talker
+    out = bytearray()
+    for s in output.nmea:
+        if s == "RMC":
+            out += build_rmc(t, d, fix.lat_deg, fix.lon_deg, speed, course, valid=ok, talker=tk)
+        elif s == "VTG":
+            out += build_vtg(course, speed, "A", talker=tk) if ok else build_vtg(None, None, "N", talker=tk)
+        elif s == "GGA":
+            out += build_gga(t, fix.lat_deg, fix.lon_deg, fix.height_m - fix.geoid_sep_m, fix.geoid_sep_m,
+                             quality=fix.quality if ok else 0, num_sats=len(fix.sat_ids), hdop=fix.hdop, talker=tk)
+        elif s == "GSA":
+            ids = fix.sat_ids[:12] if ok else ()
+            out += build_gsa(fix.fix_type if ok else 1, ids, fix.pdop if ok else None, fix.hdop if ok else None,
+                             fix.vdop if ok else None, talker=tk)
+        else:  # ZDA
+            out += build_zda(t, d, 0, 0, talker=tk)
+    for m in output.ubx:
+        out += encode_nav_pvt(nav_pvt_from_fix(fix)) if m == "NAV-PVT" else encode_nav_status(nav_status_from_fix(fix))
+    return bytes(out)

@@ -1,0 +1,288 @@
+"""u-blox UBX binary protocol: framing, Fletcher checksum, NAV-PVT and NAV-STATUS.
+
+Source: ``shared/reference/protocols.md`` sections 2.1-2.2 (u-blox interface descriptions,
+e.g. F10 SPG 6.00 UBX-23002975; checked against pyubx2 1.4.0). Every UBX frame::
+
+    off  size  field
+    0    2     sync 0xB5 0x62 ("mu b")
+    2    1     class        NAV = 0x01
+    3    1     id           PVT = 0x07, STATUS = 0x03
+    4    2     length N     u16 little-endian, payload bytes only
+    6    N     payload      little-endian fields
+    6+N  2     CK_A, CK_B   8-bit Fletcher over class, id, length, payload
+
+UBX-NAV-PVT payload (92 bytes, protocol >= 15; frame 100 bytes), u-blox names and raw units::
+
+    0  U4 iTOW ms (GPS time of week)   4  U2 year   6..10 U1 month, day, hour, min, sec (UTC)
+    11 X1 valid (b0 validDate, b1 validTime, b2 fullyResolved, b3 validMag)
+    12 U4 tAcc ns   16 I4 nano ns   20 U1 fixType (0 none, 1 DR, 2 2D, 3 3D, 4 GNSS+DR, 5 time)
+    21 X1 flags (b0 gnssFixOK, b1 diffSoln, b2-4 psmState, b5 headVehValid, b6-7 carrSoln)
+    22 X1 flags2 (b5 confirmedAvai, b6 confirmedDate, b7 confirmedTime)   23 U1 numSV
+    24 I4 lon 1e-7 deg   28 I4 lat 1e-7 deg   32 I4 height mm (ellipsoid)   36 I4 hMSL mm
+    40 U4 hAcc mm   44 U4 vAcc mm   48/52/56 I4 velN/velE/velD mm/s   60 I4 gSpeed mm/s
+    64 I4 headMot 1e-5 deg   68 U4 sAcc mm/s   72 U4 headAcc 1e-5 deg   76 U2 pDOP 0.01
+    78 X2 flags3 (b0 invalidLlh, b1-4 lastCorrectionAge)   80 U1[4] reserved0 (kept as a U4 here)
+    84 I4 headVeh 1e-5 deg   88 I2 magDec 1e-2 deg   90 U2 magAcc 1e-2 deg
+
+UBX-NAV-STATUS payload (16 bytes)::
+
+    0 U4 iTOW ms   4 U1 gpsFix (as fixType)   5 X1 flags (b0 gpsFixOk, b1 diffSoln, b2 wknSet,
+    b3 towSet)   6 X1 fixStat   7 X1 flags2   8 U4 ttff ms   12 U4 msss ms (since start-up)
+
+:class:`UbxFormat` decodes NAV-PVT and NAV-STATUS into :class:`NavPvt` / :class:`NavStatus` and
+every other checked frame (including the 84-byte protocol-14 NAV-PVT) into :class:`UbxFrame`.
+Frames of an unknown message class are refused at the header, so a stray ``B5 62`` in noise
+costs at most six bytes.
+"""
+
+from __future__ import annotations
+
+import itertools
+import struct
+from dataclasses import dataclass
+from typing import Any
+
+from construct import Bytes, Const, Int8ul, Int16sl, Int16ul, Int32sl, Int32ul, Struct
+
+from ._fastinit import fast_frozen_init
+from .stream import BAD_LENGTH, NEED_MORE
+
+__all__ = [
+    "UBX_SYNC",
+    "UBX_MAX_PAYLOAD",
+    "UBX_CLASSES",
+    "CLS_NAV",
+    "ID_NAV_PVT",
+    "ID_NAV_STATUS",
+    "NAV_PVT_LEN",
+    "NAV_STATUS_LEN",
+    "NavPvt",
+    "NavStatus",
+    "UbxFrame",
+    "UbxFormat",
+    "NAV_PVT_SPEC",
+    "NAV_STATUS_SPEC",
+    "UBX_FRAME_SPEC",
+    "build_ubx_frame",
+    "encode_nav_pvt",
+    "encode_nav_status",
+    "encode_ubx",
+]
+
+UBX_SYNC = b"\xb5\x62"
+#: Largest payload accepted from the header (RXM-RAWX with 64 measurements needs 2064).
+UBX_MAX_PAYLOAD = 4096
+CLS_NAV = 0x01
+ID_NAV_PVT = 0x07
+ID_NAV_STATUS = 0x03
+NAV_PVT_LEN = 92
+NAV_STATUS_LEN = 16
+#: Message classes of the u-blox protocol (NAV, RXM, INF, ACK, CFG, UPD, MON, AID, TIM, ESF,
+#: MGA, LOG, SEC, HNR, NAV2); a header naming any other class is refused at once.
+UBX_CLASSES = frozenset({0x01, 0x02, 0x04, 0x05, 0x06, 0x09, 0x0A, 0x0B, 0x0D, 0x10, 0x13, 0x21, 0x27, 0x28, 0x29})
+#: Fixed payload lengths of the messages decoded here; others only need the class check.
+_FIXED_LEN = {(CLS_NAV, ID_NAV_STATUS): (NAV_STATUS_LEN,), (CLS_NAV, ID_NAV_PVT): (NAV_PVT_LEN, 84)}
+
+
+@fast_frozen_init
+@dataclass(frozen=True, slots=True)
+class NavPvt:
+    """UBX-NAV-PVT with the u-blox field names and raw integer units (module docstring)."""
+
+    iTOW: int
+    year: int
+    month: int
+    day: int
+    hour: int
+    min: int
+    sec: int
+    valid: int
+    tAcc: int
+    nano: int
+    fixType: int
+    flags: int
+    flags2: int
+    numSV: int
+    lon: int
+    lat: int
+    height: int
+    hMSL: int
+    hAcc: int
+    vAcc: int
+    velN: int
+    velE: int
+    velD: int
+    gSpeed: int
+    headMot: int
+    sAcc: int
+    headAcc: int
+    pDOP: int
+    flags3: int
+    reserved0: int
+    headVeh: int
+    magDec: int
+    magAcc: int
+
+
+@fast_frozen_init
+@dataclass(frozen=True, slots=True)
+class NavStatus:
+    """UBX-NAV-STATUS with the u-blox field names and raw units (ms)."""
+
+    iTOW: int
+    gpsFix: int
+    flags: int
+    fixStat: int
+    flags2: int
+    ttff: int
+    msss: int
+
+
+@fast_frozen_init
+@dataclass(frozen=True, slots=True)
+class UbxFrame:
+    """A checked UBX frame without a typed decoder here."""
+
+    cls: int
+    id: int
+    payload: bytes
+
+
+_PVT = struct.Struct("<IHBBBBBBIiBBBBiiiiIIiiiiiIIHHIihH")
+_STATUS = struct.Struct("<IBBBBII")
+assert _PVT.size == NAV_PVT_LEN and _STATUS.size == NAV_STATUS_LEN
+
+# Field docs are "scale | unit | meaning" (read by protocols.icd for docs/icd.md).
+NAV_PVT_SPEC = Struct(
+    "iTOW" / Int32ul * "1 | ms | GPS time of week",
+    "year" / Int16ul * "1 |  | UTC year",
+    "month" / Int8ul * "1 |  | UTC month 1..12",
+    "day" / Int8ul * "1 |  | UTC day 1..31",
+    "hour" / Int8ul * "1 | h | UTC hour",
+    "min" / Int8ul * "1 | min | UTC minute",
+    "sec" / Int8ul * "1 | s | UTC second 0..60",
+    "valid" / Int8ul * " |  | b0 validDate, b1 validTime, b2 fullyResolved, b3 validMag",
+    "tAcc" / Int32ul * "1 | ns | time accuracy",
+    "nano" / Int32sl * "1 | ns | fraction of the second, -1e9..1e9",
+    "fixType" / Int8ul * " |  | 0 none, 1 DR, 2 2D, 3 3D, 4 GNSS+DR, 5 time only",
+    "flags" / Int8ul * " |  | b0 gnssFixOK, b1 diffSoln, b2-4 psmState, b5 headVehValid, b6-7 carrSoln",
+    "flags2" / Int8ul * " |  | b5 confirmedAvai, b6 confirmedDate, b7 confirmedTime",
+    "numSV" / Int8ul * "1 |  | satellites used",
+    "lon" / Int32sl * "1e-7 | deg | longitude",
+    "lat" / Int32sl * "1e-7 | deg | latitude",
+    "height" / Int32sl * "1 | mm | height above the ellipsoid",
+    "hMSL" / Int32sl * "1 | mm | height above mean sea level",
+    "hAcc" / Int32ul * "1 | mm | horizontal accuracy",
+    "vAcc" / Int32ul * "1 | mm | vertical accuracy",
+    "velN" / Int32sl * "1 | mm/s | north velocity",
+    "velE" / Int32sl * "1 | mm/s | east velocity",
+    "velD" / Int32sl * "1 | mm/s | down velocity",
+    "gSpeed" / Int32sl * "1 | mm/s | 2-D ground speed",
+    "headMot" / Int32sl * "1e-5 | deg | heading of motion",
+    "sAcc" / Int32ul * "1 | mm/s | speed accuracy",
+    "headAcc" / Int32ul * "1e-5 | deg | heading accuracy",
+    "pDOP" / Int16ul * "0.01 |  | position DOP",
+    "flags3" / Int16ul * " |  | b0 invalidLlh, b1-4 lastCorrectionAge",
+    "reserved0" / Int32ul * " |  | reserved (U1[4])",
+    "headVeh" / Int32sl * "1e-5 | deg | heading of vehicle",
+    "magDec" / Int16sl * "1e-2 | deg | magnetic declination",
+    "magAcc" / Int16ul * "1e-2 | deg | declination accuracy",
+)
+NAV_STATUS_SPEC = Struct(
+    "iTOW" / Int32ul * "1 | ms | GPS time of week",
+    "gpsFix" / Int8ul * " |  | 0 none, 1 DR, 2 2D, 3 3D, 4 GNSS+DR, 5 time only",
+    "flags" / Int8ul * " |  | b0 gpsFixOk, b1 diffSoln, b2 wknSet, b3 towSet",
+    "fixStat" / Int8ul * " |  | b0 diffCorr, b1 carrSolnValid, b6-7 mapMatching",
+    "flags2" / Int8ul * " |  | b0-1 psmState, b3-4 spoofDetState, b6-7 carrSoln",
+    "ttff" / Int32ul * "1 | ms | time to first fix",
+    "msss" / Int32ul * "1 | ms | since start-up or reset",
+)
+#: The whole-frame layout (header + payload + checksum) for documentation and tools.
+UBX_FRAME_SPEC = Struct(
+    "sync" / Const(UBX_SYNC) * " |  | 0xB5 0x62",
+    "cls" / Int8ul * " |  | message class (NAV 0x01)",
+    "id" / Int8ul * " |  | message id (PVT 0x07, STATUS 0x03)",
+    "length" / Int16ul * "1 | bytes | payload length N",
+    "payload" / Bytes(lambda ctx: ctx.length) * " |  | N bytes, little-endian fields",
+    "ck_a" / Int8ul * " |  | Fletcher CK_A = sum of class..payload mod 256",
+    "ck_b" / Int8ul * " |  | Fletcher CK_B = sum of the running CK_A mod 256",
+)
+
+_accumulate = itertools.accumulate
+
+
+def build_ubx_frame(cls: int, msg_id: int, payload: bytes) -> bytes:
+    """Frame ``payload`` as UBX message (``cls``, ``msg_id``) with its Fletcher checksum."""
+    if len(payload) > 0xFFFF:
+        raise ValueError(f"UBX payload of {len(payload)} bytes does not fit the u16 length")
+    body = bytes((cls & 0xFF, msg_id & 0xFF, len(payload) & 0xFF, len(payload) >> 8)) + payload
+    return UBX_SYNC + body + bytes((sum(body) & 0xFF, sum(_accumulate(body)) & 0xFF))
+
+
+def encode_nav_pvt(p: NavPvt) -> bytes:
+    """Whole UBX-NAV-PVT frame (100 bytes). Raises ``ValueError`` for a field out of its range."""
+    try:
+        payload = _PVT.pack(
+            p.iTOW, p.year, p.month, p.day, p.hour, p.min, p.sec, p.valid, p.tAcc, p.nano, p.fixType, p.flags,
+            p.flags2, p.numSV, p.lon, p.lat, p.height, p.hMSL, p.hAcc, p.vAcc, p.velN, p.velE, p.velD, p.gSpeed,
+            p.headMot, p.sAcc, p.headAcc, p.pDOP, p.flags3, p.reserved0, p.headVeh, p.magDec, p.magAcc,
+        )
+    except struct.error as exc:
+        raise ValueError(f"NAV-PVT field out of range: {exc}") from exc
+    return build_ubx_frame(CLS_NAV, ID_NAV_PVT, payload)
+
+
+def encode_nav_status(s: NavStatus) -> bytes:
+    """Whole UBX-NAV-STATUS frame (24 bytes)."""
+    try:
+        payload = _STATUS.pack(s.iTOW, s.gpsFix, s.flags, s.fixStat, s.flags2, s.ttff, s.msss)
+    except struct.error as exc:
+        raise ValueError(f"NAV-STATUS field out of range: {exc}") from exc
+    return build_ubx_frame(CLS_NAV, ID_NAV_STATUS, payload)
+
+
+def encode_ubx(obj: NavPvt | NavStatus | UbxFrame) -> bytes:
+    """Encode any object :class:`UbxFormat` decodes."""
+    if isinstance(obj, NavPvt):
+        return encode_nav_pvt(obj)
+    if isinstance(obj, NavStatus):
+        return encode_nav_status(obj)
+    return build_ubx_frame(obj.cls, obj.id, obj.payload)
+
+
+class UbxFormat:
+    """:class:`~protocols.stream.FrameFormat` of UBX frames (NAV-PVT, NAV-STATUS typed)."""
+
+    name = "ubx"
+    sync = UBX_SYNC
+
+    @staticmethod
+    def encode(obj: Any) -> bytes:
+        """Encode a decoded object back to its frame (:func:`encode_ubx`)."""
+        return encode_ubx(obj)
+
+    def frame_length(self, buf: bytearray, start: int) -> int:
+        if len(buf) - start < 6:
+            return NEED_MORE
+        cls = buf[start + 2]
+        if cls not in UBX_CLASSES:
+            return BAD_LENGTH
+        n = buf[start + 4] | (buf[start + 5] << 8)
+        fixed = _FIXED_LEN.get((cls, buf[start + 3]))
+        if (fixed is not None and n not in fixed) or n > UBX_MAX_PAYLOAD:
+            return BAD_LENGTH
+        return n + 8
+
+    def check(self, frame: bytes) -> bool:
+        body = frame[2:-2]
+        return frame[-2] == (sum(body) & 0xFF) and frame[-1] == (sum(_accumulate(body)) & 0xFF)
+
+    def parse(self, frame: bytes) -> NavPvt | NavStatus | UbxFrame:
+        cls, mid = frame[2], frame[3]
+        n = len(frame) - 8
+        if cls == CLS_NAV:
+            if mid == ID_NAV_PVT and n == NAV_PVT_LEN:
+                return NavPvt(*_PVT.unpack_from(frame, 6))
+            if mid == ID_NAV_STATUS and n == NAV_STATUS_LEN:
+                return NavStatus(*_STATUS.unpack_from(frame, 6))
+        return UbxFrame(cls, mid, bytes(frame[6:-2]))

@@ -2,10 +2,17 @@
 
 The CAN endpoint is an output sink for the host port: the bytes the box sends out of its HOST
 port (the DSP's UART0 through the FPGA) are decoded with the one streaming decoder
-(:class:`protocols.host.HostFormat`), and every NAV_SOLUTION frame becomes one CAN frame per
-message of the DBC, sent at the navigation rate (or decimated to ``rate`` Hz of navigation time).
-Nothing is received from the bus: a CAN host port carries no commands (the box's commands
-arrive on RS422).
+(:class:`protocols.host.HostFormat`), and every NAV_SOLUTION frame becomes the CAN frames of the
+messages that are due, in identifier order. Nothing is received from the bus: a CAN host port
+carries no commands (the box's commands arrive on RS422).
+
+Messages and rates: by default those of ``protocols/psns_nav.dbc`` (:mod:`protocols.can_nav`,
+CAN 2.0B, 29-bit ids, D-3.4): TIME, POSITION, HEIGHT_MODE, VELOCITY and ATTITUDE every 10 ms,
+the three SIGMA frames and DSP health every 100 ms, encoded by the protocols layer's struct codec
+(cantools decodes them identically; no cantools in the per-frame path). A message is due when its
+cycle time has passed in *navigation* time (``time_s`` of the solutions), so the output is
+reproducible and follows the navigation rate (a 50 Hz solution sends the 10 ms messages at 50 Hz).
+``rate=HZ`` caps the whole set further.
 
 Buses (python-can 4.x, ``shared/reference/protocols.md`` section 3):
 
@@ -14,36 +21,35 @@ Buses (python-can 4.x, ``shared/reference/protocols.md`` section 3):
 ``can://socketcan/IF``
     Linux SocketCAN interface ``IF`` (``can0``, ``vcan0``); needs the kernel's CAN support.
 
-URL options: ``dbc=FILE`` (default: ``protocols/psns_nav.dbc`` shipped with the package),
-``rate=HZ`` (decimate; default every frame), ``bitrate=N`` (passed to the interface),
-``fd=0|1`` (CAN FD frames), plus the common ``baud``/``mode``/``queue`` of the host line
-that feeds the decoder.
-
-Signals are filled by name from :func:`nav_signal_values` (the NavSolution fields, velocity and
-sigma split per axis: ``vel_e_mps`` ... ``sig_pos_u_m``). A DBC signal with no such source is an
-error at open, naming it. Values are saturated to what the signal can carry, except unsigned
-unscaled integers (sequence counters, bit fields), which wrap modulo their width as a rolling
-counter does. python-can and cantools exceptions are mapped to :class:`~emulator.errors.LinkError`
-subclasses at this boundary.
+URL options: ``dbc=FILE`` (another DBC: encoded with cantools, every signal filled by name from
+:func:`nav_signal_values`, cycle times from its ``GenMsgCycleTime``; a signal with no source is an
+error at open), ``rate=HZ``, ``bitrate=N`` (passed to the interface), ``fd=0|1`` (CAN FD frames),
+plus the common ``baud``/``mode``/``queue`` of the host line that feeds the decoder.
+python-can and cantools exceptions are mapped to :class:`~emulator.errors.LinkError` subclasses.
 """
 
 from __future__ import annotations
 
 import asyncio
+import math
 from pathlib import Path
 from typing import Any
 
+from protocols.can_nav import CAN_MESSAGES, encode_can_frames
 from protocols.host import HostFormat, NavSolution
 from protocols.stream import StreamDecoder
 
 from ..errors import LinkBrokenError, LinkConfigError
 from .base import LineConfig, Link
 
-__all__ = ["CanLink", "CAN_OPTIONS", "default_dbc_path", "nav_signal_values", "NavCanEncoder"]
+__all__ = ["CanLink", "CAN_OPTIONS", "default_dbc_path", "nav_signal_values", "NavCanEncoder",
+           "DefaultNavCanEncoder", "DbcNavCanEncoder"]
 
 CAN_OPTIONS = frozenset({"dbc", "rate", "bitrate", "fd"})
 _USAGE = "can://virtual/CHANNEL or can://socketcan/IFACE[?dbc=FILE&rate=HZ&bitrate=N&fd=0|1]"
 _INTERFACES = ("virtual", "socketcan")
+#: tolerance when comparing navigation times against a cycle (s)
+_CYCLE_EPS = 1e-6
 
 
 def default_dbc_path() -> Path:
@@ -54,18 +60,56 @@ def default_dbc_path() -> Path:
 
 
 def nav_signal_values(n: NavSolution) -> dict[str, float]:
-    """NavSolution as flat signal values (names as in ``nav.csv``; units of :mod:`protocols.host`)."""
+    """NavSolution as flat signal values, named as the signals of ``protocols/psns_nav.dbc``."""
     s = n.sigma
     return {
-        "seq": n.seq, "time_s": n.time_s, "lat_deg": n.lat_deg, "lon_deg": n.lon_deg, "height_m": n.height_m,
-        "vel_e_mps": n.vel_enu_mps[0], "vel_n_mps": n.vel_enu_mps[1], "vel_u_mps": n.vel_enu_mps[2],
-        "roll_deg": n.roll_deg, "pitch_deg": n.pitch_deg, "heading_deg": n.heading_deg,
-        "sig_att_e_deg": s[0], "sig_att_n_deg": s[1], "sig_att_u_deg": s[2],
-        "sig_vel_e_mps": s[3], "sig_vel_n_mps": s[4], "sig_vel_u_mps": s[5],
-        "sig_pos_n_m": s[6], "sig_pos_e_m": s[7], "sig_pos_u_m": s[8],
+        "seq": n.seq, "seq8": n.seq & 0xFF, "time_s": n.time_s, "lat_deg": n.lat_deg, "lon_deg": n.lon_deg,
+        "height_m": n.height_m, "vel_e_mps": n.vel_enu_mps[0], "vel_n_mps": n.vel_enu_mps[1],
+        "vel_u_mps": n.vel_enu_mps[2], "roll_deg": n.roll_deg, "pitch_deg": n.pitch_deg,
+        "heading_deg": n.heading_deg % 360.0,
+        "sigma_att_e_deg": s[0], "sigma_att_n_deg": s[1], "sigma_att_u_deg": s[2],
+        "sigma_vel_e_mps": s[3], "sigma_vel_n_mps": s[4], "sigma_vel_u_mps": s[5],
+        "sigma_pos_n_m": s[6], "sigma_pos_e_m": s[7], "sigma_pos_u_m": s[8],
         "mode": n.mode, "gnss_status": n.gnss_status, "psns_status": n.psns_status,
         "cpu_load_pct": n.cpu_load_pct, "deadline_misses": n.deadline_misses,
     }
+
+
+class NavCanEncoder:
+    """Which messages are due for a solution and their frames: ``frames(n) -> [(id, extended, data)]``."""
+
+    #: (name, cycle s or 0 for every solution) per message, in identifier order
+    schedule: list[tuple[str, float]]
+
+    def __init__(self) -> None:
+        self._last: dict[str, float] = {}
+
+    def due(self, n: NavSolution) -> list[str]:
+        out = []
+        for name, cycle in self.schedule:
+            last = self._last.get(name)
+            if last is None or cycle <= 0 or n.time_s - last >= cycle - _CYCLE_EPS or n.time_s < last:
+                self._last[name] = n.time_s
+                out.append(name)
+        return out
+
+    def frames(self, n: NavSolution) -> list[tuple[int, bool, bytes]]:
+        raise NotImplementedError
+
+
+class DefaultNavCanEncoder(NavCanEncoder):
+    """``protocols/psns_nav.dbc`` through :func:`protocols.can_nav.encode_can_frames` (29-bit ids)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.path = default_dbc_path()
+        self.schedule = [(m.name, m.cycle_ms / 1000.0) for m in sorted(CAN_MESSAGES, key=lambda m: m.frame_id)]
+
+    def frames(self, n: NavSolution) -> list[tuple[int, bool, bytes]]:
+        names = self.due(n)
+        if not names:
+            return []
+        return [(fid, True, data) for fid, data in encode_can_frames(n, names)]
 
 
 class _SignalPlan:
@@ -91,23 +135,24 @@ class _SignalPlan:
         self.wrap = (1 << bits) if (not sig.is_float and not sig.is_signed and scale == 1 and offset == 0) else 0
 
     def value(self, v: float) -> float:
+        if isinstance(v, float) and not math.isfinite(v):
+            v = 0.0
         if self.wrap:
             return int(v) % self.wrap
         return self.hi if v > self.hi else self.lo if v < self.lo else v
 
 
-class NavCanEncoder:
-    """DBC messages for one NavSolution: ``encode(n) -> [(frame_id, is_extended, data), ...]``.
+class DbcNavCanEncoder(NavCanEncoder):
+    """Any DBC through cantools: signals filled by name from :func:`nav_signal_values` (see module docstring).
 
-    Parameters
-    ----------
-    dbc_path:
-        The DBC file. Every signal of every message must have a source in :func:`nav_signal_values`.
+    Values beyond a signal's range saturate; unsigned unscaled integers (counters, bit fields) wrap.
     """
 
     def __init__(self, dbc_path: str | Path) -> None:
+        super().__init__()
         import cantools
 
+        self.path = Path(dbc_path)
         try:
             self.db = cantools.database.load_file(str(dbc_path))
         except FileNotFoundError as exc:
@@ -115,23 +160,28 @@ class NavCanEncoder:
         except Exception as exc:  # noqa: BLE001 - cantools raises ParseError and friends
             raise LinkConfigError(f"DBC file {dbc_path} could not be parsed: {exc}") from exc
         known = set(nav_signal_values(_ZERO_NAV))
-        plans = []
+        plans: dict[str, tuple[Any, list[_SignalPlan]]] = {}
         missing = []
-        for m in self.db.messages:
+        for m in sorted(self.db.messages, key=lambda m: m.frame_id):
             sigs = [_SignalPlan(s) for s in m.signals]
             missing += [f"{m.name}.{s.name}" for s in sigs if s.name not in known]
-            plans.append((m, sigs))
+            plans[m.name] = (m, sigs)
         if missing:
             raise LinkConfigError(f"DBC {dbc_path}: signals with no NavSolution source: {', '.join(missing)}; "
                                   f"known: {', '.join(sorted(known))}")
         if not plans:
             raise LinkConfigError(f"DBC {dbc_path} defines no messages")
         self.plans = plans
+        self.schedule = [(name, (m.cycle_time or 0) / 1000.0) for name, (m, _s) in plans.items()]
 
-    def encode(self, n: NavSolution) -> list[tuple[int, bool, bytes]]:
+    def frames(self, n: NavSolution) -> list[tuple[int, bool, bytes]]:
+        names = self.due(n)
+        if not names:
+            return []
         vals = nav_signal_values(n)
         out = []
-        for m, sigs in self.plans:
+        for name in names:
+            m, sigs = self.plans[name]
             data = {s.name: s.value(vals[s.name]) for s in sigs}
             out.append((m.frame_id, bool(m.is_extended_frame), m.encode(data, scaling=True, strict=False)))
         return out
@@ -156,7 +206,7 @@ class CanLink(Link):
         if iface not in _INTERFACES or not channel:
             raise LinkConfigError(f"{url!r}: expected {_USAGE}")
         self.interface, self.channel = iface, channel
-        self.dbc_path = Path(opts["dbc"]) if "dbc" in opts else default_dbc_path()
+        self.dbc_path = Path(opts["dbc"]) if "dbc" in opts else None
         try:
             self.min_interval_s = 1.0 / float(opts["rate"]) if "rate" in opts else 0.0
             self.bitrate = int(opts["bitrate"]) if "bitrate" in opts else None
@@ -175,7 +225,7 @@ class CanLink(Link):
         self.last_error: str | None = None
 
     async def open(self) -> None:
-        self.encoder = NavCanEncoder(self.dbc_path)
+        self.encoder = DbcNavCanEncoder(self.dbc_path) if self.dbc_path is not None else DefaultNavCanEncoder()
         import can
 
         kw: dict[str, Any] = {"interface": self.interface, "channel": self.channel}
@@ -204,7 +254,7 @@ class CanLink(Link):
             return
         import can
 
-        for frame_id, ext, payload in enc.encode(n):
+        for frame_id, ext, payload in enc.frames(n):
             msg = can.Message(arbitration_id=frame_id, is_extended_id=ext, data=payload, is_fd=self.fd,
                               timestamp=self.loop.time())
             try:
@@ -229,4 +279,5 @@ class CanLink(Link):
                 pass
 
     def describe(self) -> str:
-        return f"CAN {self.interface}/{self.channel} (DBC {self.dbc_path.name})"
+        dbc = self.dbc_path.name if self.dbc_path is not None else "psns_nav.dbc"
+        return f"CAN {self.interface}/{self.channel} (DBC {dbc})"

@@ -12,25 +12,41 @@ import cantools
 import numpy as np
 import pytest
 
+import protocols
+
 can = pytest.importorskip("can")
 
 from emulator.clock import EmulatorLoop  # noqa: E402
 from emulator.errors import LinkBrokenError, LinkConfigError  # noqa: E402
 from emulator.links import LineConfig, open_link  # noqa: E402
-from emulator.links.can import NavCanEncoder, nav_signal_values  # noqa: E402
-from protocols.host import NavMode, NavSolution, encode_nav_solution  # noqa: E402
+from emulator.links.can import DbcNavCanEncoder, DefaultNavCanEncoder, nav_signal_values  # noqa: E402
+from protocols.host import HostFormat, NavMode, NavSolution, encode_nav_solution  # noqa: E402
 
-DBC = Path(__file__).with_name("minimal_psns_nav.dbc")
+DBC = Path(protocols.__file__).with_name("psns_nav.dbc")
+FAST = ("PSNS_NAV_TIME", "PSNS_NAV_POSITION", "PSNS_NAV_HEIGHT_MODE", "PSNS_NAV_VELOCITY", "PSNS_NAV_ATTITUDE")
+SLOW = ("PSNS_NAV_SIGMA_ATT", "PSNS_NAV_SIGMA_VEL", "PSNS_NAV_SIGMA_POS", "PSNS_NAV_DSP")
 
 
 def _nav(k: int, rng: np.random.Generator) -> NavSolution:
     return NavSolution(
-        seq=k, time_s=0.01 * k, lat_deg=float(rng.uniform(-89, 89)), lon_deg=float(rng.uniform(-179, 179)),
+        seq=k, time_s=0.005 + 0.01 * k, lat_deg=float(rng.uniform(-89, 89)), lon_deg=float(rng.uniform(-179, 179)),
         height_m=float(rng.uniform(-100, 5000)), vel_enu_mps=tuple(float(v) for v in rng.uniform(-50, 50, 3)),
         roll_deg=float(rng.uniform(-179, 179)), pitch_deg=float(rng.uniform(-89, 89)),
-        heading_deg=float(rng.uniform(0, 359.99)), sigma=tuple(float(v) for v in rng.uniform(0, 1, 9)),
+        heading_deg=float(rng.uniform(0, 359.9)), sigma=tuple(float(v) for v in rng.uniform(0, 1, 9)),
         mode=int(NavMode.NAVIGATING | NavMode.GNSS_AIDED), gnss_status=int(rng.integers(0, 9)), psns_status=0,
         cpu_load_pct=round(float(rng.uniform(0, 100)), 2), deadline_misses=0)
+
+
+def _decode_epochs(db, msgs) -> list[dict[str, dict]]:
+    """Group decoded frames by epoch: a PSNS_NAV_TIME frame starts one (frames go out in id order)."""
+    epochs: list[dict[str, dict]] = []
+    for m in msgs:
+        assert m.is_extended_id
+        msg = db.get_message_by_frame_id(m.arbitration_id)
+        if msg.name == "PSNS_NAV_TIME":
+            epochs.append({})
+        epochs[-1][msg.name] = db.decode_message(m.arbitration_id, m.data, decode_choices=False)
+    return epochs
 
 
 @pytest.fixture
@@ -74,41 +90,45 @@ def _run_link(loop, link, frames: list[bytes], chunk: int = 29) -> None:
 def test_nav_frames_become_dbc_frames_that_cantools_decodes(fast_loop, rx_bus):
     channel, bus = rx_bus
     rng = np.random.default_rng(3)
-    navs = [_nav(k, rng) for k in range(40)]
-    link = open_link(f"can://virtual/{channel}?dbc={DBC}", "host", fast_loop,
+    navs = [_nav(k, rng) for k in range(40)]  # 0.4 s of 100 Hz solutions
+    link = open_link(f"can://virtual/{channel}", "host", fast_loop,
                      default_line=LineConfig(baud=460800, tx_queue_bytes=1 << 16))
     _run_link(fast_loop, link, [encode_nav_solution(n) for n in navs])
-    msgs = _drain(bus)
     db = cantools.database.load_file(str(DBC))
-    assert len(msgs) == 40 * len(db.messages) == link.can_frames_sent
-    assert link.nav_frames == 40 and link.can_send_errors == 0
-    by_nav: dict[int, dict[str, float]] = {}
-    k = -1
-    for m in msgs:
-        d = db.decode_message(m.arbitration_id, m.data)
-        if m.arbitration_id == db.get_message_by_name("NAV_STATUS").frame_id:
-            k += 1
-        by_nav.setdefault(k, {}).update(d)
-    assert len(by_nav) == 40
-    for k, n in enumerate(navs):
-        want = nav_signal_values(n)
-        got = by_nav[k]
-        for sig in (s for msg in db.messages for s in msg.signals):
-            tol = abs(sig.scale) / 2 + 1e-9 + 1e-6 * abs(want[sig.name])
-            assert got[sig.name] == pytest.approx(want[sig.name], abs=tol), sig.name
+    msgs = _drain(bus)
+    epochs = _decode_epochs(db, msgs)
+    assert len(epochs) == 40 and link.nav_frames == 40 and link.can_send_errors == 0
+    assert len(msgs) == link.can_frames_sent == 40 * len(FAST) + 4 * len(SLOW)  # 100 Hz + 10 Hz messages
+    for k, (n, ep) in enumerate(zip(navs, epochs)):
+        assert set(FAST) <= set(ep) and (set(SLOW) <= set(ep)) == (k % 10 == 0), k
+        want = nav_signal_values(HostFormat().parse(encode_nav_solution(n)))  # f32 fields as the wire has them
+        for name, sigs in ep.items():
+            for sig in db.get_message_by_name(name).signals:
+                tol = abs(sig.scale) / 2 + 1e-9 + 1e-9 * abs(want[sig.name])
+                assert sigs[sig.name] == pytest.approx(want[sig.name], abs=tol), (name, sig.name)
+
+
+def test_the_cantools_path_for_any_dbc_gives_the_same_bytes_as_the_protocols_codec():
+    rng = np.random.default_rng(8)
+    a, b = DefaultNavCanEncoder(), DbcNavCanEncoder(DBC)
+    assert [x[0] for x in a.schedule] == [x[0] for x in b.schedule]
+    assert [x[1] for x in a.schedule] == pytest.approx([x[1] for x in b.schedule])
+    for k in range(25):
+        n = _nav(k, rng)
+        assert a.frames(n) == b.frames(n), k
 
 
 def test_rate_option_decimates_in_navigation_time(fast_loop, rx_bus):
     channel, bus = rx_bus
     rng = np.random.default_rng(4)
-    link = open_link(f"can://virtual/{channel}?dbc={DBC}&rate=10", "host", fast_loop,
+    link = open_link(f"can://virtual/{channel}?rate=20", "host", fast_loop,
                      default_line=LineConfig(baud=460800, tx_queue_bytes=1 << 16))
     _run_link(fast_loop, link, [encode_nav_solution(_nav(k, rng)) for k in range(100)])  # 1 s at 100 Hz
-    msgs = _drain(bus)
-    status = [m for m in msgs if m.arbitration_id == 256]
-    assert link.nav_frames == 100 and len(status) == 10
     db = cantools.database.load_file(str(DBC))
-    assert [db.decode_message(256, m.data)["seq"] for m in status] == list(range(0, 100, 10))
+    epochs = _decode_epochs(db, _drain(bus))
+    assert link.nav_frames == 100 and len(epochs) == 20
+    assert [e["PSNS_NAV_TIME"]["seq"] for e in epochs] == list(range(0, 100, 5))
+    assert sum("PSNS_NAV_DSP" in e for e in epochs) == 10  # its own 100 ms cycle still holds
 
 
 def test_corrupt_bytes_are_skipped_by_the_stream_decoder(fast_loop, rx_bus):
@@ -117,41 +137,41 @@ def test_corrupt_bytes_are_skipped_by_the_stream_decoder(fast_loop, rx_bus):
     good = [encode_nav_solution(_nav(k, rng)) for k in range(3)]
     bad = bytearray(good[1])
     bad[20] ^= 0x40  # CRC now fails
-    link = open_link(f"can://virtual/{channel}?dbc={DBC}", "host", fast_loop,
+    link = open_link(f"can://virtual/{channel}", "host", fast_loop,
                      default_line=LineConfig(baud=460800, tx_queue_bytes=1 << 16))
     _run_link(fast_loop, link, [b"\x00junk\xa5", good[0], bytes(bad), good[2]])
-    status = [m for m in _drain(bus) if m.arbitration_id == 256]
     db = cantools.database.load_file(str(DBC))
-    assert [db.decode_message(256, m.data)["seq"] for m in status] == [0, 2]
+    epochs = _decode_epochs(db, _drain(bus))
+    assert [e["PSNS_NAV_TIME"]["seq"] for e in epochs] == [0, 2]
     assert link.decoder_stats["crc_errors"] == 1
 
 
-def test_out_of_range_values_saturate_and_counters_wrap():
-    enc = NavCanEncoder(DBC)
+def test_out_of_range_values_saturate_and_counters_wrap_with_any_dbc():
+    enc = DbcNavCanEncoder(DBC)
     n = NavSolution(seq=70000, time_s=1.0, lat_deg=39.9, lon_deg=116.3, height_m=1e9, vel_enu_mps=(500.0, -500.0, 1.0),
-                    roll_deg=0.0, pitch_deg=0.0, heading_deg=359.999, sigma=(0.0,) * 9, mode=0x10002, gnss_status=1,
+                    roll_deg=0.0, pitch_deg=0.0, heading_deg=12.5, sigma=(0.0,) * 9, mode=0x10002, gnss_status=1,
                     psns_status=0, cpu_load_pct=900.0, deadline_misses=0)
     db = enc.db
     dec = {}
-    for fid, ext, data in enc.encode(n):
-        assert not ext
-        dec.update(db.decode_message(fid, data))
-    assert dec["seq"] == 70000 % 65536
+    for fid, ext, data in enc.frames(n):
+        assert ext
+        dec.update(db.decode_message(fid, data, decode_choices=False))
+    assert dec["seq"] == 70000 and dec["seq8"] == 70000 % 256
     assert dec["mode"] == 0x0002
-    assert dec["height_m"] == pytest.approx(100000)  # DBC maximum
+    assert dec["height_m"] == pytest.approx((2**31 - 1) * 0.001)
     assert dec["vel_e_mps"] == pytest.approx(327.67) and dec["vel_n_mps"] == pytest.approx(-327.68)
     assert dec["cpu_load_pct"] == pytest.approx(655.35)
-    assert dec["heading_deg"] == pytest.approx(360.0, abs=0.006)
+    assert dec["heading_deg"] == pytest.approx(12.5)
 
 
 def test_dbc_with_an_unknown_signal_is_rejected_naming_it(tmp_path):
-    text = DBC.read_text().replace("SG_ roll_deg :", "SG_ yaw_rate_dps :")
+    text = DBC.read_text().replace("SG_ roll_deg :", "SG_ yaw_rate_dps :").replace(" roll_deg ", " yaw_rate_dps ")
     p = tmp_path / "x.dbc"
     p.write_text(text)
-    with pytest.raises(LinkConfigError, match="NAV_ATT.yaw_rate_dps"):
-        NavCanEncoder(p)
+    with pytest.raises(LinkConfigError, match="PSNS_NAV_ATTITUDE.yaw_rate_dps"):
+        DbcNavCanEncoder(p)
     with pytest.raises(LinkConfigError, match="not found"):
-        NavCanEncoder(tmp_path / "missing.dbc")
+        DbcNavCanEncoder(tmp_path / "missing.dbc")
 
 
 @pytest.mark.parametrize("url", ["can://virtual", "can://pcan/0", "can://virtual/x?rate=0", "can://virtual/x?rate=abc"])
@@ -161,7 +181,7 @@ def test_bad_can_urls(fast_loop, url):
 
 
 def test_missing_socketcan_interface_is_a_link_error_with_its_cause(fast_loop):
-    link = open_link(f"can://socketcan/psnsnone0?dbc={DBC}", "host", fast_loop)
+    link = open_link("can://socketcan/psnsnone0", "host", fast_loop)
     with pytest.raises(LinkBrokenError, match="psnsnone0") as ei:
         fast_loop.run_until_complete(link.open())
     assert isinstance(ei.value.__cause__, (OSError, can.CanError))
@@ -177,7 +197,7 @@ def test_socketcan_vcan_carries_decodable_frames(fast_loop):
     rng = np.random.default_rng(6)
     rx = can.Bus(interface="socketcan", channel=iface)
     try:
-        link = open_link(f"can://socketcan/{iface}?dbc={DBC}", "host", fast_loop,
+        link = open_link(f"can://socketcan/{iface}", "host", fast_loop,
                          default_line=LineConfig(baud=460800, tx_queue_bytes=1 << 16))
         navs = [_nav(k, rng) for k in range(5)]
         _run_link(fast_loop, link, [encode_nav_solution(n) for n in navs])
@@ -187,8 +207,7 @@ def test_socketcan_vcan_carries_decodable_frames(fast_loop):
     finally:
         rx.shutdown()
     db = cantools.database.load_file(str(DBC))
-    seqs = [db.decode_message(m.arbitration_id, m.data)["seq"] for m in msgs if m.arbitration_id == 256]
-    assert seqs == [0, 1, 2, 3, 4]
+    assert [e["PSNS_NAV_TIME"]["seq"] for e in _decode_epochs(db, msgs)] == [0, 1, 2, 3, 4]
 
 
 def test_a_run_with_the_host_port_on_can_sends_every_nav_frame(tmp_path, rx_bus):
@@ -202,30 +221,21 @@ def test_a_run_with_the_host_port_on_can_sends_every_nav_frame(tmp_path, rx_bus)
 
     channel, bus = rx_bus
     path = write_short_scenario(tmp_path / "can.yaml", 4.0, name="can_out",
-                                links={"host": {"url": f"can://virtual/{channel}?dbc={DBC}", "baud": 460800}})
+                                links={"host": {"url": f"can://virtual/{channel}", "baud": 460800}})
     summary = run_scenario(load_scenario(path), tmp_path / "run")
-    msgs = _drain(bus)
     db = cantools.database.load_file(str(DBC))
-    # one row per NAV_SOLUTION (time of validity unique); main's recorder may list a frame once per
-    # tapped link that carries it (host and uart0), so de-duplicate by time_s
+    epochs = _decode_epochs(db, _drain(bus))
+    # one row per solution (an older recorder listed each frame once per tapped link: de-duplicate by time)
     rows = list({r["time_s"]: r for r in csv.DictReader(open(tmp_path / "run" / "nav.csv"))}.values())
-    assert summary["nav_frames"] >= len(rows) > 300
-    status = [db.decode_message(256, m.data) for m in msgs if m.arbitration_id == 256]
-    times = [db.decode_message(258, m.data)["time_s"] for m in msgs if m.arbitration_id == 258]
-    att = [db.decode_message(260, m.data) for m in msgs if m.arbitration_id == 260]
-    assert len(msgs) == len(status) * len(db.messages) == link_frames(summary, len(status))
+    assert summary["link_stats"]["host"]["dropped_out"] == 0
     # the last frame may still be on the HOST line (460800 Bd) when the run ends at duration_s
-    assert len(rows) - 1 <= len(status) <= len(rows)
+    assert len(rows) - 1 <= len(epochs) <= len(rows) and len(rows) > 300
     by_time = {round(float(r["time_s"]), 3): r for r in rows}
-    for t, a in list(zip(times, att))[-50:]:
-        r = by_time[round(t, 3)]
-        assert a["heading_deg"] == pytest.approx(float(r["heading_deg"]), abs=0.005 + 1e-9)
-        assert a["roll_deg"] == pytest.approx(float(r["roll_deg"]), abs=0.005 + 1e-9)
-        assert a["pitch_deg"] == pytest.approx(float(r["pitch_deg"]), abs=0.005 + 1e-9)
-
-
-def link_frames(summary, n_nav: int) -> int:
-    """CAN frames the run's host link reports sending (5 per nav frame for the minimal DBC)."""
-    host = summary["link_stats"]["host"]
-    assert host["dropped_out"] == 0
-    return n_nav * 5
+    for ep in epochs[-50:]:
+        r = by_time[round(ep["PSNS_NAV_TIME"]["time_s"], 3)]
+        att = ep["PSNS_NAV_ATTITUDE"]
+        for k in ("roll_deg", "pitch_deg", "heading_deg"):
+            assert att[k] == pytest.approx(float(r[k]), abs=0.005 + 1e-9), k
+        pos = ep["PSNS_NAV_POSITION"]
+        assert pos["lat_deg"] == pytest.approx(float(r["lat_deg"]), abs=0.5e-7 + 1e-12)
+        assert pos["lon_deg"] == pytest.approx(float(r["lon_deg"]), abs=0.5e-7 + 1e-12)

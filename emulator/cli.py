@@ -1,8 +1,11 @@
 """The ``psns-hil`` command line.
 
+``run`` (a scenario), ``validate`` (a scenario file), ``monitor`` (decode a port, a serial device
+or a capture, live), ``replay`` (re-run the firmware on a capture). ``docs/runtime.md`` has them all.
+
 Exit codes: 0 run finished and every expectation passed; 1 an expectation failed (or the run
-was interrupted); 2 bad input (missing or invalid scenario, bad link URL) -- one clear message
-per problem, no traceback.
+was interrupted, or a replay differs from its original); 2 bad input (missing or invalid
+scenario, bad link URL, unreadable capture) -- one clear message per problem, no traceback.
 """
 
 from __future__ import annotations
@@ -24,7 +27,10 @@ EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
 def _console(stderr: bool = False) -> Any:
     from rich.console import Console
 
-    return Console(stderr=stderr, highlight=False)
+    c = Console(stderr=stderr, highlight=False)
+    if not c.is_terminal:
+        c.width = 160  # logs and pipes: keep table rows (pty paths) on one line
+    return c
 
 
 def _print_error(exc: PsnsHilError) -> None:
@@ -47,14 +53,23 @@ def _fmt(v: Any, digits: int = 3) -> str:
 
 
 def print_port_map(ports: list[dict[str, Any]]) -> None:
-    from rich.table import Table
+    """One plain line per port (never wrapped: users copy the pty paths from here)."""
+    rows = [("port", "role", "baud", "mode", "endpoint")]
+    rows += [(p["name"], p["role"], str(p["baud"]), p["mode"], p["path"]) for p in ports]
+    w = [max(len(r[i]) for r in rows) for i in range(4)]
+    out = sys.stdout
+    out.write("ports:\n")
+    for r in rows:
+        out.write("  " + "  ".join(r[i].ljust(w[i]) for i in range(4)) + "  " + r[4] + "\n")
+    out.flush()  # tools waiting for the pty paths must see them now, even through a pipe
 
-    t = Table(title="ports", title_justify="left")
-    for col in ("port", "role", "baud", "mode", "endpoint"):
-        t.add_column(col)
-    for p in ports:
-        t.add_row(p["name"], p["role"], str(p["baud"]), p["mode"], p["path"])
-    _console().print(t)
+
+def status_line(st: dict[str, Any]) -> str:
+    """The realtime status line: sim time, real-time factor, nav frames/s, errors."""
+    rtf = st.get("realtime_factor")
+    return (f"t = {st['t_s']:8.1f} s   x{rtf if rtf is not None else float('nan'):5.2f} real time   "
+            f"nav {st['nav_fps']:6.1f} frames/s   crc errors {st['crc_errors']}   dropped {st['dropped']}   "
+            f"framing errors {st['framing_errors']}   deadline misses {st['deadline_misses']}")
 
 
 def print_summary(s: dict[str, Any]) -> None:
@@ -125,28 +140,48 @@ def _cmd_validate(args: argparse.Namespace) -> int:
 def _cmd_run(args: argparse.Namespace) -> int:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from .runner import default_run_dir, run_scenario
+    from .runner import default_run_dir, resolve_mode, run_scenario
     from .scenario import load_scenario
 
     scn = load_scenario(args.scenario)
-    mode = "realtime" if args.realtime else scn.mode
+    mode = resolve_mode(scn, "realtime" if args.realtime else "fast" if args.fast else None)
     run_dir = Path(args.out) if args.out else default_run_dir(scn.name)
     console = _console()
-    console.print(f"psns-hil {__version__}: running {args.scenario} ({scn.duration_s:g} s, {mode}) -> {run_dir}")
-    show_progress = not args.quiet and console.is_terminal
+    speed = args.speed if args.speed is not None else scn.speed
+    console.print(f"psns-hil {__version__}: running {args.scenario} ({scn.duration_s:g} s, {mode}"
+                  + (f" x{speed:g}" if mode == "realtime" else "") + f") -> {run_dir}")
+    realtime = mode == "realtime"
+    show_progress = not args.quiet and console.is_terminal and not realtime
     progress = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[t]:.1f}/{task.total:.0f} s"),
                         TimeElapsedColumn(), console=console, transient=True, disable=not show_progress)
     task = progress.add_task("simulating", total=scn.duration_s, t=0.0)
+    err = sys.stderr
+    tty = err.isatty()
+    status_every = args.status if args.status is not None else (1.0 if tty else 5.0)
+    state: dict[str, Any] = {"emu": None, "next": status_every}
 
     def on_progress(t: float, total: float) -> None:
         progress.update(task, completed=t, t=t)
+        emu = state["emu"]
+        if not realtime or args.quiet or emu is None or status_every <= 0 or t + 1e-9 < state["next"]:
+            return
+        state["next"] = t + status_every
+        line = status_line(emu.status())
+        if tty:
+            err.write("\r" + line + "\x1b[K")
+        else:
+            err.write(line + "\n")
+        err.flush()
 
     def on_started(emu: Any) -> None:
+        state["emu"] = emu
         print_port_map(emu.ports)
 
     with progress:
-        summary = run_scenario(scn, run_dir, mode=mode, speed=args.speed, seed=args.seed,
+        summary = run_scenario(scn, run_dir, mode=mode, speed=speed, seed=args.seed,
                                progress=on_progress, on_started=on_started)
+    if realtime and tty and not args.quiet:
+        err.write("\n")
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
@@ -155,6 +190,49 @@ def _cmd_run(args: argparse.Namespace) -> int:
         console.print("[yellow]run interrupted; captures and summary were kept[/]")
         return EXIT_FAILED
     return EXIT_OK if summary.get("passed", True) else EXIT_FAILED
+
+
+def _cmd_monitor(args: argparse.Namespace) -> int:
+    from .monitor import run_monitor
+
+    stats = run_monitor(args.endpoint, protocol=args.protocol, baud=args.baud, links=args.link or None,
+                        count=args.count, duration_s=args.duration, as_json=args.json, port_name=args.port)
+    if args.stats:
+        err = _console(stderr=True)
+        err.print(f"{stats['frames']} frames")
+        for key, st in stats["decoders"].items():
+            err.print(f"  {key}: frames {st['frames']}, crc errors {st['crc_errors']}, "
+                      f"garbage bytes {st['garbage_bytes']}, resyncs {st['resyncs']}")
+    return EXIT_OK
+
+
+def _cmd_replay(args: argparse.Namespace) -> int:
+    from .replay import run_replay, same_file
+    from .runner import default_run_dir
+
+    cap = Path(args.capture)
+    if not cap.exists():
+        from .errors import RecordingError
+
+        raise RecordingError(f"{cap}: no such capture file")
+    run_dir = Path(args.out) if args.out else default_run_dir(cap.parent.name + "-replay")
+    mode = "realtime" if args.realtime else "fast"
+    console = _console()
+    console.print(f"psns-hil {__version__}: replaying {cap} ({mode}) -> {run_dir}")
+    summary = run_replay(cap, run_dir, mode=mode, speed=args.speed or 1.0)
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        print_summary(summary)
+        console.print(f"replayed {summary['replay']['records']} captured DSP UART records")
+    original = Path(args.compare) if args.compare else cap.parent
+    rc = EXIT_OK if summary.get("passed", True) else EXIT_FAILED
+    if (original / "nav.csv").exists():
+        same = same_file(original / "nav.csv", run_dir / "nav.csv")
+        console.print(f"nav.csv identical to {original / 'nav.csv'}: {'yes' if same else '[bold red]no[/]'}")
+        if args.compare and not same:
+            rc = EXIT_FAILED
+    return rc
 
 
 def _cmd_campaign(args: argparse.Namespace) -> int:
@@ -171,8 +249,13 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("run", help="run a scenario")
     r.add_argument("scenario", help="scenario YAML file")
     r.add_argument("--out", help="run directory (default runs/<scenario>-<UTC time>)")
-    r.add_argument("--realtime", action="store_true", help="follow the wall clock (default: the scenario's mode)")
+    m = r.add_mutually_exclusive_group()
+    m.add_argument("--realtime", action="store_true",
+                   help="follow the wall clock (default: the scenario's mode; realtime when a port is pty/serial)")
+    m.add_argument("--fast", action="store_true", help="virtual time, as fast as the CPU allows")
     r.add_argument("--speed", type=float, default=None, help="real-time scale factor in realtime mode")
+    r.add_argument("--status", type=float, default=None, metavar="S",
+                   help="realtime status line every S simulated seconds (default 1 on a terminal, 5 otherwise; 0 off)")
     r.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
     r.add_argument("--json", action="store_true", help="print the summary as JSON")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -182,6 +265,31 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("scenario")
     v.add_argument("--json", action="store_true", help="print the validated scenario with defaults")
     v.set_defaults(func=_cmd_validate)
+
+    mo = sub.add_parser("monitor", help="decode a port live (pty, serial device) or a capture file into frames")
+    mo.add_argument("endpoint", help="capture file (.psnscap), pty/serial device path, or serial:///dev/ttyXXX")
+    mo.add_argument("--protocol", default="auto",
+                    help="decoders: auto (by port name) or a comma list of host, imu, stim210[:FMT], nmea, psns, "
+                         "ubx, monitor")
+    mo.add_argument("--baud", type=int, default=460800, help="baud for a serial device (ptys ignore it)")
+    mo.add_argument("--port", help="port name for auto decoding when the path's name does not tell it")
+    mo.add_argument("--link", action="append", help="capture files: only this link (repeatable)")
+    mo.add_argument("--count", type=int, help="stop after N frames")
+    mo.add_argument("--duration", type=float, help="stop after S wall-clock seconds (live endpoints)")
+    mo.add_argument("--json", action="store_true", help="one JSON object per frame")
+    mo.add_argument("--stats", action="store_true", help="print the decoder statistics at the end (stderr)")
+    mo.set_defaults(func=_cmd_monitor)
+
+    rp = sub.add_parser("replay", help="re-run the firmware on a capture's DSP UART input")
+    rp.add_argument("capture", help="capture.psnscap of an earlier run")
+    rp.add_argument("--out", help="run directory (default runs/<capture dir>-replay-<UTC time>)")
+    rp.add_argument("--realtime", action="store_true", help="replay in real time (default: fast)")
+    rp.add_argument("--speed", type=float, default=None, help="real-time scale factor")
+    rp.add_argument("--compare", metavar="RUN_DIR",
+                    help="exit 1 unless nav.csv equals RUN_DIR/nav.csv (default: just report against the "
+                         "capture's own directory)")
+    rp.add_argument("--json", action="store_true", help="print the summary as JSON")
+    rp.set_defaults(func=_cmd_replay)
 
     from .campaign import add_cli_parser
 

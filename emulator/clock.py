@@ -7,10 +7,16 @@ scenario clock in seconds since scenario start.
     Virtual time. When every task waits and no I/O is ready, the clock jumps straight to the
     next timer, so a run is as fast as the CPU allows. With ``mem://`` links and a seed it is
     bit-for-bit deterministic. Real file descriptors (ptys, sockets) are still polled without
-    blocking on every iteration.
+    blocking on every iteration; with none registered, the loop's own self-pipe (signals,
+    ``call_soon_threadsafe``) is polled every 64 iterations. Real peers move in wall time while
+    virtual time races ahead, so runs with ``pty``/``serial`` endpoints use ``realtime``.
 ``realtime``
     The clock follows the wall clock, scaled by ``speed`` (2.0 runs twice as fast as real
-    time). Select timeouts are divided by ``speed``.
+    time). Select timeouts are divided by ``speed``. When the host is busy and timers are
+    overdue, each loop iteration runs only the earliest overdue instant, and ``time()`` reads
+    that instant while its callbacks run (logical time). So late events keep their order and
+    spacing and the loop catches up: asyncio alone would run every overdue timer in one batch,
+    and a sensor datagram scheduled during the batch would land after the FPGA's timeout for it.
 
 Devices use only ``loop.time()`` and ``loop.call_at()`` / ``asyncio.sleep``, so the same code
 runs in both modes. :func:`sleep_until` waits for an absolute scenario time without the drift
@@ -30,16 +36,29 @@ __all__ = ["EmulatorLoop", "new_loop", "sleep_until"]
 class _ClockSelector(selectors.BaseSelector):
     """Selector wrapper that implements virtual or scaled time for :class:`EmulatorLoop`."""
 
+    #: In fast mode with no file descriptor but the loop's own self-pipe registered, poll that
+    #: pipe (signals, call_soon_threadsafe) only every this many iterations: nothing else can
+    #: become ready, and the syscall is a large share of an iteration's cost.
+    SELF_PIPE_POLL_EVERY = 64
+    #: realtime: waits shorter than this are slept precisely (epoll has 1 ms resolution)
+    FINE_S = 0.0015
+
     def __init__(self, loop: "EmulatorLoop") -> None:
         self._real = selectors.DefaultSelector()
         self._loop = loop
+        self._nfds = 0
+        self._skipped = 0
 
     # delegation ------------------------------------------------------------------
     def register(self, fileobj: Any, events: int, data: Any = None) -> selectors.SelectorKey:
-        return self._real.register(fileobj, events, data)
+        key = self._real.register(fileobj, events, data)
+        self._nfds += 1
+        return key
 
     def unregister(self, fileobj: Any) -> selectors.SelectorKey:
-        return self._real.unregister(fileobj)
+        key = self._real.unregister(fileobj)
+        self._nfds -= 1
+        return key
 
     def modify(self, fileobj: Any, events: int, data: Any = None) -> selectors.SelectorKey:
         return self._real.modify(fileobj, events, data)
@@ -57,10 +76,17 @@ class _ClockSelector(selectors.BaseSelector):
     def select(self, timeout: float | None = None) -> list[tuple[selectors.SelectorKey, int]]:
         loop = self._loop
         if loop.mode == "fast":
-            events = self._real.select(0)
-            if events or timeout == 0:
-                return events
             sched = loop._scheduled  # noqa: SLF001 - the virtual clock needs the timer heap
+            if self._nfds > 1 or self._skipped >= self.SELF_PIPE_POLL_EVERY or not sched:
+                self._skipped = 0
+                events = self._real.select(0)
+                if events:
+                    return events
+            else:
+                self._skipped += 1
+                events = []
+            if timeout == 0:
+                return events
             if sched:
                 when = sched[0]._when  # noqa: SLF001
                 if when > loop._now:
@@ -70,7 +96,23 @@ class _ClockSelector(selectors.BaseSelector):
             return self._real.select(timeout)
         if timeout is not None and timeout > 0:
             timeout = timeout / loop.speed
-        return self._real.select(timeout)
+            if timeout > self.FINE_S:
+                # epoll rounds its timeout up to whole milliseconds: wake a bit early and let
+                # the next iteration sleep the rest precisely
+                events = self._real.select(timeout - self.FINE_S)
+            else:
+                events = self._real.select(0)
+                if not events:
+                    _time.sleep(timeout)  # sub-millisecond precision; no I/O for < FINE_S
+                    events = self._real.select(0)
+        else:
+            events = self._real.select(timeout)
+        sched = loop._scheduled  # noqa: SLF001
+        if sched:
+            when = sched[0]._when  # noqa: SLF001
+            if when < loop.time():
+                loop._cap = when  # noqa: SLF001 - overdue: this iteration is the instant `when`
+        return events
 
 
 class EmulatorLoop(asyncio.SelectorEventLoop):
@@ -93,16 +135,32 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
         self.speed = float(speed)
         self._now = 0.0
         self._wall0 = _time.monotonic()
+        self._cap: float | None = None  # realtime: the overdue instant this iteration runs
         super().__init__(selector=_ClockSelector(self))
         self._clock_resolution = 1e-9
 
     def time(self) -> float:
         if self.mode == "fast":
             return self._now
+        cap = self._cap
+        if cap is not None:
+            return cap
         return (_time.monotonic() - self._wall0) * self.speed
 
+    def _run_once(self) -> None:
+        self._cap = None
+        super()._run_once()  # type: ignore[misc]
+
     def restart_clock(self) -> None:
-        """Make the current instant scenario time 0 (realtime) or reset virtual time to 0 (fast)."""
+        """Make the current instant scenario time 0 (realtime) or reset virtual time to 0 (fast).
+
+        Timers already scheduled keep their remaining delay (their deadlines move with the
+        origin), so a pty's attach poll set up before the restart still runs 20 ms later.
+        """
+        delta = self.time()
+        for h in self._scheduled:  # a uniform shift keeps the heap ordered
+            h._when -= delta  # noqa: SLF001
+        self._cap = None
         self._wall0 = _time.monotonic()
         self._now = 0.0
 

@@ -3,8 +3,8 @@
 It is a listener: it subscribes to links (:class:`~emulator.links.base.LinkListener`) and to
 device events (:class:`~emulator.devices.base.EventSink`); nothing reaches into a device.
 
-Files in the run directory (written as the run goes, flushed at least once per wall second,
-so an interrupted run keeps everything up to the interruption):
+Files in the run directory (written as the run goes and flushed at least once per wall-clock
+second, so an interrupted run keeps everything up to the interruption):
 
 ``capture.psnscap``
     Every chunk on every tapped link. Format (little-endian): the 9-byte magic
@@ -14,23 +14,28 @@ so an interrupted run keeps everything up to the interruption):
 ``events.jsonl``
     One JSON object per event: ``{"t_s", "source", "event", ...}``.
 ``nav.csv``
-    Every decoded NAV_SOLUTION with the error against truth at its time of validity.
+    Every NAV_SOLUTION the host received (the ``nav_port`` tap, direction ``out``), decoded,
+    with the error against truth at its time of validity.
 ``truth.csv``
     Truth at the same times.
 ``summary.json``
     Written at the end (also after an interruption, with ``"interrupted": true``).
+
+Cost: frame counting on the other taps only needs the totals, so their bytes are buffered and
+decoded in batches (at every flush and whenever the summary is read); CSV rows are formatted
+by hand and written in batches.
 """
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 import struct
 import time as _time
+from array import array
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Any, Callable, Sequence
+from typing import IO, Any, Callable, Iterator, Sequence
 
 import numpy as np
 
@@ -41,10 +46,14 @@ from protocols.stream import FrameFormat, StreamDecoder
 from .links.base import Link
 from .world.trajectory import Trajectory
 
-__all__ = ["CAPTURE_MAGIC", "Recorder", "ErrorStats", "CaptureRecord", "read_capture"]
+__all__ = ["CAPTURE_MAGIC", "Recorder", "ErrorStats", "CaptureRecord", "read_capture", "iter_capture"]
 
 CAPTURE_MAGIC = b"PSNSCAP1\n"
 _REC = struct.Struct("<dHBBI")
+_PITCH = struct.Struct("<d")
+#: record flag: an f64 byte pitch (s, start-to-start spacing of the chunk's bytes) follows the header
+FLAG_PITCH = 0x01
+CAPTURE_VERSION = 2
 DEG = math.pi / 180.0
 
 NAV_COLUMNS = [
@@ -69,34 +78,68 @@ class CaptureRecord:
     link: str
     direction: str
     data: bytes
+    #: spacing of the bytes on the wire when it differs from the link's byte time (None otherwise)
+    pitch_s: float | None = None
+
+
+def _read_header(f: IO[bytes], path: str | Path) -> dict[str, Any]:
+    from .errors import RecordingError
+
+    magic = f.read(len(CAPTURE_MAGIC))
+    if magic != CAPTURE_MAGIC:
+        raise RecordingError(f"{path}: not a psns-hil capture (bad magic)")
+    line = f.readline()
+    if not line.endswith(b"\n"):
+        raise RecordingError(f"{path}: capture header line is incomplete")
+    try:
+        header = json.loads(line)
+    except json.JSONDecodeError as exc:
+        raise RecordingError(f"{path}: line 2, column {exc.colno}: bad capture header: {exc.msg}") from None
+    if not isinstance(header, dict):
+        raise RecordingError(f"{path}: line 2: the capture header must be a JSON object")
+    return header
+
+
+def iter_capture(path: str | Path) -> tuple[dict[str, Any], Iterator[CaptureRecord]]:
+    """Header and a lazy iterator over the records (constant memory for any file size).
+
+    A truncated last record (interrupted run) ends the iteration silently.
+    """
+    f = open(path, "rb")
+    try:
+        header = _read_header(f, path)
+    except BaseException:
+        f.close()
+        raise
+    links = header.get("links", [])
+
+    def gen() -> Iterator[CaptureRecord]:
+        with f:
+            size = _REC.size
+            while True:
+                head = f.read(size)
+                if len(head) < size:
+                    return
+                t, idx, d, flags, n = _REC.unpack(head)
+                pitch = None
+                if flags & FLAG_PITCH:
+                    raw = f.read(_PITCH.size)
+                    if len(raw) < _PITCH.size:
+                        return
+                    pitch = _PITCH.unpack(raw)[0]
+                data = f.read(n)
+                if len(data) < n:
+                    return
+                name = links[idx] if idx < len(links) else f"link{idx}"
+                yield CaptureRecord(t, name, "out" if d == 0 else "in", data, pitch)
+
+    return header, gen()
 
 
 def read_capture(path: str | Path) -> tuple[dict[str, Any], list[CaptureRecord]]:
     """Read a ``.psnscap`` file; a truncated last record (interrupted run) is ignored."""
-    from .errors import RecordingError
-
-    raw = Path(path).read_bytes()
-    if not raw.startswith(CAPTURE_MAGIC):
-        raise RecordingError(f"{path}: not a psns-hil capture (bad magic)")
-    nl = raw.find(b"\n", len(CAPTURE_MAGIC))
-    if nl < 0:
-        raise RecordingError(f"{path}: capture header line is incomplete")
-    try:
-        header = json.loads(raw[len(CAPTURE_MAGIC):nl])
-    except json.JSONDecodeError as exc:
-        raise RecordingError(f"{path}: line 2, column {exc.colno}: bad capture header: {exc.msg}") from None
-    links = header.get("links", [])
-    out: list[CaptureRecord] = []
-    pos = nl + 1
-    while pos + _REC.size <= len(raw):
-        t, idx, d, _r, n = _REC.unpack_from(raw, pos)
-        pos += _REC.size
-        if pos + n > len(raw):
-            break
-        name = links[idx] if idx < len(links) else f"link{idx}"
-        out.append(CaptureRecord(t, name, "out" if d == 0 else "in", raw[pos:pos + n]))
-        pos += n
-    return header, out
+    header, it = iter_capture(path)
+    return header, list(it)
 
 
 @dataclass
@@ -122,6 +165,14 @@ class ErrorStats:
 class _Tap:
     link: Link
     decoders: dict[str, StreamDecoder] = field(default_factory=dict)
+    pending: dict[str, bytearray] = field(default_factory=dict)
+    nav: bool = False
+
+    def feed_pending(self) -> None:
+        for d, buf in self.pending.items():
+            if buf:
+                self.decoders[d].feed(buf)
+                buf.clear()
 
 
 def _wrap180(x: float) -> float:
@@ -137,22 +188,23 @@ class Recorder:
     trajectory : truth for the error evaluation.
     """
 
-    def __init__(self, run_dir: Path, trajectory: Trajectory, flush_interval_s: float = 1.0) -> None:
+    def __init__(self, run_dir: Path, trajectory: Trajectory, flush_interval_s: float = 1.0,
+                 nav_port: str = "host") -> None:
         self.run_dir = Path(run_dir)
         self.run_dir.mkdir(parents=True, exist_ok=True)
         self.traj = trajectory
+        self.nav_port = nav_port
         self._taps: dict[str, _Tap] = {}
         self._link_index: dict[str, int] = {}
         self._cap: IO[bytes] | None = None
         self._events: IO[str] = open(self.run_dir / "events.jsonl", "w", encoding="utf-8")
         self._nav_f: IO[str] = open(self.run_dir / "nav.csv", "w", encoding="utf-8", newline="")
         self._truth_f: IO[str] = open(self.run_dir / "truth.csv", "w", encoding="utf-8", newline="")
-        self._nav_w = csv.writer(self._nav_f)
-        self._truth_w = csv.writer(self._truth_f)
-        self._nav_w.writerow(NAV_COLUMNS)
-        self._truth_w.writerow(TRUTH_COLUMNS)
+        self._nav_rows: list[str] = [",".join(NAV_COLUMNS) + "\r\n"]
+        self._truth_rows: list[str] = [",".join(TRUTH_COLUMNS) + "\r\n"]
         self.errors = {k: ErrorStats() for k in ("attitude_deg", "heading_deg", "position_m", "velocity_mps")}
-        self.error_series: list[tuple[float, float, float, float, float]] = []  # t, att, hdg, pos, vel
+        #: flat rows of (t, attitude, heading, position, velocity) errors, 40 bytes per nav frame
+        self.error_series = array("d")
         self.nav_count = 0
         self.event_counts: dict[str, int] = {}
         self.events: list[dict[str, Any]] = []
@@ -163,31 +215,59 @@ class Recorder:
 
     # -- wiring ---------------------------------------------------------------------------
     def tap(self, name: str, link: Link, formats: dict[str, Sequence[FrameFormat]]) -> None:
-        """Capture ``link`` under ``name`` and decode its directions with ``formats``."""
+        """Capture ``link`` under ``name`` and decode its directions with ``formats``.
+
+        The ``nav_port`` tap's ``out`` direction is decoded at once (navigation frames against
+        truth); every other decoder only counts frames, in batches.
+        """
         if self._cap is not None:
             raise RuntimeError("tap() after start()")
-        t = _Tap(link, {d: StreamDecoder(list(f)) for d, f in formats.items()})
+        t = _Tap(link, {d: StreamDecoder(list(f)) for d, f in formats.items() if f}, nav=name == self.nav_port)
+        t.pending = {d: bytearray() for d in t.decoders if not (t.nav and d == "out")}
         self._taps[name] = t
         self._link_index[name] = len(self._link_index)
-        link.listeners.append(_TapListener(self, name))
+        link.listeners.append(_TapListener(self, name, len(self._link_index) - 1, t))
 
     def start(self, header: dict[str, Any]) -> None:
         self._cap = open(self.run_dir / "capture.psnscap", "wb")
         hdr = dict(header)
-        hdr["version"] = 1
+        hdr["version"] = CAPTURE_VERSION
         hdr["links"] = list(self._link_index)
-        self._cap.write(CAPTURE_MAGIC + json.dumps(hdr, sort_keys=True).encode() + b"\n")
+        self._cap.write(CAPTURE_MAGIC + json.dumps(hdr, sort_keys=True, default=_json_default).encode() + b"\n")
+        self._cap.flush()
 
     # -- listener callbacks -------------------------------------------------------------------
     def on_bytes(self, name: str, direction: str, t: float, data: bytes) -> None:
-        if self._cap is not None:
-            self._cap.write(_REC.pack(t, self._link_index[name], 0 if direction == "out" else 1, 0, len(data)) + data)
-        dec = self._taps[name].decoders.get(direction)
-        if dec is not None:
-            for fr in dec.feed(data):
+        tap = self._taps[name]
+        self._record(self._link_index[name], tap, direction, t, data)
+
+    def _record(self, index: int, tap: _Tap, direction: str, t: float, data: bytes) -> None:
+        cap = self._cap
+        if cap is not None:
+            if direction == "out":
+                cap.write(_REC.pack(t, index, 0, 0, len(data)))
+            else:
+                link = tap.link
+                pitch = link.last_rx_pitch
+                if pitch != link.line.byte_time:
+                    cap.write(_REC.pack(t, index, 1, FLAG_PITCH, len(data)) + _PITCH.pack(pitch))
+                else:
+                    cap.write(_REC.pack(t, index, 1, 0, len(data)))
+            cap.write(data)
+        buf = tap.pending.get(direction)
+        if buf is not None:
+            buf += data
+            if len(buf) > 65536:
+                tap.decoders[direction].feed(buf)
+                buf.clear()
+        elif tap.nav and direction == "out":
+            for fr in tap.decoders["out"].feed(data):
                 if isinstance(fr, NavSolution):
                     self._on_nav(t, fr)
-        self._maybe_flush()
+        now = _time.monotonic()
+        if now - self._last_flush >= self._flush_interval:
+            self.flush()
+            self._last_flush = now
 
     def emit(self, t: float, source: str, kind: str, **data: Any) -> None:
         rec = {"t_s": round(t, 9), "source": source, "event": kind}
@@ -202,19 +282,16 @@ class Recorder:
         for cb in self.nav_listeners:
             cb(t_arrival, n)
         st = self.traj.state(n.time_s)
-        lat, lon, h = st.pos
-        tru = [
-            n.time_s, lat / DEG, lon / DEG, h, *st.v_enu.tolist(),
-            st.roll / DEG, st.pitch / DEG, st.heading / DEG,
-        ]
-        self._truth_w.writerow([_fmt(x) for x in tru])
+        lat, lon, h = (float(x) for x in st.pos)
+        ve, vn, vu = (float(x) for x in st.v_enu)
+        self._truth_rows.append(_row((n.time_s, lat / DEG, lon / DEG, h, ve, vn, vu,
+                                      st.roll / DEG, st.pitch / DEG, st.heading / DEG)))
         navigating = bool(n.mode & NavMode.NAVIGATING)
         if navigating:
-            from firmware_model.attitude import a2mat, yaw_from_heading
-
-            c_nav = a2mat(n.pitch_deg * DEG, n.roll_deg * DEG, yaw_from_heading(n.heading_deg * DEG))
-            c_err = c_nav @ st.c_bn.T
-            att = math.degrees(math.acos(max(-1.0, min(1.0, (np.trace(c_err) - 1.0) / 2.0))))
+            c_nav = _c_bn(n.pitch_deg * DEG, n.roll_deg * DEG, -n.heading_deg * DEG)
+            # trace(C_nav C_true^T) = sum of the element-wise product
+            tr = sum(a * b for a, b in zip(c_nav, st.c_bn.ravel().tolist()))
+            att = math.degrees(math.acos(max(-1.0, min(1.0, (tr - 1.0) / 2.0))))
             e_roll = _wrap180(n.roll_deg - st.roll / DEG)
             e_pitch = n.pitch_deg - st.pitch / DEG
             e_hdg = _wrap180(n.heading_deg - st.heading / DEG)
@@ -223,26 +300,29 @@ class Recorder:
             e_e = (n.lon_deg * DEG - lon) * (rn + h) * math.cos(lat)
             e_u = n.height_m - h
             e_pos = math.sqrt(e_e * e_e + e_n * e_n + e_u * e_u)
-            ev = [n.vel_enu_mps[i] - float(st.v_enu[i]) for i in range(3)]
-            e_vel = math.sqrt(sum(x * x for x in ev))
-            self.errors["attitude_deg"].add(att)
-            self.errors["heading_deg"].add(e_hdg)
-            self.errors["position_m"].add(e_pos)
-            self.errors["velocity_mps"].add(e_vel)
-            self.error_series.append((n.time_s, att, e_hdg, e_pos, e_vel))
-            errs = [att, e_roll, e_pitch, e_hdg, e_e, e_n, e_u, e_pos, *ev, e_vel]
+            v = n.vel_enu_mps
+            ev = (v[0] - ve, v[1] - vn, v[2] - vu)
+            e_vel = math.sqrt(ev[0] * ev[0] + ev[1] * ev[1] + ev[2] * ev[2])
+            err = self.errors
+            err["attitude_deg"].add(att)
+            err["heading_deg"].add(e_hdg)
+            err["position_m"].add(e_pos)
+            err["velocity_mps"].add(e_vel)
+            self.error_series.extend((n.time_s, att, e_hdg, e_pos, e_vel))
+            errs = _row((att, e_roll, e_pitch, e_hdg, e_e, e_n, e_u, e_pos, *ev, e_vel))
         else:
-            errs = [""] * 12
-        row = [
+            errs = _NO_ERRORS
+        row = (
             n.time_s, n.lat_deg, n.lon_deg, n.height_m, *n.vel_enu_mps, n.roll_deg, n.pitch_deg, n.heading_deg,
             *n.sigma, n.mode, n.gnss_status, n.psns_status, n.cpu_load_pct, n.deadline_misses, t_arrival,
-        ]
-        self._nav_w.writerow([_fmt(x) for x in row] + [_fmt(x) for x in errs])
+        )
+        self._nav_rows.append(_row(row)[:-2] + "," + errs)
 
     # -- results -----------------------------------------------------------------------------
     def link_summary(self) -> dict[str, dict[str, int]]:
         out: dict[str, dict[str, int]] = {}
         for name, tap in self._taps.items():
+            tap.feed_pending()
             st = tap.link.stats
             frames = sum(d.stats.frames for d in tap.decoders.values())
             crc = sum(d.stats.crc_errors for d in tap.decoders.values())
@@ -252,24 +332,30 @@ class Recorder:
                 "crc_errors": crc,
                 "dropped": st.dropped,
                 "garbage_bytes": sum(d.stats.garbage_bytes for d in tap.decoders.values()),
+                "framing_errors": st.framing_errors,
             }
         return out
 
     def error_window(self, metric: str, after_s: float, until_s: float | None) -> ErrorStats:
         idx = {"attitude_deg": 1, "heading_deg": 2, "position_m": 3, "velocity_mps": 4}[metric]
         es = ErrorStats()
-        for row in self.error_series:
-            if row[0] >= after_s and (until_s is None or row[0] <= until_s):
-                es.add(row[idx])
+        ser = self.error_series
+        for k in range(0, len(ser), 5):
+            t = ser[k]
+            if t >= after_s and (until_s is None or t <= until_s):
+                es.add(ser[k + idx])
         return es
 
-    def _maybe_flush(self) -> None:
-        now = _time.monotonic()
-        if now - self._last_flush >= self._flush_interval:
-            self.flush()
-            self._last_flush = now
-
     def flush(self) -> None:
+        """Write the batched rows and flush every file (captures included) to the OS."""
+        for tap in self._taps.values():
+            tap.feed_pending()
+        if self._nav_rows and not self._nav_f.closed:
+            self._nav_f.write("".join(self._nav_rows))
+            self._nav_rows.clear()
+        if self._truth_rows and not self._truth_f.closed:
+            self._truth_f.write("".join(self._truth_rows))
+            self._truth_rows.clear()
         for f in (self._cap, self._events, self._nav_f, self._truth_f):
             if f is not None and not f.closed:
                 f.flush()
@@ -289,20 +375,44 @@ class Recorder:
 
 
 class _TapListener:
-    __slots__ = ("rec", "name")
+    __slots__ = ("rec", "name", "index", "tap")
 
-    def __init__(self, rec: Recorder, name: str) -> None:
+    def __init__(self, rec: Recorder, name: str, index: int, tap: _Tap) -> None:
         self.rec = rec
         self.name = name
+        self.index = index
+        self.tap = tap
 
     def on_link_bytes(self, link: Link, direction: str, t: float, data: bytes) -> None:
-        self.rec.on_bytes(self.name, direction, t, data)
+        self.rec._record(self.index, self.tap, direction, t, data)  # noqa: SLF001
+
+
+_NO_ERRORS = "," * 11 + "\r\n"
 
 
 def _fmt(x: Any) -> str:
-    if isinstance(x, float):
-        return repr(float(x)) if math.isfinite(x) else ""
+    if isinstance(x, float):  # numpy floats too
+        return repr(float(x)) if x - x == 0.0 else ""  # NaN and infinities: empty cells
     return str(x)
+
+
+def _row(values: Sequence[Any]) -> str:
+    """One CSV line (``\\r\\n`` as the csv module writes): floats by repr, non-finite ones empty."""
+    return ",".join([repr(x) if x.__class__ is float and x - x == 0.0 else _fmt(x) for x in values]) + "\r\n"
+
+
+def _c_bn(pitch: float, roll: float, yaw: float) -> list[float]:
+    """``C_b^n`` from Euler angles (rad; yaw counter-clockwise from North), row-major 9 floats.
+
+    The same matrix as :func:`firmware_model.attitude.a2mat` (algorithms.md section 0), in plain
+    floats for the per-frame error evaluation.
+    """
+    sp, cp = math.sin(pitch), math.cos(pitch)
+    sr, cr = math.sin(roll), math.cos(roll)
+    sy, cy = math.sin(yaw), math.cos(yaw)
+    return [cr * cy - sp * sr * sy, -cp * sy, sr * cy + sp * cr * sy,
+            cr * sy + sp * sr * cy, cp * cy, sr * sy - sp * cr * cy,
+            -cp * sr, sp, cp * cr]
 
 
 def _json_default(o: Any) -> Any:

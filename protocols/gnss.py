@@ -23,6 +23,7 @@ __all__ = [
     "GPS_UTC_LEAP_S",
     "NMEA_SENTENCES",
     "UBX_MESSAGES",
+    "FAA_MODE",
     "GnssFix",
     "GnssOutputSet",
     "build_epoch",
@@ -35,6 +36,8 @@ GPS_EPOCH = _dt.datetime(1980, 1, 6, tzinfo=_dt.timezone.utc)
 #: GPS - UTC in seconds since 2017-01-01 (IERS Bulletin C: no leap second announced since).
 GPS_UTC_LEAP_S = 18
 NMEA_SENTENCES = ("RMC", "VTG", "GGA", "GSA", "ZDA")
+#: NMEA 2.3 mode indicator (RMC/VTG) for each GGA fix quality.
+FAA_MODE = {1: "A", 2: "D", 4: "R", 5: "F", 6: "E"}
 UBX_MESSAGES = ("NAV-PVT", "NAV-STATUS")
 
 
@@ -136,9 +139,11 @@ def build_epoch(fix: GnssFix, output: GnssOutputSet = GnssOutputSet()) -> bytes:
     out = bytearray()
     for s in output.nmea:
         if s == "RMC":
-            out += build_rmc(t, d, fix.lat_deg, fix.lon_deg, speed, course, valid=ok, talker=tk)
+            out += build_rmc(t, d, fix.lat_deg, fix.lon_deg, speed, course, valid=ok, talker=tk,
+                             mode=FAA_MODE.get(fix.quality, "A"))
         elif s == "VTG":
-            out += build_vtg(course, speed, "A", talker=tk) if ok else build_vtg(None, None, "N", talker=tk)
+            out += (build_vtg(course, speed, FAA_MODE.get(fix.quality, "A"), talker=tk) if ok
+                    else build_vtg(None, None, "N", talker=tk))
         elif s == "GGA":
             out += build_gga(t, fix.lat_deg, fix.lon_deg, fix.height_m - fix.geoid_sep_m, fix.geoid_sep_m,
                              quality=fix.quality if ok else 0, num_sats=len(fix.sat_ids), hdop=fix.hdop, talker=tk)

@@ -7,9 +7,23 @@
   :mod:`protocols.imu_frame` frame and sends it to DSP UART1. No datagram within
   ``gyro_timeout_s`` gives a frame flagged ``GYRO_MISSING`` that repeats the last gyro words.
 * PPS rising edges latch the counter (``t_pps_us``, ``pps_count``), carried in every IMU frame.
-* Byte routing (the crossbar): each external serial port is forwarded to its DSP UART and
-  back; baud conversion happens because the two sides are separate links with their own
-  line models (and their own queues, which overflow when the DSP side is slower).
+* A magnetometer (when the scenario has one) is sampled on every ``imu_rate / mag_rate_hz``-th
+  trigger (100 Hz by default, the ICD's budget); its MAG frame
+  (:class:`protocols.imu_frame.MagFrame`, CONTRACTS C2: sequence, trigger time stamp, field in
+  0.1 nT, status) follows that trigger's IMU frame on UART1 and is mirrored on the MONITOR
+  port's ``mag`` channel. This needs the C2 MAG frame in
+  :mod:`protocols.imu_frame`; without it no MAG frame is sent and a ``mag_frames_unavailable``
+  event says so once.
+* Byte routing (the crossbar, scenario ``fpga.routing``): each external serial port is
+  forwarded to its DSP UART and back, cut-through (a byte leaves as soon as it has arrived and
+  the output line is free). Baud conversion happens because the two sides are separate links
+  with their own line models; each output has its own FIFO (the TX queue of that side), which
+  overflows, counted, when the output is slower than the input for long enough.
+* The MONITOR port (``links.monitor``): every chunk on every channel (external ports and DSP
+  UARTs, both directions) is mirrored as a :class:`protocols.monitor.MonitorRecord` (channel id,
+  direction 0 = towards the DSP / 1 = away from it, FPGA time stamp in us, the bytes),
+  COBS-framed by :func:`protocols.monitor.encode_monitor` (CONTRACTS C2). A monitor line slower
+  than the traffic overflows and counts, like any other.
 """
 
 from __future__ import annotations
@@ -17,16 +31,18 @@ from __future__ import annotations
 import asyncio
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 from protocols.imu_frame import ADC_CODE_MAX, FpgaStatus, ImuFrame, ImuFrameFormat
 from protocols.stim import Stim210Format
 from protocols.stream import StreamDecoder
 
+from ..errors import EmulatorError
 from ..links.base import Link
 from .base import EventSink, NullEvents
 from .imu import AnalogAccelerometers, Stim210Gyro
 
-__all__ = ["FpgaConfig", "VirtualFpga", "DEFAULT_ROUTING"]
+__all__ = ["FpgaConfig", "VirtualFpga", "DEFAULT_ROUTING", "MONITOR_DIRECTIONS", "monitor_api"]
 
 #: external port -> DSP UART (DESIGN.md section 2: PSNS = RS232 -> UART2, GNSS = RS422 -> UART3)
 DEFAULT_ROUTING = {"host": "uart0", "psns": "uart2", "gnss": "uart3"}
@@ -39,7 +55,47 @@ class FpgaConfig:
     gyro_format: str = "m"
     gyro_counter_step: int = 10
     routing: dict[str, str] = field(default_factory=lambda: dict(DEFAULT_ROUTING))
+    #: channels mirrored on the MONITOR port (None = every channel)
+    monitor_channels: tuple[str, ...] | None = None
+    #: magnetometer sample / MAG frame rate (a divider of the trigger rate)
+    mag_rate_hz: float = 100.0
 
+
+#: (link end held by the FPGA, link direction) -> monitor direction (C2: 0 towards the DSP, 1 away)
+MONITOR_DIRECTIONS = {("port", "in"): 0, ("port", "out"): 1, ("uart", "out"): 0, ("uart", "in"): 1}
+
+
+def mag_api() -> tuple[Any, Any] | None:
+    """``(MagFrame, encode_mag_frame)`` from :mod:`protocols.imu_frame` (C2), or None without them."""
+    try:
+        from protocols.imu_frame import MagFrame, encode_mag_frame  # type: ignore[attr-defined]
+    except ImportError:
+        return None
+    return MagFrame, encode_mag_frame
+
+
+def monitor_api() -> tuple[Any, Any, dict[str, int]] | None:
+    """``(MonitorRecord, encode_monitor, MONITOR_CHANNELS)`` from :mod:`protocols.monitor` (C2),
+    or None while that module is not part of this build."""
+    try:
+        from protocols.monitor import MONITOR_CHANNELS, MonitorRecord, encode_monitor
+    except ImportError:
+        return None
+    return MonitorRecord, encode_monitor, dict(MONITOR_CHANNELS)
+
+
+class _MonitorTap:
+    """Listener on one FPGA-held link end that mirrors its chunks to the MONITOR port."""
+
+    __slots__ = ("fpga", "channel", "dirs")
+
+    def __init__(self, fpga: "VirtualFpga", channel: int, side: str) -> None:
+        self.fpga = fpga
+        self.channel = channel
+        self.dirs = {"in": MONITOR_DIRECTIONS[(side, "in")], "out": MONITOR_DIRECTIONS[(side, "out")]}
+
+    def on_link_bytes(self, link: Link, direction: str, t: float, data: bytes) -> None:
+        self.fpga._mirror(self.channel, self.dirs[direction], t, data)  # noqa: SLF001
 
 class VirtualFpga:
     """See module docstring.
@@ -54,7 +110,7 @@ class VirtualFpga:
 
     def __init__(self, loop: asyncio.AbstractEventLoop, cfg: FpgaConfig, ports: dict[str, Link],
                  uarts: dict[str, Link], gyro: Stim210Gyro | None, accel: AnalogAccelerometers | None,
-                 events: EventSink | None = None) -> None:
+                 events: EventSink | None = None, monitor: Link | None = None, mag: Any = None) -> None:
         self.loop = loop
         self.cfg = cfg
         self.ports = ports
@@ -77,6 +133,8 @@ class VirtualFpga:
         self.gyro_missing = 0
         self.routes: dict[str, str] = {}
         self._crc_seen = 0
+        self._stopped = False
+        self._trigger_handle: asyncio.TimerHandle | None = None
         self._gyro_dec: StreamDecoder | None = None
         if "gyro" in ports:
             self._gyro_dec = StreamDecoder([Stim210Format(cfg.gyro_format)])
@@ -85,6 +143,36 @@ class VirtualFpga:
             if port in ports and uart in uarts:
                 self._route(ports[port], uarts[uart])
                 self.routes[port] = uart
+        self.mag = mag
+        self.mag_frames = 0
+        self._mag_seq = 0
+        self._mag_api = mag_api() if mag is not None else None
+        self._mag_pending: bytes | None = None
+        self._mag_div = max(1, int(round(cfg.imu_rate_hz / cfg.mag_rate_hz)))
+        self._mag_channel: int | None = None
+        if mag is not None and self._mag_api is None:
+            self.events.emit(0.0, "fpga", "mag_frames_unavailable",
+                             reason="protocols.imu_frame has no MagFrame (CONTRACTS C2) in this build")
+        self.monitor = monitor
+        self.monitor_records = 0
+        self._mon_record: Any = None
+        self._mon_encode: Any = None
+        self._mon_max = 1 << 30
+        if monitor is not None:
+            api = monitor_api()
+            if api is None:
+                raise EmulatorError("links.monitor needs protocols.monitor (CONTRACTS C2), which this build lacks")
+            self._mon_record, self._mon_encode, channels = api
+            import protocols.monitor as _pm
+
+            self._mon_max = int(getattr(_pm, "MONITOR_MAX_DATA", 1 << 30))
+            wanted = set(cfg.monitor_channels) if cfg.monitor_channels is not None else None
+            if "mag" in channels and (wanted is None or "mag" in wanted):
+                self._mag_channel = channels["mag"]
+            for side, links in (("port", ports), ("uart", uarts)):
+                for name, link in links.items():
+                    if name in channels and (wanted is None or name in wanted):
+                        link.listeners.append(_MonitorTap(self, channels[name], side))
 
     # -- time stamps ----------------------------------------------------------------------
     @staticmethod
@@ -93,7 +181,16 @@ class VirtualFpga:
         return int(math.floor(t * 1e6 + 1e-6)) & 0xFFFFFFFF
 
     def start(self) -> None:
-        self.loop.call_at(0.0, self._trigger)
+        self._trigger_handle = self.loop.call_at(0.0, self._trigger)
+
+    def stop(self) -> None:
+        """Stop the trigger (and so the IMU frames and the triggered sensors)."""
+        self._stopped = True
+        if self._trigger_handle is not None:
+            self._trigger_handle.cancel()
+        if self._pending is not None:
+            self._pending[3].cancel()
+            self._pending = None
 
     def pps_edge(self, t: float) -> None:
         """PPS rising edge (from the GNSS receiver's PPS line)."""
@@ -106,10 +203,17 @@ class VirtualFpga:
         t = self._k * self.period
         t_prev = t - self.period
         self._k += 1
-        self.loop.call_at(self._k * self.period, self._trigger)
+        if self._stopped:
+            return
+        self._trigger_handle = self.loop.call_at(self._k * self.period, self._trigger)
         codes = self.accel.sample(t, t_prev) if self.accel is not None else (0, 0, 0)
         if self._pending is not None:  # previous datagram never came
             self._emit_frame(None)
+        if self._mag_api is not None and (self._k - 1) % self._mag_div == 0:
+            words, status = self.mag.sample(t, t_prev)
+            mag_frame_cls, encode = self._mag_api
+            self._mag_pending = encode(mag_frame_cls(self._mag_seq & 0xFFFF, self.counter_us(t), words, status))
+            self._mag_seq += 1
         handle = self.loop.call_at(t + self.cfg.gyro_timeout_s, self._gyro_timeout)
         self._pending = (self.counter_us(t), self.seq, codes, handle)
         if self.gyro is not None:
@@ -169,9 +273,34 @@ class VirtualFpga:
         uart1 = self.uarts.get("uart1")
         if uart1 is not None:
             uart1.send(self._imu_fmt.build(frame))
+            if self._mag_pending is not None:  # the trigger's MAG frame follows its IMU frame
+                mag_frame = self._mag_pending
+                self._mag_pending = None
+                uart1.send(mag_frame)
+                self.mag_frames += 1
+                if self._mag_channel is not None:
+                    self._mirror(self._mag_channel, 0, self.loop.time(), mag_frame)
 
     # -- crossbar ---------------------------------------------------------------------------
     @staticmethod
     def _route(port: Link, uart: Link) -> None:
-        port.on_receive = uart.send
-        uart.on_receive = port.send
+        def to_dsp(data: bytes) -> None:
+            uart.forward(data, port)
+
+        def from_dsp(data: bytes) -> None:
+            port.forward(data, uart)
+
+        port.on_receive = to_dsp
+        uart.on_receive = from_dsp
+
+    # -- monitor port -------------------------------------------------------------------------
+    def _mirror(self, channel: int, direction: int, t: float, data: bytes) -> None:
+        mon = self.monitor
+        if mon is None:
+            return
+        t_us = self.counter_us(t)
+        step = self._mon_max
+        for i in range(0, len(data), step):  # records carry at most MONITOR_MAX_DATA bytes
+            rec = self._mon_record(channel=channel, direction=direction, t_us=t_us, data=bytes(data[i:i + step]))
+            mon.send(self._mon_encode(rec))
+            self.monitor_records += 1

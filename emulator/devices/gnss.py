@@ -32,7 +32,7 @@ from typing import Callable
 import numpy as np
 
 from firmware_model import earth
-from protocols.nmea import build_gga, build_rmc
+from protocols.gnss import GnssFix, GnssOutputSet, build_epoch
 
 from ..links.base import Link
 from ..world.trajectory import Trajectory
@@ -40,9 +40,10 @@ from ..world.trajectory import Trajectory
 __all__ = ["GnssErrors", "GnssConfig", "GnssOutage", "GnssGlitch", "GnssErrorModel", "GnssReceiver", "RADIAL_95"]
 
 DEG = math.pi / 180.0
+#: PRNs reported in GSA / numSV (a fixed, plausible constellation; the count follows ``num_sats``).
+_SAT_IDS = (2, 5, 6, 12, 13, 15, 17, 19, 24, 25, 29, 30, 1, 3, 7, 9, 10, 14, 18, 20, 21, 22, 23, 26)
 #: 95 % radius of a circular 2-D normal error, in per-axis sigmas: sqrt(-2 ln 0.05).
 RADIAL_95 = math.sqrt(-2.0 * math.log(0.05))
-RMC_MODE = {1: "A", 2: "D", 4: "R", 5: "F", 6: "E"}
 
 
 @dataclass
@@ -82,6 +83,7 @@ class GnssConfig:
     rate_hz: float = 1.0
     latency_s: float = 0.05
     sentences: tuple[str, ...] = ("GGA", "RMC")
+    ubx: tuple[str, ...] = ()
     talker: str = "GP"
     num_sats: int = 12
     hdop: float = 0.8
@@ -184,22 +186,32 @@ class GnssReceiver:
             self.link.send(out)
         self.epochs_sent += 1
 
+    @property
+    def _output(self) -> GnssOutputSet:
+        cfg = self.cfg
+        return GnssOutputSet(nmea=tuple(cfg.sentences), ubx=tuple(cfg.ubx), talker=cfg.talker, rate_hz=cfg.rate_hz)
+
+    def _fix(self, utc: _dt.datetime, lat_deg: float, lon_deg: float, h_m: float,
+             vel_enu: tuple[float, float, float], fix_type: int = 3, quality: int | None = None) -> GnssFix:
+        """What the receiver reports for one epoch (accuracy fields from its configured error figures)."""
+        cfg = self.cfg
+        e = cfg.errors
+        return GnssFix(
+            utc=utc, lat_deg=lat_deg, lon_deg=lon_deg, height_m=h_m, geoid_sep_m=cfg.geoid_sep_m, vel_enu_mps=vel_enu,
+            fix_type=fix_type, quality=cfg.fix_quality if quality is None else quality,
+            sat_ids=_SAT_IDS[: max(0, min(cfg.num_sats, len(_SAT_IDS)))] if fix_type else (), hdop=cfg.hdop,
+            h_acc_m=e.pos_sigma_h_m * math.sqrt(2.0), v_acc_m=e.pos_sigma_v_m, s_acc_mps=e.vel_sigma_h_mps * math.sqrt(2.0),
+        )
+
     def sentences(self, t: float, fix: bool = True) -> bytes:
-        """The NMEA bytes of the epoch at ``t`` (advances the error model)."""
+        """The bytes of the epoch at ``t`` (its NMEA sentences, then its UBX messages; advances the error model)."""
         cfg = self.cfg
         dt = 1.0 / cfg.rate_hz if self._last_t is None else t - self._last_t
         self._last_t = t
         utc = self.epoch + _dt.timedelta(seconds=t)
-        tm = utc.time()
-        out = bytearray()
         if not fix:
             self._lost_until = t
-            for kind in cfg.sentences:
-                if kind == "GGA":
-                    out += build_gga(tm, 0.0, 0.0, 0.0, 0.0, quality=0, talker=cfg.talker)
-                elif kind == "RMC":
-                    out += build_rmc(tm, utc.date(), 0.0, 0.0, 0.0, 0.0, valid=False, talker=cfg.talker)
-            return bytes(out)
+            return build_epoch(self._fix(utc, 0.0, 0.0, 0.0, (0.0, 0.0, 0.0), fix_type=0, quality=0), self._output)
         if self._lost_until is not None:
             self.errors.restart()
             self._lost_until = None
@@ -217,14 +229,7 @@ class GnssReceiver:
         lon_m = lon + err[0] / ((rn + h) * math.cos(lat))
         h_m = h + err[2]
         v = st.v_enu + verr[0]
-        for kind in cfg.sentences:
-            if kind == "GGA":
-                out += build_gga(tm, lat_m / DEG, lon_m / DEG, h_m - cfg.geoid_sep_m, cfg.geoid_sep_m,
-                                 quality=cfg.fix_quality, num_sats=cfg.num_sats, hdop=cfg.hdop, talker=cfg.talker)
-            elif kind == "RMC":
-                speed = math.hypot(v[0], v[1])
-                course = math.degrees(math.atan2(v[0], v[1])) % 360.0
-                out += build_rmc(tm, utc.date(), lat_m / DEG, lon_m / DEG, speed, course,
-                                 mode=RMC_MODE.get(cfg.fix_quality, "A"), talker=cfg.talker)
+        out = build_epoch(self._fix(utc, lat_m / DEG, lon_m / DEG, h_m, (float(v[0]), float(v[1]), float(v[2]))),
+                          self._output)
         self.fixes_sent += 1
         return bytes(out)

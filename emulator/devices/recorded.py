@@ -186,26 +186,19 @@ class _CsvReplayReceiver(GnssReceiver):
         return self.src.fix_at(t, 0.5 / self.cfg.rate_hz) is not None
 
     def sentences(self, t: float, fix: bool = True) -> bytes:
-        from protocols.nmea import build_gga, build_rmc
+        from protocols.gnss import build_epoch
 
         cfg = self.cfg
         utc = self.epoch + _dt.timedelta(seconds=t)
         row = self.src.fix_at(t, 0.5 / cfg.rate_hz)
-        out = bytearray()
         if row is None:
             return super().sentences(t, False)
         q = int(row.get("fix_quality", cfg.fix_quality))
-        for kind in cfg.sentences:
-            if kind == "GGA":
-                out += build_gga(utc.time(), row["lat_deg"], row["lon_deg"], row["height_m"] - cfg.geoid_sep_m,
-                                 cfg.geoid_sep_m, quality=q, num_sats=int(row.get("num_sats", cfg.num_sats)),
-                                 hdop=row.get("hdop", cfg.hdop), talker=cfg.talker)
-            elif kind == "RMC":
-                ve, vn = row["vel_e_mps"], row["vel_n_mps"]
-                out += build_rmc(utc.time(), utc.date(), row["lat_deg"], row["lon_deg"], math.hypot(ve, vn),
-                                 math.degrees(math.atan2(ve, vn)) % 360.0, valid=q > 0, talker=cfg.talker)
+        f = self._fix(utc, row["lat_deg"], row["lon_deg"], row["height_m"],
+                      (row["vel_e_mps"], row["vel_n_mps"], row.get("vel_u_mps", 0.0)),
+                      fix_type=3 if q > 0 else 0, quality=q)
         self.fixes_sent += 1
-        return bytes(out)
+        return build_epoch(f, self._output)
 
 
 class _NoTruth:

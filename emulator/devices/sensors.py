@@ -91,7 +91,8 @@ def gnss_config(scn: Scenario) -> GnssConfig:
     p = preset("gnss", g.preset)
     err = _dataclass_from(GnssErrors, merged(p["errors"], g.errors.model_dump()))
     return GnssConfig(
-        rate_hz=g.rate_hz, latency_s=g.latency_s, sentences=tuple(g.sentences), geoid_sep_m=g.geoid_sep_m,
+        rate_hz=g.rate_hz, latency_s=g.latency_s, sentences=tuple(g.sentences), ubx=tuple(g.ubx), talker=g.talker,
+        geoid_sep_m=g.geoid_sep_m,
         fix_quality=g.fix_quality if g.fix_quality is not None else int(p.get("fix_quality", 1)),
         reacquisition_s=g.reacquisition_s if g.reacquisition_s is not None else float(p.get("reacquisition_s", 0.8)),
         num_sats=g.num_sats, hdop=g.hdop,

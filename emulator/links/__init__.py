@@ -14,6 +14,7 @@ URL                                            transport
 =============================================  =================================================
 
 Common options (query string): ``baud=N``, ``mode=8N1``, ``queue=BYTES`` (TX queue size).
+``pty://`` also takes ``peer_baud=ignore|check`` (model a client set to another baud).
 Unknown options are errors that show the accepted form. "Unknown scheme" and "the transport
 module failed to import" are different errors, and the import failure keeps its cause.
 """
@@ -57,12 +58,13 @@ LINK_SCHEMES: dict[str, str] = {
 _COMMON_OPTIONS = {"baud", "mode", "queue"}
 #: options a scheme accepts beyond the common ones (kept here so that validation needs no import)
 _SCHEME_OPTIONS: dict[str, frozenset[str]] = {
+    "pty": frozenset({"peer_baud"}),
     "zenoh": frozenset({"role", "listen", "connect", "session", "config", "pace", "nav"}),
     "can": frozenset({"dbc", "rate", "bitrate", "fd"}),
 }
 _USAGE = {
     "mem": "mem://NAME[?baud=N&mode=8N1&queue=BYTES]",
-    "pty": "pty://NAME[?baud=N&mode=8N1&queue=BYTES]",
+    "pty": "pty://NAME[?baud=N&mode=8N1&queue=BYTES&peer_baud=ignore|check]",
     "serial": "serial:///dev/ttyXXX[?baud=N&mode=8N1&queue=BYTES]",
     "zenoh": "zenoh://RUN/PORT[?role=device|peer&listen=tcp/127.0.0.1:7447&connect=tcp/HOST:PORT"
              "&session=peer|client&config=FILE&pace=1|0&nav=tx|rx|off&baud=N&mode=8N1&queue=BYTES]",
@@ -114,7 +116,7 @@ def parse_link_url(url: str, extra_options: frozenset[str] = frozenset()) -> Lin
     if not target:
         raise LinkConfigError(f"{url!r} names no target; expected {_USAGE.get(scheme, scheme + '://NAME')}")
     options = dict(parse_qsl(parts.query, keep_blank_values=True))
-    unknown = set(options) - _COMMON_OPTIONS - _SCHEME_OPTIONS.get(scheme, frozenset()) - extra_options
+    unknown = set(options) - _COMMON_OPTIONS - extra_options - _SCHEME_OPTIONS.get(scheme, frozenset())
     if unknown:
         raise LinkConfigError(
             f"{url!r}: unknown option(s) {', '.join(sorted(unknown))}; expected {_USAGE.get(scheme, scheme + '://...')}"
@@ -154,4 +156,4 @@ def open_link(
             raise LinkConfigError(f"{url}: mem:// links need a MemHub to find their peer")
         hub.attach(u.target, link)
         return link
-    return cls(name, url, line, loop, target=u.target, **transport_kw)  # type: ignore[call-arg]
+    return cls(name, url, line, loop, target=u.target, options=u.options, **transport_kw)  # type: ignore[call-arg]

@@ -4,6 +4,10 @@ The first two opens of the same name in one :class:`MemHub` become peers. Bytes 
 end are paced by that end's line model and delivered to the other end's device; the receiving
 end does not pace again.
 
+The two ends may have different line settings (a sensor configured at one baud, the FPGA port
+at another): the receiving end then decodes the transmitter's waveform bit by bit
+(:mod:`emulator.links.framing`) and counts framing and parity errors.
+
 URL form: ``mem://NAME[?baud=N&mode=8N1&queue=BYTES]``.
 """
 
@@ -28,8 +32,9 @@ class MemLink(Link):
         self.peer: MemLink | None = None
 
     def _write_raw(self, data: bytes) -> None:
-        if self.peer is not None and not self.peer.closed:
-            self.peer._input(data)
+        peer = self.peer
+        if peer is not None and not peer.closed:
+            peer._arrive(data, self._tx_start, self._tx_pitch, self.out_line)  # noqa: SLF001
         else:
             self.stats.dropped_out += len(data)
 
@@ -49,6 +54,8 @@ class MemHub:
             self._waiting[key] = link
             return
         other.peer, link.peer = link, other
+        other.set_remote_line(link.line)
+        link.set_remote_line(other.line)
         self._pairs[key] = (other, link)
 
     def unpaired(self) -> list[str]:

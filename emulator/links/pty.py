@@ -11,16 +11,23 @@ Measured behaviour this module is built around (``shared/reference/protocols.md`
   counted) instead, so a new peer never sees stale data;
 * a peer that opens but does not read makes the master's writes fail with EAGAIN after
   ~18 KiB: the excess is dropped and counted, memory stays bounded;
-* a pty ignores the baud rate; pacing comes from the link's line model. The client's termios
-  speed is readable and reported (``peer_baud``).
+* a peer that closes leaves what it did not read in the slave's input queue, where the next
+  opener would find it: the link flushes the slave's queues when it sees the detach, and it
+  checks for a hang-up before every write;
+* a pty ignores the baud rate; pacing comes from the link's line model, and long chunks are
+  written in slices of ``slice_s`` of wire time so bytes trickle out at the line's pace. The
+  client's termios speed is readable (``peer_baud``); with ``?peer_baud=check`` a client set to
+  another baud (beyond the UART tolerance) gets, and sends, what a real mismatched line would
+  carry: framing errors, counted. The default (``ignore``) suits tools that never set a speed.
 
-URL form: ``pty://NAME[?baud=N&mode=8N1&queue=BYTES]``.
+URL form: ``pty://NAME[?baud=N&mode=8N1&queue=BYTES&peer_baud=ignore|check]``.
 """
 
 from __future__ import annotations
 
 import asyncio
 import errno
+import math
 import os
 import select
 import termios
@@ -28,7 +35,7 @@ import tty
 from pathlib import Path
 from typing import Any
 
-from ..errors import LinkBrokenError, LinkConfigError
+from ..errors import LinkConfigError
 from .base import LineConfig, Link
 
 __all__ = ["PtyLink", "ATTACH_POLL_S"]
@@ -47,6 +54,7 @@ class PtyLink(Link):
 
     scheme = "pty"
     paces_input = True
+    slice_s = 0.001
 
     def __init__(
         self,
@@ -56,9 +64,17 @@ class PtyLink(Link):
         loop: asyncio.AbstractEventLoop,
         target: str = "",
         run_dir: str | os.PathLike[str] | None = None,
+        options: dict[str, str] | None = None,
         **_: Any,
     ) -> None:
         super().__init__(name, url, line, loop)
+        opts = options or {}
+        check = opts.get("peer_baud", "ignore")
+        if check not in ("ignore", "check"):
+            raise LinkConfigError(f"{url!r}: peer_baud must be 'ignore' or 'check', got {check!r}")
+        self.check_peer_baud = check == "check"
+        self._peer_cfg: LineConfig | None = None
+        self._out_framer: Any = None
         if not target or "/" in target:
             raise LinkConfigError(f"{url!r}: expected pty://NAME with a plain name (no '/')")
         if run_dir is None:
@@ -71,6 +87,9 @@ class PtyLink(Link):
         self.attach_count = 0
         self._poll_handle: asyncio.TimerHandle | None = None
         self._reading = False
+        self._poller: select.poll | None = None
+        self.detach_count = 0
+        self.flushed_stale = 0
 
     async def open(self) -> None:
         self.port_dir.mkdir(parents=True, exist_ok=True)
@@ -82,6 +101,8 @@ class PtyLink(Link):
         os.set_blocking(master, False)
         os.close(slave)  # the user opens it; holding it would hide attach/detach
         self.master_fd = master
+        self._poller = select.poll()
+        self._poller.register(master, select.POLLHUP)
         tmp = self.link_path.with_name(self.link_path.name + ".tmp")
         if tmp.is_symlink() or tmp.exists():
             tmp.unlink()
@@ -105,13 +126,34 @@ class PtyLink(Link):
 
     # attach / detach ------------------------------------------------------------------
     def _hung_up(self) -> bool:
-        assert self.master_fd is not None
-        p = select.poll()
-        p.register(self.master_fd, select.POLLIN | select.POLLHUP)
-        for _fd, ev in p.poll(0):
+        assert self._poller is not None
+        for _fd, ev in self._poller.poll(0):
             if ev & select.POLLHUP:
                 return True
         return False
+
+    def _peer_line(self) -> LineConfig | None:
+        """The client's termios settings as a line config (None if unknown or unchecked)."""
+        if not self.check_peer_baud or self.master_fd is None:
+            return None
+        try:
+            attrs = termios.tcgetattr(self.master_fd)
+        except termios.error:
+            return None
+        baud = _BAUD_CONST.get(attrs[5])
+        if baud is None or baud == 0:
+            return None
+        return self.line.with_(baud=baud)
+
+    def _refresh_peer(self) -> None:
+        cfg = self._peer_line()
+        if cfg == self._peer_cfg:
+            return
+        self._peer_cfg = cfg
+        self.set_remote_line(cfg)  # what the client sends, as our UART samples it
+        from .framing import UartReceiver, uart_compatible
+
+        self._out_framer = None if cfg is None or uart_compatible(self.line, cfg) else UartReceiver(self.line, cfg)
 
     def _poll(self) -> None:
         self._poll_handle = None
@@ -124,6 +166,8 @@ class PtyLink(Link):
             self._start_reading()
         elif hup and self.attached:
             self._detach()
+        if self.attached and self.check_peer_baud:
+            self._refresh_peer()
         self._poll_handle = self.loop.call_later(ATTACH_POLL_S, self._poll)
 
     def _start_reading(self) -> None:
@@ -138,7 +182,31 @@ class PtyLink(Link):
 
     def _detach(self) -> None:
         self.attached = False
+        self.detach_count += 1
         self._stop_reading()
+        self._flush_slave()
+
+    def _flush_slave(self) -> None:
+        """Discard what the departed peer left unread, so the next one gets no stale bytes."""
+        if self.slave_path is None:
+            return
+        try:
+            fd = os.open(self.slave_path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+        except OSError:
+            return
+        try:
+            import fcntl
+
+            try:
+                n = int.from_bytes(fcntl.ioctl(fd, termios.FIONREAD, b"\0\0\0\0"), "little")
+            except OSError:
+                n = 0
+            termios.tcflush(fd, termios.TCIOFLUSH)
+            self.flushed_stale += n
+        except termios.error:
+            pass
+        finally:
+            os.close(fd)
 
     def _on_readable(self) -> None:
         assert self.master_fd is not None
@@ -150,7 +218,9 @@ class PtyLink(Link):
             if exc.errno == errno.EIO:
                 self._detach()
                 return
-            raise LinkBrokenError(f"{self.name}: reading {self.slave_path} failed") from exc
+            self.error = f"reading {self.slave_path} failed: {exc}"
+            self._stop_reading()
+            return
         if data:
             self._input(data)
 
@@ -159,6 +229,18 @@ class PtyLink(Link):
         if self.master_fd is None or not self.attached:
             self.stats.dropped_out += len(data)
             return
+        if self._hung_up():  # the peer left since the last poll: do not leave stale bytes
+            self._detach()
+            self.stats.dropped_out += len(data)
+            return
+        if self._out_framer is not None:
+            fr = self._out_framer
+            fr.feed(self._tx_start, data, self._tx_pitch)
+            data = bytes(b for _t, b in fr.decode(math.inf))
+            self.stats.framing_errors = fr.framing_errors
+            self.stats.parity_errors = fr.parity_errors
+            if not data:
+                return
         try:
             n = os.write(self.master_fd, data)
         except BlockingIOError:
@@ -168,7 +250,9 @@ class PtyLink(Link):
                 self._detach()
                 self.stats.dropped_out += len(data)
                 return
-            raise LinkBrokenError(f"{self.name}: writing {self.slave_path} failed") from exc
+            self.error = f"writing {self.slave_path} failed: {exc}"
+            self.stats.dropped_out += len(data)
+            return
         if n < len(data):
             self.stats.dropped_out += len(data) - n
 

@@ -1,8 +1,11 @@
 """``serial:///dev/ttyXXX``: a real serial device (real hardware in the loop), via pyserial.
 
 The device's own UART paces what we write; bytes we read are paced again by the line model
-(they arrive in bursts from the driver). pyserial errors are mapped to
-:class:`~emulator.errors.LinkBrokenError` at this boundary.
+(they arrive in bursts from the driver). Writes go straight to pyserial's non-blocking file
+descriptor: a full driver buffer is counted overflow, never a blocked event loop. A device that
+cannot be opened raises :class:`~emulator.errors.LinkBrokenError` (the pyserial error as its
+cause); one that goes away later (USB unplugged, the other end of a pty pair closed) stops the
+link without a busy loop and leaves the reason in ``Link.error`` (reported in the summary).
 
 URL form: ``serial:///dev/ttyUSB0[?baud=460800&mode=8N1&queue=BYTES]``.
 """
@@ -10,6 +13,7 @@ URL form: ``serial:///dev/ttyUSB0[?baud=460800&mode=8N1&queue=BYTES]``.
 from __future__ import annotations
 
 import asyncio
+import os
 from typing import Any
 
 from ..errors import LinkBrokenError, LinkConfigError
@@ -23,6 +27,7 @@ class SerialLink(Link):
 
     scheme = "serial"
     paces_input = True
+    slice_s = 0.001
 
     def __init__(self, name: str, url: str, line: LineConfig, loop: asyncio.AbstractEventLoop,
                  target: str = "", **_: Any) -> None:
@@ -41,35 +46,49 @@ class SerialLink(Link):
         ]
         try:
             self._ser = serial.Serial(
-                self.device, self.line.baud, bytesize=self.line.data_bits, parity=parity, stopbits=stop, timeout=0
+                self.device, self.line.baud, bytesize=self.line.data_bits, parity=parity, stopbits=stop, timeout=0,
+                write_timeout=0,
             )
         except (serial.SerialException, OSError, ValueError) as exc:
             raise LinkBrokenError(f"{self.name}: cannot open {self.device}: {exc}") from exc
         self.loop.add_reader(self._ser.fileno(), self._on_readable)
 
     def _on_readable(self) -> None:
-        import serial
-
         try:
-            data = self._ser.read(4096)
-        except (serial.SerialException, OSError) as exc:
-            self.loop.remove_reader(self._ser.fileno())
-            raise LinkBrokenError(f"{self.name}: reading {self.device} failed: {exc}") from exc
-        if data:
-            self._input(bytes(data))
+            data = os.read(self._ser.fd, 4096)
+        except BlockingIOError:
+            return
+        except OSError as exc:
+            self._broken(f"reading {self.device} failed: {exc}")
+            return
+        if not data:
+            self._broken(f"{self.device} reports end of file (device gone?)")
+            return
+        self._input(data)
+
+    def _broken(self, why: str) -> None:
+        """The device went away: stop reading (no busy loop), keep the reason for the summary."""
+        self.error = why
+        try:
+            self.loop.remove_reader(self._ser.fd)
+        except (ValueError, OSError):
+            pass
 
     def _write_raw(self, data: bytes) -> None:
-        import serial
-
         if self._ser is None:
             self.stats.dropped_out += len(data)
             return
+        # os.write on pyserial's non-blocking fd: pyserial's own write() spins on EAGAIN when
+        # write_timeout is 0, and blocks the event loop otherwise. A full driver buffer is
+        # overflow, counted like every other.
         try:
-            n = self._ser.write(data) or 0
-        except serial.SerialTimeoutException:
+            n = os.write(self._ser.fd, data)
+        except BlockingIOError:
             n = 0
-        except (serial.SerialException, OSError) as exc:
-            raise LinkBrokenError(f"{self.name}: writing {self.device} failed: {exc}") from exc
+        except OSError as exc:
+            if self.error is None:
+                self._broken(f"writing {self.device} failed: {exc}")
+            n = 0
         if n < len(data):
             self.stats.dropped_out += len(data) - n
 

@@ -1,21 +1,33 @@
-"""Scenario sections owned by the runtime: links per port, FPGA routing and UARTs, DSP clock."""
+"""Scenario sections owned by the runtime: links per port, FPGA routing and UARTs, DSP UARTs,
+clock and watchdog. ``docs/runtime.md`` describes every field."""
 
 from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field, field_validator
+from pydantic import AliasChoices, Field, field_validator, model_validator
 
 from .base import Model
 
-__all__ = ["LinkSpec", "Links", "UartSpec", "FpgaSpec", "DspSpec"]
+__all__ = ["LinkSpec", "Links", "UartSpec", "FpgaSpec", "DspUartSpec", "WatchdogSpec", "DspSpec",
+           "EXTERNAL_PORTS", "DSP_UARTS", "DEFAULT_UART_BAUD"]
+
+#: External ports of the box (FPGA connectors) that can be routed to a DSP UART.
+EXTERNAL_PORTS = ("host", "gnss", "psns")
+DSP_UARTS = ("uart0", "uart1", "uart2", "uart3")
+_MODE = r"^[5-8][NEO](1|1\.5|2)$"
 
 
 class LinkSpec(Model):
+    """One external port's link: where it goes and its serial line settings (FPGA side)."""
+
     url: str = Field(description="mem://NAME, pty://NAME or serial:///dev/ttyXXX")
-    baud: int | None = Field(None, gt=0, le=20_000_000)
-    mode: str = Field("8N1", pattern=r"^[5-8][NEO](1|1\.5|2)$")
-    queue_bytes: int = Field(4096, ge=1, le=1 << 24)
+    baud: int | None = Field(None, gt=0, le=20_000_000, description="FPGA port's baud (default per port)")
+    mode: str = Field("8N1", pattern=_MODE)
+    queue_bytes: int = Field(4096, ge=1, le=1 << 24, description="TX queue / FIFO of the FPGA port, bytes")
+    device_baud: int | None = Field(None, gt=0, le=20_000_000,
+                                    description="the device's own UART baud (mem:// only); default = baud")
+    device_mode: str | None = Field(None, pattern=_MODE, description="the device's own frame format; default = mode")
 
     @field_validator("url")
     @classmethod
@@ -31,11 +43,31 @@ class Links(Model):
     gnss: LinkSpec = LinkSpec(url="mem://gnss", baud=9600)
     psns: LinkSpec | None = None
     host: LinkSpec = LinkSpec(url="mem://host", baud=460800)
+    monitor: LinkSpec | None = Field(None, description="FPGA MONITOR port: every channel, tagged and time-stamped")
+
+
+#: serial-line baud of each FPGA -> DSP UART when a scenario gives none
+DEFAULT_UART_BAUD = {"uart0": 460800, "uart1": 460800, "uart2": 115200, "uart3": 115200}
 
 
 class UartSpec(Model):
-    baud: int = Field(gt=0, le=3_000_000)
-    queue_bytes: int = Field(4096, ge=1, le=1 << 24)
+    """The FPGA side of one FPGA -> DSP UART (``fpga.uarts.uartN``)."""
+
+    bus: Literal["serial", "emifa"] | None = Field(
+        None, description="serial: a UART line to a DSP on-chip UART; emifa: the FPGA's UART core, whose FIFO the "
+        "DSP reads over EMIFA (default for uart3 unless a baud is given, serial otherwise)")
+    baud: int | None = Field(None, gt=0, le=3_000_000, description="serial line baud (default per UART)")
+    mode: str = Field("8N1", pattern=_MODE)
+    fifo_bytes: int = Field(2048, ge=1, le=1 << 24, validation_alias=AliasChoices("fifo_bytes", "queue_bytes"),
+                            description="FPGA FIFO towards the DSP, bytes (Spartan-3E block RAM: 2 KiB)")
+
+    def effective_bus(self, name: str) -> str:
+        if self.bus is not None:
+            return self.bus
+        return "emifa" if name == "uart3" and "baud" not in self.model_fields_set else "serial"
+
+    def effective_baud(self, name: str) -> int:
+        return self.baud or DEFAULT_UART_BAUD[name]
 
 
 def _default_uarts() -> dict[str, UartSpec]:
@@ -43,16 +75,21 @@ def _default_uarts() -> dict[str, UartSpec]:
         "uart0": UartSpec(baud=460800),
         "uart1": UartSpec(baud=460800),
         "uart2": UartSpec(baud=115200),
-        "uart3": UartSpec(baud=115200),
+        "uart3": UartSpec(bus="emifa", baud=115200),  # the baud applies only with bus: serial
     }
 
 
 class FpgaSpec(Model):
     routing: dict[Literal["host", "gnss", "psns"], Literal["uart0", "uart2", "uart3"]] = Field(
-        default_factory=lambda: {"host": "uart0", "psns": "uart2", "gnss": "uart3"}
+        default_factory=lambda: {"host": "uart0", "psns": "uart2", "gnss": "uart3"},
+        description="crossbar: external port -> DSP UART (uart1 carries the FPGA's IMU frames)",
     )
     uarts: dict[Literal["uart0", "uart1", "uart2", "uart3"], UartSpec] = Field(default_factory=_default_uarts)
     gyro_timeout_s: float = Field(0.004, gt=0, lt=0.1)
+    mag_rate_hz: float = Field(100.0, gt=0, le=2000,
+                               description="magnetometer sample / MAG frame rate; the trigger rate divided by an integer")
+    monitor_channels: list[Literal["gyro", "gnss", "psns", "host", "uart0", "uart1", "uart2", "uart3", "mag"]] | None = (
+        Field(None, description="channels mirrored on the MONITOR port (default: all)"))
 
     @field_validator("uarts")
     @classmethod
@@ -61,8 +98,68 @@ class FpgaSpec(Model):
         out.update(v)
         return out
 
+    @field_validator("routing")
+    @classmethod
+    def _one_port_per_uart(cls, v: dict[str, str]) -> dict[str, str]:
+        seen: dict[str, str] = {}
+        for port, uart in v.items():
+            if uart in seen:
+                raise ValueError(f"{port} and {seen[uart]} are both routed to {uart}; a DSP UART takes one port")
+            seen[uart] = port
+        return v
+
+
+class DspUartSpec(Model):
+    """The DSP side of one UART (``dsp.uarts.uartN``): 16550 RX FIFO, its service, the driver rings."""
+
+    baud: int | None = Field(None, gt=0, le=3_000_000, description="DSP UART baud; default = the FPGA side's")
+    mode: str | None = Field(None, pattern=_MODE, description="DSP UART frame format; default = the FPGA side's")
+    oversampling: Literal[16, 13] = Field(16, description="MDR.OSM_SEL (used with dsp.uart_clock_hz)")
+    fifo_bytes: int = Field(16, ge=1, le=4096, description="RX hardware FIFO (16550: 16)")
+    trigger_level: Literal[1, 4, 8, 14] = Field(8, description="RX FIFO trigger level, bytes")
+    service: Literal["isr", "edma", "poll"] = Field(
+        "isr", description="who drains the RX FIFO: an interrupt, an EDMA event, or the main loop once per tick")
+    service_latency_s: float | None = Field(
+        None, ge=0, lt=0.1, description="trigger -> FIFO drained (default: isr 2 us, edma 0.5 us)")
+    rx_ring_bytes: int = Field(4096, ge=16, le=1 << 20, description="firmware RX ring buffer, bytes")
+    tx_ring_bytes: int = Field(4096, ge=16, le=1 << 20, description="firmware TX ring buffer, bytes")
+
+    @model_validator(mode="after")
+    def _trigger_fits(self) -> "DspUartSpec":
+        if self.trigger_level > self.fifo_bytes:
+            raise ValueError(f"trigger_level {self.trigger_level} exceeds fifo_bytes {self.fifo_bytes}")
+        return self
+
+    @property
+    def latency_s(self) -> float:
+        if self.service_latency_s is not None:
+            return self.service_latency_s
+        return {"isr": 2e-6, "edma": 0.5e-6, "poll": 0.0}[self.service]
+
+
+def _default_dsp_uarts() -> dict[str, DspUartSpec]:
+    return {u: DspUartSpec() for u in DSP_UARTS}
+
+
+class WatchdogSpec(Model):
+    enabled: bool = True
+    overrun_multiple: float = Field(4.0, gt=1, le=1000,
+                                    description="a tick longer than this many IMU periods trips the watchdog")
+    action: Literal["flag", "reset"] = Field("flag", description="flag: event only; reset: restart the firmware")
+    reset_time_s: float = Field(0.05, ge=0, le=10, description="DSP busy rebooting after a watchdog reset")
+
 
 class DspSpec(Model):
     clock_hz: float = Field(300e6, ge=1e6, le=2e9)
+    uart_clock_hz: float | None = Field(
+        None, gt=0, le=1e9, description="UART input clock (C6747: PLL0_SYSCLK2 = clock_hz / 2); when set, UART0-2 "
+        "run at the baud their divisor gives: clock / (oversampling x round(clock / (oversampling x baud)))")
+    uarts: dict[Literal["uart0", "uart1", "uart2", "uart3"], DspUartSpec] = Field(default_factory=_default_dsp_uarts)
+    watchdog: WatchdogSpec = WatchdogSpec()
 
-
+    @field_validator("uarts")
+    @classmethod
+    def _fill(cls, v: dict[str, DspUartSpec]) -> dict[str, DspUartSpec]:
+        out = _default_dsp_uarts()
+        out.update(v)
+        return out

@@ -136,7 +136,11 @@ class GnssSpec(Model):
     preset: str = "paper"
     rate_hz: float = Field(1.0, gt=0, le=20)
     latency_s: float = Field(0.05, ge=0, lt=1)
-    sentences: list[Literal["GGA", "RMC"]] = ["GGA", "RMC"]
+    sentences: list[Literal["GGA", "RMC", "VTG", "GSA", "ZDA"]] = Field(
+        default_factory=lambda: ["GGA", "RMC"], description="NMEA sentences per epoch, in this order")
+    ubx: list[Literal["NAV-PVT", "NAV-STATUS"]] = Field(
+        default_factory=list, description="UBX messages per epoch, after the NMEA sentences")
+    talker: Literal["GP", "GN", "GL", "GA", "GB", "BD"] = "GP"
     geoid_sep_m: float = 0.0
     fix_quality: Literal[1, 2, 4, 5] | None = None
     reacquisition_s: float | None = Field(None, ge=0, lt=1.0, description="paper: < 1 s")

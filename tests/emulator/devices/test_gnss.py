@@ -104,3 +104,36 @@ def test_glitch_jumps_the_position():
             assert s.altitude_msl_m == pytest.approx(55.0, abs=0.01)
         else:
             assert abs(e) < 0.05 and abs(n) < 0.05
+
+
+def test_full_nmea_set_and_ubx_nav_pvt_decode_in_ours_and_pyubx2():
+    from pyubx2 import UBXReader
+
+    from protocols.ubx import NavPvt, UbxFormat
+
+    cfg = GnssConfig(sentences=("RMC", "VTG", "GGA", "GSA", "ZDA"), ubx=("NAV-PVT", "NAV-STATUS"),
+                     errors=GnssErrors(pos_sigma_h_m=0.0, pos_sigma_v_m=0.0, vel_sigma_h_mps=0.0, vel_sigma_v_mps=0.0),
+                     geoid_sep_m=-8.5)
+    loop = EmulatorLoop("fast")
+    a, b = MemHub().pair("gnss", LineConfig(baud=115200), loop)
+    rx = GnssReceiver(a, StaticTrajectory(39.979, 116.339, 50.0), EPOCH, np.random.default_rng(1), cfg)
+    raw = bytearray()
+    b.on_receive = raw.extend
+
+    async def main():
+        rx.start()
+        await asyncio.sleep(2.5)
+
+    loop.run_until_complete(main())
+    loop.close()
+    dec = StreamDecoder([NmeaFormat(), UbxFormat()])
+    frames = dec.feed(bytes(raw))
+    pvts = [f for f in frames if isinstance(f, NavPvt)]
+    assert len(pvts) == 3 and dec.stats.crc_errors == 0 and dec.stats.garbage_bytes == 0
+    assert pvts[0].lat == round(39.979e7) and pvts[0].lon == round(116.339e7)
+    assert pvts[0].height == 50000 and pvts[0].hMSL == 58500 and pvts[0].fixType == 3
+    kinds = {type(f).__name__ for f in frames}
+    assert {"Gga", "Rmc", "Vtg", "Gsa", "Zda", "NavPvt", "NavStatus"} <= kinds
+    peer = [m for _, m in UBXReader(__import__("io").BytesIO(bytes(raw)), protfilter=2)]
+    peer_pvt = [m for m in peer if m.identity == "NAV-PVT"]
+    assert len(peer_pvt) == 3 and peer_pvt[0].lat == pytest.approx(39.979) and peer_pvt[0].hMSL == 58500

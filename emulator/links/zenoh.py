@@ -32,6 +32,9 @@ listening on ``tcp/127.0.0.1:7447`` unless ``listen`` or ``connect`` is given. L
 process that ask for the same session configuration share one zenoh session (reference-counted;
 the last close closes it), so four UART links do not need four listening sockets.
 
+Each chunk carries the sender's byte spacing on its line as the zenoh attachment (f64, s), so an
+unpaced receiving end (``pace=0``) hands the device the same byte timing an in-process link would.
+
 Threads: zenoh calls subscriber callbacks on its own (Rust) threads. The callback only copies the
 payload and hands it to the event loop with ``loop.call_soon_threadsafe``; it never blocks and
 never raises. Publishers use ``CongestionControl.BLOCK`` (a byte stream must not lose data).
@@ -44,6 +47,7 @@ from __future__ import annotations
 import asyncio
 import json
 import re
+import struct
 import threading
 from typing import Any, Callable
 
@@ -73,6 +77,8 @@ DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
 _USAGE = ("zenoh://RUN/PORT[?role=device|peer&listen=tcp/127.0.0.1:7447&connect=tcp/HOST:PORT"
           "&session=peer|client&config=FILE&pace=1|0&nav=tx|rx|off&baud=N&mode=8N1&queue=BYTES]")
 _CHUNK = re.compile(r"^[A-Za-z0-9_.\-]+$")
+#: zenoh attachment of every chunk: the sender's byte spacing on its line (s, f64 little-endian)
+_PITCH = struct.Struct("<d")
 
 
 def _zenoh() -> Any:
@@ -325,11 +331,24 @@ class ZenohLink(Link):
         """zenoh thread: copy the payload and hand it to the loop; never block, never raise."""
         try:
             data = sample.payload.to_bytes()
-            self._call(self._input, data)
+            att = sample.attachment
+            self._call(self._input_from_peer, data, att.to_bytes() if att is not None else None)
         except RuntimeError:  # the loop is closed: the run is over
             self.received_after_close += 1
         except Exception:  # noqa: BLE001 - an exception here would be lost on a Rust thread
             self.received_after_close += 1
+
+    def _input_from_peer(self, data: bytes, attachment: bytes | None) -> None:
+        """Loop thread: bytes from zenoh. Unpaced links keep the sender's byte spacing (the attachment)."""
+        if self.paces_input or attachment is None or len(attachment) != _PITCH.size or self.closed or not data:
+            self._input(data)
+            return
+        pitch = _PITCH.unpack(attachment)[0]
+        if not (0.0 < pitch < 1.0):
+            self._input(data)
+            return
+        bt = self.in_line.cfg.byte_time
+        self._arrive(data, self.loop.time() - (len(data) - 1) * pitch - bt, pitch, self.in_line)
 
     def peer_matched(self) -> bool:
         """True when some subscriber (local or remote) listens to what this end publishes."""
@@ -361,7 +380,7 @@ class ZenohLink(Link):
             self.stats.dropped_out += len(data)
             return
         try:
-            pub.put(data)
+            pub.put(data, attachment=_PITCH.pack(self._tx_pitch))
         except Exception as exc:  # noqa: BLE001 - zenoh.ZError once the session is gone
             self.stats.dropped_out += len(data)
             if not self.closed:

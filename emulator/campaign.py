@@ -677,6 +677,8 @@ def cli_main(args: Any) -> int:
                          workers=args.workers, out_dir=Path(args.out) if args.out else None,
                          keep_all=args.keep_all, plots=not args.no_plots)
     console = Console(highlight=False)
+    if not console.is_terminal:  # a log or a pipe: wide enough for the statistics table
+        console = Console(highlight=False, width=140)
     prog = Progress(TextColumn("members"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[failed]} failed"),
                     TimeElapsedColumn(), console=console, transient=True,
                     disable=args.quiet or args.json or not console.is_terminal)
@@ -697,7 +699,7 @@ def cli_main(args: Any) -> int:
                       f"({res.info['scheduler']}) in {res.wall_s:.1f} s = {res.runs_per_min:.1f} runs/min -> {res.out_dir}")
         t = Table(title="error statistics over completed runs", title_justify="left")
         for col in ("quantity", "n", "mean", "sigma", "p5", "p50", "p95", "max"):
-            t.add_column(col, justify="left" if col == "quantity" else "right", no_wrap=col == "quantity")
+            t.add_column(col, justify="left" if col == "quantity" else "right", no_wrap=True)
         for name, d in st["metrics"].items():
             if name.endswith("_rms") or name.endswith("_max") or name.startswith("param:"):
                 t.add_row(name, str(d["n"]), *("-" if d[k] is None else f"{d[k]:.4g}"

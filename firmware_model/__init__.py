@@ -2,19 +2,26 @@
 
 This is the code a firmware team would port to C for the TMS320C6747: kernels over numpy
 arrays with their units, frames and the source paper's equation numbers in the docstrings,
-and their C674x cycle costs charged through :mod:`firmware_model.c674x`.
+and their C674x cycle costs charged through :mod:`firmware_model.c674x`. ``docs/firmware.md``
+describes the tasks, kernels, equations and the cycle budget.
 """
 
 from __future__ import annotations
 
 from .errors import FirmwareError
-from .firmware import UART_GNSS, UART_HOST, UART_IMU, UART_PSNS, Firmware, FirmwareConfig, TickResult
+from .filters import FILTER_VARIANTS, BaseFilter, NavFilter, register_filter
+from .firmware import UART_GNSS, UART_HOST, UART_IMU, UART_PSNS, Firmware, FirmwareConfig, FirmwareState, TickResult
 
 __all__ = [
     "Firmware",
     "FirmwareConfig",
     "FirmwareError",
+    "FirmwareState",
     "TickResult",
+    "NavFilter",
+    "BaseFilter",
+    "FILTER_VARIANTS",
+    "register_filter",
     "UART_HOST",
     "UART_IMU",
     "UART_PSNS",

@@ -30,11 +30,14 @@ __all__ = [
     "mathlib",
     "flops",
     "dp_flops",
+    "mat_mul_dp",
+    "w_vec_dp",
+    "KernelCosts",
     "TaskMeter",
     "CycleMeter",
 ]
 
-COST_MODEL_VERSION = "c674x-costs-1 (DSPLIB 3.4.0.0, MATHLIB 3.1.2.1 inline, on-chip memory)"
+COST_MODEL_VERSION = "c674x-costs-2 (DSPLIB 3.4.0.0, MATHLIB 3.1.2.1 inline, on-chip memory)"
 
 #: MATHLIB single precision, Inline column, cycles per call [S, R2].
 MATHLIB_SP_INLINE: dict[str, int] = {
@@ -133,12 +136,76 @@ def dp_flops(n_mul: int, n_add: int, iterations: int = 1, overhead: int = CALL_O
     return iterations * ii + overhead
 
 
+def mat_mul_dp(r1: int, c1: int, c2: int) -> int:
+    """Double-precision matrix product (no C674x DSPLIB kernel: the same loop nest with MPYDP) [D].
+
+    The single-precision leading term ``1/2 r1 c2 c1`` is 2 MACs per cycle on the two .M units.
+    MPYDP occupies its .M unit for 4 cycles (2 DP multiplies every 4 clocks, section 1 [S]), so the
+    inner product runs at 0.5 MAC per cycle: ``2 r1 c2 c1``; the other terms as DSPF_sp_mat_mul, with
+    loads doubled (``12 r1 c2``).
+    """
+    r1, c2 = _even(max(r1, 2)), _even(max(c2, 2))
+    c1 = max(c1, 2)
+    return math.ceil(2.0 * r1 * c2 * c1 + 12 * r1 * c2 + 4.5 * r1 + 41)
+
+
+def w_vec_dp(n: int) -> int:
+    """Double-precision ``y = m x1 + x2``: one MPYDP per element bounds it, 2 cycles/element (2 .M) [D]."""
+    return 2 * n + 38
+
+
+class KernelCosts:
+    """Cycle costs of the firmware's kernels in one working precision (``"float32"`` or ``"float64"``).
+
+    The firmware's float32 build uses DSPLIB ``DSPF_sp_*`` and MATHLIB ``*sp`` inline figures; the
+    float64 build (the reference build used to check float32 accuracy) pays the C674x's double-precision
+    price: MATHLIB ``*dp`` inline figures [S, R2], MPYDP/ADDDP throughput for straight-line code
+    (:func:`dp_flops`) and :func:`mat_mul_dp` for matrix products. Carelessly written double precision
+    therefore shows in the budget.
+    """
+
+    _SP = {"sin": "sinsp", "cos": "cossp", "atan2": "atan2sp", "asin": "asinsp", "acos": "acossp",
+           "sqrt": "sqrtsp", "rsqrt": "rsqrtsp", "div": "divsp", "recip": "recipsp"}
+    _DP = {"sin": "sindp", "cos": "cosdp", "atan2": "atan2dp", "asin": "asindp", "acos": "acosdp",
+           "sqrt": "sqrtdp", "rsqrt": "rsqrtdp", "div": "divdp", "recip": "recipdp"}
+
+    def __init__(self, precision: str = "float32") -> None:
+        if precision not in ("float32", "float64"):
+            raise ValueError(f"precision must be float32 or float64, got {precision!r}")
+        self.precision = precision
+        self.double = precision == "float64"
+        self._names = self._DP if self.double else self._SP
+
+    def math(self, fn: str, n: int = 1) -> int:
+        """``n`` inline MATHLIB calls of ``fn`` (sin, cos, atan2, asin, acos, sqrt, rsqrt, div, recip)."""
+        return mathlib(self._names[fn], n)
+
+    def flops(self, n_mul: int, n_add: int, iterations: int = 1, overhead: int = CALL_OVERHEAD) -> int:
+        f = dp_flops if self.double else flops
+        return f(n_mul, n_add, iterations, overhead)
+
+    def mat_mul(self, r1: int, c1: int, c2: int) -> int:
+        return mat_mul_dp(r1, c1, c2) if self.double else mat_mul(r1, c1, c2)
+
+    def mat_trans(self, rows: int, cols: int) -> int:
+        """Transposes move twice the bytes in double precision [D]."""
+        return mat_trans(rows, cols) + (math.ceil(0.5 * rows * cols) if self.double else 0)
+
+    def w_vec(self, n: int) -> int:
+        return w_vec_dp(n) if self.double else w_vec(n)
+
+
 @dataclass
 class TaskMeter:
-    """Cycle statistics of one firmware task, TI-report style."""
+    """Cycle statistics of one firmware task, TI-report style (c6747_cycles.md section 5).
+
+    ``budget_cycles`` is the tick budget (every task of the cyclic executive must fit in one
+    200 Hz tick); ``period_s`` is the task's nominal period (for the average CPU share).
+    """
 
     name: str
     budget_cycles: int
+    period_s: float = 0.0
     calls: int = 0
     cycles_last: int = 0
     cycles_min: int = 0
@@ -154,25 +221,34 @@ class TaskMeter:
     def utilization_max_pct(self) -> float:
         return 100.0 * self.cycles_max / self.budget_cycles if self.budget_cycles else 0.0
 
+    @property
+    def utilization_avg_pct(self) -> float:
+        return 100.0 * self.cycles_avg / self.budget_cycles if self.budget_cycles else 0.0
+
     def as_dict(self) -> dict[str, object]:
         return {
             "task": self.name,
             "calls": self.calls,
+            "period_s": self.period_s,
             "cycles_last": self.cycles_last,
             "cycles_min": self.cycles_min,
             "cycles_avg": round(self.cycles_avg, 1),
             "cycles_max": self.cycles_max,
             "budget_cycles": self.budget_cycles,
-            "utilization_max_pct": round(self.utilization_max_pct, 3),
+            "utilization_avg_pct": round(self.utilization_avg_pct, 4),
+            "utilization_max_pct": round(self.utilization_max_pct, 4),
             "kernels": dict(self.kernels),
         }
 
 
 class CycleMeter:
-    """Accumulates charged cycles per task and per kernel.
+    """Accumulates charged cycles per task and per kernel, like a TSC-instrumented firmware.
 
-    Usage: ``meter.begin("imu")``; kernels call ``meter.charge("strapdown", n)``;
-    ``meter.end()`` returns the cycles of that task run.
+    Tasks nest: the cyclic executive opens ``begin("imu_tick")`` for the whole 200 Hz tick and each
+    task inside it opens its own ``begin("imu")`` ... ``end()``. A kernel's cycles
+    (``charge("strapdown", n)``) count for the innermost open task (its kernel breakdown) and for
+    every enclosing task (their totals). ``end()`` returns the cycles of the task it closes.
+    :attr:`elapsed` is the cycle count since the outermost task began (the TSC read at an output).
     """
 
     def __init__(self, clock_hz: float, tick_hz: float) -> None:
@@ -180,33 +256,56 @@ class CycleMeter:
         self.tick_hz = tick_hz
         self.tick_budget = int(round(clock_hz / tick_hz))
         self.tasks: dict[str, TaskMeter] = {}
-        self._current: TaskMeter | None = None
+        self._stack: list[tuple[TaskMeter, int]] = []
         self._acc = 0
 
-    def begin(self, task: str) -> None:
-        if task not in self.tasks:
-            self.tasks[task] = TaskMeter(task, self.tick_budget)
-        self._current = self.tasks[task]
-        self._acc = 0
+    @property
+    def elapsed(self) -> int:
+        """Cycles charged since the outermost open task began."""
+        return self._acc
+
+    def begin(self, task: str, period_s: float = 0.0) -> None:
+        t = self.tasks.get(task)
+        if t is None:
+            t = self.tasks[task] = TaskMeter(task, self.tick_budget, period_s)
+        if not self._stack:
+            self._acc = 0
+        self._stack.append((t, self._acc))
 
     def charge(self, kernel: str, cycles: int) -> None:
         self._acc += cycles
-        if self._current is not None:
-            k = self._current.kernels
+        if self._stack:
+            k = self._stack[-1][0].kernels
             k[kernel] = k.get(kernel, 0) + cycles
 
     def end(self) -> int:
-        t = self._current
-        n = self._acc
-        if t is not None:
-            t.calls += 1
-            t.cycles_last = n
-            t.cycles_total += n
+        if not self._stack:
+            return 0
+        t, start = self._stack.pop()
+        n = self._acc - start
+        t.calls += 1
+        t.cycles_last = n
+        t.cycles_total += n
+        if t.calls == 1:
+            t.cycles_min = t.cycles_max = n
+        else:
             t.cycles_max = max(t.cycles_max, n)
-            t.cycles_min = n if t.calls == 1 else min(t.cycles_min, n)
-        self._current = None
-        self._acc = 0
+            t.cycles_min = min(t.cycles_min, n)
+        if not self._stack:
+            self._acc = 0
         return n
 
     def table(self) -> list[dict[str, object]]:
+        """One row per task (TI test-report layout: calls, min/avg/max cycles, budget, utilisation)."""
         return [t.as_dict() for t in self.tasks.values()]
+
+    def format_table(self) -> str:
+        """The table as text, the way a TSC log summary is printed on a board's console."""
+        lines = [f"C674x @ {self.clock_hz / 1e6:.0f} MHz, tick budget {self.tick_budget} cycles ({COST_MODEL_VERSION})",
+                 f"{'task':<16}{'calls':>9}{'min':>10}{'avg':>10}{'max':>10}{'avg %':>9}{'max %':>9}"]
+        for t in self.tasks.values():
+            lines.append(f"{t.name:<16}{t.calls:>9}{t.cycles_min:>10}{t.cycles_avg:>10.0f}{t.cycles_max:>10}"
+                         f"{t.utilization_avg_pct:>9.3f}{t.utilization_max_pct:>9.3f}")
+            for k, v in sorted(t.kernels.items(), key=lambda kv: -kv[1]):
+                lines.append(f"  {k:<14}{'':>9}{'':>10}{v / max(t.calls, 1):>10.0f}")
+        return "\n".join(lines)

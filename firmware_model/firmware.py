@@ -1,18 +1,34 @@
 """The DSP firmware's main loop as a pure, synchronous state machine.
 
-The virtual DSP (``emulator.devices.dsp``) hosts one :class:`Firmware`: the UART ISRs hand
-bytes to :meth:`Firmware.receive`; the cyclic executive runs in :meth:`Firmware.service`,
-driven by the FPGA's 200 Hz IMU frames, and returns per tick the bytes to transmit and the
-cycles charged, which the DSP turns into time.
+The virtual DSP (``emulator.devices.dsp``) hosts one :class:`Firmware`: the UART ISRs hand bytes to
+:meth:`Firmware.receive` (with the reception time of the last byte); the cyclic executive runs in
+:meth:`Firmware.service`, driven by the FPGA's 200 Hz IMU frames, and returns per tick the bytes to
+transmit and the cycles charged, which the DSP turns into time.
 
-UART map (DESIGN.md section 2): UART0 host (navigation out, commands in), UART1 IMU frames
-from the FPGA, UART2 PSNS, UART3 GNSS (the FPGA's 16550 core, read over EMIFA).
+UART map (DESIGN.md section 2): UART0 host (navigation out, commands in), UART1 IMU frames from the
+FPGA, UART2 PSNS (POLARIZATION_OBS / SOLAR_VECTOR / COMPASS frames), UART3 GNSS (the FPGA's 16550
+core, read over EMIFA).
 
-Tasks per IMU tick (base filter, Liang & Bai): decode and convert the IMU frame; while
-aligning, accumulate the specific force for coarse levelling; while navigating, strapdown
-(:mod:`firmware_model.strapdown`), a KF time update every ``kf_predict_every`` ticks, a GNSS
-position/velocity update (Eqs. 23-30) when a fix is pending, and the NAV_SOLUTION output at
-``output_rate_hz``.
+Mode manager (one state per tick)::
+
+    COARSE_ALIGN --(levelling window done, GNSS fix, heading source ready)--> FINE_ALIGN
+    FINE_ALIGN   --(fine_align_time_s of KF updates)-------------------------> NAVIGATE
+
+Heading source of the coarse alignment (``alignment_heading``): ``"psns"`` = gravity + solar vector
+(TRIAD, :mod:`firmware_model.alignment`), ``"config"`` = the configured heading, ``"auto"`` = PSNS
+when a valid solar vector has arrived by the end of the levelling window, else the configured heading.
+
+Tasks of one IMU tick (the whole tick is the task ``imu_tick``), each metered (``meter.table()``):
+
+* ``imu``: decode the IMU frame, convert to SI, coarse-align accumulation or bias compensation,
+  coning/sculling (two-sample with angle increments) and strapdown (:mod:`firmware_model.strapdown`);
+* ``kf_predict`` (inside ``imu``): every ``kf_predict_every`` ticks, the filter's time update;
+* ``gnss_update``: a fix is pending (1 Hz): Eqs. 23-30 at the PPS time of validity (2 s INS history);
+* ``psns_update``: a PSNS frame is pending (frame rate): E-vectors -> K -> ``+-S^b``
+  (:mod:`firmware_model.psns`), ephemeris (:mod:`firmware_model.sun`) at the exposure time, Eqs. 31-42;
+* ``output``: NAV_SOLUTION at ``output_rate_hz``.
+
+The filter itself is a variant (:mod:`firmware_model.filters`), picked by ``FirmwareConfig.filter``.
 """
 
 from __future__ import annotations
@@ -25,25 +41,98 @@ from typing import Any
 
 import numpy as np
 
-from protocols.host import NavMode, NavSolution, encode_nav_solution
-from protocols.imu_frame import ACCEL_VOLTS_PER_G, ADC_VOLTS_PER_LSB, FpgaStatus, ImuFrame, ImuFrameFormat
+from protocols.host import (
+    FILTER_VARIANT_NAMES,
+    Ack,
+    AckResult,
+    HostFormat,
+    HostFrame,
+    HostStatus,
+    NavMode,
+    NavSolution,
+    RequestStatus,
+    ResetFilter,
+    SelectVariant,
+    SetOutputRate,
+    encode_ack,
+    encode_nav_solution,
+    encode_status,
+)
+from protocols.imu_frame import ACCEL_VOLTS_PER_G, ADC_VOLTS_PER_LSB, FpgaFrameFormat, FpgaStatus, ImuFrame, MagFrame
 from protocols.nmea import Gga, NmeaFormat, Rmc
+from protocols.ubx import NavPvt, UbxFormat
+from protocols.psns import CompassFrame, PolarizationObs, PsnsFormat, PsnsStatus, SolarVectorFrame
 from protocols.stim import GYRO_ANGLE_LSB_DEG, GYRO_RATE_LSB_DPS
 from protocols.stream import StreamDecoder
 
-from . import c674x, earth
-from .attitude import a2mat, cross3, heading_from_yaw, m2att, mat2q, q2mat, rv2q, qmul, qnormalize, yaw_from_heading
+from . import c674x, earth, psns, sun
+from .alignment import level_from_specific_force, solar_heading_alignment
+from .attitude import a2mat, heading_from_yaw, m2att, mat2q, q2mat, yaw_from_heading
 from .errors import FirmwareError
-from .kf import IDX_ACC, IDX_GYRO, N_STATES, error_transition_matrix, kf_predict, kf_update_scalar
-from .strapdown import NavState, strapdown_step
+from .filters import FILTER_VARIANTS, GnssMeasurement, NavFilter, SolarObservation, UpdateReport
+from .psns_geometry import CameraGeometry
+from .strapdown import NavState, coning_sculling, strapdown_step
 
-__all__ = ["UART_HOST", "UART_IMU", "UART_PSNS", "UART_GNSS", "FirmwareConfig", "TickResult", "Firmware"]
+__all__ = ["UART_HOST", "UART_IMU", "UART_PSNS", "UART_GNSS", "FirmwareConfig", "TickResult", "Firmware",
+           "FirmwareState", "tick_kernel_cycles"]
 
 UART_HOST, UART_IMU, UART_PSNS, UART_GNSS = 0, 1, 2, 3
 
 DEG = math.pi / 180.0
 G_STD = 9.80665
 DPH = DEG / 3600.0  # deg/h in rad/s
+
+
+def tick_kernel_cycles(c: c674x.KernelCosts, nav_dp: bool = True) -> dict[str, int]:
+    """Cycle charges of the per-tick kernels in the build's precision (branch-free code paths).
+
+    * ``imu_decode``: CRC-16 over 36 bytes by table (~4 cycles/byte) + field unpack (integer work) [E].
+    * ``imu_convert``: raw words to SI, 6 INT->float conversions + 6 multiplies [D].
+    * ``coning1``: single-sample rotation compensation (one cross product) [D];
+      ``coning2``: two-sample coning/sculling, 4 cross products and the 2/3, 1/2 scalings [D].
+    * ``strapdown``: the Earth model in double precision whatever the build (latitude is a float64
+      variable: sindp, cosdp, sqrtdp, 3 divdp and DP position update [S, R2]), two rv2q (sqrt, sin,
+      cos, div), quaternion normalisation (rsqrt) and ~260 FLOPs (c6747_cycles.md section 4) [S/D];
+      with ``nav_dp`` (the attitude quaternion and velocity accumulators in double precision,
+      docs/decisions.md D-L.1) the rv2q, normalisation and FLOPs are charged at DP prices.
+    * ``nav_output``: m2att (asin, 2 atan2), 9 sqrt for the sigmas, pack 102 bytes, CRC-16 over 109 [S/E].
+    * ``level``, ``triad``: :mod:`firmware_model.alignment`.
+    """
+    from .alignment import level_cycles, triad_cycles
+
+    return {
+        "imu_decode": 36 * 4 + c674x.flops(12, 6),
+        "imu_convert": c.flops(12, 6),
+        "coning1": c.flops(12, 12),
+        "coning2": c.flops(30, 30),
+        "strapdown": (c674x.mathlib("sindp") + c674x.mathlib("cosdp") + c674x.mathlib("sqrtdp")
+                      + 3 * c674x.mathlib("divdp") + c674x.dp_flops(12, 12)
+                      + (2 * (c674x.mathlib("sqrtdp") + c674x.mathlib("sindp") + c674x.mathlib("cosdp")
+                              + c674x.mathlib("divdp")) + c674x.mathlib("rsqrtdp") + c674x.dp_flops(140, 120)
+                         if nav_dp else
+                         2 * (c.math("sqrt") + c.math("sin") + c.math("cos") + c.math("div"))
+                         + c.math("rsqrt") + c.flops(140, 120))),
+        "nav_output": c.math("asin") + 2 * c.math("atan2") + 9 * c.math("sqrt") + 102 * 2 + 109 * 4 + c674x.CALL_OVERHEAD,
+        "level": level_cycles(c),
+        "triad": triad_cycles(c),
+        "mounting": c.flops(9, 6),
+        "normalise": c.math("rsqrt") + c.flops(6, 2),
+    }
+
+
+#: Firmware version in STATUS (major << 8 | minor).
+FW_VERSION = 0x0105
+_PPS_VALID = int(FpgaStatus.PPS_VALID)
+_GNSS_AIDED, _PSNS_AIDED, _DEGRADED = int(NavMode.GNSS_AIDED), int(NavMode.PSNS_AIDED), int(NavMode.DEGRADED)
+_GYRO_MISSING = int(FpgaStatus.GYRO_MISSING)
+
+
+class FirmwareState:
+    """Mode-manager states."""
+
+    COARSE_ALIGN = "coarse_align"
+    FINE_ALIGN = "fine_align"
+    NAVIGATE = "navigate"
 
 
 @dataclass
@@ -54,12 +143,20 @@ class FirmwareConfig:
     imu_rate_hz: float = 200.0
     gyro_output: str = "rate"  # "rate" (2^-14 deg/s) or "angle" (2^-21 deg per sample)
     gyro_counter_step: int = 10
+    coning_samples: int = 0  # 0: automatic (2 with angle increments, 1 with rate output), or 1 / 2
     kf_predict_every: int = 20
     output_rate_hz: float = 100.0
     align_time_s: float = 2.0
+    alignment_heading: str = "auto"  # "auto", "psns" or "config"
+    psns_align_timeout_s: float = 10.0
+    psns_heading_sigma_deg: float = 0.5
+    fine_align_time_s: float = 60.0
     initial_heading_deg: float = 0.0
     initial_heading_sigma_deg: float = 1.0
     precision: str = "float32"
+    #: Precision of the strapdown's attitude quaternion and velocity accumulators (D-L.1): float64 keeps
+    #: the 200 Hz increments (1e-7 rad of Earth rate per step) from being rounded away in float32.
+    nav_state_precision: str = "float64"
     filter: str = "base"
     accel_volts_per_g: tuple[float, float, float] = ACCEL_VOLTS_PER_G
     # process noise (sensor specifications)
@@ -70,22 +167,50 @@ class FirmwareConfig:
     accel_bias_sigma_mg: float = 7.0 / 3.0
     accel_bias_instability_mg: float = 4.0 / 3.0
     bias_corr_time_s: float = 600.0
-    # measurement noise (1 sigma per axis)
+    # GNSS measurement noise (1 sigma per axis)
     gnss_pos_sigma_h_m: float = 4.08
     gnss_pos_sigma_v_m: float = 7.5
     gnss_vel_sigma_h_mps: float = 0.041
+    gnss_vel_sigma_v_mps: float = 0.1
     gnss_max_age_s: float = 1.5
+    # PSNS
+    psns_enabled: bool = True
+    psns_baud: int = 115200  # DSP UART2 baud (for the exposure time tag, C1)
+    psns_bits_per_byte: int = 10
+    psns_sigma_deg: float = 0.1  # solar-vector noise per axis, 1 sigma
+    psns_dop_min: float = 0.05
+    psns_quality_max: float = 0.2
+    psns_min_sun_elevation_deg: float = 5.0
+    psns_gate_chi2: float = 16.27  # chi-square(3), alpha = 0.001 (algorithms.md 5.2)
+    psns_max_age_s: float = 1.0
+    camera: CameraGeometry = field(default_factory=CameraGeometry)
 
     def __post_init__(self) -> None:
         if self.precision not in ("float32", "float64"):
             raise FirmwareError(f"precision must be float32 or float64, got {self.precision!r}")
+        if self.nav_state_precision not in ("float32", "float64"):
+            raise FirmwareError(f"nav_state_precision must be float32 or float64, got {self.nav_state_precision!r}")
         if self.gyro_output not in ("rate", "angle"):
             raise FirmwareError(f"gyro_output must be 'rate' or 'angle', got {self.gyro_output!r}")
-        if self.filter != "base":
-            raise FirmwareError(f"filter variant {self.filter!r} is not available in this firmware build")
+        if self.filter not in FILTER_VARIANTS:
+            raise FirmwareError(f"filter variant {self.filter!r} is not available in this firmware build "
+                                f"(available: {', '.join(sorted(FILTER_VARIANTS))})")
+        if self.alignment_heading not in ("auto", "psns", "config"):
+            raise FirmwareError(f"alignment_heading must be auto, psns or config, got {self.alignment_heading!r}")
+        if self.coning_samples not in (0, 1, 2):
+            raise FirmwareError(f"coning_samples must be 0 (auto), 1 or 2, got {self.coning_samples}")
         ratio = self.imu_rate_hz / self.output_rate_hz
         if ratio < 1 or abs(ratio - round(ratio)) > 1e-9:
             raise FirmwareError("output_rate_hz must divide imu_rate_hz")
+        if self.kf_predict_every % self.subsamples:
+            raise FirmwareError("kf_predict_every must be a multiple of the coning subsamples")
+
+    @property
+    def subsamples(self) -> int:
+        """IMU samples per strapdown update (two-sample coning/sculling needs increments)."""
+        if self.coning_samples:
+            return self.coning_samples
+        return 2 if self.gyro_output == "angle" else 1
 
 
 @dataclass
@@ -101,84 +226,127 @@ class TickResult:
     events: list[dict[str, Any]] = field(default_factory=list)
 
 
-@dataclass
-class _GnssFix:
-    t_fpga_s: float
-    utc: _dt.time
-    lat: float
-    lon: float
-    h: float
-    quality: int
-
-
 class Firmware:
-    """The base-variant firmware (see module docstring)."""
+    """The firmware (see module docstring). Interface to the DSP host (CONTRACTS C3):
+    :meth:`receive`, :meth:`service`, :meth:`note_deadline_miss`, :attr:`meter`, :attr:`counters`,
+    :meth:`decoder_stats`."""
 
     def __init__(self, cfg: FirmwareConfig | None = None) -> None:
         self.cfg = cfg = cfg or FirmwareConfig()
         self.dtype = np.float32 if cfg.precision == "float32" else np.float64
+        #: dtype of the strapdown state (q, v); position is always float64
+        self.nav_dtype = np.float64 if cfg.nav_state_precision == "float64" else self.dtype
         self.meter = c674x.CycleMeter(cfg.clock_hz, cfg.imu_rate_hz)
+        self.cost = c674x.KernelCosts(cfg.precision)
+        self._cyc = tick_kernel_cycles(self.cost, nav_dp=self.nav_dtype is np.float64)
         self.T = 1.0 / cfg.imu_rate_hz
-        self._dec_imu = StreamDecoder([ImuFrameFormat()])
-        self._dec_gnss = StreamDecoder([NmeaFormat()])
+        self._nsub = cfg.subsamples
+        self._out_every = int(round(cfg.imu_rate_hz / cfg.output_rate_hz))
+        self._dec_imu = StreamDecoder([FpgaFrameFormat()])
+        self._dec_gnss = StreamDecoder([NmeaFormat(), UbxFormat()])
+        self._dec_host = StreamDecoder([HostFormat()])
+        self._pending_cmd: deque[Any] = deque(maxlen=16)
+        self.last_mag: MagFrame | None = None
+        self._dec_psns = StreamDecoder([PsnsFormat()])
         self._pending_imu: deque[ImuFrame] = deque()
+        self._pending_psns: deque[tuple[float, Any]] = deque(maxlen=8)
         self._rx_other: dict[int, int] = {}
-        # time keeping
+        # time keeping (FPGA time base; UTC from GNSS)
         self._t_last_us: int | None = None
-        self._t_epoch_us = 0  # unwrapped high part
+        self._t_epoch_us = 0
         self._t_pps_s: float | None = None
         self._pps_count: int | None = None
         self._last_counter: int | None = None
-        # navigation
+        self._utc_days_ref: float | None = None  # Grena days (UT) at _utc_t_ref
+        self._utc_t_ref = 0.0
+        self._date: _dt.date | None = None
+        # mode manager
+        self.state = FirmwareState.COARSE_ALIGN
         self.mode = NavMode.ALIGNING
         self._align_sum = np.zeros(3)
         self._align_n = 0
         self._align_t0: float | None = None
+        self._align_sun: list[SolarObservation] = []
+        self._t_aligned = 0.0
+        self._t_last_predict = 0.0
+        # navigation
         self.nav: NavState | None = None
-        self.x = np.zeros(N_STATES, dtype=self.dtype)
-        self.P = np.zeros((N_STATES, N_STATES), dtype=self.dtype)
-        self.gyro_bias = np.zeros(3, dtype=self.dtype)  # rad/s, body
-        self.accel_bias = np.zeros(3, dtype=self.dtype)  # m/s^2, body
+        self.filter: NavFilter = FILTER_VARIANTS[cfg.filter](cfg, self.meter, self.dtype)
         self._tick = 0
+        self._sub: list[tuple[np.ndarray, np.ndarray]] = []
         self._fn_sum = np.zeros(3)
         self._fn_n = 0
-        self._hist: deque[tuple[float, np.ndarray, np.ndarray]] = deque(maxlen=int(2 * cfg.imu_rate_hz))
-        self._pos_pending: _GnssFix | None = None
-        self._vel_pending: tuple[float, float, float] | None = None
-        self._last_fix: _GnssFix | None = None
+        self._hist: deque[tuple[float, np.ndarray, np.ndarray, np.ndarray]] = deque(maxlen=int(2 * cfg.imu_rate_hz))
+        self._gnss_pending: GnssMeasurement | None = None
+        self._last_fix: tuple[float, float, float, int] | None = None
         self._last_gnss_update_t = -1e9
+        self._last_psns_t = -1e9
+        self._last_psns_reject_t = -1e9
         self._out_seq = 0
         self.deadline_misses = 0
         self._load_window: deque[tuple[float, int]] = deque()
-        self._load_sum = 0
+        self._load_max = 0
+        self._next_status_t = 1.0
+        self._status_seq = 0
+        self._heading_sigma0 = cfg.initial_heading_sigma_deg * DEG
         self.counters = {"imu_frames": 0, "gnss_fixes": 0, "gnss_updates": 0, "gyro_counter_jumps": 0,
-                         "fpga_gyro_missing": 0, "imu_time_gaps": 0}
+                         "fpga_gyro_missing": 0, "imu_time_gaps": 0, "psns_frames": 0, "psns_solutions": 0,
+                         "psns_updates": 0, "psns_rejected": 0, "psns_invalid": 0, "psns_sun_low": 0,
+                         "psns_dropped": 0, "compass_frames": 0, "mag_frames": 0,
+                         "gnss_pvt": 0, "commands_accepted": 0, "commands_rejected": 0, "commands_dropped": 0,
+                         "status_frames": 0}
 
-    # -- ISR side ----------------------------------------------------------------------
+    # -- ISR side -------------------------------------------------------------------------------
     def receive(self, uart: int, data: bytes, t_rx_s: float | None = None) -> None:
         """Bytes received on ``uart`` (the ISR copies the 16550 FIFO into the ring buffer).
 
         ``t_rx_s`` is the DSP's time (s, FPGA time base) when the last byte arrived, as the ISR
-        reads it from the time-stamp counter; frames that carry a latency (PSNS) are time-tagged
-        from it.
+        reads it from the time-stamp counter; PSNS frames are time-tagged from it (C1).
         """
         if uart == UART_IMU:
             for f in self._dec_imu.feed(data):
-                self._pending_imu.append(f)
+                if isinstance(f, ImuFrame):
+                    self._pending_imu.append(f)
+                else:  # MAG frame (same FPGA framing); kept for the variants that use a magnetometer
+                    self.last_mag = f
+                    self.counters["mag_frames"] += 1
         elif uart == UART_GNSS:
             for s in self._dec_gnss.feed(data):
-                self._on_nmea(s)
+                if isinstance(s, NavPvt):
+                    self._on_nav_pvt(s)
+                else:
+                    self._on_nmea(s)
+        elif uart == UART_HOST:
+            for c in self._dec_host.feed(data):
+                if len(self._pending_cmd) == self._pending_cmd.maxlen:
+                    self.counters["commands_dropped"] += 1
+                self._pending_cmd.append(c)
+        elif uart == UART_PSNS:
+            frames = self._dec_psns.feed(data)
+            if frames:
+                t_end = t_rx_s if t_rx_s is not None else self._now_s()
+                # the last frame ended with the chunk; earlier ones ended earlier by the later frames' bytes
+                byte_s = self.cfg.psns_bits_per_byte / self.cfg.psns_baud
+                tags = []
+                for f in reversed(frames):
+                    tags.append((t_end, f))
+                    t_end -= _psns_frame_len(f) * byte_s
+                for tag in reversed(tags):
+                    if len(self._pending_psns) == self._pending_psns.maxlen:
+                        self.counters["psns_dropped"] += 1  # the solve cannot keep up: oldest frame lost
+                    self._pending_psns.append(tag)
         else:
             self._rx_other[uart] = self._rx_other.get(uart, 0) + len(data)
 
     def decoder_stats(self) -> dict[str, dict[str, Any]]:
-        return {"uart1": self._dec_imu.stats.as_dict(), "uart3": self._dec_gnss.stats.as_dict()}
+        return {"uart0": self._dec_host.stats.as_dict(), "uart1": self._dec_imu.stats.as_dict(),
+                "uart2": self._dec_psns.stats.as_dict(), "uart3": self._dec_gnss.stats.as_dict()}
 
     def note_deadline_miss(self) -> None:
         """Called by the host DSP when a tick started after its deadline."""
         self.deadline_misses += 1
 
-    # -- main loop -----------------------------------------------------------------------
+    # -- main loop --------------------------------------------------------------------------------
     def service(self) -> list[TickResult]:
         """Run the cyclic executive over every pending IMU frame."""
         out: list[TickResult] = []
@@ -186,96 +354,161 @@ class Firmware:
             out.append(self._imu_tick(self._pending_imu.popleft()))
         return out
 
-    # -- GNSS ---------------------------------------------------------------------------
-    def _on_nmea(self, s: Any) -> None:
-        """GGA gives a position fix, RMC a horizontal velocity; both valid at the last PPS edge."""
-        t_meas = self._t_pps_s if self._t_pps_s is not None else self._now_s()
-        if isinstance(s, Gga):
-            if s.quality == 0 or s.lat_deg is None or s.lon_deg is None or s.altitude_msl_m is None:
-                return
-            fix = _GnssFix(
-                t_fpga_s=t_meas,
-                utc=s.time_utc or _dt.time(0),
-                lat=s.lat_deg * DEG,
-                lon=s.lon_deg * DEG,
-                h=s.altitude_msl_m + (s.geoid_sep_m or 0.0),
-                quality=s.quality,
-            )
-            self.counters["gnss_fixes"] += 1
-            self._pos_pending = fix
-            self._last_fix = fix
-        elif isinstance(s, Rmc):
-            if not s.valid or s.speed_mps is None:
-                return
-            c = (s.course_deg or 0.0) * DEG
-            self._vel_pending = (t_meas, s.speed_mps * math.sin(c), s.speed_mps * math.cos(c))
-
+    # -- time -------------------------------------------------------------------------------------
     def _now_s(self) -> float:
         if self._t_last_us is None:
             return 0.0
         return (self._t_epoch_us + self._t_last_us) / 1e6
 
-    # -- IMU tick ---------------------------------------------------------------------------
     def _unwrap_us(self, t_us: int) -> int:
         if self._t_last_us is not None and t_us < self._t_last_us and self._t_last_us - t_us > 2**31:
             self._t_epoch_us += 2**32
         self._t_last_us = t_us
         return self._t_epoch_us + t_us
 
+    def utc_days(self, t_fpga_s: float) -> float | None:
+        """Grena days (UT since 2060-01-01) at FPGA time ``t_fpga_s``, once GNSS gave date and time."""
+        if self._utc_days_ref is None:
+            return None
+        return self._utc_days_ref + (t_fpga_s - self._utc_t_ref) / 86400.0
+
+    # -- GNSS (ISR side: parse and stage) -------------------------------------------------------------
+    def _on_nmea(self, s: Any) -> None:
+        """GGA gives a position fix, RMC a horizontal velocity and the date; both valid at the last PPS."""
+        t_meas = self._t_pps_s if self._t_pps_s is not None else self._now_s()
+        if isinstance(s, Gga):
+            if s.quality == 0 or s.lat_deg is None or s.lon_deg is None or s.altitude_msl_m is None:
+                return
+            pos = (s.lat_deg * DEG, s.lon_deg * DEG, s.altitude_msl_m + (s.geoid_sep_m or 0.0))
+            self.counters["gnss_fixes"] += 1
+            m = self._stage_gnss(t_meas)
+            m.pos, m.quality = pos, s.quality
+            self._last_fix = (pos[0], pos[1], pos[2], s.quality)
+            if s.time_utc is not None and self._date is not None:
+                self._set_utc(t_meas, self._date, s.time_utc)
+        elif isinstance(s, Rmc):
+            if s.date is not None:
+                self._date = s.date
+                if s.time_utc is not None:
+                    self._set_utc(t_meas, s.date, s.time_utc)
+            if not s.valid or s.speed_mps is None:
+                return
+            c = (s.course_deg or 0.0) * DEG
+            m = self._stage_gnss(t_meas)
+            m.vel = np.array([s.speed_mps * math.sin(c), s.speed_mps * math.cos(c), 0.0])
+            m.vel_up = False
+
+    def _on_nav_pvt(self, p: NavPvt) -> None:
+        """UBX NAV-PVT: position, full 3-D velocity (velD) and UTC, valid at the PPS edge + ``nano``."""
+        self.counters["gnss_pvt"] += 1
+        t_pps = self._t_pps_s if self._t_pps_s is not None else self._now_s()
+        t_meas = t_pps + p.nano * 1e-9 if abs(p.nano) < 500_000_000 else t_pps
+        if p.valid & 0x03 == 0x03:  # validDate | validTime
+            date = _dt.date(p.year, p.month, p.day)
+            self._date = date
+            self._set_utc(t_pps, date, _dt.time(p.hour, p.min, p.sec))
+        if not p.flags & 0x01 or p.fixType not in (3, 4):  # gnssFixOK and a 3-D (or GNSS + DR) fix
+            return
+        quality = {1: 5, 2: 4}.get((p.flags >> 6) & 0x03, 2 if p.flags & 0x02 else 1)  # RTK float/fixed, DGNSS
+        pos = (p.lat * 1e-7 * DEG, p.lon * 1e-7 * DEG, p.height * 1e-3)
+        m = self._stage_gnss(t_meas)
+        m.pos, m.quality = pos, quality
+        m.vel = np.array([p.velE * 1e-3, p.velN * 1e-3, -p.velD * 1e-3])
+        m.vel_up = True
+        self.counters["gnss_fixes"] += 1
+        self._last_fix = (pos[0], pos[1], pos[2], quality)
+
+    def _stage_gnss(self, t_meas: float) -> GnssMeasurement:
+        m = self._gnss_pending
+        if m is None or abs(m.t_fpga_s - t_meas) > 1e-6:
+            m = self._gnss_pending = GnssMeasurement(t_fpga_s=t_meas)
+        return m
+
+    def _set_utc(self, t_meas: float, date: _dt.date, tm: _dt.time) -> None:
+        hour = tm.hour + tm.minute / 60.0 + (tm.second + tm.microsecond * 1e-6) / 3600.0
+        self._utc_days_ref = sun.grena_days(date.year, date.month, date.day, hour)
+        self._utc_t_ref = t_meas
+
+    # -- IMU tick -----------------------------------------------------------------------------------
     def _imu_tick(self, fr: ImuFrame) -> TickResult:
         cfg = self.cfg
         m = self.meter
-        m.begin("imu_tick")
-        # decode: CRC-16 over 36 bytes by table (~4 cycles/byte) + field unpack [E]
-        m.charge("imu_decode", 36 * 4 + c674x.flops(12, 6))
+        m.begin("imu_tick", self.T)
+        m.begin("imu", self.T)
+        m.charge("imu_decode", self._cyc["imu_decode"])
         t_us = self._unwrap_us(fr.t_trigger_us)
         t = t_us / 1e6
         res = TickResult(t_fpga_s=t, cycles=0)
         self.counters["imu_frames"] += 1
-        # PPS latch
-        if fr.fpga_status & FpgaStatus.PPS_VALID and fr.pps_count != self._pps_count:
+        if fr.fpga_status & _PPS_VALID and fr.pps_count != self._pps_count:
             self._pps_count = fr.pps_count
-            pps_us = fr.t_pps_us
-            # unwrap against the trigger time
-            full = (t_us & ~0xFFFFFFFF) | pps_us
+            full = (t_us & ~0xFFFFFFFF) | fr.t_pps_us
             if full > t_us:
                 full -= 2**32
             self._t_pps_s = full / 1e6
-        if fr.fpga_status & FpgaStatus.GYRO_MISSING:
+        if fr.fpga_status & _GYRO_MISSING:
             self.counters["fpga_gyro_missing"] += 1
         if self._last_counter is not None and (fr.gyro_counter - self._last_counter) % 256 != cfg.gyro_counter_step:
             self.counters["gyro_counter_jumps"] += 1
         self._last_counter = fr.gyro_counter
-        # convert to SI [E: 6 MPYSP]
+        # raw words to SI: 6 INTSP + 6 MPYSP [D]
         dt = self.dtype
+        g = fr.gyro
         if cfg.gyro_output == "rate":
-            w = np.array(fr.gyro, dtype=dt) * dt(GYRO_RATE_LSB_DPS * DEG)
-            dtheta = w * dt(self.T)
+            k = dt(GYRO_RATE_LSB_DPS * DEG * self.T)
         else:
-            dtheta = np.array(fr.gyro, dtype=dt) * dt(GYRO_ANGLE_LSB_DEG * DEG)
-        volts = np.array(fr.accel, dtype=np.float64) * ADC_VOLTS_PER_LSB
-        f_b = (volts / np.array(cfg.accel_volts_per_g) * G_STD).astype(dt)
-        m.charge("imu_convert", c674x.flops(9, 0))
+            k = dt(GYRO_ANGLE_LSB_DEG * DEG)
+        dtheta = np.array(g, dtype=dt) * k
+        a = fr.accel
+        kv = ADC_VOLTS_PER_LSB * G_STD
+        vpg = cfg.accel_volts_per_g
+        f_b = np.array((a[0] * kv / vpg[0], a[1] * kv / vpg[1], a[2] * kv / vpg[2]), dtype=dt)
+        m.charge("imu_convert", self._cyc["imu_convert"])
 
-        if self.mode & NavMode.ALIGNING:
+        if self.state == FirmwareState.COARSE_ALIGN:
             self._align(t, f_b, res)
+            m.end()
         else:
-            self._navigate(t, dtheta, f_b, res)
+            self._mechanize(t, dtheta, f_b)
+            if self._tick % cfg.kf_predict_every == 0 and self._fn_n:
+                m.begin("kf_predict", cfg.kf_predict_every * self.T)
+                fn = self._fn_sum / self._fn_n
+                self._fn_sum[:] = 0.0
+                self._fn_n = 0
+                Tk = t - self._t_last_predict  # the first interval after alignment may be shorter
+                self._t_last_predict = t
+                self.filter.predict(self.nav, fn, Tk)  # type: ignore[arg-type]
+                m.end()
+            m.end()
+            self._measurement_tasks(t, res)
+            if self.state == FirmwareState.FINE_ALIGN and t - self._t_aligned >= cfg.fine_align_time_s:
+                self.state = FirmwareState.NAVIGATE
+                self.mode = NavMode.NAVIGATING
+                res.events.append({"event": "fine_alignment_done", "t_fpga_s": t})
+        if self.state == FirmwareState.COARSE_ALIGN:
+            self._drain_psns_for_alignment(t)
         self._tick += 1
-        ratio = int(round(cfg.imu_rate_hz / cfg.output_rate_hz))
-        if self._tick % ratio == 0:
+        if self._out_every and self._tick % self._out_every == 0:
+            m.begin("output", self._out_every * self.T)
             frame = self._nav_output(t)
-            m.charge("nav_output", 102 * 2 + 109 * 4 + c674x.CALL_OVERHEAD)  # pack + CRC [E]
-            res.outputs.append((UART_HOST, frame, m._acc))  # noqa: SLF001
+            m.charge("nav_output", self._cyc["nav_output"])
+            m.end()
+            res.outputs.append((UART_HOST, frame, m.elapsed))
+        if self._pending_cmd or t >= self._next_status_t:
+            m.begin("host", 1.0)
+            self._host_task(t, res)
+            m.end()
         res.cycles = m.end()
-        # sliding one-second CPU load (what the firmware reads from its TSC)
+        # worst tick of the last second (sliding maximum) and since start, for NAV_SOLUTION / STATUS
+        while self._load_window and self._load_window[-1][1] <= res.cycles:
+            self._load_window.pop()
         self._load_window.append((t, res.cycles))
-        self._load_sum += res.cycles
-        while self._load_window and self._load_window[0][0] <= t - 1.0:
-            self._load_sum -= self._load_window.popleft()[1]
+        while self._load_window[0][0] <= t - 1.0:
+            self._load_window.popleft()
+        self._load_max = max(self._load_max, res.cycles)
         return res
 
-    # -- alignment ----------------------------------------------------------------------------
+    # -- coarse alignment ---------------------------------------------------------------------------
     def _align(self, t: float, f_b: np.ndarray, res: TickResult) -> None:
         cfg = self.cfg
         if self._align_t0 is None:
@@ -286,199 +519,390 @@ class Firmware:
         if t - self._align_t0 < cfg.align_time_s or self._last_fix is None:
             return
         fm = self._align_sum / self._align_n
-        g = float(np.linalg.norm(fm))
-        # Coarse levelling: f^b = C_n^b [0, 0, g] = g [-cos(p) sin(r), sin(p), cos(p) cos(r)]
-        pitch = math.asin(max(-1.0, min(1.0, float(fm[1]) / g)))
-        roll = math.atan2(-float(fm[0]), float(fm[2]))
-        yaw = yaw_from_heading(cfg.initial_heading_deg * DEG)
-        self.meter.charge("coarse_align", c674x.mathlib("asinsp") + c674x.mathlib("atan2sp") + c674x.mathlib("sqrtsp"))
-        fix = self._last_fix
+        lat, lon, h, _ = self._last_fix
+        source = "config"
+        heading_sigma = cfg.initial_heading_sigma_deg * DEG
+        cbn = None
+        want_psns = cfg.psns_enabled and cfg.alignment_heading in ("auto", "psns")
+        if want_psns and self._align_sun and self.utc_days(t) is not None:
+            cbn, sun_el = self._solar_alignment(fm, lat, lon)
+            if cbn is not None:
+                source = "psns"
+                heading_sigma = cfg.psns_heading_sigma_deg * DEG
+        if cbn is None and cfg.psns_enabled and cfg.alignment_heading == "psns" \
+                and t - self._align_t0 < cfg.align_time_s + cfg.psns_align_timeout_s:
+            return  # wait for a solar vector
+        pitch, roll = level_from_specific_force(fm)
+        self.meter.charge("coarse_level", self._cyc["level"])
+        if cbn is None:
+            cbn = a2mat(pitch, roll, yaw_from_heading(cfg.initial_heading_deg * DEG))
         dt = self.dtype
-        q = mat2q(a2mat(pitch, roll, yaw)).astype(dt)
-        self.nav = NavState(q=q, v=np.zeros(3, dtype=dt), pos=np.array([fix.lat, fix.lon, fix.h]), t=t)
-        self.P = np.diag(self._p0()).astype(dt)
-        self.x = np.zeros(N_STATES, dtype=dt)
-        self.mode = NavMode.NAVIGATING
-        self._pos_pending = None
-        self._vel_pending = None
-        res.events.append({"event": "alignment_done", "t_fpga_s": t, "pitch_deg": pitch / DEG,
-                           "roll_deg": roll / DEG, "heading_deg": cfg.initial_heading_deg,
-                           "samples": self._align_n})
+        nd = self.nav_dtype
+        self.nav = NavState(q=mat2q(cbn).astype(nd), v=np.zeros(3, dtype=nd), pos=np.array([lat, lon, h]), t=t,
+                            a_prev=np.zeros(3, dtype=nd))
+        self.filter.initialise(self.nav, heading_sigma)
+        self._heading_sigma0 = heading_sigma
+        self.state = FirmwareState.FINE_ALIGN
+        self.mode = NavMode.NAVIGATING | NavMode.ALIGNING
+        self._t_aligned = t
+        self._t_last_predict = t
+        self._gnss_pending = None
+        p, r, y = m2att(cbn)
+        res.events.append({"event": "alignment_done", "t_fpga_s": t, "pitch_deg": p / DEG, "roll_deg": r / DEG,
+                           "heading_deg": heading_from_yaw(y) / DEG, "heading_source": source,
+                           "samples": self._align_n, "solar_vectors": len(self._align_sun)})
 
-    def _p0(self) -> np.ndarray:
-        cfg = self.cfg
-        lat = self.nav.pos[0] if self.nav is not None else 0.0
-        rm, rn = earth.radii(float(lat))
-        lvl = cfg.accel_bias_sigma_mg * 1e-3  # rad, level error from accelerometer bias
-        return np.array(
-            [lvl**2, lvl**2, (cfg.initial_heading_sigma_deg * DEG) ** 2]
-            + [0.1**2] * 3
-            + [(cfg.gnss_pos_sigma_h_m / rm) ** 2, (cfg.gnss_pos_sigma_h_m / (rn * math.cos(lat))) ** 2,
-               cfg.gnss_pos_sigma_v_m**2]
-            + [(cfg.gyro_bias_sigma_deg_h * DPH) ** 2] * 3
-            + [(cfg.accel_bias_sigma_mg * 1e-3 * G_STD) ** 2] * 3
-        )
+    def _drain_psns_for_alignment(self, t: float) -> None:
+        """During coarse alignment PSNS frames are solved and kept for the TRIAD heading."""
+        while self._pending_psns:
+            t_rx, f = self._pending_psns.popleft()
+            self.meter.begin("psns_update", 0.0)
+            obs = self._psns_observation(t_rx, f)
+            self.meter.end()
+            if obs is not None and self._align_t0 is not None and obs.t_exposure_s >= self._align_t0 - 1.0:
+                self._align_sun.append(obs)
+                del self._align_sun[:-32]
 
-    def _qt(self) -> np.ndarray:
-        """Continuous process-noise spectral densities (diagonal), per second."""
-        cfg = self.cfg
-        arw = cfg.gyro_arw_deg_rt_h * DEG / 60.0  # rad/sqrt(s)
-        vrw = cfg.accel_noise_ug_rt_hz * 1e-6 * G_STD  # m/s^2/sqrt(Hz)
-        tau = cfg.bias_corr_time_s
-        qg = 2 * (cfg.gyro_bias_instability_deg_h * DPH) ** 2 / tau
-        qa = 2 * (cfg.accel_bias_instability_mg * 1e-3 * G_STD) ** 2 / tau
-        return np.array([arw**2] * 3 + [vrw**2] * 3 + [0.0] * 3 + [qg] * 3 + [qa] * 3)
+    def _solar_alignment(self, f_b: np.ndarray, lat: float, lon: float) -> tuple[np.ndarray | None, float]:
+        """TRIAD from gravity and the mean solar vector of the levelling window."""
+        up = f_b / np.linalg.norm(f_b)
+        acc = np.zeros(3)
+        t_mean = 0.0
+        for o in self._align_sun:
+            s = o.s_b.astype(np.float64)
+            acc += s if float(s @ up) >= 0 else -s
+            t_mean += o.t_exposure_s
+        t_mean /= len(self._align_sun)
+        days = self.utc_days(t_mean)
+        assert days is not None
+        s_n = sun.sun_vector_enu(days, lat, lon, dtype=self.dtype).astype(np.float64)
+        self.meter.charge("sun_ephemeris", sun.ephemeris_cycles())
+        el = math.asin(max(-1.0, min(1.0, float(s_n[2]))))
+        if el < self.cfg.psns_min_sun_elevation_deg * DEG or el > 80.0 * DEG:
+            return None, el
+        try:
+            cbn, _ = solar_heading_alignment(f_b, acc / np.linalg.norm(acc), s_n)
+        except ValueError:
+            return None, el
+        self.meter.charge("triad", self._cyc["triad"])
+        return cbn, el
 
-    # -- navigation -------------------------------------------------------------------------
-    def _navigate(self, t: float, dtheta: np.ndarray, f_b: np.ndarray, res: TickResult) -> None:
-        cfg = self.cfg
+    # -- navigation ---------------------------------------------------------------------------------
+    def _mechanize(self, t: float, dtheta: np.ndarray, f_b: np.ndarray) -> None:
+        """Bias compensation, coning/sculling and one strapdown step per ``subsamples`` IMU samples."""
         m = self.meter
         s = self.nav
         assert s is not None
-        T = self.T
         dt = self.dtype
-        # bias compensation, single-sample rotation compensation (algorithms.md 1.2 steps 1-2)
-        phi_m = (dtheta - self.gyro_bias * dt(T)).astype(dt)
-        dv = ((f_b - self.accel_bias) * dt(T)).astype(dt)
-        dv_m = dv + dt(0.5) * cross3(phi_m, dv)
-        m.charge("bias_coning", c674x.flops(12, 12))
-        strapdown_step(s, phi_m, dv_m, T, dtype=dt)
+        T = self.T
+        dv = f_b * dt(T)
+        flt = self.filter
+        if self._nsub == 1:
+            phi_m = dtheta - flt.gyro_bias * dt(T)
+            dv_c = dv - flt.accel_bias * dt(T)
+            # single-sample rotation compensation dv + 1/2 dtheta x dv (algorithms.md 1.2, step 1)
+            dv_m = dv_c + dt(0.5) * np.array((phi_m[1] * dv_c[2] - phi_m[2] * dv_c[1],
+                                                phi_m[2] * dv_c[0] - phi_m[0] * dv_c[2],
+                                                phi_m[0] * dv_c[1] - phi_m[1] * dv_c[0]), dtype=dt)
+            m.charge("coning_sculling", self._cyc["coning1"])
+            Tm = T
+        else:
+            self._sub.append((dtheta, dv))
+            if len(self._sub) < self._nsub:
+                return
+            th = np.stack([x[0] for x in self._sub])
+            vv = np.stack([x[1] for x in self._sub])
+            self._sub.clear()
+            phi_m, dv_m = coning_sculling(th, vv)
+            Tm = T * self._nsub
+            phi_m = (phi_m - flt.gyro_bias * dt(Tm)).astype(dt)
+            dv_m = (dv_m - flt.accel_bias * dt(Tm)).astype(dt)
+            m.charge("coning_sculling", self._cyc["coning2"])
+        strapdown_step(s, phi_m, dv_m, Tm, dtype=self.nav_dtype)
         s.t = t
-        # strapdown: DP sin/cos/sqrt for the Earth model (lat in float64), rv2q x2, normalize,
-        # ~260 SP flops (algorithms in c6747_cycles.md section 4) [D/E]
-        m.charge(
-            "strapdown",
-            c674x.mathlib("sindp") + c674x.mathlib("cosdp") + c674x.mathlib("sqrtdp") + 3 * c674x.mathlib("divdp")
-            + c674x.dp_flops(12, 12)
-            + 2 * (c674x.mathlib("sqrtsp") + c674x.mathlib("sinsp") + c674x.mathlib("cossp") + c674x.mathlib("divsp"))
-            + c674x.mathlib("rsqrtsp")
-            + c674x.flops(140, 120),
-        )
-        cbn = q2mat(s.q)
-        self._fn_sum += cbn @ (f_b - self.accel_bias)
-        self._fn_n += 1
-        self._hist.append((t, s.pos.copy(), s.v.astype(np.float64)))
-        # KF time update every N ticks
-        if self._tick % cfg.kf_predict_every == 0:
-            Tk = cfg.kf_predict_every * T
-            fn = self._fn_sum / max(self._fn_n, 1)
-            self._fn_sum[:] = 0.0
-            self._fn_n = 0
-            F = error_transition_matrix(cbn, s.v, s.pos, fn, dtype=dt)
-            Phi = (np.eye(N_STATES, dtype=dt) + F * dt(Tk)).astype(dt)
-            Qk = (self._qt() * Tk).astype(dt)
-            self.x, self.P = kf_predict(self.x, self.P, Phi, Qk)
-            m.charge(
-                "kf_predict",
-                c674x.flops(40, 40) + c674x.mathlib("divdp", 4)  # F elements
-                + c674x.w_vec(225)  # Phi = I + F T
-                + 2 * c674x.mat_mul(15, 15, 15) + c674x.mat_trans(15, 15) + c674x.w_vec(225) + c674x.flops(0, 225),
-            )
-        # GNSS measurement update
-        pos, vel = self._pos_pending, self._vel_pending
-        if pos is not None or vel is not None:
-            self._pos_pending = self._vel_pending = None
-            if pos is not None and t - pos.t_fpga_s > cfg.gnss_max_age_s:
-                pos = None
-            if vel is not None and t - vel[0] > cfg.gnss_max_age_s:
-                vel = None
-            if pos is not None or vel is not None:
-                self._gnss_update(pos, vel, res)
+        m.charge("strapdown", self._cyc["strapdown"])
+        self._accumulate_fn()
+        self._hist.append((t, s.pos.copy(), s.v.copy(), s.q.copy()))
 
-    def _ins_at(self, t_meas: float) -> tuple[np.ndarray, np.ndarray]:
-        """INS position (float64) and velocity at ``t_meas`` from the history ring (nearest tick)."""
+    def _accumulate_fn(self) -> None:
+        """Specific force in n of the last strapdown step, averaged for the KF's F (Eq. 17)."""
+        self._fn_sum += self.nav.f_n  # type: ignore[union-attr]
+        self._fn_n += 1
+
+    def _ins_at(self, t_meas: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """INS position (float64), velocity and attitude quaternion at ``t_meas`` (nearest history entry)."""
         best = None
-        for t, p, v in reversed(self._hist):
-            if best is None or abs(t - t_meas) < abs(best[0] - t_meas):
-                best = (t, p, v)
-            if t < t_meas:
+        for e in reversed(self._hist):
+            if best is None or abs(e[0] - t_meas) < abs(best[0] - t_meas):
+                best = e
+            if e[0] < t_meas:
                 break
         assert best is not None
-        return best[1], best[2]
+        return best[1], best[2], best[3]
 
-    def _gnss_update(self, fix: _GnssFix | None, vel: tuple[float, float, float] | None, res: TickResult) -> None:
+    def _measurement_tasks(self, t: float, res: TickResult) -> None:
         cfg = self.cfg
         m = self.meter
-        s = self.nav
-        assert s is not None
+        updated = False
+        g = self._gnss_pending
+        if g is not None and (g.pos is not None or g.vel is not None) and self._hist:
+            self._gnss_pending = None
+            if t - g.t_fpga_s <= cfg.gnss_max_age_s:
+                m.begin("gnss_update", 1.0)
+                p_ins, v_ins, _ = self._ins_at(g.t_fpga_s)
+                rep = self.filter.update_gnss(self.nav, g, p_ins, v_ins)  # type: ignore[arg-type]
+                m.end()
+                self.counters["gnss_updates"] += 1
+                self._last_gnss_update_t = t
+                updated = True
+                res.events.append({"event": "gnss_update", "t_fpga_s": t, "t_meas_s": g.t_fpga_s,
+                                   "n_meas": rep.n_rows, "max_norm_innov": rep.max_norm_innov})
+        while self._pending_psns and self._hist:
+            t_rx, f = self._pending_psns.popleft()
+            m.begin("psns_update", 0.0)
+            rep = self._psns_update(t, t_rx, f)
+            m.end()
+            if rep is not None:
+                if rep.accepted:
+                    updated = True
+                    self.counters["psns_updates"] += 1
+                    self._last_psns_t = t
+                else:
+                    self.counters["psns_rejected"] += 1
+                    if t - self._last_psns_reject_t >= 1.0:  # at most one event per second
+                        res.events.append({"event": "psns_rejected", "t_fpga_s": t, "kind": rep.kind,
+                                           "norm_innov": rep.max_norm_innov, **(rep.detail or {})})
+                    self._last_psns_reject_t = t
+        if updated:
+            m.begin("kf_feedback", 0.0)
+            self.filter.feedback(self.nav)  # type: ignore[arg-type]
+            m.end()
+
+    # -- PSNS -------------------------------------------------------------------------------------------
+    def _psns_frame_in(self, t_rx: float, f: Any) -> float:
+        """Count and charge a decoded PSNS frame; return its mid-exposure time (C1, D-5.8)."""
+        cfg = self.cfg
+        self.counters["psns_frames"] += 1
+        if isinstance(f, CompassFrame):
+            self.counters["compass_frames"] += 1
+        n_bytes = _psns_frame_len(f)
+        self.meter.charge("psns_decode", n_bytes * 4 + c674x.CALL_OVERHEAD)  # CRC-16 by table + copy [E]
+        return psns.exposure_time_s(t_rx, n_bytes, cfg.psns_baud, f.header.latency_us, cfg.psns_bits_per_byte)
+
+    def _psns_observation(self, t_rx: float, f: Any) -> SolarObservation | None:
+        """Decode-side work for one PSNS frame: exposure time, solve (POLARIZATION_OBS), body frame."""
+        cfg = self.cfg
+        m = self.meter
         dt = self.dtype
-        meas: list[tuple[int, float, float, float]] = []
-        if fix is not None:
-            p_ins, _ = self._ins_at(fix.t_fpga_s)
-            lat = float(p_ins[0])
-            rm, rn = earth.radii(lat)
-            rmh, rnh = rm + p_ins[2], rn + p_ins[2]
-            cl = math.cos(lat)
-            # Eq. 23-24: Z_p = [R_Mh dL, R_Nh cosL dlambda, dh], H_p = [0 diag(R_Mh, R_Nh cosL, 1) 0]
-            meas += [
-                (6, rmh, (p_ins[0] - fix.lat) * rmh, cfg.gnss_pos_sigma_h_m**2),
-                (7, rnh * cl, (p_ins[1] - fix.lon) * rnh * cl, cfg.gnss_pos_sigma_h_m**2),
-                (8, 1.0, p_ins[2] - fix.h, cfg.gnss_pos_sigma_v_m**2),
-            ]
-        if vel is not None:
-            # Eq. 28-29, horizontal only: NMEA RMC carries no vertical velocity
-            _, v_ins = self._ins_at(vel[0])
-            meas.append((3, 1.0, v_ins[0] - vel[1], cfg.gnss_vel_sigma_h_mps**2))
-            meas.append((4, 1.0, v_ins[1] - vel[2], cfg.gnss_vel_sigma_h_mps**2))
-        innov = []
-        for idx, hval, z, r in meas:
-            h = np.zeros(N_STATES, dtype=dt)
-            h[idx] = hval
-            self.x, self.P, nu, sv = kf_update_scalar(self.x, self.P, h, z, r)
-            innov.append(nu / math.sqrt(sv))
-            m.charge("kf_update", 15 * c674x.dotprod(15) + c674x.dotprod(15) + c674x.mathlib("divsp")
-                     + c674x.flops(3 * 225, 3 * 225) + c674x.flops(0, 225))
-        self._feedback()
-        m.charge("kf_feedback", c674x.flops(30, 30) + c674x.mathlib("sinsp") + c674x.mathlib("cossp"))
-        self.counters["gnss_updates"] += 1
-        self._last_gnss_update_t = s.t
-        t_meas = fix.t_fpga_s if fix is not None else vel[0] if vel is not None else s.t
-        res.events.append({"event": "gnss_update", "t_fpga_s": s.t, "t_meas_s": t_meas,
-                           "n_meas": len(meas), "max_norm_innov": float(max(abs(v) for v in innov))})
+        t_exp = self._psns_frame_in(t_rx, f)
+        if isinstance(f, CompassFrame):
+            return None
+        h = f.header
+        if not h.status & PsnsStatus.VALID:
+            self.counters["psns_invalid"] += 1
+            return None
+        cam = cfg.camera
+        if isinstance(f, PolarizationObs):
+            n = len(f.points)
+            if n < 3:
+                self.counters["psns_invalid"] += 1
+                return None
+            pts = np.array([(p.x_px, p.y_px, p.aop_cdeg, p.dop) for p in f.points], dtype=np.float64)
+            aop = (pts[:, 2] * (0.01 * DEG)).astype(dt)
+            dop = (pts[:, 3] * (1.0 / 65535.0)).astype(dt)
+            e = psns.evectors_camera(pts[:, 0], pts[:, 1], aop, cam, dtype=dt)
+            sol = psns.solve_solar_vector(e, dop, cfg.psns_dop_min, max_quality=cfg.psns_quality_max)
+            m.charge("psns_evectors", psns.evector_cycles(n, self.cost))
+            m.charge("psns_solve", psns.solve_cycles(n, self.cost))
+            if not sol.valid:
+                self.counters["psns_invalid"] += 1
+                return None
+            s_c, quality, n_used, source = sol.s, sol.quality, sol.n_used, "camera"
+        elif isinstance(f, SolarVectorFrame):
+            s_c = np.array(f.s, dtype=dt)
+            nrm = float(np.sqrt(s_c @ s_c))
+            if not (0.5 < nrm < 1.5) or f.quality > cfg.psns_quality_max:
+                self.counters["psns_invalid"] += 1
+                return None
+            s_c = s_c / dt(nrm)
+            quality, n_used, source = float(f.quality), h.count, "sensor"
+            m.charge("psns_normalise", self._cyc["normalise"])
+        else:
+            return None
+        self.counters["psns_solutions"] += 1
+        s_b = (cam.c_c_b.astype(dt) @ s_c).astype(dt)
+        m.charge("psns_mounting", self._cyc["mounting"])
+        return SolarObservation(t_exp, s_b, quality, n_used, source)
 
-    def _feedback(self) -> None:
-        """Closed-loop correction of the navigation state; resets the error state to zero."""
-        s = self.nav
-        assert s is not None
-        x = self.x.astype(np.float64)
-        # attitude: C_b^n = (I + [phi x]) C_b^n'  ->  q <- rv2q(phi) (x) q
-        s.q = qnormalize(qmul(rv2q(x[0:3]), s.q.astype(np.float64))).astype(self.dtype)
-        s.v = (s.v - x[3:6]).astype(self.dtype)
-        s.pos = s.pos - x[6:9]
-        self.gyro_bias = (self.gyro_bias + x[IDX_GYRO]).astype(self.dtype)
-        self.accel_bias = (self.accel_bias + x[IDX_ACC]).astype(self.dtype)
-        self.x = np.zeros(N_STATES, dtype=self.dtype)
+    def _psns_update(self, t: float, t_rx: float, f: Any) -> UpdateReport | None:
+        cfg = self.cfg
+        if isinstance(f, CompassFrame):
+            t_exp = self._psns_frame_in(t_rx, f)
+            return self.filter.update_compass(self.nav, f, t_exp) if cfg.psns_enabled else None  # type: ignore[arg-type]
+        obs = self._psns_observation(t_rx, f)
+        if obs is None or not cfg.psns_enabled:
+            return None
+        if t - obs.t_exposure_s > cfg.psns_max_age_s:
+            return None
+        days = self.utc_days(obs.t_exposure_s)
+        if days is None:
+            return None
+        p_ins, _, q_exp = self._ins_at(obs.t_exposure_s)
+        s_n = sun.sun_vector_enu(days, float(p_ins[0]), float(p_ins[1]), dtype=self.dtype)
+        self.meter.charge("sun_ephemeris", sun.ephemeris_cycles())
+        if float(s_n[2]) < math.sin(cfg.psns_min_sun_elevation_deg * DEG):
+            self.counters["psns_sun_low"] += 1  # night or twilight: not an error, no update
+            return None
+        return self.filter.update_solar(self.nav, obs, s_n, q2mat(q_exp))  # type: ignore[arg-type]
 
-    # -- output ------------------------------------------------------------------------------
+    # -- output -------------------------------------------------------------------------------------------
     def cpu_load_pct(self) -> float:
-        """Busy share of the last second, % (cycles / clock)."""
-        return 100.0 * self._load_sum / self.cfg.clock_hz
+        """Worst tick of the last second, % of the tick budget (NAV_SOLUTION / STATUS ``cpu_load``)."""
+        worst = self._load_window[0][1] if self._load_window else 0
+        return 100.0 * worst / self.meter.tick_budget
+
+    # -- host port: commands, acknowledgements, status ----------------------------------------------------
+    def _host_task(self, t: float, res: TickResult) -> None:
+        """Execute pending host commands (one ACK each) and send STATUS at 1 Hz (protocols/host.py, D-3.2)."""
+        m = self.meter
+        while self._pending_cmd:
+            c = self._pending_cmd.popleft()
+            m.charge("host_command", 40 * 4 + c674x.CALL_OVERHEAD)  # CRC + dispatch [E]
+            reply = self._command(c)
+            if reply is None:
+                continue
+            cmd_id, token, result = reply
+            if result == AckResult.ACCEPTED:
+                self.counters["commands_accepted"] += 1
+            else:
+                self.counters["commands_rejected"] += 1
+            res.outputs.append((UART_HOST, encode_ack(Ack(cmd_id, token, int(result))), m.elapsed))
+            res.events.append({"event": "host_command", "t_fpga_s": t, "command": type(c).__name__,
+                               "result": AckResult(result).name})
+            if isinstance(c, RequestStatus) and result == AckResult.ACCEPTED:
+                res.outputs.append((UART_HOST, self._status_frame(t), m.elapsed))
+        if t >= self._next_status_t:
+            self._next_status_t = math.floor(t) + 1.0
+            res.outputs.append((UART_HOST, self._status_frame(t), m.elapsed))
+
+    def _command(self, c: Any) -> tuple[int, int, int] | None:
+        """Apply one command; ``(command_id, token, AckResult)``, or None for frames that are not commands."""
+        from protocols.host import CMD_REQUEST_STATUS, CMD_RESET_FILTER, CMD_SELECT_VARIANT, CMD_SET_OUTPUT_RATE
+
+        if isinstance(c, ResetFilter):
+            if c.scope == 0:
+                self._restart_alignment()
+                return CMD_RESET_FILTER, c.token, AckResult.ACCEPTED
+            if c.scope == 1:
+                if self.nav is None:
+                    return CMD_RESET_FILTER, c.token, AckResult.NOT_ALLOWED
+                self.filter.initialise(self.nav, self._heading_sigma0)
+                return CMD_RESET_FILTER, c.token, AckResult.ACCEPTED
+            return CMD_RESET_FILTER, c.token, AckResult.BAD_ARGUMENT
+        if isinstance(c, SelectVariant):
+            names = {int(v): k for k, v in FILTER_VARIANT_NAMES.items()}
+            name = names.get(c.variant)
+            if name is None:
+                return CMD_SELECT_VARIANT, c.token, AckResult.BAD_ARGUMENT
+            if name not in FILTER_VARIANTS:
+                return CMD_SELECT_VARIANT, c.token, AckResult.NOT_ALLOWED  # not in this firmware build
+            self.filter = FILTER_VARIANTS[name](self.cfg, self.meter, self.dtype)
+            self.cfg.filter = name
+            if self.nav is not None:  # the new filter starts from the current navigation state
+                self.filter.initialise(self.nav, self._heading_sigma0)
+            return CMD_SELECT_VARIANT, c.token, AckResult.ACCEPTED
+        if isinstance(c, SetOutputRate):
+            r = float(c.rate_hz)
+            if r == 0.0:
+                self._out_every = 0
+                return CMD_SET_OUTPUT_RATE, c.token, AckResult.ACCEPTED
+            k = self.cfg.imu_rate_hz / r if r > 0 and math.isfinite(r) else 0.0
+            if k < 1.0 - 1e-9 or abs(k - round(k)) > 1e-6:
+                return CMD_SET_OUTPUT_RATE, c.token, AckResult.BAD_ARGUMENT
+            self._out_every = int(round(k))
+            return CMD_SET_OUTPUT_RATE, c.token, AckResult.ACCEPTED
+        if isinstance(c, RequestStatus):
+            return CMD_REQUEST_STATUS, c.token, AckResult.ACCEPTED
+        if isinstance(c, HostFrame) and c.msg_id >= 0x80:
+            return c.msg_id, c.payload[0] if c.payload else 0, AckResult.UNKNOWN_COMMAND
+        return None  # our own outputs echoed back, or host frames that need no answer
+
+    def _restart_alignment(self) -> None:
+        """RESET_FILTER scope 0: back to coarse alignment with a fresh filter (biases included)."""
+        self.state = FirmwareState.COARSE_ALIGN
+        self.mode = NavMode.ALIGNING
+        self.nav = None
+        self.filter = FILTER_VARIANTS[self.cfg.filter](self.cfg, self.meter, self.dtype)
+        self._align_sum[:] = 0.0
+        self._align_n = 0
+        self._align_t0 = None
+        self._align_sun.clear()
+        self._sub.clear()
+        self._fn_sum[:] = 0.0
+        self._fn_n = 0
+        self._hist.clear()
+        self._gnss_pending = None
+
+    def _status_frame(self, t: float) -> bytes:
+        self.counters["status_frames"] += 1
+        self.meter.charge("status", 64 * 2 + 71 * 4 + c674x.CALL_OVERHEAD)  # pack + CRC-16 by table [E]
+
+        def errs(d: StreamDecoder) -> int:
+            st = d.stats
+            return st.crc_errors + st.length_errors + st.parse_errors
+
+        st = HostStatus(
+            seq=self._status_seq, time_s=t, filter_variant=self.filter.variant_id, mode=int(self.mode),
+            output_rate_hz=self.cfg.imu_rate_hz / self._out_every if self._out_every else 0.0,
+            gnss_status=self._last_fix[3] if self._last_fix is not None else 0,
+            psns_status=self._psns_status_now(t), cpu_load_pct=self.cpu_load_pct(),
+            cpu_load_max_pct=100.0 * self._load_max / self.meter.tick_budget, fw_version=FW_VERSION,
+            deadline_misses=self.deadline_misses,
+            uart1_frames=self._dec_imu.stats.frames, uart1_errors=errs(self._dec_imu),
+            uart2_frames=self._dec_psns.stats.frames, uart2_errors=errs(self._dec_psns),
+            uart3_frames=self._dec_gnss.stats.frames, uart3_errors=errs(self._dec_gnss),
+            commands_accepted=self.counters["commands_accepted"], commands_rejected=self.counters["commands_rejected"],
+        )
+        self._status_seq += 1
+        return encode_status(st)
+
+    def _psns_status_now(self, t: float) -> int:
+        return 1 if t - self._last_psns_t < 2.0 else 2 if t - self._last_psns_reject_t < 2.0 else 0
 
     def _nav_output(self, t: float) -> bytes:
         s = self.nav
-        mode = self.mode
+        mode = int(self.mode) | (self.filter.variant_id & 0xF) << 8
         if s is None:
             lat = lon = h = 0.0
             if self._last_fix is not None:
-                lat, lon, h = self._last_fix.lat, self._last_fix.lon, self._last_fix.h
+                lat, lon, h = self._last_fix[0], self._last_fix[1], self._last_fix[2]
             vel = (0.0, 0.0, 0.0)
             roll = pitch = heading = 0.0
             sigma = (0.0,) * 9
         else:
             if t - self._last_gnss_update_t < 2.0:
-                mode |= NavMode.GNSS_AIDED
-            lat, lon, h = (float(x) for x in s.pos)
-            vel = tuple(float(x) for x in s.v)
-            pitch, roll, yaw = m2att(q2mat(s.q.astype(np.float64)))
-            heading = heading_from_yaw(yaw)
-            d = np.sqrt(np.maximum(np.diag(self.P).astype(np.float64), 0.0))
+                mode |= _GNSS_AIDED
+            elif self.state != FirmwareState.COARSE_ALIGN and t - self._t_aligned > 3.0:
+                mode |= _DEGRADED  # GNSS missing or stale
+            if t - self._last_psns_t < 2.0:
+                mode |= _PSNS_AIDED
+            if t - self._last_psns_reject_t < 2.0:
+                mode |= _DEGRADED
+            lat, lon, h = s.pos.tolist()
+            vel = tuple(s.v.tolist())
+            # PSINS m2att from the quaternion directly: C32, C31, C33, C12, C22 of C_b^n
+            q0, q1, q2, q3 = s.q.tolist()
+            c32 = 2.0 * (q2 * q3 + q0 * q1)
+            pitch = math.asin(max(-1.0, min(1.0, c32))) / DEG
+            roll = math.atan2(-2.0 * (q1 * q3 - q0 * q2), q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3) / DEG
+            yaw = math.atan2(-2.0 * (q1 * q2 - q0 * q3), q0 * q0 - q1 * q1 + q2 * q2 - q3 * q3)
+            heading = heading_from_yaw(yaw) / DEG
+            d = [math.sqrt(max(v, 0.0)) for v in self.filter.P.diagonal()[:9].tolist()]
             rm, rn = earth.radii(lat)
             sigma = (
                 d[0] / DEG, d[1] / DEG, d[2] / DEG, d[3], d[4], d[5],
                 d[6] * (rm + h), d[7] * (rn + h) * math.cos(lat), d[8],
             )
-            pitch, roll = pitch / DEG, roll / DEG
-            heading = heading / DEG
         fix = self._last_fix
         n = NavSolution(
             seq=self._out_seq,
@@ -492,11 +916,28 @@ class Firmware:
             heading_deg=heading,
             sigma=sigma,
             mode=int(mode),
-            gnss_status=fix.quality if fix is not None else 0,
-            psns_status=0,
+            gnss_status=fix[3] if fix is not None else 0,
+            psns_status=self._psns_status_now(t),
             cpu_load_pct=self.cpu_load_pct(),
             deadline_misses=self.deadline_misses,
         )
         self._out_seq += 1
         return encode_nav_solution(n)
 
+    # -- introspection (tests, reports) ----------------------------------------------------------------
+    @property
+    def x(self) -> np.ndarray:
+        return getattr(self.filter, "x", np.zeros(15, dtype=self.dtype))
+
+    @property
+    def P(self) -> np.ndarray:
+        return self.filter.P
+
+
+def _psns_frame_len(f: Any) -> int:
+    """Wire length of a decoded PSNS frame (sync, id, length, header, body, CRC)."""
+    if isinstance(f, PolarizationObs):
+        return 7 + 13 + 10 * len(f.points)
+    if isinstance(f, CompassFrame):
+        return 7 + 13 + 5 * len(f.units)
+    return 7 + 13 + 16

@@ -13,12 +13,23 @@ checked there against numerical Jacobians); the base paper's F_S block (Eq. 18) 
 ``[[-C_b^n, 0], [0, C_b^n], [0, 0]]`` in this sign convention. Discretisation
 ``Phi = I + F T`` (PSINS ``kffk``), ``Q_k = Q_t T``.
 
-Measurement updates are processed one scalar at a time in Joseph form, written in O(n^2):
-with ``a = P h``, ``s = h a + r``, ``K = a / s``::
+Measurement updates are processed one scalar at a time (sequential processing of the rows of
+Eqs. 43/46-49, valid because R is diagonal) in the Joseph form, evaluated in O(n^2) without
+forming ``I - K h``: with ``a = P h``, ``s = h a + r``, ``K = a / s``::
 
-    P' = (I - K h) P (I - K h)^T + r K K^T = P - K a^T - a K^T + s K K^T
+    B  = P - K a^T                 = (I - K h) P
+    P' = B - (B h) K^T + r K K^T   = (I - K h) P (I - K h)^T + r K K^T
 
-which holds for any gain K and keeps P symmetric positive semi-definite in float32.
+``B h`` is computed from ``B`` (not replaced by its exact-arithmetic value ``a r / s``), so the
+rounding of the first step is corrected by the second, as in the full Joseph form; the result is
+symmetrised. The paper's Eq. 49 ``P = (I - K H) P`` loses symmetry and definiteness in float32 over
+long runs; this form kept P positive definite over a 1 h float32 run
+(``tests/firmware_model/test_kf.py``).
+
+Solar-vector measurement (Eqs. 31-42): ``Z = S^n - C_b^{n'} (+-S^b)`` with the sign that gives the
+smaller ``|Z|`` (Eq. 38 remark), and ``H_s = [-[S^n x], 0_{3x12}]``. Derivation (the printed Eq. 41
+has typos; docs/decisions.md D-5.1): ``C_b^{n'} = (I - [phi x]) C_b^n`` and ``S^n = C_b^n S^b``, so
+``C_b^{n'} S^b = S^n - phi x S^n`` and ``Z = phi x S^n = -[S^n x] phi``.
 """
 
 from __future__ import annotations
@@ -39,6 +50,9 @@ __all__ = [
     "error_transition_matrix",
     "kf_predict",
     "kf_update_scalar",
+    "solar_vector_residual",
+    "solar_vector_rows",
+    "process_noise_psd",
 ]
 
 N_STATES = 15
@@ -139,22 +153,66 @@ def kf_predict(
 def kf_update_scalar(
     x: np.ndarray, P: np.ndarray, h: np.ndarray, z: float, r: float
 ) -> tuple[np.ndarray, np.ndarray, float, float]:
-    """One scalar measurement update in O(n^2) Joseph form (Eqs. 46, 47, 49).
+    """One scalar measurement update in O(n^2) Joseph form (Eqs. 46, 47, 49; module docstring).
 
     Parameters
     ----------
-    h : (n,) measurement row; z : measurement; r : its noise variance.
+    h : (n,) measurement row; z : measurement; r : its noise variance (same units squared).
 
     Returns
     -------
-    x, P, innovation ``z - h x``, innovation variance ``s = h P h^T + r``.
+    x, P (new arrays, dtype of P), innovation ``z - h x``, innovation variance ``s = h P h^T + r``.
     """
-    dt = P.dtype
+    dt = P.dtype.type
     a = P @ h
     s = float(h @ a) + r
     innov = float(z - h @ x)
-    K = (a / dt.type(s)).astype(dt)
-    x = x + K * dt.type(innov)
-    P = P - np.outer(K, a) - np.outer(a, K) + dt.type(s) * np.outer(K, K)
-    P = 0.5 * (P + P.T)
-    return x, P.astype(dt), innov, s
+    K = a / dt(s)
+    x = x + K * dt(innov)
+    B = P - np.outer(K, a)
+    c = B @ h
+    P = B - np.outer(c, K) + dt(r) * np.outer(K, K)
+    P = dt(0.5) * (P + P.T)
+    return x, P, innov, s
+
+
+def solar_vector_residual(s_n: np.ndarray, cbn: np.ndarray, s_b: np.ndarray) -> tuple[np.ndarray, int]:
+    """Bi-direction solar-vector measurement ``Z = S^n - C_b^{n'} (+-S^b)`` (Eqs. 38, 40).
+
+    Parameters
+    ----------
+    s_n : (3,) unit sun vector in ENU from the ephemeris.
+    cbn : (3, 3) computed ``C_b^{n'}`` at the exposure time.
+    s_b : (3,) unit bi-direction solar vector measured in the body frame (sign unknown).
+
+    Returns
+    -------
+    Z (3,) and the sign (+1 or -1) that makes ``|Z|`` the smaller (the paper's rule).
+    """
+    a = cbn @ s_b
+    zp = s_n - a
+    zm = s_n + a
+    if float(zp @ zp) <= float(zm @ zm):
+        return zp, 1
+    return zm, -1
+
+
+def solar_vector_rows(s_n: np.ndarray, dtype: type = np.float32) -> np.ndarray:
+    """``H_s = [-[S^n x], 0_{3x12}]`` (3, 15) (Eq. 41 as derived in the module docstring)."""
+    e, n, u = (float(v) for v in s_n)
+    H = np.zeros((3, N_STATES), dtype=dtype)
+    H[0, 1], H[0, 2] = u, -n
+    H[1, 0], H[1, 2] = -u, e
+    H[2, 0], H[2, 1] = n, -e
+    return H
+
+
+def process_noise_psd(gyro_arw_rad_rt_s: float, accel_vrw_mps2_rt_hz: float, gyro_bias_rw: float,
+                      accel_bias_rw: float) -> np.ndarray:
+    """Diagonal continuous process-noise PSD ``q`` (15,) in the state order (Eq. 48 with Gamma = I).
+
+    ARW^2 on the phi rows, VRW^2 on the dv rows, 0 on position, and the bias random-walk densities
+    (rad^2/s^3, m^2/s^5) on the bias rows. ``Q_k = q T_k`` (PSINS ``kffk``).
+    """
+    return np.array([gyro_arw_rad_rt_s**2] * 3 + [accel_vrw_mps2_rt_hz**2] * 3 + [0.0] * 3
+                    + [gyro_bias_rw] * 3 + [accel_bias_rw] * 3)

@@ -36,6 +36,7 @@ class NavState:
     pos : (3,) float64 ``[L rad, lambda rad, h m]``.
     t : float64 time of validity, s (FPGA time).
     a_prev : (3,) previous ENU acceleration used for mid-interval extrapolation, m/s^2.
+    f_n : (3,) specific force in n of the last step, m/s^2 (for the KF's F matrix).
     """
 
     q: np.ndarray
@@ -43,9 +44,10 @@ class NavState:
     pos: np.ndarray
     t: float = 0.0
     a_prev: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    f_n: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     def copy(self) -> "NavState":
-        return NavState(self.q.copy(), self.v.copy(), self.pos.copy(), self.t, self.a_prev.copy())
+        return NavState(self.q.copy(), self.v.copy(), self.pos.copy(), self.t, self.a_prev.copy(), self.f_n.copy())
 
 
 def coning_sculling(dtheta: np.ndarray, dv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -96,37 +98,37 @@ def strapdown_step(
     """
     lat, lon, h = float(s.pos[0]), float(s.pos[1]), float(s.pos[2])
     v = s.v
-    # 3. mid-interval extrapolation
-    v_half = v + s.a_prev * (T / 2.0)
+    dt = dtype
+    # 3. mid-interval extrapolation (Earth quantities in float64: latitude is a DP variable)
+    v_half = v + s.a_prev * dt(T / 2.0)
+    ve, vn, vu = float(v_half[0]), float(v_half[1]), float(v_half[2])
     rm, rn = earth.radii(lat)
-    lat_h = lat + float(v_half[1]) / (rm + h) * T / 2.0
-    h_h = h + float(v_half[2]) * T / 2.0
+    lat_h = lat + vn / (rm + h) * (T / 2.0)
+    h_h = h + vu * (T / 2.0)
     sl, cl = math.sin(lat_h), math.cos(lat_h)
     rm, rn = earth.radii(lat_h)
     rmh, rnh = rm + h_h, rn + h_h
-    ve, vn = float(v_half[0]), float(v_half[1])
-    w_ie = np.array([0.0, earth.OMEGA_IE * cl, earth.OMEGA_IE * sl], dtype=dtype)
-    w_en = np.array([-vn / rmh, ve / rnh, ve * sl / cl / rnh], dtype=dtype)
-    w_in = w_ie + w_en
-    g_n = np.array([0.0, 0.0, -earth.gravity(lat_h, h_h)], dtype=dtype)
-    # 4. velocity
+    wie_n, wie_u = earth.OMEGA_IE * cl, earth.OMEGA_IE * sl
+    wen = (-vn / rmh, ve / rnh, ve * sl / cl / rnh)
+    w_in = np.array((wen[0], wie_n + wen[1], wie_u + wen[2]), dtype=dt)
+    w_cor = np.array((wen[0], 2.0 * wie_n + wen[1], 2.0 * wie_u + wen[2]), dtype=dt)  # 2 w_ie + w_en
+    g = earth.gravity(lat_h, h_h)
+    # 4. velocity: f^n = C_b^n dv_m / T, rotated back by the n-frame turn over T/2
     cbn = q2mat(s.q)
-    f_n = cbn @ (dv_m.astype(dtype) / dtype(T))
-    # rv2m(-w_in T/2) f^n  ~  f^n - (w_in T/2) x f^n
-    f_n = f_n - cross3(w_in * dtype(T / 2.0), f_n)
-    a_n = f_n + g_n - cross3(2.0 * w_ie + w_en, v)
-    v_new = (v + a_n * dtype(T)).astype(dtype)
-    # 5. position (float64)
-    vm = (v.astype(np.float64) + v_new.astype(np.float64)) / 2.0
-    rm, rn = earth.radii(lat_h)
-    lat_new = lat + vm[1] / (rm + h_h) * T
-    lon_new = lon + vm[0] / ((rn + h_h) * math.cos(lat_h)) * T
-    h_new = h + vm[2] * T
-    # 6. attitude
-    q = qmul(rv2q((-w_in * dtype(T)).astype(dtype)), qmul(s.q, rv2q(phi_m.astype(dtype))))
-    s.q = qnormalize(q).astype(dtype)
+    f_n = cbn @ (dv_m.astype(dt) * dt(1.0 / T))
+    a_n = f_n - cross3(w_in * dt(T / 2.0), f_n) - cross3(w_cor, v)
+    a_n[2] -= dt(g)
+    v_new = (v + a_n * dt(T)).astype(dt)
+    # 5. position (float64), trapezoidal velocity, radii at the mid-interval latitude
+    vm_e = 0.5 * (float(v[0]) + float(v_new[0]))
+    vm_n = 0.5 * (float(v[1]) + float(v_new[1]))
+    vm_u = 0.5 * (float(v[2]) + float(v_new[2]))
+    s.pos = np.array((lat + vm_n / rmh * T, lon + vm_e / (rnh * cl) * T, h + vm_u * T), dtype=np.float64)
+    # 6. attitude: q_k = rv2q(-w_in T) (x) q_{k-1} (x) rv2q(phi_m)
+    q = qmul(rv2q(-w_in * dt(T)), qmul(s.q, rv2q(phi_m.astype(dt))))
+    s.q = qnormalize(q).astype(dt)
     s.v = v_new
-    s.pos = np.array([lat_new, lon_new, h_new], dtype=np.float64)
-    s.a_prev = a_n.astype(dtype)
+    s.a_prev = a_n.astype(dt)
+    s.f_n = f_n
     s.t += T
     return s

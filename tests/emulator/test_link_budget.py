@@ -1,8 +1,8 @@
 """Links below their bandwidth need: overflow and lost frames match the ICD budget.
 
 NAV_SOLUTION on the host port: 109-byte frames (5 header + 102 payload + 2 CRC, docs/icd.md) at
-the firmware's output rate (100 Hz) need 10 900 B/s; an 8N1 line carries baud / 10 B/s. At 57 600
-baud that is 5 760 B/s: 52.8 frames/s get through, 47.2 % of the frames are lost. The firmware's
+the firmware's output rate (100 Hz) plus one 71-byte STATUS frame per second need 10 971 B/s; an
+8N1 line carries baud / 10 B/s. At 57 600 baud that is 5 760 B/s: 47.5 % of the bytes are lost. The firmware's
 UART driver drops whole frames when its TX ring is full, so what arrives is intact; the FPGA's
 byte FIFO on the HOST port drops bytes, so frames arrive torn.
 """
@@ -14,10 +14,11 @@ import pytest
 from emulator.links import LineConfig
 from emulator.runner import run_scenario
 from emulator.testing import load_test_scenario
-from protocols.host import NAV_SOLUTION_LEN, build_host_frame
+from protocols.host import NAV_SOLUTION_LEN, STATUS_LEN, build_host_frame
 from tests.conftest import SCENARIOS
 
 FRAME = len(build_host_frame(0x01, bytes(NAV_SOLUTION_LEN)))
+STATUS_FRAME = len(build_host_frame(0x02, bytes(STATUS_LEN)))
 T = 10.0
 
 
@@ -38,24 +39,28 @@ def test_dsp_uart0_below_its_need_drops_whole_frames_at_the_budgeted_rate(tmp_pa
     line = LineConfig(baud=57600)
     rate = scn.firmware.output_rate_hz
     st = s["link_stats"]["uart0"]
-    # frames the firmware wrote: one every (IMU rate / output rate) ticks
-    produced = s["dsp"]["ticks"] // int(round(scn.sensors.imu.rate_hz / rate))
-    left_dsp = st["bytes_out"] // FRAME
-    lost = st["dropped_chunks_out"]
+    # bytes the firmware wrote: one NAV_SOLUTION per output period, one STATUS per whole second
+    n_nav = s["dsp"]["ticks"] // int(round(scn.sensors.imu.rate_hz / rate))
+    t_last_tick = (s["dsp"]["ticks"] - 1) / scn.sensors.imu.rate_hz  # ticks at t = 0, 5 ms, ...
+    n_status = int(t_last_tick)  # STATUS at t = 1, 2, ... s
+    assert n_nav >= rate * T - 1
+    produced = n_nav * FRAME + n_status * STATUS_FRAME
+    need = rate * FRAME + STATUS_FRAME  # B/s
     t0 = 1.0 / 200 + 0.0036  # the first output: end of the first tick (+ its cycles)
-    capacity = (T - t0) * line.bytes_per_second / FRAME  # frames the line can carry in the run
-    # the firmware wrote one frame per output period; the ring holds at most 4096 // 109 of them
-    assert produced >= rate * T - 1
-    in_ring = produced - left_dsp - lost
-    assert in_ring == 4096 // FRAME  # saturated: the 4 KiB TX ring is full at the end
-    # what left the DSP is what the line could carry; the rest is lost, whole frames
-    assert left_dsp == pytest.approx(capacity, abs=1.5)
-    assert st["dropped_out"] == lost * FRAME
-    expected_loss = 1 - line.bytes_per_second / (FRAME * rate)  # 47.16 %
-    assert (lost + in_ring) / produced == pytest.approx(expected_loss, abs=2 / produced)
+    capacity = (T - t0) * line.bytes_per_second  # bytes the line can carry in the run
+    # what left the DSP is what the line could carry (to within the frame on the wire at the end)
+    assert st["bytes_out"] == pytest.approx(capacity, abs=FRAME)
+    # whole frames are dropped: every dropped chunk is one frame of one of the two sizes
+    nav_lost = (st["dropped_out"] - st["dropped_chunks_out"] * STATUS_FRAME) / (FRAME - STATUS_FRAME)
+    assert nav_lost == int(nav_lost) and 0 <= st["dropped_chunks_out"] - nav_lost <= n_status
+    # the rest sits in the saturated 4 KiB TX ring
+    in_ring = produced - st["bytes_out"] - st["dropped_out"]
+    assert 4096 - FRAME < in_ring <= 4096
+    expected_loss = 1 - line.bytes_per_second / need  # 47.5 % of the bytes
+    assert (st["dropped_out"] + in_ring) / produced == pytest.approx(expected_loss, abs=2 * FRAME / produced)
     # the host receives intact frames only
     assert s["links"]["host"]["crc_errors"] == 0 and s["links"]["host"]["garbage_bytes"] == 0
-    assert s["links"]["host"]["frames"] == pytest.approx(left_dsp, abs=1)
+    assert s["links"]["host"]["frames"] == pytest.approx(st["chunks_out"], abs=1)
 
 
 def test_enough_baud_loses_nothing(tmp_path):

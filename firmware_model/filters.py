@@ -1,0 +1,307 @@
+"""Navigation-filter variants behind one interface, and the base variant (Liang & Bai).
+
+The main loop (:mod:`firmware_model.firmware`) owns I/O, time keeping, alignment, the strapdown and
+the task schedule; a :class:`NavFilter` owns the error state, its covariance and the measurement
+models. The loop calls, per tick and only when there is something to do::
+
+    predict(nav, f_n_mean, T_k)              every ``kf_predict_every`` IMU ticks
+    update_gnss(nav, meas, p_ins, v_ins)      a GNSS fix is pending (1 Hz)
+    update_solar(nav, obs, s_n, cbn_exp)      a PSNS solar vector is pending (frame rate)
+    update_compass(nav, frame, t_exp)         a multi-unit compass frame is pending
+    feedback(nav)                             closed-loop correction after updates
+
+Variants register themselves in :data:`FILTER_VARIANTS` with :func:`register_filter`; the
+scenario's ``firmware.filter`` picks one by name. Issue 6's variants (dual-vector switching, K-means
+3-D attitude, federated filter with chi-square isolation, sun-elevation positioning with a
+Sage-Husa adaptive KF) subclass :class:`NavFilter` (or :class:`BaseFilter`) and override the
+updates they change; the loop stays as it is.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from protocols.host import FILTER_VARIANT_NAMES
+
+from . import c674x, earth
+from .attitude import q2mat, qmul, qnormalize, rv2q
+from .kf import (
+    IDX_ACC,
+    IDX_GYRO,
+    N_STATES,
+    error_transition_matrix,
+    kf_predict,
+    kf_update_scalar,
+    process_noise_psd,
+    solar_vector_residual,
+    solar_vector_rows,
+)
+from .strapdown import NavState
+
+if TYPE_CHECKING:
+    from .firmware import FirmwareConfig
+
+__all__ = [
+    "GnssMeasurement",
+    "SolarObservation",
+    "UpdateReport",
+    "NavFilter",
+    "BaseFilter",
+    "FILTER_VARIANTS",
+    "register_filter",
+    "kf_scalar_update_cycles",
+    "kf_predict_cycles",
+    "feedback_cycles",
+]
+
+DEG = math.pi / 180.0
+DPH = DEG / 3600.0
+G_STD = 9.80665
+
+def kf_scalar_update_cycles(c: c674x.KernelCosts) -> int:
+    """One scalar Joseph update over 15 states [D, c6747_cycles.md section 6 fallback].
+
+    ``a = P h`` and ``c = B h`` (2 x 225 MAC), ``B = P - K a^T`` (225 MAC),
+    ``P' = B - c K^T + r K K^T`` (450 MAC), symmetrise (105 ADD), one reciprocal (MATHLIB [S]).
+    """
+    return (2 * c.flops(225, 225) + c.flops(225, 225) + c.flops(450, 450) + c.flops(0, 105)
+            + c.math("recip") + c.flops(30, 30))
+
+
+def kf_predict_cycles(c: c674x.KernelCosts) -> int:
+    """Time update [S formulas, D sum]: F elements (~40 MUL/ADD, DP sin/cos and 4 divisions of the
+    latitude terms), ``Phi = I + F T`` (DSPF_sp_w_vec, 225), ``Phi P`` and ``(Phi P) Phi^T``
+    (2 x DSPF_sp_mat_mul 15x15x15), one transpose (DSPF_sp_mat_trans), Q on the diagonal, symmetrise."""
+    return (c.flops(40, 40) + c674x.mathlib("divdp", 4) + c674x.mathlib("sindp") + c674x.mathlib("cosdp")
+            + c.w_vec(225) + 2 * c.mat_mul(15, 15, 15) + c.mat_trans(15, 15) + c.flops(0, 15) + c.flops(0, 105))
+
+
+def feedback_cycles(c: c674x.KernelCosts) -> int:
+    """Closed-loop feedback: rv2q (sqrt, sin, cos, div), qmul (16 MUL, 12 ADD), normalise (rsqrt),
+    3 DP position subtractions, 9 additions [S/D]."""
+    return (c.math("sqrt") + c.math("sin") + c.math("cos") + c.math("div") + c.math("rsqrt")
+            + c.flops(20, 24) + c674x.dp_flops(0, 3))
+
+
+@dataclass
+class GnssMeasurement:
+    """A GNSS fix, time-tagged at its PPS edge (FPGA time base).
+
+    ``pos`` = (lat rad, lon rad, h m) or None; ``vel`` = ENU m/s (3,) or None; ``vel_up`` tells
+    whether ``vel[2]`` was measured (UBX NAV-PVT velD) or is absent (NMEA RMC).
+    """
+
+    t_fpga_s: float
+    pos: tuple[float, float, float] | None = None
+    vel: np.ndarray | None = None
+    vel_up: bool = False
+    quality: int = 1
+    sigma_pos_h_m: float | None = None
+    sigma_pos_v_m: float | None = None
+    sigma_vel_mps: float | None = None
+
+
+@dataclass
+class SolarObservation:
+    """A bi-direction solar vector in the body frame at its mid-exposure time."""
+
+    t_exposure_s: float
+    s_b: np.ndarray
+    quality: float
+    n_used: int
+    source: str  # "camera" (firmware solve) or "sensor" (on-sensor solve)
+
+
+@dataclass
+class UpdateReport:
+    """What a measurement update did (for counters, events and the status byte)."""
+
+    kind: str
+    accepted: bool
+    n_rows: int = 0
+    max_norm_innov: float = 0.0
+    detail: dict[str, Any] | None = None
+
+
+class NavFilter:
+    """Interface of a navigation filter variant (see module docstring).
+
+    Attributes the loop reads: ``P`` (n, n) covariance whose first 9 states are
+    ``[phi, dv, dL dlambda dh]`` (for the reported sigmas), ``gyro_bias`` (rad/s, body) and
+    ``accel_bias`` (m/s^2, body) used to compensate the IMU increments.
+    """
+
+    name = "abstract"
+    #: Variant number in NAV_SOLUTION ``mode`` bits 8-11 and STATUS (``protocols.host.FilterVariant``,
+    #: DESIGN.md section 6 numbering); set by :func:`register_filter` from the variant's name.
+    variant_id = 0
+
+    def __init__(self, cfg: "FirmwareConfig", meter: c674x.CycleMeter, dtype: type) -> None:
+        self.cfg = cfg
+        self.meter = meter
+        self.dtype = dtype
+        self.gyro_bias = np.zeros(3, dtype=dtype)
+        self.accel_bias = np.zeros(3, dtype=dtype)
+        self.P = np.zeros((N_STATES, N_STATES), dtype=dtype)
+        self.cost = c674x.KernelCosts("float64" if np.dtype(dtype) == np.float64 else "float32")
+
+    def initialise(self, nav: NavState, heading_sigma_rad: float) -> None:
+        raise NotImplementedError
+
+    def predict(self, nav: NavState, f_n: np.ndarray, Tk: float) -> None:
+        raise NotImplementedError
+
+    def update_gnss(self, nav: NavState, meas: GnssMeasurement, p_ins: np.ndarray, v_ins: np.ndarray) -> UpdateReport:
+        raise NotImplementedError
+
+    def update_solar(self, nav: NavState, obs: SolarObservation, s_n: np.ndarray, cbn_exp: np.ndarray) -> UpdateReport:
+        raise NotImplementedError
+
+    def update_compass(self, nav: NavState, frame: Any, t_exposure_s: float) -> UpdateReport | None:
+        """Multi-unit compass frames: not used by the base variant (issue 6)."""
+        return None
+
+    def feedback(self, nav: NavState) -> None:
+        raise NotImplementedError
+
+
+FILTER_VARIANTS: dict[str, type[NavFilter]] = {}
+
+
+def register_filter(name: str):  # noqa: ANN201
+    """Class decorator: make a :class:`NavFilter` selectable as ``firmware.filter: name``."""
+
+    def deco(cls: type[NavFilter]) -> type[NavFilter]:
+        cls.name = name
+        if name in FILTER_VARIANT_NAMES:  # the host protocol's variant number (STATUS, SELECT_VARIANT)
+            cls.variant_id = int(FILTER_VARIANT_NAMES[name])
+        FILTER_VARIANTS[name] = cls
+        return cls
+
+    return deco
+
+
+@register_filter("base")
+class BaseFilter(NavFilter):
+    """Bi-direction solar-vector 15-state KF (base paper): GNSS position/velocity + ``+-S`` updates."""
+
+
+    def __init__(self, cfg: "FirmwareConfig", meter: c674x.CycleMeter, dtype: type) -> None:
+        super().__init__(cfg, meter, dtype)
+        self.x = np.zeros(N_STATES, dtype=dtype)
+        arw = cfg.gyro_arw_deg_rt_h * DEG / 60.0
+        vrw = cfg.accel_noise_ug_rt_hz * 1e-6 * G_STD
+        tau = cfg.bias_corr_time_s
+        qg = 2.0 * (cfg.gyro_bias_instability_deg_h * DPH) ** 2 / tau
+        qa = 2.0 * (cfg.accel_bias_instability_mg * 1e-3 * G_STD) ** 2 / tau
+        self.q = process_noise_psd(arw, vrw, qg, qa)
+        self._eye = np.eye(N_STATES, dtype=dtype)
+        self._cyc_update = kf_scalar_update_cycles(self.cost)
+        self._cyc_predict = kf_predict_cycles(self.cost)
+        self._cyc_feedback = feedback_cycles(self.cost)
+
+    # -- initialisation -------------------------------------------------------------------------
+    def initialise(self, nav: NavState, heading_sigma_rad: float) -> None:
+        cfg = self.cfg
+        lat, h = float(nav.pos[0]), float(nav.pos[2])
+        rm, rn = earth.radii(lat)
+        lvl = cfg.accel_bias_sigma_mg * 1e-3  # rad: level error from the accelerometer bias
+        p0 = np.array(
+            [lvl**2, lvl**2, heading_sigma_rad**2]
+            + [0.1**2] * 3
+            + [(cfg.gnss_pos_sigma_h_m / (rm + h)) ** 2, (cfg.gnss_pos_sigma_h_m / ((rn + h) * math.cos(lat))) ** 2,
+               cfg.gnss_pos_sigma_v_m**2]
+            + [(cfg.gyro_bias_sigma_deg_h * DPH) ** 2] * 3
+            + [(cfg.accel_bias_sigma_mg * 1e-3 * G_STD) ** 2] * 3
+        )
+        self.P = np.diag(p0).astype(self.dtype)
+        self.x = np.zeros(N_STATES, dtype=self.dtype)
+
+    # -- time update --------------------------------------------------------------------------
+    def predict(self, nav: NavState, f_n: np.ndarray, Tk: float) -> None:
+        dt = self.dtype
+        F = error_transition_matrix(q2mat(nav.q), nav.v, nav.pos, f_n, dtype=dt)
+        Phi = self._eye + F * dt(Tk)
+        self.x, self.P = kf_predict(self.x, self.P, Phi, (self.q * Tk).astype(dt))
+        self.meter.charge("kf_predict", self._cyc_predict)
+
+    # -- measurement updates --------------------------------------------------------------------
+    def _scalar(self, h: np.ndarray, z: float, r: float) -> float:
+        self.x, self.P, nu, s = kf_update_scalar(self.x, self.P, h, z, r)
+        return nu / math.sqrt(s)
+
+    def update_gnss(self, nav: NavState, meas: GnssMeasurement, p_ins: np.ndarray, v_ins: np.ndarray) -> UpdateReport:
+        cfg = self.cfg
+        dt = self.dtype
+        rows: list[tuple[int, float, float, float]] = []
+        if meas.pos is not None:
+            lat = float(p_ins[0])
+            rm, rn = earth.radii(lat)
+            rmh, rnh = rm + float(p_ins[2]), rn + float(p_ins[2])
+            cl = math.cos(lat)
+            sh = meas.sigma_pos_h_m or cfg.gnss_pos_sigma_h_m
+            sv = meas.sigma_pos_v_m or cfg.gnss_pos_sigma_v_m
+            # Eq. 23-24: Z_p = [R_Mh dL, R_Nh cosL dlambda, dh] (m), H_p = [0 diag(R_Mh, R_Nh cosL, 1) 0]
+            rows += [
+                (6, rmh, (float(p_ins[0]) - meas.pos[0]) * rmh, sh**2),
+                (7, rnh * cl, (float(p_ins[1]) - meas.pos[1]) * rnh * cl, sh**2),
+                (8, 1.0, float(p_ins[2]) - meas.pos[2], sv**2),
+            ]
+            self.meter.charge("gnss_residual", c674x.dp_flops(8, 6) + c674x.mathlib("cosdp") + c674x.mathlib("sqrtdp")
+                              + c674x.mathlib("divdp"))
+        if meas.vel is not None:
+            # Eq. 28-30: Z_v = v_INS - v_GNSS, H_v = [0 I 0]; vertical only when measured (UBX velD)
+            svh = meas.sigma_vel_mps or cfg.gnss_vel_sigma_h_mps
+            rows.append((3, 1.0, float(v_ins[0]) - float(meas.vel[0]), svh**2))
+            rows.append((4, 1.0, float(v_ins[1]) - float(meas.vel[1]), svh**2))
+            if meas.vel_up:
+                rows.append((5, 1.0, float(v_ins[2]) - float(meas.vel[2]), cfg.gnss_vel_sigma_v_mps**2))
+        innov = []
+        h = np.zeros(N_STATES, dtype=dt)
+        for idx, hval, z, r in rows:
+            h[:] = 0
+            h[idx] = hval
+            innov.append(self._scalar(h, z, r))
+        self.meter.charge("kf_update", len(rows) * self._cyc_update)
+        return UpdateReport("gnss", True, len(rows), max((abs(v) for v in innov), default=0.0))
+
+    def update_solar(self, nav: NavState, obs: SolarObservation, s_n: np.ndarray, cbn_exp: np.ndarray) -> UpdateReport:
+        """Eqs. 31-42: ``Z = S^n - C_b^{n'} (+-S^b)``, sign by the smaller ``|Z|``, ``H = -[S^n x]``."""
+        cfg = self.cfg
+        dt = self.dtype
+        s_n = s_n.astype(dt)
+        z, sign = solar_vector_residual(s_n, cbn_exp.astype(dt), obs.s_b.astype(dt))
+        H = solar_vector_rows(s_n, dt)
+        r = (cfg.psns_sigma_deg * DEG) ** 2
+        self.meter.charge("solar_residual", self.cost.flops(18 + 9, 18 + 6))
+        # innovation gate: |Z|^2 against its predicted variance tr(H P H^T) + 3 r (no 3x3 inverse)
+        Pa = self.P[0:3, 0:3]
+        Hs = H[:, 0:3]
+        var = float(np.einsum("ij,jk,ik->", Hs, Pa, Hs)) + 3.0 * r
+        z2 = float(z @ z)
+        self.meter.charge("solar_gate", self.cost.flops(45, 40))
+        nis = z2 / var
+        if nis > cfg.psns_gate_chi2:
+            return UpdateReport("solar", False, 0, math.sqrt(nis), {"residual_deg": math.sqrt(z2) / DEG, "sign": sign})
+        innov = [self._scalar(H[i], float(z[i]), r) for i in range(3)]
+        self.meter.charge("kf_update", 3 * self._cyc_update)
+        return UpdateReport("solar", True, 3, max(abs(v) for v in innov),
+                            {"residual_deg": math.sqrt(z2) / DEG, "sign": sign})
+
+    # -- closed loop ----------------------------------------------------------------------------
+    def feedback(self, nav: NavState) -> None:
+        """Correct the navigation state with the estimate and zero the error state."""
+        dt = self.dtype
+        x = self.x
+        # attitude: C_b^n = (I + [phi x]) C_b^{n'}  ->  q <- rv2q(phi) (x) q
+        nav.q = qnormalize(qmul(rv2q(x[0:3]), nav.q)).astype(nav.q.dtype)
+        nav.v = (nav.v - x[3:6]).astype(nav.v.dtype)
+        nav.pos = nav.pos - x[6:9].astype(np.float64)
+        self.gyro_bias = (self.gyro_bias + x[IDX_GYRO]).astype(dt)
+        self.accel_bias = (self.accel_bias + x[IDX_ACC]).astype(dt)
+        self.x = np.zeros(N_STATES, dtype=dt)
+        self.meter.charge("kf_feedback", self._cyc_feedback)

@@ -1,0 +1,234 @@
+"""Polarized-skylight solve: Stokes -> DOP/AOP -> E-vectors -> K -> bi-direction solar vector.
+
+Base paper (Liang & Bai), section II.A, with the camera/AOP convention of CONTRACTS C1
+(:mod:`firmware_model.psns_geometry`):
+
+1. Stokes (Eq. 1): ``S0 = (I0+I45+I90+I135)/2``, ``S1 = I0 - I90``, ``S2 = I45 - I135``;
+   DOP (Eq. 2) ``sqrt(S1^2+S2^2)/S0``; image angle ``psi = 1/2 atan2(S2, S1)`` from image +x towards +y.
+   The AOP of the paper (Eq. 3/5) and of the wire is measured from image +y towards +x:
+   ``AOP = 90 deg - psi`` wrapped to (-90, 90] deg.
+2. E-vector (Eq. 5-8 with the sign that makes E perpendicular to the view ray; the paper's Eq. 8 as
+   printed has the opposite sign, see docs/decisions.md D-5.1):
+   pinhole ``E^c = (sin AOP, cos AOP, -(X sin AOP + Y cos AOP)/f)``; equidistant fisheye
+   ``E_z = -(V_x sin AOP + V_y cos AOP)/V_z``. Each E is normalised, so each point counts by its weight.
+3. ``K = sum w_i E_i E_i^T`` (Eq. 14) with ``w_i = DOP_i`` for points above the DOP threshold.
+4. ``+-S`` = the eigenvector of the smallest eigenvalue of K (Eq. 14), by the closed-form
+   trigonometric solution of the 3x3 symmetric eigenproblem (Smith 1961) and the cross product of two
+   rows of ``K - lambda_min I``: no iteration, ~500 cycles on a C674x (c6747_cycles.md section 4).
+   Quality figure: ``lambda_min / lambda_mid`` (0 for a perfect Rayleigh sky, ~1 for no information).
+
+Everything runs in the firmware's working precision (float32 by default).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import c674x
+from .psns_geometry import CameraGeometry
+
+__all__ = [
+    "SolarSolution",
+    "stokes",
+    "dop_psi",
+    "aop_from_psi",
+    "superpixel_channels",
+    "mosaic_observations",
+    "evectors_camera",
+    "evectors_compass",
+    "scatter_matrix",
+    "sym3_eigen_smallest",
+    "solve_solar_vector",
+    "exposure_time_s",
+    "solve_cycles",
+    "evector_cycles",
+]
+
+HALF_PI = 0.5 * math.pi
+
+
+@dataclass(frozen=True)
+class SolarSolution:
+    """Result of one solve.
+
+    Attributes
+    ----------
+    s : (3,) unit bi-direction solar vector ``+-S`` in the frame of the E-vectors (sign arbitrary).
+    quality : ``lambda_min / lambda_mid`` of K (smaller is better; 1.0 when invalid).
+    n_used : points above the DOP threshold.
+    eigenvalues : (3,) ascending eigenvalues of K.
+    valid : enough points and a finite, well-separated smallest eigenvalue.
+    """
+
+    s: np.ndarray
+    quality: float
+    n_used: int
+    eigenvalues: tuple[float, float, float]
+    valid: bool
+
+
+def stokes(i0: np.ndarray, i45: np.ndarray, i90: np.ndarray, i135: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Linear Stokes parameters (Eq. 1) from the four polarizer channels (any shape, same units)."""
+    return 0.5 * (i0 + i45 + i90 + i135), i0 - i90, i45 - i135
+
+
+def dop_psi(s0: np.ndarray, s1: np.ndarray, s2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """DOP (Eq. 2, S3 = 0) and the image angle ``psi = 1/2 atan2(S2, S1)`` (rad, from +x towards +y)."""
+    dt = np.result_type(s0, np.float32)
+    tiny = dt.type(1e-12) if np.dtype(dt) == np.float64 else dt.type(1e-20)
+    dop = np.sqrt(s1 * s1 + s2 * s2) / np.maximum(s0, tiny)
+    return dop, dt.type(0.5) * np.arctan2(s2, s1)
+
+
+def aop_from_psi(psi: np.ndarray) -> np.ndarray:
+    """Wire/paper AOP (rad, from image +y towards +x) = 90 deg - psi, wrapped to (-90, 90] deg."""
+    a = HALF_PI - np.asarray(psi)
+    return a - np.pi * np.ceil((a - HALF_PI) / np.pi)
+
+
+def superpixel_channels(raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Split an IMX250MZR mosaic into its four channels at half resolution (no interpolation).
+
+    Layout per 2x2 super-pixel (C1, what polanalyser expects): (row 0, col 0) = 90 deg,
+    (0, 1) = 45, (1, 0) = 135, (1, 1) = 0. Returns ``(I0, I45, I90, I135)``, each (ny/2, nx/2).
+    """
+    return raw[1::2, 1::2], raw[0::2, 1::2], raw[0::2, 0::2], raw[1::2, 0::2]
+
+
+def mosaic_observations(raw: np.ndarray, dtype: type = np.float32) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Observation points of a raw mosaic: one per super-pixel.
+
+    Returns ``(x_px, y_px, aop, dop, s0)`` flattened: super-pixel centres in 1-based pixel coordinates
+    (half-integers: the centre of pixels 2c+1 and 2c+2), AOP (rad, C1 wire convention), DOP, S0 (DN).
+    """
+    i0, i45, i90, i135 = (c.astype(dtype) for c in superpixel_channels(raw))
+    s0, s1, s2 = stokes(i0, i45, i90, i135)
+    dop, psi = dop_psi(s0, s1, s2)
+    ny2, nx2 = s0.shape
+    yy, xx = np.meshgrid(np.arange(ny2) * 2 + 1.5, np.arange(nx2) * 2 + 1.5, indexing="ij")
+    return xx.ravel(), yy.ravel(), aop_from_psi(psi).ravel(), dop.ravel(), s0.ravel()
+
+
+def evectors_camera(x_px: np.ndarray, y_px: np.ndarray, aop: np.ndarray, cam: CameraGeometry,
+                    dtype: type = np.float32) -> np.ndarray:
+    """Unit E-vectors in the camera frame (N, 3) from pixel positions and AOP (rad) (Eq. 5-8, C1)."""
+    X, Y = cam.focal_plane(x_px, y_px)
+    X, Y = X.astype(dtype), Y.astype(dtype)
+    a = np.asarray(aop, dtype=dtype)
+    sa, ca = np.sin(a), np.cos(a)
+    if cam.projection == "pinhole":
+        ez = -(X * sa + Y * ca) / dtype(cam.focal_m)
+    else:
+        v = cam.view_rays(x_px, y_px).astype(dtype)
+        ez = -(v[:, 0] * sa + v[:, 1] * ca) / v[:, 2]
+    e = np.stack([sa, ca, ez], axis=-1)
+    return e / np.sqrt(np.sum(e * e, axis=-1, keepdims=True))
+
+
+def evectors_compass(aop: np.ndarray, mountings: np.ndarray, dtype: type = np.float32) -> np.ndarray:
+    """Body-frame E-vectors (n, 3) of single-direction units: ``E^b = C_u^b (sin AOP, cos AOP, 0)``."""
+    a = np.asarray(aop, dtype=dtype)
+    e_u = np.stack([np.sin(a), np.cos(a), np.zeros_like(a)], axis=-1)
+    return np.einsum("nij,nj->ni", mountings.astype(dtype), e_u)
+
+
+def scatter_matrix(e: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """``K = sum_i w_i E_i E_i^T`` (Eq. 14), (3, 3), six unique sums."""
+    we = e * w[:, None]
+    return we.T @ e
+
+
+def sym3_eigen_smallest(K: np.ndarray) -> tuple[np.ndarray, tuple[float, float, float]]:
+    """Smallest eigenvector and ascending eigenvalues of a symmetric 3x3 matrix, closed form.
+
+    Eigenvalues by the trigonometric solution of the characteristic cubic (Smith 1961):
+    ``m = tr/3``, ``B = K - m I``, ``p = sqrt(|B|_F^2 / 6)``, ``r = det(B) / (2 p^3)``,
+    ``phi = acos(r) / 3``; ``lambda = m + 2 p cos(phi + 2 pi k / 3)``. The eigenvector of the smallest
+    one is the largest of the three cross products of the rows of ``K - lambda_min I``.
+    Works in the dtype of ``K``.
+    """
+    dt = K.dtype.type
+    a00, a01, a02 = K[0]
+    a11, a12, a22 = K[1, 1], K[1, 2], K[2, 2]
+    m = (a00 + a11 + a22) / dt(3.0)
+    b00, b11, b22 = a00 - m, a11 - m, a22 - m
+    p2 = (b00 * b00 + b11 * b11 + b22 * b22 + dt(2.0) * (a01 * a01 + a02 * a02 + a12 * a12)) / dt(6.0)
+    if not p2 > 0:  # isotropic: every vector is an eigenvector
+        return np.array([0.0, 0.0, 1.0], dtype=K.dtype), (float(m), float(m), float(m))
+    p = dt(math.sqrt(float(p2)))
+    det_b = (b00 * (b11 * b22 - a12 * a12) - a01 * (a01 * b22 - a12 * a02) + a02 * (a01 * a12 - b11 * a02))
+    r = float(det_b / (dt(2.0) * p2 * p))
+    phi = math.acos(max(-1.0, min(1.0, r))) / 3.0
+    l_max = m + dt(2.0) * p * dt(math.cos(phi))
+    l_min = m + dt(2.0) * p * dt(math.cos(phi + 2.0 * math.pi / 3.0))
+    l_mid = dt(3.0) * m - l_max - l_min
+    r0 = np.array([a00 - l_min, a01, a02], dtype=K.dtype)
+    r1 = np.array([a01, a11 - l_min, a12], dtype=K.dtype)
+    r2 = np.array([a02, a12, a22 - l_min], dtype=K.dtype)
+    best = None
+    best_n = -1.0
+    for u, v in ((r0, r1), (r0, r2), (r1, r2)):
+        c = np.array([u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]], dtype=K.dtype)
+        n = float(c @ c)
+        if n > best_n:
+            best, best_n = c, n
+    assert best is not None
+    if best_n <= 0.0:
+        return np.array([0.0, 0.0, 1.0], dtype=K.dtype), (float(l_min), float(l_mid), float(l_max))
+    return (best / dt(math.sqrt(best_n))).astype(K.dtype), (float(l_min), float(l_mid), float(l_max))
+
+
+def solve_solar_vector(e: np.ndarray, dop: np.ndarray, dop_min: float = 0.05, min_points: int = 3,
+                       max_quality: float = 0.5) -> SolarSolution:
+    """Bi-direction solar vector from E-vectors (N, 3) and their DOP (N,) (Eq. 9-14).
+
+    Points with ``DOP < dop_min`` are dropped (unreliable AOP near the sun and in clouds); the
+    weights are the DOP (paper: "proportional to the DOP").
+    """
+    keep = dop >= dop_min
+    n = int(np.count_nonzero(keep))
+    dt = e.dtype
+    if n < min_points:
+        return SolarSolution(np.zeros(3, dtype=dt), 1.0, n, (0.0, 0.0, 0.0), False)
+    K = scatter_matrix(e[keep], dop[keep].astype(dt))
+    s, lam = sym3_eigen_smallest(K)
+    quality = lam[0] / lam[1] if lam[1] > 0 else 1.0
+    return SolarSolution(s, float(quality), n, lam, bool(quality <= max_quality and np.all(np.isfinite(s))))
+
+
+def exposure_time_s(t_rx_s: float, frame_len: int, baud: float, latency_us: int, bits_per_byte: int = 10) -> float:
+    """Mid-exposure time of a PSNS frame (C1): ``t_rx - len * bits / baud - latency``.
+
+    ``t_rx_s`` is the reception time of the frame's last byte (s, FPGA time base).
+    """
+    return t_rx_s - frame_len * bits_per_byte / baud - latency_us * 1e-6
+
+
+def evector_cycles(n: int, c: c674x.KernelCosts | None = None) -> int:
+    """C674x cycles to build ``n`` unit E-vectors from (x, y, AOP) [D].
+
+    Single precision: MATHLIB vector sinsp/cossp 9 + 9 cycles/element, rsqrtsp 6 cycles/element
+    [S, R2 "Vector"]; double precision: sindp/cosdp 44 + 45, rsqrtdp 28 [S, R2 "Vector"]. Plus the
+    focal-plane terms and the normalisation, 8 MPY + 5 ADD per point, software-pipelined (section 6
+    fallback), plus 3 loop prologs.
+    """
+    c = c or c674x.KernelCosts()
+    per = (44 + 45 + 28) if c.double else (9 + 9 + 6)
+    return n * per + c.flops(8, 5, iterations=n, overhead=3 * c674x.CALL_OVERHEAD)
+
+
+def solve_cycles(n: int, c: c674x.KernelCosts | None = None) -> int:
+    """C674x cycles of threshold + ``K`` accumulation over ``n`` points + the closed-form eigen solve [D/E].
+
+    K: 9 MPYSP + 6 ADDSP per point, bound by the 2 .M units: 5 n + 40 (c6747_cycles.md section 4).
+    Threshold/compaction: 1 cycle/point. Eigen: sqrt + recip + acos + 2 cos + rsqrt (316 cycles in
+    single precision, MATHLIB inline [S]) + ~80 FLOPs and the 3 cross products (~150 cycles) [E].
+    In double precision the accumulation is MPYDP-bound: 9 MPYDP per point at 0.5/cycle = 18 n [D].
+    """
+    c = c or c674x.KernelCosts()
+    acc = (18 * n + 40) if c.double else (5 * n + 40)
+    return acc + n + c.math("sqrt") + c.math("recip") + c.math("acos") + c.math("cos", 2) + c.math("rsqrt") \
+        + c.flops(60, 60)

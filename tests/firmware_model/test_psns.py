@@ -1,0 +1,197 @@
+"""PSNS solve: Stokes/AOP convention (C1), E-vectors, closed-form eigen solve, solar vector accuracy."""
+
+import math
+
+import numpy as np
+import pytest
+
+from firmware_model import psns
+from firmware_model.attitude import a2mat, yaw_from_heading
+from firmware_model.psns_geometry import (
+    CameraGeometry,
+    compass_unit_mountings,
+    compass_view_rays,
+)
+
+from .sky import observe_sky, rayleigh, render_mosaic
+
+DEG = math.pi / 180.0
+S_BEIJING = np.array([-0.876416, -0.282797, 0.389770])  # algorithms.md section 3 (ENU)
+
+
+def _angle_deg(a, b) -> float:
+    """Angle between two axes (sign-insensitive), robust near zero."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    return math.degrees(math.atan2(np.linalg.norm(np.cross(a, b)), abs(float(a @ b))))
+
+
+def _sun_in_camera(heading_deg, pitch_deg, roll_deg, s_n=S_BEIJING):
+    cbn = a2mat(pitch_deg * DEG, roll_deg * DEG, yaw_from_heading(heading_deg * DEG))
+    s = cbn.T @ (s_n / np.linalg.norm(s_n))
+    return s
+
+
+# -- C1 convention -----------------------------------------------------------------------------------
+def test_stokes_and_aop_follow_the_c1_convention():
+    # an E-vector projecting on the image plane at psi = 30 deg from +x towards +y
+    psi = 30 * DEG
+    theta_p = np.deg2rad([0, 45, 90, 135])
+    i = 0.5 * 1000 * (1 + 0.6 * np.cos(2 * (psi - theta_p)))
+    s0, s1, s2 = psns.stokes(*i)
+    dop, psi_m = psns.dop_psi(np.float64(s0), np.float64(s1), np.float64(s2))
+    assert dop == pytest.approx(0.6, abs=1e-12) and psi_m == pytest.approx(psi, abs=1e-12)
+    aop = psns.aop_from_psi(psi_m)
+    assert aop == pytest.approx(60 * DEG)  # measured from +y towards +x
+    # projection is proportional to (sin AOP, cos AOP) = (cos psi, sin psi)
+    assert math.sin(aop) == pytest.approx(math.cos(psi)) and math.cos(aop) == pytest.approx(math.sin(psi))
+
+
+@pytest.mark.parametrize("psi_deg, aop_deg", [(0, 90), (90, 0), (-90, 0), (100, -10), (-45, -45), (45, 45), (-89, -1)])
+def test_aop_wraps_to_half_open_interval(psi_deg, aop_deg):
+    a = float(psns.aop_from_psi(np.float64(psi_deg * DEG))) / DEG
+    assert a == pytest.approx(aop_deg, abs=1e-9)
+    assert -90 < a <= 90
+
+
+def test_evector_is_perpendicular_to_view_ray_both_projections():
+    rng = np.random.default_rng(3)
+    for cam in (CameraGeometry(), CameraGeometry(projection="fisheye", focal_m=3.7e-3)):
+        x = rng.integers(1, cam.nx + 1, 500)
+        y = rng.integers(1, cam.ny + 1, 500)
+        aop = rng.uniform(-math.pi / 2, math.pi / 2, 500)
+        e = psns.evectors_camera(x, y, aop, cam, dtype=np.float64)
+        v = cam.view_rays(x, y)
+        assert np.max(np.abs(np.sum(e * v, axis=1))) < 1e-12
+        assert np.allclose(np.linalg.norm(e, axis=1), 1.0)
+        # and its image-plane projection has the angle AOP from +y towards +x
+        assert np.allclose(np.arctan2(e[:, 0], e[:, 1]) % np.pi, aop % np.pi)
+
+
+# -- eigen solver ------------------------------------------------------------------------------------
+def test_closed_form_eigen_matches_numpy_eigh():
+    rng = np.random.default_rng(7)
+    for _ in range(300):
+        a = rng.normal(size=(3, 3))
+        K = a @ a.T + rng.uniform(0, 1e-3) * np.eye(3)
+        v, lam = psns.sym3_eigen_smallest(K)
+        w, V = np.linalg.eigh(K)
+        assert np.allclose(lam, w, rtol=1e-9, atol=1e-9 * w[2])
+        if (w[1] - w[0]) > 1e-3 * w[2]:
+            assert _angle_deg(v, V[:, 0]) < 1e-6
+    # single precision, a realistic K (rank ~2, lambda_min ~ 0)
+    cam = CameraGeometry()
+    obs = observe_sky(_sun_in_camera(30, 2, -3), cam, stride_px=32)
+    e = psns.evectors_camera(obs.x_px, obs.y_px, obs.aop_deg * DEG, cam)
+    K32 = psns.scatter_matrix(e, obs.dop.astype(np.float32))
+    v32, lam32 = psns.sym3_eigen_smallest(K32)
+    w, V = np.linalg.eigh(K32.astype(np.float64))
+    assert v32.dtype == np.float32
+    assert _angle_deg(v32, V[:, 0]) < 1e-4
+    assert lam32[2] == pytest.approx(w[2], rel=1e-5)
+
+
+# -- solar vector accuracy ------------------------------------------------------------------------
+ATTITUDES = [(30, 2, -3), (120, -5, 4), (250, 10, 0), (330, 0, 8)]
+
+
+@pytest.mark.parametrize("cam", [CameraGeometry(), CameraGeometry(projection="fisheye", focal_m=3.7e-3)],
+                         ids=["pinhole", "fisheye"])
+def test_noise_free_camera_below_0p001_deg(cam):
+    for att in ATTITUDES:
+        s_c = _sun_in_camera(*att)
+        obs = observe_sky(s_c, cam, stride_px=48)
+        e = psns.evectors_camera(obs.x_px, obs.y_px, obs.aop_deg * DEG, cam)
+        sol = psns.solve_solar_vector(e, obs.dop.astype(np.float32))
+        assert sol.valid and sol.n_used > 1000
+        assert _angle_deg(sol.s, s_c) < 0.001
+        assert sol.quality < 1e-4
+
+
+def test_reference_camera_noise_median_below_0p05_deg():
+    """Full well 10 000 e-, 5 e- read noise, 12-bit, extinction ratio 300 (algorithms.md 2.2)."""
+    rng = np.random.default_rng(29)
+    cam = CameraGeometry()
+    errs = []
+    for heading in range(0, 360, 30):
+        s_c = _sun_in_camera(heading, rng.uniform(-5, 5), rng.uniform(-5, 5))
+        obs = observe_sky(s_c, cam, stride_px=16, rng=rng)  # ~19 600 points, 1/16 of the half-res grid
+        e = psns.evectors_camera(obs.x_px, obs.y_px, obs.aop_deg * DEG, cam)
+        sol = psns.solve_solar_vector(e, obs.dop.astype(np.float32))
+        assert sol.valid
+        errs.append(_angle_deg(sol.s, s_c))
+    assert np.median(errs) < 0.05, errs
+    assert max(errs) < 0.15
+
+
+def test_wire_quantised_points_like_a_polarization_obs_frame():
+    """0.01 deg AOP and 1/65535 DOP quantisation, ~200 points (what fits UART2 at 5 Hz)."""
+    cam = CameraGeometry()
+    s_c = _sun_in_camera(30, 2, -3)
+    obs = observe_sky(s_c, cam, stride_px=160)
+    aop = np.round(obs.aop_deg * 100) * (0.01 * DEG)
+    dop = (np.round(obs.dop * 65535) / 65535).astype(np.float32)
+    e = psns.evectors_camera(obs.x_px, obs.y_px, aop, cam)
+    sol = psns.solve_solar_vector(e, dop)
+    assert 150 < sol.n_used < 230
+    assert _angle_deg(sol.s, s_c) < 0.01
+
+
+def test_raw_mosaic_superpixel_path():
+    cam = CameraGeometry(nx=612, ny=512, dx_m=4 * 3.45e-6, dy_m=4 * 3.45e-6)  # 1/4 resolution, same FOV
+    s_c = _sun_in_camera(30, 2, -3)
+    raw = render_mosaic(s_c, cam)
+    x, y, aop, dop, s0 = psns.mosaic_observations(raw)
+    assert x.shape == (306 * 256,) and np.all(s0 > 0)
+    e = psns.evectors_camera(x, y, aop, cam)
+    sol = psns.solve_solar_vector(e, dop)
+    # the four pixels of a super-pixel see slightly different rays: a small systematic error remains
+    assert _angle_deg(sol.s, s_c) < 0.05
+    raw_n = render_mosaic(s_c, cam, rng=np.random.default_rng(5))
+    x, y, aop, dop, _ = psns.mosaic_observations(raw_n)
+    sol = psns.solve_solar_vector(psns.evectors_camera(x, y, aop, cam), dop)
+    assert _angle_deg(sol.s, s_c) < 0.1
+
+
+def test_too_few_points_or_isotropic_is_invalid():
+    e = np.eye(3, dtype=np.float32)
+    assert not psns.solve_solar_vector(e[:2], np.array([0.5, 0.5], dtype=np.float32)).valid
+    sol = psns.solve_solar_vector(e, np.array([0.5, 0.5, 0.5], dtype=np.float32))
+    assert not sol.valid and sol.quality == pytest.approx(1.0)
+    assert not psns.solve_solar_vector(e, np.array([0.01, 0.01, 0.01], dtype=np.float32)).valid  # below DOP_min
+
+
+# -- multi-unit compass geometry (C1) ------------------------------------------------------------------
+def test_default_compass_geometry():
+    m = compass_unit_mountings()
+    assert m.shape == (9, 3, 3)
+    assert np.allclose(m[0], np.eye(3))
+    for c in m:
+        assert np.allclose(c.T @ c, np.eye(3), atol=1e-12) and np.linalg.det(c) == pytest.approx(1.0)
+    rays = compass_view_rays(m)
+    zen = np.degrees(np.arccos(rays[1:, 2]))
+    assert np.allclose(zen, 45.0)
+    az = np.degrees(np.arctan2(rays[1:, 0], rays[1:, 1])) % 360
+    assert np.allclose(az, np.arange(0, 360, 45))
+    # each ring unit's +y points up the hemisphere: towards the zenith, in the ray's vertical plane
+    y = m[1:, :, 1]
+    assert np.all(y[:, 2] > 0.7)
+    assert np.allclose(np.einsum("ij,ij->i", y, np.cross(rays[1:], [0, 0, 1.0])), 0.0, atol=1e-12)
+
+
+def test_compass_units_recover_the_sun():
+    m = compass_unit_mountings()
+    s_b = _sun_in_camera(75, 3, -2)
+    rays = compass_view_rays(m)
+    dop, e_b = rayleigh(s_b, rays)
+    # each unit measures the AOP of E in its own x-y plane, from its +y towards +x
+    e_u = np.einsum("nji,nj->ni", m, e_b)
+    aop = np.arctan2(e_u[:, 0], e_u[:, 1])
+    e = psns.evectors_compass(aop, m, dtype=np.float64)
+    sol = psns.solve_solar_vector(e, dop)
+    assert _angle_deg(sol.s, s_b) < 1e-9
+
+
+def test_exposure_time_tag_c1():
+    # 36-byte SOLAR_VECTOR frame at 115200 8N1 (10 bits/byte), 30 ms latency
+    t = psns.exposure_time_s(10.0, 36, 115200, 30000)
+    assert t == pytest.approx(10.0 - 36 * 10 / 115200 - 0.030)

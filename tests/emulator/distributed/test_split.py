@@ -3,8 +3,9 @@
 Stated tolerance (docs/distributed.md): the two runs produce the same navigation epochs; up to the first GNSS
 fix they are bit-identical; after it, they take each GNSS fix or update at most one IMU tick apart (the epochs in
 between show it in one run only and are counted, not compared), and otherwise agree in position within 2 m,
-velocity within 0.1 m/s, roll/pitch/heading within 0.01 deg. The zenoh hop adds ~0.3 ms of latency (more under load), which can move a GNSS fix whose last byte
-lands within that margin of an IMU tick to the neighbouring 5 ms tick; everything else is the same computation.
+velocity within 0.1 m/s, roll/pitch/heading within 0.01 deg. The zenoh hop adds about 1 ms between the two
+event loops (more under load), which can move a GNSS fix whose last byte lands within that margin of an IMU tick
+to the neighbouring 5 ms tick; everything else is the same computation.
 """
 
 from __future__ import annotations

@@ -623,7 +623,8 @@ class _DspExtraLoad(Injector):
         super().__init__(*a)
         s = self.spec
         dsp = self.emu.dsp
-        assert dsp is not None
+        if dsp is None or not hasattr(dsp, "extra_cycles_per_tick"):
+            raise _bind_error(self.kind, "needs the virtual DSP in this process (not a split run's remote DSP)")
         budget = dsp.clock_hz / self.emu.scn.sensors.imu.rate_hz
         self.cycles = int(s.cycles_per_tick) if s.cycles_per_tick is not None else int(round(s.load_pct / 100.0 * budget))
 

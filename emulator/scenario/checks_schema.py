@@ -30,7 +30,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import ConfigDict, Field, field_validator, model_validator
 
 from .base import Model
 
@@ -272,6 +272,8 @@ class DspExtraLoadFault(FaultWindow):
 class Fault(Model):
     """One scheduled fault; exactly one key (see module docstring and docs/scenarios.md)."""
 
+    model_config = ConfigDict(json_schema_extra={"minProperties": 1, "maxProperties": 1})
+
     gnss_outage: GnssOutageFault | None = None
     gnss_glitch: GnssGlitchFault | None = None
     gnss_degraded: GnssDegradedFault | None = None
@@ -456,6 +458,8 @@ class PythonHook(Model):
 
 class Expectation(Model):
     """One check evaluated at the end of the run; exactly one key."""
+
+    model_config = ConfigDict(json_schema_extra={"minProperties": 1, "maxProperties": 1})
 
     nav_error: NavErrorBound | None = None
     event: EventExpectation | None = None

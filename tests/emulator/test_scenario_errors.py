@@ -163,3 +163,44 @@ def test_the_library_and_its_faults_validate(tmp_path):
     for p in library():
         scn = load_scenario(p)
         assert scn.expectations, f"{p.name} has no expectations"
+
+
+def _plain(x):
+    """YAML data as JSON would carry it: timestamps as ISO strings, and numbers such as ``300.0e6``, which
+    PyYAML (YAML 1.1: an exponent needs a sign) reads as strings, as YAML 1.2 editors read them."""
+    import datetime as dt
+    import re
+
+    if isinstance(x, dict):
+        return {k: _plain(v) for k, v in x.items()}
+    if isinstance(x, list):
+        return [_plain(v) for v in x]
+    if isinstance(x, (dt.datetime, dt.date)):
+        return x.isoformat()
+    if isinstance(x, str) and re.fullmatch(r"[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+", x):
+        return float(x)
+    return x
+
+
+def test_the_exported_json_schema_accepts_the_library_and_rejects_broken_items():
+    """An independent validator (jsonschema, Draft 2020-12) on docs/scenario.schema.json: what editors see."""
+    import json
+
+    import jsonschema
+    import yaml
+
+    from emulator.golden import library
+
+    schema = json.loads((ROOT / "docs" / "scenario.schema.json").read_text())
+    v = jsonschema.Draft202012Validator(schema)
+    for p in library():
+        errs = list(v.iter_errors(_plain(yaml.safe_load(p.read_text()))))
+        assert not errs, (p.name, [e.message for e in errs])
+    base = _plain(yaml.safe_load(HEAD))
+    bad = [{"faults": [{"gnss_outage": {"start_s": 1}, "gnss_glitch": {"offset_enu_m": [1, 0, 0]}}]},
+           {"faults": [{}]},
+           {"faults": [{"gnss_outag": {"start_s": 1}}]},
+           {"faults": [{"link_bit_errors": {"link": "gnss", "ber": 0.9}}]},
+           {"expectations": [{"event": {"name": "x", "nope": 1}}]}]
+    for extra in bad:
+        assert list(v.iter_errors({**base, **extra})), extra

@@ -242,6 +242,13 @@ class _PsnsUnitBlocked(Injector):
         super().__init__(*a)
         self.cam, self.comp = _psns(self.emu, self.kind)
         self.effect_keys = ("unit_readings_blocked",) if self.comp is not None else ("frames_blocked",)
+        if self.comp is not None and self.kind == "psns_unit_blocked":
+            n = len(self.comp.model.mountings)
+            units = self.spec.units
+            self.units = list(range(n)) if units is None else list(units)
+            bad = [u for u in self.units if u >= n]
+            if bad:
+                raise _bind_error(self.kind, f"blocks units {bad}, but the compass has units 0..{n - 1}")
 
     @property
     def target(self) -> str:
@@ -251,15 +258,14 @@ class _PsnsUnitBlocked(Injector):
         return "polarization camera"
 
     def on(self, t: float) -> None:
-        if self.comp is not None:
-            self.comp.model.set_blocked(self.spec.units, True)
+        if self.comp is not None:  # the compass's own blocked-units schedule (issue 6): a window from now
+            end = self.spec.end_s(self.emu.scn.duration_s)
+            self.comp.model.block_units(self.units, t, max(end, t + 1e-9))
         else:
             self.cam.set_blocked(True)
 
     def off(self, t: float) -> None:
-        if self.comp is not None:
-            self.comp.model.set_blocked(self.spec.units, False)
-        else:
+        if self.comp is None:
             self.cam.set_blocked(False)
 
     def _counts(self) -> dict[str, int]:

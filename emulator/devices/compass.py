@@ -16,6 +16,13 @@ sigma_AOP``, and the AOP error grows as ``sigma_I/(sqrt(2) S0 DOP)`` when the DO
 (algorithms.md 2.3). The sun inside a unit's field of view (``fov_half``) saturates it (the unit
 is left out of the frame and SATURATED is set); a sun below ``min_sun_elevation`` gives frames
 with no units and SUN_BELOW_HORIZON.
+
+Units and mountings are configurable (``sensors.compass.units``: view directions as zenith/azimuth,
+:func:`firmware_model.variants.common.unit_mounting`), e.g. the three sensors of the dual-vector
+switching study. **Blocked units** (``sensors.compass.blocked``, or :meth:`CompassModel.block_units` for
+a fault injector): while a unit is blocked it sees unpolarized light (an obstruction, a thick cloud in its
+narrow field of view): its DOP is that of the channel noise (~0) and its AOP is scrambled (uniform); the
+unit stays in the frame, as a real sensor would keep reporting.
 """
 
 from __future__ import annotations
@@ -75,6 +82,8 @@ class CompassConfig:
     min_sun_elevation: float = 0.0
     dop_threshold: float = 0.05
     noise: bool = True
+    #: blocked windows: (units, start_s, end_s)
+    blocked: tuple[tuple[tuple[int, ...], float, float], ...] = ()
 
     @property
     def channel_sigma(self) -> float:
@@ -95,6 +104,12 @@ class CompassReading:
 class CompassModel:
     """The measurement of all units at one instant (see module docstring)."""
 
+    #: injected mounting shift (emulator.faults, :meth:`set_mounting_error`): a rotation matrix, or None
+    mounting_error: np.ndarray | None = None
+    #: fault evidence: unit readings taken while blocked; readings taken with the mounting shift
+    blocked_readings = 0
+    readings_with_mounting_error = 0
+
     def __init__(self, cfg: CompassConfig, sky: SkyModel, sun: SunModel, trajectory: Trajectory,
                  rng: np.random.Generator) -> None:
         self.cfg = cfg
@@ -105,30 +120,27 @@ class CompassModel:
         m = np.asarray(cfg.mountings, dtype=np.float64)
         self.mountings = m
         self.rays_b = m[:, :, 2].copy()  # (U, 3) view rays, body frame
-        self._nominal = m
-        #: injected faults (emulator.faults): blocked units (left out of the frames) and a mounting shift
-        self.blocked = np.zeros(len(m), dtype=bool)
-        self.mounting_error: np.ndarray | None = None
-        #: fault evidence: unit readings suppressed by blocking; readings taken with the mounting shift
-        self.blocked_readings = 0
-        self.readings_with_mounting_error = 0
+        self.blocked: list[tuple[tuple[int, ...], float, float]] = []
+        for units, start, end in cfg.blocked:
+            self.block_units(units, start, end)
 
-    # -- injected faults (emulator.faults) ----------------------------------------------------------
-    def set_blocked(self, units: "list[int] | None", blocked: bool = True) -> None:
-        """Block (or unblock) units (None: all): a blocked unit sees no sky and is left out of the frame."""
-        idx = range(len(self.blocked)) if units is None else units
-        for u in idx:
-            self.blocked[u] = blocked
+    def block_units(self, units: tuple[int, ...] | list[int], start_s: float, end_s: float) -> None:
+        """Block ``units`` from ``start_s`` to ``end_s`` (scenario time): unpolarized light, scrambled AOP."""
+        n = len(self.mountings)
+        bad = [u for u in units if not 0 <= int(u) < n]
+        if bad:
+            raise ValueError(f"compass has units 0..{n - 1}; cannot block {bad}")
+        if not end_s > start_s:
+            raise ValueError(f"a blocked window needs end > start, got {start_s}..{end_s}")
+        self.blocked.append((tuple(int(u) for u in units), float(start_s), float(end_s)))
 
-    def set_mounting_error(self, rotation_vector_rad: np.ndarray | None) -> None:
-        """Rotate the whole compass block by a small rotation about the body axes (``R C_u^b``); None removes it."""
-        if rotation_vector_rad is None:
-            self.mounting_error = None
-            self.mountings = self._nominal
-        else:
-            self.mounting_error = rotation_vector_matrix(rotation_vector_rad)
-            self.mountings = np.einsum("ij,ujk->uik", self.mounting_error, self._nominal)
-        self.rays_b = self.mountings[:, :, 2].copy()
+    def blocked_units(self, t: float) -> list[int]:
+        """Units blocked at ``t``."""
+        out: set[int] = set()
+        for units, start, end in self.blocked:
+            if start <= t < end:
+                out.update(units)
+        return sorted(out)
 
     def read(self, t: float) -> CompassReading:
         cfg = self.cfg
@@ -146,8 +158,13 @@ class CompassModel:
         e_u = np.einsum("uji,uj->ui", self.mountings, e_b)  # C_b^u E^b
         psi = np.arctan2(e_u[:, 1], e_u[:, 0])
         d = (cfg.extinction_ratio - 1.0) / (cfg.extinction_ratio + 1.0)
-        q = d * fld.dop * np.cos(2 * psi)
-        u = d * fld.dop * np.sin(2 * psi)
+        sky_dop = fld.dop
+        blocked = self.blocked_units(t) if self.blocked else []
+        if blocked:  # unpolarized light on the blocked units
+            sky_dop = np.array(sky_dop, dtype=np.float64, copy=True)
+            sky_dop[blocked] = 0.0
+        q = d * sky_dop * np.cos(2 * psi)
+        u = d * sky_dop * np.sin(2 * psi)
         i0, i90, i45, i135 = 0.5 * (1 + q), 0.5 * (1 - q), 0.5 * (1 + u), 0.5 * (1 - u)
         if cfg.noise:
             z = self.rng.standard_normal((4, n_u)) * cfg.channel_sigma
@@ -157,21 +174,33 @@ class CompassModel:
         dop = np.hypot(s1, s2) / s0
         aop = math.pi / 2 - 0.5 * np.arctan2(s2, s1)
         aop = np.where(aop > math.pi / 2, aop - math.pi, aop)
+        if blocked:  # scrambled AOP (also without channel noise)
+            aop[blocked] = self.rng.uniform(-0.5 * math.pi, 0.5 * math.pi, len(blocked))
         sat = (v @ s_b) > math.cos(cfg.fov_half)
         status = int(PsnsStatus.SATURATED) if sat.any() else 0
         keep = ~sat
+        if blocked:
+            self.blocked_readings += len(blocked)
         if self.mounting_error is not None:
             self.readings_with_mounting_error += 1
-        if self.blocked.any():
-            self.blocked_readings += int(np.count_nonzero(keep & self.blocked))
-            keep &= ~self.blocked
-            status |= int(PsnsStatus.OCCLUDED)
         if np.count_nonzero(keep & (dop >= cfg.dop_threshold)) >= 2:
             status |= PsnsStatus.VALID
         else:
             status |= PsnsStatus.LOW_DOP
         idx = np.nonzero(keep)[0]
         return CompassReading(idx, aop[idx], dop[idx], status)
+
+    def set_mounting_error(self, rotation_vector_rad: np.ndarray | None) -> None:
+        """Rotate the whole compass block by a small rotation about the body axes (``R C_u^b``, an injected
+        installation error); None removes it."""
+        nominal = self.__dict__.setdefault("_nominal_mountings", self.mountings)
+        if rotation_vector_rad is None:
+            self.mounting_error = None
+            self.mountings = nominal
+        else:
+            self.mounting_error = rotation_vector_matrix(rotation_vector_rad)
+            self.mountings = np.einsum("ij,ujk->uik", self.mounting_error, nominal)
+        self.rays_b = self.mountings[:, :, 2].copy()
 
 
 class PolarizationCompass:

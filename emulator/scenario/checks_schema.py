@@ -97,10 +97,11 @@ class PsnsCloudCoverFault(FaultWindow):
 
 
 class PsnsUnitBlockedFault(FaultWindow):
-    """Polarization units covered (dirt, a hand, snow): compass units are left out of the COMPASS frames;
-    a camera sends frames without observation points (OCCLUDED, LOW_DOP)."""
+    """Polarization units covered (dirt, a hand, snow): compass units see unpolarized light (DOP ~0, scrambled
+    AOP; the compass's blocked-units schedule); a camera sends frames without observation points
+    (OCCLUDED, LOW_DOP)."""
 
-    units: list[int] | None = Field(None, description="compass unit indices 0..8 (omit: all); not for a camera")
+    units: list[int] | None = Field(None, description="compass unit indices (omit: all); not for a camera")
 
     @field_validator("units")
     @classmethod
@@ -108,9 +109,9 @@ class PsnsUnitBlockedFault(FaultWindow):
         if v is not None:
             if not v:
                 raise ValueError("units must not be empty (omit it to block every unit)")
-            bad = [u for u in v if not 0 <= u <= 8]
+            bad = [u for u in v if not 0 <= u < 64]
             if bad:
-                raise ValueError(f"compass units are 0..8, got {bad}")
+                raise ValueError(f"compass unit indices are 0 or more (and below 64), got {bad}")
         return v
 
 

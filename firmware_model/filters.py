@@ -19,8 +19,8 @@ and, for every variant, once per tick (cheap: the base variant returns nothing):
                                               VARIANT block and STATUS, or None (base: no block)
 
 Services of the main loop a variant may use (:class:`FilterHost`, handed over by :meth:`NavFilter.attach`):
-UTC for the ephemeris, the INS state at a measurement's time, the mean of the MAG frames since the last
-call, the current tick time.
+UTC for the ephemeris, the INS state at a measurement's time, the mean of the MAG frames around a given
+time, the current tick time.
 
 Variants register themselves in :data:`FILTER_VARIANTS` with :func:`register_filter`; the
 scenario's ``firmware.filter`` picks one by name. Issue 6's variants (dual-vector switching, K-means
@@ -149,8 +149,8 @@ class FilterHost(Protocol):
     def ins_at(self, t_meas: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """INS position (lat, lon rad, h m; float64), ENU velocity and attitude quaternion ``q_b^n`` at ``t_meas``."""
 
-    def mag_mean_nt(self) -> tuple[np.ndarray, int] | None:
-        """Mean magnetometer field (nT, body axes) of the MAG frames since the last call and their number."""
+    def mag_mean_nt(self, t_center_s: float, half_window_s: float = 0.025) -> tuple[np.ndarray, int] | None:
+        """Mean magnetometer field (nT, body axes) of the MAG frames sampled within ``t_center_s +- half_window_s``."""
 
     def now_s(self) -> float:
         """FPGA time of the current tick, s."""

@@ -280,8 +280,7 @@ class Firmware:
         # navigation
         self.nav: NavState | None = None
         self.filter: NavFilter = self._new_filter(cfg.filter)
-        self._mag_sum = np.zeros(3)
-        self._mag_n = 0
+        self._mag_hist: deque[tuple[float, tuple[int, int, int]]] = deque(maxlen=128)  # (t_sample_s, field)
         self._tick = 0
         self._sub: list[tuple[np.ndarray, np.ndarray]] = []
         self._fn_sum = np.zeros(3)
@@ -320,10 +319,8 @@ class Firmware:
                 else:  # MAG frame (same FPGA framing); kept for the variants that use a magnetometer
                     self.last_mag = f
                     self.counters["mag_frames"] += 1
-                    if not f.status & 0x01:  # not over range: into the mean a variant may ask for
-                        fx, fy, fz = f.field
-                        self._mag_sum += (fx, fy, fz)
-                        self._mag_n += 1
+                    if not f.status & 0x01:  # not over range: into the history a variant may average
+                        self._mag_hist.append((self._unwrap_near(f.t_sample_us) / 1e6, f.field))
         elif uart == UART_GNSS:
             for s in self._dec_gnss.feed(data):
                 if isinstance(s, NavPvt):
@@ -370,16 +367,33 @@ class Firmware:
         """FPGA time of the latest IMU frame, s."""
         return self._now_s()
 
-    def mag_mean_nt(self) -> tuple[np.ndarray, int] | None:
-        """Mean MAG field (nT, body axes) since the last call and the number of frames (None if none)."""
-        if self._mag_n == 0:
+    def mag_mean_nt(self, t_center_s: float, half_window_s: float = 0.025) -> tuple[np.ndarray, int] | None:
+        """Mean MAG field (nT, body axes) of the frames sampled within ``t_center_s +- half_window_s``
+        (FPGA time; e.g. a camera exposure) and their number; None when there is none."""
+        acc = [0, 0, 0]
+        n = 0
+        for ts, fld in reversed(self._mag_hist):
+            if ts < t_center_s - half_window_s:
+                break
+            if ts <= t_center_s + half_window_s:
+                acc[0] += fld[0]
+                acc[1] += fld[1]
+                acc[2] += fld[2]
+                n += 1
+        self.meter.charge("mag_mean", c674x.flops(3, 3 * max(n, 1)) + len(self._mag_hist))
+        if n == 0:
             return None
-        mean = self._mag_sum * (0.1 / self._mag_n)  # MAG words are 0.1 nT
-        n = self._mag_n
-        self._mag_sum[:] = 0.0
-        self._mag_n = 0
-        self.meter.charge("mag_mean", c674x.flops(3, 3 * n))
-        return mean, n
+        return np.array(acc, dtype=np.float64) * (0.1 / n), n  # MAG words are 0.1 nT
+
+    def _unwrap_near(self, t_us: int) -> int:
+        """A 32-bit FPGA time stamp near the latest IMU time, unwrapped like :meth:`_unwrap_us`."""
+        base = self._t_epoch_us + (self._t_last_us or 0)
+        full = (base & ~0xFFFFFFFF) | (t_us & 0xFFFFFFFF)
+        if full - base > 2**31:
+            full -= 2**32
+        elif base - full > 2**31:
+            full += 2**32
+        return full
 
     def note_deadline_miss(self) -> None:
         """Called by the host DSP when a tick started after its deadline."""
@@ -715,7 +729,7 @@ class Firmware:
                 else:
                     self.counters["psns_rejected"] += 1
                     if t - self._last_psns_reject_t >= 1.0:  # at most one event per second
-                        res.events.append({"event": "psns_rejected", "t_fpga_s": t, "kind": rep.kind,
+                        res.events.append({"event": "psns_rejected", "t_fpga_s": t, "measurement": rep.kind,
                                            "norm_innov": rep.max_norm_innov, **(rep.detail or {})})
                     self._last_psns_reject_t = t
         if updated:

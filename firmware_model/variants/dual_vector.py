@@ -125,7 +125,7 @@ class DualVectorFilter(BaseFilter):
         self.rays_b = self.mountings[:, :, 2].astype(dtype)
         self.n_units = len(self.mountings)
         self.mode = PSNS_MODE_NONE
-        self.q = np.zeros(self.n_units, dtype=bool)
+        self.q_flags = np.zeros(self.n_units, dtype=bool)
         self.lam = np.ones(self.n_units)
         self._r_unit = (self.p.aop_sigma_deg * DEG) ** 2
 
@@ -135,7 +135,7 @@ class DualVectorFilter(BaseFilter):
 
     def variant_status(self) -> tuple[int, int, int] | None:
         mask = 0
-        for i, qi in enumerate(self.q.tolist()):
+        for i, qi in enumerate(self.q_flags.tolist()):
             if qi:
                 mask |= 1 << i
         return self.mode, self.n_units, mask
@@ -190,7 +190,7 @@ class DualVectorFilter(BaseFilter):
                 mm.decide(t, ch, False, "discrimination_factor_above_tp", factor=li, tp=self.p.tp)
             else:
                 q[i] = mm.decide(t, ch, True, "discrimination_factor_below_tp", factor=li, tp=self.p.tp)
-        self.q = q
+        self.q_flags = q
         self.lam = lam
         k = int(np.count_nonzero(q))
         mm.report(t, "psns_quality", [int(x) for x in q.tolist()], "information_discrimination",

@@ -172,6 +172,8 @@ class FederatedFilter(NavFilter):
         rm, rn = earth.radii(lat)
         lvl = cfg.accel_bias_sigma_mg * 1e-3
         att = [lvl**2, lvl**2, heading_sigma_rad**2]
+        if p.initial_attitude_sigma_deg is not None:
+            att = [(v * DEG) ** 2 for v in p.initial_attitude_sigma_deg]
         gyro = [(cfg.gyro_bias_sigma_deg_h * DPH) ** 2] * 3
         p01 = np.array(att + [0.1**2] * 3
                        + [(cfg.gnss_pos_sigma_h_m / (rm + h)) ** 2, (cfg.gnss_pos_sigma_h_m / ((rn + h) * math.cos(lat))) ** 2,

@@ -10,13 +10,18 @@ Pipeline on each POLARIZATION_OBS frame of an all-sky (fisheye) camera:
    iterations (deterministic cycle cost). The Sun is at the **lowest-DOP cluster** (Rayleigh DOP vanishes
    towards the Sun, paper Eq. 6); the normalised mean view ray of its members is the coarse sun direction.
 3. **Refinement** with the E-vector eigen-solution (base paper Eq. 14, :func:`firmware_model.psns.solve_solar_vector`):
-   ``+-S`` from ``K = sum DOP E E^T``, the sign taken from the K-means direction.
+   ``+-S`` from ``K = sum DOP E E^T``, the sign taken from the low-DOP cluster: Rayleigh's DOP is symmetric
+   about the sun/anti-sun axis, so the cluster may also hold the sky around the anti-sun (above the horizon
+   when the Sun is low); the Sun is on the side whose nearest cluster member is nearer to the axis (the
+   anti-sun is below the horizon). The coarse (paper) sun direction is the mean ray of the members on
+   that side.
 4. **Refusal** instead of a wrong answer: no distinct low-DOP cluster, a poor eigen solution, K-means and
    eigen directions that disagree, or a refined Sun outside (or within ``fov_margin`` of the edge of) the
    observed field of view. The paper's own field test shows K-means fails when the blob is cut by the lens's
    field of view; the firmware says so (event ``kmeans_refused`` with its reason, PSNS status "rejected",
    VARIANT mode 2) and leaves the attitude to the INS.
-5. **Heading from the magnetometer** (the MAG frames on UART1, averaged since the previous camera frame),
+5. **Heading from the magnetometer** (the MAG frames on UART1 sampled within ``mag_half_window`` of the
+   exposure time, averaged),
    tilt-compensated with the current pitch/roll: with ``m^h = R_X(theta)^T R_Y(gamma)^T m^b``,
    ``yaw = atan2(m^h_x, m^h_y) - D`` (D the declination, east positive; yaw counter-clockwise, PSINS).
 6. **Pitch and roll from the sun vector** with the heading known, in the paper's rotation order
@@ -26,7 +31,8 @@ Pipeline on each POLARIZATION_OBS frame of an all-sky (fisheye) camera:
    ``w = R_X(theta) u`` and ``gamma = atan2(w_x S_z - w_z S_x, w_x S_x + w_z S_z)``. This is the paper's
    zenith-point construction (Eqs. 10-13: ``C_Y = sin P'``, ``tan R = -C_X/C_Z``) written for an arbitrary
    sun azimuth instead of first rotating the Sun onto the Y axis. Heading and tilt are iterated
-   (``attitude_iterations``, default 2) because the tilt compensation needs the tilt.
+   to self-consistency (Newton steps on the yaw, ``attitude_iterations``) because the tilt compensation needs
+   the tilt: a plain alternation diverges at tens of degrees of tilt.
 7. The attitude fix ``(theta, gamma, yaw)`` is a measurement of the 15-state filter:
    ``Z = phi`` from ``C_b^{n'} (C_b^n_fix)^T = I - [phi x]``, ``H = [I_3, 0]``, chi-square gated.
 """
@@ -132,7 +138,7 @@ def heading_from_mag(m_b: np.ndarray, pitch: float, roll: float, declination: fl
 
 
 def attitude_cycles(iterations: int, c: c674x.KernelCosts) -> int:
-    """Per iteration: heading (2 sincos, atan2, 10 MAC) and pitch/roll (atan2 x 2, acos, 2 sincos, ~20 FLOPs)."""
+    """Per evaluation of ``g``: heading (2 sincos, atan2, 10 MAC) and pitch/roll (atan2 x 2, acos, 2 sincos)."""
     per = (c.math("sin", 4) + c.math("cos", 4) + 3 * c.math("atan2") + c.math("acos") + c.math("sqrt")
            + c.flops(30, 20))
     return iterations * per
@@ -166,7 +172,14 @@ class SunFinding:
 
 def find_sun(x_px: np.ndarray, y_px: np.ndarray, aop: np.ndarray, dop: np.ndarray, cam: CameraGeometry,
              sky_mask: np.ndarray | None, params: Any, dop_min: float, dtype: type = np.float32) -> SunFinding:
-    """Steps 1-4 of the module docstring on one frame's points (pixel coordinates 1-based, AOP rad)."""
+    """Steps 1-4 of the module docstring on one frame's points (pixel coordinates 1-based, AOP rad).
+
+    Rayleigh's DOP is symmetric about the sun/anti-sun axis, so the lowest-DOP cluster can hold two blobs:
+    around the Sun and, above the horizon, around the anti-sun. The eigen-solution gives the axis ``+-S``
+    exactly; the cluster decides the sign: the Sun is on the side whose nearest cluster member is closer to
+    the axis (the anti-sun is below the horizon, at least one sun elevation away from every sky point). The
+    K-means sun direction (the paper's cluster centre) is the mean ray of the members on that side.
+    """
     v = cam.view_rays(x_px, y_px).astype(dtype)
     theta = np.arccos(np.clip(v[:, 2], -1.0, 1.0))
     fov = float(theta.max()) if len(theta) else 0.0
@@ -175,6 +188,7 @@ def find_sun(x_px: np.ndarray, y_px: np.ndarray, aop: np.ndarray, dop: np.ndarra
     if n < max(params.clusters, 3) * 2:
         return SunFinding(False, "too_few_points", n_points=n)
     d = dop[use].astype(dtype)
+    vu = v[use]
     centres, labels = kmeans_1d(d, params.clusters, params.iterations)
     order = np.argsort(centres)
     low = int(order[0])
@@ -185,21 +199,28 @@ def find_sun(x_px: np.ndarray, y_px: np.ndarray, aop: np.ndarray, dop: np.ndarra
         return SunFinding(False, "low_dop_cluster_too_small", cluster_n=nlow, centres=centres, n_points=n)
     if not float(centres[low]) < params.max_centre_ratio * hi_c:
         return SunFinding(False, "no_low_dop_cluster", cluster_n=nlow, centres=centres, n_points=n)
-    vm = v[use][members].sum(axis=0)
-    coarse = (vm / np.sqrt(float(vm @ vm))).astype(dtype)
-    # refinement: eigen-solution of all valid E-vectors, sign from K-means
+    # refinement: eigen-solution of all valid E-vectors
     e = psns.evectors_camera(x_px[use], y_px[use], aop[use], cam, dtype=dtype)
     sol = psns.solve_solar_vector(e, d, dop_min, max_quality=params.max_quality)
     if not sol.valid:
         return SunFinding(False, "poor_eigen_solution", cluster_n=nlow, centres=centres, quality=sol.quality,
-                          coarse_c=coarse, n_points=n)
-    s = sol.s if float(sol.s @ coarse) >= 0 else -sol.s
+                          n_points=n)
+    # sign from the cluster: the side with the cluster member nearest to the axis
+    cos_m = vu[members] @ sol.s
+    s = sol.s if float(cos_m.max()) >= float(-cos_m.min()) else -sol.s
+    side = members.copy()
+    side[members] = (vu[members] @ s) > 0.0
+    vm = vu[side].sum(axis=0)
+    coarse = (vm / np.sqrt(float(vm @ vm))).astype(dtype)
+    gap = math.acos(max(-1.0, min(1.0, float((vu[side] @ s).max()))))
     dis = math.acos(max(-1.0, min(1.0, float(s @ coarse))))
     sun_theta = math.acos(max(-1.0, min(1.0, float(s[2]))))
     common = dict(cluster_n=nlow, centres=centres, quality=sol.quality, coarse_c=coarse, sun_theta=sun_theta,
                   fov_theta=fov, disagreement=dis, n_points=n)
     if sun_theta > fov - params.fov_margin_deg * DEG or not _inside_image(s, cam, x_px, y_px):
         return SunFinding(False, "sun_outside_fov", s_c=s, **common)
+    if gap > params.max_gap_deg * DEG:
+        return SunFinding(False, "low_dop_cluster_away_from_sun", s_c=s, **common)
     if dis > params.max_disagreement_deg * DEG:
         return SunFinding(False, "kmeans_eigen_disagree", s_c=s, **common)
     return SunFinding(True, "sun_in_fov", s_c=s.astype(dtype), **common)
@@ -232,26 +253,64 @@ class KmeansAttitude:
         self.finding = finding
 
 
+def mag_field_enu(declination: float, inclination: float) -> np.ndarray:
+    """Unit Earth-field direction in ENU from declination (east +) and inclination (down +), rad."""
+    ci = math.cos(inclination)
+    return np.array([ci * math.sin(declination), ci * math.cos(declination), -math.sin(inclination)])
+
+
 def kmeans_attitude(finding: SunFinding, c_c_b: np.ndarray, s_n: np.ndarray, m_b: np.ndarray | None,
-                    declination: float, prior: tuple[float, float, float], iterations: int
-                    ) -> KmeansAttitude | None:
+                    declination: float, prior: tuple[float, float, float], iterations: int,
+                    inclination: float | None = None) -> KmeansAttitude | None:
     """Steps 5-6: heading from the magnetometer (or the prior yaw without one) and pitch/roll from the Sun.
 
-    ``prior`` = (pitch, roll, yaw) of the INS, used for the first tilt compensation and the pitch root.
+    The magnetometer heading needs the tilt and the tilt from the Sun needs the heading; a plain
+    alternation diverges for tilts of tens of degrees (the heading's tilt sensitivity is ``tan I`` = 1.7 at
+    Beijing), so the self-consistent yaw is found as the root of
+    ``g(yaw) = yaw_mag(tilt_sun(yaw)) - yaw`` by Newton steps (``iterations``, numerical derivative),
+    started from the TRIAD attitude of the sun and field vectors when ``inclination`` is known, else from
+    the prior yaw. ``prior`` = (pitch, roll, yaw) of the INS: also picks the pitch root.
     """
     s_b = (c_c_b @ finding.s_c.astype(np.float64))
-    pitch, roll, yaw = prior
-    source = "magnetometer" if m_b is not None else "ins"
-    for _ in range(max(1, iterations)):
-        if m_b is not None:
-            yaw = heading_from_mag(m_b, pitch, roll, declination)
-        pr = pitch_roll_from_sun(s_b, s_n, yaw, prior[0])
+    if m_b is None:
+        pr = pitch_roll_from_sun(s_b, s_n, prior[2], prior[0])
         if pr is None:
             return None
-        pitch, roll = pr
-    if m_b is not None:
-        yaw = heading_from_mag(m_b, pitch, roll, declination)
-    return KmeansAttitude(pitch, roll, yaw, source, finding)
+        return KmeansAttitude(pr[0], pr[1], prior[2], "ins", finding)
+    yaw = prior[2]
+    pitch_prior = prior[0]
+    if inclination is not None:
+        try:
+            from ..alignment import triad
+
+            p0, _, y0 = m2att(triad(s_b, m_b, s_n, mag_field_enu(declination, inclination)))
+            yaw, pitch_prior = y0, p0
+        except ValueError:
+            pass
+
+    def g(y: float) -> tuple[float, tuple[float, float]] | None:
+        pr = pitch_roll_from_sun(s_b, s_n, y, pitch_prior)
+        if pr is None:
+            return None
+        d = heading_from_mag(m_b, pr[0], pr[1], declination) - y
+        return math.atan2(math.sin(d), math.cos(d)), pr
+
+    step = 1e-5
+    pr: tuple[float, float] | None = None
+    for _ in range(max(1, iterations)):
+        r0, r1 = g(yaw), g(yaw + step)
+        if r0 is None or r1 is None:
+            return None
+        slope = (r1[0] - r0[0]) / step - 0.0
+        denom = slope if abs(slope) > 1e-6 else -1.0
+        yaw = yaw - r0[0] / denom
+        pr = r0[1]
+    res = g(yaw)
+    if res is None:
+        return None
+    pitch, roll = res[1]
+    yaw = heading_from_mag(m_b, pitch, roll, declination)
+    return KmeansAttitude(pitch, roll, yaw, "magnetometer", finding)
 
 
 @register_filter("kmeans_3d")
@@ -270,6 +329,9 @@ class Kmeans3dFilter(BaseFilter):
         self.last_fix: KmeansAttitude | None = None
         self.last_fix_t: float | None = None
         self.last_finding: SunFinding | None = None
+        from ..alignment import triad_cycles
+
+        self._cyc_triad = triad_cycles(self.cost)
 
     def drain_events(self) -> list[dict[str, Any]]:
         return self.mm.drain() if self.mm.events else []
@@ -329,11 +391,13 @@ class Kmeans3dFilter(BaseFilter):
         if float(s_n64[2]) < math.sin(pm.min_sun_elevation_deg * DEG):
             mm.decide(t, "camera", False, "sun_low")
             return None
-        mag = host.mag_mean_nt()
+        mag = host.mag_mean_nt(t_exposure_s, self.p.mag_half_window_s)
         prior = m2att(cbn)
         fix = kmeans_attitude(finding, cam.c_c_b, s_n64, None if mag is None else mag[0],
-                              self.p.mag_declination_deg * DEG, prior, self.p.attitude_iterations)
-        self.meter.charge("km_attitude", attitude_cycles(self.p.attitude_iterations + 1, cost))
+                              self.p.mag_declination_deg * DEG, prior, self.p.attitude_iterations,
+                              self.p.mag_inclination_deg * DEG)
+        self.meter.charge("km_attitude", attitude_cycles(2 * self.p.attitude_iterations + 2, cost)
+                          + self._cyc_triad)
         if fix is None:
             mm.decide(t, "camera", False, "degenerate_sun_geometry")
             self._set_state(t, False, "degenerate_sun_geometry")

@@ -63,13 +63,19 @@ class KmeansParams:
     #: refuse when the sun lies closer than this to the edge of the observed field of view
     fov_margin_deg: float = 2.0
     #: refuse when the refined sun vector and the K-means direction disagree by more than this
-    max_disagreement_deg: float = 20.0
+    max_disagreement_deg: float = 30.0
+    #: refuse when no low-DOP cluster member lies within this angle of the refined Sun
+    max_gap_deg: float = 15.0
     #: eigen-solution quality lambda_min / lambda_mid must be below this
     max_quality: float = 0.2
     #: magnetic declination (east positive) the firmware assumes for the heading, deg
     mag_declination_deg: float = -7.133
-    #: pitch/roll <-> heading iterations (heading needs the tilt, the tilt needs the heading)
-    attitude_iterations: int = 2
+    #: MAG frames within this time of the camera's mid-exposure are averaged for the heading, s
+    mag_half_window_s: float = 0.025
+    #: magnetic inclination (down positive) for the TRIAD start of the heading/tilt solve, deg
+    mag_inclination_deg: float = 59.215
+    #: Newton steps of the self-consistent heading/tilt solve (heading needs the tilt, the tilt the heading)
+    attitude_iterations: int = 3
     #: measurement sigmas of the attitude fix fed to the KF (1 sigma)
     tilt_sigma_deg: float = 0.05
     heading_sigma_deg: float = 0.3
@@ -93,6 +99,9 @@ class FederatedParams:
     gravity_sigma_mps2: float = 0.02
     #: sun-vector noise per component of the MIMU/polarization sub-filter (Ge et al.: 0.01)
     sun_sigma: float = 0.01
+    #: initial attitude sigma (E, N, U), deg; None: the base filter's (levelling from the accelerometer bias,
+    #: heading from the alignment source). A study that imposes an initial misalignment sets it.
+    initial_attitude_sigma_deg: tuple[float, float, float] | None = None
 
 
 @dataclass
@@ -108,10 +117,14 @@ class SunElevationParams:
     r_max_factor: float = 100.0
     #: smallest |E_i x E_j| accepted for the two-E-vector sun vector
     min_pair_sine: float = 0.2
-    #: also use the tilt coupling of the measured elevation (phi_E, phi_N columns); the paper's H has none
-    attitude_coupling: bool = False
+    #: also model the tilt coupling of the measured elevation (phi_E, phi_N columns of H); the paper's H has
+    #: none (False reproduces it). Default on: H_n is computed with the INS attitude, so its tilt error is in z
+    attitude_coupling: bool = True
     #: use one compass frame in this many (the paper's compass outputs 1 Hz)
     update_every: int = 1
+    #: also the attitude update from the same frame: the eigen-solution of all units' E-vectors (base paper
+    #: Eq. 14) as a solar-vector measurement; the paper's model has the elevation measurement only (False)
+    attitude_aiding: bool = True
 
 
 @dataclass

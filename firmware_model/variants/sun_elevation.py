@@ -19,12 +19,21 @@ Per COMPASS frame (9 units, C1 geometry, :func:`firmware_model.psns_geometry.com
    ``alpha = dh/dL = (cos L sin Dec - sin L cos Dec cos LHA) / cos h`` and
    ``beta = dh/dlambda = -cos L cos Dec sin LHA / cos h``: ``cos(h) alpha`` and ``cos(h) beta`` are the
    paper's printed coefficients of ``d(sin h)``. States ``dL, dlambda`` in rad, "computed minus true".
-   The paper's H has no attitude columns; ``attitude_coupling`` adds the first-order tilt terms of the
-   measured elevation (``phi_E: S_N``, ``phi_N: -S_E``) for a study.
+   The paper's H has no attitude columns. But ``H_n`` is computed with the INS attitude, so
+   ``sin H_n = sin H - phi_E S_N + phi_N S_E`` to first order (``C_b^{n'} S^b = S^n - phi x S^n``), and
+   ``attitude_coupling`` (default on) puts those terms in H: ``H[phi_E] = S_N``, ``H[phi_N] = -S_E``.
+   ``attitude_coupling: false`` with ``attitude_aiding: false`` is the paper's filter exactly.
 5. **Sage-Husa adaptive R** (algorithms.md 5.1, PSINS ``kfupdate`` adaptive form): with the innovation
    ``r_k`` and ``ry = r_k^2 - H P H^T`` clamped to ``[R_min, R_max]``, ``R <- (1 - d) R + d ry``,
    ``d <- d / (d + b)`` (``d_k = (1-b)/(1-b^{k+1})``, b the forgetting factor); the measurement then updates
    with the adapted R. Before that, the mode manager's chi-square gate (1 dof) with the current R.
+
+6. **Attitude aiding** (``attitude_aiding``, on by default; not in the paper's model): the same frame's
+   E-vectors of all valid units give ``+-S^b`` by the base paper's eigen-solution (Eq. 14), used as the base
+   filter's solar-vector measurement. Without it the INS tilt drifts with the gyro bias and enters the
+   measured ``H_n`` unmodelled (``d H_n = -phi_E S_N + phi_N S_E``): the paper's H then turns tilt drift into
+   position error, and the direction perpendicular to the Sun's azimuth is not observed at all.
+   docs/variants.md compares both.
 
 No GNSS is needed after the initial fix that gives position and UTC (the paper uses GPS for the initial
 position and as the reference only).
@@ -39,9 +48,9 @@ import numpy as np
 
 from protocols.psns import CompassFrame, PsnsStatus
 
-from .. import c674x, sun
+from .. import c674x, psns, sun
 from ..attitude import q2mat
-from ..filters import BaseFilter, UpdateReport, register_filter
+from ..filters import BaseFilter, SolarObservation, UpdateReport, register_filter
 from ..kf import N_STATES
 from ..psns_geometry import compass_unit_mountings
 from ..strapdown import NavState
@@ -180,6 +189,8 @@ class SunElevationFilter(BaseFilter):
         ui, uj = good[pair[0]][1], good[pair[1]][1]
         p_ins, _, q_exp = host.ins_at(t_exposure_s)
         cbn = q2mat(q_exp).astype(dt)
+        if p.attitude_aiding:
+            self._attitude_update(nav, t, t_exposure_s, days, p_ins, cbn, good)
         s_n_meas = cbn @ s_b
         if float(s_n_meas[2]) < 0:  # the sign that puts the Sun above the horizon
             s_b, s_n_meas = -s_b, -s_n_meas
@@ -223,3 +234,26 @@ class SunElevationFilter(BaseFilter):
         self.meter.charge("kf_update", self._cyc_update)
         self.state = 1
         return UpdateReport("sun_elevation", True, 1, abs(nu), {"units": [ui, uj]})
+
+    def _attitude_update(self, nav: NavState, t: float, t_exp: float, days: float, p_ins: np.ndarray,
+                         cbn: np.ndarray, good: list[tuple[int, int, int]]) -> None:
+        """Step 6: ``+-S^b`` from all valid units' E-vectors (Eq. 14) -> the base solar-vector update."""
+        dt = self.dtype
+        if len(good) < 3:
+            self.mm.decide(t, "solar_vector", False, "fewer_than_three_units", units=len(good))
+            return
+        aop = np.array([u[2] for u in good], dtype=dt) * dt(0.01 * DEG)
+        dop = np.array([u[0] for u in good], dtype=dt) * dt(1.0 / 65535.0)
+        e = unit_evectors(aop, self.mountings[[u[1] for u in good]], dt)
+        sol = psns.solve_solar_vector(e, dop, self.mm.params.dop_min, max_quality=self.cfg.psns_quality_max)
+        self.meter.charge("psns_evectors", len(good) * (self.cost.math("sin") + self.cost.math("cos"))
+                          + self.cost.flops(6, 3, iterations=len(good)))
+        self.meter.charge("psns_solve", psns.solve_cycles(len(good), self.cost))
+        if not sol.valid:
+            self.mm.decide(t, "solar_vector", False, "poor_eigen_solution", quality=sol.quality)
+            return
+        s_n = sun.sun_vector_enu(days, float(p_ins[0]), float(p_ins[1]), dtype=dt)
+        self.meter.charge("sun_ephemeris", sun.ephemeris_cycles())
+        rep = self.update_solar(nav, SolarObservation(t_exp, sol.s, sol.quality, sol.n_used, "compass"), s_n, cbn)
+        self.mm.decide(t, "solar_vector", rep.accepted, "chi2_pass" if rep.accepted else "chi2_fail",
+                       norm_innov=rep.max_norm_innov)

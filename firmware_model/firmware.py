@@ -478,6 +478,11 @@ class Firmware:
         return m
 
     def _set_utc(self, t_meas: float, date: _dt.date, tm: _dt.time) -> None:
+        if self._now_s() - t_meas > 1.5:
+            # no PPS for this epoch (an outage: the receiver still sends its clock's time without a fix or a
+            # pulse): tagging it to the last, stale PPS edge would make UTC gain a second per second
+            self.counters["utc_stale_pps"] = self.counters.get("utc_stale_pps", 0) + 1
+            return
         hour = tm.hour + tm.minute / 60.0 + (tm.second + tm.microsecond * 1e-6) / 3600.0
         self._utc_days_ref = sun.grena_days(date.year, date.month, date.day, hour)
         self._utc_t_ref = t_meas

@@ -716,11 +716,12 @@ class Firmware:
                 p_ins, v_ins, _ = self._ins_at(g.t_fpga_s)
                 rep = self.filter.update_gnss(self.nav, g, p_ins, v_ins)  # type: ignore[arg-type]
                 m.end()
-                self.counters["gnss_updates"] += 1
-                self._last_gnss_update_t = t
-                updated = True
-                res.events.append({"event": "gnss_update", "t_fpga_s": t, "t_meas_s": g.t_fpga_s,
-                                   "n_meas": rep.n_rows, "max_norm_innov": rep.max_norm_innov})
+                if rep.accepted:  # a variant may refuse a fix (federated: chi-square isolation)
+                    self.counters["gnss_updates"] += 1
+                    self._last_gnss_update_t = t
+                    updated = True
+                    res.events.append({"event": "gnss_update", "t_fpga_s": t, "t_meas_s": g.t_fpga_s,
+                                       "n_meas": rep.n_rows, "max_norm_innov": rep.max_norm_innov})
         while self._pending_psns and self._hist:
             t_rx, f = self._pending_psns.popleft()
             m.begin("psns_update", 0.0)

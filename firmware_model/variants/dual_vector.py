@@ -61,7 +61,7 @@ from .common import cross, plane_basis
 from .mode_manager import ModeManager
 
 __all__ = ["DualVectorFilter", "PSNS_MODE_NONE", "PSNS_MODE_POLARIZATION", "PSNS_MODE_SUN",
-           "discrimination_factors", "unit_evectors"]
+           "discrimination_factors", "unit_evectors", "sun_error_vector", "polarization_error"]
 
 DEG = math.pi / 180.0
 PSNS_MODE_NONE, PSNS_MODE_POLARIZATION, PSNS_MODE_SUN = 0, 1, 2
@@ -103,6 +103,25 @@ def discrimination_factors(p_meas: np.ndarray, s_b: np.ndarray, rays_b: np.ndarr
                   p_meas[:, 0] * p_pred[:, 1] - p_meas[:, 1] * p_pred[:, 0]], axis=1)
     lam = np.sqrt(np.sum(c * c, axis=1))
     return p_pred.astype(p_meas.dtype), lam, sin_g
+
+
+def sun_error_vector(cbn: np.ndarray, s_meas_b: np.ndarray, s_n: np.ndarray
+                     ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
+    """Sun-error-vector measurement (Step 4, k >= 2): ``Z_ps = (a . s^n)(a x s^n)``, ``a = C_b^{n'} s~^b``.
+
+    Returns ``Z_ps`` (3,) and the two rows ``u_1, u_2`` (unit, perpendicular to ``s^n``) on which it is used:
+    ``u_k^T Z_ps = u_k^T phi`` to first order (``H_ps = I - s s^T``). Invariant to the sign of ``s~^b``.
+    """
+    a = cbn @ s_meas_b
+    z_vec = (a.dtype.type(float(a @ s_n)) * cross(a, s_n)).astype(a.dtype)
+    return z_vec, plane_basis(s_n)
+
+
+def polarization_error(cbn: np.ndarray, p_meas_b: np.ndarray, s_n: np.ndarray) -> tuple[float, np.ndarray]:
+    """Polarization-error-vector measurement (Step 4, k = 1): ``z = s^n . (C_b^{n'} p~^b)``,
+    ``H_pp = (s^n x p^n)^T`` on phi (algorithms.md 1.4); both flip with the sign of ``p~``."""
+    p_n = cbn @ p_meas_b
+    return float(s_n @ p_n), cross(s_n, p_n)
 
 
 def discrimination_cycles(n: int, c: c674x.KernelCosts) -> int:
@@ -239,9 +258,7 @@ class DualVectorFilter(BaseFilter):
                            min_sine=self.p.min_pair_sine)
             return UpdateReport("compass", False, 0, 0.0, {"reason": "ill_conditioned_pair", "mode": "sun"})
         s_meas_b = (c / dt(sin_ij)).astype(dt)
-        a = cbn @ s_meas_b
-        z_vec = dt(float(a @ s_n)) * cross(a, s_n)
-        u1, u2 = plane_basis(s_n)
+        z_vec, (u1, u2) = sun_error_vector(cbn, s_meas_b, s_n)
         self.meter.charge("dv_sun_residual", self.cost.flops(40, 30) + self.cost.math("rsqrt", 2))
         # noise of s~ from the two AOP errors through the cross product (perpendicular to s)
         sigma = math.sqrt(float(sig[i]) ** 2 + float(sig[j]) ** 2) / sin_ij
@@ -268,10 +285,9 @@ class DualVectorFilter(BaseFilter):
                              sig_aop: float, unit: int) -> UpdateReport:
         """Polarization-error-vector mode: ``z = s^n . (C_b^{n'} p~)``, ``H = [(s^n x p^n)^T, 0]``."""
         dt = self.dtype
+        z, hrow = polarization_error(cbn, p_b, s_n)
         p_n = cbn @ p_b
         r_n = cbn @ r_b.astype(dt)
-        z = float(s_n @ p_n)
-        hrow = cross(s_n, p_n)
         # AOP error dA turns p~ about the ray: dz = dA s.(r x p)
         sz = sig_aop * abs(float(s_n @ cross(r_n, p_n)))
         r = max(sz, 0.1 * self.p.sigma_floor_deg * DEG) ** 2

@@ -118,13 +118,13 @@ class SunElevationParams:
     #: smallest |E_i x E_j| accepted for the two-E-vector sun vector
     min_pair_sine: float = 0.2
     #: also model the tilt coupling of the measured elevation (phi_E, phi_N columns of H); the paper's H has
-    #: none (False reproduces it). Default on: H_n is computed with the INS attitude, so its tilt error is in z
-    attitude_coupling: bool = True
+    #: none (the default reproduces it). H_n is computed with the INS attitude, so its tilt error is in z
+    attitude_coupling: bool = False
     #: use one compass frame in this many (the paper's compass outputs 1 Hz)
     update_every: int = 1
     #: also the attitude update from the same frame: the eigen-solution of all units' E-vectors (base paper
     #: Eq. 14) as a solar-vector measurement; the paper's model has the elevation measurement only (False)
-    attitude_aiding: bool = True
+    attitude_aiding: bool = False
 
 
 @dataclass

@@ -21,19 +21,20 @@ Per COMPASS frame (9 units, C1 geometry, :func:`firmware_model.psns_geometry.com
    paper's printed coefficients of ``d(sin h)``. States ``dL, dlambda`` in rad, "computed minus true".
    The paper's H has no attitude columns. But ``H_n`` is computed with the INS attitude, so
    ``sin H_n = sin H - phi_E S_N + phi_N S_E`` to first order (``C_b^{n'} S^b = S^n - phi x S^n``), and
-   ``attitude_coupling`` (default on) puts those terms in H: ``H[phi_E] = S_N``, ``H[phi_N] = -S_E``.
-   ``attitude_coupling: false`` with ``attitude_aiding: false`` is the paper's filter exactly.
+   ``attitude_coupling`` puts those terms in H: ``H[phi_E] = S_N``, ``H[phi_N] = -S_E``. The defaults
+   (``attitude_coupling`` and ``attitude_aiding`` off) are the paper's filter exactly.
 5. **Sage-Husa adaptive R** (algorithms.md 5.1, PSINS ``kfupdate`` adaptive form): with the innovation
    ``r_k`` and ``ry = r_k^2 - H P H^T`` clamped to ``[R_min, R_max]``, ``R <- (1 - d) R + d ry``,
    ``d <- d / (d + b)`` (``d_k = (1-b)/(1-b^{k+1})``, b the forgetting factor); the measurement then updates
    with the adapted R. Before that, the mode manager's chi-square gate (1 dof) with the current R.
 
-6. **Attitude aiding** (``attitude_aiding``, on by default; not in the paper's model): the same frame's
+6. **Attitude aiding** (``attitude_aiding``, off by default; not in the paper's model): the same frame's
    E-vectors of all valid units give ``+-S^b`` by the base paper's eigen-solution (Eq. 14), used as the base
    filter's solar-vector measurement. Without it the INS tilt drifts with the gyro bias and enters the
    measured ``H_n`` unmodelled (``d H_n = -phi_E S_N + phi_N S_E``): the paper's H then turns tilt drift into
-   position error, and the direction perpendicular to the Sun's azimuth is not observed at all.
-   docs/variants.md compares both.
+   position error, and the direction perpendicular to the Sun's azimuth is not observed at all. With the
+   aiding the tilt perpendicular to the Sun is held, but the rotation about the Sun stays unobserved
+   and its tilt part drives the cross-azimuth position error all the same; docs/variants.md compares them.
 
 No GNSS is needed after the initial fix that gives position and UTC (the paper uses GPS for the initial
 position and as the reference only).

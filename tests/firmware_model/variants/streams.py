@@ -70,6 +70,8 @@ class GnssSpec:
     glitches: tuple[tuple[float, float, tuple[float, float, float]], ...] = ()
     #: (start_s, end_s): no fix and no PPS
     outages: tuple[tuple[float, float], ...] = ()
+    #: during outages the receiver still sends NAV-PVT with its clock's date/time, no fix (as u-blox receivers do)
+    time_during_outage: bool = False
 
 
 @dataclass
@@ -187,6 +189,8 @@ def stream(spec: StreamSpec, seed: int = 1) -> Iterator[tuple[float, int, bytes]
             if not gnss_out(next_gnss):
                 push(next_gnss + 0.05, UART_GNSS, _nav_pvt(spec, traj, next_gnss, rng))
                 pps_last = next_gnss
+            elif spec.gnss.time_during_outage:
+                push(next_gnss + 0.05, UART_GNSS, _nav_pvt(spec, traj, next_gnss, rng, fix=False))
             next_gnss += 1
         while spec.psns and next_psns <= t:
             frame = _psns_frame(spec, traj, sun, next_psns, psns_seq, rng)
@@ -220,7 +224,7 @@ def stream(spec: StreamSpec, seed: int = 1) -> Iterator[tuple[float, int, bytes]
         yield tt, uart, d
 
 
-def _nav_pvt(spec: StreamSpec, traj: Trajectory, k: int, rng: np.random.Generator) -> bytes:
+def _nav_pvt(spec: StreamSpec, traj: Trajectory, k: int, rng: np.random.Generator, fix: bool = True) -> bytes:
     g = spec.gnss
     st = traj.state(float(k))
     lat, lon, h = (float(v) for v in st.pos)
@@ -235,7 +239,8 @@ def _nav_pvt(spec: StreamSpec, traj: Trajectory, k: int, rng: np.random.Generato
     lon_m = lon + de / ((rn + h) * math.cos(lat))
     utc = spec.epoch + dt.timedelta(seconds=k)
     p = NavPvt(iTOW=(k * 1000) % 604800000, year=utc.year, month=utc.month, day=utc.day, hour=utc.hour,
-               min=utc.minute, sec=utc.second, valid=0x07, tAcc=50, nano=0, fixType=3, flags=0x01, flags2=0xE0,
+               min=utc.minute, sec=utc.second, valid=0x07, tAcc=50, nano=0, fixType=3 if fix else 0,
+               flags=0x01 if fix else 0x00, flags2=0xE0,
                numSV=12, lon=round(lon_m / DEG * 1e7), lat=round(lat_m / DEG * 1e7), height=round((h + du) * 1e3),
                hMSL=round((h + du) * 1e3), hAcc=3000, vAcc=5000, velN=round(vn * 1e3), velE=round(ve * 1e3),
                velD=round(-vu * 1e3), gSpeed=round(math.hypot(ve, vn) * 1e3), headMot=0, sAcc=100, headAcc=1000000,

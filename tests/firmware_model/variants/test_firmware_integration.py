@@ -3,9 +3,7 @@ mode for the others, a switch by host command, and the 200 Hz cycle budget (wors
 
 from __future__ import annotations
 
-import math
 
-import numpy as np
 import pytest
 
 from firmware_model import Firmware, FirmwareConfig
@@ -26,7 +24,6 @@ from .streams import (
     stream,
 )
 
-DEG = math.pi / 180.0
 IMU = ImuErrors((9.0, -7.0, 3.0), 0.15, (1500.0, -1000.0, 2000.0), 100.0)
 THREE = compass_mountings([(0.0, 0.0), (45.0, 0.0), (45.0, 90.0)])
 FISHEYE = CameraGeometry(projection="fisheye", focal_m=1.8e-3)

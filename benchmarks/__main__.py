@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 
 MODULES = ["benchmarks.bench_realtime_factor", "benchmarks.bench_camera", "benchmarks.bench_decoders",
-           "benchmarks.bench_pty_jitter", "benchmarks.bench_firmware"]
+           "benchmarks.bench_pty_jitter", "benchmarks.bench_firmware", "benchmarks.bench_campaign"]
 
 
 def main() -> int:

@@ -145,6 +145,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     scn = load_scenario(args.scenario)
     mode = resolve_mode(scn, "realtime" if args.realtime else "fast" if args.fast else None)
+    if getattr(args, "split", False):
+        if args.fast:
+            from .errors import EmulatorError
+
+            raise EmulatorError("--split runs the DSP in another process on the wall clock: it cannot be --fast")
+        mode = "realtime"
     run_dir = Path(args.out) if args.out else default_run_dir(scn.name)
     console = _console()
     speed = args.speed if args.speed is not None else scn.speed
@@ -178,8 +184,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
         print_port_map(emu.ports)
 
     with progress:
-        summary = run_scenario(scn, run_dir, mode=mode, speed=speed, seed=args.seed,
-                               progress=on_progress, on_started=on_started)
+        if getattr(args, "split", False):
+            from .split import run_split
+
+            summary = run_split(scn, run_dir, speed=speed, seed=args.seed, progress=on_progress,
+                                on_started=on_started)
+        else:
+            summary = run_scenario(scn, run_dir, mode=mode, speed=speed, seed=args.seed,
+                                   progress=on_progress, on_started=on_started)
     if realtime and tty and not args.quiet:
         err.write("\n")
     if args.json:
@@ -235,6 +247,12 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     return rc
 
 
+def _cmd_campaign(args: argparse.Namespace) -> int:
+    from .campaign import cli_main
+
+    return cli_main(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="psns-hil", description="PSNS/GNSS/SINS navigation computer HIL emulator")
     p.add_argument("--version", action="version", version=f"psns-hil {__version__}")
@@ -253,6 +271,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
     r.add_argument("--json", action="store_true", help="print the summary as JSON")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.add_argument("--split", action="store_true",
+                   help="run the virtual DSP in its own process, joined to the FPGA over zenoh (realtime)")
     r.set_defaults(func=_cmd_run)
 
     v = sub.add_parser("validate", help="check a scenario file and report every problem")
@@ -284,6 +304,10 @@ def build_parser() -> argparse.ArgumentParser:
                          "capture's own directory)")
     rp.add_argument("--json", action="store_true", help="print the summary as JSON")
     rp.set_defaults(func=_cmd_replay)
+
+    from .campaign import add_cli_parser
+
+    add_cli_parser(sub).set_defaults(func=_cmd_campaign)
     return p
 
 

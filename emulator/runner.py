@@ -243,12 +243,7 @@ class Emulator:
         mag = getattr(self.sensors, "mag", None) if self.replay is None else None
         self.fpga = VirtualFpga(loop, fcfg, fpga_ports, uart_fpga, gyro, accel, rec, monitor=ext.get("monitor"),
                                 mag=mag)
-        self._fw0 = build_firmware(scn)
-        wd = scn.dsp.watchdog
-        self.dsp = VirtualDsp(loop, self._fw0, uart_dsp, scn.dsp.clock_hz, rec,
-                              tick_period_s=1.0 / scn.sensors.imu.rate_hz, rx=rx_cfg,
-                              watchdog=WatchdogConfig(wd.enabled, wd.overrun_multiple, wd.action, wd.reset_time_s),
-                              firmware_factory=lambda: build_firmware(scn))
+        self.dsp = self.build_dsp(uart_dsp, rx_cfg, rec)
         # recorder taps
         for name, link in self.links.items():
             fm = port_formats(name)
@@ -274,6 +269,18 @@ class Emulator:
         if self.progress is not None:
             self._progress_tick()
         self._started = True
+
+    def build_dsp(self, uart_dsp: dict[int, Link], rx_cfg: dict[int, UartRxConfig], events: Any) -> VirtualDsp:
+        """The virtual DSP hosting this scenario's firmware on ``uart_dsp`` (also used by a split run's DSP
+        process, :mod:`emulator.split`)."""
+        assert self.loop is not None
+        scn = self.scn
+        self._fw0 = build_firmware(scn)
+        wd = scn.dsp.watchdog
+        return VirtualDsp(self.loop, self._fw0, uart_dsp, scn.dsp.clock_hz, events,
+                          tick_period_s=1.0 / scn.sensors.imu.rate_hz, rx=rx_cfg,
+                          watchdog=WatchdogConfig(wd.enabled, wd.overrun_multiple, wd.action, wd.reset_time_s),
+                          firmware_factory=lambda: build_firmware(scn))
 
     def _pps(self, t: float) -> None:
         assert self.fpga is not None
@@ -454,8 +461,6 @@ class Emulator:
     def _summary(self, sim_t: float, wall: float, interrupted: bool) -> dict[str, Any]:
         rec = self.recorder
         assert rec is not None and self.dsp is not None and self.fpga is not None
-        dsp = self.dsp
-        fw = dsp.fw
         return {
             "psns_hil_version": VERSION,
             "scenario": self.scn.name,
@@ -475,6 +480,22 @@ class Emulator:
             "nav_frames": rec.nav_count,
             "links": rec.link_summary(),
             "link_stats": {k: dict(v.stats.as_dict(), error=v.error) for k, v in self.links.items()},
+            **self.dsp_sections(),
+            "fpga": {"imu_frames": self.fpga.imu_frames, "gyro_missing": self.fpga.gyro_missing,
+                     "mag_frames": self.fpga.mag_frames, "routes": self.fpga.routes,
+                     "monitor_records": self.fpga.monitor_records},
+            "devices": self.sensors.counters() if self.sensors is not None else {},
+            "ports": [dict(p) for p in self.ports],
+            "events": dict(rec.event_counts),
+        }
+
+
+    def dsp_sections(self) -> dict[str, Any]:
+        """The ``dsp`` and ``firmware`` sections of the summary."""
+        dsp = self.dsp
+        assert dsp is not None
+        fw = dsp.fw
+        return {
             "dsp": {
                 "clock_hz": dsp.clock_hz,
                 "cpu_load_pct_max": dsp.cpu_load_pct_max(),
@@ -488,12 +509,6 @@ class Emulator:
             },
             "firmware": {"filter": fw.cfg.filter, "precision": fw.cfg.precision, "counters": dict(fw.counters),
                          "decoders": fw.decoder_stats()},
-            "fpga": {"imu_frames": self.fpga.imu_frames, "gyro_missing": self.fpga.gyro_missing,
-                     "mag_frames": self.fpga.mag_frames, "routes": self.fpga.routes,
-                     "monitor_records": self.fpga.monitor_records},
-            "devices": self.sensors.counters() if self.sensors is not None else {},
-            "ports": [dict(p) for p in self.ports],
-            "events": dict(rec.event_counts),
         }
 
 

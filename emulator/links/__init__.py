@@ -7,6 +7,10 @@ URL                                            transport
 ``pty://NAME``                                 pseudo-terminal with a stable symlink
                                                ``<run_dir>/NAME`` (:mod:`emulator.links.pty`)
 ``serial:///dev/ttyUSB0``                      a real serial device (:mod:`emulator.links.serial`)
+``zenoh://RUN/PORT``                           bytes over zenoh, another process or host
+                                               (:mod:`emulator.links.zenoh`)
+``can://virtual/CH``, ``can://socketcan/IF``   navigation solution out on CAN per the DBC
+                                               (:mod:`emulator.links.can`)
 =============================================  =================================================
 
 Common options (query string): ``baud=N``, ``mode=8N1``, ``queue=BYTES`` (TX queue size).
@@ -47,15 +51,24 @@ LINK_SCHEMES: dict[str, str] = {
     "mem": "emulator.links.mem:MemLink",
     "pty": "emulator.links.pty:PtyLink",
     "serial": "emulator.links.serial:SerialLink",
+    "zenoh": "emulator.links.zenoh:ZenohLink",
+    "can": "emulator.links.can:CanLink",
 }
 
 _COMMON_OPTIONS = {"baud", "mode", "queue"}
-#: options a scheme accepts beyond the common ones
-_SCHEME_OPTIONS: dict[str, frozenset[str]] = {"pty": frozenset({"peer_baud"})}
+#: options a scheme accepts beyond the common ones (kept here so that validation needs no import)
+_SCHEME_OPTIONS: dict[str, frozenset[str]] = {
+    "pty": frozenset({"peer_baud"}),
+    "zenoh": frozenset({"role", "listen", "connect", "session", "config", "pace", "nav"}),
+    "can": frozenset({"dbc", "rate", "bitrate", "fd"}),
+}
 _USAGE = {
     "mem": "mem://NAME[?baud=N&mode=8N1&queue=BYTES]",
     "pty": "pty://NAME[?baud=N&mode=8N1&queue=BYTES&peer_baud=ignore|check]",
     "serial": "serial:///dev/ttyXXX[?baud=N&mode=8N1&queue=BYTES]",
+    "zenoh": "zenoh://RUN/PORT[?role=device|peer&listen=tcp/127.0.0.1:7447&connect=tcp/HOST:PORT"
+             "&session=peer|client&config=FILE&pace=1|0&nav=tx|rx|off&baud=N&mode=8N1&queue=BYTES]",
+    "can": "can://virtual/CHANNEL or can://socketcan/IFACE[?dbc=FILE&rate=HZ&bitrate=N&fd=0|1]",
 }
 
 

@@ -21,7 +21,8 @@ _MODE = r"^[5-8][NEO](1|1\.5|2)$"
 class LinkSpec(Model):
     """One external port's link: where it goes and its serial line settings (FPGA side)."""
 
-    url: str = Field(description="mem://NAME, pty://NAME or serial:///dev/ttyXXX")
+    url: str = Field(description="mem://NAME, pty://NAME, serial:///dev/ttyXXX, zenoh://RUN/PORT, "
+                                 "can://virtual/CH or can://socketcan/IF")
     baud: int | None = Field(None, gt=0, le=20_000_000, description="FPGA port's baud (default per port)")
     mode: str = Field("8N1", pattern=_MODE)
     queue_bytes: int = Field(4096, ge=1, le=1 << 24, description="TX queue / FIFO of the FPGA port, bytes")

@@ -1,0 +1,239 @@
+"""Monte-Carlo campaigns on Dask: distributions, planning, a 20-run LocalCluster campaign whose statistics
+agree with the members' own summaries, failed members reported, scheduling-independent results."""
+
+from __future__ import annotations
+
+import csv
+import json
+import statistics
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from emulator.campaign import (
+    NAV_METRICS,
+    CampaignConfig,
+    CampaignError,
+    campaign_statistics,
+    parse_distribution,
+    parse_vary,
+    plan_members,
+    run_campaign,
+    run_member,
+    validate_variations,
+)
+
+from .conftest import write_short_scenario
+
+distributed = pytest.importorskip("distributed")
+
+
+@pytest.fixture(scope="module")
+def dask_client():
+    """One 2-process LocalCluster on 127.0.0.1 for the whole module (start-up is the slow part)."""
+    from distributed import Client, LocalCluster
+
+    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                           dashboard_address=None, worker_dashboard_address=None)
+    client = Client(cluster)
+    yield client
+    client.close()
+    cluster.close()
+
+
+# -- distributions and --vary -------------------------------------------------------------------------
+def test_distributions_parse_and_sample_deterministically():
+    rng1, rng2 = np.random.default_rng(1), np.random.default_rng(1)
+    d = parse_distribution("normal(0.15, 0.02)")
+    assert (d.kind, d.args) == ("normal", (0.15, 0.02))
+    xs = [d.sample(rng1) for _ in range(2000)]
+    assert xs[:5] == [d.sample(rng2) for _ in range(5)]
+    assert np.mean(xs) == pytest.approx(0.15, abs=3 * 0.02 / np.sqrt(2000) * 1.5)
+    assert np.std(xs) == pytest.approx(0.02, rel=0.1)
+    u = parse_distribution("uniform(-1,3)")
+    us = [u.sample(rng1) for _ in range(2000)]
+    assert min(us) >= -1 and max(us) < 3 and np.mean(us) == pytest.approx(1.0, abs=0.1)
+    c = parse_distribution("choice(base, 2, 2.5, true)")
+    assert c.args == ("base", 2, 2.5, True)
+    assert set(c.sample(rng1) for _ in range(200)) == {"base", 2, 2.5, True}
+    assert str(d) == "normal(0.15, 0.02)"
+
+
+@pytest.mark.parametrize("text, msg", [
+    ("gauss(1,2)", "unknown distribution 'gauss'"),
+    ("normal(1)", "normal takes 2 arguments"),
+    ("normal(1, -0.1)", "SIGMA must be >= 0"),
+    ("normal(a, 1)", "MEAN must be a finite number"),
+    ("uniform(2, 1)", "LOW must be < HIGH"),
+    ("uniform(1, nan)", "HIGH must be a finite number"),
+    ("choice()", "at least one value"),
+    ("normal 1 2", "expected normal(MEAN, SIGMA)"),
+])
+def test_bad_distributions_say_what_is_wrong(text, msg):
+    with pytest.raises(CampaignError, match=msg.replace("(", r"\(").replace(")", r"\)")):
+        parse_distribution(text)
+
+
+def test_vary_syntax():
+    v = parse_vary("sensors.imu.gyro.arw_deg_rt_h=normal(0.15,0.02)")
+    assert v.key == "sensors.imu.gyro.arw_deg_rt_h" and v.path == ("sensors", "imu", "gyro", "arw_deg_rt_h")
+    assert parse_vary("motion.0.static.duration_s=uniform(1,2)").path == ("motion", 0, "static", "duration_s")
+    for bad in ("sensors.imu", "=normal(1,1)", "a..b=normal(1,1)", "a.b=", "9a=normal(1,1)"):
+        with pytest.raises(CampaignError):
+            parse_vary(bad)
+
+
+def _scenario_and_data(tmp_path, duration_s=3.0):
+    from emulator.campaign import _load_campaign_scenario
+
+    p = write_short_scenario(tmp_path / "s.yaml", duration_s, name="camp")
+    return (p, *_load_campaign_scenario(p))
+
+
+def test_variation_keys_and_values_are_checked_before_dispatch(tmp_path):
+    p, data, scn, src, base = _scenario_and_data(tmp_path)
+    validate_variations(data, scn, [parse_vary("sensors.imu.gyro.arw_deg_rt_h=normal(0.15,0.02)"),
+                                    parse_vary("firmware.filter=choice(base)")], src, base)
+    with pytest.raises(CampaignError, match="did you mean 'arw_deg_rt_h'"):
+        validate_variations(data, scn, [parse_vary("sensors.imu.gyro.arw_deg_rt=normal(1,1)")], src, base)
+    with pytest.raises(CampaignError, match="section, not a value"):
+        validate_variations(data, scn, [parse_vary("sensors.imu.gyro=normal(1,1)")], src, base)
+    with pytest.raises(CampaignError, match="value 'fast' is not valid there"):
+        validate_variations(data, scn, [parse_vary("sensors.imu.rate_hz=choice(200, fast)")], src, base)
+    with pytest.raises(CampaignError, match="not valid there.*greater than 0"):
+        validate_variations(data, scn, [parse_vary("duration_s=normal(-5, 1)")], src, base)
+    with pytest.raises(CampaignError, match="--seed"):
+        validate_variations(data, scn, [parse_vary("seed=choice(1,2)")], src, base)
+    with pytest.raises(CampaignError, match="given twice"):
+        validate_variations(data, scn, [parse_vary("dsp.clock_hz=choice(3e8)")] * 2, src, base)
+
+
+def test_plan_is_deterministic_in_the_campaign_seed(tmp_path):
+    p, data, scn, src, base = _scenario_and_data(tmp_path)
+    vs = [parse_vary("sensors.imu.gyro.arw_deg_rt_h=normal(0.15,0.02)"), parse_vary("firmware.filter=choice(base)")]
+    a = plan_members(data, 8, 7, vs, tmp_path)
+    b = plan_members(data, 8, 7, vs, tmp_path)
+    c = plan_members(data, 8, 8, vs, tmp_path)
+    assert [(t.seed, t.params) for t in a] == [(t.seed, t.params) for t in b]
+    assert [t.seed for t in a] != [t.seed for t in c]
+    assert len({t.seed for t in a}) == 8
+    assert all(t.data["seed"] == t.seed and t.data["sensors"]["imu"]["gyro"]["arw_deg_rt_h"] ==
+               t.params["sensors.imu.gyro.arw_deg_rt_h"] for t in a)
+    # a longer campaign with the same seed starts with the same members
+    assert [t.seed for t in plan_members(data, 12, 7, vs, tmp_path)[:8]] == [t.seed for t in a]
+    assert "gyro" not in data["sensors"]["imu"]  # the base data is not modified
+
+
+# -- on the cluster ---------------------------------------------------------------------------------------
+def _describe_ref(xs):
+    """Independent reference statistics (the statistics module; 'inclusive' quantiles == numpy's linear)."""
+    q = statistics.quantiles(xs, n=20, method="inclusive")
+    return {"mean": statistics.fmean(xs), "sigma": statistics.stdev(xs), "p5": q[0], "p50": q[9], "p95": q[18],
+            "min": min(xs), "max": max(xs), "n": len(xs)}
+
+
+@pytest.mark.parametrize("duration_s", [6.0, pytest.param(20.0, marks=pytest.mark.slow)])
+def test_twenty_run_campaign_statistics_agree_with_the_members_summaries(tmp_path, dask_client, duration_s):
+    path = write_short_scenario(tmp_path / "c20.yaml", duration_s, name="c20",
+                                expectations=[{"nav_error": {"metric": "position_m", "stat": "rms", "max": 12.0,
+                                                             "after_s": 3}},
+                                              {"dsp": {"field": "deadline_misses", "max": 0}}])
+    cfg = CampaignConfig(path, runs=20, seed=2024, out_dir=tmp_path / "out",
+                         variations=[parse_vary("sensors.imu.gyro.arw_deg_rt_h=normal(0.15,0.02)")])
+    res = run_campaign(cfg, client=dask_client)
+    assert res.stats["runs"] == 20 and res.stats["completed"] == 20 and res.stats["failed"] == 0
+    assert res.info["workers"] == 2 and res.runs_per_min > 0
+    summaries = [json.loads((tmp_path / "out" / "runs" / f"{i:04d}" / "summary.json").read_text()) for i in range(20)]
+    assert [s["seed"] for s in summaries] == [r["seed"] for r in res.rows]
+    assert len({s["seed"] for s in summaries}) == 20
+    for m in NAV_METRICS:
+        for stat in ("rms", "max"):
+            ref = _describe_ref([s["nav_error"][m][stat] for s in summaries])
+            got = res.stats["metrics"][f"{m}_{stat}"]
+            for k, v in ref.items():
+                assert got[k] == pytest.approx(v, rel=1e-12, abs=1e-15), (m, stat, k)
+    # the position errors do differ between members (different seeds): the statistics are not trivial
+    assert res.stats["metrics"]["position_m_rms"]["sigma"] > 0.05
+    # pass rates from the members' own expectation results
+    for e in res.stats["expectations"]:
+        own = [s["expectations"][e["index"]]["passed"] for s in summaries]
+        assert e["passed"] == sum(own) and e["runs"] == 20
+    assert res.stats["passed"] == sum(s["passed"] for s in summaries)
+    assert res.stats["pass_rate"] == pytest.approx(sum(s["passed"] for s in summaries) / 20)
+    # files: the table has one row per member with the same numbers; statistics and plots exist
+    rows = list(csv.DictReader(open(tmp_path / "out" / "runs.csv")))
+    assert [int(r["index"]) for r in rows] == list(range(20))
+    assert [float(r["position_m_rms"]) for r in rows] == [s["nav_error"]["position_m"]["rms"] for s in summaries]
+    assert [float(r["param:sensors.imu.gyro.arw_deg_rt_h"]) for r in rows] == \
+        [r["params"]["sensors.imu.gyro.arw_deg_rt_h"] for r in res.rows]
+    stats_rows = {r["quantity"]: r for r in csv.DictReader(open(tmp_path / "out" / "stats.csv"))}
+    assert float(stats_rows["heading_deg_rms"]["mean"]) == res.stats["metrics"]["heading_deg_rms"]["mean"]
+    doc = json.loads((tmp_path / "out" / "campaign.json").read_text())
+    assert doc["statistics"]["completed"] == 20 and doc["failures"] == []
+    assert (tmp_path / "out" / "campaign.png").stat().st_size > 10_000
+    assert (tmp_path / "out" / "sensitivity.png").exists()
+    assert not (tmp_path / "out" / "runs" / "0000" / "capture.psnscap").exists()  # big files dropped by default
+
+
+def test_failed_members_are_reported_with_their_error_never_lost(tmp_path, dask_client):
+    # latency_s >= 0 in the schema; normal(0.05, 0.05) draws a negative value in some members
+    path = write_short_scenario(tmp_path / "f.yaml", 2.0, name="fails", expectations=[])
+    cfg = CampaignConfig(path, runs=8, seed=11, out_dir=tmp_path / "out",
+                         variations=[parse_vary("sensors.gnss.latency_s=normal(0.05,0.05)")], plots=False)
+    res = run_campaign(cfg, client=dask_client)
+    drawn = [r["params"]["sensors.gnss.latency_s"] for r in res.rows]
+    bad = [i for i, v in enumerate(drawn) if v < 0]
+    assert 0 < len(bad) < 8, drawn  # the seed was chosen so that both kinds occur
+    assert [r["index"] for r in res.failed] == bad
+    for r in res.failed:
+        assert "latency_s" in r["error"] and "greater than or equal to 0" in r["error"]
+    assert res.stats["failed"] == len(bad) and res.stats["completed"] == 8 - len(bad)
+    rows = list(csv.DictReader(open(tmp_path / "out" / "runs.csv")))
+    assert len(rows) == 8
+    assert [int(r["index"]) for r in rows if r["ok"] == "0"] == bad
+    assert all("latency_s" in r["error"] for r in rows if r["ok"] == "0")
+    doc = json.loads((tmp_path / "out" / "campaign.json").read_text())
+    assert [f["index"] for f in doc["failures"]] == bad
+
+
+def test_results_do_not_depend_on_scheduling(tmp_path, dask_client):
+    """Members run on the cluster (any worker, any order) equal the same members run in this process."""
+    path = write_short_scenario(tmp_path / "d.yaml", 3.0, name="det", expectations=[])
+    cfg = CampaignConfig(path, runs=3, seed=5, out_dir=tmp_path / "a", plots=False,
+                         variations=[parse_vary("sensors.imu.gyro.arw_deg_rt_h=uniform(0.1,0.3)")])
+    res = run_campaign(cfg, client=dask_client)
+    _, data, scn, src, base = _scenario_and_data(tmp_path, 3.0)
+    from emulator.campaign import _load_campaign_scenario
+
+    data, scn, src, base = _load_campaign_scenario(path)
+    local = [run_member(t) for t in plan_members(data, 3, 5, cfg.variations, tmp_path / "b", src, base)]
+    for a, b in zip(res.rows, local):
+        assert a["seed"] == b["seed"] and a["params"] == b["params"]
+        for m in NAV_METRICS:
+            assert a[f"{m}_rms"] == b[f"{m}_rms"] and a[f"{m}_max"] == b[f"{m}_max"]
+
+
+def test_an_external_scheduler_address_is_used(tmp_path, dask_client):
+    path = write_short_scenario(tmp_path / "e.yaml", 1.0, name="ext", expectations=[])
+    cfg = CampaignConfig(path, runs=2, seed=1, out_dir=tmp_path / "o", plots=False,
+                         scheduler=dask_client.scheduler.address)
+    res = run_campaign(cfg)
+    assert res.stats["completed"] == 2 and res.info["scheduler"].startswith("tcp://127.0.0.1:")
+    assert dask_client.status == "running"  # our own client to it was closed, the cluster was not
+
+
+def test_statistics_ignore_failed_members_and_handle_empty():
+    rows = [{"index": 0, "ok": False, "params": {}, "error": "x"}]
+    st = campaign_statistics(rows)
+    assert st["completed"] == 0 and st["pass_rate"] is None and st["metrics"]["position_m_rms"]["n"] == 0
+
+
+def test_cli_campaign_bad_vary_is_a_usage_error(tmp_path, capsys):
+    from emulator.cli import main
+
+    p = write_short_scenario(tmp_path / "s.yaml", 1.0)
+    assert main(["campaign", str(p), "--runs", "2", "--vary", "sensors.imu.gyro.arw=normal(1,1)"]) == 2
+    assert "no key 'arw'; keys there: arw_deg_rt_h" in capsys.readouterr().err
+    assert main(["campaign", str(p), "--runs", "2", "--vary", "duration_s=triangular(1,2,3)"]) == 2
+    assert "unknown distribution 'triangular'" in capsys.readouterr().err

@@ -16,6 +16,13 @@ sigma_AOP``, and the AOP error grows as ``sigma_I/(sqrt(2) S0 DOP)`` when the DO
 (algorithms.md 2.3). The sun inside a unit's field of view (``fov_half``) saturates it (the unit
 is left out of the frame and SATURATED is set); a sun below ``min_sun_elevation`` gives frames
 with no units and SUN_BELOW_HORIZON.
+
+Units and mountings are configurable (``sensors.compass.units``: view directions as zenith/azimuth,
+:func:`firmware_model.variants.common.unit_mounting`), e.g. the three sensors of the dual-vector
+switching study. **Blocked units** (``sensors.compass.blocked``, or :meth:`CompassModel.block_units` for
+a fault injector): while a unit is blocked it sees unpolarized light (an obstruction, a thick cloud in its
+narrow field of view): its DOP is that of the channel noise (~0) and its AOP is scrambled (uniform); the
+unit stays in the frame, as a real sensor would keep reporting.
 """
 
 from __future__ import annotations
@@ -75,6 +82,8 @@ class CompassConfig:
     min_sun_elevation: float = 0.0
     dop_threshold: float = 0.05
     noise: bool = True
+    #: blocked windows: (units, start_s, end_s)
+    blocked: tuple[tuple[tuple[int, ...], float, float], ...] = ()
 
     @property
     def channel_sigma(self) -> float:
@@ -105,6 +114,27 @@ class CompassModel:
         m = np.asarray(cfg.mountings, dtype=np.float64)
         self.mountings = m
         self.rays_b = m[:, :, 2].copy()  # (U, 3) view rays, body frame
+        self.blocked: list[tuple[tuple[int, ...], float, float]] = []
+        for units, start, end in cfg.blocked:
+            self.block_units(units, start, end)
+
+    def block_units(self, units: tuple[int, ...] | list[int], start_s: float, end_s: float) -> None:
+        """Block ``units`` from ``start_s`` to ``end_s`` (scenario time): unpolarized light, scrambled AOP."""
+        n = len(self.mountings)
+        bad = [u for u in units if not 0 <= int(u) < n]
+        if bad:
+            raise ValueError(f"compass has units 0..{n - 1}; cannot block {bad}")
+        if not end_s > start_s:
+            raise ValueError(f"a blocked window needs end > start, got {start_s}..{end_s}")
+        self.blocked.append((tuple(int(u) for u in units), float(start_s), float(end_s)))
+
+    def blocked_units(self, t: float) -> list[int]:
+        """Units blocked at ``t``."""
+        out: set[int] = set()
+        for units, start, end in self.blocked:
+            if start <= t < end:
+                out.update(units)
+        return sorted(out)
 
     def read(self, t: float) -> CompassReading:
         cfg = self.cfg
@@ -122,8 +152,13 @@ class CompassModel:
         e_u = np.einsum("uji,uj->ui", self.mountings, e_b)  # C_b^u E^b
         psi = np.arctan2(e_u[:, 1], e_u[:, 0])
         d = (cfg.extinction_ratio - 1.0) / (cfg.extinction_ratio + 1.0)
-        q = d * fld.dop * np.cos(2 * psi)
-        u = d * fld.dop * np.sin(2 * psi)
+        sky_dop = fld.dop
+        blocked = self.blocked_units(t) if self.blocked else []
+        if blocked:  # unpolarized light on the blocked units
+            sky_dop = np.array(sky_dop, dtype=np.float64, copy=True)
+            sky_dop[blocked] = 0.0
+        q = d * sky_dop * np.cos(2 * psi)
+        u = d * sky_dop * np.sin(2 * psi)
         i0, i90, i45, i135 = 0.5 * (1 + q), 0.5 * (1 - q), 0.5 * (1 + u), 0.5 * (1 - u)
         if cfg.noise:
             z = self.rng.standard_normal((4, n_u)) * cfg.channel_sigma
@@ -133,6 +168,8 @@ class CompassModel:
         dop = np.hypot(s1, s2) / s0
         aop = math.pi / 2 - 0.5 * np.arctan2(s2, s1)
         aop = np.where(aop > math.pi / 2, aop - math.pi, aop)
+        if blocked:  # scrambled AOP (also without channel noise)
+            aop[blocked] = self.rng.uniform(-0.5 * math.pi, 0.5 * math.pi, len(blocked))
         sat = (v @ s_b) > math.cos(cfg.fov_half)
         status = int(PsnsStatus.SATURATED) if sat.any() else 0
         keep = ~sat

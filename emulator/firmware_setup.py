@@ -7,6 +7,15 @@ import math
 from firmware_model import Firmware, FirmwareConfig
 from firmware_model.attitude import a2mat, yaw_from_heading
 from firmware_model.psns_geometry import CameraGeometry
+from firmware_model.variants.common import compass_mountings
+from firmware_model.variants.params import (
+    DualVectorParams,
+    FederatedParams,
+    KmeansParams,
+    ModeManagerParams,
+    SunElevationParams,
+    VariantParams,
+)
 
 from .devices.sensors import accel_errors, camera_config, gnss_config, gyro_errors
 from .scenario.schema import Scenario
@@ -36,6 +45,30 @@ def _camera(scn: Scenario) -> CameraGeometry:
         c_c_b=a2mat(pick(cal.mounting_pitch_deg, pitch) * DEG, pick(cal.mounting_roll_deg, roll) * DEG,
                     yaw_from_heading(pick(cal.mounting_heading_deg, heading) * DEG)),
     )
+
+
+def _variant_params(scn: Scenario) -> VariantParams:
+    """``firmware.variants`` -> :class:`firmware_model.variants.params.VariantParams` (same field names)."""
+    v = scn.firmware.variants
+    fed = v.federated.model_dump()
+    fed["subfilters"] = tuple(fed["subfilters"])
+    if fed["initial_attitude_sigma_deg"] is not None:
+        fed["initial_attitude_sigma_deg"] = tuple(fed["initial_attitude_sigma_deg"])
+    return VariantParams(
+        mode_manager=ModeManagerParams(**v.mode_manager.model_dump()),
+        dual_vector=DualVectorParams(**v.dual_vector.model_dump()),
+        kmeans_3d=KmeansParams(**v.kmeans_3d.model_dump()),
+        federated=FederatedParams(**fed),
+        sun_elevation=SunElevationParams(**v.sun_elevation.model_dump()),
+    )
+
+
+def _compass_mountings(scn: Scenario):  # noqa: ANN202
+    """The compass's nominal unit layout as the firmware knows it (no installation error); None: default 9."""
+    c = scn.sensors.compass
+    if c is None or c.units is None:
+        return None
+    return compass_mountings([(u.zenith_deg, u.azimuth_deg) for u in c.units])
 
 
 def firmware_config(scn: Scenario) -> FirmwareConfig:
@@ -82,6 +115,9 @@ def firmware_config(scn: Scenario) -> FirmwareConfig:
         psns_min_sun_elevation_deg=fw.psns.min_sun_elevation_deg,
         psns_gate_chi2=fw.psns.gate_chi2,
         camera=_camera(scn),
+        compass_mountings=_compass_mountings(scn),
+        initial_misalignment_deg=tuple(fw.alignment.misalignment_deg),
+        variants=_variant_params(scn),
     )
 
 

@@ -8,7 +8,19 @@ models. The loop calls, per tick and only when there is something to do::
     update_gnss(nav, meas, p_ins, v_ins)      a GNSS fix is pending (1 Hz)
     update_solar(nav, obs, s_n, cbn_exp)      a PSNS solar vector is pending (frame rate)
     update_compass(nav, frame, t_exp)         a multi-unit compass frame is pending
+    update_polarization_obs(nav, frame, t_exp)  a POLARIZATION_OBS frame, for variants that set
+                                              ``raw_polarization_obs`` (instead of the firmware's solve)
     feedback(nav)                             closed-loop correction after updates
+
+and, for every variant, once per tick (cheap: the base variant returns nothing)::
+
+    drain_events()                            decisions to log (TickResult.events)
+    variant_status()                          (variant_mode, psns_units, psns_q_mask) for the NAV_SOLUTION
+                                              VARIANT block and STATUS, or None (base: no block)
+
+Services of the main loop a variant may use (:class:`FilterHost`, handed over by :meth:`NavFilter.attach`):
+UTC for the ephemeris, the INS state at a measurement's time, the mean of the MAG frames around a given
+time, the current tick time.
 
 Variants register themselves in :data:`FILTER_VARIANTS` with :func:`register_filter`; the
 scenario's ``firmware.filter`` picks one by name. Issue 6's variants (dual-vector switching, K-means
@@ -21,7 +33,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -46,6 +58,7 @@ if TYPE_CHECKING:
     from .firmware import FirmwareConfig
 
 __all__ = [
+    "FilterHost",
     "GnssMeasurement",
     "SolarObservation",
     "UpdateReport",
@@ -127,18 +140,37 @@ class UpdateReport:
     detail: dict[str, Any] | None = None
 
 
+class FilterHost(Protocol):
+    """What the main loop offers a variant (:class:`firmware_model.Firmware` implements it)."""
+
+    def utc_days(self, t_fpga_s: float) -> float | None:
+        """Grena days (UT) at FPGA time ``t_fpga_s``, once GNSS gave date and time (else None)."""
+
+    def ins_at(self, t_meas: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """INS position (lat, lon rad, h m; float64), ENU velocity and attitude quaternion ``q_b^n`` at ``t_meas``."""
+
+    def mag_mean_nt(self, t_center_s: float, half_window_s: float = 0.025) -> tuple[np.ndarray, int] | None:
+        """Mean magnetometer field (nT, body axes) of the MAG frames sampled within ``t_center_s +- half_window_s``."""
+
+    def now_s(self) -> float:
+        """FPGA time of the current tick, s."""
+
+
 class NavFilter:
     """Interface of a navigation filter variant (see module docstring).
 
     Attributes the loop reads: ``P`` (n, n) covariance whose first 9 states are
     ``[phi, dv, dL dlambda dh]`` (for the reported sigmas), ``gyro_bias`` (rad/s, body) and
-    ``accel_bias`` (m/s^2, body) used to compensate the IMU increments.
+    ``accel_bias`` (m/s^2, body) used to compensate the IMU increments, ``counters`` (merged into the
+    firmware's counters).
     """
 
     name = "abstract"
     #: Variant number in NAV_SOLUTION ``mode`` bits 8-11 and STATUS (``protocols.host.FilterVariant``,
     #: DESIGN.md section 6 numbering); set by :func:`register_filter` from the variant's name.
     variant_id = 0
+    #: True: POLARIZATION_OBS frames go to :meth:`update_polarization_obs` instead of the firmware's solve.
+    raw_polarization_obs = False
 
     def __init__(self, cfg: "FirmwareConfig", meter: c674x.CycleMeter, dtype: type) -> None:
         self.cfg = cfg
@@ -148,6 +180,24 @@ class NavFilter:
         self.accel_bias = np.zeros(3, dtype=dtype)
         self.P = np.zeros((N_STATES, N_STATES), dtype=dtype)
         self.cost = c674x.KernelCosts("float64" if np.dtype(dtype) == np.float64 else "float32")
+        self.host: FilterHost | None = None
+        self.counters: dict[str, int] = {}
+
+    def attach(self, host: FilterHost) -> None:
+        """Called by the main loop once the filter exists (and again after a variant switch)."""
+        self.host = host
+
+    def drain_events(self) -> list[dict[str, Any]]:
+        """Decision events since the last call (``[]`` for variants without a mode manager)."""
+        return []
+
+    def variant_status(self) -> tuple[int, int, int] | None:
+        """``(variant_mode, psns_units, psns_q_mask)`` for NAV_SOLUTION / STATUS; None: no VARIANT block."""
+        return None
+
+    def update_polarization_obs(self, nav: NavState, frame: Any, t_exposure_s: float) -> UpdateReport | None:
+        """Raw POLARIZATION_OBS frames (only for variants with ``raw_polarization_obs``)."""
+        return None
 
     def initialise(self, nav: NavState, heading_sigma_rad: float) -> None:
         raise NotImplementedError

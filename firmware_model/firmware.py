@@ -67,9 +67,10 @@ from protocols.stream import StreamDecoder
 
 from . import c674x, earth, psns, sun
 from .alignment import level_from_specific_force, solar_heading_alignment
-from .attitude import a2mat, heading_from_yaw, m2att, mat2q, q2mat, yaw_from_heading
+from .attitude import a2mat, heading_from_yaw, m2att, mat2q, q2mat, rv2q, yaw_from_heading
 from .errors import FirmwareError
 from .filters import FILTER_VARIANTS, GnssMeasurement, NavFilter, SolarObservation, UpdateReport
+from .variants.params import VariantParams  # importing the package registers the issue-6 variants
 from .psns_geometry import CameraGeometry
 from .strapdown import NavState, coning_sculling, strapdown_step
 
@@ -184,6 +185,13 @@ class FirmwareConfig:
     psns_gate_chi2: float = 16.27  # chi-square(3), alpha = 0.001 (algorithms.md 5.2)
     psns_max_age_s: float = 1.0
     camera: CameraGeometry = field(default_factory=CameraGeometry)
+    #: multi-unit compass mountings C_u^b (n, 3, 3) as the firmware knows them; None: the default 9 units
+    compass_mountings: np.ndarray | None = None
+    #: misalignment (E, N, U; deg, C_b^{n'} = (I - [phi x]) C_b^n) added to the coarse alignment: reproduces a
+    #: paper's initial condition (e.g. Ge et al.: -0.9, 0.6, 0.7 deg)
+    initial_misalignment_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    #: parameters of the issue-6 variants and their mode manager
+    variants: VariantParams = field(default_factory=VariantParams)
 
     def __post_init__(self) -> None:
         if self.precision not in ("float32", "float64"):
@@ -271,7 +279,8 @@ class Firmware:
         self._t_last_predict = 0.0
         # navigation
         self.nav: NavState | None = None
-        self.filter: NavFilter = FILTER_VARIANTS[cfg.filter](cfg, self.meter, self.dtype)
+        self.filter: NavFilter = self._new_filter(cfg.filter)
+        self._mag_hist: deque[tuple[float, tuple[int, int, int]]] = deque(maxlen=128)  # (t_sample_s, field)
         self._tick = 0
         self._sub: list[tuple[np.ndarray, np.ndarray]] = []
         self._fn_sum = np.zeros(3)
@@ -310,6 +319,8 @@ class Firmware:
                 else:  # MAG frame (same FPGA framing); kept for the variants that use a magnetometer
                     self.last_mag = f
                     self.counters["mag_frames"] += 1
+                    if not f.status & 0x01:  # not over range: into the history a variant may average
+                        self._mag_hist.append((self._unwrap_near(f.t_sample_us) / 1e6, f.field))
         elif uart == UART_GNSS:
             for s in self._dec_gnss.feed(data):
                 if isinstance(s, NavPvt):
@@ -341,6 +352,48 @@ class Firmware:
     def decoder_stats(self) -> dict[str, dict[str, Any]]:
         return {"uart0": self._dec_host.stats.as_dict(), "uart1": self._dec_imu.stats.as_dict(),
                 "uart2": self._dec_psns.stats.as_dict(), "uart3": self._dec_gnss.stats.as_dict()}
+
+    # -- services for the filter variants (filters.FilterHost) -----------------------------------------
+    def _new_filter(self, name: str) -> NavFilter:
+        flt = FILTER_VARIANTS[name](self.cfg, self.meter, self.dtype)
+        flt.attach(self)
+        return flt
+
+    def ins_at(self, t_meas: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """INS position, velocity and attitude quaternion at ``t_meas`` (2 s history, nearest entry)."""
+        return self._ins_at(t_meas)
+
+    def now_s(self) -> float:
+        """FPGA time of the latest IMU frame, s."""
+        return self._now_s()
+
+    def mag_mean_nt(self, t_center_s: float, half_window_s: float = 0.025) -> tuple[np.ndarray, int] | None:
+        """Mean MAG field (nT, body axes) of the frames sampled within ``t_center_s +- half_window_s``
+        (FPGA time; e.g. a camera exposure) and their number; None when there is none."""
+        acc = [0, 0, 0]
+        n = 0
+        for ts, fld in reversed(self._mag_hist):
+            if ts < t_center_s - half_window_s:
+                break
+            if ts <= t_center_s + half_window_s:
+                acc[0] += fld[0]
+                acc[1] += fld[1]
+                acc[2] += fld[2]
+                n += 1
+        self.meter.charge("mag_mean", c674x.flops(3, 3 * max(n, 1)) + len(self._mag_hist))
+        if n == 0:
+            return None
+        return np.array(acc, dtype=np.float64) * (0.1 / n), n  # MAG words are 0.1 nT
+
+    def _unwrap_near(self, t_us: int) -> int:
+        """A 32-bit FPGA time stamp near the latest IMU time, unwrapped like :meth:`_unwrap_us`."""
+        base = self._t_epoch_us + (self._t_last_us or 0)
+        full = (base & ~0xFFFFFFFF) | (t_us & 0xFFFFFFFF)
+        if full - base > 2**31:
+            full -= 2**32
+        elif base - full > 2**31:
+            full += 2**32
+        return full
 
     def note_deadline_miss(self) -> None:
         """Called by the host DSP when a tick started after its deadline."""
@@ -425,6 +478,11 @@ class Firmware:
         return m
 
     def _set_utc(self, t_meas: float, date: _dt.date, tm: _dt.time) -> None:
+        if self._now_s() - t_meas > 1.5:
+            # no PPS for this epoch (an outage: the receiver still sends its clock's time without a fix or a
+            # pulse): tagging it to the last, stale PPS edge would make UTC gain a second per second
+            self.counters["utc_stale_pps"] = self.counters.get("utc_stale_pps", 0) + 1
+            return
         hour = tm.hour + tm.minute / 60.0 + (tm.second + tm.microsecond * 1e-6) / 3600.0
         self._utc_days_ref = sun.grena_days(date.year, date.month, date.day, hour)
         self._utc_t_ref = t_meas
@@ -494,6 +552,10 @@ class Firmware:
             m.charge("nav_output", self._cyc["nav_output"])
             m.end()
             res.outputs.append((UART_HOST, frame, m.elapsed))
+        ev = self.filter.drain_events()
+        if ev:
+            res.events.extend(ev)
+            self.counters.update(self.filter.counters)
         if self._pending_cmd or t >= self._next_status_t:
             m.begin("host", 1.0)
             self._host_task(t, res)
@@ -536,6 +598,8 @@ class Firmware:
         self.meter.charge("coarse_level", self._cyc["level"])
         if cbn is None:
             cbn = a2mat(pitch, roll, yaw_from_heading(cfg.initial_heading_deg * DEG))
+        if any(cfg.initial_misalignment_deg):  # C_b^{n'} = rv2m(-phi) C_b^n: the computed frame is off by phi
+            cbn = q2mat(rv2q(-np.asarray(cfg.initial_misalignment_deg, dtype=np.float64) * DEG)) @ cbn
         dt = self.dtype
         nd = self.nav_dtype
         self.nav = NavState(q=mat2q(cbn).astype(nd), v=np.zeros(3, dtype=nd), pos=np.array([lat, lon, h]), t=t,
@@ -652,11 +716,12 @@ class Firmware:
                 p_ins, v_ins, _ = self._ins_at(g.t_fpga_s)
                 rep = self.filter.update_gnss(self.nav, g, p_ins, v_ins)  # type: ignore[arg-type]
                 m.end()
-                self.counters["gnss_updates"] += 1
-                self._last_gnss_update_t = t
-                updated = True
-                res.events.append({"event": "gnss_update", "t_fpga_s": t, "t_meas_s": g.t_fpga_s,
-                                   "n_meas": rep.n_rows, "max_norm_innov": rep.max_norm_innov})
+                if rep.accepted:  # a variant may refuse a fix (federated: chi-square isolation)
+                    self.counters["gnss_updates"] += 1
+                    self._last_gnss_update_t = t
+                    updated = True
+                    res.events.append({"event": "gnss_update", "t_fpga_s": t, "t_meas_s": g.t_fpga_s,
+                                       "n_meas": rep.n_rows, "max_norm_innov": rep.max_norm_innov})
         while self._pending_psns and self._hist:
             t_rx, f = self._pending_psns.popleft()
             m.begin("psns_update", 0.0)
@@ -670,7 +735,7 @@ class Firmware:
                 else:
                     self.counters["psns_rejected"] += 1
                     if t - self._last_psns_reject_t >= 1.0:  # at most one event per second
-                        res.events.append({"event": "psns_rejected", "t_fpga_s": t, "kind": rep.kind,
+                        res.events.append({"event": "psns_rejected", "t_fpga_s": t, "measurement": rep.kind,
                                            "norm_innov": rep.max_norm_innov, **(rep.detail or {})})
                     self._last_psns_reject_t = t
         if updated:
@@ -739,6 +804,11 @@ class Firmware:
         if isinstance(f, CompassFrame):
             t_exp = self._psns_frame_in(t_rx, f)
             return self.filter.update_compass(self.nav, f, t_exp) if cfg.psns_enabled else None  # type: ignore[arg-type]
+        if self.filter.raw_polarization_obs and isinstance(f, PolarizationObs):
+            t_exp = self._psns_frame_in(t_rx, f)
+            if not cfg.psns_enabled or t - t_exp > cfg.psns_max_age_s:
+                return None
+            return self.filter.update_polarization_obs(self.nav, f, t_exp)  # type: ignore[arg-type]
         obs = self._psns_observation(t_rx, f)
         if obs is None or not cfg.psns_enabled:
             return None
@@ -806,7 +876,7 @@ class Firmware:
                 return CMD_SELECT_VARIANT, c.token, AckResult.BAD_ARGUMENT
             if name not in FILTER_VARIANTS:
                 return CMD_SELECT_VARIANT, c.token, AckResult.NOT_ALLOWED  # not in this firmware build
-            self.filter = FILTER_VARIANTS[name](self.cfg, self.meter, self.dtype)
+            self.filter = self._new_filter(name)
             self.cfg.filter = name
             if self.nav is not None:  # the new filter starts from the current navigation state
                 self.filter.initialise(self.nav, self._heading_sigma0)
@@ -832,7 +902,7 @@ class Firmware:
         self.state = FirmwareState.COARSE_ALIGN
         self.mode = NavMode.ALIGNING
         self.nav = None
-        self.filter = FILTER_VARIANTS[self.cfg.filter](self.cfg, self.meter, self.dtype)
+        self.filter = self._new_filter(self.cfg.filter)
         self._align_sum[:] = 0.0
         self._align_n = 0
         self._align_t0 = None
@@ -845,6 +915,9 @@ class Firmware:
 
     def _status_frame(self, t: float) -> bytes:
         self.counters["status_frames"] += 1
+        vs = self.filter.variant_status()
+        if vs is not None:
+            self.counters.update(self.filter.counters)
         self.meter.charge("status", 64 * 2 + 71 * 4 + c674x.CALL_OVERHEAD)  # pack + CRC-16 by table [E]
 
         def errs(d: StreamDecoder) -> int:
@@ -862,6 +935,7 @@ class Firmware:
             uart2_frames=self._dec_psns.stats.frames, uart2_errors=errs(self._dec_psns),
             uart3_frames=self._dec_gnss.stats.frames, uart3_errors=errs(self._dec_gnss),
             commands_accepted=self.counters["commands_accepted"], commands_rejected=self.counters["commands_rejected"],
+            variant_mode=vs[0] if vs is not None else 0,
         )
         self._status_seq += 1
         return encode_status(st)
@@ -904,6 +978,9 @@ class Firmware:
                 d[6] * (rm + h), d[7] * (rn + h) * math.cos(lat), d[8],
             )
         fix = self._last_fix
+        vs = self.filter.variant_status()
+        if vs is not None:  # VARIANT block: pack 4 bytes + CRC over 6 more [E]
+            self.meter.charge("nav_variant_block", 6 * 4 + 4 * 2)
         n = NavSolution(
             seq=self._out_seq,
             time_s=t,
@@ -920,6 +997,9 @@ class Firmware:
             psns_status=self._psns_status_now(t),
             cpu_load_pct=self.cpu_load_pct(),
             deadline_misses=self.deadline_misses,
+            variant_mode=vs[0] if vs is not None else None,
+            psns_units=vs[1] if vs is not None else 0,
+            psns_q_mask=vs[2] if vs is not None else 0,
         )
         self._out_seq += 1
         return encode_nav_solution(n)

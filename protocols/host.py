@@ -30,13 +30,22 @@ Messages:
     98   u32      deadline_misses     cumulative
     (102 bytes; later versions may only append fields, and decoders accept a longer payload)
 
+    Optional VARIANT block, appended by the filter variants other than the base one (issue 6;
+    the base variant's frame stays 102 bytes)::
+
+    102  u8       block_id            0x56 ('V')
+    103  u8       block_len           4
+    104  u8       variant_mode        variant-specific mode (:data:`VARIANT_MODE_MEANING`)
+    105  u8       psns_units          number of polarization sensors judged (l)
+    106  u16      psns_q_mask         bit i = q_i, sensor i judged reliable
+
 ``0x02`` STATUS (DSP -> host, at 1 Hz and in answer to REQUEST_STATUS), payload::
 
     off  type  field              unit / meaning
     0    u32   seq                status counter
     4    f64   time_s             s, FPGA time
     12   u8    filter_variant     :class:`FilterVariant`
-    13   u8    reserved           0
+    13   u8    variant_mode       as in the NAV_SOLUTION VARIANT block (0 for the base variant)
     14   u16   mode               :class:`NavMode` bits
     16   f32   output_rate_hz     Hz, NAV_SOLUTION rate in force
     20   u8    gnss_status        as in NAV_SOLUTION
@@ -118,6 +127,9 @@ __all__ = [
     "NavMode",
     "NavSolution",
     "NAV_SOLUTION_SPEC",
+    "NAV_VARIANT_BLOCK_SPEC",
+    "NAV_VARIANT_BLOCK_ID",
+    "VARIANT_MODE_MEANING",
     "HostFrame",
     "HostFormat",
     "build_host_frame",
@@ -205,6 +217,26 @@ NAV_SOLUTION_SPEC = Struct(
 _NAV = struct.Struct("<Idddf3f3f9fHBBHI")
 NAV_SOLUTION_LEN = _NAV.size  # 102
 
+#: First byte of the optional VARIANT block appended to NAV_SOLUTION by the issue-6 variants.
+NAV_VARIANT_BLOCK_ID = 0x56
+NAV_VARIANT_BLOCK_SPEC = Struct(
+    "block_id" / Const(bytes((NAV_VARIANT_BLOCK_ID,))) * " |  | 0x56 ('V'): VARIANT block",
+    "block_len" / Int8ul * "1 | bytes | 4 (bytes after this field)",
+    "variant_mode" / Int8ul * " |  | variant-specific mode (VARIANT_MODE_MEANING)",
+    "psns_units" / Int8ul * "1 |  | polarization sensors judged (l)",
+    "psns_q_mask" / Int16ul * " |  | bit i = q_i: sensor i judged reliable",
+)
+_VARIANT_BLOCK = struct.Struct("<BBBBH")
+#: ``variant_mode`` per :class:`FilterVariant` (NAV_SOLUTION VARIANT block and STATUS).
+VARIANT_MODE_MEANING = {
+    "DUAL_VECTOR": "0 no polarization update, 1 polarization-error-vector (one reliable sensor), "
+                   "2 sun-error-vector (two or more)",
+    "KMEANS_3D": "0 no attitude fix yet, 1 attitude fix used, 2 refused (sun outside the field of view, "
+                 "no low-DOP cluster)",
+    "FEDERATED": "bit 0 SINS/GNSS sub-filter fused, bit 1 MIMU/polarization sub-filter fused (2: GNSS isolated)",
+    "SUN_ELEVATION": "0 no update, 1 sun-elevation update used, 2 rejected",
+}
+
 
 @fast_frozen_init
 @dataclass(frozen=True, slots=True)
@@ -226,6 +258,10 @@ class NavSolution:
     psns_status: int
     cpu_load_pct: float
     deadline_misses: int
+    #: VARIANT block (None: absent, the base variant's 102-byte frame); see the module docstring.
+    variant_mode: int | None = None
+    psns_units: int = 0
+    psns_q_mask: int = 0
 
 
 @fast_frozen_init
@@ -264,6 +300,9 @@ def encode_nav_solution(n: NavSolution) -> bytes:
         max(0, min(0xFFFF, int(round(n.cpu_load_pct * 100)))),
         n.deadline_misses & 0xFFFFFFFF,
     )
+    if n.variant_mode is not None:
+        payload += _VARIANT_BLOCK.pack(NAV_VARIANT_BLOCK_ID, 4, n.variant_mode & 0xFF, n.psns_units & 0xFF,
+                                       n.psns_q_mask & 0xFFFF)
     return build_host_frame(MSG_NAV_SOLUTION, payload)
 
 
@@ -271,6 +310,10 @@ def _decode_nav(payload: bytes) -> NavSolution:
     if len(payload) < NAV_SOLUTION_LEN:
         raise ValueError(f"NAV_SOLUTION payload must be at least {NAV_SOLUTION_LEN} bytes, got {len(payload)}")
     v = _NAV.unpack_from(payload)
+    ext: tuple[int | None, int, int] = (None, 0, 0)
+    if (len(payload) >= NAV_SOLUTION_LEN + _VARIANT_BLOCK.size and payload[NAV_SOLUTION_LEN] == NAV_VARIANT_BLOCK_ID
+            and payload[NAV_SOLUTION_LEN + 1] == 4):
+        ext = _VARIANT_BLOCK.unpack_from(payload, NAV_SOLUTION_LEN)[2:]
     return NavSolution(
         seq=v[0],
         time_s=v[1],
@@ -287,6 +330,9 @@ def _decode_nav(payload: bytes) -> NavSolution:
         psns_status=v[22],
         cpu_load_pct=v[23] / 100.0,
         deadline_misses=v[24],
+        variant_mode=ext[0],
+        psns_units=ext[1],
+        psns_q_mask=ext[2],
     )
 
 
@@ -296,7 +342,7 @@ STATUS_SPEC = Struct(
     "seq" / Int32ul * "1 |  | status counter",
     "time_s" / Float64l * "1 | s | FPGA time",
     "filter_variant" / Int8ul * " |  | FilterVariant",
-    "reserved" / Int8ul * " |  | 0",
+    "variant_mode" / Int8ul * " |  | as in the NAV_SOLUTION VARIANT block, 0 for the base variant",
     "mode" / Int16ul * " |  | NavMode bits",
     "output_rate_hz" / Float32l * "1 | Hz | NAV_SOLUTION rate in force",
     "gnss_status" / Int8ul * " |  | as in NAV_SOLUTION",
@@ -358,6 +404,7 @@ class HostStatus:
     uart3_errors: int
     commands_accepted: int
     commands_rejected: int
+    variant_mode: int = 0
 
 
 @fast_frozen_init
@@ -415,7 +462,8 @@ def _pct(v: float) -> int:
 def encode_status(st: HostStatus) -> bytes:
     """Whole STATUS frame for ``st``."""
     payload = _STATUS.pack(
-        st.seq & 0xFFFFFFFF, st.time_s, st.filter_variant & 0xFF, 0, st.mode & 0xFFFF, st.output_rate_hz,
+        st.seq & 0xFFFFFFFF, st.time_s, st.filter_variant & 0xFF, st.variant_mode & 0xFF, st.mode & 0xFFFF,
+        st.output_rate_hz,
         st.gnss_status & 0xFF, st.psns_status & 0xFF, _pct(st.cpu_load_pct), _pct(st.cpu_load_max_pct),
         st.fw_version & 0xFFFF, st.deadline_misses & 0xFFFFFFFF,
         *(v & 0xFFFFFFFF for v in (st.uart1_frames, st.uart1_errors, st.uart2_frames, st.uart2_errors,
@@ -428,7 +476,7 @@ def _decode_status(payload: bytes) -> HostStatus:
     if len(payload) < STATUS_LEN:
         raise ValueError(f"STATUS payload must be at least {STATUS_LEN} bytes, got {len(payload)}")
     v = _STATUS.unpack_from(payload)
-    return HostStatus(v[0], v[1], v[2], v[4], v[5], v[6], v[7], v[8] / 100.0, v[9] / 100.0, *v[10:])
+    return HostStatus(v[0], v[1], v[2], v[4], v[5], v[6], v[7], v[8] / 100.0, v[9] / 100.0, *v[10:], variant_mode=v[3])
 
 
 def encode_ack(a: Ack) -> bytes:

@@ -371,6 +371,10 @@ def generate() -> str:
     w("NAV_SOLUTION payload (offsets within the payload, frame offset = 5 + payload offset; new fields are only "
       "ever appended, decoders accept longer payloads):\n")
     w(_spec_table(host.NAV_SOLUTION_SPEC) + "\n")
+    w("Optional VARIANT block, appended after the 102 bytes above by the filter variants other than the base one "
+      "(payload offsets 102..107; the base variant's frame is unchanged):\n")
+    w(_spec_table(host.NAV_VARIANT_BLOCK_SPEC) + "\n")
+    w("`variant_mode` per variant: " + "; ".join(f"{k}: {v}" for k, v in host.VARIANT_MODE_MEANING.items()) + ".\n")
     w("`NavMode`: " + ", ".join(f"0x{int(m):04X} {m.name}" for m in host.NavMode) + "; bits 8-11 the "
       "`FilterVariant`: " + ", ".join(f"{int(v)} {v.name}" for v in host.FilterVariant) + ".\n")
     w("STATUS payload:\n")

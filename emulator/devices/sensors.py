@@ -133,11 +133,16 @@ def compass_config(scn: Scenario, rng: np.random.Generator | None = None) -> Com
     p = merged(preset("compass", c.preset), {k: getattr(c, k) for k in (
         "aop_sigma_deg", "dop_ref", "extinction_ratio", "fov_half_deg")})
     mounts = default_mountings()
+    if c.units is not None:  # a compass with its own unit layout (e.g. the dual-vector study's three sensors)
+        from firmware_model.variants.common import compass_mountings
+
+        mounts = compass_mountings([(u.zenith_deg, u.azimuth_deg) for u in c.units])
     if c.installation_error_sigma_deg > 0:
         mounts = perturbed_mountings(mounts, c.installation_error_sigma_deg * DEG, rng or np.random.default_rng(0))
     return CompassConfig(mountings=mounts, aop_sigma=p["aop_sigma_deg"] * DEG, dop_ref=p["dop_ref"],
                          extinction_ratio=p["extinction_ratio"], fov_half=p["fov_half_deg"] * DEG,
-                         min_sun_elevation=c.min_sun_elevation_deg * DEG, noise=p["aop_sigma_deg"] > 0)
+                         min_sun_elevation=c.min_sun_elevation_deg * DEG, noise=p["aop_sigma_deg"] > 0,
+                         blocked=tuple((tuple(b.units), b.start_s, b.start_s + b.duration_s) for b in c.blocked))
 
 
 def mag_config(scn: Scenario) -> MagConfig:

@@ -1,7 +1,9 @@
 """Scenario sections owned by the firmware: variant, precision, rates, alignment, PSNS processing.
 
 Everything here is what the firmware team configures or calibrates (the DSP's view of the system);
-the sensors' true behaviour lives in the sensor sections.
+the sensors' true behaviour lives in the sensor sections. ``firmware.variants`` holds the parameters of
+the issue-6 filter variants (``firmware_model.variants.params``; docs/variants.md); only the selected
+variant reads its own.
 """
 
 from __future__ import annotations
@@ -12,7 +14,10 @@ from pydantic import Field
 
 from .base import Model
 
-__all__ = ["AlignmentSpec", "CameraCalibrationSpec", "PsnsFirmwareSpec", "FirmwareSpec"]
+__all__ = ["AlignmentSpec", "CameraCalibrationSpec", "PsnsFirmwareSpec", "FirmwareSpec", "VariantsSpec",
+           "ModeManagerSpec", "DualVectorSpec", "KmeansSpec", "FederatedSpec", "SunElevationSpec"]
+
+Vec3 = tuple[float, float, float]
 
 
 class AlignmentSpec(Model):
@@ -24,6 +29,8 @@ class AlignmentSpec(Model):
     psns_timeout_s: float = Field(10.0, ge=0, le=600, description="heading_source psns: wait this long, then fall back")
     psns_heading_sigma_deg: float = Field(0.5, gt=0, le=30)
     fine_time_s: float = Field(60.0, ge=0, le=3600, description="fine alignment (KF) before NAVIGATE is reported")
+    misalignment_deg: Vec3 = Field(
+        (0.0, 0.0, 0.0), description="E, N, U misalignment added to the coarse alignment (a paper's initial condition)")
 
 
 class CameraCalibrationSpec(Model):
@@ -55,8 +62,72 @@ class PsnsFirmwareSpec(Model):
     camera: CameraCalibrationSpec = CameraCalibrationSpec()
 
 
+class ModeManagerSpec(Model):
+    chi2_alpha: Literal[0.05, 0.01, 0.005, 0.001] = Field(0.001, description="false-alarm rate of the chi-square gates")
+    dop_min: float = Field(0.05, ge=0, lt=1, description="a polarization unit/point below this DOP is not valid")
+    min_sun_elevation_deg: float = Field(5.0, ge=-10, le=80)
+
+
+class DualVectorSpec(Model):
+    tp: float = Field(0.05, gt=0, le=1, description="information-discrimination threshold T_p on |p~ x p|")
+    aop_sigma_deg: float = Field(0.1, gt=0, le=10, description="unit AOP noise at dop_ref (grows as dop_ref/DOP)")
+    dop_ref: float = Field(0.5, gt=0, le=1)
+    sigma_floor_deg: float = Field(0.05, ge=0, le=10)
+    min_scattering_deg: float = Field(10.0, ge=0, le=90)
+    min_pair_sine: float = Field(0.15, gt=0, le=1)
+
+
+class KmeansSpec(Model):
+    clusters: int = Field(3, ge=2, le=8)
+    iterations: int = Field(10, ge=1, le=100)
+    min_cluster_points: int = Field(3, ge=1)
+    max_centre_ratio: float = Field(0.6, gt=0, le=1)
+    fov_margin_deg: float = Field(2.0, ge=0, le=45)
+    max_disagreement_deg: float = Field(30.0, gt=0, le=180)
+    max_gap_deg: float = Field(15.0, gt=0, le=90)
+    max_quality: float = Field(0.2, gt=0, le=1)
+    mag_declination_deg: float = Field(-7.133, ge=-180, le=180, description="east positive")
+    mag_inclination_deg: float = Field(59.215, ge=-90, le=90, description="down positive")
+    mag_half_window_s: float = Field(0.025, gt=0, le=1)
+    attitude_iterations: int = Field(3, ge=1, le=20)
+    tilt_sigma_deg: float = Field(0.05, gt=0, le=10)
+    heading_sigma_deg: float = Field(0.3, gt=0, le=30)
+
+
+class FederatedSpec(Model):
+    beta_sins_gnss: float = Field(0.5, gt=0, le=1)
+    beta_pol_mimu: float = Field(0.5, gt=0, le=1)
+    subfilters: list[Literal["sins_gnss", "pol_mimu"]] = Field(
+        default_factory=lambda: ["sins_gnss", "pol_mimu"], min_length=1, description="what the master fuses")
+    readmit_after: int = Field(1, ge=1, le=100, description="consecutive passing epochs before GNSS is readmitted")
+    motion_accel_tau_s: float = Field(5.0, gt=0)
+    motion_accel_sigma_mps2: float = Field(0.05, gt=0)
+    gravity_sigma_mps2: float = Field(0.02, gt=0)
+    sun_sigma: float = Field(0.01, gt=0, le=1, description="sun-vector noise per component (Ge et al.: 0.01)")
+    initial_attitude_sigma_deg: Vec3 | None = None
+
+
+class SunElevationSpec(Model):
+    elevation_sigma_deg: float = Field(0.2, gt=0, le=10)
+    forgetting: float = Field(0.95, gt=0, lt=1, description="Sage-Husa forgetting factor b")
+    r_min_factor: float = Field(0.01, gt=0, le=1)
+    r_max_factor: float = Field(100.0, ge=1)
+    min_pair_sine: float = Field(0.2, gt=0, le=1)
+    attitude_coupling: bool = Field(False, description="tilt columns in H (the paper's H has none)")
+    update_every: int = Field(1, ge=1, le=100)
+    attitude_aiding: bool = Field(False, description="also the compass's solar-vector attitude update (not in the paper)")
+
+
+class VariantsSpec(Model):
+    mode_manager: ModeManagerSpec = ModeManagerSpec()
+    dual_vector: DualVectorSpec = DualVectorSpec()
+    kmeans_3d: KmeansSpec = KmeansSpec()
+    federated: FederatedSpec = FederatedSpec()
+    sun_elevation: SunElevationSpec = SunElevationSpec()
+
+
 class FirmwareSpec(Model):
-    filter: Literal["base"] = "base"
+    filter: Literal["base", "dual_vector", "kmeans_3d", "federated", "sun_elevation"] = "base"
     precision: Literal["float32", "float64"] = "float32"
     nav_state_precision: Literal["float32", "float64"] = Field(
         "float64", description="strapdown quaternion/velocity accumulators (docs/decisions.md D-L.1)")
@@ -65,3 +136,4 @@ class FirmwareSpec(Model):
     coning_samples: Literal[0, 1, 2] = Field(0, description="0: two-sample with angle increments, else one")
     alignment: AlignmentSpec = AlignmentSpec()
     psns: PsnsFirmwareSpec = PsnsFirmwareSpec()
+    variants: VariantsSpec = VariantsSpec()

@@ -28,6 +28,8 @@ __all__ = [
     "RecordedImagesSpec",
     "CameraSpec",
     "CompassSpec",
+    "CompassUnitSpec",
+    "BlockedUnitsSpec",
     "MagnetometerSpec",
     "Sensors",
 ]
@@ -214,6 +216,21 @@ class CameraSpec(Model):
         return _check_preset("camera", v)
 
 
+class CompassUnitSpec(Model):
+    """View direction of one single-direction unit (CONTRACTS C1 mounting convention)."""
+
+    zenith_deg: float = Field(ge=0, le=90, description="angle from body +z")
+    azimuth_deg: float = Field(ge=-360, le=360, description="from body +y (forward) towards +x (right)")
+
+
+class BlockedUnitsSpec(Model):
+    """Units that see unpolarized light (DOP ~ 0, scrambled AOP) for a while: obstruction, thick cloud."""
+
+    units: list[int] = Field(min_length=1, description="unit indices (0-based, in the order of units)")
+    start_s: float = Field(ge=0)
+    duration_s: float = Field(gt=0)
+
+
 class CompassSpec(Model):
     enabled: bool = True
     preset: str = "paper"
@@ -226,11 +243,23 @@ class CompassSpec(Model):
     fov_half_deg: float | None = Field(None, ge=0, le=45)
     installation_error_sigma_deg: float = Field(0.0, ge=0, le=10, description="random per-unit mounting error")
     min_sun_elevation_deg: float = Field(0.0, ge=-18, le=30)
+    units: list[CompassUnitSpec] | None = Field(
+        None, min_length=1, max_length=16, description="unit view directions; default: the 9-unit compass")
+    blocked: list[BlockedUnitsSpec] = Field(default_factory=list, description="blocked-unit windows")
 
     @field_validator("preset")
     @classmethod
     def _preset(cls, v: str) -> str:
         return _check_preset("compass", v)
+
+    @model_validator(mode="after")
+    def _blocked_units_exist(self) -> "CompassSpec":
+        n = len(self.units) if self.units is not None else 9
+        for i, b in enumerate(self.blocked):
+            bad = [u for u in b.units if not 0 <= u < n]
+            if bad:
+                raise ValueError(f"blocked[{i}]: the compass has units 0..{n - 1}, not {bad}")
+        return self
 
 
 class MagnetometerSpec(Model):

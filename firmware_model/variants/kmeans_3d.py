@@ -1,0 +1,429 @@
+"""K-means sun finding + 3-D attitude (Yang, Wang, Wang, Hu 2020, *Laser & Optoelectronics Progress* 57(22)).
+
+Pipeline on each POLARIZATION_OBS frame of an all-sky (fisheye) camera:
+
+1. **View rays** of the observation points (C1 camera model), the sky mask: points whose ray is below
+   ``horizon_mask`` elevation according to the INS tilt are left out (the ground is unpolarized and would
+   join the low-DOP cluster), as are points below ``dop_min`` for the E-vector solve.
+2. **K-means on the DOP values** (paper Eqs. 8-9; algorithms.md 2.4): ``k`` clusters (default 3) in 1-D,
+   Lloyd iterations from centres spread evenly between the lowest and highest DOP, a fixed number of
+   iterations (deterministic cycle cost). The Sun is at the **lowest-DOP cluster** (Rayleigh DOP vanishes
+   towards the Sun, paper Eq. 6); the normalised mean view ray of its members is the coarse sun direction.
+3. **Refinement** with the E-vector eigen-solution (base paper Eq. 14, :func:`firmware_model.psns.solve_solar_vector`):
+   ``+-S`` from ``K = sum DOP E E^T``, the sign taken from the low-DOP cluster: Rayleigh's DOP is symmetric
+   about the sun/anti-sun axis, so the cluster may also hold the sky around the anti-sun (above the horizon
+   when the Sun is low); the Sun is on the side whose nearest cluster member is nearer to the axis (the
+   anti-sun is below the horizon). The coarse (paper) sun direction is the mean ray of the members on
+   that side.
+4. **Refusal** instead of a wrong answer: no distinct low-DOP cluster, a poor eigen solution, K-means and
+   eigen directions that disagree, or a refined Sun outside (or within ``fov_margin`` of the edge of) the
+   observed field of view. The paper's own field test shows K-means fails when the blob is cut by the lens's
+   field of view; the firmware says so (event ``kmeans_refused`` with its reason, PSNS status "rejected",
+   VARIANT mode 2) and leaves the attitude to the INS.
+5. **Heading from the magnetometer** (the MAG frames on UART1 sampled within ``mag_half_window`` of the
+   exposure time, averaged),
+   tilt-compensated with the current pitch/roll: with ``m^h = R_X(theta)^T R_Y(gamma)^T m^b``,
+   ``yaw = atan2(m^h_x, m^h_y) - D`` (D the declination, east positive; yaw counter-clockwise, PSINS).
+6. **Pitch and roll from the sun vector** with the heading known, in the paper's rotation order
+   ``A->B = R_Y(roll) R_X(pitch) R_Z(heading)`` (Eqs. 1-5): with ``u = R_Z(yaw) s^n`` and
+   ``S^b = R_Y(gamma) R_X(theta) u``: the y row gives ``u_y cos theta + u_z sin theta = S^b_y``, so
+   ``theta = atan2(u_z, u_y) +- acos(S^b_y / hypot(u_y, u_z))`` (the root nearer the INS pitch); then
+   ``w = R_X(theta) u`` and ``gamma = atan2(w_x S_z - w_z S_x, w_x S_x + w_z S_z)``. This is the paper's
+   zenith-point construction (Eqs. 10-13: ``C_Y = sin P'``, ``tan R = -C_X/C_Z``) written for an arbitrary
+   sun azimuth instead of first rotating the Sun onto the Y axis. Heading and tilt are iterated
+   to self-consistency (Newton steps on the yaw, ``attitude_iterations``) because the tilt compensation needs
+   the tilt: a plain alternation diverges at tens of degrees of tilt.
+7. The attitude fix ``(theta, gamma, yaw)`` is a measurement of the 15-state filter:
+   ``Z = phi`` from ``C_b^{n'} (C_b^n_fix)^T = I - [phi x]``, ``H = [I_3, 0]``, chi-square gated.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from protocols.psns import PolarizationObs, PsnsStatus
+
+from .. import c674x, psns, sun
+from ..attitude import a2mat, heading_from_yaw, m2att, q2mat
+from ..filters import BaseFilter, UpdateReport, register_filter
+from ..kf import N_STATES
+from ..psns_geometry import CameraGeometry
+from ..strapdown import NavState
+from .common import misalignment_between
+from .mode_manager import ModeManager
+
+__all__ = ["Kmeans3dFilter", "kmeans_1d", "kmeans_cycles", "pitch_roll_from_sun", "heading_from_mag",
+           "SunFinding", "find_sun", "KmeansAttitude", "kmeans_attitude"]
+
+DEG = math.pi / 180.0
+HORIZON_MASK = 2.0 * DEG
+
+
+def kmeans_1d(x: np.ndarray, k: int, iterations: int) -> tuple[np.ndarray, np.ndarray]:
+    """Lloyd's K-means on scalar data (paper Eqs. 8-9), fixed iterations, deterministic start.
+
+    Parameters
+    ----------
+    x : (n,) values (the DOP of the observation points).
+    k : clusters; iterations : Lloyd steps (assign to the nearest centre, move each centre to its mean).
+
+    Returns
+    -------
+    centres (k,) ascending at the start (an empty cluster keeps its centre), labels (n,) int.
+    """
+    x = np.asarray(x)
+    lo, hi = float(x.min()), float(x.max())
+    centres = (lo + (np.arange(k) + 0.5) * ((hi - lo) / k)).astype(x.dtype)
+    labels = np.zeros(len(x), dtype=np.int64)
+    for _ in range(iterations):
+        labels = np.argmin(np.abs(x[:, None] - centres[None, :]), axis=1)
+        sums = np.bincount(labels, weights=x, minlength=k)
+        counts = np.bincount(labels, minlength=k)
+        nz = counts > 0
+        centres = np.where(nz, sums / np.maximum(counts, 1), centres).astype(x.dtype)
+    return centres, labels
+
+
+def kmeans_cycles(n: int, k: int, iterations: int, c: c674x.KernelCosts) -> int:
+    """Per iteration: ``n k`` distances (SUB, ABS) and compares, ``n`` accumulations, ``k`` reciprocals [D]."""
+    per_iter = c.flops(k, 3 * k + 1, iterations=n) + k * c.math("recip")
+    return iterations * per_iter + c.flops(2, 2, iterations=n)  # min/max for the start
+
+
+def pitch_roll_from_sun(s_b: np.ndarray, s_n: np.ndarray, yaw: float, pitch_prior: float = 0.0
+                        ) -> tuple[float, float] | None:
+    """Pitch and roll (rad) from the body sun vector with the yaw known (module docstring, step 6).
+
+    ``s_b`` (3,) unit sun vector in b, ``s_n`` (3,) in ENU, ``yaw`` PSINS yaw (rad, counter-clockwise).
+    Of the two pitch roots the one nearer ``pitch_prior`` is kept; None when the geometry is degenerate
+    (the Sun along the body x axis after the yaw turn, ``hypot(u_y, u_z) < 0.05``).
+    """
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    ux = cy * s_n[0] + sy * s_n[1]
+    uy = -sy * s_n[0] + cy * s_n[1]
+    uz = float(s_n[2])
+    rho = math.hypot(uy, uz)
+    if rho < 0.05:
+        return None
+    alpha = math.atan2(uz, uy)
+    d = math.acos(max(-1.0, min(1.0, float(s_b[1]) / rho)))
+    cands = [alpha + d, alpha - d]
+    cands = [math.atan2(math.sin(c), math.cos(c)) for c in cands]
+    cands = [c for c in cands if abs(c) <= 0.5 * math.pi] or cands
+    theta = min(cands, key=lambda c: abs(c - pitch_prior))
+    ct, st = math.cos(theta), math.sin(theta)
+    wx = ux
+    wz = -st * uy + ct * uz
+    sx, sz = float(s_b[0]), float(s_b[2])
+    gamma = math.atan2(wx * sz - wz * sx, wx * sx + wz * sz)
+    return theta, gamma
+
+
+def heading_from_mag(m_b: np.ndarray, pitch: float, roll: float, declination: float) -> float:
+    """PSINS yaw (rad, counter-clockwise from North) from a magnetometer vector in b and the tilt (step 5)."""
+    cr, sr = math.cos(roll), math.sin(roll)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    mx, my, mz = (float(v) for v in m_b)
+    # R_Y(roll)^T m
+    x1 = cr * mx + sr * mz
+    y1 = my
+    z1 = -sr * mx + cr * mz
+    # R_X(pitch)^T
+    hx = x1
+    hy = cp * y1 - sp * z1
+    return math.atan2(hx, hy) - declination
+
+
+def attitude_cycles(iterations: int, c: c674x.KernelCosts) -> int:
+    """Per evaluation of ``g``: heading (2 sincos, atan2, 10 MAC) and pitch/roll (atan2 x 2, acos, 2 sincos)."""
+    per = (c.math("sin", 4) + c.math("cos", 4) + 3 * c.math("atan2") + c.math("acos") + c.math("sqrt")
+           + c.flops(30, 20))
+    return iterations * per
+
+
+class SunFinding:
+    """Result of :func:`find_sun` (camera frame)."""
+
+    __slots__ = ("ok", "reason", "s_c", "coarse_c", "cluster_n", "centres", "quality", "sun_theta", "fov_theta",
+                 "disagreement", "n_points")
+
+    def __init__(self, ok: bool, reason: str, **kw: Any) -> None:
+        self.ok = ok
+        self.reason = reason
+        for k in self.__slots__[2:]:
+            setattr(self, k, kw.get(k))
+
+    def fields(self) -> dict[str, Any]:
+        """Numbers behind the decision, for the event (degrees)."""
+        out: dict[str, Any] = {"cluster_points": self.cluster_n, "points": self.n_points}
+        if self.centres is not None:
+            out["centres"] = [round(float(v), 4) for v in self.centres]
+        for k in ("sun_theta", "fov_theta", "disagreement"):
+            v = getattr(self, k)
+            if v is not None:
+                out[f"{k}_deg"] = round(math.degrees(v), 4)
+        if self.quality is not None:
+            out["quality"] = self.quality
+        return out
+
+
+def find_sun(x_px: np.ndarray, y_px: np.ndarray, aop: np.ndarray, dop: np.ndarray, cam: CameraGeometry,
+             sky_mask: np.ndarray | None, params: Any, dop_min: float, dtype: type = np.float32) -> SunFinding:
+    """Steps 1-4 of the module docstring on one frame's points (pixel coordinates 1-based, AOP rad).
+
+    Rayleigh's DOP is symmetric about the sun/anti-sun axis, so the lowest-DOP cluster can hold two blobs:
+    around the Sun and, above the horizon, around the anti-sun. The eigen-solution gives the axis ``+-S``
+    exactly; the cluster decides the sign: the Sun is on the side whose nearest cluster member is closer to
+    the axis (the anti-sun is below the horizon, at least one sun elevation away from every sky point). The
+    K-means sun direction (the paper's cluster centre) is the mean ray of the members on that side.
+    """
+    v = cam.view_rays(x_px, y_px).astype(dtype)
+    theta = np.arccos(np.clip(v[:, 2], -1.0, 1.0))
+    fov = float(theta.max()) if len(theta) else 0.0
+    use = np.ones(len(dop), dtype=bool) if sky_mask is None else sky_mask
+    n = int(np.count_nonzero(use))
+    if n < max(params.clusters, 3) * 2:
+        return SunFinding(False, "too_few_points", n_points=n)
+    d = dop[use].astype(dtype)
+    vu = v[use]
+    centres, labels = kmeans_1d(d, params.clusters, params.iterations)
+    order = np.argsort(centres)
+    low = int(order[0])
+    members = labels == low
+    nlow = int(np.count_nonzero(members))
+    hi_c = float(centres[order[-1]])
+    if nlow < params.min_cluster_points:
+        return SunFinding(False, "low_dop_cluster_too_small", cluster_n=nlow, centres=centres, n_points=n)
+    if not float(centres[low]) < params.max_centre_ratio * hi_c:
+        return SunFinding(False, "no_low_dop_cluster", cluster_n=nlow, centres=centres, n_points=n)
+    # refinement: eigen-solution of all valid E-vectors
+    e = psns.evectors_camera(x_px[use], y_px[use], aop[use], cam, dtype=dtype)
+    sol = psns.solve_solar_vector(e, d, dop_min, max_quality=params.max_quality)
+    if not sol.valid:
+        return SunFinding(False, "poor_eigen_solution", cluster_n=nlow, centres=centres, quality=sol.quality,
+                          n_points=n)
+    # sign from the cluster: the side with the cluster member nearest to the axis
+    cos_m = vu[members] @ sol.s
+    s = sol.s if float(cos_m.max()) >= float(-cos_m.min()) else -sol.s
+    side = members.copy()
+    side[members] = (vu[members] @ s) > 0.0
+    vm = vu[side].sum(axis=0)
+    coarse = (vm / np.sqrt(float(vm @ vm))).astype(dtype)
+    gap = math.acos(max(-1.0, min(1.0, float((vu[side] @ s).max()))))
+    dis = math.acos(max(-1.0, min(1.0, float(s @ coarse))))
+    sun_theta = math.acos(max(-1.0, min(1.0, float(s[2]))))
+    common = dict(cluster_n=nlow, centres=centres, quality=sol.quality, coarse_c=coarse, sun_theta=sun_theta,
+                  fov_theta=fov, disagreement=dis, n_points=n)
+    if sun_theta > fov - params.fov_margin_deg * DEG or not _inside_image(s, cam, x_px, y_px):
+        return SunFinding(False, "sun_outside_fov", s_c=s, **common)
+    if gap > params.max_gap_deg * DEG:
+        return SunFinding(False, "low_dop_cluster_away_from_sun", s_c=s, **common)
+    if dis > params.max_disagreement_deg * DEG:
+        return SunFinding(False, "kmeans_eigen_disagree", s_c=s, **common)
+    return SunFinding(True, "sun_in_fov", s_c=s.astype(dtype), **common)
+
+
+def _inside_image(s_c: np.ndarray, cam: CameraGeometry, x_px: np.ndarray, y_px: np.ndarray) -> bool:
+    """Whether the sun's image lies inside the bounding box of the observed points (C1 projection)."""
+    sx, sy, sz = (float(v) for v in s_c)
+    if cam.projection == "pinhole":
+        if sz <= 0:
+            return False
+        X, Y = cam.focal_m * sx / sz, cam.focal_m * sy / sz
+    else:
+        th = math.acos(max(-1.0, min(1.0, sz)))
+        al = math.atan2(sy, sx)
+        X, Y = cam.focal_m * th * math.cos(al), cam.focal_m * th * math.sin(al)
+    x = X / cam.dx_m + (cam.nx + 1) / 2.0
+    y = Y / cam.dy_m + (cam.ny + 1) / 2.0
+    return float(x_px.min()) <= x <= float(x_px.max()) and float(y_px.min()) <= y <= float(y_px.max())
+
+
+class KmeansAttitude:
+    """An attitude fix: pitch, roll, yaw (rad, PSINS) and how it was made."""
+
+    __slots__ = ("pitch", "roll", "yaw", "heading_source", "finding")
+
+    def __init__(self, pitch: float, roll: float, yaw: float, heading_source: str, finding: SunFinding) -> None:
+        self.pitch, self.roll, self.yaw = pitch, roll, yaw
+        self.heading_source = heading_source
+        self.finding = finding
+
+
+def mag_field_enu(declination: float, inclination: float) -> np.ndarray:
+    """Unit Earth-field direction in ENU from declination (east +) and inclination (down +), rad."""
+    ci = math.cos(inclination)
+    return np.array([ci * math.sin(declination), ci * math.cos(declination), -math.sin(inclination)])
+
+
+def kmeans_attitude(finding: SunFinding, c_c_b: np.ndarray, s_n: np.ndarray, m_b: np.ndarray | None,
+                    declination: float, prior: tuple[float, float, float], iterations: int,
+                    inclination: float | None = None) -> KmeansAttitude | None:
+    """Steps 5-6: heading from the magnetometer (or the prior yaw without one) and pitch/roll from the Sun.
+
+    The magnetometer heading needs the tilt and the tilt from the Sun needs the heading; a plain
+    alternation diverges for tilts of tens of degrees (the heading's tilt sensitivity is ``tan I`` = 1.7 at
+    Beijing), so the self-consistent yaw is found as the root of
+    ``g(yaw) = yaw_mag(tilt_sun(yaw)) - yaw`` by Newton steps (``iterations``, numerical derivative),
+    started from the TRIAD attitude of the sun and field vectors when ``inclination`` is known, else from
+    the prior yaw. ``prior`` = (pitch, roll, yaw) of the INS: also picks the pitch root.
+    """
+    s_b = (c_c_b @ finding.s_c.astype(np.float64))
+    if m_b is None:
+        pr = pitch_roll_from_sun(s_b, s_n, prior[2], prior[0])
+        if pr is None:
+            return None
+        return KmeansAttitude(pr[0], pr[1], prior[2], "ins", finding)
+    yaw = prior[2]
+    pitch_prior = prior[0]
+    if inclination is not None:
+        try:
+            from ..alignment import triad
+
+            p0, _, y0 = m2att(triad(s_b, m_b, s_n, mag_field_enu(declination, inclination)))
+            yaw, pitch_prior = y0, p0
+        except ValueError:
+            pass
+
+    def g(y: float) -> tuple[float, tuple[float, float]] | None:
+        pr = pitch_roll_from_sun(s_b, s_n, y, pitch_prior)
+        if pr is None:
+            return None
+        d = heading_from_mag(m_b, pr[0], pr[1], declination) - y
+        return math.atan2(math.sin(d), math.cos(d)), pr
+
+    step = 1e-5
+    pr: tuple[float, float] | None = None
+    for _ in range(max(1, iterations)):
+        r0, r1 = g(yaw), g(yaw + step)
+        if r0 is None or r1 is None:
+            return None
+        slope = (r1[0] - r0[0]) / step - 0.0
+        denom = slope if abs(slope) > 1e-6 else -1.0
+        yaw = yaw - r0[0] / denom
+        pr = r0[1]
+    res = g(yaw)
+    if res is None:
+        return None
+    pitch, roll = res[1]
+    yaw = heading_from_mag(m_b, pitch, roll, declination)
+    return KmeansAttitude(pitch, roll, yaw, "magnetometer", finding)
+
+
+@register_filter("kmeans_3d")
+class Kmeans3dFilter(BaseFilter):
+    """Base 15-state filter fed with the K-means/sun/magnetometer attitude fix (module docstring)."""
+
+    raw_polarization_obs = True
+
+    def __init__(self, cfg: Any, meter: c674x.CycleMeter, dtype: type) -> None:
+        super().__init__(cfg, meter, dtype)
+        self.p = cfg.variants.kmeans_3d
+        self.mm = ModeManager("kmeans_3d", cfg.variants.mode_manager)
+        self.counters = self.mm.counters
+        self.state = 0  # VARIANT mode: 0 none yet, 1 fix used, 2 refused
+        self._state_key: tuple[str, str] | None = None
+        self.last_fix: KmeansAttitude | None = None
+        self.last_fix_t: float | None = None
+        self.last_finding: SunFinding | None = None
+        from ..alignment import triad_cycles
+
+        self._cyc_triad = triad_cycles(self.cost)
+
+    def drain_events(self) -> list[dict[str, Any]]:
+        return self.mm.drain() if self.mm.events else []
+
+    def variant_status(self) -> tuple[int, int, int] | None:
+        return self.state, 1, 1 if self.state == 1 else 0
+
+    def _set_state(self, t: float, ok: bool, reason: str, **fields: Any) -> None:
+        self.state = 1 if ok else 2
+        key = ("solved" if ok else "refused", reason)
+        if key != self._state_key:
+            self._state_key = key
+            self.mm.event(t, "kmeans_solved" if ok else "kmeans_refused", reason, **fields)
+
+    def update_polarization_obs(self, nav: NavState, frame: PolarizationObs, t_exposure_s: float
+                                ) -> UpdateReport | None:
+        host = self.host
+        assert host is not None
+        mm, pm, cost = self.mm, self.mm.params, self.cost
+        dt = self.dtype
+        t = host.now_s()
+        h = frame.header
+        if not h.status & PsnsStatus.VALID or h.status & PsnsStatus.SUN_BELOW_HORIZON:
+            mm.decide(t, "camera", False, "frame_not_valid", status=int(h.status))
+            return UpdateReport("kmeans", False, 0, 0.0, {"reason": "frame_not_valid"})
+        days = host.utc_days(t_exposure_s)
+        if days is None:
+            mm.decide(t, "camera", False, "no_utc")
+            return None
+        n = len(frame.points)
+        if n < 3:
+            mm.decide(t, "camera", False, "too_few_points", points=n)
+            return UpdateReport("kmeans", False, 0, 0.0, {"reason": "too_few_points"})
+        pts = np.array([(p.x_px, p.y_px, p.aop_cdeg, p.dop) for p in frame.points], dtype=np.float64)
+        aop = (pts[:, 2] * (0.01 * DEG)).astype(dt)
+        dop = (pts[:, 3] * (1.0 / 65535.0)).astype(dt)
+        cam = self.cfg.camera
+        p_ins, _, q_exp = host.ins_at(t_exposure_s)
+        cbn = q2mat(q_exp)
+        # sky mask from the INS tilt: rays below the horizon see the (unpolarized) ground
+        v_c = cam.view_rays(pts[:, 0], pts[:, 1])
+        up_c = (cam.c_c_b.T @ cbn.T)[:, 2]
+        sky = (v_c @ up_c) > math.sin(HORIZON_MASK)
+        self.meter.charge("km_rays", n * (9 + 9 + 6 + 24) + cost.flops(6, 6, iterations=n))
+        finding = find_sun(pts[:, 0], pts[:, 1], aop, dop, cam, sky, self.p, pm.dop_min, dt)
+        nsky = int(np.count_nonzero(sky))
+        self.meter.charge("km_kmeans", kmeans_cycles(nsky, self.p.clusters, self.p.iterations, cost))
+        self.meter.charge("psns_evectors", psns.evector_cycles(nsky, cost))
+        self.meter.charge("psns_solve", psns.solve_cycles(nsky, cost))
+        self.last_finding = finding
+        if not finding.ok:
+            mm.decide(t, "camera", False, finding.reason, **finding.fields())
+            self._set_state(t, False, finding.reason, **finding.fields())
+            return UpdateReport("kmeans", False, 0, 0.0, {"reason": finding.reason})
+        s_n64 = sun.sun_vector_enu(days, float(p_ins[0]), float(p_ins[1]), dtype=np.float64)
+        self.meter.charge("sun_ephemeris", sun.ephemeris_cycles())
+        if float(s_n64[2]) < math.sin(pm.min_sun_elevation_deg * DEG):
+            mm.decide(t, "camera", False, "sun_low")
+            return None
+        mag = host.mag_mean_nt(t_exposure_s, self.p.mag_half_window_s)
+        prior = m2att(cbn)
+        fix = kmeans_attitude(finding, cam.c_c_b, s_n64, None if mag is None else mag[0],
+                              self.p.mag_declination_deg * DEG, prior, self.p.attitude_iterations,
+                              self.p.mag_inclination_deg * DEG)
+        self.meter.charge("km_attitude", attitude_cycles(2 * self.p.attitude_iterations + 2, cost)
+                          + self._cyc_triad)
+        if fix is None:
+            mm.decide(t, "camera", False, "degenerate_sun_geometry")
+            self._set_state(t, False, "degenerate_sun_geometry")
+            return UpdateReport("kmeans", False, 0, 0.0, {"reason": "degenerate_sun_geometry"})
+        self.last_fix, self.last_fix_t = fix, t_exposure_s
+        # the fix as a measurement: Z = phi, H = [I3 0]
+        cbn_fix = a2mat(fix.pitch, fix.roll, fix.yaw)
+        z = misalignment_between(cbn, cbn_fix).astype(dt)
+        sig = np.array([self.p.tilt_sigma_deg, self.p.tilt_sigma_deg,
+                        self.p.heading_sigma_deg if fix.heading_source == "magnetometer" else 180.0]) * DEG
+        r = (sig * sig).astype(dt)
+        Pa = self.P[0:3, 0:3]
+        nis = float(sum(float(z[i]) ** 2 / (float(Pa[i, i]) + float(r[i])) for i in range(3)))
+        self.meter.charge("km_residual", cost.flops(45, 36))
+        fields = dict(pitch_deg=fix.pitch / DEG, roll_deg=fix.roll / DEG,
+                      heading_deg=heading_from_yaw(fix.yaw) / DEG, heading_source=fix.heading_source,
+                      **finding.fields())
+        self._set_state(t, True, "sun_in_fov", **fields)
+        if not mm.gate(t, "attitude_fix", nis, 3, residual_deg=[round(float(v) / DEG, 4) for v in z]):
+            return UpdateReport("kmeans", False, 0, math.sqrt(nis), {"reason": "chi2_fail"})
+        mm.decide(t, "camera", True, "attitude_fix", heading_source=fix.heading_source)
+        hrow = np.zeros(N_STATES, dtype=dt)
+        innov = []
+        for i in range(3 if fix.heading_source == "magnetometer" else 2):
+            hrow[:] = 0
+            hrow[i] = 1
+            innov.append(self._scalar(hrow, float(z[i]), float(r[i])))
+        self.meter.charge("kf_update", len(innov) * self._cyc_update)
+        return UpdateReport("kmeans", True, len(innov), max(abs(v) for v in innov), {"mode": "attitude_fix"})

@@ -1,0 +1,138 @@
+"""Build/run-time parameters of the issue-6 filter variants (units in the names, degrees where a user types them).
+
+One dataclass per variant plus the mode manager's; :class:`VariantParams` holds them all and travels in
+:attr:`firmware_model.FirmwareConfig.variants`. The scenario section ``firmware.variants`` maps onto these
+(``emulator/scenario/firmware_schema.py``); where a paper gives a figure it is the default, and
+``docs/variants.md`` says where each default comes from.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+__all__ = [
+    "ModeManagerParams",
+    "DualVectorParams",
+    "KmeansParams",
+    "FederatedParams",
+    "SunElevationParams",
+    "VariantParams",
+]
+
+
+@dataclass
+class ModeManagerParams:
+    """Measurement admission shared by every variant (validity and chi-square gating)."""
+
+    #: false-alarm probability of the chi-square gates (algorithms.md 5.2 table: 0.05, 0.01, 0.005, 0.001)
+    chi2_alpha: float = 0.001
+    #: a polarization sensor / observation point below this DOP is not valid (AOP unreliable)
+    dop_min: float = 0.05
+    #: no polarization update with the sun below this elevation (twilight, night)
+    min_sun_elevation_deg: float = 5.0
+
+
+@dataclass
+class DualVectorParams:
+    """Dual-vector switching (patent CN 2021 Guo et al.)."""
+
+    #: information-discrimination threshold ``T_p`` on ``lambda_i = |p~_i x p_i|`` (sine of the angle
+    #: between measured and predicted polarization vectors); q_i = 1 when lambda_i < T_p
+    tp: float = 0.05
+    #: AOP noise of a unit (1 sigma) at ``dop_ref``; grows as dop_ref / DOP (the compass's own error model)
+    aop_sigma_deg: float = 0.1
+    dop_ref: float = 0.5
+    #: floor of the measurement sigma (model errors of the Rayleigh sky)
+    sigma_floor_deg: float = 0.05
+    #: a unit whose predicted E-vector is ill-defined (sun within this angle of its view ray) is not used
+    min_scattering_deg: float = 10.0
+    #: smallest |p_i x p_j| of the pair that forms the sun vector (sun-error-vector mode)
+    min_pair_sine: float = 0.15
+
+
+@dataclass
+class KmeansParams:
+    """K-means sun finding + 3-D attitude (Yang et al. 2020)."""
+
+    clusters: int = 3
+    iterations: int = 10
+    #: the lowest-DOP cluster must hold at least this many points
+    min_cluster_points: int = 3
+    #: its centre must be below this fraction of the highest cluster centre (a real low-DOP blob)
+    max_centre_ratio: float = 0.6
+    #: refuse when the sun lies closer than this to the edge of the observed field of view
+    fov_margin_deg: float = 2.0
+    #: refuse when the refined sun vector and the K-means direction disagree by more than this
+    max_disagreement_deg: float = 30.0
+    #: refuse when no low-DOP cluster member lies within this angle of the refined Sun
+    max_gap_deg: float = 15.0
+    #: eigen-solution quality lambda_min / lambda_mid must be below this
+    max_quality: float = 0.2
+    #: magnetic declination (east positive) the firmware assumes for the heading, deg
+    mag_declination_deg: float = -7.133
+    #: MAG frames within this time of the camera's mid-exposure are averaged for the heading, s
+    mag_half_window_s: float = 0.025
+    #: magnetic inclination (down positive) for the TRIAD start of the heading/tilt solve, deg
+    mag_inclination_deg: float = 59.215
+    #: Newton steps of the self-consistent heading/tilt solve (heading needs the tilt, the tilt the heading)
+    attitude_iterations: int = 3
+    #: measurement sigmas of the attitude fix fed to the KF (1 sigma)
+    tilt_sigma_deg: float = 0.05
+    heading_sigma_deg: float = 0.3
+
+
+@dataclass
+class FederatedParams:
+    """Federated SINS/GNSS + MIMU/polarization filter, no-reset (Ge et al.; Carlson 1990)."""
+
+    beta_sins_gnss: float = 0.5
+    beta_pol_mimu: float = 0.5
+    #: which sub-filters the master fuses: "sins_gnss", "pol_mimu" (the paper's three-way = both)
+    subfilters: tuple[str, ...] = ("sins_gnss", "pol_mimu")
+    #: GNSS readmitted after this many consecutive epochs that pass the chi-square test
+    readmit_after: int = 1
+    #: correlation time of the first-order motion-acceleration model (c_a = exp(-T/tau)), s
+    motion_accel_tau_s: float = 5.0
+    #: steady-state sigma of the motion acceleration (accelerometer "interference"), m/s^2
+    motion_accel_sigma_mps2: float = 0.05
+    #: accelerometer gravity measurement noise (1 sigma over one KF interval), m/s^2
+    gravity_sigma_mps2: float = 0.02
+    #: sun-vector noise per component of the MIMU/polarization sub-filter (Ge et al.: 0.01)
+    sun_sigma: float = 0.01
+    #: initial attitude sigma (E, N, U), deg; None: the base filter's (levelling from the accelerometer bias,
+    #: heading from the alignment source). A study that imposes an initial misalignment sets it.
+    initial_attitude_sigma_deg: tuple[float, float, float] | None = None
+
+
+@dataclass
+class SunElevationParams:
+    """Sun-elevation positioning with the 9-unit compass and a Sage-Husa adaptive R (Zhang et al. 2021)."""
+
+    #: sigma of the sun elevation in the body frame from the two E-vectors (R0), deg
+    elevation_sigma_deg: float = 0.2
+    #: Sage-Husa forgetting factor b (algorithms.md 5.1: 0.95-0.99); d_k = (1-b)/(1-b^(k+1))
+    forgetting: float = 0.95
+    #: adaptive R clamped to [r_min_factor, r_max_factor] x R0 (PSINS kfupdate)
+    r_min_factor: float = 0.01
+    r_max_factor: float = 100.0
+    #: smallest |E_i x E_j| accepted for the two-E-vector sun vector
+    min_pair_sine: float = 0.2
+    #: also model the tilt coupling of the measured elevation (phi_E, phi_N columns of H); the paper's H has
+    #: none (the default reproduces it). H_n is computed with the INS attitude, so its tilt error is in z
+    attitude_coupling: bool = False
+    #: use one compass frame in this many (the paper's compass outputs 1 Hz)
+    update_every: int = 1
+    #: also the attitude update from the same frame: the eigen-solution of all units' E-vectors (base paper
+    #: Eq. 14) as a solar-vector measurement; the paper's model has the elevation measurement only (False)
+    attitude_aiding: bool = False
+
+
+@dataclass
+class VariantParams:
+    """Every variant's parameters (only the selected variant reads its own)."""
+
+    mode_manager: ModeManagerParams = field(default_factory=ModeManagerParams)
+    dual_vector: DualVectorParams = field(default_factory=DualVectorParams)
+    kmeans_3d: KmeansParams = field(default_factory=KmeansParams)
+    federated: FederatedParams = field(default_factory=FederatedParams)
+    sun_elevation: SunElevationParams = field(default_factory=SunElevationParams)

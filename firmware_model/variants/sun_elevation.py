@@ -1,0 +1,260 @@
+"""Sun-elevation positioning with a multi-unit polarization compass and a Sage-Husa adaptive KF.
+
+Zhang, Yang, Huang, Liu, Wang, Guo, *Bionic Integrated Positioning Mechanism Based on Bioinspired
+Polarization Compass and Inertial Navigation System*, Sensors 21(4):1055, 2021 (section 3.2).
+
+Per COMPASS frame (9 units, C1 geometry, :func:`firmware_model.psns_geometry.compass_unit_mountings`):
+
+1. The two units with the highest DOP (paper Eq. 4: ``D_max >= D_i >= D_j >= D_k``) give
+   ``E_i^b = C_i^b (sin A_i, cos A_i, 0)``, ``E_j^b`` likewise (paper Eqs. 3, 5 in the C1 AOP convention);
+   the Rayleigh E-vector is perpendicular to the Sun, so ``S^b = E_i^b x E_j^b / sin<E_i, E_j>`` (Eq. 6). When
+   the pair is ill-conditioned (``|E_i x E_j| < min_pair_sine``: the two rays are nearly coplanar with the
+   Sun) the next pair in DOP order is taken (a decision the mode manager logs).
+2. Sun elevation in b, ``H_b = asin(s_z^b)`` (Eqs. 7-8), and in n: ``H_n = asin((C_b^{n'} S^b)_U)``; the
+   sign of ``S^b`` is the one that puts the Sun above the horizon.
+3. The INS elevation ``sin H_c = sin L sin Dec + cos L cos Dec cos LHA`` with ``LHA = GHA + lambda`` (Eqs. 9-10,
+   Grena ephemeris, :mod:`firmware_model.sun`).
+4. Measurement (Eqs. 11-14): ``z = sin H_c - sin H_n = H x + v`` with
+   ``H = [0 0 0 0 0 0  cos(H_c) alpha  cos(H_c) beta  0 ... 0]``, where (algorithms.md 1.4)
+   ``alpha = dh/dL = (cos L sin Dec - sin L cos Dec cos LHA) / cos h`` and
+   ``beta = dh/dlambda = -cos L cos Dec sin LHA / cos h``: ``cos(h) alpha`` and ``cos(h) beta`` are the
+   paper's printed coefficients of ``d(sin h)``. States ``dL, dlambda`` in rad, "computed minus true".
+   The paper's H has no attitude columns. But ``H_n`` is computed with the INS attitude, so
+   ``sin H_n = sin H - phi_E S_N + phi_N S_E`` to first order (``C_b^{n'} S^b = S^n - phi x S^n``), and
+   ``attitude_coupling`` puts those terms in H: ``H[phi_E] = S_N``, ``H[phi_N] = -S_E``. The defaults
+   (``attitude_coupling`` and ``attitude_aiding`` off) are the paper's filter exactly.
+5. **Sage-Husa adaptive R** (algorithms.md 5.1, PSINS ``kfupdate`` adaptive form): with the innovation
+   ``r_k`` and ``ry = r_k^2 - H P H^T`` clamped to ``[R_min, R_max]``, ``R <- (1 - d) R + d ry``,
+   ``d <- d / (d + b)`` (``d_k = (1-b)/(1-b^{k+1})``, b the forgetting factor); the measurement then updates
+   with the adapted R. Before that, the mode manager's chi-square gate (1 dof) with the current R.
+
+6. **Attitude aiding** (``attitude_aiding``, off by default; not in the paper's model): the same frame's
+   E-vectors of all valid units give ``+-S^b`` by the base paper's eigen-solution (Eq. 14), used as the base
+   filter's solar-vector measurement. Without it the INS tilt drifts with the gyro bias and enters the
+   measured ``H_n`` unmodelled (``d H_n = -phi_E S_N + phi_N S_E``): the paper's H then turns tilt drift into
+   position error, and the direction perpendicular to the Sun's azimuth is not observed at all. With the
+   aiding the tilt perpendicular to the Sun is held, but the rotation about the Sun stays unobserved
+   and its tilt part drives the cross-azimuth position error all the same; docs/variants.md compares them.
+
+No GNSS is needed after the initial fix that gives position and UTC (the paper uses GPS for the initial
+position and as the reference only).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from protocols.psns import CompassFrame, PsnsStatus
+
+from .. import c674x, psns, sun
+from ..attitude import q2mat
+from ..filters import BaseFilter, SolarObservation, UpdateReport, register_filter
+from ..kf import N_STATES
+from ..psns_geometry import compass_unit_mountings
+from ..strapdown import NavState
+from .common import cross
+from .dual_vector import unit_evectors
+from .mode_manager import ModeManager
+
+__all__ = ["SunElevationFilter", "sun_elevation_partials", "sun_vector_from_two_evectors", "SageHusaR"]
+
+DEG = math.pi / 180.0
+
+
+def sun_elevation_partials(lat: float, sin_dec: float, cos_dec: float, lha: float) -> tuple[float, float, float]:
+    """``(sin h, alpha, beta)``: the sun elevation's sine and ``alpha = dh/dL``, ``beta = dh/dlambda`` (rad/rad).
+
+    ``sin h = sin L sin Dec + cos L cos Dec cos t``;
+    ``alpha = (cos L sin Dec - sin L cos Dec cos t) / cos h`` (= cos Az);
+    ``beta = -cos L cos Dec sin t / cos h`` (= cos L sin Az), t the local hour angle (algorithms.md 1.4).
+    """
+    sl, cl = math.sin(lat), math.cos(lat)
+    st, ct = math.sin(lha), math.cos(lha)
+    sin_h = sl * sin_dec + cl * cos_dec * ct
+    cos_h = math.sqrt(max(1e-12, 1.0 - sin_h * sin_h))
+    alpha = (cl * sin_dec - sl * cos_dec * ct) / cos_h
+    beta = -cl * cos_dec * st / cos_h
+    return sin_h, alpha, beta
+
+
+def sun_vector_from_two_evectors(e_i: np.ndarray, e_j: np.ndarray) -> tuple[np.ndarray, float]:
+    """``S = E_i x E_j / |E_i x E_j|`` (paper Eq. 6) and ``|E_i x E_j|`` (the sine of their angle, for unit E)."""
+    c = cross(e_i, e_j)
+    n = math.sqrt(float(c @ c))
+    return (c / max(n, 1e-12)).astype(e_i.dtype), n
+
+
+class SageHusaR:
+    """Scalar Sage-Husa measurement-noise adaptation (algorithms.md 5.1; PSINS ``kfupdate`` adaptive = 1)."""
+
+    def __init__(self, r0: float, forgetting: float, r_min_factor: float, r_max_factor: float) -> None:
+        self.r0 = r0
+        self.r = r0
+        self.b = forgetting
+        self.beta = 1.0
+        self.r_min = r_min_factor * r0
+        self.r_max = r_max_factor * r0
+        self.k = 0
+
+    def rescale(self, r0: float) -> None:
+        """A new nominal R (the elevation's cos(h) factor changed): keep the adapted ratio."""
+        ratio = self.r / self.r0
+        self.r_min *= r0 / self.r0
+        self.r_max *= r0 / self.r0
+        self.r0 = r0
+        self.r = ratio * r0
+
+    def adapt(self, innov: float, hph: float) -> float:
+        """One step: ``ry = r_k^2 - H P H^T`` clamped; ``R = (1-d) R + d ry``; ``d <- d/(d+b)``. Returns R."""
+        ry = innov * innov - hph
+        if ry < self.r_min:
+            ry = self.r_min
+        if ry > self.r_max:
+            self.r = self.r_max
+        else:
+            self.r = (1.0 - self.beta) * self.r + self.beta * ry
+        self.beta = self.beta / (self.beta + self.b)
+        self.k += 1
+        return self.r
+
+
+@register_filter("sun_elevation")
+class SunElevationFilter(BaseFilter):
+    """Base 15-state filter with the sun-elevation position measurement and adaptive R (module docstring)."""
+
+    def __init__(self, cfg: Any, meter: c674x.CycleMeter, dtype: type) -> None:
+        super().__init__(cfg, meter, dtype)
+        self.p = cfg.variants.sun_elevation
+        self.mm = ModeManager("sun_elevation", cfg.variants.mode_manager)
+        self.counters = self.mm.counters
+        m = cfg.compass_mountings if cfg.compass_mountings is not None else compass_unit_mountings()
+        self.mountings = np.asarray(m, dtype=np.float64)
+        self.n_units = len(self.mountings)
+        sig = self.p.elevation_sigma_deg * DEG
+        self.adaptive = SageHusaR(sig * sig, self.p.forgetting, self.p.r_min_factor, self.p.r_max_factor)
+        self.state = 0
+        self.pair_mask = 0
+        self._frames = 0
+        self.last: dict[str, float] = {}
+
+    def drain_events(self) -> list[dict[str, Any]]:
+        return self.mm.drain() if self.mm.events else []
+
+    def variant_status(self) -> tuple[int, int, int] | None:
+        return self.state, self.n_units, self.pair_mask
+
+    def update_compass(self, nav: NavState, frame: CompassFrame, t_exposure_s: float) -> UpdateReport | None:
+        host = self.host
+        assert host is not None
+        mm, pm, p, cost = self.mm, self.mm.params, self.p, self.cost
+        dt = self.dtype
+        t = host.now_s()
+        self._frames += 1
+        if p.update_every > 1 and self._frames % p.update_every:
+            return None
+        if frame.header.status & PsnsStatus.SUN_BELOW_HORIZON:
+            mm.decide(t, "sun_elevation", False, "sun_below_horizon")
+            return None
+        days = host.utc_days(t_exposure_s)
+        if days is None:
+            mm.decide(t, "sun_elevation", False, "no_utc")
+            return None
+        # units by DOP, highest first (paper Eq. 4)
+        units = [(u.dop, u.unit, u.aop_cdeg) for u in frame.units if u.unit < self.n_units]
+        units.sort(reverse=True)
+        good = [u for u in units if u[0] * (1.0 / 65535.0) >= pm.dop_min]
+        self.meter.charge("se_sort", cost.flops(0, 2 * len(units) * max(1, len(units).bit_length())))
+        if len(good) < 2:
+            self.state = 2
+            mm.decide(t, "sun_elevation", False, "fewer_than_two_units_above_dop_min", units=len(good))
+            return UpdateReport("sun_elevation", False, 0, 0.0, {"reason": "low_dop"})
+        aop = np.array([u[2] for u in good[:4]], dtype=dt) * dt(0.01 * DEG)
+        e = unit_evectors(aop, self.mountings[[u[1] for u in good[:4]]], dt)
+        pair = None
+        for a, b in ((0, 1), (0, 2), (1, 2), (0, 3), (1, 3), (2, 3)):
+            if b >= len(e):
+                continue
+            s_b, sine = sun_vector_from_two_evectors(e[a], e[b])
+            if sine >= p.min_pair_sine:
+                pair = (a, b)
+                break
+        self.meter.charge("se_sun_vector", 4 * (cost.math("sin") + cost.math("cos")) + cost.flops(24, 12)
+                          + cost.math("rsqrt"))
+        if pair is None:
+            self.state = 2
+            mm.decide(t, "sun_elevation", False, "ill_conditioned_pairs", min_sine=p.min_pair_sine)
+            return UpdateReport("sun_elevation", False, 0, 0.0, {"reason": "ill_conditioned"})
+        ui, uj = good[pair[0]][1], good[pair[1]][1]
+        p_ins, _, q_exp = host.ins_at(t_exposure_s)
+        cbn = q2mat(q_exp).astype(dt)
+        if p.attitude_aiding:
+            self._attitude_update(nav, t, t_exposure_s, days, p_ins, cbn, good)
+        s_n_meas = cbn @ s_b
+        if float(s_n_meas[2]) < 0:  # the sign that puts the Sun above the horizon
+            s_b, s_n_meas = -s_b, -s_n_meas
+        sin_hn = float(s_n_meas[2])
+        # INS elevation and its partials from Dec, L, LHA (Eqs. 9-14)
+        sin_d, cos_d, gha = sun.sun_equatorial(days, dt)
+        lat, lon = float(p_ins[0]), float(p_ins[1])
+        lha = gha + lon
+        sin_hc, alpha, beta = sun_elevation_partials(lat, sin_d, cos_d, lha)
+        self.meter.charge("sun_ephemeris", sun.ephemeris_cycles())
+        self.meter.charge("se_partials", c674x.mathlib("sindp", 2) + c674x.mathlib("cosdp", 2) + c674x.mathlib("sqrtdp")
+                          + c674x.mathlib("divdp") + c674x.dp_flops(10, 6))
+        if sin_hc < math.sin(pm.min_sun_elevation_deg * DEG):
+            mm.decide(t, "sun_elevation", False, "sun_low", elevation_deg=math.degrees(math.asin(sin_hc)))
+            return None
+        cos_hc = math.sqrt(1.0 - sin_hc * sin_hc)
+        z = sin_hc - sin_hn
+        h = np.zeros(N_STATES, dtype=dt)
+        h[6] = cos_hc * alpha
+        h[7] = cos_hc * beta
+        if p.attitude_coupling:
+            h[0] = float(s_n_meas[1])
+            h[1] = -float(s_n_meas[0])
+        self.adaptive.rescale((cos_hc * p.elevation_sigma_deg * DEG) ** 2)
+        a = self.P @ h
+        hph = float(h @ a)
+        innov = z - float(h @ self.x)
+        nis = innov * innov / (hph + self.adaptive.r)
+        self.meter.charge("se_gate", cost.flops(2 * 225, 2 * 225))
+        self.pair_mask = (1 << ui) | (1 << uj)
+        self.last = {"t": t_exposure_s, "sin_hc": sin_hc, "sin_hn": sin_hn, "alpha": alpha, "beta": beta,
+                     "h_b_deg": math.degrees(math.asin(max(-1.0, min(1.0, float(s_b[2]))))), "nis": nis}
+        if not mm.gate(t, "sun_elevation", nis, 1, units=[ui, uj], residual_deg=math.degrees(innov / cos_hc)):
+            self.state = 2
+            return UpdateReport("sun_elevation", False, 0, math.sqrt(nis), {"reason": "chi2_fail"})
+        r = self.adaptive.adapt(innov, hph)
+        mm.report(t, "adaptive_r", int(round(math.log2(r / self.adaptive.r0))), "sage_husa",
+                  r_over_r0=r / self.adaptive.r0, sigma_deg=math.degrees(math.sqrt(r) / cos_hc))
+        self.meter.charge("se_sage_husa", cost.flops(6, 6) + cost.math("div"))
+        nu = self._scalar(h, z, r)
+        self.meter.charge("kf_update", self._cyc_update)
+        self.state = 1
+        return UpdateReport("sun_elevation", True, 1, abs(nu), {"units": [ui, uj]})
+
+    def _attitude_update(self, nav: NavState, t: float, t_exp: float, days: float, p_ins: np.ndarray,
+                         cbn: np.ndarray, good: list[tuple[int, int, int]]) -> None:
+        """Step 6: ``+-S^b`` from all valid units' E-vectors (Eq. 14) -> the base solar-vector update."""
+        dt = self.dtype
+        if len(good) < 3:
+            self.mm.decide(t, "solar_vector", False, "fewer_than_three_units", units=len(good))
+            return
+        aop = np.array([u[2] for u in good], dtype=dt) * dt(0.01 * DEG)
+        dop = np.array([u[0] for u in good], dtype=dt) * dt(1.0 / 65535.0)
+        e = unit_evectors(aop, self.mountings[[u[1] for u in good]], dt)
+        sol = psns.solve_solar_vector(e, dop, self.mm.params.dop_min, max_quality=self.cfg.psns_quality_max)
+        self.meter.charge("psns_evectors", len(good) * (self.cost.math("sin") + self.cost.math("cos"))
+                          + self.cost.flops(6, 3, iterations=len(good)))
+        self.meter.charge("psns_solve", psns.solve_cycles(len(good), self.cost))
+        if not sol.valid:
+            self.mm.decide(t, "solar_vector", False, "poor_eigen_solution", quality=sol.quality)
+            return
+        s_n = sun.sun_vector_enu(days, float(p_ins[0]), float(p_ins[1]), dtype=dt)
+        self.meter.charge("sun_ephemeris", sun.ephemeris_cycles())
+        rep = self.update_solar(nav, SolarObservation(t_exp, sol.s, sol.quality, sol.n_used, "compass"), s_n, cbn)
+        self.mm.decide(t, "solar_vector", rep.accepted, "chi2_pass" if rep.accepted else "chi2_fail",
+                       norm_innov=rep.max_norm_innov)

@@ -1,0 +1,115 @@
+"""Dual-vector switching (patent): discrimination factors, the two measurement models, the switch (Done-when)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from firmware_model import Firmware, FirmwareConfig
+from firmware_model.attitude import a2mat, q2mat, rv2q, yaw_from_heading
+from firmware_model.variants.common import compass_mountings, cross
+from firmware_model.variants.dual_vector import (
+    discrimination_factors,
+    polarization_error,
+    sun_error_vector,
+    unit_evectors,
+)
+from protocols.host import HostFormat, NavSolution
+from protocols.stream import StreamDecoder
+
+from .streams import CompassSpec, GnssSpec, ImuErrors, StreamSpec, rayleigh, run, static_trajectory, wire_aop
+
+DEG = math.pi / 180.0
+S_N = np.array([-0.876416, -0.282797, 0.389770])  # Beijing case (algorithms.md 3)
+THREE = compass_mountings([(0.0, 0.0), (45.0, 0.0), (45.0, 90.0)])
+
+
+def _measured(cbn: np.ndarray, mounts: np.ndarray) -> np.ndarray:
+    """Noise-free measured polarization vectors through the wire AOP (the tests' own Rayleigh sky)."""
+    s_b = cbn.T @ S_N
+    _, e_b = rayleigh(s_b, mounts[:, :, 2], 0.7)
+    e_u = np.einsum("uji,uj->ui", mounts, e_b)
+    return unit_evectors(wire_aop(e_u[:, 0], e_u[:, 1]), mounts, np.float64)
+
+
+def test_discrimination_factor_is_the_sine_of_the_polarization_angle_error_and_sign_free():
+    cbn = a2mat(2 * DEG, -3 * DEG, yaw_from_heading(30 * DEG))
+    p = _measured(cbn, THREE)
+    s_b = cbn.T @ S_N
+    _, lam, _ = discrimination_factors(p, s_b, THREE[:, :, 2])
+    assert np.all(lam < 1e-9)
+    _, lam_flip, _ = discrimination_factors(-p, s_b, THREE[:, :, 2])
+    assert np.all(lam_flip < 1e-9)
+    # turn unit 1's measured vector about its ray by 4 deg: lambda_1 = sin 4 deg
+    r = THREE[1, :, 2]
+    p1 = q2mat(rv2q(4 * DEG * r)) @ p[1]
+    p2 = np.array([p[0], p1, p[2]])
+    _, lam2, _ = discrimination_factors(p2, s_b, THREE[:, :, 2])
+    assert lam2[1] == pytest.approx(math.sin(4 * DEG), rel=1e-9) and lam2[0] < 1e-9
+
+
+@pytest.mark.parametrize("phi_deg", [(0.3, -0.2, 0.5), (-0.4, 0.1, -0.2)])
+def test_both_measurement_models_match_the_nonlinear_error_to_first_order(phi_deg):
+    cbn = a2mat(2 * DEG, -3 * DEG, yaw_from_heading(30 * DEG))
+    phi = np.array(phi_deg) * DEG
+    computed = q2mat(rv2q(-phi)) @ cbn  # C_b^{n'}: the INS is off by phi
+    p = _measured(cbn, THREE)
+    # sun-error-vector: s~ from two measured polarization vectors, Z projected on u1, u2 == u_k . phi
+    s_meas = cross(p[1], p[2])
+    s_meas /= np.linalg.norm(s_meas)
+    for sign in (1.0, -1.0):
+        z, (u1, u2) = sun_error_vector(computed, sign * s_meas, S_N)
+        for u in (u1, u2):
+            assert float(u @ z) == pytest.approx(float(u @ phi), abs=2e-3 * np.linalg.norm(phi))
+    # polarization-error-vector: z = (s x p)^T phi, invariant to the sign of p~
+    for sign in (1.0, -1.0):
+        z1, h = polarization_error(computed, sign * p[0], S_N)
+        assert z1 == pytest.approx(float(h @ phi), abs=2e-3 * np.linalg.norm(phi) * np.linalg.norm(h))
+
+
+def _run_blocked(duration_s: float = 115.0):
+    spec = StreamSpec(static_trajectory(30.0, 2.0, -3.0), duration_s,
+                      imu=ImuErrors((9.0, -7.0, 3.0), 0.15, (1500.0, -1000.0, 2000.0), 100.0),
+                      gnss=GnssSpec(True, 3.0, 0.03), psns="compass",
+                      compass=CompassSpec(THREE, blocked=(((1, 2), 60.0, 90.0), ((0, 1, 2), 100.0, 110.0))))
+    fw = Firmware(FirmwareConfig(filter="dual_vector", compass_mountings=THREE, initial_heading_deg=30.5))
+    navs: list[tuple[float, NavSolution]] = []
+    dec = StreamDecoder([HostFormat()])
+
+    def on_tick(fw, r):  # noqa: ANN001
+        for _, data, _ in r.outputs:
+            navs.extend((r.t_fpga_s, f) for f in dec.feed(data) if isinstance(f, NavSolution))
+
+    samples, events = run(fw, spec, sample_every_s=0.2, on_tick=on_tick)
+    return fw, samples, events, navs
+
+
+def test_blocking_two_of_three_switches_within_one_update_and_attitude_stays_below_half_a_degree():
+    fw, samples, events, navs = _run_blocked()
+    modes = [e for e in events if e["event"] == "psns_mode"]
+    assert [m["mode"] for m in modes] == ["sun_error_vector", "polarization_error_vector", "sun_error_vector",
+                                          "none", "sun_error_vector"]
+    to_pol, back, none, recovered = modes[1:]
+    # the first frame exposed after the block (5 Hz: the one at 60.0 s) already switches
+    assert 60.0 <= to_pol["t_meas_s"] < 60.0 + 0.2 and to_pol["q"] == [1, 0, 0]
+    assert 90.0 <= back["t_meas_s"] < 90.2 and 100.0 <= none["t_meas_s"] < 100.2 and 110.0 <= recovered["t_meas_s"] < 110.2
+    assert none["reason"] == "no_reliable_sensor"
+    # every q_i is reported (event) with its discrimination factor
+    q_reports = [e for e in events if e["event"] == "psns_quality"]
+    assert q_reports[1]["mode"] == [1, 0, 0] and q_reports[1]["factors"][0] < 0.05
+    rejected = {(e["channel"], e["reason"]) for e in events if e["event"] == "measurement_rejected"}
+    assert {("compass_unit1", "low_dop"), ("compass_unit2", "low_dop"), ("compass_unit0", "low_dop")} <= rejected
+    # attitude error against truth through the switch and the single-sensor phase
+    att = np.array([np.linalg.norm(s.att_err_deg) for s in samples if 10.0 <= s.t <= 115.0])
+    win = np.array([np.linalg.norm(s.att_err_deg) for s in samples if 55.0 <= s.t <= 95.0])
+    assert att.max() < 0.5 and win.max() < 0.5
+    # mode and every q_i in the navigation frame (VARIANT block), PSNS status "rejected" while all are blocked
+    by_t = {round(t, 3): n for t, n in navs}
+    assert by_t[50.0].variant_mode == 2 and by_t[50.0].psns_q_mask == 0b111 and by_t[50.0].psns_units == 3
+    assert by_t[75.0].variant_mode == 1 and by_t[75.0].psns_q_mask == 0b001
+    assert by_t[105.0].variant_mode == 0 and by_t[105.0].psns_q_mask == 0 and by_t[105.0].psns_status == 2
+    # no polarization update while all are blocked
+    assert fw.counters["compass_unit0_rejected"] >= 49
+    assert fw.counters["polarization_vector_admitted"] >= 140 and fw.counters["sun_vector_admitted"] >= 350

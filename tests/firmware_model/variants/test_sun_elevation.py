@@ -1,0 +1,111 @@
+"""Sun-elevation positioning (Zhang et al. 2021): alpha/beta reference values, the measurement model, Sage-Husa,
+and GNSS-free static positioning against pure SINS (Done-when)."""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+
+import numpy as np
+import pytest
+
+from emulator.world.sun import SunModel
+from firmware_model import Firmware, FirmwareConfig
+from firmware_model.psns_geometry import compass_unit_mountings
+from firmware_model.variants.sun_elevation import SageHusaR, sun_elevation_partials
+
+from .streams import EPOCH, CompassSpec, GnssSpec, ImuErrors, StreamSpec, run, static_trajectory
+
+DEG = math.pi / 180.0
+
+
+@pytest.mark.parametrize("case, lat, dec, lha, alpha, beta", [
+    ("Beijing", 39.979, 1.9344, 61.2708, -0.307084, -0.729255),
+    ("Taiyuan", 37.59, -21.7287, 325.0532, -0.818405, 0.455344),
+])
+def test_alpha_beta_reproduce_the_reference_values(case, lat, dec, lha, alpha, beta):
+    """algorithms.md 1.4: declination and local hour angle from SPA (section 3) -> alpha, beta."""
+    _, a, b = sun_elevation_partials(lat * DEG, math.sin(dec * DEG), math.cos(dec * DEG), lha * DEG)
+    assert a == pytest.approx(alpha, abs=2e-6) and b == pytest.approx(beta, abs=2e-6)
+
+
+def test_partials_match_finite_differences_of_the_elevation():
+    lat, sd, cd, lha = 39.979 * DEG, math.sin(1.9344 * DEG), math.cos(1.9344 * DEG), 61.2708 * DEG
+    h = 1e-6
+    s0, a, b = sun_elevation_partials(lat, sd, cd, lha)
+    d_lat = (math.asin(sun_elevation_partials(lat + h, sd, cd, lha)[0]) - math.asin(sun_elevation_partials(lat - h, sd, cd, lha)[0])) / (2 * h)
+    d_lon = (math.asin(sun_elevation_partials(lat, sd, cd, lha + h)[0]) - math.asin(sun_elevation_partials(lat, sd, cd, lha - h)[0])) / (2 * h)
+    assert a == pytest.approx(d_lat, abs=1e-7) and b == pytest.approx(d_lon, abs=1e-7)
+    # the H row of z = sin H_c - sin H_n is cos(h) (alpha, beta): d(sin h) = cos h dh
+    d_sin = (sun_elevation_partials(lat + h, sd, cd, lha)[0] - sun_elevation_partials(lat - h, sd, cd, lha)[0]) / (2 * h)
+    assert d_sin == pytest.approx(math.sqrt(1 - s0 * s0) * a, abs=1e-8)
+
+
+def test_sage_husa_recovers_r_from_a_25_times_too_small_start():
+    """algorithms.md 5.1 demo: R0 = 0.16 for a true R = 4 (b = 0.95)."""
+    rng = np.random.default_rng(2)
+    sh = SageHusaR(0.16, 0.95, 0.01, 1000.0)  # (PSINS' R_max = 100 R0 would be hit by 2-sigma innovations)
+    rs = [sh.adapt(float(rng.normal(0.0, 2.0)), 0.0) for _ in range(2000)]
+    assert np.mean(rs[-500:]) == pytest.approx(4.0, rel=0.15)
+    assert sh.beta == pytest.approx(1 - 0.95, rel=1e-3)  # d_k = (1-b)/(1-b^(k+1)) -> 1-b
+
+
+def _gnss_free(filter_name: str, duration_s: float, gyro_bias_dph: tuple[float, float, float], gnss_until_s: float,
+               seed: int = 1, epoch=EPOCH):
+    spec = StreamSpec(static_trajectory(30.0, 1.0, -2.0), duration_s, epoch=epoch,
+                      imu=ImuErrors(gyro_bias_dph, 0.15, (50.0, -50.0, 50.0), 25.0),
+                      gnss=GnssSpec(True, 2.5, 0.05, outages=((gnss_until_s, 1e9),), time_during_outage=True),
+                      psns="compass", psns_rate_hz=1, compass=CompassSpec(compass_unit_mountings(), aop_sigma_deg=0.1))
+    b = max(abs(v) for v in gyro_bias_dph)
+    cfg = FirmwareConfig(filter=filter_name, initial_heading_deg=30.2, gyro_bias_sigma_deg_h=b,
+                         gyro_bias_instability_deg_h=0.5, accel_bias_sigma_mg=0.05, accel_noise_ug_rt_hz=25.0)
+    fw = Firmware(cfg)
+    samples, events = run(fw, spec, seed=seed, sample_every_s=10.0)
+    sun = SunModel(epoch, 69.0)
+    out = []
+    for s in samples:
+        if s.t < gnss_until_s:
+            continue
+        az, _ = sun.az_el(s.t, 39.979 * DEG, 116.339 * DEG, 50.0)
+        n, e = s.pos_err_m[0], s.pos_err_m[1]
+        along = e * math.sin(az) + n * math.cos(az)  # along the Sun's azimuth: what the elevation observes
+        across = e * math.cos(az) - n * math.sin(az)
+        out.append((s.t, n, e, along, across))
+    return fw, np.array(out), events
+
+
+def _report(a: np.ndarray) -> dict[str, float]:
+    return {"mae_n_km": float(np.mean(np.abs(a[:, 1]))) / 1e3, "mae_e_km": float(np.mean(np.abs(a[:, 2]))) / 1e3,
+            "mae_hor_km": float(np.mean(np.hypot(a[:, 1], a[:, 2]))) / 1e3,
+            "max_along_km": float(np.max(np.abs(a[:, 3]))) / 1e3, "final_along_km": float(a[-1, 3]) / 1e3,
+            "final_across_km": float(a[-1, 4]) / 1e3}
+
+
+def test_gnss_free_sun_elevation_bounds_the_along_azimuth_error_fast():
+    """Fast counterpart (6 min; near local noon, so the static drift's main, northern, direction is the Sun's
+    azimuth, and a 20 deg/h gyro so that it shows within minutes)."""
+    bias = (20.0, -20.0, 10.0)
+    noon = dt.datetime(2019, 9, 18, 4, 0, tzinfo=dt.timezone.utc)
+    fw, se, ev = _gnss_free("sun_elevation", 360.0, bias, 60.0, epoch=noon)
+    _, sins, _ = _gnss_free("base", 360.0, bias, 60.0, epoch=noon)
+    r_se, r_sins = _report(se), _report(sins)
+    assert r_sins["final_along_km"] > 0.3  # pure SINS runs away along the Sun's azimuth ...
+    assert r_se["max_along_km"] < 0.4 * r_sins["max_along_km"] and abs(r_se["final_along_km"]) < 0.15  # ... held
+    assert r_se["mae_hor_km"] < 0.6 * r_sins["mae_hor_km"]
+    assert fw.counters["sun_elevation_admitted"] > 280
+    assert fw.counters.get("utc_stale_pps", 0) > 250  # the receiver kept sending time without PPS: ignored
+    assert fw.filter.variant_status()[0] == 1
+
+
+@pytest.mark.slow
+def test_gnss_free_20_min_static_sun_elevation_against_pure_sins(capsys):
+    """Done-when: the paper's 20 min static test (Beijing, 16:14 local): report the MAE; the along-azimuth error
+    stays bounded while pure SINS diverges (the cross-azimuth direction is not observable: it drifts like SINS)."""
+    bias = (5.0, -5.0, 2.5)
+    _, se, _ = _gnss_free("sun_elevation", 1260.0, bias, 60.0)
+    _, sins, _ = _gnss_free("base", 1260.0, bias, 60.0)
+    r_se, r_sins = _report(se), _report(sins)
+    with capsys.disabled():
+        print(f"\nsun-elevation: {r_se}\npure SINS:     {r_sins}")
+    assert r_se["max_along_km"] < 3.0 and r_sins["max_along_km"] > 10.0
+    assert r_se["mae_e_km"] < 0.6 * r_sins["mae_e_km"] and r_se["mae_hor_km"] < r_sins["mae_hor_km"]

@@ -224,3 +224,34 @@ def test_a_broken_library_file_is_a_collection_error_with_every_problem(pytester
     assert res.ret != 0 and "scenario file does not validate" in out
     assert "broken.yaml:3:" in out and "duration_s" in out
     assert "unknown key 'lat_dg'; did you mean 'lat_deg'?" in out
+
+
+def test_event_expectations_on_a_variants_events_with_an_injected_glitch(tmp_path):
+    """"Chi-square isolated GNSS between 60 and 61.5 s": the federated variant's own events, matched by name,
+    source, window and count, with the glitch injected as a fault instead of the receiver's schedule."""
+    from emulator.runner import run_scenario
+    from emulator.testing import load_test_scenario
+
+    scn = load_test_scenario(SCENARIOS / "federated_gnss_glitch.yaml", {
+        "duration_s": 72, "sensors.gnss.glitches": [],
+        "faults": [{"gnss_glitch": {"start_s": 60, "duration_s": 5, "offset_enu_m": [50.0, -30.0, 10.0]}}],
+        "expectations": [
+            {"event": {"name": "gnss_isolated", "source": "firmware", "between_s": [60, 61.5], "min_count": 1}},
+            {"event": {"name": "gnss_isolated", "source": "firmware", "until_s": 59.5, "max_count": 0}},
+            {"event": {"name": "gnss_readmitted", "source": "firmware", "between_s": [65, 72], "min_count": 1}},
+            {"summary": {"path": "faults.0.evidence.glitched_fixes", "min": 5, "max": 5}},
+            {"nav_error": {"metric": "position_m", "stat": "max", "max": 15.0, "between_s": [55, 72]}},
+        ]})
+    s = run_scenario(scn, tmp_path / "run")
+    assert s["valid"] is True
+    assert [e["passed"] for e in s["expectations"]] == [True] * 5, s["expectations"]
+    # and the same events do not match outside their window or from another source
+    scn2 = load_test_scenario(scn, {"expectations": [
+        {"event": {"name": "gnss_isolated", "source": "dsp", "min_count": 1}}]})
+    from emulator.expectations import evaluate_expectations
+
+    class Rec:
+        events = [json.loads(ln) for ln in (tmp_path / "run" / "events.jsonl").read_text().splitlines()]
+
+    (r,) = evaluate_expectations(scn2.expectations, Rec(), {"sim_duration_s": 72.0})
+    assert r.passed is False and r.value == 0

@@ -28,11 +28,11 @@ import importlib.util
 import math
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 from pydantic import ConfigDict, Field, field_validator, model_validator
 
-from .base import Model
+from .base import Model, OneKindModel
 
 if TYPE_CHECKING:
     from .schema import Scenario
@@ -270,8 +270,10 @@ class DspExtraLoadFault(FaultWindow):
         return self
 
 
-class Fault(Model):
+class Fault(OneKindModel):
     """One scheduled fault; exactly one key (see module docstring and docs/scenarios.md)."""
+
+    kind_label: ClassVar[str] = "a fault"
 
     model_config = ConfigDict(json_schema_extra={"minProperties": 1, "maxProperties": 1})
 
@@ -295,23 +297,9 @@ class Fault(Model):
     fpga_channel_stall: FpgaChannelStallFault | None = None
     dsp_extra_load: DspExtraLoadFault | None = None
 
-    @model_validator(mode="after")
-    def _one(self) -> "Fault":
-        set_keys = [k for k in type(self).model_fields if getattr(self, k) is not None]
-        if len(set_keys) != 1:
-            raise ValueError(f"a fault has exactly one kind, got {set_keys or 'none'}")
-        return self
-
-    @property
-    def kind(self) -> str:
-        for k in type(self).model_fields:
-            if getattr(self, k) is not None:
-                return k
-        return ""
-
     @property
     def spec(self) -> FaultWindow:
-        return getattr(self, self.kind)
+        return self.value
 
 
 FAULT_KINDS = tuple(Fault.model_fields)
@@ -457,8 +445,10 @@ class PythonHook(Model):
     description: str | None = None
 
 
-class Expectation(Model):
+class Expectation(OneKindModel):
     """One check evaluated at the end of the run; exactly one key."""
+
+    kind_label: ClassVar[str] = "an expectation"
 
     model_config = ConfigDict(json_schema_extra={"minProperties": 1, "maxProperties": 1})
 
@@ -469,20 +459,6 @@ class Expectation(Model):
     nav_mode: NavModeExpectation | None = None
     summary: SummaryValueBound | None = None
     python: PythonHook | None = None
-
-    @model_validator(mode="after")
-    def _one(self) -> "Expectation":
-        set_keys = [k for k in type(self).model_fields if getattr(self, k) is not None]
-        if len(set_keys) != 1:
-            raise ValueError(f"an expectation has exactly one kind, got {set_keys or 'none'}")
-        return self
-
-    @property
-    def kind(self) -> str:
-        for k in type(self).model_fields:
-            if getattr(self, k) is not None:
-                return k
-        return ""
 
 
 EXPECTATION_KINDS = tuple(Expectation.model_fields)

@@ -26,10 +26,11 @@ path and turning changes the course (``emulator.world.trajectory``):
 from __future__ import annotations
 
 import math
+from typing import ClassVar
 
 from pydantic import Field, model_validator
 
-from .base import Model
+from .base import Model, OneKindModel
 
 __all__ = [
     "Origin",
@@ -165,8 +166,10 @@ class RotateParams(Model):
         return abs(float(self.by_deg)) / float(self.rate_dps)  # type: ignore[arg-type]
 
 
-class MotionSegment(Model):
+class MotionSegment(OneKindModel):
     """One motion segment; exactly one key (see module docstring)."""
+
+    kind_label: ClassVar[str] = "a motion segment"
 
     static: StaticParams | None = None
     accelerate: AccelerateParams | None = None
@@ -177,31 +180,13 @@ class MotionSegment(Model):
     pitch: RotateParams | None = None
     roll: RotateParams | None = None
 
-    @model_validator(mode="after")
-    def _one(self) -> "MotionSegment":
-        set_keys = [k for k in type(self).model_fields if getattr(self, k) is not None]
-        if len(set_keys) != 1:
-            raise ValueError(f"a motion segment has exactly one kind, got {set_keys or 'none'}")
-        return self
-
-    @property
-    def kind(self) -> str:
-        for k in type(self).model_fields:
-            if getattr(self, k) is not None:
-                return k
-        return ""
-
     @property
     def params(self) -> Model:
-        return getattr(self, self.kind)
+        return self.value
 
     @property
     def duration_s(self) -> float:
-        for k in type(self).model_fields:
-            v = getattr(self, k)
-            if v is not None:
-                return float(v.total_s)
-        return 0.0
+        return float(self.value.total_s)
 
 
 class CloudSpec(Model):

@@ -72,7 +72,8 @@ from .errors import FirmwareError
 from .filters import FILTER_VARIANTS, GnssMeasurement, NavFilter, SolarObservation, UpdateReport
 from .variants.params import VariantParams  # importing the package registers the issue-6 variants
 from .psns_geometry import CameraGeometry
-from .strapdown import NavState, coning_sculling, strapdown_step
+from .precision import rounder
+from .strapdown import NavState, coning_sculling, strapdown_step, strapdown_step_f64
 
 __all__ = ["UART_HOST", "UART_IMU", "UART_PSNS", "UART_GNSS", "FirmwareConfig", "TickResult", "Firmware",
            "FirmwareState", "tick_kernel_cycles"]
@@ -249,6 +250,15 @@ class Firmware:
         self._cyc = tick_kernel_cycles(self.cost, nav_dp=self.nav_dtype is np.float64)
         self.T = 1.0 / cfg.imu_rate_hz
         self._nsub = cfg.subsamples
+        # IMU conversion constants in the working precision (Python floats holding dtype values)
+        dt = self.dtype
+        lsb = GYRO_RATE_LSB_DPS * DEG * self.T if cfg.gyro_output == "rate" else GYRO_ANGLE_LSB_DEG * DEG
+        self._gyro_k = float(dt(lsb))
+        self._T_w = float(dt(self.T))
+        self._kv = ADC_VOLTS_PER_LSB * G_STD
+        self._round3 = rounder(dt, 3)
+        self._round6 = rounder(dt, 6)
+        self._bias_cache: tuple[Any, Any, tuple[float, ...]] = (None, None, ())
         self._out_every = int(round(cfg.imu_rate_hz / cfg.output_rate_hz))
         self._dec_imu = StreamDecoder([FpgaFrameFormat()])
         self._dec_gnss = StreamDecoder([NmeaFormat(), UbxFormat()])
@@ -283,7 +293,7 @@ class Firmware:
         self._mag_hist: deque[tuple[float, tuple[int, int, int]]] = deque(maxlen=128)  # (t_sample_s, field)
         self._tick = 0
         self._sub: list[tuple[np.ndarray, np.ndarray]] = []
-        self._fn_sum = np.zeros(3)
+        self._fn_sum = [0.0, 0.0, 0.0]  # sum of f^n over the KF interval (Python floats, float64)
         self._fn_n = 0
         self._hist: deque[tuple[float, np.ndarray, np.ndarray, np.ndarray]] = deque(maxlen=int(2 * cfg.imu_rate_hz))
         self._gnss_pending: GnssMeasurement | None = None
@@ -509,29 +519,24 @@ class Firmware:
         if self._last_counter is not None and (fr.gyro_counter - self._last_counter) % 256 != cfg.gyro_counter_step:
             self.counters["gyro_counter_jumps"] += 1
         self._last_counter = fr.gyro_counter
-        # raw words to SI: 6 INTSP + 6 MPYSP [D]
-        dt = self.dtype
+        # raw words to SI: 6 INTSP + 6 MPYSP [D] (Python floats rounded to the working precision,
+        # firmware_model.precision): gyro words (s24, exact) times the LSB; ADC codes to m/s^2
         g = fr.gyro
-        if cfg.gyro_output == "rate":
-            k = dt(GYRO_RATE_LSB_DPS * DEG * self.T)
-        else:
-            k = dt(GYRO_ANGLE_LSB_DEG * DEG)
-        dtheta = np.array(g, dtype=dt) * k
         a = fr.accel
-        kv = ADC_VOLTS_PER_LSB * G_STD
-        vpg = cfg.accel_volts_per_g
-        f_b = np.array((a[0] * kv / vpg[0], a[1] * kv / vpg[1], a[2] * kv / vpg[2]), dtype=dt)
+        kv, vpg = self._kv, self.cfg.accel_volts_per_g
+        f_b = self._round3(a[0] * kv / vpg[0], a[1] * kv / vpg[1], a[2] * kv / vpg[2])
         m.charge("imu_convert", self._cyc["imu_convert"])
 
         if self.state == FirmwareState.COARSE_ALIGN:
-            self._align(t, f_b, res)
+            self._align(t, np.array(f_b, dtype=self.dtype), res)
             m.end()
         else:
-            self._mechanize(t, dtheta, f_b)
+            self._mechanize(t, g, f_b)
             if self._tick % cfg.kf_predict_every == 0 and self._fn_n:
                 m.begin("kf_predict", cfg.kf_predict_every * self.T)
-                fn = self._fn_sum / self._fn_n
-                self._fn_sum[:] = 0.0
+                n = self._fn_n
+                fn = np.array([x / n for x in self._fn_sum])
+                self._fn_sum = [0.0, 0.0, 0.0]
                 self._fn_n = 0
                 Tk = t - self._t_last_predict  # the first interval after alignment may be shorter
                 self._t_last_predict = t
@@ -652,46 +657,72 @@ class Firmware:
         return cbn, el
 
     # -- navigation ---------------------------------------------------------------------------------
-    def _mechanize(self, t: float, dtheta: np.ndarray, f_b: np.ndarray) -> None:
-        """Bias compensation, coning/sculling and one strapdown step per ``subsamples`` IMU samples."""
+    def _mechanize(self, t: float, gyro: tuple[int, int, int], f_b: tuple[float, float, float]) -> None:
+        """Bias compensation, coning/sculling and one strapdown step per ``subsamples`` IMU samples.
+
+        ``gyro``: the raw STIM words; ``f_b``: specific force (m/s^2, body, in the working precision).
+        Every operation in the working precision (``self._round*``, :mod:`firmware_model.precision`).
+        """
         m = self.meter
         s = self.nav
         assert s is not None
-        dt = self.dtype
-        T = self.T
-        dv = f_b * dt(T)
-        flt = self.filter
+        k, T_w = self._gyro_k, self._T_w
+        rnd6 = self._round6
+        # dtheta = gyro * LSB, dv = f_b * T
+        dth_x, dth_y, dth_z, dv_x, dv_y, dv_z = rnd6(gyro[0] * k, gyro[1] * k, gyro[2] * k,
+                                                      f_b[0] * T_w, f_b[1] * T_w, f_b[2] * T_w)
         if self._nsub == 1:
-            phi_m = dtheta - flt.gyro_bias * dt(T)
-            dv_c = dv - flt.accel_bias * dt(T)
-            # single-sample rotation compensation dv + 1/2 dtheta x dv (algorithms.md 1.2, step 1)
-            dv_m = dv_c + dt(0.5) * np.array((phi_m[1] * dv_c[2] - phi_m[2] * dv_c[1],
-                                                phi_m[2] * dv_c[0] - phi_m[0] * dv_c[2],
-                                                phi_m[0] * dv_c[1] - phi_m[1] * dv_c[0]), dtype=dt)
+            gb_x, gb_y, gb_z, ab_x, ab_y, ab_z = self._bias_increments()
+            px, py, pz, ux, uy, uz = rnd6(dth_x - gb_x, dth_y - gb_y, dth_z - gb_z,
+                                          dv_x - ab_x, dv_y - ab_y, dv_z - ab_z)  # phi_m, dv_c
+            # single-sample rotation compensation dv_m = dv_c + 1/2 phi_m x dv_c (algorithms.md 1.2, step 1)
+            c0, c1, c2, c3, c4, c5 = rnd6(py * uz, pz * ux, px * uy, pz * uy, px * uz, py * ux)
+            c0, c1, c2 = self._round3(c0 - c3, c1 - c4, c2 - c5)
+            phi_m = (px, py, pz)
+            dv_m = self._round3(ux + 0.5 * c0, uy + 0.5 * c1, uz + 0.5 * c2)
             m.charge("coning_sculling", self._cyc["coning1"])
-            Tm = T
+            Tm = self.T
         else:
-            self._sub.append((dtheta, dv))
+            dt = self.dtype
+            self._sub.append((np.array((dth_x, dth_y, dth_z), dtype=dt), np.array((dv_x, dv_y, dv_z), dtype=dt)))
             if len(self._sub) < self._nsub:
                 return
             th = np.stack([x[0] for x in self._sub])
             vv = np.stack([x[1] for x in self._sub])
             self._sub.clear()
-            phi_m, dv_m = coning_sculling(th, vv)
-            Tm = T * self._nsub
-            phi_m = (phi_m - flt.gyro_bias * dt(Tm)).astype(dt)
-            dv_m = (dv_m - flt.accel_bias * dt(Tm)).astype(dt)
+            phi, dvm = coning_sculling(th, vv)
+            Tm = self.T * self._nsub
+            flt = self.filter
+            phi_m = (phi - flt.gyro_bias * dt(Tm)).astype(dt).tolist()
+            dv_m = (dvm - flt.accel_bias * dt(Tm)).astype(dt).tolist()
             m.charge("coning_sculling", self._cyc["coning2"])
-        strapdown_step(s, phi_m, dv_m, Tm, dtype=self.nav_dtype)
+        if self.nav_dtype is np.float64:
+            strapdown_step_f64(s, phi_m, dv_m, Tm)
+        else:
+            nd = self.nav_dtype
+            strapdown_step(s, np.array(phi_m, dtype=nd), np.array(dv_m, dtype=nd), Tm, dtype=nd)
         s.t = t
         m.charge("strapdown", self._cyc["strapdown"])
-        self._accumulate_fn()
-        self._hist.append((t, s.pos.copy(), s.v.copy(), s.q.copy()))
-
-    def _accumulate_fn(self) -> None:
-        """Specific force in n of the last strapdown step, averaged for the KF's F (Eq. 17)."""
-        self._fn_sum += self.nav.f_n  # type: ignore[union-attr]
+        # specific force in n of the step, averaged for the KF's F (Eq. 17)
+        fe, fn, fu = s.f_n.tolist()
+        acc = self._fn_sum
+        acc[0] += fe
+        acc[1] += fn
+        acc[2] += fu
         self._fn_n += 1
+        # the strapdown replaces the state's arrays (never writes them in place): the history keeps references
+        self._hist.append((t, s.pos, s.v, s.q))
+
+    def _bias_increments(self) -> tuple[float, ...]:
+        """``(gyro_bias * T, accel_bias * T)`` in the working precision, recomputed when the filter's
+        estimates change (feedback replaces the arrays) -- the same products every tick otherwise."""
+        flt = self.filter
+        gb, ab = flt.gyro_bias, flt.accel_bias
+        c = self._bias_cache
+        if c[0] is not gb or c[1] is not ab:
+            T_w = self.dtype(self.T)
+            c = self._bias_cache = (gb, ab, tuple((gb * T_w).tolist() + (ab * T_w).tolist()))
+        return c[2]
 
     def _ins_at(self, t_meas: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """INS position (float64), velocity and attitude quaternion at ``t_meas`` (nearest history entry)."""
@@ -908,7 +939,7 @@ class Firmware:
         self._align_t0 = None
         self._align_sun.clear()
         self._sub.clear()
-        self._fn_sum[:] = 0.0
+        self._fn_sum = [0.0, 0.0, 0.0]
         self._fn_n = 0
         self._hist.clear()
         self._gnss_pending = None

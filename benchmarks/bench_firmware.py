@@ -7,14 +7,16 @@ as the virtual DSP does. Rows:
 * ``Firmware.service per tick (static, GNSS, PSNS <kind>)``: service() alone (the cyclic executive), best
   of 3 (the historical rows, docs/variants.md compares against them);
 * ``Firmware per tick, base filter, nav <dtype> (receive + service)``: everything the firmware does per
-  tick, decoding of every UART included; median of ``REPEAT`` runs;
+  tick, decoding of every UART included; CPU time (``time.process_time``), median of ``REPEAT`` runs;
 * ``... part: <part>``: the same run split by part (median of ``REPEAT`` instrumented runs): ``decode``
   (receive(): framing, CRC, parse of every UART), ``strapdown`` (``_mechanize``: bias compensation,
   coning/sculling, mechanization, INS history), ``kf_predict`` (the filter's time update, every 20th
   tick), ``updates`` (GNSS / PSNS measurement tasks, solve, feedback), ``output`` (NAV_SOLUTION build and
   encode, every 2nd tick), ``rest`` (the tick's own bookkeeping: time, PPS, counters, raw-to-SI, load
   window). ``cycle meter`` is the cost of the tick's CycleMeter calls replayed on a fresh meter
-  (already contained in the parts above; shown for its own sake).
+  (already contained in the parts above; shown for its own sake). The parts are wall time
+  (``perf_counter`` around each call: a CPU-time clock costs 1.5 us per read here), so on a loaded machine
+  their sum can exceed the CPU-time total.
 
 Wall times on a shared 2-core machine are noisy: compare medians, not single runs.
 Run: ``.venv/bin/python -c "from benchmarks.bench_firmware import main; main()"``.
@@ -71,16 +73,17 @@ def _service_us_per_tick(psns_kind: str | None, seconds: float = 60.0) -> float:
 
 
 def _total_us_per_tick(cfg: FirmwareConfig, events: list[tuple[float, int, bytes]]) -> float:
-    """receive() of every chunk plus service() of every tick, per tick (us)."""
+    """receive() of every chunk plus service() of every tick, per tick (us of CPU time: robust against the
+    other processes on the shared cores, which stretch wall time but not this process's CPU time)."""
     fw = Firmware(cfg)
     receive, service = fw.receive, fw.service
     n = 0
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     for t, uart, data in events:
         receive(uart, data, t)
         if uart == 1:
             n += len(service())
-    return (time.perf_counter() - t0) / n * 1e6
+    return (time.process_time() - t0) / n * 1e6
 
 
 def _timed(fn: Callable[..., Any], acc: list[float]) -> Callable[..., Any]:

@@ -49,14 +49,13 @@ from protocols.host import (
     HostFrame,
     HostStatus,
     NavMode,
-    NavSolution,
     RequestStatus,
     ResetFilter,
     SelectVariant,
     SetOutputRate,
     encode_ack,
-    encode_nav_solution,
     encode_status,
+    nav_solution_frame,
 )
 from protocols.imu_frame import ACCEL_VOLTS_PER_G, ADC_VOLTS_PER_LSB, FpgaFrameFormat, FpgaStatus, ImuFrame, MagFrame
 from protocols.nmea import Gga, NmeaFormat, Rmc
@@ -83,6 +82,7 @@ UART_HOST, UART_IMU, UART_PSNS, UART_GNSS = 0, 1, 2, 3
 DEG = math.pi / 180.0
 G_STD = 9.80665
 DPH = DEG / 3600.0  # deg/h in rad/s
+_sqrt = math.sqrt
 
 
 def tick_kernel_cycles(c: c674x.KernelCosts, nav_dp: bool = True) -> dict[str, int]:
@@ -1002,7 +1002,7 @@ class Firmware:
             roll = math.atan2(-2.0 * (q1 * q3 - q0 * q2), q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3) / DEG
             yaw = math.atan2(-2.0 * (q1 * q2 - q0 * q3), q0 * q0 - q1 * q1 + q2 * q2 - q3 * q3)
             heading = heading_from_yaw(yaw) / DEG
-            d = [math.sqrt(max(v, 0.0)) for v in self.filter.P.diagonal()[:9].tolist()]
+            d = [_sqrt(0.0 if v < 0.0 else v) for v in self.filter.P.diagonal()[:9].tolist()]  # sqrt(max(v, 0))
             rm, rn = earth.radii(lat)
             sigma = (
                 d[0] / DEG, d[1] / DEG, d[2] / DEG, d[3], d[4], d[5],
@@ -1012,28 +1012,13 @@ class Firmware:
         vs = self.filter.variant_status()
         if vs is not None:  # VARIANT block: pack 4 bytes + CRC over 6 more [E]
             self.meter.charge("nav_variant_block", 6 * 4 + 4 * 2)
-        n = NavSolution(
-            seq=self._out_seq,
-            time_s=t,
-            lat_deg=lat / DEG,
-            lon_deg=lon / DEG,
-            height_m=h,
-            vel_enu_mps=vel,  # type: ignore[arg-type]
-            roll_deg=roll,
-            pitch_deg=pitch,
-            heading_deg=heading,
-            sigma=sigma,
-            mode=int(mode),
-            gnss_status=fix[3] if fix is not None else 0,
-            psns_status=self._psns_status_now(t),
-            cpu_load_pct=self.cpu_load_pct(),
-            deadline_misses=self.deadline_misses,
-            variant_mode=vs[0] if vs is not None else None,
-            psns_units=vs[1] if vs is not None else 0,
-            psns_q_mask=vs[2] if vs is not None else 0,
-        )
-        self._out_seq += 1
-        return encode_nav_solution(n)
+        seq = self._out_seq
+        self._out_seq = seq + 1
+        # the NavSolution fields in order (protocols.host.nav_solution_frame), without building the object
+        return nav_solution_frame(
+            seq, t, lat / DEG, lon / DEG, h, vel, roll, pitch, heading, sigma, int(mode),
+            fix[3] if fix is not None else 0, self._psns_status_now(t), self.cpu_load_pct(), self.deadline_misses,
+            *(vs if vs is not None else (None, 0, 0)))
 
     # -- introspection (tests, reports) ----------------------------------------------------------------
     @property

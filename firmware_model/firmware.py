@@ -72,7 +72,7 @@ from .filters import FILTER_VARIANTS, GnssMeasurement, NavFilter, SolarObservati
 from .variants.params import VariantParams  # importing the package registers the issue-6 variants
 from .psns_geometry import CameraGeometry
 from .precision import rounder
-from .strapdown import NavState, coning_sculling, strapdown_step, strapdown_step_f64
+from .strapdown import NavState, coning_sculling, strapdown_step_f32, strapdown_step_f64
 
 __all__ = ["UART_HOST", "UART_IMU", "UART_PSNS", "UART_GNSS", "FirmwareConfig", "TickResult", "Firmware",
            "FirmwareState", "tick_kernel_cycles"]
@@ -248,6 +248,8 @@ class Firmware:
         self.meter = c674x.CycleMeter(cfg.clock_hz, cfg.imu_rate_hz)
         self.cost = c674x.KernelCosts(cfg.precision)
         self._cyc = tick_kernel_cycles(self.cost, nav_dp=self.nav_dtype is np.float64)
+        self._cyc_decode, self._cyc_convert = self._cyc["imu_decode"], self._cyc["imu_convert"]
+        self._cyc_coning1, self._cyc_strapdown = self._cyc["coning1"], self._cyc["strapdown"]
         self.T = 1.0 / cfg.imu_rate_hz
         self._nsub = cfg.subsamples
         # IMU conversion constants in the working precision (Python floats holding dtype values)
@@ -257,7 +259,7 @@ class Firmware:
         self._T_w = float(dt(self.T))
         self._kv = ADC_VOLTS_PER_LSB * G_STD
         self._round3 = rounder(dt, 3)
-        self._round6 = rounder(dt, 6)
+        self._pack6, self._unpack6 = rounder(dt, 6).pack, rounder(dt, 6).unpack
         self._bias_cache: tuple[Any, Any, tuple[float, ...]] = (None, None, ())
         self._out_every = int(round(cfg.imu_rate_hz / cfg.output_rate_hz))
         self._dec_imu = StreamDecoder([FpgaFrameFormat()])
@@ -503,10 +505,10 @@ class Firmware:
         m = self.meter
         m.begin("imu_tick", self.T)
         m.begin("imu", self.T)
-        m.charge("imu_decode", self._cyc["imu_decode"])
+        m.charge("imu_decode", self._cyc_decode)
         t_us = self._unwrap_us(fr.t_trigger_us)
         t = t_us / 1e6
-        res = TickResult(t_fpga_s=t, cycles=0)
+        res = TickResult(t, 0)
         self.counters["imu_frames"] += 1
         if fr.fpga_status & _PPS_VALID and fr.pps_count != self._pps_count:
             self._pps_count = fr.pps_count
@@ -524,8 +526,9 @@ class Firmware:
         g = fr.gyro
         a = fr.accel
         kv, vpg = self._kv, self.cfg.accel_volts_per_g
-        f_b = self._round3(a[0] * kv / vpg[0], a[1] * kv / vpg[1], a[2] * kv / vpg[2])
-        m.charge("imu_convert", self._cyc["imu_convert"])
+        r3 = self._round3
+        f_b = r3.unpack(r3.pack(a[0] * kv / vpg[0], a[1] * kv / vpg[1], a[2] * kv / vpg[2]))
+        m.charge("imu_convert", self._cyc_convert)
 
         if self.state == FirmwareState.COARSE_ALIGN:
             self._align(t, np.array(f_b, dtype=self.dtype), res)
@@ -667,20 +670,25 @@ class Firmware:
         s = self.nav
         assert s is not None
         k, T_w = self._gyro_k, self._T_w
-        rnd6 = self._round6
+        pack6, unpack6 = self._pack6, self._unpack6  # round 6 values to the working precision
         # dtheta = gyro * LSB, dv = f_b * T
-        dth_x, dth_y, dth_z, dv_x, dv_y, dv_z = rnd6(gyro[0] * k, gyro[1] * k, gyro[2] * k,
-                                                      f_b[0] * T_w, f_b[1] * T_w, f_b[2] * T_w)
+        dth_x, dth_y, dth_z, dv_x, dv_y, dv_z = unpack6(pack6(gyro[0] * k, gyro[1] * k, gyro[2] * k,
+                                                              f_b[0] * T_w, f_b[1] * T_w, f_b[2] * T_w))
         if self._nsub == 1:
-            gb_x, gb_y, gb_z, ab_x, ab_y, ab_z = self._bias_increments()
-            px, py, pz, ux, uy, uz = rnd6(dth_x - gb_x, dth_y - gb_y, dth_z - gb_z,
-                                          dv_x - ab_x, dv_y - ab_y, dv_z - ab_z)  # phi_m, dv_c
+            flt = self.filter
+            bias = self._bias_cache
+            if bias[0] is not flt.gyro_bias or bias[1] is not flt.accel_bias:
+                bias = self._update_bias_cache()
+            gb_x, gb_y, gb_z, ab_x, ab_y, ab_z = bias[2]
+            px, py, pz, ux, uy, uz = unpack6(pack6(dth_x - gb_x, dth_y - gb_y, dth_z - gb_z,
+                                                   dv_x - ab_x, dv_y - ab_y, dv_z - ab_z))  # phi_m, dv_c
             # single-sample rotation compensation dv_m = dv_c + 1/2 phi_m x dv_c (algorithms.md 1.2, step 1)
-            c0, c1, c2, c3, c4, c5 = rnd6(py * uz, pz * ux, px * uy, pz * uy, px * uz, py * ux)
-            c0, c1, c2 = self._round3(c0 - c3, c1 - c4, c2 - c5)
+            c0, c1, c2, c3, c4, c5 = unpack6(pack6(py * uz, pz * ux, px * uy, pz * uy, px * uz, py * ux))
+            r3 = self._round3
+            c0, c1, c2 = r3.unpack(r3.pack(c0 - c3, c1 - c4, c2 - c5))
             phi_m = (px, py, pz)
-            dv_m = self._round3(ux + 0.5 * c0, uy + 0.5 * c1, uz + 0.5 * c2)
-            m.charge("coning_sculling", self._cyc["coning1"])
+            dv_m = r3.unpack(r3.pack(ux + 0.5 * c0, uy + 0.5 * c1, uz + 0.5 * c2))
+            m.charge("coning_sculling", self._cyc_coning1)
             Tm = self.T
         else:
             dt = self.dtype
@@ -699,10 +707,9 @@ class Firmware:
         if self.nav_dtype is np.float64:
             strapdown_step_f64(s, phi_m, dv_m, Tm)
         else:
-            nd = self.nav_dtype
-            strapdown_step(s, np.array(phi_m, dtype=nd), np.array(dv_m, dtype=nd), Tm, dtype=nd)
+            strapdown_step_f32(s, phi_m, dv_m, Tm)
         s.t = t
-        m.charge("strapdown", self._cyc["strapdown"])
+        m.charge("strapdown", self._cyc_strapdown)
         # specific force in n of the step, averaged for the KF's F (Eq. 17)
         fe, fn, fu = s.f_n.tolist()
         acc = self._fn_sum
@@ -713,16 +720,15 @@ class Firmware:
         # the strapdown replaces the state's arrays (never writes them in place): the history keeps references
         self._hist.append((t, s.pos, s.v, s.q))
 
-    def _bias_increments(self) -> tuple[float, ...]:
-        """``(gyro_bias * T, accel_bias * T)`` in the working precision, recomputed when the filter's
-        estimates change (feedback replaces the arrays) -- the same products every tick otherwise."""
+    def _update_bias_cache(self) -> tuple[Any, Any, tuple[float, ...]]:
+        """``(gyro_bias, accel_bias, gyro_bias * T + accel_bias * T)``: the bias increments in the working
+        precision, recomputed when the filter's estimates change (feedback replaces the arrays); the same
+        products every tick otherwise."""
         flt = self.filter
         gb, ab = flt.gyro_bias, flt.accel_bias
-        c = self._bias_cache
-        if c[0] is not gb or c[1] is not ab:
-            T_w = self.dtype(self.T)
-            c = self._bias_cache = (gb, ab, tuple((gb * T_w).tolist() + (ab * T_w).tolist()))
-        return c[2]
+        T_w = self.dtype(self.T)
+        self._bias_cache = (gb, ab, tuple((gb * T_w).tolist() + (ab * T_w).tolist()))
+        return self._bias_cache
 
     def _ins_at(self, t_meas: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """INS position (float64), velocity and attitude quaternion at ``t_meas`` (nearest history entry)."""

@@ -75,9 +75,9 @@ def error_transition_matrix(
     pos : (3,) ``[L rad, lambda rad, h m]``.
     f_n : (3,) specific force in n, m/s^2.
     """
-    lat, h = float(pos[0]), float(pos[2])
-    ve, vn, vu = (float(x) for x in v_enu)
-    fe, fn, fu = (float(x) for x in f_n)
+    lat, _, h = np.asarray(pos, dtype=np.float64).tolist()
+    ve, vn, vu = np.asarray(v_enu).tolist()  # exact doubles of float32 or float64 values
+    fe, fn, fu = np.asarray(f_n).tolist()
     s, c = math.sin(lat), math.cos(lat)
     t = s / c
     sec = 1.0 / c

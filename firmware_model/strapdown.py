@@ -19,8 +19,10 @@ import numpy as np
 
 from . import earth
 from .attitude import cross3, q2mat, qmul, qnormalize, rv2q
+from .precision import rounder
 
-__all__ = ["NavState", "coning_sculling", "strapdown_step", "strapdown_step_f64", "STRAPDOWN_FLOPS"]
+__all__ = ["NavState", "coning_sculling", "strapdown_step", "strapdown_step_f64", "strapdown_step_f32",
+           "strapdown_step_numpy", "STRAPDOWN_FLOPS"]
 
 #: Rough floating-point operation count of one :func:`strapdown_step` (for the cycle model).
 STRAPDOWN_FLOPS = 260
@@ -100,11 +102,21 @@ def strapdown_step(
 
     The state's arrays are replaced, never written in place (the firmware's INS history keeps
     references to them). In float64 the step runs on Python floats (:func:`strapdown_step_f64`:
-    IEEE double operations in a fixed order, docs/decisions.md D-10.F1); in float32 on numpy float32
-    arrays, every operation rounded to single precision as the C674x does.
+    IEEE double operations in a fixed order, docs/decisions.md D-10.F1). In float32 every operation
+    is rounded to single precision as the C674x does: the element-wise work on Python floats rounded
+    by ``struct`` (:mod:`firmware_model.precision`, bit for bit numpy's float32 results), the dot and
+    matrix-vector products by numpy (:func:`strapdown_step_f32`); the generic numpy formulation below
+    serves other dtype mixes.
     """
     if dtype is np.float64:
         return strapdown_step_f64(s, np.asarray(phi_m).tolist(), np.asarray(dv_m).tolist(), T)
+    if dtype is np.float32 and s.q.dtype == s.v.dtype == s.a_prev.dtype == np.float32:
+        return strapdown_step_f32(s, np.asarray(phi_m).tolist(), np.asarray(dv_m).tolist(), T)
+    return strapdown_step_numpy(s, phi_m, dv_m, T, dtype)
+
+
+def strapdown_step_numpy(s: NavState, phi_m: np.ndarray, dv_m: np.ndarray, T: float, dtype: type) -> NavState:
+    """:func:`strapdown_step` on numpy arrays and scalars of ``dtype`` (the reference formulation; any dtype mix)."""
     lat, lon, h = float(s.pos[0]), float(s.pos[1]), float(s.pos[2])
     v = s.v
     dt = dtype
@@ -242,3 +254,112 @@ def _rv2q(x: float, y: float, z: float) -> tuple[float, float, float, float]:
         c = _cos(n / 2.0)
         k = _sin(n / 2.0) / n
     return c, k * x, k * y, k * z
+
+
+_R1, _R3, _R4, _R6, _R8, _R10, _R16 = (rounder(np.float32, n) for n in (1, 3, 4, 6, 8, 10, 16))
+_f32 = np.float32
+
+
+def _qmul_f32(p: Sequence[float], q: Sequence[float]) -> tuple[float, ...]:
+    """:func:`firmware_model.attitude.qmul` of two float32 quaternions (Python floats), float32 rounding."""
+    p0, p1, p2, p3 = p
+    q0, q1, q2, q3 = q
+    (m00, m11, m22, m33, m01, m10, m23, m32, m02, m13, m20, m31, m03, m12, m21, m30) = _R16.unpack(_R16.pack(
+        p0 * q0, p1 * q1, p2 * q2, p3 * q3, p0 * q1, p1 * q0, p2 * q3, p3 * q2,
+        p0 * q2, p1 * q3, p2 * q0, p3 * q1, p0 * q3, p1 * q2, p2 * q1, p3 * q0))
+    r = _R4.unpack(_R4.pack(m00 - m11, m01 + m10, m02 - m13, m03 + m12))
+    r = _R4.unpack(_R4.pack(r[0] - m22, r[1] + m23, r[2] + m20, r[3] - m21))
+    return _R4.unpack(_R4.pack(r[0] - m33, r[1] - m32, r[2] + m31, r[3] + m30))
+
+
+def _rv2q_f32(x: float, y: float, z: float) -> tuple[float, ...]:
+    """:func:`firmware_model.attitude.rv2q` of a float32 rotation vector, float32 result: ``|phi|^2`` by
+    numpy's float32 dot (its BLAS summation order), the trigonometry in double, ``float32(k) * phi``."""
+    n2 = float(np.dot(_array((x, y, z), dtype=_f32), _array((x, y, z), dtype=_f32)))
+    if n2 < 1e-16:
+        c = 1.0 - n2 / 8.0
+        k = 0.5 - n2 / 48.0
+    else:
+        n = _sqrt(n2)
+        c = _cos(n / 2.0)
+        k = _sin(n / 2.0) / n
+    (k,) = _R1.unpack(_R1.pack(k))  # float32(k) * phi (NumPy's rule for a Python float times float32)
+    return _R4.unpack(_R4.pack(c, k * x, k * y, k * z))
+
+
+def _cross_f32(a: Sequence[float], b: Sequence[float]) -> tuple[float, ...]:
+    """:func:`firmware_model.attitude.cross3` of two float32 3-vectors, float32 rounding."""
+    a0, a1, a2 = a
+    b0, b1, b2 = b
+    p = _R6.unpack(_R6.pack(a1 * b2, a2 * b1, a2 * b0, a0 * b2, a0 * b1, a1 * b0))
+    return _R3.unpack(_R3.pack(p[0] - p[1], p[2] - p[3], p[4] - p[5]))
+
+
+def strapdown_step_f32(s: NavState, phi_m: Sequence[float], dv_m: Sequence[float], T: float) -> NavState:
+    """:func:`strapdown_step` with a float32 state (``q``, ``v``, ``a_prev`` float32 arrays; ``phi_m``, ``dv_m``
+    three Python floats each, rounded to float32 here), bit for bit the numpy float32 formulation: element-wise float32 operations on Python floats rounded by ``struct``; the dot products
+    (``rv2q``, normalisation) and ``C_b^n x`` by numpy (their BLAS summation order); Earth quantities and
+    position in double."""
+    R3p, R3u = _R3.pack, _R3.unpack
+    lat, lon, h = s.pos.tolist()
+    v0 = s.v.tolist()
+    ve0, vn0, vu0 = v0
+    q = s.q.tolist()
+    T2w, Tw, rTw = float(_f32(T / 2.0)), float(_f32(T)), float(_f32(1.0 / T))
+    px, py, pz = R3u(R3p(*phi_m))  # phi_m.astype(float32)
+    dvx, dvy, dvz = R3u(R3p(*dv_m))
+    # 3. mid-interval extrapolation: v_half = v + a_prev T/2 (float32); latitude, height, rates in double
+    ax, ay, az = s.a_prev.tolist()
+    t = R3u(R3p(ax * T2w, ay * T2w, az * T2w))
+    ve, vn, vu = R3u(R3p(ve0 + t[0], vn0 + t[1], vu0 + t[2]))
+    d = 1.0 - _E2 * _sin(lat) ** 2  # earth.radii(lat)
+    rn = _A / _sqrt(d)
+    rm = rn * _1_E2 / d
+    lat_h = lat + vn / (rm + h) * (T / 2.0)
+    h_h = h + vu * (T / 2.0)
+    sl, cl = _sin(lat_h), _cos(lat_h)
+    s2 = sl**2
+    d = 1.0 - _E2 * s2
+    rn = _A / _sqrt(d)
+    rm = rn * _1_E2 / d
+    rmh, rnh = rm + h_h, rn + h_h
+    wie_n, wie_u = _W_IE * cl, _W_IE * sl
+    wen_e, wen_n, wen_u = -vn / rmh, ve / rnh, ve * sl / cl / rnh
+    w_in = R3u(R3p(wen_e, wie_n + wen_n, wie_u + wen_u))
+    w_cor = R3u(R3p(wen_e, 2.0 * wie_n + wen_n, 2.0 * wie_u + wen_u))
+    g = _G0 * (1.0 + _G_B1 * s2 + _G_B2 * s2 * s2) - _G_H * h_h
+    # 4. velocity: f^n = C_b^n dv_m / T; C_b^n = q2mat(q) in float32
+    q0, q1, q2, q3 = q
+    p00, p11, p22, p33, p12, p03, p13, p02, p23, p01 = _R10.unpack(_R10.pack(
+        q0 * q0, q1 * q1, q2 * q2, q3 * q3, q1 * q2, q0 * q3, q1 * q3, q0 * q2, q2 * q3, q0 * q1))
+    a, b, d01, d02, d10, d12, d20, d21 = _R8.unpack(_R8.pack(
+        p00 + p11, p00 - p11, p12 - p03, p13 + p02, p12 + p03, p23 - p01, p13 - p02, p23 + p01))
+    c00, c11, c22 = R3u(R3p(a - p22, b + p22, b - p22))
+    c00, c11, c22 = R3u(R3p(c00 - p33, c11 - p33, c22 + p33))
+    cbn = _array((c00, 2 * d01, 2 * d02, 2 * d10, c11, 2 * d12, 2 * d20, 2 * d21, c22), dtype=_f32).reshape(3, 3)
+    f_n = cbn @ _array(R3u(R3p(dvx * rTw, dvy * rTw, dvz * rTw)), dtype=_f32)
+    fe, fn, fu = f_n.tolist()
+    # a = f^n - (w_in T/2) x f^n - w_cor x v - g
+    c1 = _cross_f32(R3u(R3p(w_in[0] * T2w, w_in[1] * T2w, w_in[2] * T2w)), (fe, fn, fu))
+    c2 = _cross_f32(w_cor, v0)
+    ae, an, au = R3u(R3p(fe - c1[0], fn - c1[1], fu - c1[2]))
+    ae, an, au = R3u(R3p(ae - c2[0], an - c2[1], au - c2[2]))
+    (gw,) = _R1.unpack(_R1.pack(g))
+    ae, an, au = R3u(R3p(ae, an, au - gw))
+    t = R3u(R3p(ae * Tw, an * Tw, au * Tw))
+    ve1, vn1, vu1 = R3u(R3p(ve0 + t[0], vn0 + t[1], vu0 + t[2]))
+    # 5. position (double), trapezoidal velocity, radii at the mid-interval latitude
+    vm_e = 0.5 * (ve0 + ve1)
+    vm_n = 0.5 * (vn0 + vn1)
+    vm_u = 0.5 * (vu0 + vu1)
+    s.pos = _array((lat + vm_n / rmh * T, lon + vm_e / (rnh * cl) * T, h + vm_u * T))
+    # 6. attitude: q_k = rv2q(-w_in T) (x) q_{k-1} (x) rv2q(phi_m), normalised (float32)
+    wt = R3u(R3p(w_in[0] * Tw, w_in[1] * Tw, w_in[2] * Tw))
+    qn = _qmul_f32(_rv2q_f32(-wt[0], -wt[1], -wt[2]), _qmul_f32(q, _rv2q_f32(px, py, pz)))
+    qa = _array(qn, dtype=_f32)
+    s.q = qa / np.sqrt(np.dot(qa, qa))  # qnormalize in float32
+    s.v = _array((ve1, vn1, vu1), dtype=_f32)
+    s.a_prev = _array((ae, an, au), dtype=_f32)
+    s.f_n = f_n
+    s.t += T
+    return s

@@ -11,6 +11,7 @@ State: ``q = q_b^n`` (scalar first), ``v = v^n`` (m/s, ENU), ``pos = [L, lambda,
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from typing import Sequence
@@ -260,6 +261,12 @@ _R1, _R3, _R4, _R6, _R8, _R10, _R16 = (rounder(np.float32, n) for n in (1, 3, 4,
 _f32 = np.float32
 
 
+@functools.lru_cache(maxsize=8)
+def _f32_interval_constants(T: float) -> tuple[float, float, float]:
+    """``float32(T/2), float32(T), float32(1/T)`` as Python floats (the step interval rarely changes)."""
+    return float(_f32(T / 2.0)), float(_f32(T)), float(_f32(1.0 / T))
+
+
 def _qmul_f32(p: Sequence[float], q: Sequence[float]) -> tuple[float, ...]:
     """:func:`firmware_model.attitude.qmul` of two float32 quaternions (Python floats), float32 rounding."""
     p0, p1, p2, p3 = p
@@ -275,7 +282,8 @@ def _qmul_f32(p: Sequence[float], q: Sequence[float]) -> tuple[float, ...]:
 def _rv2q_f32(x: float, y: float, z: float) -> tuple[float, ...]:
     """:func:`firmware_model.attitude.rv2q` of a float32 rotation vector, float32 result: ``|phi|^2`` by
     numpy's float32 dot (its BLAS summation order), the trigonometry in double, ``float32(k) * phi``."""
-    n2 = float(np.dot(_array((x, y, z), dtype=_f32), _array((x, y, z), dtype=_f32)))
+    phi = _array((x, y, z), dtype=_f32)
+    n2 = float(np.dot(phi, phi))
     if n2 < 1e-16:
         c = 1.0 - n2 / 8.0
         k = 0.5 - n2 / 48.0
@@ -305,7 +313,7 @@ def strapdown_step_f32(s: NavState, phi_m: Sequence[float], dv_m: Sequence[float
     v0 = s.v.tolist()
     ve0, vn0, vu0 = v0
     q = s.q.tolist()
-    T2w, Tw, rTw = float(_f32(T / 2.0)), float(_f32(T)), float(_f32(1.0 / T))
+    T2w, Tw, rTw = _f32_interval_constants(T)
     px, py, pz = R3u(R3p(*phi_m))  # phi_m.astype(float32)
     dvx, dvy, dvz = R3u(R3p(*dv_m))
     # 3. mid-interval extrapolation: v_half = v + a_prev T/2 (float32); latitude, height, rates in double
@@ -357,7 +365,9 @@ def strapdown_step_f32(s: NavState, phi_m: Sequence[float], dv_m: Sequence[float
     wt = R3u(R3p(w_in[0] * Tw, w_in[1] * Tw, w_in[2] * Tw))
     qn = _qmul_f32(_rv2q_f32(-wt[0], -wt[1], -wt[2]), _qmul_f32(q, _rv2q_f32(px, py, pz)))
     qa = _array(qn, dtype=_f32)
-    s.q = qa / np.sqrt(np.dot(qa, qa))  # qnormalize in float32
+    # qnormalize in float32: |q|^2 by numpy's dot, sqrt and the divisions rounded to float32
+    (nrm,) = _R1.unpack(_R1.pack(_sqrt(float(np.dot(qa, qa)))))
+    s.q = _array(_R4.unpack(_R4.pack(qn[0] / nrm, qn[1] / nrm, qn[2] / nrm, qn[3] / nrm)), dtype=_f32)
     s.v = _array((ve1, vn1, vu1), dtype=_f32)
     s.a_prev = _array((ae, an, au), dtype=_f32)
     s.f_n = f_n

@@ -84,6 +84,7 @@ from __future__ import annotations
 
 import enum
 import struct
+from binascii import crc_hqx as _crc_hqx
 from dataclasses import dataclass
 from typing import Any
 
@@ -276,6 +277,8 @@ class HostFrame:
 
 _FRAME_HEAD = struct.Struct("<BH")
 _CRC16 = struct.Struct("<H")
+#: message id, length and NAV_SOLUTION payload: the CRC-covered body of a frame without VARIANT block
+_NAV_BODY = struct.Struct("<BH" + _NAV.format[1:])
 
 
 def build_host_frame(msg_id: int, payload: bytes) -> bytes:
@@ -300,7 +303,7 @@ def nav_solution_frame(seq: int, time_s: float, lat_deg: float, lon_deg: float, 
                        psns_units: int = 0, psns_q_mask: int = 0) -> bytes:
     """Whole NAV_SOLUTION frame from its fields (the :class:`NavSolution` fields, in order), without building a
     :class:`NavSolution` first: the firmware's 100 Hz output path. :func:`encode_nav_solution` calls it."""
-    payload = _NAV.pack(
+    fields = (
         seq & 0xFFFFFFFF,
         time_s,
         lat_deg,
@@ -317,9 +320,11 @@ def nav_solution_frame(seq: int, time_s: float, lat_deg: float, lon_deg: float, 
         max(0, min(0xFFFF, int(round(cpu_load_pct * 100)))),
         deadline_misses & 0xFFFFFFFF,
     )
-    if variant_mode is not None:
-        payload += _VARIANT_BLOCK.pack(NAV_VARIANT_BLOCK_ID, 4, variant_mode & 0xFF, psns_units & 0xFF,
-                                       psns_q_mask & 0xFFFF)
+    if variant_mode is None:  # the base variant's 102-byte frame: header and payload in one pack
+        body = _NAV_BODY.pack(MSG_NAV_SOLUTION, NAV_SOLUTION_LEN, *fields)
+        return HOST_SYNC + body + _CRC16.pack(_crc_hqx(body, 0xFFFF))
+    payload = _NAV.pack(*fields) + _VARIANT_BLOCK.pack(NAV_VARIANT_BLOCK_ID, 4, variant_mode & 0xFF,
+                                                       psns_units & 0xFF, psns_q_mask & 0xFFFF)
     return build_host_frame(MSG_NAV_SOLUTION, payload)
 
 

@@ -297,7 +297,7 @@ class Firmware:
         self._sub: list[tuple[np.ndarray, np.ndarray]] = []
         self._fn_sum = [0.0, 0.0, 0.0]  # sum of f^n over the KF interval (Python floats, float64)
         self._fn_n = 0
-        self._hist: deque[tuple[float, np.ndarray, np.ndarray, np.ndarray]] = deque(maxlen=int(2 * cfg.imu_rate_hz))
+        self._hist: deque[tuple[float, tuple[float, ...]]] = deque(maxlen=int(2 * cfg.imu_rate_hz))
         self._gnss_pending: GnssMeasurement | None = None
         self._last_fix: tuple[float, float, float, int] | None = None
         self._last_gnss_update_t = -1e9
@@ -711,14 +711,13 @@ class Firmware:
         s.t = t
         m.charge("strapdown", self._cyc_strapdown)
         # specific force in n of the step, averaged for the KF's F (Eq. 17)
-        fe, fn, fu = s.f_n.tolist()
+        x = s.as_floats()
         acc = self._fn_sum
-        acc[0] += fe
-        acc[1] += fn
-        acc[2] += fu
+        acc[0] += x[13]
+        acc[1] += x[14]
+        acc[2] += x[15]
         self._fn_n += 1
-        # the strapdown replaces the state's arrays (never writes them in place): the history keeps references
-        self._hist.append((t, s.pos, s.v, s.q))
+        self._hist.append((t, x))  # the state as floats (q, v, pos, ...; NavState.as_floats)
 
     def _update_bias_cache(self) -> tuple[Any, Any, tuple[float, ...]]:
         """``(gyro_bias, accel_bias, gyro_bias * T + accel_bias * T)``: the bias increments in the working
@@ -739,7 +738,8 @@ class Firmware:
             if e[0] < t_meas:
                 break
         assert best is not None
-        return best[1], best[2], best[3]
+        x, nd = best[1], self.nav_dtype
+        return np.array(x[7:10]), np.array(x[4:7], dtype=nd), np.array(x[0:4], dtype=nd)
 
     def _measurement_tasks(self, t: float, res: TickResult) -> None:
         cfg = self.cfg
@@ -999,10 +999,11 @@ class Firmware:
                 mode |= _PSNS_AIDED
             if t - self._last_psns_reject_t < 2.0:
                 mode |= _DEGRADED
-            lat, lon, h = s.pos.tolist()
-            vel = tuple(s.v.tolist())
+            x = s.as_floats()
+            lat, lon, h = x[7:10]
+            vel = x[4:7]
             # PSINS m2att from the quaternion directly: C32, C31, C33, C12, C22 of C_b^n
-            q0, q1, q2, q3 = s.q.tolist()
+            q0, q1, q2, q3 = x[0:4]
             c32 = 2.0 * (q2 * q3 + q0 * q1)
             pitch = math.asin(max(-1.0, min(1.0, c32))) / DEG
             roll = math.atan2(-2.0 * (q1 * q3 - q0 * q2), q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3) / DEG

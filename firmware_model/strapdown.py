@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
@@ -29,7 +28,27 @@ __all__ = ["NavState", "coning_sculling", "strapdown_step", "strapdown_step_f64"
 STRAPDOWN_FLOPS = 260
 
 
-@dataclass
+def _array_property(name: str, lo: int, hi: int, doc: str) -> property:
+    """A :class:`NavState` array attribute: the stored array, or built (read-only) from the floats."""
+    slot = "_" + name
+    is_pos = name == "pos"
+
+    def get(self: "NavState") -> np.ndarray:
+        a = getattr(self, slot)
+        if a is None:  # float form (strapdown_step_f64 / _f32): build the array once, read-only (D-10.F2)
+            a = np.array(self._x[lo:hi], dtype=np.float64 if is_pos else self._xdt)
+            a.flags.writeable = False
+            setattr(self, slot, a)
+        return a
+
+    def set(self: "NavState", value: np.ndarray) -> None:
+        if self._x is not None:
+            self._to_arrays()
+        setattr(self, slot, value)
+
+    return property(get, set, doc=doc)
+
+
 class NavState:
     """Navigation state of the mechanization.
 
@@ -41,17 +60,58 @@ class NavState:
     t : float64 time of validity, s (FPGA time).
     a_prev : (3,) previous ENU acceleration used for mid-interval extrapolation, m/s^2.
     f_n : (3,) specific force in n of the last step, m/s^2 (for the KF's F matrix).
+
+    Storage: writers assign new arrays, never write into them (docs/decisions.md D-10.F2). The strapdown
+    (:func:`strapdown_step_f64`, :func:`strapdown_step_f32`) keeps the state as 16 Python floats
+    (:meth:`as_floats`) and builds an attribute's array, read-only, when it is first read (the filters read them a few times per
+    second, the 200 Hz loop not at all): a step then creates no arrays. Assigning an attribute turns the
+    state back into arrays.
     """
 
-    q: np.ndarray
-    v: np.ndarray
-    pos: np.ndarray
-    t: float = 0.0
-    a_prev: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    f_n: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    __slots__ = ("t", "_q", "_v", "_pos", "_a_prev", "_f_n", "_x", "_xdt")
+
+    def __init__(self, q: np.ndarray, v: np.ndarray, pos: np.ndarray, t: float = 0.0,
+                 a_prev: np.ndarray | None = None, f_n: np.ndarray | None = None) -> None:
+        self._x: tuple[float, ...] | None = None
+        self._xdt: type = np.float64
+        self._q, self._v, self._pos = q, v, pos
+        self._a_prev = np.zeros(3) if a_prev is None else a_prev
+        self._f_n = np.zeros(3) if f_n is None else f_n
+        self.t = t
+
+    q = _array_property("q", 0, 4, "(4,) quaternion ``q_b^n``")
+    v = _array_property("v", 4, 7, "(3,) ENU velocity, m/s")
+    pos = _array_property("pos", 7, 10, "(3,) ``[L rad, lambda rad, h m]``, float64")
+    a_prev = _array_property("a_prev", 10, 13, "(3,) previous ENU acceleration, m/s^2")
+    f_n = _array_property("f_n", 13, 16, "(3,) specific force in n of the last step, m/s^2")
+
+    def as_floats(self) -> tuple[float, ...]:
+        """``(q0, q1, q2, q3, vE, vN, vU, L, lambda, h, a_prevE, a_prevN, a_prevU, f_nE, f_nN, f_nU)`` as
+        Python floats (exact values of the arrays' elements)."""
+        x = self._x
+        if x is None:
+            x = tuple(self.q.tolist() + self.v.tolist() + self.pos.tolist() + self.a_prev.tolist()
+                      + self.f_n.tolist())
+        return x
+
+    def _set_floats(self, x: tuple[float, ...], dtype: type = np.float64) -> None:
+        """Float form: the 16 values of :meth:`as_floats`; arrays built on demand, ``pos`` in float64, the
+        others in ``dtype`` (the values must be exactly representable in it)."""
+        self._x = x
+        self._xdt = dtype
+        self._q = self._v = self._pos = self._a_prev = self._f_n = None
+
+    def _to_arrays(self) -> None:
+        for name in ("q", "v", "pos", "a_prev", "f_n"):
+            getattr(self, name)  # builds the missing arrays from the floats
+        self._x = None
 
     def copy(self) -> "NavState":
         return NavState(self.q.copy(), self.v.copy(), self.pos.copy(), self.t, self.a_prev.copy(), self.f_n.copy())
+
+    def __repr__(self) -> str:
+        return (f"NavState(q={self.q!r}, v={self.v!r}, pos={self.pos!r}, t={self.t!r}, a_prev={self.a_prev!r}, "
+                f"f_n={self.f_n!r})")
 
 
 def coning_sculling(dtheta: np.ndarray, dv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -111,7 +171,7 @@ def strapdown_step(
     """
     if dtype is np.float64:
         return strapdown_step_f64(s, np.asarray(phi_m).tolist(), np.asarray(dv_m).tolist(), T)
-    if dtype is np.float32 and s.q.dtype == s.v.dtype == s.a_prev.dtype == np.float32:
+    if dtype is np.float32 and s.q.dtype == s.v.dtype == s.a_prev.dtype == np.float32:  # float32 state
         return strapdown_step_f32(s, np.asarray(phi_m).tolist(), np.asarray(dv_m).tolist(), T)
     return strapdown_step_numpy(s, phi_m, dv_m, T, dtype)
 
@@ -171,10 +231,7 @@ def strapdown_step_f64(s: NavState, phi_m: Sequence[float], dv_m: Sequence[float
     (``radii``, ``gravity`` inlined), one IEEE double operation per step. Vector notation in the
     comments; ``x, y, z`` suffixes are the body axes, ``e, n, u`` the ENU axes.
     """
-    lat, lon, h = s.pos.tolist()
-    ve0, vn0, vu0 = s.v.tolist()
-    q0, q1, q2, q3 = s.q.tolist()
-    ax, ay, az = s.a_prev.tolist()
+    q0, q1, q2, q3, ve0, vn0, vu0, lat, lon, h, ax, ay, az, _, _, _ = s.as_floats()
     px, py, pz = phi_m
     dvx, dvy, dvz = dv_m
     T2 = T / 2.0
@@ -221,7 +278,7 @@ def strapdown_step_f64(s: NavState, phi_m: Sequence[float], dv_m: Sequence[float
     vm_e = 0.5 * (ve0 + ve1)
     vm_n = 0.5 * (vn0 + vn1)
     vm_u = 0.5 * (vu0 + vu1)
-    s.pos = _array((lat + vm_n / rmh * T, lon + vm_e / (rnh * cl) * T, h + vm_u * T))
+    lat1, lon1, h1 = lat + vm_n / rmh * T, lon + vm_e / (rnh * cl) * T, h + vm_u * T
     # 6. attitude: q_k = rv2q(-w_in T) (x) q_{k-1} (x) rv2q(phi_m)
     a0, a1, a2, a3 = _rv2q(-(wi_e * T), -(wi_n * T), -(wi_u * T))
     b0, b1, b2, b3 = _rv2q(px, py, pz)
@@ -236,10 +293,7 @@ def strapdown_step_f64(s: NavState, phi_m: Sequence[float], dv_m: Sequence[float
     n2 = a0 * r2 - a1 * r3 + a2 * r0 + a3 * r1
     n3 = a0 * r3 + a1 * r2 - a2 * r1 + a3 * r0
     nrm = _sqrt(n0 * n0 + n1 * n1 + n2 * n2 + n3 * n3)  # qnormalize
-    s.q = _array((n0 / nrm, n1 / nrm, n2 / nrm, n3 / nrm))
-    s.v = _array((ve1, vn1, vu1))
-    s.a_prev = _array((ae, an, au))
-    s.f_n = _array((fe, fn, fu))
+    s._set_floats((n0 / nrm, n1 / nrm, n2 / nrm, n3 / nrm, ve1, vn1, vu1, lat1, lon1, h1, ae, an, au, fe, fn, fu))
     s.t += T
     return s
 
@@ -309,15 +363,16 @@ def strapdown_step_f32(s: NavState, phi_m: Sequence[float], dv_m: Sequence[float
     (``rv2q``, normalisation) and ``C_b^n x`` by numpy (their BLAS summation order); Earth quantities and
     position in double."""
     R3p, R3u = _R3.pack, _R3.unpack
-    lat, lon, h = s.pos.tolist()
-    v0 = s.v.tolist()
+    x = s.as_floats()
+    q = x[0:4]
+    v0 = x[4:7]
     ve0, vn0, vu0 = v0
-    q = s.q.tolist()
+    lat, lon, h = x[7:10]
     T2w, Tw, rTw = _f32_interval_constants(T)
     px, py, pz = R3u(R3p(*phi_m))  # phi_m.astype(float32)
     dvx, dvy, dvz = R3u(R3p(*dv_m))
     # 3. mid-interval extrapolation: v_half = v + a_prev T/2 (float32); latitude, height, rates in double
-    ax, ay, az = s.a_prev.tolist()
+    ax, ay, az = x[10:13]
     t = R3u(R3p(ax * T2w, ay * T2w, az * T2w))
     ve, vn, vu = R3u(R3p(ve0 + t[0], vn0 + t[1], vu0 + t[2]))
     d = 1.0 - _E2 * _sin(lat) ** 2  # earth.radii(lat)
@@ -360,16 +415,14 @@ def strapdown_step_f32(s: NavState, phi_m: Sequence[float], dv_m: Sequence[float
     vm_e = 0.5 * (ve0 + ve1)
     vm_n = 0.5 * (vn0 + vn1)
     vm_u = 0.5 * (vu0 + vu1)
-    s.pos = _array((lat + vm_n / rmh * T, lon + vm_e / (rnh * cl) * T, h + vm_u * T))
+    lat1, lon1, h1 = lat + vm_n / rmh * T, lon + vm_e / (rnh * cl) * T, h + vm_u * T
     # 6. attitude: q_k = rv2q(-w_in T) (x) q_{k-1} (x) rv2q(phi_m), normalised (float32)
     wt = R3u(R3p(w_in[0] * Tw, w_in[1] * Tw, w_in[2] * Tw))
     qn = _qmul_f32(_rv2q_f32(-wt[0], -wt[1], -wt[2]), _qmul_f32(q, _rv2q_f32(px, py, pz)))
     qa = _array(qn, dtype=_f32)
     # qnormalize in float32: |q|^2 by numpy's dot, sqrt and the divisions rounded to float32
     (nrm,) = _R1.unpack(_R1.pack(_sqrt(float(np.dot(qa, qa)))))
-    s.q = _array(_R4.unpack(_R4.pack(qn[0] / nrm, qn[1] / nrm, qn[2] / nrm, qn[3] / nrm)), dtype=_f32)
-    s.v = _array((ve1, vn1, vu1), dtype=_f32)
-    s.a_prev = _array((ae, an, au), dtype=_f32)
-    s.f_n = f_n
+    s._set_floats(_R4.unpack(_R4.pack(qn[0] / nrm, qn[1] / nrm, qn[2] / nrm, qn[3] / nrm))
+                  + (ve1, vn1, vu1, lat1, lon1, h1, ae, an, au, fe, fn, fu), _f32)
     s.t += T
     return s

@@ -112,3 +112,22 @@ def test_float32_strapdown_is_bit_identical_to_the_numpy_float32_formulation():
         for x, y in ((a.q, b.q), (a.v, b.v), (a.pos, b.pos), (a.f_n, b.f_n), (a.a_prev, b.a_prev)):
             assert x.dtype == y.dtype and x.tobytes() == y.tobytes(), k
     assert abs(a.pos[2] - 50.0) > 0.01  # the state moved
+
+
+def test_navstate_float_form_builds_read_only_arrays_and_assignment_returns_to_arrays():
+    s = _state()
+    before = s.as_floats()
+    strapdown_step_f64(s, (1e-4, -2e-4, 3e-5), (1e-3, 2e-3, 0.049), 0.005)
+    x = s.as_floats()
+    assert len(x) == 16 and x != before
+    assert s.q.tolist() == list(x[0:4]) and s.pos.tolist() == list(x[7:10]) and s.f_n.tolist() == list(x[13:16])
+    assert s.q.dtype == s.pos.dtype == np.float64
+    with pytest.raises(ValueError):
+        s.v[0] = 1.0  # the state's arrays are replaced, never written in place (D-10.F2)
+    s.v = np.array([1.0, 2.0, 3.0])  # assignment: back to arrays, the other attributes keep their values
+    assert s.as_floats()[4:7] == (1.0, 2.0, 3.0) and s.as_floats()[0:4] == x[0:4]
+    c = s.copy()
+    assert c.as_floats() == s.as_floats() and c.q is not s.q
+    f = NavState(s.q.astype(np.float32), s.v.astype(np.float32), s.pos.copy(), 0.0, np.zeros(3, np.float32))
+    strapdown_step(f, np.zeros(3, np.float32), np.array([0, 0, 0.049], np.float32), 0.005, dtype=np.float32)
+    assert f.q.dtype == f.v.dtype == f.a_prev.dtype == f.f_n.dtype == np.float32 and f.pos.dtype == np.float64

@@ -149,8 +149,7 @@ class FilterHost(Protocol):
     def ins_at(self, t_meas: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """INS position (lat, lon rad, h m; float64), ENU velocity and attitude quaternion ``q_b^n`` at ``t_meas``.
 
-        The arrays are the INS history's own (shared with the navigation state, docs/decisions.md D-10.F2):
-        read them, never write into them."""
+        Fresh arrays built from the INS history (docs/decisions.md D-10.F2)."""
 
     def mag_mean_nt(self, t_center_s: float, half_window_s: float = 0.025) -> tuple[np.ndarray, int] | None:
         """Mean magnetometer field (nT, body axes) of the MAG frames sampled within ``t_center_s +- half_window_s``."""

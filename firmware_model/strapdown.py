@@ -161,8 +161,8 @@ def strapdown_step(
     ``T/2``, trapezoidal position update, attitude update
     ``q_k = rv2q(-w_in^n T) (x) q_{k-1} (x) rv2q(phi_m)``.
 
-    The state's arrays are replaced, never written in place (the firmware's INS history keeps
-    references to them). In float64 the step runs on Python floats (:func:`strapdown_step_f64`:
+    The state's arrays are replaced, never written in place (:class:`NavState`, docs/decisions.md
+    D-10.F2). In float64 the step runs on Python floats (:func:`strapdown_step_f64`:
     IEEE double operations in a fixed order, docs/decisions.md D-10.F1). In float32 every operation
     is rounded to single precision as the C674x does: the element-wise work on Python floats rounded
     by ``struct`` (:mod:`firmware_model.precision`, bit for bit numpy's float32 results), the dot and

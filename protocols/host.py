@@ -303,6 +303,8 @@ def nav_solution_frame(seq: int, time_s: float, lat_deg: float, lon_deg: float, 
                        psns_units: int = 0, psns_q_mask: int = 0) -> bytes:
     """Whole NAV_SOLUTION frame from its fields (the :class:`NavSolution` fields, in order), without building a
     :class:`NavSolution` first: the firmware's 100 Hz output path. :func:`encode_nav_solution` calls it."""
+    load = round(cpu_load_pct * 100)  # 0.01 % units, clamped to u16
+    load = 0 if load < 0 else 0xFFFF if load > 0xFFFF else load
     fields = (
         seq & 0xFFFFFFFF,
         time_s,
@@ -317,7 +319,7 @@ def nav_solution_frame(seq: int, time_s: float, lat_deg: float, lon_deg: float, 
         mode & 0xFFFF,
         gnss_status & 0xFF,
         psns_status & 0xFF,
-        max(0, min(0xFFFF, int(round(cpu_load_pct * 100)))),
+        load,
         deadline_misses & 0xFFFFFFFF,
     )
     if variant_mode is None:  # the base variant's 102-byte frame: header and payload in one pack

@@ -1,15 +1,35 @@
-"""Firmware model wall time: Firmware.service per 200 Hz tick, and the PSNS solve rate.
+"""Firmware model wall time per 200 Hz tick (total and by part), and the PSNS solve rate.
 
-The stream is the firmware tests' synthetic static stream (IMU 200 Hz, GNSS 1 Hz, PSNS solar-vector frames
-at 5 Hz), fed through Firmware.receive/service; the time of service() alone is measured, best of 3.
+The stream is the firmware tests' synthetic static stream (IMU 200 Hz rate words, GNSS NMEA 1 Hz, PSNS
+frames at 5 Hz, NAV_SOLUTION out at 100 Hz), fed through ``Firmware.receive`` / ``Firmware.service`` exactly
+as the virtual DSP does. Rows:
+
+* ``Firmware.service per tick (static, GNSS, PSNS <kind>)``: service() alone (the cyclic executive), best
+  of 3 (the historical rows, docs/variants.md compares against them);
+* ``Firmware per tick, base filter, nav <dtype> (receive + service)``: everything the firmware does per
+  tick, decoding of every UART included; CPU time (``time.process_time``), median of ``REPEAT`` runs;
+* ``... part: <part>``: the same run split by part (median of ``REPEAT`` instrumented runs): ``decode``
+  (receive(): framing, CRC, parse of every UART), ``strapdown`` (``_mechanize``: bias compensation,
+  coning/sculling, mechanization, INS history), ``kf_predict`` (the filter's time update, every 20th
+  tick), ``updates`` (GNSS / PSNS measurement tasks, solve, feedback), ``output`` (NAV_SOLUTION build and
+  encode, every 2nd tick), ``rest`` (the tick's own bookkeeping: time, PPS, counters, raw-to-SI, load
+  window). ``cycle meter`` is the cost of the tick's CycleMeter calls replayed on a fresh meter
+  (already contained in the parts above; shown for its own sake). The parts are wall time
+  (``perf_counter`` around each call: a CPU-time clock costs 1.5 us per read here), so on a loaded machine
+  their sum can exceed the CPU-time total.
+
+Wall times on a shared 2-core machine are noisy: compare medians, not single runs.
+Run: ``.venv/bin/python -c "from benchmarks.bench_firmware import main; main()"``.
 """
 
 from __future__ import annotations
 
 import math
+import statistics
 import sys
 import time
 from pathlib import Path
+from typing import Any, Callable
 
 import numpy as np
 
@@ -18,16 +38,26 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from firmware_model import Firmware, FirmwareConfig, psns  # noqa: E402
+from firmware_model.c674x import CycleMeter  # noqa: E402
 from firmware_model.psns_geometry import CameraGeometry  # noqa: E402
 from tests.firmware_model.sky import observe_sky  # noqa: E402
 from tests.firmware_model.synth import SensorErrors, StaticTruth, StreamConfig, static_stream  # noqa: E402
 
 ERR = SensorErrors(gyro_bias_dph=(5, -3, 4), gyro_arw_deg_rt_h=0.15, accel_bias_mg=(1, -1, 0.5),
                    accel_noise_ug_rt_hz=100, gnss_pos_sigma_m=3, gnss_vel_sigma_mps=0.03, psns_sigma_deg=0.03)
+#: Runs per median.
+REPEAT = 5
+#: Simulated seconds per run (the first ~2 s are the coarse alignment).
+SECONDS = 30.0
+PARTS = ("decode", "strapdown", "kf_predict", "updates", "output", "rest")
+
+
+def _events(psns_kind: str | None, seconds: float) -> list[tuple[float, int, bytes]]:
+    return list(static_stream(StaticTruth(), ERR, StreamConfig(psns=psns_kind), seconds))
 
 
 def _service_us_per_tick(psns_kind: str | None, seconds: float = 60.0) -> float:
-    events = list(static_stream(StaticTruth(), ERR, StreamConfig(psns=psns_kind), seconds))
+    events = _events(psns_kind, seconds)
     best = math.inf
     for _ in range(3):
         fw = Firmware(FirmwareConfig(initial_heading_deg=30.5))
@@ -40,6 +70,114 @@ def _service_us_per_tick(psns_kind: str | None, seconds: float = 60.0) -> float:
                 ts += time.perf_counter() - t0
         best = min(best, ts / n)
     return best * 1e6
+
+
+def _total_us_per_tick(cfg: FirmwareConfig, events: list[tuple[float, int, bytes]]) -> float:
+    """receive() of every chunk plus service() of every tick, per tick (us of CPU time: robust against the
+    other processes on the shared cores, which stretch wall time but not this process's CPU time)."""
+    fw = Firmware(cfg)
+    receive, service = fw.receive, fw.service
+    n = 0
+    t0 = time.process_time()
+    for t, uart, data in events:
+        receive(uart, data, t)
+        if uart == 1:
+            n += len(service())
+    return (time.process_time() - t0) / n * 1e6
+
+
+def _timed(fn: Callable[..., Any], acc: list[float]) -> Callable[..., Any]:
+    pc = time.perf_counter
+
+    def wrapper(*a: Any, **k: Any) -> Any:
+        t0 = pc()
+        try:
+            return fn(*a, **k)
+        finally:
+            acc[0] += pc() - t0
+
+    return wrapper
+
+
+def _parts_us_per_tick(cfg: FirmwareConfig, events: list[tuple[float, int, bytes]]) -> dict[str, float]:
+    """One instrumented run: us per tick of each part (see module docstring)."""
+    fw = Firmware(cfg)
+    acc = {p: [0.0] for p in PARTS}
+    receive = _timed(fw.receive, acc["decode"])
+    fw._mechanize = _timed(fw._mechanize, acc["strapdown"])  # type: ignore[method-assign]
+    fw._measurement_tasks = _timed(fw._measurement_tasks, acc["updates"])  # type: ignore[method-assign]
+    fw._nav_output = _timed(fw._nav_output, acc["output"])  # type: ignore[method-assign]
+    flt = None
+    n = 0
+    t_service = 0.0
+    pc = time.perf_counter
+    for t, uart, data in events:
+        receive(uart, data, t)
+        if uart == 1:
+            if fw.filter is not flt:  # the filter object is replaced at alignment / reset
+                flt = fw.filter
+                flt.predict = _timed(flt.predict, acc["kf_predict"])  # type: ignore[method-assign]
+            t0 = pc()
+            n += len(fw.service())
+            t_service += pc() - t0
+    out = {p: acc[p][0] / n * 1e6 for p in PARTS if p != "rest"}
+    # kf_predict runs inside _imu_tick, output inside it too; updates and strapdown as well
+    out["rest"] = t_service / n * 1e6 - (out["strapdown"] + out["kf_predict"] + out["updates"] + out["output"])
+    return out
+
+
+def _meter_us_per_tick(cfg: FirmwareConfig, events: list[tuple[float, int, bytes]]) -> tuple[float, float]:
+    """Cost of the CycleMeter calls of one run, replayed on a fresh meter: (us per tick, calls per tick)."""
+    fw = Firmware(cfg)
+    m = fw.meter
+    calls: list[tuple[str, tuple[Any, ...]]] = []
+    for name in ("begin", "charge", "end"):
+        orig = getattr(m, name)
+
+        def rec(*a: Any, _n: str = name, _f: Callable[..., Any] = orig) -> Any:
+            calls.append((_n, a))
+            return _f(*a)
+
+        setattr(m, name, rec)
+    n = 0
+    for t, uart, data in events:
+        fw.receive(uart, data, t)
+        if uart == 1:
+            n += len(fw.service())
+    fresh = CycleMeter(cfg.clock_hz, cfg.imu_rate_hz)
+    seq = [(getattr(fresh, name), a) for name, a in calls]
+    noop = [(lambda *a: None, a) for _, a in calls]
+    best = math.inf
+    for _ in range(3):
+        t0 = time.perf_counter()
+        for f, a in seq:
+            f(*a)
+        t1 = time.perf_counter()
+        for f, a in noop:
+            f(*a)
+        best = min(best, (t1 - t0) - (time.perf_counter() - t1))
+    return max(best, 0.0) / n * 1e6, len(calls) / n
+
+
+def firmware_tick_rows(seconds: float = SECONDS, repeat: int = REPEAT) -> list[dict]:
+    """Per-tick totals and parts for the base filter, nav state in float64 (default) and float32."""
+    events = _events("solar_vector", seconds)
+    rows = []
+    for nav in ("float64", "float32"):
+        cfg = lambda: FirmwareConfig(initial_heading_deg=30.5, nav_state_precision=nav)  # noqa: E731
+        tot = statistics.median(_total_us_per_tick(cfg(), events) for _ in range(repeat))
+        rows.append({"name": f"Firmware per tick, base filter, nav {nav} (receive + service)", "value": tot,
+                     "unit": "us", "baseline": 20.0, "ratio": tot / 20.0,
+                     "note": f"median of {repeat}; baseline: the 20 us share of a 5 ms tick at 100x real time"})
+        runs = [_parts_us_per_tick(cfg(), events) for _ in range(repeat)]
+        for p in PARTS:
+            v = statistics.median(r[p] for r in runs)
+            rows.append({"name": f"  nav {nav} part: {p}", "value": v, "unit": "us", "baseline": tot,
+                         "ratio": v / tot, "note": "us per tick (median, instrumented); ratio: share of the total"})
+        us, ncalls = _meter_us_per_tick(cfg(), events)
+        rows.append({"name": f"  nav {nav} part: cycle meter (inside the parts)", "value": us, "unit": "us",
+                     "baseline": tot, "ratio": us / tot, "note": f"{ncalls:.1f} begin/charge/end calls per tick"})
+    return rows
 
 
 def _solves_per_s(n_points_stride: int) -> tuple[float, int]:
@@ -62,8 +200,19 @@ def run() -> list[dict]:
         us = _service_us_per_tick(kind)
         rows.append({"name": f"Firmware.service per tick (static, GNSS, PSNS {kind})", "value": us, "unit": "us",
                      "baseline": 5000.0, "ratio": us / 5000.0, "note": "baseline: the 5 ms tick period"})
+    rows.extend(firmware_tick_rows())
     for stride in (160, 16):
         rate, n = _solves_per_s(stride)
         rows.append({"name": f"PSNS solve, {n} points (E-vectors + K + eigen)", "value": rate, "unit": "solves/s",
                      "baseline": 5.0, "ratio": rate / 5.0, "note": "baseline: 5 Hz frame rate"})
     return rows
+
+
+def main() -> None:
+    """Print the per-tick rows only (the quick check while optimising)."""
+    for r in firmware_tick_rows():
+        print(f"{r['name']:<62}{r['value']:>9.2f} {r['unit']:<3} {r['note']}")
+
+
+if __name__ == "__main__":
+    main()

@@ -92,7 +92,15 @@ def rv2q(phi: np.ndarray) -> np.ndarray:
 
 
 def q2mat(q: np.ndarray) -> np.ndarray:
-    """Quaternion ``q_b^n`` to DCM ``C_b^n``."""
+    """Quaternion ``q_b^n`` to DCM ``C_b^n`` (in ``q``'s dtype)."""
+    if type(q) is np.ndarray and q.dtype == np.float64:
+        # the same double operations on Python floats (numpy scalar arithmetic costs ~0.1 us per operation)
+        q0, q1, q2, q3 = q.tolist()
+        return np.array((
+            q0 * q0 + q1 * q1 - q2 * q2 - q3 * q3, 2 * (q1 * q2 - q0 * q3), 2 * (q1 * q3 + q0 * q2),
+            2 * (q1 * q2 + q0 * q3), q0 * q0 - q1 * q1 + q2 * q2 - q3 * q3, 2 * (q2 * q3 - q0 * q1),
+            2 * (q1 * q3 - q0 * q2), 2 * (q2 * q3 + q0 * q1), q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3,
+        )).reshape(3, 3)
     q0, q1, q2, q3 = q
     return np.array(
         [

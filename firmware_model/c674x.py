@@ -258,6 +258,8 @@ class CycleMeter:
         self.tasks: dict[str, TaskMeter] = {}
         self._stack: list[tuple[TaskMeter, int]] = []
         self._acc = 0
+        #: kernel breakdown of the innermost open task (None: no task open); saves a stack lookup per charge
+        self._kernels: dict[str, int] | None = None
 
     @property
     def elapsed(self) -> int:
@@ -268,31 +270,38 @@ class CycleMeter:
         t = self.tasks.get(task)
         if t is None:
             t = self.tasks[task] = TaskMeter(task, self.tick_budget, period_s)
-        if not self._stack:
+        stack = self._stack
+        if not stack:
             self._acc = 0
-        self._stack.append((t, self._acc))
+        stack.append((t, self._acc))
+        self._kernels = t.kernels
 
     def charge(self, kernel: str, cycles: int) -> None:
         self._acc += cycles
-        if self._stack:
-            k = self._stack[-1][0].kernels
+        k = self._kernels
+        if k is not None:
             k[kernel] = k.get(kernel, 0) + cycles
 
     def end(self) -> int:
-        if not self._stack:
+        stack = self._stack
+        if not stack:
             return 0
-        t, start = self._stack.pop()
+        t, start = stack.pop()
         n = self._acc - start
-        t.calls += 1
+        calls = t.calls = t.calls + 1
         t.cycles_last = n
         t.cycles_total += n
-        if t.calls == 1:
+        if calls == 1:
             t.cycles_min = t.cycles_max = n
+        elif n > t.cycles_max:
+            t.cycles_max = n
+        elif n < t.cycles_min:
+            t.cycles_min = n
+        if stack:
+            self._kernels = stack[-1][0].kernels
         else:
-            t.cycles_max = max(t.cycles_max, n)
-            t.cycles_min = min(t.cycles_min, n)
-        if not self._stack:
             self._acc = 0
+            self._kernels = None
         return n
 
     def table(self) -> list[dict[str, object]]:

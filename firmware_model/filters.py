@@ -147,7 +147,9 @@ class FilterHost(Protocol):
         """Grena days (UT) at FPGA time ``t_fpga_s``, once GNSS gave date and time (else None)."""
 
     def ins_at(self, t_meas: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """INS position (lat, lon rad, h m; float64), ENU velocity and attitude quaternion ``q_b^n`` at ``t_meas``."""
+        """INS position (lat, lon rad, h m; float64), ENU velocity and attitude quaternion ``q_b^n`` at ``t_meas``.
+
+        Fresh arrays built from the INS history (docs/decisions.md D-10.F2)."""
 
     def mag_mean_nt(self, t_center_s: float, half_window_s: float = 0.025) -> tuple[np.ndarray, int] | None:
         """Mean magnetometer field (nT, body axes) of the MAG frames sampled within ``t_center_s +- half_window_s``."""
@@ -250,6 +252,7 @@ class BaseFilter(NavFilter):
         qa = 2.0 * (cfg.accel_bias_instability_mg * 1e-3 * G_STD) ** 2 / tau
         self.q = process_noise_psd(arw, vrw, qg, qa)
         self._eye = np.eye(N_STATES, dtype=dtype)
+        self._qk_interval, self._qk = math.nan, self.q  # Q_k of the last KF interval (predict)
         self._cyc_update = kf_scalar_update_cycles(self.cost)
         self._cyc_predict = kf_predict_cycles(self.cost)
         self._cyc_feedback = feedback_cycles(self.cost)
@@ -276,7 +279,9 @@ class BaseFilter(NavFilter):
         dt = self.dtype
         F = error_transition_matrix(q2mat(nav.q), nav.v, nav.pos, f_n, dtype=dt)
         Phi = self._eye + F * dt(Tk)
-        self.x, self.P = kf_predict(self.x, self.P, Phi, (self.q * Tk).astype(dt))
+        if Tk != self._qk_interval:  # Q_k = q T_k: the same every interval but the first after alignment
+            self._qk_interval, self._qk = Tk, (self.q * Tk).astype(dt)
+        self.x, self.P = kf_predict(self.x, self.P, Phi, self._qk)
         self.meter.charge("kf_predict", self._cyc_predict)
 
     # -- measurement updates --------------------------------------------------------------------

@@ -49,14 +49,13 @@ from protocols.host import (
     HostFrame,
     HostStatus,
     NavMode,
-    NavSolution,
     RequestStatus,
     ResetFilter,
     SelectVariant,
     SetOutputRate,
     encode_ack,
-    encode_nav_solution,
     encode_status,
+    nav_solution_frame,
 )
 from protocols.imu_frame import ACCEL_VOLTS_PER_G, ADC_VOLTS_PER_LSB, FpgaFrameFormat, FpgaStatus, ImuFrame, MagFrame
 from protocols.nmea import Gga, NmeaFormat, Rmc
@@ -72,7 +71,8 @@ from .errors import FirmwareError
 from .filters import FILTER_VARIANTS, GnssMeasurement, NavFilter, SolarObservation, UpdateReport
 from .variants.params import VariantParams  # importing the package registers the issue-6 variants
 from .psns_geometry import CameraGeometry
-from .strapdown import NavState, coning_sculling, strapdown_step
+from .precision import rounder
+from .strapdown import NavState, coning_sculling, strapdown_step_f32, strapdown_step_f64
 
 __all__ = ["UART_HOST", "UART_IMU", "UART_PSNS", "UART_GNSS", "FirmwareConfig", "TickResult", "Firmware",
            "FirmwareState", "tick_kernel_cycles"]
@@ -82,6 +82,7 @@ UART_HOST, UART_IMU, UART_PSNS, UART_GNSS = 0, 1, 2, 3
 DEG = math.pi / 180.0
 G_STD = 9.80665
 DPH = DEG / 3600.0  # deg/h in rad/s
+_sqrt = math.sqrt
 
 
 def tick_kernel_cycles(c: c674x.KernelCosts, nav_dp: bool = True) -> dict[str, int]:
@@ -247,8 +248,19 @@ class Firmware:
         self.meter = c674x.CycleMeter(cfg.clock_hz, cfg.imu_rate_hz)
         self.cost = c674x.KernelCosts(cfg.precision)
         self._cyc = tick_kernel_cycles(self.cost, nav_dp=self.nav_dtype is np.float64)
+        self._cyc_decode, self._cyc_convert = self._cyc["imu_decode"], self._cyc["imu_convert"]
+        self._cyc_coning1, self._cyc_strapdown = self._cyc["coning1"], self._cyc["strapdown"]
         self.T = 1.0 / cfg.imu_rate_hz
         self._nsub = cfg.subsamples
+        # IMU conversion constants in the working precision (Python floats holding dtype values)
+        dt = self.dtype
+        lsb = GYRO_RATE_LSB_DPS * DEG * self.T if cfg.gyro_output == "rate" else GYRO_ANGLE_LSB_DEG * DEG
+        self._gyro_k = float(dt(lsb))
+        self._T_w = float(dt(self.T))
+        self._kv = ADC_VOLTS_PER_LSB * G_STD
+        self._round3 = rounder(dt, 3)
+        self._pack6, self._unpack6 = rounder(dt, 6).pack, rounder(dt, 6).unpack
+        self._bias_cache: tuple[Any, Any, tuple[float, ...]] = (None, None, ())
         self._out_every = int(round(cfg.imu_rate_hz / cfg.output_rate_hz))
         self._dec_imu = StreamDecoder([FpgaFrameFormat()])
         self._dec_gnss = StreamDecoder([NmeaFormat(), UbxFormat()])
@@ -283,9 +295,9 @@ class Firmware:
         self._mag_hist: deque[tuple[float, tuple[int, int, int]]] = deque(maxlen=128)  # (t_sample_s, field)
         self._tick = 0
         self._sub: list[tuple[np.ndarray, np.ndarray]] = []
-        self._fn_sum = np.zeros(3)
+        self._fn_sum = [0.0, 0.0, 0.0]  # sum of f^n over the KF interval (Python floats, float64)
         self._fn_n = 0
-        self._hist: deque[tuple[float, np.ndarray, np.ndarray, np.ndarray]] = deque(maxlen=int(2 * cfg.imu_rate_hz))
+        self._hist: deque[tuple[float, tuple[float, ...]]] = deque(maxlen=int(2 * cfg.imu_rate_hz))
         self._gnss_pending: GnssMeasurement | None = None
         self._last_fix: tuple[float, float, float, int] | None = None
         self._last_gnss_update_t = -1e9
@@ -493,10 +505,10 @@ class Firmware:
         m = self.meter
         m.begin("imu_tick", self.T)
         m.begin("imu", self.T)
-        m.charge("imu_decode", self._cyc["imu_decode"])
+        m.charge("imu_decode", self._cyc_decode)
         t_us = self._unwrap_us(fr.t_trigger_us)
         t = t_us / 1e6
-        res = TickResult(t_fpga_s=t, cycles=0)
+        res = TickResult(t, 0)
         self.counters["imu_frames"] += 1
         if fr.fpga_status & _PPS_VALID and fr.pps_count != self._pps_count:
             self._pps_count = fr.pps_count
@@ -509,29 +521,25 @@ class Firmware:
         if self._last_counter is not None and (fr.gyro_counter - self._last_counter) % 256 != cfg.gyro_counter_step:
             self.counters["gyro_counter_jumps"] += 1
         self._last_counter = fr.gyro_counter
-        # raw words to SI: 6 INTSP + 6 MPYSP [D]
-        dt = self.dtype
+        # raw words to SI: 6 INTSP + 6 MPYSP [D] (Python floats rounded to the working precision,
+        # firmware_model.precision): gyro words (s24, exact) times the LSB; ADC codes to m/s^2
         g = fr.gyro
-        if cfg.gyro_output == "rate":
-            k = dt(GYRO_RATE_LSB_DPS * DEG * self.T)
-        else:
-            k = dt(GYRO_ANGLE_LSB_DEG * DEG)
-        dtheta = np.array(g, dtype=dt) * k
         a = fr.accel
-        kv = ADC_VOLTS_PER_LSB * G_STD
-        vpg = cfg.accel_volts_per_g
-        f_b = np.array((a[0] * kv / vpg[0], a[1] * kv / vpg[1], a[2] * kv / vpg[2]), dtype=dt)
-        m.charge("imu_convert", self._cyc["imu_convert"])
+        kv, vpg = self._kv, self.cfg.accel_volts_per_g
+        r3 = self._round3
+        f_b = r3.unpack(r3.pack(a[0] * kv / vpg[0], a[1] * kv / vpg[1], a[2] * kv / vpg[2]))
+        m.charge("imu_convert", self._cyc_convert)
 
         if self.state == FirmwareState.COARSE_ALIGN:
-            self._align(t, f_b, res)
+            self._align(t, np.array(f_b, dtype=self.dtype), res)
             m.end()
         else:
-            self._mechanize(t, dtheta, f_b)
+            self._mechanize(t, g, f_b)
             if self._tick % cfg.kf_predict_every == 0 and self._fn_n:
                 m.begin("kf_predict", cfg.kf_predict_every * self.T)
-                fn = self._fn_sum / self._fn_n
-                self._fn_sum[:] = 0.0
+                n = self._fn_n
+                fn = np.array([x / n for x in self._fn_sum])
+                self._fn_sum = [0.0, 0.0, 0.0]
                 self._fn_n = 0
                 Tk = t - self._t_last_predict  # the first interval after alignment may be shorter
                 self._t_last_predict = t
@@ -652,46 +660,74 @@ class Firmware:
         return cbn, el
 
     # -- navigation ---------------------------------------------------------------------------------
-    def _mechanize(self, t: float, dtheta: np.ndarray, f_b: np.ndarray) -> None:
-        """Bias compensation, coning/sculling and one strapdown step per ``subsamples`` IMU samples."""
+    def _mechanize(self, t: float, gyro: tuple[int, int, int], f_b: tuple[float, float, float]) -> None:
+        """Bias compensation, coning/sculling and one strapdown step per ``subsamples`` IMU samples.
+
+        ``gyro``: the raw STIM words; ``f_b``: specific force (m/s^2, body, in the working precision).
+        Every operation in the working precision (``self._round*``, :mod:`firmware_model.precision`).
+        """
         m = self.meter
         s = self.nav
         assert s is not None
-        dt = self.dtype
-        T = self.T
-        dv = f_b * dt(T)
-        flt = self.filter
+        k, T_w = self._gyro_k, self._T_w
+        pack6, unpack6 = self._pack6, self._unpack6  # round 6 values to the working precision
+        # dtheta = gyro * LSB, dv = f_b * T
+        dth_x, dth_y, dth_z, dv_x, dv_y, dv_z = unpack6(pack6(gyro[0] * k, gyro[1] * k, gyro[2] * k,
+                                                              f_b[0] * T_w, f_b[1] * T_w, f_b[2] * T_w))
         if self._nsub == 1:
-            phi_m = dtheta - flt.gyro_bias * dt(T)
-            dv_c = dv - flt.accel_bias * dt(T)
-            # single-sample rotation compensation dv + 1/2 dtheta x dv (algorithms.md 1.2, step 1)
-            dv_m = dv_c + dt(0.5) * np.array((phi_m[1] * dv_c[2] - phi_m[2] * dv_c[1],
-                                                phi_m[2] * dv_c[0] - phi_m[0] * dv_c[2],
-                                                phi_m[0] * dv_c[1] - phi_m[1] * dv_c[0]), dtype=dt)
-            m.charge("coning_sculling", self._cyc["coning1"])
-            Tm = T
+            flt = self.filter
+            bias = self._bias_cache
+            if bias[0] is not flt.gyro_bias or bias[1] is not flt.accel_bias:
+                bias = self._update_bias_cache()
+            gb_x, gb_y, gb_z, ab_x, ab_y, ab_z = bias[2]
+            px, py, pz, ux, uy, uz = unpack6(pack6(dth_x - gb_x, dth_y - gb_y, dth_z - gb_z,
+                                                   dv_x - ab_x, dv_y - ab_y, dv_z - ab_z))  # phi_m, dv_c
+            # single-sample rotation compensation dv_m = dv_c + 1/2 phi_m x dv_c (algorithms.md 1.2, step 1)
+            c0, c1, c2, c3, c4, c5 = unpack6(pack6(py * uz, pz * ux, px * uy, pz * uy, px * uz, py * ux))
+            r3 = self._round3
+            c0, c1, c2 = r3.unpack(r3.pack(c0 - c3, c1 - c4, c2 - c5))
+            phi_m = (px, py, pz)
+            dv_m = r3.unpack(r3.pack(ux + 0.5 * c0, uy + 0.5 * c1, uz + 0.5 * c2))
+            m.charge("coning_sculling", self._cyc_coning1)
+            Tm = self.T
         else:
-            self._sub.append((dtheta, dv))
+            dt = self.dtype
+            self._sub.append((np.array((dth_x, dth_y, dth_z), dtype=dt), np.array((dv_x, dv_y, dv_z), dtype=dt)))
             if len(self._sub) < self._nsub:
                 return
             th = np.stack([x[0] for x in self._sub])
             vv = np.stack([x[1] for x in self._sub])
             self._sub.clear()
-            phi_m, dv_m = coning_sculling(th, vv)
-            Tm = T * self._nsub
-            phi_m = (phi_m - flt.gyro_bias * dt(Tm)).astype(dt)
-            dv_m = (dv_m - flt.accel_bias * dt(Tm)).astype(dt)
+            phi, dvm = coning_sculling(th, vv)
+            Tm = self.T * self._nsub
+            flt = self.filter
+            phi_m = (phi - flt.gyro_bias * dt(Tm)).astype(dt).tolist()
+            dv_m = (dvm - flt.accel_bias * dt(Tm)).astype(dt).tolist()
             m.charge("coning_sculling", self._cyc["coning2"])
-        strapdown_step(s, phi_m, dv_m, Tm, dtype=self.nav_dtype)
+        if self.nav_dtype is np.float64:
+            strapdown_step_f64(s, phi_m, dv_m, Tm)
+        else:
+            strapdown_step_f32(s, phi_m, dv_m, Tm)
         s.t = t
-        m.charge("strapdown", self._cyc["strapdown"])
-        self._accumulate_fn()
-        self._hist.append((t, s.pos.copy(), s.v.copy(), s.q.copy()))
-
-    def _accumulate_fn(self) -> None:
-        """Specific force in n of the last strapdown step, averaged for the KF's F (Eq. 17)."""
-        self._fn_sum += self.nav.f_n  # type: ignore[union-attr]
+        m.charge("strapdown", self._cyc_strapdown)
+        # specific force in n of the step, averaged for the KF's F (Eq. 17)
+        x = s.as_floats()
+        acc = self._fn_sum
+        acc[0] += x[13]
+        acc[1] += x[14]
+        acc[2] += x[15]
         self._fn_n += 1
+        self._hist.append((t, x))  # the state as floats (q, v, pos, ...; NavState.as_floats)
+
+    def _update_bias_cache(self) -> tuple[Any, Any, tuple[float, ...]]:
+        """``(gyro_bias, accel_bias, gyro_bias * T + accel_bias * T)``: the bias increments in the working
+        precision, recomputed when the filter's estimates change (feedback replaces the arrays); the same
+        products every tick otherwise."""
+        flt = self.filter
+        gb, ab = flt.gyro_bias, flt.accel_bias
+        T_w = self.dtype(self.T)
+        self._bias_cache = (gb, ab, tuple((gb * T_w).tolist() + (ab * T_w).tolist()))
+        return self._bias_cache
 
     def _ins_at(self, t_meas: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """INS position (float64), velocity and attitude quaternion at ``t_meas`` (nearest history entry)."""
@@ -702,7 +738,8 @@ class Firmware:
             if e[0] < t_meas:
                 break
         assert best is not None
-        return best[1], best[2], best[3]
+        x, nd = best[1], self.nav_dtype
+        return np.array(x[7:10]), np.array(x[4:7], dtype=nd), np.array(x[0:4], dtype=nd)
 
     def _measurement_tasks(self, t: float, res: TickResult) -> None:
         cfg = self.cfg
@@ -908,7 +945,7 @@ class Firmware:
         self._align_t0 = None
         self._align_sun.clear()
         self._sub.clear()
-        self._fn_sum[:] = 0.0
+        self._fn_sum = [0.0, 0.0, 0.0]
         self._fn_n = 0
         self._hist.clear()
         self._gnss_pending = None
@@ -962,16 +999,17 @@ class Firmware:
                 mode |= _PSNS_AIDED
             if t - self._last_psns_reject_t < 2.0:
                 mode |= _DEGRADED
-            lat, lon, h = s.pos.tolist()
-            vel = tuple(s.v.tolist())
+            x = s.as_floats()
+            lat, lon, h = x[7:10]
+            vel = x[4:7]
             # PSINS m2att from the quaternion directly: C32, C31, C33, C12, C22 of C_b^n
-            q0, q1, q2, q3 = s.q.tolist()
+            q0, q1, q2, q3 = x[0:4]
             c32 = 2.0 * (q2 * q3 + q0 * q1)
             pitch = math.asin(max(-1.0, min(1.0, c32))) / DEG
             roll = math.atan2(-2.0 * (q1 * q3 - q0 * q2), q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3) / DEG
             yaw = math.atan2(-2.0 * (q1 * q2 - q0 * q3), q0 * q0 - q1 * q1 + q2 * q2 - q3 * q3)
             heading = heading_from_yaw(yaw) / DEG
-            d = [math.sqrt(max(v, 0.0)) for v in self.filter.P.diagonal()[:9].tolist()]
+            d = [_sqrt(0.0 if v < 0.0 else v) for v in self.filter.P.diagonal()[:9].tolist()]  # sqrt(max(v, 0))
             rm, rn = earth.radii(lat)
             sigma = (
                 d[0] / DEG, d[1] / DEG, d[2] / DEG, d[3], d[4], d[5],
@@ -981,28 +1019,13 @@ class Firmware:
         vs = self.filter.variant_status()
         if vs is not None:  # VARIANT block: pack 4 bytes + CRC over 6 more [E]
             self.meter.charge("nav_variant_block", 6 * 4 + 4 * 2)
-        n = NavSolution(
-            seq=self._out_seq,
-            time_s=t,
-            lat_deg=lat / DEG,
-            lon_deg=lon / DEG,
-            height_m=h,
-            vel_enu_mps=vel,  # type: ignore[arg-type]
-            roll_deg=roll,
-            pitch_deg=pitch,
-            heading_deg=heading,
-            sigma=sigma,
-            mode=int(mode),
-            gnss_status=fix[3] if fix is not None else 0,
-            psns_status=self._psns_status_now(t),
-            cpu_load_pct=self.cpu_load_pct(),
-            deadline_misses=self.deadline_misses,
-            variant_mode=vs[0] if vs is not None else None,
-            psns_units=vs[1] if vs is not None else 0,
-            psns_q_mask=vs[2] if vs is not None else 0,
-        )
-        self._out_seq += 1
-        return encode_nav_solution(n)
+        seq = self._out_seq
+        self._out_seq = seq + 1
+        # the NavSolution fields in order (protocols.host.nav_solution_frame), without building the object
+        return nav_solution_frame(
+            seq, t, lat / DEG, lon / DEG, h, vel, roll, pitch, heading, sigma, int(mode),
+            fix[3] if fix is not None else 0, self._psns_status_now(t), self.cpu_load_pct(), self.deadline_misses,
+            *(vs if vs is not None else (None, 0, 0)))
 
     # -- introspection (tests, reports) ----------------------------------------------------------------
     @property

@@ -75,61 +75,66 @@ def error_transition_matrix(
     pos : (3,) ``[L rad, lambda rad, h m]``.
     f_n : (3,) specific force in n, m/s^2.
     """
-    lat, h = float(pos[0]), float(pos[2])
-    ve, vn, vu = (float(x) for x in v_enu)
-    fe, fn, fu = (float(x) for x in f_n)
+    lat, _, h = np.asarray(pos, dtype=np.float64).tolist()
+    ve, vn, vu = np.asarray(v_enu).tolist()  # exact doubles of float32 or float64 values
+    fe, fn, fu = np.asarray(f_n).tolist()
     s, c = math.sin(lat), math.cos(lat)
     t = s / c
     sec = 1.0 / c
     W = earth.OMEGA_IE
     rm, rn = earth.radii(lat)
     rmh, rnh = rm + h, rn + h
+    # (row, column) -> value, the element list of algorithms.md 1.3 in its order; written into F in one call
+    rs, rs2, rm2 = ve * t / rnh, rnh**2, rmh**2
+    elements = (
+        # attitude rows (1-3)
+        (0, 1, W * s + rs),
+        (0, 2, -(W * c + ve / rnh)),
+        (0, 4, -1.0 / rmh),
+        (0, 8, vn / rm2),
+        (1, 0, -(W * s + rs)),
+        (1, 2, -vn / rmh),
+        (1, 3, 1.0 / rnh),
+        (1, 6, -W * s),
+        (1, 8, -ve / rs2),
+        (2, 0, W * c + ve / rnh),
+        (2, 1, vn / rmh),
+        (2, 3, t / rnh),
+        (2, 6, W * c + ve * sec**2 / rnh),
+        (2, 8, -ve * t / rs2),
+        # velocity rows (4-6)
+        (3, 1, -fu),
+        (3, 2, fn),
+        (4, 0, fu),
+        (4, 2, -fe),
+        (5, 0, -fn),
+        (5, 1, fe),
+        (3, 3, (vn * t - vu) / rnh),
+        (3, 4, 2 * W * s + rs),
+        (3, 5, -(2 * W * c + ve / rnh)),
+        (3, 6, 2 * W * (vu * s + vn * c) + ve * vn * sec**2 / rnh),
+        (3, 8, ve * (vu - vn * t) / rs2),
+        (4, 3, -2 * (W * s + rs)),
+        (4, 4, -vu / rmh),
+        (4, 5, -vn / rmh),
+        (4, 6, -2 * W * ve * c - ve**2 * sec**2 / rnh),
+        (4, 8, vu * vn / rm2 + ve**2 * t / rs2),
+        (5, 3, 2 * (W * c + ve / rnh)),
+        (5, 4, 2 * vn / rmh),
+        (5, 6, -2 * W * ve * s - earth.G0 * (2 * 5.27094e-3 + 4 * 2.32718e-5 * s * s) * s * c),
+        (5, 8, -(vn**2) / rm2 - ve**2 / rs2 + 3.086e-6),
+        # position rows (7-9)
+        (6, 4, 1.0 / rmh),
+        (6, 8, -vn / rm2),
+        (7, 3, sec / rnh),
+        (7, 6, ve * t * sec / rnh),
+        (7, 8, -ve * sec / rs2),
+        (8, 5, 1.0),
+    )
     F = np.zeros((15, 15), dtype=np.float64)
-    # attitude rows (1-3)
-    F[0, 1] = W * s + ve * t / rnh
-    F[0, 2] = -(W * c + ve / rnh)
-    F[0, 4] = -1.0 / rmh
-    F[0, 8] = vn / rmh**2
-    F[1, 0] = -(W * s + ve * t / rnh)
-    F[1, 2] = -vn / rmh
-    F[1, 3] = 1.0 / rnh
-    F[1, 6] = -W * s
-    F[1, 8] = -ve / rnh**2
-    F[2, 0] = W * c + ve / rnh
-    F[2, 1] = vn / rmh
-    F[2, 3] = t / rnh
-    F[2, 6] = W * c + ve * sec**2 / rnh
-    F[2, 8] = -ve * t / rnh**2
-    F[0:3, 9:12] = -cbn
-    # velocity rows (4-6)
-    F[3, 1] = -fu
-    F[3, 2] = fn
-    F[4, 0] = fu
-    F[4, 2] = -fe
-    F[5, 0] = -fn
-    F[5, 1] = fe
-    F[3, 3] = (vn * t - vu) / rnh
-    F[3, 4] = 2 * W * s + ve * t / rnh
-    F[3, 5] = -(2 * W * c + ve / rnh)
-    F[3, 6] = 2 * W * (vu * s + vn * c) + ve * vn * sec**2 / rnh
-    F[3, 8] = ve * (vu - vn * t) / rnh**2
-    F[4, 3] = -2 * (W * s + ve * t / rnh)
-    F[4, 4] = -vu / rmh
-    F[4, 5] = -vn / rmh
-    F[4, 6] = -2 * W * ve * c - ve**2 * sec**2 / rnh
-    F[4, 8] = vu * vn / rmh**2 + ve**2 * t / rnh**2
-    F[5, 3] = 2 * (W * c + ve / rnh)
-    F[5, 4] = 2 * vn / rmh
-    F[5, 6] = -2 * W * ve * s - earth.G0 * (2 * 5.27094e-3 + 4 * 2.32718e-5 * s * s) * s * c
-    F[5, 8] = -(vn**2) / rmh**2 - ve**2 / rnh**2 + 3.086e-6
-    F[3:6, 12:15] = cbn
-    # position rows (7-9)
-    F[6, 4] = 1.0 / rmh
-    F[6, 8] = -vn / rmh**2
-    F[7, 3] = sec / rnh
-    F[7, 6] = ve * t * sec / rnh
-    F[7, 8] = -ve * sec / rnh**2
-    F[8, 5] = 1.0
+    F.flat[[15 * i + j for i, j, _ in elements]] = [v for _, _, v in elements]
+    F[0:3, 9:12] = -cbn  # gyro drift into attitude
+    F[3:6, 12:15] = cbn  # accelerometer bias into velocity
     return F.astype(dtype)
 
 
@@ -143,7 +148,7 @@ def kf_predict(
     x = Phi @ x
     P = Phi @ P @ Phi.T
     if Qk.ndim == 1:
-        P[np.diag_indices_from(P)] += Qk
+        P.flat[:: P.shape[0] + 1] += Qk  # the diagonal (a strided view: no index arrays)
     else:
         P = P + Qk
     P = 0.5 * (P + P.T)
@@ -169,9 +174,10 @@ def kf_update_scalar(
     innov = float(z - h @ x)
     K = a / dt(s)
     x = x + K * dt(innov)
-    B = P - np.outer(K, a)
+    Kc = K[:, None]  # outer products by broadcasting (what np.outer computes, without its Python wrapper)
+    B = P - Kc * a
     c = B @ h
-    P = B - np.outer(c, K) + dt(r) * np.outer(K, K)
+    P = B - c[:, None] * K + dt(r) * (Kc * K)
     P = dt(0.5) * (P + P.T)
     return x, P, innov, s
 

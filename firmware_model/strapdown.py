@@ -11,21 +11,44 @@ State: ``q = q_b^n`` (scalar first), ``v = v^n`` (m/s, ENU), ``pos = [L, lambda,
 
 from __future__ import annotations
 
+import functools
 import math
-from dataclasses import dataclass, field
+from typing import Sequence
 
 import numpy as np
 
 from . import earth
 from .attitude import cross3, q2mat, qmul, qnormalize, rv2q
+from .precision import rounder
 
-__all__ = ["NavState", "coning_sculling", "strapdown_step", "STRAPDOWN_FLOPS"]
+__all__ = ["NavState", "coning_sculling", "strapdown_step", "strapdown_step_f64", "strapdown_step_f32",
+           "strapdown_step_numpy", "STRAPDOWN_FLOPS"]
 
 #: Rough floating-point operation count of one :func:`strapdown_step` (for the cycle model).
 STRAPDOWN_FLOPS = 260
 
 
-@dataclass
+def _array_property(name: str, lo: int, hi: int, doc: str) -> property:
+    """A :class:`NavState` array attribute: the stored array, or built (read-only) from the floats."""
+    slot = "_" + name
+    is_pos = name == "pos"
+
+    def get(self: "NavState") -> np.ndarray:
+        a = getattr(self, slot)
+        if a is None:  # float form (strapdown_step_f64 / _f32): build the array once, read-only (D-10.F2)
+            a = np.array(self._x[lo:hi], dtype=np.float64 if is_pos else self._xdt)
+            a.flags.writeable = False
+            setattr(self, slot, a)
+        return a
+
+    def set(self: "NavState", value: np.ndarray) -> None:
+        if self._x is not None:
+            self._to_arrays()
+        setattr(self, slot, value)
+
+    return property(get, set, doc=doc)
+
+
 class NavState:
     """Navigation state of the mechanization.
 
@@ -37,17 +60,58 @@ class NavState:
     t : float64 time of validity, s (FPGA time).
     a_prev : (3,) previous ENU acceleration used for mid-interval extrapolation, m/s^2.
     f_n : (3,) specific force in n of the last step, m/s^2 (for the KF's F matrix).
+
+    Storage: writers assign new arrays, never write into them (docs/decisions.md D-10.F2). The strapdown
+    (:func:`strapdown_step_f64`, :func:`strapdown_step_f32`) keeps the state as 16 Python floats
+    (:meth:`as_floats`) and builds an attribute's array, read-only, when it is first read (the filters read them a few times per
+    second, the 200 Hz loop not at all): a step then creates no arrays. Assigning an attribute turns the
+    state back into arrays.
     """
 
-    q: np.ndarray
-    v: np.ndarray
-    pos: np.ndarray
-    t: float = 0.0
-    a_prev: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    f_n: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    __slots__ = ("t", "_q", "_v", "_pos", "_a_prev", "_f_n", "_x", "_xdt")
+
+    def __init__(self, q: np.ndarray, v: np.ndarray, pos: np.ndarray, t: float = 0.0,
+                 a_prev: np.ndarray | None = None, f_n: np.ndarray | None = None) -> None:
+        self._x: tuple[float, ...] | None = None
+        self._xdt: type = np.float64
+        self._q, self._v, self._pos = q, v, pos
+        self._a_prev = np.zeros(3) if a_prev is None else a_prev
+        self._f_n = np.zeros(3) if f_n is None else f_n
+        self.t = t
+
+    q = _array_property("q", 0, 4, "(4,) quaternion ``q_b^n``")
+    v = _array_property("v", 4, 7, "(3,) ENU velocity, m/s")
+    pos = _array_property("pos", 7, 10, "(3,) ``[L rad, lambda rad, h m]``, float64")
+    a_prev = _array_property("a_prev", 10, 13, "(3,) previous ENU acceleration, m/s^2")
+    f_n = _array_property("f_n", 13, 16, "(3,) specific force in n of the last step, m/s^2")
+
+    def as_floats(self) -> tuple[float, ...]:
+        """``(q0, q1, q2, q3, vE, vN, vU, L, lambda, h, a_prevE, a_prevN, a_prevU, f_nE, f_nN, f_nU)`` as
+        Python floats (exact values of the arrays' elements)."""
+        x = self._x
+        if x is None:
+            x = tuple(self.q.tolist() + self.v.tolist() + self.pos.tolist() + self.a_prev.tolist()
+                      + self.f_n.tolist())
+        return x
+
+    def _set_floats(self, x: tuple[float, ...], dtype: type = np.float64) -> None:
+        """Float form: the 16 values of :meth:`as_floats`; arrays built on demand, ``pos`` in float64, the
+        others in ``dtype`` (the values must be exactly representable in it)."""
+        self._x = x
+        self._xdt = dtype
+        self._q = self._v = self._pos = self._a_prev = self._f_n = None
+
+    def _to_arrays(self) -> None:
+        for name in ("q", "v", "pos", "a_prev", "f_n"):
+            getattr(self, name)  # builds the missing arrays from the floats
+        self._x = None
 
     def copy(self) -> "NavState":
         return NavState(self.q.copy(), self.v.copy(), self.pos.copy(), self.t, self.a_prev.copy(), self.f_n.copy())
+
+    def __repr__(self) -> str:
+        return (f"NavState(q={self.q!r}, v={self.v!r}, pos={self.pos!r}, t={self.t!r}, a_prev={self.a_prev!r}, "
+                f"f_n={self.f_n!r})")
 
 
 def coning_sculling(dtheta: np.ndarray, dv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -84,18 +148,36 @@ def strapdown_step(
     T: float,
     dtype: type = np.float32,
 ) -> NavState:
-    """Advance the navigation state by one interval ``T`` (s), in place; returns ``s``.
+    """Advance the navigation state by one interval ``T`` (s); returns ``s``.
 
     Parameters
     ----------
     phi_m : (3,) compensated body rotation vector over the interval, rad.
     dv_m : (3,) compensated body velocity increment over the interval, m/s.
+    dtype : precision of the attitude and velocity arithmetic (the firmware's ``nav_state_precision``).
 
     Steps follow algorithms.md 1.2 (PSINS ``insupdate``): mid-interval extrapolation of
     velocity and position, velocity update with the rotation of the navigation frame over
     ``T/2``, trapezoidal position update, attitude update
     ``q_k = rv2q(-w_in^n T) (x) q_{k-1} (x) rv2q(phi_m)``.
+
+    The state's arrays are replaced, never written in place (:class:`NavState`, docs/decisions.md
+    D-10.F2). In float64 the step runs on Python floats (:func:`strapdown_step_f64`:
+    IEEE double operations in a fixed order, docs/decisions.md D-10.F1). In float32 every operation
+    is rounded to single precision as the C674x does: the element-wise work on Python floats rounded
+    by ``struct`` (:mod:`firmware_model.precision`, bit for bit numpy's float32 results), the dot and
+    matrix-vector products by numpy (:func:`strapdown_step_f32`); the generic numpy formulation below
+    serves other dtype mixes.
     """
+    if dtype is np.float64:
+        return strapdown_step_f64(s, np.asarray(phi_m).tolist(), np.asarray(dv_m).tolist(), T)
+    if dtype is np.float32 and s.q.dtype == s.v.dtype == s.a_prev.dtype == np.float32:  # float32 state
+        return strapdown_step_f32(s, np.asarray(phi_m).tolist(), np.asarray(dv_m).tolist(), T)
+    return strapdown_step_numpy(s, phi_m, dv_m, T, dtype)
+
+
+def strapdown_step_numpy(s: NavState, phi_m: np.ndarray, dv_m: np.ndarray, T: float, dtype: type) -> NavState:
+    """:func:`strapdown_step` on numpy arrays and scalars of ``dtype`` (the reference formulation; any dtype mix)."""
     lat, lon, h = float(s.pos[0]), float(s.pos[1]), float(s.pos[2])
     v = s.v
     dt = dtype
@@ -130,5 +212,217 @@ def strapdown_step(
     s.v = v_new
     s.a_prev = a_n.astype(dt)
     s.f_n = f_n
+    s.t += T
+    return s
+
+
+_A, _E2, _1_E2 = earth.A_WGS84, earth.E2_WGS84, 1.0 - earth.E2_WGS84
+_W_IE, _G0, _G_B1, _G_B2, _G_H = earth.OMEGA_IE, earth.G0, earth._G_B1, earth._G_B2, earth._G_H
+_sin, _cos, _sqrt = math.sin, math.cos, math.sqrt
+_array, _f64 = np.array, np.float64
+
+
+def strapdown_step_f64(s: NavState, phi_m: Sequence[float], dv_m: Sequence[float], T: float) -> NavState:
+    """:func:`strapdown_step` in double precision on Python floats (no per-operation numpy overhead).
+
+    ``phi_m``, ``dv_m``: the compensated increments as three Python floats each (rad, m/s, body).
+
+    Same equations and evaluation order as the float32 path and :mod:`firmware_model.earth`
+    (``radii``, ``gravity`` inlined), one IEEE double operation per step. Vector notation in the
+    comments; ``x, y, z`` suffixes are the body axes, ``e, n, u`` the ENU axes.
+    """
+    q0, q1, q2, q3, ve0, vn0, vu0, lat, lon, h, ax, ay, az, _, _, _ = s.as_floats()
+    px, py, pz = phi_m
+    dvx, dvy, dvz = dv_m
+    T2 = T / 2.0
+    # 3. mid-interval extrapolation: v_half = v + a_prev T/2, latitude and height at T/2
+    ve, vn, vu = ve0 + ax * T2, vn0 + ay * T2, vu0 + az * T2
+    d = 1.0 - _E2 * _sin(lat) ** 2  # earth.radii(lat)
+    rn = _A / _sqrt(d)
+    rm = rn * _1_E2 / d
+    lat_h = lat + vn / (rm + h) * T2
+    h_h = h + vu * T2
+    sl, cl = _sin(lat_h), _cos(lat_h)
+    s2 = sl**2  # earth.radii(lat_h) and earth.gravity(lat_h, h_h) share sin^2
+    d = 1.0 - _E2 * s2
+    rn = _A / _sqrt(d)
+    rm = rn * _1_E2 / d
+    rmh, rnh = rm + h_h, rn + h_h
+    wie_n, wie_u = _W_IE * cl, _W_IE * sl
+    wen_e, wen_n, wen_u = -vn / rmh, ve / rnh, ve * sl / cl / rnh
+    wi_e, wi_n, wi_u = wen_e, wie_n + wen_n, wie_u + wen_u  # w_in = w_ie + w_en
+    wc_e, wc_n, wc_u = wen_e, 2.0 * wie_n + wen_n, 2.0 * wie_u + wen_u  # 2 w_ie + w_en
+    g = _G0 * (1.0 + _G_B1 * s2 + _G_B2 * s2 * s2) - _G_H * h_h
+    # 4. velocity: f^n = C_b^n dv_m / T (q2mat), a = f^n - (w_in T/2) x f^n - w_cor x v - g
+    c00 = q0 * q0 + q1 * q1 - q2 * q2 - q3 * q3
+    c01 = 2 * (q1 * q2 - q0 * q3)
+    c02 = 2 * (q1 * q3 + q0 * q2)
+    c10 = 2 * (q1 * q2 + q0 * q3)
+    c11 = q0 * q0 - q1 * q1 + q2 * q2 - q3 * q3
+    c12 = 2 * (q2 * q3 - q0 * q1)
+    c20 = 2 * (q1 * q3 - q0 * q2)
+    c21 = 2 * (q2 * q3 + q0 * q1)
+    c22 = q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3
+    rT = 1.0 / T
+    fx, fy, fz = dvx * rT, dvy * rT, dvz * rT
+    fe = c00 * fx + c01 * fy + c02 * fz
+    fn = c10 * fx + c11 * fy + c12 * fz
+    fu = c20 * fx + c21 * fy + c22 * fz
+    he, hn, hu = wi_e * T2, wi_n * T2, wi_u * T2
+    ae = fe - (hn * fu - hu * fn) - (wc_n * vu0 - wc_u * vn0)
+    an = fn - (hu * fe - he * fu) - (wc_u * ve0 - wc_e * vu0)
+    au = fu - (he * fn - hn * fe) - (wc_e * vn0 - wc_n * ve0)
+    au -= g
+    ve1, vn1, vu1 = ve0 + ae * T, vn0 + an * T, vu0 + au * T
+    # 5. position, trapezoidal velocity, radii at the mid-interval latitude
+    vm_e = 0.5 * (ve0 + ve1)
+    vm_n = 0.5 * (vn0 + vn1)
+    vm_u = 0.5 * (vu0 + vu1)
+    lat1, lon1, h1 = lat + vm_n / rmh * T, lon + vm_e / (rnh * cl) * T, h + vm_u * T
+    # 6. attitude: q_k = rv2q(-w_in T) (x) q_{k-1} (x) rv2q(phi_m)
+    a0, a1, a2, a3 = _rv2q(-(wi_e * T), -(wi_n * T), -(wi_u * T))
+    b0, b1, b2, b3 = _rv2q(px, py, pz)
+    # qmul(q, b)
+    r0 = q0 * b0 - q1 * b1 - q2 * b2 - q3 * b3
+    r1 = q0 * b1 + q1 * b0 + q2 * b3 - q3 * b2
+    r2 = q0 * b2 - q1 * b3 + q2 * b0 + q3 * b1
+    r3 = q0 * b3 + q1 * b2 - q2 * b1 + q3 * b0
+    # qmul(a, r)
+    n0 = a0 * r0 - a1 * r1 - a2 * r2 - a3 * r3
+    n1 = a0 * r1 + a1 * r0 + a2 * r3 - a3 * r2
+    n2 = a0 * r2 - a1 * r3 + a2 * r0 + a3 * r1
+    n3 = a0 * r3 + a1 * r2 - a2 * r1 + a3 * r0
+    nrm = _sqrt(n0 * n0 + n1 * n1 + n2 * n2 + n3 * n3)  # qnormalize
+    s._set_floats((n0 / nrm, n1 / nrm, n2 / nrm, n3 / nrm, ve1, vn1, vu1, lat1, lon1, h1, ae, an, au, fe, fn, fu))
+    s.t += T
+    return s
+
+
+def _rv2q(x: float, y: float, z: float) -> tuple[float, float, float, float]:
+    """:func:`firmware_model.attitude.rv2q` on Python floats."""
+    n2 = x * x + y * y + z * z
+    if n2 < 1e-16:
+        c = 1.0 - n2 / 8.0
+        k = 0.5 - n2 / 48.0
+    else:
+        n = _sqrt(n2)
+        c = _cos(n / 2.0)
+        k = _sin(n / 2.0) / n
+    return c, k * x, k * y, k * z
+
+
+_R1, _R3, _R4, _R6, _R8, _R10, _R16 = (rounder(np.float32, n) for n in (1, 3, 4, 6, 8, 10, 16))
+_f32 = np.float32
+
+
+@functools.lru_cache(maxsize=8)
+def _f32_interval_constants(T: float) -> tuple[float, float, float]:
+    """``float32(T/2), float32(T), float32(1/T)`` as Python floats (the step interval rarely changes)."""
+    return float(_f32(T / 2.0)), float(_f32(T)), float(_f32(1.0 / T))
+
+
+def _qmul_f32(p: Sequence[float], q: Sequence[float]) -> tuple[float, ...]:
+    """:func:`firmware_model.attitude.qmul` of two float32 quaternions (Python floats), float32 rounding."""
+    p0, p1, p2, p3 = p
+    q0, q1, q2, q3 = q
+    (m00, m11, m22, m33, m01, m10, m23, m32, m02, m13, m20, m31, m03, m12, m21, m30) = _R16.unpack(_R16.pack(
+        p0 * q0, p1 * q1, p2 * q2, p3 * q3, p0 * q1, p1 * q0, p2 * q3, p3 * q2,
+        p0 * q2, p1 * q3, p2 * q0, p3 * q1, p0 * q3, p1 * q2, p2 * q1, p3 * q0))
+    r = _R4.unpack(_R4.pack(m00 - m11, m01 + m10, m02 - m13, m03 + m12))
+    r = _R4.unpack(_R4.pack(r[0] - m22, r[1] + m23, r[2] + m20, r[3] - m21))
+    return _R4.unpack(_R4.pack(r[0] - m33, r[1] - m32, r[2] + m31, r[3] + m30))
+
+
+def _rv2q_f32(x: float, y: float, z: float) -> tuple[float, ...]:
+    """:func:`firmware_model.attitude.rv2q` of a float32 rotation vector, float32 result: ``|phi|^2`` by
+    numpy's float32 dot (its BLAS summation order), the trigonometry in double, ``float32(k) * phi``."""
+    phi = _array((x, y, z), dtype=_f32)
+    n2 = float(np.dot(phi, phi))
+    if n2 < 1e-16:
+        c = 1.0 - n2 / 8.0
+        k = 0.5 - n2 / 48.0
+    else:
+        n = _sqrt(n2)
+        c = _cos(n / 2.0)
+        k = _sin(n / 2.0) / n
+    (k,) = _R1.unpack(_R1.pack(k))  # float32(k) * phi (NumPy's rule for a Python float times float32)
+    return _R4.unpack(_R4.pack(c, k * x, k * y, k * z))
+
+
+def _cross_f32(a: Sequence[float], b: Sequence[float]) -> tuple[float, ...]:
+    """:func:`firmware_model.attitude.cross3` of two float32 3-vectors, float32 rounding."""
+    a0, a1, a2 = a
+    b0, b1, b2 = b
+    p = _R6.unpack(_R6.pack(a1 * b2, a2 * b1, a2 * b0, a0 * b2, a0 * b1, a1 * b0))
+    return _R3.unpack(_R3.pack(p[0] - p[1], p[2] - p[3], p[4] - p[5]))
+
+
+def strapdown_step_f32(s: NavState, phi_m: Sequence[float], dv_m: Sequence[float], T: float) -> NavState:
+    """:func:`strapdown_step` with a float32 state (``q``, ``v``, ``a_prev`` float32 arrays; ``phi_m``, ``dv_m``
+    three Python floats each, rounded to float32 here), bit for bit the numpy float32 formulation: element-wise float32 operations on Python floats rounded by ``struct``; the dot products
+    (``rv2q``, normalisation) and ``C_b^n x`` by numpy (their BLAS summation order); Earth quantities and
+    position in double."""
+    R3p, R3u = _R3.pack, _R3.unpack
+    x = s.as_floats()
+    q = x[0:4]
+    v0 = x[4:7]
+    ve0, vn0, vu0 = v0
+    lat, lon, h = x[7:10]
+    T2w, Tw, rTw = _f32_interval_constants(T)
+    px, py, pz = R3u(R3p(*phi_m))  # phi_m.astype(float32)
+    dvx, dvy, dvz = R3u(R3p(*dv_m))
+    # 3. mid-interval extrapolation: v_half = v + a_prev T/2 (float32); latitude, height, rates in double
+    ax, ay, az = x[10:13]
+    t = R3u(R3p(ax * T2w, ay * T2w, az * T2w))
+    ve, vn, vu = R3u(R3p(ve0 + t[0], vn0 + t[1], vu0 + t[2]))
+    d = 1.0 - _E2 * _sin(lat) ** 2  # earth.radii(lat)
+    rn = _A / _sqrt(d)
+    rm = rn * _1_E2 / d
+    lat_h = lat + vn / (rm + h) * (T / 2.0)
+    h_h = h + vu * (T / 2.0)
+    sl, cl = _sin(lat_h), _cos(lat_h)
+    s2 = sl**2
+    d = 1.0 - _E2 * s2
+    rn = _A / _sqrt(d)
+    rm = rn * _1_E2 / d
+    rmh, rnh = rm + h_h, rn + h_h
+    wie_n, wie_u = _W_IE * cl, _W_IE * sl
+    wen_e, wen_n, wen_u = -vn / rmh, ve / rnh, ve * sl / cl / rnh
+    w_in = R3u(R3p(wen_e, wie_n + wen_n, wie_u + wen_u))
+    w_cor = R3u(R3p(wen_e, 2.0 * wie_n + wen_n, 2.0 * wie_u + wen_u))
+    g = _G0 * (1.0 + _G_B1 * s2 + _G_B2 * s2 * s2) - _G_H * h_h
+    # 4. velocity: f^n = C_b^n dv_m / T; C_b^n = q2mat(q) in float32
+    q0, q1, q2, q3 = q
+    p00, p11, p22, p33, p12, p03, p13, p02, p23, p01 = _R10.unpack(_R10.pack(
+        q0 * q0, q1 * q1, q2 * q2, q3 * q3, q1 * q2, q0 * q3, q1 * q3, q0 * q2, q2 * q3, q0 * q1))
+    a, b, d01, d02, d10, d12, d20, d21 = _R8.unpack(_R8.pack(
+        p00 + p11, p00 - p11, p12 - p03, p13 + p02, p12 + p03, p23 - p01, p13 - p02, p23 + p01))
+    c00, c11, c22 = R3u(R3p(a - p22, b + p22, b - p22))
+    c00, c11, c22 = R3u(R3p(c00 - p33, c11 - p33, c22 + p33))
+    cbn = _array((c00, 2 * d01, 2 * d02, 2 * d10, c11, 2 * d12, 2 * d20, 2 * d21, c22), dtype=_f32).reshape(3, 3)
+    f_n = cbn @ _array(R3u(R3p(dvx * rTw, dvy * rTw, dvz * rTw)), dtype=_f32)
+    fe, fn, fu = f_n.tolist()
+    # a = f^n - (w_in T/2) x f^n - w_cor x v - g
+    c1 = _cross_f32(R3u(R3p(w_in[0] * T2w, w_in[1] * T2w, w_in[2] * T2w)), (fe, fn, fu))
+    c2 = _cross_f32(w_cor, v0)
+    ae, an, au = R3u(R3p(fe - c1[0], fn - c1[1], fu - c1[2]))
+    ae, an, au = R3u(R3p(ae - c2[0], an - c2[1], au - c2[2]))
+    (gw,) = _R1.unpack(_R1.pack(g))
+    ae, an, au = R3u(R3p(ae, an, au - gw))
+    t = R3u(R3p(ae * Tw, an * Tw, au * Tw))
+    ve1, vn1, vu1 = R3u(R3p(ve0 + t[0], vn0 + t[1], vu0 + t[2]))
+    # 5. position (double), trapezoidal velocity, radii at the mid-interval latitude
+    vm_e = 0.5 * (ve0 + ve1)
+    vm_n = 0.5 * (vn0 + vn1)
+    vm_u = 0.5 * (vu0 + vu1)
+    lat1, lon1, h1 = lat + vm_n / rmh * T, lon + vm_e / (rnh * cl) * T, h + vm_u * T
+    # 6. attitude: q_k = rv2q(-w_in T) (x) q_{k-1} (x) rv2q(phi_m), normalised (float32)
+    wt = R3u(R3p(w_in[0] * Tw, w_in[1] * Tw, w_in[2] * Tw))
+    qn = _qmul_f32(_rv2q_f32(-wt[0], -wt[1], -wt[2]), _qmul_f32(q, _rv2q_f32(px, py, pz)))
+    qa = _array(qn, dtype=_f32)
+    # qnormalize in float32: |q|^2 by numpy's dot, sqrt and the divisions rounded to float32
+    (nrm,) = _R1.unpack(_R1.pack(_sqrt(float(np.dot(qa, qa)))))
+    s._set_floats(_R4.unpack(_R4.pack(qn[0] / nrm, qn[1] / nrm, qn[2] / nrm, qn[3] / nrm))
+                  + (ve1, vn1, vu1, lat1, lon1, h1, ae, an, au, fe, fn, fu), _f32)
     s.t += T
     return s

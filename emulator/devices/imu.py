@@ -421,7 +421,8 @@ class Stim210Gyro:
         self.source = source
         self.counter = 0
         self.counter_step = int(round(STIM_COUNTER_HZ / trigger_rate_hz))
-        self.datagrams_sent = 0
+        self._queued = 0
+        self._last_send_t = -math.inf
         self.last_measured = np.zeros(3)
         self._accel_hint: np.ndarray | None = None
         #: injected faults (bias step, stuck axis, reduced range); see :class:`InjectedFaults`
@@ -492,11 +493,17 @@ class Stim210Gyro:
             if rng.random() < self.drop_probability:
                 self.datagrams_dropped += 1
                 return
-        self.link.loop.call_at(t + self.response_delay_s, self._send, frame)
+        # the gyro is its link's only writer, in time order: decide the transmission now (one timer,
+        # the delivery, instead of two)
+        t_send = t + self.response_delay_s
+        self.link.send_at(t_send, frame)
+        self._queued += 1
+        self._last_send_t = t_send
 
-    def _send(self, frame: bytes) -> None:
-        self.link.send(frame)
-        self.datagrams_sent += 1
+    @property
+    def datagrams_sent(self) -> int:
+        """Datagrams whose transmission has started (one may be queued for its response delay)."""
+        return self._queued - (1 if self._last_send_t > self.link.loop.time() else 0)
 
 
 class AnalogAccelerometers:

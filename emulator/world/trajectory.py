@@ -115,6 +115,13 @@ class Trajectory(ABC):
         """Body-frame angle (rad) and velocity (m/s) increments over ``[t0, t1]``:
         ``int omega_ib^b dt`` and ``int f^b dt``."""
 
+    def imu_increments_ready(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray] | None:
+        """:meth:`imu_increments` if it is available without new work (read-only arrays), else None.
+
+        The IMU models look ahead with it (:mod:`emulator.devices.imu`) without moving the blocks
+        in which a trajectory computes its increments (which would change them in the last bit)."""
+        return None
+
 
 class StaticTrajectory(Trajectory):
     """A vehicle at rest at ``lat, lon, h`` with fixed attitude.
@@ -155,6 +162,9 @@ class StaticTrajectory(Trajectory):
     def imu_increments(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
         dt = t1 - t0
         return self._w * dt, self._f * dt
+
+    def imu_increments_ready(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray] | None:
+        return self.imu_increments(t0, t1)
 
 
 # --------------------------------------------------------------------------------------------
@@ -478,6 +488,11 @@ class SegmentTrajectory(Trajectory):
             if hit is None:  # pragma: no cover - rounding corner
                 return self._increments_exact(t0, t1)
         return hit[0].copy(), hit[1].copy()
+
+    def imu_increments_ready(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray] | None:
+        if t1 - t0 <= 0.0:
+            return None
+        return self._block.get((int(round(t0 * 1e9)), int(round((t1 - t0) * 1e9))))
 
     def imu_increments_exact(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
         """The same increments without the block cache (for tests and irregular intervals)."""

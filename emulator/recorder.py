@@ -51,6 +51,9 @@ import numpy as np
 
 from firmware_model import earth
 from protocols.host import NavMode, NavSolution
+from protocols.imu_frame import FpgaFrameFormat, ImuFrameFormat
+from protocols.psns import PsnsFormat
+from protocols.stim import Stim210Format
 from protocols.stream import FrameFormat, StreamDecoder
 
 from .links.base import Link
@@ -171,6 +174,37 @@ class ErrorStats:
         return {"rms": math.sqrt(self.sum_sq / self.n), "max": self.max}
 
 
+class _Counted:
+    """A frame format that delimits and checks like ``fmt`` but does not build the frame object.
+
+    For the recorder's counting decoders (only the totals are kept). Used only for the formats of
+    :data:`COUNT_ONLY_FORMATS`, whose ``parse`` is a fixed-layout unpack of a frame whose length
+    ``frame_length`` has already validated and so cannot fail: the decoder's counters (frames, CRC
+    errors, garbage, resyncs) are exactly those of the full format
+    (``tests/emulator/test_recorder_counting.py``)."""
+
+    __slots__ = ("name", "sync", "frame_length", "check")
+
+    def __init__(self, fmt: FrameFormat) -> None:
+        self.name = fmt.name
+        self.sync = fmt.sync
+        self.frame_length = fmt.frame_length
+        self.check = fmt.check
+
+    @staticmethod
+    def parse(frame: bytes) -> None:
+        return None
+
+
+#: formats counted without parsing (see :class:`_Counted`)
+COUNT_ONLY_FORMATS: tuple[type, ...] = (Stim210Format, ImuFrameFormat, FpgaFrameFormat, PsnsFormat)
+
+
+def counting_format(fmt: FrameFormat) -> FrameFormat:
+    """``fmt`` itself, or its non-parsing twin when counting its frames cannot differ (:class:`_Counted`)."""
+    return _Counted(fmt) if type(fmt) in COUNT_ONLY_FORMATS else fmt  # type: ignore[return-value]
+
+
 @dataclass
 class _Tap:
     link: Link
@@ -235,7 +269,9 @@ class Recorder:
         """
         if self._cap is not None:
             raise RuntimeError("tap() after start()")
-        t = _Tap(link, {d: StreamDecoder(list(f)) for d, f in formats.items() if f}, nav=name == self.nav_port)
+        nav = name == self.nav_port
+        t = _Tap(link, {d: StreamDecoder(list(f) if nav and d == "out" else [counting_format(x) for x in f])
+                        for d, f in formats.items() if f}, nav=nav)
         t.pending = {d: bytearray() for d in t.decoders if not (t.nav and d == "out")}
         self._taps[name] = t
         self._link_index[name] = len(self._link_index)

@@ -306,7 +306,7 @@ class Recorder:
         buf = tap.pending.get(direction)
         if buf is not None:
             buf += data
-            if len(buf) > 65536:
+            if len(buf) > self.PENDING_BYTES:
                 tap.decoders[direction].feed(buf)
                 buf.clear()
         elif tap.nav and direction == "out":
@@ -326,8 +326,11 @@ class Recorder:
         self.events.append(rec)
 
     # -- navigation output against truth (batched) ------------------------------------------------
-    #: frames compared with truth in one batch (the trajectory is evaluated vectorised, ~1 us per frame)
-    NAV_BATCH = 256
+    #: frames compared with truth in one batch (the trajectory is evaluated vectorised, ~1 us per frame);
+    #: small enough that a batch (~0.3 ms) never delays the next IMU tick in realtime mode
+    NAV_BATCH = 25
+    #: bytes a counting tap buffers before decoding them (a bounded burst, ~0.3 ms, in realtime mode)
+    PENDING_BYTES = 4096
 
     @property
     def errors(self) -> dict[str, ErrorStats]:

@@ -38,6 +38,7 @@ first, so readers always see every frame received so far.
 
 from __future__ import annotations
 
+import asyncio
 import json
 import math
 import struct
@@ -251,6 +252,7 @@ class Recorder:
         self._mode_series = array("d")
         #: navigation frames (arrival time, frame) whose truth comparison is still to be done
         self._nav_pending: list[tuple[float, NavSolution]] = []
+        self._drain_soon = False
         self._tables: dict[str, tuple[IO[str], list[str], list[str]]] = {}
         self.nav_count = 0
         self.event_counts: dict[str, int] = {}
@@ -357,11 +359,17 @@ class Recorder:
             cb(t_arrival, n)
         pend = self._nav_pending
         pend.append((t_arrival, n))
-        if len(pend) >= self.NAV_BATCH:
-            self._drain_nav()
+        if len(pend) >= self.NAV_BATCH and not self._drain_soon:
+            # after the frame has gone on (this runs inside the link's delivery, before a pty write)
+            try:
+                asyncio.get_running_loop().call_soon(self._drain_nav)
+                self._drain_soon = True
+            except RuntimeError:  # no event loop (a replay tool, a test): now
+                self._drain_nav()
 
     def _drain_nav(self) -> None:
         """Compare the pending frames with truth (one vectorised trajectory evaluation)."""
+        self._drain_soon = False
         pend = self._nav_pending
         if not pend:
             return

@@ -59,7 +59,7 @@ def main() -> int:
         t.add_row(r["name"], f"{r['value']:.4g}", r["unit"],
                   "" if r.get("baseline") is None else f"{r['baseline']:.4g}",
                   "" if r.get("ratio") is None else f"{r['ratio']:.2f}", r.get("note", ""))
-    Console().print(t)
+    Console(width=max(200, Console().width)).print(t)
     out = {"python": sys.version.split()[0], "machine": platform.machine(), "time": time.time(), "results": rows}
     path.write_text(json.dumps(out, indent=2) + "\n")
     return 0

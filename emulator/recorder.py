@@ -510,7 +510,12 @@ def _fmt(x: Any) -> str:
 
 def _row(values: Sequence[Any]) -> str:
     """One CSV line (``\\r\\n`` as the csv module writes): floats by repr, non-finite ones empty."""
-    return ",".join([repr(x) if x.__class__ is float and x - x == 0.0 else _fmt(x) for x in values]) + "\r\n"
+    line = ",".join(map(repr, values))
+    # repr is already right for finite Python floats, ints and bools; anything else (NaN, inf, numpy
+    # scalars, strings) takes the careful path
+    if "n" in line or "i" in line or "'" in line or "(" in line or "<" in line or " " in line:
+        return ",".join([repr(x) if x.__class__ is float and x - x == 0.0 else _fmt(x) for x in values]) + "\r\n"
+    return line + "\r\n"
 
 
 def _c_bn(pitch: float, roll: float, yaw: float) -> list[float]:

@@ -1,8 +1,8 @@
 """The fast-mode loop's batched iterations run callbacks exactly as asyncio's own iteration does.
 
 :meth:`emulator.clock.EmulatorLoop._run_fast` replaces ``asyncio.BaseEventLoop._run_once`` in fast
-mode for speed (issue 10). The reference here is the same loop class with the fast path switched
-off (every iteration through asyncio's ``_run_once``): a random workload of timers (ties at the
+mode for speed (issue 10), and its ``call_at`` builds lighter timer handles. The reference here is the
+same loop class with both switched off (asyncio's ``_run_once`` and ``call_at``): a random workload of timers (ties at the
 same instant, cancellations, callbacks that schedule more callbacks, ``call_soon`` chains, a
 coroutine sleeping) must give the identical trace of (virtual time, callback id), in order.
 """
@@ -18,9 +18,14 @@ from emulator.clock import EmulatorLoop
 
 
 class _ReferenceLoop(EmulatorLoop):
+    """asyncio's own iteration and asyncio's own timer handles."""
+
     def _run_once(self) -> None:
         self._cap = None
         asyncio.SelectorEventLoop._run_once(self)  # type: ignore[attr-defined]
+
+    def call_at(self, when, callback, *args, context=None):  # type: ignore[override]
+        return asyncio.SelectorEventLoop.call_at(self, when, callback, *args, context=context)
 
 
 def _trace(loop_cls: type, seed: int) -> list[tuple[float, int]]:

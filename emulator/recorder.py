@@ -31,7 +31,8 @@ second, so an interrupted run keeps everything up to the interruption):
 Cost: frame counting on the other taps only needs the totals, so their bytes are buffered and
 decoded in batches (at every flush and whenever the summary is read); CSV rows are formatted
 by hand and written in batches. Navigation frames are compared with truth in batches of
-:attr:`Recorder.NAV_BATCH` (one vectorised trajectory evaluation, bit-for-bit the per-frame values);
+:attr:`Recorder.NAV_BATCH` (:attr:`Recorder.NAV_BATCH_REALTIME` in realtime mode; one vectorised
+trajectory evaluation, bit-for-bit the per-frame values);
 ``errors``, ``error_series``, ``mode_series`` and :meth:`Recorder.flush` complete the pending batch
 first, so readers always see every frame received so far.
 """
@@ -253,6 +254,7 @@ class Recorder:
         #: navigation frames (arrival time, frame) whose truth comparison is still to be done
         self._nav_pending: list[tuple[float, NavSolution]] = []
         self._drain_soon = False
+        self._nav_batch = self.NAV_BATCH
         self._tables: dict[str, tuple[IO[str], list[str], list[str]]] = {}
         self.nav_count = 0
         self.event_counts: dict[str, int] = {}
@@ -331,9 +333,11 @@ class Recorder:
         self.events.append(rec)
 
     # -- navigation output against truth (batched) ------------------------------------------------
-    #: frames compared with truth in one batch (the trajectory is evaluated vectorised, ~1 us per frame);
-    #: small enough that a batch (~0.3 ms) never delays the next IMU tick in realtime mode
-    NAV_BATCH = 25
+    #: frames compared with truth in one batch (the trajectory is evaluated vectorised, ~1 us per frame
+    #: plus ~0.1 ms per batch); in realtime mode small enough that a batch (< 1 ms) never delays the
+    #: next IMU tick
+    NAV_BATCH = 200
+    NAV_BATCH_REALTIME = 25
     #: bytes a counting tap buffers before decoding them (a bounded burst, ~0.3 ms, in realtime mode)
     PENDING_BYTES = 4096
 
@@ -362,13 +366,21 @@ class Recorder:
             cb(t_arrival, n)
         pend = self._nav_pending
         pend.append((t_arrival, n))
-        if len(pend) >= self.NAV_BATCH and not self._drain_soon:
+        if len(pend) >= self._nav_batch and not self._drain_soon:
             # after the frame has gone on (this runs inside the link's delivery, before a pty write)
             try:
-                asyncio.get_running_loop().call_soon(self._drain_nav)
-                self._drain_soon = True
+                loop = asyncio.get_running_loop()
             except RuntimeError:  # no event loop (a replay tool, a test): now
                 self._drain_nav()
+                return
+            loop.call_soon(self._drain_nav)
+            self._drain_soon = True
+        elif len(pend) == 1 and self.nav_count == 1:  # the first frame: the batch size for this run
+            try:
+                realtime = getattr(asyncio.get_running_loop(), "mode", "fast") == "realtime"
+            except RuntimeError:
+                realtime = False
+            self._nav_batch = self.NAV_BATCH_REALTIME if realtime else self.NAV_BATCH
 
     def _drain_nav(self) -> None:
         """Compare the pending frames with truth (one vectorised trajectory evaluation)."""

@@ -248,9 +248,11 @@ class VirtualDsp:
                     return
             self.fw.receive(uart, kept, now)
             if is_imu and not self._scheduled:
+                # the frame's arrival starts the tick now (no extra event-loop callback); the tick's outputs
+                # are scheduled on their links, never delivered from inside this call
                 self._scheduled = True
                 self._arrival = now
-                loop.call_soon(self._run)
+                self._run()
 
         return rx
 

@@ -21,9 +21,25 @@ MODULES = ["benchmarks.bench_realtime_factor", "benchmarks.bench_camera", "bench
            "benchmarks.bench_scaling"]
 
 
+def markdown(path: Path) -> str:
+    """The table of an existing ``results.json`` as Markdown (``python -m benchmarks --markdown``)."""
+    rows = json.loads(path.read_text())["results"]
+    out = ["| benchmark | value | unit | baseline | ratio | note |", "|---|---|---|---|---|---|"]
+    for r in rows:
+        b = "" if r.get("baseline") is None else f"{r['baseline']:.4g}"
+        q = "" if r.get("ratio") is None else f"{r['ratio']:.2f}"
+        note = str(r.get("note", "")).replace("|", "/")
+        out.append(f"| {r['name'].strip()} | {r['value']:.4g} | {r['unit']} | {b} | {q} | {note} |")
+    return "\n".join(out)
+
+
 def main() -> int:
     import os
     import traceback
+
+    if "--markdown" in sys.argv[1:]:
+        print(markdown(Path(__file__).with_name("results.json")))
+        return 0
 
     only = [m.strip() for m in os.environ.get("PSNS_BENCH_ONLY", "").split(",") if m.strip()]
     modules = [m for m in MODULES if not only or m.rsplit(".", 1)[-1] in only or m in only]

@@ -248,11 +248,9 @@ class VirtualDsp:
                     return
             self.fw.receive(uart, kept, now)
             if is_imu and not self._scheduled:
-                # the frame's arrival starts the tick now (no extra event-loop callback); the tick's outputs
-                # are scheduled on their links, never delivered from inside this call
                 self._scheduled = True
                 self._arrival = now
-                self._run()
+                loop.call_soon(self._run)
 
         return rx
 

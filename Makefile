@@ -8,7 +8,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 SCENARIO ?= scenarios/quickstart.yaml
 
-.PHONY: install run test test-all bench golden clean distclean check-python
+.PHONY: install run test test-all bench bench-quick golden clean distclean check-python
 
 check-python:
 	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "psns-hil needs Python >= 3.11, found " + sys.version.split()[0])'
@@ -30,8 +30,13 @@ test: install
 test-all: install
 	$(PY) -m pytest -m ''
 
+# The full table (issue 10: 10 min realtime pty run, 1/10/60 min scaling): about 25 minutes.
 bench: install
 	$(PY) -m benchmarks
+
+# The same table with every long item shortened (docs/performance.md): a few minutes.
+bench-quick: install
+	PSNS_BENCH_QUICK=1 $(PY) -m benchmarks
 
 # Regenerate the change-indicator records of the scenario library (tests/golden/); review and commit the diff.
 golden: install

@@ -296,6 +296,8 @@ class PolarizationCameraModel:
         self.mounting_error: np.ndarray | None = None
         #: frames observed while the injected installation error was applied (fault evidence)
         self.frames_with_mounting_error = 0
+        self._att_key: tuple[float, bool, int] | None = None
+        self._att: tuple[np.ndarray, np.ndarray, float] | None = None
 
     # -- injected faults (emulator.faults) ----------------------------------------------------------
     def set_mounting_error(self, rotation_vector_rad: np.ndarray | None) -> None:
@@ -304,7 +306,19 @@ class PolarizationCameraModel:
 
     # -- world -> camera -----------------------------------------------------------------------
     def camera_attitude(self, t: float) -> tuple[np.ndarray, np.ndarray, float]:
-        """``C_n^c`` (3x3), the sun vector in the camera frame and the sun's elevation (rad) at ``t``."""
+        """``C_n^c`` (3x3), the sun vector in the camera frame and the sun's elevation (rad) at ``t``.
+
+        The last result is kept: one frame asks twice (elevation check, then the rendering)."""
+        key = (t, self.mounting_error is None, id(self.mounting_error))
+        if self._att_key == key and self._att is not None:
+            c_nc, s_c, el = self._att
+            return c_nc.copy(), s_c.copy(), el
+        self._att = self._camera_attitude(t)
+        self._att_key = key
+        c_nc, s_c, el = self._att
+        return c_nc.copy(), s_c.copy(), el
+
+    def _camera_attitude(self, t: float) -> tuple[np.ndarray, np.ndarray, float]:
         st = self.traj.state(t)
         lat, lon, h = float(st.pos[0]), float(st.pos[1]), float(st.pos[2])
         s_n = self.sun.sun_enu(t, lat, lon, h)
@@ -550,8 +564,10 @@ class PolarizationCamera:
         aop = wire_aop_cdeg(obs.aop)
         dop = np.clip(np.round(obs.dop * 65535.0), 0, 65535).astype(np.int64)
         s0 = np.clip(np.round(obs.s0_dn), 0, 65535).astype(np.int64)
-        pts = [PolarizationPoint(int(x), int(y), int(a), int(d), int(i))
-               for x, y, a, d, i in zip(obs.x_px, obs.y_px, aop, dop, s0)]
+        pts = [PolarizationPoint(x, y, a, d, i)  # plain ints (tolist), as int() of each element gave
+               for x, y, a, d, i in zip(np.asarray(obs.x_px).astype(np.int64).tolist(),
+                                        np.asarray(obs.y_px).astype(np.int64).tolist(),
+                                        aop.tolist(), dop.tolist(), s0.tolist())]
         hdr = PsnsHeader(self.seq, int(round(self.exposure_s * 1e6)), latency_us, obs.status, len(pts))
         return encode_polarization_obs(hdr, pts)
 

@@ -255,6 +255,25 @@ class InertialErrorModel:
             y = y + self.g_sens @ f_b if np.ndim(f_b) == 1 else y + f_b @ self.g_sens.T
         return y
 
+    def deterministic_rows(self, x: np.ndarray, temp_c: np.ndarray, temp_rate_c_per_min: float = 0.0,
+                           cal_c: float = 25.0, f_b: np.ndarray | None = None) -> np.ndarray:
+        """:meth:`deterministic` of ``n`` inputs at once: ``x`` (n, 3), ``temp_c`` (n,), ``f_b`` (n, 3).
+
+        Bit for bit the per-row results: the matrix products are stacked (numpy runs the same
+        1 x 3 kernel per row), every other step is element-wise in the same order."""
+        y = (x[:, None, :] @ self.m.T)[:, 0, :] if self._deterministic else np.array(x, dtype=np.float64)
+        if self._has_asym:
+            y = y + self.asym * np.abs(x)
+        if self._has_nl:
+            u = x / self.fs
+            y = y + self.nl * (1.5 * math.sqrt(3.0)) * (u * u * u - u)
+        y = y + self.bias0
+        if self._has_temp:
+            y = y + self.temp_coeff * (temp_c[:, None] - cal_c) + self.temp_gradient * temp_rate_c_per_min
+        if self.g_sens is not None and f_b is not None:
+            y = y + (self.g_sens[None, :, :] @ f_b[:, :, None])[:, :, 0]
+        return y
+
     def measure(self, x: np.ndarray, dt: float, temp_c: float = 25.0, temp_rate_c_per_min: float = 0.0,
                 cal_c: float = 25.0, f_b: np.ndarray | None = None) -> np.ndarray:
         """One interval: ``x`` (3,) true mean input -> measured mean (before range and quantization)."""
@@ -387,6 +406,96 @@ class ImuTruthTap:
         return self._val
 
 
+class _Ahead:
+    """Measured means of the coming trigger intervals of one sensor triad (see :func:`_measure_ahead`).
+
+    ``times[j]`` is the ``(t, t_prev)`` of row ``j``; ``raw[j]`` the measured mean before injected
+    faults; ``post[j]`` what the device makes of it without faults (words / codes as ints, and the
+    clipped value it remembers). Row ``j`` may be used only while the error model's noise block is
+    the one peeked at, at the row ``i0 + j`` (so nothing was drawn in between).
+    """
+
+    __slots__ = ("times", "raw", "post", "j", "block", "i0", "stochastic")
+
+    def __init__(self, times: list[tuple[float, float]], raw: np.ndarray, block: np.ndarray | None, i0: int,
+                 stochastic: bool) -> None:
+        self.times = times
+        self.raw = raw
+        self.post: list[tuple[tuple[int, int, int], np.ndarray]] = []
+        self.j = 1
+        self.block = block
+        self.i0 = i0
+        self.stochastic = stochastic
+
+    def take(self, t: float, t_prev: float, model: "InertialErrorModel", dt: float) -> int:
+        """Index of the row for the interval ``(t_prev, t)`` (its noise row consumed), or -1."""
+        j = self.j
+        if j >= len(self.times) or self.times[j] != (t, t_prev):
+            return -1
+        if self.stochastic:
+            if (model._block is not self.block or model._block_i != self.i0 + j  # noqa: SLF001
+                    or abs(dt - model._block_dt) > 1e-9 * dt):  # noqa: SLF001 - next_noise would draw
+                return -1
+            model._block_i += 1  # noqa: SLF001 - consumed, as next_noise does
+        self.j = j + 1
+        return j
+
+
+def _measure_ahead(model: "InertialErrorModel", tap: "ImuTruthTap", t: float, t_prev: float, period: float,
+                   temp: "ImuTemperature", gyro: bool) -> tuple[np.ndarray, _Ahead | None]:
+    """The measured mean of the interval ``(t_prev, t)`` (pre-fault, exactly :meth:`InertialErrorModel.measure`)
+    and the same for the following trigger intervals ``t_j = (k + j) period``, ``t_prev_j = t_j - period``
+    computed in one vectorised pass: as many as the current noise block and the trajectory's current
+    increment block hold (neither is advanced; rows are bit for bit what the per-interval path gives).
+
+    ``gyro``: the input is the mean angular rate and the g-sensitivity input the mean specific force;
+    else (the accelerometers) the input is the mean specific force.
+    """
+    dt = t - t_prev
+    dth, dv = tap.increments(t_prev, t)
+    k = round(t / period)
+    if k * period != t or t - period != t_prev:  # not the FPGA's trigger grid: no look-ahead
+        if gyro:
+            return model.measure(dth / dt, dt, temp.at(t), temp.rate_c_per_min, temp.cal_c, dv / dt), None
+        return model.measure(dv / dt, dt, temp.at(t), temp.rate_c_per_min, temp.cal_c), None
+    noise0 = model.next_noise(dt)
+    stochastic = model._stochastic  # noqa: SLF001
+    if stochastic:
+        block, i0 = model._block, model._block_i - 1  # noqa: SLF001
+        n_max = BLOCK - i0
+    else:
+        block, i0 = None, 0
+        n_max = BLOCK
+    traj = tap.trajectory
+    times = [(t, t_prev)]
+    dths, dvs = [dth], [dv]
+    for j in range(1, n_max):
+        tj = (k + j) * period
+        tpj = tj - period
+        inc = traj.imu_increments_ready(tpj, tj)
+        if inc is None:
+            break
+        times.append((tj, tpj))
+        dths.append(inc[0])
+        dvs.append(inc[1])
+    n = len(times)
+    dts = np.array([a - b for a, b in times])[:, None]
+    temps = np.array([temp.at(a) for a, _b in times])
+    if gyro:
+        x = np.array(dths) / dts
+        f = np.array(dvs) / dts
+    else:
+        x = np.array(dvs) / dts
+        f = None
+    det = model.deterministic_rows(x, temps, temp.rate_c_per_min, temp.cal_c, f)
+    if stochastic:
+        noise = np.concatenate([noise0[None, :], block[i0 + 1:i0 + n]])  # type: ignore[index]
+    else:
+        noise = np.zeros((n, 3))
+    raw = det + noise
+    return raw[0], (_Ahead(times, raw, block, i0, stochastic) if n > 1 else None)
+
+
 class Stim210Gyro:
     """A STIM210 in external-trigger mode on an RS422 link.
 
@@ -421,7 +530,8 @@ class Stim210Gyro:
         self.source = source
         self.counter = 0
         self.counter_step = int(round(STIM_COUNTER_HZ / trigger_rate_hz))
-        self.datagrams_sent = 0
+        self._queued = 0
+        self._last_send_t = -math.inf
         self.last_measured = np.zeros(3)
         self._accel_hint: np.ndarray | None = None
         #: injected faults (bias step, stuck axis, reduced range); see :class:`InjectedFaults`
@@ -429,6 +539,10 @@ class Stim210Gyro:
         self.drop_probability = 0.0
         self.datagrams_dropped = 0
         self._drop_rng: np.random.Generator | None = None
+        #: look-ahead (:func:`_measure_ahead`): on the trigger grid of ``trigger_rate_hz``, block-wise
+        self._period = 1.0 / trigger_rate_hz
+        self._look_ahead = source is None
+        self._ahead: _Ahead | None = None
 
     @property
     def turn_on_bias(self) -> np.ndarray:
@@ -464,8 +578,22 @@ class Stim210Gyro:
                 return
             rate = np.asarray(rec, dtype=np.float64)
         else:
-            dtheta, dv = self.tap.increments(t_prev, t)
-            rate = self.model.measure(dtheta / dt, dt, t_c, temp.rate_c_per_min, temp.cal_c, dv / dt)
+            ahead = self._ahead
+            j = ahead.take(t, t_prev, self.model, dt) if ahead is not None else -1
+            if j >= 0 and not self.faults.active:  # the common case: all done in the look-ahead pass
+                gw, self.last_measured = ahead.post[j]  # type: ignore[union-attr]
+                self._transmit(t, t_c, gw)
+                return
+            if j >= 0:
+                rate = ahead.raw[j]  # type: ignore[union-attr]
+            elif self._look_ahead:
+                rate, ahead = _measure_ahead(self.model, self.tap, t, t_prev, self._period, temp, True)
+                self._ahead = ahead
+                if ahead is not None:
+                    ahead.post = self._words(ahead)
+            else:
+                dtheta, dv = self.tap.increments(t_prev, t)
+                rate = self.model.measure(dtheta / dt, dt, t_c, temp.rate_c_per_min, temp.cal_c, dv / dt)
         lim = self.err.range_dps * DEG
         if self.faults.active:
             rate, lim = self.faults.apply(rate, lim)
@@ -476,11 +604,26 @@ class Stim210Gyro:
         else:
             words = np.round(rate * dt / (GYRO_ANGLE_LSB_DEG * DEG))
         words = np.clip(words, -0x800000, 0x7FFFFF).astype(np.int64)
+        self._transmit(t, t_c, (int(words[0]), int(words[1]), int(words[2])))
+
+    def _words(self, ahead: _Ahead) -> list[tuple[tuple[int, int, int], np.ndarray]]:
+        """The look-ahead rows as the fault-free path of :meth:`trigger` turns them into words."""
+        lim = self.err.range_dps * DEG
+        rate = np.clip(ahead.raw, -lim, lim)
+        if self.output == "rate":
+            words = np.round(rate / (GYRO_RATE_LSB_DPS * DEG))
+        else:
+            dts = np.array([a - b for a, b in ahead.times])[:, None]
+            words = np.round(rate * dts / (GYRO_ANGLE_LSB_DEG * DEG))
+        words = np.clip(words, -0x800000, 0x7FFFFF).astype(np.int64)
+        return [(tuple(w), r) for w, r in zip(words.tolist(), rate)]  # type: ignore[misc]
+
+    def _transmit(self, t: float, t_c: float, gyro_words: tuple[int, int, int]) -> None:
         self.counter = (self.counter + self.counter_step) & 0xFF
         tw = int(round(t_c / TEMP_LSB_DEGC))
         d = StimDatagram(
             ident=self.format.ident,
-            gyro=(int(words[0]), int(words[1]), int(words[2])),
+            gyro=gyro_words,
             status=0,
             counter=self.counter,
             latency_us=self.latency_us,
@@ -492,11 +635,17 @@ class Stim210Gyro:
             if rng.random() < self.drop_probability:
                 self.datagrams_dropped += 1
                 return
-        self.link.loop.call_at(t + self.response_delay_s, self._send, frame)
+        # the gyro is its link's only writer, in time order: decide the transmission now (one timer,
+        # the delivery, instead of two)
+        t_send = t + self.response_delay_s
+        self.link.send_at(t_send, frame)
+        self._queued += 1
+        self._last_send_t = t_send
 
-    def _send(self, frame: bytes) -> None:
-        self.link.send(frame)
-        self.datagrams_sent += 1
+    @property
+    def datagrams_sent(self) -> int:
+        """Datagrams whose transmission has started (one may be queued for its response delay)."""
+        return self._queued - (1 if self._last_send_t > self.link.loop.time() else 0)
 
 
 class AnalogAccelerometers:
@@ -506,7 +655,7 @@ class AnalogAccelerometers:
     """
 
     def __init__(self, tap: ImuTruthTap, rng: np.random.Generator, errors: AccelErrors | None = None,
-                 temperature: ImuTemperature | None = None, source=None) -> None:
+                 temperature: ImuTemperature | None = None, source=None, trigger_rate_hz: float = 200.0) -> None:
         self.tap = tap
         self.rng = rng
         self.err = e = errors or AccelErrors()
@@ -518,6 +667,10 @@ class AnalogAccelerometers:
         self._vpg = np.array(e.volts_per_g)
         #: injected faults (bias step, stuck axis, reduced range); see :class:`InjectedFaults`
         self.faults = InjectedFaults()
+        #: look-ahead (:func:`_measure_ahead`) on the FPGA's trigger grid
+        self._period = 1.0 / trigger_rate_hz
+        self._look_ahead = source is None
+        self._ahead: _Ahead | None = None
 
     @property
     def turn_on_bias(self) -> np.ndarray:
@@ -542,9 +695,22 @@ class AnalogAccelerometers:
         if self.source is not None:
             f = np.asarray(self.source(t_prev, t), dtype=np.float64)
         else:
-            _, dv = self.tap.increments(t_prev, t)
+            ahead = self._ahead
+            j = ahead.take(t, t_prev, self.model, dt) if ahead is not None else -1
+            if j >= 0 and not self.faults.active:  # the common case: all done in the look-ahead pass
+                codes, self.last_measured = ahead.post[j]  # type: ignore[union-attr]
+                return codes
             temp = self.temperature
-            f = self.model.measure(dv / dt, dt, temp.at(t), temp.rate_c_per_min, temp.cal_c)
+            if j >= 0:
+                f = ahead.raw[j]  # type: ignore[union-attr]
+            elif self._look_ahead:
+                f, ahead = _measure_ahead(self.model, self.tap, t, t_prev, self._period, temp, False)
+                self._ahead = ahead
+                if ahead is not None:
+                    ahead.post = self._codes(ahead)
+            else:
+                _, dv = self.tap.increments(t_prev, t)
+                f = self.model.measure(dv / dt, dt, temp.at(t), temp.rate_c_per_min, temp.cal_c)
         rng_g = self._range
         if self.faults.active:
             f, lim = self.faults.apply(f, self._range * G_STD)
@@ -554,6 +720,13 @@ class AnalogAccelerometers:
         volts = f_g * self._vpg
         codes = np.clip(np.round(volts / ADC_VOLTS_PER_LSB), -ADC_CODE_MAX - 1, ADC_CODE_MAX).astype(np.int64)
         return int(codes[0]), int(codes[1]), int(codes[2])
+
+    def _codes(self, ahead: _Ahead) -> list[tuple[tuple[int, int, int], np.ndarray]]:
+        """The look-ahead rows as the fault-free path of :meth:`sample` turns them into ADC codes."""
+        f_g = np.clip(ahead.raw / G_STD, -self._range, self._range)
+        volts = f_g * self._vpg
+        codes = np.clip(np.round(volts / ADC_VOLTS_PER_LSB), -ADC_CODE_MAX - 1, ADC_CODE_MAX).astype(np.int64)
+        return [(tuple(c), m) for c, m in zip(codes.tolist(), f_g * G_STD)]  # type: ignore[misc]
 
 
 def allan_deviation(y: np.ndarray, dt: float, taus: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

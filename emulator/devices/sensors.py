@@ -191,7 +191,7 @@ def build_sensors(scn: Scenario, seed: int, traj: Trajectory, internal: dict[str
                            fmt=s.imu.format, output=s.imu.output, trigger_rate_hz=s.imu.rate_hz,
                            temperature=temp, source=gyro_src)
     accel = AnalogAccelerometers(tap, device_rng(seed, "accel"), accel_errors(scn), temperature=temp,
-                                 source=accel_src)
+                                 source=accel_src, trigger_rate_hz=s.imu.rate_hz)
     gnss: Any = None
     if "gnss" in internal and s.gnss.enabled:
         if s.gnss.recorded is not None:

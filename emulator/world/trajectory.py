@@ -50,6 +50,7 @@ import bisect
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
+from typing import Sequence
 
 import numpy as np
 
@@ -96,6 +97,11 @@ class Trajectory(ABC):
     @abstractmethod
     def state(self, t: float) -> TruthState: ...
 
+    def states(self, ts: Sequence[float]) -> list[TruthState]:
+        """:meth:`state` at each of the times ``ts`` (s); subclasses vectorise it (the recorder
+        evaluates the truth of its navigation frames in batches)."""
+        return [self.state(float(t)) for t in ts]
+
     @abstractmethod
     def angular_rate(self, t: float) -> np.ndarray:
         """``omega_ib^b`` at ``t``, rad/s."""
@@ -108,6 +114,13 @@ class Trajectory(ABC):
     def imu_increments(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
         """Body-frame angle (rad) and velocity (m/s) increments over ``[t0, t1]``:
         ``int omega_ib^b dt`` and ``int f^b dt``."""
+
+    def imu_increments_ready(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray] | None:
+        """:meth:`imu_increments` if it is available without new work (read-only arrays), else None.
+
+        The IMU models look ahead with it (:mod:`emulator.devices.imu`) without moving the blocks
+        in which a trajectory computes its increments (which would change them in the last bit)."""
+        return None
 
 
 class StaticTrajectory(Trajectory):
@@ -149,6 +162,9 @@ class StaticTrajectory(Trajectory):
     def imu_increments(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
         dt = t1 - t0
         return self._w * dt, self._f * dt
+
+    def imu_increments_ready(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray] | None:
+        return self.imu_increments(t0, t1)
 
 
 # --------------------------------------------------------------------------------------------
@@ -394,6 +410,21 @@ class SegmentTrajectory(Trajectory):
         roll = math.atan2(math.sin(roll), math.cos(roll))
         return TruthState(t, ev["pos"][0], ev["v"][0], ev["c_bn"][0], pitch, roll, heading_from_yaw(yaw))
 
+    def states(self, ts: Sequence[float]) -> list[TruthState]:
+        """Vectorised :meth:`state`: bit-for-bit the same values (the kinematics are element-wise),
+        about 1 us per instant instead of 100 us."""
+        if len(ts) == 0:
+            return []
+        ev = self.sample(np.asarray(ts, dtype=np.float64))
+        pos, v, c_bn = ev["pos"], ev["v"], ev["c_bn"]
+        out = []
+        atan2, sin, cos = math.atan2, math.sin, math.cos
+        for i, (t, pitch, roll, yaw) in enumerate(zip(ts, ev["pitch"].tolist(), ev["roll"].tolist(),
+                                                      ev["yaw"].tolist())):
+            roll = atan2(sin(roll), cos(roll))
+            out.append(TruthState(t, pos[i], v[i], c_bn[i], pitch, roll, heading_from_yaw(yaw)))
+        return out
+
     def angular_rate(self, t: float) -> np.ndarray:
         return self._eval1(t)["w_ib_b"][0]
 
@@ -457,6 +488,11 @@ class SegmentTrajectory(Trajectory):
             if hit is None:  # pragma: no cover - rounding corner
                 return self._increments_exact(t0, t1)
         return hit[0].copy(), hit[1].copy()
+
+    def imu_increments_ready(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray] | None:
+        if t1 - t0 <= 0.0:
+            return None
+        return self._block.get((int(round(t0 * 1e9)), int(round((t1 - t0) * 1e9))))
 
     def imu_increments_exact(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
         """The same increments without the block cache (for tests and irregular intervals)."""

@@ -69,6 +69,7 @@ __all__ = [
     "kf_scalar_update_cycles",
     "kf_predict_cycles",
     "feedback_cycles",
+    "gnss_measurement_rows",
 ]
 
 DEG = math.pi / 180.0
@@ -116,6 +117,39 @@ class GnssMeasurement:
     sigma_pos_h_m: float | None = None
     sigma_pos_v_m: float | None = None
     sigma_vel_mps: float | None = None
+
+
+def gnss_measurement_rows(cfg: "FirmwareConfig", meter: c674x.CycleMeter, meas: GnssMeasurement,
+                          p_ins: np.ndarray, v_ins: np.ndarray) -> list[tuple[int, float, float, float]]:
+    """The scalar rows of a GNSS update: ``(state index, H value, z, R)`` per measured component.
+
+    Position (Eq. 23-24): ``Z_p = [R_Mh dL, R_Nh cosL dlambda, dh]`` (m), ``H_p = [0 diag(R_Mh, R_Nh cosL, 1) 0]``,
+    charging the residual's cycles on ``meter``; velocity (Eq. 28-30): ``Z_v = v_INS - v_GNSS`` (ENU m/s),
+    ``H_v = [0 I 0]``, the vertical only when measured (UBX velD). ``p_ins`` = (lat rad, lon rad, h m) and
+    ``v_ins`` (ENU m/s) are the INS at the fix's time of validity. Shared by every filter with GNSS updates.
+    """
+    rows: list[tuple[int, float, float, float]] = []
+    if meas.pos is not None:
+        lat = float(p_ins[0])
+        rm, rn = earth.radii(lat)
+        rmh, rnh = rm + float(p_ins[2]), rn + float(p_ins[2])
+        cl = math.cos(lat)
+        sh = meas.sigma_pos_h_m or cfg.gnss_pos_sigma_h_m
+        sv = meas.sigma_pos_v_m or cfg.gnss_pos_sigma_v_m
+        rows += [
+            (6, rmh, (float(p_ins[0]) - meas.pos[0]) * rmh, sh**2),
+            (7, rnh * cl, (float(p_ins[1]) - meas.pos[1]) * rnh * cl, sh**2),
+            (8, 1.0, float(p_ins[2]) - meas.pos[2], sv**2),
+        ]
+        meter.charge("gnss_residual", c674x.dp_flops(8, 6) + c674x.mathlib("cosdp") + c674x.mathlib("sqrtdp")
+                     + c674x.mathlib("divdp"))
+    if meas.vel is not None:
+        svh = meas.sigma_vel_mps or cfg.gnss_vel_sigma_h_mps
+        rows.append((3, 1.0, float(v_ins[0]) - float(meas.vel[0]), svh**2))
+        rows.append((4, 1.0, float(v_ins[1]) - float(meas.vel[1]), svh**2))
+        if meas.vel_up:
+            rows.append((5, 1.0, float(v_ins[2]) - float(meas.vel[2]), cfg.gnss_vel_sigma_v_mps**2))
+    return rows
 
 
 @dataclass
@@ -290,31 +324,8 @@ class BaseFilter(NavFilter):
         return nu / math.sqrt(s)
 
     def update_gnss(self, nav: NavState, meas: GnssMeasurement, p_ins: np.ndarray, v_ins: np.ndarray) -> UpdateReport:
-        cfg = self.cfg
         dt = self.dtype
-        rows: list[tuple[int, float, float, float]] = []
-        if meas.pos is not None:
-            lat = float(p_ins[0])
-            rm, rn = earth.radii(lat)
-            rmh, rnh = rm + float(p_ins[2]), rn + float(p_ins[2])
-            cl = math.cos(lat)
-            sh = meas.sigma_pos_h_m or cfg.gnss_pos_sigma_h_m
-            sv = meas.sigma_pos_v_m or cfg.gnss_pos_sigma_v_m
-            # Eq. 23-24: Z_p = [R_Mh dL, R_Nh cosL dlambda, dh] (m), H_p = [0 diag(R_Mh, R_Nh cosL, 1) 0]
-            rows += [
-                (6, rmh, (float(p_ins[0]) - meas.pos[0]) * rmh, sh**2),
-                (7, rnh * cl, (float(p_ins[1]) - meas.pos[1]) * rnh * cl, sh**2),
-                (8, 1.0, float(p_ins[2]) - meas.pos[2], sv**2),
-            ]
-            self.meter.charge("gnss_residual", c674x.dp_flops(8, 6) + c674x.mathlib("cosdp") + c674x.mathlib("sqrtdp")
-                              + c674x.mathlib("divdp"))
-        if meas.vel is not None:
-            # Eq. 28-30: Z_v = v_INS - v_GNSS, H_v = [0 I 0]; vertical only when measured (UBX velD)
-            svh = meas.sigma_vel_mps or cfg.gnss_vel_sigma_h_mps
-            rows.append((3, 1.0, float(v_ins[0]) - float(meas.vel[0]), svh**2))
-            rows.append((4, 1.0, float(v_ins[1]) - float(meas.vel[1]), svh**2))
-            if meas.vel_up:
-                rows.append((5, 1.0, float(v_ins[2]) - float(meas.vel[2]), cfg.gnss_vel_sigma_v_mps**2))
+        rows = gnss_measurement_rows(self.cfg, self.meter, meas, p_ins, v_ins)
         innov = []
         h = np.zeros(N_STATES, dtype=dt)
         for idx, hval, z, r in rows:

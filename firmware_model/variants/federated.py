@@ -58,6 +58,7 @@ from ..filters import (
     SolarObservation,
     UpdateReport,
     feedback_cycles,
+    gnss_measurement_rows,
     kf_predict_cycles,
     register_filter,
 )
@@ -193,7 +194,7 @@ class FederatedFilter(NavFilter):
 
     # -- time update (+ the accelerometer gravity measurement of sub-filter 2) -------------------------------
     def predict(self, nav: NavState, f_n: np.ndarray, Tk: float) -> None:
-        dt, p, cost = self.dtype, self.p, self.cost
+        dt, p = self.dtype, self.p
         cbn = q2mat(nav.q).astype(dt)
         F = error_transition_matrix(cbn, nav.v, nav.pos, f_n, dtype=dt)
         Phi1 = self._eye1 + F * dt(Tk)
@@ -235,28 +236,8 @@ class FederatedFilter(NavFilter):
 
     # -- GNSS: chi-square test, isolation, readmission (sub-filter 1) ---------------------------------------
     def update_gnss(self, nav: NavState, meas: GnssMeasurement, p_ins: np.ndarray, v_ins: np.ndarray) -> UpdateReport:
-        cfg, dt = self.cfg, self.dtype
-        rows: list[tuple[int, float, float, float]] = []
-        if meas.pos is not None:
-            lat = float(p_ins[0])
-            rm, rn = earth.radii(lat)
-            rmh, rnh = rm + float(p_ins[2]), rn + float(p_ins[2])
-            cl = math.cos(lat)
-            sh = meas.sigma_pos_h_m or cfg.gnss_pos_sigma_h_m
-            sv = meas.sigma_pos_v_m or cfg.gnss_pos_sigma_v_m
-            rows += [
-                (6, rmh, (float(p_ins[0]) - meas.pos[0]) * rmh, sh**2),
-                (7, rnh * cl, (float(p_ins[1]) - meas.pos[1]) * rnh * cl, sh**2),
-                (8, 1.0, float(p_ins[2]) - meas.pos[2], sv**2),
-            ]
-            self.meter.charge("gnss_residual", c674x.dp_flops(8, 6) + c674x.mathlib("cosdp") + c674x.mathlib("sqrtdp")
-                              + c674x.mathlib("divdp"))
-        if meas.vel is not None:
-            svh = meas.sigma_vel_mps or cfg.gnss_vel_sigma_h_mps
-            rows.append((3, 1.0, float(v_ins[0]) - float(meas.vel[0]), svh**2))
-            rows.append((4, 1.0, float(v_ins[1]) - float(meas.vel[1]), svh**2))
-            if meas.vel_up:
-                rows.append((5, 1.0, float(v_ins[2]) - float(meas.vel[2]), cfg.gnss_vel_sigma_v_mps**2))
+        dt = self.dtype
+        rows = gnss_measurement_rows(self.cfg, self.meter, meas, p_ins, v_ins)
         m = len(rows)
         t = self.host.now_s() if self.host is not None else meas.t_fpga_s
         if m == 0:

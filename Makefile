@@ -8,7 +8,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 SCENARIO ?= scenarios/quickstart.yaml
 
-.PHONY: install run test test-all bench bench-quick golden clean distclean check-python
+.PHONY: install run test test-realtime test-all lint bench bench-quick golden clean distclean check-python
 
 check-python:
 	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "psns-hil needs Python >= 3.11, found " + sys.version.split()[0])'
@@ -16,7 +16,7 @@ check-python:
 $(STAMP): pyproject.toml | check-python
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test]'
+	$(PY) -m pip install --quiet -e '.[test,dev]'
 	@touch $(STAMP)
 
 install: $(STAMP)
@@ -25,10 +25,20 @@ run: install
 	$(VENV)/bin/psns-hil run $(SCENARIO)
 
 test: install
-	$(PY) -m pytest
+	$(PY) -m pytest --cov --cov-report=term:skip-covered
+
+# Tests that follow the wall clock (ptys, sockets, other processes): their own step in .ci/run.
+test-realtime: install
+	$(PY) -m pytest -m realtime
 
 test-all: install
 	$(PY) -m pytest -m ''
+
+# The linters .ci/run runs before the tests: style and errors, types, layers.
+lint: install
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/mypy
+	$(VENV)/bin/lint-imports
 
 # The full table (issue 10: 10 min realtime pty run, 1/10/60 min scaling): about 25 minutes.
 bench: install

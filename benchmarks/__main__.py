@@ -50,7 +50,7 @@ def main() -> int:
         try:
             mod = importlib.import_module(name)
             got = mod.run()
-        except Exception as exc:  # noqa: BLE001 - one failing benchmark must not lose the table
+        except Exception as exc:
             traceback.print_exc()
             got = [{"name": name.rsplit(".", 1)[-1], "value": float("nan"), "unit": "", "baseline": None,
                     "ratio": None, "note": f"failed: {exc!r}"}]

@@ -24,7 +24,7 @@ from emulator.world.trajectory import StaticTrajectory
 
 def _model(fidelity: str) -> PolarizationCameraModel:
     traj = StaticTrajectory(39.979, 116.339, 50.0, 30.0)
-    sun = SunModel(dt.datetime(2019, 9, 18, 8, 14, tzinfo=dt.timezone.utc), 69.0)
+    sun = SunModel(dt.datetime(2019, 9, 18, 8, 14, tzinfo=dt.UTC), 69.0)
     return PolarizationCameraModel(CameraConfig(fidelity=fidelity), SkyModel(), sun, traj, np.random.default_rng(1))
 
 

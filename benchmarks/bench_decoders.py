@@ -17,7 +17,7 @@ from __future__ import annotations
 import datetime as dt
 import io
 import time
-from typing import Callable
+from collections.abc import Callable
 
 from protocols.gnss import GnssFix, GnssOutputSet, build_epoch
 from protocols.imu_frame import ImuFrame, ImuFrameFormat
@@ -75,7 +75,7 @@ def _ours(formats_factory: Callable[[], list], chunks: list[bytes]) -> Callable[
 
 
 def _nmea_stream(epochs: int) -> bytes:
-    t0 = dt.datetime(2019, 9, 18, 8, 14, 0, tzinfo=dt.timezone.utc)
+    t0 = dt.datetime(2019, 9, 18, 8, 14, 0, tzinfo=dt.UTC)
     out = bytearray()
     for k in range(epochs):
         fix = GnssFix(utc=t0 + dt.timedelta(seconds=k), lat_deg=39.979 + 1e-5 * k, lon_deg=116.339 - 2e-5 * k,
@@ -85,7 +85,7 @@ def _nmea_stream(epochs: int) -> bytes:
 
 
 def _ubx_stream(epochs: int) -> bytes:
-    t0 = dt.datetime(2019, 9, 18, 8, 14, 0, tzinfo=dt.timezone.utc)
+    t0 = dt.datetime(2019, 9, 18, 8, 14, 0, tzinfo=dt.UTC)
     out = bytearray()
     for k in range(epochs):
         fix = GnssFix(utc=t0 + dt.timedelta(seconds=k), lat_deg=39.979 + 1e-5 * k, lon_deg=116.339 - 2e-5 * k,
@@ -146,17 +146,17 @@ def run() -> list[dict]:
             for m in rd.next(c.decode("ascii")):
                 t = m.sentence_type
                 if t in ("GGA", "RMC"):
-                    (m.timestamp, m.latitude, m.longitude)
+                    _ = (m.timestamp, m.latitude, m.longitude)
                 if t == "GGA":
-                    (m.gps_qual, m.num_sats, m.horizontal_dil, m.altitude, m.geo_sep)
+                    _ = (m.gps_qual, m.num_sats, m.horizontal_dil, m.altitude, m.geo_sep)
                 elif t == "RMC":
-                    (m.status, m.spd_over_grnd, m.true_course, m.datestamp, m.mode_indicator)
+                    _ = (m.status, m.spd_over_grnd, m.true_course, m.datestamp, m.mode_indicator)
                 elif t == "VTG":
-                    (m.true_track, m.mag_track, m.spd_over_grnd_kts, m.faa_mode)
+                    _ = (m.true_track, m.mag_track, m.spd_over_grnd_kts, m.faa_mode)
                 elif t == "GSA":
-                    (m.mode, m.mode_fix_type, m.sv_id01, m.sv_id12, m.pdop, m.hdop, m.vdop)
+                    _ = (m.mode, m.mode_fix_type, m.sv_id01, m.sv_id12, m.pdop, m.hdop, m.vdop)
                 elif t == "ZDA":
-                    (m.timestamp, m.day, m.month, m.year, m.local_zone, m.local_zone_minutes)
+                    _ = (m.timestamp, m.day, m.month, m.year, m.local_zone, m.local_zone_minutes)
                 n += 1
         return n
 

@@ -24,12 +24,14 @@ Run: ``.venv/bin/python -c "from benchmarks.bench_firmware import main; main()"`
 
 from __future__ import annotations
 
+import functools
 import math
 import statistics
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -164,7 +166,7 @@ def firmware_tick_rows(seconds: float = SECONDS, repeat: int = REPEAT) -> list[d
     events = _events("solar_vector", seconds)
     rows = []
     for nav in ("float64", "float32"):
-        cfg = lambda: FirmwareConfig(initial_heading_deg=30.5, nav_state_precision=nav)  # noqa: E731
+        cfg = functools.partial(FirmwareConfig, initial_heading_deg=30.5, nav_state_precision=nav)
         tot = statistics.median(_total_us_per_tick(cfg(), events) for _ in range(repeat))
         rows.append({"name": f"Firmware per tick, base filter, nav {nav} (receive + service)", "value": tot,
                      "unit": "us", "baseline": 20.0, "ratio": tot / 20.0,

@@ -26,6 +26,7 @@ Two measurements.
 from __future__ import annotations
 
 import asyncio
+import itertools
 import os
 import statistics
 import tempfile
@@ -65,7 +66,6 @@ while idle < 5:
 
 
 def _measure() -> list[float]:
-    import subprocess
     import sys
 
     from emulator.clock import EmulatorLoop
@@ -93,7 +93,7 @@ def _measure() -> list[float]:
             for k in range(N_FRAMES):
                 await asyncio.sleep(max(0.0, t0 + k * PERIOD_S - loop.time()))
                 link.send(build_host_frame(0x7F, k.to_bytes(4, "little") + bytes(98)))
-                expected[k] = loop._wall0 + link.busy_until() / loop.speed  # noqa: SLF001 - loop time -> monotonic
+                expected[k] = loop._wall0 + link.busy_until() / loop.speed
             await asyncio.sleep(0.05)
             await link.close()
             text, _ = await proc.communicate()
@@ -231,10 +231,15 @@ def _cpu_s(pid: int) -> float | None:
     return (int(parts[11]) + int(parts[12])) / os.sysconf("SC_CLK_TCK")
 
 
+def _quantile(ordered: list[float], q: float) -> float:
+    """The q-quantile (0..1) of an ascending list by the nearest-rank rule; NaN for an empty list."""
+    return ordered[min(len(ordered) - 1, int(q * len(ordered)))] if ordered else float("nan")
+
+
 def _tap_stats(samples: list, period: float) -> dict:
     jit = []
     dropped = 0
-    for (t0, s0), (t1, s1) in zip(samples, samples[1:]):
+    for (t0, s0), (t1, s1) in itertools.pairwise(samples):
         gap = (s1 - s0) % 65536
         if gap == 1:
             jit.append(abs((t1 - t0) - period) * 1e6)
@@ -287,8 +292,8 @@ def _measure_emulator(duration_s: float) -> tuple[dict, dict, float, str]:
     for tap in ("uart0", "uart1"):
         st = _tap_stats(seen[tap], TAP_PERIOD_S[tap])
         lt = sorted(x * 1e6 for x in late[tap][20:])  # the first chunks: the reader attaching
-        q = lambda x: lt[min(len(lt) - 1, int(x * len(lt)))] if lt else float("nan")  # noqa: E731
-        st.update(emu_late_p50=q(0.5), emu_late_p99=q(0.99), emu_late_max=lt[-1] if lt else float("nan"))
+        st.update(emu_late_p50=_quantile(lt, 0.5), emu_late_p99=_quantile(lt, 0.99),
+                  emu_late_max=lt[-1] if lt else float("nan"))
         stats[tap] = st
     return stats["uart0"], stats["uart1"], cpu_pct, ", ".join(f"{k} {v}" for k, v in res.items())
 

@@ -52,7 +52,7 @@ def run() -> list[dict]:
     wall, walls, s = _timed(scn, repeat)
     sim = s["sim_duration_s"]
     rtf = sim / wall
-    ticks = int(round(sim * scn.sensors.imu.rate_hz))
+    ticks = round(sim * scn.sensors.imu.rate_hz)
     us_tick = wall / ticks * 1e6
     passed = s.get("passed")
     load = load_avg()
@@ -62,7 +62,7 @@ def run() -> list[dict]:
         pwall = wall
     else:
         pwall, _w, _s = _timed(pscn, 1)
-    pticks = int(round(pscn.duration_s * scn.sensors.imu.rate_hz))
+    pticks = round(pscn.duration_s * scn.sensors.imu.rate_hz)
     parts, iters = breakdown(pscn, pwall, pticks)
     top = ", ".join(f"{p['component'].split(' (')[0]} {p['us_per_tick']:.0f}" for p in parts[:5])
     rows: list[dict[str, Any]] = [

@@ -144,7 +144,7 @@ def main(argv: list[str] | None = None) -> int:
         t0 = time.perf_counter()
         s = run_scenario(scn, Path(d) / "run", mode="fast")
         wall = time.perf_counter() - t0
-    ticks = int(round(s["sim_duration_s"] * scn.sensors.imu.rate_hz))
+    ticks = round(s["sim_duration_s"] * scn.sensors.imu.rate_hz)
     rows, iters = breakdown(scn, wall, ticks)
     print(f"{scn.name}: {s['sim_duration_s']:.0f} s simulated in {wall:.2f} s wall, real-time factor "
           f"{s['sim_duration_s'] / wall:.1f}, {wall / ticks * 1e6:.1f} us per tick, "

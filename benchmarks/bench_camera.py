@@ -3,7 +3,7 @@
 * ``full`` frame: render the 2448 x 2048 IMX250MZR mosaic (sky, Malus, shot/read noise, 12-bit)
   and run the on-camera processing to the 225 observation points (what the emulator does per frame);
 * the same render followed by the half-resolution super-pixel Stokes/DOP/AOP *images*
-  (algorithms.md section 4), the like-for-like output of polanalyser;
+  (docs/reference/algorithms.md section 4), the like-for-like output of polanalyser;
 * polanalyser 3.0 (``demosaicing`` + ``calcStokes`` + DoLP + AoLP) on the same mosaic, with OpenCV
   restricted to one thread, as the baseline. Target: >= 10 frames/s and >= 2x polanalyser.
 * ``binned`` frame: the fast fidelity's time per frame (target well under 2 ms).

@@ -2,7 +2,7 @@
 
 Two measurements.
 
-1. **The whole emulator in realtime mode** (issue 10 item 2): the reference scenario
+1. **The whole emulator in realtime mode** (the realtime target): the reference scenario
    (``scenarios/bench_vehicle_loop_10min.yaml``: IMU 200 Hz, GNSS, camera PSNS 5 Hz, base filter)
    with the host port on ``pty://host`` (DSP UART0's navigation frames, 100 Hz, through the FPGA)
    and the FPGA MONITOR port on ``pty://monitor`` (3 Mbaud) mirroring the ``uart1`` channel (the
@@ -19,7 +19,7 @@ Two measurements.
    each paced by the line model (2.37 ms on the wire, written in 1 ms slices). A pyserial reader
    time-stamps every read. For each frame the *lateness* is the arrival of its last byte minus the
    instant the line model says its last stop bit ends: median, p99 and max over 300 frames,
-   against the raw-pty latency measured without the emulator (``shared/reference/protocols.md``
+   against the raw-pty latency measured without the emulator (``docs/reference/wire-formats.md``
    5.2: paced 40-byte frames, median 16 us, p99 121 us).
 """
 
@@ -35,7 +35,7 @@ from pathlib import Path
 N_FRAMES = 300
 PERIOD_S = 0.01
 BAUD = 460800
-RAW_PTY_P99_US = 121.0  # protocols.md 5.2, paced frames, reader on the event loop
+RAW_PTY_P99_US = 121.0  # docs/reference/wire-formats.md 5.2, paced frames, reader on the event loop
 RAW_PTY_MEDIAN_US = 16.0
 
 
@@ -123,7 +123,7 @@ def _link_rows() -> list[dict]:
         {"name": "pty frame lateness, median", "value": med, "unit": "us", "baseline": RAW_PTY_MEDIAN_US,
          "ratio": med / RAW_PTY_MEDIAN_US, "note": f"{len(late)} frames of 109 B at 460800 baud, 100 Hz, realtime"},
         {"name": "pty frame lateness, p99", "value": p(0.99), "unit": "us", "baseline": RAW_PTY_P99_US,
-         "ratio": p(0.99) / RAW_PTY_P99_US, "note": "baseline: raw pty without the emulator (protocols.md 5.2)"},
+         "ratio": p(0.99) / RAW_PTY_P99_US, "note": "baseline: raw pty without the emulator (docs/reference/wire-formats.md 5.2)"},
         {"name": "pty frame lateness, max", "value": late[-1], "unit": "us", "baseline": None, "ratio": None,
          "note": f"min {late[0]:.0f} us (negative = before the modelled end: a read woke mid-frame)"},
     ]

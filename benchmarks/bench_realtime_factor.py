@@ -1,6 +1,6 @@
 """Fast-mode real-time factor (simulated s per wall s) and where the time goes.
 
-Reference (issue 10 item 1): ``scenarios/bench_vehicle_loop_10min.yaml``, 10 min of square loops
+Reference (the performance work): ``scenarios/bench_vehicle_loop_10min.yaml``, 10 min of square loops
 at 10 m/s with every sensor of the base box (STIM210 + accelerometers at 200 Hz, GNSS 1 Hz, camera
 PSNS at 5 Hz in ``binned`` fidelity), byte-exact ``mem://`` links, base filter, one core (one
 process, one thread). The run must pass its own expectations, so the number belongs to a run that
@@ -69,7 +69,7 @@ def run() -> list[dict]:
         {"name": "reference fast-mode real-time factor", "value": rtf, "unit": "sim s / wall s",
          "baseline": TARGET_RTF, "ratio": rtf / TARGET_RTF,
          "note": f"{scn.name}, {sim:.0f} s simulated, median of {repeat} ({', '.join(f'{w:.1f}' for w in walls)} s "
-                 f"wall), expectations passed: {passed}, load avg {load}; target >= 100x (issue 10)",
+                 f"wall), expectations passed: {passed}, load avg {load}; target >= 100x",
          "walls_s": walls, "sim_s": sim, "passed": passed},
         {"name": "reference wall time per 200 Hz tick", "value": us_tick, "unit": "us/tick",
          "baseline": 1e6 / 200 / TARGET_RTF, "ratio": us_tick / (1e6 / 200 / TARGET_RTF),

@@ -6,7 +6,7 @@ motion of square laps long enough for each duration. Each duration runs in a fre
 own peak resident set (``resource.getrusage(RUSAGE_SELF).ru_maxrss``), plus its RSS sampled every
 simulated minute (``/proc/self/statm``), so a slow growth shows even under the start-up peak.
 
-Targets (issue 10 item 5): wall time linear in simulated time (wall per simulated minute the same
+Targets (the performance work, scaling): wall time linear in simulated time (wall per simulated minute the same
 at every duration) and flat memory (peak RSS at 60 min within 10 % of that at 10 min).
 
 ``PSNS_BENCH_SCALING_S``: the durations, comma-separated simulated seconds (default

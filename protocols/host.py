@@ -30,8 +30,8 @@ Messages:
     98   u32      deadline_misses     cumulative
     (102 bytes; later versions may only append fields, and decoders accept a longer payload)
 
-    Optional VARIANT block, appended by the filter variants other than the base one (issue 6;
-    the base variant's frame stays 102 bytes)::
+    Optional VARIANT block, appended by the filter variants other than the base one (the firmware
+    variants of docs/architecture.md; the base variant's frame stays 102 bytes)::
 
     102  u8       block_id            0x56 ('V')
     103  u8       block_len           4
@@ -77,13 +77,15 @@ Commands (host -> DSP; ids >= 0x80), every payload starting with a host-chosen u
 Text output for terminal users (optional, NMEA 0183 framing with checksum, same port): the
 proprietary sentences ``$PSNSPOS`` (time, position, mode), ``$PSNSVEL`` (time, ENU velocity),
 ``$PSNSATT`` (time, roll, pitch, heading) and ``$PSNSSTA`` (time, variant, rate, CPU load, misses),
-see :func:`nav_text_sentences` and :class:`HostTextFormat`. Each stays under 82 characters.
+see :mod:`protocols.host_text` (re-exported here). Each stays under 82 characters.
+
+Every payload is declared once, by its ``construct`` spec below; the ``struct`` codecs of the hot paths are
+derived from the specs (:mod:`protocols.codec`) and fill the dataclasses by field name.
 """
 
 from __future__ import annotations
 
 import enum
-import struct
 from binascii import crc_hqx as _crc_hqx
 from dataclasses import dataclass
 from typing import Any
@@ -91,7 +93,9 @@ from typing import Any
 from construct import Array, Bytes, Const, Float32l, Float64l, Int8ul, Int16ul, Int32ul, Struct, this
 
 from ._fastinit import fast_frozen_init
+from .codec import StructCodec, subspec
 from .crc import crc16_ccitt
+from .host_text import TEXT_SENTENCES, HostTextFormat, NavText, encode_nav_text, nav_text_sentences
 from .stream import BAD_LENGTH, NEED_MORE
 
 __all__ = [
@@ -151,7 +155,8 @@ HOST_MAX_PAYLOAD = 1024
 
 
 class FilterVariant(enum.IntEnum):
-    """Firmware filter variants (DESIGN.md section 6), as carried in STATUS and SELECT_VARIANT."""
+    """Firmware filter variants (docs/architecture.md, "Firmware variants"), as carried in STATUS and
+    SELECT_VARIANT."""
 
     BASE = 1  #: bi-direction solar vector KF (the base paper)
     DUAL_VECTOR = 2  #: dual-vector switching over several polarization sensors
@@ -216,10 +221,13 @@ NAV_SOLUTION_SPEC = Struct(
     "deadline_misses" / Int32ul * "1 |  | cumulative",
 )
 
-_NAV = struct.Struct("<Idddf3f3f9fHBBHI")
+#: The frame's CRC-covered header (msg_id, length) and its CRC.
+_HEAD = StructCodec(subspec(HOST_FRAME_SPEC, "msg_id", "length"), "HOST_HEADER")
+_CRC = StructCodec(subspec(HOST_FRAME_SPEC, "crc", "crc"), "HOST_CRC")
+_NAV = StructCodec(NAV_SOLUTION_SPEC, "NAV_SOLUTION")
 NAV_SOLUTION_LEN = _NAV.size  # 102
 
-#: First byte of the optional VARIANT block appended to NAV_SOLUTION by the issue-6 variants.
+#: First byte of the optional VARIANT block appended to NAV_SOLUTION by the filter variants.
 NAV_VARIANT_BLOCK_ID = 0x56
 NAV_VARIANT_BLOCK_SPEC = Struct(
     "block_id" / Const(bytes((NAV_VARIANT_BLOCK_ID,))) * " |  | 0x56 ('V'): VARIANT block",
@@ -228,7 +236,7 @@ NAV_VARIANT_BLOCK_SPEC = Struct(
     "psns_units" / Int8ul * "1 |  | polarization sensors judged (l)",
     "psns_q_mask" / Int16ul * " |  | bit i = q_i: sensor i judged reliable",
 )
-_VARIANT_BLOCK = struct.Struct("<BBBBH")
+_VARIANT_BLOCK = StructCodec(NAV_VARIANT_BLOCK_SPEC, "NAV_VARIANT_BLOCK")
 #: ``variant_mode`` per :class:`FilterVariant` (NAV_SOLUTION VARIANT block and STATUS).
 VARIANT_MODE_MEANING = {
     "DUAL_VECTOR": "0 no polarization update, 1 polarization-error-vector (one reliable sensor), "
@@ -275,18 +283,36 @@ class HostFrame:
     payload: bytes
 
 
-_FRAME_HEAD = struct.Struct("<BH")
-_CRC16 = struct.Struct("<H")
-#: message id, length and NAV_SOLUTION payload: the CRC-covered body of a frame without VARIANT block
-_NAV_BODY = struct.Struct("<BH" + _NAV.format[1:])
+def _cpu_load_pct(raw: int) -> float:
+    """``cpu_load`` on the wire (0.01 %) -> percent."""
+    return raw / 100.0
+
+
+def _pct(v: float) -> int:
+    """Percent -> 0.01 % units, clamped to u16."""
+    return max(0, min(0xFFFF, round(v * 100)))
+
+
+_pack_head = _HEAD.packer
+_pack_crc = _CRC.packer
+_pack_crc16 = _CRC.struct.pack  # one u16: the derived format, called directly on the hot path
+_NAV_RENAME = {"cpu_load": "cpu_load_pct"}
+#: The CRC-covered body of a NAV_SOLUTION frame without VARIANT block (header and payload in one pack),
+#: from the NavSolution fields as arguments: the firmware's 100 Hz output path builds no object.
+_pack_nav_body = StructCodec(Struct(*_HEAD.spec.subcons, *NAV_SOLUTION_SPEC.subcons), "NAV_SOLUTION_BODY").encoder(
+    NavSolution, rename=_NAV_RENAME, fixed={"msg_id": MSG_NAV_SOLUTION, "length": NAV_SOLUTION_LEN}, from_args=True)
+_pack_nav = _NAV.encoder(NavSolution, rename=_NAV_RENAME, from_args=True)
+_pack_variant_block = _VARIANT_BLOCK.packer
+_decode_nav_fields = _NAV.decoder(NavSolution, rename=_NAV_RENAME, convert={"cpu_load": _cpu_load_pct})
+_decode_variant_block = _VARIANT_BLOCK.decode_fast
 
 
 def build_host_frame(msg_id: int, payload: bytes) -> bytes:
     """Frame ``payload`` as host message ``msg_id`` (sync, id, length, payload, CRC)."""
     if len(payload) > HOST_MAX_PAYLOAD:
         raise ValueError(f"host payload of {len(payload)} bytes exceeds {HOST_MAX_PAYLOAD}")
-    body = _FRAME_HEAD.pack(msg_id, len(payload)) + payload
-    return HOST_SYNC + body + _CRC16.pack(crc16_ccitt(body))
+    body = _pack_head(msg_id=msg_id, length=len(payload)) + payload
+    return HOST_SYNC + body + _pack_crc(crc=crc16_ccitt(body))
 
 
 def encode_nav_solution(n: NavSolution) -> bytes:
@@ -305,59 +331,32 @@ def nav_solution_frame(seq: int, time_s: float, lat_deg: float, lon_deg: float, 
     :class:`NavSolution` first: the firmware's 100 Hz output path. :func:`encode_nav_solution` calls it."""
     load = round(cpu_load_pct * 100)  # 0.01 % units, clamped to u16
     load = 0 if load < 0 else 0xFFFF if load > 0xFFFF else load
-    fields = (
-        seq & 0xFFFFFFFF,
-        time_s,
-        lat_deg,
-        lon_deg,
-        height_m,
-        *vel_enu_mps,
-        roll_deg,
-        pitch_deg,
-        heading_deg,
-        *sigma,
-        mode & 0xFFFF,
-        gnss_status & 0xFF,
-        psns_status & 0xFF,
-        load,
-        deadline_misses & 0xFFFFFFFF,
-    )
+    # the wire wraps the counters and mode bytes (the same argument list twice: _pack_nav_body, _pack_nav)
+    seq &= 0xFFFFFFFF
+    mode &= 0xFFFF
+    gnss_status &= 0xFF
+    psns_status &= 0xFF
+    deadline_misses &= 0xFFFFFFFF
     if variant_mode is None:  # the base variant's 102-byte frame: header and payload in one pack
-        body = _NAV_BODY.pack(MSG_NAV_SOLUTION, NAV_SOLUTION_LEN, *fields)
-        return HOST_SYNC + body + _CRC16.pack(_crc_hqx(body, 0xFFFF))
-    payload = _NAV.pack(*fields) + _VARIANT_BLOCK.pack(NAV_VARIANT_BLOCK_ID, 4, variant_mode & 0xFF,
-                                                       psns_units & 0xFF, psns_q_mask & 0xFFFF)
+        body = _pack_nav_body(seq, time_s, lat_deg, lon_deg, height_m, vel_enu_mps, roll_deg, pitch_deg, heading_deg,
+                              sigma, mode, gnss_status, psns_status, load, deadline_misses)
+        return HOST_SYNC + body + _pack_crc16(_crc_hqx(body, 0xFFFF))
+    payload = _pack_nav(seq, time_s, lat_deg, lon_deg, height_m, vel_enu_mps, roll_deg, pitch_deg, heading_deg,
+                        sigma, mode, gnss_status, psns_status, load, deadline_misses) + _pack_variant_block(
+        block_len=4, variant_mode=variant_mode & 0xFF, psns_units=psns_units & 0xFF, psns_q_mask=psns_q_mask & 0xFFFF)
     return build_host_frame(MSG_NAV_SOLUTION, payload)
 
 
 def _decode_nav(payload: bytes) -> NavSolution:
     if len(payload) < NAV_SOLUTION_LEN:
         raise ValueError(f"NAV_SOLUTION payload must be at least {NAV_SOLUTION_LEN} bytes, got {len(payload)}")
-    v = _NAV.unpack_from(payload)
-    ext: tuple[int | None, int, int] = (None, 0, 0)
     if (len(payload) >= NAV_SOLUTION_LEN + _VARIANT_BLOCK.size and payload[NAV_SOLUTION_LEN] == NAV_VARIANT_BLOCK_ID
             and payload[NAV_SOLUTION_LEN + 1] == 4):
-        ext = _VARIANT_BLOCK.unpack_from(payload, NAV_SOLUTION_LEN)[2:]
-    return NavSolution(
-        seq=v[0],
-        time_s=v[1],
-        lat_deg=v[2],
-        lon_deg=v[3],
-        height_m=v[4],
-        vel_enu_mps=(v[5], v[6], v[7]),
-        roll_deg=v[8],
-        pitch_deg=v[9],
-        heading_deg=v[10],
-        sigma=tuple(v[11:20]),
-        mode=v[20],
-        gnss_status=v[21],
-        psns_status=v[22],
-        cpu_load_pct=v[23] / 100.0,
-        deadline_misses=v[24],
-        variant_mode=ext[0],
-        psns_units=ext[1],
-        psns_q_mask=ext[2],
-    )
+        blk = _decode_variant_block(payload, NAV_SOLUTION_LEN)
+        nav: NavSolution = _decode_nav_fields(payload, 0, blk["variant_mode"], blk["psns_units"], blk["psns_q_mask"])
+        return nav
+    base: NavSolution = _decode_nav_fields(payload)
+    return base
 
 
 # -- STATUS, ACK, commands -------------------------------------------------------------------
@@ -399,9 +398,13 @@ COMMAND_SPECS = {
     CMD_REQUEST_STATUS: Struct("token" / Int8ul * " |  | host-chosen, echoed in ACK"),
 }
 
-_STATUS = struct.Struct("<IdBBHfBBHHHIIIIIIIII")
+_STATUS = StructCodec(STATUS_SPEC, "STATUS")
+#: The u32 counters of STATUS (they wrap on the wire).
+_STATUS_COUNTERS = ("deadline_misses", "uart1_frames", "uart1_errors", "uart2_frames", "uart2_errors",
+                        "uart3_frames", "uart3_errors", "commands_accepted", "commands_rejected")
 STATUS_LEN = _STATUS.size  # 64
-_ACK = struct.Struct("<BBB")
+_ACK = StructCodec(ACK_SPEC, "ACK")
+_COMMANDS = {cid: StructCodec(spec, f"COMMAND_0x{cid:02X}") for cid, spec in COMMAND_SPECS.items()}
 
 
 @fast_frozen_init
@@ -478,65 +481,65 @@ class RequestStatus:
 
 HostCommand = ResetFilter | SelectVariant | SetOutputRate | RequestStatus
 
+#: Wrap an integer to its wire width, as the encoders do for counters and ids.
+_u8, _u16, _u32 = (0xFF).__and__, (0xFFFF).__and__, (0xFFFFFFFF).__and__
 
-def _pct(v: float) -> int:
-    return max(0, min(0xFFFF, int(round(v * 100))))
+_PCT = {"cpu_load": "cpu_load_pct", "cpu_load_max": "cpu_load_max_pct"}
+_decode_status_fields = _STATUS.decoder(HostStatus, rename=_PCT,
+                                        convert={"cpu_load": _cpu_load_pct, "cpu_load_max": _cpu_load_pct})
+_encode_status_payload = _STATUS.encoder(HostStatus, rename=_PCT, convert={
+    "seq": _u32, "filter_variant": _u8, "variant_mode": _u8, "mode": _u16, "gnss_status": _u8, "psns_status": _u8,
+    "cpu_load": _pct, "cpu_load_max": _pct, "fw_version": _u16,
+    **{f: _u32 for f in _STATUS_COUNTERS},
+})
+_decode_ack = _ACK.decoder(Ack)
+_encode_ack_payload = _ACK.encoder(Ack, convert=dict.fromkeys(_ACK.names, _u8))
+#: command id -> (dataclass, decoder, encoder), all by field name from COMMAND_SPECS
+_COMMAND_CODECS: dict[int, tuple[type, Any, Any]] = {
+    cid: (cls, _COMMANDS[cid].decoder(cls),
+          _COMMANDS[cid].encoder(cls, convert={f: _u8 for f in _COMMANDS[cid].names if f != "rate_hz"}))
+    for cid, cls in ((CMD_RESET_FILTER, ResetFilter), (CMD_SELECT_VARIANT, SelectVariant),
+                     (CMD_SET_OUTPUT_RATE, SetOutputRate), (CMD_REQUEST_STATUS, RequestStatus))
+}
+_COMMAND_ID = {cls: cid for cid, (cls, _, _) in _COMMAND_CODECS.items()}
 
 
 def encode_status(st: HostStatus) -> bytes:
-    """Whole STATUS frame for ``st``."""
-    payload = _STATUS.pack(
-        st.seq & 0xFFFFFFFF, st.time_s, st.filter_variant & 0xFF, st.variant_mode & 0xFF, st.mode & 0xFFFF,
-        st.output_rate_hz,
-        st.gnss_status & 0xFF, st.psns_status & 0xFF, _pct(st.cpu_load_pct), _pct(st.cpu_load_max_pct),
-        st.fw_version & 0xFFFF, st.deadline_misses & 0xFFFFFFFF,
-        *(v & 0xFFFFFFFF for v in (st.uart1_frames, st.uart1_errors, st.uart2_frames, st.uart2_errors,
-                                   st.uart3_frames, st.uart3_errors, st.commands_accepted, st.commands_rejected)),
-    )
-    return build_host_frame(MSG_STATUS, payload)
+    """Whole STATUS frame for ``st`` (counters wrap to their wire width, loads clamp)."""
+    return build_host_frame(MSG_STATUS, _encode_status_payload(st))
 
 
 def _decode_status(payload: bytes) -> HostStatus:
     if len(payload) < STATUS_LEN:
         raise ValueError(f"STATUS payload must be at least {STATUS_LEN} bytes, got {len(payload)}")
-    v = _STATUS.unpack_from(payload)
-    return HostStatus(v[0], v[1], v[2], v[4], v[5], v[6], v[7], v[8] / 100.0, v[9] / 100.0, *v[10:], variant_mode=v[3])
+    st: HostStatus = _decode_status_fields(payload)
+    return st
 
 
 def encode_ack(a: Ack) -> bytes:
     """Whole ACK frame."""
-    return build_host_frame(MSG_ACK, _ACK.pack(a.command_id & 0xFF, a.token & 0xFF, a.result & 0xFF))
+    return build_host_frame(MSG_ACK, _encode_ack_payload(a))
 
 
 def encode_command(c: HostCommand) -> bytes:
     """Whole command frame (host -> DSP) for one of the command dataclasses."""
-    if isinstance(c, ResetFilter):
-        return build_host_frame(CMD_RESET_FILTER, bytes((c.token & 0xFF, c.scope & 0xFF)))
-    if isinstance(c, SelectVariant):
-        return build_host_frame(CMD_SELECT_VARIANT, bytes((c.token & 0xFF, c.variant & 0xFF)))
-    if isinstance(c, SetOutputRate):
-        return build_host_frame(CMD_SET_OUTPUT_RATE, struct.pack("<Bf", c.token & 0xFF, c.rate_hz))
-    if isinstance(c, RequestStatus):
-        return build_host_frame(CMD_REQUEST_STATUS, bytes((c.token & 0xFF,)))
-    raise TypeError(f"not a host command: {c!r}")
+    cid = _COMMAND_ID.get(type(c))
+    if cid is None:
+        raise TypeError(f"not a host command: {c!r}")
+    payload: bytes = _COMMAND_CODECS[cid][2](c)
+    return build_host_frame(cid, payload)
 
 
 #: command id -> exact payload length
-COMMAND_PAYLOAD_LEN = {CMD_RESET_FILTER: 2, CMD_SELECT_VARIANT: 2, CMD_SET_OUTPUT_RATE: 5, CMD_REQUEST_STATUS: 1}
+COMMAND_PAYLOAD_LEN = {cid: codec.size for cid, codec in _COMMANDS.items()}
 #: message id -> smallest payload length (NAV_SOLUTION and STATUS may grow by appending)
 _MIN_LEN = {MSG_NAV_SOLUTION: NAV_SOLUTION_LEN, MSG_STATUS: STATUS_LEN, MSG_ACK: _ACK.size, **COMMAND_PAYLOAD_LEN}
 _EXACT = {MSG_ACK, *COMMAND_PAYLOAD_LEN}
 
 
 def _decode_command(msg_id: int, payload: bytes) -> HostCommand:
-    if msg_id == CMD_RESET_FILTER:
-        return ResetFilter(payload[0], payload[1])
-    if msg_id == CMD_SELECT_VARIANT:
-        return SelectVariant(payload[0], payload[1])
-    if msg_id == CMD_SET_OUTPUT_RATE:
-        tok, rate = struct.unpack("<Bf", payload)
-        return SetOutputRate(tok, rate)
-    return RequestStatus(payload[0])
+    cmd: HostCommand = _COMMAND_CODECS[msg_id][1](payload)
+    return cmd
 
 
 def encode_host(obj: NavSolution | HostStatus | Ack | HostCommand | HostFrame) -> bytes:
@@ -589,91 +592,8 @@ class HostFormat:
         if msg_id == MSG_STATUS:
             return _decode_status(payload)
         if msg_id == MSG_ACK:
-            return Ack(*_ACK.unpack(payload))
+            ack: Ack = _decode_ack(payload)
+            return ack
         if msg_id in COMMAND_PAYLOAD_LEN:
             return _decode_command(msg_id, payload)
         return HostFrame(msg_id, bytes(payload))
-
-
-# -- text sentences for terminal users ----------------------------------------------------------
-
-
-@fast_frozen_init
-@dataclass(frozen=True, slots=True)
-class NavText:
-    """One decoded ``$PSNS...`` sentence: ``kind`` (POS, VEL, ATT, STA) and its typed values."""
-
-    kind: str
-    time_s: float
-    values: tuple[float | int, ...]
-
-
-#: kind -> (value names, formats) after the time field; the formats fix the decimals on the wire.
-TEXT_SENTENCES: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
-    "POS": (("lat_deg", "lon_deg", "height_m", "mode", "gnss_status", "psns_status"),
-            (".7f", ".7f", ".2f", "04X", "d", "d")),
-    "VEL": (("vel_e_mps", "vel_n_mps", "vel_u_mps"), (".3f", ".3f", ".3f")),
-    "ATT": (("roll_deg", "pitch_deg", "heading_deg"), (".2f", ".2f", ".2f")),
-    "STA": (("filter_variant", "cpu_load_pct", "deadline_misses"), ("d", ".2f", "d")),
-}
-
-
-def _text(kind: str, time_s: float, values: tuple[float | int, ...]) -> bytes:
-    from .nmea import build_sentence
-
-    fmts = TEXT_SENTENCES[kind][1]
-    return build_sentence("PSNS", kind, [f"{time_s:.3f}"] + [format(v, f) for v, f in zip(values, fmts)])
-
-
-def encode_nav_text(t: NavText) -> bytes:
-    """One ``$PSNS<kind>`` sentence (NMEA framing and checksum, CR LF)."""
-    return _text(t.kind, t.time_s, t.values)
-
-
-def nav_text_sentences(n: NavSolution, filter_variant: int = FilterVariant.BASE,
-                       kinds: tuple[str, ...] = ("POS", "VEL", "ATT", "STA")) -> bytes:
-    """The text rendering of one solution: ``$PSNSPOS``, ``$PSNSVEL``, ``$PSNSATT``, ``$PSNSSTA``."""
-    vals: dict[str, tuple[float | int, ...]] = {
-        "POS": (n.lat_deg, n.lon_deg, n.height_m, n.mode, n.gnss_status, n.psns_status),
-        "VEL": tuple(n.vel_enu_mps),
-        "ATT": (n.roll_deg, n.pitch_deg, n.heading_deg),
-        "STA": (int(filter_variant), n.cpu_load_pct, n.deadline_misses),
-    }
-    return b"".join(_text(k, n.time_s, vals[k]) for k in kinds)
-
-
-class HostTextFormat:
-    """:class:`~protocols.stream.FrameFormat` of the ``$PSNS...`` text sentences (yields :class:`NavText`).
-
-    Other NMEA sentences on the same stream come out as :class:`~protocols.nmea.NmeaSentence`.
-    """
-
-    name = "host-text"
-    sync = b"$"
-
-    def __init__(self) -> None:
-        from .nmea import NmeaFormat
-
-        self._nmea = NmeaFormat()
-        self.frame_length = self._nmea.frame_length
-        self.check = self._nmea.check
-
-    @staticmethod
-    def encode(obj: Any) -> bytes:
-        """Encode a :class:`NavText` (or any NMEA object) back to its sentence."""
-        if isinstance(obj, NavText):
-            return encode_nav_text(obj)
-        from .nmea import encode_nmea
-
-        return encode_nmea(obj)
-
-    def parse(self, frame: bytes) -> NavText | object:
-        s = self._nmea.parse(frame)
-        if getattr(s, "talker", None) != "PSNS" or s.kind not in TEXT_SENTENCES:  # type: ignore[union-attr]
-            return s
-        names, fmts = TEXT_SENTENCES[s.kind]  # type: ignore[union-attr]
-        f = s.fields  # type: ignore[union-attr]
-        if len(f) != 1 + len(names):
-            raise ValueError(f"$PSNS{s.kind} needs {1 + len(names)} fields")  # type: ignore[union-attr]
-        vals = tuple(int(v, 16) if fm == "04X" else int(v) if fm == "d" else float(v) for v, fm in zip(f[1:], fmts))
-        return NavText(s.kind, float(f[0]), vals)  # type: ignore[union-attr]

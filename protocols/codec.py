@@ -42,6 +42,7 @@ from __future__ import annotations
 import struct
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import MISSING, dataclass, fields
+from itertools import starmap
 from typing import Any
 
 from construct import Array, Bytes, BytesInteger, Const, Construct, FormatField, Padded, Pass, Renamed, Struct
@@ -319,12 +320,12 @@ class StructCodec:
 
     def decoder(self, cls: type, *, rename: Mapping[str, str] | None = None, ignore: Sequence[str] = (),
                 convert: Mapping[str, Callable[[Any], Any]] | None = None, many: bool = False) -> Callable[..., Any]:
-        """Generate ``decode(buf, offset=0, *others) -> cls``, the dataclass built from the spec by field name.
+        """Generate ``decode(buf, offset, *others) -> cls``, the dataclass built from the spec by field name.
 
         Every spec value field goes to the dataclass field of the same name (or ``rename[spec name]``), through
         ``convert[spec name]`` if given, unless it is in ``ignore`` (a CRC checked elsewhere). Dataclass fields
         that the spec does not provide become further parameters, in dataclass order, with the dataclass's
-        defaults. ``many=True`` generates ``decode_all(buf, *others) -> tuple[cls, ...]`` over back-to-back
+        defaults (``offset`` defaults to 0 unless one of them is required). ``many=True`` generates ``decode_all(buf, *others) -> tuple[cls, ...]`` over back-to-back
         records instead.
         """
         rename, convert = rename or {}, convert or {}
@@ -353,7 +354,22 @@ class StructCodec:
                 args.append(f"_cv_{sname}({expr[sname]})")
         extra = "".join(", " + p for p in params)
         call = f"_cls({', '.join(args)})"
-        if many:
+        # The unpacked items are exactly the dataclass's fields in order (scalars only, no conversion, nothing
+        # else): hand the tuple over whole, which CPython does faster than through named locals.
+        direct = (not params and not self._consts and len(targets) == len(cls_fields)
+                  and all(it.kind in ("scalar", "bytes") for it in self._items)
+                  and [f.name for f in cls_fields] == [rename.get(n, n) for n in self.names]
+                  and not convert and not ignore)
+        ns["_starmap"] = starmap
+        if many and direct:
+            src = (f"def decode_all(_buf):\n    try:\n        return tuple(_starmap(_cls, _iter_unpack(_buf)))\n"
+                   f"    except _StructError as exc:\n        raise ValueError(f'{self.name}: {{exc}}') from exc\n")
+            fn = self._compile(src, ns, "decode_all")
+        elif direct:
+            src = (f"def decode(_buf, _off=0):\n    try:\n        return _cls(*_unpack_from(_buf, _off))\n"
+                   f"    except _StructError as exc:\n        raise ValueError(f'{self.name}: {{exc}}') from exc\n")
+            fn = self._compile(src, ns, "decode")
+        elif many:
             if self._consts:
                 raise TypeError(f"{self.name}: decode_all of records with constants is not supported")
             lhs = ", ".join(targets) + ("," if len(targets) == 1 else "")
@@ -362,7 +378,8 @@ class StructCodec:
                    f"        raise ValueError(f'{self.name}: {{exc}}') from exc\n")
             fn = self._compile(src, ns, "decode_all")
         else:
-            src = (f"def decode(_buf, _off=0{extra}):\n" + self._unpack_stmt(targets, "_unpack_from(_buf, _off)")
+            off = "_off" if any("=" not in p for p in params) else "_off=0"  # a required field follows
+            src = (f"def decode(_buf, {off}{extra}):\n" + self._unpack_stmt(targets, "_unpack_from(_buf, _off)")
                    + "".join(self._const_checks()) + f"    return {call}\n")
             fn = self._compile(src, ns, "decode")
         self.bindings.append(Binding(cls, "decode", mapping, fn))

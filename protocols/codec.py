@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import MISSING, dataclass, fields
+from dataclasses import MISSING, dataclass, field, fields
 from itertools import starmap
 from typing import Any
 
@@ -60,7 +60,7 @@ class _Item:
     name: str
     kind: str  #: "scalar", "int24", "array", "array24", "bytes"
     first: int  #: index of its first item in the unpacked tuple
-    count: int  #: elements (1 for a scalar)
+    count: int  #: elements (1 for a scalar, the length for bytes)
     signed: bool = False
 
 
@@ -73,9 +73,12 @@ class Binding:
     """
 
     cls: type
-    direction: str  #: "decode", "encode" (from an object) or "encode_args" (from the fields as arguments)
+    #: "decode", "decode_all" (back-to-back records), "encode" (from an object) or "encode_args" (from the
+    #: fields as arguments)
+    direction: str
     fields: Mapping[str, tuple[str, Callable[[Any], Any] | None]]
     function: Callable[..., Any]
+    fixed: Mapping[str, Any] = field(default_factory=dict)  #: spec fields an encoder writes as constants
 
 
 def _unwrap(sc: Construct) -> tuple[str | None, Construct]:
@@ -140,7 +143,7 @@ class StructCodec:
         fmt: list[str] = []
         orders: set[str] = set()
         items: list[_Item] = []
-        consts: list[tuple[int, Any, str]] = []  # (index of the first item, value, struct chars)
+        consts: list[tuple[int, Any, str, int]] = []  # (index of its item, value, struct chars, byte offset)
         n = 0  # items so far
         for sc in spec.subcons:
             fname, inner = _unwrap(sc)
@@ -156,7 +159,7 @@ class StructCodec:
                 if kind == "int24":
                     raise TypeError(f"{where}: a 24-bit Const is not supported")
                 orders.add(_order(leaf))
-                consts.append((n, inner.value, chars))
+                consts.append((n, inner.value, chars, struct.calcsize("<" + "".join(fmt))))
                 fmt.append(chars)
                 n += 1
                 continue
@@ -175,7 +178,7 @@ class StructCodec:
                 continue
             chars, kind, signed = _leaf(inner, where)
             orders.add(_order(inner))
-            items.append(_Item(fname, kind, n, 1, signed))
+            items.append(_Item(fname, kind, n, inner.length if kind == "bytes" else 1, signed))
             fmt.append(chars)
             n += 2 if kind == "int24" else 1
         orders.discard("")
@@ -188,6 +191,9 @@ class StructCodec:
             raise AssertionError(f"{name}: derived {self.size} bytes, construct says {spec.sizeof()}")
         self._items = tuple(items)
         self._consts = tuple(consts)
+        #: ``(byte offset, bytes)`` of every constant of the layout
+        self.constants = tuple((off, struct.pack(self.order + chars, v) if not isinstance(v, bytes) else v)
+                               for _, v, chars, off in consts)
         self._nitems = n
         self.names = tuple(it.name for it in items)
         self.decode_fast: Callable[[bytes | bytearray | memoryview, int], dict[str, Any]] = self._gen_decode_dict()
@@ -212,7 +218,7 @@ class StructCodec:
     def _unpack_targets(self) -> tuple[list[str], dict[str, str]]:
         """Local names for every unpacked item, and the expression of each value field."""
         targets = [f"_c{i}" for i in range(self._nitems)]
-        for i, _, _ in self._consts:
+        for i, *_ in self._consts:
             targets[i] = f"_k{i}"
         expr: dict[str, str] = {}
         for it in self._items:
@@ -235,12 +241,12 @@ class StructCodec:
 
     def _const_checks(self) -> list[str]:
         return [f"    if _k{i} != _K{i}:\n        raise ValueError(f'{self.name}: {{_k{i}!r}} where the constant "
-                f"{{_K{i}!r}} belongs')\n" for i, _, _ in self._consts]
+                f"{{_K{i}!r}} belongs')\n" for i, *_ in self._consts]
 
     def _namespace(self) -> dict[str, Any]:
         ns: dict[str, Any] = {"_unpack_from": self.struct.unpack_from, "_iter_unpack": self.struct.iter_unpack,
                               "_pack": self.struct.pack, "_StructError": struct.error}
-        for i, v, _ in self._consts:
+        for i, v, *_ in self._consts:
             ns[f"_K{i}"] = v
         return ns
 
@@ -267,12 +273,17 @@ class StructCodec:
         ``construct`` does); 24-bit words are then split into their two items."""
         pre: list[str] = []
         args = [""] * self._nitems
-        for i, _, _ in self._consts:
+        for i, *_ in self._consts:
             args[i] = f"_K{i}"
         for it in self._items:
             v = value(it.name)
-            if it.kind in ("scalar", "bytes"):
+            if it.kind == "scalar":
                 args[it.first] = v
+            elif it.kind == "bytes":  # struct would pad or cut a wrong length silently; construct refuses it
+                b = f"_b_{it.name}"
+                pre.append(f"        {b} = {v}\n        if len({b}) != {it.count}:\n"
+                           f"            raise ValueError('{self.name}.{it.name} needs {it.count} bytes')\n")
+                args[it.first] = b
             elif it.kind == "array":
                 # one unpacking assignment: refuses a wrong element count, cheaper than indexing v repeatedly
                 elems = [f"_e_{it.name}_{k}" for k in range(it.count)]
@@ -290,7 +301,7 @@ class StructCodec:
     def _pack_stmt(self, pre_args: tuple[str, str]) -> str:
         pre, args = pre_args
         return (f"    try:\n{pre}        return _pack({args})\n"
-                f"    except (_StructError, TypeError) as exc:\n"
+                f"    except (_StructError, TypeError, OverflowError) as exc:\n"
                 f"        raise ValueError(f'{self.name}: {{exc}}') from exc\n")
 
     def _gen_encode_dict(self) -> Callable[[Mapping[str, Any]], bytes]:
@@ -382,7 +393,7 @@ class StructCodec:
             src = (f"def decode(_buf, {off}{extra}):\n" + self._unpack_stmt(targets, "_unpack_from(_buf, _off)")
                    + "".join(self._const_checks()) + f"    return {call}\n")
             fn = self._compile(src, ns, "decode")
-        self.bindings.append(Binding(cls, "decode", mapping, fn))
+        self.bindings.append(Binding(cls, "decode_all" if many else "decode", mapping, fn))
         return fn
 
     def encoder(self, cls: type, *, rename: Mapping[str, str] | None = None,
@@ -422,5 +433,5 @@ class StructCodec:
         else:
             src = "def encode(_o):\n"
         fn = self._compile(src + self._pack_stmt(self._pack_args(value)), ns, "encode")
-        self.bindings.append(Binding(cls, "encode_args" if from_args else "encode", mapping, fn))
+        self.bindings.append(Binding(cls, "encode_args" if from_args else "encode", mapping, fn, dict(fixed)))
         return fn

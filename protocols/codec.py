@@ -396,6 +396,21 @@ class StructCodec:
         self.bindings.append(Binding(cls, "decode_all" if many else "decode", mapping, fn))
         return fn
 
+    def unpacker(self, cls: type) -> Callable[[bytes | bytearray | memoryview, int], tuple[Any, ...]]:
+        """``struct.unpack_from`` of this codec, for ``cls(*unpack_from(buf, offset))`` on the hottest paths.
+
+        Only for a dataclass whose fields *are* the spec's value fields, by name and in order, scalars only
+        (refused with ``TypeError`` otherwise): then the unpacked tuple is the dataclass's argument list and
+        the call saves the generated decoder's frame. The generated decoder is registered as well, so the
+        equivalence test covers the dataclass.
+        """
+        self.decoder(cls)
+        if any(it.kind not in ("scalar", "bytes") for it in self._items) or self._consts \
+                or [f.name for f in fields(cls) if f.init] != list(self.names):
+            raise TypeError(f"{self.name}: the fields of {cls.__name__} are not the spec's fields in order")
+        unpack: Callable[[bytes | bytearray | memoryview, int], tuple[Any, ...]] = self.struct.unpack_from
+        return unpack
+
     def encoder(self, cls: type, *, rename: Mapping[str, str] | None = None,
                 convert: Mapping[str, Callable[[Any], Any]] | None = None, fixed: Mapping[str, Any] | None = None,
                 from_args: bool = False) -> Callable[..., bytes]:

@@ -208,8 +208,10 @@ _PVT = StructCodec(NAV_PVT_SPEC, "UBX_NAV_PVT")
 _STATUS = StructCodec(NAV_STATUS_SPEC, "UBX_NAV_STATUS")
 if (_PVT.size, _STATUS.size) != (NAV_PVT_LEN, NAV_STATUS_LEN):  # pragma: no cover
     raise AssertionError("UBX payload lengths disagree with the specs")
-_decode_pvt = _PVT.decoder(NavPvt)
-_decode_status = _STATUS.decoder(NavStatus)
+#: NavPvt / NavStatus fields are the specs' fields in order (checked by name): the unpacked tuple is their
+#: argument list.
+_unpack_pvt = _PVT.unpacker(NavPvt)
+_unpack_status = _STATUS.unpacker(NavStatus)
 _encode_pvt = _PVT.encoder(NavPvt)
 _encode_status = _STATUS.encoder(NavStatus)
 
@@ -275,9 +277,7 @@ class UbxFormat:
         n = len(frame) - 8
         if cls == CLS_NAV:
             if mid == ID_NAV_PVT and n == NAV_PVT_LEN:
-                pvt: NavPvt = _decode_pvt(frame, 6)
-                return pvt
+                return NavPvt(*_unpack_pvt(frame, 6))
             if mid == ID_NAV_STATUS and n == NAV_STATUS_LEN:
-                st: NavStatus = _decode_status(frame, 6)
-                return st
+                return NavStatus(*_unpack_status(frame, 6))
         return UbxFrame(cls, mid, bytes(frame[6:-2]))

@@ -66,19 +66,49 @@ class _Item:
 
 @dataclass(frozen=True)
 class Binding:
-    """A generated dataclass decoder or encoder and how it maps the spec's fields to the dataclass fields.
+    """A generated dataclass decoder or encoder (:attr:`call_fast`) beside its ``construct`` reference
+    (:meth:`call`), and how it maps the spec's fields to the dataclass's.
 
     ``fields`` maps each dataclass field taken from the spec to ``(spec field, conversion or None)``; the
-    conversion turns the wire value into the dataclass value (decoder) or back (encoder).
+    conversion turns the wire value into the dataclass value (decoder) or back (encoder). ``params`` are the
+    further parameters of a decoder (dataclass fields the spec does not carry) or the parameters of an
+    ``encode_args`` encoder.
     """
 
+    codec: StructCodec
     cls: type
     #: "decode", "decode_all" (back-to-back records), "encode" (from an object) or "encode_args" (from the
     #: fields as arguments)
     direction: str
     fields: Mapping[str, tuple[str, Callable[[Any], Any] | None]]
-    function: Callable[..., Any]
+    call_fast: Callable[..., Any]
+    params: tuple[str, ...] = ()
     fixed: Mapping[str, Any] = field(default_factory=dict)  #: spec fields an encoder writes as constants
+
+    def _from_wire(self, v: Mapping[str, Any], others: Sequence[Any]) -> Any:
+        kw = {c: (v[s] if conv is None else conv(v[s])) for c, (s, conv) in self.fields.items()}
+        kw.update(zip(self.params, others))
+        return self.cls(**kw)
+
+    def _to_wire(self, get: Callable[[str], Any]) -> bytes:
+        v = {s: (get(c) if conv is None else conv(get(c))) for c, (s, conv) in self.fields.items()}
+        return self.codec.encode({**v, **self.fixed})
+
+    def call(self, *args: Any) -> Any:
+        """The reference: what :attr:`call_fast` returns, computed through ``construct`` by field name."""
+        if self.direction == "decode":
+            buf, off, *others = (*args, 0) if len(args) == 1 else args
+            return self._from_wire(self.codec.decode(buf, off), others)
+        if self.direction == "decode_all":
+            buf, *others = args
+            size = self.codec.size
+            if len(buf) % size:
+                raise ValueError(f"{self.codec.name}: {len(buf)} bytes are not whole records of {size}")
+            return tuple(self._from_wire(self.codec.decode(buf, off), others) for off in range(0, len(buf), size))
+        if self.direction == "encode":
+            return self._to_wire(lambda c: getattr(args[0], c))
+        named = dict(zip(self.params, args))
+        return self._to_wire(named.__getitem__)
 
 
 def _unwrap(sc: Construct) -> tuple[str | None, Construct]:
@@ -393,7 +423,8 @@ class StructCodec:
             src = (f"def decode(_buf, {off}{extra}):\n" + self._unpack_stmt(targets, "_unpack_from(_buf, _off)")
                    + "".join(self._const_checks()) + f"    return {call}\n")
             fn = self._compile(src, ns, "decode")
-        self.bindings.append(Binding(cls, "decode_all" if many else "decode", mapping, fn))
+        extra_names = tuple(p.split("=", 1)[0] for p in params)
+        self.bindings.append(Binding(self, cls, "decode_all" if many else "decode", mapping, fn, extra_names))
         return fn
 
     def unpacker(self, cls: type) -> Callable[[bytes | bytearray | memoryview, int], tuple[Any, ...]]:
@@ -443,10 +474,11 @@ class StructCodec:
             return f"_cv_{sname}({attr})" if sname in convert else attr
 
         if from_args:
-            params = ", ".join(f.name for f in cls_fields if f.name in by_cls)
-            src = f"def encode({params}):\n"
+            src = f"def encode({', '.join(f.name for f in cls_fields if f.name in by_cls)}):\n"
         else:
             src = "def encode(_o):\n"
         fn = self._compile(src + self._pack_stmt(self._pack_args(value)), ns, "encode")
-        self.bindings.append(Binding(cls, "encode_args" if from_args else "encode", mapping, fn, dict(fixed)))
+        names = tuple(f.name for f in cls_fields if f.name in by_cls) if from_args else ()
+        self.bindings.append(Binding(self, cls, "encode_args" if from_args else "encode", mapping, fn, names,
+                                     dict(fixed)))
         return fn

@@ -571,7 +571,7 @@ class HostFormat:
         """Encode a decoded object back to its frame (:func:`encode_host`)."""
         return encode_host(obj)
 
-    def frame_length(self, buf: bytearray, start: int) -> int:
+    def frame_length(self, buf: bytes | bytearray, start: int) -> int:
         if len(buf) - start < 5:
             return NEED_MORE
         n = buf[start + 3] | (buf[start + 4] << 8)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import datetime as dt
 import math
 import struct
+from collections.abc import Sequence
 from typing import Any
 
 from construct import Array, BytesInteger, Const, FormatField, Renamed, Struct
@@ -97,7 +98,7 @@ def spec_rows(spec: Struct, start: int | str = 0) -> list[tuple[str, str, str, s
     return rows
 
 
-def _table(rows: list, header: tuple[str, ...] = ("offset", "size", "type", "field", "scale", "unit", "meaning")) -> str:
+def _table(rows: Sequence[Sequence[object]], header: tuple[str, ...] = ("offset", "size", "type", "field", "scale", "unit", "meaning")) -> str:
     lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
     for r in rows:
         lines.append("| " + " | ".join(str(c).replace("|", "\\|") for c in r) + " |")
@@ -280,7 +281,7 @@ def generate() -> str:
       "(`protocols.stim.counter_step(200) == 10`). The decoder is configured per device and format "
       "(`Stim210Format('m')`, `Stim300Format(0x93)`), never from the ID: 0x90 is a different frame on each.\n")
     w("### 3.1 STIM210 normal-mode datagrams (big-endian; protocols.md 1.8)\n")
-    rows = []
+    rows: list[tuple[str, ...]] = []
     for letter, (ident, groups) in stim.STIM210_FORMATS.items():
         f = stim.Stim210Format(letter)
         rows.append((f"d {letter}", f"0x{ident:02X}", ", ".join(("gyro", "status") + groups), str(f.length),

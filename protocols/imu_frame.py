@@ -204,7 +204,7 @@ class ImuFrameFormat:
     name = "imu"
     sync = IMU_SYNC
 
-    def frame_length(self, buf: bytearray, start: int) -> int:
+    def frame_length(self, buf: bytes | bytearray, start: int) -> int:
         if len(buf) - start < 4:
             return NEED_MORE
         if buf[start + 2] != IMU_MSG_TYPE or buf[start + 3] != IMU_PAYLOAD_LEN:
@@ -264,7 +264,7 @@ class FpgaFrameFormat:
     def __init__(self) -> None:
         self._imu = ImuFrameFormat()
 
-    def frame_length(self, buf: bytearray, start: int) -> int:
+    def frame_length(self, buf: bytes | bytearray, start: int) -> int:
         if len(buf) - start < 4:
             return NEED_MORE
         t, n = buf[start + 2], buf[start + 3]

@@ -166,7 +166,7 @@ class MonitorFormat:
         self._enc = b""
         self._body = b""
 
-    def frame_length(self, buf: bytearray, start: int) -> int:
+    def frame_length(self, buf: bytes | bytearray, start: int) -> int:
         n = len(buf)
         i = start + 1
         while i < n and buf[i] == 0:
@@ -175,7 +175,7 @@ class MonitorFormat:
         z = buf.find(b"\x00", i)  # COBS data holds no 0x00: the record ends before z
         if z < 0:
             z = n
-        parts: list[bytes] = []
+        parts: list[bytes | bytearray] = []
         want = -1  # decoded record length (header + data + CRC) once the header is known
         decoded = 0
         while True:

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import datetime as _dt
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable
 
 from ._fastinit import fast_frozen_init
 from .crc import nmea_checksum
@@ -530,7 +530,8 @@ _HEX2 = {**{f"{i:02X}".encode(): i for i in range(256)}, **{f"{i:02x}".encode():
 #: The same, pre-XORed with the framing bytes '$', '*', the two hex digits, CR and LF.
 _HEX2_FRAMED = {k: v ^ 0x24 ^ 0x2A ^ k[0] ^ k[1] ^ 0x0D ^ 0x0A for k, v in _HEX2.items()}
 
-_PARSERS = {"GGA": _gga, "RMC": _rmc, "VTG": _vtg, "GSA": _gsa, "ZDA": _zda}
+_PARSERS: dict[str, Callable[[str, list[str]], Gga | Rmc | Vtg | Gsa | Zda]] = {
+    "GGA": _gga, "RMC": _rmc, "VTG": _vtg, "GSA": _gsa, "ZDA": _zda}
 
 
 class NmeaFormat:
@@ -556,7 +557,7 @@ class NmeaFormat:
         """Encode a decoded object back to its frame (:func:`encode_nmea`)."""
         return encode_nmea(obj)
 
-    def frame_length(self, buf: bytearray, start: int) -> int:
+    def frame_length(self, buf: bytes | bytearray, start: int) -> int:
         end = buf.find(b"\n", start + 1, start + self.max_len)
         if end < 0:
             if len(buf) - start >= self.max_len:
@@ -596,18 +597,20 @@ class NmeaFormat:
             head = _classify_head(parts[0])
         talker, kind, p = head
         if p is not None:
-            return p(talker, parts)  # type: ignore[operator]
+            return p(talker, parts)
         return NmeaSentence(talker, kind, tuple(parts[1:]))
 
 
-_HEADS: dict[str, tuple[str, str, object]] = {}
+#: A typed sentence parser: (talker, the split sentence) -> the sentence object.
+_Parser = Callable[[str, list[str]], Gga | Rmc | Vtg | Gsa | Zda]
+_HEADS: dict[str, tuple[str, str, _Parser | None]] = {}
 
 
-def _classify_head(head: str) -> tuple[str, str, object]:
+def _classify_head(head: str) -> tuple[str, str, _Parser | None]:
     """Split an address field into (talker, kind, typed parser or None); cache the good ones."""
     if len(head) == 5 and head.isalnum() and head.isupper():
         talker, kind = head[:2], head[2:]
-        r: tuple[str, str, object] = (talker, kind, _PARSERS.get(kind))
+        r: tuple[str, str, _Parser | None] = (talker, kind, _PARSERS.get(kind))
     elif len(head) >= 4 and head[0] == "P" and head.isalnum() and head.isupper():
         r = (head[:4], head[4:], None)  # proprietary: 'P' + maker code, then the type (may be empty)
     else:

@@ -271,7 +271,7 @@ class PsnsFormat:
         """Encode a decoded object back to its frame (:func:`encode_psns`)."""
         return encode_psns(obj)
 
-    def frame_length(self, buf: bytearray, start: int) -> int:
+    def frame_length(self, buf: bytes | bytearray, start: int) -> int:
         # The payload length must agree with the header's count (bytes 16-17), so a corrupt
         # length is refused after 18 bytes instead of holding the stream for up to 64 KiB.
         avail = len(buf) - start

@@ -42,7 +42,9 @@ over everything from ``$``/``#`` through the last comma: :func:`utility_mode_crc
 from __future__ import annotations
 
 import enum
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 from construct import Array, Bytes, Const, Int8ub, Int16sb, Int16ub, Int24sb, Struct
 
@@ -180,7 +182,7 @@ def stim210_spec(fmt: str) -> Struct:
     return Struct(*fields)
 
 
-def _stim210_codecs(fmt: str) -> tuple[StructCodec, object, object]:
+def _stim210_codecs(fmt: str) -> tuple[StructCodec, Callable[..., Any], Callable[..., bytes]]:
     """The derived codec of one format, its decoder and its body encoder (ident .. last data byte)."""
     spec = stim210_spec(fmt)
     codec = StructCodec(spec, f"STIM210_{fmt}")
@@ -225,7 +227,7 @@ class Stim210Format:
         self.length = codec.size + (2 if crlf else 0)
 
     # FrameFormat protocol ------------------------------------------------------
-    def frame_length(self, buf: bytearray, start: int) -> int:
+    def frame_length(self, buf: bytes | bytearray, start: int) -> int:
         return self.length
 
     def check(self, frame: bytes) -> bool:

@@ -213,7 +213,7 @@ class Stim300Format:
         self.dummy = bytes(dummy)
 
     # FrameFormat protocol ------------------------------------------------------
-    def frame_length(self, buf: bytearray, start: int) -> int:
+    def frame_length(self, buf: bytes | bytearray, start: int) -> int:
         return self.length
 
     def check(self, frame: bytes) -> bool:

@@ -256,7 +256,7 @@ class UbxFormat:
         """Encode a decoded object back to its frame (:func:`encode_ubx`)."""
         return encode_ubx(obj)
 
-    def frame_length(self, buf: bytearray, start: int) -> int:
+    def frame_length(self, buf: bytes | bytearray, start: int) -> int:
         if len(buf) - start < 6:
             return NEED_MORE
         cls = buf[start + 2]

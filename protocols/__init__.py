@@ -13,15 +13,15 @@ from .stream import BAD_LENGTH, NEED_MORE, DecoderStats, FrameFormat, StreamDeco
 __version__ = "0.1.0"
 
 __all__ = [
-    "PsnsHilError",
-    "ProtocolError",
-    "FrameError",
-    "ChecksumError",
-    "StreamDecoder",
-    "FrameFormat",
-    "DecoderStats",
-    "NEED_MORE",
     "BAD_LENGTH",
-    "parse_one",
+    "NEED_MORE",
+    "ChecksumError",
+    "DecoderStats",
+    "FrameError",
+    "FrameFormat",
+    "ProtocolError",
+    "PsnsHilError",
+    "StreamDecoder",
     "__version__",
+    "parse_one",
 ]

@@ -45,7 +45,7 @@ def fast_frozen_init(cls: type[T]) -> type[T]:
         ns[f"_s{i}"] = cls.__dict__[f.name].__set__
     body = "".join(f"    _s{i}(self, {f.name})\n" for i, f in enumerate(fields)) or "    pass\n"
     src = f"def __init__(self, {', '.join(args)}):\n{body}"
-    exec(src, ns)  # noqa: S102 - source built from the dataclass's own field names
+    exec(src, ns)
     init = ns["__init__"]
     if not isinstance(init, types.FunctionType):  # pragma: no cover - exec defined it above
         raise TypeError("generated __init__ is not a function")

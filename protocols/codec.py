@@ -281,7 +281,7 @@ class StructCodec:
         return ns
 
     def _compile(self, src: str, ns: dict[str, Any], fn: str) -> Callable[..., Any]:
-        exec(compile(src, f"<codec {self.name}>", "exec"), ns)  # noqa: S102 - source built from spec field names
+        exec(compile(src, f"<codec {self.name}>", "exec"), ns)
         f: Callable[..., Any] = ns[fn]
         f.__qualname__ = f"{self.name}.{fn}"
         return f
@@ -366,7 +366,8 @@ class StructCodec:
         Every spec value field goes to the dataclass field of the same name (or ``rename[spec name]``), through
         ``convert[spec name]`` if given, unless it is in ``ignore`` (a CRC checked elsewhere). Dataclass fields
         that the spec does not provide become further parameters, in dataclass order, with the dataclass's
-        defaults (``offset`` defaults to 0 unless one of them is required). ``many=True`` generates ``decode_all(buf, *others) -> tuple[cls, ...]`` over back-to-back
+        defaults (``offset`` defaults to 0 unless one of them is required). ``many=True`` generates
+        ``decode_all(buf, *others) -> tuple[cls, ...]`` over back-to-back
         records instead.
         """
         rename, convert = rename or {}, convert or {}

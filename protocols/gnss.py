@@ -19,20 +19,20 @@ from .nmea import build_gga, build_gsa, build_rmc, build_vtg, build_zda
 from .ubx import NavPvt, NavStatus, encode_nav_pvt, encode_nav_status
 
 __all__ = [
+    "FAA_MODE",
     "GPS_EPOCH",
     "GPS_UTC_LEAP_S",
     "NMEA_SENTENCES",
     "UBX_MESSAGES",
-    "FAA_MODE",
     "GnssFix",
     "GnssOutputSet",
     "build_epoch",
+    "gps_time_of_week_ms",
     "nav_pvt_from_fix",
     "nav_status_from_fix",
-    "gps_time_of_week_ms",
 ]
 
-GPS_EPOCH = _dt.datetime(1980, 1, 6, tzinfo=_dt.timezone.utc)
+GPS_EPOCH = _dt.datetime(1980, 1, 6, tzinfo=_dt.UTC)
 #: GPS - UTC in seconds since 2017-01-01 (IERS Bulletin C: no leap second announced since).
 GPS_UTC_LEAP_S = 18
 NMEA_SENTENCES = ("RMC", "VTG", "GGA", "GSA", "ZDA")

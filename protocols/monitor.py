@@ -37,20 +37,21 @@ from .crc import crc16_ccitt
 from .stream import BAD_LENGTH, NEED_MORE
 
 __all__ = [
+    "DIR_FROM_DSP",
+    "DIR_TO_DSP",
     "MONITOR_CHANNELS",
     "MONITOR_MAX_DATA",
     "MONITOR_RECORD_SPEC",
-    "DIR_TO_DSP",
-    "DIR_FROM_DSP",
-    "MonitorRecord",
     "MonitorFormat",
-    "encode_monitor",
-    "cobs_encode",
+    "MonitorRecord",
     "cobs_decode",
+    "cobs_encode",
+    "encode_monitor",
     "monitor_frame_len",
 ]
 
-MONITOR_CHANNELS = {"gyro": 0, "gnss": 1, "psns": 2, "host": 3, "uart0": 4, "uart1": 5, "uart2": 6, "uart3": 7, "mag": 8}
+MONITOR_CHANNELS = {"gyro": 0, "gnss": 1, "psns": 2, "host": 3, "uart0": 4, "uart1": 5, "uart2": 6, "uart3": 7,
+                    "mag": 8}
 DIR_TO_DSP = 0
 DIR_FROM_DSP = 1
 #: Largest data chunk in one record; longer chunks are split by the sender.

@@ -29,28 +29,29 @@ builders ``encode_nmea(parse(b)) == b`` holds byte for byte (the golden vectors 
 from __future__ import annotations
 
 import datetime as _dt
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 from ._fastinit import fast_frozen_init
 from .crc import nmea_checksum
 from .stream import BAD_LENGTH, NEED_MORE
 
 __all__ = [
-    "NMEA_MAX_LEN",
     "KNOT_MPS",
-    "NmeaSentence",
+    "NMEA_MAX_LEN",
     "Gga",
+    "Gsa",
+    "NmeaFormat",
+    "NmeaSentence",
     "Rmc",
     "Vtg",
-    "Gsa",
     "Zda",
-    "NmeaFormat",
-    "build_sentence",
     "build_gga",
-    "build_rmc",
-    "build_vtg",
     "build_gsa",
+    "build_rmc",
+    "build_sentence",
+    "build_vtg",
     "build_zda",
     "encode_nmea",
     "format_lat",
@@ -147,7 +148,7 @@ def _parse_time_uncached(s: str) -> _dt.time:
     hh, mm = int(s[0:2]), int(s[2:4])
     sec = float(s[4:])
     whole = int(sec)
-    return _dt.time(hh, mm, whole, int(round((sec - whole) * 1e6)) if sec != whole else 0)
+    return _dt.time(hh, mm, whole, round((sec - whole) * 1e6) if sec != whole else 0)
 
 
 # A receiver repeats one epoch's time and date in several sentences (RMC, GGA, ZDA): small
@@ -246,7 +247,8 @@ def build_gga(
     lat, ns = format_lat(lat_deg)
     lon, ew = format_lon(lon_deg)
     if quality == 0:
-        return build_sentence(talker, "GGA", [_format_time(time_utc), "", "", "", "", "0", "00", "99.99", "", "", "", "", "", ""])
+        return build_sentence(talker, "GGA", [_format_time(time_utc), "", "", "", "", "0", "00", "99.99", "", "", "",
+                                              "", "", ""])
     return build_sentence(
         talker,
         "GGA",
@@ -282,7 +284,8 @@ def build_rmc(
 ) -> bytes:
     """RMC sentence (NMEA 2.3 with the mode indicator). Speed in m/s is written in knots."""
     if not valid:
-        return build_sentence(talker, "RMC", [_format_time(time_utc), "V", "", "", "", "", "", "", date.strftime("%d%m%y"), "", "", "N"])
+        return build_sentence(talker, "RMC", [_format_time(time_utc), "V", "", "", "", "", "", "",
+                                              date.strftime("%d%m%y"), "", "", "N"])
     lat, ns = format_lat(lat_deg)
     lon, ew = format_lon(lon_deg)
     return build_sentence(

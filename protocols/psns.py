@@ -55,29 +55,29 @@ from .crc import crc16_ccitt
 from .stream import BAD_LENGTH, NEED_MORE
 
 __all__ = [
-    "PSNS_SYNC",
-    "MSG_POLARIZATION_OBS",
-    "MSG_COMPASS",
-    "MSG_SOLAR_VECTOR",
-    "PSNS_MAX_PAYLOAD",
-    "PsnsStatus",
-    "PsnsHeader",
-    "PolarizationPoint",
-    "PolarizationObs",
-    "CompassUnit",
-    "CompassFrame",
-    "SolarVectorFrame",
-    "PsnsFormat",
-    "encode_polarization_obs",
-    "encode_compass",
-    "encode_solar_vector",
-    "max_points",
-    "frame_bytes_obs",
-    "encode_psns",
-    "POLARIZATION_OBS_SPEC",
     "COMPASS_SPEC",
-    "SOLAR_VECTOR_SPEC",
+    "MSG_COMPASS",
+    "MSG_POLARIZATION_OBS",
+    "MSG_SOLAR_VECTOR",
+    "POLARIZATION_OBS_SPEC",
     "PSNS_FRAME_SPEC",
+    "PSNS_MAX_PAYLOAD",
+    "PSNS_SYNC",
+    "SOLAR_VECTOR_SPEC",
+    "CompassFrame",
+    "CompassUnit",
+    "PolarizationObs",
+    "PolarizationPoint",
+    "PsnsFormat",
+    "PsnsHeader",
+    "PsnsStatus",
+    "SolarVectorFrame",
+    "encode_compass",
+    "encode_polarization_obs",
+    "encode_psns",
+    "encode_solar_vector",
+    "frame_bytes_obs",
+    "max_points",
 ]
 
 PSNS_SYNC = b"\xeb\x90"
@@ -217,8 +217,8 @@ def _frame(msg_id: int, payload: bytes) -> bytes:
 
 
 def _hdr(h: PsnsHeader, count: int) -> bytes:
-    return _pack_header(seq=h.seq & 0xFFFF, exposure_us=h.exposure_us & 0xFFFFFFFF, latency_us=h.latency_us & 0xFFFFFFFF,
-                        status=h.status & 0xFF, count=count)
+    return _pack_header(seq=h.seq & 0xFFFF, exposure_us=h.exposure_us & 0xFFFFFFFF,
+                        latency_us=h.latency_us & 0xFFFFFFFF, status=h.status & 0xFF, count=count)
 
 
 def encode_polarization_obs(h: PsnsHeader, points: tuple[PolarizationPoint, ...] | list[PolarizationPoint]) -> bytes:
@@ -305,7 +305,8 @@ class PsnsFormat:
         body = payload[HEADER_LEN:]
         if msg_id == MSG_POLARIZATION_OBS:
             if len(body) != h.count * POINT_LEN:
-                raise ValueError(f"POLARIZATION_OBS: {h.count} points need {h.count * POINT_LEN} bytes, got {len(body)}")
+                raise ValueError(f"POLARIZATION_OBS: {h.count} points need {h.count * POINT_LEN} bytes, "
+                                 f"got {len(body)}")
             return PolarizationObs(h, _decode_points(body))
         if msg_id == MSG_COMPASS:
             if len(body) != h.count * UNIT_LEN:

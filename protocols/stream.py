@@ -23,10 +23,11 @@ the format. ``StreamDecoder(formats, fast_paths=False)`` runs the reference alon
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol, Sequence, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
-__all__ = ["NEED_MORE", "BAD_LENGTH", "FrameFormat", "DecoderStats", "StreamDecoder", "parse_one"]
+__all__ = ["BAD_LENGTH", "NEED_MORE", "DecoderStats", "FrameFormat", "StreamDecoder", "parse_one"]
 
 #: ``FrameFormat.frame_length`` result: not enough bytes yet to know the length.
 NEED_MORE = -1

@@ -51,7 +51,7 @@ def test_crcs_agree_with_crccheck_on_random_data():
         _poly, _initvalue, _reflect_input, _reflect_output, _xor_output = 0x07, 0xFF, False, False, 0x00
 
     rng = random.Random(3)
-    for n in list(range(0, 70)) + [255, 1000]:
+    for n in [*range(70), 255, 1000]:
         data = bytes(rng.randrange(256) for _ in range(n))
         assert crc32_mpeg2(data) == crc32_mpeg2_bitwise(data) == Crc32Mpeg2.calc(data)
         assert crc32_mpeg2(data, 0x12345678) == crc32_mpeg2_bitwise(data, 0x12345678)

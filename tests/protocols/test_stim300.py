@@ -1,5 +1,7 @@
 """STIM300 datagrams: the ID table against TS1524 r31, every ID both ways, device/format configuration."""
 
+import itertools
+
 import pytest
 from crccheck.crc import Crc32Mpeg2
 
@@ -39,7 +41,7 @@ def full(ident: int, k: int = 1) -> Stim300Datagram:
 
 def test_id_table_matches_the_datasheet():
     for ident, (length, dummy) in DATASHEET.items():
-        groups, n, d, _ = STIM300_DATAGRAMS[ident]
+        _groups, n, d, _ = STIM300_DATAGRAMS[ident]
         assert (n, d) == (length, dummy), hex(ident)
         fmt = Stim300Format(ident)
         assert fmt.spec.sizeof() == length and (fmt.body_len + dummy) % 4 == 0
@@ -96,7 +98,7 @@ def test_counter_step_of_external_trigger():
     fmt = Stim300Format(0x90)
     stream = b"".join(fmt.build(Stim300Datagram(0x90, (0, 0, 0), 0, (250 + 10 * k) & 0xFF, 500)) for k in range(5))
     counters = [d.counter for d in StreamDecoder([fmt]).feed(stream)]
-    assert [(b - a) % 256 for a, b in zip(counters, counters[1:])] == [10] * 4
+    assert [(b - a) % 256 for a, b in itertools.pairwise(counters)] == [10] * 4
 
 
 def test_scale_tables_and_status_bits():

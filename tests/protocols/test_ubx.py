@@ -69,9 +69,9 @@ def test_pyubx2_keyword_built_nav_pvt_agrees_within_one_lsb():
 
 
 def test_stream_with_nmea_on_the_same_port_and_pyubx2_reader():
-    from protocols.nmea import NmeaFormat, build_gga
-
     import datetime as dt
+
+    from protocols.nmea import NmeaFormat, build_gga
 
     gga = build_gga(dt.time(8, 14, 3), 39.979, 116.339, 41.0, -8.5)
     stream = gga + encode_nav_pvt(PVT) + gga + encode_nav_status(STATUS)

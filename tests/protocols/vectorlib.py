@@ -5,8 +5,9 @@ from __future__ import annotations
 import dataclasses
 import datetime as dt
 import json
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from protocols import host, host_text, imu_frame, monitor, nmea, psns, stim, stim300, ubx
 from protocols.stream import FrameFormat

@@ -186,8 +186,9 @@ def good_vectors() -> None:
     # UBX ----------------------------------------------------------------------------------
     pvt = NavPvt(iTOW=288243500, year=2019, month=9, day=18, hour=8, min=14, sec=3, valid=0x37, tAcc=25,
                  nano=500_000_000, fixType=3, flags=0x01, flags2=0xE0, numSV=12, lon=1163399877, lat=399791235,
-                 height=32750, hMSL=41250, hAcc=2500, vAcc=4000, velN=2000, velE=1000, velD=-100, gSpeed=2236, headMot=2656505,
-                 sAcc=100, headAcc=1500000, pDOP=144, flags3=0, reserved0=0, headVeh=0, magDec=-650, magAcc=100)
+                 height=32750, hMSL=41250, hAcc=2500, vAcc=4000, velN=2000, velE=1000, velD=-100, gSpeed=2236,
+                 headMot=2656505, sAcc=100, headAcc=1500000, pDOP=144, flags3=0, reserved0=0, headVeh=0, magDec=-650,
+                 magAcc=100)
     write_vector("ubx_nav_pvt", "ubx", encode_nav_pvt(pvt), PROV)
     write_vector("ubx_nav_status", "ubx", encode_nav_status(NavStatus(288243500, 3, 0x0D, 0, 0, 28000, 61500)), PROV)
     write_vector("ubx_epoch_1hz", "ubx", build_epoch(fix, GnssOutputSet(nmea=(), ubx=("NAV-PVT", "NAV-STATUS"))), PROV,

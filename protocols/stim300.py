@@ -34,7 +34,7 @@ from construct import Array, Const, Int8ub, Int16sb, Int16ub, Int24sb, Int32ub, 
 
 from ._fastinit import fast_frozen_init
 from .codec import StructCodec, subspec
-from .crc import crc32_mpeg2
+from .crc import crc32_mpeg2_fast
 
 __all__ = [
     "INCL_DV_LSB_MPS",
@@ -218,7 +218,7 @@ class Stim300Format:
 
     def check(self, frame: bytes) -> bool:
         n = self.body_len
-        if crc32_mpeg2(frame[:n] + self.dummy) != int.from_bytes(frame[n : n + 4], "big"):
+        if crc32_mpeg2_fast(frame[:n] + self.dummy) != int.from_bytes(frame[n : n + 4], "big"):
             return False
         return not self.crlf or frame[n + 4 : n + 6] == b"\r\n"
 
@@ -236,7 +236,7 @@ class Stim300Format:
             if getattr(d, name) is None:
                 raise ValueError(f"STIM300 0x{self.ident:02X} needs {name}")
         body: bytes = self._encode_body(d)
-        out = body + crc32_mpeg2(body + self.dummy).to_bytes(4, "big")
+        out = body + crc32_mpeg2_fast(body + self.dummy).to_bytes(4, "big")
         return out + b"\r\n" if self.crlf else out
 
     encode = build

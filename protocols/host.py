@@ -1,86 +1,29 @@
 """Host port (DSP UART0 through the FPGA HOST RS422 port): navigation output and commands.
 
-Every host frame (little-endian)::
+Every host frame (little-endian, :data:`HOST_FRAME_SPEC`) is sync 0xA5 0x5A, msg_id, a u16 payload length N,
+N payload bytes and a CRC-16/CCITT-FALSE over msg_id, length and payload. Messages (each payload declared once,
+by its ``construct`` spec below, whose field docs give scale, unit and meaning; ``docs/icd.md`` section 7 is
+generated from them):
 
-    off  size  field
-    0    2     sync 0xA5 0x5A
-    2    1     msg_id
-    3    2     payload length N, u16
-    5    N     payload
-    5+N  2     CRC-16/CCITT-FALSE over bytes 2 .. 4+N (msg_id, length, payload)
-
-Messages:
-
-``0x01`` NAV_SOLUTION (DSP -> host, at the configured output rate, default 100 Hz), payload::
-
-    off  type     field               unit
-    0    u32      seq
-    4    f64      time_s              s, FPGA time of validity (IMU trigger time)
-    12   f64      lat_deg             deg, WGS-84
-    20   f64      lon_deg             deg
-    28   f32      height_m            m, ellipsoidal
-    32   3 x f32  vel_enu_mps         m/s, East, North, Up
-    44   3 x f32  roll, pitch, heading  deg (heading clockwise from true north, [0, 360))
-    56   9 x f32  sigma               1-sigma: attitude E,N,U (deg), velocity E,N,U (m/s),
-                                      position N,E,U (m)
-    92   u16      mode                :class:`NavMode` bits; bits 8-11 filter variant
-    94   u8       gnss_status         fix quality of the last GNSS fix used (NMEA GGA codes)
-    95   u8       psns_status         0 none, 1 valid solar vector used, 2 rejected
-    96   u16      cpu_load            0.01 % of the tick budget (worst of the last second)
-    98   u32      deadline_misses     cumulative
-    (102 bytes; later versions may only append fields, and decoders accept a longer payload)
-
-    Optional VARIANT block, appended by the filter variants other than the base one (the firmware
-    variants of docs/architecture.md; the base variant's frame stays 102 bytes)::
-
-    102  u8       block_id            0x56 ('V')
-    103  u8       block_len           4
-    104  u8       variant_mode        variant-specific mode (:data:`VARIANT_MODE_MEANING`)
-    105  u8       psns_units          number of polarization sensors judged (l)
-    106  u16      psns_q_mask         bit i = q_i, sensor i judged reliable
-
-``0x02`` STATUS (DSP -> host, at 1 Hz and in answer to REQUEST_STATUS), payload::
-
-    off  type  field              unit / meaning
-    0    u32   seq                status counter
-    4    f64   time_s             s, FPGA time
-    12   u8    filter_variant     :class:`FilterVariant`
-    13   u8    variant_mode       as in the NAV_SOLUTION VARIANT block (0 for the base variant)
-    14   u16   mode               :class:`NavMode` bits
-    16   f32   output_rate_hz     Hz, NAV_SOLUTION rate in force
-    20   u8    gnss_status        as in NAV_SOLUTION
-    21   u8    psns_status        as in NAV_SOLUTION
-    22   u16   cpu_load           0.01 %, worst tick of the last second
-    24   u16   cpu_load_max       0.01 %, worst tick since start
-    26   u16   fw_version         major << 8 | minor
-    28   u32   deadline_misses    cumulative
-    32   u32   uart1_frames       IMU/MAG frames decoded
-    36   u32   uart1_errors       checksum + length + parse errors
-    40   u32   uart2_frames       PSNS frames decoded
-    44   u32   uart2_errors
-    48   u32   uart3_frames       GNSS frames decoded
-    52   u32   uart3_errors
-    56   u32   commands_accepted
-    60   u32   commands_rejected
-    (64 bytes)
-
-``0x03`` ACK (DSP -> host, one per command, within one output period): u8 command_id,
-u8 token (echoed), u8 result (:class:`AckResult`). REQUEST_STATUS is answered by ACK, then STATUS.
-
-Commands (host -> DSP; ids >= 0x80), every payload starting with a host-chosen u8 token::
-
-    0x81 RESET_FILTER      u8 token, u8 scope (0 = restart alignment, 1 = reset covariance only)
-    0x82 SELECT_VARIANT    u8 token, u8 variant (:class:`FilterVariant`)
-    0x83 SET_OUTPUT_RATE   u8 token, f32 rate_hz (200 Hz / k for integer k; 0 stops the output)
-    0x84 REQUEST_STATUS    u8 token
+* ``0x01`` NAV_SOLUTION (DSP -> host, at the configured output rate, default 100 Hz): :data:`NAV_SOLUTION_SPEC`,
+  102 bytes; later versions may only append fields, and decoders accept a longer payload. The filter variants
+  other than the base one (the firmware variants of ``docs/architecture.md``) append the 6-byte VARIANT block
+  :data:`NAV_VARIANT_BLOCK_SPEC` (``variant_mode`` per :data:`VARIANT_MODE_MEANING`); the base variant's frame
+  stays 102 bytes.
+* ``0x02`` STATUS (DSP -> host, at 1 Hz and in answer to REQUEST_STATUS): :data:`STATUS_SPEC`, 64 bytes.
+* ``0x03`` ACK (DSP -> host, one per command, within one output period): :data:`ACK_SPEC`, the command's id,
+  its token (echoed) and an :class:`AckResult`. REQUEST_STATUS is answered by ACK, then STATUS.
+* Commands (host -> DSP; ids >= 0x80), every payload starting with a host-chosen u8 token
+  (:data:`COMMAND_SPECS`): 0x81 RESET_FILTER (scope), 0x82 SELECT_VARIANT (:class:`FilterVariant`), 0x83
+  SET_OUTPUT_RATE (f32 rate_hz, 200 Hz / k for integer k; 0 stops the output), 0x84 REQUEST_STATUS.
 
 Text output for terminal users (optional, NMEA 0183 framing with checksum, same port): the
 proprietary sentences ``$PSNSPOS`` (time, position, mode), ``$PSNSVEL`` (time, ENU velocity),
 ``$PSNSATT`` (time, roll, pitch, heading) and ``$PSNSSTA`` (time, variant, rate, CPU load, misses),
 see :mod:`protocols.host_text` (re-exported here). Each stays under 82 characters.
 
-Every payload is declared once, by its ``construct`` spec below; the ``struct`` codecs of the hot paths are
-derived from the specs (:mod:`protocols.codec`) and fill the dataclasses by field name.
+The ``struct`` codecs of the hot paths are derived from the specs (:mod:`protocols.codec`) and fill the
+dataclasses by field name.
 """
 
 from __future__ import annotations

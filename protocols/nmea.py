@@ -322,16 +322,17 @@ _PARSERS: dict[str, Callable[[str, list[str]], Gga | Rmc | Vtg | Gsa | Zda]] = {
 
 
 def sentence_ok(frame: bytes) -> bool:
-    """Reference check of one candidate sentence (starting with ``$``): ``*hh`` CR LF framing and the XOR of
-    the body (:func:`~protocols.crc.nmea_checksum`) equal to the two hex digits."""
-    if len(frame) < 11 or frame[-2] != 0x0D or frame[-5] != 0x2A:  # '\r', '*'
+    """Reference check of one candidate sentence: ``$`` ... ``*hh`` CR LF framing and the XOR of the body
+    (:func:`~protocols.crc.nmea_checksum`) equal to the two hex digits."""
+    if len(frame) < 11 or frame[0] != 0x24 or frame[-1] != 0x0A or frame[-2] != 0x0D or frame[-5] != 0x2A:
         return False
     want = _HEX2.get(frame[-4:-2])
     return want is not None and nmea_checksum(frame[1:-5]) == want
 
 
 def sentence_ok_fast(frame: bytes) -> bool:
-    """:func:`sentence_ok` with the XOR folded over the whole frame as one integer (what the stream runs)."""
+    """:func:`sentence_ok` with the XOR folded over the whole frame as one integer (what the stream runs): the
+    ``$`` and LF are XORed out with the expected value, so any other first or last byte fails the check."""
     if len(frame) < 11 or frame[-2] != 0x0D or frame[-5] != 0x2A:  # '\r', '*'
         return False
     want = _HEX2_FRAMED.get(frame[-4:-2])

@@ -5,8 +5,8 @@ the epoch) and a :class:`GnssOutputSet` (which messages it is configured to send
 order); the result is the burst the receiver writes once per epoch. The ICD's GNSS budget is
 computed from the same function, so the numbers there are the bytes a run really sends.
 
-Defaults follow a u-blox receiver (protocols.md 2.3: NEO-class units print RMC, VTG, GGA, GSA
-and more at 9600 8N1; ZDA is off by default on real units but part of the issue's set here).
+Defaults follow a u-blox receiver (docs/reference/wire-formats.md section 2.3: NEO-class units print RMC,
+VTG, GGA, GSA and more at 9600 8N1; ZDA is off by default on real units but part of the default set here).
 """
 
 from __future__ import annotations

@@ -287,7 +287,7 @@ def generate() -> str:
       "datagram counter counts 2000 Hz internal samples, so it steps by **10** per datagram "
       "(`protocols.stim.counter_step(200) == 10`). The decoder is configured per device and format "
       "(`Stim210Format('m')`, `Stim300Format(0x93)`), never from the ID: 0x90 is a different frame on each.\n")
-    w("### 3.1 STIM210 normal-mode datagrams (big-endian; protocols.md 1.8)\n")
+    w("### 3.1 STIM210 normal-mode datagrams (big-endian; docs/reference/wire-formats.md section 1.8)\n")
     rows: list[tuple[str, ...]] = []
     for letter, (ident, groups) in stim.STIM210_FORMATS.items():
         f = stim.Stim210Format(letter)
@@ -361,7 +361,7 @@ def generate() -> str:
     w(_spec_table(psns.UNIT_SPEC) + "\n")
     w("Payload of 0x12 SOLAR_VECTOR:\n")
     w(_spec_table(psns.SOLAR_VECTOR_SPEC) + "\n")
-    w("Time tag (CONTRACTS C1): exposure middle = reception time of the last byte - frame bytes x 10 / baud - "
+    w("Time tag (docs/architecture.md, \"Conventions\"): exposure middle = reception time of the last byte - frame bytes x 10 / baud - "
       "latency_us. `PsnsStatus`: " + ", ".join(f"0x{int(m):02X} {m.name}" for m in psns.PsnsStatus) + ".\n")
 
     # -- Host ----------------------------------------------------------------------------------

@@ -19,7 +19,7 @@ from protocols.stim import (
 )
 from protocols.stream import StreamDecoder, parse_one
 
-# TS1524 r31 Table 5-22 (length without CR LF, dummy bytes), as listed in protocols.md 1.4.
+# TS1524 r31 Table 5-22 (length without CR LF, dummy bytes), as listed in docs/reference/wire-formats.md section 1.4.
 DATASHEET = {0x90: (18, 2), 0x91: (28, 0), 0x92: (28, 0), 0x93: (38, 2), 0x94: (25, 3), 0xA5: (42, 2), 0xA6: (42, 2),
              0xA7: (59, 1), 0xF0: (22, 2), 0xF1: (32, 0), 0xF2: (32, 0), 0xF3: (42, 2), 0xF4: (29, 3), 0xF5: (46, 2),
              0xF6: (46, 2), 0xF7: (63, 1)}

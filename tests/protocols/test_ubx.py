@@ -51,7 +51,7 @@ def test_our_nav_status_parses_in_pyubx2():
 
 
 def test_pyubx2_built_frames_decode_in_ours():
-    # built with payload= (protocols.md 2.4: scaled keyword values are truncated by pyubx2)
+    # built with payload= (docs/reference/wire-formats.md section 2.4: scaled keyword values are truncated by pyubx2)
     pvt = UBXMessage("NAV", "NAV-PVT", GET, payload=encode_nav_pvt(PVT)[6:-2]).serialize()
     st = UBXMessage("NAV", "NAV-STATUS", GET, payload=encode_nav_status(STATUS)[6:-2]).serialize()
     poll = UBXMessage("CFG", "CFG-PRT", 2).serialize()  # a poll: empty payload, another class

@@ -13,9 +13,10 @@ generated from them):
 * ``0x02`` STATUS (DSP -> host, at 1 Hz and in answer to REQUEST_STATUS): :data:`STATUS_SPEC`, 64 bytes.
 * ``0x03`` ACK (DSP -> host, one per command, within one output period): :data:`ACK_SPEC`, the command's id,
   its token (echoed) and an :class:`AckResult`. REQUEST_STATUS is answered by ACK, then STATUS.
-* Commands (host -> DSP; ids >= 0x80), every payload starting with a host-chosen u8 token
-  (:data:`COMMAND_SPECS`): 0x81 RESET_FILTER (scope), 0x82 SELECT_VARIANT (:class:`FilterVariant`), 0x83
-  SET_OUTPUT_RATE (f32 rate_hz, 200 Hz / k for integer k; 0 stops the output), 0x84 REQUEST_STATUS.
+* Commands (host -> DSP; ids >= 0x80; :mod:`protocols.host_commands`, re-exported here), every payload
+  starting with a host-chosen u8 token (:data:`COMMAND_SPECS`): 0x81 RESET_FILTER (scope), 0x82
+  SELECT_VARIANT (:class:`FilterVariant`), 0x83 SET_OUTPUT_RATE (f32 rate_hz, 200 Hz / k for integer k; 0 stops
+  the output), 0x84 REQUEST_STATUS.
 
 Text output for terminal users (optional, NMEA 0183 framing with checksum, same port): the
 proprietary sentences ``$PSNSPOS`` (time, position, mode), ``$PSNSVEL`` (time, ENU velocity),
@@ -38,6 +39,21 @@ from construct import Array, Bytes, Const, Float32l, Float64l, Int8ul, Int16ul, 
 from ._fastinit import fast_frozen_init
 from .codec import StructCodec, subspec
 from .crc import crc16_ccitt
+from .host_commands import (
+    CMD_REQUEST_STATUS,
+    CMD_RESET_FILTER,
+    CMD_SELECT_VARIANT,
+    CMD_SET_OUTPUT_RATE,
+    COMMAND_PAYLOAD_LEN,
+    COMMAND_SPECS,
+    HostCommand,
+    RequestStatus,
+    ResetFilter,
+    SelectVariant,
+    SetOutputRate,
+    command_payload,
+    decode_command_payload,
+)
 from .host_text import TEXT_SENTENCES, HostTextFormat, NavText, encode_nav_text, nav_text_sentences
 from .stream import BAD_LENGTH, NEED_MORE
 
@@ -89,10 +105,6 @@ HOST_SYNC = b"\xa5\x5a"
 MSG_NAV_SOLUTION = 0x01
 MSG_STATUS = 0x02
 MSG_ACK = 0x03
-CMD_RESET_FILTER = 0x81
-CMD_SELECT_VARIANT = 0x82
-CMD_SET_OUTPUT_RATE = 0x83
-CMD_REQUEST_STATUS = 0x84
 #: Largest payload accepted from the header (every defined message is far shorter).
 HOST_MAX_PAYLOAD = 1024
 
@@ -331,23 +343,13 @@ ACK_SPEC = Struct(
     "token" / Int8ul * " |  | echo of the command's token",
     "result" / Int8ul * " |  | AckResult",
 )
-COMMAND_SPECS = {
-    CMD_RESET_FILTER: Struct("token" / Int8ul * " |  | host-chosen, echoed in ACK",
-                             "scope" / Int8ul * " |  | 0 restart alignment, 1 reset covariance only"),
-    CMD_SELECT_VARIANT: Struct("token" / Int8ul * " |  | host-chosen, echoed in ACK",
-                               "variant" / Int8ul * " |  | FilterVariant 1..5"),
-    CMD_SET_OUTPUT_RATE: Struct("token" / Int8ul * " |  | host-chosen, echoed in ACK",
-                                "rate_hz" / Float32l * "1 | Hz | 200/k for integer k; 0 stops the output"),
-    CMD_REQUEST_STATUS: Struct("token" / Int8ul * " |  | host-chosen, echoed in ACK"),
-}
 
 _STATUS = StructCodec(STATUS_SPEC, "STATUS")
 #: The u32 counters of STATUS (they wrap on the wire).
 _STATUS_COUNTERS = ("deadline_misses", "uart1_frames", "uart1_errors", "uart2_frames", "uart2_errors",
-                        "uart3_frames", "uart3_errors", "commands_accepted", "commands_rejected")
+                    "uart3_frames", "uart3_errors", "commands_accepted", "commands_rejected")
 STATUS_LEN = _STATUS.size  # 64
 _ACK = StructCodec(ACK_SPEC, "ACK")
-_COMMANDS = {cid: StructCodec(spec, f"COMMAND_0x{cid:02X}") for cid, spec in COMMAND_SPECS.items()}
 
 
 @fast_frozen_init
@@ -387,42 +389,6 @@ class Ack:
     result: int
 
 
-@fast_frozen_init
-@dataclass(frozen=True, slots=True)
-class ResetFilter:
-    """RESET_FILTER: ``scope`` 0 restarts alignment, 1 resets the covariance only."""
-
-    token: int
-    scope: int = 0
-
-
-@fast_frozen_init
-@dataclass(frozen=True, slots=True)
-class SelectVariant:
-    """SELECT_VARIANT: switch to :class:`FilterVariant` ``variant`` (the filter restarts)."""
-
-    token: int
-    variant: int
-
-
-@fast_frozen_init
-@dataclass(frozen=True, slots=True)
-class SetOutputRate:
-    """SET_OUTPUT_RATE: NAV_SOLUTION rate, Hz (200 Hz / k; 0 stops the output)."""
-
-    token: int
-    rate_hz: float
-
-
-@fast_frozen_init
-@dataclass(frozen=True, slots=True)
-class RequestStatus:
-    """REQUEST_STATUS: answered by ACK and one STATUS frame."""
-
-    token: int
-
-
-HostCommand = ResetFilter | SelectVariant | SetOutputRate | RequestStatus
 
 #: Wrap an integer to its wire width, as the encoders do for counters and ids.
 _u8, _u16, _u32 = (0xFF).__and__, (0xFFFF).__and__, (0xFFFFFFFF).__and__
@@ -437,14 +403,6 @@ _encode_status_payload = _STATUS.encoder(HostStatus, rename=_PCT, convert={
 })
 _decode_ack = _ACK.decoder(Ack)
 _encode_ack_payload = _ACK.encoder(Ack, convert=dict.fromkeys(_ACK.names, _u8))
-#: command id -> (dataclass, decoder, encoder), all by field name from COMMAND_SPECS
-_COMMAND_CODECS: dict[int, tuple[type, Any, Any]] = {
-    cid: (cls, _COMMANDS[cid].decoder(cls),
-          _COMMANDS[cid].encoder(cls, convert={f: _u8 for f in _COMMANDS[cid].names if f != "rate_hz"}))
-    for cid, cls in ((CMD_RESET_FILTER, ResetFilter), (CMD_SELECT_VARIANT, SelectVariant),
-                     (CMD_SET_OUTPUT_RATE, SetOutputRate), (CMD_REQUEST_STATUS, RequestStatus))
-}
-_COMMAND_ID = {cls: cid for cid, (cls, _, _) in _COMMAND_CODECS.items()}
 
 
 def encode_status(st: HostStatus) -> bytes:
@@ -459,30 +417,23 @@ def _decode_status(payload: bytes) -> HostStatus:
     return st
 
 
+def encode_command(c: HostCommand) -> bytes:
+    """Whole command frame (host -> DSP) for one of the command dataclasses."""
+    return build_host_frame(*command_payload(c))
+
+
 def encode_ack(a: Ack) -> bytes:
     """Whole ACK frame."""
     return build_host_frame(MSG_ACK, _encode_ack_payload(a))
 
 
-def encode_command(c: HostCommand) -> bytes:
-    """Whole command frame (host -> DSP) for one of the command dataclasses."""
-    cid = _COMMAND_ID.get(type(c))
-    if cid is None:
-        raise TypeError(f"not a host command: {c!r}")
-    payload: bytes = _COMMAND_CODECS[cid][2](c)
-    return build_host_frame(cid, payload)
 
 
-#: command id -> exact payload length
-COMMAND_PAYLOAD_LEN = {cid: codec.size for cid, codec in _COMMANDS.items()}
 #: message id -> smallest payload length (NAV_SOLUTION and STATUS may grow by appending)
 _MIN_LEN = {MSG_NAV_SOLUTION: NAV_SOLUTION_LEN, MSG_STATUS: STATUS_LEN, MSG_ACK: _ACK.size, **COMMAND_PAYLOAD_LEN}
 _EXACT = {MSG_ACK, *COMMAND_PAYLOAD_LEN}
 
 
-def _decode_command(msg_id: int, payload: bytes) -> HostCommand:
-    cmd: HostCommand = _COMMAND_CODECS[msg_id][1](payload)
-    return cmd
 
 
 def encode_host(obj: NavSolution | HostStatus | Ack | HostCommand | HostFrame) -> bytes:
@@ -538,5 +489,5 @@ class HostFormat:
             ack: Ack = _decode_ack(payload)
             return ack
         if msg_id in COMMAND_PAYLOAD_LEN:
-            return _decode_command(msg_id, payload)
+            return decode_command_payload(msg_id, payload)
         return HostFrame(msg_id, bytes(payload))

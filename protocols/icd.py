@@ -361,8 +361,9 @@ def generate() -> str:
     w(_spec_table(psns.UNIT_SPEC) + "\n")
     w("Payload of 0x12 SOLAR_VECTOR:\n")
     w(_spec_table(psns.SOLAR_VECTOR_SPEC) + "\n")
-    w("Time tag (docs/architecture.md, \"Conventions\"): exposure middle = reception time of the last byte - frame bytes x 10 / baud - "
-      "latency_us. `PsnsStatus`: " + ", ".join(f"0x{int(m):02X} {m.name}" for m in psns.PsnsStatus) + ".\n")
+    w("Time tag (docs/architecture.md, \"Conventions\"): exposure middle = reception time of the last byte - "
+      "frame bytes x 10 / baud - latency_us. `PsnsStatus`: "
+      + ", ".join(f"0x{int(m):02X} {m.name}" for m in psns.PsnsStatus) + ".\n")
 
     # -- Host ----------------------------------------------------------------------------------
     w("## 7. Host port (DSP UART0 <-> FPGA HOST, RS422, 460800 baud)\n")

@@ -52,7 +52,8 @@ def test_no_fix_epoch():
 
 
 def test_epoch_byte_budget_at_9600_baud():
-    # docs/reference/wire-formats.md section 2.3: GGA+RMC+VTG+GSA+ZDA is ~330-350 bytes, ~0.35 s of each second at 9600 8N1
+    # docs/reference/wire-formats.md section 2.3: GGA+RMC+VTG+GSA+ZDA is ~330-350 bytes, ~0.35 s of each second
+    # at 9600 8N1
     n = len(build_epoch(FIX))
     assert 280 <= n <= 350
     assert n * 10 / 9600 < 0.4

@@ -96,7 +96,8 @@ def test_pynmea2_built_vtg_gsa_zda_decode_in_ours():
 
 
 def test_pynmeagps_is_a_second_peer():
-    # pyubx2's reader hands NMEA to pynmeagps, written independently of pynmea2 (docs/reference/wire-formats.md section 2.4)
+    # pyubx2's reader hands NMEA to pynmeagps, written independently of pynmea2
+    # (docs/reference/wire-formats.md section 2.4)
     from pynmeagps import NMEAReader
 
     for raw in (build_gga(T, 39.979123456, -116.339987654, 41.25, -8.5), build_rmc(T, D, -33.5, 70.25, 5.0, 271.5),

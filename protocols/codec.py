@@ -39,6 +39,7 @@ values.
 
 from __future__ import annotations
 
+import functools
 import struct
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import MISSING, dataclass, field, fields
@@ -77,8 +78,8 @@ class Binding:
 
     codec: StructCodec
     cls: type
-    #: "decode", "decode_all" (back-to-back records), "encode" (from an object) or "encode_args" (from the
-    #: fields as arguments)
+    #: "decode", "decode_all" (back-to-back records), "encode" (from an object), "encode_all" (objects, back to
+    #: back) or "encode_args" (from the fields as arguments)
     direction: str
     fields: Mapping[str, tuple[str, Callable[[Any], Any] | None]]
     call_fast: Callable[..., Any]
@@ -107,6 +108,8 @@ class Binding:
             return tuple(self._from_wire(self.codec.decode(buf, off), others) for off in range(0, len(buf), size))
         if self.direction == "encode":
             return self._to_wire(lambda c: getattr(args[0], c))
+        if self.direction == "encode_all":
+            return b"".join([self._to_wire(functools.partial(getattr, o)) for o in args[0]])
         named = dict(zip(self.params, args))
         return self._to_wire(named.__getitem__)
 
@@ -445,14 +448,15 @@ class StructCodec:
 
     def encoder(self, cls: type, *, rename: Mapping[str, str] | None = None,
                 convert: Mapping[str, Callable[[Any], Any]] | None = None, fixed: Mapping[str, Any] | None = None,
-                from_args: bool = False) -> Callable[..., bytes]:
+                from_args: bool = False, many: bool = False) -> Callable[..., bytes]:
         """Generate ``encode(obj) -> bytes``: each spec field read from the attribute of the same name.
 
         ``rename`` and ``convert`` as in :meth:`decoder` (``convert`` here maps the attribute value to the wire
         value); ``fixed`` gives spec fields a constant value instead (a message id). With ``from_args=True`` the
         function takes the dataclass's fields that the spec carries as its parameters instead of one object,
         in the dataclass's order and under its names (``encode(seq, time_s, ...)``): for an output path that
-        has the values but no object. Every other value field of the spec must come from the dataclass.
+        has the values but no object. ``many=True`` generates ``encode_all(objs) -> bytes`` instead, the records
+        back to back (scalar fields only). Every other value field of the spec must come from the dataclass.
         """
         rename, convert, fixed = rename or {}, convert or {}, fixed or {}
         unknown = set(fixed) - set(self.names)
@@ -474,11 +478,21 @@ class StructCodec:
             attr = rename.get(sname, sname) if from_args else f"_o.{rename.get(sname, sname)}"
             return f"_cv_{sname}({attr})" if sname in convert else attr
 
+        pre, args = self._pack_args(value)
+        if many:
+            if pre or from_args:
+                raise TypeError(f"{self.name}: encode_all takes objects with scalar fields only")
+            src = (f"def encode_all(_objs):\n    try:\n        return b''.join([_pack({args}) for _o in _objs])\n"
+                   f"    except (_StructError, TypeError, OverflowError) as exc:\n"
+                   f"        raise ValueError(f'{self.name}: {{exc}}') from exc\n")
+            fn = self._compile(src, ns, "encode_all")
+            self.bindings.append(Binding(self, cls, "encode_all", mapping, fn, (), dict(fixed)))
+            return fn
         if from_args:
             src = f"def encode({', '.join(f.name for f in cls_fields if f.name in by_cls)}):\n"
         else:
             src = "def encode(_o):\n"
-        fn = self._compile(src + self._pack_stmt(self._pack_args(value)), ns, "encode")
+        fn = self._compile(src + self._pack_stmt((pre, args)), ns, "encode")
         names = tuple(f.name for f in cls_fields if f.name in by_cls) if from_args else ()
         self.bindings.append(Binding(self, cls, "encode_args" if from_args else "encode", mapping, fn, names,
                                      dict(fixed)))

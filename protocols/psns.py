@@ -203,8 +203,8 @@ _decode_header = _HDR.decoder(PsnsHeader)
 _decode_points = _PT.decoder(PolarizationPoint, many=True)
 _decode_units = _UNIT.decoder(CompassUnit, many=True)
 _decode_solar_vector = _SV.decoder(SolarVectorFrame)
-_encode_point = _PT.encoder(PolarizationPoint)
-_encode_unit = _UNIT.encoder(CompassUnit)
+_encode_points = _PT.encoder(PolarizationPoint, many=True)
+_encode_units = _UNIT.encoder(CompassUnit, many=True)
 _pack_header = _HDR.packer
 _pack_solar_vector = _SV.packer
 
@@ -223,12 +223,12 @@ def _hdr(h: PsnsHeader, count: int) -> bytes:
 
 def encode_polarization_obs(h: PsnsHeader, points: tuple[PolarizationPoint, ...] | list[PolarizationPoint]) -> bytes:
     """Whole POLARIZATION_OBS frame (``h.count`` is replaced by ``len(points)``)."""
-    return _frame(MSG_POLARIZATION_OBS, _hdr(h, len(points)) + b"".join([_encode_point(p) for p in points]))
+    return _frame(MSG_POLARIZATION_OBS, _hdr(h, len(points)) + _encode_points(points))
 
 
 def encode_compass(h: PsnsHeader, units: tuple[CompassUnit, ...] | list[CompassUnit]) -> bytes:
     """Whole COMPASS frame (``h.count`` is replaced by ``len(units)``)."""
-    return _frame(MSG_COMPASS, _hdr(h, len(units)) + b"".join([_encode_unit(u) for u in units]))
+    return _frame(MSG_COMPASS, _hdr(h, len(units)) + _encode_units(units))
 
 
 def encode_solar_vector(h: PsnsHeader, s: tuple[float, float, float], quality: float) -> bytes:

@@ -173,8 +173,12 @@ def _codec_cases() -> list[Any]:
                 inputs = [(b"".join(raws[:n]), *([None] * len(b.params))) for n in range(len(raws))]
             else:
                 objs = [_object(b, {**v, **b.fixed}) for v in values]
-                inputs = ([(o,) for o in objs] if b.direction == "encode"
-                          else [tuple(getattr(o, p) for p in b.params) for o in objs])
+                if b.direction == "encode":
+                    inputs = [(o,) for o in objs]
+                elif b.direction == "encode_all":
+                    inputs = [(objs[:n],) for n in range(len(objs))]
+                else:
+                    inputs = [tuple(getattr(o, p) for p in b.params) for o in objs]
             name = f"{codec.name}-{b.direction}-{b.cls.__name__}-{k}"
             cases.append(pytest.param(b.call, b.call_fast, inputs, id=name))
     return cases

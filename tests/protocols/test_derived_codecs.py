@@ -130,6 +130,10 @@ def _check_bytes(codec: StructCodec, buf: bytes, off: int) -> bool:
             if b.direction == "encode":
                 obj = type("Obj", (), attrs)()
                 assert b.call_fast(obj) == want, (codec, b.cls.__name__)
+            elif b.direction == "encode_all":
+                obj = type("Obj", (), attrs)()
+                assert b.call_fast([obj, obj]) == want + want, (codec, b.cls.__name__)
+                assert b.call_fast([]) == b""
             else:
                 assert b.call_fast(*(attrs[p] for p in b.params)) == want, (codec, b.cls.__name__)
     return True

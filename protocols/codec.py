@@ -62,7 +62,6 @@ class _Item:
     kind: str  #: "scalar", "int24", "array", "array24", "bytes"
     first: int  #: index of its first item in the unpacked tuple
     count: int  #: elements (1 for a scalar, the length for bytes)
-    signed: bool = False
 
 
 @dataclass(frozen=True)
@@ -142,15 +141,15 @@ def _order(sc: Construct) -> str:
     return ""
 
 
-def _leaf(sc: Construct, where: str) -> tuple[str, str, bool]:
-    """``(struct chars, kind, signed)`` of a leaf subcon: kind "scalar", "int24" or "bytes"."""
+def _leaf(sc: Construct, where: str) -> tuple[str, str]:
+    """``(struct chars, kind)`` of a leaf subcon: kind "scalar", "int24" or "bytes"."""
     if isinstance(sc, FormatField):
-        return sc.fmtstr[1:], "scalar", False
+        return sc.fmtstr[1:], "scalar"
     if isinstance(sc, BytesInteger) and sc.length == 3:
         hi = "b" if sc.signed else "B"
-        return ("H" + hi if sc.swapped else hi + "H"), "int24", bool(sc.signed)
+        return ("H" + hi if sc.swapped else hi + "H"), "int24"
     if isinstance(sc, Bytes) and isinstance(sc.length, int):
-        return f"{sc.length}s", "bytes", False
+        return f"{sc.length}s", "bytes"
     raise TypeError(f"{where}: {sc!r} has no struct equivalent (see protocols.codec)")
 
 
@@ -188,7 +187,7 @@ class StructCodec:
                 raise TypeError(f"{name}: unnamed field {inner!r}")
             if isinstance(inner, Const):
                 _, leaf = _unwrap(inner.subcon)
-                chars, kind, _ = _leaf(leaf, where)
+                chars, kind = _leaf(leaf, where)
                 if kind == "int24":
                     raise TypeError(f"{where}: a 24-bit Const is not supported")
                 orders.add(_order(leaf))
@@ -200,18 +199,18 @@ class StructCodec:
                 if not isinstance(inner.count, int):
                     raise TypeError(f"{where}: Array of variable count has no struct equivalent")
                 _, el = _unwrap(inner.subcon)
-                chars, kind, signed = _leaf(el, where)
+                chars, kind = _leaf(el, where)
                 if kind == "bytes":
                     raise TypeError(f"{where}: Array of Bytes is not supported")
                 orders.add(_order(el))
                 per = 2 if kind == "int24" else 1
-                items.append(_Item(fname, "array24" if kind == "int24" else "array", n, inner.count, signed))
+                items.append(_Item(fname, "array24" if kind == "int24" else "array", n, inner.count))
                 fmt.append(chars * inner.count)
                 n += per * inner.count
                 continue
-            chars, kind, signed = _leaf(inner, where)
+            chars, kind = _leaf(inner, where)
             orders.add(_order(inner))
-            items.append(_Item(fname, kind, n, inner.length if kind == "bytes" else 1, signed))
+            items.append(_Item(fname, kind, n, inner.length if kind == "bytes" else 1))
             fmt.append(chars)
             n += 2 if kind == "int24" else 1
         orders.discard("")

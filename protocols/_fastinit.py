@@ -13,7 +13,11 @@ stays exactly what ``dataclass`` made it: frozen (assignment still raises
 from __future__ import annotations
 
 import dataclasses
-from typing import TypeVar
+import types
+from typing import TYPE_CHECKING, TypeVar, cast
+
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
 
 T = TypeVar("T")
 
@@ -27,11 +31,11 @@ def fast_frozen_init(cls: type[T]) -> type[T]:
         raise TypeError(f"{cls.__name__} must be a frozen dataclass with slots=True")
     if hasattr(cls, "__post_init__"):
         raise TypeError(f"{cls.__name__} has __post_init__; the fast __init__ would skip it")
-    fields = [f for f in dataclasses.fields(cls) if f.init]
+    fields = [f for f in dataclasses.fields(cast("type[DataclassInstance]", cls)) if f.init]
     ns: dict[str, object] = {}
     args = []
     for i, f in enumerate(fields):
-        if f.default_factory is not dataclasses.MISSING:  # type: ignore[misc]
+        if f.default_factory is not dataclasses.MISSING:
             raise TypeError(f"{cls.__name__}.{f.name}: default_factory is not supported")
         if f.default is not dataclasses.MISSING:
             ns[f"_d{i}"] = f.default
@@ -41,9 +45,12 @@ def fast_frozen_init(cls: type[T]) -> type[T]:
         ns[f"_s{i}"] = cls.__dict__[f.name].__set__
     body = "".join(f"    _s{i}(self, {f.name})\n" for i, f in enumerate(fields)) or "    pass\n"
     src = f"def __init__(self, {', '.join(args)}):\n{body}"
-    exec(src, ns)  # noqa: S102 - source built from the dataclass's own field names
+    exec(src, ns)
     init = ns["__init__"]
-    init.__qualname__ = f"{cls.__qualname__}.__init__"  # type: ignore[attr-defined]
+    if not isinstance(init, types.FunctionType):  # pragma: no cover - exec defined it above
+        raise TypeError("generated __init__ is not a function")
+    init.__qualname__ = f"{cls.__qualname__}.__init__"
     init.__doc__ = cls.__init__.__doc__
-    cls.__init__ = init  # type: ignore[misc]
+    # Replacing the dataclass's __init__ is the point of this decorator (mypy refuses assignment to a method).
+    cls.__init__ = init  # type: ignore[method-assign]
     return cls

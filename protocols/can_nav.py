@@ -18,25 +18,25 @@ from __future__ import annotations
 
 import math
 import struct
+from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Iterable
 
 from .host import NavSolution
 
 __all__ = [
     "CAN_BITRATE",
-    "CanSignal",
-    "CanMessage",
     "CAN_MESSAGES",
     "MESSAGE_BY_ID",
     "MESSAGE_BY_NAME",
-    "nav_to_can_signals",
+    "CanMessage",
+    "CanSignal",
+    "can_frame_bits",
     "can_signals_to_nav",
-    "encode_can_frames",
+    "dbc_text",
     "decode_can_frame",
     "decode_can_frames",
-    "can_frame_bits",
-    "dbc_text",
+    "encode_can_frames",
+    "nav_to_can_signals",
 ]
 
 CAN_BITRATE = 500_000
@@ -229,7 +229,8 @@ def can_signals_to_nav(signals: dict[str, dict[str, float | int]]) -> NavSolutio
         v.update(signals[m.name])
     return NavSolution(
         seq=int(v["seq"]), time_s=float(v["time_s"]), lat_deg=float(v["lat_deg"]), lon_deg=float(v["lon_deg"]),
-        height_m=float(v["height_m"]), vel_enu_mps=(float(v["vel_e_mps"]), float(v["vel_n_mps"]), float(v["vel_u_mps"])),
+        height_m=float(v["height_m"]),
+        vel_enu_mps=(float(v["vel_e_mps"]), float(v["vel_n_mps"]), float(v["vel_u_mps"])),
         roll_deg=float(v["roll_deg"]), pitch_deg=float(v["pitch_deg"]), heading_deg=float(v["heading_deg"]),
         sigma=tuple(float(v[k]) for k in ("sigma_att_e_deg", "sigma_att_n_deg", "sigma_att_u_deg", "sigma_vel_e_mps",
                                           "sigma_vel_n_mps", "sigma_vel_u_mps", "sigma_pos_n_m", "sigma_pos_e_m",

@@ -5,19 +5,20 @@ function               algorithm                                                
 =====================  ==================================================================  ==========
 ``crc8_stim``          CRC-8, poly 0x07, init 0xFF, no reflection, no xor (STIM210/300)     0xFB
 ``crc16_ccitt``        CRC-16/CCITT-FALSE, poly 0x1021, init 0xFFFF, no refl., no xor       0x29B1
-``crc32_mpeg2``        CRC-32/MPEG-2, poly 0x04C11DB7, init 0xFFFFFFFF, no refl., no xor    0x0376E6E7
+``crc32_mpeg2[_fast]`` CRC-32/MPEG-2, poly 0x04C11DB7, init 0xFFFFFFFF, no refl., no xor    0x0376E6E7
 ``nmea_checksum``      XOR of every byte between ``$`` and ``*``                            --
 ``ubx_fletcher``       8-bit Fletcher over class, id, length, payload (u-blox)              --
 =====================  ==================================================================  ==========
 
 (*) ``check`` is the CRC of the ASCII bytes ``b"123456789"`` (the catalogue convention).
-Sources: ``shared/reference/protocols.md`` section 1.7 (STIM CRCs, from TS1524 r31 and the
+Sources: ``docs/reference/wire-formats.md`` section 1.7 (STIM CRCs, from TS1524 r31 and the
 c2a-aobc STIM210 driver); CRC-16/CCITT is ``binascii.crc_hqx`` seeded with 0xFFFF.
 
-Speed: the CRC-16 and the CRC-32 run in C. CRC-32/MPEG-2 is the bit-reversed twin of the zlib
-CRC-32 (same polynomial, reflected, final XOR): reversing the bits of every input byte, running
-``zlib.crc32`` and reversing the 32-bit result gives the MPEG-2 value
-(``tests/protocols/test_crc.py`` checks it against a bitwise implementation and ``crccheck``).
+Speed: the CRC-16 runs in C. :func:`crc32_mpeg2` is the table-driven reference; :func:`crc32_mpeg2_fast`
+runs in C: CRC-32/MPEG-2 is the bit-reversed twin of the zlib CRC-32 (same polynomial, reflected, final
+XOR), so reversing the bits of every input byte, running ``zlib.crc32`` and reversing the 32-bit result
+gives the MPEG-2 value (``tests/protocols/fast_path_cases.py`` checks the two against each other, and
+``tests/protocols/test_crc.py`` against ``crccheck``).
 The Fletcher sums use ``sum`` and ``itertools.accumulate`` (CK_B is the sum of the running CK_A).
 """
 
@@ -27,7 +28,7 @@ import binascii
 import itertools
 import zlib
 
-__all__ = ["crc8_stim", "crc16_ccitt", "crc32_mpeg2", "crc32_mpeg2_bitwise", "nmea_checksum", "ubx_fletcher"]
+__all__ = ["crc8_stim", "crc16_ccitt", "crc32_mpeg2", "crc32_mpeg2_fast", "nmea_checksum", "ubx_fletcher"]
 
 
 def _crc8_table(poly: int) -> bytes:
@@ -76,18 +77,19 @@ def _bitrev32(v: int) -> int:
     return int.from_bytes(v.to_bytes(4, "little").translate(_BITREV8), "big")
 
 
-def crc32_mpeg2(data: bytes | bytearray | memoryview, init: int = 0xFFFFFFFF) -> int:
-    """CRC-32/MPEG-2 (poly 0x04C11DB7, init 0xFFFFFFFF, MSB first) of the STIM300 datagrams.
-
-    The STIM300 appends N dummy 0x00 bytes to the covered bytes (never sent) so that the
-    CRC input is a multiple of four bytes; pass them in ``data``.
-    """
+def crc32_mpeg2_fast(data: bytes | bytearray | memoryview, init: int = 0xFFFFFFFF) -> int:
+    """:func:`crc32_mpeg2` through ``zlib.crc32`` on the bit-reversed bytes (see the module docstring)."""
     start = 0 if init == 0xFFFFFFFF else _bitrev32(init) ^ 0xFFFFFFFF
     return _bitrev32(zlib.crc32(bytes(data).translate(_BITREV8), start) ^ 0xFFFFFFFF)
 
 
-def crc32_mpeg2_bitwise(data: bytes | bytearray | memoryview, init: int = 0xFFFFFFFF) -> int:
-    """Table-driven MSB-first reference of :func:`crc32_mpeg2` (slow; for tests)."""
+def crc32_mpeg2(data: bytes | bytearray | memoryview, init: int = 0xFFFFFFFF) -> int:
+    """CRC-32/MPEG-2 (poly 0x04C11DB7, init 0xFFFFFFFF, MSB first) of the STIM300 datagrams; table-driven
+    reference of :func:`crc32_mpeg2_fast`.
+
+    The STIM300 appends N dummy 0x00 bytes to the covered bytes (never sent) so that the
+    CRC input is a multiple of four bytes; pass them in ``data``.
+    """
     c = init
     table = _CRC32_04C11DB7
     for b in data:

@@ -26,7 +26,7 @@ one-frame helpers (``parse_frame``) raise :class:`ProtocolError`.
 
 from __future__ import annotations
 
-__all__ = ["PsnsHilError", "ProtocolError", "FrameError", "ChecksumError"]
+__all__ = ["ChecksumError", "FrameError", "ProtocolError", "PsnsHilError"]
 
 
 class PsnsHilError(Exception):

@@ -5,8 +5,8 @@ the epoch) and a :class:`GnssOutputSet` (which messages it is configured to send
 order); the result is the burst the receiver writes once per epoch. The ICD's GNSS budget is
 computed from the same function, so the numbers there are the bytes a run really sends.
 
-Defaults follow a u-blox receiver (protocols.md 2.3: NEO-class units print RMC, VTG, GGA, GSA
-and more at 9600 8N1; ZDA is off by default on real units but part of the issue's set here).
+Defaults follow a u-blox receiver (docs/reference/wire-formats.md section 2.3: NEO-class units print RMC,
+VTG, GGA, GSA and more at 9600 8N1; ZDA is off by default on real units but part of the default set here).
 """
 
 from __future__ import annotations
@@ -19,20 +19,20 @@ from .nmea import build_gga, build_gsa, build_rmc, build_vtg, build_zda
 from .ubx import NavPvt, NavStatus, encode_nav_pvt, encode_nav_status
 
 __all__ = [
+    "FAA_MODE",
     "GPS_EPOCH",
     "GPS_UTC_LEAP_S",
     "NMEA_SENTENCES",
     "UBX_MESSAGES",
-    "FAA_MODE",
     "GnssFix",
     "GnssOutputSet",
     "build_epoch",
+    "gps_time_of_week_ms",
     "nav_pvt_from_fix",
     "nav_status_from_fix",
-    "gps_time_of_week_ms",
 ]
 
-GPS_EPOCH = _dt.datetime(1980, 1, 6, tzinfo=_dt.timezone.utc)
+GPS_EPOCH = _dt.datetime(1980, 1, 6, tzinfo=_dt.UTC)
 #: GPS - UTC in seconds since 2017-01-01 (IERS Bulletin C: no leap second announced since).
 GPS_UTC_LEAP_S = 18
 NMEA_SENTENCES = ("RMC", "VTG", "GGA", "GSA", "ZDA")

@@ -1,89 +1,35 @@
 """Host port (DSP UART0 through the FPGA HOST RS422 port): navigation output and commands.
 
-Every host frame (little-endian)::
+Every host frame (little-endian, :data:`HOST_FRAME_SPEC`) is sync 0xA5 0x5A, msg_id, a u16 payload length N,
+N payload bytes and a CRC-16/CCITT-FALSE over msg_id, length and payload. Messages (each payload declared once,
+by its ``construct`` spec below, whose field docs give scale, unit and meaning; ``docs/icd.md`` section 7 is
+generated from them):
 
-    off  size  field
-    0    2     sync 0xA5 0x5A
-    2    1     msg_id
-    3    2     payload length N, u16
-    5    N     payload
-    5+N  2     CRC-16/CCITT-FALSE over bytes 2 .. 4+N (msg_id, length, payload)
-
-Messages:
-
-``0x01`` NAV_SOLUTION (DSP -> host, at the configured output rate, default 100 Hz), payload::
-
-    off  type     field               unit
-    0    u32      seq
-    4    f64      time_s              s, FPGA time of validity (IMU trigger time)
-    12   f64      lat_deg             deg, WGS-84
-    20   f64      lon_deg             deg
-    28   f32      height_m            m, ellipsoidal
-    32   3 x f32  vel_enu_mps         m/s, East, North, Up
-    44   3 x f32  roll, pitch, heading  deg (heading clockwise from true north, [0, 360))
-    56   9 x f32  sigma               1-sigma: attitude E,N,U (deg), velocity E,N,U (m/s),
-                                      position N,E,U (m)
-    92   u16      mode                :class:`NavMode` bits; bits 8-11 filter variant
-    94   u8       gnss_status         fix quality of the last GNSS fix used (NMEA GGA codes)
-    95   u8       psns_status         0 none, 1 valid solar vector used, 2 rejected
-    96   u16      cpu_load            0.01 % of the tick budget (worst of the last second)
-    98   u32      deadline_misses     cumulative
-    (102 bytes; later versions may only append fields, and decoders accept a longer payload)
-
-    Optional VARIANT block, appended by the filter variants other than the base one (issue 6;
-    the base variant's frame stays 102 bytes)::
-
-    102  u8       block_id            0x56 ('V')
-    103  u8       block_len           4
-    104  u8       variant_mode        variant-specific mode (:data:`VARIANT_MODE_MEANING`)
-    105  u8       psns_units          number of polarization sensors judged (l)
-    106  u16      psns_q_mask         bit i = q_i, sensor i judged reliable
-
-``0x02`` STATUS (DSP -> host, at 1 Hz and in answer to REQUEST_STATUS), payload::
-
-    off  type  field              unit / meaning
-    0    u32   seq                status counter
-    4    f64   time_s             s, FPGA time
-    12   u8    filter_variant     :class:`FilterVariant`
-    13   u8    variant_mode       as in the NAV_SOLUTION VARIANT block (0 for the base variant)
-    14   u16   mode               :class:`NavMode` bits
-    16   f32   output_rate_hz     Hz, NAV_SOLUTION rate in force
-    20   u8    gnss_status        as in NAV_SOLUTION
-    21   u8    psns_status        as in NAV_SOLUTION
-    22   u16   cpu_load           0.01 %, worst tick of the last second
-    24   u16   cpu_load_max       0.01 %, worst tick since start
-    26   u16   fw_version         major << 8 | minor
-    28   u32   deadline_misses    cumulative
-    32   u32   uart1_frames       IMU/MAG frames decoded
-    36   u32   uart1_errors       checksum + length + parse errors
-    40   u32   uart2_frames       PSNS frames decoded
-    44   u32   uart2_errors
-    48   u32   uart3_frames       GNSS frames decoded
-    52   u32   uart3_errors
-    56   u32   commands_accepted
-    60   u32   commands_rejected
-    (64 bytes)
-
-``0x03`` ACK (DSP -> host, one per command, within one output period): u8 command_id,
-u8 token (echoed), u8 result (:class:`AckResult`). REQUEST_STATUS is answered by ACK, then STATUS.
-
-Commands (host -> DSP; ids >= 0x80), every payload starting with a host-chosen u8 token::
-
-    0x81 RESET_FILTER      u8 token, u8 scope (0 = restart alignment, 1 = reset covariance only)
-    0x82 SELECT_VARIANT    u8 token, u8 variant (:class:`FilterVariant`)
-    0x83 SET_OUTPUT_RATE   u8 token, f32 rate_hz (200 Hz / k for integer k; 0 stops the output)
-    0x84 REQUEST_STATUS    u8 token
+* ``0x01`` NAV_SOLUTION (DSP -> host, at the configured output rate, default 100 Hz): :data:`NAV_SOLUTION_SPEC`,
+  102 bytes; later versions may only append fields, and decoders accept a longer payload. The filter variants
+  other than the base one (the firmware variants of ``docs/architecture.md``) append the 6-byte VARIANT block
+  :data:`NAV_VARIANT_BLOCK_SPEC` (``variant_mode`` per :data:`VARIANT_MODE_MEANING`); the base variant's frame
+  stays 102 bytes.
+* ``0x02`` STATUS (DSP -> host, at 1 Hz and in answer to REQUEST_STATUS): :data:`STATUS_SPEC`, 64 bytes.
+* ``0x03`` ACK (DSP -> host, one per command, within one output period): :data:`ACK_SPEC`, the command's id,
+  its token (echoed) and an :class:`AckResult`. REQUEST_STATUS is answered by ACK, then STATUS.
+* Commands (host -> DSP; ids >= 0x80; :mod:`protocols.host_commands`, re-exported here), every payload
+  starting with a host-chosen u8 token (:data:`COMMAND_SPECS`): 0x81 RESET_FILTER (scope), 0x82
+  SELECT_VARIANT (:class:`FilterVariant`), 0x83 SET_OUTPUT_RATE (f32 rate_hz, 200 Hz / k for integer k; 0 stops
+  the output), 0x84 REQUEST_STATUS.
 
 Text output for terminal users (optional, NMEA 0183 framing with checksum, same port): the
 proprietary sentences ``$PSNSPOS`` (time, position, mode), ``$PSNSVEL`` (time, ENU velocity),
 ``$PSNSATT`` (time, roll, pitch, heading) and ``$PSNSSTA`` (time, variant, rate, CPU load, misses),
-see :func:`nav_text_sentences` and :class:`HostTextFormat`. Each stays under 82 characters.
+see :mod:`protocols.host_text` (re-exported here). Each stays under 82 characters.
+
+The ``struct`` codecs of the hot paths are derived from the specs (:mod:`protocols.codec`) and fill the
+dataclasses by field name.
 """
 
 from __future__ import annotations
 
 import enum
-import struct
 from binascii import crc_hqx as _crc_hqx
 from dataclasses import dataclass
 from typing import Any
@@ -91,67 +37,81 @@ from typing import Any
 from construct import Array, Bytes, Const, Float32l, Float64l, Int8ul, Int16ul, Int32ul, Struct, this
 
 from ._fastinit import fast_frozen_init
+from .codec import StructCodec, subspec
 from .crc import crc16_ccitt
+from .host_commands import (
+    CMD_REQUEST_STATUS,
+    CMD_RESET_FILTER,
+    CMD_SELECT_VARIANT,
+    CMD_SET_OUTPUT_RATE,
+    COMMAND_PAYLOAD_LEN,
+    COMMAND_SPECS,
+    HostCommand,
+    RequestStatus,
+    ResetFilter,
+    SelectVariant,
+    SetOutputRate,
+    command_payload,
+    decode_command_payload,
+)
+from .host_text import TEXT_SENTENCES, HostTextFormat, NavText, encode_nav_text, nav_text_sentences
 from .stream import BAD_LENGTH, NEED_MORE
 
 __all__ = [
-    "HOST_SYNC",
-    "HOST_MAX_PAYLOAD",
-    "MSG_NAV_SOLUTION",
-    "MSG_STATUS",
-    "MSG_ACK",
+    "ACK_SPEC",
+    "CMD_REQUEST_STATUS",
     "CMD_RESET_FILTER",
     "CMD_SELECT_VARIANT",
     "CMD_SET_OUTPUT_RATE",
-    "CMD_REQUEST_STATUS",
-    "FilterVariant",
+    "COMMAND_SPECS",
     "FILTER_VARIANT_NAMES",
-    "AckResult",
-    "HostStatus",
+    "HOST_MAX_PAYLOAD",
+    "HOST_SYNC",
+    "MSG_ACK",
+    "MSG_NAV_SOLUTION",
+    "MSG_STATUS",
+    "NAV_SOLUTION_SPEC",
+    "NAV_VARIANT_BLOCK_ID",
+    "NAV_VARIANT_BLOCK_SPEC",
+    "STATUS_SPEC",
+    "TEXT_SENTENCES",
+    "VARIANT_MODE_MEANING",
     "Ack",
+    "AckResult",
+    "FilterVariant",
+    "HostFormat",
+    "HostFrame",
+    "HostStatus",
+    "HostTextFormat",
+    "NavMode",
+    "NavSolution",
+    "NavText",
+    "RequestStatus",
     "ResetFilter",
     "SelectVariant",
     "SetOutputRate",
-    "RequestStatus",
-    "STATUS_SPEC",
-    "ACK_SPEC",
-    "COMMAND_SPECS",
-    "encode_status",
+    "build_host_frame",
     "encode_ack",
     "encode_command",
     "encode_host",
-    "HostTextFormat",
-    "NavText",
-    "nav_text_sentences",
-    "encode_nav_text",
-    "TEXT_SENTENCES",
-    "NavMode",
-    "NavSolution",
-    "NAV_SOLUTION_SPEC",
-    "NAV_VARIANT_BLOCK_SPEC",
-    "NAV_VARIANT_BLOCK_ID",
-    "VARIANT_MODE_MEANING",
-    "HostFrame",
-    "HostFormat",
-    "build_host_frame",
-    "nav_solution_frame",
     "encode_nav_solution",
+    "encode_nav_text",
+    "encode_status",
+    "nav_solution_frame",
+    "nav_text_sentences",
 ]
 
 HOST_SYNC = b"\xa5\x5a"
 MSG_NAV_SOLUTION = 0x01
 MSG_STATUS = 0x02
 MSG_ACK = 0x03
-CMD_RESET_FILTER = 0x81
-CMD_SELECT_VARIANT = 0x82
-CMD_SET_OUTPUT_RATE = 0x83
-CMD_REQUEST_STATUS = 0x84
 #: Largest payload accepted from the header (every defined message is far shorter).
 HOST_MAX_PAYLOAD = 1024
 
 
 class FilterVariant(enum.IntEnum):
-    """Firmware filter variants (DESIGN.md section 6), as carried in STATUS and SELECT_VARIANT."""
+    """Firmware filter variants (docs/architecture.md, "Firmware variants"), as carried in STATUS and
+    SELECT_VARIANT."""
 
     BASE = 1  #: bi-direction solar vector KF (the base paper)
     DUAL_VECTOR = 2  #: dual-vector switching over several polarization sensors
@@ -216,10 +176,13 @@ NAV_SOLUTION_SPEC = Struct(
     "deadline_misses" / Int32ul * "1 |  | cumulative",
 )
 
-_NAV = struct.Struct("<Idddf3f3f9fHBBHI")
+#: The frame's CRC-covered header (msg_id, length) and its CRC.
+_HEAD = StructCodec(subspec(HOST_FRAME_SPEC, "msg_id", "length"), "HOST_HEADER")
+_CRC = StructCodec(subspec(HOST_FRAME_SPEC, "crc", "crc"), "HOST_CRC")
+_NAV = StructCodec(NAV_SOLUTION_SPEC, "NAV_SOLUTION")
 NAV_SOLUTION_LEN = _NAV.size  # 102
 
-#: First byte of the optional VARIANT block appended to NAV_SOLUTION by the issue-6 variants.
+#: First byte of the optional VARIANT block appended to NAV_SOLUTION by the filter variants.
 NAV_VARIANT_BLOCK_ID = 0x56
 NAV_VARIANT_BLOCK_SPEC = Struct(
     "block_id" / Const(bytes((NAV_VARIANT_BLOCK_ID,))) * " |  | 0x56 ('V'): VARIANT block",
@@ -228,7 +191,7 @@ NAV_VARIANT_BLOCK_SPEC = Struct(
     "psns_units" / Int8ul * "1 |  | polarization sensors judged (l)",
     "psns_q_mask" / Int16ul * " |  | bit i = q_i: sensor i judged reliable",
 )
-_VARIANT_BLOCK = struct.Struct("<BBBBH")
+_VARIANT_BLOCK = StructCodec(NAV_VARIANT_BLOCK_SPEC, "NAV_VARIANT_BLOCK")
 #: ``variant_mode`` per :class:`FilterVariant` (NAV_SOLUTION VARIANT block and STATUS).
 VARIANT_MODE_MEANING = {
     "DUAL_VECTOR": "0 no polarization update, 1 polarization-error-vector (one reliable sensor), "
@@ -275,18 +238,36 @@ class HostFrame:
     payload: bytes
 
 
-_FRAME_HEAD = struct.Struct("<BH")
-_CRC16 = struct.Struct("<H")
-#: message id, length and NAV_SOLUTION payload: the CRC-covered body of a frame without VARIANT block
-_NAV_BODY = struct.Struct("<BH" + _NAV.format[1:])
+def _cpu_load_pct(raw: int) -> float:
+    """``cpu_load`` on the wire (0.01 %) -> percent."""
+    return raw / 100.0
+
+
+def _pct(v: float) -> int:
+    """Percent -> 0.01 % units, clamped to u16."""
+    return max(0, min(0xFFFF, round(v * 100)))
+
+
+_pack_head = _HEAD.packer
+_pack_crc = _CRC.packer
+_pack_crc16 = _CRC.struct.pack  # one u16: the derived format, called directly on the hot path
+_NAV_RENAME = {"cpu_load": "cpu_load_pct"}
+#: The CRC-covered body of a NAV_SOLUTION frame without VARIANT block (header and payload in one pack),
+#: from the NavSolution fields as arguments: the firmware's 100 Hz output path builds no object.
+_pack_nav_body = StructCodec(Struct(*_HEAD.spec.subcons, *NAV_SOLUTION_SPEC.subcons), "NAV_SOLUTION_BODY").encoder(
+    NavSolution, rename=_NAV_RENAME, fixed={"msg_id": MSG_NAV_SOLUTION, "length": NAV_SOLUTION_LEN}, from_args=True)
+_pack_nav = _NAV.encoder(NavSolution, rename=_NAV_RENAME, from_args=True)
+_pack_variant_block = _VARIANT_BLOCK.packer
+_decode_nav_fields = _NAV.decoder(NavSolution, rename=_NAV_RENAME, convert={"cpu_load": _cpu_load_pct})
+_decode_variant_block = _VARIANT_BLOCK.decode_fast
 
 
 def build_host_frame(msg_id: int, payload: bytes) -> bytes:
     """Frame ``payload`` as host message ``msg_id`` (sync, id, length, payload, CRC)."""
     if len(payload) > HOST_MAX_PAYLOAD:
         raise ValueError(f"host payload of {len(payload)} bytes exceeds {HOST_MAX_PAYLOAD}")
-    body = _FRAME_HEAD.pack(msg_id, len(payload)) + payload
-    return HOST_SYNC + body + _CRC16.pack(crc16_ccitt(body))
+    body = _pack_head(msg_id=msg_id, length=len(payload)) + payload
+    return HOST_SYNC + body + _pack_crc(crc=crc16_ccitt(body))
 
 
 def encode_nav_solution(n: NavSolution) -> bytes:
@@ -305,59 +286,32 @@ def nav_solution_frame(seq: int, time_s: float, lat_deg: float, lon_deg: float, 
     :class:`NavSolution` first: the firmware's 100 Hz output path. :func:`encode_nav_solution` calls it."""
     load = round(cpu_load_pct * 100)  # 0.01 % units, clamped to u16
     load = 0 if load < 0 else 0xFFFF if load > 0xFFFF else load
-    fields = (
-        seq & 0xFFFFFFFF,
-        time_s,
-        lat_deg,
-        lon_deg,
-        height_m,
-        *vel_enu_mps,
-        roll_deg,
-        pitch_deg,
-        heading_deg,
-        *sigma,
-        mode & 0xFFFF,
-        gnss_status & 0xFF,
-        psns_status & 0xFF,
-        load,
-        deadline_misses & 0xFFFFFFFF,
-    )
+    # the wire wraps the counters and mode bytes (the same argument list twice: _pack_nav_body, _pack_nav)
+    seq &= 0xFFFFFFFF
+    mode &= 0xFFFF
+    gnss_status &= 0xFF
+    psns_status &= 0xFF
+    deadline_misses &= 0xFFFFFFFF
     if variant_mode is None:  # the base variant's 102-byte frame: header and payload in one pack
-        body = _NAV_BODY.pack(MSG_NAV_SOLUTION, NAV_SOLUTION_LEN, *fields)
-        return HOST_SYNC + body + _CRC16.pack(_crc_hqx(body, 0xFFFF))
-    payload = _NAV.pack(*fields) + _VARIANT_BLOCK.pack(NAV_VARIANT_BLOCK_ID, 4, variant_mode & 0xFF,
-                                                       psns_units & 0xFF, psns_q_mask & 0xFFFF)
+        body = _pack_nav_body(seq, time_s, lat_deg, lon_deg, height_m, vel_enu_mps, roll_deg, pitch_deg, heading_deg,
+                              sigma, mode, gnss_status, psns_status, load, deadline_misses)
+        return HOST_SYNC + body + _pack_crc16(_crc_hqx(body, 0xFFFF))
+    payload = _pack_nav(seq, time_s, lat_deg, lon_deg, height_m, vel_enu_mps, roll_deg, pitch_deg, heading_deg,
+                        sigma, mode, gnss_status, psns_status, load, deadline_misses) + _pack_variant_block(
+        block_len=4, variant_mode=variant_mode & 0xFF, psns_units=psns_units & 0xFF, psns_q_mask=psns_q_mask & 0xFFFF)
     return build_host_frame(MSG_NAV_SOLUTION, payload)
 
 
 def _decode_nav(payload: bytes) -> NavSolution:
     if len(payload) < NAV_SOLUTION_LEN:
         raise ValueError(f"NAV_SOLUTION payload must be at least {NAV_SOLUTION_LEN} bytes, got {len(payload)}")
-    v = _NAV.unpack_from(payload)
-    ext: tuple[int | None, int, int] = (None, 0, 0)
     if (len(payload) >= NAV_SOLUTION_LEN + _VARIANT_BLOCK.size and payload[NAV_SOLUTION_LEN] == NAV_VARIANT_BLOCK_ID
             and payload[NAV_SOLUTION_LEN + 1] == 4):
-        ext = _VARIANT_BLOCK.unpack_from(payload, NAV_SOLUTION_LEN)[2:]
-    return NavSolution(
-        seq=v[0],
-        time_s=v[1],
-        lat_deg=v[2],
-        lon_deg=v[3],
-        height_m=v[4],
-        vel_enu_mps=(v[5], v[6], v[7]),
-        roll_deg=v[8],
-        pitch_deg=v[9],
-        heading_deg=v[10],
-        sigma=tuple(v[11:20]),
-        mode=v[20],
-        gnss_status=v[21],
-        psns_status=v[22],
-        cpu_load_pct=v[23] / 100.0,
-        deadline_misses=v[24],
-        variant_mode=ext[0],
-        psns_units=ext[1],
-        psns_q_mask=ext[2],
-    )
+        blk = _decode_variant_block(payload, NAV_SOLUTION_LEN)
+        nav: NavSolution = _decode_nav_fields(payload, 0, blk["variant_mode"], blk["psns_units"], blk["psns_q_mask"])
+        return nav
+    base: NavSolution = _decode_nav_fields(payload)
+    return base
 
 
 # -- STATUS, ACK, commands -------------------------------------------------------------------
@@ -389,19 +343,13 @@ ACK_SPEC = Struct(
     "token" / Int8ul * " |  | echo of the command's token",
     "result" / Int8ul * " |  | AckResult",
 )
-COMMAND_SPECS = {
-    CMD_RESET_FILTER: Struct("token" / Int8ul * " |  | host-chosen, echoed in ACK",
-                             "scope" / Int8ul * " |  | 0 restart alignment, 1 reset covariance only"),
-    CMD_SELECT_VARIANT: Struct("token" / Int8ul * " |  | host-chosen, echoed in ACK",
-                               "variant" / Int8ul * " |  | FilterVariant 1..5"),
-    CMD_SET_OUTPUT_RATE: Struct("token" / Int8ul * " |  | host-chosen, echoed in ACK",
-                                "rate_hz" / Float32l * "1 | Hz | 200/k for integer k; 0 stops the output"),
-    CMD_REQUEST_STATUS: Struct("token" / Int8ul * " |  | host-chosen, echoed in ACK"),
-}
 
-_STATUS = struct.Struct("<IdBBHfBBHHHIIIIIIIII")
+_STATUS = StructCodec(STATUS_SPEC, "STATUS")
+#: The u32 counters of STATUS (they wrap on the wire).
+_STATUS_COUNTERS = ("deadline_misses", "uart1_frames", "uart1_errors", "uart2_frames", "uart2_errors",
+                    "uart3_frames", "uart3_errors", "commands_accepted", "commands_rejected")
 STATUS_LEN = _STATUS.size  # 64
-_ACK = struct.Struct("<BBB")
+_ACK = StructCodec(ACK_SPEC, "ACK")
 
 
 @fast_frozen_init
@@ -441,102 +389,51 @@ class Ack:
     result: int
 
 
-@fast_frozen_init
-@dataclass(frozen=True, slots=True)
-class ResetFilter:
-    """RESET_FILTER: ``scope`` 0 restarts alignment, 1 resets the covariance only."""
 
-    token: int
-    scope: int = 0
+#: Wrap an integer to its wire width, as the encoders do for counters and ids.
+_u8, _u16, _u32 = (0xFF).__and__, (0xFFFF).__and__, (0xFFFFFFFF).__and__
 
-
-@fast_frozen_init
-@dataclass(frozen=True, slots=True)
-class SelectVariant:
-    """SELECT_VARIANT: switch to :class:`FilterVariant` ``variant`` (the filter restarts)."""
-
-    token: int
-    variant: int
-
-
-@fast_frozen_init
-@dataclass(frozen=True, slots=True)
-class SetOutputRate:
-    """SET_OUTPUT_RATE: NAV_SOLUTION rate, Hz (200 Hz / k; 0 stops the output)."""
-
-    token: int
-    rate_hz: float
-
-
-@fast_frozen_init
-@dataclass(frozen=True, slots=True)
-class RequestStatus:
-    """REQUEST_STATUS: answered by ACK and one STATUS frame."""
-
-    token: int
-
-
-HostCommand = ResetFilter | SelectVariant | SetOutputRate | RequestStatus
-
-
-def _pct(v: float) -> int:
-    return max(0, min(0xFFFF, int(round(v * 100))))
+_PCT = {"cpu_load": "cpu_load_pct", "cpu_load_max": "cpu_load_max_pct"}
+_decode_status_fields = _STATUS.decoder(HostStatus, rename=_PCT,
+                                        convert={"cpu_load": _cpu_load_pct, "cpu_load_max": _cpu_load_pct})
+_encode_status_payload = _STATUS.encoder(HostStatus, rename=_PCT, convert={
+    "seq": _u32, "filter_variant": _u8, "variant_mode": _u8, "mode": _u16, "gnss_status": _u8, "psns_status": _u8,
+    "cpu_load": _pct, "cpu_load_max": _pct, "fw_version": _u16,
+    **{f: _u32 for f in _STATUS_COUNTERS},
+})
+_decode_ack = _ACK.decoder(Ack)
+_encode_ack_payload = _ACK.encoder(Ack, convert=dict.fromkeys(_ACK.names, _u8))
 
 
 def encode_status(st: HostStatus) -> bytes:
-    """Whole STATUS frame for ``st``."""
-    payload = _STATUS.pack(
-        st.seq & 0xFFFFFFFF, st.time_s, st.filter_variant & 0xFF, st.variant_mode & 0xFF, st.mode & 0xFFFF,
-        st.output_rate_hz,
-        st.gnss_status & 0xFF, st.psns_status & 0xFF, _pct(st.cpu_load_pct), _pct(st.cpu_load_max_pct),
-        st.fw_version & 0xFFFF, st.deadline_misses & 0xFFFFFFFF,
-        *(v & 0xFFFFFFFF for v in (st.uart1_frames, st.uart1_errors, st.uart2_frames, st.uart2_errors,
-                                   st.uart3_frames, st.uart3_errors, st.commands_accepted, st.commands_rejected)),
-    )
-    return build_host_frame(MSG_STATUS, payload)
+    """Whole STATUS frame for ``st`` (counters wrap to their wire width, loads clamp)."""
+    return build_host_frame(MSG_STATUS, _encode_status_payload(st))
 
 
 def _decode_status(payload: bytes) -> HostStatus:
     if len(payload) < STATUS_LEN:
         raise ValueError(f"STATUS payload must be at least {STATUS_LEN} bytes, got {len(payload)}")
-    v = _STATUS.unpack_from(payload)
-    return HostStatus(v[0], v[1], v[2], v[4], v[5], v[6], v[7], v[8] / 100.0, v[9] / 100.0, *v[10:], variant_mode=v[3])
-
-
-def encode_ack(a: Ack) -> bytes:
-    """Whole ACK frame."""
-    return build_host_frame(MSG_ACK, _ACK.pack(a.command_id & 0xFF, a.token & 0xFF, a.result & 0xFF))
+    st: HostStatus = _decode_status_fields(payload)
+    return st
 
 
 def encode_command(c: HostCommand) -> bytes:
     """Whole command frame (host -> DSP) for one of the command dataclasses."""
-    if isinstance(c, ResetFilter):
-        return build_host_frame(CMD_RESET_FILTER, bytes((c.token & 0xFF, c.scope & 0xFF)))
-    if isinstance(c, SelectVariant):
-        return build_host_frame(CMD_SELECT_VARIANT, bytes((c.token & 0xFF, c.variant & 0xFF)))
-    if isinstance(c, SetOutputRate):
-        return build_host_frame(CMD_SET_OUTPUT_RATE, struct.pack("<Bf", c.token & 0xFF, c.rate_hz))
-    if isinstance(c, RequestStatus):
-        return build_host_frame(CMD_REQUEST_STATUS, bytes((c.token & 0xFF,)))
-    raise TypeError(f"not a host command: {c!r}")
+    return build_host_frame(*command_payload(c))
 
 
-#: command id -> exact payload length
-COMMAND_PAYLOAD_LEN = {CMD_RESET_FILTER: 2, CMD_SELECT_VARIANT: 2, CMD_SET_OUTPUT_RATE: 5, CMD_REQUEST_STATUS: 1}
+def encode_ack(a: Ack) -> bytes:
+    """Whole ACK frame."""
+    return build_host_frame(MSG_ACK, _encode_ack_payload(a))
+
+
+
+
 #: message id -> smallest payload length (NAV_SOLUTION and STATUS may grow by appending)
 _MIN_LEN = {MSG_NAV_SOLUTION: NAV_SOLUTION_LEN, MSG_STATUS: STATUS_LEN, MSG_ACK: _ACK.size, **COMMAND_PAYLOAD_LEN}
 _EXACT = {MSG_ACK, *COMMAND_PAYLOAD_LEN}
 
 
-def _decode_command(msg_id: int, payload: bytes) -> HostCommand:
-    if msg_id == CMD_RESET_FILTER:
-        return ResetFilter(payload[0], payload[1])
-    if msg_id == CMD_SELECT_VARIANT:
-        return SelectVariant(payload[0], payload[1])
-    if msg_id == CMD_SET_OUTPUT_RATE:
-        tok, rate = struct.unpack("<Bf", payload)
-        return SetOutputRate(tok, rate)
-    return RequestStatus(payload[0])
 
 
 def encode_host(obj: NavSolution | HostStatus | Ack | HostCommand | HostFrame) -> bytes:
@@ -568,7 +465,7 @@ class HostFormat:
         """Encode a decoded object back to its frame (:func:`encode_host`)."""
         return encode_host(obj)
 
-    def frame_length(self, buf: bytearray, start: int) -> int:
+    def frame_length(self, buf: bytes | bytearray, start: int) -> int:
         if len(buf) - start < 5:
             return NEED_MORE
         n = buf[start + 3] | (buf[start + 4] << 8)
@@ -589,91 +486,8 @@ class HostFormat:
         if msg_id == MSG_STATUS:
             return _decode_status(payload)
         if msg_id == MSG_ACK:
-            return Ack(*_ACK.unpack(payload))
+            ack: Ack = _decode_ack(payload)
+            return ack
         if msg_id in COMMAND_PAYLOAD_LEN:
-            return _decode_command(msg_id, payload)
+            return decode_command_payload(msg_id, payload)
         return HostFrame(msg_id, bytes(payload))
-
-
-# -- text sentences for terminal users ----------------------------------------------------------
-
-
-@fast_frozen_init
-@dataclass(frozen=True, slots=True)
-class NavText:
-    """One decoded ``$PSNS...`` sentence: ``kind`` (POS, VEL, ATT, STA) and its typed values."""
-
-    kind: str
-    time_s: float
-    values: tuple[float | int, ...]
-
-
-#: kind -> (value names, formats) after the time field; the formats fix the decimals on the wire.
-TEXT_SENTENCES: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
-    "POS": (("lat_deg", "lon_deg", "height_m", "mode", "gnss_status", "psns_status"),
-            (".7f", ".7f", ".2f", "04X", "d", "d")),
-    "VEL": (("vel_e_mps", "vel_n_mps", "vel_u_mps"), (".3f", ".3f", ".3f")),
-    "ATT": (("roll_deg", "pitch_deg", "heading_deg"), (".2f", ".2f", ".2f")),
-    "STA": (("filter_variant", "cpu_load_pct", "deadline_misses"), ("d", ".2f", "d")),
-}
-
-
-def _text(kind: str, time_s: float, values: tuple[float | int, ...]) -> bytes:
-    from .nmea import build_sentence
-
-    fmts = TEXT_SENTENCES[kind][1]
-    return build_sentence("PSNS", kind, [f"{time_s:.3f}"] + [format(v, f) for v, f in zip(values, fmts)])
-
-
-def encode_nav_text(t: NavText) -> bytes:
-    """One ``$PSNS<kind>`` sentence (NMEA framing and checksum, CR LF)."""
-    return _text(t.kind, t.time_s, t.values)
-
-
-def nav_text_sentences(n: NavSolution, filter_variant: int = FilterVariant.BASE,
-                       kinds: tuple[str, ...] = ("POS", "VEL", "ATT", "STA")) -> bytes:
-    """The text rendering of one solution: ``$PSNSPOS``, ``$PSNSVEL``, ``$PSNSATT``, ``$PSNSSTA``."""
-    vals: dict[str, tuple[float | int, ...]] = {
-        "POS": (n.lat_deg, n.lon_deg, n.height_m, n.mode, n.gnss_status, n.psns_status),
-        "VEL": tuple(n.vel_enu_mps),
-        "ATT": (n.roll_deg, n.pitch_deg, n.heading_deg),
-        "STA": (int(filter_variant), n.cpu_load_pct, n.deadline_misses),
-    }
-    return b"".join(_text(k, n.time_s, vals[k]) for k in kinds)
-
-
-class HostTextFormat:
-    """:class:`~protocols.stream.FrameFormat` of the ``$PSNS...`` text sentences (yields :class:`NavText`).
-
-    Other NMEA sentences on the same stream come out as :class:`~protocols.nmea.NmeaSentence`.
-    """
-
-    name = "host-text"
-    sync = b"$"
-
-    def __init__(self) -> None:
-        from .nmea import NmeaFormat
-
-        self._nmea = NmeaFormat()
-        self.frame_length = self._nmea.frame_length
-        self.check = self._nmea.check
-
-    @staticmethod
-    def encode(obj: Any) -> bytes:
-        """Encode a :class:`NavText` (or any NMEA object) back to its sentence."""
-        if isinstance(obj, NavText):
-            return encode_nav_text(obj)
-        from .nmea import encode_nmea
-
-        return encode_nmea(obj)
-
-    def parse(self, frame: bytes) -> NavText | object:
-        s = self._nmea.parse(frame)
-        if getattr(s, "talker", None) != "PSNS" or s.kind not in TEXT_SENTENCES:  # type: ignore[union-attr]
-            return s
-        names, fmts = TEXT_SENTENCES[s.kind]  # type: ignore[union-attr]
-        f = s.fields  # type: ignore[union-attr]
-        if len(f) != 1 + len(names):
-            raise ValueError(f"$PSNS{s.kind} needs {1 + len(names)} fields")  # type: ignore[union-attr]
-        vals = tuple(int(v, 16) if fm == "04X" else int(v) if fm == "d" else float(v) for v, fm in zip(f[1:], fmts))
-        return NavText(s.kind, float(f[0]), vals)  # type: ignore[union-attr]

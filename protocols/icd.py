@@ -13,6 +13,7 @@ from __future__ import annotations
 import datetime as dt
 import math
 import struct
+from collections.abc import Sequence
 from typing import Any
 
 from construct import Array, BytesInteger, Const, FormatField, Renamed, Struct
@@ -20,7 +21,7 @@ from construct import Bytes as _Bytes
 
 from . import can_nav, crc, gnss, host, imu_frame, monitor, nmea, psns, stim, ubx
 
-__all__ = ["LINK_BAUD", "generate", "spec_rows", "budget_rows"]
+__all__ = ["LINK_BAUD", "budget_rows", "generate", "spec_rows"]
 
 #: Default line rate of every link, baud (8N1 = 10 bits per byte on every UART link).
 LINK_BAUD = {"gyro": 460800, "gnss": 9600, "psns": 115200, "host": 460800,
@@ -97,7 +98,10 @@ def spec_rows(spec: Struct, start: int | str = 0) -> list[tuple[str, str, str, s
     return rows
 
 
-def _table(rows: list, header: tuple[str, ...] = ("offset", "size", "type", "field", "scale", "unit", "meaning")) -> str:
+_SPEC_HEADER = ("offset", "size", "type", "field", "scale", "unit", "meaning")
+
+
+def _table(rows: Sequence[Sequence[object]], header: tuple[str, ...] = _SPEC_HEADER) -> str:
     lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
     for r in rows:
         lines.append("| " + " | ".join(str(c).replace("|", "\\|") for c in r) + " |")
@@ -110,11 +114,12 @@ def _spec_table(spec: Struct, start: int | str = 0) -> str:
 
 # -- sizes and budgets ---------------------------------------------------------------------------
 def _sample_nav() -> host.NavSolution:
-    return host.NavSolution(1, 1.0, 39.979, 116.339, 50.0, (0.0, 0.0, 0.0), 0.0, 0.0, 30.0, (0.0,) * 9, 6, 1, 0, 10.0, 0)
+    return host.NavSolution(1, 1.0, 39.979, 116.339, 50.0, (0.0, 0.0, 0.0), 0.0, 0.0, 30.0, (0.0,) * 9, 6, 1, 0, 10.0,
+                            0)
 
 
 def _gnss_fix() -> gnss.GnssFix:
-    return gnss.GnssFix(utc=dt.datetime(2019, 9, 18, 8, 14, 0, tzinfo=dt.timezone.utc), lat_deg=39.979,
+    return gnss.GnssFix(utc=dt.datetime(2019, 9, 18, 8, 14, 0, tzinfo=dt.UTC), lat_deg=39.979,
                         lon_deg=116.339, height_m=50.0, geoid_sep_m=-8.5, vel_enu_mps=(1.0, 2.0, 0.1))
 
 
@@ -148,7 +153,8 @@ def budget_rows() -> list[tuple[str, ...]]:
         need = sum(n * hz for _, n, hz in items)
         avail = LINK_BAUD[link] / 10
         frames = ", ".join(f"{name} {n} B x {hz:g} Hz" for name, n, hz in items)
-        return (link, between, f"{LINK_BAUD[link]}", frames, f"{need:,.0f}", f"{avail:,.0f}", f"{100 * need / avail:.1f} %")
+        return (link, between, f"{LINK_BAUD[link]}", frames, f"{need:,.0f}", f"{avail:,.0f}",
+                f"{100 * need / avail:.1f} %")
 
     rows = [
         row("gyro", "STIM210 -> FPGA GYRO (RS422)", [("STIM210 0xA5", z["stim210_m"], r["imu"])]),
@@ -162,7 +168,8 @@ def budget_rows() -> list[tuple[str, ...]]:
                                                             ("NAV-PVT+NAV-STATUS", z["ubx_epoch"], r["gnss"])]),
         row("psns", "polarization sensor -> FPGA PSNS (RS232)",
             [(f"OBS {PSNS_EXAMPLE_POINTS} points", z["psns_obs"], r["psns_obs"]),
-             ("COMPASS 9 units", z["psns_compass"], r["psns_compass"]), ("SOLAR_VECTOR", z["psns_solar"], r["psns_solar"])]),
+             ("COMPASS 9 units", z["psns_compass"], r["psns_compass"]),
+             ("SOLAR_VECTOR", z["psns_solar"], r["psns_solar"])]),
         row("uart2", "FPGA -> DSP UART2", [(f"OBS {PSNS_EXAMPLE_POINTS} points", z["psns_obs"], r["psns_obs"]),
                                            ("COMPASS", z["psns_compass"], r["psns_compass"]),
                                            ("SOLAR_VECTOR", z["psns_solar"], r["psns_solar"])]),
@@ -242,7 +249,8 @@ def generate() -> str:
       "at header + 1 after any failed candidate and counts garbage bytes, checksum, length and parse errors.\n")
     w("Checksums (`protocols/crc.py`; check value = CRC of ASCII `123456789`):\n")
     w(_table([
-        ("CRC-8", "poly 0x07, init 0xFF, no reflection, no xor", "0xFB", "STIM210 datagram; STIM Utility Mode (decimal)"),
+        ("CRC-8", "poly 0x07, init 0xFF, no reflection, no xor", "0xFB",
+         "STIM210 datagram; STIM Utility Mode (decimal)"),
         ("CRC-16/CCITT-FALSE", "poly 0x1021, init 0xFFFF, no reflection, no xor", "0x29B1",
          "FPGA IMU/MAG, PSNS, host, monitor frames"),
         ("CRC-32/MPEG-2", "poly 0x04C11DB7, init 0xFFFFFFFF, no reflection, no xor", "0x0376E6E7",
@@ -279,11 +287,11 @@ def generate() -> str:
       "datagram counter counts 2000 Hz internal samples, so it steps by **10** per datagram "
       "(`protocols.stim.counter_step(200) == 10`). The decoder is configured per device and format "
       "(`Stim210Format('m')`, `Stim300Format(0x93)`), never from the ID: 0x90 is a different frame on each.\n")
-    w("### 3.1 STIM210 normal-mode datagrams (big-endian; protocols.md 1.8)\n")
-    rows = []
+    w("### 3.1 STIM210 normal-mode datagrams (big-endian; docs/reference/wire-formats.md section 1.8)\n")
+    rows: list[tuple[str, ...]] = []
     for letter, (ident, groups) in stim.STIM210_FORMATS.items():
         f = stim.Stim210Format(letter)
-        rows.append((f"d {letter}", f"0x{ident:02X}", ", ".join(("gyro", "status") + groups), str(f.length),
+        rows.append((f"d {letter}", f"0x{ident:02X}", ", ".join(("gyro", "status", *groups)), str(f.length),
                      str(f.length + 2)))
     w(_table(rows, ("format", "ID", "content", "bytes", "with CR LF")) + "\n")
     w("Format `m` (0xA5, the default gyro format):\n")
@@ -291,7 +299,7 @@ def generate() -> str:
     w("Format `p` (0xA8, every optional field):\n")
     w(_spec_table(stim.stim210_spec("p")) + "\n")
     w("### 3.2 STIM300 normal-mode datagrams (big-endian; TS1524 r31 Tables 5-20..5-23)\n")
-    rows = [(f"0x{i:02X}", ", ".join(("rate",) + g), str(n), str(d), str(n + 2), era)
+    rows = [(f"0x{i:02X}", ", ".join(("rate", *g)), str(n), str(d), str(n + 2), era)
             for i, (g, n, d, era) in stim.STIM300_DATAGRAMS.items()]
     w(_table(rows, ("ID", "content", "bytes", "CRC dummy bytes", "with CR LF", "revision")) + "\n")
     w("Full content, ID 0xF7 (r31, PPS) / 0xAF (AUX era); reduced IDs omit absent clusters in the same order:\n")
@@ -353,8 +361,9 @@ def generate() -> str:
     w(_spec_table(psns.UNIT_SPEC) + "\n")
     w("Payload of 0x12 SOLAR_VECTOR:\n")
     w(_spec_table(psns.SOLAR_VECTOR_SPEC) + "\n")
-    w("Time tag (CONTRACTS C1): exposure middle = reception time of the last byte - frame bytes x 10 / baud - "
-      "latency_us. `PsnsStatus`: " + ", ".join(f"0x{int(m):02X} {m.name}" for m in psns.PsnsStatus) + ".\n")
+    w("Time tag (docs/architecture.md, \"Conventions\"): exposure middle = reception time of the last byte - "
+      "frame bytes x 10 / baud - latency_us. `PsnsStatus`: "
+      + ", ".join(f"0x{int(m):02X} {m.name}" for m in psns.PsnsStatus) + ".\n")
 
     # -- Host ----------------------------------------------------------------------------------
     w("## 7. Host port (DSP UART0 <-> FPGA HOST, RS422, 460800 baud)\n")

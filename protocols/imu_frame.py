@@ -28,7 +28,7 @@ Accelerometer ADC (documented design values; ICD "Accelerometer acquisition"):
 same +-2.7 V swing (108 mV/g). So one code is ``ADC_VOLTS_PER_LSB / ACCEL_VOLTS_PER_G[axis]``
 g: 5.43 ug on x, 4.52 ug on y and z (:func:`accel_code_to_g`).
 
-MAG frame (msg_type 0x02, same framing; CONTRACTS C2), one per magnetometer sample::
+MAG frame (msg_type 0x02, same framing; docs/icd.md), one per magnetometer sample::
 
     off  size  field            type   unit / meaning
     0    2     sync             0x55 0xAA
@@ -40,45 +40,49 @@ MAG frame (msg_type 0x02, same framing; CONTRACTS C2), one per magnetometer samp
     22   1     status           u8     :class:`MagStatus` bits
     23   2     crc              u16    CRC-16/CCITT-FALSE over bytes 2..22
 
-:class:`ImuFrameFormat` accepts the IMU frame only (as before); :class:`FpgaFrameFormat`
-accepts both frame types on one stream.
+:class:`ImuFrameFormat` accepts the IMU frame only; :class:`FpgaFrameFormat` accepts both frame types on
+one stream.
+
+Both frames are declared once, by their ``construct`` specs; the ``struct`` codecs are derived from them
+(:mod:`protocols.codec`, whose 24-bit rule reads each s24 word as a u16 and an s8) and fill the dataclasses
+by field name.
 """
 
 from __future__ import annotations
 
 import enum
-import struct
 from binascii import crc_hqx as _crc_hqx
 from dataclasses import dataclass
 
 from construct import Array, Const, Int8ul, Int16ul, Int24sl, Int32sl, Int32ul, Struct
 
 from ._fastinit import fast_frozen_init
+from .codec import StructCodec, subspec
 from .crc import crc16_ccitt
 from .stream import BAD_LENGTH, NEED_MORE
 
 __all__ = [
-    "IMU_SYNC",
-    "IMU_MSG_TYPE",
-    "IMU_FRAME_LEN",
-    "ADC_VREF_V",
-    "ADC_VOLTS_PER_LSB",
     "ACCEL_VOLTS_PER_G",
     "ADC_CODE_MAX",
+    "ADC_VOLTS_PER_LSB",
+    "ADC_VREF_V",
+    "IMU_FRAME_LEN",
+    "IMU_FRAME_SPEC",
+    "IMU_MSG_TYPE",
+    "IMU_SYNC",
+    "MAG_FRAME_LEN",
+    "MAG_FRAME_SPEC",
+    "MAG_LSB_T",
+    "MAG_MSG_TYPE",
+    "FpgaFrameFormat",
     "FpgaStatus",
     "ImuFrame",
     "ImuFrameFormat",
-    "IMU_FRAME_SPEC",
-    "MAG_MSG_TYPE",
-    "MAG_FRAME_LEN",
-    "MAG_LSB_T",
-    "MAG_FRAME_SPEC",
-    "MagStatus",
     "MagFrame",
-    "FpgaFrameFormat",
-    "encode_mag_frame",
-    "adc_code_to_volts",
+    "MagStatus",
     "accel_code_to_g",
+    "adc_code_to_volts",
+    "encode_mag_frame",
 ]
 
 IMU_SYNC = b"\x55\xaa"
@@ -132,7 +136,8 @@ IMU_FRAME_SPEC = Struct(
     "t_trigger_us" / Int32ul * "1 | us | FPGA 1 MHz counter at the ExtTrig edge (wraps after 71.6 min)",
     "t_pps_us" / Int32ul * "1 | us | FPGA counter latched at the last PPS rising edge",
     "pps_count" / Int8ul * "1 |  | PPS edges seen, wraps",
-    "gyro" / Array(3, Int24sl) * "2^-14 / 2^-21 | deg/s / deg | STIM words X, Y, Z as received (rate / incremental angle)",
+    "gyro" / Array(3, Int24sl)
+    * "2^-14 / 2^-21 | deg/s / deg | STIM words X, Y, Z as received (rate / incremental angle)",
     "gyro_status" / Int8ul * " |  | STIM STATUS byte (TS1524 Table 5-23)",
     "gyro_counter" / Int8ul * "1 |  | STIM 2000 Hz sample counter (steps by 10 at 200 Hz)",
     "gyro_latency_us" / Int16ul * "1 | us | STIM latency",
@@ -179,38 +184,19 @@ class ImuFrame:
     fpga_status: int
 
 
-_HEAD = struct.Struct("<HIIB")
-_MID = struct.Struct("<BBH")
+_IMU = StructCodec(IMU_FRAME_SPEC, "IMU_FRAME")
+#: The CRC-covered body (msg_type .. fpga_status), for the encoder.
+_IMU_BODY = StructCodec(subspec(IMU_FRAME_SPEC, "msg_type", "fpga_status"), "IMU_FRAME_BODY")
+if _IMU.size != IMU_FRAME_LEN:  # pragma: no cover
+    raise AssertionError("IMU_FRAME_LEN disagrees with IMU_FRAME_SPEC")
+#: The payload (seq .. fpga_status), for the decoder: the stream has checked sync, type, length and CRC.
+_IMU_PAYLOAD = StructCodec(subspec(IMU_FRAME_SPEC, "seq", "fpga_status"), "IMU_FRAME_PAYLOAD")
+_decode_imu_payload = _IMU_PAYLOAD.decoder(ImuFrame)
 
-
-#: Bytes 4..37 of the IMU frame in one unpack. The s24 words are split at byte boundaries that struct can
-#: read without overlap: gyro x is the top of the i32 at 14 (whose low byte is pps_count); the others are a
-#: u16 + s8 (low, high) or a u8 + s16 pair.
-_IMU_BODY = struct.Struct("<HIIiHbBhBBHHbBhHbB")
-
-
-def _parse_imu(frame: bytes) -> ImuFrame:
-    """Decode a checked IMU frame (one ``struct`` call; see :data:`_IMU_BODY`)."""
-    (seq, t_trig, t_pps, w14, gy_lo, gy_hi, gz_lo, gz_hi, gstat, gcnt, glat,
-     ax_lo, ax_hi, ay_lo, ay_hi, az_lo, az_hi, fstat) = _IMU_BODY.unpack_from(frame, 4)
-    return ImuFrame(
-        seq,
-        t_trig,
-        t_pps,
-        w14 & 0xFF,
-        (w14 >> 8, gy_lo | gy_hi << 16, gz_lo | gz_hi << 8),
-        gstat,
-        gcnt,
-        glat,
-        (ax_lo | ax_hi << 16, ay_lo | ay_hi << 8, az_lo | az_hi << 16),
-        fstat,
-    )
-
-
-def _p24le(v: int) -> bytes:
-    if not -0x800000 <= v <= 0x7FFFFF:
-        raise ValueError(f"value {v} outside s24")
-    return (v & 0xFFFFFF).to_bytes(3, "little")
+_encode_imu_body = _IMU_BODY.encoder(ImuFrame, convert={
+    "seq": (0xFFFF).__and__, "t_trigger_us": (0xFFFFFFFF).__and__, "t_pps_us": (0xFFFFFFFF).__and__,
+    "pps_count": (0xFF).__and__, "gyro_status": (0xFF).__and__, "gyro_counter": (0xFF).__and__,
+    "gyro_latency_us": (0xFFFF).__and__, "fpga_status": (0xFF).__and__})
 
 
 class ImuFrameFormat:
@@ -219,7 +205,7 @@ class ImuFrameFormat:
     name = "imu"
     sync = IMU_SYNC
 
-    def frame_length(self, buf: bytearray, start: int) -> int:
+    def frame_length(self, buf: bytes | bytearray, start: int) -> int:
         if len(buf) - start < 4:
             return NEED_MORE
         if buf[start + 2] != IMU_MSG_TYPE or buf[start + 3] != IMU_PAYLOAD_LEN:
@@ -230,18 +216,13 @@ class ImuFrameFormat:
         return crc16_ccitt(frame[2:38]) == (frame[38] | (frame[39] << 8))
 
     def parse(self, frame: bytes) -> ImuFrame:
-        return _parse_imu(frame)
+        f: ImuFrame = _decode_imu_payload(frame, 4)
+        return f
 
     def build(self, f: ImuFrame) -> bytes:
-        body = bytearray((IMU_MSG_TYPE, IMU_PAYLOAD_LEN))
-        body += _HEAD.pack(f.seq & 0xFFFF, f.t_trigger_us & 0xFFFFFFFF, f.t_pps_us & 0xFFFFFFFF, f.pps_count & 0xFF)
-        for w in f.gyro:
-            body += _p24le(w)
-        body += _MID.pack(f.gyro_status & 0xFF, f.gyro_counter & 0xFF, f.gyro_latency_us & 0xFFFF)
-        for w in f.accel:
-            body += _p24le(w)
-        body.append(f.fpga_status & 0xFF)
-        return IMU_SYNC + bytes(body) + crc16_ccitt(body).to_bytes(2, "little")
+        """Encode ``f`` (counters wrap to their width; a gyro or accel word outside s24 raises ``ValueError``)."""
+        body = _encode_imu_body(f)
+        return IMU_SYNC + body + crc16_ccitt(body).to_bytes(2, "little")
 
     encode = build
 
@@ -257,22 +238,22 @@ class MagFrame:
     status: int
 
 
-_MAG = struct.Struct("<BBHI3iB")
+_MAG = StructCodec(MAG_FRAME_SPEC, "MAG_FRAME")
+_MAG_BODY = StructCodec(subspec(MAG_FRAME_SPEC, "msg_type", "status"), "MAG_FRAME_BODY")
+if _MAG.size != MAG_FRAME_LEN:  # pragma: no cover
+    raise AssertionError("MAG_FRAME_LEN disagrees with MAG_FRAME_SPEC")
+_MAG_PAYLOAD = StructCodec(subspec(MAG_FRAME_SPEC, "seq", "status"), "MAG_FRAME_PAYLOAD")
+_decode_mag_payload = _MAG_PAYLOAD.decoder(MagFrame)
+
+_encode_mag_body = _MAG_BODY.encoder(MagFrame, convert={
+    "seq": (0xFFFF).__and__, "t_sample_us": (0xFFFFFFFF).__and__, "status": (0xFF).__and__})
 
 
 def encode_mag_frame(f: MagFrame) -> bytes:
-    """Whole MAG frame for ``f`` (seq and time wrap like the FPGA counters)."""
-    for w in f.field:
-        if not -0x80000000 <= w <= 0x7FFFFFFF:
-            raise ValueError(f"field word {w} outside i32")
-    body = _MAG.pack(MAG_MSG_TYPE, MAG_PAYLOAD_LEN, f.seq & 0xFFFF, f.t_sample_us & 0xFFFFFFFF, *f.field,
-                     f.status & 0xFF)
+    """Whole MAG frame for ``f`` (seq and time wrap like the FPGA counters; a field word outside i32 raises
+    ``ValueError``)."""
+    body = _encode_mag_body(f)
     return IMU_SYNC + body + crc16_ccitt(body).to_bytes(2, "little")
-
-
-def _parse_mag(frame: bytes) -> MagFrame:
-    _, _, seq, t, fx, fy, fz, st = _MAG.unpack_from(frame, 2)
-    return MagFrame(seq, t, (fx, fy, fz), st)
 
 
 class FpgaFrameFormat:
@@ -284,7 +265,7 @@ class FpgaFrameFormat:
     def __init__(self) -> None:
         self._imu = ImuFrameFormat()
 
-    def frame_length(self, buf: bytearray, start: int) -> int:
+    def frame_length(self, buf: bytes | bytearray, start: int) -> int:
         if len(buf) - start < 4:
             return NEED_MORE
         t, n = buf[start + 2], buf[start + 3]
@@ -298,9 +279,8 @@ class FpgaFrameFormat:
         return _crc_hqx(frame[2:-2], 0xFFFF) == (frame[-2] | (frame[-1] << 8))  # crc16_ccitt, one call less
 
     def parse(self, frame: bytes) -> ImuFrame | MagFrame:
-        if frame[2] == IMU_MSG_TYPE:
-            return _parse_imu(frame)
-        return _parse_mag(frame)
+        f: ImuFrame | MagFrame = (_decode_imu_payload if frame[2] == IMU_MSG_TYPE else _decode_mag_payload)(frame, 4)
+        return f
 
     def build(self, f: ImuFrame | MagFrame) -> bytes:
         """Encode either frame type."""

@@ -26,37 +26,36 @@ costs that record only. Runs of delimiters (idle fill) are allowed. Overhead per
 
 from __future__ import annotations
 
-import struct
 from dataclasses import dataclass
 from typing import Any
 
 from construct import Bytes, Int8ul, Int16ul, Int32ul, Struct, this
 
 from ._fastinit import fast_frozen_init
+from .codec import StructCodec, subspec
 from .crc import crc16_ccitt
 from .stream import BAD_LENGTH, NEED_MORE
 
 __all__ = [
+    "DIR_FROM_DSP",
+    "DIR_TO_DSP",
     "MONITOR_CHANNELS",
     "MONITOR_MAX_DATA",
     "MONITOR_RECORD_SPEC",
-    "DIR_TO_DSP",
-    "DIR_FROM_DSP",
-    "MonitorRecord",
     "MonitorFormat",
-    "encode_monitor",
-    "cobs_encode",
+    "MonitorRecord",
     "cobs_decode",
+    "cobs_encode",
+    "encode_monitor",
     "monitor_frame_len",
 ]
 
-MONITOR_CHANNELS = {"gyro": 0, "gnss": 1, "psns": 2, "host": 3, "uart0": 4, "uart1": 5, "uart2": 6, "uart3": 7, "mag": 8}
+MONITOR_CHANNELS = {"gyro": 0, "gnss": 1, "psns": 2, "host": 3, "uart0": 4, "uart1": 5, "uart2": 6, "uart3": 7,
+                    "mag": 8}
 DIR_TO_DSP = 0
 DIR_FROM_DSP = 1
 #: Largest data chunk in one record; longer chunks are split by the sender.
 MONITOR_MAX_DATA = 1024
-_HDR = struct.Struct("<BBIH")
-_REC_OVERHEAD = _HDR.size + 2  # header + CRC
 
 # Field docs are "scale | unit | meaning" (read by protocols.icd for docs/icd.md).
 MONITOR_RECORD_SPEC = Struct(
@@ -67,6 +66,9 @@ MONITOR_RECORD_SPEC = Struct(
     "data" / Bytes(this.length) * " |  | the bytes as they crossed the port",
     "crc" / Int16ul * " |  | CRC-16/CCITT-FALSE over channel..data",
 )
+_HDR = StructCodec(subspec(MONITOR_RECORD_SPEC, "channel", "length"), "MONITOR_HEADER")
+_CRC = StructCodec(subspec(MONITOR_RECORD_SPEC, "crc", "crc"), "MONITOR_CRC")
+_REC_OVERHEAD = _HDR.size + _CRC.size  # header + CRC
 
 
 @fast_frozen_init
@@ -131,9 +133,14 @@ def encode_monitor(rec: MonitorRecord) -> bytes:
     """
     if len(rec.data) > MONITOR_MAX_DATA:
         raise ValueError(f"monitor record of {len(rec.data)} bytes exceeds {MONITOR_MAX_DATA}; split it")
-    body = _HDR.pack(rec.channel & 0xFF, rec.direction & 0xFF, rec.t_us & 0xFFFFFFFF, len(rec.data)) + bytes(rec.data)
-    body += crc16_ccitt(body).to_bytes(2, "little")
+    body = _HDR.packer(channel=rec.channel & 0xFF, direction=rec.direction & 0xFF, t_us=rec.t_us & 0xFFFFFFFF,
+                       length=len(rec.data)) + bytes(rec.data)
+    body += _CRC.packer(crc=crc16_ccitt(body))
     return b"\x00" + cobs_encode(body)
+
+
+#: MonitorRecord from the header by field name; ``length`` is implied by ``data`` and the CRC checked before.
+_decode_header = _HDR.decoder(MonitorRecord, ignore=("length",))
 
 
 class MonitorFormat:
@@ -160,7 +167,7 @@ class MonitorFormat:
         self._enc = b""
         self._body = b""
 
-    def frame_length(self, buf: bytearray, start: int) -> int:
+    def frame_length(self, buf: bytes | bytearray, start: int) -> int:
         n = len(buf)
         i = start + 1
         while i < n and buf[i] == 0:
@@ -169,7 +176,7 @@ class MonitorFormat:
         z = buf.find(b"\x00", i)  # COBS data holds no 0x00: the record ends before z
         if z < 0:
             z = n
-        parts: list[bytes] = []
+        parts: list[bytes | bytearray] = []
         want = -1  # decoded record length (header + data + CRC) once the header is known
         decoded = 0
         while True:
@@ -217,5 +224,5 @@ class MonitorFormat:
 
     def parse(self, frame: bytes) -> MonitorRecord:
         body = self._decoded(frame)
-        ch, d, t, _ = _HDR.unpack_from(body, 0)
-        return MonitorRecord(ch, d, t, bytes(body[_HDR.size : -2]))
+        rec: MonitorRecord = _decode_header(body, 0, bytes(body[_HDR.size : -2]))
+        return rec

@@ -1,66 +1,62 @@
 """NMEA 0183 sentences: framing, checksum, GGA, RMC, VTG, GSA and ZDA.
 
-Source: ``shared/reference/protocols.md`` section 2.3 (gpsd NMEA notes; field order as in
+Source: ``docs/reference/wire-formats.md`` section 2.3 (gpsd NMEA notes; field order as in
 pynmea2). A sentence is ``$`` + talker (2 letters) + type (3 letters) + ``,``-separated fields
 + ``*`` + two upper-case hex digits (XOR of every byte strictly between ``$`` and ``*``)
 + ``<CR><LF>``; at most 82 characters including ``$`` and ``<CR><LF>``. Proprietary sentences
 start ``$P`` + a three-letter maker code (``$PSNSPOS``: maker ``SNS``); they are framed and
 checked the same way and come out as :class:`NmeaSentence` with ``talker="PSNS"``.
 
-Number formats written by the builders (a u-blox-like rendering, and the one that the
-golden vectors pin down):
-
-==========  =======================================================================
-field       format
-==========  =======================================================================
-time        ``hhmmss.ss`` (UTC)
-lat / lon   ``ddmm.mmmmm`` / ``dddmm.mmmmm`` (5 decimals of arc-minutes, 1.85 cm) + N/S, E/W
-altitude    metres, 3 decimals (GGA altitude above MSL and geoid separation)
-HDOP etc.   2 decimals
-speed       knots, 3 decimals (RMC, VTG); VTG km/h is derived from the *rounded* knots, so a
-            decoded sentence re-encodes to the same bytes
-course      degrees true, 2 decimals, [0, 360)
-==========  =======================================================================
-
-Every typed sentence re-encodes with :func:`encode_nmea`; for sentences written by these
+The builders and their number formats are in :mod:`protocols.nmea_build` (re-exported here). Every typed
+sentence re-encodes with :func:`encode_nmea`; for sentences written by these
 builders ``encode_nmea(parse(b)) == b`` holds byte for byte (the golden vectors check it).
 """
 
 from __future__ import annotations
 
 import datetime as _dt
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 from ._fastinit import fast_frozen_init
 from .crc import nmea_checksum
+from .nmea_build import (
+    KNOT_MPS,
+    NMEA_MAX_LEN,
+    build_gga,
+    build_gsa,
+    build_rmc,
+    build_sentence,
+    build_vtg,
+    build_zda,
+    format_lat,
+    format_lon,
+)
 from .stream import BAD_LENGTH, NEED_MORE
 
 __all__ = [
-    "NMEA_MAX_LEN",
     "KNOT_MPS",
-    "NmeaSentence",
+    "NMEA_MAX_LEN",
     "Gga",
+    "Gsa",
+    "NmeaFormat",
+    "NmeaSentence",
     "Rmc",
     "Vtg",
-    "Gsa",
     "Zda",
-    "NmeaFormat",
-    "build_sentence",
     "build_gga",
-    "build_rmc",
-    "build_vtg",
     "build_gsa",
+    "build_rmc",
+    "build_sentence",
+    "build_vtg",
     "build_zda",
     "encode_nmea",
     "format_lat",
     "format_lon",
+    "sentence_ok",
+    "sentence_ok_fast",
 ]
-
-#: Longest legal sentence, bytes, including ``$`` and ``<CR><LF>``.
-NMEA_MAX_LEN = 82
-#: One knot in m/s.
-KNOT_MPS = 1852.0 / 3600.0
 
 
 @fast_frozen_init
@@ -147,7 +143,7 @@ def _parse_time_uncached(s: str) -> _dt.time:
     hh, mm = int(s[0:2]), int(s[2:4])
     sec = float(s[4:])
     whole = int(sec)
-    return _dt.time(hh, mm, whole, int(round((sec - whole) * 1e6)) if sec != whole else 0)
+    return _dt.time(hh, mm, whole, round((sec - whole) * 1e6) if sec != whole else 0)
 
 
 # A receiver repeats one epoch's time and date in several sentences (RMC, GGA, ZDA): small
@@ -167,215 +163,6 @@ def _parse_time(s: str) -> _dt.time | None:
             _TIME_CACHE.clear()
         _TIME_CACHE[s] = t
     return t
-
-
-def _parse_latlon(value: str, hemi: str, deg_digits: int) -> float | None:
-    if not value:
-        return None
-    deg = int(value[:deg_digits])
-    minutes = float(value[deg_digits:])
-    if not 0.0 <= minutes < 60.0:
-        raise ValueError(f"minutes {minutes} outside [0, 60)")
-    v = deg + minutes / 60.0
-    if hemi == "S" or hemi == "W":
-        return -v
-    if hemi != "N" and hemi != "E":
-        raise ValueError(f"bad hemisphere {hemi!r}")
-    return v
-
-
-def _opt_float(s: str) -> float | None:
-    return float(s) if s else None
-
-
-def _opt_int(s: str) -> int | None:
-    return int(s) if s else None
-
-
-def format_lat(lat_deg: float, decimals: int = 5) -> tuple[str, str]:
-    """``(ddmm.mmmmm, N|S)`` for a latitude in degrees."""
-    return _format_angle(lat_deg, 2, decimals, "N", "S")
-
-
-def format_lon(lon_deg: float, decimals: int = 5) -> tuple[str, str]:
-    """``(dddmm.mmmmm, E|W)`` for a longitude in degrees."""
-    return _format_angle(lon_deg, 3, decimals, "E", "W")
-
-
-def _format_angle(v: float, deg_digits: int, decimals: int, pos: str, neg: str) -> tuple[str, str]:
-    hemi = pos if v >= 0 else neg
-    a = abs(v)
-    scale = 10**decimals
-    total = round(a * 60.0 * scale)  # integer count of 10^-decimals arc-minutes
-    deg, rem = divmod(total, 60 * scale)
-    minutes = rem / scale
-    return f"{deg:0{deg_digits}d}{minutes:0{3 + decimals}.{decimals}f}", hemi
-
-
-def _format_time(t: _dt.time, decimals: int = 2) -> str:
-    frac = t.microsecond / 1e6
-    sec = t.second + frac
-    return f"{t.hour:02d}{t.minute:02d}{sec:0{3 + decimals}.{decimals}f}"
-
-
-def _opt(v: float | None, fmt: str) -> str:
-    return "" if v is None else format(v, fmt)
-
-
-def build_sentence(talker: str, kind: str, fields: list[str] | tuple[str, ...]) -> bytes:
-    """Frame a sentence: ``$`` + body + ``*`` + checksum + CR LF."""
-    body = f"{talker}{kind}," + ",".join(fields)
-    s = f"${body}*{nmea_checksum(body):02X}\r\n".encode("ascii")
-    if len(s) > NMEA_MAX_LEN:
-        raise ValueError(f"NMEA sentence of {len(s)} bytes exceeds {NMEA_MAX_LEN}")
-    return s
-
-
-def build_gga(
-    time_utc: _dt.time,
-    lat_deg: float,
-    lon_deg: float,
-    altitude_msl_m: float,
-    geoid_sep_m: float,
-    quality: int = 1,
-    num_sats: int = 12,
-    hdop: float = 0.8,
-    talker: str = "GP",
-) -> bytes:
-    """GGA sentence. ``quality`` 0 invalid, 1 GPS, 2 DGPS, 4 RTK fixed, 5 RTK float, 6 DR."""
-    lat, ns = format_lat(lat_deg)
-    lon, ew = format_lon(lon_deg)
-    if quality == 0:
-        return build_sentence(talker, "GGA", [_format_time(time_utc), "", "", "", "", "0", "00", "99.99", "", "", "", "", "", ""])
-    return build_sentence(
-        talker,
-        "GGA",
-        [
-            _format_time(time_utc),
-            lat,
-            ns,
-            lon,
-            ew,
-            str(quality),
-            f"{num_sats:02d}",
-            f"{hdop:.2f}",
-            f"{altitude_msl_m:.3f}",
-            "M",
-            f"{geoid_sep_m:.3f}",
-            "M",
-            "",
-            "",
-        ],
-    )
-
-
-def build_rmc(
-    time_utc: _dt.time,
-    date: _dt.date,
-    lat_deg: float,
-    lon_deg: float,
-    speed_mps: float,
-    course_deg: float,
-    valid: bool = True,
-    mode: str = "A",
-    talker: str = "GP",
-) -> bytes:
-    """RMC sentence (NMEA 2.3 with the mode indicator). Speed in m/s is written in knots."""
-    if not valid:
-        return build_sentence(talker, "RMC", [_format_time(time_utc), "V", "", "", "", "", "", "", date.strftime("%d%m%y"), "", "", "N"])
-    lat, ns = format_lat(lat_deg)
-    lon, ew = format_lon(lon_deg)
-    return build_sentence(
-        talker,
-        "RMC",
-        [
-            _format_time(time_utc),
-            "A",
-            lat,
-            ns,
-            lon,
-            ew,
-            f"{speed_mps / KNOT_MPS:.3f}",
-            f"{course_deg % 360.0:.2f}",
-            date.strftime("%d%m%y"),
-            "",
-            "",
-            mode,
-        ],
-    )
-
-
-def build_vtg(
-    course_true_deg: float | None,
-    speed_mps: float | None,
-    mode: str = "A",
-    course_mag_deg: float | None = None,
-    talker: str = "GP",
-) -> bytes:
-    """VTG sentence: course true/magnetic (deg, 2 decimals), speed in knots and km/h.
-
-    The km/h field is derived from the knots value after rounding to 3 decimals, so the
-    sentence round-trips through :class:`NmeaFormat`. ``None`` leaves a field empty
-    (a receiver without a fix: ``mode="N"``).
-    """
-    if speed_mps is None:
-        kn = kmh = ""
-    else:
-        knots = round(speed_mps / KNOT_MPS, 3)
-        kn = f"{knots:.3f}"
-        kmh = f"{knots * 1.852:.3f}"
-    return build_sentence(
-        talker,
-        "VTG",
-        [
-            _opt(None if course_true_deg is None else course_true_deg % 360.0, ".2f"),
-            "T",
-            _opt(None if course_mag_deg is None else course_mag_deg % 360.0, ".2f"),
-            "M",
-            kn,
-            "N",
-            kmh,
-            "K",
-            mode,
-        ],
-    )
-
-
-def build_gsa(
-    fix_type: int,
-    sat_ids: list[int | None] | tuple[int | None, ...],
-    pdop: float | None,
-    hdop: float | None,
-    vdop: float | None,
-    mode: str = "A",
-    talker: str = "GP",
-) -> bytes:
-    """GSA sentence: ``mode`` A (automatic) / M (manual), ``fix_type`` 1 none / 2 2D / 3 3D.
-
-    ``sat_ids`` fills the 12 satellite slots in order (``None`` = empty slot; fewer than 12
-    entries leave the remaining slots empty). DOPs with 2 decimals.
-    """
-    slots = list(sat_ids)
-    if len(slots) > 12:
-        raise ValueError(f"GSA has 12 satellite slots, got {len(slots)}")
-    slots += [None] * (12 - len(slots))
-    ids = ["" if s is None else f"{s:02d}" for s in slots]
-    return build_sentence(talker, "GSA", [mode, str(fix_type), *ids, _opt(pdop, ".2f"), _opt(hdop, ".2f"),
-                                          _opt(vdop, ".2f")])
-
-
-def build_zda(
-    time_utc: _dt.time,
-    date: _dt.date,
-    zone_hours: int | None = 0,
-    zone_minutes: int | None = 0,
-    talker: str = "GP",
-) -> bytes:
-    """ZDA sentence: UTC time, day, month, 4-digit year, local zone hours and minutes."""
-    zh = "" if zone_hours is None else (f"{zone_hours:03d}" if zone_hours < 0 else f"{zone_hours:02d}")
-    zm = "" if zone_minutes is None else f"{zone_minutes:02d}"
-    return build_sentence(talker, "ZDA", [_format_time(time_utc), f"{date.day:02d}", f"{date.month:02d}",
-                                          f"{date.year:04d}", zh, zm])
 
 
 def encode_nmea(obj: Gga | Rmc | Vtg | Gsa | Zda | NmeaSentence) -> bytes:
@@ -530,7 +317,42 @@ _HEX2 = {**{f"{i:02X}".encode(): i for i in range(256)}, **{f"{i:02x}".encode():
 #: The same, pre-XORed with the framing bytes '$', '*', the two hex digits, CR and LF.
 _HEX2_FRAMED = {k: v ^ 0x24 ^ 0x2A ^ k[0] ^ k[1] ^ 0x0D ^ 0x0A for k, v in _HEX2.items()}
 
-_PARSERS = {"GGA": _gga, "RMC": _rmc, "VTG": _vtg, "GSA": _gsa, "ZDA": _zda}
+_PARSERS: dict[str, Callable[[str, list[str]], Gga | Rmc | Vtg | Gsa | Zda]] = {
+    "GGA": _gga, "RMC": _rmc, "VTG": _vtg, "GSA": _gsa, "ZDA": _zda}
+
+
+def sentence_ok(frame: bytes) -> bool:
+    """Reference check of one candidate sentence: ``$`` ... ``*hh`` CR LF framing and the XOR of the body
+    (:func:`~protocols.crc.nmea_checksum`) equal to the two hex digits."""
+    if len(frame) < 11 or frame[0] != 0x24 or frame[-1] != 0x0A or frame[-2] != 0x0D or frame[-5] != 0x2A:
+        return False
+    want = _HEX2.get(frame[-4:-2])
+    return want is not None and nmea_checksum(frame[1:-5]) == want
+
+
+def sentence_ok_fast(frame: bytes) -> bool:
+    """:func:`sentence_ok` with the XOR folded over the whole frame as one integer (what the stream runs): the
+    ``$`` and LF are XORed out with the expected value, so any other first or last byte fails the check."""
+    if len(frame) < 11 or frame[-2] != 0x0D or frame[-5] != 0x2A:  # '\r', '*'
+        return False
+    want = _HEX2_FRAMED.get(frame[-4:-2])
+    if want is None:
+        return False
+    # XOR of every byte by folding the frame as one integer (<= 1024 bytes: 8192 bits);
+    # the framing bytes $ * h h CR LF are XORed out through _HEX2_FRAMED.
+    x = int.from_bytes(frame, "little")
+    if len(frame) > 128:
+        x ^= x >> 4096
+        x ^= x >> 2048
+        x ^= x >> 1024
+    x ^= x >> 512
+    x ^= x >> 256
+    x ^= x >> 128
+    x ^= x >> 64
+    x ^= x >> 32
+    x ^= x >> 16
+    x ^= x >> 8
+    return (x & 0xFF) == want
 
 
 class NmeaFormat:
@@ -556,7 +378,7 @@ class NmeaFormat:
         """Encode a decoded object back to its frame (:func:`encode_nmea`)."""
         return encode_nmea(obj)
 
-    def frame_length(self, buf: bytearray, start: int) -> int:
+    def frame_length(self, buf: bytes | bytearray, start: int) -> int:
         end = buf.find(b"\n", start + 1, start + self.max_len)
         if end < 0:
             if len(buf) - start >= self.max_len:
@@ -567,27 +389,8 @@ class NmeaFormat:
             return BAD_LENGTH
         return end + 1 - start
 
-    def check(self, frame: bytes) -> bool:
-        if len(frame) < 11 or frame[-2] != 0x0D or frame[-5] != 0x2A:  # '\r', '*'
-            return False
-        want = _HEX2_FRAMED.get(frame[-4:-2])
-        if want is None:
-            return False
-        # XOR of every byte by folding the frame as one integer (<= 1024 bytes: 8192 bits);
-        # the framing bytes $ * h h CR LF are XORed out through _HEX2_FRAMED.
-        x = int.from_bytes(frame, "little")
-        if len(frame) > 128:
-            x ^= x >> 4096
-            x ^= x >> 2048
-            x ^= x >> 1024
-        x ^= x >> 512
-        x ^= x >> 256
-        x ^= x >> 128
-        x ^= x >> 64
-        x ^= x >> 32
-        x ^= x >> 16
-        x ^= x >> 8
-        return (x & 0xFF) == want
+    #: framing and checksum of one candidate sentence
+    check = staticmethod(sentence_ok_fast)
 
     def parse(self, frame: bytes) -> NmeaSentence | Gga | Rmc | Vtg | Gsa | Zda:
         parts = frame[1:-5].decode("ascii").split(",")
@@ -596,18 +399,20 @@ class NmeaFormat:
             head = _classify_head(parts[0])
         talker, kind, p = head
         if p is not None:
-            return p(talker, parts)  # type: ignore[operator]
+            return p(talker, parts)
         return NmeaSentence(talker, kind, tuple(parts[1:]))
 
 
-_HEADS: dict[str, tuple[str, str, object]] = {}
+#: A typed sentence parser: (talker, the split sentence) -> the sentence object.
+_Parser = Callable[[str, list[str]], Gga | Rmc | Vtg | Gsa | Zda]
+_HEADS: dict[str, tuple[str, str, _Parser | None]] = {}
 
 
-def _classify_head(head: str) -> tuple[str, str, object]:
+def _classify_head(head: str) -> tuple[str, str, _Parser | None]:
     """Split an address field into (talker, kind, typed parser or None); cache the good ones."""
     if len(head) == 5 and head.isalnum() and head.isupper():
         talker, kind = head[:2], head[2:]
-        r: tuple[str, str, object] = (talker, kind, _PARSERS.get(kind))
+        r: tuple[str, str, _Parser | None] = (talker, kind, _PARSERS.get(kind))
     elif len(head) >= 4 and head[0] == "P" and head.isalnum() and head.isupper():
         r = (head[:4], head[4:], None)  # proprietary: 'P' + maker code, then the type (may be empty)
     else:

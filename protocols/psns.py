@@ -34,47 +34,50 @@ Every payload starts with the same 13-byte header::
     3 x f32 s_x, s_y, s_z   unit solar vector (sign ambiguous: +-S) in the sensor frame
     f32 quality             lambda_min / lambda_mid of K (smaller is better), 1.0 if invalid
 
-Camera frame (DESIGN.md section 5): origin at the imager centre, z along the optical axis, x along
+Camera frame (docs/architecture.md, "Conventions"): origin at the imager centre, z along the optical axis, x along
 image columns, y along rows; pixel (x, y) looks along ``(Dx (x - (nx+1)/2), Dy (y - (ny+1)/2), f)``.
+
+Each layout is declared once, by the ``construct`` specs below; the ``struct`` codecs are derived from them
+(:mod:`protocols.codec`) and fill the dataclasses by field name.
 """
 
 from __future__ import annotations
 
 import enum
-import struct
 from dataclasses import dataclass
 from typing import Any
 
 from construct import Array, Bytes, Const, Float32l, Int8ul, Int16sl, Int16ul, Int32ul, Struct, this
 
 from ._fastinit import fast_frozen_init
+from .codec import StructCodec, subspec
 from .crc import crc16_ccitt
 from .stream import BAD_LENGTH, NEED_MORE
 
 __all__ = [
-    "PSNS_SYNC",
-    "MSG_POLARIZATION_OBS",
-    "MSG_COMPASS",
-    "MSG_SOLAR_VECTOR",
-    "PSNS_MAX_PAYLOAD",
-    "PsnsStatus",
-    "PsnsHeader",
-    "PolarizationPoint",
-    "PolarizationObs",
-    "CompassUnit",
-    "CompassFrame",
-    "SolarVectorFrame",
-    "PsnsFormat",
-    "encode_polarization_obs",
-    "encode_compass",
-    "encode_solar_vector",
-    "max_points",
-    "frame_bytes_obs",
-    "encode_psns",
-    "POLARIZATION_OBS_SPEC",
     "COMPASS_SPEC",
-    "SOLAR_VECTOR_SPEC",
+    "MSG_COMPASS",
+    "MSG_POLARIZATION_OBS",
+    "MSG_SOLAR_VECTOR",
+    "POLARIZATION_OBS_SPEC",
     "PSNS_FRAME_SPEC",
+    "PSNS_MAX_PAYLOAD",
+    "PSNS_SYNC",
+    "SOLAR_VECTOR_SPEC",
+    "CompassFrame",
+    "CompassUnit",
+    "PolarizationObs",
+    "PolarizationPoint",
+    "PsnsFormat",
+    "PsnsHeader",
+    "PsnsStatus",
+    "SolarVectorFrame",
+    "encode_compass",
+    "encode_polarization_obs",
+    "encode_psns",
+    "encode_solar_vector",
+    "frame_bytes_obs",
+    "max_points",
 ]
 
 PSNS_SYNC = b"\xeb\x90"
@@ -98,11 +101,6 @@ class PsnsStatus(enum.IntFlag):
     LOW_DOP = 0x08  #: too few points above the DOP threshold
     OCCLUDED = 0x10  #: cloud / occlusion detected
 
-
-_HDR = struct.Struct("<HIIBH")
-_PT = struct.Struct("<HHhHH")
-_UNIT = struct.Struct("<BhH")
-_SV = struct.Struct("<4f")
 
 # Field docs are "scale | unit | meaning" (read by protocols.icd for docs/icd.md).
 PSNS_FRAME_SPEC = Struct(
@@ -192,34 +190,50 @@ class SolarVectorFrame:
     quality: float
 
 
+_HEAD = StructCodec(subspec(PSNS_FRAME_SPEC, "msg_id", "length"), "PSNS_HEADER")
+_CRC = StructCodec(subspec(PSNS_FRAME_SPEC, "crc", "crc"), "PSNS_CRC")
+_HDR = StructCodec(Struct(*_HEADER_FIELDS), "PSNS_PAYLOAD_HEADER")
+_PT = StructCodec(POINT_SPEC, "PSNS_POINT")
+_UNIT = StructCodec(UNIT_SPEC, "PSNS_UNIT")
+_SV = StructCodec(subspec(SOLAR_VECTOR_SPEC, "s", "quality"), "PSNS_SOLAR_VECTOR")
+if (_HDR.size, _PT.size, _UNIT.size, HEADER_LEN + _SV.size) != (HEADER_LEN, POINT_LEN, UNIT_LEN,
+                                                              SOLAR_VECTOR_PAYLOAD_LEN):  # pragma: no cover
+    raise AssertionError("PSNS lengths disagree with the specs")
+_decode_header = _HDR.decoder(PsnsHeader)
+_decode_points = _PT.decoder(PolarizationPoint, many=True)
+_decode_units = _UNIT.decoder(CompassUnit, many=True)
+_decode_solar_vector = _SV.decoder(SolarVectorFrame)
+_encode_points = _PT.encoder(PolarizationPoint, many=True)
+_encode_units = _UNIT.encoder(CompassUnit, many=True)
+_pack_header = _HDR.packer
+_pack_solar_vector = _SV.packer
+
+
 def _frame(msg_id: int, payload: bytes) -> bytes:
     if len(payload) > PSNS_MAX_PAYLOAD:
         raise ValueError(f"PSNS payload of {len(payload)} bytes exceeds {PSNS_MAX_PAYLOAD}")
-    body = struct.pack("<BH", msg_id, len(payload)) + payload
-    return PSNS_SYNC + body + struct.pack("<H", crc16_ccitt(body))
+    body = _HEAD.packer(msg_id=msg_id, length=len(payload)) + payload
+    return PSNS_SYNC + body + _CRC.packer(crc=crc16_ccitt(body))
 
 
 def _hdr(h: PsnsHeader, count: int) -> bytes:
-    return _HDR.pack(h.seq & 0xFFFF, h.exposure_us & 0xFFFFFFFF, h.latency_us & 0xFFFFFFFF, h.status & 0xFF, count)
+    return _pack_header(seq=h.seq & 0xFFFF, exposure_us=h.exposure_us & 0xFFFFFFFF,
+                        latency_us=h.latency_us & 0xFFFFFFFF, status=h.status & 0xFF, count=count)
 
 
 def encode_polarization_obs(h: PsnsHeader, points: tuple[PolarizationPoint, ...] | list[PolarizationPoint]) -> bytes:
     """Whole POLARIZATION_OBS frame (``h.count`` is replaced by ``len(points)``)."""
-    out = bytearray(_hdr(h, len(points)))
-    for p in points:
-        out += _PT.pack(p.x_px, p.y_px, p.aop_cdeg, p.dop, p.intensity)
-    return _frame(MSG_POLARIZATION_OBS, bytes(out))
+    return _frame(MSG_POLARIZATION_OBS, _hdr(h, len(points)) + _encode_points(points))
 
 
 def encode_compass(h: PsnsHeader, units: tuple[CompassUnit, ...] | list[CompassUnit]) -> bytes:
-    out = bytearray(_hdr(h, len(units)))
-    for u in units:
-        out += _UNIT.pack(u.unit, u.aop_cdeg, u.dop)
-    return _frame(MSG_COMPASS, bytes(out))
+    """Whole COMPASS frame (``h.count`` is replaced by ``len(units)``)."""
+    return _frame(MSG_COMPASS, _hdr(h, len(units)) + _encode_units(units))
 
 
 def encode_solar_vector(h: PsnsHeader, s: tuple[float, float, float], quality: float) -> bytes:
-    return _frame(MSG_SOLAR_VECTOR, _hdr(h, h.count) + _SV.pack(s[0], s[1], s[2], quality))
+    """Whole SOLAR_VECTOR frame."""
+    return _frame(MSG_SOLAR_VECTOR, _hdr(h, h.count) + _pack_solar_vector(s=s, quality=quality))
 
 
 def encode_psns(obj: PolarizationObs | CompassFrame | SolarVectorFrame) -> bytes:
@@ -257,7 +271,7 @@ class PsnsFormat:
         """Encode a decoded object back to its frame (:func:`encode_psns`)."""
         return encode_psns(obj)
 
-    def frame_length(self, buf: bytearray, start: int) -> int:
+    def frame_length(self, buf: bytes | bytearray, start: int) -> int:
         # The payload length must agree with the header's count (bytes 16-17), so a corrupt
         # length is refused after 18 bytes instead of holding the stream for up to 64 KiB.
         avail = len(buf) - start
@@ -287,18 +301,18 @@ class PsnsFormat:
     def parse(self, frame: bytes) -> PolarizationObs | CompassFrame | SolarVectorFrame:
         msg_id = frame[2]
         payload = frame[5:-2]
-        h = PsnsHeader(*_HDR.unpack_from(payload, 0))
+        h: PsnsHeader = _decode_header(payload)
         body = payload[HEADER_LEN:]
         if msg_id == MSG_POLARIZATION_OBS:
             if len(body) != h.count * POINT_LEN:
-                raise ValueError(f"POLARIZATION_OBS: {h.count} points need {h.count * POINT_LEN} bytes, got {len(body)}")
-            pts = tuple(PolarizationPoint(*v) for v in _PT.iter_unpack(body))
-            return PolarizationObs(h, pts)
+                raise ValueError(f"POLARIZATION_OBS: {h.count} points need {h.count * POINT_LEN} bytes, "
+                                 f"got {len(body)}")
+            return PolarizationObs(h, _decode_points(body))
         if msg_id == MSG_COMPASS:
             if len(body) != h.count * UNIT_LEN:
                 raise ValueError(f"COMPASS: {h.count} units need {h.count * UNIT_LEN} bytes, got {len(body)}")
-            return CompassFrame(h, tuple(CompassUnit(*v) for v in _UNIT.iter_unpack(body)))
+            return CompassFrame(h, _decode_units(body))
         if len(body) != _SV.size:
-            raise ValueError(f"SOLAR_VECTOR payload must be {HEADER_LEN + _SV.size} bytes")
-        sx, sy, sz, q = _SV.unpack(body)
-        return SolarVectorFrame(h, (sx, sy, sz), q)
+            raise ValueError(f"SOLAR_VECTOR payload must be {SOLAR_VECTOR_PAYLOAD_LEN} bytes")
+        sv: SolarVectorFrame = _decode_solar_vector(body, 0, h)
+        return sv

@@ -13,14 +13,21 @@ several families (a GNSS port with NMEA and UBX) gives the decoder several forma
 earliest sync in the buffer wins.
 
 The firmware model (``firmware_model``) and the emulator's monitor use this same class.
+
+Fast paths sit next to their reference under one naming scheme: :meth:`StreamDecoder._scan` is the
+reference scanner (any number of formats); :meth:`StreamDecoder._scan_fast` is the same scan specialised
+for one format, and :meth:`StreamDecoder.feed` hands a chunk that is exactly one whole frame straight to
+the format. ``StreamDecoder(formats, fast_paths=False)`` runs the reference alone;
+``tests/protocols/fast_path_cases.py`` checks that both give the same frames and counters.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol, Sequence, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
-__all__ = ["NEED_MORE", "BAD_LENGTH", "FrameFormat", "DecoderStats", "StreamDecoder", "parse_one"]
+__all__ = ["BAD_LENGTH", "NEED_MORE", "DecoderStats", "FrameFormat", "StreamDecoder", "parse_one"]
 
 #: ``FrameFormat.frame_length`` result: not enough bytes yet to know the length.
 NEED_MORE = -1
@@ -43,7 +50,7 @@ class FrameFormat(Protocol):
     name: str
     sync: bytes
 
-    def frame_length(self, buf: bytearray, start: int) -> int:
+    def frame_length(self, buf: bytes | bytearray, start: int) -> int:
         """Length in bytes of the frame starting at ``buf[start]``.
 
         Returns :data:`NEED_MORE` when more bytes are needed to tell, :data:`BAD_LENGTH`
@@ -98,9 +105,11 @@ class StreamDecoder:
     max_buffer:
         Bytes kept while waiting for the end of a candidate frame; beyond it the oldest
         candidate is abandoned (counted as a length error) so memory stays bounded.
+    fast_paths:
+        False runs the reference scanner only (for equivalence tests; the results are the same).
     """
 
-    def __init__(self, formats: Sequence[FrameFormat], max_buffer: int = 65536) -> None:
+    def __init__(self, formats: Sequence[FrameFormat], max_buffer: int = 65536, fast_paths: bool = True) -> None:
         if not formats:
             raise ValueError("StreamDecoder needs at least one FrameFormat")
         self.formats = tuple(formats)
@@ -110,7 +119,8 @@ class StreamDecoder:
         self._in_garbage = False
         self._max_buffer = max_buffer
         self._max_sync = max(len(f.sync) for f in self.formats)
-        self._single = self.formats[0] if len(self.formats) == 1 else None
+        #: the one format, when the fast paths apply (one format, fast paths on)
+        self._single = self.formats[0] if len(self.formats) == 1 and fast_paths else None
 
     # -- public API -----------------------------------------------------------------
     def feed(self, data: bytes | bytearray | memoryview) -> list[Any]:
@@ -136,9 +146,9 @@ class StreamDecoder:
             self._buf += data
         out: list[Any] = []
         if self._single is None:
-            self._scan_multi(out)
-        else:
             self._scan(out)
+        else:
+            self._scan_fast(out)
         return out
 
     def pending(self) -> int:
@@ -174,13 +184,14 @@ class StreamDecoder:
                 best, best_fmt = p, fmt
         return best, best_fmt
 
-    def _scan(self, out: list[Any]) -> None:
-        # Hot path (200 Hz in the emulator, every link of the recorder; one format): pre-bound
-        # methods, a local frame counter that reaches ``stats`` before return, no call on the
-        # common paths. Counting is exactly that of _scan_multi.
+    def _scan_fast(self, out: list[Any]) -> None:
+        """:meth:`_scan` for one format (200 Hz in the emulator, every link of the recorder): pre-bound
+        methods, a local frame counter that reaches ``stats`` before return, no call on the common paths.
+        Counting is exactly that of :meth:`_scan`."""
         buf = self._buf
         pos = self._pos
         fmt = self._single
+        assert fmt is not None  # feed() calls it only with one format
         sync = fmt.sync
         frame_length = fmt.frame_length
         nframes = 0
@@ -234,7 +245,8 @@ class StreamDecoder:
                 del buf[:pos]
         self._pos = 0
 
-    def _scan_multi(self, out: list[Any]) -> None:
+    def _scan(self, out: list[Any]) -> None:
+        """The reference scanner: any number of formats, the earliest sync first."""
         buf = self._buf
         pos = self._pos
         stats = self.stats

@@ -1,6 +1,6 @@
 """u-blox UBX binary protocol: framing, Fletcher checksum, NAV-PVT and NAV-STATUS.
 
-Source: ``shared/reference/protocols.md`` sections 2.1-2.2 (u-blox interface descriptions,
+Source: ``docs/reference/wire-formats.md`` sections 2.1-2.2 (u-blox interface descriptions,
 e.g. F10 SPG 6.00 UBX-23002975; checked against pyubx2 1.4.0). Every UBX frame::
 
     off  size  field
@@ -38,31 +38,31 @@ costs at most six bytes.
 from __future__ import annotations
 
 import itertools
-import struct
 from dataclasses import dataclass
 from typing import Any
 
 from construct import Bytes, Const, Int8ul, Int16sl, Int16ul, Int32sl, Int32ul, Struct
 
 from ._fastinit import fast_frozen_init
+from .codec import StructCodec
 from .stream import BAD_LENGTH, NEED_MORE
 
 __all__ = [
-    "UBX_SYNC",
-    "UBX_MAX_PAYLOAD",
-    "UBX_CLASSES",
     "CLS_NAV",
     "ID_NAV_PVT",
     "ID_NAV_STATUS",
     "NAV_PVT_LEN",
+    "NAV_PVT_SPEC",
     "NAV_STATUS_LEN",
+    "NAV_STATUS_SPEC",
+    "UBX_CLASSES",
+    "UBX_FRAME_SPEC",
+    "UBX_MAX_PAYLOAD",
+    "UBX_SYNC",
     "NavPvt",
     "NavStatus",
-    "UbxFrame",
     "UbxFormat",
-    "NAV_PVT_SPEC",
-    "NAV_STATUS_SPEC",
-    "UBX_FRAME_SPEC",
+    "UbxFrame",
     "build_ubx_frame",
     "encode_nav_pvt",
     "encode_nav_status",
@@ -148,10 +148,6 @@ class UbxFrame:
     payload: bytes
 
 
-_PVT = struct.Struct("<IHBBBBBBIiBBBBiiiiIIiiiiiIIHHIihH")
-_STATUS = struct.Struct("<IBBBBII")
-assert _PVT.size == NAV_PVT_LEN and _STATUS.size == NAV_STATUS_LEN
-
 # Field docs are "scale | unit | meaning" (read by protocols.icd for docs/icd.md).
 NAV_PVT_SPEC = Struct(
     "iTOW" / Int32ul * "1 | ms | GPS time of week",
@@ -208,6 +204,17 @@ UBX_FRAME_SPEC = Struct(
     "ck_b" / Int8ul * " |  | Fletcher CK_B = sum of the running CK_A mod 256",
 )
 
+_PVT = StructCodec(NAV_PVT_SPEC, "UBX_NAV_PVT")
+_STATUS = StructCodec(NAV_STATUS_SPEC, "UBX_NAV_STATUS")
+if (_PVT.size, _STATUS.size) != (NAV_PVT_LEN, NAV_STATUS_LEN):  # pragma: no cover
+    raise AssertionError("UBX payload lengths disagree with the specs")
+#: NavPvt / NavStatus fields are the specs' fields in order (checked by name): the unpacked tuple is their
+#: argument list.
+_unpack_pvt = _PVT.unpacker(NavPvt)
+_unpack_status = _STATUS.unpacker(NavStatus)
+_encode_pvt = _PVT.encoder(NavPvt)
+_encode_status = _STATUS.encoder(NavStatus)
+
 _accumulate = itertools.accumulate
 
 
@@ -221,24 +228,12 @@ def build_ubx_frame(cls: int, msg_id: int, payload: bytes) -> bytes:
 
 def encode_nav_pvt(p: NavPvt) -> bytes:
     """Whole UBX-NAV-PVT frame (100 bytes). Raises ``ValueError`` for a field out of its range."""
-    try:
-        payload = _PVT.pack(
-            p.iTOW, p.year, p.month, p.day, p.hour, p.min, p.sec, p.valid, p.tAcc, p.nano, p.fixType, p.flags,
-            p.flags2, p.numSV, p.lon, p.lat, p.height, p.hMSL, p.hAcc, p.vAcc, p.velN, p.velE, p.velD, p.gSpeed,
-            p.headMot, p.sAcc, p.headAcc, p.pDOP, p.flags3, p.reserved0, p.headVeh, p.magDec, p.magAcc,
-        )
-    except struct.error as exc:
-        raise ValueError(f"NAV-PVT field out of range: {exc}") from exc
-    return build_ubx_frame(CLS_NAV, ID_NAV_PVT, payload)
+    return build_ubx_frame(CLS_NAV, ID_NAV_PVT, _encode_pvt(p))  # ValueError names the field's range
 
 
 def encode_nav_status(s: NavStatus) -> bytes:
     """Whole UBX-NAV-STATUS frame (24 bytes)."""
-    try:
-        payload = _STATUS.pack(s.iTOW, s.gpsFix, s.flags, s.fixStat, s.flags2, s.ttff, s.msss)
-    except struct.error as exc:
-        raise ValueError(f"NAV-STATUS field out of range: {exc}") from exc
-    return build_ubx_frame(CLS_NAV, ID_NAV_STATUS, payload)
+    return build_ubx_frame(CLS_NAV, ID_NAV_STATUS, _encode_status(s))
 
 
 def encode_ubx(obj: NavPvt | NavStatus | UbxFrame) -> bytes:
@@ -261,7 +256,7 @@ class UbxFormat:
         """Encode a decoded object back to its frame (:func:`encode_ubx`)."""
         return encode_ubx(obj)
 
-    def frame_length(self, buf: bytearray, start: int) -> int:
+    def frame_length(self, buf: bytes | bytearray, start: int) -> int:
         if len(buf) - start < 6:
             return NEED_MORE
         cls = buf[start + 2]
@@ -282,7 +277,7 @@ class UbxFormat:
         n = len(frame) - 8
         if cls == CLS_NAV:
             if mid == ID_NAV_PVT and n == NAV_PVT_LEN:
-                return NavPvt(*_PVT.unpack_from(frame, 6))
+                return NavPvt(*_unpack_pvt(frame, 6))
             if mid == ID_NAV_STATUS and n == NAV_STATUS_LEN:
-                return NavStatus(*_STATUS.unpack_from(frame, 6))
+                return NavStatus(*_unpack_status(frame, 6))
         return UbxFrame(cls, mid, bytes(frame[6:-2]))

@@ -110,5 +110,6 @@ def test_frames_over_python_can_virtual_bus(db):
             tx.send(can.Message(arbitration_id=fid, data=data, is_extended_id=True))
         got = [rx.recv(timeout=1.0) for _ in CAN_MESSAGES]
     assert all(m is not None and m.is_extended_id for m in got)
-    assert decode_can_frames((m.arbitration_id, bytes(m.data)) for m in got) == decode_can_frames(encode_can_frames(NAV))
+    want = decode_can_frames(encode_can_frames(NAV))
+    assert decode_can_frames((m.arbitration_id, bytes(m.data)) for m in got) == want
     assert db.decode_message(got[1].arbitration_id, got[1].data)["lat_deg"] == pytest.approx(NAV.lat_deg, abs=1e-7)

@@ -55,7 +55,7 @@ def test_field_range_enforced():
 
 def test_adc_scale():
     # 24-bit ADC, +-4.096 V: 488.28125 nV/LSB; x accelerometer 90 mV/g -> 5.425 ug/LSB
-    assert ADC_VOLTS_PER_LSB == pytest.approx(488.28125e-9)
+    assert pytest.approx(488.28125e-9) == ADC_VOLTS_PER_LSB
     assert adc_code_to_volts(2**23) == pytest.approx(4.096)
     assert accel_code_to_g(184320, 0) == pytest.approx(1.0)  # 90 mV = 184320 LSB
     assert accel_code_to_g(1, 1) == pytest.approx(ADC_VOLTS_PER_LSB / ACCEL_VOLTS_PER_G[1])

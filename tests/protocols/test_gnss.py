@@ -10,14 +10,14 @@ from protocols.nmea import Gga, Gsa, NmeaFormat, Rmc, Vtg, Zda
 from protocols.stream import StreamDecoder
 from protocols.ubx import NavPvt, NavStatus, UbxFormat
 
-UTC = dt.datetime(2019, 9, 18, 8, 14, 0, tzinfo=dt.timezone.utc)
+UTC = dt.datetime(2019, 9, 18, 8, 14, 0, tzinfo=dt.UTC)
 FIX = GnssFix(utc=UTC, lat_deg=39.979, lon_deg=116.339, height_m=50.0, geoid_sep_m=-8.5, vel_enu_mps=(3.0, -4.0, 0.5))
 
 
 def test_gps_time_of_week():
     # 2019-09-18 is a Wednesday: 3 days + 08:14:00 + 18 leap seconds into the GPS week
     assert gps_time_of_week_ms(UTC) == (3 * 86400 + 8 * 3600 + 14 * 60 + 18) * 1000
-    assert gps_time_of_week_ms(dt.datetime(1980, 1, 6, tzinfo=dt.timezone.utc)) == 18_000
+    assert gps_time_of_week_ms(dt.datetime(1980, 1, 6, tzinfo=dt.UTC)) == 18_000
 
 
 def test_default_set_is_rmc_vtg_gga_gsa_zda_and_consistent():
@@ -44,14 +44,16 @@ def test_ubx_set_agrees_with_nmea_and_pyubx2():
 
 
 def test_no_fix_epoch():
-    out = StreamDecoder([NmeaFormat()]).feed(build_epoch(GnssFix(utc=UTC, lat_deg=0, lon_deg=0, height_m=0, fix_type=0)))
-    rmc, vtg, gga, gsa, zda = out
+    out = StreamDecoder([NmeaFormat()]).feed(build_epoch(GnssFix(utc=UTC, lat_deg=0, lon_deg=0, height_m=0,
+                                                                 fix_type=0)))
+    rmc, vtg, gga, gsa, _zda = out
     assert not rmc.valid and gga.quality == 0 and gga.lat_deg is None and vtg.mode == "N" and gsa.fix_type == 1
     assert nav_pvt_from_fix(GnssFix(utc=UTC, lat_deg=0, lon_deg=0, height_m=0, fix_type=0)).flags & 1 == 0
 
 
 def test_epoch_byte_budget_at_9600_baud():
-    # protocols.md 2.3: GGA+RMC+VTG+GSA+ZDA is ~330-350 bytes, ~0.35 s of each second at 9600 8N1
+    # docs/reference/wire-formats.md section 2.3: GGA+RMC+VTG+GSA+ZDA is ~330-350 bytes, ~0.35 s of each second
+    # at 9600 8N1
     n = len(build_epoch(FIX))
     assert 280 <= n <= 350
     assert n * 10 / 9600 < 0.4

@@ -1,4 +1,5 @@
-"""NAV_SOLUTION's optional VARIANT block and STATUS's variant_mode (issue 6): both ways, and absent for the base variant."""
+"""NAV_SOLUTION's optional VARIANT block and STATUS's variant_mode (the filter variants): both ways, and absent for
+the base variant."""
 
 from __future__ import annotations
 
@@ -15,7 +16,8 @@ from protocols.host import (
 )
 from protocols.stream import parse_one
 
-BASE = NavSolution(7, 12.5, 39.979, 116.339, 50.25, (0.5, -0.25, 0.125), 1.5, -2.75, 30.5, (0.0625,) * 9, 0x0102, 1, 1, 3.5, 0)
+BASE = NavSolution(7, 12.5, 39.979, 116.339, 50.25, (0.5, -0.25, 0.125), 1.5, -2.75, 30.5, (0.0625,) * 9, 0x0102, 1,
+                   1, 3.5, 0)
 
 
 def test_base_frame_has_no_variant_block():

@@ -76,7 +76,8 @@ def test_vtg_gsa_zda_parse_in_pynmea2_to_same_values():
     assert vtg.spd_over_grnd_kmph == pytest.approx(float(vtg.spd_over_grnd_kts) * 1.852, abs=5e-4)
     gsa = pynmea2.parse(build_gsa(3, [4, 5, None, 9, 12], 2.5, 1.3, 2.1).decode().strip(), check=True)
     assert (gsa.mode, gsa.mode_fix_type) == ("A", "3")
-    assert [gsa.sv_id01, gsa.sv_id02, gsa.sv_id03, gsa.sv_id04, gsa.sv_id05, gsa.sv_id06] == ["04", "05", "", "09", "12", ""]
+    assert [gsa.sv_id01, gsa.sv_id02, gsa.sv_id03, gsa.sv_id04, gsa.sv_id05, gsa.sv_id06] == ["04", "05", "", "09",
+                                                                                            "12", ""]
     assert (float(gsa.pdop), float(gsa.hdop), float(gsa.vdop)) == (2.5, 1.3, 2.1)
     zda = pynmea2.parse(build_zda(T, D, -5, 30).decode().strip(), check=True)
     assert (zda.day, zda.month, zda.year, zda.local_zone, zda.local_zone_minutes) == (18, 9, 2019, -5, 30)
@@ -85,7 +86,8 @@ def test_vtg_gsa_zda_parse_in_pynmea2_to_same_values():
 
 def test_pynmea2_built_vtg_gsa_zda_decode_in_ours():
     vtg = pynmea2.VTG("GN", "VTG", ("77.52", "T", "", "M", "0.004", "N", "0.008", "K", "A"))
-    gsa = pynmea2.GSA("GN", "GSA", ("A", "3", "10", "32", "", "", "", "", "", "", "", "", "", "", "1.94", "1.18", "1.54"))
+    gsa = pynmea2.GSA("GN", "GSA", ("A", "3", "10", "32", "", "", "", "", "", "", "", "", "", "", "1.94", "1.18",
+                                    "1.54"))
     zda = pynmea2.ZDA("GP", "ZDA", ("201530.00", "04", "07", "2002", "00", "00"))
     out = StreamDecoder([NmeaFormat()]).feed("".join(m.render(newline=True) for m in (vtg, gsa, zda)).encode())
     assert out[0] == Vtg("GN", 77.52, None, pytest.approx(0.004 * 1852 / 3600), "A")
@@ -94,7 +96,8 @@ def test_pynmea2_built_vtg_gsa_zda_decode_in_ours():
 
 
 def test_pynmeagps_is_a_second_peer():
-    # pyubx2's reader hands NMEA to pynmeagps, written independently of pynmea2 (protocols.md 2.4)
+    # pyubx2's reader hands NMEA to pynmeagps, written independently of pynmea2
+    # (docs/reference/wire-formats.md section 2.4)
     from pynmeagps import NMEAReader
 
     for raw in (build_gga(T, 39.979123456, -116.339987654, 41.25, -8.5), build_rmc(T, D, -33.5, 70.25, 5.0, 271.5),
@@ -120,7 +123,8 @@ def test_typed_sentences_reencode_byte_for_byte(raw):
 
 
 def test_proprietary_and_unknown_sentences():
-    raw = b"$PUBX,00,081350.00,4717.113210,N,00833.915187,E,546.589,G3,2.1,2.0,0.007,77.52,0.007,,0.92,1.19,0.77,9,0,0*5F\r\n"
+    raw = (b"$PUBX,00,081350.00,4717.113210,N,00833.915187,E,546.589,G3,2.1,2.0,0.007,77.52,0.007,,0.92,1.19,0.77,"
+           b"9,0,0*5F\r\n")
     assert StreamDecoder([NmeaFormat()]).feed(raw) == []  # 111 characters: beyond the standard's 82
     s = parse_one(NmeaFormat(max_len=128), raw)
     assert (s.talker, s.kind) == ("PUBX", "") and isinstance(s, NmeaSentence) and s.fields[0] == "00"

@@ -24,8 +24,8 @@ Two families have weaker checks and get the property they can keep:
 from __future__ import annotations
 
 import datetime as dt
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -51,7 +51,7 @@ from protocols.psns import (
     encode_polarization_obs,
     encode_solar_vector,
 )
-from protocols.stim import STIM300_DATAGRAMS, Stim210Format, Stim300Datagram, Stim300Format, StimDatagram
+from protocols.stim import Stim210Format, Stim300Datagram, Stim300Format, StimDatagram
 from protocols.stream import StreamDecoder, parse_one
 from protocols.ubx import NavPvt, NavStatus, UbxFormat, encode_nav_pvt, encode_nav_status
 
@@ -77,19 +77,20 @@ stim210_frames = st.builds(lambda g, s, c, lat: Stim210Format("m").build(StimDat
                            st.tuples(s24, s24, s24), u8, u8, u16)
 lat = st.floats(-89.9, 89.9)
 lon = st.floats(-179.9, 179.9)
-times = st.builds(dt.time, st.integers(0, 23), st.integers(0, 59), st.integers(0, 59), st.integers(0, 99).map(lambda c: c * 10000))
+times = st.builds(dt.time, st.integers(0, 23), st.integers(0, 59), st.integers(0, 59),
+                  st.integers(0, 99).map(lambda c: c * 10000))
 dates = st.dates(dt.date(2000, 1, 1), dt.date(2099, 12, 31))
 nmea_frames = st.one_of(
-    st.builds(build_gga, times, lat, lon, st.floats(-400, 9000), st.floats(-100, 100), st.sampled_from([0, 1, 2, 4, 5, 6]),
-              st.integers(0, 40), st.floats(0, 50)),
+    st.builds(build_gga, times, lat, lon, st.floats(-400, 9000), st.floats(-100, 100),
+              st.sampled_from([0, 1, 2, 4, 5, 6]), st.integers(0, 40), st.floats(0, 50)),
     st.builds(build_rmc, times, dates, lat, lon, st.floats(0, 300), st.floats(0, 359.99), st.booleans()),
     st.builds(build_vtg, st.floats(0, 359.99), st.floats(0, 300)),
     st.builds(build_gsa, st.integers(1, 3), st.lists(st.integers(1, 99) | st.none(), max_size=12), st.floats(0, 99),
               st.floats(0, 99), st.floats(0, 99)),
     st.builds(build_zda, times, dates, st.integers(-13, 13), st.integers(0, 59)),
 )
-pvt = st.builds(lambda *a: encode_nav_pvt(NavPvt(*a)), u32, u16, u8, u8, u8, u8, u8, u8, u32, i32, u8, u8, u8, u8, i32, i32,
-                i32, i32, u32, u32, i32, i32, i32, i32, i32, u32, u32, u16, u16, u32, i32,
+pvt = st.builds(lambda *a: encode_nav_pvt(NavPvt(*a)), u32, u16, u8, u8, u8, u8, u8, u8, u32, i32, u8, u8, u8, u8, i32,
+                i32, i32, i32, u32, u32, i32, i32, i32, i32, i32, u32, u32, u16, u16, u32, i32,
                 st.integers(-(2**15), 2**15 - 1), u16)
 nav_status = st.builds(lambda *a: encode_nav_status(NavStatus(*a)), u32, u8, u8, u8, u8, u32, u32)
 ubx_frames = st.one_of(pvt, nav_status)

@@ -60,7 +60,8 @@ def test_bad_crc_is_rejected_strictly():
 
 def test_stream_decoder_resyncs_after_corruption():
     fmt = Stim210Format("m")
-    frames = [fmt.build(StimDatagram(0xA5, (i, -i, 2 * i), 0, counter=(10 * i) & 0xFF, latency_us=0)) for i in range(50)]
+    frames = [fmt.build(StimDatagram(0xA5, (i, -i, 2 * i), 0, counter=(10 * i) & 0xFF, latency_us=0))
+              for i in range(50)]
     stream = bytearray(b"".join(frames))
     stream[15 * 10 + 5] ^= 0x40  # corrupt frame 10
     dec = StreamDecoder([fmt])

@@ -1,5 +1,7 @@
 """STIM300 datagrams: the ID table against TS1524 r31, every ID both ways, device/format configuration."""
 
+import itertools
+
 import pytest
 from crccheck.crc import Crc32Mpeg2
 
@@ -17,7 +19,7 @@ from protocols.stim import (
 )
 from protocols.stream import StreamDecoder, parse_one
 
-# TS1524 r31 Table 5-22 (length without CR LF, dummy bytes), as listed in protocols.md 1.4.
+# TS1524 r31 Table 5-22 (length without CR LF, dummy bytes), as listed in docs/reference/wire-formats.md section 1.4.
 DATASHEET = {0x90: (18, 2), 0x91: (28, 0), 0x92: (28, 0), 0x93: (38, 2), 0x94: (25, 3), 0xA5: (42, 2), 0xA6: (42, 2),
              0xA7: (59, 1), 0xF0: (22, 2), 0xF1: (32, 0), 0xF2: (32, 0), 0xF3: (42, 2), 0xF4: (29, 3), 0xF5: (46, 2),
              0xF6: (46, 2), 0xF7: (63, 1)}
@@ -39,7 +41,7 @@ def full(ident: int, k: int = 1) -> Stim300Datagram:
 
 def test_id_table_matches_the_datasheet():
     for ident, (length, dummy) in DATASHEET.items():
-        groups, n, d, _ = STIM300_DATAGRAMS[ident]
+        _groups, n, d, _ = STIM300_DATAGRAMS[ident]
         assert (n, d) == (length, dummy), hex(ident)
         fmt = Stim300Format(ident)
         assert fmt.spec.sizeof() == length and (fmt.body_len + dummy) % 4 == 0
@@ -96,7 +98,7 @@ def test_counter_step_of_external_trigger():
     fmt = Stim300Format(0x90)
     stream = b"".join(fmt.build(Stim300Datagram(0x90, (0, 0, 0), 0, (250 + 10 * k) & 0xFF, 500)) for k in range(5))
     counters = [d.counter for d in StreamDecoder([fmt]).feed(stream)]
-    assert [(b - a) % 256 for a, b in zip(counters, counters[1:])] == [10] * 4
+    assert [(b - a) % 256 for a, b in itertools.pairwise(counters)] == [10] * 4
 
 
 def test_scale_tables_and_status_bits():

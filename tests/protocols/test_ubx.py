@@ -51,7 +51,7 @@ def test_our_nav_status_parses_in_pyubx2():
 
 
 def test_pyubx2_built_frames_decode_in_ours():
-    # built with payload= (protocols.md 2.4: scaled keyword values are truncated by pyubx2)
+    # built with payload= (docs/reference/wire-formats.md section 2.4: scaled keyword values are truncated by pyubx2)
     pvt = UBXMessage("NAV", "NAV-PVT", GET, payload=encode_nav_pvt(PVT)[6:-2]).serialize()
     st = UBXMessage("NAV", "NAV-STATUS", GET, payload=encode_nav_status(STATUS)[6:-2]).serialize()
     poll = UBXMessage("CFG", "CFG-PRT", 2).serialize()  # a poll: empty payload, another class
@@ -69,9 +69,9 @@ def test_pyubx2_keyword_built_nav_pvt_agrees_within_one_lsb():
 
 
 def test_stream_with_nmea_on_the_same_port_and_pyubx2_reader():
-    from protocols.nmea import NmeaFormat, build_gga
-
     import datetime as dt
+
+    from protocols.nmea import NmeaFormat, build_gga
 
     gga = build_gga(dt.time(8, 14, 3), 39.979, 116.339, 41.0, -8.5)
     stream = gga + encode_nav_pvt(PVT) + gga + encode_nav_status(STATUS)

@@ -5,16 +5,17 @@ from __future__ import annotations
 import dataclasses
 import datetime as dt
 import json
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
-from protocols import host, imu_frame, monitor, nmea, psns, stim, ubx
+from protocols import host, host_commands, host_text, imu_frame, monitor, nmea, psns, stim, stim300, ubx
 from protocols.stream import FrameFormat
 
 VECTORS = Path(__file__).resolve().parents[1] / "vectors"
 DAMAGED = VECTORS / "damaged"
 
-_MODULES = (stim, imu_frame, nmea, ubx, psns, monitor, host)
+_MODULES = (stim, stim300, imu_frame, nmea, ubx, psns, monitor, host, host_commands, host_text)
 #: Every frame dataclass of protocols, by class name.
 TYPES: dict[str, type] = {
     name: obj

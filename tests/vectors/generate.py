@@ -13,7 +13,6 @@ from __future__ import annotations
 import datetime as dt
 import json
 import subprocess
-from pathlib import Path
 
 from protocols import __version__
 from protocols.can_nav import CAN_MESSAGES, encode_can_frames, nav_to_can_signals
@@ -25,8 +24,8 @@ from protocols.host import (
     HostStatus,
     NavMode,
     NavSolution,
-    ResetFilter,
     RequestStatus,
+    ResetFilter,
     SelectVariant,
     SetOutputRate,
     encode_host,
@@ -55,7 +54,7 @@ HAND = {"stim210_m_hand", "stim300_93_hand", "stim300_af_real_unit", "stim300_ut
 
 T = dt.time(8, 14, 3, 500000)
 D = dt.date(2019, 9, 18)
-EPOCH = dt.datetime(2019, 9, 18, 8, 14, 3, tzinfo=dt.timezone.utc)
+EPOCH = dt.datetime(2019, 9, 18, 8, 14, 3, tzinfo=dt.UTC)
 
 
 def _commit() -> str:
@@ -148,7 +147,8 @@ def good_vectors() -> None:
         0xA7, (292, -1322, 859), 0, 225, 506, accel=(-6234, -8906, 531538), accel_status=0,
         incl=(-33168, -83444, 4192797), incl_status=0, gyro_temp=(9120, 9152, 9120), gyro_temp_status=0,
         accel_temp=(8985, 8970, 8988), accel_temp_status=0, incl_temp=(9109, 9142, 9109), incl_temp_status=0)),
-                 PROV, {"ident": 0xA7}, "rate, acc, incl, temp (59 bytes, 1 dummy byte); values of the real-unit vector")
+                 PROV, {"ident": 0xA7},
+                 "rate, acc, incl, temp (59 bytes, 1 dummy byte); values of the real-unit vector")
     f = Stim300Format(0xF7, crlf=True)
     write_vector("stim300_f7_crlf", "stim300", f.build(Stim300Datagram(
         0xF7, (-16384, 0, 16384), 0x10 | 0x01, 30, 800, accel=(0, 0, 524288), accel_status=0, incl=(0, 0, 4194304),
@@ -184,10 +184,11 @@ def good_vectors() -> None:
     write_vector("host_text_psns", "host-text", nav_text_sentences(nav_solution()), PROV, {},
                  "$PSNSPOS, $PSNSVEL, $PSNSATT, $PSNSSTA of one solution")
     # UBX ----------------------------------------------------------------------------------
-    pvt = NavPvt(iTOW=288243500, year=2019, month=9, day=18, hour=8, min=14, sec=3, valid=0x37, tAcc=25, nano=500_000_000,
-                 fixType=3, flags=0x01, flags2=0xE0, numSV=12, lon=1163399877, lat=399791235, height=32750,
-                 hMSL=41250, hAcc=2500, vAcc=4000, velN=2000, velE=1000, velD=-100, gSpeed=2236, headMot=2656505,
-                 sAcc=100, headAcc=1500000, pDOP=144, flags3=0, reserved0=0, headVeh=0, magDec=-650, magAcc=100)
+    pvt = NavPvt(iTOW=288243500, year=2019, month=9, day=18, hour=8, min=14, sec=3, valid=0x37, tAcc=25,
+                 nano=500_000_000, fixType=3, flags=0x01, flags2=0xE0, numSV=12, lon=1163399877, lat=399791235,
+                 height=32750, hMSL=41250, hAcc=2500, vAcc=4000, velN=2000, velE=1000, velD=-100, gSpeed=2236,
+                 headMot=2656505, sAcc=100, headAcc=1500000, pDOP=144, flags3=0, reserved0=0, headVeh=0, magDec=-650,
+                 magAcc=100)
     write_vector("ubx_nav_pvt", "ubx", encode_nav_pvt(pvt), PROV)
     write_vector("ubx_nav_status", "ubx", encode_nav_status(NavStatus(288243500, 3, 0x0D, 0, 0, 28000, 61500)), PROV)
     write_vector("ubx_epoch_1hz", "ubx", build_epoch(fix, GnssOutputSet(nmea=(), ubx=("NAV-PVT", "NAV-STATUS"))), PROV,
@@ -339,7 +340,8 @@ def damaged() -> None:
     d210 = [StimDatagram(0xA5, (k, -k, 7), 0, (10 * k) & 0xFF, 516) for k in range(1, 5)]
     r210 = [f210.build(d) for d in d210]
     assert not any(0xA5 in r[1:] for r in r210)
-    write_damaged("stim210_truncated", "stim210", r210[0] + r210[1][:6] + r210[2] + r210[3], [d210[0], d210[2], d210[3]],
+    write_damaged("stim210_truncated", "stim210", r210[0] + r210[1][:6] + r210[2] + r210[3],
+                  [d210[0], d210[2], d210[3]],
                   {"frames": 3, "crc_errors": 1, "length_errors": 0, "garbage_bytes": 6, "resyncs": 1},
                   "datagram 2 of 4 cut after 6 bytes: the 15-byte candidate fails its CRC-8, resync finds datagram 3",
                   {"fmt": "m"})

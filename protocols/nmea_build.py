@@ -1,0 +1,229 @@
+"""NMEA 0183 sentence builders: framing, checksum and the number formats of GGA, RMC, VTG, GSA and ZDA.
+
+The writing half of :mod:`protocols.nmea` (which re-exports every name here, and parses what these write).
+Number formats (a u-blox-like rendering, and the one that the golden vectors pin down):
+
+==========  =======================================================================
+field       format
+==========  =======================================================================
+time        ``hhmmss.ss`` (UTC)
+lat / lon   ``ddmm.mmmmm`` / ``dddmm.mmmmm`` (5 decimals of arc-minutes, 1.85 cm) + N/S, E/W
+altitude    metres, 3 decimals (GGA altitude above MSL and geoid separation)
+HDOP etc.   2 decimals
+speed       knots, 3 decimals (RMC, VTG); VTG km/h is derived from the *rounded* knots, so a
+            decoded sentence re-encodes to the same bytes
+course      degrees true, 2 decimals, [0, 360)
+==========  =======================================================================
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+
+from .crc import nmea_checksum
+
+__all__ = [
+    "KNOT_MPS",
+    "NMEA_MAX_LEN",
+    "build_gga",
+    "build_gsa",
+    "build_rmc",
+    "build_sentence",
+    "build_vtg",
+    "build_zda",
+    "format_lat",
+    "format_lon",
+]
+
+#: Longest legal sentence, bytes, including ``$`` and ``<CR><LF>``.
+NMEA_MAX_LEN = 82
+#: One knot in m/s.
+KNOT_MPS = 1852.0 / 3600.0
+
+
+def format_lat(lat_deg: float, decimals: int = 5) -> tuple[str, str]:
+    """``(ddmm.mmmmm, N|S)`` for a latitude in degrees."""
+    return _format_angle(lat_deg, 2, decimals, "N", "S")
+
+
+def format_lon(lon_deg: float, decimals: int = 5) -> tuple[str, str]:
+    """``(dddmm.mmmmm, E|W)`` for a longitude in degrees."""
+    return _format_angle(lon_deg, 3, decimals, "E", "W")
+
+
+def _format_angle(v: float, deg_digits: int, decimals: int, pos: str, neg: str) -> tuple[str, str]:
+    hemi = pos if v >= 0 else neg
+    a = abs(v)
+    scale = 10**decimals
+    total = round(a * 60.0 * scale)  # integer count of 10^-decimals arc-minutes
+    deg, rem = divmod(total, 60 * scale)
+    minutes = rem / scale
+    return f"{deg:0{deg_digits}d}{minutes:0{3 + decimals}.{decimals}f}", hemi
+
+
+def _format_time(t: _dt.time, decimals: int = 2) -> str:
+    frac = t.microsecond / 1e6
+    sec = t.second + frac
+    return f"{t.hour:02d}{t.minute:02d}{sec:0{3 + decimals}.{decimals}f}"
+
+
+def _opt(v: float | None, fmt: str) -> str:
+    return "" if v is None else format(v, fmt)
+
+
+def build_sentence(talker: str, kind: str, fields: list[str] | tuple[str, ...]) -> bytes:
+    """Frame a sentence: ``$`` + body + ``*`` + checksum + CR LF."""
+    body = f"{talker}{kind}," + ",".join(fields)
+    s = f"${body}*{nmea_checksum(body):02X}\r\n".encode("ascii")
+    if len(s) > NMEA_MAX_LEN:
+        raise ValueError(f"NMEA sentence of {len(s)} bytes exceeds {NMEA_MAX_LEN}")
+    return s
+
+
+def build_gga(
+    time_utc: _dt.time,
+    lat_deg: float,
+    lon_deg: float,
+    altitude_msl_m: float,
+    geoid_sep_m: float,
+    quality: int = 1,
+    num_sats: int = 12,
+    hdop: float = 0.8,
+    talker: str = "GP",
+) -> bytes:
+    """GGA sentence. ``quality`` 0 invalid, 1 GPS, 2 DGPS, 4 RTK fixed, 5 RTK float, 6 DR."""
+    lat, ns = format_lat(lat_deg)
+    lon, ew = format_lon(lon_deg)
+    if quality == 0:
+        return build_sentence(talker, "GGA", [_format_time(time_utc), "", "", "", "", "0", "00", "99.99", "", "", "",
+                                              "", "", ""])
+    return build_sentence(
+        talker,
+        "GGA",
+        [
+            _format_time(time_utc),
+            lat,
+            ns,
+            lon,
+            ew,
+            str(quality),
+            f"{num_sats:02d}",
+            f"{hdop:.2f}",
+            f"{altitude_msl_m:.3f}",
+            "M",
+            f"{geoid_sep_m:.3f}",
+            "M",
+            "",
+            "",
+        ],
+    )
+
+
+def build_rmc(
+    time_utc: _dt.time,
+    date: _dt.date,
+    lat_deg: float,
+    lon_deg: float,
+    speed_mps: float,
+    course_deg: float,
+    valid: bool = True,
+    mode: str = "A",
+    talker: str = "GP",
+) -> bytes:
+    """RMC sentence (NMEA 2.3 with the mode indicator). Speed in m/s is written in knots."""
+    if not valid:
+        return build_sentence(talker, "RMC", [_format_time(time_utc), "V", "", "", "", "", "", "",
+                                              date.strftime("%d%m%y"), "", "", "N"])
+    lat, ns = format_lat(lat_deg)
+    lon, ew = format_lon(lon_deg)
+    return build_sentence(
+        talker,
+        "RMC",
+        [
+            _format_time(time_utc),
+            "A",
+            lat,
+            ns,
+            lon,
+            ew,
+            f"{speed_mps / KNOT_MPS:.3f}",
+            f"{course_deg % 360.0:.2f}",
+            date.strftime("%d%m%y"),
+            "",
+            "",
+            mode,
+        ],
+    )
+
+
+def build_vtg(
+    course_true_deg: float | None,
+    speed_mps: float | None,
+    mode: str = "A",
+    course_mag_deg: float | None = None,
+    talker: str = "GP",
+) -> bytes:
+    """VTG sentence: course true/magnetic (deg, 2 decimals), speed in knots and km/h.
+
+    The km/h field is derived from the knots value after rounding to 3 decimals, so the
+    sentence round-trips through :class:`NmeaFormat`. ``None`` leaves a field empty
+    (a receiver without a fix: ``mode="N"``).
+    """
+    if speed_mps is None:
+        kn = kmh = ""
+    else:
+        knots = round(speed_mps / KNOT_MPS, 3)
+        kn = f"{knots:.3f}"
+        kmh = f"{knots * 1.852:.3f}"
+    return build_sentence(
+        talker,
+        "VTG",
+        [
+            _opt(None if course_true_deg is None else course_true_deg % 360.0, ".2f"),
+            "T",
+            _opt(None if course_mag_deg is None else course_mag_deg % 360.0, ".2f"),
+            "M",
+            kn,
+            "N",
+            kmh,
+            "K",
+            mode,
+        ],
+    )
+
+
+def build_gsa(
+    fix_type: int,
+    sat_ids: list[int | None] | tuple[int | None, ...],
+    pdop: float | None,
+    hdop: float | None,
+    vdop: float | None,
+    mode: str = "A",
+    talker: str = "GP",
+) -> bytes:
+    """GSA sentence: ``mode`` A (automatic) / M (manual), ``fix_type`` 1 none / 2 2D / 3 3D.
+
+    ``sat_ids`` fills the 12 satellite slots in order (``None`` = empty slot; fewer than 12
+    entries leave the remaining slots empty). DOPs with 2 decimals.
+    """
+    slots = list(sat_ids)
+    if len(slots) > 12:
+        raise ValueError(f"GSA has 12 satellite slots, got {len(slots)}")
+    slots += [None] * (12 - len(slots))
+    ids = ["" if s is None else f"{s:02d}" for s in slots]
+    return build_sentence(talker, "GSA", [mode, str(fix_type), *ids, _opt(pdop, ".2f"), _opt(hdop, ".2f"),
+                                          _opt(vdop, ".2f")])
+
+
+def build_zda(
+    time_utc: _dt.time,
+    date: _dt.date,
+    zone_hours: int | None = 0,
+    zone_minutes: int | None = 0,
+    talker: str = "GP",
+) -> bytes:
+    """ZDA sentence: UTC time, day, month, 4-digit year, local zone hours and minutes."""
+    zh = "" if zone_hours is None else (f"{zone_hours:03d}" if zone_hours < 0 else f"{zone_hours:02d}")
+    zm = "" if zone_minutes is None else f"{zone_minutes:02d}"
+    return build_sentence(talker, "ZDA", [_format_time(time_utc), f"{date.day:02d}", f"{date.month:02d}",
+                                          f"{date.year:04d}", zh, zm])

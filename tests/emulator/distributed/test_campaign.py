@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from emulator.campaign import (
+from emulator.distributed.campaign import (
     NAV_METRICS,
     CampaignConfig,
     CampaignError,
@@ -85,7 +85,7 @@ def test_vary_syntax():
 
 
 def _scenario_and_data(tmp_path, duration_s=3.0):
-    from emulator.campaign import _load_campaign_scenario
+    from emulator.distributed.campaign import _load_campaign_scenario
 
     p = write_short_scenario(tmp_path / "s.yaml", duration_s, name="camp")
     return (p, *_load_campaign_scenario(p))
@@ -204,7 +204,7 @@ def test_results_do_not_depend_on_scheduling(tmp_path, dask_client):
                          variations=[parse_vary("sensors.imu.gyro.arw_deg_rt_h=uniform(0.1,0.3)")])
     res = run_campaign(cfg, client=dask_client)
     _, data, scn, src, base = _scenario_and_data(tmp_path, 3.0)
-    from emulator.campaign import _load_campaign_scenario
+    from emulator.distributed.campaign import _load_campaign_scenario
 
     data, scn, src, base = _load_campaign_scenario(path)
     local = [run_member(t) for t in plan_members(data, 3, 5, cfg.variations, tmp_path / "b", src, base)]

@@ -16,11 +16,11 @@ import shutil
 
 import pytest
 
+from emulator.assembly.runner import run_emulator, run_scenario
+from emulator.distributed.split import SplitError, SplitFpgaEmulator
 from emulator.links.zenoh import open_sessions
-from emulator.recorder import read_capture
-from emulator.runner import run_emulator, run_scenario
+from emulator.recording.recorder import read_capture
 from emulator.scenario import load_scenario
-from emulator.split import SplitError, SplitFpgaEmulator
 
 from .conftest import write_short_scenario
 

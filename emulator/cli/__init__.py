@@ -1,0 +1,5 @@
+"""The ``psns-hil`` command (:func:`main`) and its tools (monitor)."""
+
+from .main import main
+
+__all__ = ["main"]

@@ -1,0 +1,1 @@
+"""Distributed runs: the split FPGA/DSP processes and Monte-Carlo campaigns."""

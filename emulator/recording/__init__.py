@@ -1,0 +1,1 @@
+"""Recording: captures, the change indicator (goldens), reports and replay."""

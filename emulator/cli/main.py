@@ -16,8 +16,9 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 from protocols import __version__
 from protocols.errors import PsnsHilError
@@ -179,8 +180,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
                   + (f" x{speed:g}" if mode == "realtime" else "") + f") -> {run_dir}")
     realtime = mode == "realtime"
     show_progress = not args.quiet and console.is_terminal and not realtime
-    progress = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[t]:.1f}/{task.total:.0f} s"),
-                        TimeElapsedColumn(), console=console, transient=True, disable=not show_progress)
+    progress = Progress(TextColumn("{task.description}"), BarColumn(),
+                        TextColumn("{task.fields[t]:.1f}/{task.total:.0f} s"), TimeElapsedColumn(),
+                        console=console, transient=True, disable=not show_progress)
     task = progress.add_task("simulating", total=scn.duration_s, t=0.0)
     err = sys.stderr
     tty = err.isatty()
@@ -287,12 +289,6 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     return rc
 
 
-def _cmd_campaign(args: argparse.Namespace) -> int:
-    from ..distributed.campaign import cli_main
-
-    return cli_main(args)
-
-
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="psns-hil", description="PSNS/GNSS/SINS navigation computer HIL emulator")
     p.add_argument("--version", action="version", version=f"psns-hil {__version__}")
@@ -351,9 +347,9 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--json", action="store_true", help="print the summary as JSON")
     rp.set_defaults(func=_cmd_replay)
 
-    from ..distributed.campaign import add_cli_parser
+    from . import campaign
 
-    add_cli_parser(sub).set_defaults(func=_cmd_campaign)
+    campaign.add_parser(sub).set_defaults(func=campaign.run)
     return p
 
 

@@ -85,10 +85,10 @@ def test_vary_syntax():
 
 
 def _scenario_and_data(tmp_path, duration_s=3.0):
-    from emulator.distributed.campaign import _load_campaign_scenario
+    from emulator.distributed.campaign import load_campaign_scenario
 
     p = write_short_scenario(tmp_path / "s.yaml", duration_s, name="camp")
-    return (p, *_load_campaign_scenario(p))
+    return (p, *load_campaign_scenario(p))
 
 
 def test_variation_keys_and_values_are_checked_before_dispatch(tmp_path):
@@ -204,9 +204,9 @@ def test_results_do_not_depend_on_scheduling(tmp_path, dask_client):
                          variations=[parse_vary("sensors.imu.gyro.arw_deg_rt_h=uniform(0.1,0.3)")])
     res = run_campaign(cfg, client=dask_client)
     _, data, scn, src, base = _scenario_and_data(tmp_path, 3.0)
-    from emulator.distributed.campaign import _load_campaign_scenario
+    from emulator.distributed.campaign import load_campaign_scenario
 
-    data, scn, src, base = _load_campaign_scenario(path)
+    data, scn, src, base = load_campaign_scenario(path)
     local = [run_member(t) for t in plan_members(data, 3, 5, cfg.variations, tmp_path / "b", src, base)]
     for a, b in zip(res.rows, local):
         assert a["seed"] == b["seed"] and a["params"] == b["params"]

@@ -2,7 +2,8 @@
 
 ``run`` (a scenario; writes ``report.html`` into the run directory at the end), ``validate`` (a
 scenario file), ``report`` (write ``report.html`` for a run directory), ``monitor`` (decode a port, a
-serial device or a capture, live), ``replay`` (re-run the firmware on a capture).
+serial device, a zenoh key or a capture, live), ``replay`` (re-run the firmware on a capture), ``campaign``
+(a Monte-Carlo campaign on Dask, :mod:`emulator.cli.campaign`).
 ``docs/runtime.md`` and ``docs/scenarios.md`` have them all.
 
 Exit codes: 0 run finished and every expectation passed; 1 an expectation failed, a scheduled
@@ -322,8 +323,10 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--json", action="store_true", help="print the validated scenario with defaults")
     v.set_defaults(func=_cmd_validate)
 
-    mo = sub.add_parser("monitor", help="decode a port live (pty, serial device) or a capture file into frames")
-    mo.add_argument("endpoint", help="capture file (.psnscap), pty/serial device path, or serial:///dev/ttyXXX")
+    mo = sub.add_parser("monitor", help="decode a port live (pty, serial device, zenoh key) or a capture file "
+                                        "into frames")
+    mo.add_argument("endpoint", help="capture file (.psnscap), pty/serial device path, serial:///dev/ttyXXX, or "
+                                     "zenoh://RUN/PORT[?connect=tcp/HOST:PORT] (default connect tcp/127.0.0.1:7447)")
     mo.add_argument("--protocol", default="auto",
                     help="decoders: auto (by port name) or a comma list of host, imu, stim210[:FMT], nmea, psns, "
                          "ubx, monitor")

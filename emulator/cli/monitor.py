@@ -7,12 +7,16 @@ Endpoints:
 * a serial device or a pseudo-terminal path (``/dev/ttyUSB0``, ``runs/x/ports/uart0``,
   ``serial:///dev/ttyUSB0``): opened with pyserial at ``--baud`` and decoded as bytes arrive --
   the same tool works on the real box's connectors;
-* ``zenoh://KEY``: not in this build (the zenoh transport is a separate issue).
+* ``zenoh://RUN/PORT`` (:mod:`emulator.links.zenoh`): what is published on ``psns/RUN/PORT/tx`` (bytes the
+  port's owner transmits, shown as ``out``) and ``psns/RUN/PORT/rx`` (bytes it receives, ``in``), decoded as
+  they arrive. The zenoh session connects to ``tcp/127.0.0.1:7447`` (where an emulator's zenoh port listens
+  by default) unless the URL says ``connect=``, ``listen=``, ``session=`` or ``config=`` as for a link;
+  scouting is off.
 
 Decoders: ``--protocol`` names the frame families (``host``, ``imu``, ``stim210`` or
-``stim210:FMT``, ``nmea``, ``psns``, and ``ubx`` / ``monitor`` where the protocols build has them);
-``auto`` (default) picks them from the port name (the file name of a pty symlink such as
-``uart0``, or the capture's link name). On the MONITOR port every record is unpacked and its
+``stim210:FMT``, ``nmea``, ``psns``, ``ubx``, ``monitor``); ``auto`` (default) picks them from the port
+name (the file name of a pty symlink such as ``uart0``, the capture's link name, or the PORT of a
+zenoh key). On the MONITOR port every record is unpacked and its
 bytes are decoded with its channel's decoders, so one stream shows every channel.
 
 Everything goes through :class:`protocols.stream.StreamDecoder`: bad bytes are counted, never
@@ -21,55 +25,45 @@ fatal. The decoder statistics are printed at the end (Ctrl-C ends a live session
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import os
+import queue
 import select
 import sys
 import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any, Callable, Iterator, TextIO
+from typing import Any, TextIO
 
+from protocols.host import HostFormat
+from protocols.imu_frame import FpgaFrameFormat
+from protocols.monitor import MONITOR_CHANNELS, MonitorFormat
+from protocols.nmea import NmeaFormat
+from protocols.psns import PsnsFormat
+from protocols.stim import Stim210Format
 from protocols.stream import StreamDecoder
+from protocols.ubx import UbxFormat
 
 from ..errors import EmulatorError
+from ..links import parse_link_url
+from ..links.zenoh import DEFAULT_LISTEN, ZenohEndpointConfig, acquire_session, release_session, zenoh_key_prefix
 
-__all__ = ["PROTOCOLS", "formats_for", "describe_frame", "FrameRow", "Monitor", "run_monitor"]
+__all__ = ["PROTOCOLS", "FrameRow", "Monitor", "describe_frame", "formats_for", "run_monitor"]
 
 
 def _protocol_table() -> dict[str, Callable[[str], list[Any]]]:
-    from protocols.host import HostFormat
-    from protocols.imu_frame import ImuFrameFormat
-    from protocols.nmea import NmeaFormat
-    from protocols.psns import PsnsFormat
-    from protocols.stim import Stim210Format
-
-    table: dict[str, Callable[[str], list[Any]]] = {
+    """Protocol name -> decoders given the name's argument (``stim210:FMT``)."""
+    return {
         "host": lambda arg: [HostFormat()],
-        "imu": lambda arg: [ImuFrameFormat()],
+        "imu": lambda arg: [FpgaFrameFormat()],  # the IMU frame and the MAG frame that share the FPGA's UART
         "stim210": lambda arg: [Stim210Format(arg or "m")],
         "nmea": lambda arg: [NmeaFormat()],
         "psns": lambda arg: [PsnsFormat()],
+        "ubx": lambda arg: [UbxFormat()],
+        "monitor": lambda arg: [MonitorFormat()],
     }
-    try:
-        from protocols.ubx import UbxFormat
-
-        table["ubx"] = lambda arg: [UbxFormat()]
-    except ImportError:
-        pass
-    try:
-        from protocols.monitor import MonitorFormat
-
-        table["monitor"] = lambda arg: [MonitorFormat()]
-    except ImportError:
-        pass
-    try:
-        from protocols.imu_frame import FpgaFrameFormat  # type: ignore[attr-defined]
-
-        table["imu"] = lambda arg: [FpgaFrameFormat()]
-    except ImportError:
-        pass
-    return table
 
 
 #: protocol names accepted by ``--protocol`` (besides ``auto``)
@@ -97,8 +91,6 @@ def formats_for(port: str | None, protocol: str = "auto") -> list[Any]:
     for spec in names:
         name, _, arg = spec.partition(":")
         if name not in table:
-            if protocol == "auto":
-                continue  # e.g. ubx while the protocols build lacks it
             raise EmulatorError(f"unknown protocol {name!r}; known: {', '.join(sorted(table))}")
         out += table[name](arg)
     if not out:
@@ -194,8 +186,6 @@ class Monitor:
 
     def _demux(self, rec: Any) -> list[FrameRow]:
         if self._channel_names is None:
-            from protocols.monitor import MONITOR_CHANNELS
-
             self._channel_names = {v: k for k, v in MONITOR_CHANNELS.items()}
         ch = self._channel_names.get(rec.channel, f"ch{rec.channel}")
         d = "in" if rec.direction == 0 else "out"  # towards / away from the DSP
@@ -269,14 +259,67 @@ def _live_rows(device: str, port: str, mon: Monitor, baud: int, stop: Callable[[
         ser.close()
 
 
+#: URL options of ``zenoh://`` that choose the monitor's zenoh session (the other link options do not apply)
+_ZENOH_SESSION_OPTIONS = ("listen", "connect", "session", "config")
+
+
+def _zenoh_source(endpoint: str) -> tuple[ZenohEndpointConfig, str, str]:
+    """``(session configuration, port name, key prefix psns/RUN/PORT)`` of a ``zenoh://RUN/PORT`` endpoint."""
+    url = parse_link_url(endpoint)
+    extra = sorted(set(url.options) - set(_ZENOH_SESSION_OPTIONS) - {"baud", "mode", "queue"})
+    if extra:
+        raise EmulatorError(f"{endpoint}: option(s) {', '.join(extra)} do not apply to monitor; it takes "
+                            f"{', '.join(_ZENOH_SESSION_OPTIONS)}")
+    _run, port, prefix = zenoh_key_prefix(url.target)
+
+    def eps(name: str) -> tuple[str, ...]:
+        v = url.options.get(name)
+        return tuple(e.strip() for e in v.split(",") if e.strip()) if v else ()
+
+    listen, connect, config = eps("listen"), eps("connect"), url.options.get("config")
+    if not listen and not connect and config is None:
+        connect = (DEFAULT_LISTEN,)  # where an emulator's zenoh port listens by default
+    return ZenohEndpointConfig(listen, connect, url.options.get("session", "peer"), config), port, prefix
+
+
+def _zenoh_rows(cfg: ZenohEndpointConfig, port: str, prefix: str, mon: Monitor,
+                stop: Callable[[], bool]) -> Iterator[FrameRow]:
+    """Decode what is published on ``prefix/tx`` (``out``) and ``prefix/rx`` (``in``) until ``stop()``.
+
+    zenoh calls the subscribers on its own threads; they only queue the payload, decoding happens here.
+    """
+    arrived: queue.SimpleQueue[tuple[float, str, bytes]] = queue.SimpleQueue()
+    t0 = time.monotonic()
+
+    def subscriber(direction: str) -> Callable[[Any], None]:
+        def on_sample(sample: Any) -> None:
+            arrived.put((time.monotonic() - t0, direction, sample.payload.to_bytes()))
+        return on_sample
+
+    session = acquire_session(cfg)
+    subs: list[Any] = []
+    try:
+        for suffix, direction in (("tx", "out"), ("rx", "in")):
+            subs.append(session.declare_subscriber(f"{prefix}/{suffix}", subscriber(direction)))
+        while not stop():
+            try:
+                t, direction, data = arrived.get(timeout=0.1)
+            except queue.Empty:
+                continue
+            yield from mon.feed(t, port, direction, data)
+    finally:
+        for sub in subs:
+            with contextlib.suppress(Exception):  # undeclared already with a closed session
+                sub.undeclare()
+        release_session(cfg)
+
+
 def run_monitor(endpoint: str, protocol: str = "auto", baud: int = 460800, links: list[str] | None = None,
                 count: int | None = None, duration_s: float | None = None, as_json: bool = False,
                 out: TextIO | None = None, port_name: str | None = None) -> dict[str, Any]:
     """Decode ``endpoint`` and print one line (or JSON object) per frame; returns the statistics."""
     out = out or sys.stdout
     mon = Monitor(protocol)
-    if endpoint.startswith("zenoh://"):
-        raise EmulatorError("zenoh:// endpoints are not in this build yet (the zenoh transport issue adds them)")
     if endpoint.startswith("serial://"):
         endpoint = endpoint[len("serial://"):]
     t_start = time.monotonic()
@@ -284,7 +327,14 @@ def run_monitor(endpoint: str, protocol: str = "auto", baud: int = 460800, links
     def stop() -> bool:
         return duration_s is not None and time.monotonic() - t_start >= duration_s
 
-    if _is_capture(endpoint):
+    rows: Iterator[FrameRow]
+    if endpoint.startswith("zenoh://"):
+        cfg, key_port, prefix = _zenoh_source(endpoint)
+        name = port_name or key_port
+        if protocol == "auto":
+            formats_for(name, "auto")  # fail early with the hint
+        rows = _zenoh_rows(cfg, name, prefix, mon, stop)
+    elif _is_capture(endpoint):
         rows = _capture_rows(Path(endpoint), mon, set(links) if links else None)
     elif os.path.exists(endpoint):
         name = port_name or Path(endpoint).name

@@ -34,7 +34,8 @@ def test_invalid_yaml_is_exit_2_with_location(tmp_path):
 
 def short_quickstart(tmp_path, expectations: str) -> str:
     text = (ROOT / "scenarios" / "quickstart.yaml").read_text()
-    text = text.replace("duration_s: 120", "duration_s: 4").replace("- static: {duration_s: 120}", "- static: {duration_s: 4}")
+    text = text.replace("duration_s: 120", "duration_s: 4").replace("- static: {duration_s: 120}",
+                                                                  "- static: {duration_s: 4}")
     text = text[: text.index("expectations:")] + expectations
     p = tmp_path / "s.yaml"
     p.write_text(text)

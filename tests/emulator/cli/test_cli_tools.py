@@ -6,6 +6,8 @@ import asyncio
 import json
 import subprocess
 import sys
+import time
+from pathlib import Path
 
 import pytest
 
@@ -81,7 +83,7 @@ def test_replay_of_a_file_that_is_not_a_capture_is_exit_2(tmp_path):
 def test_realtime_run_prints_port_map_and_status_lines(tmp_path):
     """A pty port implies real time; the port map names the pty; a status line every second."""
     links = 'links:\n  gyro: {url: "mem://gyro", baud: 460800}\n  host: {url: "pty://uart0", baud: 460800}\n'
-    text = open(_scenario(tmp_path, 3)).read().replace("mode: fast\n", "")
+    text = Path(_scenario(tmp_path, 3)).read_text().replace("mode: fast\n", "")
     text = text[: text.index("links:")] + links + text[text.index("dsp:"):]
     p = tmp_path / "rt.yaml"
     p.write_text(text)
@@ -120,3 +122,74 @@ async def test_monitor_command_decodes_a_live_pty(tmp_path):
         seqs = [x["fields"]["seq"] for x in rows]
         assert seqs == list(range(seqs[0], seqs[0] + 30))
         assert emu.link_stats("host")["bytes_out"] > 0
+
+
+def _poll(pred, timeout_s: float, every_s: float = 0.01) -> bool:
+    """Wall-clock wait until ``pred()``; False on timeout."""
+    end = time.monotonic() + timeout_s
+    while not pred():
+        if time.monotonic() >= end:
+            return False
+        time.sleep(every_s)
+    return True
+
+
+def test_monitor_decodes_what_is_published_on_a_zenoh_key():
+    """``psns-hil monitor zenoh://RUN/PORT``: the key's tx (out) and rx (in) decoded, garbage counted."""
+    import zenoh
+
+    from emulator.distributed.split import free_tcp_port
+    from emulator.links.zenoh import ZenohEndpointConfig
+    from protocols.host import NavMode, NavSolution, RequestStatus, encode_command, encode_nav_solution
+
+    navs = [encode_nav_solution(NavSolution(
+        seq=k, time_s=0.01 * k, lat_deg=39.979, lon_deg=116.339, height_m=50.0, vel_enu_mps=(0.0, 0.0, 0.0),
+        roll_deg=0.1, pitch_deg=-0.2, heading_deg=30.0, sigma=(0.1,) * 9, mode=int(NavMode.NAVIGATING),
+        gnss_status=1, psns_status=0, cpu_load_pct=0.2, deadline_misses=0)) for k in range(20)]
+    commands = [encode_command(RequestStatus(token=k)) for k in range(5)]
+    tx_blob = b"".join(navs[:7]) + b"\xde\xad\xbe" + b"".join(navs[7:])  # 3 garbage bytes between frames
+    p = free_tcp_port()
+    # the publisher listens, the monitor connects (scouting off in both configurations)
+    with zenoh.open(ZenohEndpointConfig(listen=(f"tcp/127.0.0.1:{p}",)).build()) as session:
+        block = zenoh.CongestionControl.BLOCK
+        tx = session.declare_publisher("psns/mon1/host/tx", congestion_control=block)
+        rx = session.declare_publisher("psns/mon1/host/rx", congestion_control=block)
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "emulator", "monitor", f"zenoh://mon1/host?connect=tcp/127.0.0.1:{p}",
+             "--count", "25", "--duration", "60", "--json", "--stats"],
+            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            subscribed = _poll(lambda: proc.poll() is not None
+                               or (tx.matching_status.matching and rx.matching_status.matching), 60.0)
+            assert subscribed and proc.poll() is None, "the monitor did not subscribe to psns/mon1/host/{tx,rx}"
+            for i in range(0, len(tx_blob), 150):  # arbitrary chunks: the decoders are stream decoders
+                tx.put(tx_blob[i:i + 150])
+            for c in commands:
+                rx.put(c)
+            out, err = proc.communicate(timeout=60)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.communicate()
+            tx.undeclare()
+            rx.undeclare()
+    assert proc.returncode == 0, err
+    rows = [json.loads(x) for x in out.splitlines()]
+    assert len(rows) == 25
+    out_rows = [r for r in rows if r["dir"] == "out"]
+    in_rows = [r for r in rows if r["dir"] == "in"]
+    assert [r["type"] for r in out_rows] == ["NavSolution"] * 20
+    assert [r["fields"]["seq"] for r in out_rows] == list(range(20))
+    assert [r["type"] for r in in_rows] == ["RequestStatus"] * 5
+    assert [r["fields"]["token"] for r in in_rows] == list(range(5))
+    assert all(r["port"] == "host" for r in rows)
+    assert "25 frames" in err
+    assert "host/out: frames 20, crc errors 0, garbage bytes 3" in err
+    assert "host/in: frames 5, crc errors 0, garbage bytes 0" in err
+
+
+def test_monitor_zenoh_endpoint_errors_are_usage_errors():
+    r = psns_hil("monitor", "zenoh://mon2/host?role=peer")
+    assert r.returncode == 2 and "do not apply to monitor" in r.stderr and "Traceback" not in r.stderr
+    r = psns_hil("monitor", "zenoh://mon2/nowhere")
+    assert r.returncode == 2 and "--protocol" in r.stderr

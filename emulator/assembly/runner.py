@@ -44,7 +44,8 @@ from ..devices.sensors import build_sensors
 from ..dsp.firmware_setup import build_firmware
 from ..dsp.host import UartRxConfig, VirtualDsp, WatchdogConfig
 from ..links import LineConfig, Link, MemHub, open_link, parse_link_url, parse_mode
-from ..recording.recorder import CaptureRecord, Recorder
+from ..recording.capture import CaptureRecord
+from ..recording.recorder import Recorder
 from ..scenario.schema import LinkSpec, Scenario
 from ..verification.expectations import evaluate_expectations
 from ..world.build import build_trajectory

@@ -205,7 +205,7 @@ class Monitor:
 
 
 def _capture_rows(path: Path, mon: Monitor, links: set[str] | None) -> Iterator[FrameRow]:
-    from ..recording.recorder import iter_capture
+    from ..recording.capture import iter_capture
 
     _header, recs = iter_capture(path)
     for r in recs:
@@ -220,7 +220,7 @@ def _capture_rows(path: Path, mon: Monitor, links: set[str] | None) -> Iterator[
 
 
 def _is_capture(endpoint: str) -> bool:
-    from ..recording.recorder import CAPTURE_MAGIC
+    from ..recording.capture import CAPTURE_MAGIC
 
     p = Path(endpoint)
     if p.suffix == ".psnscap":

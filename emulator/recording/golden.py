@@ -5,8 +5,8 @@ For every scenario of the library (``scenarios/*.yaml``) two small text files li
 
 ``<name>.state.csv``
     The estimator's state history: the host's navigation output (position, velocity, attitude,
-    mode; the last frame at or before each whole second), and the firmware's filter state sampled 2.5 ms after each whole second
-    (``filter_state.csv``: the diagonal of the covariance P and the gyro / accelerometer bias
+    mode; the last frame at or before each whole second), and the firmware's filter state sampled 2.5 ms after
+    each whole second (``filter_state.csv``: the diagonal of the covariance P and the gyro / accelerometer bias
     estimates), one row every ``interval`` seconds (1 s, or coarser so that a file stays below
     about 200 rows). Numbers have 12 significant digits.
 ``<name>.inputs.txt``
@@ -37,8 +37,21 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-__all__ = ["ROOT", "GOLDEN_DIR", "LIBRARY_DIR", "TOLERANCES", "state_history", "input_digest", "render_state",
-           "render_inputs", "write_golden", "compare_golden", "library", "main", "row_interval"]
+__all__ = [
+    "GOLDEN_DIR",
+    "LIBRARY_DIR",
+    "ROOT",
+    "TOLERANCES",
+    "compare_golden",
+    "input_digest",
+    "library",
+    "main",
+    "render_inputs",
+    "render_state",
+    "row_interval",
+    "state_history",
+    "write_golden",
+]
 
 ROOT = Path(__file__).resolve().parents[2]
 GOLDEN_DIR = ROOT / "tests" / "golden"
@@ -128,7 +141,7 @@ def render_state(header: list[str], rows: list[list[Any]]) -> str:
 
 def input_digest(capture: str | Path, duration_s: float) -> list[str]:
     """Digest lines of the captured input bytes (see module docstring)."""
-    from .recorder import iter_capture
+    from .capture import iter_capture
 
     block = max(10, 10 * math.ceil(duration_s / 20.0 / 10.0))
     n_blocks = max(1, math.ceil(duration_s / block))
@@ -199,8 +212,9 @@ def compare_state(new: str, old: str, max_report: int = 8) -> list[str]:
     nt = {r[0]: r for r in nr[1:]}
     ot = {r[0]: r for r in orr[1:]}
     if set(nt) != set(ot):
-        out.append(f"rows differ: {len(nt)} rows (t = {min(nt, key=float, default='-')}..{max(nt, key=float, default='-')} s)"
-                   f" vs golden {len(ot)} (t = {min(ot, key=float, default='-')}..{max(ot, key=float, default='-')} s)")
+        out.append(f"rows differ: {len(nt)} rows (t = {min(nt, key=float, default='-')}.."
+                   f"{max(nt, key=float, default='-')} s) vs golden {len(ot)} (t = {min(ot, key=float, default='-')}.."
+                   f"{max(ot, key=float, default='-')} s)")
     common = [c for c in oh if c in nh and c != "time_s"]
     for c in common:
         i_n, i_o = nh.index(c), oh.index(c)
@@ -222,7 +236,8 @@ def compare_state(new: str, old: str, max_report: int = 8) -> list[str]:
         if bad:
             t, a, b, d = bad[0]
             out.append(f"{c}: {len(bad)} of {len(set(nt) & set(ot))} rows differ beyond tolerance (atol {atol:g}, "
-                       f"rtol {rtol:g}); first at t = {t} s: {a or '(empty)'} vs golden {b or '(empty)'} (|diff| {d:.3g})")
+                       f"rtol {rtol:g}); first at t = {t} s: {a or '(empty)'} vs golden {b or '(empty)'} "
+                       f"(|diff| {d:.3g})")
             if len(out) >= max_report:
                 out.append("...")
                 break
@@ -304,7 +319,7 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         scns = [(p, s) for p, s in scns if s.name in args.names]
     rc = 0
-    for p, scn in scns:
+    for _path, scn in scns:
         with tempfile.TemporaryDirectory(prefix=f"golden-{scn.name}-") as d:
             summary = run_scenario(scn, Path(d) / "run", mode="fast")
             if args.update:

@@ -13,11 +13,12 @@ Every external link is replaced by ``mem://`` (nothing outside takes part in a r
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from ..errors import RecordingError
-from .recorder import read_capture
+from .capture import read_capture
 
 __all__ = ["load_replay", "run_replay", "same_file"]
 

@@ -5,7 +5,7 @@ import json
 import pytest
 
 from emulator.assembly.runner import run_scenario
-from emulator.recording.recorder import read_capture
+from emulator.recording.capture import read_capture
 from emulator.scenario import load_scenario
 from protocols.imu_frame import ImuFrameFormat
 from protocols.nmea import Gga, NmeaFormat

@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from emulator.recording.recorder import read_capture
+from emulator.recording.capture import read_capture
 from tests.conftest import ROOT
 
 

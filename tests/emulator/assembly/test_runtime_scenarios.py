@@ -84,7 +84,7 @@ def test_monitor_port_needs_the_c2_protocol_module(tmp_path):
 
 
 def test_uart3_is_an_emifa_core_unless_given_a_serial_baud(tmp_path):
-    from emulator.recording.recorder import read_capture
+    from emulator.recording.capture import read_capture
 
     s = run_scenario(_scn(), tmp_path / "emifa")
     assert next(p for p in s["ports"] if p["name"] == "uart3")["baud"] == "EMIFA"

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from emulator.assembly.runner import run_scenario
-from emulator.recording.recorder import read_capture
+from emulator.recording.capture import read_capture
 from emulator.testing import load_test_scenario
 from protocols.stream import StreamDecoder
 from tests.conftest import SCENARIOS

@@ -320,7 +320,7 @@ def test_psns_faults_on_the_compass(tmp_path):
 
 def test_cloud_fault_changes_the_camera_frames(tmp_path):
     """Under the injected cloud the observation points' DOP drops by the cloud's factor."""
-    from emulator.recording.recorder import read_capture
+    from emulator.recording.capture import read_capture
     from protocols.psns import PolarizationObs, PsnsFormat
     from protocols.stream import StreamDecoder
 
@@ -356,7 +356,7 @@ def test_runs_with_faults_are_deterministic(tmp_path):
 def test_a_fault_does_not_change_the_sensors_random_numbers(tmp_path):
     """Fault draws come from their own streams: before a fault starts, a run is byte-identical to one
     without it."""
-    from emulator.recording.recorder import read_capture
+    from emulator.recording.capture import read_capture
 
     a = tmp_path / "a"
     b = tmp_path / "b"

@@ -1,7 +1,8 @@
 """The recorder's non-parsing frame counters count exactly what the full decoders count.
 
-``emulator.recording.recorder.counting_format`` lets the recorder's counting decoders skip building frame
-objects for formats whose parse cannot fail once the frame's length and check passed (issue 10).
+``emulator.recording.counting.counting_format`` lets the recorder's counting decoders skip building frame
+objects for formats whose parse cannot fail once the frame's length and check passed (a speed-up of the
+performance work).
 Reference: the same :class:`~protocols.stream.StreamDecoder` with the full format. Input: the real
 byte streams of a short run (gyro datagrams, IMU frames, polarization frames) with bit errors,
 dropped and inserted bytes, fed in chunks of random size: every counter must agree.
@@ -15,7 +16,8 @@ import numpy as np
 import pytest
 
 from emulator.assembly.runner import port_formats, run_scenario
-from emulator.recording.recorder import COUNT_ONLY_FORMATS, counting_format, read_capture
+from emulator.recording.capture import read_capture
+from emulator.recording.counting import COUNT_ONLY_FORMATS, counting_format
 from emulator.scenario import load_scenario
 from protocols.stream import StreamDecoder
 
@@ -27,7 +29,7 @@ def streams(tmp_path_factory: pytest.TempPathFactory) -> dict[str, bytes]:
     scn = load_scenario(SCENARIOS / "static_psns_camera.yaml").model_copy(update={"duration_s": 6.0})
     run_dir = tmp_path_factory.mktemp("count") / "run"
     run_scenario(scn, run_dir, mode="fast")
-    hdr, recs = read_capture(run_dir / "capture.psnscap")
+    _hdr, recs = read_capture(run_dir / "capture.psnscap")
     out: dict[str, bytearray] = {}
     for r in recs:
         if r.direction == "in" and r.link in ("gyro", "uart1", "psns", "uart2"):
@@ -41,7 +43,7 @@ def _damage(data: bytes, rng: np.random.Generator, rate: float) -> bytes:
     for i in rng.choice(n, size=int(n * rate), replace=False):
         b[i] ^= 1 << int(rng.integers(0, 8))
     out = bytearray()
-    for i, x in enumerate(b):
+    for x in b:
         u = rng.random()
         if u < rate / 4:
             continue  # dropped byte

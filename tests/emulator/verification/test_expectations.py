@@ -9,7 +9,7 @@ from array import array
 
 import pytest
 
-from emulator.recording.recorder import ErrorStats
+from emulator.recording.nav_error import ErrorStats
 from emulator.scenario.checks_schema import EventExpectation
 from emulator.scenario.schema import Expectation
 from emulator.verification.expectations import evaluate_expectations, matching_events

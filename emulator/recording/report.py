@@ -27,7 +27,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-__all__ = ["write_report", "load_nav_csv", "fault_spans"]
+__all__ = ["fault_spans", "load_nav_csv", "write_report"]
 
 _MODE_BITS = [(0x0001, "aligning"), (0x0002, "navigating"), (0x0004, "GNSS-aided"), (0x0008, "PSNS-aided"),
               (0x0010, "degraded")]
@@ -148,7 +148,7 @@ def _nav_figures(nav: dict[str, list[float]], events: list[dict[str, Any]]) -> l
     for i, (bit, name) in enumerate(_MODE_BITS):
         on = [1 if (not math.isnan(m) and int(m) & bit) else 0 for m in modes]
         ax.fill_between(t, i, [i + 0.8 * v for v in on], step="post", alpha=0.6, label=name)
-    for j, (t0, t1, label) in enumerate(spans):
+    for j, (t0, t1, _label) in enumerate(spans):
         row = len(_MODE_BITS) + j
         ax.broken_barh([(t0, max(t1 - t0, 1e-3))], (row, 0.8), color="orange", alpha=0.8)
     ax.set_yticks([i + 0.4 for i in range(n_rows)])
@@ -316,17 +316,20 @@ def write_report(run_dir: str | Path) -> Path:
                          for k, v in summary.get("links", {}).items()],
                         ["link", "bytes", "frames", "crc_errors", "dropped", "garbage_bytes", "framing_errors"]))
     dsp = summary.get("dsp", {})
-    parts.append(f"<h2>DSP load ({_fmt(dsp.get('clock_hz'))} Hz, tick budget {_fmt(dsp.get('tick_budget_cycles'))} cycles)</h2>")
-    parts.append(_table([[t["task"], t["calls"], t["cycles_min"], t["cycles_avg"], t["cycles_max"], t["utilization_max_pct"]]
-                         for t in dsp.get("tasks", [])],
+    parts.append(f"<h2>DSP load ({_fmt(dsp.get('clock_hz'))} Hz, tick budget "
+                 f"{_fmt(dsp.get('tick_budget_cycles'))} cycles)</h2>")
+    parts.append(_table([[t["task"], t["calls"], t["cycles_min"], t["cycles_avg"], t["cycles_max"],
+                          t["utilization_max_pct"]] for t in dsp.get("tasks", [])],
                         ["task", "calls", "min", "avg", "max", "max % budget"]))
-    parts.append(f"<p>worst 1 s CPU load {_fmt(dsp.get('cpu_load_pct_max'))} %, deadline misses {_fmt(dsp.get('deadline_misses'))}</p>")
+    parts.append(f"<p>worst 1 s CPU load {_fmt(dsp.get('cpu_load_pct_max'))} %, deadline misses "
+                 f"{_fmt(dsp.get('deadline_misses'))}</p>")
     for title, b64 in figs:
-        parts.append(f"<h2>{html.escape(title)}</h2><img alt='{html.escape(title)}' src='data:image/png;base64,{b64}'/>")
+        parts.append(f"<h2>{html.escape(title)}</h2><img alt='{html.escape(title)}' "
+                     f"src='data:image/png;base64,{b64}'/>")
     style = ("body{font-family:sans-serif;max-width:1100px;margin:auto}table{border-collapse:collapse;margin:8px 0}"
              "td,th{border:1px solid #bbb;padding:2px 8px;text-align:right}th{background:#eee}img{max-width:100%}")
-    doc = (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>psns-hil {html.escape(str(summary.get('scenario')))}"
-           f"</title><style>{style}</style></head><body>{''.join(parts)}</body></html>")
+    doc = (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>psns-hil "
+           f"{html.escape(str(summary.get('scenario')))}</title><style>{style}</style></head><body>{''.join(parts)}</body></html>")
     out = run_dir / "report.html"
     out.write_text(doc, encoding="utf-8")
     return out

@@ -8,6 +8,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -134,6 +135,11 @@ def _poll(pred, timeout_s: float, every_s: float = 0.01) -> bool:
     return True
 
 
+def _matched(publisher: Any) -> bool:
+    """A zenoh publisher has a subscriber (``matching_status`` is an object with ``matching`` at run time)."""
+    return bool(publisher.matching_status.matching)
+
+
 def test_monitor_decodes_what_is_published_on_a_zenoh_key():
     """``psns-hil monitor zenoh://RUN/PORT``: the key's tx (out) and rx (in) decoded, garbage counted."""
     import zenoh
@@ -159,8 +165,7 @@ def test_monitor_decodes_what_is_published_on_a_zenoh_key():
              "--count", "25", "--duration", "60", "--json", "--stats"],
             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         try:
-            subscribed = _poll(lambda: proc.poll() is not None
-                               or (tx.matching_status.matching and rx.matching_status.matching), 60.0)
+            subscribed = _poll(lambda: proc.poll() is not None or (_matched(tx) and _matched(rx)), 60.0)
             assert subscribed and proc.poll() is None, "the monitor did not subscribe to psns/mon1/host/{tx,rx}"
             for i in range(0, len(tx_blob), 150):  # arbitrary chunks: the decoders are stream decoders
                 tx.put(tx_blob[i:i + 150])

@@ -77,11 +77,11 @@ def _short(tmp_path, seed=1):
 def test_a_replay_matches_its_golden_and_another_seed_does_not(tmp_path):
     scn, d1 = _short(tmp_path)
     gdir = tmp_path / "golden"
-    ps, pi = write_golden(d1, scn.name, scn.seed, scn.duration_s, gdir)
+    ps, _pi = write_golden(d1, scn.name, scn.seed, scn.duration_s, gdir)
     assert ps.read_text().count("\n") == 7  # header + 6 rows at 1 s
     _, d2 = _short(tmp_path)
     assert compare_golden(d2, scn.name, scn.seed, scn.duration_s, gdir) == []
-    scn3, d3 = _short(tmp_path, seed=2)
+    _scn3, d3 = _short(tmp_path, seed=2)
     diffs = compare_golden(d3, scn.name, scn.seed, scn.duration_s, gdir)
     assert any(x.startswith("input bytes on gyro (in) differ") for x in diffs)
     assert any(x.startswith("  first difference on gyro (in) in the block 0-10 s") for x in diffs)
@@ -109,22 +109,23 @@ def test_golden_cli_checks_and_regenerates_one_scenario(tmp_path):
     lib = tmp_path / "lib"
     lib.mkdir()
     (lib / "tiny.yaml").write_text((SCENARIOS / "quickstart.yaml").read_text().replace("name: quickstart", "name: tiny")
-                                   .replace("duration_s: 120", "duration_s: 3").replace("{duration_s: 120}", "{duration_s: 3}"))
+                                   .replace("duration_s: 120", "duration_s: 3")
+                                   .replace("{duration_s: 120}", "{duration_s: 3}"))
     cmd = [sys.executable, "-m", "emulator.recording.golden", "--library", str(lib), "--golden", str(gdir)]
     r = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 1 and "no golden record for tiny" in r.stdout
-    r = subprocess.run(cmd + ["--update", "tiny"], capture_output=True, text=True, cwd=ROOT)
+    r = subprocess.run([*cmd, "--update", "tiny"], capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 0 and "tiny: wrote" in r.stdout
     r = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 0 and "tiny: unchanged" in r.stdout
-    r = subprocess.run(cmd + ["nope"], capture_output=True, text=True, cwd=ROOT)
+    r = subprocess.run([*cmd, "nope"], capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 2 and "unknown scenario" in r.stderr
 
 
 def test_the_committed_recording_is_what_its_generator_makes(tmp_path):
     sys.path.insert(0, str(SCENARIOS / "data"))
     try:
-        import make_recording
+        import make_recording  # type: ignore[import-not-found]  # scenarios/data/make_recording.py
     finally:
         sys.path.pop(0)
     imu, gnss = make_recording.make(tmp_path)

@@ -76,13 +76,16 @@ def test_report_shows_validity_faults_link_errors_and_dsp_load_per_task(cli_run)
     assert "passed" in doc and "valid (every fault took effect)" in doc
     assert "<h2>Faults</h2>" in doc and "link_bit_errors" in doc and "bytes_corrupted" in doc
     imgs = dict(re.findall(r"<h2>([^<]+)</h2><img alt='[^']*' src='data:image/png;base64,([A-Za-z0-9+/=]+)'", doc))
-    for title in ("Attitude error", "Mode timeline", "Link errors over time", "DSP load over time", "DSP load per task"):
+    for title in ("Attitude error", "Mode timeline", "Link errors over time", "DSP load over time",
+                  "DSP load per task"):
         assert title in imgs and base64.b64decode(imgs[title]).startswith(b"\x89PNG")
 
 
 def test_fault_spans_pair_starts_and_ends():
-    events = [{"t_s": 1.0, "source": "fault", "event": "fault_start", "index": 0, "fault": "gnss_outage", "end_s": 3},
-              {"t_s": 2.0, "source": "fault", "event": "fault_start", "index": 1, "fault": "dsp_extra_load", "end_s": 9},
+    events = [{"t_s": 1.0, "source": "fault", "event": "fault_start", "index": 0, "fault": "gnss_outage",
+               "end_s": 3},
+              {"t_s": 2.0, "source": "fault", "event": "fault_start", "index": 1, "fault": "dsp_extra_load",
+               "end_s": 9},
               {"t_s": 3.0, "source": "fault", "event": "fault_end", "index": 0},
               {"t_s": 3.0, "source": "firmware", "event": "fault_end", "index": 1}]  # not a fault event
     assert fault_spans(events) == [(1.0, 3.0, "#0 gnss_outage"), (2.0, 9.0, "#1 dsp_extra_load")]

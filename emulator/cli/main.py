@@ -3,7 +3,8 @@
 ``run`` (a scenario; writes ``report.html`` into the run directory at the end), ``validate`` (a
 scenario file), ``report`` (write ``report.html`` for a run directory), ``monitor`` (decode a port, a
 serial device, a zenoh key or a capture, live), ``replay`` (re-run the firmware on a capture), ``campaign``
-(a Monte-Carlo campaign on Dask, :mod:`emulator.cli.campaign`).
+(a Monte-Carlo campaign on Dask, :mod:`emulator.cli.campaign`), ``golden`` (check or regenerate the scenario
+library's change-indicator records, :mod:`emulator.cli.golden`).
 ``docs/runtime.md`` and ``docs/scenarios.md`` have them all.
 
 Exit codes: 0 run finished and every expectation passed; 1 an expectation failed, a scheduled
@@ -350,9 +351,10 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--json", action="store_true", help="print the summary as JSON")
     rp.set_defaults(func=_cmd_replay)
 
-    from . import campaign
+    from . import campaign, golden
 
     campaign.add_parser(sub).set_defaults(func=campaign.run)
+    golden.add_parser(sub).set_defaults(func=golden.run)
     return p
 
 

@@ -20,20 +20,17 @@ sensor model, a wire format or a fault injector shows), the state within :data:`
 (float noise; see docs/scenarios.md for why these values). A difference fails the test unless the
 golden files are regenerated on purpose, with ONE command whose diff then shows in review::
 
-    make golden                                   # every library scenario
-    .venv/bin/python -m emulator.recording.golden --update quickstart static_alignment   # some of them
+    make golden                                              # every library scenario
+    psns-hil golden --update quickstart static_alignment     # some of them
 
-``python -m emulator.recording.golden`` without ``--update`` only checks and prints the differences.
+``psns-hil golden`` (:mod:`emulator.cli.golden`) without ``--update`` only checks and prints the differences.
 """
 
 from __future__ import annotations
 
-import argparse
 import csv
 import hashlib
 import math
-import sys
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -45,7 +42,6 @@ __all__ = [
     "compare_golden",
     "input_digest",
     "library",
-    "main",
     "render_inputs",
     "render_state",
     "row_interval",
@@ -285,7 +281,7 @@ def compare_golden(run_dir: str | Path, name: str, seed: int, duration_s: float,
     ps, pi = golden_paths(name, golden_dir)
     if not ps.exists() or not pi.exists():
         return [f"no golden record for {name} in {golden_dir} (create it with `make golden` or "
-                f"`.venv/bin/python -m emulator.recording.golden --update {name}`, then commit it)"]
+                f"`psns-hil golden --update {name}`, then commit it)"]
     state, inputs = record(run_dir, name, seed, duration_s)
     return compare_inputs(inputs, pi.read_text(encoding="utf-8")) + compare_state(state, ps.read_text(encoding="utf-8"))
 
@@ -293,48 +289,3 @@ def compare_golden(run_dir: str | Path, name: str, seed: int, duration_s: float,
 def library(library_dir: Path = LIBRARY_DIR) -> list[Path]:
     """The scenario files of the library."""
     return sorted([*library_dir.glob("*.yaml"), *library_dir.glob("*.yml")])
-
-
-def main(argv: list[str] | None = None) -> int:
-    from ..assembly.runner import run_scenario
-    from ..scenario import load_scenario
-
-    ap = argparse.ArgumentParser(prog="python -m emulator.recording.golden",
-                                 description="check (default) or regenerate (--update) the change-indicator records "
-                                             "of the scenario library in tests/golden/")
-    ap.add_argument("names", nargs="*", help="scenario names (default: every file in scenarios/)")
-    ap.add_argument("--update", action="store_true", help="rewrite the golden files from fresh runs")
-    ap.add_argument("--library", default=str(LIBRARY_DIR), help="scenario directory")
-    ap.add_argument("--golden", default=str(GOLDEN_DIR), help="golden directory")
-    args = ap.parse_args(argv)
-    gdir = Path(args.golden)
-    files = library(Path(args.library))
-    scns = [(p, load_scenario(p)) for p in files]
-    if args.names:
-        known = {s.name for _, s in scns}
-        unknown = [n for n in args.names if n not in known]
-        if unknown:
-            print(f"unknown scenario(s): {', '.join(unknown)}; the library has {', '.join(sorted(known))}",
-                  file=sys.stderr)
-            return 2
-        scns = [(p, s) for p, s in scns if s.name in args.names]
-    rc = 0
-    for _path, scn in scns:
-        with tempfile.TemporaryDirectory(prefix=f"golden-{scn.name}-") as d:
-            summary = run_scenario(scn, Path(d) / "run", mode="fast")
-            if args.update:
-                ps, pi = write_golden(Path(d) / "run", scn.name, scn.seed, scn.duration_s, gdir)
-                print(f"{scn.name}: wrote {ps.relative_to(ROOT) if ps.is_relative_to(ROOT) else ps} "
-                      f"({ps.stat().st_size} bytes) and {pi.name} ({pi.stat().st_size} bytes); "
-                      f"{summary['wall_s']:.1f} s wall")
-            else:
-                diffs = compare_golden(Path(d) / "run", scn.name, scn.seed, scn.duration_s, gdir)
-                print(f"{scn.name}: {'unchanged' if not diffs else 'CHANGED'}")
-                for line in diffs:
-                    print(f"  {line}")
-                rc = rc or (1 if diffs else 0)
-    return rc
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -111,7 +111,7 @@ def test_golden_cli_checks_and_regenerates_one_scenario(tmp_path):
     (lib / "tiny.yaml").write_text((SCENARIOS / "quickstart.yaml").read_text().replace("name: quickstart", "name: tiny")
                                    .replace("duration_s: 120", "duration_s: 3")
                                    .replace("{duration_s: 120}", "{duration_s: 3}"))
-    cmd = [sys.executable, "-m", "emulator.recording.golden", "--library", str(lib), "--golden", str(gdir)]
+    cmd = [sys.executable, "-m", "emulator", "golden", "--library", str(lib), "--golden", str(gdir)]
     r = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 1 and "no golden record for tiny" in r.stdout
     r = subprocess.run([*cmd, "--update", "tiny"], capture_output=True, text=True, cwd=ROOT)

@@ -1,1 +1,1 @@
-"""Distributed runs: the split FPGA/DSP processes and Monte-Carlo campaigns."""
+"""Distributed runs: the split FPGA/DSP processes (:mod:`.split`) and Monte-Carlo campaigns (:mod:`.campaign`)."""

@@ -49,6 +49,7 @@ from protocols.ubx import UbxFormat
 from ..errors import EmulatorError
 from ..links import parse_link_url
 from ..links.zenoh import DEFAULT_LISTEN, ZenohEndpointConfig, acquire_session, release_session, zenoh_key_prefix
+from ..recording.capture import CAPTURE_MAGIC, iter_capture
 
 __all__ = ["PROTOCOLS", "FrameRow", "Monitor", "describe_frame", "formats_for", "run_monitor"]
 
@@ -205,8 +206,6 @@ class Monitor:
 
 
 def _capture_rows(path: Path, mon: Monitor, links: set[str] | None) -> Iterator[FrameRow]:
-    from ..recording.capture import iter_capture
-
     _header, recs = iter_capture(path)
     for r in recs:
         if links is not None and r.link not in links:
@@ -220,8 +219,6 @@ def _capture_rows(path: Path, mon: Monitor, links: set[str] | None) -> Iterator[
 
 
 def _is_capture(endpoint: str) -> bool:
-    from ..recording.capture import CAPTURE_MAGIC
-
     p = Path(endpoint)
     if p.suffix == ".psnscap":
         return True

@@ -50,7 +50,7 @@ bench-quick: install
 
 # Regenerate the change-indicator records of the scenario library (tests/golden/); review and commit the diff.
 golden: install
-	$(PY) -m emulator.golden --update
+	$(PY) -m emulator golden --update
 
 clean:
 	rm -rf runs .pytest_cache .hypothesis

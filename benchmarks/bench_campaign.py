@@ -31,7 +31,7 @@ def _scenario(d: Path) -> Path:
 def _measure(workers: int, scenario: Path, out: Path) -> tuple[float, float, int]:
     from distributed import Client, LocalCluster
 
-    from emulator.campaign import CampaignConfig, run_campaign, warm_up
+    from emulator.distributed.campaign import CampaignConfig, run_campaign, warm_up
 
     t0 = time.perf_counter()
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",

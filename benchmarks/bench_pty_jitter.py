@@ -183,7 +183,7 @@ _EMULATOR = r"""
 import asyncio, json, sys, time
 from pathlib import Path
 from emulator.links.base import Link
-from emulator.runner import run_scenario
+from emulator.assembly.runner import run_scenario
 from emulator.scenario import load_scenario
 # emulator-side lateness: when the callback that hands a tap's chunk to its pty (host) or to the
 # monitor line (uart1) really ran, against the instant it was scheduled for

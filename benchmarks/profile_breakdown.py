@@ -37,14 +37,14 @@ HOMES: tuple[tuple[str, str], ...] = (
     ("/emulator/devices/compass.py", "device: compass"),
     ("/emulator/devices/magnetometer.py", "device: magnetometer"),
     ("/emulator/devices/fpga.py", "FPGA"),
-    ("/emulator/devices/dsp.py", "DSP host (UART RX, tick timing)"),
+    ("/emulator/dsp/host.py", "DSP host (UART RX, tick timing)"),
     ("/emulator/devices/", "devices: other (sensors, recorded)"),
     ("/emulator/links/", "links (line model, mem transport)"),
-    ("/emulator/recorder.py", "recorder (captures, nav vs truth)"),
+    ("/emulator/recording/recorder.py", "recorder (captures, nav vs truth)"),
     ("/emulator/clock.py", "asyncio loop (incl. emulator.clock)"),
     ("/asyncio/", "asyncio loop (incl. emulator.clock)"),
     ("/selectors.py", "asyncio loop (incl. emulator.clock)"),
-    ("/emulator/faults.py", "faults"),
+    ("/emulator/faults/", "faults"),
     ("/emulator/", "runner (setup, 1 Hz samples, summary, expectations)"),
 )
 OTHER = "other (library code without an own caller)"
@@ -105,7 +105,7 @@ def attribute(stats: pstats.Stats) -> dict[str, float]:
 
 def profile_run(scn: Any, mode: str = "fast") -> tuple[dict[str, float], dict[str, Any], int]:
     """cProfile one run of ``scn``; returns (seconds per component, summary, event-loop callbacks run)."""
-    from emulator.runner import run_scenario
+    from emulator.assembly.runner import run_scenario
 
     prof = cProfile.Profile()
     with tempfile.TemporaryDirectory() as d:
@@ -133,7 +133,7 @@ def breakdown(scn: Any, wall_s: float, ticks: int) -> tuple[list[dict[str, Any]]
 
 
 def main(argv: list[str] | None = None) -> int:
-    from emulator.runner import run_scenario
+    from emulator.assembly.runner import run_scenario
     from emulator.scenario import load_scenario
 
     argv = sys.argv[1:] if argv is None else argv

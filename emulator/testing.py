@@ -28,7 +28,7 @@ Ports are the emulator's link names (``host``, ``gyro``, ``gnss``, ``psns``, ``m
 ``uart0`` .. ``uart3``). The default direction is the one carrying the port's main traffic:
 ``out`` for ``host``, ``uart0`` and ``monitor`` (leaving the DSP / the box), ``in`` for the
 others (towards the DSP). Frames are decoded with the port's formats
-(:func:`emulator.runner.port_formats`).
+(:func:`emulator.assembly.runner.port_formats`).
 
 Running the loop: the ``psns_emulator`` marker (this module is a pytest plugin, registered by
 the ``pytest11`` entry point) runs an ``async def`` test on a fresh ``EmulatorLoop`` of its
@@ -48,7 +48,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Awaitable, Callable, Pattern
 
 if TYPE_CHECKING:
-    from .runner import Emulator
+    from .assembly.runner import Emulator
     from .scenario.schema import Scenario
 
 __all__ = ["start_emulator", "EmulatorHarness", "PortWatcher", "run", "DEFAULT_DIRECTION"]
@@ -156,9 +156,9 @@ class EmulatorHarness:
 
     # -- lifecycle ---------------------------------------------------------------------------
     async def start(self) -> "EmulatorHarness":
+        from .assembly.runner import port_formats
         from .clock import EmulatorLoop
         from .errors import EmulatorError
-        from .runner import port_formats
 
         loop = asyncio.get_running_loop()
         if not isinstance(loop, EmulatorLoop):
@@ -497,7 +497,7 @@ class _Starter:
     async def _start(self) -> EmulatorHarness:
         import tempfile
 
-        from .runner import Emulator
+        from .assembly.runner import Emulator
 
         scenario, run_dir, mode, seed, overrides = self.args
         scn = load_test_scenario(scenario, overrides)

@@ -9,7 +9,7 @@ run directory):
     expectation with its measured value, each fault that never fired with its evidence, and the
     run directory, which is kept (with ``report.html``) when anything failed.
 ``<name>[golden]``
-    the change indicator (``emulator.golden``): the captured input bytes must match
+    the change indicator (``emulator.recording.golden``): the captured input bytes must match
     ``tests/golden/<name>.inputs.txt`` exactly and the estimator's state history
     ``tests/golden/<name>.state.csv`` within float noise. Regenerate on purpose with ``make golden``.
 
@@ -52,8 +52,8 @@ class _Run:
     def get(self) -> "_Run":
         if self.summary is not None or self.error is not None:
             return self
-        from emulator.golden import compare_golden
-        from emulator.runner import run_scenario
+        from emulator.assembly.runner import run_scenario
+        from emulator.recording.golden import compare_golden
 
         scn = self.scenario
         base = Path(tempfile.mkdtemp(prefix=f"scn-{scn.name}-"))
@@ -74,7 +74,7 @@ class _Run:
             self.kept = True
             if self.summary is not None:
                 try:
-                    from emulator.report import write_report
+                    from emulator.recording.report import write_report
 
                     write_report(self.run_dir)
                 except Exception:  # noqa: BLE001 - the report is a help, not the verdict

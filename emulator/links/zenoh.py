@@ -9,7 +9,7 @@ Key expressions (``shared/reference/protocols.md`` section 4)::
 
 The link has a ``role``: ``device`` (default, the emulator's own port: publishes what its device
 sends on ``tx`` and subscribes to ``rx``) or ``peer`` (the far end: publishes on ``rx`` and
-subscribes to ``tx``); a split run (:mod:`emulator.split`) opens the DSP's UART ends as peers.
+subscribes to ``tx``); a split run (:mod:`emulator.distributed.split`) opens the DSP's UART ends as peers.
 A KEY of a single segment (``zenoh://host``) belongs to run ``default``.
 
 URL options (besides the common ``baud``, ``mode``, ``queue``)::

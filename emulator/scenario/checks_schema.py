@@ -11,7 +11,7 @@ fault, whose value holds its parameters and its schedule ``start_s`` (default 0)
 Every fault must show evidence that it took effect while it was active (bytes corrupted,
 epochs without a fix, samples clipped...); a fault without evidence makes the run invalid.
 
-Expectations (``emulator.expectations`` evaluates them at the end of the run): a list; each item
+Expectations (``emulator.verification.expectations`` evaluates them at the end of the run): a list; each item
 has exactly one key naming the kind of check. Time windows are ``after_s`` / ``until_s`` or
 ``between_s: [a, b]`` (scenario seconds, inclusive).
 

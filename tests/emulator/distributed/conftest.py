@@ -4,12 +4,18 @@ from __future__ import annotations
 
 import asyncio
 import socket
-from typing import Any, Callable
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
 
 import pytest
+import yaml
 
 from emulator.clock import EmulatorLoop
 from emulator.links import LineConfig, open_link
+
+#: the line of the zenoh link pairs unless a test gives its own
+DEFAULT_LINE = LineConfig(baud=460800)
 
 
 def free_tcp_port() -> int:
@@ -48,7 +54,7 @@ def zenoh_links(rt_loop):
 
     made: list[Any] = []
 
-    def make(url: str, name: str = "port", line: LineConfig = LineConfig(baud=460800)) -> Any:
+    def make(url: str, name: str = "port", line: LineConfig = DEFAULT_LINE) -> Any:
         link = open_link(url, name, rt_loop, default_line=line)
         rt_loop.run_until_complete(link.open())
         made.append(link)
@@ -61,12 +67,8 @@ def zenoh_links(rt_loop):
 
 
 def write_short_scenario(path, duration_s: float, name: str = "short", links: dict | None = None,
-                         mode: str | None = None, expectations: list | None = None) -> "Path":
+                         mode: str | None = None, expectations: list | None = None) -> Path:
     """The library quickstart scenario cut to ``duration_s`` (and optionally other links/mode), as a file."""
-    from pathlib import Path
-
-    import yaml
-
     root = Path(__file__).resolve().parents[3]
     data = yaml.safe_load((root / "scenarios" / "quickstart.yaml").read_text())
     data["name"] = name

@@ -11,11 +11,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from emulator.campaign import (
+from emulator.distributed.campaign import (
     NAV_METRICS,
     CampaignConfig,
     CampaignError,
     campaign_statistics,
+    load_campaign_scenario,
     parse_distribution,
     parse_vary,
     plan_members,
@@ -84,15 +85,18 @@ def test_vary_syntax():
             parse_vary(bad)
 
 
-def _scenario_and_data(tmp_path, duration_s=3.0):
-    from emulator.campaign import _load_campaign_scenario
+def _csv_rows(path: Path) -> list[dict[str, str]]:
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
 
+
+def _scenario_and_data(tmp_path, duration_s=3.0):
     p = write_short_scenario(tmp_path / "s.yaml", duration_s, name="camp")
-    return (p, *_load_campaign_scenario(p))
+    return (p, *load_campaign_scenario(p))
 
 
 def test_variation_keys_and_values_are_checked_before_dispatch(tmp_path):
-    p, data, scn, src, base = _scenario_and_data(tmp_path)
+    _p, data, scn, src, base = _scenario_and_data(tmp_path)
     validate_variations(data, scn, [parse_vary("sensors.imu.gyro.arw_deg_rt_h=normal(0.15,0.02)"),
                                     parse_vary("firmware.filter=choice(base)")], src, base)
     with pytest.raises(CampaignError, match="did you mean 'arw_deg_rt_h'"):
@@ -101,7 +105,7 @@ def test_variation_keys_and_values_are_checked_before_dispatch(tmp_path):
         validate_variations(data, scn, [parse_vary("sensors.imu.gyro=normal(1,1)")], src, base)
     with pytest.raises(CampaignError, match="value 'fast' is not valid there"):
         validate_variations(data, scn, [parse_vary("sensors.imu.rate_hz=choice(200, fast)")], src, base)
-    with pytest.raises(CampaignError, match="not valid there.*greater than 0"):
+    with pytest.raises(CampaignError, match=r"not valid there.*greater than 0"):
         validate_variations(data, scn, [parse_vary("duration_s=normal(-5, 1)")], src, base)
     with pytest.raises(CampaignError, match="--seed"):
         validate_variations(data, scn, [parse_vary("seed=choice(1,2)")], src, base)
@@ -110,7 +114,7 @@ def test_variation_keys_and_values_are_checked_before_dispatch(tmp_path):
 
 
 def test_plan_is_deterministic_in_the_campaign_seed(tmp_path):
-    p, data, scn, src, base = _scenario_and_data(tmp_path)
+    _p, data, _scn, _src, _base = _scenario_and_data(tmp_path)
     vs = [parse_vary("sensors.imu.gyro.arw_deg_rt_h=normal(0.15,0.02)"), parse_vary("firmware.filter=choice(base)")]
     a = plan_members(data, 8, 7, vs, tmp_path)
     b = plan_members(data, 8, 7, vs, tmp_path)
@@ -162,12 +166,12 @@ def test_twenty_run_campaign_statistics_agree_with_the_members_summaries(tmp_pat
     assert res.stats["passed"] == sum(s["passed"] for s in summaries)
     assert res.stats["pass_rate"] == pytest.approx(sum(s["passed"] for s in summaries) / 20)
     # files: the table has one row per member with the same numbers; statistics and plots exist
-    rows = list(csv.DictReader(open(tmp_path / "out" / "runs.csv")))
+    rows = list(_csv_rows(tmp_path / "out" / "runs.csv"))
     assert [int(r["index"]) for r in rows] == list(range(20))
     assert [float(r["position_m_rms"]) for r in rows] == [s["nav_error"]["position_m"]["rms"] for s in summaries]
     assert [float(r["param:sensors.imu.gyro.arw_deg_rt_h"]) for r in rows] == \
         [r["params"]["sensors.imu.gyro.arw_deg_rt_h"] for r in res.rows]
-    stats_rows = {r["quantity"]: r for r in csv.DictReader(open(tmp_path / "out" / "stats.csv"))}
+    stats_rows = {r["quantity"]: r for r in _csv_rows(tmp_path / "out" / "stats.csv")}
     assert float(stats_rows["heading_deg_rms"]["mean"]) == res.stats["metrics"]["heading_deg_rms"]["mean"]
     doc = json.loads((tmp_path / "out" / "campaign.json").read_text())
     assert doc["statistics"]["completed"] == 20 and doc["failures"] == []
@@ -189,7 +193,7 @@ def test_failed_members_are_reported_with_their_error_never_lost(tmp_path, dask_
     for r in res.failed:
         assert "latency_s" in r["error"] and "greater than or equal to 0" in r["error"]
     assert res.stats["failed"] == len(bad) and res.stats["completed"] == 8 - len(bad)
-    rows = list(csv.DictReader(open(tmp_path / "out" / "runs.csv")))
+    rows = list(_csv_rows(tmp_path / "out" / "runs.csv"))
     assert len(rows) == 8
     assert [int(r["index"]) for r in rows if r["ok"] == "0"] == bad
     assert all("latency_s" in r["error"] for r in rows if r["ok"] == "0")
@@ -203,10 +207,7 @@ def test_results_do_not_depend_on_scheduling(tmp_path, dask_client):
     cfg = CampaignConfig(path, runs=3, seed=5, out_dir=tmp_path / "a", plots=False,
                          variations=[parse_vary("sensors.imu.gyro.arw_deg_rt_h=uniform(0.1,0.3)")])
     res = run_campaign(cfg, client=dask_client)
-    _, data, scn, src, base = _scenario_and_data(tmp_path, 3.0)
-    from emulator.campaign import _load_campaign_scenario
-
-    data, scn, src, base = _load_campaign_scenario(path)
+    data, _scn, src, base = load_campaign_scenario(path)
     local = [run_member(t) for t in plan_members(data, 3, 5, cfg.variations, tmp_path / "b", src, base)]
     for a, b in zip(res.rows, local):
         assert a["seed"] == b["seed"] and a["params"] == b["params"]

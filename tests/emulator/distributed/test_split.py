@@ -16,11 +16,11 @@ import shutil
 
 import pytest
 
+from emulator.assembly.runner import run_emulator, run_scenario
+from emulator.distributed.split import SplitError, SplitFpgaEmulator
 from emulator.links.zenoh import open_sessions
-from emulator.recorder import read_capture
-from emulator.runner import run_emulator, run_scenario
+from emulator.recording.capture import read_capture
 from emulator.scenario import load_scenario
-from emulator.split import SplitError, SplitFpgaEmulator
 
 from .conftest import write_short_scenario
 
@@ -101,7 +101,7 @@ def test_split_run_matches_the_single_process_run(runs):
 
 
 def test_split_summary_carries_the_dsp_process_results(runs):
-    d, single, split, emu = runs
+    _d, single, split, _emu = runs
     dsp_a, dsp_b = single["dsp"], split["dsp"]
     assert dsp_b["clock_hz"] == dsp_a["clock_hz"] and dsp_b["tick_budget_cycles"] == dsp_a["tick_budget_cycles"]
     # the DSP process keeps serving until the stop message arrives: a few ticks past duration_s at most
@@ -123,7 +123,7 @@ def test_split_summary_carries_the_dsp_process_results(runs):
 
 
 def test_split_capture_reads_like_a_single_process_capture(runs):
-    d, single, split, emu = runs
+    d, single, split, _emu = runs
     _h1, recs1 = read_capture(d / "single" / "capture.psnscap")
     _h2, recs2 = read_capture(d / "split" / "capture.psnscap")
 

@@ -54,7 +54,7 @@ def test_unpaced_end_keeps_the_senders_byte_spacing():
         async def main():
             a, b, cleanup = await _make_pair(0)(loop, LineConfig(baud=9600), LineConfig(baud=460800))
             try:
-                got = []
+                got: list[bytes] = []
                 b.on_receive = got.append
                 a.send(b"x" * 20)  # 20 bytes at 9600 Bd: 1.042 ms per byte
                 end = loop.time() + 2.0

@@ -12,11 +12,11 @@ from emulator.links import LineConfig, parse_link_url
 from emulator.links.zenoh import ZenohEndpointConfig, open_sessions, zenoh_key_prefix
 from protocols.host import NavMode, NavSolution, encode_nav_solution
 
-from .conftest import free_tcp_port, wait_until
+from .conftest import DEFAULT_LINE, free_tcp_port, wait_until
 
 
 def _pair(zenoh_links, run: str, port: str = "uart1", a_opts: str = "", b_opts: str = "",
-          line: LineConfig = LineConfig(baud=460800)):
+          line: LineConfig = DEFAULT_LINE):
     p = free_tcp_port()
     a = zenoh_links(f"zenoh://{run}/{port}?listen=tcp/127.0.0.1:{p}{a_opts}", "fpga_" + port, line)
     b = zenoh_links(f"zenoh://{run}/{port}?role=peer&connect=tcp/127.0.0.1:{p}{b_opts}", "dsp_" + port, line)
@@ -155,10 +155,10 @@ def test_same_session_loopback_delivers_locally(zenoh_links, rt_loop):
 
 
 def test_callback_after_close_is_counted_not_raised(zenoh_links, rt_loop):
-    a, b = _pair(zenoh_links, "t6")
+    _a, b = _pair(zenoh_links, "t6")
 
     class _Sample:
-        class payload:  # noqa: N801 - mimics zenoh.Sample.payload
+        class payload:
             @staticmethod
             def to_bytes() -> bytes:
                 return b"late"
@@ -217,7 +217,7 @@ def test_a_realtime_run_publishes_host_bytes_and_nav_json_over_zenoh(tmp_path):
 
     import zenoh
 
-    from emulator.runner import run_scenario
+    from emulator.assembly.runner import run_scenario
     from emulator.scenario import load_scenario
     from protocols.host import HostFormat
     from protocols.stream import StreamDecoder
@@ -242,7 +242,8 @@ def test_a_realtime_run_publishes_host_bytes_and_nav_json_over_zenoh(tmp_path):
                 sub.undeclare()
     assert open_sessions() == 0
     frames = [f for f in StreamDecoder([HostFormat()]).feed(b"".join(raw)) if isinstance(f, NavSolution)]
-    rows = {round(float(r["time_s"]), 6) for r in csv.DictReader(open(tmp_path / "run" / "nav.csv"))}
+    with open(tmp_path / "run" / "nav.csv", newline="") as f:
+        rows = {round(float(r["time_s"]), 6) for r in csv.DictReader(f)}
     # 2 s of 100 Hz solutions; the subscription reaches the emulator while it starts (at worst a few frames late)
     assert len(frames) > 190 and len(nav) > 190
     assert [round(f.time_s, 6) for f in frames] == [round(d["time_s"], 6) for d in nav]

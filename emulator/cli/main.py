@@ -1,0 +1,376 @@
+"""The ``psns-hil`` command line.
+
+``run`` (a scenario; writes ``report.html`` into the run directory at the end), ``validate`` (a
+scenario file), ``report`` (write ``report.html`` for a run directory), ``monitor`` (decode a port, a
+serial device, a zenoh key or a capture, live), ``replay`` (re-run the firmware on a capture), ``campaign``
+(a Monte-Carlo campaign on Dask, :mod:`emulator.cli.campaign`), ``golden`` (check or regenerate the scenario
+library's change-indicator records, :mod:`emulator.cli.golden`).
+``docs/runtime.md`` and ``docs/scenarios.md`` have them all.
+
+Exit codes: 0 run finished and every expectation passed; 1 an expectation failed, a scheduled
+fault never took effect (the run is invalid), the run was interrupted, or a replay differs from
+its original; 2 bad input (missing or invalid scenario, bad link URL, unreadable capture) -- one
+clear message per problem, no traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from protocols import __version__
+from protocols.errors import PsnsHilError
+
+__all__ = ["main"]
+
+EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
+
+
+def _console(stderr: bool = False) -> Any:
+    from rich.console import Console
+
+    c = Console(stderr=stderr, highlight=False)
+    if not c.is_terminal:
+        c.width = 160  # logs and pipes: keep table rows (pty paths) on one line
+    return c
+
+
+def _print_error(exc: PsnsHilError) -> None:
+    from ..errors import ScenarioError
+
+    err = _console(stderr=True)
+    if isinstance(exc, ScenarioError):
+        for issue in exc.issues:
+            err.print(f"[bold red]error:[/] {issue}", markup=True, soft_wrap=True)
+    else:
+        err.print(f"[bold red]error:[/] {exc}", markup=True, soft_wrap=True)
+
+
+def _fmt(v: Any, digits: int = 3) -> str:
+    if v is None:
+        return "-"
+    if isinstance(v, float):
+        return f"{v:.{digits}f}"
+    return str(v)
+
+
+def print_port_map(ports: list[dict[str, Any]]) -> None:
+    """One plain line per port (never wrapped: users copy the pty paths from here)."""
+    rows = [("port", "role", "baud", "mode", "endpoint")]
+    rows += [(p["name"], p["role"], str(p["baud"]), p["mode"], p["path"]) for p in ports]
+    w = [max(len(r[i]) for r in rows) for i in range(4)]
+    out = sys.stdout
+    out.write("ports:\n")
+    for r in rows:
+        out.write("  " + "  ".join(r[i].ljust(w[i]) for i in range(4)) + "  " + r[4] + "\n")
+    out.flush()  # tools waiting for the pty paths must see them now, even through a pipe
+
+
+def status_line(st: dict[str, Any]) -> str:
+    """The realtime status line: sim time, real-time factor, nav frames/s, errors."""
+    rtf = st.get("realtime_factor")
+    return (f"t = {st['t_s']:8.1f} s   x{rtf if rtf is not None else float('nan'):5.2f} real time   "
+            f"nav {st['nav_fps']:6.1f} frames/s   crc errors {st['crc_errors']}   dropped {st['dropped']}   "
+            f"framing errors {st['framing_errors']}   deadline misses {st['deadline_misses']}")
+
+
+def print_summary(s: dict[str, Any]) -> None:
+    from rich.table import Table
+
+    c = _console()
+    head = Table(title=f"psns-hil run: {s['scenario']}", title_justify="left", show_header=False)
+    head.add_column("k")
+    head.add_column("v")
+    rtf = s.get("realtime_factor")
+    head.add_row("mode / seed", f"{s['mode']} / {s['seed']}")
+    head.add_row("simulated", f"{s['sim_duration_s']:.2f} s in {s['wall_s']:.2f} s wall"
+                 + (f" ({rtf:.1f}x real time)" if rtf else ""))
+    head.add_row("nav frames", str(s.get("nav_frames")))
+    head.add_row("run directory", s["run_dir"])
+    if s.get("interrupted"):
+        head.add_row("interrupted", "yes")
+    c.print(head)
+
+    err = Table(title="navigation error against truth (while navigating)", title_justify="left")
+    for col in ("quantity", "rms", "max"):
+        err.add_column(col, justify="right" if col != "quantity" else "left")
+    for k, v in s["nav_error"].items():
+        err.add_row(k, _fmt(v["rms"]), _fmt(v["max"]))
+    c.print(err)
+
+    links = Table(title="links", title_justify="left")
+    for col in ("link", "bytes", "frames", "crc_errors", "dropped"):
+        links.add_column(col, justify="right" if col != "link" else "left")
+    for name, v in s["links"].items():
+        links.add_row(name, str(v["bytes"]), str(v["frames"]), str(v["crc_errors"]), str(v["dropped"]))
+    c.print(links)
+
+    d = s["dsp"]
+    cyc = Table(title=f"DSP cycles @ {d['clock_hz'] / 1e6:.0f} MHz, tick budget {d['tick_budget_cycles']} "
+                      f"cycles ({d['cost_model']})", title_justify="left")
+    for col in ("task", "calls", "min", "avg", "max", "max % of budget"):
+        cyc.add_column(col, justify="right" if col != "task" else "left")
+    for t in d["tasks"]:
+        cyc.add_row(t["task"], str(t["calls"]), str(t["cycles_min"]), f"{t['cycles_avg']:.0f}",
+                    str(t["cycles_max"]), f"{t['utilization_max_pct']:.3f}")
+        for k, v in sorted(t["kernels"].items(), key=lambda kv: -kv[1]):
+            cyc.add_row(f"  {k}", "", "", f"{v / max(t['calls'], 1):.0f}", "", "")
+    c.print(cyc)
+    c.print(f"CPU load (worst 1 s): {d['cpu_load_pct_max']:.3f} %   deadline misses: {d['deadline_misses']}")
+
+    if s.get("faults"):
+        ft = Table(title="faults", title_justify="left")
+        for col in ("#", "fault", "target", "active (s)", "evidence", "took effect"):
+            ft.add_column(col)
+        for f in s["faults"]:
+            span = "-" if f.get("active_from_s") is None else \
+                f"{f['active_from_s']:.2f} - {_fmt(f.get('active_until_s'), 2)}"
+            ev = ", ".join(f"{k} {v}" for k, v in f.get("evidence", {}).items())
+            fired = f.get("fired")
+            ft.add_row(str(f["index"]), f["kind"], f["target"], span, ev,
+                       "-" if fired is None else "[green]yes[/]" if fired else "[bold red]NO[/]")
+        c.print(ft)
+    if s.get("expectations"):
+        ex = Table(title="expectations", title_justify="left")
+        for col in ("#", "check", "value", "result"):
+            ex.add_column(col)
+        for r in s["expectations"]:
+            note = f" ({r['message']})" if r.get("message") and not r["passed"] else ""
+            ex.add_row(str(r["index"]), r["description"] + note, _fmt(r["value"]),
+                       "[green]pass[/]" if r["passed"] else "[bold red]FAIL[/]")
+        c.print(ex)
+    if s.get("valid") is False:
+        for f in s.get("faults", []):
+            if f.get("fired") is False:
+                c.print(f"[bold red]run invalid:[/] fault #{f['index']} {f['kind']} on {f['target']} never took "
+                        f"effect (evidence: {', '.join(f'{k} {v}' for k, v in f['evidence'].items()) or 'none'})")
+
+
+def _cmd_validate(args: argparse.Namespace) -> int:
+    from ..scenario import load_scenario
+
+    scn = load_scenario(args.scenario)
+    if args.json:
+        print(scn.model_dump_json(indent=2))
+    else:
+        _console().print(f"{args.scenario}: ok ({scn.name}, {scn.duration_s:g} s, mode {scn.mode})")
+    return EXIT_OK
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from ..assembly.runner import default_run_dir, resolve_mode, run_scenario
+    from ..scenario import load_scenario
+
+    scn = load_scenario(args.scenario)
+    mode = resolve_mode(scn, "realtime" if args.realtime else "fast" if args.fast else None)
+    if getattr(args, "split", False):
+        if args.fast:
+            from ..errors import EmulatorError
+
+            raise EmulatorError("--split runs the DSP in another process on the wall clock: it cannot be --fast")
+        mode = "realtime"
+    run_dir = Path(args.out) if args.out else default_run_dir(scn.name)
+    console = _console()
+    speed = args.speed if args.speed is not None else scn.speed
+    console.print(f"psns-hil {__version__}: running {args.scenario} ({scn.duration_s:g} s, {mode}"
+                  + (f" x{speed:g}" if mode == "realtime" else "") + f") -> {run_dir}")
+    realtime = mode == "realtime"
+    show_progress = not args.quiet and console.is_terminal and not realtime
+    progress = Progress(TextColumn("{task.description}"), BarColumn(),
+                        TextColumn("{task.fields[t]:.1f}/{task.total:.0f} s"), TimeElapsedColumn(),
+                        console=console, transient=True, disable=not show_progress)
+    task = progress.add_task("simulating", total=scn.duration_s, t=0.0)
+    err = sys.stderr
+    tty = err.isatty()
+    status_every = args.status if args.status is not None else (1.0 if tty else 5.0)
+    state: dict[str, Any] = {"emu": None, "next": status_every}
+
+    def on_progress(t: float, total: float) -> None:
+        progress.update(task, completed=t, t=t)
+        emu = state["emu"]
+        if not realtime or args.quiet or emu is None or status_every <= 0 or t + 1e-9 < state["next"]:
+            return
+        state["next"] = t + status_every
+        line = status_line(emu.status())
+        if tty:
+            err.write("\r" + line + "\x1b[K")
+        else:
+            err.write(line + "\n")
+        err.flush()
+
+    def on_started(emu: Any) -> None:
+        state["emu"] = emu
+        print_port_map(emu.ports)
+
+    with progress:
+        if getattr(args, "split", False):
+            from ..distributed.split import run_split
+
+            summary = run_split(scn, run_dir, speed=speed, seed=args.seed, progress=on_progress,
+                                on_started=on_started)
+        else:
+            summary = run_scenario(scn, run_dir, mode=mode, speed=speed, seed=args.seed,
+                                   progress=on_progress, on_started=on_started)
+    if realtime and tty and not args.quiet:
+        err.write("\n")
+    report = None
+    if not args.no_report and (run_dir / "summary.json").exists():
+        from ..recording.report import write_report
+
+        report = write_report(run_dir)
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        print_summary(summary)
+        if report is not None:
+            console.print(f"report: {report}")
+    if summary.get("interrupted"):
+        console.print("[yellow]run interrupted; captures and summary were kept[/]")
+        return EXIT_FAILED
+    return EXIT_OK if summary.get("passed", True) else EXIT_FAILED
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    from ..errors import RecordingError
+    from ..recording.report import write_report
+
+    run_dir = Path(args.run_dir)
+    if not (run_dir / "summary.json").exists():
+        raise RecordingError(f"{run_dir}: not a run directory (no summary.json)")
+    out = write_report(run_dir)
+    _console().print(f"report: {out}")
+    return EXIT_OK
+
+
+def _cmd_monitor(args: argparse.Namespace) -> int:
+    from .monitor import run_monitor
+
+    stats = run_monitor(args.endpoint, protocol=args.protocol, baud=args.baud, links=args.link or None,
+                        count=args.count, duration_s=args.duration, as_json=args.json, port_name=args.port)
+    if args.stats:
+        err = _console(stderr=True)
+        err.print(f"{stats['frames']} frames")
+        for key, st in stats["decoders"].items():
+            err.print(f"  {key}: frames {st['frames']}, crc errors {st['crc_errors']}, "
+                      f"garbage bytes {st['garbage_bytes']}, resyncs {st['resyncs']}")
+    return EXIT_OK
+
+
+def _cmd_replay(args: argparse.Namespace) -> int:
+    from ..assembly.runner import default_run_dir
+    from ..recording.replay import run_replay, same_file
+
+    cap = Path(args.capture)
+    if not cap.exists():
+        from ..errors import RecordingError
+
+        raise RecordingError(f"{cap}: no such capture file")
+    run_dir = Path(args.out) if args.out else default_run_dir(cap.parent.name + "-replay")
+    mode = "realtime" if args.realtime else "fast"
+    console = _console()
+    console.print(f"psns-hil {__version__}: replaying {cap} ({mode}) -> {run_dir}")
+    summary = run_replay(cap, run_dir, mode=mode, speed=args.speed or 1.0)
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        print_summary(summary)
+        console.print(f"replayed {summary['replay']['records']} captured DSP UART records")
+    original = Path(args.compare) if args.compare else cap.parent
+    rc = EXIT_OK if summary.get("passed", True) else EXIT_FAILED
+    if (original / "nav.csv").exists():
+        same = same_file(original / "nav.csv", run_dir / "nav.csv")
+        console.print(f"nav.csv identical to {original / 'nav.csv'}: {'yes' if same else '[bold red]no[/]'}")
+        if args.compare and not same:
+            rc = EXIT_FAILED
+    return rc
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="psns-hil", description="PSNS/GNSS/SINS navigation computer HIL emulator")
+    p.add_argument("--version", action="version", version=f"psns-hil {__version__}")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    r = sub.add_parser("run", help="run a scenario")
+    r.add_argument("scenario", help="scenario YAML file")
+    r.add_argument("--out", help="run directory (default runs/<scenario>-<UTC time>)")
+    m = r.add_mutually_exclusive_group()
+    m.add_argument("--realtime", action="store_true",
+                   help="follow the wall clock (default: the scenario's mode; realtime when a port is pty/serial)")
+    m.add_argument("--fast", action="store_true", help="virtual time, as fast as the CPU allows")
+    r.add_argument("--speed", type=float, default=None, help="real-time scale factor in realtime mode")
+    r.add_argument("--status", type=float, default=None, metavar="S",
+                   help="realtime status line every S simulated seconds (default 1 on a terminal, 5 otherwise; 0 off)")
+    r.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
+    r.add_argument("--json", action="store_true", help="print the summary as JSON")
+    r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.add_argument("--no-report", action="store_true", help="do not write report.html at the end")
+    r.add_argument("--split", action="store_true",
+                   help="run the virtual DSP in its own process, joined to the FPGA over zenoh (realtime)")
+    r.set_defaults(func=_cmd_run)
+
+    rep = sub.add_parser("report", help="write report.html (plots of errors, modes, faults, links, DSP load) "
+                                        "for a run directory")
+    rep.add_argument("run_dir", help="a run directory (with summary.json, nav.csv, events.jsonl, timeline.csv)")
+    rep.set_defaults(func=_cmd_report)
+
+    v = sub.add_parser("validate", help="check a scenario file and report every problem")
+    v.add_argument("scenario")
+    v.add_argument("--json", action="store_true", help="print the validated scenario with defaults")
+    v.set_defaults(func=_cmd_validate)
+
+    mo = sub.add_parser("monitor", help="decode a port live (pty, serial device, zenoh key) or a capture file "
+                                        "into frames")
+    mo.add_argument("endpoint", help="capture file (.psnscap), pty/serial device path, serial:///dev/ttyXXX, or "
+                                     "zenoh://RUN/PORT[?connect=tcp/HOST:PORT] (default connect tcp/127.0.0.1:7447)")
+    mo.add_argument("--protocol", default="auto",
+                    help="decoders: auto (by port name) or a comma list of host, imu, stim210[:FMT], nmea, psns, "
+                         "ubx, monitor")
+    mo.add_argument("--baud", type=int, default=460800, help="baud for a serial device (ptys ignore it)")
+    mo.add_argument("--port", help="port name for auto decoding when the path's name does not tell it")
+    mo.add_argument("--link", action="append", help="capture files: only this link (repeatable)")
+    mo.add_argument("--count", type=int, help="stop after N frames")
+    mo.add_argument("--duration", type=float, help="stop after S wall-clock seconds (live endpoints)")
+    mo.add_argument("--json", action="store_true", help="one JSON object per frame")
+    mo.add_argument("--stats", action="store_true", help="print the decoder statistics at the end (stderr)")
+    mo.set_defaults(func=_cmd_monitor)
+
+    rp = sub.add_parser("replay", help="re-run the firmware on a capture's DSP UART input")
+    rp.add_argument("capture", help="capture.psnscap of an earlier run")
+    rp.add_argument("--out", help="run directory (default runs/<capture dir>-replay-<UTC time>)")
+    rp.add_argument("--realtime", action="store_true", help="replay in real time (default: fast)")
+    rp.add_argument("--speed", type=float, default=None, help="real-time scale factor")
+    rp.add_argument("--compare", metavar="RUN_DIR",
+                    help="exit 1 unless nav.csv equals RUN_DIR/nav.csv (default: just report against the "
+                         "capture's own directory)")
+    rp.add_argument("--json", action="store_true", help="print the summary as JSON")
+    rp.set_defaults(func=_cmd_replay)
+
+    from . import campaign, golden
+
+    campaign.add_parser(sub).set_defaults(func=campaign.run)
+    golden.add_parser(sub).set_defaults(func=golden.run)
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if getattr(args, "speed", None) is not None and args.speed <= 0:
+        parser.error("--speed must be > 0")
+    try:
+        return int(args.func(args))
+    except PsnsHilError as exc:
+        _print_error(exc)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        return EXIT_FAILED
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Distributed runs: the split FPGA/DSP processes (:mod:`.split`) and Monte-Carlo campaigns (:mod:`.campaign`)."""

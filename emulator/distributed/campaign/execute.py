@@ -1,0 +1,169 @@
+"""Running a campaign's members: one member in this process (:func:`run_member`, what a Dask worker calls), all
+of them on a Dask cluster (:func:`execute_members`), and the whole campaign (:func:`run_campaign`: plan, dispatch,
+collect, summarise, write)."""
+
+from __future__ import annotations
+
+import datetime as _dt
+import time
+import traceback
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from .outputs import CampaignResult, write_outputs
+from .plan import MemberTask, plan_members
+from .spec import CampaignConfig, CampaignError, load_campaign_scenario, validate_variations
+from .stats import NAV_METRICS, campaign_statistics
+
+__all__ = ["execute_members", "run_campaign", "run_member", "warm_up"]
+
+#: a member's files that are deleted after the run unless ``keep_all``
+_BIG_FILES = ("capture.psnscap", "nav.csv", "truth.csv")
+
+
+def _flat_summary(s: dict[str, Any]) -> dict[str, Any]:
+    row: dict[str, Any] = {}
+    for m in NAV_METRICS:
+        e = s.get("nav_error", {}).get(m, {})
+        row[f"{m}_rms"] = e.get("rms")
+        row[f"{m}_max"] = e.get("max")
+    dsp = s.get("dsp", {})
+    row["deadline_misses"] = dsp.get("deadline_misses")
+    row["cpu_load_pct_max"] = dsp.get("cpu_load_pct_max")
+    row["nav_frames"] = s.get("nav_frames")
+    row["sim_duration_s"] = s.get("sim_duration_s")
+    return row
+
+
+def run_member(task: MemberTask) -> dict[str, Any]:
+    """Run one member (on a Dask worker or in-process); never raises: errors become the row's ``error``."""
+    t0 = time.perf_counter()
+    row: dict[str, Any] = {"index": task.index, "seed": task.seed, "params": dict(task.params), "ok": False,
+                           "error": None, "traceback": None, "passed": None, "expectations": [],
+                           "run_dir": task.run_dir}
+    try:
+        from ...assembly.runner import run_scenario
+        from ...scenario.loader import validate_scenario_data
+
+        base = Path(task.base_dir) if task.base_dir is not None else None
+        scn = validate_scenario_data(task.data, {}, f"{task.source_file} (campaign member {task.index})", base)
+        summary = run_scenario(scn, Path(task.run_dir), mode="fast", seed=task.seed)
+        row.update(_flat_summary(summary))
+        row["expectations"] = [{"index": e["index"], "description": e["description"], "value": e["value"],
+                                "passed": bool(e["passed"])} for e in summary.get("expectations", [])]
+        row["passed"] = bool(summary.get("passed"))
+        row["ok"] = not summary.get("interrupted", False)
+        if not row["ok"]:
+            row["error"] = "run interrupted"
+        if not task.keep_all:
+            for name in _BIG_FILES:
+                p = Path(task.run_dir) / name
+                if p.exists():
+                    p.unlink()
+    except BaseException as exc:  # a member's failure is data, never lost
+        if isinstance(exc, (KeyboardInterrupt, SystemExit)):
+            raise
+        row["error"] = f"{type(exc).__name__}: {exc}"
+        row["traceback"] = traceback.format_exc()
+    row["wall_s"] = time.perf_counter() - t0
+    return row
+
+
+def warm_up() -> bool:
+    """Import what a member needs (run on every worker with ``client.run(warm_up)`` before timing)."""
+    from ...assembly import runner  # noqa: F401
+    from ...scenario import loader  # noqa: F401
+
+    return True
+
+
+# -- on a cluster ---------------------------------------------------------------------------------------
+def _dask() -> Any:
+    """The ``distributed`` package (it has no type information: used as ``Any``)."""
+    try:
+        import distributed
+    except ImportError as exc:
+        raise CampaignError(f"campaigns need dask[distributed]: {exc}") from exc
+    return distributed
+
+
+def _connect(cfg: CampaignConfig) -> tuple[Any, Any]:
+    dd = _dask()
+    if cfg.scheduler:
+        try:
+            return dd.Client(cfg.scheduler, timeout="10s"), None
+        except (OSError, TimeoutError) as exc:
+            raise CampaignError(f"cannot reach the Dask scheduler at {cfg.scheduler}: {exc}") from exc
+    if cfg.workers < 1:
+        raise CampaignError("--workers must be >= 1")
+    cluster = dd.LocalCluster(n_workers=cfg.workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                              dashboard_address=None, worker_dashboard_address=None)
+    return dd.Client(cluster), cluster
+
+
+def execute_members(client: Any, tasks: Sequence[MemberTask],
+                    progress: Callable[[dict[str, Any], int, int], None] | None = None) -> list[dict[str, Any]]:
+    """Run ``tasks`` on ``client`` (a :class:`distributed.Client`); every task yields one row, in index order."""
+    futures = client.map(run_member, list(tasks), pure=False, retries=0)
+    index_of = {f.key: t.index for f, t in zip(futures, tasks)}
+    task_of = {t.index: t for t in tasks}
+    rows: dict[int, dict[str, Any]] = {}
+    for fut in _dask().as_completed(futures):
+        i = index_of[fut.key]
+        if fut.status == "finished":
+            row = fut.result()
+        else:  # the task itself failed outside run_member's guard (worker died, unpicklable result...)
+            exc = fut.exception()
+            t = task_of[i]
+            row = {"index": i, "seed": t.seed, "params": dict(t.params), "ok": False,
+                   "error": f"{type(exc).__name__}: {exc}", "traceback": None, "passed": None,
+                   "expectations": [], "run_dir": t.run_dir, "wall_s": None}
+        rows[i] = row
+        fut.release()
+        if progress is not None:
+            progress(row, len(rows), len(tasks))
+    return [rows[t.index] for t in tasks]
+
+
+def run_campaign(cfg: CampaignConfig, progress: Callable[[dict[str, Any], int, int], None] | None = None,
+                 client: Any = None) -> CampaignResult:
+    """Plan, dispatch, collect, summarise and write a campaign (see :mod:`emulator.distributed.campaign`).
+
+    ``client`` reuses an existing :class:`distributed.Client` (tests share one cluster); otherwise one is
+    made from ``cfg.scheduler`` / ``cfg.workers`` and closed at the end.
+    """
+    if cfg.runs < 1:
+        raise CampaignError("--runs must be >= 1")
+    data, scn, source, base_dir = load_campaign_scenario(cfg.scenario)
+    validate_variations(data, scn, cfg.variations, source, base_dir)
+    seed = scn.seed if cfg.seed is None else int(cfg.seed)
+    stamp = _dt.datetime.now(_dt.UTC).strftime("%Y%m%dT%H%M%SZ")
+    out = Path(cfg.out_dir) if cfg.out_dir else Path("runs") / f"campaign-{scn.name}-{stamp}"
+    out.mkdir(parents=True, exist_ok=True)
+    tasks = plan_members(data, cfg.runs, seed, cfg.variations, out, source, base_dir, cfg.keep_all)
+    own = client is None
+    cluster = None
+    if own:
+        client, cluster = _connect(cfg)
+    try:
+        n_workers = len(client.scheduler_info().get("workers", {}))
+        t0 = time.perf_counter()
+        rows = execute_members(client, tasks, progress)
+        wall = time.perf_counter() - t0
+    finally:
+        if own:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    stats = campaign_statistics(rows)
+    info = {
+        "scenario": scn.name, "scenario_file": source, "campaign_seed": seed, "runs": cfg.runs,
+        "variations": [{"key": v.key, "distribution": str(v.dist)} for v in cfg.variations],
+        "scheduler": cfg.scheduler or f"LocalCluster({cfg.workers} processes, 127.0.0.1)",
+        "workers": n_workers, "wall_s": wall, "runs_per_min": 60.0 * len(rows) / wall if wall > 0 else None,
+        "started_utc": stamp,
+    }
+    result = CampaignResult(out, rows, stats, wall, info["runs_per_min"] or 0.0, info)
+    write_outputs(result, cfg.plots)
+    return result

@@ -1,0 +1,1 @@
+"""The virtual DSP: the one place where the emulator meets firmware_model's firmware."""

@@ -1,0 +1,152 @@
+"""The navigation output against truth: per frame, the error of attitude, heading, position and velocity.
+
+:class:`NavVsTruth` takes navigation frames (with their arrival time) in batches, evaluates the trajectory at
+their times of validity in one vectorised call (bit for bit the per-frame values), and keeps the rows of
+``nav.csv`` (the frame, decoded, and its errors) and ``truth.csv``, the running RMS / max of each error metric
+(:class:`ErrorStats`) and the error and mode series that expectations and reports read.
+"""
+
+from __future__ import annotations
+
+import math
+from array import array
+from dataclasses import dataclass
+from typing import Any
+
+from firmware_model import earth
+from protocols.host import NavMode, NavSolution
+
+from ..world.trajectory import Trajectory
+from .formatting import csv_row_fast
+
+__all__ = ["ERROR_METRICS", "NAV_COLUMNS", "TRUTH_COLUMNS", "ErrorStats", "NavVsTruth"]
+
+DEG = math.pi / 180.0
+
+NAV_COLUMNS = [
+    "time_s", "lat_deg", "lon_deg", "height_m", "vel_e_mps", "vel_n_mps", "vel_u_mps",
+    "roll_deg", "pitch_deg", "heading_deg",
+    "sig_att_e_deg", "sig_att_n_deg", "sig_att_u_deg", "sig_vel_e_mps", "sig_vel_n_mps", "sig_vel_u_mps",
+    "sig_pos_n_m", "sig_pos_e_m", "sig_pos_u_m",
+    "mode", "gnss_status", "psns_status", "cpu_load_pct", "deadline_misses", "arrival_s",
+    "err_att_deg", "err_roll_deg", "err_pitch_deg", "err_heading_deg",
+    "err_pos_e_m", "err_pos_n_m", "err_pos_u_m", "err_pos_m",
+    "err_vel_e_mps", "err_vel_n_mps", "err_vel_u_mps", "err_vel_mps",
+]
+TRUTH_COLUMNS = [
+    "time_s", "lat_deg", "lon_deg", "height_m", "vel_e_mps", "vel_n_mps", "vel_u_mps",
+    "roll_deg", "pitch_deg", "heading_deg",
+]
+#: the error metrics, in the order of the error series' columns after the time
+ERROR_METRICS = ("attitude_deg", "heading_deg", "position_m", "velocity_mps")
+_SERIES_COLUMN = {m: 1 + i for i, m in enumerate(ERROR_METRICS)}
+#: the error cells of a frame that is not navigating (empty)
+_NO_ERRORS = "," * 11 + "\r\n"
+
+
+@dataclass
+class ErrorStats:
+    """Running RMS / max of one error metric."""
+
+    n: int = 0
+    sum_sq: float = 0.0
+    max: float = 0.0
+
+    def add(self, v: float) -> None:
+        self.n += 1
+        self.sum_sq += v * v
+        self.max = max(self.max, abs(v))
+
+    def as_dict(self) -> dict[str, float | None]:
+        if not self.n:
+            return {"rms": None, "max": None}
+        return {"rms": math.sqrt(self.sum_sq / self.n), "max": self.max}
+
+
+class NavVsTruth:
+    """Navigation frames compared with ``trajectory`` (see module docstring).
+
+    ``nav_rows`` and ``truth_rows`` start with their header line; the owner writes them out and clears them.
+    """
+
+    def __init__(self, trajectory: Trajectory) -> None:
+        self.traj = trajectory
+        self.nav_rows: list[str] = [",".join(NAV_COLUMNS) + "\r\n"]
+        self.truth_rows: list[str] = [",".join(TRUTH_COLUMNS) + "\r\n"]
+        self.errors = {k: ErrorStats() for k in ERROR_METRICS}
+        #: flat rows of (t, attitude, heading, position, velocity) errors, 40 bytes per navigating frame
+        self.error_series: array[float] = array("d")
+        #: flat rows of (time of validity, mode bits) of every frame, 16 bytes per frame
+        self.mode_series: array[float] = array("d")
+
+    def add(self, frames: list[tuple[float, NavSolution]]) -> None:
+        """Compare ``frames`` ((arrival time, frame) pairs) with truth: one vectorised trajectory evaluation."""
+        for (t_arrival, n), st in zip(frames, self.traj.states([n.time_s for _t, n in frames])):
+            self._compare(t_arrival, n, st)
+
+    def _compare(self, t_arrival: float, n: NavSolution, st: Any) -> None:
+        lat, lon, h = (float(x) for x in st.pos)
+        ve, vn, vu = (float(x) for x in st.v_enu)
+        self.truth_rows.append(csv_row_fast((n.time_s, lat / DEG, lon / DEG, h, ve, vn, vu,
+                                             st.roll / DEG, st.pitch / DEG, st.heading / DEG)))
+        self.mode_series.extend((n.time_s, n.mode))
+        navigating = bool(n.mode & NavMode.NAVIGATING)
+        if navigating:
+            c_nav = _c_bn(n.pitch_deg * DEG, n.roll_deg * DEG, -n.heading_deg * DEG)
+            # trace(C_nav C_true^T) = sum of the element-wise product
+            tr = sum(a * b for a, b in zip(c_nav, st.c_bn.ravel().tolist()))
+            att = math.degrees(math.acos(max(-1.0, min(1.0, (tr - 1.0) / 2.0))))
+            e_roll = _wrap180(n.roll_deg - st.roll / DEG)
+            e_pitch = n.pitch_deg - st.pitch / DEG
+            e_hdg = _wrap180(n.heading_deg - st.heading / DEG)
+            rm, rn = earth.radii(lat)
+            e_n = (n.lat_deg * DEG - lat) * (rm + h)
+            e_e = (n.lon_deg * DEG - lon) * (rn + h) * math.cos(lat)
+            e_u = n.height_m - h
+            e_pos = math.sqrt(e_e * e_e + e_n * e_n + e_u * e_u)
+            v = n.vel_enu_mps
+            ev = (v[0] - ve, v[1] - vn, v[2] - vu)
+            e_vel = math.sqrt(ev[0] * ev[0] + ev[1] * ev[1] + ev[2] * ev[2])
+            err = self.errors
+            err["attitude_deg"].add(att)
+            err["heading_deg"].add(e_hdg)
+            err["position_m"].add(e_pos)
+            err["velocity_mps"].add(e_vel)
+            self.error_series.extend((n.time_s, att, e_hdg, e_pos, e_vel))
+            errs = csv_row_fast((att, e_roll, e_pitch, e_hdg, e_e, e_n, e_u, e_pos, *ev, e_vel))
+        else:
+            errs = _NO_ERRORS
+        row = (
+            n.time_s, n.lat_deg, n.lon_deg, n.height_m, *n.vel_enu_mps, n.roll_deg, n.pitch_deg, n.heading_deg,
+            *n.sigma, n.mode, n.gnss_status, n.psns_status, n.cpu_load_pct, n.deadline_misses, t_arrival,
+        )
+        self.nav_rows.append(csv_row_fast(row)[:-2] + "," + errs)
+
+    def error_window(self, metric: str, after_s: float, until_s: float | None) -> ErrorStats:
+        """RMS / max of ``metric`` over the navigating frames valid in [``after_s``, ``until_s``]."""
+        idx = _SERIES_COLUMN[metric]
+        es = ErrorStats()
+        ser = self.error_series
+        for k in range(0, len(ser), 5):
+            t = ser[k]
+            if t >= after_s and (until_s is None or t <= until_s):
+                es.add(ser[k + idx])
+        return es
+
+
+def _wrap180(x: float) -> float:
+    return (x + 180.0) % 360.0 - 180.0
+
+
+def _c_bn(pitch: float, roll: float, yaw: float) -> list[float]:
+    """``C_b^n`` from Euler angles (rad; yaw counter-clockwise from North), row-major 9 floats.
+
+    The same matrix as :func:`firmware_model.attitude.a2mat` (``docs/reference/algorithms.md`` section 0), in
+    plain floats for the per-frame error evaluation.
+    """
+    sp, cp = math.sin(pitch), math.cos(pitch)
+    sr, cr = math.sin(roll), math.cos(roll)
+    sy, cy = math.sin(yaw), math.cos(yaw)
+    return [cr * cy - sp * sr * sy, -cp * sy, sr * cy + sp * cr * sy,
+            cr * sy + sp * sr * cy, cp * cy, sr * sy - sp * cr * cy,
+            -cp * sr, sp, cp * cr]

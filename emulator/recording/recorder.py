@@ -1,0 +1,313 @@
+"""The recorder: byte captures, events, navigation output against truth, and the summary.
+
+It is a listener: it subscribes to links (:class:`~emulator.links.base.LinkListener`) and to
+device events (:class:`~emulator.devices.base.EventSink`); nothing reaches into a device.
+
+Files in the run directory (written as the run goes and flushed at least once per wall-clock
+second, so an interrupted run keeps everything up to the interruption):
+
+``capture.psnscap``
+    Every chunk on every tapped link (:mod:`emulator.recording.capture`; ``docs/capture-format.md``).
+``events.jsonl``
+    One JSON object per event: ``{"t_s", "source", "event", ...}``.
+``nav.csv``
+    Every NAV_SOLUTION the host received (the ``nav_port`` tap, direction ``out``), decoded,
+    with the error against truth at its time of validity (:mod:`emulator.recording.nav_error`).
+``truth.csv``
+    Truth at the same times.
+``timeline.csv``
+    One row per simulated second: cumulative link counters (frames, CRC errors, dropped bytes,
+    garbage bytes, framing errors per link), the DSP's CPU load in that second and its deadline
+    misses (written by the runner through :meth:`Recorder.table_row`; ``emulator.recording.report`` plots it).
+``filter_state.csv``
+    One row per simulated second: the firmware's mode and the diagonal of its filter covariance and
+    its bias estimates (the change indicator's state history, ``emulator.recording.golden``).
+``summary.json``
+    Written at the end (also after an interruption, with ``"interrupted": true``).
+
+Cost: frame counting on the other taps only needs the totals, so their bytes are buffered and
+decoded in batches (at every flush and whenever the summary is read) by counting decoders
+(:mod:`emulator.recording.counting`); CSV rows are formatted by hand
+(:func:`~emulator.recording.formatting.csv_row_fast`) and written in batches. Navigation frames are compared
+with truth in batches of :attr:`Recorder.NAV_BATCH` (:attr:`Recorder.NAV_BATCH_REALTIME` in realtime mode; one
+vectorised trajectory evaluation, bit-for-bit the per-frame values);
+``errors``, ``error_series``, ``mode_series`` and :meth:`Recorder.flush` complete the pending batch
+first, so readers always see every frame received so far.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import time as _time
+from array import array
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any
+
+from protocols.host import NavSolution
+from protocols.stream import FrameFormat, StreamDecoder
+
+from ..links.base import Link
+from ..world.trajectory import Trajectory
+from .capture import CaptureWriter
+from .counting import counting_decoder
+from .formatting import csv_row_fast, json_default
+from .nav_error import ErrorStats, NavVsTruth
+
+__all__ = ["Recorder"]
+
+
+@dataclass
+class _Tap:
+    link: Link
+    decoders: dict[str, StreamDecoder] = field(default_factory=dict)
+    pending: dict[str, bytearray] = field(default_factory=dict)
+    nav: bool = False
+
+    def feed_pending(self) -> None:
+        for d, buf in self.pending.items():
+            if buf:
+                self.decoders[d].feed(buf)
+                buf.clear()
+
+
+class Recorder:
+    """Writes the run directory (see module docstring).
+
+    Parameters
+    ----------
+    run_dir : output directory (created).
+    trajectory : truth for the error evaluation.
+    """
+
+    def __init__(self, run_dir: Path, trajectory: Trajectory, flush_interval_s: float = 1.0,
+                 nav_port: str = "host") -> None:
+        self.run_dir = Path(run_dir)
+        self.run_dir.mkdir(parents=True, exist_ok=True)
+        self.traj = trajectory
+        self.nav_port = nav_port
+        self._taps: dict[str, _Tap] = {}
+        self._link_index: dict[str, int] = {}
+        self._cap: CaptureWriter | None = None
+        self._events: IO[str] = open(self.run_dir / "events.jsonl", "w", encoding="utf-8")  # noqa: SIM115
+        self._nav_f: IO[str] = open(self.run_dir / "nav.csv", "w", encoding="utf-8", newline="")  # noqa: SIM115
+        self._truth_f: IO[str] = open(self.run_dir / "truth.csv", "w", encoding="utf-8", newline="")  # noqa: SIM115
+        self._compare = NavVsTruth(trajectory)
+        #: navigation frames (arrival time, frame) whose truth comparison is still to be done
+        self._nav_pending: list[tuple[float, NavSolution]] = []
+        self._drain_soon = False
+        self._nav_batch = self.NAV_BATCH
+        self._tables: dict[str, tuple[IO[str], list[str], list[str]]] = {}
+        self.nav_count = 0
+        self.event_counts: dict[str, int] = {}
+        self.events: list[dict[str, Any]] = []
+        self.nav_listeners: list[Callable[[float, NavSolution], None]] = []
+        self._flush_interval = flush_interval_s
+        self._last_flush = _time.monotonic()
+        self._chunks = 0
+        self.last_nav: NavSolution | None = None
+
+    # -- wiring ---------------------------------------------------------------------------
+    def tap(self, name: str, link: Link, formats: dict[str, Sequence[FrameFormat]]) -> None:
+        """Capture ``link`` under ``name`` and decode its directions with ``formats``.
+
+        The ``nav_port`` tap's ``out`` direction is decoded at once (navigation frames against
+        truth); every other decoder only counts frames, in batches.
+        """
+        if self._cap is not None:
+            raise RuntimeError("tap() after start()")
+        nav = name == self.nav_port
+        t = _Tap(link, {d: StreamDecoder(list(f)) if nav and d == "out" else counting_decoder(f)
+                        for d, f in formats.items() if f}, nav=nav)
+        t.pending = {d: bytearray() for d in t.decoders if not (t.nav and d == "out")}
+        self._taps[name] = t
+        self._link_index[name] = len(self._link_index)
+        link.listeners.append(_TapListener(self, name, len(self._link_index) - 1, t))
+
+    def start(self, header: dict[str, Any]) -> None:
+        self._cap = CaptureWriter(self.run_dir / "capture.psnscap", header, list(self._link_index))
+
+    # -- listener callbacks -------------------------------------------------------------------
+    def on_bytes(self, name: str, direction: str, t: float, data: bytes) -> None:
+        tap = self._taps[name]
+        self._record(self._link_index[name], tap, direction, t, data)
+
+    def _record(self, index: int, tap: _Tap, direction: str, t: float, data: bytes) -> None:
+        cap = self._cap
+        if cap is not None:
+            if direction == "out":
+                cap.write(index, False, t, data)
+            else:
+                link = tap.link
+                pitch = link.last_rx_pitch
+                cap.write(index, True, t, data, pitch if pitch != link.line.byte_time else None)
+        buf = tap.pending.get(direction)
+        if buf is not None:
+            buf += data
+            if len(buf) > self.PENDING_BYTES:
+                tap.decoders[direction].feed(buf)
+                buf.clear()
+        elif tap.nav and direction == "out":
+            for fr in tap.decoders["out"].feed(data):
+                if isinstance(fr, NavSolution):
+                    self._on_nav(t, fr)
+        self._chunks += 1
+        if not self._chunks & 15:  # the wall clock every 16 chunks (a realtime run has >= 600 per wall s)
+            now = _time.monotonic()
+            if now - self._last_flush >= self._flush_interval:
+                self.flush()
+                self._last_flush = now
+
+    def emit(self, t: float, source: str, kind: str, /, **data: Any) -> None:
+        rec = {"t_s": round(t, 9), "source": source, "event": kind}
+        rec.update(data)
+        self._events.write(json.dumps(rec, default=json_default) + "\n")
+        self.event_counts[kind] = self.event_counts.get(kind, 0) + 1
+        self.events.append(rec)
+
+    # -- navigation output against truth (batched) ------------------------------------------------
+    #: frames compared with truth in one batch (the trajectory is evaluated vectorised, ~1 us per frame
+    #: plus ~0.1 ms per batch); in realtime mode small enough that a batch (< 1 ms) never delays the
+    #: next IMU tick
+    NAV_BATCH = 200
+    NAV_BATCH_REALTIME = 25
+    #: bytes a counting tap buffers before decoding them (a bounded burst, ~0.3 ms, in realtime mode)
+    PENDING_BYTES = 4096
+
+    @property
+    def errors(self) -> dict[str, ErrorStats]:
+        """Running RMS / max per error metric over every navigating frame so far."""
+        self._drain_nav()
+        return self._compare.errors
+
+    @property
+    def error_series(self) -> array[float]:
+        """Flat rows of (t, attitude, heading, position, velocity) errors, 40 bytes per nav frame."""
+        self._drain_nav()
+        return self._compare.error_series
+
+    @property
+    def mode_series(self) -> array[float]:
+        """Flat rows of (time of validity, mode bits) of every nav frame, 16 bytes per frame."""
+        self._drain_nav()
+        return self._compare.mode_series
+
+    def _on_nav(self, t_arrival: float, n: NavSolution) -> None:
+        self.nav_count += 1
+        self.last_nav = n
+        for cb in self.nav_listeners:
+            cb(t_arrival, n)
+        pend = self._nav_pending
+        pend.append((t_arrival, n))
+        if len(pend) >= self._nav_batch and not self._drain_soon:
+            # after the frame has gone on (this runs inside the link's delivery, before a pty write)
+            try:
+                loop = asyncio.get_running_loop()
+            except RuntimeError:  # no event loop (a replay tool, a test): now
+                self._drain_nav()
+                return
+            loop.call_soon(self._drain_nav)
+            self._drain_soon = True
+        elif len(pend) == 1 and self.nav_count == 1:  # the first frame: the batch size for this run
+            try:
+                realtime = getattr(asyncio.get_running_loop(), "mode", "fast") == "realtime"
+            except RuntimeError:
+                realtime = False
+            self._nav_batch = self.NAV_BATCH_REALTIME if realtime else self.NAV_BATCH
+
+    def _drain_nav(self) -> None:
+        """Compare the pending frames with truth (one vectorised trajectory evaluation)."""
+        self._drain_soon = False
+        pend = self._nav_pending
+        if not pend:
+            return
+        self._nav_pending = []
+        self._compare.add(pend)
+
+    # -- results -----------------------------------------------------------------------------
+    def link_summary(self) -> dict[str, dict[str, int]]:
+        out: dict[str, dict[str, int]] = {}
+        for name, tap in self._taps.items():
+            tap.feed_pending()
+            st = tap.link.stats
+            frames = sum(d.stats.frames for d in tap.decoders.values())
+            crc = sum(d.stats.crc_errors for d in tap.decoders.values())
+            out[name] = {
+                "bytes": st.bytes_out + st.bytes_in,
+                "frames": frames,
+                "crc_errors": crc,
+                "dropped": st.dropped,
+                "garbage_bytes": sum(d.stats.garbage_bytes for d in tap.decoders.values()),
+                "framing_errors": st.framing_errors,
+            }
+        return out
+
+    def error_window(self, metric: str, after_s: float, until_s: float | None) -> ErrorStats:
+        """RMS / max of ``metric`` over the navigating frames valid in [``after_s``, ``until_s``]."""
+        self._drain_nav()
+        return self._compare.error_window(metric, after_s, until_s)
+
+    def table_row(self, name: str, row: dict[str, Any]) -> None:
+        """Append ``row`` to ``<name>.csv`` in the run directory (the first row's keys are the header)."""
+        tab = self._tables.get(name)
+        if tab is None:
+            f: IO[str] = open(self.run_dir / f"{name}.csv", "w", encoding="utf-8", newline="")  # noqa: SIM115
+            cols = list(row)
+            tab = self._tables[name] = (f, cols, [",".join(cols) + "\r\n"])
+        _f, cols, rows = tab
+        rows.append(csv_row_fast([row.get(c, "") for c in cols]))
+
+    def flush(self) -> None:
+        """Write the batched rows and flush every file (captures included) to the OS."""
+        self._drain_nav()
+        for tap in self._taps.values():
+            tap.feed_pending()
+        cmp = self._compare
+        if cmp.nav_rows and not self._nav_f.closed:
+            self._nav_f.write("".join(cmp.nav_rows))
+            cmp.nav_rows.clear()
+        if cmp.truth_rows and not self._truth_f.closed:
+            self._truth_f.write("".join(cmp.truth_rows))
+            cmp.truth_rows.clear()
+        for f, _cols, rows in self._tables.values():
+            if rows and not f.closed:
+                f.write("".join(rows))
+                rows.clear()
+        if self._cap is not None:
+            self._cap.flush()
+        for f in self._text_files():
+            if not f.closed:
+                f.flush()
+
+    def write_summary(self, summary: dict[str, Any]) -> Path:
+        path = self.run_dir / "summary.json"
+        tmp = path.with_suffix(".json.tmp")
+        tmp.write_text(json.dumps(summary, indent=2, default=json_default) + "\n", encoding="utf-8")
+        tmp.replace(path)
+        return path
+
+    def close(self) -> None:
+        self.flush()
+        if self._cap is not None:
+            self._cap.close()
+        for f in self._text_files():
+            if not f.closed:
+                f.close()
+
+    def _text_files(self) -> list[IO[str]]:
+        return [self._events, self._nav_f, self._truth_f, *(t[0] for t in self._tables.values())]
+
+
+class _TapListener:
+    __slots__ = ("index", "name", "rec", "tap")
+
+    def __init__(self, rec: Recorder, name: str, index: int, tap: _Tap) -> None:
+        self.rec = rec
+        self.name = name
+        self.index = index
+        self.tap = tap
+
+    def on_link_bytes(self, link: Link, direction: str, t: float, data: bytes) -> None:
+        self.rec._record(self.index, self.tap, direction, t, data)

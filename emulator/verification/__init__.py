@@ -1,0 +1,1 @@
+"""Verification: the scenario's expectations, evaluated at the end of a run."""

@@ -1,0 +1,219 @@
+"""Scenario expectations, evaluated at the end of a run against the recorder's results and the summary.
+
+Every kind of ``expectations:`` item (``emulator.scenario.checks_schema``) has its evaluator here.
+A check that has nothing to measure fails (no navigation frames in the window, a summary value
+that does not exist): nothing measured proves nothing. A Python hook that raises fails with the
+exception's message; it never stops the evaluation of the other checks.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ..scenario.checks_schema import NAV_MODE_FLAGS, EventExpectation, FieldRange, HookError, load_hook
+from ..scenario.schema import Expectation
+
+__all__ = ["ExpectationResult", "evaluate_expectations", "matching_events"]
+
+
+@dataclass
+class ExpectationResult:
+    """Outcome of one expectation: what was checked, the measured value, pass/fail and why."""
+
+    index: int
+    kind: str
+    description: str
+    value: float | int | str | None
+    passed: bool
+    message: str = ""
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"index": self.index, "kind": self.kind, "description": self.description,
+                "value": self.value, "passed": self.passed, "message": self.message}
+
+
+def _bounds(lo: float | None, hi: float | None) -> str:
+    parts = []
+    if lo is not None:
+        parts.append(f">= {lo:g}")
+    if hi is not None:
+        parts.append(f"<= {hi:g}")
+    return " and ".join(parts)
+
+
+def _within(v: float, lo: float | None, hi: float | None) -> bool:
+    return (lo is None or v >= lo) and (hi is None or v <= hi)
+
+
+def _field_ok(have: Any, want: Any) -> bool:
+    if isinstance(want, FieldRange):
+        if isinstance(have, bool) or not isinstance(have, (int, float)):
+            return False
+        return _within(float(have), want.min, want.max)
+    if isinstance(want, bool) or isinstance(have, bool):
+        return isinstance(have, bool) and isinstance(want, bool) and have == want
+    if isinstance(want, (int, float)) and isinstance(have, (int, float)):
+        return float(have) == float(want)
+    return str(have) == str(want)
+
+
+def matching_events(events: list[dict[str, Any]], e: EventExpectation) -> list[dict[str, Any]]:
+    """The events that match name, source, window and field values of ``e``."""
+    out = []
+    for ev in events:
+        if ev.get("event") != e.name:
+            continue
+        if e.source is not None and ev.get("source") != e.source:
+            continue
+        t = ev.get("t_s")
+        if t is None or not e.covers(float(t)):
+            continue
+        if all(k in ev and _field_ok(ev[k], w) for k, w in e.fields.items()):
+            out.append(ev)
+    return out
+
+
+def _lookup(summary: dict[str, Any], path: str) -> Any:
+    cur: Any = summary
+    for part in path.split("."):
+        if isinstance(cur, dict) and part in cur:
+            cur = cur[part]
+        elif isinstance(cur, list) and part.isdigit() and int(part) < len(cur):
+            cur = cur[int(part)]
+        else:
+            raise KeyError(part)
+    return cur
+
+
+def _hook_result(res: Any) -> tuple[bool, Any, str]:
+    """Normalise what a hook returned: bool, (passed, value[, message]) or a dict."""
+    if isinstance(res, bool):
+        return res, None, ""
+    if isinstance(res, dict) and "passed" in res:
+        return bool(res["passed"]), res.get("value"), str(res.get("message", ""))
+    if isinstance(res, tuple) and 1 <= len(res) <= 3 and isinstance(res[0], bool):
+        return res[0], res[1] if len(res) > 1 else None, str(res[2]) if len(res) > 2 else ""
+    raise TypeError(f"a hook returns bool, (passed, value[, message]) or {{'passed', 'value', 'message'}}; "
+                    f"got {type(res).__name__}")
+
+
+def _plain(v: Any) -> float | int | str | None:
+    if v is None or isinstance(v, (int, float, str)):
+        return v
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return str(v)
+
+
+def evaluate_expectations(expectations: list[Expectation], recorder: Any, summary: dict[str, Any],
+                          run_dir: str | Path | None = None, base_dir: str | Path | None = None
+                          ) -> list[ExpectationResult]:
+    """Check every expectation (see module docstring).
+
+    Parameters
+    ----------
+    expectations : the scenario's ``expectations``.
+    recorder : the run's :class:`emulator.recording.recorder.Recorder` (error series, events, mode series).
+    summary : the run summary so far (without ``expectations`` and ``passed``).
+    run_dir : the run directory (given to Python hooks).
+    base_dir : the scenario file's directory (where Python hooks' files are).
+    """
+    out: list[ExpectationResult] = []
+    t_end = float(summary.get("sim_duration_s") or 0.0)
+
+    def empty(w: Any) -> str:
+        if w.after_s >= t_end:
+            return f"the window starts at {w.after_s:g} s, after the run ended ({t_end:g} s)"
+        return "no navigation frames in the window"
+
+    for i, e in enumerate(expectations):
+        kind = e.kind
+        if kind == "nav_error":
+            b = e.nav_error
+            assert b is not None
+            stats = recorder.error_window(b.metric, b.after_s, b.until_s).as_dict()
+            v = stats[b.stat]
+            desc = f"{b.stat} {b.metric} <= {b.max:g} for {b.describe_window()}"
+            msg = "" if v is not None else empty(b)
+            out.append(ExpectationResult(i, kind, desc, v, v is not None and abs(v) <= b.max, msg))
+        elif kind == "event":
+            ev = e.event
+            assert ev is not None
+            hits = matching_events(recorder.events, ev)
+            n = len(hits)
+            src = f" from {ev.source}" if ev.source else ""
+            flds = "".join(f", {k} {'in [' + _bounds(w.min, w.max) + ']' if isinstance(w, FieldRange) else '= ' + repr(w)}"
+                           for k, w in ev.fields.items())
+            desc = f"event {ev.name}{src}{flds} in {ev.describe_window()}: count {_bounds(ev.min_count, ev.max_count)}"
+            msg = f"first at t = {hits[0]['t_s']:.3f} s" if hits else (
+                empty(ev) if ev.after_s >= t_end else "")
+            out.append(ExpectationResult(i, kind, desc, n, _within(n, ev.min_count, ev.max_count), msg))
+        elif kind == "link":
+            lb = e.link
+            assert lb is not None
+            links = summary.get("links", {})
+            if lb.name not in links:
+                out.append(ExpectationResult(i, kind, f"link {lb.name!r} exists", None, False,
+                                             f"no link {lb.name!r} in this run"))
+                continue
+            v = links[lb.name].get(lb.counter)
+            ok = v is not None and _within(v, lb.min, lb.max)
+            out.append(ExpectationResult(i, kind, f"{lb.name}.{lb.counter} {_bounds(lb.min, lb.max)}", v, ok))
+        elif kind == "dsp":
+            db = e.dsp
+            assert db is not None
+            v = summary.get("dsp", {}).get(db.field)
+            ok = v is not None and _within(v, db.min, db.max)
+            out.append(ExpectationResult(i, kind, f"dsp.{db.field} {_bounds(db.min, db.max)}", v, ok,
+                                         "" if v is not None else "not measured"))
+        elif kind == "nav_mode":
+            nm = e.nav_mode
+            assert nm is not None
+            bit = NAV_MODE_FLAGS[nm.flag]
+            ser = recorder.mode_series
+            total = hit = 0
+            for k in range(0, len(ser), 2):
+                if nm.covers(ser[k]):
+                    total += 1
+                    hit += 1 if int(ser[k + 1]) & bit else 0
+            frac = hit / total if total else None
+            desc = f"fraction of nav frames with {nm.flag} in {nm.describe_window()} {_bounds(nm.min_fraction, nm.max_fraction)}"
+            ok = frac is not None and _within(frac, nm.min_fraction, nm.max_fraction)
+            out.append(ExpectationResult(i, kind, desc, frac, ok,
+                                         f"{hit} of {total} frames" if total else empty(nm)))
+        elif kind == "summary":
+            sb = e.summary
+            assert sb is not None
+            desc = f"{sb.path} {_bounds(sb.min, sb.max)}"
+            try:
+                v = _lookup(summary, sb.path)
+            except KeyError as exc:
+                out.append(ExpectationResult(i, kind, desc, None, False, f"no value {sb.path!r} in the summary "
+                                                                          f"(missing {exc.args[0]!r})"))
+                continue
+            if isinstance(v, bool):
+                v = int(v)
+            if not isinstance(v, (int, float)):
+                out.append(ExpectationResult(i, kind, desc, _plain(v), False, f"{sb.path} is not a number"))
+                continue
+            out.append(ExpectationResult(i, kind, desc, v, _within(v, sb.min, sb.max)))
+        elif kind == "python":
+            h = e.python
+            assert h is not None
+            desc = h.description or f"{h.file}:{h.function}({', '.join(f'{k}={v!r}' for k, v in h.args.items())})"
+            try:
+                fn = load_hook(base_dir, h.file, h.function)
+                ok, v, msg = _hook_result(fn(copy.deepcopy(summary), Path(run_dir) if run_dir is not None else None,
+                                             **h.args))
+            except HookError as exc:
+                out.append(ExpectationResult(i, kind, desc, None, False, f"python hook: {exc}"))
+                continue
+            except Exception as exc:  # noqa: BLE001 - a failing hook is a failing check, with its reason
+                out.append(ExpectationResult(i, kind, desc, None, False, f"the hook raised {type(exc).__name__}: {exc}"))
+                continue
+            out.append(ExpectationResult(i, kind, desc, _plain(v), ok, msg))
+    return out

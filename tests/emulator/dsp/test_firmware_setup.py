@@ -1,0 +1,69 @@
+"""Scenario -> FirmwareConfig (emulator/dsp/firmware_setup.py): the firmware section and derived fields."""
+
+import math
+
+import numpy as np
+
+from emulator.dsp.firmware_setup import build_firmware, firmware_config
+from emulator.scenario import load_scenario
+from firmware_model.attitude import a2mat, yaw_from_heading
+
+BASE = """\
+name: t
+epoch: 2019-09-18T08:14:00Z
+duration_s: 10
+origin: {lat_deg: 39.979, lon_deg: 116.339, height_m: 50}
+"""
+
+
+def _load(tmp_path, extra=""):
+    p = tmp_path / "s.yaml"
+    p.write_text(BASE + extra)
+    return load_scenario(p)
+
+
+def test_defaults_without_psns_link(tmp_path):
+    cfg = firmware_config(_load(tmp_path))
+    assert cfg.filter == "base" and cfg.precision == "float32"
+    assert cfg.psns_enabled is False  # no psns link in the scenario
+    assert cfg.alignment_heading == "auto" and cfg.psns_baud == 115200
+    assert cfg.camera.projection == "pinhole" and np.allclose(cfg.camera.c_c_b, np.eye(3))
+
+
+def test_psns_section_camera_and_uart2_baud(tmp_path):
+    scn = _load(tmp_path, """\
+links:
+  psns: {url: "mem://psns", baud: 230400}
+fpga:
+  uarts: {uart2: {baud: 230400}}
+sensors:
+  imu: {output: angle}
+firmware:
+  precision: float64
+  alignment: {heading_source: psns, psns_timeout_s: 5, fine_time_s: 30}
+  psns:
+    sigma_deg: 0.05
+    camera: {projection: fisheye, focal_mm: 1.8, mounting_heading_deg: -90, mounting_roll_deg: 1.0}
+""")
+    cfg = firmware_config(scn)
+    assert cfg.psns_enabled and cfg.psns_baud == 230400 and cfg.psns_sigma_deg == 0.05
+    assert cfg.alignment_heading == "psns" and cfg.psns_align_timeout_s == 5 and cfg.fine_align_time_s == 30
+    assert cfg.camera.projection == "fisheye" and math.isclose(cfg.camera.focal_m, 1.8e-3)
+    assert np.allclose(cfg.camera.c_c_b, a2mat(0.0, math.radians(1.0), math.radians(90)))
+    assert np.allclose(cfg.camera.c_c_b, a2mat(0.0, math.radians(1.0), yaw_from_heading(math.radians(-90))))
+    assert cfg.gyro_output == "angle" and cfg.subsamples == 2
+    fw = build_firmware(scn)
+    assert fw.cost.double and fw.dtype == np.float64
+
+
+def test_camera_calibration_defaults_to_the_sensor_nominal_design(tmp_path):
+    scn = _load(tmp_path, """\
+links:
+  psns: {url: "mem://psns", baud: 115200}
+sensors:
+  camera: {lens: fisheye, focal_length_mm: 1.8, mounting: {heading_deg: 10, pitch_deg: 5, installation_error_deg: [0.3, 0, 0]}}
+""")
+    cam = firmware_config(scn).camera
+    assert cam.projection == "fisheye" and math.isclose(cam.focal_m, 1.8e-3)
+    # nominal mount only: the installation error is what the DSP does not know
+    assert np.allclose(cam.c_c_b, a2mat(math.radians(5), 0.0, yaw_from_heading(math.radians(10))))

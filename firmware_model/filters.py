@@ -33,13 +33,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Protocol
+from collections.abc import Callable
+from typing import Any, Protocol, TypeVar
 
 import numpy as np
 
 from protocols.host import FILTER_VARIANT_NAMES
 
 from . import c674x, earth
+from .config import FILTER_VARIANTS, FirmwareConfig
 from .attitude import q2mat, qmul, qnormalize, rv2q
 from .kf import (
     IDX_ACC,
@@ -52,10 +54,8 @@ from .kf import (
     solar_vector_residual,
     solar_vector_rows,
 )
-from .strapdown import NavState
-
-if TYPE_CHECKING:
-    from .firmware import FirmwareConfig
+from .nav_state import NavState
+from .units import DEG, DPH, G_STD
 
 __all__ = [
     "FilterHost",
@@ -72,9 +72,6 @@ __all__ = [
     "gnss_measurement_rows",
 ]
 
-DEG = math.pi / 180.0
-DPH = DEG / 3600.0
-G_STD = 9.80665
 
 def kf_scalar_update_cycles(c: c674x.KernelCosts) -> int:
     """One scalar Joseph update over 15 states [D, c6747_cycles.md section 6 fallback].
@@ -255,13 +252,14 @@ class NavFilter:
         raise NotImplementedError
 
 
-FILTER_VARIANTS: dict[str, type[NavFilter]] = {}
+_FilterClass = TypeVar("_FilterClass", bound=type[NavFilter])
 
 
-def register_filter(name: str):  # noqa: ANN201
-    """Class decorator: make a :class:`NavFilter` selectable as ``firmware.filter: name``."""
+def register_filter(name: str) -> Callable[[_FilterClass], _FilterClass]:
+    """Class decorator: make a :class:`NavFilter` selectable as ``firmware.filter: name`` (enters it in the
+    build's table :data:`firmware_model.config.FILTER_VARIANTS`)."""
 
-    def deco(cls: type[NavFilter]) -> type[NavFilter]:
+    def deco(cls: _FilterClass) -> _FilterClass:
         cls.name = name
         if name in FILTER_VARIANT_NAMES:  # the host protocol's variant number (STATUS, SELECT_VARIANT)
             cls.variant_id = int(FILTER_VARIANT_NAMES[name])

@@ -16,7 +16,6 @@ the base filter. Parameters: :mod:`~firmware_model.variants.params`. Derivations
 
 from __future__ import annotations
 
-from . import dual_vector, federated, kmeans_3d, sun_elevation  # noqa: F401  (registration)
 from .mode_manager import ModeManager
 from .params import (
     DualVectorParams,

@@ -56,7 +56,7 @@ from ..attitude import q2mat
 from ..filters import BaseFilter, UpdateReport, register_filter
 from ..kf import N_STATES
 from ..psns_geometry import compass_unit_mountings
-from ..strapdown import NavState
+from ..nav_state import NavState
 from .common import cross, plane_basis
 from .mode_manager import ModeManager
 

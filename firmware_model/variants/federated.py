@@ -64,7 +64,7 @@ from ..filters import (
 )
 from ..kf import IDX_ACC, IDX_GYRO, N_STATES, error_transition_matrix, kf_predict, kf_update_scalar, process_noise_psd
 from ..kf import solar_vector_residual, solar_vector_rows
-from ..strapdown import NavState
+from ..nav_state import NavState
 from .common import spd_inverse, spd_inverse_cycles, spd_solve, spd_solve_cycles
 from .mode_manager import ModeManager
 

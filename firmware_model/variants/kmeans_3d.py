@@ -51,7 +51,7 @@ from ..attitude import a2mat, heading_from_yaw, m2att, q2mat
 from ..filters import BaseFilter, UpdateReport, register_filter
 from ..kf import N_STATES
 from ..psns_geometry import CameraGeometry
-from ..strapdown import NavState
+from ..nav_state import NavState
 from .common import misalignment_between
 from .mode_manager import ModeManager
 

@@ -54,7 +54,7 @@ from ..attitude import q2mat
 from ..filters import BaseFilter, SolarObservation, UpdateReport, register_filter
 from ..kf import N_STATES
 from ..psns_geometry import compass_unit_mountings
-from ..strapdown import NavState
+from ..nav_state import NavState
 from .common import cross
 from .dual_vector import unit_evectors
 from .mode_manager import ModeManager

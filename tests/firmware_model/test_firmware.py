@@ -14,7 +14,7 @@ import pytest
 from firmware_model import Firmware, FirmwareConfig, FirmwareError, earth
 from firmware_model.attitude import heading_from_yaw, m2att, q2mat, qconj, qmul
 from firmware_model.filters import FILTER_VARIANTS, BaseFilter, register_filter
-from firmware_model.firmware import FirmwareState
+from firmware_model.tasks.state import FirmwareState
 from protocols.host import HostFormat, NavMode, NavSolution
 from protocols.stream import StreamDecoder
 

@@ -18,7 +18,7 @@ import numpy as np
 
 from . import c674x
 
-__all__ = ["level_from_specific_force", "triad", "solar_heading_alignment", "level_cycles", "triad_cycles"]
+__all__ = ["level_cycles", "level_from_specific_force", "solar_heading_alignment", "triad", "triad_cycles"]
 
 
 def level_cycles(c: c674x.KernelCosts) -> int:

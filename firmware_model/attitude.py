@@ -17,19 +17,19 @@ import math
 import numpy as np
 
 __all__ = [
+    "a2mat",
+    "att2q",
     "cross3",
-    "skew",
-    "qmul",
+    "heading_from_yaw",
+    "m2att",
+    "mat2q",
+    "q2att",
+    "q2mat",
     "qconj",
+    "qmul",
     "qnormalize",
     "rv2q",
-    "q2mat",
-    "mat2q",
-    "a2mat",
-    "m2att",
-    "att2q",
-    "q2att",
-    "heading_from_yaw",
+    "skew",
     "yaw_from_heading",
 ]
 

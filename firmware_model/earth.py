@@ -15,17 +15,17 @@ import numpy as np
 
 __all__ = [
     "A_WGS84",
-    "F_WGS84",
     "E2_WGS84",
-    "OMEGA_IE",
+    "F_WGS84",
     "G0",
-    "radii",
+    "OMEGA_IE",
+    "geodetic_to_ecef",
     "gravity",
     "gravity_n",
-    "omega_ie_n",
-    "omega_en_n",
     "m_pv",
-    "geodetic_to_ecef",
+    "omega_en_n",
+    "omega_ie_n",
+    "radii",
 ]
 
 #: Semi-major axis, m (WGS-84).

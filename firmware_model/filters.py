@@ -32,8 +32,8 @@ updates they change; the loop stays as it is.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any, Protocol, TypeVar
 
 import numpy as np
@@ -41,8 +41,8 @@ import numpy as np
 from protocols.host import FILTER_VARIANT_NAMES
 
 from . import c674x, earth
-from .config import FILTER_VARIANTS, FirmwareConfig
 from .attitude import q2mat, qmul, qnormalize, rv2q
+from .config import FILTER_VARIANTS, FirmwareConfig
 from .kf import (
     IDX_ACC,
     IDX_GYRO,
@@ -58,18 +58,18 @@ from .nav_state import NavState
 from .units import DEG, DPH, G_STD
 
 __all__ = [
+    "FILTER_VARIANTS",
+    "BaseFilter",
     "FilterHost",
     "GnssMeasurement",
+    "NavFilter",
     "SolarObservation",
     "UpdateReport",
-    "NavFilter",
-    "BaseFilter",
-    "FILTER_VARIANTS",
-    "register_filter",
-    "kf_scalar_update_cycles",
-    "kf_predict_cycles",
     "feedback_cycles",
     "gnss_measurement_rows",
+    "kf_predict_cycles",
+    "kf_scalar_update_cycles",
+    "register_filter",
 ]
 
 
@@ -116,7 +116,7 @@ class GnssMeasurement:
     sigma_vel_mps: float | None = None
 
 
-def gnss_measurement_rows(cfg: "FirmwareConfig", meter: c674x.CycleMeter, meas: GnssMeasurement,
+def gnss_measurement_rows(cfg: FirmwareConfig, meter: c674x.CycleMeter, meas: GnssMeasurement,
                           p_ins: np.ndarray, v_ins: np.ndarray) -> list[tuple[int, float, float, float]]:
     """The scalar rows of a GNSS update: ``(state index, H value, z, R)`` per measured component.
 
@@ -205,7 +205,7 @@ class NavFilter:
     #: True: POLARIZATION_OBS frames go to :meth:`update_polarization_obs` instead of the firmware's solve.
     raw_polarization_obs = False
 
-    def __init__(self, cfg: "FirmwareConfig", meter: c674x.CycleMeter, dtype: type) -> None:
+    def __init__(self, cfg: FirmwareConfig, meter: c674x.CycleMeter, dtype: type) -> None:
         self.cfg = cfg
         self.meter = meter
         self.dtype = dtype
@@ -274,7 +274,7 @@ class BaseFilter(NavFilter):
     """Bi-direction solar-vector 15-state KF (base paper): GNSS position/velocity + ``+-S`` updates."""
 
 
-    def __init__(self, cfg: "FirmwareConfig", meter: c674x.CycleMeter, dtype: type) -> None:
+    def __init__(self, cfg: FirmwareConfig, meter: c674x.CycleMeter, dtype: type) -> None:
         super().__init__(cfg, meter, dtype)
         self.x = np.zeros(N_STATES, dtype=dtype)
         arw = cfg.gyro_arw_deg_rt_h * DEG / 60.0

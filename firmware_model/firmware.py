@@ -91,7 +91,8 @@ def tick_kernel_cycles(c: c674x.KernelCosts, nav_dp: bool = True) -> dict[str, i
                          if nav_dp else
                          2 * (c.math("sqrt") + c.math("sin") + c.math("cos") + c.math("div"))
                          + c.math("rsqrt") + c.flops(140, 120))),
-        "nav_output": c.math("asin") + 2 * c.math("atan2") + 9 * c.math("sqrt") + 102 * 2 + 109 * 4 + c674x.CALL_OVERHEAD,
+        "nav_output": (c.math("asin") + 2 * c.math("atan2") + 9 * c.math("sqrt") + 102 * 2 + 109 * 4
+                       + c674x.CALL_OVERHEAD),
         "level": level_cycles(c),
         "triad": triad_cycles(c),
         "mounting": c.flops(9, 6),
@@ -128,52 +129,52 @@ class Firmware(HostTask, GnssTask):
         self._kv = ADC_VOLTS_PER_LSB * G_STD
         self._round3 = rounder(dt, 3)
         self._pack6, self._unpack6 = rounder(dt, 6).pack, rounder(dt, 6).unpack
-        self._bias_cache: tuple[Any, Any, tuple[float, ...]] = (None, None, ())
-        self._out_every = int(round(cfg.imu_rate_hz / cfg.output_rate_hz))
+        self._bias_cache = (None, None, ())
+        self._out_every = round(cfg.imu_rate_hz / cfg.output_rate_hz)
         self._dec_imu = StreamDecoder([FpgaFrameFormat()])
         self._dec_gnss = StreamDecoder([NmeaFormat(), UbxFormat()])
         self._dec_host = StreamDecoder([HostFormat()])
-        self._pending_cmd: deque[Any] = deque(maxlen=16)
-        self.last_mag: MagFrame | None = None
+        self._pending_cmd = deque(maxlen=16)
+        self.last_mag = None
         self._dec_psns = StreamDecoder([PsnsFormat()])
-        self._pending_imu: deque[ImuFrame] = deque()
-        self._pending_psns: deque[tuple[float, Any]] = deque(maxlen=8)
-        self._rx_other: dict[int, int] = {}
+        self._pending_imu = deque()
+        self._pending_psns = deque(maxlen=8)
+        self._rx_other = {}
         # time keeping (FPGA time base; UTC from GNSS)
-        self._t_last_us: int | None = None
+        self._t_last_us = None
         self._t_epoch_us = 0
-        self._t_pps_s: float | None = None
-        self._pps_count: int | None = None
-        self._last_counter: int | None = None
-        self._utc_days_ref: float | None = None  # Grena days (UT) at _utc_t_ref
+        self._t_pps_s = None
+        self._pps_count = None
+        self._last_counter = None
+        self._utc_days_ref = None  # Grena days (UT) at _utc_t_ref
         self._utc_t_ref = 0.0
-        self._date: _dt.date | None = None
+        self._date = None
         # mode manager
         self.state = FirmwareState.COARSE_ALIGN
         self.mode = NavMode.ALIGNING
         self._align_sum = np.zeros(3)
         self._align_n = 0
-        self._align_t0: float | None = None
-        self._align_sun: list[SolarObservation] = []
+        self._align_t0 = None
+        self._align_sun = []
         self._t_aligned = 0.0
         self._t_last_predict = 0.0
         # navigation
-        self.nav: NavState | None = None
-        self.filter: NavFilter = self._new_filter(cfg.filter)
-        self._mag_hist: deque[tuple[float, tuple[int, int, int]]] = deque(maxlen=128)  # (t_sample_s, field)
+        self.nav = None
+        self.filter = self._new_filter(cfg.filter)
+        self._mag_hist = deque(maxlen=128)  # (t_sample_s, field)
         self._tick = 0
-        self._sub: list[tuple[np.ndarray, np.ndarray]] = []
+        self._sub = []
         self._fn_sum = [0.0, 0.0, 0.0]  # sum of f^n over the KF interval (Python floats, float64)
         self._fn_n = 0
-        self._hist: deque[tuple[float, tuple[float, ...]]] = deque(maxlen=int(2 * cfg.imu_rate_hz))
-        self._gnss_pending: GnssMeasurement | None = None
-        self._last_fix: tuple[float, float, float, int] | None = None
+        self._hist = deque(maxlen=int(2 * cfg.imu_rate_hz))
+        self._gnss_pending = None
+        self._last_fix = None
         self._last_gnss_update_t = -1e9
         self._last_psns_t = -1e9
         self._last_psns_reject_t = -1e9
         self._out_seq = 0
         self.deadline_misses = 0
-        self._load_window: deque[tuple[float, int]] = deque()
+        self._load_window = deque()
         self._load_max = 0
         self._next_status_t = 1.0
         self._status_seq = 0

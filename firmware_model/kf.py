@@ -41,18 +41,18 @@ import numpy as np
 from . import earth
 
 __all__ = [
-    "N_STATES",
-    "IDX_ATT",
-    "IDX_VEL",
-    "IDX_POS",
-    "IDX_GYRO",
     "IDX_ACC",
+    "IDX_ATT",
+    "IDX_GYRO",
+    "IDX_POS",
+    "IDX_VEL",
+    "N_STATES",
     "error_transition_matrix",
     "kf_predict",
     "kf_update_scalar",
+    "process_noise_psd",
     "solar_vector_residual",
     "solar_vector_rows",
-    "process_noise_psd",
 ]
 
 N_STATES = 15

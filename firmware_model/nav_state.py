@@ -19,8 +19,23 @@ import numpy as np
 import numpy.typing as npt
 
 __all__ = [
-    "A_PREV", "F_N", "FE", "FN", "FU", "HGT", "LAT", "LON", "N_NAV_FLOATS", "POS", "Q", "V", "VE", "VN", "VU",
-    "NavFloats", "NavState",
+    "A_PREV",
+    "FE",
+    "FN",
+    "FU",
+    "F_N",
+    "HGT",
+    "LAT",
+    "LON",
+    "N_NAV_FLOATS",
+    "POS",
+    "VE",
+    "VN",
+    "VU",
+    "NavFloats",
+    "NavState",
+    "Q",
+    "V",
 ]
 
 #: ``NavState.as_floats()``: the 16 values, layout above.

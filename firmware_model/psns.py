@@ -29,25 +29,25 @@ import numpy as np
 
 from . import c674x
 from .psns_geometry import CameraGeometry
+from .units import HALF_PI
 
 __all__ = [
     "SolarSolution",
-    "stokes",
-    "dop_psi",
     "aop_from_psi",
-    "superpixel_channels",
-    "mosaic_observations",
+    "dop_psi",
+    "evector_cycles",
     "evectors_camera",
     "evectors_compass",
-    "scatter_matrix",
-    "sym3_eigen_smallest",
-    "solve_solar_vector",
     "exposure_time_s",
+    "mosaic_observations",
+    "scatter_matrix",
     "solve_cycles",
-    "evector_cycles",
+    "solve_solar_vector",
+    "stokes",
+    "superpixel_channels",
+    "sym3_eigen_smallest",
 ]
 
-HALF_PI = 0.5 * math.pi
 
 
 @dataclass(frozen=True)
@@ -70,7 +70,8 @@ class SolarSolution:
     valid: bool
 
 
-def stokes(i0: np.ndarray, i45: np.ndarray, i90: np.ndarray, i135: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def stokes(i0: np.ndarray, i45: np.ndarray, i90: np.ndarray,
+           i135: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Linear Stokes parameters (Eq. 1) from the four polarizer channels (any shape, same units)."""
     return 0.5 * (i0 + i45 + i90 + i135), i0 - i90, i45 - i135
 
@@ -98,7 +99,9 @@ def superpixel_channels(raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nda
     return raw[1::2, 1::2], raw[0::2, 1::2], raw[0::2, 0::2], raw[1::2, 0::2]
 
 
-def mosaic_observations(raw: np.ndarray, dtype: type = np.float32) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def mosaic_observations(
+    raw: np.ndarray, dtype: type = np.float32
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Observation points of a raw mosaic: one per super-pixel.
 
     Returns ``(x_px, y_px, aop, dop, s0)`` flattened: super-pixel centres in 1-based pixel coordinates

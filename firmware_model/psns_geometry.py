@@ -27,13 +27,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .units import DEG
+
 __all__ = [
+    "COMPASS_N_UNITS",
+    "COMPASS_RING_ZENITH_DEG",
     "IMX250MZR_NX",
     "IMX250MZR_NY",
     "IMX250MZR_PITCH_M",
     "CameraGeometry",
-    "COMPASS_N_UNITS",
-    "COMPASS_RING_ZENITH_DEG",
     "compass_unit_mountings",
     "compass_view_rays",
 ]
@@ -98,7 +100,7 @@ def compass_unit_mountings(n_ring: int = COMPASS_N_UNITS - 1,
     """
     out = np.empty((1 + n_ring, 3, 3))
     out[0] = np.eye(3)
-    th = math.radians(ring_zenith_deg)
+    th = ring_zenith_deg * DEG
     for k in range(n_ring):
         az = 2.0 * math.pi * k / n_ring
         z = np.array([math.sin(th) * math.sin(az), math.sin(th) * math.cos(az), math.cos(th)])

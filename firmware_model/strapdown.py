@@ -32,7 +32,7 @@ import numpy.typing as npt
 
 from . import earth
 from .attitude import cross3, q2mat, qmul
-from .nav_state import A_PREV, POS, Q, V, NavState
+from .nav_state import A_PREV, POS, NavState, Q, V
 from .precision import rounder
 
 __all__ = ["STRAPDOWN_FLOPS", "NavState", "coning_sculling", "strapdown_step", "strapdown_step_fast"]
@@ -165,7 +165,8 @@ def _rv2q_ref(phi: FloatArray) -> FloatArray:
 def strapdown_step_fast(s: NavState, phi_m: Sequence[float], dv_m: Sequence[float], T: float,
                         dtype: type[np.floating[Any]] = np.float32) -> NavState:
     """:func:`strapdown_step`, bit for bit, for a state held in ``dtype`` (``q``, ``v``, ``a_prev`` float64 or
-    float32 values); ``phi_m``, ``dv_m``: three Python floats each or (3,) arrays (rad, m/s, body), rounded to ``dtype`` here.
+    float32 values); ``phi_m``, ``dv_m``: three Python floats each or (3,) arrays (rad, m/s, body), rounded to
+    ``dtype`` here.
 
     The state stays in its float form (:meth:`NavState.as_floats`): a step creates no arrays. Other
     precisions go to the reference.
@@ -384,7 +385,7 @@ def _step_f32(s: NavState, phi_m: Sequence[float], dv_m: Sequence[float], T: flo
     qa = _array(qn, dtype=_f32)
     # qnormalize in float32: |q|^2 by numpy's dot, sqrt and the divisions rounded to float32
     (nrm,) = _R1.unpack(_R1.pack(_sqrt(float(np.dot(qa, qa)))))
-    s._set_floats(_R4.unpack(_R4.pack(qn[0] / nrm, qn[1] / nrm, qn[2] / nrm, qn[3] / nrm))
-                  + (ve1, vn1, vu1, lat1, lon1, h1, ae, an, au, fe, fn, fu), _f32)
+    s._set_floats((*_R4.unpack(_R4.pack(qn[0] / nrm, qn[1] / nrm, qn[2] / nrm, qn[3] / nrm)),
+                   ve1, vn1, vu1, lat1, lon1, h1, ae, an, au, fe, fn, fu), _f32)
     s.t += T
     return s

@@ -32,21 +32,21 @@ import math
 import numpy as np
 
 from . import c674x
+from .units import TWO_PI
 
 __all__ = [
     "GRENA_T0",
+    "delta_tau_s",
+    "ephemeris_cycles",
     "grena_days",
     "grena_days_from_datetime",
-    "delta_tau_s",
+    "sun_az_el",
     "sun_equatorial",
     "sun_vector_enu",
-    "sun_az_el",
-    "ephemeris_cycles",
 ]
 
-TWO_PI = 2.0 * math.pi
 #: Origin of Grena's time scale.
-GRENA_T0 = _dt.datetime(2060, 1, 1, tzinfo=_dt.timezone.utc)
+GRENA_T0 = _dt.datetime(2060, 1, 1, tzinfo=_dt.UTC)
 #: Earth radius over astronomical unit, the parallax factor of the elevation (paper: 4.26e-5).
 PARALLAX = 4.26e-5
 
@@ -83,7 +83,7 @@ def grena_days(year: int, month: int, day: int, hour_ut: float) -> float:
 
 def grena_days_from_datetime(t: _dt.datetime) -> float:
     """``t`` for a timezone-aware datetime (converted to UTC)."""
-    u = t.astimezone(_dt.timezone.utc)
+    u = t.astimezone(_dt.UTC)
     hour = u.hour + u.minute / 60.0 + (u.second + u.microsecond * 1e-6) / 3600.0
     return grena_days(u.year, u.month, u.day, hour)
 

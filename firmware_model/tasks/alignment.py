@@ -9,7 +9,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import numpy.typing as npt
 
 from protocols.host import NavMode
 
@@ -42,7 +41,7 @@ class AlignmentTask(PsnsTask):
         cbn = None
         want_psns = cfg.psns_enabled and cfg.alignment_heading in ("auto", "psns")
         if want_psns and self._align_sun and self.utc_days(t) is not None:
-            cbn, sun_el = self._solar_alignment(fm, lat, lon)
+            cbn, _sun_el = self._solar_alignment(fm, lat, lon)
             if cbn is not None:
                 source = "psns"
                 heading_sigma = cfg.psns_heading_sigma_deg * DEG
@@ -55,7 +54,6 @@ class AlignmentTask(PsnsTask):
             cbn = a2mat(pitch, roll, yaw_from_heading(cfg.initial_heading_deg * DEG))
         if any(cfg.initial_misalignment_deg):  # C_b^{n'} = rv2m(-phi) C_b^n: the computed frame is off by phi
             cbn = q2mat(rv2q(-np.asarray(cfg.initial_misalignment_deg, dtype=np.float64) * DEG)) @ cbn
-        dt = self.dtype
         nd = self.nav_dtype
         self.nav = NavState(q=mat2q(cbn).astype(nd), v=np.zeros(3, dtype=nd), pos=np.array([lat, lon, h]), t=t,
                             a_prev=np.zeros(3, dtype=nd))

@@ -92,7 +92,7 @@ class HostTask(AlignmentTask, NavOutput):
             k = self.cfg.imu_rate_hz / r if r > 0 and math.isfinite(r) else 0.0
             if k < 1.0 - 1e-9 or abs(k - round(k)) > 1e-6:
                 return CMD_SET_OUTPUT_RATE, c.token, AckResult.BAD_ARGUMENT
-            self._out_every = int(round(k))
+            self._out_every = round(k)
             return CMD_SET_OUTPUT_RATE, c.token, AckResult.ACCEPTED
         if isinstance(c, RequestStatus):
             return CMD_REQUEST_STATUS, c.token, AckResult.ACCEPTED

@@ -12,10 +12,10 @@ import numpy as np
 import numpy.typing as npt
 
 from .. import c674x
+from ..config import FILTER_VARIANTS
 from ..filters import NavFilter
 from ..nav_state import FE, FN, FU, POS, Q, V
 from ..strapdown import coning_sculling, strapdown_step_fast
-from ..config import FILTER_VARIANTS
 from .timekeeping import TimeKeeping
 
 __all__ = ["Navigation"]

@@ -27,11 +27,11 @@ from .params import (
 )
 
 __all__ = [
-    "ModeManager",
-    "VariantParams",
-    "ModeManagerParams",
     "DualVectorParams",
-    "KmeansParams",
     "FederatedParams",
+    "KmeansParams",
+    "ModeManager",
+    "ModeManagerParams",
     "SunElevationParams",
+    "VariantParams",
 ]

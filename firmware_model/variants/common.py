@@ -11,19 +11,20 @@ import math
 import numpy as np
 
 from .. import c674x
+from ..units import DEG
 
 __all__ = [
     "CHI2_TABLE",
     "chi2_threshold",
-    "unit_mounting",
     "compass_mountings",
-    "spd_solve",
-    "spd_solve_cycles",
-    "spd_inverse",
-    "spd_inverse_cycles",
+    "cross",
     "misalignment_between",
     "plane_basis",
-    "cross",
+    "spd_inverse",
+    "spd_inverse_cycles",
+    "spd_solve",
+    "spd_solve_cycles",
+    "unit_mounting",
 ]
 
 #: Upper quantiles ``chi2_{1-alpha}(m)`` for m = 1..6 degrees of freedom and the usual alphas
@@ -68,7 +69,7 @@ def unit_mounting(zenith: float, azimuth: float) -> np.ndarray:
 
 def compass_mountings(directions_deg: list[tuple[float, float]] | tuple[tuple[float, float], ...]) -> np.ndarray:
     """Mountings (n, 3, 3) of units given as ``(zenith_deg, azimuth_deg)`` pairs (see :func:`unit_mounting`)."""
-    return np.stack([unit_mounting(math.radians(z), math.radians(a)) for z, a in directions_deg])
+    return np.stack([unit_mounting(z * DEG, a * DEG) for z, a in directions_deg])
 
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:

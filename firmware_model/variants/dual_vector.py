@@ -55,15 +55,23 @@ from .. import c674x, sun
 from ..attitude import q2mat
 from ..filters import BaseFilter, UpdateReport, register_filter
 from ..kf import N_STATES
-from ..psns_geometry import compass_unit_mountings
 from ..nav_state import NavState
+from ..psns_geometry import compass_unit_mountings
+from ..units import DEG
 from .common import cross, plane_basis
 from .mode_manager import ModeManager
 
-__all__ = ["DualVectorFilter", "PSNS_MODE_NONE", "PSNS_MODE_POLARIZATION", "PSNS_MODE_SUN",
-           "discrimination_factors", "unit_evectors", "sun_error_vector", "polarization_error"]
+__all__ = [
+    "PSNS_MODE_NONE",
+    "PSNS_MODE_POLARIZATION",
+    "PSNS_MODE_SUN",
+    "DualVectorFilter",
+    "discrimination_factors",
+    "polarization_error",
+    "sun_error_vector",
+    "unit_evectors",
+]
 
-DEG = math.pi / 180.0
 PSNS_MODE_NONE, PSNS_MODE_POLARIZATION, PSNS_MODE_SUN = 0, 1, 2
 MODE_NAMES = {PSNS_MODE_NONE: "none", PSNS_MODE_POLARIZATION: "polarization_error_vector",
               PSNS_MODE_SUN: "sun_error_vector"}
@@ -192,7 +200,7 @@ class DualVectorFilter(BaseFilter):
                 dop[u.unit] = u.dop * (1.0 / 65535.0)
                 present[u.unit] = True
         p_meas = unit_evectors(aop, self.mountings, dt)
-        p_pred, lam, sin_g = discrimination_factors(p_meas, s_b, self.rays_b)
+        _p_pred, lam, sin_g = discrimination_factors(p_meas, s_b, self.rays_b)
         self.meter.charge("dv_discrimination", discrimination_cycles(n, cost))
         q = np.zeros(n, dtype=bool)
         min_sin_g = math.sin(self.p.min_scattering_deg * DEG)

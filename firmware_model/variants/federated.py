@@ -62,17 +62,24 @@ from ..filters import (
     kf_predict_cycles,
     register_filter,
 )
-from ..kf import IDX_ACC, IDX_GYRO, N_STATES, error_transition_matrix, kf_predict, kf_update_scalar, process_noise_psd
-from ..kf import solar_vector_residual, solar_vector_rows
+from ..kf import (
+    IDX_ACC,
+    IDX_GYRO,
+    N_STATES,
+    error_transition_matrix,
+    kf_predict,
+    kf_update_scalar,
+    process_noise_psd,
+    solar_vector_residual,
+    solar_vector_rows,
+)
 from ..nav_state import NavState
+from ..units import DEG, DPH, G_STD
 from .common import spd_inverse, spd_inverse_cycles, spd_solve, spd_solve_cycles
 from .mode_manager import ModeManager
 
-__all__ = ["FederatedFilter", "scalar_update_cycles", "fuse_common_states"]
+__all__ = ["FederatedFilter", "fuse_common_states", "scalar_update_cycles"]
 
-DEG = math.pi / 180.0
-DPH = DEG / 3600.0
-G_STD = 9.80665
 N2 = 9
 #: common states in sub-filter 1 (phi, eps) and sub-filter 2
 C1 = np.array([0, 1, 2, 9, 10, 11])
@@ -88,7 +95,8 @@ def scalar_update_cycles(n: int, c: c674x.KernelCosts) -> int:
 
 
 def fuse_common_states(parts: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
-    """Master fusion ``P_g = (sum P_i^-1)^-1``, ``x_g = P_g sum P_i^-1 x_i`` over (x_i, P_i) pairs (algorithms.md 5.3)."""
+    """Master fusion ``P_g = (sum P_i^-1)^-1``, ``x_g = P_g sum P_i^-1 x_i`` over (x_i, P_i) pairs
+    (docs/reference/algorithms.md 5.3)."""
     if len(parts) == 1:
         return parts[0][0].copy(), parts[0][1].copy()
     info = None
@@ -177,7 +185,8 @@ class FederatedFilter(NavFilter):
             att = [(v * DEG) ** 2 for v in p.initial_attitude_sigma_deg]
         gyro = [(cfg.gyro_bias_sigma_deg_h * DPH) ** 2] * 3
         p01 = np.array(att + [0.1**2] * 3
-                       + [(cfg.gnss_pos_sigma_h_m / (rm + h)) ** 2, (cfg.gnss_pos_sigma_h_m / ((rn + h) * math.cos(lat))) ** 2,
+                       + [(cfg.gnss_pos_sigma_h_m / (rm + h)) ** 2,
+                          (cfg.gnss_pos_sigma_h_m / ((rn + h) * math.cos(lat))) ** 2,
                           cfg.gnss_pos_sigma_v_m**2]
                        + gyro + [(cfg.accel_bias_sigma_mg * 1e-3 * G_STD) ** 2] * 3)
         p02 = np.array(att + gyro + [p.motion_accel_sigma_mps2**2 + (cfg.accel_bias_sigma_mg * 1e-3 * G_STD) ** 2] * 3)

@@ -50,15 +50,24 @@ from .. import c674x, psns, sun
 from ..attitude import a2mat, heading_from_yaw, m2att, q2mat
 from ..filters import BaseFilter, UpdateReport, register_filter
 from ..kf import N_STATES
-from ..psns_geometry import CameraGeometry
 from ..nav_state import NavState
+from ..psns_geometry import CameraGeometry
+from ..units import DEG
 from .common import misalignment_between
 from .mode_manager import ModeManager
 
-__all__ = ["Kmeans3dFilter", "kmeans_1d", "kmeans_cycles", "pitch_roll_from_sun", "heading_from_mag",
-           "SunFinding", "find_sun", "KmeansAttitude", "kmeans_attitude"]
+__all__ = [
+    "Kmeans3dFilter",
+    "KmeansAttitude",
+    "SunFinding",
+    "find_sun",
+    "heading_from_mag",
+    "kmeans_1d",
+    "kmeans_attitude",
+    "kmeans_cycles",
+    "pitch_roll_from_sun",
+]
 
-DEG = math.pi / 180.0
 HORIZON_MASK = 2.0 * DEG
 
 
@@ -147,14 +156,26 @@ def attitude_cycles(iterations: int, c: c674x.KernelCosts) -> int:
 class SunFinding:
     """Result of :func:`find_sun` (camera frame)."""
 
-    __slots__ = ("ok", "reason", "s_c", "coarse_c", "cluster_n", "centres", "quality", "sun_theta", "fov_theta",
-                 "disagreement", "n_points")
+    __slots__ = (
+        "centres",
+        "cluster_n",
+        "coarse_c",
+        "disagreement",
+        "fov_theta",
+        "n_points",
+        "ok",
+        "quality",
+        "reason",
+        "s_c",
+        "sun_theta",
+    )
 
     def __init__(self, ok: bool, reason: str, **kw: Any) -> None:
         self.ok = ok
         self.reason = reason
-        for k in self.__slots__[2:]:
-            setattr(self, k, kw.get(k))
+        for k in self.__slots__:
+            if k not in ("ok", "reason"):
+                setattr(self, k, kw.get(k))
 
     def fields(self) -> dict[str, Any]:
         """Numbers behind the decision, for the event (degrees)."""
@@ -245,7 +266,7 @@ def _inside_image(s_c: np.ndarray, cam: CameraGeometry, x_px: np.ndarray, y_px: 
 class KmeansAttitude:
     """An attitude fix: pitch, roll, yaw (rad, PSINS) and how it was made."""
 
-    __slots__ = ("pitch", "roll", "yaw", "heading_source", "finding")
+    __slots__ = ("finding", "heading_source", "pitch", "roll", "yaw")
 
     def __init__(self, pitch: float, roll: float, yaw: float, heading_source: str, finding: SunFinding) -> None:
         self.pitch, self.roll, self.yaw = pitch, roll, yaw

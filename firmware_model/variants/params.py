@@ -11,10 +11,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 __all__ = [
-    "ModeManagerParams",
     "DualVectorParams",
-    "KmeansParams",
     "FederatedParams",
+    "KmeansParams",
+    "ModeManagerParams",
     "SunElevationParams",
     "VariantParams",
 ]

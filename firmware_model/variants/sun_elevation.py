@@ -53,15 +53,15 @@ from .. import c674x, psns, sun
 from ..attitude import q2mat
 from ..filters import BaseFilter, SolarObservation, UpdateReport, register_filter
 from ..kf import N_STATES
-from ..psns_geometry import compass_unit_mountings
 from ..nav_state import NavState
+from ..psns_geometry import compass_unit_mountings
+from ..units import DEG
 from .common import cross
 from .dual_vector import unit_evectors
 from .mode_manager import ModeManager
 
-__all__ = ["SunElevationFilter", "sun_elevation_partials", "sun_vector_from_two_evectors", "SageHusaR"]
+__all__ = ["SageHusaR", "SunElevationFilter", "sun_elevation_partials", "sun_vector_from_two_evectors"]
 
-DEG = math.pi / 180.0
 
 
 def sun_elevation_partials(lat: float, sin_dec: float, cos_dec: float, lha: float) -> tuple[float, float, float]:
@@ -228,7 +228,7 @@ class SunElevationFilter(BaseFilter):
             self.state = 2
             return UpdateReport("sun_elevation", False, 0, math.sqrt(nis), {"reason": "chi2_fail"})
         r = self.adaptive.adapt(innov, hph)
-        mm.report(t, "adaptive_r", int(round(math.log2(r / self.adaptive.r0))), "sage_husa",
+        mm.report(t, "adaptive_r", round(math.log2(r / self.adaptive.r0)), "sage_husa",
                   r_over_r0=r / self.adaptive.r0, sigma_deg=math.degrees(math.sqrt(r) / cos_hc))
         self.meter.charge("se_sage_husa", cost.flops(6, 6) + cost.math("div"))
         nu = self._scalar(h, z, r)

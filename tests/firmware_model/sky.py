@@ -54,10 +54,7 @@ def observe_sky(s_c: np.ndarray, cam: CameraGeometry, stride_px: int = 32, rng: 
     dop, e = rayleigh(np.asarray(s_c, dtype=np.float64), v, p_max)
     psi = np.arctan2(e[:, 1], e[:, 0])
     s0_e = signal_fraction * full_well_e * np.ones_like(dop)
-    if rng is None:
-        d = 1.0
-    else:
-        d = (extinction_ratio - 1.0) / (extinction_ratio + 1.0)
+    d = 1.0 if rng is None else (extinction_ratio - 1.0) / (extinction_ratio + 1.0)
     # Malus: I_theta = S0/2 [1 + D DOP cos(2 (psi - theta_p))]
     inten = 0.5 * s0_e[:, None] * (1.0 + d * dop[:, None] * np.cos(2.0 * (psi[:, None] - THETA_P[None, :])))
     if rng is not None:

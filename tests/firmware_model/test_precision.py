@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from firmware_model.attitude import mat2q, a2mat
+from firmware_model.attitude import a2mat, mat2q
 from firmware_model.precision import rounder
 from firmware_model.strapdown import NavState, strapdown_step, strapdown_step_fast
 
@@ -53,7 +53,7 @@ def test_python_float_strapdown_matches_the_numpy_formulation_to_rounding():
     a, b = _state(), _state()
     for _ in range(2000):
         phi = rng.normal(0.0, 1e-3, 3).astype(np.float32)
-        dv = (rng.normal(0.0, 1e-3, 3) + [0.0, 0.0, 9.8 * T]).astype(np.float32)
+        dv = (rng.normal(0.0, 1e-3, 3) + np.array([0.0, 0.0, 9.8 * T])).astype(np.float32)
         strapdown_step_fast(a, phi, dv, T, np.float64)
         # reference: the numpy formulation, written out (the pre-D-10.F1 implementation)
         lat, lon, h = b.pos
@@ -106,7 +106,7 @@ def test_float32_strapdown_is_bit_identical_to_the_numpy_float32_formulation():
     a, b = state(), state()
     for k in range(500):
         phi = rng.normal(0.0, 1e-3 if k % 2 else 1e-9, 3).astype(np.float32)  # also the rv2q series branch
-        dv = (rng.normal(0.0, 1e-3, 3) + [0.0, 0.0, 9.8 * T]).astype(np.float32)
+        dv = (rng.normal(0.0, 1e-3, 3) + np.array([0.0, 0.0, 9.8 * T])).astype(np.float32)
         sd.strapdown_step_fast(a, phi.tolist(), dv.tolist(), T, np.float32)
         sd.strapdown_step(b, phi, dv, T, dtype=np.float32)
         for x, y in ((a.q, b.q), (a.v, b.v), (a.pos, b.pos), (a.f_n, b.f_n), (a.a_prev, b.a_prev)):

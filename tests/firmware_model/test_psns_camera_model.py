@@ -21,7 +21,7 @@ from firmware_model import psns  # noqa: E402
 from firmware_model.psns_geometry import CameraGeometry  # noqa: E402
 
 DEG = math.pi / 180.0
-EPOCH = dt.datetime(2019, 9, 18, 8, 14, tzinfo=dt.timezone.utc)
+EPOCH = dt.datetime(2019, 9, 18, 8, 14, tzinfo=dt.UTC)
 
 
 def _angle_deg(a, b) -> float:

@@ -117,7 +117,7 @@ def _firmware_precision_run(duration_s: float) -> float:
     st = traj.state(0.0)
     s = NavState(mat2q(st.c_bn), st.v_enu.copy(), st.pos.copy(), a_prev=np.zeros(3))
     worst = 0.0
-    for k in range(1, int(round(duration_s / T)) + 1):
+    for k in range(1, round(duration_s / T) + 1):
         dth, dv = traj.imu_increments((k - 1) * T, k * T)
         dth, dv = dth.astype(np.float32), dv.astype(np.float32)
         dv_m = dv + np.float32(0.5) * cross3(dth, dv)

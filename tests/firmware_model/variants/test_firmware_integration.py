@@ -3,7 +3,6 @@ mode for the others, a switch by host command, and the 200 Hz cycle budget (wors
 
 from __future__ import annotations
 
-
 import pytest
 
 from firmware_model import Firmware, FirmwareConfig

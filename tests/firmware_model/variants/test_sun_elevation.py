@@ -33,11 +33,14 @@ def test_partials_match_finite_differences_of_the_elevation():
     lat, sd, cd, lha = 39.979 * DEG, math.sin(1.9344 * DEG), math.cos(1.9344 * DEG), 61.2708 * DEG
     h = 1e-6
     s0, a, b = sun_elevation_partials(lat, sd, cd, lha)
-    d_lat = (math.asin(sun_elevation_partials(lat + h, sd, cd, lha)[0]) - math.asin(sun_elevation_partials(lat - h, sd, cd, lha)[0])) / (2 * h)
-    d_lon = (math.asin(sun_elevation_partials(lat, sd, cd, lha + h)[0]) - math.asin(sun_elevation_partials(lat, sd, cd, lha - h)[0])) / (2 * h)
+    d_lat = (math.asin(sun_elevation_partials(lat + h, sd, cd, lha)[0])
+             - math.asin(sun_elevation_partials(lat - h, sd, cd, lha)[0])) / (2 * h)
+    d_lon = (math.asin(sun_elevation_partials(lat, sd, cd, lha + h)[0])
+             - math.asin(sun_elevation_partials(lat, sd, cd, lha - h)[0])) / (2 * h)
     assert a == pytest.approx(d_lat, abs=1e-7) and b == pytest.approx(d_lon, abs=1e-7)
     # the H row of z = sin H_c - sin H_n is cos(h) (alpha, beta): d(sin h) = cos h dh
-    d_sin = (sun_elevation_partials(lat + h, sd, cd, lha)[0] - sun_elevation_partials(lat - h, sd, cd, lha)[0]) / (2 * h)
+    d_sin = (sun_elevation_partials(lat + h, sd, cd, lha)[0]
+             - sun_elevation_partials(lat - h, sd, cd, lha)[0]) / (2 * h)
     assert d_sin == pytest.approx(math.sqrt(1 - s0 * s0) * a, abs=1e-8)
 
 
@@ -85,8 +88,8 @@ def test_gnss_free_sun_elevation_bounds_the_along_azimuth_error_fast():
     """Fast counterpart (6 min; near local noon, so the static drift's main, northern, direction is the Sun's
     azimuth, and a 20 deg/h gyro so that it shows within minutes)."""
     bias = (20.0, -20.0, 10.0)
-    noon = dt.datetime(2019, 9, 18, 4, 0, tzinfo=dt.timezone.utc)
-    fw, se, ev = _gnss_free("sun_elevation", 360.0, bias, 60.0, epoch=noon)
+    noon = dt.datetime(2019, 9, 18, 4, 0, tzinfo=dt.UTC)
+    fw, se, _ev = _gnss_free("sun_elevation", 360.0, bias, 60.0, epoch=noon)
     _, sins, _ = _gnss_free("base", 360.0, bias, 60.0, epoch=noon)
     r_se, r_sins = _report(se), _report(sins)
     assert r_sins["final_along_km"] > 0.3  # pure SINS runs away along the Sun's azimuth ...

@@ -41,7 +41,7 @@ import numpy as np
 from protocols.host import FILTER_VARIANT_NAMES
 
 from . import c674x, earth
-from .attitude import q2mat, qmul, qnormalize, rv2q
+from .attitude import q2mat_fast, qmul, qnormalize, rv2q
 from .config import FILTER_VARIANTS, FirmwareConfig
 from .kf import (
     IDX_ACC,
@@ -309,7 +309,7 @@ class BaseFilter(NavFilter):
     # -- time update --------------------------------------------------------------------------
     def predict(self, nav: NavState, f_n: np.ndarray, Tk: float) -> None:
         dt = self.dtype
-        F = error_transition_matrix(q2mat(nav.q), nav.v, nav.pos, f_n, dtype=dt)
+        F = error_transition_matrix(q2mat_fast(nav.q), nav.v, nav.pos, f_n, dtype=dt)
         Phi = self._eye + F * dt(Tk)
         if Tk != self._qk_interval:  # Q_k = q T_k: the same every interval but the first after alignment
             self._qk_interval, self._qk = Tk, (self.q * Tk).astype(dt)

@@ -14,7 +14,7 @@ from protocols.host import NavMode
 
 from .. import c674x, sun
 from ..alignment import level_from_specific_force, solar_heading_alignment
-from ..attitude import a2mat, heading_from_yaw, m2att, mat2q, q2mat, rv2q, yaw_from_heading
+from ..attitude import a2mat, heading_from_yaw, m2att, mat2q, q2mat_fast, rv2q, yaw_from_heading
 from ..nav_state import NavState
 from ..units import DEG
 from .psns import PsnsTask
@@ -53,7 +53,7 @@ class AlignmentTask(PsnsTask):
         if cbn is None:
             cbn = a2mat(pitch, roll, yaw_from_heading(cfg.initial_heading_deg * DEG))
         if any(cfg.initial_misalignment_deg):  # C_b^{n'} = rv2m(-phi) C_b^n: the computed frame is off by phi
-            cbn = q2mat(rv2q(-np.asarray(cfg.initial_misalignment_deg, dtype=np.float64) * DEG)) @ cbn
+            cbn = q2mat_fast(rv2q(-np.asarray(cfg.initial_misalignment_deg, dtype=np.float64) * DEG)) @ cbn
         nd = self.nav_dtype
         self.nav = NavState(q=mat2q(cbn).astype(nd), v=np.zeros(3, dtype=nd), pos=np.array([lat, lon, h]), t=t,
                             a_prev=np.zeros(3, dtype=nd))

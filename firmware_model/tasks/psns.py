@@ -14,7 +14,7 @@ import numpy as np
 from protocols.psns import CompassFrame, PolarizationObs, PsnsStatus, SolarVectorFrame
 
 from .. import c674x, psns, sun
-from ..attitude import q2mat
+from ..attitude import q2mat_fast
 from ..filters import SolarObservation, UpdateReport
 from ..units import DEG
 from .navigation import Navigation
@@ -111,4 +111,4 @@ class PsnsTask(Navigation):
         if float(s_n[2]) < math.sin(cfg.psns_min_sun_elevation_deg * DEG):
             self.counters["psns_sun_low"] += 1  # night or twilight: not an error, no update
             return None
-        return self.filter.update_solar(self.nav, obs, s_n, q2mat(q_exp))  # type: ignore[arg-type]
+        return self.filter.update_solar(self.nav, obs, s_n, q2mat_fast(q_exp))  # type: ignore[arg-type]

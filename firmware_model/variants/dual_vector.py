@@ -52,7 +52,7 @@ import numpy as np
 from protocols.psns import CompassFrame, PsnsStatus
 
 from .. import c674x, sun
-from ..attitude import q2mat
+from ..attitude import q2mat_fast
 from ..filters import BaseFilter, UpdateReport, register_filter
 from ..kf import N_STATES
 from ..nav_state import NavState
@@ -187,7 +187,7 @@ class DualVectorFilter(BaseFilter):
         if float(s_n[2]) < math.sin(pm.min_sun_elevation_deg * DEG):
             mm.decide(t, "compass", False, "sun_low", sun_elevation_deg=math.degrees(math.asin(float(s_n[2]))))
             return None
-        cbn = q2mat(q_exp).astype(dt)
+        cbn = q2mat_fast(q_exp).astype(dt)
         s_b = cbn.T @ s_n
         # per-unit data (units missing from the frame are saturated / not reported)
         n = self.n_units

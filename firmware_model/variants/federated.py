@@ -51,7 +51,7 @@ from typing import Any
 import numpy as np
 
 from .. import c674x, earth
-from ..attitude import q2mat, qmul, qnormalize, rv2q
+from ..attitude import q2mat_fast, qmul, qnormalize, rv2q
 from ..filters import (
     GnssMeasurement,
     NavFilter,
@@ -204,7 +204,7 @@ class FederatedFilter(NavFilter):
     # -- time update (+ the accelerometer gravity measurement of sub-filter 2) -------------------------------
     def predict(self, nav: NavState, f_n: np.ndarray, Tk: float) -> None:
         dt, p = self.dtype, self.p
-        cbn = q2mat(nav.q).astype(dt)
+        cbn = q2mat_fast(nav.q).astype(dt)
         F = error_transition_matrix(cbn, nav.v, nav.pos, f_n, dtype=dt)
         Phi1 = self._eye1 + F * dt(Tk)
         self.x1, self.P1 = kf_predict(self.x1, self.P1, Phi1, (self.q1 * Tk).astype(dt))

@@ -47,7 +47,7 @@ import numpy as np
 from protocols.psns import PolarizationObs, PsnsStatus
 
 from .. import c674x, psns, sun
-from ..attitude import a2mat, heading_from_yaw, m2att, q2mat
+from ..attitude import a2mat, heading_from_yaw, m2att, q2mat_fast
 from ..filters import BaseFilter, UpdateReport, register_filter
 from ..kf import N_STATES
 from ..nav_state import NavState
@@ -391,7 +391,7 @@ class Kmeans3dFilter(BaseFilter):
         dop = (pts[:, 3] * (1.0 / 65535.0)).astype(dt)
         cam = self.cfg.camera
         p_ins, _, q_exp = host.ins_at(t_exposure_s)
-        cbn = q2mat(q_exp)
+        cbn = q2mat_fast(q_exp)
         # sky mask from the INS tilt: rays below the horizon see the (unpolarized) ground
         v_c = cam.view_rays(pts[:, 0], pts[:, 1])
         up_c = (cam.c_c_b.T @ cbn.T)[:, 2]

@@ -50,7 +50,7 @@ import numpy as np
 from protocols.psns import CompassFrame, PsnsStatus
 
 from .. import c674x, psns, sun
-from ..attitude import q2mat
+from ..attitude import q2mat_fast
 from ..filters import BaseFilter, SolarObservation, UpdateReport, register_filter
 from ..kf import N_STATES
 from ..nav_state import NavState
@@ -189,7 +189,7 @@ class SunElevationFilter(BaseFilter):
             return UpdateReport("sun_elevation", False, 0, 0.0, {"reason": "ill_conditioned"})
         ui, uj = good[pair[0]][1], good[pair[1]][1]
         p_ins, _, q_exp = host.ins_at(t_exposure_s)
-        cbn = q2mat(q_exp).astype(dt)
+        cbn = q2mat_fast(q_exp).astype(dt)
         if p.attitude_aiding:
             self._attitude_update(nav, t, t_exposure_s, days, p_ins, cbn, good)
         s_n_meas = cbn @ s_b

@@ -44,8 +44,17 @@ from . import c674x, earth
 from .attitude import q2mat_fast, qmul, qnormalize, rv2q
 from .config import FILTER_VARIANTS, FirmwareConfig
 from .kf import (
+    D_H,
+    D_LAT,
+    D_LON,
+    DV_E,
+    DV_N,
+    DV_U,
     IDX_ACC,
+    IDX_ATT,
     IDX_GYRO,
+    IDX_POS,
+    IDX_VEL,
     N_STATES,
     error_transition_matrix,
     kf_predict,
@@ -134,18 +143,18 @@ def gnss_measurement_rows(cfg: FirmwareConfig, meter: c674x.CycleMeter, meas: Gn
         sh = meas.sigma_pos_h_m or cfg.gnss_pos_sigma_h_m
         sv = meas.sigma_pos_v_m or cfg.gnss_pos_sigma_v_m
         rows += [
-            (6, rmh, (float(p_ins[0]) - meas.pos[0]) * rmh, sh**2),
-            (7, rnh * cl, (float(p_ins[1]) - meas.pos[1]) * rnh * cl, sh**2),
-            (8, 1.0, float(p_ins[2]) - meas.pos[2], sv**2),
+            (D_LAT, rmh, (float(p_ins[0]) - meas.pos[0]) * rmh, sh**2),
+            (D_LON, rnh * cl, (float(p_ins[1]) - meas.pos[1]) * rnh * cl, sh**2),
+            (D_H, 1.0, float(p_ins[2]) - meas.pos[2], sv**2),
         ]
         meter.charge("gnss_residual", c674x.dp_flops(8, 6) + c674x.mathlib("cosdp") + c674x.mathlib("sqrtdp")
                      + c674x.mathlib("divdp"))
     if meas.vel is not None:
         svh = meas.sigma_vel_mps or cfg.gnss_vel_sigma_h_mps
-        rows.append((3, 1.0, float(v_ins[0]) - float(meas.vel[0]), svh**2))
-        rows.append((4, 1.0, float(v_ins[1]) - float(meas.vel[1]), svh**2))
+        rows.append((DV_E, 1.0, float(v_ins[0]) - float(meas.vel[0]), svh**2))
+        rows.append((DV_N, 1.0, float(v_ins[1]) - float(meas.vel[1]), svh**2))
         if meas.vel_up:
-            rows.append((5, 1.0, float(v_ins[2]) - float(meas.vel[2]), cfg.gnss_vel_sigma_v_mps**2))
+            rows.append((DV_U, 1.0, float(v_ins[2]) - float(meas.vel[2]), cfg.gnss_vel_sigma_v_mps**2))
     return rows
 
 
@@ -295,14 +304,13 @@ class BaseFilter(NavFilter):
         lat, h = float(nav.pos[0]), float(nav.pos[2])
         rm, rn = earth.radii(lat)
         lvl = cfg.accel_bias_sigma_mg * 1e-3  # rad: level error from the accelerometer bias
-        p0 = np.array(
-            [lvl**2, lvl**2, heading_sigma_rad**2]
-            + [0.1**2] * 3
-            + [(cfg.gnss_pos_sigma_h_m / (rm + h)) ** 2, (cfg.gnss_pos_sigma_h_m / ((rn + h) * math.cos(lat))) ** 2,
-               cfg.gnss_pos_sigma_v_m**2]
-            + [(cfg.gyro_bias_sigma_deg_h * DPH) ** 2] * 3
-            + [(cfg.accel_bias_sigma_mg * 1e-3 * G_STD) ** 2] * 3
-        )
+        p0 = np.zeros(N_STATES)
+        p0[IDX_ATT] = (lvl**2, lvl**2, heading_sigma_rad**2)
+        p0[IDX_VEL] = 0.1**2
+        p0[IDX_POS] = ((cfg.gnss_pos_sigma_h_m / (rm + h)) ** 2,
+                       (cfg.gnss_pos_sigma_h_m / ((rn + h) * math.cos(lat))) ** 2, cfg.gnss_pos_sigma_v_m**2)
+        p0[IDX_GYRO] = (cfg.gyro_bias_sigma_deg_h * DPH) ** 2
+        p0[IDX_ACC] = (cfg.accel_bias_sigma_mg * 1e-3 * G_STD) ** 2
         self.P = np.diag(p0).astype(self.dtype)
         self.x = np.zeros(N_STATES, dtype=self.dtype)
 
@@ -343,8 +351,8 @@ class BaseFilter(NavFilter):
         r = (cfg.psns_sigma_deg * DEG) ** 2
         self.meter.charge("solar_residual", self.cost.flops(18 + 9, 18 + 6))
         # innovation gate: |Z|^2 against its predicted variance tr(H P H^T) + 3 r (no 3x3 inverse)
-        Pa = self.P[0:3, 0:3]
-        Hs = H[:, 0:3]
+        Pa = self.P[IDX_ATT, IDX_ATT]
+        Hs = H[:, IDX_ATT]
         var = float(np.einsum("ij,jk,ik->", Hs, Pa, Hs)) + 3.0 * r
         z2 = float(z @ z)
         self.meter.charge("solar_gate", self.cost.flops(45, 40))
@@ -362,9 +370,9 @@ class BaseFilter(NavFilter):
         dt = self.dtype
         x = self.x
         # attitude: C_b^n = (I + [phi x]) C_b^{n'}  ->  q <- rv2q(phi) (x) q
-        nav.q = qnormalize(qmul(rv2q(x[0:3]), nav.q)).astype(nav.q.dtype)
-        nav.v = (nav.v - x[3:6]).astype(nav.v.dtype)
-        nav.pos = nav.pos - x[6:9].astype(np.float64)
+        nav.q = qnormalize(qmul(rv2q(x[IDX_ATT]), nav.q)).astype(nav.q.dtype)
+        nav.v = (nav.v - x[IDX_VEL]).astype(nav.v.dtype)
+        nav.pos = nav.pos - x[IDX_POS].astype(np.float64)
         self.gyro_bias = (self.gyro_bias + x[IDX_GYRO]).astype(dt)
         self.accel_bias = (self.accel_bias + x[IDX_ACC]).astype(dt)
         self.x = np.zeros(N_STATES, dtype=dt)

@@ -8,6 +8,7 @@ from protocols.host import NavMode, nav_solution_frame
 
 from .. import earth
 from ..attitude import heading_from_yaw
+from ..kf import D_H, D_LAT, D_LON, DV_E, DV_N, DV_U, N_NAV_ERRORS, PHI_E, PHI_N, PHI_U
 from ..nav_state import POS, Q, V
 from ..units import DEG
 from .state import FirmwareState, LoopState
@@ -49,7 +50,8 @@ class NavOutput(LoopState):
                 mode |= _DEGRADED
             x = s.as_floats()
             lat, lon, h = x[POS]
-            vel = x[V]
+            ve, vn, vu = x[V]
+            vel = (ve, vn, vu)
             # PSINS m2att from the quaternion directly: C32, C31, C33, C12, C22 of C_b^n
             q0, q1, q2, q3 = x[Q]
             c32 = 2.0 * (q2 * q3 + q0 * q1)
@@ -57,11 +59,12 @@ class NavOutput(LoopState):
             roll = math.atan2(-2.0 * (q1 * q3 - q0 * q2), q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3) / DEG
             yaw = math.atan2(-2.0 * (q1 * q2 - q0 * q3), q0 * q0 - q1 * q1 + q2 * q2 - q3 * q3)
             heading = heading_from_yaw(yaw) / DEG
-            d = [_sqrt(0.0 if v < 0.0 else v) for v in self.filter.P.diagonal()[:9].tolist()]  # sqrt(max(v, 0))
+            # sqrt(max(v, 0)) of the navigation errors' variances (kf layout)
+            d = [_sqrt(0.0 if v < 0.0 else v) for v in self.filter.P.diagonal()[:N_NAV_ERRORS].tolist()]
             rm, rn = earth.radii(lat)
             sigma = (
-                d[0] / DEG, d[1] / DEG, d[2] / DEG, d[3], d[4], d[5],
-                d[6] * (rm + h), d[7] * (rn + h) * math.cos(lat), d[8],
+                d[PHI_E] / DEG, d[PHI_N] / DEG, d[PHI_U] / DEG, d[DV_E], d[DV_N], d[DV_U],
+                d[D_LAT] * (rm + h), d[D_LON] * (rn + h) * math.cos(lat), d[D_H],
             )
         fix = self._last_fix
         vs = self.filter.variant_status()

@@ -54,7 +54,7 @@ from protocols.psns import CompassFrame, PsnsStatus
 from .. import c674x, sun
 from ..attitude import q2mat_fast
 from ..filters import BaseFilter, UpdateReport, register_filter
-from ..kf import N_STATES
+from ..kf import IDX_ATT, N_STATES
 from ..nav_state import NavState
 from ..psns_geometry import compass_unit_mountings
 from ..units import DEG
@@ -272,7 +272,7 @@ class DualVectorFilter(BaseFilter):
         sigma = math.sqrt(float(sig[i]) ** 2 + float(sig[j]) ** 2) / sin_ij
         r = max(sigma, self.p.sigma_floor_deg * DEG) ** 2
         rows = [(u1, float(u1 @ z_vec)), (u2, float(u2 @ z_vec))]
-        Pa = self.P[0:3, 0:3]
+        Pa = self.P[IDX_ATT, IDX_ATT]
         nis = sum(zk * zk / (float(h @ Pa @ h) + r) for h, zk in rows)
         self.meter.charge("dv_gate", self.cost.flops(30, 24))
         resid = math.degrees(math.sqrt(float(z_vec @ z_vec)))
@@ -283,7 +283,7 @@ class DualVectorFilter(BaseFilter):
         innov = []
         for hk, zk in rows:
             h[:] = 0
-            h[0:3] = hk
+            h[IDX_ATT] = hk
             innov.append(self._scalar(h, zk, r))
         self.meter.charge("kf_update", 2 * self._cyc_update)
         return UpdateReport("compass", True, 2, max(abs(v) for v in innov),
@@ -299,14 +299,14 @@ class DualVectorFilter(BaseFilter):
         # AOP error dA turns p~ about the ray: dz = dA s.(r x p)
         sz = sig_aop * abs(float(s_n @ cross(r_n, p_n)))
         r = max(sz, 0.1 * self.p.sigma_floor_deg * DEG) ** 2
-        Pa = self.P[0:3, 0:3]
+        Pa = self.P[IDX_ATT, IDX_ATT]
         var = float(hrow @ Pa @ hrow) + r
         nis = z * z / var
         self.meter.charge("dv_pol_residual", self.cost.flops(36, 24) + self.cost.flops(12, 9))
         if not self.mm.gate(t, "polarization_vector", nis, 1, unit=unit, residual=z):
             return UpdateReport("compass", False, 0, math.sqrt(nis), {"reason": "chi2_fail", "mode": "polarization"})
         h = np.zeros(N_STATES, dtype=dt)
-        h[0:3] = hrow
+        h[IDX_ATT] = hrow
         nu = self._scalar(h, z, r)
         self.meter.charge("kf_update", self._cyc_update)
         return UpdateReport("compass", True, 1, abs(nu), {"mode": "polarization", "unit": unit})

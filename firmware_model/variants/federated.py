@@ -64,8 +64,13 @@ from ..filters import (
 )
 from ..kf import (
     IDX_ACC,
+    IDX_ATT,
     IDX_GYRO,
+    IDX_POS,
+    IDX_VEL,
     N_STATES,
+    PHI_E,
+    PHI_N,
     error_transition_matrix,
     kf_predict,
     kf_update_scalar,
@@ -80,10 +85,14 @@ from .mode_manager import ModeManager
 
 __all__ = ["FederatedFilter", "fuse_common_states", "scalar_update_cycles"]
 
+#: sub-filter 2's state layout ``x2 = [phi | eps | a^b]`` (sub-filter 1 has the base filter's, :mod:`..kf`)
 N2 = 9
-#: common states in sub-filter 1 (phi, eps) and sub-filter 2
-C1 = np.array([0, 1, 2, 9, 10, 11])
-C2 = np.arange(6)
+X2_ATT, X2_GYRO, X2_MOTION = slice(0, 3), slice(3, 6), slice(6, 9)
+#: the master's common states ``c = [phi | eps]``
+G_ATT, G_GYRO = slice(0, 3), slice(3, 6)
+#: where the common states sit in sub-filter 1 and in sub-filter 2
+C1 = np.r_[IDX_ATT, IDX_GYRO]
+C2 = np.r_[X2_ATT, X2_GYRO]
 SUB_SINS_GNSS, SUB_POL_MIMU = "sins_gnss", "pol_mimu"
 
 
@@ -184,12 +193,17 @@ class FederatedFilter(NavFilter):
         if p.initial_attitude_sigma_deg is not None:
             att = [(v * DEG) ** 2 for v in p.initial_attitude_sigma_deg]
         gyro = [(cfg.gyro_bias_sigma_deg_h * DPH) ** 2] * 3
-        p01 = np.array(att + [0.1**2] * 3
-                       + [(cfg.gnss_pos_sigma_h_m / (rm + h)) ** 2,
-                          (cfg.gnss_pos_sigma_h_m / ((rn + h) * math.cos(lat))) ** 2,
-                          cfg.gnss_pos_sigma_v_m**2]
-                       + gyro + [(cfg.accel_bias_sigma_mg * 1e-3 * G_STD) ** 2] * 3)
-        p02 = np.array(att + gyro + [p.motion_accel_sigma_mps2**2 + (cfg.accel_bias_sigma_mg * 1e-3 * G_STD) ** 2] * 3)
+        p01 = np.zeros(N_STATES)
+        p01[IDX_ATT] = att
+        p01[IDX_VEL] = 0.1**2
+        p01[IDX_POS] = ((cfg.gnss_pos_sigma_h_m / (rm + h)) ** 2,
+                        (cfg.gnss_pos_sigma_h_m / ((rn + h) * math.cos(lat))) ** 2, cfg.gnss_pos_sigma_v_m**2)
+        p01[IDX_GYRO] = gyro
+        p01[IDX_ACC] = (cfg.accel_bias_sigma_mg * 1e-3 * G_STD) ** 2
+        p02 = np.zeros(N2)
+        p02[X2_ATT] = att
+        p02[X2_GYRO] = gyro
+        p02[X2_MOTION] = p.motion_accel_sigma_mps2**2 + (cfg.accel_bias_sigma_mg * 1e-3 * G_STD) ** 2
         # no-reset information sharing, once: P_i(0) = P0 / beta_i
         self.P1 = np.diag(p01 / p.beta_sins_gnss).astype(dt)
         self.P2 = np.diag(p02 / p.beta_pol_mimu).astype(dt)
@@ -212,11 +226,14 @@ class FederatedFilter(NavFilter):
         # sub-filter 2: attitude block and -C_b^n of F, first-order motion acceleration
         ca = math.exp(-Tk / p.motion_accel_tau_s)
         Phi2 = self._eye2.copy()
-        Phi2[0:3, 0:3] += F[0:3, 0:3] * dt(Tk)
-        Phi2[0:3, 3:6] = F[0:3, 9:12] * dt(Tk)
-        Phi2[6:9, 6:9] = self._eye2[6:9, 6:9] * dt(ca)
-        q2 = np.array([self._arw2 * Tk] * 3 + [self._qg * Tk] * 3
-                      + [p.motion_accel_sigma_mps2**2 * (1.0 - ca * ca)] * 3) / p.beta_pol_mimu
+        Phi2[X2_ATT, X2_ATT] += F[IDX_ATT, IDX_ATT] * dt(Tk)
+        Phi2[X2_ATT, X2_GYRO] = F[IDX_ATT, IDX_GYRO] * dt(Tk)
+        Phi2[X2_MOTION, X2_MOTION] = self._eye2[X2_MOTION, X2_MOTION] * dt(ca)
+        q2 = np.zeros(N2)
+        q2[X2_ATT] = self._arw2 * Tk
+        q2[X2_GYRO] = self._qg * Tk
+        q2[X2_MOTION] = p.motion_accel_sigma_mps2**2 * (1.0 - ca * ca)
+        q2 = q2 / p.beta_pol_mimu
         self.x2, self.P2 = kf_predict(self.x2, self.P2, Phi2, q2.astype(dt))
         self.meter.charge("fed_predict_pol_mimu", self._cyc_predict2)
         self._gravity_update(nav, cbn, f_n)
@@ -228,9 +245,9 @@ class FederatedFilter(NavFilter):
         g = earth.gravity(float(nav.pos[0]), float(nav.pos[2]))
         z = np.array([f_n[0], f_n[1], f_n[2] - g], dtype=dt)
         H = np.zeros((3, N2), dtype=dt)
-        H[0, 1] = -g
-        H[1, 0] = g
-        H[:, 6:9] = cbn
+        H[0, PHI_N] = -g  # phi occupies the same indices in x2 as in the base layout
+        H[1, PHI_E] = g
+        H[:, X2_MOTION] = cbn
         r = self.p.gravity_sigma_mps2**2
         A = H @ self.P2 @ H.T + np.eye(3, dtype=dt) * dt(r)
         innov = z - H @ self.x2
@@ -294,11 +311,11 @@ class FederatedFilter(NavFilter):
         dt = self.dtype
         s_n = s_n.astype(dt)
         z, sign = solar_vector_residual(s_n, cbn_exp.astype(dt), obs.s_b.astype(dt))
-        Hs = solar_vector_rows(s_n, dt)[:, 0:3]
+        Hs = solar_vector_rows(s_n, dt)[:, IDX_ATT]
         H = np.zeros((3, N2), dtype=dt)
-        H[:, 0:3] = Hs
+        H[:, X2_ATT] = Hs
         r = self.p.sun_sigma**2
-        A = Hs @ self.P2[0:3, 0:3] @ Hs.T + np.eye(3, dtype=dt) * dt(r)
+        A = Hs @ self.P2[X2_ATT, X2_ATT] @ Hs.T + np.eye(3, dtype=dt) * dt(r)
         innov = z - H @ self.x2
         lam = float(innov @ spd_solve(A, innov))
         self.meter.charge("solar_residual", self.cost.flops(18 + 9, 18 + 6))
@@ -329,21 +346,22 @@ class FederatedFilter(NavFilter):
         xg, Pg = fuse_common_states(parts)
         xg = xg.astype(dt)
         # feed the fused common states into the reference and shift every local filter by the same amount
-        nav.q = qnormalize(qmul(rv2q(xg[0:3]), nav.q)).astype(nav.q.dtype)
-        self.gyro_bias = (self.gyro_bias + xg[3:6]).astype(dt)
-        self.x1[0:3] -= xg[0:3]
-        self.x1[IDX_GYRO] -= xg[3:6]
-        self.x2[0:3] -= xg[0:3]
-        self.x2[3:6] -= xg[3:6]
+        nav.q = qnormalize(qmul(rv2q(xg[G_ATT]), nav.q)).astype(nav.q.dtype)
+        self.gyro_bias = (self.gyro_bias + xg[G_GYRO]).astype(dt)
+        self.x1[IDX_ATT] -= xg[G_ATT]
+        self.x1[IDX_GYRO] -= xg[G_GYRO]
+        self.x2[X2_ATT] -= xg[G_ATT]
+        self.x2[X2_GYRO] -= xg[G_GYRO]
         if SUB_SINS_GNSS in act:
             x1 = self.x1
-            nav.v = (nav.v - x1[3:6]).astype(nav.v.dtype)
-            nav.pos = nav.pos - x1[6:9].astype(np.float64)
+            nav.v = (nav.v - x1[IDX_VEL]).astype(nav.v.dtype)
+            nav.pos = nav.pos - x1[IDX_POS].astype(np.float64)
             self.accel_bias = (self.accel_bias + x1[IDX_ACC]).astype(dt)
-            self.x2[6:9] -= x1[IDX_ACC]
-            x1[3:9] = 0
+            self.x2[X2_MOTION] -= x1[IDX_ACC]
+            x1[IDX_VEL] = 0
+            x1[IDX_POS] = 0
             x1[IDX_ACC] = 0
         # reported covariance: the fused attitude block with sub-filter 1's velocity/position
         P = self.P1.copy()
-        P[0:3, 0:3] = Pg[0:3, 0:3]
+        P[IDX_ATT, IDX_ATT] = Pg[G_ATT, G_ATT]
         self.P = P

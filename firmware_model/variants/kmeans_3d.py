@@ -49,7 +49,7 @@ from protocols.psns import PolarizationObs, PsnsStatus
 from .. import c674x, psns, sun
 from ..attitude import a2mat, heading_from_yaw, m2att, q2mat_fast
 from ..filters import BaseFilter, UpdateReport, register_filter
-from ..kf import N_STATES
+from ..kf import IDX_ATT, N_STATES, PHI_E
 from ..nav_state import NavState
 from ..psns_geometry import CameraGeometry
 from ..units import DEG
@@ -430,7 +430,7 @@ class Kmeans3dFilter(BaseFilter):
         sig = np.array([self.p.tilt_sigma_deg, self.p.tilt_sigma_deg,
                         self.p.heading_sigma_deg if fix.heading_source == "magnetometer" else 180.0]) * DEG
         r = (sig * sig).astype(dt)
-        Pa = self.P[0:3, 0:3]
+        Pa = self.P[IDX_ATT, IDX_ATT]
         nis = float(sum(float(z[i]) ** 2 / (float(Pa[i, i]) + float(r[i])) for i in range(3)))
         self.meter.charge("km_residual", cost.flops(45, 36))
         fields = dict(pitch_deg=fix.pitch / DEG, roll_deg=fix.roll / DEG,
@@ -444,7 +444,7 @@ class Kmeans3dFilter(BaseFilter):
         innov = []
         for i in range(3 if fix.heading_source == "magnetometer" else 2):
             hrow[:] = 0
-            hrow[i] = 1
+            hrow[PHI_E + i] = 1  # Z = phi: rows phi_E, phi_N (and phi_U with a magnetometer heading)
             innov.append(self._scalar(hrow, float(z[i]), float(r[i])))
         self.meter.charge("kf_update", len(innov) * self._cyc_update)
         return UpdateReport("kmeans", True, len(innov), max(abs(v) for v in innov), {"mode": "attitude_fix"})

@@ -52,7 +52,7 @@ from protocols.psns import CompassFrame, PsnsStatus
 from .. import c674x, psns, sun
 from ..attitude import q2mat_fast
 from ..filters import BaseFilter, SolarObservation, UpdateReport, register_filter
-from ..kf import N_STATES
+from ..kf import D_LAT, D_LON, N_STATES, PHI_E, PHI_N
 from ..nav_state import NavState
 from ..psns_geometry import compass_unit_mountings
 from ..units import DEG
@@ -210,11 +210,11 @@ class SunElevationFilter(BaseFilter):
         cos_hc = math.sqrt(1.0 - sin_hc * sin_hc)
         z = sin_hc - sin_hn
         h = np.zeros(N_STATES, dtype=dt)
-        h[6] = cos_hc * alpha
-        h[7] = cos_hc * beta
+        h[D_LAT] = cos_hc * alpha
+        h[D_LON] = cos_hc * beta
         if p.attitude_coupling:
-            h[0] = float(s_n_meas[1])
-            h[1] = -float(s_n_meas[0])
+            h[PHI_E] = float(s_n_meas[1])
+            h[PHI_N] = -float(s_n_meas[0])
         self.adaptive.rescale((cos_hc * p.elevation_sigma_deg * DEG) ** 2)
         a = self.P @ h
         hph = float(h @ a)

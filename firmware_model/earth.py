@@ -13,6 +13,8 @@ import math
 
 import numpy as np
 
+from .arrays import FloatArray
+
 __all__ = [
     "A_WGS84",
     "E2_WGS84",
@@ -63,17 +65,17 @@ def gravity(lat: float, h: float) -> float:
     return G0 * (1.0 + _G_B1 * s2 + _G_B2 * s2 * s2) - _G_H * h
 
 
-def gravity_n(lat: float, h: float) -> np.ndarray:
+def gravity_n(lat: float, h: float) -> FloatArray:
     """Gravity vector in ENU, ``[0, 0, -g]`` m/s^2."""
     return np.array([0.0, 0.0, -gravity(lat, h)])
 
 
-def omega_ie_n(lat: float) -> np.ndarray:
+def omega_ie_n(lat: float) -> FloatArray:
     """Earth rate in ENU, ``[0, w cos L, w sin L]`` rad/s."""
     return np.array([0.0, OMEGA_IE * math.cos(lat), OMEGA_IE * math.sin(lat)])
 
 
-def omega_en_n(lat: float, h: float, v_enu: np.ndarray) -> np.ndarray:
+def omega_en_n(lat: float, h: float, v_enu: FloatArray) -> FloatArray:
     """Transport rate in ENU, ``[-vN/R_Mh, vE/R_Nh, vE tan L/R_Nh]`` rad/s."""
     rm, rn = radii(lat)
     rmh, rnh = rm + h, rn + h
@@ -81,7 +83,7 @@ def omega_en_n(lat: float, h: float, v_enu: np.ndarray) -> np.ndarray:
     return np.array([-vn / rmh, ve / rnh, ve * math.tan(lat) / rnh])
 
 
-def m_pv(lat: float, h: float) -> np.ndarray:
+def m_pv(lat: float, h: float) -> FloatArray:
     """Map ENU velocity to ``[dL/dt, dlambda/dt, dh/dt]``: ``[[0,1/R_Mh,0],[1/(R_Nh cos L),0,0],[0,0,1]]``."""
     rm, rn = radii(lat)
     return np.array(
@@ -89,7 +91,7 @@ def m_pv(lat: float, h: float) -> np.ndarray:
     )
 
 
-def geodetic_to_ecef(lat: float, lon: float, h: float) -> np.ndarray:
+def geodetic_to_ecef(lat: float, lon: float, h: float) -> FloatArray:
     """WGS-84 geodetic (rad, rad, m) to ECEF (m)."""
     _, rn = radii(lat)
     cl, sl = math.cos(lat), math.sin(lat)

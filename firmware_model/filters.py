@@ -41,6 +41,7 @@ import numpy as np
 from protocols.host import FILTER_VARIANT_NAMES
 
 from . import c674x, earth
+from .arrays import FloatArray, FloatDtype
 from .attitude import q2mat_fast, qmul, qnormalize, rv2q
 from .config import FILTER_VARIANTS, FirmwareConfig
 from .kf import (
@@ -117,7 +118,7 @@ class GnssMeasurement:
 
     t_fpga_s: float
     pos: tuple[float, float, float] | None = None
-    vel: np.ndarray | None = None
+    vel: FloatArray | None = None
     vel_up: bool = False
     quality: int = 1
     sigma_pos_h_m: float | None = None
@@ -126,7 +127,7 @@ class GnssMeasurement:
 
 
 def gnss_measurement_rows(cfg: FirmwareConfig, meter: c674x.CycleMeter, meas: GnssMeasurement,
-                          p_ins: np.ndarray, v_ins: np.ndarray) -> list[tuple[int, float, float, float]]:
+                          p_ins: FloatArray, v_ins: FloatArray) -> list[tuple[int, float, float, float]]:
     """The scalar rows of a GNSS update: ``(state index, H value, z, R)`` per measured component.
 
     Position (Eq. 23-24): ``Z_p = [R_Mh dL, R_Nh cosL dlambda, dh]`` (m), ``H_p = [0 diag(R_Mh, R_Nh cosL, 1) 0]``,
@@ -163,7 +164,7 @@ class SolarObservation:
     """A bi-direction solar vector in the body frame at its mid-exposure time."""
 
     t_exposure_s: float
-    s_b: np.ndarray
+    s_b: FloatArray
     quality: float
     n_used: int
     source: str  # "camera" (firmware solve) or "sensor" (on-sensor solve)
@@ -186,12 +187,12 @@ class FilterHost(Protocol):
     def utc_days(self, t_fpga_s: float) -> float | None:
         """Grena days (UT) at FPGA time ``t_fpga_s``, once GNSS gave date and time (else None)."""
 
-    def ins_at(self, t_meas: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def ins_at(self, t_meas: float) -> tuple[FloatArray, FloatArray, FloatArray]:
         """INS position (lat, lon rad, h m; float64), ENU velocity and attitude quaternion ``q_b^n`` at ``t_meas``.
 
         Fresh arrays built from the INS history (docs/decisions.md D-10.F2)."""
 
-    def mag_mean_nt(self, t_center_s: float, half_window_s: float = 0.025) -> tuple[np.ndarray, int] | None:
+    def mag_mean_nt(self, t_center_s: float, half_window_s: float = 0.025) -> tuple[FloatArray, int] | None:
         """Mean magnetometer field (nT, body axes) of the MAG frames sampled within ``t_center_s +- half_window_s``."""
 
     def now_s(self) -> float:
@@ -214,7 +215,7 @@ class NavFilter:
     #: True: POLARIZATION_OBS frames go to :meth:`update_polarization_obs` instead of the firmware's solve.
     raw_polarization_obs = False
 
-    def __init__(self, cfg: FirmwareConfig, meter: c674x.CycleMeter, dtype: type) -> None:
+    def __init__(self, cfg: FirmwareConfig, meter: c674x.CycleMeter, dtype: FloatDtype) -> None:
         self.cfg = cfg
         self.meter = meter
         self.dtype = dtype
@@ -244,13 +245,13 @@ class NavFilter:
     def initialise(self, nav: NavState, heading_sigma_rad: float) -> None:
         raise NotImplementedError
 
-    def predict(self, nav: NavState, f_n: np.ndarray, Tk: float) -> None:
+    def predict(self, nav: NavState, f_n: FloatArray, Tk: float) -> None:
         raise NotImplementedError
 
-    def update_gnss(self, nav: NavState, meas: GnssMeasurement, p_ins: np.ndarray, v_ins: np.ndarray) -> UpdateReport:
+    def update_gnss(self, nav: NavState, meas: GnssMeasurement, p_ins: FloatArray, v_ins: FloatArray) -> UpdateReport:
         raise NotImplementedError
 
-    def update_solar(self, nav: NavState, obs: SolarObservation, s_n: np.ndarray, cbn_exp: np.ndarray) -> UpdateReport:
+    def update_solar(self, nav: NavState, obs: SolarObservation, s_n: FloatArray, cbn_exp: FloatArray) -> UpdateReport:
         raise NotImplementedError
 
     def update_compass(self, nav: NavState, frame: Any, t_exposure_s: float) -> UpdateReport | None:
@@ -283,7 +284,7 @@ class BaseFilter(NavFilter):
     """Bi-direction solar-vector 15-state KF (base paper): GNSS position/velocity + ``+-S`` updates."""
 
 
-    def __init__(self, cfg: FirmwareConfig, meter: c674x.CycleMeter, dtype: type) -> None:
+    def __init__(self, cfg: FirmwareConfig, meter: c674x.CycleMeter, dtype: FloatDtype) -> None:
         super().__init__(cfg, meter, dtype)
         self.x = np.zeros(N_STATES, dtype=dtype)
         arw = cfg.gyro_arw_deg_rt_h * DEG / 60.0
@@ -315,7 +316,7 @@ class BaseFilter(NavFilter):
         self.x = np.zeros(N_STATES, dtype=self.dtype)
 
     # -- time update --------------------------------------------------------------------------
-    def predict(self, nav: NavState, f_n: np.ndarray, Tk: float) -> None:
+    def predict(self, nav: NavState, f_n: FloatArray, Tk: float) -> None:
         dt = self.dtype
         F = error_transition_matrix(q2mat_fast(nav.q), nav.v, nav.pos, f_n, dtype=dt)
         Phi = self._eye + F * dt(Tk)
@@ -325,11 +326,11 @@ class BaseFilter(NavFilter):
         self.meter.charge("kf_predict", self._cyc_predict)
 
     # -- measurement updates --------------------------------------------------------------------
-    def _scalar(self, h: np.ndarray, z: float, r: float) -> float:
+    def _scalar(self, h: FloatArray, z: float, r: float) -> float:
         self.x, self.P, nu, s = kf_update_scalar(self.x, self.P, h, z, r)
         return nu / math.sqrt(s)
 
-    def update_gnss(self, nav: NavState, meas: GnssMeasurement, p_ins: np.ndarray, v_ins: np.ndarray) -> UpdateReport:
+    def update_gnss(self, nav: NavState, meas: GnssMeasurement, p_ins: FloatArray, v_ins: FloatArray) -> UpdateReport:
         dt = self.dtype
         rows = gnss_measurement_rows(self.cfg, self.meter, meas, p_ins, v_ins)
         innov = []
@@ -341,7 +342,7 @@ class BaseFilter(NavFilter):
         self.meter.charge("kf_update", len(rows) * self._cyc_update)
         return UpdateReport("gnss", True, len(rows), max((abs(v) for v in innov), default=0.0))
 
-    def update_solar(self, nav: NavState, obs: SolarObservation, s_n: np.ndarray, cbn_exp: np.ndarray) -> UpdateReport:
+    def update_solar(self, nav: NavState, obs: SolarObservation, s_n: FloatArray, cbn_exp: FloatArray) -> UpdateReport:
         """Eqs. 31-42: ``Z = S^n - C_b^{n'} (+-S^b)``, sign by the smaller ``|Z|``, ``H = -[S^n x]``."""
         cfg = self.cfg
         dt = self.dtype

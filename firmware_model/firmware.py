@@ -37,7 +37,6 @@ from collections import deque
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
 from protocols.host import HostFormat, NavMode
 from protocols.imu_frame import ADC_VOLTS_PER_LSB, FpgaFrameFormat, FpgaStatus, ImuFrame
@@ -48,6 +47,7 @@ from protocols.stream import StreamDecoder
 from protocols.ubx import NavPvt, UbxFormat
 
 from . import c674x
+from .arrays import FloatArray
 from .config import UART_GNSS, UART_HOST, UART_IMU, UART_PSNS, FirmwareConfig
 from .precision import rounder
 from .tasks.gnss import GnssTask
@@ -59,7 +59,6 @@ from .variants import dual_vector, federated, kmeans_3d, sun_elevation  # noqa: 
 
 __all__ = ["Firmware", "tick_kernel_cycles"]
 
-FloatArray = npt.NDArray[np.floating[Any]]
 
 
 def tick_kernel_cycles(c: c674x.KernelCosts, nav_dp: bool = True) -> dict[str, int]:
@@ -280,6 +279,7 @@ class Firmware(HostTask, GnssTask):
         else:
             self._mechanize(t, g, f_b)
             if self._tick % cfg.kf_predict_every == 0 and self._fn_n:
+                assert self.nav is not None  # the coarse alignment made it
                 m.begin("kf_predict", cfg.kf_predict_every * self.T)
                 n = self._fn_n
                 fn = np.array([x / n for x in self._fn_sum])
@@ -287,7 +287,7 @@ class Firmware(HostTask, GnssTask):
                 self._fn_n = 0
                 Tk = t - self._t_last_predict  # the first interval after alignment may be shorter
                 self._t_last_predict = t
-                self.filter.predict(self.nav, fn, Tk)  # type: ignore[arg-type]
+                self.filter.predict(self.nav, fn, Tk)
                 m.end()
             m.end()
             self._measurement_tasks(t, res)
@@ -325,6 +325,8 @@ class Firmware(HostTask, GnssTask):
     def _measurement_tasks(self, t: float, res: TickResult) -> None:
         cfg = self.cfg
         m = self.meter
+        nav = self.nav
+        assert nav is not None  # measurement tasks run after the coarse alignment
         updated = False
         g = self._gnss_pending
         if g is not None and (g.pos is not None or g.vel is not None) and self._hist:
@@ -332,7 +334,7 @@ class Firmware(HostTask, GnssTask):
             if t - g.t_fpga_s <= cfg.gnss_max_age_s:
                 m.begin("gnss_update", 1.0)
                 p_ins, v_ins, _ = self._ins_at(g.t_fpga_s)
-                rep = self.filter.update_gnss(self.nav, g, p_ins, v_ins)  # type: ignore[arg-type]
+                rep = self.filter.update_gnss(nav, g, p_ins, v_ins)
                 m.end()
                 if rep.accepted:  # a variant may refuse a fix (federated: chi-square isolation)
                     self.counters["gnss_updates"] += 1
@@ -343,28 +345,28 @@ class Firmware(HostTask, GnssTask):
         while self._pending_psns and self._hist:
             t_rx, f = self._pending_psns.popleft()
             m.begin("psns_update", 0.0)
-            rep = self._psns_update(t, t_rx, f)
+            prep = self._psns_update(t, t_rx, f)
             m.end()
-            if rep is not None:
-                if rep.accepted:
+            if prep is not None:
+                if prep.accepted:
                     updated = True
                     self.counters["psns_updates"] += 1
                     self._last_psns_t = t
                 else:
                     self.counters["psns_rejected"] += 1
                     if t - self._last_psns_reject_t >= 1.0:  # at most one event per second
-                        res.events.append({"event": "psns_rejected", "t_fpga_s": t, "measurement": rep.kind,
-                                           "norm_innov": rep.max_norm_innov, **(rep.detail or {})})
+                        res.events.append({"event": "psns_rejected", "t_fpga_s": t, "measurement": prep.kind,
+                                           "norm_innov": prep.max_norm_innov, **(prep.detail or {})})
                     self._last_psns_reject_t = t
         if updated:
             m.begin("kf_feedback", 0.0)
-            self.filter.feedback(self.nav)  # type: ignore[arg-type]
+            self.filter.feedback(nav)
             m.end()
 
     @property
-    def x(self) -> np.ndarray:
+    def x(self) -> FloatArray:
         return getattr(self.filter, "x", np.zeros(15, dtype=self.dtype))
 
     @property
-    def P(self) -> np.ndarray:
+    def P(self) -> FloatArray:
         return self.filter.P

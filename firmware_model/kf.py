@@ -39,6 +39,7 @@ import math
 import numpy as np
 
 from . import earth
+from .arrays import FloatArray, FloatDtype
 
 __all__ = [
     "DV_E",
@@ -80,8 +81,8 @@ N_NAV_ERRORS = 9
 
 
 def error_transition_matrix(
-    cbn: np.ndarray, v_enu: np.ndarray, pos: np.ndarray, f_n: np.ndarray, dtype: type = np.float32
-) -> np.ndarray:
+    cbn: FloatArray, v_enu: FloatArray, pos: FloatArray, f_n: FloatArray, dtype: FloatDtype = np.float32
+) -> FloatArray:
     """Continuous-time error dynamics F (15x15), algorithms.md 1.3 element list.
 
     Parameters
@@ -155,8 +156,8 @@ def error_transition_matrix(
 
 
 def kf_predict(
-    x: np.ndarray, P: np.ndarray, Phi: np.ndarray, Qk: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
+    x: FloatArray, P: FloatArray, Phi: FloatArray, Qk: FloatArray
+) -> tuple[FloatArray, FloatArray]:
     """Time update (Eqs. 45, 48): ``x = Phi x``, ``P = Phi P Phi^T + Q_k``, symmetrised.
 
     Shapes: x (n,), P (n, n), Phi (n, n), Qk (n, n) or (n,) diagonal.
@@ -172,8 +173,8 @@ def kf_predict(
 
 
 def kf_update_scalar(
-    x: np.ndarray, P: np.ndarray, h: np.ndarray, z: float, r: float
-) -> tuple[np.ndarray, np.ndarray, float, float]:
+    x: FloatArray, P: FloatArray, h: FloatArray, z: float, r: float
+) -> tuple[FloatArray, FloatArray, float, float]:
     """One scalar measurement update in O(n^2) Joseph form (Eqs. 46, 47, 49; module docstring).
 
     Parameters
@@ -198,7 +199,7 @@ def kf_update_scalar(
     return x, P, innov, s
 
 
-def solar_vector_residual(s_n: np.ndarray, cbn: np.ndarray, s_b: np.ndarray) -> tuple[np.ndarray, int]:
+def solar_vector_residual(s_n: FloatArray, cbn: FloatArray, s_b: FloatArray) -> tuple[FloatArray, int]:
     """Bi-direction solar-vector measurement ``Z = S^n - C_b^{n'} (+-S^b)`` (Eqs. 38, 40).
 
     Parameters
@@ -219,7 +220,7 @@ def solar_vector_residual(s_n: np.ndarray, cbn: np.ndarray, s_b: np.ndarray) -> 
     return zm, -1
 
 
-def solar_vector_rows(s_n: np.ndarray, dtype: type = np.float32) -> np.ndarray:
+def solar_vector_rows(s_n: FloatArray, dtype: FloatDtype = np.float32) -> FloatArray:
     """``H_s = [-[S^n x], 0_{3x12}]`` (3, 15) (Eq. 41 as derived in the module docstring)."""
     e, n, u = (float(v) for v in s_n)
     H = np.zeros((3, N_STATES), dtype=dtype)
@@ -230,7 +231,7 @@ def solar_vector_rows(s_n: np.ndarray, dtype: type = np.float32) -> np.ndarray:
 
 
 def process_noise_psd(gyro_arw_rad_rt_s: float, accel_vrw_mps2_rt_hz: float, gyro_bias_rw: float,
-                      accel_bias_rw: float) -> np.ndarray:
+                      accel_bias_rw: float) -> FloatArray:
     """Diagonal continuous process-noise PSD ``q`` (15,) in the state order (Eq. 48 with Gamma = I).
 
     ARW^2 on the phi rows, VRW^2 on the dv rows, 0 on position, and the bias random-walk densities

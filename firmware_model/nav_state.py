@@ -13,10 +13,9 @@ Units: ``q = q_b^n`` (scalar first), ``v`` ENU m/s, ``L``/``lambda`` rad, ``h`` 
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
-import numpy.typing as npt
+
+from .arrays import FloatArray, FloatDtype
 
 __all__ = [
     "A_PREV",
@@ -53,7 +52,6 @@ LAT, LON, HGT = 7, 8, 9
 FE, FN, FU = 13, 14, 15
 
 #: A state array of the working precision (float32 or float64).
-FloatArray = npt.NDArray[np.floating[Any]]
 
 
 def _array_property(name: str, part: slice, doc: str) -> property:
@@ -102,7 +100,7 @@ class NavState:
     def __init__(self, q: FloatArray, v: FloatArray, pos: FloatArray, t: float = 0.0,
                  a_prev: FloatArray | None = None, f_n: FloatArray | None = None) -> None:
         self._x: NavFloats | None = None
-        self._xdt: type[np.floating[Any]] = np.float64
+        self._xdt: FloatDtype = np.float64
         self._q: FloatArray | None = q
         self._v: FloatArray | None = v
         self._pos: FloatArray | None = pos
@@ -125,7 +123,7 @@ class NavState:
                       + self.f_n.tolist())
         return x
 
-    def _set_floats(self, x: NavFloats, dtype: type[np.floating[Any]] = np.float64) -> None:
+    def _set_floats(self, x: NavFloats, dtype: FloatDtype = np.float64) -> None:
         """Float form: the 16 values of :meth:`as_floats`; arrays built on demand, ``pos`` in float64, the
         others in ``dtype`` (the values must be exactly representable in it)."""
         self._x = x

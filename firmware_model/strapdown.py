@@ -28,9 +28,9 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
 from . import earth
+from .arrays import FloatArray, FloatDtype
 from .attitude import cross3, q2mat, qmul
 from .nav_state import A_PREV, POS, NavState, Q, V
 from .precision import rounder
@@ -40,10 +40,9 @@ __all__ = ["STRAPDOWN_FLOPS", "NavState", "coning_sculling", "strapdown_step", "
 #: Rough floating-point operation count of one :func:`strapdown_step` (for the cycle model).
 STRAPDOWN_FLOPS = 260
 
-FloatArray = npt.NDArray[np.floating[Any]]
 
 
-def coning_sculling(dtheta: np.ndarray, dv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def coning_sculling(dtheta: FloatArray, dv: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Combine n gyro/accelerometer increments into one rotation vector and velocity increment.
 
     Parameters
@@ -75,7 +74,7 @@ def strapdown_step(
     phi_m: FloatArray | Sequence[float],
     dv_m: FloatArray | Sequence[float],
     T: float,
-    dtype: type[np.floating[Any]] = np.float32,
+    dtype: FloatDtype = np.float32,
 ) -> NavState:
     """Advance the navigation state by one interval ``T`` (s); returns ``s`` (the reference formulation).
 
@@ -163,7 +162,7 @@ def _rv2q_ref(phi: FloatArray) -> FloatArray:
 
 
 def strapdown_step_fast(s: NavState, phi_m: Sequence[float], dv_m: Sequence[float], T: float,
-                        dtype: type[np.floating[Any]] = np.float32) -> NavState:
+                        dtype: FloatDtype = np.float32) -> NavState:
     """:func:`strapdown_step`, bit for bit, for a state held in ``dtype`` (``q``, ``v``, ``a_prev`` float64 or
     float32 values); ``phi_m``, ``dv_m``: three Python floats each or (3,) arrays (rad, m/s, body), rounded to
     ``dtype`` here.

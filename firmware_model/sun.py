@@ -32,6 +32,7 @@ import math
 import numpy as np
 
 from . import c674x
+from .arrays import FloatArray, FloatDtype
 from .units import TWO_PI
 
 __all__ = [
@@ -98,7 +99,7 @@ def _reduce(x: float) -> float:
     return x - TWO_PI * math.floor(x / TWO_PI)
 
 
-def sun_equatorial(t_days: float, dtype: type = np.float32) -> tuple[float, float, float]:
+def sun_equatorial(t_days: float, dtype: FloatDtype = np.float32) -> tuple[float, float, float]:
     """Geocentric apparent declination, Greenwich hour angle and nutation in longitude.
 
     Parameters
@@ -141,7 +142,7 @@ def sun_equatorial(t_days: float, dtype: type = np.float32) -> tuple[float, floa
     return float(sp(sin_d)), float(sp(cos_d)), _reduce(gha)
 
 
-def sun_vector_enu(t_days: float, lat: float, lon: float, dtype: type = np.float32) -> np.ndarray:
+def sun_vector_enu(t_days: float, lat: float, lon: float, dtype: FloatDtype = np.float32) -> FloatArray:
     """Topocentric unit sun vector in ENU at latitude/longitude (rad), no refraction.
 
     ``E = -cos d sin H``, ``N = cos L sin d - sin L cos d cos H``, ``U = sin L sin d + cos L cos d cos H``

@@ -14,6 +14,7 @@ from protocols.host import NavMode
 
 from .. import c674x, sun
 from ..alignment import level_from_specific_force, solar_heading_alignment
+from ..arrays import FloatArray
 from ..attitude import a2mat, heading_from_yaw, m2att, mat2q, q2mat_fast, rv2q, yaw_from_heading
 from ..nav_state import NavState
 from ..units import DEG
@@ -25,7 +26,7 @@ __all__ = ["AlignmentTask"]
 
 class AlignmentTask(PsnsTask):
     """Coarse alignment (levelling window, heading source, misalignment of a paper's initial condition)."""
-    def _align(self, t: float, f_b: np.ndarray, res: TickResult) -> None:
+    def _align(self, t: float, f_b: FloatArray, res: TickResult) -> None:
         cfg = self.cfg
         if self._align_t0 is None:
             self._align_t0 = t
@@ -80,7 +81,7 @@ class AlignmentTask(PsnsTask):
                 self._align_sun.append(obs)
                 del self._align_sun[:-32]
 
-    def _solar_alignment(self, f_b: np.ndarray, lat: float, lon: float) -> tuple[np.ndarray | None, float]:
+    def _solar_alignment(self, f_b: FloatArray, lat: float, lon: float) -> tuple[FloatArray | None, float]:
         """TRIAD from gravity and the mean solar vector of the levelling window."""
         up = f_b / np.linalg.norm(f_b)
         acc = np.zeros(3)

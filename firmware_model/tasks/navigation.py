@@ -9,9 +9,9 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
 from .. import c674x
+from ..arrays import FloatArray
 from ..config import FILTER_VARIANTS
 from ..filters import NavFilter
 from ..nav_state import FE, FN, FU, POS, Q, V
@@ -20,7 +20,6 @@ from .timekeeping import TimeKeeping
 
 __all__ = ["Navigation"]
 
-FloatArray = npt.NDArray[np.floating[Any]]
 
 
 class Navigation(TimeKeeping):
@@ -98,11 +97,11 @@ class Navigation(TimeKeeping):
         self._bias_cache = (gb, ab, tuple((gb * T_w).tolist() + (ab * T_w).tolist()))
         return self._bias_cache
 
-    def ins_at(self, t_meas: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def ins_at(self, t_meas: float) -> tuple[FloatArray, FloatArray, FloatArray]:
         """INS position, velocity and attitude quaternion at ``t_meas`` (2 s history, nearest entry)."""
         return self._ins_at(t_meas)
 
-    def _ins_at(self, t_meas: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _ins_at(self, t_meas: float) -> tuple[FloatArray, FloatArray, FloatArray]:
         """INS position (float64), velocity and attitude quaternion at ``t_meas`` (nearest history entry)."""
         best = None
         for e in reversed(self._hist):
@@ -114,7 +113,7 @@ class Navigation(TimeKeeping):
         x, nd = best[1], self.nav_dtype
         return np.array(x[POS]), np.array(x[V], dtype=nd), np.array(x[Q], dtype=nd)
 
-    def mag_mean_nt(self, t_center_s: float, half_window_s: float = 0.025) -> tuple[np.ndarray, int] | None:
+    def mag_mean_nt(self, t_center_s: float, half_window_s: float = 0.025) -> tuple[FloatArray, int] | None:
         """Mean MAG field (nT, body axes) of the frames sampled within ``t_center_s +- half_window_s``
         (FPGA time; e.g. a camera exposure) and their number; None when there is none."""
         acc = [0, 0, 0]

@@ -88,15 +88,18 @@ class PsnsTask(Navigation):
         return SolarObservation(t_exp, s_b, quality, n_used, source)
 
     def _psns_update(self, t: float, t_rx: float, f: Any) -> UpdateReport | None:
+        """One pending PSNS frame after the coarse alignment (the navigation state exists)."""
         cfg = self.cfg
+        nav = self.nav
+        assert nav is not None
         if isinstance(f, CompassFrame):
             t_exp = self._psns_frame_in(t_rx, f)
-            return self.filter.update_compass(self.nav, f, t_exp) if cfg.psns_enabled else None  # type: ignore[arg-type]
+            return self.filter.update_compass(nav, f, t_exp) if cfg.psns_enabled else None
         if self.filter.raw_polarization_obs and isinstance(f, PolarizationObs):
             t_exp = self._psns_frame_in(t_rx, f)
             if not cfg.psns_enabled or t - t_exp > cfg.psns_max_age_s:
                 return None
-            return self.filter.update_polarization_obs(self.nav, f, t_exp)  # type: ignore[arg-type]
+            return self.filter.update_polarization_obs(nav, f, t_exp)
         obs = self._psns_observation(t_rx, f)
         if obs is None or not cfg.psns_enabled:
             return None
@@ -111,4 +114,4 @@ class PsnsTask(Navigation):
         if float(s_n[2]) < math.sin(cfg.psns_min_sun_elevation_deg * DEG):
             self.counters["psns_sun_low"] += 1  # night or twilight: not an error, no update
             return None
-        return self.filter.update_solar(self.nav, obs, s_n, q2mat_fast(q_exp))  # type: ignore[arg-type]
+        return self.filter.update_solar(nav, obs, s_n, q2mat_fast(q_exp))

@@ -13,21 +13,18 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
-import numpy.typing as npt
-
 from protocols.host import NavMode
 from protocols.imu_frame import ImuFrame, MagFrame
 from protocols.stream import StreamDecoder
 
 from .. import c674x
+from ..arrays import FloatArray, FloatDtype
 from ..config import FirmwareConfig
 from ..filters import GnssMeasurement, NavFilter, SolarObservation
 from ..nav_state import NavFloats, NavState
 
 __all__ = ["FirmwareState", "LoopState", "TickResult"]
 
-FloatArray = npt.NDArray[np.floating[Any]]
 
 
 class FirmwareState:
@@ -56,8 +53,8 @@ class LoopState:
 
     cfg: FirmwareConfig
     #: working precision of the filters and kernels; ``nav_dtype``: of the strapdown state (q, v)
-    dtype: type[np.floating[Any]]
-    nav_dtype: type[np.floating[Any]]
+    dtype: FloatDtype
+    nav_dtype: FloatDtype
     meter: c674x.CycleMeter
     cost: c674x.KernelCosts
     counters: dict[str, int]

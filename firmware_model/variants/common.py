@@ -11,6 +11,7 @@ import math
 import numpy as np
 
 from .. import c674x
+from ..arrays import FloatArray
 from ..units import DEG
 
 __all__ = [
@@ -47,7 +48,7 @@ def chi2_threshold(dof: int, alpha: float) -> float:
     return row[dof - 1]
 
 
-def unit_mounting(zenith: float, azimuth: float) -> np.ndarray:
+def unit_mounting(zenith: float, azimuth: float) -> FloatArray:
     """``C_u^b`` (3, 3) of a single-direction polarization unit looking at ``zenith``/``azimuth`` (rad).
 
     Convention of :mod:`firmware_model.psns_geometry` (CONTRACTS C1): azimuth in the body x-y plane from
@@ -67,18 +68,18 @@ def unit_mounting(zenith: float, azimuth: float) -> np.ndarray:
     return np.column_stack([x, y, z])
 
 
-def compass_mountings(directions_deg: list[tuple[float, float]] | tuple[tuple[float, float], ...]) -> np.ndarray:
+def compass_mountings(directions_deg: list[tuple[float, float]] | tuple[tuple[float, float], ...]) -> FloatArray:
     """Mountings (n, 3, 3) of units given as ``(zenith_deg, azimuth_deg)`` pairs (see :func:`unit_mounting`)."""
     return np.stack([unit_mounting(z * DEG, a * DEG) for z, a in directions_deg])
 
 
-def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def cross(a: FloatArray, b: FloatArray) -> FloatArray:
     """Cross product of two 3-vectors without ``numpy.cross``'s axis handling (per-frame hot path)."""
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]],
                     dtype=np.result_type(a, b))
 
 
-def spd_solve(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+def spd_solve(A: FloatArray, b: FloatArray) -> FloatArray:
     """Solve ``A x = b`` for a small symmetric positive-definite ``A`` (n, n) by Cholesky; ``b`` (n,) or (n, k)."""
     L = np.linalg.cholesky(A.astype(np.float64))
     y = np.linalg.solve(L, b.astype(np.float64))
@@ -91,7 +92,7 @@ def spd_solve_cycles(n: int, k: int, c: c674x.KernelCosts) -> int:
     return c.flops(mac, mac) + n * (c.math("sqrt") + c.math("recip"))
 
 
-def spd_inverse(A: np.ndarray) -> np.ndarray:
+def spd_inverse(A: FloatArray) -> FloatArray:
     """Inverse of a small SPD matrix by Cholesky (symmetrised)."""
     inv = spd_solve(A, np.eye(A.shape[0], dtype=A.dtype))
     return (0.5 * (inv + inv.T)).astype(A.dtype)
@@ -102,7 +103,7 @@ def spd_inverse_cycles(n: int, c: c674x.KernelCosts) -> int:
     return spd_solve_cycles(n, n, c)
 
 
-def misalignment_between(cbn_computed: np.ndarray, cbn_measured: np.ndarray) -> np.ndarray:
+def misalignment_between(cbn_computed: FloatArray, cbn_measured: FloatArray) -> FloatArray:
     """Misalignment ``phi`` (3,) with ``C_b^{n'} = (I - [phi x]) C_b^n`` (algorithms.md section 0), small angles.
 
     ``M = C_b^{n'} (C_b^n)^T = I - [phi x]``, so ``phi = (M_12 - M_21, M_20 - M_02, M_01 - M_10) / 2``.
@@ -111,7 +112,7 @@ def misalignment_between(cbn_computed: np.ndarray, cbn_measured: np.ndarray) -> 
     return np.array([M[1, 2] - M[2, 1], M[2, 0] - M[0, 2], M[0, 1] - M[1, 0]], dtype=cbn_computed.dtype) * 0.5
 
 
-def plane_basis(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def plane_basis(s: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Two unit vectors spanning the plane perpendicular to the unit vector ``s`` (deterministic choice)."""
     a = np.array([1.0, 0.0, 0.0]) if abs(float(s[0])) < 0.9 else np.array([0.0, 1.0, 0.0])
     u1 = cross(s, a.astype(s.dtype))

@@ -52,6 +52,7 @@ import numpy as np
 from protocols.psns import CompassFrame, PsnsStatus
 
 from .. import c674x, sun
+from ..arrays import FloatArray, FloatDtype
 from ..attitude import q2mat_fast
 from ..filters import BaseFilter, UpdateReport, register_filter
 from ..kf import IDX_ATT, N_STATES
@@ -77,7 +78,7 @@ MODE_NAMES = {PSNS_MODE_NONE: "none", PSNS_MODE_POLARIZATION: "polarization_erro
               PSNS_MODE_SUN: "sun_error_vector"}
 
 
-def unit_evectors(aop: np.ndarray, mountings: np.ndarray, dtype: type = np.float32) -> np.ndarray:
+def unit_evectors(aop: FloatArray, mountings: FloatArray, dtype: FloatDtype = np.float32) -> FloatArray:
     """Measured polarization vectors ``p~_i^b = C_i^b (sin A_i, cos A_i, 0)`` (n, 3) from wire AOPs (rad)."""
     a = np.asarray(aop, dtype=dtype)
     sa, ca = np.sin(a), np.cos(a)
@@ -85,8 +86,8 @@ def unit_evectors(aop: np.ndarray, mountings: np.ndarray, dtype: type = np.float
     return m[:, :, 0] * sa[:, None] + m[:, :, 1] * ca[:, None]
 
 
-def discrimination_factors(p_meas: np.ndarray, s_b: np.ndarray, rays_b: np.ndarray
-                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def discrimination_factors(p_meas: FloatArray, s_b: FloatArray, rays_b: FloatArray
+                           ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Predicted polarization vectors and information-discrimination factors (Steps 1-3).
 
     Parameters
@@ -113,8 +114,8 @@ def discrimination_factors(p_meas: np.ndarray, s_b: np.ndarray, rays_b: np.ndarr
     return p_pred.astype(p_meas.dtype), lam, sin_g
 
 
-def sun_error_vector(cbn: np.ndarray, s_meas_b: np.ndarray, s_n: np.ndarray
-                     ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
+def sun_error_vector(cbn: FloatArray, s_meas_b: FloatArray, s_n: FloatArray
+                     ) -> tuple[FloatArray, tuple[FloatArray, FloatArray]]:
     """Sun-error-vector measurement (Step 4, k >= 2): ``Z_ps = (a . s^n)(a x s^n)``, ``a = C_b^{n'} s~^b``.
 
     Returns ``Z_ps`` (3,) and the two rows ``u_1, u_2`` (unit, perpendicular to ``s^n``) on which it is used:
@@ -125,7 +126,7 @@ def sun_error_vector(cbn: np.ndarray, s_meas_b: np.ndarray, s_n: np.ndarray
     return z_vec, plane_basis(s_n)
 
 
-def polarization_error(cbn: np.ndarray, p_meas_b: np.ndarray, s_n: np.ndarray) -> tuple[float, np.ndarray]:
+def polarization_error(cbn: FloatArray, p_meas_b: FloatArray, s_n: FloatArray) -> tuple[float, FloatArray]:
     """Polarization-error-vector measurement (Step 4, k = 1): ``z = s^n . (C_b^{n'} p~^b)``,
     ``H_pp = (s^n x p^n)^T`` on phi (algorithms.md 1.4); both flip with the sign of ``p~``."""
     p_n = cbn @ p_meas_b
@@ -142,7 +143,7 @@ def discrimination_cycles(n: int, c: c674x.KernelCosts) -> int:
 class DualVectorFilter(BaseFilter):
     """Base 15-state filter + the patent's switching polarization measurements (module docstring)."""
 
-    def __init__(self, cfg: Any, meter: c674x.CycleMeter, dtype: type) -> None:
+    def __init__(self, cfg: Any, meter: c674x.CycleMeter, dtype: FloatDtype) -> None:
         super().__init__(cfg, meter, dtype)
         self.p = cfg.variants.dual_vector
         self.mm = ModeManager("dual_vector", cfg.variants.mode_manager)
@@ -153,7 +154,7 @@ class DualVectorFilter(BaseFilter):
         self.n_units = len(self.mountings)
         self.mode = PSNS_MODE_NONE
         self.q_flags = np.zeros(self.n_units, dtype=bool)
-        self.lam = np.ones(self.n_units)
+        self.lam: FloatArray = np.ones(self.n_units)
         self._r_unit = (self.p.aop_sigma_deg * DEG) ** 2
 
     # -- reporting -------------------------------------------------------------------------------
@@ -236,14 +237,15 @@ class DualVectorFilter(BaseFilter):
         i = int(np.nonzero(q)[0][0])
         return self._polarization_update(t, cbn, s_n, p_meas[i], self.rays_b[i], float(sig[i]), i)
 
-    def _unit_sigmas(self, dop: np.ndarray) -> np.ndarray:
+    def _unit_sigmas(self, dop: FloatArray) -> FloatArray:
         """AOP noise (rad) per unit: ``sigma_ref * dop_ref / DOP`` (the compass's model), with a floor."""
         p = self.p
         s = (p.aop_sigma_deg * DEG) * p.dop_ref / np.maximum(dop, 1e-3)
-        return np.maximum(s, p.sigma_floor_deg * DEG)
+        sigmas: FloatArray = np.maximum(s, p.sigma_floor_deg * DEG)
+        return sigmas
 
-    def _sun_update(self, t: float, cbn: np.ndarray, s_n: np.ndarray, p_meas: np.ndarray, q: np.ndarray,
-                    sig: np.ndarray) -> UpdateReport:
+    def _sun_update(self, t: float, cbn: FloatArray, s_n: FloatArray, p_meas: FloatArray, q: FloatArray,
+                    sig: FloatArray) -> UpdateReport:
         """Sun-error-vector mode: ``Z = (a.s)(a x s)``, ``a = C_b^{n'} s~^b``, projected on u1, u2 (module doc)."""
         dt = self.dtype
         idx = np.nonzero(q)[0].tolist()
@@ -289,7 +291,7 @@ class DualVectorFilter(BaseFilter):
         return UpdateReport("compass", True, 2, max(abs(v) for v in innov),
                             {"mode": "sun", "pair": [i, j], "residual_deg": resid})
 
-    def _polarization_update(self, t: float, cbn: np.ndarray, s_n: np.ndarray, p_b: np.ndarray, r_b: np.ndarray,
+    def _polarization_update(self, t: float, cbn: FloatArray, s_n: FloatArray, p_b: FloatArray, r_b: FloatArray,
                              sig_aop: float, unit: int) -> UpdateReport:
         """Polarization-error-vector mode: ``z = s^n . (C_b^{n'} p~)``, ``H = [(s^n x p^n)^T, 0]``."""
         dt = self.dtype

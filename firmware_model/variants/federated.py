@@ -51,6 +51,7 @@ from typing import Any
 import numpy as np
 
 from .. import c674x, earth
+from ..arrays import FloatArray, FloatDtype
 from ..attitude import q2mat_fast, qmul, qnormalize, rv2q
 from ..filters import (
     GnssMeasurement,
@@ -103,7 +104,7 @@ def scalar_update_cycles(n: int, c: c674x.KernelCosts) -> int:
             + c.math("recip") + c.flops(2 * n, 2 * n))
 
 
-def fuse_common_states(parts: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+def fuse_common_states(parts: list[tuple[FloatArray, FloatArray]]) -> tuple[FloatArray, FloatArray]:
     """Master fusion ``P_g = (sum P_i^-1)^-1``, ``x_g = P_g sum P_i^-1 x_i`` over (x_i, P_i) pairs
     (docs/reference/algorithms.md 5.3)."""
     if len(parts) == 1:
@@ -123,7 +124,7 @@ def fuse_common_states(parts: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.n
 class FederatedFilter(NavFilter):
     """Two local filters and a master (module docstring)."""
 
-    def __init__(self, cfg: Any, meter: c674x.CycleMeter, dtype: type) -> None:
+    def __init__(self, cfg: Any, meter: c674x.CycleMeter, dtype: FloatDtype) -> None:
         super().__init__(cfg, meter, dtype)
         self.p = p = cfg.variants.federated
         for s in p.subfilters:
@@ -159,7 +160,7 @@ class FederatedFilter(NavFilter):
 
     # -- introspection ------------------------------------------------------------------------------------
     @property
-    def x(self) -> np.ndarray:
+    def x(self) -> FloatArray:
         return self.x1
 
     def drain_events(self) -> list[dict[str, Any]]:
@@ -216,7 +217,7 @@ class FederatedFilter(NavFilter):
         self._report_mode(t, "initialised")
 
     # -- time update (+ the accelerometer gravity measurement of sub-filter 2) -------------------------------
-    def predict(self, nav: NavState, f_n: np.ndarray, Tk: float) -> None:
+    def predict(self, nav: NavState, f_n: FloatArray, Tk: float) -> None:
         dt, p = self.dtype, self.p
         cbn = q2mat_fast(nav.q).astype(dt)
         F = error_transition_matrix(cbn, nav.v, nav.pos, f_n, dtype=dt)
@@ -239,7 +240,7 @@ class FederatedFilter(NavFilter):
         self._gravity_update(nav, cbn, f_n)
         self.feedback(nav)
 
-    def _gravity_update(self, nav: NavState, cbn: np.ndarray, f_n: np.ndarray) -> None:
+    def _gravity_update(self, nav: NavState, cbn: FloatArray, f_n: FloatArray) -> None:
         """``z_a = f^n - [0, 0, g] = [g x] phi + C_b^n a^b`` (3 rows, sub-filter 2)."""
         dt = self.dtype
         g = earth.gravity(float(nav.pos[0]), float(nav.pos[2]))
@@ -261,7 +262,7 @@ class FederatedFilter(NavFilter):
         self.meter.charge("kf_update", 3 * self._cyc_up2)
 
     # -- GNSS: chi-square test, isolation, readmission (sub-filter 1) ---------------------------------------
-    def update_gnss(self, nav: NavState, meas: GnssMeasurement, p_ins: np.ndarray, v_ins: np.ndarray) -> UpdateReport:
+    def update_gnss(self, nav: NavState, meas: GnssMeasurement, p_ins: FloatArray, v_ins: FloatArray) -> UpdateReport:
         dt = self.dtype
         rows = gnss_measurement_rows(self.cfg, self.meter, meas, p_ins, v_ins)
         m = len(rows)
@@ -307,7 +308,7 @@ class FederatedFilter(NavFilter):
         return UpdateReport("gnss", True, m, max(abs(v) for v in innov), {"nis": lam})
 
     # -- sun vector (sub-filter 2) ----------------------------------------------------------------------
-    def update_solar(self, nav: NavState, obs: SolarObservation, s_n: np.ndarray, cbn_exp: np.ndarray) -> UpdateReport:
+    def update_solar(self, nav: NavState, obs: SolarObservation, s_n: FloatArray, cbn_exp: FloatArray) -> UpdateReport:
         dt = self.dtype
         s_n = s_n.astype(dt)
         z, sign = solar_vector_residual(s_n, cbn_exp.astype(dt), obs.s_b.astype(dt))

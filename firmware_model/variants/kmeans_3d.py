@@ -47,6 +47,7 @@ import numpy as np
 from protocols.psns import PolarizationObs, PsnsStatus
 
 from .. import c674x, psns, sun
+from ..arrays import BoolArray, FloatArray, FloatDtype, IntArray
 from ..attitude import a2mat, heading_from_yaw, m2att, q2mat_fast
 from ..filters import BaseFilter, UpdateReport, register_filter
 from ..kf import IDX_ATT, N_STATES, PHI_E
@@ -71,7 +72,7 @@ __all__ = [
 HORIZON_MASK = 2.0 * DEG
 
 
-def kmeans_1d(x: np.ndarray, k: int, iterations: int) -> tuple[np.ndarray, np.ndarray]:
+def kmeans_1d(x: FloatArray, k: int, iterations: int) -> tuple[FloatArray, IntArray]:
     """Lloyd's K-means on scalar data (paper Eqs. 8-9), fixed iterations, deterministic start.
 
     Parameters
@@ -102,7 +103,7 @@ def kmeans_cycles(n: int, k: int, iterations: int, c: c674x.KernelCosts) -> int:
     return iterations * per_iter + c.flops(2, 2, iterations=n)  # min/max for the start
 
 
-def pitch_roll_from_sun(s_b: np.ndarray, s_n: np.ndarray, yaw: float, pitch_prior: float = 0.0
+def pitch_roll_from_sun(s_b: FloatArray, s_n: FloatArray, yaw: float, pitch_prior: float = 0.0
                         ) -> tuple[float, float] | None:
     """Pitch and roll (rad) from the body sun vector with the yaw known (module docstring, step 6).
 
@@ -131,7 +132,7 @@ def pitch_roll_from_sun(s_b: np.ndarray, s_n: np.ndarray, yaw: float, pitch_prio
     return theta, gamma
 
 
-def heading_from_mag(m_b: np.ndarray, pitch: float, roll: float, declination: float) -> float:
+def heading_from_mag(m_b: FloatArray, pitch: float, roll: float, declination: float) -> float:
     """PSINS yaw (rad, counter-clockwise from North) from a magnetometer vector in b and the tilt (step 5)."""
     cr, sr = math.cos(roll), math.sin(roll)
     cp, sp = math.cos(pitch), math.sin(pitch)
@@ -169,6 +170,17 @@ class SunFinding:
         "s_c",
         "sun_theta",
     )
+    ok: bool
+    reason: str
+    s_c: FloatArray | None  # the solar vector (camera), set from the eigen step on
+    coarse_c: FloatArray | None
+    cluster_n: int | None
+    centres: FloatArray | None
+    quality: float | None
+    sun_theta: float | None
+    fov_theta: float | None
+    disagreement: float | None
+    n_points: int | None
 
     def __init__(self, ok: bool, reason: str, **kw: Any) -> None:
         self.ok = ok
@@ -191,8 +203,8 @@ class SunFinding:
         return out
 
 
-def find_sun(x_px: np.ndarray, y_px: np.ndarray, aop: np.ndarray, dop: np.ndarray, cam: CameraGeometry,
-             sky_mask: np.ndarray | None, params: Any, dop_min: float, dtype: type = np.float32) -> SunFinding:
+def find_sun(x_px: FloatArray, y_px: FloatArray, aop: FloatArray, dop: FloatArray, cam: CameraGeometry,
+             sky_mask: BoolArray | None, params: Any, dop_min: float, dtype: FloatDtype = np.float32) -> SunFinding:
     """Steps 1-4 of the module docstring on one frame's points (pixel coordinates 1-based, AOP rad).
 
     Rayleigh's DOP is symmetric about the sun/anti-sun axis, so the lowest-DOP cluster can hold two blobs:
@@ -247,7 +259,7 @@ def find_sun(x_px: np.ndarray, y_px: np.ndarray, aop: np.ndarray, dop: np.ndarra
     return SunFinding(True, "sun_in_fov", s_c=s.astype(dtype), **common)
 
 
-def _inside_image(s_c: np.ndarray, cam: CameraGeometry, x_px: np.ndarray, y_px: np.ndarray) -> bool:
+def _inside_image(s_c: FloatArray, cam: CameraGeometry, x_px: FloatArray, y_px: FloatArray) -> bool:
     """Whether the sun's image lies inside the bounding box of the observed points (C1 projection)."""
     sx, sy, sz = (float(v) for v in s_c)
     if cam.projection == "pinhole":
@@ -274,13 +286,13 @@ class KmeansAttitude:
         self.finding = finding
 
 
-def mag_field_enu(declination: float, inclination: float) -> np.ndarray:
+def mag_field_enu(declination: float, inclination: float) -> FloatArray:
     """Unit Earth-field direction in ENU from declination (east +) and inclination (down +), rad."""
     ci = math.cos(inclination)
     return np.array([ci * math.sin(declination), ci * math.cos(declination), -math.sin(inclination)])
 
 
-def kmeans_attitude(finding: SunFinding, c_c_b: np.ndarray, s_n: np.ndarray, m_b: np.ndarray | None,
+def kmeans_attitude(finding: SunFinding, c_c_b: FloatArray, s_n: FloatArray, m_b: FloatArray | None,
                     declination: float, prior: tuple[float, float, float], iterations: int,
                     inclination: float | None = None) -> KmeansAttitude | None:
     """Steps 5-6: heading from the magnetometer (or the prior yaw without one) and pitch/roll from the Sun.
@@ -292,12 +304,13 @@ def kmeans_attitude(finding: SunFinding, c_c_b: np.ndarray, s_n: np.ndarray, m_b
     started from the TRIAD attitude of the sun and field vectors when ``inclination`` is known, else from
     the prior yaw. ``prior`` = (pitch, roll, yaw) of the INS: also picks the pitch root.
     """
+    assert finding.s_c is not None  # a finding with the Sun in the field
     s_b = (c_c_b @ finding.s_c.astype(np.float64))
     if m_b is None:
-        pr = pitch_roll_from_sun(s_b, s_n, prior[2], prior[0])
-        if pr is None:
+        tilt = pitch_roll_from_sun(s_b, s_n, prior[2], prior[0])
+        if tilt is None:
             return None
-        return KmeansAttitude(pr[0], pr[1], prior[2], "ins", finding)
+        return KmeansAttitude(tilt[0], tilt[1], prior[2], "ins", finding)
     yaw = prior[2]
     pitch_prior = prior[0]
     if inclination is not None:
@@ -317,7 +330,6 @@ def kmeans_attitude(finding: SunFinding, c_c_b: np.ndarray, s_n: np.ndarray, m_b
         return math.atan2(math.sin(d), math.cos(d)), pr
 
     step = 1e-5
-    pr: tuple[float, float] | None = None
     for _ in range(max(1, iterations)):
         r0, r1 = g(yaw), g(yaw + step)
         if r0 is None or r1 is None:
@@ -325,7 +337,6 @@ def kmeans_attitude(finding: SunFinding, c_c_b: np.ndarray, s_n: np.ndarray, m_b
         slope = (r1[0] - r0[0]) / step - 0.0
         denom = slope if abs(slope) > 1e-6 else -1.0
         yaw = yaw - r0[0] / denom
-        pr = r0[1]
     res = g(yaw)
     if res is None:
         return None
@@ -340,7 +351,7 @@ class Kmeans3dFilter(BaseFilter):
 
     raw_polarization_obs = True
 
-    def __init__(self, cfg: Any, meter: c674x.CycleMeter, dtype: type) -> None:
+    def __init__(self, cfg: Any, meter: c674x.CycleMeter, dtype: FloatDtype) -> None:
         super().__init__(cfg, meter, dtype)
         self.p = cfg.variants.kmeans_3d
         self.mm = ModeManager("kmeans_3d", cfg.variants.mode_manager)

@@ -50,6 +50,7 @@ import numpy as np
 from protocols.psns import CompassFrame, PsnsStatus
 
 from .. import c674x, psns, sun
+from ..arrays import FloatArray, FloatDtype
 from ..attitude import q2mat_fast
 from ..filters import BaseFilter, SolarObservation, UpdateReport, register_filter
 from ..kf import D_LAT, D_LON, N_STATES, PHI_E, PHI_N
@@ -80,7 +81,7 @@ def sun_elevation_partials(lat: float, sin_dec: float, cos_dec: float, lha: floa
     return sin_h, alpha, beta
 
 
-def sun_vector_from_two_evectors(e_i: np.ndarray, e_j: np.ndarray) -> tuple[np.ndarray, float]:
+def sun_vector_from_two_evectors(e_i: FloatArray, e_j: FloatArray) -> tuple[FloatArray, float]:
     """``S = E_i x E_j / |E_i x E_j|`` (paper Eq. 6) and ``|E_i x E_j|`` (the sine of their angle, for unit E)."""
     c = cross(e_i, e_j)
     n = math.sqrt(float(c @ c))
@@ -125,7 +126,7 @@ class SageHusaR:
 class SunElevationFilter(BaseFilter):
     """Base 15-state filter with the sun-elevation position measurement and adaptive R (module docstring)."""
 
-    def __init__(self, cfg: Any, meter: c674x.CycleMeter, dtype: type) -> None:
+    def __init__(self, cfg: Any, meter: c674x.CycleMeter, dtype: FloatDtype) -> None:
         super().__init__(cfg, meter, dtype)
         self.p = cfg.variants.sun_elevation
         self.mm = ModeManager("sun_elevation", cfg.variants.mode_manager)
@@ -216,8 +217,8 @@ class SunElevationFilter(BaseFilter):
             h[PHI_E] = float(s_n_meas[1])
             h[PHI_N] = -float(s_n_meas[0])
         self.adaptive.rescale((cos_hc * p.elevation_sigma_deg * DEG) ** 2)
-        a = self.P @ h
-        hph = float(h @ a)
+        ph = self.P @ h
+        hph = float(h @ ph)
         innov = z - float(h @ self.x)
         nis = innov * innov / (hph + self.adaptive.r)
         self.meter.charge("se_gate", cost.flops(2 * 225, 2 * 225))
@@ -236,8 +237,8 @@ class SunElevationFilter(BaseFilter):
         self.state = 1
         return UpdateReport("sun_elevation", True, 1, abs(nu), {"units": [ui, uj]})
 
-    def _attitude_update(self, nav: NavState, t: float, t_exp: float, days: float, p_ins: np.ndarray,
-                         cbn: np.ndarray, good: list[tuple[int, int, int]]) -> None:
+    def _attitude_update(self, nav: NavState, t: float, t_exp: float, days: float, p_ins: FloatArray,
+                         cbn: FloatArray, good: list[tuple[int, int, int]]) -> None:
         """Step 6: ``+-S^b`` from all valid units' E-vectors (Eq. 14) -> the base solar-vector update."""
         dt = self.dtype
         if len(good) < 3:

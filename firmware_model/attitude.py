@@ -1,6 +1,6 @@
 """Attitude algebra: quaternions, rotation vectors, direction-cosine matrices, Euler angles.
 
-Conventions (``shared/reference/algorithms.md`` section 0, PSINS):
+Conventions (``docs/reference/algorithms.md`` section 0, PSINS):
 
 * n = ENU, b = (x right, y forward, z up).
 * ``C_n^b = R_Y(roll) R_X(pitch) R_Z(yaw)``; ``C_b^n`` is its transpose (PSINS ``a2mat``).
@@ -147,7 +147,7 @@ def mat2q(c: FloatArray) -> FloatArray:
 def a2mat(pitch: float, roll: float, yaw: float) -> FloatArray:
     """Euler angles (rad; PSINS yaw, counter-clockwise from North) to ``C_b^n``.
 
-    ``C_b^n = (R_Y(roll) R_X(pitch) R_Z(yaw))^T`` (algorithms.md section 0).
+    ``C_b^n = (R_Y(roll) R_X(pitch) R_Z(yaw))^T`` (docs/reference/algorithms.md section 0).
     """
     sp, cp = math.sin(pitch), math.cos(pitch)
     sr, cr = math.sin(roll), math.cos(roll)

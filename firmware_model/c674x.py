@@ -1,7 +1,7 @@
 """C674x cycle-cost model and per-task cycle meter.
 
 Every kernel the firmware runs charges cycles from published TI figures
-(``shared/reference/c6747_cycles.md``):
+(``docs/reference/c674x-cycles.md``):
 
 * DSPLIB C674x 3.4.0.0 test report (R1) cycle formulas, with odd-size padding for mat_mul;
 * MATHLIB C674x 3.1.2.1 (R2) per-call cycles, "Inline" column for single precision
@@ -200,7 +200,7 @@ class KernelCosts:
 
 @dataclass
 class TaskMeter:
-    """Cycle statistics of one firmware task, TI-report style (c6747_cycles.md section 5).
+    """Cycle statistics of one firmware task, TI-report style (docs/reference/c674x-cycles.md section 5).
 
     ``budget_cycles`` is the tick budget (every task of the cyclic executive must fit in one
     200 Hz tick); ``period_s`` is the task's nominal period (for the average CPU share).

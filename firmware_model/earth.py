@@ -1,7 +1,7 @@
 """WGS-84 Earth model: radii, normal gravity, Earth and transport rates (ENU).
 
 The truth model in ``emulator.world`` imports these same functions, so truth and firmware use
-one gravity model (``shared/reference/algorithms.md`` section 1.1, which requires it).
+one gravity model (``docs/reference/algorithms.md`` section 1.1, which requires it).
 
 Conventions: navigation frame n = ENU; position ``p = [L, lambda, h]`` = latitude (rad),
 longitude (rad), ellipsoidal height (m).
@@ -56,7 +56,7 @@ def radii(lat: float) -> tuple[float, float]:
 
 
 def gravity(lat: float, h: float) -> float:
-    """Magnitude of normal gravity, m/s^2 (algorithms.md 1.1, PSINS classic model).
+    """Magnitude of normal gravity, m/s^2 (docs/reference/algorithms.md 1.1, PSINS classic model).
 
     ``g = g0 (1 + 5.27094e-3 sin^2 L + 2.32718e-5 sin^4 L) - 3.086e-6 h``.
     At 39.979 deg, 50 m this is 9.801492 m/s^2.

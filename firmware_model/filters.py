@@ -23,7 +23,8 @@ UTC for the ephemeris, the INS state at a measurement's time, the mean of the MA
 time, the current tick time.
 
 Variants register themselves in :data:`FILTER_VARIANTS` with :func:`register_filter`; the
-scenario's ``firmware.filter`` picks one by name. Issue 6's variants (dual-vector switching, K-means
+scenario's ``firmware.filter`` picks one by name. The variants of :mod:`firmware_model.variants` (dual-vector
+switching, K-means
 3-D attitude, federated filter with chi-square isolation, sun-elevation positioning with a
 Sage-Husa adaptive KF) subclass :class:`NavFilter` (or :class:`BaseFilter`) and override the
 updates they change; the loop stays as it is.
@@ -84,7 +85,7 @@ __all__ = [
 
 
 def kf_scalar_update_cycles(c: c674x.KernelCosts) -> int:
-    """One scalar Joseph update over 15 states [D, c6747_cycles.md section 6 fallback].
+    """One scalar Joseph update over 15 states [D, docs/reference/c674x-cycles.md section 6 fallback].
 
     ``a = P h`` and ``c = B h`` (2 x 225 MAC), ``B = P - K a^T`` (225 MAC),
     ``P' = B - c K^T + r K K^T`` (450 MAC), symmetrise (105 ADD), one reciprocal (MATHLIB [S]).
@@ -210,7 +211,7 @@ class NavFilter:
 
     name = "abstract"
     #: Variant number in NAV_SOLUTION ``mode`` bits 8-11 and STATUS (``protocols.host.FilterVariant``,
-    #: DESIGN.md section 6 numbering); set by :func:`register_filter` from the variant's name.
+    #: docs/architecture.md numbering of the firmware variants); set by :func:`register_filter` from the variant's name.
     variant_id = 0
     #: True: POLARIZATION_OBS frames go to :meth:`update_polarization_obs` instead of the firmware's solve.
     raw_polarization_obs = False
@@ -255,7 +256,7 @@ class NavFilter:
         raise NotImplementedError
 
     def update_compass(self, nav: NavState, frame: Any, t_exposure_s: float) -> UpdateReport | None:
-        """Multi-unit compass frames: not used by the base variant (issue 6)."""
+        """Multi-unit compass frames: not used by the base variant (the compass variants use them)."""
         return None
 
     def feedback(self, nav: NavState) -> None:

@@ -70,7 +70,7 @@ def tick_kernel_cycles(c: c674x.KernelCosts, nav_dp: bool = True) -> dict[str, i
       ``coning2``: two-sample coning/sculling, 4 cross products and the 2/3, 1/2 scalings [D].
     * ``strapdown``: the Earth model in double precision whatever the build (latitude is a float64
       variable: sindp, cosdp, sqrtdp, 3 divdp and DP position update [S, R2]), two rv2q (sqrt, sin,
-      cos, div), quaternion normalisation (rsqrt) and ~260 FLOPs (c6747_cycles.md section 4) [S/D];
+      cos, div), quaternion normalisation (rsqrt) and ~260 FLOPs (docs/reference/c674x-cycles.md section 4) [S/D];
       with ``nav_dp`` (the attitude quaternion and velocity accumulators in double precision,
       docs/decisions.md D-L.1) the rv2q, normalisation and FLOPs are charged at DP prices.
     * ``nav_output``: m2att (asin, 2 atan2), 9 sqrt for the sigmas, pack 102 bytes, CRC-16 over 109 [S/E].
@@ -189,7 +189,7 @@ class Firmware(HostTask, GnssTask):
         """Bytes received on ``uart`` (the ISR copies the 16550 FIFO into the ring buffer).
 
         ``t_rx_s`` is the DSP's time (s, FPGA time base) when the last byte arrived, as the ISR
-        reads it from the time-stamp counter; PSNS frames are time-tagged from it (C1).
+        reads it from the time-stamp counter; PSNS frames are time-tagged from it (docs/architecture.md "Conventions").
         """
         if uart == UART_IMU:
             for f in self._dec_imu.feed(data):

@@ -8,7 +8,7 @@ phi in rad (misalignment, ``C_b^{n'} = (I - [phi x]) C_b^n``), dv in m/s, dL and
 rad, dh in m, gyro drift eps in rad/s (body), accelerometer bias nabla in m/s^2 (body).
 Errors are "computed minus true".
 
-F follows the element list of ``shared/reference/algorithms.md`` section 1.3 (PSINS ``etm``,
+F follows the element list of ``docs/reference/algorithms.md`` section 1.3 (PSINS ``etm``,
 checked there against numerical Jacobians); the base paper's F_S block (Eq. 18) is
 ``[[-C_b^n, 0], [0, C_b^n], [0, 0]]`` in this sign convention. Discretisation
 ``Phi = I + F T`` (PSINS ``kffk``), ``Q_k = Q_t T``.
@@ -83,7 +83,7 @@ N_NAV_ERRORS = 9
 def error_transition_matrix(
     cbn: FloatArray, v_enu: FloatArray, pos: FloatArray, f_n: FloatArray, dtype: FloatDtype = np.float32
 ) -> FloatArray:
-    """Continuous-time error dynamics F (15x15), algorithms.md 1.3 element list.
+    """Continuous-time error dynamics F (15x15), docs/reference/algorithms.md 1.3 element list.
 
     Parameters
     ----------
@@ -101,7 +101,8 @@ def error_transition_matrix(
     W = earth.OMEGA_IE
     rm, rn = earth.radii(lat)
     rmh, rnh = rm + h, rn + h
-    # (row, column) -> value, the element list of algorithms.md 1.3 in its order; written into F in one call
+    # (row, column) -> value, the element list of docs/reference/algorithms.md 1.3 in its order; written into F in one
+    # call
     rs, rs2, rm2 = ve * t / rnh, rnh**2, rmh**2
     elements = (
         # attitude rows (1-3)

@@ -1,6 +1,6 @@
 """Polarized-skylight solve: Stokes -> DOP/AOP -> E-vectors -> K -> bi-direction solar vector.
 
-Base paper (Liang & Bai), section II.A, with the camera/AOP convention of CONTRACTS C1
+Base paper (Liang & Bai), section II.A, with the camera/AOP convention of docs/architecture.md "Conventions"
 (:mod:`firmware_model.psns_geometry`):
 
 1. Stokes (Eq. 1): ``S0 = (I0+I45+I90+I135)/2``, ``S1 = I0 - I90``, ``S2 = I45 - I135``;
@@ -14,7 +14,7 @@ Base paper (Liang & Bai), section II.A, with the camera/AOP convention of CONTRA
 3. ``K = sum w_i E_i E_i^T`` (Eq. 14) with ``w_i = DOP_i`` for points above the DOP threshold.
 4. ``+-S`` = the eigenvector of the smallest eigenvalue of K (Eq. 14), by the closed-form
    trigonometric solution of the 3x3 symmetric eigenproblem (Smith 1961) and the cross product of two
-   rows of ``K - lambda_min I``: no iteration, ~500 cycles on a C674x (c6747_cycles.md section 4).
+   rows of ``K - lambda_min I``: no iteration, ~500 cycles on a C674x (docs/reference/c674x-cycles.md section 4).
    Quality figure: ``lambda_min / lambda_mid`` (0 for a perfect Rayleigh sky, ~1 for no information).
 
 Everything runs in the firmware's working precision (float32 by default).
@@ -95,7 +95,7 @@ def aop_from_psi(psi: FloatArray) -> FloatArray:
 def superpixel_channels(raw: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """Split an IMX250MZR mosaic into its four channels at half resolution (no interpolation).
 
-    Layout per 2x2 super-pixel (C1, what polanalyser expects): (row 0, col 0) = 90 deg,
+    Layout per 2x2 super-pixel (the conventions, what polanalyser expects): (row 0, col 0) = 90 deg,
     (0, 1) = 45, (1, 0) = 135, (1, 1) = 0. Returns ``(I0, I45, I90, I135)``, each (ny/2, nx/2).
     """
     return raw[1::2, 1::2], raw[0::2, 1::2], raw[0::2, 0::2], raw[1::2, 0::2]
@@ -107,7 +107,7 @@ def mosaic_observations(
     """Observation points of a raw mosaic: one per super-pixel.
 
     Returns ``(x_px, y_px, aop, dop, s0)`` flattened: super-pixel centres in 1-based pixel coordinates
-    (half-integers: the centre of pixels 2c+1 and 2c+2), AOP (rad, C1 wire convention), DOP, S0 (DN).
+    (half-integers: the centre of pixels 2c+1 and 2c+2), AOP (rad, wire convention), DOP, S0 (DN).
     """
     i0, i45, i90, i135 = (c.astype(dtype) for c in superpixel_channels(raw))
     s0, s1, s2 = stokes(i0, i45, i90, i135)
@@ -119,7 +119,7 @@ def mosaic_observations(
 
 def evectors_camera(x_px: FloatArray, y_px: FloatArray, aop: FloatArray, cam: CameraGeometry,
                     dtype: FloatDtype = np.float32) -> FloatArray:
-    """Unit E-vectors in the camera frame (N, 3) from pixel positions and AOP (rad) (Eq. 5-8, C1)."""
+    """Unit E-vectors in the camera frame (N, 3) from pixel positions and AOP (rad) (Eq. 5-8)."""
     X, Y = cam.focal_plane(x_px, y_px)
     X, Y = X.astype(dtype), Y.astype(dtype)
     a = np.asarray(aop, dtype=dtype)
@@ -207,7 +207,7 @@ def solve_solar_vector(e: FloatArray, dop: FloatArray, dop_min: float = 0.05, mi
 
 
 def exposure_time_s(t_rx_s: float, frame_len: int, baud: float, latency_us: int, bits_per_byte: int = 10) -> float:
-    """Mid-exposure time of a PSNS frame (C1): ``t_rx - len * bits / baud - latency``.
+    """Mid-exposure time of a PSNS frame (docs/architecture.md "Conventions"): ``t_rx - len * bits / baud - latency``.
 
     ``t_rx_s`` is the reception time of the frame's last byte (s, FPGA time base).
     """
@@ -230,7 +230,7 @@ def evector_cycles(n: int, c: c674x.KernelCosts | None = None) -> int:
 def solve_cycles(n: int, c: c674x.KernelCosts | None = None) -> int:
     """C674x cycles of threshold + ``K`` accumulation over ``n`` points + the closed-form eigen solve [D/E].
 
-    K: 9 MPYSP + 6 ADDSP per point, bound by the 2 .M units: 5 n + 40 (c6747_cycles.md section 4).
+    K: 9 MPYSP + 6 ADDSP per point, bound by the 2 .M units: 5 n + 40 (docs/reference/c674x-cycles.md section 4).
     Threshold/compaction: 1 cycle/point. Eigen: sqrt + recip + acos + 2 cos + rsqrt (316 cycles in
     single precision, MATHLIB inline [S]) + ~80 FLOPs and the 3 cross products (~150 cycles) [E].
     In double precision the accumulation is MPYDP-bound: 9 MPYDP per point at 0.5/cycle = 18 n [D].

@@ -1,4 +1,5 @@
-"""Polarization-sensor geometry shared by the firmware and the emulator's sensor models (CONTRACTS C1).
+"""Polarization-sensor geometry shared by the firmware and the emulator's sensor models (docs/architecture.md
+"Conventions").
 
 Camera frame c: origin at the imager centre, +z along the optical axis towards the scene, +x along
 image columns (column index x = 1..nx), +y along image rows (row index y = 1..ny).
@@ -52,7 +53,7 @@ COMPASS_RING_ZENITH_DEG = 45.0
 
 @dataclass(frozen=True)
 class CameraGeometry:
-    """Intrinsics and mounting of the polarization camera (C1).
+    """Intrinsics and mounting of the polarization camera (docs/architecture.md "Conventions").
 
     Attributes
     ----------

@@ -51,7 +51,7 @@ def coning_sculling(dtheta: FloatArray, dv: FloatArray) -> tuple[FloatArray, Flo
 
     Returns
     -------
-    phi_m (3,) rad and dv_m (3,) m/s (algorithms.md 1.2 step 1: single-sample rotation
+    phi_m (3,) rad and dv_m (3,) m/s (docs/reference/algorithms.md 1.2 step 1: single-sample rotation
     compensation for n = 1; two-sample coning/sculling with coefficient 2/3 for n = 2).
     """
     n = dtheta.shape[0]

@@ -12,7 +12,7 @@ Delta_tau extrapolation ``96.4 + 0.00158 t`` s. UTC is used for UT (|UT1 - UTC| 
 < 0.004 deg of hour angle, the same assumption SPA users make when they pass UTC).
 
 Output: the topocentric unit sun vector in ENU, ``S^n = [sin Az cos el, cos Az cos el, sin el]``
-(algorithms.md section 0; Az clockwise from North, el without refraction, as the geometric
+(docs/reference/algorithms.md section 0; Az clockwise from North, el without refraction, as the geometric
 vector the polarization pattern follows). It is formed directly from declination and hour angle,
 so no atan2/asin is needed for the vector.
 

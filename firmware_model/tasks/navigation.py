@@ -53,7 +53,8 @@ class Navigation(TimeKeeping):
             gb_x, gb_y, gb_z, ab_x, ab_y, ab_z = bias[2]
             px, py, pz, ux, uy, uz = unpack6(pack6(dth_x - gb_x, dth_y - gb_y, dth_z - gb_z,
                                                    dv_x - ab_x, dv_y - ab_y, dv_z - ab_z))  # phi_m, dv_c
-            # single-sample rotation compensation dv_m = dv_c + 1/2 phi_m x dv_c (algorithms.md 1.2, step 1)
+            # single-sample rotation compensation dv_m = dv_c + 1/2 phi_m x dv_c (docs/reference/algorithms.md 1.2,
+            # step 1)
             c0, c1, c2, c3, c4, c5 = unpack6(pack6(py * uz, pz * ux, px * uy, pz * uy, px * uz, py * ux))
             r3 = self._round3
             c0, c1, c2 = r3.unpack(r3.pack(c0 - c3, c1 - c4, c2 - c5))

@@ -33,7 +33,8 @@ class PsnsTask(Navigation):
     """Decode-side work and measurement update of the PSNS frames (UART2)."""
 
     def _psns_frame_in(self, t_rx: float, f: Any) -> float:
-        """Count and charge a decoded PSNS frame; return its mid-exposure time (C1, D-5.8)."""
+        """Count and charge a decoded PSNS frame; return its mid-exposure time (docs/architecture.md "Conventions",
+        docs/decisions.md D-5.8)."""
         cfg = self.cfg
         self.counters["psns_frames"] += 1
         if isinstance(f, CompassFrame):

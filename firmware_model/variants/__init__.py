@@ -1,4 +1,4 @@
-"""The filter variants of the source papers (issue 6), each registered in :data:`firmware_model.FILTER_VARIANTS`.
+"""The filter variants of the source papers, each registered in :data:`firmware_model.FILTER_VARIANTS`.
 
 ===================  ===============================================  ====================================
 ``firmware.filter``  module                                           source

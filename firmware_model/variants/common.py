@@ -29,7 +29,8 @@ __all__ = [
 ]
 
 #: Upper quantiles ``chi2_{1-alpha}(m)`` for m = 1..6 degrees of freedom and the usual alphas
-#: (algorithms.md 5.2; m = 4, 5 added from the same distribution; checked against scipy.stats in the tests).
+#: (docs/reference/algorithms.md 5.2; m = 4, 5 added from the same distribution; checked against scipy.stats in the
+#: tests).
 CHI2_TABLE: dict[float, tuple[float, ...]] = {
     0.05: (3.841, 5.991, 7.815, 9.488, 11.070, 12.592),
     0.01: (6.635, 9.210, 11.345, 13.277, 15.086, 16.812),
@@ -51,7 +52,8 @@ def chi2_threshold(dof: int, alpha: float) -> float:
 def unit_mounting(zenith: float, azimuth: float) -> FloatArray:
     """``C_u^b`` (3, 3) of a single-direction polarization unit looking at ``zenith``/``azimuth`` (rad).
 
-    Convention of :mod:`firmware_model.psns_geometry` (CONTRACTS C1): azimuth in the body x-y plane from
+    Convention of :mod:`firmware_model.psns_geometry` (docs/architecture.md "Conventions"): azimuth in the body x-y
+    plane from
     body +y (forward) towards +x (right), zenith angle from body +z; the unit's +z is its view ray, its
     +y points "up the hemisphere" (towards body +z in the ray's vertical plane), ``x = y x z``. A unit at
     the zenith (no vertical plane) is the identity turned by ``azimuth`` about z, so ``(0, 0)`` is the
@@ -104,7 +106,8 @@ def spd_inverse_cycles(n: int, c: c674x.KernelCosts) -> int:
 
 
 def misalignment_between(cbn_computed: FloatArray, cbn_measured: FloatArray) -> FloatArray:
-    """Misalignment ``phi`` (3,) with ``C_b^{n'} = (I - [phi x]) C_b^n`` (algorithms.md section 0), small angles.
+    """Misalignment ``phi`` (3,) with ``C_b^{n'} = (I - [phi x]) C_b^n`` (docs/reference/algorithms.md section 0),
+    small angles.
 
     ``M = C_b^{n'} (C_b^n)^T = I - [phi x]``, so ``phi = (M_12 - M_21, M_20 - M_02, M_01 - M_10) / 2``.
     """

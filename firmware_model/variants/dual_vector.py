@@ -5,7 +5,8 @@
 derivation below rebuilds them from the description (docs/variants.md section 2 has it in full).
 
 Sensors: ``l`` single-direction polarization units (the multi-unit compass, COMPASS frames), unit ``i``
-with mounting ``C_i^b`` (its view ray ``r_i^b`` = third column) and wire AOP ``A_i`` (C1: measured in the
+with mounting ``C_i^b`` (its view ray ``r_i^b`` = third column) and wire AOP ``A_i`` (docs/architecture.md
+"Conventions": measured in the
 unit's x-y plane from +y towards +x).
 
 Step 1 (predicted polarization vector). From the INS attitude ``C_b^{n'}`` at the exposure time and the
@@ -34,7 +35,7 @@ Step 4 (switching), ``k = sum q_i``:
   perpendicular to ``s^n``: ``z_k = u_k^T Z_ps = u_k^T phi``.
 * ``k = 1``: **polarization-error-vector mode** with the reliable unit's vector:
   ``z = s^n . (C_b^{n'} p~^b) = (s^n x p^n)^T phi``, ``H_pp = [(s^n x p^n)^T, 0_{1x12}]``
-  (algorithms.md 1.4; ``z = -sin(gamma) (r . dp)``, the error vector's signed length). Flipping the sign
+  (docs/reference/algorithms.md 1.4; ``z = -sin(gamma) (r . dp)``, the error vector's signed length). Flipping the sign
   of ``p~`` flips ``z`` and ``H`` together: the update does not change.
 * ``k = 0``: no polarization update (reported as a rejected PSNS update and a ``psns_mode`` event).
 
@@ -128,7 +129,7 @@ def sun_error_vector(cbn: FloatArray, s_meas_b: FloatArray, s_n: FloatArray
 
 def polarization_error(cbn: FloatArray, p_meas_b: FloatArray, s_n: FloatArray) -> tuple[float, FloatArray]:
     """Polarization-error-vector measurement (Step 4, k = 1): ``z = s^n . (C_b^{n'} p~^b)``,
-    ``H_pp = (s^n x p^n)^T`` on phi (algorithms.md 1.4); both flip with the sign of ``p~``."""
+    ``H_pp = (s^n x p^n)^T`` on phi (docs/reference/algorithms.md 1.4); both flip with the sign of ``p~``."""
     p_n = cbn @ p_meas_b
     return float(s_n @ p_n), cross(s_n, p_n)
 

@@ -2,9 +2,9 @@
 
 Ge Wenqiang et al., *bionic polarized-light / MIMU / GPS integrated navigation federated filter* (Beijing
 Institute of Radio Metrology and Measurement). Federated structure after Carlson (1990); equations from
-algorithms.md 5.2-5.3.
+docs/reference/algorithms.md 5.2-5.3.
 
-Sub-filter 1, **SINS/GNSS** (the base paper's 15-state error model, algorithms.md 1.3)::
+Sub-filter 1, **SINS/GNSS** (the base paper's 15-state error model, docs/reference/algorithms.md 1.3)::
 
     x1 = [phi | dv | dL dlambda dh | eps | nabla],   z = GNSS position and velocity (Eqs. 23-30 of the base paper)
 
@@ -20,7 +20,8 @@ with the paper's two measurements: the **accelerometer gravity measurement**
 the KF interval; at rest ``f^b = C_n^b g_up`` + interference; first order in phi) and the **sun-vector
 measurement** ``z_s = S^n - C_b^{n'} (+-S^b) = -[S^n x] phi`` (sign by the smaller residual, base paper).
 
-**No-reset information sharing** (algorithms.md 5.3): ``P_i(0) = P_0 / beta_i``, ``Q_i = Q / beta_i`` once,
+**No-reset information sharing** (docs/reference/algorithms.md 5.3): ``P_i(0) = P_0 / beta_i``, ``Q_i = Q / beta_i``
+once,
 ``beta_1 = beta_2 = 0.5`` (the paper's choice), master share ``beta_m = 0``. The master fuses the common
 states ``c = [phi, eps]``::
 
@@ -33,7 +34,7 @@ exactly the correction applied to the reference (``x_i <- x_i - x_applied``): ea
 its own information and its own estimate of the (corrected) reference, nothing of one sub-filter leaks
 into the other, and the linearisation stays valid with a 25 deg/h gyro (docs/variants.md, D-6.3).
 
-**Chi-square isolation** (algorithms.md 5.2): before a GNSS update, ``lambda = eps^T A^-1 eps`` with
+**Chi-square isolation** (docs/reference/algorithms.md 5.2): before a GNSS update, ``lambda = eps^T A^-1 eps`` with
 ``A = H P_1 H^T + R`` over the fix's m rows (5 with NMEA, 6 with UBX velD); ``lambda > chi2_{1-alpha}(m)``
 isolates the GNSS: the epoch is not used, SINS/GNSS leaves the fusion (reconfiguration to MIMU/polarization,
 event ``gnss_isolated``), its time update continues. When ``readmit_after`` consecutive epochs pass the

@@ -2,10 +2,11 @@
 
 Pipeline on each POLARIZATION_OBS frame of an all-sky (fisheye) camera:
 
-1. **View rays** of the observation points (C1 camera model), the sky mask: points whose ray is below
+1. **View rays** of the observation points (camera model of docs/architecture.md "Conventions"), the sky mask: points
+whose ray is below
    ``horizon_mask`` elevation according to the INS tilt are left out (the ground is unpolarized and would
    join the low-DOP cluster), as are points below ``dop_min`` for the E-vector solve.
-2. **K-means on the DOP values** (paper Eqs. 8-9; algorithms.md 2.4): ``k`` clusters (default 3) in 1-D,
+2. **K-means on the DOP values** (paper Eqs. 8-9; docs/reference/algorithms.md 2.4): ``k`` clusters (default 3) in 1-D,
    Lloyd iterations from centres spread evenly between the lowest and highest DOP, a fixed number of
    iterations (deterministic cycle cost). The Sun is at the **lowest-DOP cluster** (Rayleigh DOP vanishes
    towards the Sun, paper Eq. 6); the normalised mean view ray of its members is the coarse sun direction.
@@ -260,7 +261,7 @@ def find_sun(x_px: FloatArray, y_px: FloatArray, aop: FloatArray, dop: FloatArra
 
 
 def _inside_image(s_c: FloatArray, cam: CameraGeometry, x_px: FloatArray, y_px: FloatArray) -> bool:
-    """Whether the sun's image lies inside the bounding box of the observed points (C1 projection)."""
+    """Whether the sun's image lies inside the bounding box of the observed points (the camera projection)."""
     sx, sy, sz = (float(v) for v in s_c)
     if cam.projection == "pinhole":
         if sz <= 0:

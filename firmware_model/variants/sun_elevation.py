@@ -3,10 +3,12 @@
 Zhang, Yang, Huang, Liu, Wang, Guo, *Bionic Integrated Positioning Mechanism Based on Bioinspired
 Polarization Compass and Inertial Navigation System*, Sensors 21(4):1055, 2021 (section 3.2).
 
-Per COMPASS frame (9 units, C1 geometry, :func:`firmware_model.psns_geometry.compass_unit_mountings`):
+Per COMPASS frame (9 units, the geometry of the conventions,
+:func:`firmware_model.psns_geometry.compass_unit_mountings`):
 
 1. The two units with the highest DOP (paper Eq. 4: ``D_max >= D_i >= D_j >= D_k``) give
-   ``E_i^b = C_i^b (sin A_i, cos A_i, 0)``, ``E_j^b`` likewise (paper Eqs. 3, 5 in the C1 AOP convention);
+   ``E_i^b = C_i^b (sin A_i, cos A_i, 0)``, ``E_j^b`` likewise (paper Eqs. 3, 5 in the AOP convention of
+   docs/architecture.md "Conventions");
    the Rayleigh E-vector is perpendicular to the Sun, so ``S^b = E_i^b x E_j^b / sin<E_i, E_j>`` (Eq. 6). When
    the pair is ill-conditioned (``|E_i x E_j| < min_pair_sine``: the two rays are nearly coplanar with the
    Sun) the next pair in DOP order is taken (a decision the mode manager logs).
@@ -15,7 +17,7 @@ Per COMPASS frame (9 units, C1 geometry, :func:`firmware_model.psns_geometry.com
 3. The INS elevation ``sin H_c = sin L sin Dec + cos L cos Dec cos LHA`` with ``LHA = GHA + lambda`` (Eqs. 9-10,
    Grena ephemeris, :mod:`firmware_model.sun`).
 4. Measurement (Eqs. 11-14): ``z = sin H_c - sin H_n = H x + v`` with
-   ``H = [0 0 0 0 0 0  cos(H_c) alpha  cos(H_c) beta  0 ... 0]``, where (algorithms.md 1.4)
+   ``H = [0 0 0 0 0 0  cos(H_c) alpha  cos(H_c) beta  0 ... 0]``, where (docs/reference/algorithms.md 1.4)
    ``alpha = dh/dL = (cos L sin Dec - sin L cos Dec cos LHA) / cos h`` and
    ``beta = dh/dlambda = -cos L cos Dec sin LHA / cos h``: ``cos(h) alpha`` and ``cos(h) beta`` are the
    paper's printed coefficients of ``d(sin h)``. States ``dL, dlambda`` in rad, "computed minus true".
@@ -23,7 +25,7 @@ Per COMPASS frame (9 units, C1 geometry, :func:`firmware_model.psns_geometry.com
    ``sin H_n = sin H - phi_E S_N + phi_N S_E`` to first order (``C_b^{n'} S^b = S^n - phi x S^n``), and
    ``attitude_coupling`` puts those terms in H: ``H[phi_E] = S_N``, ``H[phi_N] = -S_E``. The defaults
    (``attitude_coupling`` and ``attitude_aiding`` off) are the paper's filter exactly.
-5. **Sage-Husa adaptive R** (algorithms.md 5.1, PSINS ``kfupdate`` adaptive form): with the innovation
+5. **Sage-Husa adaptive R** (docs/reference/algorithms.md 5.1, PSINS ``kfupdate`` adaptive form): with the innovation
    ``r_k`` and ``ry = r_k^2 - H P H^T`` clamped to ``[R_min, R_max]``, ``R <- (1 - d) R + d ry``,
    ``d <- d / (d + b)`` (``d_k = (1-b)/(1-b^{k+1})``, b the forgetting factor); the measurement then updates
    with the adapted R. Before that, the mode manager's chi-square gate (1 dof) with the current R.
@@ -70,7 +72,7 @@ def sun_elevation_partials(lat: float, sin_dec: float, cos_dec: float, lha: floa
 
     ``sin h = sin L sin Dec + cos L cos Dec cos t``;
     ``alpha = (cos L sin Dec - sin L cos Dec cos t) / cos h`` (= cos Az);
-    ``beta = -cos L cos Dec sin t / cos h`` (= cos L sin Az), t the local hour angle (algorithms.md 1.4).
+    ``beta = -cos L cos Dec sin t / cos h`` (= cos L sin Az), t the local hour angle (docs/reference/algorithms.md 1.4).
     """
     sl, cl = math.sin(lat), math.cos(lat)
     st, ct = math.sin(lha), math.cos(lha)
@@ -89,7 +91,8 @@ def sun_vector_from_two_evectors(e_i: FloatArray, e_j: FloatArray) -> tuple[Floa
 
 
 class SageHusaR:
-    """Scalar Sage-Husa measurement-noise adaptation (algorithms.md 5.1; PSINS ``kfupdate`` adaptive = 1)."""
+    """Scalar Sage-Husa measurement-noise adaptation (docs/reference/algorithms.md 5.1; PSINS ``kfupdate`` adaptive =
+    1)."""
 
     def __init__(self, r0: float, forgetting: float, r_min_factor: float, r_max_factor: float) -> None:
         self.r0 = r0

@@ -22,7 +22,7 @@ from .synth import SensorErrors, StaticTruth, StreamConfig, static_stream
 
 DEG = math.pi / 180.0
 
-#: Paper-grade sensors (DESIGN.md section 2 figures, one draw), the gyro z bias set to zero so that
+#: Paper-grade sensors (the sensor figures of docs/architecture.md, one draw), the gyro z bias set to zero so that
 #: "heading stays at its initial misalignment" without PSNS is not blurred by a z-gyro drift.
 PAPER_ERRORS = SensorErrors(gyro_bias_dph=(9.0, -7.0, 0.0), gyro_arw_deg_rt_h=0.15, accel_bias_mg=(1.5, -1.0, 2.0),
                             accel_noise_ug_rt_hz=100.0, gnss_pos_sigma_m=3.0, gnss_vel_sigma_mps=0.03,

@@ -121,7 +121,7 @@ def test_solar_update_sign_choice_and_gate():
 
 
 def test_error_model_F_predicts_the_nonlinear_strapdown_errors():
-    """Nonlinear INS with initial errors vs Phi = prod(I + F T) over 60 s (algorithms.md 1.3 check)."""
+    """Nonlinear INS with initial errors vs Phi = prod(I + F T) over 60 s (docs/reference/algorithms.md 1.3 check)."""
     from firmware_model.kf import error_transition_matrix
     from firmware_model.strapdown import strapdown_step
 

@@ -1,7 +1,9 @@
-"""The firmware's PSNS solve against the emulator's IMX250MZR camera model (C1 on both sides).
+"""The firmware's PSNS solve against the emulator's IMX250MZR camera model (the conventions of docs/architecture.md on
+both sides).
 
 The camera model (``emulator.devices.camera``, the world helper's) is independent code: if both sides
-keep CONTRACTS C1, the firmware recovers the model's true sun direction in the camera frame.
+keep the camera conventions (docs/architecture.md "Conventions"), the firmware recovers the model's true sun direction
+in the camera frame.
 """
 
 from __future__ import annotations

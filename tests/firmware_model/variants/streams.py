@@ -9,7 +9,7 @@ Rayleigh sky), written for these tests and independent of the firmware's solve:
 * MAG frames after every 2nd IMU frame (100 Hz), ``B^b = C_n^b B^n`` + white noise;
 * GNSS as UBX NAV-PVT at PPS + 50 ms (position, 3-D velocity), with glitches (offsets) and outages;
 * PSNS: ``solar_vector`` (on-sensor solve, noise per component), ``compass`` (single-direction units with
-  the C1 AOP convention, AOP noise ``sigma * dop_ref / DOP``, blocked units: DOP ~ 0, random AOP) or
+  the AOP convention, AOP noise ``sigma * dop_ref / DOP``, blocked units: DOP ~ 0, random AOP) or
   ``camera`` (POLARIZATION_OBS of a fisheye/pinhole camera: Rayleigh sky, unpolarized ground below the
   horizon, points near the sun saturated and dropped).
 
@@ -146,7 +146,8 @@ def field_enu(m: MagSpec) -> np.ndarray:
 
 
 def wire_aop(e_x: np.ndarray, e_y: np.ndarray) -> np.ndarray:
-    """C1: psi = atan2(E_y, E_x) (from +x towards +y), wire AOP = 90 deg - psi wrapped to (-90, 90] deg (rad)."""
+    """AOP convention: psi = atan2(E_y, E_x) (from +x towards +y), wire AOP = 90 deg - psi wrapped to (-90, 90] deg
+    (rad)."""
     a = 0.5 * math.pi - np.arctan2(e_y, e_x)
     return a - math.pi * np.ceil((a - 0.5 * math.pi) / math.pi)
 

@@ -38,7 +38,8 @@ from .streams import (
 DEG = math.pi / 180.0
 TAIYUAN = (37.59, 112.24, 800.0)
 EPOCH = dt.datetime(2019, 12, 1, 2, 0, tzinfo=dt.UTC)  # the paper's field test: 10:00 local
-CAM = CameraGeometry(projection="fisheye", focal_m=1.8e-3)  # all-sky fisheye (algorithms.md 2.4: f = 1.8 mm)
+# all-sky fisheye (docs/reference/algorithms.md 2.4: f = 1.8 mm)
+CAM = CameraGeometry(projection="fisheye", focal_m=1.8e-3)
 MAG = MagSpec(declination_deg=-5.415, inclination_deg=56.938, intensity_nt=54121.0)  # IGRF-13 at the site
 
 

@@ -1,5 +1,5 @@
 """Event-level checks of the variant scenarios (run through the whole emulator). Until scenario event expectations
-land (issue 8), the scenario files carry nav_error/link/dsp expectations and these tests check the events:
+land (scenario expectations), the scenario files carry nav_error/link/dsp expectations and these tests check the events:
 ``psns_mode``/``psns_quality``/``measurement_rejected`` (dual-vector), ``kmeans_refused`` (K-means),
 ``gnss_isolated``/``gnss_readmitted``/``federated_mode`` (federated)."""
 

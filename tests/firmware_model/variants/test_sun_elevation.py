@@ -24,7 +24,7 @@ DEG = math.pi / 180.0
     ("Taiyuan", 37.59, -21.7287, 325.0532, -0.818405, 0.455344),
 ])
 def test_alpha_beta_reproduce_the_reference_values(case, lat, dec, lha, alpha, beta):
-    """algorithms.md 1.4: declination and local hour angle from SPA (section 3) -> alpha, beta."""
+    """docs/reference/algorithms.md 1.4: declination and local hour angle from SPA (section 3) -> alpha, beta."""
     _, a, b = sun_elevation_partials(lat * DEG, math.sin(dec * DEG), math.cos(dec * DEG), lha * DEG)
     assert a == pytest.approx(alpha, abs=2e-6) and b == pytest.approx(beta, abs=2e-6)
 
@@ -45,7 +45,7 @@ def test_partials_match_finite_differences_of_the_elevation():
 
 
 def test_sage_husa_recovers_r_from_a_25_times_too_small_start():
-    """algorithms.md 5.1 demo: R0 = 0.16 for a true R = 4 (b = 0.95)."""
+    """docs/reference/algorithms.md 5.1 demo: R0 = 0.16 for a true R = 4 (b = 0.95)."""
     rng = np.random.default_rng(2)
     sh = SageHusaR(0.16, 0.95, 0.01, 1000.0)  # (PSINS' R_max = 100 R0 would be hit by 2-sigma innovations)
     rs = [sh.adapt(float(rng.normal(0.0, 2.0)), 0.0) for _ in range(2000)]

@@ -35,7 +35,8 @@ from .attitude import cross3, q2mat, qmul
 from .nav_state import A_PREV, POS, NavState, Q, V
 from .precision import rounder
 
-__all__ = ["STRAPDOWN_FLOPS", "NavState", "coning_sculling", "strapdown_step", "strapdown_step_fast"]
+__all__ = ["STRAPDOWN_FLOPS", "NavState", "coning_sculling", "coning_sculling_fast", "strapdown_step",
+           "strapdown_step_fast"]
 
 #: Rough floating-point operation count of one :func:`strapdown_step` (for the cycle model).
 STRAPDOWN_FLOPS = 260
@@ -67,6 +68,26 @@ def coning_sculling(dtheta: FloatArray, dv: FloatArray) -> tuple[FloatArray, Flo
         dvm = vv + 0.5 * cross3(th, vv) + (2.0 / 3.0) * (cross3(t1, v2) + cross3(v1, t2))
         return phi, dvm
     raise ValueError(f"coning_sculling supports 1 or 2 subsamples, got {n}")
+
+
+#: the working precision's rounders for :func:`coning_sculling_fast` (3 and 6 values)
+_ROUND_3_6 = {dt: (rounder(dt, 3), rounder(dt, 6)) for dt in (np.float32, np.float64)}
+
+
+def coning_sculling_fast(dtheta: Sequence[float], dv: Sequence[float],
+                         dtype: FloatDtype) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """:func:`coning_sculling` of one sample (n = 1), bit for bit, on Python floats: ``dtheta``, ``dv`` three values
+    of ``dtype`` (float32 or float64) each; returns ``(phi_m, dv_m)`` as tuples of Python floats.
+
+    The single-sample rotation compensation ``dv_m = dv + 1/2 dtheta x dv`` with every product and sum rounded to
+    ``dtype`` (:mod:`firmware_model.precision`): what the 200 Hz loop runs with rate output.
+    """
+    r3, r6 = _ROUND_3_6[dtype]
+    px, py, pz = dtheta
+    ux, uy, uz = dv
+    c0, c1, c2, c3, c4, c5 = r6.unpack(r6.pack(py * uz, pz * ux, px * uy, pz * uy, px * uz, py * ux))
+    c0, c1, c2 = r3.unpack(r3.pack(c0 - c3, c1 - c4, c2 - c5))
+    return (px, py, pz), r3.unpack(r3.pack(ux + 0.5 * c0, uy + 0.5 * c1, uz + 0.5 * c2))
 
 
 def strapdown_step(

@@ -15,7 +15,7 @@ from ..arrays import FloatArray
 from ..config import FILTER_VARIANTS
 from ..filters import NavFilter
 from ..nav_state import FE, FN, FU, POS, Q, V
-from ..strapdown import coning_sculling, strapdown_step_fast
+from ..strapdown import coning_sculling, coning_sculling_fast, strapdown_step_fast
 from .timekeeping import TimeKeeping
 
 __all__ = ["Navigation"]
@@ -31,6 +31,7 @@ class Navigation(TimeKeeping):
         flt = cls(self.cfg, self.meter, self.dtype)
         flt.attach(self)
         return flt
+
     def _mechanize(self, t: float, gyro: tuple[int, int, int], f_b: tuple[float, float, float]) -> None:
         """Bias compensation, coning/sculling and one strapdown step per ``subsamples`` IMU samples.
 
@@ -55,11 +56,7 @@ class Navigation(TimeKeeping):
                                                    dv_x - ab_x, dv_y - ab_y, dv_z - ab_z))  # phi_m, dv_c
             # single-sample rotation compensation dv_m = dv_c + 1/2 phi_m x dv_c (docs/reference/algorithms.md 1.2,
             # step 1)
-            c0, c1, c2, c3, c4, c5 = unpack6(pack6(py * uz, pz * ux, px * uy, pz * uy, px * uz, py * ux))
-            r3 = self._round3
-            c0, c1, c2 = r3.unpack(r3.pack(c0 - c3, c1 - c4, c2 - c5))
-            phi_m = (px, py, pz)
-            dv_m = r3.unpack(r3.pack(ux + 0.5 * c0, uy + 0.5 * c1, uz + 0.5 * c2))
+            phi_m, dv_m = coning_sculling_fast((px, py, pz), (ux, uy, uz), self.dtype)
             m.charge("coning_sculling", self._cyc_coning1)
             Tm = self.T
         else:

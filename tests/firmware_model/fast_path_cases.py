@@ -18,7 +18,7 @@ import pytest
 
 from firmware_model.attitude import a2mat, mat2q, q2mat, q2mat_fast
 from firmware_model.nav_state import NavState
-from firmware_model.strapdown import strapdown_step, strapdown_step_fast
+from firmware_model.strapdown import coning_sculling, coning_sculling_fast, strapdown_step, strapdown_step_fast
 
 __all__ = ["CASES"]
 
@@ -87,6 +87,26 @@ def _quaternions(n: int) -> list[tuple[float, ...]]:
     return [(1.0, 0.0, 0.0, 0.0), (0.0, 1.0, 0.0, 0.0), *[tuple(float(x) for x in q) for q in qs]]
 
 
+def _coning_ref(dtheta: tuple[float, ...], dv: tuple[float, ...], dtype_name: str) -> tuple[bytes, bytes, str]:
+    dt = np.dtype(dtype_name)
+    phi, dvm = coning_sculling(np.array([dtheta], dtype=dt), np.array([dv], dtype=dt))
+    return phi.astype(dt).tobytes(), dvm.astype(dt).tobytes(), dvm.dtype.name
+
+
+def _coning_fast(dtheta: tuple[float, ...], dv: tuple[float, ...], dtype_name: str) -> tuple[bytes, bytes, str]:
+    dt = np.dtype(dtype_name)
+    phi, dvm = coning_sculling_fast(dtheta, dv, dt.type)
+    return np.array(phi, dtype=dt).tobytes(), np.array(dvm, dtype=dt).tobytes(), dt.name
+
+
+def _coning_inputs() -> list[tuple[tuple[float, ...], tuple[float, ...], str]]:
+    out = []
+    for dtype_name in ("float64", "float32"):
+        for phi, dv in _increments(60, 200, np.dtype(dtype_name).type):
+            out.append((tuple(phi), tuple(dv), dtype_name))
+    return out
+
+
 CASES = [
     pytest.param(_strapdown(strapdown_step, True), _strapdown(strapdown_step_fast, False),
                  [(k, "float64", 10 + k, 1) for k in range(len(_STATES))]
@@ -99,6 +119,7 @@ CASES = [
     pytest.param(_strapdown(strapdown_step, True), _strapdown(strapdown_step_fast, True),
                  [(0, "float64", 50, 50), (2, "float32", 51, 50)],
                  id="strapdown_step_fast-array-increments"),
+    pytest.param(_coning_ref, _coning_fast, _coning_inputs(), id="coning_sculling_fast-single-sample"),
     pytest.param(_q2mat(q2mat), _q2mat(q2mat_fast),
                  [(q, dt) for q in _quaternions(50) for dt in ("float64", "float32")],
                  id="q2mat_fast"),

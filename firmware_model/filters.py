@@ -42,7 +42,7 @@ import numpy as np
 from protocols.host import FILTER_VARIANT_NAMES
 
 from . import c674x, earth
-from .arrays import FloatArray, FloatDtype
+from .arrays import F64Array, FloatArray, FloatDtype
 from .attitude import q2mat_fast, qmul, qnormalize, rv2q
 from .config import FILTER_VARIANTS, FirmwareConfig
 from .kf import (
@@ -188,7 +188,7 @@ class FilterHost(Protocol):
     def utc_days(self, t_fpga_s: float) -> float | None:
         """Grena days (UT) at FPGA time ``t_fpga_s``, once GNSS gave date and time (else None)."""
 
-    def ins_at(self, t_meas: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+    def ins_at(self, t_meas: float) -> tuple[F64Array, FloatArray, FloatArray]:
         """INS position (lat, lon rad, h m; float64), ENU velocity and attitude quaternion ``q_b^n`` at ``t_meas``.
 
         Fresh arrays built from the INS history (docs/decisions.md D-10.F2)."""

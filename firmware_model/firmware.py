@@ -47,8 +47,10 @@ from protocols.stream import StreamDecoder
 from protocols.ubx import NavPvt, UbxFormat
 
 from . import c674x
+from .alignment import level_cycles, triad_cycles
 from .arrays import FloatArray
 from .config import UART_GNSS, UART_HOST, UART_IMU, UART_PSNS, FirmwareConfig
+from .kf import N_STATES
 from .precision import rounder
 from .tasks.gnss import GnssTask
 from .tasks.host import HostTask
@@ -58,7 +60,6 @@ from .units import DEG, G_STD
 from .variants import dual_vector, federated, kmeans_3d, sun_elevation  # noqa: F401  (the variants of this build)
 
 __all__ = ["Firmware", "tick_kernel_cycles"]
-
 
 
 def tick_kernel_cycles(c: c674x.KernelCosts, nav_dp: bool = True) -> dict[str, int]:
@@ -76,8 +77,6 @@ def tick_kernel_cycles(c: c674x.KernelCosts, nav_dp: bool = True) -> dict[str, i
     * ``nav_output``: m2att (asin, 2 atan2), 9 sqrt for the sigmas, pack 102 bytes, CRC-16 over 109 [S/E].
     * ``level``, ``triad``: :mod:`firmware_model.alignment`.
     """
-    from .alignment import level_cycles, triad_cycles
-
     return {
         "imu_decode": 36 * 4 + c674x.flops(12, 6),
         "imu_convert": c.flops(12, 6),
@@ -185,6 +184,7 @@ class Firmware(HostTask, GnssTask):
                          "gnss_pvt": 0, "commands_accepted": 0, "commands_rejected": 0, "commands_dropped": 0,
                          "status_frames": 0}
 
+    # -- ISR side -------------------------------------------------------------------------------------
     def receive(self, uart: int, data: bytes, t_rx_s: float | None = None) -> None:
         """Bytes received on ``uart`` (the ISR copies the 16550 FIFO into the ring buffer).
 
@@ -236,6 +236,7 @@ class Firmware(HostTask, GnssTask):
         """Called by the host DSP when a tick started after its deadline."""
         self.deadline_misses += 1
 
+    # -- the cyclic executive ---------------------------------------------------------------------------
     def service(self) -> list[TickResult]:
         """Run the cyclic executive over every pending IMU frame."""
         out: list[TickResult] = []
@@ -363,9 +364,12 @@ class Firmware(HostTask, GnssTask):
             self.filter.feedback(nav)
             m.end()
 
+    # -- introspection (tests, reports) ----------------------------------------------------------------
     @property
     def x(self) -> FloatArray:
-        return getattr(self.filter, "x", np.zeros(15, dtype=self.dtype))
+        """The filter's error state (layout: :mod:`firmware_model.kf`), zeros for a variant without one."""
+        x: FloatArray = getattr(self.filter, "x", np.zeros(N_STATES, dtype=self.dtype))
+        return x
 
     @property
     def P(self) -> FloatArray:

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from .. import c674x
-from ..arrays import FloatArray
+from ..arrays import F64Array, FloatArray
 from ..config import FILTER_VARIANTS
 from ..filters import NavFilter
 from ..nav_state import FE, FN, FU, POS, Q, V
@@ -95,11 +95,11 @@ class Navigation(TimeKeeping):
         self._bias_cache = (gb, ab, tuple((gb * T_w).tolist() + (ab * T_w).tolist()))
         return self._bias_cache
 
-    def ins_at(self, t_meas: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+    def ins_at(self, t_meas: float) -> tuple[F64Array, FloatArray, FloatArray]:
         """INS position, velocity and attitude quaternion at ``t_meas`` (2 s history, nearest entry)."""
         return self._ins_at(t_meas)
 
-    def _ins_at(self, t_meas: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+    def _ins_at(self, t_meas: float) -> tuple[F64Array, FloatArray, FloatArray]:
         """INS position (float64), velocity and attitude quaternion at ``t_meas`` (nearest history entry)."""
         best = None
         for e in reversed(self._hist):

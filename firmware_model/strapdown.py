@@ -185,21 +185,20 @@ def _rv2q_ref(phi: FloatArray) -> FloatArray:
 def strapdown_step_fast(s: NavState, phi_m: Sequence[float], dv_m: Sequence[float], T: float,
                         dtype: FloatDtype = np.float32) -> NavState:
     """:func:`strapdown_step`, bit for bit, for a state held in ``dtype`` (``q``, ``v``, ``a_prev`` float64 or
-    float32 values); ``phi_m``, ``dv_m``: three Python floats each or (3,) arrays (rad, m/s, body), rounded to
-    ``dtype`` here.
+    float32 values); ``phi_m``, ``dv_m``: three Python floats each (rad, m/s, body; ``array.tolist()`` of an
+    array), rounded to ``dtype`` here.
 
     The state stays in its float form (:meth:`NavState.as_floats`): a step creates no arrays. Other
     precisions go to the reference.
     """
-    if dtype is np.float64:
-        if isinstance(phi_m, np.ndarray):  # the kernel computes on Python floats
-            phi_m = phi_m.tolist()
-        if isinstance(dv_m, np.ndarray):
-            dv_m = dv_m.tolist()
+    if dtype is _F64:
         return _step_f64(s, phi_m, dv_m, T)
-    if dtype is np.float32:
+    if dtype is _F32:
         return _step_f32(s, phi_m, dv_m, T)
     return strapdown_step(s, phi_m, dv_m, T, dtype)
+
+
+_F64, _F32 = np.float64, np.float32
 
 
 _A, _E2, _1_E2 = earth.A_WGS84, earth.E2_WGS84, 1.0 - earth.E2_WGS84

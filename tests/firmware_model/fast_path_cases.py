@@ -116,9 +116,6 @@ CASES = [
                  [(k, "float32", 30 + k, 1) for k in range(len(_STATES))]
                  + [(k, "float32", 40 + k, 400) for k in range(len(_STATES))],
                  id="strapdown_step_fast-float32"),
-    pytest.param(_strapdown(strapdown_step, True), _strapdown(strapdown_step_fast, True),
-                 [(0, "float64", 50, 50), (2, "float32", 51, 50)],
-                 id="strapdown_step_fast-array-increments"),
     pytest.param(_coning_ref, _coning_fast, _coning_inputs(), id="coning_sculling_fast-single-sample"),
     pytest.param(_q2mat(q2mat), _q2mat(q2mat_fast),
                  [(q, dt) for q in _quaternions(50) for dt in ("float64", "float32")],

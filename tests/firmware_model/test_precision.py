@@ -54,7 +54,7 @@ def test_python_float_strapdown_matches_the_numpy_formulation_to_rounding():
     for _ in range(2000):
         phi = rng.normal(0.0, 1e-3, 3).astype(np.float32)
         dv = (rng.normal(0.0, 1e-3, 3) + np.array([0.0, 0.0, 9.8 * T])).astype(np.float32)
-        strapdown_step_fast(a, phi, dv, T, np.float64)
+        strapdown_step_fast(a, phi.tolist(), dv.tolist(), T, np.float64)
         # reference: the numpy formulation, written out (the pre-D-10.F1 implementation)
         lat, lon, h = b.pos
         vh = b.v + b.a_prev * (T / 2)

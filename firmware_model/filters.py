@@ -284,7 +284,6 @@ def register_filter(name: str) -> Callable[[_FilterClass], _FilterClass]:
 class BaseFilter(NavFilter):
     """Bi-direction solar-vector 15-state KF (base paper): GNSS position/velocity + ``+-S`` updates."""
 
-
     def __init__(self, cfg: FirmwareConfig, meter: c674x.CycleMeter, dtype: FloatDtype) -> None:
         super().__init__(cfg, meter, dtype)
         self.x = np.zeros(N_STATES, dtype=dtype)

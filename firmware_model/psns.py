@@ -50,7 +50,6 @@ __all__ = [
 ]
 
 
-
 @dataclass(frozen=True)
 class SolarSolution:
     """Result of one solve.

@@ -42,7 +42,6 @@ __all__ = ["STRAPDOWN_FLOPS", "NavState", "coning_sculling", "coning_sculling_fa
 STRAPDOWN_FLOPS = 260
 
 
-
 def coning_sculling(dtheta: FloatArray, dv: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Combine n gyro/accelerometer increments into one rotation vector and velocity increment.
 

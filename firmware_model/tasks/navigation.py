@@ -21,7 +21,6 @@ from .timekeeping import TimeKeeping
 __all__ = ["Navigation"]
 
 
-
 class Navigation(TimeKeeping):
     """Mechanization per IMU sample; the filter and the services it uses (a ``FilterHost``)."""
 

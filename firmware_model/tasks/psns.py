@@ -20,6 +20,8 @@ from ..units import DEG
 from .navigation import Navigation
 
 __all__ = ["PsnsTask", "psns_frame_len"]
+
+
 def psns_frame_len(f: Any) -> int:
     """Wire length of a decoded PSNS frame (sync, id, length, header, body, CRC)."""
     if isinstance(f, PolarizationObs):

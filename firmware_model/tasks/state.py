@@ -26,7 +26,6 @@ from ..nav_state import NavFloats, NavState
 __all__ = ["FirmwareState", "LoopState", "TickResult"]
 
 
-
 class FirmwareState:
     """Mode-manager states."""
 

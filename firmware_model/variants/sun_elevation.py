@@ -66,7 +66,6 @@ from .mode_manager import ModeManager
 __all__ = ["SageHusaR", "SunElevationFilter", "sun_elevation_partials", "sun_vector_from_two_evectors"]
 
 
-
 def sun_elevation_partials(lat: float, sin_dec: float, cos_dec: float, lha: float) -> tuple[float, float, float]:
     """``(sin h, alpha, beta)``: the sun elevation's sine and ``alpha = dh/dL``, ``beta = dh/dlambda`` (rad/rad).
 

@@ -403,7 +403,7 @@ def _step_f32(s: NavState, phi_m: Sequence[float], dv_m: Sequence[float], T: flo
     qa = _array(qn, dtype=_f32)
     # qnormalize in float32: |q|^2 by numpy's dot, sqrt and the divisions rounded to float32
     (nrm,) = _R1.unpack(_R1.pack(_sqrt(float(np.dot(qa, qa)))))
-    s._set_floats((*_R4.unpack(_R4.pack(qn[0] / nrm, qn[1] / nrm, qn[2] / nrm, qn[3] / nrm)),
-                   ve1, vn1, vu1, lat1, lon1, h1, ae, an, au, fe, fn, fu), _f32)
+    q0n, q1n, q2n, q3n = _R4.unpack(_R4.pack(qn[0] / nrm, qn[1] / nrm, qn[2] / nrm, qn[3] / nrm))
+    s._set_floats((q0n, q1n, q2n, q3n, ve1, vn1, vu1, lat1, lon1, h1, ae, an, au, fe, fn, fu), _f32)
     s.t += T
     return s

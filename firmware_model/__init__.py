@@ -8,22 +8,24 @@ describes the tasks, kernels, equations and the cycle budget.
 
 from __future__ import annotations
 
+from .config import UART_GNSS, UART_HOST, UART_IMU, UART_PSNS, FirmwareConfig
 from .errors import FirmwareError
 from .filters import FILTER_VARIANTS, BaseFilter, NavFilter, register_filter
-from .firmware import UART_GNSS, UART_HOST, UART_IMU, UART_PSNS, Firmware, FirmwareConfig, FirmwareState, TickResult
+from .firmware import Firmware
+from .tasks.state import FirmwareState, TickResult
 
 __all__ = [
+    "FILTER_VARIANTS",
+    "UART_GNSS",
+    "UART_HOST",
+    "UART_IMU",
+    "UART_PSNS",
+    "BaseFilter",
     "Firmware",
     "FirmwareConfig",
     "FirmwareError",
     "FirmwareState",
-    "TickResult",
     "NavFilter",
-    "BaseFilter",
-    "FILTER_VARIANTS",
+    "TickResult",
     "register_filter",
-    "UART_HOST",
-    "UART_IMU",
-    "UART_PSNS",
-    "UART_GNSS",
 ]

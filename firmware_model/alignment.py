@@ -17,8 +17,9 @@ import math
 import numpy as np
 
 from . import c674x
+from .arrays import FloatArray
 
-__all__ = ["level_from_specific_force", "triad", "solar_heading_alignment", "level_cycles", "triad_cycles"]
+__all__ = ["level_cycles", "level_from_specific_force", "solar_heading_alignment", "triad", "triad_cycles"]
 
 
 def level_cycles(c: c674x.KernelCosts) -> int:
@@ -31,7 +32,7 @@ def triad_cycles(c: c674x.KernelCosts) -> int:
     return c.math("rsqrt", 4) + c.flops(4 * 6 + 12, 4 * 3 + 6) + c.mat_mul(3, 3, 3)
 
 
-def level_from_specific_force(f_b: np.ndarray) -> tuple[float, float]:
+def level_from_specific_force(f_b: FloatArray) -> tuple[float, float]:
     """Pitch and roll (rad) from the mean specific force at rest (body, m/s^2).
 
     ``f^b = g [-cos(p) sin(r), sin(p), cos(p) cos(r)]`` for ``C_b^n = a2mat(p, r, y)``.
@@ -42,15 +43,15 @@ def level_from_specific_force(f_b: np.ndarray) -> tuple[float, float]:
     return pitch, roll
 
 
-def _unit(v: np.ndarray) -> np.ndarray:
+def _unit(v: FloatArray) -> FloatArray:
     return v / math.sqrt(float(v @ v))
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
-def triad(b1: np.ndarray, b2: np.ndarray, r1: np.ndarray, r2: np.ndarray) -> np.ndarray:
+def triad(b1: FloatArray, b2: FloatArray, r1: FloatArray, r2: FloatArray) -> FloatArray:
     """TRIAD attitude ``C_b^n`` from two vector pairs (body ``b1, b2``; navigation ``r1, r2``).
 
     ``b1 <-> r1`` is matched exactly; ``b2 <-> r2`` only fixes the rotation about it.
@@ -68,7 +69,7 @@ def triad(b1: np.ndarray, b2: np.ndarray, r1: np.ndarray, r2: np.ndarray) -> np.
     return mr @ mb.T
 
 
-def solar_heading_alignment(f_b: np.ndarray, s_b: np.ndarray, s_n: np.ndarray) -> tuple[np.ndarray, int]:
+def solar_heading_alignment(f_b: FloatArray, s_b: FloatArray, s_n: FloatArray) -> tuple[FloatArray, int]:
     """Coarse alignment ``C_b^n`` from the mean specific force and the bi-direction solar vector.
 
     Parameters

@@ -1,6 +1,6 @@
 """Attitude algebra: quaternions, rotation vectors, direction-cosine matrices, Euler angles.
 
-Conventions (``shared/reference/algorithms.md`` section 0, PSINS):
+Conventions (``docs/reference/algorithms.md`` section 0, PSINS):
 
 * n = ENU, b = (x right, y forward, z up).
 * ``C_n^b = R_Y(roll) R_X(pitch) R_Z(yaw)``; ``C_b^n`` is its transpose (PSINS ``a2mat``).
@@ -16,38 +16,41 @@ import math
 
 import numpy as np
 
+from .arrays import FloatArray
+
 __all__ = [
+    "a2mat",
+    "att2q",
     "cross3",
-    "skew",
-    "qmul",
+    "heading_from_yaw",
+    "m2att",
+    "mat2q",
+    "q2att",
+    "q2mat",
+    "q2mat_fast",
     "qconj",
+    "qmul",
     "qnormalize",
     "rv2q",
-    "q2mat",
-    "mat2q",
-    "a2mat",
-    "m2att",
-    "att2q",
-    "q2att",
-    "heading_from_yaw",
+    "skew",
     "yaw_from_heading",
 ]
 
 
-def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def cross3(a: FloatArray, b: FloatArray) -> FloatArray:
     """Cross product of two 3-vectors (``numpy.cross`` without its axis handling, ~10x faster)."""
     a0, a1, a2 = a
     b0, b1, b2 = b
     return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], dtype=np.result_type(a, b))
 
 
-def skew(v: np.ndarray) -> np.ndarray:
+def skew(v: FloatArray) -> FloatArray:
     """Cross-product matrix ``[v x]`` so that ``skew(a) @ b == cross(a, b)``."""
     x, y, z = v
     return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]], dtype=np.asarray(v).dtype)
 
 
-def qmul(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+def qmul(p: FloatArray, q: FloatArray) -> FloatArray:
     """Hamilton product ``p (x) q`` (scalar first)."""
     p0, p1, p2, p3 = p
     q0, q1, q2, q3 = q
@@ -62,17 +65,18 @@ def qmul(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     )
 
 
-def qconj(q: np.ndarray) -> np.ndarray:
+def qconj(q: FloatArray) -> FloatArray:
     """Conjugate (inverse of a unit quaternion)."""
     return np.array([q[0], -q[1], -q[2], -q[3]], dtype=np.asarray(q).dtype)
 
 
-def qnormalize(q: np.ndarray) -> np.ndarray:
+def qnormalize(q: FloatArray) -> FloatArray:
     """Unit-norm copy of ``q``."""
-    return q / np.sqrt(np.dot(q, q))
+    unit: FloatArray = q / np.sqrt(np.dot(q, q))
+    return unit
 
 
-def rv2q(phi: np.ndarray) -> np.ndarray:
+def rv2q(phi: FloatArray) -> FloatArray:
     """Rotation vector (rad) to quaternion ``[cos(|phi|/2), sin(|phi|/2) phi/|phi|]``.
 
     Uses the series form below 1e-8 rad so tiny increments keep full precision.
@@ -91,16 +95,8 @@ def rv2q(phi: np.ndarray) -> np.ndarray:
     return np.array([c, s * phi[0], s * phi[1], s * phi[2]], dtype=dt)
 
 
-def q2mat(q: np.ndarray) -> np.ndarray:
-    """Quaternion ``q_b^n`` to DCM ``C_b^n`` (in ``q``'s dtype)."""
-    if type(q) is np.ndarray and q.dtype == np.float64:
-        # the same double operations on Python floats (numpy scalar arithmetic costs ~0.1 us per operation)
-        q0, q1, q2, q3 = q.tolist()
-        return np.array((
-            q0 * q0 + q1 * q1 - q2 * q2 - q3 * q3, 2 * (q1 * q2 - q0 * q3), 2 * (q1 * q3 + q0 * q2),
-            2 * (q1 * q2 + q0 * q3), q0 * q0 - q1 * q1 + q2 * q2 - q3 * q3, 2 * (q2 * q3 - q0 * q1),
-            2 * (q1 * q3 - q0 * q2), 2 * (q2 * q3 + q0 * q1), q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3,
-        )).reshape(3, 3)
+def q2mat(q: FloatArray) -> FloatArray:
+    """Quaternion ``q_b^n`` to DCM ``C_b^n`` (in ``q``'s dtype). The reference; :func:`q2mat_fast` is the same."""
     q0, q1, q2, q3 = q
     return np.array(
         [
@@ -112,7 +108,20 @@ def q2mat(q: np.ndarray) -> np.ndarray:
     )
 
 
-def mat2q(c: np.ndarray) -> np.ndarray:
+def q2mat_fast(q: FloatArray) -> FloatArray:
+    """:func:`q2mat`, bit for bit: a float64 array on Python floats (the same double operations without numpy's
+    ~0.1 us per scalar operation), any other input by :func:`q2mat`."""
+    if type(q) is np.ndarray and q.dtype == np.float64:
+        q0, q1, q2, q3 = q.tolist()
+        return np.array((
+            q0 * q0 + q1 * q1 - q2 * q2 - q3 * q3, 2 * (q1 * q2 - q0 * q3), 2 * (q1 * q3 + q0 * q2),
+            2 * (q1 * q2 + q0 * q3), q0 * q0 - q1 * q1 + q2 * q2 - q3 * q3, 2 * (q2 * q3 - q0 * q1),
+            2 * (q1 * q3 - q0 * q2), 2 * (q2 * q3 + q0 * q1), q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3,
+        )).reshape(3, 3)
+    return q2mat(q)
+
+
+def mat2q(c: FloatArray) -> FloatArray:
     """DCM ``C_b^n`` to quaternion ``q_b^n`` (Shepperd's method, scalar >= 0)."""
     c = np.asarray(c, dtype=np.float64)
     tr = c[0, 0] + c[1, 1] + c[2, 2]
@@ -131,13 +140,14 @@ def mat2q(c: np.ndarray) -> np.ndarray:
     qa = np.array(q)
     if qa[0] < 0:
         qa = -qa
-    return qa / np.linalg.norm(qa)
+    unit: FloatArray = qa / np.linalg.norm(qa)
+    return unit
 
 
-def a2mat(pitch: float, roll: float, yaw: float) -> np.ndarray:
+def a2mat(pitch: float, roll: float, yaw: float) -> FloatArray:
     """Euler angles (rad; PSINS yaw, counter-clockwise from North) to ``C_b^n``.
 
-    ``C_b^n = (R_Y(roll) R_X(pitch) R_Z(yaw))^T`` (algorithms.md section 0).
+    ``C_b^n = (R_Y(roll) R_X(pitch) R_Z(yaw))^T`` (docs/reference/algorithms.md section 0).
     """
     sp, cp = math.sin(pitch), math.cos(pitch)
     sr, cr = math.sin(roll), math.cos(roll)
@@ -151,7 +161,7 @@ def a2mat(pitch: float, roll: float, yaw: float) -> np.ndarray:
     )
 
 
-def m2att(c: np.ndarray) -> tuple[float, float, float]:
+def m2att(c: FloatArray) -> tuple[float, float, float]:
     """``C_b^n`` to ``(pitch, roll, yaw)`` in rad (PSINS ``m2att``; yaw counter-clockwise)."""
     pitch = math.asin(max(-1.0, min(1.0, float(c[2, 1]))))
     roll = math.atan2(-float(c[2, 0]), float(c[2, 2]))
@@ -159,14 +169,14 @@ def m2att(c: np.ndarray) -> tuple[float, float, float]:
     return pitch, roll, yaw
 
 
-def att2q(pitch: float, roll: float, yaw: float) -> np.ndarray:
+def att2q(pitch: float, roll: float, yaw: float) -> FloatArray:
     """Euler angles (rad) to ``q_b^n``."""
     return mat2q(a2mat(pitch, roll, yaw))
 
 
-def q2att(q: np.ndarray) -> tuple[float, float, float]:
+def q2att(q: FloatArray) -> tuple[float, float, float]:
     """``q_b^n`` to ``(pitch, roll, yaw)`` rad."""
-    return m2att(q2mat(np.asarray(q, dtype=np.float64)))
+    return m2att(q2mat_fast(np.asarray(q, dtype=np.float64)))
 
 
 def heading_from_yaw(yaw: float) -> float:

@@ -1,7 +1,7 @@
 """C674x cycle-cost model and per-task cycle meter.
 
 Every kernel the firmware runs charges cycles from published TI figures
-(``shared/reference/c6747_cycles.md``):
+(``docs/reference/c674x-cycles.md``):
 
 * DSPLIB C674x 3.4.0.0 test report (R1) cycle formulas, with odd-size padding for mat_mul;
 * MATHLIB C674x 3.1.2.1 (R2) per-call cycles, "Inline" column for single precision
@@ -16,25 +16,26 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 __all__ = [
-    "COST_MODEL_VERSION",
-    "MATHLIB_SP_INLINE",
-    "MATHLIB_DP_INLINE",
     "CALL_OVERHEAD",
-    "mat_mul",
-    "mat_trans",
-    "dotprod",
-    "w_vec",
-    "vecmul",
-    "mathlib",
-    "flops",
-    "dp_flops",
-    "mat_mul_dp",
-    "w_vec_dp",
+    "COST_MODEL_VERSION",
+    "MATHLIB_DP_INLINE",
+    "MATHLIB_SP_INLINE",
+    "CycleMeter",
     "KernelCosts",
     "TaskMeter",
-    "CycleMeter",
+    "dotprod",
+    "dp_flops",
+    "flops",
+    "mat_mul",
+    "mat_mul_dp",
+    "mat_trans",
+    "mathlib",
+    "vecmul",
+    "w_vec",
+    "w_vec_dp",
 ]
 
 COST_MODEL_VERSION = "c674x-costs-2 (DSPLIB 3.4.0.0, MATHLIB 3.1.2.1 inline, on-chip memory)"
@@ -164,10 +165,12 @@ class KernelCosts:
     therefore shows in the budget.
     """
 
-    _SP = {"sin": "sinsp", "cos": "cossp", "atan2": "atan2sp", "asin": "asinsp", "acos": "acossp",
-           "sqrt": "sqrtsp", "rsqrt": "rsqrtsp", "div": "divsp", "recip": "recipsp"}
-    _DP = {"sin": "sindp", "cos": "cosdp", "atan2": "atan2dp", "asin": "asindp", "acos": "acosdp",
-           "sqrt": "sqrtdp", "rsqrt": "rsqrtdp", "div": "divdp", "recip": "recipdp"}
+    _SP: ClassVar[dict[str, str]] = {"sin": "sinsp", "cos": "cossp", "atan2": "atan2sp", "asin": "asinsp",
+                                     "acos": "acossp", "sqrt": "sqrtsp", "rsqrt": "rsqrtsp", "div": "divsp",
+                                     "recip": "recipsp"}
+    _DP: ClassVar[dict[str, str]] = {"sin": "sindp", "cos": "cosdp", "atan2": "atan2dp", "asin": "asindp",
+                                     "acos": "acosdp", "sqrt": "sqrtdp", "rsqrt": "rsqrtdp", "div": "divdp",
+                                     "recip": "recipdp"}
 
     def __init__(self, precision: str = "float32") -> None:
         if precision not in ("float32", "float64"):
@@ -197,7 +200,7 @@ class KernelCosts:
 
 @dataclass
 class TaskMeter:
-    """Cycle statistics of one firmware task, TI-report style (c6747_cycles.md section 5).
+    """Cycle statistics of one firmware task, TI-report style (docs/reference/c674x-cycles.md section 5).
 
     ``budget_cycles`` is the tick budget (every task of the cyclic executive must fit in one
     200 Hz tick); ``period_s`` is the task's nominal period (for the average CPU share).
@@ -254,7 +257,7 @@ class CycleMeter:
     def __init__(self, clock_hz: float, tick_hz: float) -> None:
         self.clock_hz = clock_hz
         self.tick_hz = tick_hz
-        self.tick_budget = int(round(clock_hz / tick_hz))
+        self.tick_budget = round(clock_hz / tick_hz)
         self.tasks: dict[str, TaskMeter] = {}
         self._stack: list[tuple[TaskMeter, int]] = []
         self._acc = 0

@@ -1,7 +1,7 @@
 """WGS-84 Earth model: radii, normal gravity, Earth and transport rates (ENU).
 
 The truth model in ``emulator.world`` imports these same functions, so truth and firmware use
-one gravity model (``shared/reference/algorithms.md`` section 1.1, which requires it).
+one gravity model (``docs/reference/algorithms.md`` section 1.1, which requires it).
 
 Conventions: navigation frame n = ENU; position ``p = [L, lambda, h]`` = latitude (rad),
 longitude (rad), ellipsoidal height (m).
@@ -13,19 +13,21 @@ import math
 
 import numpy as np
 
+from .arrays import FloatArray
+
 __all__ = [
     "A_WGS84",
-    "F_WGS84",
     "E2_WGS84",
-    "OMEGA_IE",
+    "F_WGS84",
     "G0",
-    "radii",
+    "OMEGA_IE",
+    "geodetic_to_ecef",
     "gravity",
     "gravity_n",
-    "omega_ie_n",
-    "omega_en_n",
     "m_pv",
-    "geodetic_to_ecef",
+    "omega_en_n",
+    "omega_ie_n",
+    "radii",
 ]
 
 #: Semi-major axis, m (WGS-84).
@@ -54,7 +56,7 @@ def radii(lat: float) -> tuple[float, float]:
 
 
 def gravity(lat: float, h: float) -> float:
-    """Magnitude of normal gravity, m/s^2 (algorithms.md 1.1, PSINS classic model).
+    """Magnitude of normal gravity, m/s^2 (docs/reference/algorithms.md 1.1, PSINS classic model).
 
     ``g = g0 (1 + 5.27094e-3 sin^2 L + 2.32718e-5 sin^4 L) - 3.086e-6 h``.
     At 39.979 deg, 50 m this is 9.801492 m/s^2.
@@ -63,17 +65,17 @@ def gravity(lat: float, h: float) -> float:
     return G0 * (1.0 + _G_B1 * s2 + _G_B2 * s2 * s2) - _G_H * h
 
 
-def gravity_n(lat: float, h: float) -> np.ndarray:
+def gravity_n(lat: float, h: float) -> FloatArray:
     """Gravity vector in ENU, ``[0, 0, -g]`` m/s^2."""
     return np.array([0.0, 0.0, -gravity(lat, h)])
 
 
-def omega_ie_n(lat: float) -> np.ndarray:
+def omega_ie_n(lat: float) -> FloatArray:
     """Earth rate in ENU, ``[0, w cos L, w sin L]`` rad/s."""
     return np.array([0.0, OMEGA_IE * math.cos(lat), OMEGA_IE * math.sin(lat)])
 
 
-def omega_en_n(lat: float, h: float, v_enu: np.ndarray) -> np.ndarray:
+def omega_en_n(lat: float, h: float, v_enu: FloatArray) -> FloatArray:
     """Transport rate in ENU, ``[-vN/R_Mh, vE/R_Nh, vE tan L/R_Nh]`` rad/s."""
     rm, rn = radii(lat)
     rmh, rnh = rm + h, rn + h
@@ -81,7 +83,7 @@ def omega_en_n(lat: float, h: float, v_enu: np.ndarray) -> np.ndarray:
     return np.array([-vn / rmh, ve / rnh, ve * math.tan(lat) / rnh])
 
 
-def m_pv(lat: float, h: float) -> np.ndarray:
+def m_pv(lat: float, h: float) -> FloatArray:
     """Map ENU velocity to ``[dL/dt, dlambda/dt, dh/dt]``: ``[[0,1/R_Mh,0],[1/(R_Nh cos L),0,0],[0,0,1]]``."""
     rm, rn = radii(lat)
     return np.array(
@@ -89,7 +91,7 @@ def m_pv(lat: float, h: float) -> np.ndarray:
     )
 
 
-def geodetic_to_ecef(lat: float, lon: float, h: float) -> np.ndarray:
+def geodetic_to_ecef(lat: float, lon: float, h: float) -> FloatArray:
     """WGS-84 geodetic (rad, rad, m) to ECEF (m)."""
     _, rn = radii(lat)
     cl, sl = math.cos(lat), math.sin(lat)

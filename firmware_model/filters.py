@@ -23,7 +23,8 @@ UTC for the ephemeris, the INS state at a measurement's time, the mean of the MA
 time, the current tick time.
 
 Variants register themselves in :data:`FILTER_VARIANTS` with :func:`register_filter`; the
-scenario's ``firmware.filter`` picks one by name. Issue 6's variants (dual-vector switching, K-means
+scenario's ``firmware.filter`` picks one by name. The variants of :mod:`firmware_model.variants` (dual-vector
+switching, K-means
 3-D attitude, federated filter with chi-square isolation, sun-elevation positioning with a
 Sage-Husa adaptive KF) subclass :class:`NavFilter` (or :class:`BaseFilter`) and override the
 updates they change; the loop stays as it is.
@@ -32,18 +33,30 @@ updates they change; the loop stays as it is.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import Any, Protocol, TypeVar
 
 import numpy as np
 
 from protocols.host import FILTER_VARIANT_NAMES
 
 from . import c674x, earth
-from .attitude import q2mat, qmul, qnormalize, rv2q
+from .arrays import F64Array, FloatArray, FloatDtype
+from .attitude import q2mat_fast, qmul, qnormalize, rv2q
+from .config import FILTER_VARIANTS, FirmwareConfig
 from .kf import (
+    D_H,
+    D_LAT,
+    D_LON,
+    DV_E,
+    DV_N,
+    DV_U,
     IDX_ACC,
+    IDX_ATT,
     IDX_GYRO,
+    IDX_POS,
+    IDX_VEL,
     N_STATES,
     error_transition_matrix,
     kf_predict,
@@ -52,32 +65,27 @@ from .kf import (
     solar_vector_residual,
     solar_vector_rows,
 )
-from .strapdown import NavState
-
-if TYPE_CHECKING:
-    from .firmware import FirmwareConfig
+from .nav_state import NavState
+from .units import DEG, DPH, G_STD
 
 __all__ = [
+    "FILTER_VARIANTS",
+    "BaseFilter",
     "FilterHost",
     "GnssMeasurement",
+    "NavFilter",
     "SolarObservation",
     "UpdateReport",
-    "NavFilter",
-    "BaseFilter",
-    "FILTER_VARIANTS",
-    "register_filter",
-    "kf_scalar_update_cycles",
-    "kf_predict_cycles",
     "feedback_cycles",
     "gnss_measurement_rows",
+    "kf_predict_cycles",
+    "kf_scalar_update_cycles",
+    "register_filter",
 ]
 
-DEG = math.pi / 180.0
-DPH = DEG / 3600.0
-G_STD = 9.80665
 
 def kf_scalar_update_cycles(c: c674x.KernelCosts) -> int:
-    """One scalar Joseph update over 15 states [D, c6747_cycles.md section 6 fallback].
+    """One scalar Joseph update over 15 states [D, docs/reference/c674x-cycles.md section 6 fallback].
 
     ``a = P h`` and ``c = B h`` (2 x 225 MAC), ``B = P - K a^T`` (225 MAC),
     ``P' = B - c K^T + r K K^T`` (450 MAC), symmetrise (105 ADD), one reciprocal (MATHLIB [S]).
@@ -111,7 +119,7 @@ class GnssMeasurement:
 
     t_fpga_s: float
     pos: tuple[float, float, float] | None = None
-    vel: np.ndarray | None = None
+    vel: FloatArray | None = None
     vel_up: bool = False
     quality: int = 1
     sigma_pos_h_m: float | None = None
@@ -119,8 +127,8 @@ class GnssMeasurement:
     sigma_vel_mps: float | None = None
 
 
-def gnss_measurement_rows(cfg: "FirmwareConfig", meter: c674x.CycleMeter, meas: GnssMeasurement,
-                          p_ins: np.ndarray, v_ins: np.ndarray) -> list[tuple[int, float, float, float]]:
+def gnss_measurement_rows(cfg: FirmwareConfig, meter: c674x.CycleMeter, meas: GnssMeasurement,
+                          p_ins: FloatArray, v_ins: FloatArray) -> list[tuple[int, float, float, float]]:
     """The scalar rows of a GNSS update: ``(state index, H value, z, R)`` per measured component.
 
     Position (Eq. 23-24): ``Z_p = [R_Mh dL, R_Nh cosL dlambda, dh]`` (m), ``H_p = [0 diag(R_Mh, R_Nh cosL, 1) 0]``,
@@ -137,18 +145,18 @@ def gnss_measurement_rows(cfg: "FirmwareConfig", meter: c674x.CycleMeter, meas: 
         sh = meas.sigma_pos_h_m or cfg.gnss_pos_sigma_h_m
         sv = meas.sigma_pos_v_m or cfg.gnss_pos_sigma_v_m
         rows += [
-            (6, rmh, (float(p_ins[0]) - meas.pos[0]) * rmh, sh**2),
-            (7, rnh * cl, (float(p_ins[1]) - meas.pos[1]) * rnh * cl, sh**2),
-            (8, 1.0, float(p_ins[2]) - meas.pos[2], sv**2),
+            (D_LAT, rmh, (float(p_ins[0]) - meas.pos[0]) * rmh, sh**2),
+            (D_LON, rnh * cl, (float(p_ins[1]) - meas.pos[1]) * rnh * cl, sh**2),
+            (D_H, 1.0, float(p_ins[2]) - meas.pos[2], sv**2),
         ]
         meter.charge("gnss_residual", c674x.dp_flops(8, 6) + c674x.mathlib("cosdp") + c674x.mathlib("sqrtdp")
                      + c674x.mathlib("divdp"))
     if meas.vel is not None:
         svh = meas.sigma_vel_mps or cfg.gnss_vel_sigma_h_mps
-        rows.append((3, 1.0, float(v_ins[0]) - float(meas.vel[0]), svh**2))
-        rows.append((4, 1.0, float(v_ins[1]) - float(meas.vel[1]), svh**2))
+        rows.append((DV_E, 1.0, float(v_ins[0]) - float(meas.vel[0]), svh**2))
+        rows.append((DV_N, 1.0, float(v_ins[1]) - float(meas.vel[1]), svh**2))
         if meas.vel_up:
-            rows.append((5, 1.0, float(v_ins[2]) - float(meas.vel[2]), cfg.gnss_vel_sigma_v_mps**2))
+            rows.append((DV_U, 1.0, float(v_ins[2]) - float(meas.vel[2]), cfg.gnss_vel_sigma_v_mps**2))
     return rows
 
 
@@ -157,7 +165,7 @@ class SolarObservation:
     """A bi-direction solar vector in the body frame at its mid-exposure time."""
 
     t_exposure_s: float
-    s_b: np.ndarray
+    s_b: FloatArray
     quality: float
     n_used: int
     source: str  # "camera" (firmware solve) or "sensor" (on-sensor solve)
@@ -180,12 +188,12 @@ class FilterHost(Protocol):
     def utc_days(self, t_fpga_s: float) -> float | None:
         """Grena days (UT) at FPGA time ``t_fpga_s``, once GNSS gave date and time (else None)."""
 
-    def ins_at(self, t_meas: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def ins_at(self, t_meas: float) -> tuple[F64Array, FloatArray, FloatArray]:
         """INS position (lat, lon rad, h m; float64), ENU velocity and attitude quaternion ``q_b^n`` at ``t_meas``.
 
         Fresh arrays built from the INS history (docs/decisions.md D-10.F2)."""
 
-    def mag_mean_nt(self, t_center_s: float, half_window_s: float = 0.025) -> tuple[np.ndarray, int] | None:
+    def mag_mean_nt(self, t_center_s: float, half_window_s: float = 0.025) -> tuple[FloatArray, int] | None:
         """Mean magnetometer field (nT, body axes) of the MAG frames sampled within ``t_center_s +- half_window_s``."""
 
     def now_s(self) -> float:
@@ -203,12 +211,12 @@ class NavFilter:
 
     name = "abstract"
     #: Variant number in NAV_SOLUTION ``mode`` bits 8-11 and STATUS (``protocols.host.FilterVariant``,
-    #: DESIGN.md section 6 numbering); set by :func:`register_filter` from the variant's name.
+    #: docs/architecture.md numbering of the firmware variants); set by :func:`register_filter` from the variant's name.
     variant_id = 0
     #: True: POLARIZATION_OBS frames go to :meth:`update_polarization_obs` instead of the firmware's solve.
     raw_polarization_obs = False
 
-    def __init__(self, cfg: "FirmwareConfig", meter: c674x.CycleMeter, dtype: type) -> None:
+    def __init__(self, cfg: FirmwareConfig, meter: c674x.CycleMeter, dtype: FloatDtype) -> None:
         self.cfg = cfg
         self.meter = meter
         self.dtype = dtype
@@ -238,30 +246,31 @@ class NavFilter:
     def initialise(self, nav: NavState, heading_sigma_rad: float) -> None:
         raise NotImplementedError
 
-    def predict(self, nav: NavState, f_n: np.ndarray, Tk: float) -> None:
+    def predict(self, nav: NavState, f_n: FloatArray, Tk: float) -> None:
         raise NotImplementedError
 
-    def update_gnss(self, nav: NavState, meas: GnssMeasurement, p_ins: np.ndarray, v_ins: np.ndarray) -> UpdateReport:
+    def update_gnss(self, nav: NavState, meas: GnssMeasurement, p_ins: FloatArray, v_ins: FloatArray) -> UpdateReport:
         raise NotImplementedError
 
-    def update_solar(self, nav: NavState, obs: SolarObservation, s_n: np.ndarray, cbn_exp: np.ndarray) -> UpdateReport:
+    def update_solar(self, nav: NavState, obs: SolarObservation, s_n: FloatArray, cbn_exp: FloatArray) -> UpdateReport:
         raise NotImplementedError
 
     def update_compass(self, nav: NavState, frame: Any, t_exposure_s: float) -> UpdateReport | None:
-        """Multi-unit compass frames: not used by the base variant (issue 6)."""
+        """Multi-unit compass frames: not used by the base variant (the compass variants use them)."""
         return None
 
     def feedback(self, nav: NavState) -> None:
         raise NotImplementedError
 
 
-FILTER_VARIANTS: dict[str, type[NavFilter]] = {}
+_FilterClass = TypeVar("_FilterClass", bound=type[NavFilter])
 
 
-def register_filter(name: str):  # noqa: ANN201
-    """Class decorator: make a :class:`NavFilter` selectable as ``firmware.filter: name``."""
+def register_filter(name: str) -> Callable[[_FilterClass], _FilterClass]:
+    """Class decorator: make a :class:`NavFilter` selectable as ``firmware.filter: name`` (enters it in the
+    build's table :data:`firmware_model.config.FILTER_VARIANTS`)."""
 
-    def deco(cls: type[NavFilter]) -> type[NavFilter]:
+    def deco(cls: _FilterClass) -> _FilterClass:
         cls.name = name
         if name in FILTER_VARIANT_NAMES:  # the host protocol's variant number (STATUS, SELECT_VARIANT)
             cls.variant_id = int(FILTER_VARIANT_NAMES[name])
@@ -275,8 +284,7 @@ def register_filter(name: str):  # noqa: ANN201
 class BaseFilter(NavFilter):
     """Bi-direction solar-vector 15-state KF (base paper): GNSS position/velocity + ``+-S`` updates."""
 
-
-    def __init__(self, cfg: "FirmwareConfig", meter: c674x.CycleMeter, dtype: type) -> None:
+    def __init__(self, cfg: FirmwareConfig, meter: c674x.CycleMeter, dtype: FloatDtype) -> None:
         super().__init__(cfg, meter, dtype)
         self.x = np.zeros(N_STATES, dtype=dtype)
         arw = cfg.gyro_arw_deg_rt_h * DEG / 60.0
@@ -297,21 +305,20 @@ class BaseFilter(NavFilter):
         lat, h = float(nav.pos[0]), float(nav.pos[2])
         rm, rn = earth.radii(lat)
         lvl = cfg.accel_bias_sigma_mg * 1e-3  # rad: level error from the accelerometer bias
-        p0 = np.array(
-            [lvl**2, lvl**2, heading_sigma_rad**2]
-            + [0.1**2] * 3
-            + [(cfg.gnss_pos_sigma_h_m / (rm + h)) ** 2, (cfg.gnss_pos_sigma_h_m / ((rn + h) * math.cos(lat))) ** 2,
-               cfg.gnss_pos_sigma_v_m**2]
-            + [(cfg.gyro_bias_sigma_deg_h * DPH) ** 2] * 3
-            + [(cfg.accel_bias_sigma_mg * 1e-3 * G_STD) ** 2] * 3
-        )
+        p0 = np.zeros(N_STATES)
+        p0[IDX_ATT] = (lvl**2, lvl**2, heading_sigma_rad**2)
+        p0[IDX_VEL] = 0.1**2
+        p0[IDX_POS] = ((cfg.gnss_pos_sigma_h_m / (rm + h)) ** 2,
+                       (cfg.gnss_pos_sigma_h_m / ((rn + h) * math.cos(lat))) ** 2, cfg.gnss_pos_sigma_v_m**2)
+        p0[IDX_GYRO] = (cfg.gyro_bias_sigma_deg_h * DPH) ** 2
+        p0[IDX_ACC] = (cfg.accel_bias_sigma_mg * 1e-3 * G_STD) ** 2
         self.P = np.diag(p0).astype(self.dtype)
         self.x = np.zeros(N_STATES, dtype=self.dtype)
 
     # -- time update --------------------------------------------------------------------------
-    def predict(self, nav: NavState, f_n: np.ndarray, Tk: float) -> None:
+    def predict(self, nav: NavState, f_n: FloatArray, Tk: float) -> None:
         dt = self.dtype
-        F = error_transition_matrix(q2mat(nav.q), nav.v, nav.pos, f_n, dtype=dt)
+        F = error_transition_matrix(q2mat_fast(nav.q), nav.v, nav.pos, f_n, dtype=dt)
         Phi = self._eye + F * dt(Tk)
         if Tk != self._qk_interval:  # Q_k = q T_k: the same every interval but the first after alignment
             self._qk_interval, self._qk = Tk, (self.q * Tk).astype(dt)
@@ -319,11 +326,11 @@ class BaseFilter(NavFilter):
         self.meter.charge("kf_predict", self._cyc_predict)
 
     # -- measurement updates --------------------------------------------------------------------
-    def _scalar(self, h: np.ndarray, z: float, r: float) -> float:
+    def _scalar(self, h: FloatArray, z: float, r: float) -> float:
         self.x, self.P, nu, s = kf_update_scalar(self.x, self.P, h, z, r)
         return nu / math.sqrt(s)
 
-    def update_gnss(self, nav: NavState, meas: GnssMeasurement, p_ins: np.ndarray, v_ins: np.ndarray) -> UpdateReport:
+    def update_gnss(self, nav: NavState, meas: GnssMeasurement, p_ins: FloatArray, v_ins: FloatArray) -> UpdateReport:
         dt = self.dtype
         rows = gnss_measurement_rows(self.cfg, self.meter, meas, p_ins, v_ins)
         innov = []
@@ -335,7 +342,7 @@ class BaseFilter(NavFilter):
         self.meter.charge("kf_update", len(rows) * self._cyc_update)
         return UpdateReport("gnss", True, len(rows), max((abs(v) for v in innov), default=0.0))
 
-    def update_solar(self, nav: NavState, obs: SolarObservation, s_n: np.ndarray, cbn_exp: np.ndarray) -> UpdateReport:
+    def update_solar(self, nav: NavState, obs: SolarObservation, s_n: FloatArray, cbn_exp: FloatArray) -> UpdateReport:
         """Eqs. 31-42: ``Z = S^n - C_b^{n'} (+-S^b)``, sign by the smaller ``|Z|``, ``H = -[S^n x]``."""
         cfg = self.cfg
         dt = self.dtype
@@ -345,8 +352,8 @@ class BaseFilter(NavFilter):
         r = (cfg.psns_sigma_deg * DEG) ** 2
         self.meter.charge("solar_residual", self.cost.flops(18 + 9, 18 + 6))
         # innovation gate: |Z|^2 against its predicted variance tr(H P H^T) + 3 r (no 3x3 inverse)
-        Pa = self.P[0:3, 0:3]
-        Hs = H[:, 0:3]
+        Pa = self.P[IDX_ATT, IDX_ATT]
+        Hs = H[:, IDX_ATT]
         var = float(np.einsum("ij,jk,ik->", Hs, Pa, Hs)) + 3.0 * r
         z2 = float(z @ z)
         self.meter.charge("solar_gate", self.cost.flops(45, 40))
@@ -364,9 +371,9 @@ class BaseFilter(NavFilter):
         dt = self.dtype
         x = self.x
         # attitude: C_b^n = (I + [phi x]) C_b^{n'}  ->  q <- rv2q(phi) (x) q
-        nav.q = qnormalize(qmul(rv2q(x[0:3]), nav.q)).astype(nav.q.dtype)
-        nav.v = (nav.v - x[3:6]).astype(nav.v.dtype)
-        nav.pos = nav.pos - x[6:9].astype(np.float64)
+        nav.q = qnormalize(qmul(rv2q(x[IDX_ATT]), nav.q)).astype(nav.q.dtype)
+        nav.v = (nav.v - x[IDX_VEL]).astype(nav.v.dtype)
+        nav.pos = nav.pos - x[IDX_POS].astype(np.float64)
         self.gyro_bias = (self.gyro_bias + x[IDX_GYRO]).astype(dt)
         self.accel_bias = (self.accel_bias + x[IDX_ACC]).astype(dt)
         self.x = np.zeros(N_STATES, dtype=dt)

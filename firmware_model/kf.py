@@ -8,7 +8,7 @@ phi in rad (misalignment, ``C_b^{n'} = (I - [phi x]) C_b^n``), dv in m/s, dL and
 rad, dh in m, gyro drift eps in rad/s (body), accelerometer bias nabla in m/s^2 (body).
 Errors are "computed minus true".
 
-F follows the element list of ``shared/reference/algorithms.md`` section 1.3 (PSINS ``etm``,
+F follows the element list of ``docs/reference/algorithms.md`` section 1.3 (PSINS ``etm``,
 checked there against numerical Jacobians); the base paper's F_S block (Eq. 18) is
 ``[[-C_b^n, 0], [0, C_b^n], [0, 0]]`` in this sign convention. Discretisation
 ``Phi = I + F T`` (PSINS ``kffk``), ``Q_k = Q_t T``.
@@ -39,34 +39,51 @@ import math
 import numpy as np
 
 from . import earth
+from .arrays import FloatArray, FloatDtype
 
 __all__ = [
-    "N_STATES",
-    "IDX_ATT",
-    "IDX_VEL",
-    "IDX_POS",
-    "IDX_GYRO",
+    "DV_E",
+    "DV_N",
+    "DV_U",
+    "D_H",
+    "D_LAT",
+    "D_LON",
     "IDX_ACC",
+    "IDX_ATT",
+    "IDX_GYRO",
+    "IDX_POS",
+    "IDX_VEL",
+    "N_NAV_ERRORS",
+    "N_STATES",
+    "PHI_E",
+    "PHI_N",
+    "PHI_U",
     "error_transition_matrix",
     "kf_predict",
     "kf_update_scalar",
+    "process_noise_psd",
     "solar_vector_residual",
     "solar_vector_rows",
-    "process_noise_psd",
 ]
 
+#: The error state's layout (Eq. 15), named once: groups as slices, the navigation components as indices.
 N_STATES = 15
-IDX_ATT = slice(0, 3)
-IDX_VEL = slice(3, 6)
-IDX_POS = slice(6, 9)
-IDX_GYRO = slice(9, 12)
-IDX_ACC = slice(12, 15)
+IDX_ATT = slice(0, 3)  # phi_E phi_N phi_U, rad
+IDX_VEL = slice(3, 6)  # dv_E dv_N dv_U, m/s
+IDX_POS = slice(6, 9)  # dL dlambda (rad) dh (m)
+IDX_GYRO = slice(9, 12)  # eps_x eps_y eps_z, rad/s (body)
+IDX_ACC = slice(12, 15)  # nab_x nab_y nab_z, m/s^2 (body)
+PHI_E, PHI_N, PHI_U = 0, 1, 2
+DV_E, DV_N, DV_U = 3, 4, 5
+D_LAT, D_LON, D_H = 6, 7, 8
+#: the navigation errors (attitude, velocity, position) come first: ``P[:N_NAV_ERRORS]`` gives the output sigmas
+N_NAV_ERRORS = 9
 
 
 def error_transition_matrix(
-    cbn: np.ndarray, v_enu: np.ndarray, pos: np.ndarray, f_n: np.ndarray, dtype: type = np.float32
-) -> np.ndarray:
-    """Continuous-time error dynamics F (15x15), algorithms.md 1.3 element list.
+    cbn: FloatArray, v_enu: FloatArray, pos: FloatArray, f_n: FloatArray, dtype: FloatDtype = np.float32
+) -> FloatArray:
+    """Continuous-time error dynamics F (15x15), docs/reference/algorithms.md 1.3 element list.
 
     Parameters
     ----------
@@ -84,63 +101,64 @@ def error_transition_matrix(
     W = earth.OMEGA_IE
     rm, rn = earth.radii(lat)
     rmh, rnh = rm + h, rn + h
-    # (row, column) -> value, the element list of algorithms.md 1.3 in its order; written into F in one call
+    # (row, column) -> value, the element list of docs/reference/algorithms.md 1.3 in its order; written into F in one
+    # call
     rs, rs2, rm2 = ve * t / rnh, rnh**2, rmh**2
     elements = (
         # attitude rows (1-3)
-        (0, 1, W * s + rs),
-        (0, 2, -(W * c + ve / rnh)),
-        (0, 4, -1.0 / rmh),
-        (0, 8, vn / rm2),
-        (1, 0, -(W * s + rs)),
-        (1, 2, -vn / rmh),
-        (1, 3, 1.0 / rnh),
-        (1, 6, -W * s),
-        (1, 8, -ve / rs2),
-        (2, 0, W * c + ve / rnh),
-        (2, 1, vn / rmh),
-        (2, 3, t / rnh),
-        (2, 6, W * c + ve * sec**2 / rnh),
-        (2, 8, -ve * t / rs2),
+        (PHI_E, PHI_N, W * s + rs),
+        (PHI_E, PHI_U, -(W * c + ve / rnh)),
+        (PHI_E, DV_N, -1.0 / rmh),
+        (PHI_E, D_H, vn / rm2),
+        (PHI_N, PHI_E, -(W * s + rs)),
+        (PHI_N, PHI_U, -vn / rmh),
+        (PHI_N, DV_E, 1.0 / rnh),
+        (PHI_N, D_LAT, -W * s),
+        (PHI_N, D_H, -ve / rs2),
+        (PHI_U, PHI_E, W * c + ve / rnh),
+        (PHI_U, PHI_N, vn / rmh),
+        (PHI_U, DV_E, t / rnh),
+        (PHI_U, D_LAT, W * c + ve * sec**2 / rnh),
+        (PHI_U, D_H, -ve * t / rs2),
         # velocity rows (4-6)
-        (3, 1, -fu),
-        (3, 2, fn),
-        (4, 0, fu),
-        (4, 2, -fe),
-        (5, 0, -fn),
-        (5, 1, fe),
-        (3, 3, (vn * t - vu) / rnh),
-        (3, 4, 2 * W * s + rs),
-        (3, 5, -(2 * W * c + ve / rnh)),
-        (3, 6, 2 * W * (vu * s + vn * c) + ve * vn * sec**2 / rnh),
-        (3, 8, ve * (vu - vn * t) / rs2),
-        (4, 3, -2 * (W * s + rs)),
-        (4, 4, -vu / rmh),
-        (4, 5, -vn / rmh),
-        (4, 6, -2 * W * ve * c - ve**2 * sec**2 / rnh),
-        (4, 8, vu * vn / rm2 + ve**2 * t / rs2),
-        (5, 3, 2 * (W * c + ve / rnh)),
-        (5, 4, 2 * vn / rmh),
-        (5, 6, -2 * W * ve * s - earth.G0 * (2 * 5.27094e-3 + 4 * 2.32718e-5 * s * s) * s * c),
-        (5, 8, -(vn**2) / rm2 - ve**2 / rs2 + 3.086e-6),
+        (DV_E, PHI_N, -fu),
+        (DV_E, PHI_U, fn),
+        (DV_N, PHI_E, fu),
+        (DV_N, PHI_U, -fe),
+        (DV_U, PHI_E, -fn),
+        (DV_U, PHI_N, fe),
+        (DV_E, DV_E, (vn * t - vu) / rnh),
+        (DV_E, DV_N, 2 * W * s + rs),
+        (DV_E, DV_U, -(2 * W * c + ve / rnh)),
+        (DV_E, D_LAT, 2 * W * (vu * s + vn * c) + ve * vn * sec**2 / rnh),
+        (DV_E, D_H, ve * (vu - vn * t) / rs2),
+        (DV_N, DV_E, -2 * (W * s + rs)),
+        (DV_N, DV_N, -vu / rmh),
+        (DV_N, DV_U, -vn / rmh),
+        (DV_N, D_LAT, -2 * W * ve * c - ve**2 * sec**2 / rnh),
+        (DV_N, D_H, vu * vn / rm2 + ve**2 * t / rs2),
+        (DV_U, DV_E, 2 * (W * c + ve / rnh)),
+        (DV_U, DV_N, 2 * vn / rmh),
+        (DV_U, D_LAT, -2 * W * ve * s - earth.G0 * (2 * 5.27094e-3 + 4 * 2.32718e-5 * s * s) * s * c),
+        (DV_U, D_H, -(vn**2) / rm2 - ve**2 / rs2 + 3.086e-6),
         # position rows (7-9)
-        (6, 4, 1.0 / rmh),
-        (6, 8, -vn / rm2),
-        (7, 3, sec / rnh),
-        (7, 6, ve * t * sec / rnh),
-        (7, 8, -ve * sec / rs2),
-        (8, 5, 1.0),
+        (D_LAT, DV_N, 1.0 / rmh),
+        (D_LAT, D_H, -vn / rm2),
+        (D_LON, DV_E, sec / rnh),
+        (D_LON, D_LAT, ve * t * sec / rnh),
+        (D_LON, D_H, -ve * sec / rs2),
+        (D_H, DV_U, 1.0),
     )
-    F = np.zeros((15, 15), dtype=np.float64)
-    F.flat[[15 * i + j for i, j, _ in elements]] = [v for _, _, v in elements]
-    F[0:3, 9:12] = -cbn  # gyro drift into attitude
-    F[3:6, 12:15] = cbn  # accelerometer bias into velocity
+    F = np.zeros((N_STATES, N_STATES), dtype=np.float64)
+    F.flat[[N_STATES * i + j for i, j, _ in elements]] = [v for _, _, v in elements]
+    F[IDX_ATT, IDX_GYRO] = -cbn  # gyro drift into attitude
+    F[IDX_VEL, IDX_ACC] = cbn  # accelerometer bias into velocity
     return F.astype(dtype)
 
 
 def kf_predict(
-    x: np.ndarray, P: np.ndarray, Phi: np.ndarray, Qk: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
+    x: FloatArray, P: FloatArray, Phi: FloatArray, Qk: FloatArray
+) -> tuple[FloatArray, FloatArray]:
     """Time update (Eqs. 45, 48): ``x = Phi x``, ``P = Phi P Phi^T + Q_k``, symmetrised.
 
     Shapes: x (n,), P (n, n), Phi (n, n), Qk (n, n) or (n,) diagonal.
@@ -156,8 +174,8 @@ def kf_predict(
 
 
 def kf_update_scalar(
-    x: np.ndarray, P: np.ndarray, h: np.ndarray, z: float, r: float
-) -> tuple[np.ndarray, np.ndarray, float, float]:
+    x: FloatArray, P: FloatArray, h: FloatArray, z: float, r: float
+) -> tuple[FloatArray, FloatArray, float, float]:
     """One scalar measurement update in O(n^2) Joseph form (Eqs. 46, 47, 49; module docstring).
 
     Parameters
@@ -182,7 +200,7 @@ def kf_update_scalar(
     return x, P, innov, s
 
 
-def solar_vector_residual(s_n: np.ndarray, cbn: np.ndarray, s_b: np.ndarray) -> tuple[np.ndarray, int]:
+def solar_vector_residual(s_n: FloatArray, cbn: FloatArray, s_b: FloatArray) -> tuple[FloatArray, int]:
     """Bi-direction solar-vector measurement ``Z = S^n - C_b^{n'} (+-S^b)`` (Eqs. 38, 40).
 
     Parameters
@@ -203,22 +221,26 @@ def solar_vector_residual(s_n: np.ndarray, cbn: np.ndarray, s_b: np.ndarray) -> 
     return zm, -1
 
 
-def solar_vector_rows(s_n: np.ndarray, dtype: type = np.float32) -> np.ndarray:
+def solar_vector_rows(s_n: FloatArray, dtype: FloatDtype = np.float32) -> FloatArray:
     """``H_s = [-[S^n x], 0_{3x12}]`` (3, 15) (Eq. 41 as derived in the module docstring)."""
     e, n, u = (float(v) for v in s_n)
     H = np.zeros((3, N_STATES), dtype=dtype)
-    H[0, 1], H[0, 2] = u, -n
-    H[1, 0], H[1, 2] = -u, e
-    H[2, 0], H[2, 1] = n, -e
+    H[0, PHI_N], H[0, PHI_U] = u, -n
+    H[1, PHI_E], H[1, PHI_U] = -u, e
+    H[2, PHI_E], H[2, PHI_N] = n, -e
     return H
 
 
 def process_noise_psd(gyro_arw_rad_rt_s: float, accel_vrw_mps2_rt_hz: float, gyro_bias_rw: float,
-                      accel_bias_rw: float) -> np.ndarray:
+                      accel_bias_rw: float) -> FloatArray:
     """Diagonal continuous process-noise PSD ``q`` (15,) in the state order (Eq. 48 with Gamma = I).
 
     ARW^2 on the phi rows, VRW^2 on the dv rows, 0 on position, and the bias random-walk densities
     (rad^2/s^3, m^2/s^5) on the bias rows. ``Q_k = q T_k`` (PSINS ``kffk``).
     """
-    return np.array([gyro_arw_rad_rt_s**2] * 3 + [accel_vrw_mps2_rt_hz**2] * 3 + [0.0] * 3
-                    + [gyro_bias_rw] * 3 + [accel_bias_rw] * 3)
+    q = np.zeros(N_STATES)
+    q[IDX_ATT] = gyro_arw_rad_rt_s**2
+    q[IDX_VEL] = accel_vrw_mps2_rt_hz**2
+    q[IDX_GYRO] = gyro_bias_rw
+    q[IDX_ACC] = accel_bias_rw
+    return q

@@ -27,10 +27,12 @@ import struct
 
 import numpy as np
 
+from .arrays import FloatDtype
+
 __all__ = ["rounder"]
 
 
-def rounder(dtype: type, n: int) -> struct.Struct:
+def rounder(dtype: FloatDtype, n: int) -> struct.Struct:
     """A ``struct.Struct`` of ``n`` C values of the working precision ``dtype`` (``float`` or ``double``).
 
     ``r.unpack(r.pack(x1, ..., xn))`` rounds each value to ``dtype`` and gives Python floats back (float32

@@ -1,6 +1,6 @@
 """Polarized-skylight solve: Stokes -> DOP/AOP -> E-vectors -> K -> bi-direction solar vector.
 
-Base paper (Liang & Bai), section II.A, with the camera/AOP convention of CONTRACTS C1
+Base paper (Liang & Bai), section II.A, with the camera/AOP convention of docs/architecture.md "Conventions"
 (:mod:`firmware_model.psns_geometry`):
 
 1. Stokes (Eq. 1): ``S0 = (I0+I45+I90+I135)/2``, ``S1 = I0 - I90``, ``S2 = I45 - I135``;
@@ -14,7 +14,7 @@ Base paper (Liang & Bai), section II.A, with the camera/AOP convention of CONTRA
 3. ``K = sum w_i E_i E_i^T`` (Eq. 14) with ``w_i = DOP_i`` for points above the DOP threshold.
 4. ``+-S`` = the eigenvector of the smallest eigenvalue of K (Eq. 14), by the closed-form
    trigonometric solution of the 3x3 symmetric eigenproblem (Smith 1961) and the cross product of two
-   rows of ``K - lambda_min I``: no iteration, ~500 cycles on a C674x (c6747_cycles.md section 4).
+   rows of ``K - lambda_min I``: no iteration, ~500 cycles on a C674x (docs/reference/c674x-cycles.md section 4).
    Quality figure: ``lambda_min / lambda_mid`` (0 for a perfect Rayleigh sky, ~1 for no information).
 
 Everything runs in the firmware's working precision (float32 by default).
@@ -28,26 +28,26 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import c674x
+from .arrays import FloatArray, FloatDtype
 from .psns_geometry import CameraGeometry
+from .units import HALF_PI
 
 __all__ = [
     "SolarSolution",
-    "stokes",
-    "dop_psi",
     "aop_from_psi",
-    "superpixel_channels",
-    "mosaic_observations",
+    "dop_psi",
+    "evector_cycles",
     "evectors_camera",
     "evectors_compass",
-    "scatter_matrix",
-    "sym3_eigen_smallest",
-    "solve_solar_vector",
     "exposure_time_s",
+    "mosaic_observations",
+    "scatter_matrix",
     "solve_cycles",
-    "evector_cycles",
+    "solve_solar_vector",
+    "stokes",
+    "superpixel_channels",
+    "sym3_eigen_smallest",
 ]
-
-HALF_PI = 0.5 * math.pi
 
 
 @dataclass(frozen=True)
@@ -63,19 +63,20 @@ class SolarSolution:
     valid : enough points and a finite, well-separated smallest eigenvalue.
     """
 
-    s: np.ndarray
+    s: FloatArray
     quality: float
     n_used: int
     eigenvalues: tuple[float, float, float]
     valid: bool
 
 
-def stokes(i0: np.ndarray, i45: np.ndarray, i90: np.ndarray, i135: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def stokes(i0: FloatArray, i45: FloatArray, i90: FloatArray,
+           i135: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Linear Stokes parameters (Eq. 1) from the four polarizer channels (any shape, same units)."""
     return 0.5 * (i0 + i45 + i90 + i135), i0 - i90, i45 - i135
 
 
-def dop_psi(s0: np.ndarray, s1: np.ndarray, s2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def dop_psi(s0: FloatArray, s1: FloatArray, s2: FloatArray) -> tuple[FloatArray, FloatArray]:
     """DOP (Eq. 2, S3 = 0) and the image angle ``psi = 1/2 atan2(S2, S1)`` (rad, from +x towards +y)."""
     dt = np.result_type(s0, np.float32)
     tiny = dt.type(1e-12) if np.dtype(dt) == np.float64 else dt.type(1e-20)
@@ -83,26 +84,29 @@ def dop_psi(s0: np.ndarray, s1: np.ndarray, s2: np.ndarray) -> tuple[np.ndarray,
     return dop, dt.type(0.5) * np.arctan2(s2, s1)
 
 
-def aop_from_psi(psi: np.ndarray) -> np.ndarray:
+def aop_from_psi(psi: FloatArray) -> FloatArray:
     """Wire/paper AOP (rad, from image +y towards +x) = 90 deg - psi, wrapped to (-90, 90] deg."""
     a = HALF_PI - np.asarray(psi)
-    return a - np.pi * np.ceil((a - HALF_PI) / np.pi)
+    wrapped: FloatArray = a - np.pi * np.ceil((a - HALF_PI) / np.pi)
+    return wrapped
 
 
-def superpixel_channels(raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def superpixel_channels(raw: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """Split an IMX250MZR mosaic into its four channels at half resolution (no interpolation).
 
-    Layout per 2x2 super-pixel (C1, what polanalyser expects): (row 0, col 0) = 90 deg,
+    Layout per 2x2 super-pixel (the conventions, what polanalyser expects): (row 0, col 0) = 90 deg,
     (0, 1) = 45, (1, 0) = 135, (1, 1) = 0. Returns ``(I0, I45, I90, I135)``, each (ny/2, nx/2).
     """
     return raw[1::2, 1::2], raw[0::2, 1::2], raw[0::2, 0::2], raw[1::2, 0::2]
 
 
-def mosaic_observations(raw: np.ndarray, dtype: type = np.float32) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def mosaic_observations(
+    raw: FloatArray, dtype: FloatDtype = np.float32
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
     """Observation points of a raw mosaic: one per super-pixel.
 
     Returns ``(x_px, y_px, aop, dop, s0)`` flattened: super-pixel centres in 1-based pixel coordinates
-    (half-integers: the centre of pixels 2c+1 and 2c+2), AOP (rad, C1 wire convention), DOP, S0 (DN).
+    (half-integers: the centre of pixels 2c+1 and 2c+2), AOP (rad, wire convention), DOP, S0 (DN).
     """
     i0, i45, i90, i135 = (c.astype(dtype) for c in superpixel_channels(raw))
     s0, s1, s2 = stokes(i0, i45, i90, i135)
@@ -112,9 +116,9 @@ def mosaic_observations(raw: np.ndarray, dtype: type = np.float32) -> tuple[np.n
     return xx.ravel(), yy.ravel(), aop_from_psi(psi).ravel(), dop.ravel(), s0.ravel()
 
 
-def evectors_camera(x_px: np.ndarray, y_px: np.ndarray, aop: np.ndarray, cam: CameraGeometry,
-                    dtype: type = np.float32) -> np.ndarray:
-    """Unit E-vectors in the camera frame (N, 3) from pixel positions and AOP (rad) (Eq. 5-8, C1)."""
+def evectors_camera(x_px: FloatArray, y_px: FloatArray, aop: FloatArray, cam: CameraGeometry,
+                    dtype: FloatDtype = np.float32) -> FloatArray:
+    """Unit E-vectors in the camera frame (N, 3) from pixel positions and AOP (rad) (Eq. 5-8)."""
     X, Y = cam.focal_plane(x_px, y_px)
     X, Y = X.astype(dtype), Y.astype(dtype)
     a = np.asarray(aop, dtype=dtype)
@@ -125,23 +129,25 @@ def evectors_camera(x_px: np.ndarray, y_px: np.ndarray, aop: np.ndarray, cam: Ca
         v = cam.view_rays(x_px, y_px).astype(dtype)
         ez = -(v[:, 0] * sa + v[:, 1] * ca) / v[:, 2]
     e = np.stack([sa, ca, ez], axis=-1)
-    return e / np.sqrt(np.sum(e * e, axis=-1, keepdims=True))
+    unit: FloatArray = e / np.sqrt(np.sum(e * e, axis=-1, keepdims=True))
+    return unit
 
 
-def evectors_compass(aop: np.ndarray, mountings: np.ndarray, dtype: type = np.float32) -> np.ndarray:
+def evectors_compass(aop: FloatArray, mountings: FloatArray, dtype: FloatDtype = np.float32) -> FloatArray:
     """Body-frame E-vectors (n, 3) of single-direction units: ``E^b = C_u^b (sin AOP, cos AOP, 0)``."""
     a = np.asarray(aop, dtype=dtype)
     e_u = np.stack([np.sin(a), np.cos(a), np.zeros_like(a)], axis=-1)
-    return np.einsum("nij,nj->ni", mountings.astype(dtype), e_u)
+    e_b: FloatArray = np.einsum("nij,nj->ni", mountings.astype(dtype), e_u)
+    return e_b
 
 
-def scatter_matrix(e: np.ndarray, w: np.ndarray) -> np.ndarray:
+def scatter_matrix(e: FloatArray, w: FloatArray) -> FloatArray:
     """``K = sum_i w_i E_i E_i^T`` (Eq. 14), (3, 3), six unique sums."""
     we = e * w[:, None]
     return we.T @ e
 
 
-def sym3_eigen_smallest(K: np.ndarray) -> tuple[np.ndarray, tuple[float, float, float]]:
+def sym3_eigen_smallest(K: FloatArray) -> tuple[FloatArray, tuple[float, float, float]]:
     """Smallest eigenvector and ascending eigenvalues of a symmetric 3x3 matrix, closed form.
 
     Eigenvalues by the trigonometric solution of the characteristic cubic (Smith 1961):
@@ -181,7 +187,7 @@ def sym3_eigen_smallest(K: np.ndarray) -> tuple[np.ndarray, tuple[float, float, 
     return (best / dt(math.sqrt(best_n))).astype(K.dtype), (float(l_min), float(l_mid), float(l_max))
 
 
-def solve_solar_vector(e: np.ndarray, dop: np.ndarray, dop_min: float = 0.05, min_points: int = 3,
+def solve_solar_vector(e: FloatArray, dop: FloatArray, dop_min: float = 0.05, min_points: int = 3,
                        max_quality: float = 0.5) -> SolarSolution:
     """Bi-direction solar vector from E-vectors (N, 3) and their DOP (N,) (Eq. 9-14).
 
@@ -200,7 +206,7 @@ def solve_solar_vector(e: np.ndarray, dop: np.ndarray, dop_min: float = 0.05, mi
 
 
 def exposure_time_s(t_rx_s: float, frame_len: int, baud: float, latency_us: int, bits_per_byte: int = 10) -> float:
-    """Mid-exposure time of a PSNS frame (C1): ``t_rx - len * bits / baud - latency``.
+    """Mid-exposure time of a PSNS frame (docs/architecture.md "Conventions"): ``t_rx - len * bits / baud - latency``.
 
     ``t_rx_s`` is the reception time of the frame's last byte (s, FPGA time base).
     """
@@ -223,7 +229,7 @@ def evector_cycles(n: int, c: c674x.KernelCosts | None = None) -> int:
 def solve_cycles(n: int, c: c674x.KernelCosts | None = None) -> int:
     """C674x cycles of threshold + ``K`` accumulation over ``n`` points + the closed-form eigen solve [D/E].
 
-    K: 9 MPYSP + 6 ADDSP per point, bound by the 2 .M units: 5 n + 40 (c6747_cycles.md section 4).
+    K: 9 MPYSP + 6 ADDSP per point, bound by the 2 .M units: 5 n + 40 (docs/reference/c674x-cycles.md section 4).
     Threshold/compaction: 1 cycle/point. Eigen: sqrt + recip + acos + 2 cos + rsqrt (316 cycles in
     single precision, MATHLIB inline [S]) + ~80 FLOPs and the 3 cross products (~150 cycles) [E].
     In double precision the accumulation is MPYDP-bound: 9 MPYDP per point at 0.5/cycle = 18 n [D].

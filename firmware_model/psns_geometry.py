@@ -1,4 +1,5 @@
-"""Polarization-sensor geometry shared by the firmware and the emulator's sensor models (CONTRACTS C1).
+"""Polarization-sensor geometry shared by the firmware and the emulator's sensor models (docs/architecture.md
+"Conventions").
 
 Camera frame c: origin at the imager centre, +z along the optical axis towards the scene, +x along
 image columns (column index x = 1..nx), +y along image rows (row index y = 1..ny).
@@ -27,13 +28,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .arrays import FloatArray
+from .units import DEG
+
 __all__ = [
+    "COMPASS_N_UNITS",
+    "COMPASS_RING_ZENITH_DEG",
     "IMX250MZR_NX",
     "IMX250MZR_NY",
     "IMX250MZR_PITCH_M",
     "CameraGeometry",
-    "COMPASS_N_UNITS",
-    "COMPASS_RING_ZENITH_DEG",
     "compass_unit_mountings",
     "compass_view_rays",
 ]
@@ -49,7 +53,7 @@ COMPASS_RING_ZENITH_DEG = 45.0
 
 @dataclass(frozen=True)
 class CameraGeometry:
-    """Intrinsics and mounting of the polarization camera (C1).
+    """Intrinsics and mounting of the polarization camera (docs/architecture.md "Conventions").
 
     Attributes
     ----------
@@ -66,23 +70,24 @@ class CameraGeometry:
     dy_m: float = IMX250MZR_PITCH_M
     focal_m: float = 4.0e-3
     projection: str = "pinhole"
-    c_c_b: np.ndarray = field(default_factory=lambda: np.eye(3))
+    c_c_b: FloatArray = field(default_factory=lambda: np.eye(3))
 
     def __post_init__(self) -> None:
         if self.projection not in ("pinhole", "fisheye"):
             raise ValueError(f"projection must be 'pinhole' or 'fisheye', got {self.projection!r}")
 
-    def focal_plane(self, x_px: np.ndarray, y_px: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def focal_plane(self, x_px: FloatArray, y_px: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Focal-plane coordinates ``(X, Y)`` in m of 1-based pixel indices (Eq. 4)."""
         return (self.dx_m * (np.asarray(x_px, dtype=np.float64) - (self.nx + 1) / 2.0),
                 self.dy_m * (np.asarray(y_px, dtype=np.float64) - (self.ny + 1) / 2.0))
 
-    def view_rays(self, x_px: np.ndarray, y_px: np.ndarray) -> np.ndarray:
+    def view_rays(self, x_px: FloatArray, y_px: FloatArray) -> FloatArray:
         """Unit view rays ``V^c`` (N, 3) of 1-based pixels, for the configured projection."""
         X, Y = self.focal_plane(x_px, y_px)
         if self.projection == "pinhole":
             v = np.stack([X, Y, np.full_like(X, self.focal_m)], axis=-1)
-            return v / np.linalg.norm(v, axis=-1, keepdims=True)
+            rays: FloatArray = v / np.linalg.norm(v, axis=-1, keepdims=True)
+            return rays
         r = np.hypot(X, Y)
         theta = r / self.focal_m
         alpha = np.arctan2(Y, X)
@@ -91,14 +96,14 @@ class CameraGeometry:
 
 
 def compass_unit_mountings(n_ring: int = COMPASS_N_UNITS - 1,
-                           ring_zenith_deg: float = COMPASS_RING_ZENITH_DEG) -> np.ndarray:
+                           ring_zenith_deg: float = COMPASS_RING_ZENITH_DEG) -> FloatArray:
     """Mounting matrices ``C_u^b`` of the default compass (see module docstring), shape (1 + n_ring, 3, 3).
 
     Columns of ``C_u^b`` are the unit's x, y, z axes in body coordinates.
     """
     out = np.empty((1 + n_ring, 3, 3))
     out[0] = np.eye(3)
-    th = math.radians(ring_zenith_deg)
+    th = ring_zenith_deg * DEG
     for k in range(n_ring):
         az = 2.0 * math.pi * k / n_ring
         z = np.array([math.sin(th) * math.sin(az), math.sin(th) * math.cos(az), math.cos(th)])
@@ -108,7 +113,7 @@ def compass_unit_mountings(n_ring: int = COMPASS_N_UNITS - 1,
     return out
 
 
-def compass_view_rays(mountings: np.ndarray | None = None) -> np.ndarray:
+def compass_view_rays(mountings: FloatArray | None = None) -> FloatArray:
     """Body-frame view rays (unit +z axes) of the compass units, shape (n, 3)."""
     m = compass_unit_mountings() if mountings is None else mountings
     return m[:, :, 2].copy()

@@ -1,120 +1,48 @@
-"""Strapdown inertial mechanization in ENU (PSINS ``insupdate``).
+"""Strapdown inertial mechanization in ENU (PSINS ``insupdate``) and coning/sculling compensation.
 
-Source: ``shared/reference/algorithms.md`` section 1.2 (PSINS toolbox, Yan Gongmin). Latitude,
-longitude and height are carried in float64 (as a C6747 firmware must, at the DP cycle price);
-attitude and velocity in the firmware's working precision ``dtype`` (float32 by default, the
-C674x native type).
+Source: ``docs/reference/algorithms.md`` section 1.2 (PSINS toolbox, Yan Gongmin). Latitude, longitude and
+height are carried in float64 (as a C6747 firmware must, at the DP cycle price); attitude and velocity in the
+firmware's ``nav_state_precision`` (float64 by default, docs/decisions.md D-L.1; float32 is the C674x native
+type). State: :class:`~firmware_model.nav_state.NavState`.
 
-State: ``q = q_b^n`` (scalar first), ``v = v^n`` (m/s, ENU), ``pos = [L, lambda, h]``
-(rad, rad, m).
+One reference and one fast path (docs/decisions.md D-10.F1):
+
+* :func:`strapdown_step` is the reference: the equations on numpy arrays and scalars of ``dtype``, any mix
+  of state and arithmetic precision;
+* :func:`strapdown_step_fast` gives bit for bit the reference's result for a state held in ``dtype``
+  (float64 or float32), without numpy's per-operation overhead: in float64 one IEEE double operation per
+  step on Python floats; in float32 the same operations on Python floats rounded to single precision by
+  ``struct`` (:mod:`firmware_model.precision`), the dot and matrix-vector products by numpy.
+
+Reductions (``|phi|^2`` of ``rv2q``, the quaternion norm, ``C_b^n dv``) have one summation order per
+precision in both: float64 left to right (the order of the C loops), float32 numpy's ``dot`` / ``@``
+(the BLAS order the float32 build has always used). ``tests/firmware_model/fast_path_cases.py`` holds the
+equivalence cases.
 """
 
 from __future__ import annotations
 
 import functools
 import math
-from typing import Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
 from . import earth
-from .attitude import cross3, q2mat, qmul, qnormalize, rv2q
+from .arrays import FloatArray, FloatDtype
+from .attitude import cross3, q2mat, qmul
+from .nav_state import A_PREV, POS, NavState, Q, V
 from .precision import rounder
 
-__all__ = ["NavState", "coning_sculling", "strapdown_step", "strapdown_step_f64", "strapdown_step_f32",
-           "strapdown_step_numpy", "STRAPDOWN_FLOPS"]
+__all__ = ["STRAPDOWN_FLOPS", "NavState", "coning_sculling", "coning_sculling_fast", "strapdown_step",
+           "strapdown_step_fast"]
 
 #: Rough floating-point operation count of one :func:`strapdown_step` (for the cycle model).
 STRAPDOWN_FLOPS = 260
 
 
-def _array_property(name: str, lo: int, hi: int, doc: str) -> property:
-    """A :class:`NavState` array attribute: the stored array, or built (read-only) from the floats."""
-    slot = "_" + name
-    is_pos = name == "pos"
-
-    def get(self: "NavState") -> np.ndarray:
-        a = getattr(self, slot)
-        if a is None:  # float form (strapdown_step_f64 / _f32): build the array once, read-only (D-10.F2)
-            a = np.array(self._x[lo:hi], dtype=np.float64 if is_pos else self._xdt)
-            a.flags.writeable = False
-            setattr(self, slot, a)
-        return a
-
-    def set(self: "NavState", value: np.ndarray) -> None:
-        if self._x is not None:
-            self._to_arrays()
-        setattr(self, slot, value)
-
-    return property(get, set, doc=doc)
-
-
-class NavState:
-    """Navigation state of the mechanization.
-
-    Attributes
-    ----------
-    q : (4,) quaternion ``q_b^n``, working precision.
-    v : (3,) ENU velocity, m/s, working precision.
-    pos : (3,) float64 ``[L rad, lambda rad, h m]``.
-    t : float64 time of validity, s (FPGA time).
-    a_prev : (3,) previous ENU acceleration used for mid-interval extrapolation, m/s^2.
-    f_n : (3,) specific force in n of the last step, m/s^2 (for the KF's F matrix).
-
-    Storage: writers assign new arrays, never write into them (docs/decisions.md D-10.F2). The strapdown
-    (:func:`strapdown_step_f64`, :func:`strapdown_step_f32`) keeps the state as 16 Python floats
-    (:meth:`as_floats`) and builds an attribute's array, read-only, when it is first read (the filters read them a few times per
-    second, the 200 Hz loop not at all): a step then creates no arrays. Assigning an attribute turns the
-    state back into arrays.
-    """
-
-    __slots__ = ("t", "_q", "_v", "_pos", "_a_prev", "_f_n", "_x", "_xdt")
-
-    def __init__(self, q: np.ndarray, v: np.ndarray, pos: np.ndarray, t: float = 0.0,
-                 a_prev: np.ndarray | None = None, f_n: np.ndarray | None = None) -> None:
-        self._x: tuple[float, ...] | None = None
-        self._xdt: type = np.float64
-        self._q, self._v, self._pos = q, v, pos
-        self._a_prev = np.zeros(3) if a_prev is None else a_prev
-        self._f_n = np.zeros(3) if f_n is None else f_n
-        self.t = t
-
-    q = _array_property("q", 0, 4, "(4,) quaternion ``q_b^n``")
-    v = _array_property("v", 4, 7, "(3,) ENU velocity, m/s")
-    pos = _array_property("pos", 7, 10, "(3,) ``[L rad, lambda rad, h m]``, float64")
-    a_prev = _array_property("a_prev", 10, 13, "(3,) previous ENU acceleration, m/s^2")
-    f_n = _array_property("f_n", 13, 16, "(3,) specific force in n of the last step, m/s^2")
-
-    def as_floats(self) -> tuple[float, ...]:
-        """``(q0, q1, q2, q3, vE, vN, vU, L, lambda, h, a_prevE, a_prevN, a_prevU, f_nE, f_nN, f_nU)`` as
-        Python floats (exact values of the arrays' elements)."""
-        x = self._x
-        if x is None:
-            x = tuple(self.q.tolist() + self.v.tolist() + self.pos.tolist() + self.a_prev.tolist()
-                      + self.f_n.tolist())
-        return x
-
-    def _set_floats(self, x: tuple[float, ...], dtype: type = np.float64) -> None:
-        """Float form: the 16 values of :meth:`as_floats`; arrays built on demand, ``pos`` in float64, the
-        others in ``dtype`` (the values must be exactly representable in it)."""
-        self._x = x
-        self._xdt = dtype
-        self._q = self._v = self._pos = self._a_prev = self._f_n = None
-
-    def _to_arrays(self) -> None:
-        for name in ("q", "v", "pos", "a_prev", "f_n"):
-            getattr(self, name)  # builds the missing arrays from the floats
-        self._x = None
-
-    def copy(self) -> "NavState":
-        return NavState(self.q.copy(), self.v.copy(), self.pos.copy(), self.t, self.a_prev.copy(), self.f_n.copy())
-
-    def __repr__(self) -> str:
-        return (f"NavState(q={self.q!r}, v={self.v!r}, pos={self.pos!r}, t={self.t!r}, a_prev={self.a_prev!r}, "
-                f"f_n={self.f_n!r})")
-
-
-def coning_sculling(dtheta: np.ndarray, dv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def coning_sculling(dtheta: FloatArray, dv: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Combine n gyro/accelerometer increments into one rotation vector and velocity increment.
 
     Parameters
@@ -123,7 +51,7 @@ def coning_sculling(dtheta: np.ndarray, dv: np.ndarray) -> tuple[np.ndarray, np.
 
     Returns
     -------
-    phi_m (3,) rad and dv_m (3,) m/s (algorithms.md 1.2 step 1: single-sample rotation
+    phi_m (3,) rad and dv_m (3,) m/s (docs/reference/algorithms.md 1.2 step 1: single-sample rotation
     compensation for n = 1; two-sample coning/sculling with coefficient 2/3 for n = 2).
     """
     n = dtheta.shape[0]
@@ -141,14 +69,34 @@ def coning_sculling(dtheta: np.ndarray, dv: np.ndarray) -> tuple[np.ndarray, np.
     raise ValueError(f"coning_sculling supports 1 or 2 subsamples, got {n}")
 
 
+#: the working precision's rounders for :func:`coning_sculling_fast` (3 and 6 values)
+_ROUND_3_6 = {dt: (rounder(dt, 3), rounder(dt, 6)) for dt in (np.float32, np.float64)}
+
+
+def coning_sculling_fast(dtheta: Sequence[float], dv: Sequence[float],
+                         dtype: FloatDtype) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """:func:`coning_sculling` of one sample (n = 1), bit for bit, on Python floats: ``dtheta``, ``dv`` three values
+    of ``dtype`` (float32 or float64) each; returns ``(phi_m, dv_m)`` as tuples of Python floats.
+
+    The single-sample rotation compensation ``dv_m = dv + 1/2 dtheta x dv`` with every product and sum rounded to
+    ``dtype`` (:mod:`firmware_model.precision`): what the 200 Hz loop runs with rate output.
+    """
+    r3, r6 = _ROUND_3_6[dtype]
+    px, py, pz = dtheta
+    ux, uy, uz = dv
+    c0, c1, c2, c3, c4, c5 = r6.unpack(r6.pack(py * uz, pz * ux, px * uy, pz * uy, px * uz, py * ux))
+    c0, c1, c2 = r3.unpack(r3.pack(c0 - c3, c1 - c4, c2 - c5))
+    return (px, py, pz), r3.unpack(r3.pack(ux + 0.5 * c0, uy + 0.5 * c1, uz + 0.5 * c2))
+
+
 def strapdown_step(
     s: NavState,
-    phi_m: np.ndarray,
-    dv_m: np.ndarray,
+    phi_m: FloatArray | Sequence[float],
+    dv_m: FloatArray | Sequence[float],
     T: float,
-    dtype: type = np.float32,
+    dtype: FloatDtype = np.float32,
 ) -> NavState:
-    """Advance the navigation state by one interval ``T`` (s); returns ``s``.
+    """Advance the navigation state by one interval ``T`` (s); returns ``s`` (the reference formulation).
 
     Parameters
     ----------
@@ -156,32 +104,19 @@ def strapdown_step(
     dv_m : (3,) compensated body velocity increment over the interval, m/s.
     dtype : precision of the attitude and velocity arithmetic (the firmware's ``nav_state_precision``).
 
-    Steps follow algorithms.md 1.2 (PSINS ``insupdate``): mid-interval extrapolation of
-    velocity and position, velocity update with the rotation of the navigation frame over
-    ``T/2``, trapezoidal position update, attitude update
-    ``q_k = rv2q(-w_in^n T) (x) q_{k-1} (x) rv2q(phi_m)``.
-
-    The state's arrays are replaced, never written in place (:class:`NavState`, docs/decisions.md
-    D-10.F2). In float64 the step runs on Python floats (:func:`strapdown_step_f64`:
-    IEEE double operations in a fixed order, docs/decisions.md D-10.F1). In float32 every operation
-    is rounded to single precision as the C674x does: the element-wise work on Python floats rounded
-    by ``struct`` (:mod:`firmware_model.precision`, bit for bit numpy's float32 results), the dot and
-    matrix-vector products by numpy (:func:`strapdown_step_f32`); the generic numpy formulation below
-    serves other dtype mixes.
+    Steps follow docs/reference/algorithms.md 1.2 (PSINS ``insupdate``): mid-interval extrapolation of
+    velocity and position, velocity update with the rotation of the navigation frame over ``T/2``,
+    trapezoidal position update, attitude update ``q_k = rv2q(-w_in^n T) (x) q_{k-1} (x) rv2q(phi_m)``.
+    Numpy arrays and scalars of ``dtype``; Earth quantities and position in float64 (latitude is a DP
+    variable). The state's arrays are replaced, never written in place (:class:`NavState`,
+    docs/decisions.md D-10.F2). :func:`strapdown_step_fast` is the same step, faster.
     """
-    if dtype is np.float64:
-        return strapdown_step_f64(s, np.asarray(phi_m).tolist(), np.asarray(dv_m).tolist(), T)
-    if dtype is np.float32 and s.q.dtype == s.v.dtype == s.a_prev.dtype == np.float32:  # float32 state
-        return strapdown_step_f32(s, np.asarray(phi_m).tolist(), np.asarray(dv_m).tolist(), T)
-    return strapdown_step_numpy(s, phi_m, dv_m, T, dtype)
-
-
-def strapdown_step_numpy(s: NavState, phi_m: np.ndarray, dv_m: np.ndarray, T: float, dtype: type) -> NavState:
-    """:func:`strapdown_step` on numpy arrays and scalars of ``dtype`` (the reference formulation; any dtype mix)."""
-    lat, lon, h = float(s.pos[0]), float(s.pos[1]), float(s.pos[2])
-    v = s.v
     dt = dtype
-    # 3. mid-interval extrapolation (Earth quantities in float64: latitude is a DP variable)
+    phi = np.asarray(phi_m).astype(dt)
+    dv = np.asarray(dv_m).astype(dt)
+    lat, lon, h = (float(x) for x in s.pos)
+    v = s.v
+    # 3. mid-interval extrapolation
     v_half = v + s.a_prev * dt(T / 2.0)
     ve, vn, vu = float(v_half[0]), float(v_half[1]), float(v_half[2])
     rm, rn = earth.radii(lat)
@@ -196,8 +131,7 @@ def strapdown_step_numpy(s: NavState, phi_m: np.ndarray, dv_m: np.ndarray, T: fl
     w_cor = np.array((wen[0], 2.0 * wie_n + wen[1], 2.0 * wie_u + wen[2]), dtype=dt)  # 2 w_ie + w_en
     g = earth.gravity(lat_h, h_h)
     # 4. velocity: f^n = C_b^n dv_m / T, rotated back by the n-frame turn over T/2
-    cbn = q2mat(s.q)
-    f_n = cbn @ (dv_m.astype(dt) * dt(1.0 / T))
+    f_n = _matvec(q2mat(s.q), dv * dt(1.0 / T))
     a_n = f_n - cross3(w_in * dt(T / 2.0), f_n) - cross3(w_cor, v)
     a_n[2] -= dt(g)
     v_new = (v + a_n * dt(T)).astype(dt)
@@ -206,9 +140,9 @@ def strapdown_step_numpy(s: NavState, phi_m: np.ndarray, dv_m: np.ndarray, T: fl
     vm_n = 0.5 * (float(v[1]) + float(v_new[1]))
     vm_u = 0.5 * (float(v[2]) + float(v_new[2]))
     s.pos = np.array((lat + vm_n / rmh * T, lon + vm_e / (rnh * cl) * T, h + vm_u * T), dtype=np.float64)
-    # 6. attitude: q_k = rv2q(-w_in T) (x) q_{k-1} (x) rv2q(phi_m)
-    q = qmul(rv2q(-w_in * dt(T)), qmul(s.q, rv2q(phi_m.astype(dt))))
-    s.q = qnormalize(q).astype(dt)
+    # 6. attitude: q_k = rv2q(-w_in T) (x) q_{k-1} (x) rv2q(phi_m), normalised
+    q = qmul(_rv2q_ref(-w_in * dt(T)), qmul(s.q, _rv2q_ref(phi)))
+    s.q = (q / np.sqrt(_dot(q, q))).astype(dt)
     s.v = v_new
     s.a_prev = a_n.astype(dt)
     s.f_n = f_n
@@ -216,22 +150,70 @@ def strapdown_step_numpy(s: NavState, phi_m: np.ndarray, dv_m: np.ndarray, T: fl
     return s
 
 
+def _dot(a: FloatArray, b: FloatArray) -> Any:
+    """Dot product in the build's summation order: float64 left to right, otherwise numpy's ``dot``."""
+    if a.dtype == np.float64 and b.dtype == np.float64:
+        x, y = a.tolist(), b.tolist()
+        acc = x[0] * y[0]
+        for i in range(1, len(x)):
+            acc += x[i] * y[i]
+        return acc
+    return np.dot(a, b)
+
+
+def _matvec(c: FloatArray, x: FloatArray) -> FloatArray:
+    """``C x`` for a 3x3 ``C``, each row summed as :func:`_dot` sums."""
+    if c.dtype == np.float64 and x.dtype == np.float64:
+        return np.array([_dot(row, x) for row in c])
+    return c @ x
+
+
+def _rv2q_ref(phi: FloatArray) -> FloatArray:
+    """:func:`firmware_model.attitude.rv2q` with ``|phi|^2`` summed by :func:`_dot`."""
+    n2 = float(_dot(phi, phi))
+    if n2 < 1e-16:
+        c = 1.0 - n2 / 8.0
+        k = 0.5 - n2 / 48.0
+    else:
+        n = math.sqrt(n2)
+        c = math.cos(n / 2.0)
+        k = math.sin(n / 2.0) / n
+    return np.array([c, k * phi[0], k * phi[1], k * phi[2]], dtype=phi.dtype)
+
+
+def strapdown_step_fast(s: NavState, phi_m: Sequence[float], dv_m: Sequence[float], T: float,
+                        dtype: FloatDtype = np.float32) -> NavState:
+    """:func:`strapdown_step`, bit for bit, for a state held in ``dtype`` (``q``, ``v``, ``a_prev`` float64 or
+    float32 values); ``phi_m``, ``dv_m``: three Python floats each (rad, m/s, body; ``array.tolist()`` of an
+    array), rounded to ``dtype`` here.
+
+    The state stays in its float form (:meth:`NavState.as_floats`): a step creates no arrays. Other
+    precisions go to the reference.
+    """
+    if dtype is _F64:
+        return _step_f64(s, phi_m, dv_m, T)
+    if dtype is _F32:
+        return _step_f32(s, phi_m, dv_m, T)
+    return strapdown_step(s, phi_m, dv_m, T, dtype)
+
+
+_F64, _F32 = np.float64, np.float32
+
+
 _A, _E2, _1_E2 = earth.A_WGS84, earth.E2_WGS84, 1.0 - earth.E2_WGS84
 _W_IE, _G0, _G_B1, _G_B2, _G_H = earth.OMEGA_IE, earth.G0, earth._G_B1, earth._G_B2, earth._G_H
 _sin, _cos, _sqrt = math.sin, math.cos, math.sqrt
-_array, _f64 = np.array, np.float64
+_array = np.array
 
 
-def strapdown_step_f64(s: NavState, phi_m: Sequence[float], dv_m: Sequence[float], T: float) -> NavState:
-    """:func:`strapdown_step` in double precision on Python floats (no per-operation numpy overhead).
+def _step_f64(s: NavState, phi_m: Sequence[float], dv_m: Sequence[float], T: float) -> NavState:
+    """The float64 kernel of :func:`strapdown_step_fast`: one IEEE double operation per step on Python floats.
 
-    ``phi_m``, ``dv_m``: the compensated increments as three Python floats each (rad, m/s, body).
-
-    Same equations and evaluation order as the float32 path and :mod:`firmware_model.earth`
+    Same equations and evaluation order as :func:`strapdown_step` and :mod:`firmware_model.earth`
     (``radii``, ``gravity`` inlined), one IEEE double operation per step. Vector notation in the
     comments; ``x, y, z`` suffixes are the body axes, ``e, n, u`` the ENU axes.
     """
-    q0, q1, q2, q3, ve0, vn0, vu0, lat, lon, h, ax, ay, az, _, _, _ = s.as_floats()
+    q0, q1, q2, q3, ve0, vn0, vu0, lat, lon, h, ax, ay, az, _, _, _ = s.as_floats()  # the layout of nav_state
     px, py, pz = phi_m
     dvx, dvy, dvz = dv_m
     T2 = T / 2.0
@@ -357,22 +339,21 @@ def _cross_f32(a: Sequence[float], b: Sequence[float]) -> tuple[float, ...]:
     return _R3.unpack(_R3.pack(p[0] - p[1], p[2] - p[3], p[4] - p[5]))
 
 
-def strapdown_step_f32(s: NavState, phi_m: Sequence[float], dv_m: Sequence[float], T: float) -> NavState:
-    """:func:`strapdown_step` with a float32 state (``q``, ``v``, ``a_prev`` float32 arrays; ``phi_m``, ``dv_m``
-    three Python floats each, rounded to float32 here), bit for bit the numpy float32 formulation: element-wise float32 operations on Python floats rounded by ``struct``; the dot products
-    (``rv2q``, normalisation) and ``C_b^n x`` by numpy (their BLAS summation order); Earth quantities and
-    position in double."""
+def _step_f32(s: NavState, phi_m: Sequence[float], dv_m: Sequence[float], T: float) -> NavState:
+    """The float32 kernel of :func:`strapdown_step_fast`: element-wise float32 operations on Python floats rounded
+    by ``struct``; the dot products (``rv2q``, normalisation) and ``C_b^n x`` by numpy (their BLAS summation
+    order); Earth quantities and position in double."""
     R3p, R3u = _R3.pack, _R3.unpack
     x = s.as_floats()
-    q = x[0:4]
-    v0 = x[4:7]
+    q = x[Q]
+    v0 = x[V]
     ve0, vn0, vu0 = v0
-    lat, lon, h = x[7:10]
+    lat, lon, h = x[POS]
     T2w, Tw, rTw = _f32_interval_constants(T)
     px, py, pz = R3u(R3p(*phi_m))  # phi_m.astype(float32)
     dvx, dvy, dvz = R3u(R3p(*dv_m))
     # 3. mid-interval extrapolation: v_half = v + a_prev T/2 (float32); latitude, height, rates in double
-    ax, ay, az = x[10:13]
+    ax, ay, az = x[A_PREV]
     t = R3u(R3p(ax * T2w, ay * T2w, az * T2w))
     ve, vn, vu = R3u(R3p(ve0 + t[0], vn0 + t[1], vu0 + t[2]))
     d = 1.0 - _E2 * _sin(lat) ** 2  # earth.radii(lat)
@@ -422,7 +403,7 @@ def strapdown_step_f32(s: NavState, phi_m: Sequence[float], dv_m: Sequence[float
     qa = _array(qn, dtype=_f32)
     # qnormalize in float32: |q|^2 by numpy's dot, sqrt and the divisions rounded to float32
     (nrm,) = _R1.unpack(_R1.pack(_sqrt(float(np.dot(qa, qa)))))
-    s._set_floats(_R4.unpack(_R4.pack(qn[0] / nrm, qn[1] / nrm, qn[2] / nrm, qn[3] / nrm))
-                  + (ve1, vn1, vu1, lat1, lon1, h1, ae, an, au, fe, fn, fu), _f32)
+    q0n, q1n, q2n, q3n = _R4.unpack(_R4.pack(qn[0] / nrm, qn[1] / nrm, qn[2] / nrm, qn[3] / nrm))
+    s._set_floats((q0n, q1n, q2n, q3n, ve1, vn1, vu1, lat1, lon1, h1, ae, an, au, fe, fn, fu), _f32)
     s.t += T
     return s

@@ -12,7 +12,7 @@ Delta_tau extrapolation ``96.4 + 0.00158 t`` s. UTC is used for UT (|UT1 - UTC| 
 < 0.004 deg of hour angle, the same assumption SPA users make when they pass UTC).
 
 Output: the topocentric unit sun vector in ENU, ``S^n = [sin Az cos el, cos Az cos el, sin el]``
-(algorithms.md section 0; Az clockwise from North, el without refraction, as the geometric
+(docs/reference/algorithms.md section 0; Az clockwise from North, el without refraction, as the geometric
 vector the polarization pattern follows). It is formed directly from declination and hour angle,
 so no atan2/asin is needed for the vector.
 
@@ -32,21 +32,22 @@ import math
 import numpy as np
 
 from . import c674x
+from .arrays import FloatArray, FloatDtype
+from .units import TWO_PI
 
 __all__ = [
     "GRENA_T0",
+    "delta_tau_s",
+    "ephemeris_cycles",
     "grena_days",
     "grena_days_from_datetime",
-    "delta_tau_s",
+    "sun_az_el",
     "sun_equatorial",
     "sun_vector_enu",
-    "sun_az_el",
-    "ephemeris_cycles",
 ]
 
-TWO_PI = 2.0 * math.pi
 #: Origin of Grena's time scale.
-GRENA_T0 = _dt.datetime(2060, 1, 1, tzinfo=_dt.timezone.utc)
+GRENA_T0 = _dt.datetime(2060, 1, 1, tzinfo=_dt.UTC)
 #: Earth radius over astronomical unit, the parallax factor of the elevation (paper: 4.26e-5).
 PARALLAX = 4.26e-5
 
@@ -83,7 +84,7 @@ def grena_days(year: int, month: int, day: int, hour_ut: float) -> float:
 
 def grena_days_from_datetime(t: _dt.datetime) -> float:
     """``t`` for a timezone-aware datetime (converted to UTC)."""
-    u = t.astimezone(_dt.timezone.utc)
+    u = t.astimezone(_dt.UTC)
     hour = u.hour + u.minute / 60.0 + (u.second + u.microsecond * 1e-6) / 3600.0
     return grena_days(u.year, u.month, u.day, hour)
 
@@ -98,7 +99,7 @@ def _reduce(x: float) -> float:
     return x - TWO_PI * math.floor(x / TWO_PI)
 
 
-def sun_equatorial(t_days: float, dtype: type = np.float32) -> tuple[float, float, float]:
+def sun_equatorial(t_days: float, dtype: FloatDtype = np.float32) -> tuple[float, float, float]:
     """Geocentric apparent declination, Greenwich hour angle and nutation in longitude.
 
     Parameters
@@ -141,7 +142,7 @@ def sun_equatorial(t_days: float, dtype: type = np.float32) -> tuple[float, floa
     return float(sp(sin_d)), float(sp(cos_d)), _reduce(gha)
 
 
-def sun_vector_enu(t_days: float, lat: float, lon: float, dtype: type = np.float32) -> np.ndarray:
+def sun_vector_enu(t_days: float, lat: float, lon: float, dtype: FloatDtype = np.float32) -> FloatArray:
     """Topocentric unit sun vector in ENU at latitude/longitude (rad), no refraction.
 
     ``E = -cos d sin H``, ``N = cos L sin d - sin L cos d cos H``, ``U = sin L sin d + cos L cos d cos H``

@@ -1,4 +1,4 @@
-"""The filter variants of the source papers (issue 6), each registered in :data:`firmware_model.FILTER_VARIANTS`.
+"""The filter variants of the source papers, each registered in :data:`firmware_model.FILTER_VARIANTS`.
 
 ===================  ===============================================  ====================================
 ``firmware.filter``  module                                           source
@@ -16,7 +16,6 @@ the base filter. Parameters: :mod:`~firmware_model.variants.params`. Derivations
 
 from __future__ import annotations
 
-from . import dual_vector, federated, kmeans_3d, sun_elevation  # noqa: F401  (registration)
 from .mode_manager import ModeManager
 from .params import (
     DualVectorParams,
@@ -28,11 +27,11 @@ from .params import (
 )
 
 __all__ = [
-    "ModeManager",
-    "VariantParams",
-    "ModeManagerParams",
     "DualVectorParams",
-    "KmeansParams",
     "FederatedParams",
+    "KmeansParams",
+    "ModeManager",
+    "ModeManagerParams",
     "SunElevationParams",
+    "VariantParams",
 ]

@@ -11,23 +11,26 @@ import math
 import numpy as np
 
 from .. import c674x
+from ..arrays import FloatArray
+from ..units import DEG
 
 __all__ = [
     "CHI2_TABLE",
     "chi2_threshold",
-    "unit_mounting",
     "compass_mountings",
-    "spd_solve",
-    "spd_solve_cycles",
-    "spd_inverse",
-    "spd_inverse_cycles",
+    "cross",
     "misalignment_between",
     "plane_basis",
-    "cross",
+    "spd_inverse",
+    "spd_inverse_cycles",
+    "spd_solve",
+    "spd_solve_cycles",
+    "unit_mounting",
 ]
 
 #: Upper quantiles ``chi2_{1-alpha}(m)`` for m = 1..6 degrees of freedom and the usual alphas
-#: (algorithms.md 5.2; m = 4, 5 added from the same distribution; checked against scipy.stats in the tests).
+#: (docs/reference/algorithms.md 5.2; m = 4, 5 added from the same distribution; checked against scipy.stats in the
+#: tests).
 CHI2_TABLE: dict[float, tuple[float, ...]] = {
     0.05: (3.841, 5.991, 7.815, 9.488, 11.070, 12.592),
     0.01: (6.635, 9.210, 11.345, 13.277, 15.086, 16.812),
@@ -46,10 +49,11 @@ def chi2_threshold(dof: int, alpha: float) -> float:
     return row[dof - 1]
 
 
-def unit_mounting(zenith: float, azimuth: float) -> np.ndarray:
+def unit_mounting(zenith: float, azimuth: float) -> FloatArray:
     """``C_u^b`` (3, 3) of a single-direction polarization unit looking at ``zenith``/``azimuth`` (rad).
 
-    Convention of :mod:`firmware_model.psns_geometry` (CONTRACTS C1): azimuth in the body x-y plane from
+    Convention of :mod:`firmware_model.psns_geometry` (docs/architecture.md "Conventions"): azimuth in the body x-y
+    plane from
     body +y (forward) towards +x (right), zenith angle from body +z; the unit's +z is its view ray, its
     +y points "up the hemisphere" (towards body +z in the ray's vertical plane), ``x = y x z``. A unit at
     the zenith (no vertical plane) is the identity turned by ``azimuth`` about z, so ``(0, 0)`` is the
@@ -66,18 +70,18 @@ def unit_mounting(zenith: float, azimuth: float) -> np.ndarray:
     return np.column_stack([x, y, z])
 
 
-def compass_mountings(directions_deg: list[tuple[float, float]] | tuple[tuple[float, float], ...]) -> np.ndarray:
+def compass_mountings(directions_deg: list[tuple[float, float]] | tuple[tuple[float, float], ...]) -> FloatArray:
     """Mountings (n, 3, 3) of units given as ``(zenith_deg, azimuth_deg)`` pairs (see :func:`unit_mounting`)."""
-    return np.stack([unit_mounting(math.radians(z), math.radians(a)) for z, a in directions_deg])
+    return np.stack([unit_mounting(z * DEG, a * DEG) for z, a in directions_deg])
 
 
-def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def cross(a: FloatArray, b: FloatArray) -> FloatArray:
     """Cross product of two 3-vectors without ``numpy.cross``'s axis handling (per-frame hot path)."""
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]],
                     dtype=np.result_type(a, b))
 
 
-def spd_solve(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+def spd_solve(A: FloatArray, b: FloatArray) -> FloatArray:
     """Solve ``A x = b`` for a small symmetric positive-definite ``A`` (n, n) by Cholesky; ``b`` (n,) or (n, k)."""
     L = np.linalg.cholesky(A.astype(np.float64))
     y = np.linalg.solve(L, b.astype(np.float64))
@@ -90,7 +94,7 @@ def spd_solve_cycles(n: int, k: int, c: c674x.KernelCosts) -> int:
     return c.flops(mac, mac) + n * (c.math("sqrt") + c.math("recip"))
 
 
-def spd_inverse(A: np.ndarray) -> np.ndarray:
+def spd_inverse(A: FloatArray) -> FloatArray:
     """Inverse of a small SPD matrix by Cholesky (symmetrised)."""
     inv = spd_solve(A, np.eye(A.shape[0], dtype=A.dtype))
     return (0.5 * (inv + inv.T)).astype(A.dtype)
@@ -101,8 +105,9 @@ def spd_inverse_cycles(n: int, c: c674x.KernelCosts) -> int:
     return spd_solve_cycles(n, n, c)
 
 
-def misalignment_between(cbn_computed: np.ndarray, cbn_measured: np.ndarray) -> np.ndarray:
-    """Misalignment ``phi`` (3,) with ``C_b^{n'} = (I - [phi x]) C_b^n`` (algorithms.md section 0), small angles.
+def misalignment_between(cbn_computed: FloatArray, cbn_measured: FloatArray) -> FloatArray:
+    """Misalignment ``phi`` (3,) with ``C_b^{n'} = (I - [phi x]) C_b^n`` (docs/reference/algorithms.md section 0),
+    small angles.
 
     ``M = C_b^{n'} (C_b^n)^T = I - [phi x]``, so ``phi = (M_12 - M_21, M_20 - M_02, M_01 - M_10) / 2``.
     """
@@ -110,7 +115,7 @@ def misalignment_between(cbn_computed: np.ndarray, cbn_measured: np.ndarray) -> 
     return np.array([M[1, 2] - M[2, 1], M[2, 0] - M[0, 2], M[0, 1] - M[1, 0]], dtype=cbn_computed.dtype) * 0.5
 
 
-def plane_basis(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def plane_basis(s: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Two unit vectors spanning the plane perpendicular to the unit vector ``s`` (deterministic choice)."""
     a = np.array([1.0, 0.0, 0.0]) if abs(float(s[0])) < 0.9 else np.array([0.0, 1.0, 0.0])
     u1 = cross(s, a.astype(s.dtype))

@@ -5,7 +5,8 @@
 derivation below rebuilds them from the description (docs/variants.md section 2 has it in full).
 
 Sensors: ``l`` single-direction polarization units (the multi-unit compass, COMPASS frames), unit ``i``
-with mounting ``C_i^b`` (its view ray ``r_i^b`` = third column) and wire AOP ``A_i`` (C1: measured in the
+with mounting ``C_i^b`` (its view ray ``r_i^b`` = third column) and wire AOP ``A_i`` (docs/architecture.md
+"Conventions": measured in the
 unit's x-y plane from +y towards +x).
 
 Step 1 (predicted polarization vector). From the INS attitude ``C_b^{n'}`` at the exposure time and the
@@ -34,7 +35,7 @@ Step 4 (switching), ``k = sum q_i``:
   perpendicular to ``s^n``: ``z_k = u_k^T Z_ps = u_k^T phi``.
 * ``k = 1``: **polarization-error-vector mode** with the reliable unit's vector:
   ``z = s^n . (C_b^{n'} p~^b) = (s^n x p^n)^T phi``, ``H_pp = [(s^n x p^n)^T, 0_{1x12}]``
-  (algorithms.md 1.4; ``z = -sin(gamma) (r . dp)``, the error vector's signed length). Flipping the sign
+  (docs/reference/algorithms.md 1.4; ``z = -sin(gamma) (r . dp)``, the error vector's signed length). Flipping the sign
   of ``p~`` flips ``z`` and ``H`` together: the update does not change.
 * ``k = 0``: no polarization update (reported as a rejected PSNS update and a ``psns_mode`` event).
 
@@ -52,24 +53,33 @@ import numpy as np
 from protocols.psns import CompassFrame, PsnsStatus
 
 from .. import c674x, sun
-from ..attitude import q2mat
+from ..arrays import FloatArray, FloatDtype
+from ..attitude import q2mat_fast
 from ..filters import BaseFilter, UpdateReport, register_filter
-from ..kf import N_STATES
+from ..kf import IDX_ATT, N_STATES
+from ..nav_state import NavState
 from ..psns_geometry import compass_unit_mountings
-from ..strapdown import NavState
+from ..units import DEG
 from .common import cross, plane_basis
 from .mode_manager import ModeManager
 
-__all__ = ["DualVectorFilter", "PSNS_MODE_NONE", "PSNS_MODE_POLARIZATION", "PSNS_MODE_SUN",
-           "discrimination_factors", "unit_evectors", "sun_error_vector", "polarization_error"]
+__all__ = [
+    "PSNS_MODE_NONE",
+    "PSNS_MODE_POLARIZATION",
+    "PSNS_MODE_SUN",
+    "DualVectorFilter",
+    "discrimination_factors",
+    "polarization_error",
+    "sun_error_vector",
+    "unit_evectors",
+]
 
-DEG = math.pi / 180.0
 PSNS_MODE_NONE, PSNS_MODE_POLARIZATION, PSNS_MODE_SUN = 0, 1, 2
 MODE_NAMES = {PSNS_MODE_NONE: "none", PSNS_MODE_POLARIZATION: "polarization_error_vector",
               PSNS_MODE_SUN: "sun_error_vector"}
 
 
-def unit_evectors(aop: np.ndarray, mountings: np.ndarray, dtype: type = np.float32) -> np.ndarray:
+def unit_evectors(aop: FloatArray, mountings: FloatArray, dtype: FloatDtype = np.float32) -> FloatArray:
     """Measured polarization vectors ``p~_i^b = C_i^b (sin A_i, cos A_i, 0)`` (n, 3) from wire AOPs (rad)."""
     a = np.asarray(aop, dtype=dtype)
     sa, ca = np.sin(a), np.cos(a)
@@ -77,8 +87,8 @@ def unit_evectors(aop: np.ndarray, mountings: np.ndarray, dtype: type = np.float
     return m[:, :, 0] * sa[:, None] + m[:, :, 1] * ca[:, None]
 
 
-def discrimination_factors(p_meas: np.ndarray, s_b: np.ndarray, rays_b: np.ndarray
-                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def discrimination_factors(p_meas: FloatArray, s_b: FloatArray, rays_b: FloatArray
+                           ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Predicted polarization vectors and information-discrimination factors (Steps 1-3).
 
     Parameters
@@ -105,8 +115,8 @@ def discrimination_factors(p_meas: np.ndarray, s_b: np.ndarray, rays_b: np.ndarr
     return p_pred.astype(p_meas.dtype), lam, sin_g
 
 
-def sun_error_vector(cbn: np.ndarray, s_meas_b: np.ndarray, s_n: np.ndarray
-                     ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
+def sun_error_vector(cbn: FloatArray, s_meas_b: FloatArray, s_n: FloatArray
+                     ) -> tuple[FloatArray, tuple[FloatArray, FloatArray]]:
     """Sun-error-vector measurement (Step 4, k >= 2): ``Z_ps = (a . s^n)(a x s^n)``, ``a = C_b^{n'} s~^b``.
 
     Returns ``Z_ps`` (3,) and the two rows ``u_1, u_2`` (unit, perpendicular to ``s^n``) on which it is used:
@@ -117,9 +127,9 @@ def sun_error_vector(cbn: np.ndarray, s_meas_b: np.ndarray, s_n: np.ndarray
     return z_vec, plane_basis(s_n)
 
 
-def polarization_error(cbn: np.ndarray, p_meas_b: np.ndarray, s_n: np.ndarray) -> tuple[float, np.ndarray]:
+def polarization_error(cbn: FloatArray, p_meas_b: FloatArray, s_n: FloatArray) -> tuple[float, FloatArray]:
     """Polarization-error-vector measurement (Step 4, k = 1): ``z = s^n . (C_b^{n'} p~^b)``,
-    ``H_pp = (s^n x p^n)^T`` on phi (algorithms.md 1.4); both flip with the sign of ``p~``."""
+    ``H_pp = (s^n x p^n)^T`` on phi (docs/reference/algorithms.md 1.4); both flip with the sign of ``p~``."""
     p_n = cbn @ p_meas_b
     return float(s_n @ p_n), cross(s_n, p_n)
 
@@ -134,7 +144,7 @@ def discrimination_cycles(n: int, c: c674x.KernelCosts) -> int:
 class DualVectorFilter(BaseFilter):
     """Base 15-state filter + the patent's switching polarization measurements (module docstring)."""
 
-    def __init__(self, cfg: Any, meter: c674x.CycleMeter, dtype: type) -> None:
+    def __init__(self, cfg: Any, meter: c674x.CycleMeter, dtype: FloatDtype) -> None:
         super().__init__(cfg, meter, dtype)
         self.p = cfg.variants.dual_vector
         self.mm = ModeManager("dual_vector", cfg.variants.mode_manager)
@@ -145,7 +155,7 @@ class DualVectorFilter(BaseFilter):
         self.n_units = len(self.mountings)
         self.mode = PSNS_MODE_NONE
         self.q_flags = np.zeros(self.n_units, dtype=bool)
-        self.lam = np.ones(self.n_units)
+        self.lam: FloatArray = np.ones(self.n_units)
         self._r_unit = (self.p.aop_sigma_deg * DEG) ** 2
 
     # -- reporting -------------------------------------------------------------------------------
@@ -179,7 +189,7 @@ class DualVectorFilter(BaseFilter):
         if float(s_n[2]) < math.sin(pm.min_sun_elevation_deg * DEG):
             mm.decide(t, "compass", False, "sun_low", sun_elevation_deg=math.degrees(math.asin(float(s_n[2]))))
             return None
-        cbn = q2mat(q_exp).astype(dt)
+        cbn = q2mat_fast(q_exp).astype(dt)
         s_b = cbn.T @ s_n
         # per-unit data (units missing from the frame are saturated / not reported)
         n = self.n_units
@@ -192,7 +202,7 @@ class DualVectorFilter(BaseFilter):
                 dop[u.unit] = u.dop * (1.0 / 65535.0)
                 present[u.unit] = True
         p_meas = unit_evectors(aop, self.mountings, dt)
-        p_pred, lam, sin_g = discrimination_factors(p_meas, s_b, self.rays_b)
+        _p_pred, lam, sin_g = discrimination_factors(p_meas, s_b, self.rays_b)
         self.meter.charge("dv_discrimination", discrimination_cycles(n, cost))
         q = np.zeros(n, dtype=bool)
         min_sin_g = math.sin(self.p.min_scattering_deg * DEG)
@@ -228,14 +238,15 @@ class DualVectorFilter(BaseFilter):
         i = int(np.nonzero(q)[0][0])
         return self._polarization_update(t, cbn, s_n, p_meas[i], self.rays_b[i], float(sig[i]), i)
 
-    def _unit_sigmas(self, dop: np.ndarray) -> np.ndarray:
+    def _unit_sigmas(self, dop: FloatArray) -> FloatArray:
         """AOP noise (rad) per unit: ``sigma_ref * dop_ref / DOP`` (the compass's model), with a floor."""
         p = self.p
         s = (p.aop_sigma_deg * DEG) * p.dop_ref / np.maximum(dop, 1e-3)
-        return np.maximum(s, p.sigma_floor_deg * DEG)
+        sigmas: FloatArray = np.maximum(s, p.sigma_floor_deg * DEG)
+        return sigmas
 
-    def _sun_update(self, t: float, cbn: np.ndarray, s_n: np.ndarray, p_meas: np.ndarray, q: np.ndarray,
-                    sig: np.ndarray) -> UpdateReport:
+    def _sun_update(self, t: float, cbn: FloatArray, s_n: FloatArray, p_meas: FloatArray, q: FloatArray,
+                    sig: FloatArray) -> UpdateReport:
         """Sun-error-vector mode: ``Z = (a.s)(a x s)``, ``a = C_b^{n'} s~^b``, projected on u1, u2 (module doc)."""
         dt = self.dtype
         idx = np.nonzero(q)[0].tolist()
@@ -264,7 +275,7 @@ class DualVectorFilter(BaseFilter):
         sigma = math.sqrt(float(sig[i]) ** 2 + float(sig[j]) ** 2) / sin_ij
         r = max(sigma, self.p.sigma_floor_deg * DEG) ** 2
         rows = [(u1, float(u1 @ z_vec)), (u2, float(u2 @ z_vec))]
-        Pa = self.P[0:3, 0:3]
+        Pa = self.P[IDX_ATT, IDX_ATT]
         nis = sum(zk * zk / (float(h @ Pa @ h) + r) for h, zk in rows)
         self.meter.charge("dv_gate", self.cost.flops(30, 24))
         resid = math.degrees(math.sqrt(float(z_vec @ z_vec)))
@@ -275,13 +286,13 @@ class DualVectorFilter(BaseFilter):
         innov = []
         for hk, zk in rows:
             h[:] = 0
-            h[0:3] = hk
+            h[IDX_ATT] = hk
             innov.append(self._scalar(h, zk, r))
         self.meter.charge("kf_update", 2 * self._cyc_update)
         return UpdateReport("compass", True, 2, max(abs(v) for v in innov),
                             {"mode": "sun", "pair": [i, j], "residual_deg": resid})
 
-    def _polarization_update(self, t: float, cbn: np.ndarray, s_n: np.ndarray, p_b: np.ndarray, r_b: np.ndarray,
+    def _polarization_update(self, t: float, cbn: FloatArray, s_n: FloatArray, p_b: FloatArray, r_b: FloatArray,
                              sig_aop: float, unit: int) -> UpdateReport:
         """Polarization-error-vector mode: ``z = s^n . (C_b^{n'} p~)``, ``H = [(s^n x p^n)^T, 0]``."""
         dt = self.dtype
@@ -291,14 +302,14 @@ class DualVectorFilter(BaseFilter):
         # AOP error dA turns p~ about the ray: dz = dA s.(r x p)
         sz = sig_aop * abs(float(s_n @ cross(r_n, p_n)))
         r = max(sz, 0.1 * self.p.sigma_floor_deg * DEG) ** 2
-        Pa = self.P[0:3, 0:3]
+        Pa = self.P[IDX_ATT, IDX_ATT]
         var = float(hrow @ Pa @ hrow) + r
         nis = z * z / var
         self.meter.charge("dv_pol_residual", self.cost.flops(36, 24) + self.cost.flops(12, 9))
         if not self.mm.gate(t, "polarization_vector", nis, 1, unit=unit, residual=z):
             return UpdateReport("compass", False, 0, math.sqrt(nis), {"reason": "chi2_fail", "mode": "polarization"})
         h = np.zeros(N_STATES, dtype=dt)
-        h[0:3] = hrow
+        h[IDX_ATT] = hrow
         nu = self._scalar(h, z, r)
         self.meter.charge("kf_update", self._cyc_update)
         return UpdateReport("compass", True, 1, abs(nu), {"mode": "polarization", "unit": unit})

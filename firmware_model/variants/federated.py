@@ -2,9 +2,9 @@
 
 Ge Wenqiang et al., *bionic polarized-light / MIMU / GPS integrated navigation federated filter* (Beijing
 Institute of Radio Metrology and Measurement). Federated structure after Carlson (1990); equations from
-algorithms.md 5.2-5.3.
+docs/reference/algorithms.md 5.2-5.3.
 
-Sub-filter 1, **SINS/GNSS** (the base paper's 15-state error model, algorithms.md 1.3)::
+Sub-filter 1, **SINS/GNSS** (the base paper's 15-state error model, docs/reference/algorithms.md 1.3)::
 
     x1 = [phi | dv | dL dlambda dh | eps | nabla],   z = GNSS position and velocity (Eqs. 23-30 of the base paper)
 
@@ -20,7 +20,8 @@ with the paper's two measurements: the **accelerometer gravity measurement**
 the KF interval; at rest ``f^b = C_n^b g_up`` + interference; first order in phi) and the **sun-vector
 measurement** ``z_s = S^n - C_b^{n'} (+-S^b) = -[S^n x] phi`` (sign by the smaller residual, base paper).
 
-**No-reset information sharing** (algorithms.md 5.3): ``P_i(0) = P_0 / beta_i``, ``Q_i = Q / beta_i`` once,
+**No-reset information sharing** (docs/reference/algorithms.md 5.3): ``P_i(0) = P_0 / beta_i``, ``Q_i = Q / beta_i``
+once,
 ``beta_1 = beta_2 = 0.5`` (the paper's choice), master share ``beta_m = 0``. The master fuses the common
 states ``c = [phi, eps]``::
 
@@ -33,7 +34,7 @@ exactly the correction applied to the reference (``x_i <- x_i - x_applied``): ea
 its own information and its own estimate of the (corrected) reference, nothing of one sub-filter leaks
 into the other, and the linearisation stays valid with a 25 deg/h gyro (docs/variants.md, D-6.3).
 
-**Chi-square isolation** (algorithms.md 5.2): before a GNSS update, ``lambda = eps^T A^-1 eps`` with
+**Chi-square isolation** (docs/reference/algorithms.md 5.2): before a GNSS update, ``lambda = eps^T A^-1 eps`` with
 ``A = H P_1 H^T + R`` over the fix's m rows (5 with NMEA, 6 with UBX velD); ``lambda > chi2_{1-alpha}(m)``
 isolates the GNSS: the epoch is not used, SINS/GNSS leaves the fusion (reconfiguration to MIMU/polarization,
 event ``gnss_isolated``), its time update continues. When ``readmit_after`` consecutive epochs pass the
@@ -51,7 +52,8 @@ from typing import Any
 import numpy as np
 
 from .. import c674x, earth
-from ..attitude import q2mat, qmul, qnormalize, rv2q
+from ..arrays import FloatArray, FloatDtype
+from ..attitude import q2mat_fast, qmul, qnormalize, rv2q
 from ..filters import (
     GnssMeasurement,
     NavFilter,
@@ -62,21 +64,37 @@ from ..filters import (
     kf_predict_cycles,
     register_filter,
 )
-from ..kf import IDX_ACC, IDX_GYRO, N_STATES, error_transition_matrix, kf_predict, kf_update_scalar, process_noise_psd
-from ..kf import solar_vector_residual, solar_vector_rows
-from ..strapdown import NavState
+from ..kf import (
+    IDX_ACC,
+    IDX_ATT,
+    IDX_GYRO,
+    IDX_POS,
+    IDX_VEL,
+    N_STATES,
+    PHI_E,
+    PHI_N,
+    error_transition_matrix,
+    kf_predict,
+    kf_update_scalar,
+    process_noise_psd,
+    solar_vector_residual,
+    solar_vector_rows,
+)
+from ..nav_state import NavState
+from ..units import DEG, DPH, G_STD
 from .common import spd_inverse, spd_inverse_cycles, spd_solve, spd_solve_cycles
 from .mode_manager import ModeManager
 
-__all__ = ["FederatedFilter", "scalar_update_cycles", "fuse_common_states"]
+__all__ = ["FederatedFilter", "fuse_common_states", "scalar_update_cycles"]
 
-DEG = math.pi / 180.0
-DPH = DEG / 3600.0
-G_STD = 9.80665
+#: sub-filter 2's state layout ``x2 = [phi | eps | a^b]`` (sub-filter 1 has the base filter's, :mod:`..kf`)
 N2 = 9
-#: common states in sub-filter 1 (phi, eps) and sub-filter 2
-C1 = np.array([0, 1, 2, 9, 10, 11])
-C2 = np.arange(6)
+X2_ATT, X2_GYRO, X2_MOTION = slice(0, 3), slice(3, 6), slice(6, 9)
+#: the master's common states ``c = [phi | eps]``
+G_ATT, G_GYRO = slice(0, 3), slice(3, 6)
+#: where the common states sit in sub-filter 1 and in sub-filter 2
+C1 = np.r_[IDX_ATT, IDX_GYRO]
+C2 = np.r_[X2_ATT, X2_GYRO]
 SUB_SINS_GNSS, SUB_POL_MIMU = "sins_gnss", "pol_mimu"
 
 
@@ -87,8 +105,9 @@ def scalar_update_cycles(n: int, c: c674x.KernelCosts) -> int:
             + c.math("recip") + c.flops(2 * n, 2 * n))
 
 
-def fuse_common_states(parts: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
-    """Master fusion ``P_g = (sum P_i^-1)^-1``, ``x_g = P_g sum P_i^-1 x_i`` over (x_i, P_i) pairs (algorithms.md 5.3)."""
+def fuse_common_states(parts: list[tuple[FloatArray, FloatArray]]) -> tuple[FloatArray, FloatArray]:
+    """Master fusion ``P_g = (sum P_i^-1)^-1``, ``x_g = P_g sum P_i^-1 x_i`` over (x_i, P_i) pairs
+    (docs/reference/algorithms.md 5.3)."""
     if len(parts) == 1:
         return parts[0][0].copy(), parts[0][1].copy()
     info = None
@@ -106,7 +125,7 @@ def fuse_common_states(parts: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.n
 class FederatedFilter(NavFilter):
     """Two local filters and a master (module docstring)."""
 
-    def __init__(self, cfg: Any, meter: c674x.CycleMeter, dtype: type) -> None:
+    def __init__(self, cfg: Any, meter: c674x.CycleMeter, dtype: FloatDtype) -> None:
         super().__init__(cfg, meter, dtype)
         self.p = p = cfg.variants.federated
         for s in p.subfilters:
@@ -142,7 +161,7 @@ class FederatedFilter(NavFilter):
 
     # -- introspection ------------------------------------------------------------------------------------
     @property
-    def x(self) -> np.ndarray:
+    def x(self) -> FloatArray:
         return self.x1
 
     def drain_events(self) -> list[dict[str, Any]]:
@@ -176,11 +195,17 @@ class FederatedFilter(NavFilter):
         if p.initial_attitude_sigma_deg is not None:
             att = [(v * DEG) ** 2 for v in p.initial_attitude_sigma_deg]
         gyro = [(cfg.gyro_bias_sigma_deg_h * DPH) ** 2] * 3
-        p01 = np.array(att + [0.1**2] * 3
-                       + [(cfg.gnss_pos_sigma_h_m / (rm + h)) ** 2, (cfg.gnss_pos_sigma_h_m / ((rn + h) * math.cos(lat))) ** 2,
-                          cfg.gnss_pos_sigma_v_m**2]
-                       + gyro + [(cfg.accel_bias_sigma_mg * 1e-3 * G_STD) ** 2] * 3)
-        p02 = np.array(att + gyro + [p.motion_accel_sigma_mps2**2 + (cfg.accel_bias_sigma_mg * 1e-3 * G_STD) ** 2] * 3)
+        p01 = np.zeros(N_STATES)
+        p01[IDX_ATT] = att
+        p01[IDX_VEL] = 0.1**2
+        p01[IDX_POS] = ((cfg.gnss_pos_sigma_h_m / (rm + h)) ** 2,
+                        (cfg.gnss_pos_sigma_h_m / ((rn + h) * math.cos(lat))) ** 2, cfg.gnss_pos_sigma_v_m**2)
+        p01[IDX_GYRO] = gyro
+        p01[IDX_ACC] = (cfg.accel_bias_sigma_mg * 1e-3 * G_STD) ** 2
+        p02 = np.zeros(N2)
+        p02[X2_ATT] = att
+        p02[X2_GYRO] = gyro
+        p02[X2_MOTION] = p.motion_accel_sigma_mps2**2 + (cfg.accel_bias_sigma_mg * 1e-3 * G_STD) ** 2
         # no-reset information sharing, once: P_i(0) = P0 / beta_i
         self.P1 = np.diag(p01 / p.beta_sins_gnss).astype(dt)
         self.P2 = np.diag(p02 / p.beta_pol_mimu).astype(dt)
@@ -193,9 +218,9 @@ class FederatedFilter(NavFilter):
         self._report_mode(t, "initialised")
 
     # -- time update (+ the accelerometer gravity measurement of sub-filter 2) -------------------------------
-    def predict(self, nav: NavState, f_n: np.ndarray, Tk: float) -> None:
+    def predict(self, nav: NavState, f_n: FloatArray, Tk: float) -> None:
         dt, p = self.dtype, self.p
-        cbn = q2mat(nav.q).astype(dt)
+        cbn = q2mat_fast(nav.q).astype(dt)
         F = error_transition_matrix(cbn, nav.v, nav.pos, f_n, dtype=dt)
         Phi1 = self._eye1 + F * dt(Tk)
         self.x1, self.P1 = kf_predict(self.x1, self.P1, Phi1, (self.q1 * Tk).astype(dt))
@@ -203,25 +228,28 @@ class FederatedFilter(NavFilter):
         # sub-filter 2: attitude block and -C_b^n of F, first-order motion acceleration
         ca = math.exp(-Tk / p.motion_accel_tau_s)
         Phi2 = self._eye2.copy()
-        Phi2[0:3, 0:3] += F[0:3, 0:3] * dt(Tk)
-        Phi2[0:3, 3:6] = F[0:3, 9:12] * dt(Tk)
-        Phi2[6:9, 6:9] = self._eye2[6:9, 6:9] * dt(ca)
-        q2 = np.array([self._arw2 * Tk] * 3 + [self._qg * Tk] * 3
-                      + [p.motion_accel_sigma_mps2**2 * (1.0 - ca * ca)] * 3) / p.beta_pol_mimu
+        Phi2[X2_ATT, X2_ATT] += F[IDX_ATT, IDX_ATT] * dt(Tk)
+        Phi2[X2_ATT, X2_GYRO] = F[IDX_ATT, IDX_GYRO] * dt(Tk)
+        Phi2[X2_MOTION, X2_MOTION] = self._eye2[X2_MOTION, X2_MOTION] * dt(ca)
+        q2 = np.zeros(N2)
+        q2[X2_ATT] = self._arw2 * Tk
+        q2[X2_GYRO] = self._qg * Tk
+        q2[X2_MOTION] = p.motion_accel_sigma_mps2**2 * (1.0 - ca * ca)
+        q2 = q2 / p.beta_pol_mimu
         self.x2, self.P2 = kf_predict(self.x2, self.P2, Phi2, q2.astype(dt))
         self.meter.charge("fed_predict_pol_mimu", self._cyc_predict2)
         self._gravity_update(nav, cbn, f_n)
         self.feedback(nav)
 
-    def _gravity_update(self, nav: NavState, cbn: np.ndarray, f_n: np.ndarray) -> None:
+    def _gravity_update(self, nav: NavState, cbn: FloatArray, f_n: FloatArray) -> None:
         """``z_a = f^n - [0, 0, g] = [g x] phi + C_b^n a^b`` (3 rows, sub-filter 2)."""
         dt = self.dtype
         g = earth.gravity(float(nav.pos[0]), float(nav.pos[2]))
         z = np.array([f_n[0], f_n[1], f_n[2] - g], dtype=dt)
         H = np.zeros((3, N2), dtype=dt)
-        H[0, 1] = -g
-        H[1, 0] = g
-        H[:, 6:9] = cbn
+        H[0, PHI_N] = -g  # phi occupies the same indices in x2 as in the base layout
+        H[1, PHI_E] = g
+        H[:, X2_MOTION] = cbn
         r = self.p.gravity_sigma_mps2**2
         A = H @ self.P2 @ H.T + np.eye(3, dtype=dt) * dt(r)
         innov = z - H @ self.x2
@@ -235,7 +263,7 @@ class FederatedFilter(NavFilter):
         self.meter.charge("kf_update", 3 * self._cyc_up2)
 
     # -- GNSS: chi-square test, isolation, readmission (sub-filter 1) ---------------------------------------
-    def update_gnss(self, nav: NavState, meas: GnssMeasurement, p_ins: np.ndarray, v_ins: np.ndarray) -> UpdateReport:
+    def update_gnss(self, nav: NavState, meas: GnssMeasurement, p_ins: FloatArray, v_ins: FloatArray) -> UpdateReport:
         dt = self.dtype
         rows = gnss_measurement_rows(self.cfg, self.meter, meas, p_ins, v_ins)
         m = len(rows)
@@ -281,15 +309,15 @@ class FederatedFilter(NavFilter):
         return UpdateReport("gnss", True, m, max(abs(v) for v in innov), {"nis": lam})
 
     # -- sun vector (sub-filter 2) ----------------------------------------------------------------------
-    def update_solar(self, nav: NavState, obs: SolarObservation, s_n: np.ndarray, cbn_exp: np.ndarray) -> UpdateReport:
+    def update_solar(self, nav: NavState, obs: SolarObservation, s_n: FloatArray, cbn_exp: FloatArray) -> UpdateReport:
         dt = self.dtype
         s_n = s_n.astype(dt)
         z, sign = solar_vector_residual(s_n, cbn_exp.astype(dt), obs.s_b.astype(dt))
-        Hs = solar_vector_rows(s_n, dt)[:, 0:3]
+        Hs = solar_vector_rows(s_n, dt)[:, IDX_ATT]
         H = np.zeros((3, N2), dtype=dt)
-        H[:, 0:3] = Hs
+        H[:, X2_ATT] = Hs
         r = self.p.sun_sigma**2
-        A = Hs @ self.P2[0:3, 0:3] @ Hs.T + np.eye(3, dtype=dt) * dt(r)
+        A = Hs @ self.P2[X2_ATT, X2_ATT] @ Hs.T + np.eye(3, dtype=dt) * dt(r)
         innov = z - H @ self.x2
         lam = float(innov @ spd_solve(A, innov))
         self.meter.charge("solar_residual", self.cost.flops(18 + 9, 18 + 6))
@@ -320,21 +348,22 @@ class FederatedFilter(NavFilter):
         xg, Pg = fuse_common_states(parts)
         xg = xg.astype(dt)
         # feed the fused common states into the reference and shift every local filter by the same amount
-        nav.q = qnormalize(qmul(rv2q(xg[0:3]), nav.q)).astype(nav.q.dtype)
-        self.gyro_bias = (self.gyro_bias + xg[3:6]).astype(dt)
-        self.x1[0:3] -= xg[0:3]
-        self.x1[IDX_GYRO] -= xg[3:6]
-        self.x2[0:3] -= xg[0:3]
-        self.x2[3:6] -= xg[3:6]
+        nav.q = qnormalize(qmul(rv2q(xg[G_ATT]), nav.q)).astype(nav.q.dtype)
+        self.gyro_bias = (self.gyro_bias + xg[G_GYRO]).astype(dt)
+        self.x1[IDX_ATT] -= xg[G_ATT]
+        self.x1[IDX_GYRO] -= xg[G_GYRO]
+        self.x2[X2_ATT] -= xg[G_ATT]
+        self.x2[X2_GYRO] -= xg[G_GYRO]
         if SUB_SINS_GNSS in act:
             x1 = self.x1
-            nav.v = (nav.v - x1[3:6]).astype(nav.v.dtype)
-            nav.pos = nav.pos - x1[6:9].astype(np.float64)
+            nav.v = (nav.v - x1[IDX_VEL]).astype(nav.v.dtype)
+            nav.pos = nav.pos - x1[IDX_POS].astype(np.float64)
             self.accel_bias = (self.accel_bias + x1[IDX_ACC]).astype(dt)
-            self.x2[6:9] -= x1[IDX_ACC]
-            x1[3:9] = 0
+            self.x2[X2_MOTION] -= x1[IDX_ACC]
+            x1[IDX_VEL] = 0
+            x1[IDX_POS] = 0
             x1[IDX_ACC] = 0
         # reported covariance: the fused attitude block with sub-filter 1's velocity/position
         P = self.P1.copy()
-        P[0:3, 0:3] = Pg[0:3, 0:3]
+        P[IDX_ATT, IDX_ATT] = Pg[G_ATT, G_ATT]
         self.P = P

@@ -2,10 +2,11 @@
 
 Pipeline on each POLARIZATION_OBS frame of an all-sky (fisheye) camera:
 
-1. **View rays** of the observation points (C1 camera model), the sky mask: points whose ray is below
+1. **View rays** of the observation points (camera model of docs/architecture.md "Conventions"), the sky mask: points
+whose ray is below
    ``horizon_mask`` elevation according to the INS tilt are left out (the ground is unpolarized and would
    join the low-DOP cluster), as are points below ``dop_min`` for the E-vector solve.
-2. **K-means on the DOP values** (paper Eqs. 8-9; algorithms.md 2.4): ``k`` clusters (default 3) in 1-D,
+2. **K-means on the DOP values** (paper Eqs. 8-9; docs/reference/algorithms.md 2.4): ``k`` clusters (default 3) in 1-D,
    Lloyd iterations from centres spread evenly between the lowest and highest DOP, a fixed number of
    iterations (deterministic cycle cost). The Sun is at the **lowest-DOP cluster** (Rayleigh DOP vanishes
    towards the Sun, paper Eq. 6); the normalised mean view ray of its members is the coarse sun direction.
@@ -47,22 +48,32 @@ import numpy as np
 from protocols.psns import PolarizationObs, PsnsStatus
 
 from .. import c674x, psns, sun
-from ..attitude import a2mat, heading_from_yaw, m2att, q2mat
+from ..arrays import BoolArray, FloatArray, FloatDtype, IntArray
+from ..attitude import a2mat, heading_from_yaw, m2att, q2mat_fast
 from ..filters import BaseFilter, UpdateReport, register_filter
-from ..kf import N_STATES
+from ..kf import IDX_ATT, N_STATES, PHI_E
+from ..nav_state import NavState
 from ..psns_geometry import CameraGeometry
-from ..strapdown import NavState
+from ..units import DEG
 from .common import misalignment_between
 from .mode_manager import ModeManager
 
-__all__ = ["Kmeans3dFilter", "kmeans_1d", "kmeans_cycles", "pitch_roll_from_sun", "heading_from_mag",
-           "SunFinding", "find_sun", "KmeansAttitude", "kmeans_attitude"]
+__all__ = [
+    "Kmeans3dFilter",
+    "KmeansAttitude",
+    "SunFinding",
+    "find_sun",
+    "heading_from_mag",
+    "kmeans_1d",
+    "kmeans_attitude",
+    "kmeans_cycles",
+    "pitch_roll_from_sun",
+]
 
-DEG = math.pi / 180.0
 HORIZON_MASK = 2.0 * DEG
 
 
-def kmeans_1d(x: np.ndarray, k: int, iterations: int) -> tuple[np.ndarray, np.ndarray]:
+def kmeans_1d(x: FloatArray, k: int, iterations: int) -> tuple[FloatArray, IntArray]:
     """Lloyd's K-means on scalar data (paper Eqs. 8-9), fixed iterations, deterministic start.
 
     Parameters
@@ -93,7 +104,7 @@ def kmeans_cycles(n: int, k: int, iterations: int, c: c674x.KernelCosts) -> int:
     return iterations * per_iter + c.flops(2, 2, iterations=n)  # min/max for the start
 
 
-def pitch_roll_from_sun(s_b: np.ndarray, s_n: np.ndarray, yaw: float, pitch_prior: float = 0.0
+def pitch_roll_from_sun(s_b: FloatArray, s_n: FloatArray, yaw: float, pitch_prior: float = 0.0
                         ) -> tuple[float, float] | None:
     """Pitch and roll (rad) from the body sun vector with the yaw known (module docstring, step 6).
 
@@ -122,7 +133,7 @@ def pitch_roll_from_sun(s_b: np.ndarray, s_n: np.ndarray, yaw: float, pitch_prio
     return theta, gamma
 
 
-def heading_from_mag(m_b: np.ndarray, pitch: float, roll: float, declination: float) -> float:
+def heading_from_mag(m_b: FloatArray, pitch: float, roll: float, declination: float) -> float:
     """PSINS yaw (rad, counter-clockwise from North) from a magnetometer vector in b and the tilt (step 5)."""
     cr, sr = math.cos(roll), math.sin(roll)
     cp, sp = math.cos(pitch), math.sin(pitch)
@@ -147,14 +158,37 @@ def attitude_cycles(iterations: int, c: c674x.KernelCosts) -> int:
 class SunFinding:
     """Result of :func:`find_sun` (camera frame)."""
 
-    __slots__ = ("ok", "reason", "s_c", "coarse_c", "cluster_n", "centres", "quality", "sun_theta", "fov_theta",
-                 "disagreement", "n_points")
+    __slots__ = (
+        "centres",
+        "cluster_n",
+        "coarse_c",
+        "disagreement",
+        "fov_theta",
+        "n_points",
+        "ok",
+        "quality",
+        "reason",
+        "s_c",
+        "sun_theta",
+    )
+    ok: bool
+    reason: str
+    s_c: FloatArray | None  # the solar vector (camera), set from the eigen step on
+    coarse_c: FloatArray | None
+    cluster_n: int | None
+    centres: FloatArray | None
+    quality: float | None
+    sun_theta: float | None
+    fov_theta: float | None
+    disagreement: float | None
+    n_points: int | None
 
     def __init__(self, ok: bool, reason: str, **kw: Any) -> None:
         self.ok = ok
         self.reason = reason
-        for k in self.__slots__[2:]:
-            setattr(self, k, kw.get(k))
+        for k in self.__slots__:
+            if k not in ("ok", "reason"):
+                setattr(self, k, kw.get(k))
 
     def fields(self) -> dict[str, Any]:
         """Numbers behind the decision, for the event (degrees)."""
@@ -170,8 +204,8 @@ class SunFinding:
         return out
 
 
-def find_sun(x_px: np.ndarray, y_px: np.ndarray, aop: np.ndarray, dop: np.ndarray, cam: CameraGeometry,
-             sky_mask: np.ndarray | None, params: Any, dop_min: float, dtype: type = np.float32) -> SunFinding:
+def find_sun(x_px: FloatArray, y_px: FloatArray, aop: FloatArray, dop: FloatArray, cam: CameraGeometry,
+             sky_mask: BoolArray | None, params: Any, dop_min: float, dtype: FloatDtype = np.float32) -> SunFinding:
     """Steps 1-4 of the module docstring on one frame's points (pixel coordinates 1-based, AOP rad).
 
     Rayleigh's DOP is symmetric about the sun/anti-sun axis, so the lowest-DOP cluster can hold two blobs:
@@ -226,8 +260,8 @@ def find_sun(x_px: np.ndarray, y_px: np.ndarray, aop: np.ndarray, dop: np.ndarra
     return SunFinding(True, "sun_in_fov", s_c=s.astype(dtype), **common)
 
 
-def _inside_image(s_c: np.ndarray, cam: CameraGeometry, x_px: np.ndarray, y_px: np.ndarray) -> bool:
-    """Whether the sun's image lies inside the bounding box of the observed points (C1 projection)."""
+def _inside_image(s_c: FloatArray, cam: CameraGeometry, x_px: FloatArray, y_px: FloatArray) -> bool:
+    """Whether the sun's image lies inside the bounding box of the observed points (the camera projection)."""
     sx, sy, sz = (float(v) for v in s_c)
     if cam.projection == "pinhole":
         if sz <= 0:
@@ -245,7 +279,7 @@ def _inside_image(s_c: np.ndarray, cam: CameraGeometry, x_px: np.ndarray, y_px: 
 class KmeansAttitude:
     """An attitude fix: pitch, roll, yaw (rad, PSINS) and how it was made."""
 
-    __slots__ = ("pitch", "roll", "yaw", "heading_source", "finding")
+    __slots__ = ("finding", "heading_source", "pitch", "roll", "yaw")
 
     def __init__(self, pitch: float, roll: float, yaw: float, heading_source: str, finding: SunFinding) -> None:
         self.pitch, self.roll, self.yaw = pitch, roll, yaw
@@ -253,13 +287,13 @@ class KmeansAttitude:
         self.finding = finding
 
 
-def mag_field_enu(declination: float, inclination: float) -> np.ndarray:
+def mag_field_enu(declination: float, inclination: float) -> FloatArray:
     """Unit Earth-field direction in ENU from declination (east +) and inclination (down +), rad."""
     ci = math.cos(inclination)
     return np.array([ci * math.sin(declination), ci * math.cos(declination), -math.sin(inclination)])
 
 
-def kmeans_attitude(finding: SunFinding, c_c_b: np.ndarray, s_n: np.ndarray, m_b: np.ndarray | None,
+def kmeans_attitude(finding: SunFinding, c_c_b: FloatArray, s_n: FloatArray, m_b: FloatArray | None,
                     declination: float, prior: tuple[float, float, float], iterations: int,
                     inclination: float | None = None) -> KmeansAttitude | None:
     """Steps 5-6: heading from the magnetometer (or the prior yaw without one) and pitch/roll from the Sun.
@@ -271,12 +305,13 @@ def kmeans_attitude(finding: SunFinding, c_c_b: np.ndarray, s_n: np.ndarray, m_b
     started from the TRIAD attitude of the sun and field vectors when ``inclination`` is known, else from
     the prior yaw. ``prior`` = (pitch, roll, yaw) of the INS: also picks the pitch root.
     """
+    assert finding.s_c is not None  # a finding with the Sun in the field
     s_b = (c_c_b @ finding.s_c.astype(np.float64))
     if m_b is None:
-        pr = pitch_roll_from_sun(s_b, s_n, prior[2], prior[0])
-        if pr is None:
+        tilt = pitch_roll_from_sun(s_b, s_n, prior[2], prior[0])
+        if tilt is None:
             return None
-        return KmeansAttitude(pr[0], pr[1], prior[2], "ins", finding)
+        return KmeansAttitude(tilt[0], tilt[1], prior[2], "ins", finding)
     yaw = prior[2]
     pitch_prior = prior[0]
     if inclination is not None:
@@ -296,7 +331,6 @@ def kmeans_attitude(finding: SunFinding, c_c_b: np.ndarray, s_n: np.ndarray, m_b
         return math.atan2(math.sin(d), math.cos(d)), pr
 
     step = 1e-5
-    pr: tuple[float, float] | None = None
     for _ in range(max(1, iterations)):
         r0, r1 = g(yaw), g(yaw + step)
         if r0 is None or r1 is None:
@@ -304,7 +338,6 @@ def kmeans_attitude(finding: SunFinding, c_c_b: np.ndarray, s_n: np.ndarray, m_b
         slope = (r1[0] - r0[0]) / step - 0.0
         denom = slope if abs(slope) > 1e-6 else -1.0
         yaw = yaw - r0[0] / denom
-        pr = r0[1]
     res = g(yaw)
     if res is None:
         return None
@@ -319,7 +352,7 @@ class Kmeans3dFilter(BaseFilter):
 
     raw_polarization_obs = True
 
-    def __init__(self, cfg: Any, meter: c674x.CycleMeter, dtype: type) -> None:
+    def __init__(self, cfg: Any, meter: c674x.CycleMeter, dtype: FloatDtype) -> None:
         super().__init__(cfg, meter, dtype)
         self.p = cfg.variants.kmeans_3d
         self.mm = ModeManager("kmeans_3d", cfg.variants.mode_manager)
@@ -370,7 +403,7 @@ class Kmeans3dFilter(BaseFilter):
         dop = (pts[:, 3] * (1.0 / 65535.0)).astype(dt)
         cam = self.cfg.camera
         p_ins, _, q_exp = host.ins_at(t_exposure_s)
-        cbn = q2mat(q_exp)
+        cbn = q2mat_fast(q_exp)
         # sky mask from the INS tilt: rays below the horizon see the (unpolarized) ground
         v_c = cam.view_rays(pts[:, 0], pts[:, 1])
         up_c = (cam.c_c_b.T @ cbn.T)[:, 2]
@@ -409,7 +442,7 @@ class Kmeans3dFilter(BaseFilter):
         sig = np.array([self.p.tilt_sigma_deg, self.p.tilt_sigma_deg,
                         self.p.heading_sigma_deg if fix.heading_source == "magnetometer" else 180.0]) * DEG
         r = (sig * sig).astype(dt)
-        Pa = self.P[0:3, 0:3]
+        Pa = self.P[IDX_ATT, IDX_ATT]
         nis = float(sum(float(z[i]) ** 2 / (float(Pa[i, i]) + float(r[i])) for i in range(3)))
         self.meter.charge("km_residual", cost.flops(45, 36))
         fields = dict(pitch_deg=fix.pitch / DEG, roll_deg=fix.roll / DEG,
@@ -423,7 +456,7 @@ class Kmeans3dFilter(BaseFilter):
         innov = []
         for i in range(3 if fix.heading_source == "magnetometer" else 2):
             hrow[:] = 0
-            hrow[i] = 1
+            hrow[PHI_E + i] = 1  # Z = phi: rows phi_E, phi_N (and phi_U with a magnetometer heading)
             innov.append(self._scalar(hrow, float(z[i]), float(r[i])))
         self.meter.charge("kf_update", len(innov) * self._cyc_update)
         return UpdateReport("kmeans", True, len(innov), max(abs(v) for v in innov), {"mode": "attitude_fix"})

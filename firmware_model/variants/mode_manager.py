@@ -1,8 +1,8 @@
-"""The mode manager shared by the variants: which measurements are admitted, and why (issue 6, item 5).
+"""The mode manager shared by the variants: which measurements are admitted, and why.
 
 Every variant routes each measurement through :meth:`ModeManager.decide` (validity: DOP, sun
 elevation, geometry, age, frame status) and/or :meth:`ModeManager.gate` (chi-square innovation test,
-algorithms.md 5.2) before it touches a Kalman filter, and reports its mode switches through
+docs/reference/algorithms.md 5.2) before it touches a Kalman filter, and reports its mode switches through
 :meth:`ModeManager.set_mode` and per-sensor qualities through :meth:`ModeManager.report`. The manager
 turns these decisions into events (``TickResult.events``; the DSP writes them to ``events.jsonl`` with
 source ``firmware``) and counters.
@@ -10,7 +10,7 @@ source ``firmware``) and counters.
 Event policy: a decision is logged when it *changes* for its channel (admitted <-> rejected, or the
 reason changes); the event carries how many identical decisions preceded it (``repeats``), so a run of
 5 Hz rejections is one event, not 150, and no decision goes unaccounted. Mode and quality reports are
-logged when their value changes. Event names (the scenario expectations of issue 8 match on them):
+logged when their value changes. Event names (the scenario expectations match on them):
 
 * ``measurement_admitted`` / ``measurement_rejected``: ``channel``, ``reason``, ``repeats`` and the
   numbers behind the decision (``nis``, ``threshold``, ``dof``, ``dop``, ``lambda``...);
@@ -75,7 +75,8 @@ class ModeManager:
         return chi2_threshold(dof, self.params.chi2_alpha)
 
     def gate(self, t: float, channel: str, nis: float, dof: int, **fields: Any) -> bool:
-        """Chi-square innovation test ``lambda = eps^T A^-1 eps <= chi2_{1-alpha}(dof)`` (algorithms.md 5.2)."""
+        """Chi-square innovation test ``lambda = eps^T A^-1 eps <= chi2_{1-alpha}(dof)`` (docs/reference/algorithms.md
+        5.2)."""
         thr = self.chi2_threshold(dof)
         ok = nis <= thr
         return self.decide(t, channel, ok, "chi2_pass" if ok else "chi2_fail", nis=nis, threshold=thr, dof=dof,

@@ -1,4 +1,4 @@
-"""Build/run-time parameters of the issue-6 filter variants (units in the names, degrees where a user types them).
+"""Build/run-time parameters of the filter variants (units in the names, degrees where a user types them).
 
 One dataclass per variant plus the mode manager's; :class:`VariantParams` holds them all and travels in
 :attr:`firmware_model.FirmwareConfig.variants`. The scenario section ``firmware.variants`` maps onto these
@@ -11,10 +11,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 __all__ = [
-    "ModeManagerParams",
     "DualVectorParams",
-    "KmeansParams",
     "FederatedParams",
+    "KmeansParams",
+    "ModeManagerParams",
     "SunElevationParams",
     "VariantParams",
 ]
@@ -24,7 +24,8 @@ __all__ = [
 class ModeManagerParams:
     """Measurement admission shared by every variant (validity and chi-square gating)."""
 
-    #: false-alarm probability of the chi-square gates (algorithms.md 5.2 table: 0.05, 0.01, 0.005, 0.001)
+    #: false-alarm probability of the chi-square gates (docs/reference/algorithms.md 5.2 table: 0.05, 0.01, 0.005,
+    #: 0.001)
     chi2_alpha: float = 0.001
     #: a polarization sensor / observation point below this DOP is not valid (AOP unreliable)
     dop_min: float = 0.05
@@ -110,7 +111,7 @@ class SunElevationParams:
 
     #: sigma of the sun elevation in the body frame from the two E-vectors (R0), deg
     elevation_sigma_deg: float = 0.2
-    #: Sage-Husa forgetting factor b (algorithms.md 5.1: 0.95-0.99); d_k = (1-b)/(1-b^(k+1))
+    #: Sage-Husa forgetting factor b (docs/reference/algorithms.md 5.1: 0.95-0.99); d_k = (1-b)/(1-b^(k+1))
     forgetting: float = 0.95
     #: adaptive R clamped to [r_min_factor, r_max_factor] x R0 (PSINS kfupdate)
     r_min_factor: float = 0.01

@@ -3,10 +3,12 @@
 Zhang, Yang, Huang, Liu, Wang, Guo, *Bionic Integrated Positioning Mechanism Based on Bioinspired
 Polarization Compass and Inertial Navigation System*, Sensors 21(4):1055, 2021 (section 3.2).
 
-Per COMPASS frame (9 units, C1 geometry, :func:`firmware_model.psns_geometry.compass_unit_mountings`):
+Per COMPASS frame (9 units, the geometry of the conventions,
+:func:`firmware_model.psns_geometry.compass_unit_mountings`):
 
 1. The two units with the highest DOP (paper Eq. 4: ``D_max >= D_i >= D_j >= D_k``) give
-   ``E_i^b = C_i^b (sin A_i, cos A_i, 0)``, ``E_j^b`` likewise (paper Eqs. 3, 5 in the C1 AOP convention);
+   ``E_i^b = C_i^b (sin A_i, cos A_i, 0)``, ``E_j^b`` likewise (paper Eqs. 3, 5 in the AOP convention of
+   docs/architecture.md "Conventions");
    the Rayleigh E-vector is perpendicular to the Sun, so ``S^b = E_i^b x E_j^b / sin<E_i, E_j>`` (Eq. 6). When
    the pair is ill-conditioned (``|E_i x E_j| < min_pair_sine``: the two rays are nearly coplanar with the
    Sun) the next pair in DOP order is taken (a decision the mode manager logs).
@@ -15,7 +17,7 @@ Per COMPASS frame (9 units, C1 geometry, :func:`firmware_model.psns_geometry.com
 3. The INS elevation ``sin H_c = sin L sin Dec + cos L cos Dec cos LHA`` with ``LHA = GHA + lambda`` (Eqs. 9-10,
    Grena ephemeris, :mod:`firmware_model.sun`).
 4. Measurement (Eqs. 11-14): ``z = sin H_c - sin H_n = H x + v`` with
-   ``H = [0 0 0 0 0 0  cos(H_c) alpha  cos(H_c) beta  0 ... 0]``, where (algorithms.md 1.4)
+   ``H = [0 0 0 0 0 0  cos(H_c) alpha  cos(H_c) beta  0 ... 0]``, where (docs/reference/algorithms.md 1.4)
    ``alpha = dh/dL = (cos L sin Dec - sin L cos Dec cos LHA) / cos h`` and
    ``beta = dh/dlambda = -cos L cos Dec sin LHA / cos h``: ``cos(h) alpha`` and ``cos(h) beta`` are the
    paper's printed coefficients of ``d(sin h)``. States ``dL, dlambda`` in rad, "computed minus true".
@@ -23,7 +25,7 @@ Per COMPASS frame (9 units, C1 geometry, :func:`firmware_model.psns_geometry.com
    ``sin H_n = sin H - phi_E S_N + phi_N S_E`` to first order (``C_b^{n'} S^b = S^n - phi x S^n``), and
    ``attitude_coupling`` puts those terms in H: ``H[phi_E] = S_N``, ``H[phi_N] = -S_E``. The defaults
    (``attitude_coupling`` and ``attitude_aiding`` off) are the paper's filter exactly.
-5. **Sage-Husa adaptive R** (algorithms.md 5.1, PSINS ``kfupdate`` adaptive form): with the innovation
+5. **Sage-Husa adaptive R** (docs/reference/algorithms.md 5.1, PSINS ``kfupdate`` adaptive form): with the innovation
    ``r_k`` and ``ry = r_k^2 - H P H^T`` clamped to ``[R_min, R_max]``, ``R <- (1 - d) R + d ry``,
    ``d <- d / (d + b)`` (``d_k = (1-b)/(1-b^{k+1})``, b the forgetting factor); the measurement then updates
    with the adapted R. Before that, the mode manager's chi-square gate (1 dof) with the current R.
@@ -50,18 +52,18 @@ import numpy as np
 from protocols.psns import CompassFrame, PsnsStatus
 
 from .. import c674x, psns, sun
-from ..attitude import q2mat
+from ..arrays import FloatArray, FloatDtype
+from ..attitude import q2mat_fast
 from ..filters import BaseFilter, SolarObservation, UpdateReport, register_filter
-from ..kf import N_STATES
+from ..kf import D_LAT, D_LON, N_STATES, PHI_E, PHI_N
+from ..nav_state import NavState
 from ..psns_geometry import compass_unit_mountings
-from ..strapdown import NavState
+from ..units import DEG
 from .common import cross
 from .dual_vector import unit_evectors
 from .mode_manager import ModeManager
 
-__all__ = ["SunElevationFilter", "sun_elevation_partials", "sun_vector_from_two_evectors", "SageHusaR"]
-
-DEG = math.pi / 180.0
+__all__ = ["SageHusaR", "SunElevationFilter", "sun_elevation_partials", "sun_vector_from_two_evectors"]
 
 
 def sun_elevation_partials(lat: float, sin_dec: float, cos_dec: float, lha: float) -> tuple[float, float, float]:
@@ -69,7 +71,7 @@ def sun_elevation_partials(lat: float, sin_dec: float, cos_dec: float, lha: floa
 
     ``sin h = sin L sin Dec + cos L cos Dec cos t``;
     ``alpha = (cos L sin Dec - sin L cos Dec cos t) / cos h`` (= cos Az);
-    ``beta = -cos L cos Dec sin t / cos h`` (= cos L sin Az), t the local hour angle (algorithms.md 1.4).
+    ``beta = -cos L cos Dec sin t / cos h`` (= cos L sin Az), t the local hour angle (docs/reference/algorithms.md 1.4).
     """
     sl, cl = math.sin(lat), math.cos(lat)
     st, ct = math.sin(lha), math.cos(lha)
@@ -80,7 +82,7 @@ def sun_elevation_partials(lat: float, sin_dec: float, cos_dec: float, lha: floa
     return sin_h, alpha, beta
 
 
-def sun_vector_from_two_evectors(e_i: np.ndarray, e_j: np.ndarray) -> tuple[np.ndarray, float]:
+def sun_vector_from_two_evectors(e_i: FloatArray, e_j: FloatArray) -> tuple[FloatArray, float]:
     """``S = E_i x E_j / |E_i x E_j|`` (paper Eq. 6) and ``|E_i x E_j|`` (the sine of their angle, for unit E)."""
     c = cross(e_i, e_j)
     n = math.sqrt(float(c @ c))
@@ -88,7 +90,8 @@ def sun_vector_from_two_evectors(e_i: np.ndarray, e_j: np.ndarray) -> tuple[np.n
 
 
 class SageHusaR:
-    """Scalar Sage-Husa measurement-noise adaptation (algorithms.md 5.1; PSINS ``kfupdate`` adaptive = 1)."""
+    """Scalar Sage-Husa measurement-noise adaptation (docs/reference/algorithms.md 5.1; PSINS ``kfupdate`` adaptive =
+    1)."""
 
     def __init__(self, r0: float, forgetting: float, r_min_factor: float, r_max_factor: float) -> None:
         self.r0 = r0
@@ -125,7 +128,7 @@ class SageHusaR:
 class SunElevationFilter(BaseFilter):
     """Base 15-state filter with the sun-elevation position measurement and adaptive R (module docstring)."""
 
-    def __init__(self, cfg: Any, meter: c674x.CycleMeter, dtype: type) -> None:
+    def __init__(self, cfg: Any, meter: c674x.CycleMeter, dtype: FloatDtype) -> None:
         super().__init__(cfg, meter, dtype)
         self.p = cfg.variants.sun_elevation
         self.mm = ModeManager("sun_elevation", cfg.variants.mode_manager)
@@ -189,7 +192,7 @@ class SunElevationFilter(BaseFilter):
             return UpdateReport("sun_elevation", False, 0, 0.0, {"reason": "ill_conditioned"})
         ui, uj = good[pair[0]][1], good[pair[1]][1]
         p_ins, _, q_exp = host.ins_at(t_exposure_s)
-        cbn = q2mat(q_exp).astype(dt)
+        cbn = q2mat_fast(q_exp).astype(dt)
         if p.attitude_aiding:
             self._attitude_update(nav, t, t_exposure_s, days, p_ins, cbn, good)
         s_n_meas = cbn @ s_b
@@ -210,14 +213,14 @@ class SunElevationFilter(BaseFilter):
         cos_hc = math.sqrt(1.0 - sin_hc * sin_hc)
         z = sin_hc - sin_hn
         h = np.zeros(N_STATES, dtype=dt)
-        h[6] = cos_hc * alpha
-        h[7] = cos_hc * beta
+        h[D_LAT] = cos_hc * alpha
+        h[D_LON] = cos_hc * beta
         if p.attitude_coupling:
-            h[0] = float(s_n_meas[1])
-            h[1] = -float(s_n_meas[0])
+            h[PHI_E] = float(s_n_meas[1])
+            h[PHI_N] = -float(s_n_meas[0])
         self.adaptive.rescale((cos_hc * p.elevation_sigma_deg * DEG) ** 2)
-        a = self.P @ h
-        hph = float(h @ a)
+        ph = self.P @ h
+        hph = float(h @ ph)
         innov = z - float(h @ self.x)
         nis = innov * innov / (hph + self.adaptive.r)
         self.meter.charge("se_gate", cost.flops(2 * 225, 2 * 225))
@@ -228,7 +231,7 @@ class SunElevationFilter(BaseFilter):
             self.state = 2
             return UpdateReport("sun_elevation", False, 0, math.sqrt(nis), {"reason": "chi2_fail"})
         r = self.adaptive.adapt(innov, hph)
-        mm.report(t, "adaptive_r", int(round(math.log2(r / self.adaptive.r0))), "sage_husa",
+        mm.report(t, "adaptive_r", round(math.log2(r / self.adaptive.r0)), "sage_husa",
                   r_over_r0=r / self.adaptive.r0, sigma_deg=math.degrees(math.sqrt(r) / cos_hc))
         self.meter.charge("se_sage_husa", cost.flops(6, 6) + cost.math("div"))
         nu = self._scalar(h, z, r)
@@ -236,8 +239,8 @@ class SunElevationFilter(BaseFilter):
         self.state = 1
         return UpdateReport("sun_elevation", True, 1, abs(nu), {"units": [ui, uj]})
 
-    def _attitude_update(self, nav: NavState, t: float, t_exp: float, days: float, p_ins: np.ndarray,
-                         cbn: np.ndarray, good: list[tuple[int, int, int]]) -> None:
+    def _attitude_update(self, nav: NavState, t: float, t_exp: float, days: float, p_ins: FloatArray,
+                         cbn: FloatArray, good: list[tuple[int, int, int]]) -> None:
         """Step 6: ``+-S^b`` from all valid units' E-vectors (Eq. 14) -> the base solar-vector update."""
         dt = self.dtype
         if len(good) < 3:

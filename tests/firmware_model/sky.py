@@ -1,7 +1,8 @@
-"""Test helper: a Rayleigh sky seen by a DoFP polarization camera (algorithms.md sections 2.1-2.3).
+"""Test helper: a Rayleigh sky seen by a DoFP polarization camera (docs/reference/algorithms.md sections 2.1-2.3).
 
 Independent of the firmware's solve: the E-vector is ``S x V`` (Rayleigh), its projection on the
-image plane gives the image angle psi (C1), Malus' law with the extinction ratio gives the four channel
+image plane gives the image angle psi (docs/architecture.md "Conventions"), Malus' law with the extinction ratio gives
+the four channel
 intensities, then shot noise, read noise and 12-bit quantization; the observation (AOP, DOP) comes
 from the channel Stokes parameters, as on the camera.
 """
@@ -54,10 +55,7 @@ def observe_sky(s_c: np.ndarray, cam: CameraGeometry, stride_px: int = 32, rng: 
     dop, e = rayleigh(np.asarray(s_c, dtype=np.float64), v, p_max)
     psi = np.arctan2(e[:, 1], e[:, 0])
     s0_e = signal_fraction * full_well_e * np.ones_like(dop)
-    if rng is None:
-        d = 1.0
-    else:
-        d = (extinction_ratio - 1.0) / (extinction_ratio + 1.0)
+    d = 1.0 if rng is None else (extinction_ratio - 1.0) / (extinction_ratio + 1.0)
     # Malus: I_theta = S0/2 [1 + D DOP cos(2 (psi - theta_p))]
     inten = 0.5 * s0_e[:, None] * (1.0 + d * dop[:, None] * np.cos(2.0 * (psi[:, None] - THETA_P[None, :])))
     if rng is not None:
@@ -78,7 +76,7 @@ def observe_sky(s_c: np.ndarray, cam: CameraGeometry, stride_px: int = 32, rng: 
 def render_mosaic(s_c: np.ndarray, cam: CameraGeometry, rng: np.random.Generator | None = None, p_max: float = 0.8,
                   extinction_ratio: float = 300.0, full_well_e: float = 10000.0, read_noise_e: float = 5.0,
                   bits: int = 12, signal_fraction: float = 0.8) -> np.ndarray:
-    """A raw IMX250MZR mosaic (ny, nx) in DN: (0,0)=90, (0,1)=45, (1,0)=135, (1,1)=0 deg (C1)."""
+    """A raw IMX250MZR mosaic (ny, nx) in DN: (0,0)=90, (0,1)=45, (1,0)=135, (1,1)=0 deg (the conventions)."""
     yy, xx = np.meshgrid(np.arange(1, cam.ny + 1), np.arange(1, cam.nx + 1), indexing="ij")
     v = cam.view_rays(xx.ravel(), yy.ravel())
     dop, e = rayleigh(np.asarray(s_c, dtype=np.float64), v, p_max)

@@ -15,8 +15,8 @@ from __future__ import annotations
 import datetime as dt
 import heapq
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Iterator
 
 import numpy as np
 
@@ -44,7 +44,7 @@ class StaticTruth:
     heading_deg: float = 30.0
     pitch_deg: float = 2.0
     roll_deg: float = -3.0
-    epoch: dt.datetime = dt.datetime(2019, 9, 18, 8, 14, 0, tzinfo=dt.timezone.utc)
+    epoch: dt.datetime = dt.datetime(2019, 9, 18, 8, 14, 0, tzinfo=dt.UTC)
 
     @property
     def cbn(self) -> np.ndarray:
@@ -89,7 +89,7 @@ def static_stream(truth: StaticTruth, err: SensorErrors, cfg: StreamConfig, dura
                   seed: int = 1) -> Iterator[tuple[float, int, bytes]]:
     """Yield ``(t_rx_s, uart, bytes)`` in time order for ``duration_s`` of static operation."""
     rng = np.random.default_rng(seed)
-    lat, lon, h = truth.lat_deg * DEG, truth.lon_deg * DEG, truth.height_m
+    lat, h = truth.lat_deg * DEG, truth.height_m
     cbn = truth.cbn
     w_b = cbn.T @ earth.omega_ie_n(lat) + np.array(err.gyro_bias_dph) * DPH
     f_b = cbn.T @ np.array([0.0, 0.0, earth.gravity(lat, h)]) + np.array(err.accel_bias_mg) * 1e-3 * G_STD
@@ -105,7 +105,7 @@ def static_stream(truth: StaticTruth, err: SensorErrors, cfg: StreamConfig, dura
         heapq.heappush(heap, (t, order, uart, data))
         order += 1
 
-    n_imu = int(round(duration_s * cfg.imu_rate_hz))
+    n_imu = round(duration_s * cfg.imu_rate_hz)
     next_gnss = 1
     next_psns = 1.0 / cfg.psns_rate_hz
     psns_seq = 0
@@ -127,13 +127,13 @@ def static_stream(truth: StaticTruth, err: SensorErrors, cfg: StreamConfig, dura
         w = w_b + rng.normal(0.0, arw / math.sqrt(T), 3) if arw > 0 else w_b
         f = f_b + rng.normal(0.0, vrw / math.sqrt(T), 3) if vrw > 0 else f_b
         if cfg.gyro_output == "rate":
-            gyro = tuple(int(round(x / DEG / GYRO_RATE_LSB_DPS)) for x in w)
+            gyro = tuple(round(x / DEG / GYRO_RATE_LSB_DPS) for x in w)
         else:
-            gyro = tuple(int(round(x * T / DEG / GYRO_ANGLE_LSB_DEG)) for x in w)
-        accel = tuple(int(round(fi / G_STD * vpg / ADC_VOLTS_PER_LSB)) for fi, vpg in zip(f, ACCEL_VOLTS_PER_G))
-        pps = int(math.floor(t + 1e-9))
+            gyro = tuple(round(x * T / DEG / GYRO_ANGLE_LSB_DEG) for x in w)
+        accel = tuple(round(fi / G_STD * vpg / ADC_VOLTS_PER_LSB) for fi, vpg in zip(f, ACCEL_VOLTS_PER_G))
+        pps = math.floor(t + 1e-9)
         counter = (counter + 10) & 0xFF
-        fr = ImuFrame(seq=k & 0xFFFF, t_trigger_us=int(round(t * 1e6)) & 0xFFFFFFFF,
+        fr = ImuFrame(seq=k & 0xFFFF, t_trigger_us=round(t * 1e6) & 0xFFFFFFFF,
                       t_pps_us=(pps * 1_000_000) & 0xFFFFFFFF, pps_count=pps & 0xFF, gyro=gyro,  # type: ignore[arg-type]
                       gyro_status=0, gyro_counter=counter, gyro_latency_us=500,
                       accel=accel, fpga_status=int(FpgaStatus.PPS_VALID) if pps >= 1 else 0)  # type: ignore[arg-type]
@@ -206,6 +206,6 @@ def _psns_frame(truth: StaticTruth, err: SensorErrors, cfg: StreamConfig, t_exp:
         s = sign * s_c
         return encode_solar_vector(hdr, (float(s[0]), float(s[1]), float(s[2])), 0.01)
     obs = observe_sky(s_c, cfg.camera, stride_px=cfg.obs_stride_px, rng=rng if err.psns_sigma_deg > 0 else None)
-    pts = [PolarizationPoint(int(x), int(y), int(round(a * 100)), int(round(d * 65535)), int(i))
+    pts = [PolarizationPoint(int(x), int(y), round(a * 100), round(d * 65535), int(i))
            for x, y, a, d, i in zip(obs.x_px, obs.y_px, obs.aop_deg, obs.dop, obs.s0_dn)]
     return encode_polarization_obs(hdr, pts)

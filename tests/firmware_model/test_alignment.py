@@ -9,7 +9,7 @@ from firmware_model.alignment import level_from_specific_force, solar_heading_al
 from firmware_model.attitude import a2mat, m2att, yaw_from_heading
 
 DEG = math.pi / 180.0
-S_N = np.array([0.532125, -0.757852, 0.377496])  # Taiyuan case, algorithms.md section 3
+S_N = np.array([0.532125, -0.757852, 0.377496])  # Taiyuan case, docs/reference/algorithms.md section 3
 
 
 @pytest.mark.parametrize("heading, pitch, roll", [(0, 0, 0), (30, 2, -3), (215, -8, 12), (359, 20, -25)])

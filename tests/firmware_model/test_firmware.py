@@ -14,7 +14,7 @@ import pytest
 from firmware_model import Firmware, FirmwareConfig, FirmwareError, earth
 from firmware_model.attitude import heading_from_yaw, m2att, q2mat, qconj, qmul
 from firmware_model.filters import FILTER_VARIANTS, BaseFilter, register_filter
-from firmware_model.firmware import FirmwareState
+from firmware_model.tasks.state import FirmwareState
 from protocols.host import HostFormat, NavMode, NavSolution
 from protocols.stream import StreamDecoder
 
@@ -22,7 +22,7 @@ from .synth import SensorErrors, StaticTruth, StreamConfig, static_stream
 
 DEG = math.pi / 180.0
 
-#: Paper-grade sensors (DESIGN.md section 2 figures, one draw), the gyro z bias set to zero so that
+#: Paper-grade sensors (the sensor figures of docs/architecture.md, one draw), the gyro z bias set to zero so that
 #: "heading stays at its initial misalignment" without PSNS is not blurred by a z-gyro drift.
 PAPER_ERRORS = SensorErrors(gyro_bias_dph=(9.0, -7.0, 0.0), gyro_arw_deg_rt_h=0.15, accel_bias_mg=(1.5, -1.0, 2.0),
                             accel_noise_ug_rt_hz=100.0, gnss_pos_sigma_m=3.0, gnss_vel_sigma_mps=0.03,
@@ -119,7 +119,7 @@ def test_psns_exposure_time_tag_uses_latency_and_line_time():
     cfg = FirmwareConfig(psns_baud=57600)
     fw = Firmware(cfg)
     got = []
-    orig = fw._psns_observation  # noqa: SLF001
+    orig = fw._psns_observation
 
     def spy(t_rx, f):
         obs = orig(t_rx, f)
@@ -127,7 +127,7 @@ def test_psns_exposure_time_tag_uses_latency_and_line_time():
             got.append(obs.t_exposure_s)
         return obs
 
-    fw._psns_observation = spy  # type: ignore[method-assign]  # noqa: SLF001
+    fw._psns_observation = spy  # type: ignore[method-assign]
     for t_rx, uart, data in static_stream(truth, SensorErrors(), stream, 5.0):
         fw.receive(uart, data, t_rx)
         if uart == 1:
@@ -139,7 +139,7 @@ def test_psns_exposure_time_tag_uses_latency_and_line_time():
 
 def test_nav_solution_frames_carry_mode_bits_and_sigmas():
     truth = StaticTruth()
-    fw, _, _, outputs = run_static(FirmwareConfig(fine_align_time_s=5.0), truth, PAPER_ERRORS,
+    _fw, _, _, outputs = run_static(FirmwareConfig(fine_align_time_s=5.0), truth, PAPER_ERRORS,
                                    StreamConfig(psns="solar_vector"), 12.0, keep_outputs=True)
     dec = StreamDecoder([HostFormat()])
     navs = [f for f in dec.feed(b"".join(outputs)) if isinstance(f, NavSolution)]
@@ -217,10 +217,10 @@ def test_angle_increment_gyro_runs_two_sample_mechanization():
     truth = StaticTruth()
     cfg = FirmwareConfig(gyro_output="angle")
     assert cfg.subsamples == 2
-    fw, samples, events, _ = run_static(cfg, truth, PAPER_ERRORS, StreamConfig(psns="solar_vector", gyro_output="angle"),
-                                        60.0)
-    align_ticks = [e["samples"] for e in events if e["event"] == "alignment_done"][0]
-    n_strap = fw.meter.tasks["imu"].kernels["strapdown"] / fw._cyc["strapdown"]  # noqa: SLF001
+    fw, samples, events, _ = run_static(cfg, truth, PAPER_ERRORS,
+                                        StreamConfig(psns="solar_vector", gyro_output="angle"), 60.0)
+    align_ticks = next(e["samples"] for e in events if e["event"] == "alignment_done")
+    n_strap = fw.meter.tasks["imu"].kernels["strapdown"] / fw._cyc["strapdown"]
     assert n_strap == pytest.approx((fw.meter.tasks["imu"].calls - align_ticks) / 2, abs=1)  # 100 Hz steps
     he = _heading_errors(samples, after_s=20.0)
     assert float(np.sqrt(np.mean(he**2))) < 0.2
@@ -275,7 +275,7 @@ def test_a_registered_variant_plugs_into_the_same_loop():
 def test_psns_alignment_source_waits_and_falls_back():
     truth = StaticTruth()
     cfg = FirmwareConfig(alignment_heading="psns", psns_align_timeout_s=3.0, initial_heading_deg=31.0)
-    fw, _, events, _ = run_static(cfg, truth, PAPER_ERRORS, StreamConfig(psns=None), 10.0)
+    _fw, _, events, _ = run_static(cfg, truth, PAPER_ERRORS, StreamConfig(psns=None), 10.0)
     ev = [e for e in events if e["event"] == "alignment_done"]
     assert ev and ev[0]["heading_source"] == "config" and ev[0]["t_fpga_s"] >= 2.0 + 3.0 - 0.01
 
@@ -315,7 +315,7 @@ def test_compass_frames_reach_the_variant_with_their_exposure_time():
 def test_sun_below_horizon_no_psns_updates_no_event_spam():
     import datetime as dt
 
-    night = StaticTruth(epoch=dt.datetime(2019, 9, 18, 20, 0, 0, tzinfo=dt.timezone.utc))  # 04:00 local, Beijing
+    night = StaticTruth(epoch=dt.datetime(2019, 9, 18, 20, 0, 0, tzinfo=dt.UTC))  # 04:00 local, Beijing
     assert night.sun_n(0.0)[2] < 0
     fw, _, events, _ = run_static(FirmwareConfig(initial_heading_deg=30.0), night, PAPER_ERRORS,
                                   StreamConfig(psns="solar_vector"), 20.0)
@@ -381,8 +381,18 @@ def _drive_with_commands(commands_at: dict[float, bytes], duration_s: float, cfg
 
 
 def test_host_commands_are_acknowledged_and_applied(monkeypatch):
-    from protocols.host import (Ack, AckResult, FilterVariant, HostStatus, RequestStatus, ResetFilter, SelectVariant,
-                                SetOutputRate, build_host_frame, encode_command)
+    from protocols.host import (
+        Ack,
+        AckResult,
+        FilterVariant,
+        HostStatus,
+        RequestStatus,
+        ResetFilter,
+        SelectVariant,
+        SetOutputRate,
+        build_host_frame,
+        encode_command,
+    )
 
     monkeypatch.delitem(FILTER_VARIANTS, "federated")  # a known variant left out of this build
 
@@ -407,7 +417,7 @@ def test_host_commands_are_acknowledged_and_applied(monkeypatch):
     assert sum(1 for t in navs if 3.0 <= t < 4.0) == 100 and sum(1 for t in navs if 5.0 <= t < 6.0) == 10
     status = [(t, f) for t, f in frames if isinstance(f, HostStatus)]
     assert len(status) >= 14  # 1 Hz plus the requested one
-    st = [f for t, f in status if 5.0 <= t < 5.1][0]
+    st = next(f for t, f in status if 5.0 <= t < 5.1)
     assert st.output_rate_hz == pytest.approx(10.0) and st.filter_variant == int(FilterVariant.BASE)
     assert st.commands_accepted == 2 and st.commands_rejected == 1 and st.uart1_frames > 900
     assert 0 < st.cpu_load_pct <= st.cpu_load_max_pct

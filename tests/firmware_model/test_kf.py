@@ -7,8 +7,8 @@ import pytest
 
 from firmware_model import c674x, earth
 from firmware_model.attitude import a2mat, mat2q, q2mat, rv2q, skew, yaw_from_heading
+from firmware_model.config import FirmwareConfig
 from firmware_model.filters import BaseFilter, GnssMeasurement, SolarObservation
-from firmware_model.firmware import FirmwareConfig
 from firmware_model.kf import N_STATES, kf_update_scalar, solar_vector_residual, solar_vector_rows
 from firmware_model.strapdown import NavState
 
@@ -98,7 +98,7 @@ def test_covariance_stays_symmetric_positive_definite_over_1h_in_float32():
     flt32, eig32 = _run_static_filter(3600.0, np.float32)
     assert len(eig32) == 60 and min(eig32) > 0.0
     # and it is the same filter as in double precision: standard deviations agree
-    flt64, eig64 = _run_static_filter(3600.0, np.float64)
+    flt64, _eig64 = _run_static_filter(3600.0, np.float64)
     d32 = np.sqrt(np.diag(flt32.P).astype(np.float64))
     d64 = np.sqrt(np.diag(flt64.P))
     assert np.allclose(d32, d64, rtol=0.02)
@@ -108,7 +108,7 @@ def test_covariance_stays_symmetric_positive_definite_over_1h_in_float32():
 
 
 def test_solar_update_sign_choice_and_gate():
-    flt, nav, cbn, f_n = _static_filter(np.float32)
+    flt, nav, cbn, _f_n = _static_filter(np.float32)
     s_n = S_N / np.linalg.norm(S_N)
     s_b = (cbn.T @ s_n).astype(np.float32)
     for sign in (1, -1):
@@ -121,7 +121,7 @@ def test_solar_update_sign_choice_and_gate():
 
 
 def test_error_model_F_predicts_the_nonlinear_strapdown_errors():
-    """Nonlinear INS with initial errors vs Phi = prod(I + F T) over 60 s (algorithms.md 1.3 check)."""
+    """Nonlinear INS with initial errors vs Phi = prod(I + F T) over 60 s (docs/reference/algorithms.md 1.3 check)."""
     from firmware_model.kf import error_transition_matrix
     from firmware_model.strapdown import strapdown_step
 

@@ -1,5 +1,5 @@
 """Working-precision arithmetic on Python floats (firmware_model.precision) against numpy's own float32 and
-float64 operations, and the Python-float strapdown against the numpy one."""
+float64 operations, and the strapdown's fast path (Python floats) against the reference (numpy)."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from firmware_model.attitude import mat2q, a2mat
+from firmware_model.attitude import a2mat, mat2q
 from firmware_model.precision import rounder
-from firmware_model.strapdown import NavState, strapdown_step, strapdown_step_f64
+from firmware_model.strapdown import NavState, strapdown_step, strapdown_step_fast
 
 DEG = math.pi / 180.0
 
@@ -53,8 +53,8 @@ def test_python_float_strapdown_matches_the_numpy_formulation_to_rounding():
     a, b = _state(), _state()
     for _ in range(2000):
         phi = rng.normal(0.0, 1e-3, 3).astype(np.float32)
-        dv = (rng.normal(0.0, 1e-3, 3) + [0.0, 0.0, 9.8 * T]).astype(np.float32)
-        strapdown_step(a, phi, dv, T, dtype=np.float64)
+        dv = (rng.normal(0.0, 1e-3, 3) + np.array([0.0, 0.0, 9.8 * T])).astype(np.float32)
+        strapdown_step_fast(a, phi.tolist(), dv.tolist(), T, np.float64)
         # reference: the numpy formulation, written out (the pre-D-10.F1 implementation)
         lat, lon, h = b.pos
         vh = b.v + b.a_prev * (T / 2)
@@ -81,18 +81,18 @@ def test_python_float_strapdown_matches_the_numpy_formulation_to_rounding():
     assert abs(a.pos[2] - 50.0) > 0.1 and np.abs(a.q - _state().q).max() > 1e-3  # the state moved (not a no-op)
 
 
-def test_strapdown_step_f64_takes_python_floats_and_arrays_alike():
+def test_strapdown_step_fast_f64_takes_python_floats_and_arrays_alike():
     a, b = _state(), _state()
     phi, dv = [1e-4, -2e-4, 3e-5], [1e-3, 2e-3, 0.049]
-    strapdown_step_f64(a, phi, dv, 0.005)
+    strapdown_step_fast(a, phi, dv, 0.005, np.float64)
     strapdown_step(b, np.array(phi), np.array(dv), 0.005, dtype=np.float64)
     for x, y in ((a.q, b.q), (a.v, b.v), (a.pos, b.pos), (a.f_n, b.f_n), (a.a_prev, b.a_prev)):
         assert x.tobytes() == y.tobytes()
 
 
 def test_float32_strapdown_is_bit_identical_to_the_numpy_float32_formulation():
-    """strapdown_step_f32 (Python floats rounded by struct, numpy for the dot / matrix products) against the
-    generic numpy path on the same float32 state, step by step."""
+    """strapdown_step_fast in float32 (Python floats rounded by struct, numpy for the dot / matrix products)
+    against the reference (numpy) on the same float32 state, step by step."""
     import firmware_model.strapdown as sd
 
     rng = np.random.default_rng(11)
@@ -106,9 +106,9 @@ def test_float32_strapdown_is_bit_identical_to_the_numpy_float32_formulation():
     a, b = state(), state()
     for k in range(500):
         phi = rng.normal(0.0, 1e-3 if k % 2 else 1e-9, 3).astype(np.float32)  # also the rv2q series branch
-        dv = (rng.normal(0.0, 1e-3, 3) + [0.0, 0.0, 9.8 * T]).astype(np.float32)
-        sd.strapdown_step_f32(a, phi.tolist(), dv.tolist(), T)
-        sd.strapdown_step_numpy(b, phi, dv, T, dtype=np.float32)
+        dv = (rng.normal(0.0, 1e-3, 3) + np.array([0.0, 0.0, 9.8 * T])).astype(np.float32)
+        sd.strapdown_step_fast(a, phi.tolist(), dv.tolist(), T, np.float32)
+        sd.strapdown_step(b, phi, dv, T, dtype=np.float32)
         for x, y in ((a.q, b.q), (a.v, b.v), (a.pos, b.pos), (a.f_n, b.f_n), (a.a_prev, b.a_prev)):
             assert x.dtype == y.dtype and x.tobytes() == y.tobytes(), k
     assert abs(a.pos[2] - 50.0) > 0.01  # the state moved
@@ -117,7 +117,7 @@ def test_float32_strapdown_is_bit_identical_to_the_numpy_float32_formulation():
 def test_navstate_float_form_builds_read_only_arrays_and_assignment_returns_to_arrays():
     s = _state()
     before = s.as_floats()
-    strapdown_step_f64(s, (1e-4, -2e-4, 3e-5), (1e-3, 2e-3, 0.049), 0.005)
+    strapdown_step_fast(s, (1e-4, -2e-4, 3e-5), (1e-3, 2e-3, 0.049), 0.005, np.float64)
     x = s.as_floats()
     assert len(x) == 16 and x != before
     assert s.q.tolist() == list(x[0:4]) and s.pos.tolist() == list(x[7:10]) and s.f_n.tolist() == list(x[13:16])

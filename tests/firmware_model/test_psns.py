@@ -1,4 +1,5 @@
-"""PSNS solve: Stokes/AOP convention (C1), E-vectors, closed-form eigen solve, solar vector accuracy."""
+"""PSNS solve: Stokes/AOP convention (docs/architecture.md "Conventions"), E-vectors, closed-form eigen solve, solar
+vector accuracy."""
 
 import math
 
@@ -16,7 +17,7 @@ from firmware_model.psns_geometry import (
 from .sky import observe_sky, rayleigh, render_mosaic
 
 DEG = math.pi / 180.0
-S_BEIJING = np.array([-0.876416, -0.282797, 0.389770])  # algorithms.md section 3 (ENU)
+S_BEIJING = np.array([-0.876416, -0.282797, 0.389770])  # docs/reference/algorithms.md section 3 (ENU)
 
 
 def _angle_deg(a, b) -> float:
@@ -31,7 +32,7 @@ def _sun_in_camera(heading_deg, pitch_deg, roll_deg, s_n=S_BEIJING):
     return s
 
 
-# -- C1 convention -----------------------------------------------------------------------------------
+# -- AOP convention ----------------------------------------------------------------------------------
 def test_stokes_and_aop_follow_the_c1_convention():
     # an E-vector projecting on the image plane at psi = 30 deg from +x towards +y
     psi = 30 * DEG
@@ -108,7 +109,7 @@ def test_noise_free_camera_below_0p001_deg(cam):
 
 
 def test_reference_camera_noise_median_below_0p05_deg():
-    """Full well 10 000 e-, 5 e- read noise, 12-bit, extinction ratio 300 (algorithms.md 2.2)."""
+    """Full well 10 000 e-, 5 e- read noise, 12-bit, extinction ratio 300 (docs/reference/algorithms.md 2.2)."""
     rng = np.random.default_rng(29)
     cam = CameraGeometry()
     errs = []
@@ -160,7 +161,7 @@ def test_too_few_points_or_isotropic_is_invalid():
     assert not psns.solve_solar_vector(e, np.array([0.01, 0.01, 0.01], dtype=np.float32)).valid  # below DOP_min
 
 
-# -- multi-unit compass geometry (C1) ------------------------------------------------------------------
+# -- multi-unit compass geometry -------------------------------------------------------------------
 def test_default_compass_geometry():
     m = compass_unit_mountings()
     assert m.shape == (9, 3, 3)

@@ -1,7 +1,9 @@
-"""The firmware's PSNS solve against the emulator's IMX250MZR camera model (C1 on both sides).
+"""The firmware's PSNS solve against the emulator's IMX250MZR camera model (the conventions of docs/architecture.md on
+both sides).
 
 The camera model (``emulator.devices.camera``, the world helper's) is independent code: if both sides
-keep CONTRACTS C1, the firmware recovers the model's true sun direction in the camera frame.
+keep the camera conventions (docs/architecture.md "Conventions"), the firmware recovers the model's true sun direction
+in the camera frame.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from firmware_model import psns  # noqa: E402
 from firmware_model.psns_geometry import CameraGeometry  # noqa: E402
 
 DEG = math.pi / 180.0
-EPOCH = dt.datetime(2019, 9, 18, 8, 14, tzinfo=dt.timezone.utc)
+EPOCH = dt.datetime(2019, 9, 18, 8, 14, tzinfo=dt.UTC)
 
 
 def _angle_deg(a, b) -> float:

@@ -27,7 +27,7 @@ def test_perfect_static_imu_stays_put_for_10_minutes(dtype):
     de = (s.pos[1] - lon) * (rn + h) * math.cos(lat)
     du = s.pos[2] - h
     err = math.sqrt(dn * dn + de * de + du * du)
-    assert err < 1.0, err  # issue 4 bound: < 1 m after 10 min static
+    assert err < 1.0, err  # strapdown accuracy bound: < 1 m after 10 min static
     p, r, y = m2att(q2mat(s.q.astype(np.float64)))
     p0, r0, y0 = m2att(cbn)
     assert abs(p - p0) < 1e-4 and abs(r - r0) < 1e-4 and abs(y - y0) < 1e-4
@@ -44,7 +44,7 @@ def test_euler_round_trip_and_heading_convention():
 
 
 def test_gravity_reference_value():
-    # algorithms.md 1.1: 39.979 deg, 50 m -> 9.801492 m/s^2
+    # docs/reference/algorithms.md 1.1: 39.979 deg, 50 m -> 9.801492 m/s^2
     assert earth.gravity(39.979 * DEG, 50.0) == pytest.approx(9.801492, abs=1e-6)
 
 
@@ -117,7 +117,7 @@ def _firmware_precision_run(duration_s: float) -> float:
     st = traj.state(0.0)
     s = NavState(mat2q(st.c_bn), st.v_enu.copy(), st.pos.copy(), a_prev=np.zeros(3))
     worst = 0.0
-    for k in range(1, int(round(duration_s / T)) + 1):
+    for k in range(1, round(duration_s / T) + 1):
         dth, dv = traj.imu_increments((k - 1) * T, k * T)
         dth, dv = dth.astype(np.float32), dv.astype(np.float32)
         dv_m = dv + np.float32(0.5) * cross3(dth, dv)
@@ -133,5 +133,5 @@ def test_firmware_precision_strapdown_follows_a_manoeuvring_trajectory_for_5_min
 
 @pytest.mark.slow
 def test_firmware_precision_strapdown_follows_a_manoeuvring_trajectory_for_10_min():
-    # issue 4: < 5 m after a 10 min manoeuvring trajectory, through the firmware's own precisions
+    # strapdown accuracy bound: < 5 m after a 10 min manoeuvring trajectory, through the firmware's own precisions
     assert _firmware_precision_run(600.0) < 5.0

@@ -1,4 +1,5 @@
-"""Grena (2012) Algorithm 5 ephemeris against SPA (pvlib) and the reference numbers of algorithms.md 3."""
+"""Grena (2012) Algorithm 5 ephemeris against SPA (pvlib) and the reference numbers of docs/reference/algorithms.md
+3."""
 
 import datetime as dt
 import math
@@ -28,16 +29,16 @@ def test_time_scale_origin_and_gregorian_rule():
     assert sun.grena_days(2100, 3, 1, 0.0) - sun.grena_days(2100, 2, 28, 0.0) == 1.0
     # and 2000-2099 leap years are: 2040-02-29 exists
     assert sun.grena_days(2040, 3, 1, 0.0) - sun.grena_days(2040, 2, 28, 0.0) == 2.0
-    t = dt.datetime(2019, 9, 18, 8, 14, 0, tzinfo=dt.timezone.utc)
+    t = dt.datetime(2019, 9, 18, 8, 14, 0, tzinfo=dt.UTC)
     assert sun.grena_days_from_datetime(t) == pytest.approx(sun.grena_days(2019, 9, 18, 8 + 14 / 60), abs=1e-9)
 
 
 @pytest.mark.parametrize(
     "lat, lon, when, s_ref",
     [
-        # algorithms.md section 3: SPA (pvlib 0.16.1) ENU sun vectors
-        (39.979, 116.339, dt.datetime(2019, 9, 18, 8, 14, tzinfo=dt.timezone.utc), [-0.876416, -0.282797, 0.389770]),
-        (37.59, 112.24, dt.datetime(2019, 12, 1, 2, 0, tzinfo=dt.timezone.utc), [0.532125, -0.757852, 0.377496]),
+        # docs/reference/algorithms.md section 3: SPA (pvlib 0.16.1) ENU sun vectors
+        (39.979, 116.339, dt.datetime(2019, 9, 18, 8, 14, tzinfo=dt.UTC), [-0.876416, -0.282797, 0.389770]),
+        (37.59, 112.24, dt.datetime(2019, 12, 1, 2, 0, tzinfo=dt.UTC), [0.532125, -0.757852, 0.377496]),
     ],
 )
 def test_reference_cases_within_0p005_deg(lat, lon, when, s_ref):
@@ -73,7 +74,7 @@ def test_against_pvlib_spa_2010_2110_below_0p01_deg():
 def test_az_el_convention_matches_vector():
     td = sun.grena_days(2019, 9, 18, 8 + 14 / 60)
     az, el = sun.sun_az_el(td, 39.979 * DEG, 116.339 * DEG)
-    assert az / DEG == pytest.approx(252.1164, abs=0.005)  # SPA, algorithms.md section 3
+    assert az / DEG == pytest.approx(252.1164, abs=0.005)  # SPA, docs/reference/algorithms.md section 3
     assert el / DEG == pytest.approx(22.9402, abs=0.005)
 
 

@@ -9,7 +9,7 @@ Rayleigh sky), written for these tests and independent of the firmware's solve:
 * MAG frames after every 2nd IMU frame (100 Hz), ``B^b = C_n^b B^n`` + white noise;
 * GNSS as UBX NAV-PVT at PPS + 50 ms (position, 3-D velocity), with glitches (offsets) and outages;
 * PSNS: ``solar_vector`` (on-sensor solve, noise per component), ``compass`` (single-direction units with
-  the C1 AOP convention, AOP noise ``sigma * dop_ref / DOP``, blocked units: DOP ~ 0, random AOP) or
+  the AOP convention, AOP noise ``sigma * dop_ref / DOP``, blocked units: DOP ~ 0, random AOP) or
   ``camera`` (POLARIZATION_OBS of a fisheye/pinhole camera: Rayleigh sky, unpolarized ground below the
   horizon, points near the sun saturated and dropped).
 
@@ -21,18 +21,25 @@ from __future__ import annotations
 import datetime as dt
 import heapq
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Iterator
 
 import numpy as np
 
-from emulator.world.sun import SunModel
 from emulator.world.build import trajectory_from_segments
+from emulator.world.sun import SunModel
 from emulator.world.trajectory import StaticTrajectory, Trajectory
 from firmware_model import earth
 from firmware_model.psns_geometry import CameraGeometry
-from protocols.imu_frame import ACCEL_VOLTS_PER_G, ADC_VOLTS_PER_LSB, FpgaStatus, ImuFrame, ImuFrameFormat, MagFrame
-from protocols.imu_frame import encode_mag_frame
+from protocols.imu_frame import (
+    ACCEL_VOLTS_PER_G,
+    ADC_VOLTS_PER_LSB,
+    FpgaStatus,
+    ImuFrame,
+    ImuFrameFormat,
+    MagFrame,
+    encode_mag_frame,
+)
 from protocols.psns import (
     CompassUnit,
     PolarizationPoint,
@@ -49,7 +56,7 @@ DEG = math.pi / 180.0
 DPH = DEG / 3600.0
 G_STD = 9.80665
 UART_HOST, UART_IMU, UART_PSNS, UART_GNSS = 0, 1, 2, 3
-EPOCH = dt.datetime(2019, 9, 18, 8, 14, 0, tzinfo=dt.timezone.utc)  # Zhang et al.'s Beijing test (16:14 local)
+EPOCH = dt.datetime(2019, 9, 18, 8, 14, 0, tzinfo=dt.UTC)  # Zhang et al.'s Beijing test (16:14 local)
 BEIJING = (39.979, 116.339, 50.0)
 
 
@@ -139,7 +146,8 @@ def field_enu(m: MagSpec) -> np.ndarray:
 
 
 def wire_aop(e_x: np.ndarray, e_y: np.ndarray) -> np.ndarray:
-    """C1: psi = atan2(E_y, E_x) (from +x towards +y), wire AOP = 90 deg - psi wrapped to (-90, 90] deg (rad)."""
+    """AOP convention: psi = atan2(E_y, E_x) (from +x towards +y), wire AOP = 90 deg - psi wrapped to (-90, 90] deg
+    (rad)."""
     a = 0.5 * math.pi - np.arctan2(e_y, e_x)
     return a - math.pi * np.ceil((a - 0.5 * math.pi) / math.pi)
 
@@ -177,7 +185,7 @@ def stream(spec: StreamSpec, seed: int = 1) -> Iterator[tuple[float, int, bytes]
     def gnss_out(tk: float) -> bool:
         return any(a <= tk < b for a, b in spec.gnss.outages)
 
-    n_imu = int(round(spec.duration_s * spec.imu_rate_hz))
+    n_imu = round(spec.duration_s * spec.imu_rate_hz)
     next_gnss = 1
     next_psns = 1.0 / spec.psns_rate_hz
     psns_seq = 0
@@ -201,9 +209,9 @@ def stream(spec: StreamSpec, seed: int = 1) -> Iterator[tuple[float, int, bytes]
         dth, dv = traj.imu_increments(t - T, t)
         w = dth / T + bg + (rng.normal(0.0, arw / math.sqrt(T), 3) if arw > 0 else 0.0)
         f = dv / T + ba + (rng.normal(0.0, vrw / math.sqrt(T), 3) if vrw > 0 else 0.0)
-        gyro = tuple(int(round(x / DEG / GYRO_RATE_LSB_DPS)) for x in w)
-        accel = tuple(int(round(fi / G_STD * vpg / ADC_VOLTS_PER_LSB)) for fi, vpg in zip(f, ACCEL_VOLTS_PER_G))
-        fr = ImuFrame(seq=k & 0xFFFF, t_trigger_us=int(round(t * 1e6)) & 0xFFFFFFFF,
+        gyro = tuple(round(x / DEG / GYRO_RATE_LSB_DPS) for x in w)
+        accel = tuple(round(fi / G_STD * vpg / ADC_VOLTS_PER_LSB) for fi, vpg in zip(f, ACCEL_VOLTS_PER_G))
+        fr = ImuFrame(seq=k & 0xFFFF, t_trigger_us=round(t * 1e6) & 0xFFFFFFFF,
                       t_pps_us=(pps_last * 1_000_000) & 0xFFFFFFFF, pps_count=pps_last & 0xFF, gyro=gyro,  # type: ignore[arg-type]
                       gyro_status=0, gyro_counter=(10 * k) & 0xFF, gyro_latency_us=500, accel=accel,  # type: ignore[arg-type]
                       fpga_status=int(FpgaStatus.PPS_VALID) if pps_last >= 1 else 0)
@@ -211,8 +219,8 @@ def stream(spec: StreamSpec, seed: int = 1) -> Iterator[tuple[float, int, bytes]
         if b_n is not None and k % 2 == 0:
             st = traj.state(t)
             m = st.c_bn.T @ b_n + rng.normal(0.0, spec.mag.noise_nt, 3)  # type: ignore[union-attr]
-            words = tuple(int(round(x / 0.1)) for x in m)
-            data += encode_mag_frame(MagFrame(seq=mag_seq & 0xFFFF, t_sample_us=int(round(t * 1e6)) & 0xFFFFFFFF,
+            words = tuple(round(x / 0.1) for x in m)
+            data += encode_mag_frame(MagFrame(seq=mag_seq & 0xFFFF, t_sample_us=round(t * 1e6) & 0xFFFFFFFF,
                                               field=words, status=0))  # type: ignore[arg-type]
             mag_seq += 1
         push(t + len(data) * 10 / 460800 + 0.0004, UART_IMU, data)
@@ -276,7 +284,7 @@ def _psns_frame(spec: StreamSpec, traj: Trajectory, sun: SunModel, t_exp: float,
                     dop[u] = abs(rng.normal(0.0, 0.003))
                     aop[u] = rng.uniform(-0.5 * math.pi, 0.5 * math.pi)
         aop = aop - math.pi * np.ceil((aop - 0.5 * math.pi) / math.pi)
-        units = [CompassUnit(i, int(round(aop[i] / DEG * 100)), int(np.clip(round(dop[i] * 65535), 0, 65535)))
+        units = [CompassUnit(i, round(aop[i] / DEG * 100), int(np.clip(round(dop[i] * 65535), 0, 65535)))
                  for i in range(len(m))]
         status = int(PsnsStatus.VALID) if np.count_nonzero(dop >= 0.05) >= 2 else int(PsnsStatus.LOW_DOP)
         hdr = PsnsHeader(seq & 0xFFFF, 10000, spec.psns_latency_us, status, len(units))
@@ -319,7 +327,7 @@ def camera_observation(cs: CameraSpec, c_nb: np.ndarray, s_n: np.ndarray, rng: n
 def camera_frame(cs: CameraSpec, c_nb: np.ndarray, s_n: np.ndarray, seq: int, latency_us: int,
                  rng: np.random.Generator | None) -> bytes:
     x, y, aop, dop = camera_observation(cs, c_nb, s_n, rng)
-    pts = [PolarizationPoint(int(a), int(b), int(round(c / DEG * 100)), int(round(d * 65535)), 2000)
+    pts = [PolarizationPoint(int(a), int(b), round(c / DEG * 100), round(d * 65535), 2000)
            for a, b, c, d in zip(x, y, aop, dop)]
     hdr = PsnsHeader(seq & 0xFFFF, 1000, latency_us, int(PsnsStatus.VALID), len(pts))
     return encode_polarization_obs(hdr, pts)

@@ -40,14 +40,16 @@ def test_master_fusion_is_the_information_weighted_mean():
 
 def _config(subfilters=("sins_gnss", "pol_mimu")) -> FirmwareConfig:
     vp = VariantParams(federated=FederatedParams(subfilters=tuple(subfilters), initial_attitude_sigma_deg=(1, 1, 1)))
-    return FirmwareConfig(filter="federated", variants=vp, initial_misalignment_deg=MISALIGNMENT, initial_heading_deg=30.0,
-                          gyro_arw_deg_rt_h=20.0 / 60.0, gyro_bias_sigma_deg_h=25.0, accel_noise_ug_rt_hz=600.0,
+    return FirmwareConfig(filter="federated", variants=vp, initial_misalignment_deg=MISALIGNMENT,
+                          initial_heading_deg=30.0, gyro_arw_deg_rt_h=20.0 / 60.0, gyro_bias_sigma_deg_h=25.0,
+                          accel_noise_ug_rt_hz=600.0,
                           accel_bias_sigma_mg=0.8, gnss_pos_sigma_h_m=2.5, gnss_pos_sigma_v_m=2.5,
                           gnss_vel_sigma_h_mps=0.1, gnss_vel_sigma_v_mps=0.1)
 
 
 def _spec(t_static: float, t_turn: float, glitch_at: float | None) -> StreamSpec:
-    traj = segment_trajectory([{"static": {"duration_s": t_static}}, {"accelerate": {"duration_s": 5, "to_speed_mps": 5}},
+    traj = segment_trajectory([{"static": {"duration_s": t_static}},
+                               {"accelerate": {"duration_s": 5, "to_speed_mps": 5}},
                                {"turn": {"angle_deg": 180.0, "rate_dps": 180.0 / t_turn}}],
                               heading_deg=30.0, duration=t_static + 5 + t_turn)
     glitches = ((glitch_at, 5.0, (60.0, -40.0, 10.0)),) if glitch_at is not None else ()
@@ -65,7 +67,7 @@ def test_a_gnss_glitch_is_isolated_at_its_first_epoch_and_readmitted_when_it_pas
     navs: dict[float, NavSolution] = {}
     dec = StreamDecoder([HostFormat()])
 
-    def on_tick(fw, r):  # noqa: ANN001
+    def on_tick(fw, r):
         for _, data, _ in r.outputs:
             for f in dec.feed(data):
                 if isinstance(f, NavSolution):

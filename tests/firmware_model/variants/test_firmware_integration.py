@@ -1,8 +1,8 @@
-"""The variants in the firmware's loop: the C3 interface unchanged for the base variant, the VARIANT block and STATUS
+"""The variants in the firmware's loop: the firmware interface (docs/architecture.md "Firmware interface") unchanged
+for the base variant, the VARIANT block and STATUS
 mode for the others, a switch by host command, and the 200 Hz cycle budget (worst tick per variant)."""
 
 from __future__ import annotations
-
 
 import pytest
 

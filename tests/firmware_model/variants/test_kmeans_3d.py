@@ -23,13 +23,23 @@ from firmware_model.variants.kmeans_3d import (
 )
 from firmware_model.variants.params import KmeansParams
 
-from .streams import CameraSpec, GnssSpec, ImuErrors, MagSpec, StreamSpec, camera_observation, field_enu, run
-from .streams import segment_trajectory
+from .streams import (
+    CameraSpec,
+    GnssSpec,
+    ImuErrors,
+    MagSpec,
+    StreamSpec,
+    camera_observation,
+    field_enu,
+    run,
+    segment_trajectory,
+)
 
 DEG = math.pi / 180.0
 TAIYUAN = (37.59, 112.24, 800.0)
-EPOCH = dt.datetime(2019, 12, 1, 2, 0, tzinfo=dt.timezone.utc)  # the paper's field test: 10:00 local
-CAM = CameraGeometry(projection="fisheye", focal_m=1.8e-3)  # all-sky fisheye (algorithms.md 2.4: f = 1.8 mm)
+EPOCH = dt.datetime(2019, 12, 1, 2, 0, tzinfo=dt.UTC)  # the paper's field test: 10:00 local
+# all-sky fisheye (docs/reference/algorithms.md 2.4: f = 1.8 mm)
+CAM = CameraGeometry(projection="fisheye", focal_m=1.8e-3)
 MAG = MagSpec(declination_deg=-5.415, inclination_deg=56.938, intensity_nt=54121.0)  # IGRF-13 at the site
 
 
@@ -104,7 +114,8 @@ def test_all_sky_images_give_pitch_and_roll_within_a_tenth_of_a_degree_or_a_refu
 
 
 def test_firmware_tilt_series_fixes_within_a_tenth_of_a_degree_and_refuses_outside_the_field():
-    traj = segment_trajectory([{"static": {"duration_s": 15}}, {"pitch": {"to_deg": -20, "rate_dps": 5, "duration_s": 15}},
+    traj = segment_trajectory([{"static": {"duration_s": 15}},
+                               {"pitch": {"to_deg": -20, "rate_dps": 5, "duration_s": 15}},
                                {"roll": {"to_deg": 5, "rate_dps": 5, "duration_s": 15}},
                                {"pitch": {"to_deg": 15, "rate_dps": 5, "duration_s": 15}},
                                {"roll": {"to_deg": -40, "rate_dps": 5, "duration_s": 20}}],
@@ -118,7 +129,7 @@ def test_firmware_tilt_series_fixes_within_a_tenth_of_a_degree_and_refuses_outsi
     fw = Firmware(cfg)
     fixes = []
 
-    def on_tick(fw, r):  # noqa: ANN001
+    def on_tick(fw, r):
         f = fw.filter
         if f.last_fix is not None and (not fixes or fixes[-1][0] != f.last_fix_t):
             st = traj.state(f.last_fix_t)

@@ -1,5 +1,5 @@
 """Event-level checks of the variant scenarios (run through the whole emulator). Until scenario event expectations
-land (issue 8), the scenario files carry nav_error/link/dsp expectations and these tests check the events:
+land (scenario expectations), the scenario files carry nav_error/link/dsp expectations and these tests check the events:
 ``psns_mode``/``psns_quality``/``measurement_rejected`` (dual-vector), ``kmeans_refused`` (K-means),
 ``gnss_isolated``/``gnss_readmitted``/``federated_mode`` (federated)."""
 
@@ -43,17 +43,17 @@ def test_dual_vector_scenario_switches_modes_with_its_sensor_blocks(tmp_path):
 
 
 def test_kmeans_scenario_refuses_when_the_sun_leaves_the_field(tmp_path):
-    summary, ev, nav = _run("kmeans_tilt_series", tmp_path, duration_s=105.0)
+    _summary, ev, nav = _run("kmeans_tilt_series", tmp_path, duration_s=105.0)
     refused = [e for e in ev if e["event"] == "kmeans_refused"]
     assert refused and refused[0]["reason"] == "sun_outside_fov" and refused[0]["t_fpga_s"] > 90.0
-    assert [e for e in ev if e["event"] == "kmeans_solved"][0]["t_fpga_s"] < 5.0
+    assert next(e for e in ev if e["event"] == "kmeans_solved")["t_fpga_s"] < 5.0
     # pitch and roll of the navigation output against truth while the Sun is in the field
     rows = [r for r in nav if r["err_pitch_deg"] and 5.0 <= float(r["time_s"]) <= 90.0]
     assert max(max(abs(float(r["err_pitch_deg"])), abs(float(r["err_roll_deg"]))) for r in rows) < 0.1
 
 
 def test_federated_scenario_isolates_the_glitch_within_two_epochs(tmp_path):
-    summary, ev, nav = _run("federated_gnss_glitch", tmp_path, duration_s=75.0,
+    _summary, ev, nav = _run("federated_gnss_glitch", tmp_path, duration_s=75.0,
                             motion=[{"static": {"duration_s": 75.0}}], expectations=[])
     iso = [e for e in ev if e["event"] == "gnss_isolated"]
     back = [e for e in ev if e["event"] == "gnss_readmitted"]
@@ -66,13 +66,14 @@ def test_federated_scenario_isolates_the_glitch_within_two_epochs(tmp_path):
 @pytest.mark.slow
 def test_sun_elevation_scenario_against_pure_sins(tmp_path, capsys):
     """The 20-minute GNSS-free scenario and the same stream navigated by the base filter (pure SINS)."""
-    from emulator.world.sun import SunModel
     import datetime as dt
+
+    from emulator.world.sun import SunModel
 
     res = {}
     for flt in ("sun_elevation", "base"):
-        summary, ev, nav = _run("sun_elevation_gnss_free", tmp_path, **{"firmware.filter": flt, "expectations": []})
-        sun = SunModel(dt.datetime(2019, 9, 18, 8, 12, tzinfo=dt.timezone.utc), 69.0)
+        _summary, _ev, nav = _run("sun_elevation_gnss_free", tmp_path, **{"firmware.filter": flt, "expectations": []})
+        sun = SunModel(dt.datetime(2019, 9, 18, 8, 12, tzinfo=dt.UTC), 69.0)
         along, hor = [], []
         for r in nav[::100]:
             if not r["err_pos_n_m"] or float(r["time_s"]) < 60.0:

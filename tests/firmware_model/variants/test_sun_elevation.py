@@ -24,7 +24,7 @@ DEG = math.pi / 180.0
     ("Taiyuan", 37.59, -21.7287, 325.0532, -0.818405, 0.455344),
 ])
 def test_alpha_beta_reproduce_the_reference_values(case, lat, dec, lha, alpha, beta):
-    """algorithms.md 1.4: declination and local hour angle from SPA (section 3) -> alpha, beta."""
+    """docs/reference/algorithms.md 1.4: declination and local hour angle from SPA (section 3) -> alpha, beta."""
     _, a, b = sun_elevation_partials(lat * DEG, math.sin(dec * DEG), math.cos(dec * DEG), lha * DEG)
     assert a == pytest.approx(alpha, abs=2e-6) and b == pytest.approx(beta, abs=2e-6)
 
@@ -33,16 +33,19 @@ def test_partials_match_finite_differences_of_the_elevation():
     lat, sd, cd, lha = 39.979 * DEG, math.sin(1.9344 * DEG), math.cos(1.9344 * DEG), 61.2708 * DEG
     h = 1e-6
     s0, a, b = sun_elevation_partials(lat, sd, cd, lha)
-    d_lat = (math.asin(sun_elevation_partials(lat + h, sd, cd, lha)[0]) - math.asin(sun_elevation_partials(lat - h, sd, cd, lha)[0])) / (2 * h)
-    d_lon = (math.asin(sun_elevation_partials(lat, sd, cd, lha + h)[0]) - math.asin(sun_elevation_partials(lat, sd, cd, lha - h)[0])) / (2 * h)
+    d_lat = (math.asin(sun_elevation_partials(lat + h, sd, cd, lha)[0])
+             - math.asin(sun_elevation_partials(lat - h, sd, cd, lha)[0])) / (2 * h)
+    d_lon = (math.asin(sun_elevation_partials(lat, sd, cd, lha + h)[0])
+             - math.asin(sun_elevation_partials(lat, sd, cd, lha - h)[0])) / (2 * h)
     assert a == pytest.approx(d_lat, abs=1e-7) and b == pytest.approx(d_lon, abs=1e-7)
     # the H row of z = sin H_c - sin H_n is cos(h) (alpha, beta): d(sin h) = cos h dh
-    d_sin = (sun_elevation_partials(lat + h, sd, cd, lha)[0] - sun_elevation_partials(lat - h, sd, cd, lha)[0]) / (2 * h)
+    d_sin = (sun_elevation_partials(lat + h, sd, cd, lha)[0]
+             - sun_elevation_partials(lat - h, sd, cd, lha)[0]) / (2 * h)
     assert d_sin == pytest.approx(math.sqrt(1 - s0 * s0) * a, abs=1e-8)
 
 
 def test_sage_husa_recovers_r_from_a_25_times_too_small_start():
-    """algorithms.md 5.1 demo: R0 = 0.16 for a true R = 4 (b = 0.95)."""
+    """docs/reference/algorithms.md 5.1 demo: R0 = 0.16 for a true R = 4 (b = 0.95)."""
     rng = np.random.default_rng(2)
     sh = SageHusaR(0.16, 0.95, 0.01, 1000.0)  # (PSINS' R_max = 100 R0 would be hit by 2-sigma innovations)
     rs = [sh.adapt(float(rng.normal(0.0, 2.0)), 0.0) for _ in range(2000)]
@@ -85,8 +88,8 @@ def test_gnss_free_sun_elevation_bounds_the_along_azimuth_error_fast():
     """Fast counterpart (6 min; near local noon, so the static drift's main, northern, direction is the Sun's
     azimuth, and a 20 deg/h gyro so that it shows within minutes)."""
     bias = (20.0, -20.0, 10.0)
-    noon = dt.datetime(2019, 9, 18, 4, 0, tzinfo=dt.timezone.utc)
-    fw, se, ev = _gnss_free("sun_elevation", 360.0, bias, 60.0, epoch=noon)
+    noon = dt.datetime(2019, 9, 18, 4, 0, tzinfo=dt.UTC)
+    fw, se, _ev = _gnss_free("sun_elevation", 360.0, bias, 60.0, epoch=noon)
     _, sins, _ = _gnss_free("base", 360.0, bias, 60.0, epoch=noon)
     r_se, r_sins = _report(se), _report(sins)
     assert r_sins["final_along_km"] > 0.3  # pure SINS runs away along the Sun's azimuth ...

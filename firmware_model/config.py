@@ -1,0 +1,119 @@
+"""The firmware's build/run-time configuration: :class:`FirmwareConfig`, the UART map and the build's filter table.
+
+UART map (docs/architecture.md, the system being emulated): UART0 host (navigation out, commands in), UART1 IMU
+frames from the FPGA, UART2 PSNS (POLARIZATION_OBS / SOLAR_VECTOR / COMPASS frames), UART3 GNSS (the FPGA's
+16550 core, read over EMIFA).
+
+:data:`FILTER_VARIANTS` is the table of filter variants built into this firmware. It lives here, below the
+filters, because the configuration validates ``FirmwareConfig.filter`` against it while every filter takes a
+:class:`FirmwareConfig`; :func:`firmware_model.filters.register_filter` fills it (the base filter and the
+variants of :mod:`firmware_model.variants`, which :mod:`firmware_model.firmware` imports).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from protocols.imu_frame import ACCEL_VOLTS_PER_G
+
+from .errors import FirmwareError
+from .psns_geometry import CameraGeometry
+from .variants.params import VariantParams
+
+__all__ = ["FILTER_VARIANTS", "UART_GNSS", "UART_HOST", "UART_IMU", "UART_PSNS", "FirmwareConfig"]
+
+UART_HOST, UART_IMU, UART_PSNS, UART_GNSS = 0, 1, 2, 3
+
+#: The filter variants of this build by ``FirmwareConfig.filter`` name: :class:`firmware_model.filters.NavFilter`
+#: subclasses, entered by :func:`firmware_model.filters.register_filter` (typed loosely here, as the filter
+#: interface sits above the configuration that selects it).
+FILTER_VARIANTS: dict[str, type[Any]] = {}
+
+
+@dataclass
+class FirmwareConfig:
+    """Firmware build/run-time parameters (units in the names)."""
+
+    clock_hz: float = 300e6
+    imu_rate_hz: float = 200.0
+    gyro_output: str = "rate"  # "rate" (2^-14 deg/s) or "angle" (2^-21 deg per sample)
+    gyro_counter_step: int = 10
+    coning_samples: int = 0  # 0: automatic (2 with angle increments, 1 with rate output), or 1 / 2
+    kf_predict_every: int = 20
+    output_rate_hz: float = 100.0
+    align_time_s: float = 2.0
+    alignment_heading: str = "auto"  # "auto", "psns" or "config"
+    psns_align_timeout_s: float = 10.0
+    psns_heading_sigma_deg: float = 0.5
+    fine_align_time_s: float = 60.0
+    initial_heading_deg: float = 0.0
+    initial_heading_sigma_deg: float = 1.0
+    precision: str = "float32"
+    #: Precision of the strapdown's attitude quaternion and velocity accumulators (D-L.1): float64 keeps
+    #: the 200 Hz increments (1e-7 rad of Earth rate per step) from being rounded away in float32.
+    nav_state_precision: str = "float64"
+    filter: str = "base"
+    accel_volts_per_g: tuple[float, float, float] = ACCEL_VOLTS_PER_G
+    # process noise (sensor specifications)
+    gyro_arw_deg_rt_h: float = 0.15
+    gyro_bias_sigma_deg_h: float = 40.0 / 3.0
+    gyro_bias_instability_deg_h: float = 20.0 / 3.0
+    accel_noise_ug_rt_hz: float = 100.0
+    accel_bias_sigma_mg: float = 7.0 / 3.0
+    accel_bias_instability_mg: float = 4.0 / 3.0
+    bias_corr_time_s: float = 600.0
+    # GNSS measurement noise (1 sigma per axis)
+    gnss_pos_sigma_h_m: float = 4.08
+    gnss_pos_sigma_v_m: float = 7.5
+    gnss_vel_sigma_h_mps: float = 0.041
+    gnss_vel_sigma_v_mps: float = 0.1
+    gnss_max_age_s: float = 1.5
+    # PSNS
+    psns_enabled: bool = True
+    psns_baud: int = 115200  # DSP UART2 baud (for the exposure time tag, docs/architecture.md "Conventions")
+    psns_bits_per_byte: int = 10
+    psns_sigma_deg: float = 0.1  # solar-vector noise per axis, 1 sigma
+    psns_dop_min: float = 0.05
+    psns_quality_max: float = 0.2
+    psns_min_sun_elevation_deg: float = 5.0
+    psns_gate_chi2: float = 16.27  # chi-square(3), alpha = 0.001 (docs/reference/algorithms.md 5.2)
+    psns_max_age_s: float = 1.0
+    camera: CameraGeometry = field(default_factory=CameraGeometry)
+    #: multi-unit compass mountings C_u^b (n, 3, 3) as the firmware knows them; None: the default 9 units
+    compass_mountings: npt.NDArray[np.float64] | None = None
+    #: misalignment (E, N, U; deg, C_b^{n'} = (I - [phi x]) C_b^n) added to the coarse alignment: reproduces a
+    #: paper's initial condition (e.g. Ge et al.: -0.9, 0.6, 0.7 deg)
+    initial_misalignment_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    #: parameters of the filter variants (:mod:`firmware_model.variants`) and their mode manager
+    variants: VariantParams = field(default_factory=VariantParams)
+
+    def __post_init__(self) -> None:
+        if self.precision not in ("float32", "float64"):
+            raise FirmwareError(f"precision must be float32 or float64, got {self.precision!r}")
+        if self.nav_state_precision not in ("float32", "float64"):
+            raise FirmwareError(f"nav_state_precision must be float32 or float64, got {self.nav_state_precision!r}")
+        if self.gyro_output not in ("rate", "angle"):
+            raise FirmwareError(f"gyro_output must be 'rate' or 'angle', got {self.gyro_output!r}")
+        if self.filter not in FILTER_VARIANTS:
+            raise FirmwareError(f"filter variant {self.filter!r} is not available in this firmware build "
+                                f"(available: {', '.join(sorted(FILTER_VARIANTS))})")
+        if self.alignment_heading not in ("auto", "psns", "config"):
+            raise FirmwareError(f"alignment_heading must be auto, psns or config, got {self.alignment_heading!r}")
+        if self.coning_samples not in (0, 1, 2):
+            raise FirmwareError(f"coning_samples must be 0 (auto), 1 or 2, got {self.coning_samples}")
+        ratio = self.imu_rate_hz / self.output_rate_hz
+        if ratio < 1 or abs(ratio - round(ratio)) > 1e-9:
+            raise FirmwareError("output_rate_hz must divide imu_rate_hz")
+        if self.kf_predict_every % self.subsamples:
+            raise FirmwareError("kf_predict_every must be a multiple of the coning subsamples")
+
+    @property
+    def subsamples(self) -> int:
+        """IMU samples per strapdown update (two-sample coning/sculling needs increments)."""
+        if self.coning_samples:
+            return self.coning_samples
+        return 2 if self.gyro_output == "angle" else 1

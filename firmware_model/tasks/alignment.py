@@ -1,0 +1,122 @@
+"""Coarse alignment glue: levelling from the mean specific force, heading from the solar vector (TRIAD) or the
+configuration, then the filter's start (mode manager COARSE_ALIGN -> FINE_ALIGN); restart on RESET_FILTER.
+
+The kernels are in :mod:`firmware_model.alignment`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from protocols.host import NavMode
+
+from .. import c674x, sun
+from ..alignment import level_from_specific_force, solar_heading_alignment
+from ..arrays import FloatArray
+from ..attitude import a2mat, heading_from_yaw, m2att, mat2q, q2mat_fast, rv2q, yaw_from_heading
+from ..nav_state import NavState
+from ..units import DEG
+from .psns import PsnsTask
+from .state import FirmwareState, TickResult
+
+__all__ = ["AlignmentTask"]
+
+
+class AlignmentTask(PsnsTask):
+    """Coarse alignment (levelling window, heading source, misalignment of a paper's initial condition)."""
+    def _align(self, t: float, f_b: FloatArray, res: TickResult) -> None:
+        cfg = self.cfg
+        if self._align_t0 is None:
+            self._align_t0 = t
+        self._align_sum += f_b
+        self._align_n += 1
+        self.meter.charge("align_accumulate", c674x.flops(0, 3))
+        if t - self._align_t0 < cfg.align_time_s or self._last_fix is None:
+            return
+        fm = self._align_sum / self._align_n
+        lat, lon, h, _ = self._last_fix
+        source = "config"
+        heading_sigma = cfg.initial_heading_sigma_deg * DEG
+        cbn = None
+        want_psns = cfg.psns_enabled and cfg.alignment_heading in ("auto", "psns")
+        if want_psns and self._align_sun and self.utc_days(t) is not None:
+            cbn, _sun_el = self._solar_alignment(fm, lat, lon)
+            if cbn is not None:
+                source = "psns"
+                heading_sigma = cfg.psns_heading_sigma_deg * DEG
+        if cbn is None and cfg.psns_enabled and cfg.alignment_heading == "psns" \
+                and t - self._align_t0 < cfg.align_time_s + cfg.psns_align_timeout_s:
+            return  # wait for a solar vector
+        pitch, roll = level_from_specific_force(fm)
+        self.meter.charge("coarse_level", self._cyc["level"])
+        if cbn is None:
+            cbn = a2mat(pitch, roll, yaw_from_heading(cfg.initial_heading_deg * DEG))
+        if any(cfg.initial_misalignment_deg):  # C_b^{n'} = rv2m(-phi) C_b^n: the computed frame is off by phi
+            cbn = q2mat_fast(rv2q(-np.asarray(cfg.initial_misalignment_deg, dtype=np.float64) * DEG)) @ cbn
+        nd = self.nav_dtype
+        self.nav = NavState(q=mat2q(cbn).astype(nd), v=np.zeros(3, dtype=nd), pos=np.array([lat, lon, h]), t=t,
+                            a_prev=np.zeros(3, dtype=nd))
+        self.filter.initialise(self.nav, heading_sigma)
+        self._heading_sigma0 = heading_sigma
+        self.state = FirmwareState.FINE_ALIGN
+        self.mode = NavMode.NAVIGATING | NavMode.ALIGNING
+        self._t_aligned = t
+        self._t_last_predict = t
+        self._gnss_pending = None
+        p, r, y = m2att(cbn)
+        res.events.append({"event": "alignment_done", "t_fpga_s": t, "pitch_deg": p / DEG, "roll_deg": r / DEG,
+                           "heading_deg": heading_from_yaw(y) / DEG, "heading_source": source,
+                           "samples": self._align_n, "solar_vectors": len(self._align_sun)})
+
+    def _drain_psns_for_alignment(self, t: float) -> None:
+        """During coarse alignment PSNS frames are solved and kept for the TRIAD heading."""
+        while self._pending_psns:
+            t_rx, f = self._pending_psns.popleft()
+            self.meter.begin("psns_update", 0.0)
+            obs = self._psns_observation(t_rx, f)
+            self.meter.end()
+            if obs is not None and self._align_t0 is not None and obs.t_exposure_s >= self._align_t0 - 1.0:
+                self._align_sun.append(obs)
+                del self._align_sun[:-32]
+
+    def _solar_alignment(self, f_b: FloatArray, lat: float, lon: float) -> tuple[FloatArray | None, float]:
+        """TRIAD from gravity and the mean solar vector of the levelling window."""
+        up = f_b / np.linalg.norm(f_b)
+        acc = np.zeros(3)
+        t_mean = 0.0
+        for o in self._align_sun:
+            s = o.s_b.astype(np.float64)
+            acc += s if float(s @ up) >= 0 else -s
+            t_mean += o.t_exposure_s
+        t_mean /= len(self._align_sun)
+        days = self.utc_days(t_mean)
+        assert days is not None
+        s_n = sun.sun_vector_enu(days, lat, lon, dtype=self.dtype).astype(np.float64)
+        self.meter.charge("sun_ephemeris", sun.ephemeris_cycles())
+        el = math.asin(max(-1.0, min(1.0, float(s_n[2]))))
+        if el < self.cfg.psns_min_sun_elevation_deg * DEG or el > 80.0 * DEG:
+            return None, el
+        try:
+            cbn, _ = solar_heading_alignment(f_b, acc / np.linalg.norm(acc), s_n)
+        except ValueError:
+            return None, el
+        self.meter.charge("triad", self._cyc["triad"])
+        return cbn, el
+
+    def _restart_alignment(self) -> None:
+        """RESET_FILTER scope 0: back to coarse alignment with a fresh filter (biases included)."""
+        self.state = FirmwareState.COARSE_ALIGN
+        self.mode = NavMode.ALIGNING
+        self.nav = None
+        self.filter = self._new_filter(self.cfg.filter)
+        self._align_sum[:] = 0.0
+        self._align_n = 0
+        self._align_t0 = None
+        self._align_sun.clear()
+        self._sub.clear()
+        self._fn_sum = [0.0, 0.0, 0.0]
+        self._fn_n = 0
+        self._hist.clear()
+        self._gnss_pending = None

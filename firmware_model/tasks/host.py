@@ -1,0 +1,128 @@
+"""The host port's task: commands (RESET_FILTER, SELECT_VARIANT, SET_OUTPUT_RATE, REQUEST_STATUS), one ACK each,
+and STATUS at 1 Hz (protocols/host.py, docs/decisions.md D-3.2)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from protocols.host import (
+    FILTER_VARIANT_NAMES,
+    Ack,
+    AckResult,
+    HostFrame,
+    HostStatus,
+    RequestStatus,
+    ResetFilter,
+    SelectVariant,
+    SetOutputRate,
+    encode_ack,
+    encode_status,
+)
+from protocols.stream import StreamDecoder
+
+from .. import c674x
+from ..config import FILTER_VARIANTS, UART_HOST
+from .alignment import AlignmentTask
+from .output import NavOutput
+from .state import TickResult
+
+__all__ = ["FW_VERSION", "HostTask"]
+
+#: Firmware version in STATUS (major << 8 | minor).
+FW_VERSION = 0x0105
+
+
+class HostTask(AlignmentTask, NavOutput):
+    """Host commands and STATUS."""
+    def _host_task(self, t: float, res: TickResult) -> None:
+        """Execute pending host commands (one ACK each) and send STATUS at 1 Hz (protocols/host.py, D-3.2)."""
+        m = self.meter
+        while self._pending_cmd:
+            c = self._pending_cmd.popleft()
+            m.charge("host_command", 40 * 4 + c674x.CALL_OVERHEAD)  # CRC + dispatch [E]
+            reply = self._command(c)
+            if reply is None:
+                continue
+            cmd_id, token, result = reply
+            if result == AckResult.ACCEPTED:
+                self.counters["commands_accepted"] += 1
+            else:
+                self.counters["commands_rejected"] += 1
+            res.outputs.append((UART_HOST, encode_ack(Ack(cmd_id, token, int(result))), m.elapsed))
+            res.events.append({"event": "host_command", "t_fpga_s": t, "command": type(c).__name__,
+                               "result": AckResult(result).name})
+            if isinstance(c, RequestStatus) and result == AckResult.ACCEPTED:
+                res.outputs.append((UART_HOST, self._status_frame(t), m.elapsed))
+        if t >= self._next_status_t:
+            self._next_status_t = math.floor(t) + 1.0
+            res.outputs.append((UART_HOST, self._status_frame(t), m.elapsed))
+
+    def _command(self, c: Any) -> tuple[int, int, int] | None:
+        """Apply one command; ``(command_id, token, AckResult)``, or None for frames that are not commands."""
+        from protocols.host import CMD_REQUEST_STATUS, CMD_RESET_FILTER, CMD_SELECT_VARIANT, CMD_SET_OUTPUT_RATE
+
+        if isinstance(c, ResetFilter):
+            if c.scope == 0:
+                self._restart_alignment()
+                return CMD_RESET_FILTER, c.token, AckResult.ACCEPTED
+            if c.scope == 1:
+                if self.nav is None:
+                    return CMD_RESET_FILTER, c.token, AckResult.NOT_ALLOWED
+                self.filter.initialise(self.nav, self._heading_sigma0)
+                return CMD_RESET_FILTER, c.token, AckResult.ACCEPTED
+            return CMD_RESET_FILTER, c.token, AckResult.BAD_ARGUMENT
+        if isinstance(c, SelectVariant):
+            names = {int(v): k for k, v in FILTER_VARIANT_NAMES.items()}
+            name = names.get(c.variant)
+            if name is None:
+                return CMD_SELECT_VARIANT, c.token, AckResult.BAD_ARGUMENT
+            if name not in FILTER_VARIANTS:
+                return CMD_SELECT_VARIANT, c.token, AckResult.NOT_ALLOWED  # not in this firmware build
+            self.filter = self._new_filter(name)
+            self.cfg.filter = name
+            if self.nav is not None:  # the new filter starts from the current navigation state
+                self.filter.initialise(self.nav, self._heading_sigma0)
+            return CMD_SELECT_VARIANT, c.token, AckResult.ACCEPTED
+        if isinstance(c, SetOutputRate):
+            r = float(c.rate_hz)
+            if r == 0.0:
+                self._out_every = 0
+                return CMD_SET_OUTPUT_RATE, c.token, AckResult.ACCEPTED
+            k = self.cfg.imu_rate_hz / r if r > 0 and math.isfinite(r) else 0.0
+            if k < 1.0 - 1e-9 or abs(k - round(k)) > 1e-6:
+                return CMD_SET_OUTPUT_RATE, c.token, AckResult.BAD_ARGUMENT
+            self._out_every = round(k)
+            return CMD_SET_OUTPUT_RATE, c.token, AckResult.ACCEPTED
+        if isinstance(c, RequestStatus):
+            return CMD_REQUEST_STATUS, c.token, AckResult.ACCEPTED
+        if isinstance(c, HostFrame) and c.msg_id >= 0x80:
+            return c.msg_id, c.payload[0] if c.payload else 0, AckResult.UNKNOWN_COMMAND
+        return None  # our own outputs echoed back, or host frames that need no answer
+
+    def _status_frame(self, t: float) -> bytes:
+        self.counters["status_frames"] += 1
+        vs = self.filter.variant_status()
+        if vs is not None:
+            self.counters.update(self.filter.counters)
+        self.meter.charge("status", 64 * 2 + 71 * 4 + c674x.CALL_OVERHEAD)  # pack + CRC-16 by table [E]
+
+        def errs(d: StreamDecoder) -> int:
+            st = d.stats
+            return st.crc_errors + st.length_errors + st.parse_errors
+
+        st = HostStatus(
+            seq=self._status_seq, time_s=t, filter_variant=self.filter.variant_id, mode=int(self.mode),
+            output_rate_hz=self.cfg.imu_rate_hz / self._out_every if self._out_every else 0.0,
+            gnss_status=self._last_fix[3] if self._last_fix is not None else 0,
+            psns_status=self._psns_status_now(t), cpu_load_pct=self.cpu_load_pct(),
+            cpu_load_max_pct=100.0 * self._load_max / self.meter.tick_budget, fw_version=FW_VERSION,
+            deadline_misses=self.deadline_misses,
+            uart1_frames=self._dec_imu.stats.frames, uart1_errors=errs(self._dec_imu),
+            uart2_frames=self._dec_psns.stats.frames, uart2_errors=errs(self._dec_psns),
+            uart3_frames=self._dec_gnss.stats.frames, uart3_errors=errs(self._dec_gnss),
+            commands_accepted=self.counters["commands_accepted"], commands_rejected=self.counters["commands_rejected"],
+            variant_mode=vs[0] if vs is not None else 0,
+        )
+        self._status_seq += 1
+        return encode_status(st)

@@ -1,0 +1,120 @@
+"""PSNS staging and update: exposure time of a frame, solve (POLARIZATION_OBS), body frame, solar-vector update.
+
+A frame's mid-exposure time comes from the reception time of its last byte, its length on the wire and the
+sensor's declared latency (docs/architecture.md, section "Conventions"; docs/decisions.md D-5.8).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from protocols.psns import CompassFrame, PolarizationObs, PsnsStatus, SolarVectorFrame
+
+from .. import c674x, psns, sun
+from ..attitude import q2mat_fast
+from ..filters import SolarObservation, UpdateReport
+from ..units import DEG
+from .navigation import Navigation
+
+__all__ = ["PsnsTask", "psns_frame_len"]
+
+
+def psns_frame_len(f: Any) -> int:
+    """Wire length of a decoded PSNS frame (sync, id, length, header, body, CRC)."""
+    if isinstance(f, PolarizationObs):
+        return 7 + 13 + 10 * len(f.points)
+    if isinstance(f, CompassFrame):
+        return 7 + 13 + 5 * len(f.units)
+    return 7 + 13 + 16
+
+
+class PsnsTask(Navigation):
+    """Decode-side work and measurement update of the PSNS frames (UART2)."""
+
+    def _psns_frame_in(self, t_rx: float, f: Any) -> float:
+        """Count and charge a decoded PSNS frame; return its mid-exposure time (docs/architecture.md "Conventions",
+        docs/decisions.md D-5.8)."""
+        cfg = self.cfg
+        self.counters["psns_frames"] += 1
+        if isinstance(f, CompassFrame):
+            self.counters["compass_frames"] += 1
+        n_bytes = psns_frame_len(f)
+        self.meter.charge("psns_decode", n_bytes * 4 + c674x.CALL_OVERHEAD)  # CRC-16 by table + copy [E]
+        return psns.exposure_time_s(t_rx, n_bytes, cfg.psns_baud, f.header.latency_us, cfg.psns_bits_per_byte)
+
+    def _psns_observation(self, t_rx: float, f: Any) -> SolarObservation | None:
+        """Decode-side work for one PSNS frame: exposure time, solve (POLARIZATION_OBS), body frame."""
+        cfg = self.cfg
+        m = self.meter
+        dt = self.dtype
+        t_exp = self._psns_frame_in(t_rx, f)
+        if isinstance(f, CompassFrame):
+            return None
+        h = f.header
+        if not h.status & PsnsStatus.VALID:
+            self.counters["psns_invalid"] += 1
+            return None
+        cam = cfg.camera
+        if isinstance(f, PolarizationObs):
+            n = len(f.points)
+            if n < 3:
+                self.counters["psns_invalid"] += 1
+                return None
+            pts = np.array([(p.x_px, p.y_px, p.aop_cdeg, p.dop) for p in f.points], dtype=np.float64)
+            aop = (pts[:, 2] * (0.01 * DEG)).astype(dt)
+            dop = (pts[:, 3] * (1.0 / 65535.0)).astype(dt)
+            e = psns.evectors_camera(pts[:, 0], pts[:, 1], aop, cam, dtype=dt)
+            sol = psns.solve_solar_vector(e, dop, cfg.psns_dop_min, max_quality=cfg.psns_quality_max)
+            m.charge("psns_evectors", psns.evector_cycles(n, self.cost))
+            m.charge("psns_solve", psns.solve_cycles(n, self.cost))
+            if not sol.valid:
+                self.counters["psns_invalid"] += 1
+                return None
+            s_c, quality, n_used, source = sol.s, sol.quality, sol.n_used, "camera"
+        elif isinstance(f, SolarVectorFrame):
+            s_c = np.array(f.s, dtype=dt)
+            nrm = float(np.sqrt(s_c @ s_c))
+            if not (0.5 < nrm < 1.5) or f.quality > cfg.psns_quality_max:
+                self.counters["psns_invalid"] += 1
+                return None
+            s_c = s_c / dt(nrm)
+            quality, n_used, source = float(f.quality), h.count, "sensor"
+            m.charge("psns_normalise", self._cyc["normalise"])
+        else:
+            return None
+        self.counters["psns_solutions"] += 1
+        s_b = (cam.c_c_b.astype(dt) @ s_c).astype(dt)
+        m.charge("psns_mounting", self._cyc["mounting"])
+        return SolarObservation(t_exp, s_b, quality, n_used, source)
+
+    def _psns_update(self, t: float, t_rx: float, f: Any) -> UpdateReport | None:
+        """One pending PSNS frame after the coarse alignment (the navigation state exists)."""
+        cfg = self.cfg
+        nav = self.nav
+        assert nav is not None
+        if isinstance(f, CompassFrame):
+            t_exp = self._psns_frame_in(t_rx, f)
+            return self.filter.update_compass(nav, f, t_exp) if cfg.psns_enabled else None
+        if self.filter.raw_polarization_obs and isinstance(f, PolarizationObs):
+            t_exp = self._psns_frame_in(t_rx, f)
+            if not cfg.psns_enabled or t - t_exp > cfg.psns_max_age_s:
+                return None
+            return self.filter.update_polarization_obs(nav, f, t_exp)
+        obs = self._psns_observation(t_rx, f)
+        if obs is None or not cfg.psns_enabled:
+            return None
+        if t - obs.t_exposure_s > cfg.psns_max_age_s:
+            return None
+        days = self.utc_days(obs.t_exposure_s)
+        if days is None:
+            return None
+        p_ins, _, q_exp = self._ins_at(obs.t_exposure_s)
+        s_n = sun.sun_vector_enu(days, float(p_ins[0]), float(p_ins[1]), dtype=self.dtype)
+        self.meter.charge("sun_ephemeris", sun.ephemeris_cycles())
+        if float(s_n[2]) < math.sin(cfg.psns_min_sun_elevation_deg * DEG):
+            self.counters["psns_sun_low"] += 1  # night or twilight: not an error, no update
+            return None
+        return self.filter.update_solar(nav, obs, s_n, q2mat_fast(q_exp))

@@ -1,0 +1,125 @@
+"""The cyclic executive's shared state: mode-manager states, :class:`TickResult` and :class:`LoopState`.
+
+:class:`LoopState` declares, once, every attribute the tasks share (``Firmware.__init__`` sets them); the task
+classes derive from it so that each task module is type-checked against the same declarations.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import struct
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from protocols.host import NavMode
+from protocols.imu_frame import ImuFrame, MagFrame
+from protocols.stream import StreamDecoder
+
+from .. import c674x
+from ..arrays import FloatArray, FloatDtype
+from ..config import FirmwareConfig
+from ..filters import GnssMeasurement, NavFilter, SolarObservation
+from ..nav_state import NavFloats, NavState
+
+__all__ = ["FirmwareState", "LoopState", "TickResult"]
+
+
+class FirmwareState:
+    """Mode-manager states."""
+
+    COARSE_ALIGN = "coarse_align"
+    FINE_ALIGN = "fine_align"
+    NAVIGATE = "navigate"
+
+
+@dataclass
+class TickResult:
+    """What one run of the cyclic executive produced.
+
+    ``cycles`` is the total charged; each output is ``(uart, bytes, cycles_at_emit)``.
+    """
+
+    t_fpga_s: float
+    cycles: int
+    outputs: list[tuple[int, bytes, int]] = field(default_factory=list)
+    events: list[dict[str, Any]] = field(default_factory=list)
+
+
+class LoopState:
+    """The state of the loop that its tasks share (set by ``Firmware.__init__``; units in the comments)."""
+
+    cfg: FirmwareConfig
+    #: working precision of the filters and kernels; ``nav_dtype``: of the strapdown state (q, v)
+    dtype: FloatDtype
+    nav_dtype: FloatDtype
+    meter: c674x.CycleMeter
+    cost: c674x.KernelCosts
+    counters: dict[str, int]
+    deadline_misses: int
+    # per-tick kernel cycles (firmware.tick_kernel_cycles) and IMU conversion constants
+    _cyc: dict[str, int]
+    _cyc_decode: int
+    _cyc_convert: int
+    _cyc_coning1: int
+    _cyc_strapdown: int
+    T: float  # IMU sample interval, s
+    _nsub: int  # IMU samples per strapdown update
+    _gyro_k: float
+    _T_w: float
+    _kv: float
+    _round3: struct.Struct
+    _pack6: Callable[..., bytes]
+    _unpack6: Callable[[bytes], tuple[Any, ...]]
+    _bias_cache: tuple[Any, Any, tuple[float, ...]]
+    _out_every: int  # IMU ticks per NAV_SOLUTION (0: off)
+    # UART decoders and what they staged
+    _dec_imu: StreamDecoder
+    _dec_gnss: StreamDecoder
+    _dec_host: StreamDecoder
+    _dec_psns: StreamDecoder
+    _pending_cmd: deque[Any]
+    _pending_imu: deque[ImuFrame]
+    _pending_psns: deque[tuple[float, Any]]  # (t_rx_s, frame)
+    _rx_other: dict[int, int]
+    last_mag: MagFrame | None
+    _mag_hist: deque[tuple[float, tuple[int, int, int]]]  # (t_sample_s, field)
+    # time keeping (FPGA time base; UTC from GNSS)
+    _t_last_us: int | None
+    _t_epoch_us: int
+    _t_pps_s: float | None
+    _pps_count: int | None
+    _last_counter: int | None
+    _utc_days_ref: float | None  # Grena days (UT) at _utc_t_ref
+    _utc_t_ref: float
+    _date: _dt.date | None
+    # mode manager and alignment
+    state: str
+    mode: NavMode
+    _align_sum: FloatArray
+    _align_n: int
+    _align_t0: float | None
+    _align_sun: list[SolarObservation]
+    _t_aligned: float
+    _t_last_predict: float
+    _heading_sigma0: float
+    # navigation
+    nav: NavState | None
+    filter: NavFilter
+    _tick: int
+    _sub: list[tuple[FloatArray, FloatArray]]
+    _fn_sum: list[float]  # sum of f^n over the KF interval (Python floats, float64)
+    _fn_n: int
+    _hist: deque[tuple[float, NavFloats]]  # INS history: (t, NavState.as_floats())
+    _gnss_pending: GnssMeasurement | None
+    _last_fix: tuple[float, float, float, int] | None  # (lat rad, lon rad, h m, quality)
+    _last_gnss_update_t: float
+    _last_psns_t: float
+    _last_psns_reject_t: float
+    # output and status
+    _out_seq: int
+    _load_window: deque[tuple[float, int]]
+    _load_max: int
+    _next_status_t: float
+    _status_seq: int

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-PACKAGES = ("protocols",)
+PACKAGES = ("protocols", "firmware_model", "emulator")
 
 
 def _cases() -> list[Any]:

@@ -43,6 +43,7 @@ from ..devices.imu import Stim210Gyro
 from ..devices.sensors import build_sensors
 from ..dsp.firmware_setup import build_firmware
 from ..dsp.host import UartRxConfig, VirtualDsp, WatchdogConfig
+from ..faults.targets import FaultTargets
 from ..links import LineConfig, Link, MemHub, open_link, parse_link_url, parse_mode
 from ..recording.recorder import CaptureRecord, Recorder
 from ..scenario.schema import LinkSpec, Scenario
@@ -256,7 +257,7 @@ class Emulator:
         if scn.faults and self.replay is None:  # bound now: a fault on a missing device fails before the run
             from ..faults import FaultScheduler
 
-            self.faults = FaultScheduler(self, scn.faults, self.seed, rec)
+            self.faults = FaultScheduler(self.fault_targets(), scn.faults, self.seed, rec)
         # recorder taps
         for name, link in self.links.items():
             fm = port_formats(name)
@@ -290,6 +291,17 @@ class Emulator:
         if self.progress is not None:
             self._progress_tick()
         self._started = True
+
+    def fault_targets(self) -> FaultTargets:
+        """What the scenario's faults may touch (:mod:`emulator.faults`): sensors, links, FPGA, DSP."""
+        assert self.loop is not None
+        return FaultTargets(clock=self.loop, duration_s=self.scn.duration_s, imu_rate_hz=self.scn.sensors.imu.rate_hz,
+                            source_file=self.scn.source_file, sensors=self.sensors, links=self.links, fpga=self.fpga,
+                            dsp=self.dsp, firmware_counters=self._firmware_counters)
+
+    def _firmware_counters(self) -> dict[str, int]:
+        fw = self.fw
+        return getattr(fw, "counters", {}) if fw is not None else {}
 
     def build_dsp(self, uart_dsp: dict[int, Link], rx_cfg: dict[int, UartRxConfig], events: Any) -> VirtualDsp:
         """The virtual DSP hosting this scenario's firmware on ``uart_dsp`` (also used by a split run's DSP

@@ -178,7 +178,7 @@ def test_gyro_datagram_drop_probability_and_counter_gap():
 
 def test_bit_errors_flip_bits_at_the_configured_rate():
     """The injector's bit-error count over many bytes follows Binomial(n bits, BER)."""
-    from emulator.faults import _LinkBitErrors
+    from emulator.faults.link import LinkBitErrors
     from emulator.links import LineConfig, MemHub
     from emulator.scenario.checks_schema import LinkBitErrorsFault
 
@@ -189,7 +189,7 @@ def test_bit_errors_flip_bits_at_the_configured_rate():
     a, _b = MemHub().pair("gnss", LineConfig(baud=9600), loop)
     Emu.links = {"gnss": a}
     spec = LinkBitErrorsFault(link="gnss", ber=1e-3)
-    inj = _LinkBitErrors(Emu, "link_bit_errors", spec, 0, np.random.default_rng(3))
+    inj = LinkBitErrors(Emu, "link_bit_errors", spec, 0, np.random.default_rng(3))
     data = bytes(range(256)) * 400  # 102 400 bytes, 1 024 000 bits on the wire
     out = b"".join(inj.apply(a, "in", 0.0, data[i:i + 100]) for i in range(0, len(data), 100))
     loop.close()

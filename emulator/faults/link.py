@@ -7,7 +7,8 @@ from typing import Any
 
 import numpy as np
 
-from ..links.base import LineConfig, Link
+from ..links.base import Link
+from ..links.line import LineConfig
 from .base import Injector, bind_error
 from .targets import FaultTargets
 

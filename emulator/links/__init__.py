@@ -27,7 +27,8 @@ from typing import Any
 from urllib.parse import parse_qsl, urlsplit
 
 from ..errors import LinkConfigError
-from .base import ByteFault, LineConfig, LineModel, Link, LinkListener, LinkStats, parse_mode
+from .base import ByteFault, Link, LinkListener, LinkStats
+from .line import LineConfig, LineModel, parse_mode
 from .mem import MemHub, MemLink
 
 __all__ = [

@@ -40,7 +40,8 @@ from protocols.host import HostFormat, NavSolution
 from protocols.stream import StreamDecoder
 
 from ..errors import LinkBrokenError, LinkConfigError
-from .base import LineConfig, Link
+from .base import Link
+from .line import LineConfig
 
 __all__ = ["CanLink", "CAN_OPTIONS", "default_dbc_path", "nav_signal_values", "NavCanEncoder",
            "DefaultNavCanEncoder", "DbcNavCanEncoder"]

@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 from collections import deque
 
-from .base import LineConfig
+from .line import LineConfig
 
 __all__ = ["UartReceiver", "uart_compatible", "baud_tolerance"]
 

@@ -16,7 +16,8 @@ from __future__ import annotations
 import asyncio
 
 from ..errors import LinkConfigError
-from .base import LineConfig, Link
+from .base import Link
+from .line import LineConfig
 
 __all__ = ["MemLink", "MemHub"]
 

@@ -36,7 +36,8 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import LinkConfigError
-from .base import LineConfig, Link
+from .base import Link
+from .line import LineConfig
 
 __all__ = ["PtyLink", "ATTACH_POLL_S"]
 

@@ -55,7 +55,8 @@ from protocols.host import HostFormat, NavMode, NavSolution
 from protocols.stream import StreamDecoder
 
 from ..errors import LinkBrokenError, LinkConfigError
-from .base import LineConfig, Link
+from .base import Link
+from .line import LineConfig
 
 __all__ = [
     "ZenohLink",

@@ -31,7 +31,7 @@ HOMES: tuple[tuple[str, str], ...] = (
     ("/firmware_model/", "firmware (firmware_model)"),
     ("/protocols/", "protocols (frame build / stream decode)"),
     ("/emulator/world/", "world / truth (trajectory, sun, sky)"),
-    ("/emulator/devices/imu.py", "device: IMU (STIM210 + accelerometers)"),
+    ("/emulator/devices/imu/", "device: IMU (STIM210 + accelerometers)"),
     ("/emulator/devices/gnss.py", "device: GNSS receiver"),
     ("/emulator/devices/camera.py", "device: camera (PSNS)"),
     ("/emulator/devices/compass.py", "device: compass"),

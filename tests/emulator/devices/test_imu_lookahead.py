@@ -1,6 +1,6 @@
 """The IMU models' look-ahead (issue 10) gives bit for bit the per-interval path's output.
 
-:func:`emulator.devices.imu._measure_ahead` computes the measured means of the coming trigger
+:func:`emulator.devices.imu.lookahead.measure_ahead` computes the measured means of the coming trigger
 intervals in one vectorised pass. The reference is the same device with the look-ahead switched
 off: on a moving trajectory (turns, acceleration: the truth changes every interval), with every
 error term of the ``paper`` preset, injected faults switched on and off mid-block, and a break

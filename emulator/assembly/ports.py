@@ -11,12 +11,13 @@ from typing import Any
 
 from firmware_model import UART_GNSS, UART_HOST, UART_IMU, UART_PSNS
 from protocols.host import HostFormat
-from protocols.imu_frame import ImuFrameFormat
+from protocols.imu_frame import FpgaFrameFormat
+from protocols.monitor import MonitorFormat
 from protocols.nmea import NmeaFormat
 from protocols.psns import PsnsFormat
 from protocols.stim import Stim210Format
+from protocols.ubx import UbxFormat
 
-from ..devices.fpga import monitor_api
 from ..links import LineConfig, parse_link_url, parse_mode
 from ..scenario.schema import LinkSpec, Scenario
 
@@ -48,37 +49,20 @@ PORT_BAUD = {"gyro": 460800, "gnss": 9600, "host": 460800, "psns": 115200, "moni
 EMIFA_BYTE_TIME_S = 1e-7
 
 
-
 def port_formats(name: str) -> dict[str, list[Any]]:
     """Stream-decoder formats per direction for a port / UART name (recorder, monitor, tests)."""
     host = {"out": [HostFormat()], "in": [HostFormat()]}
     table: dict[str, dict[str, list[Any]]] = {
         "gyro": {"in": [Stim210Format("m")]},
-        "gnss": {"in": [NmeaFormat()]},
+        "gnss": {"in": [NmeaFormat(), UbxFormat()]},  # UBX may follow the NMEA sentences
         "psns": {"in": [PsnsFormat()]},
         "host": host,
+        "monitor": {"out": [MonitorFormat()]},
         "uart0": host,
-        "uart1": {"in": [ImuFrameFormat()]},
+        "uart1": {"in": [FpgaFrameFormat()]},  # IMU frames and MAG frames (docs/icd.md)
         "uart2": {"in": [PsnsFormat()]},
-        "uart3": {"in": [NmeaFormat()]},
+        "uart3": {"in": [NmeaFormat(), UbxFormat()]},
     }
-    api = monitor_api()
-    if api is not None:
-        from protocols.monitor import MonitorFormat
-
-        table["monitor"] = {"out": [MonitorFormat()]}
-    try:  # C2: UART1 carries MAG frames too
-        from protocols.imu_frame import FpgaFrameFormat  # type: ignore[attr-defined]
-
-        table["uart1"] = {"in": [FpgaFrameFormat()]}
-    except ImportError:
-        pass
-    try:  # a GNSS port may carry UBX after the NMEA sentences
-        from protocols.ubx import UbxFormat  # type: ignore[import-not-found]
-
-        table["gnss"] = table["uart3"] = {"in": [NmeaFormat(), UbxFormat()]}
-    except ImportError:
-        pass
     return {d: list(f) for d, f in table.get(name, {}).items()}
 
 

@@ -39,37 +39,22 @@ __all__ = ["PROTOCOLS", "formats_for", "describe_frame", "FrameRow", "Monitor", 
 
 def _protocol_table() -> dict[str, Callable[[str], list[Any]]]:
     from protocols.host import HostFormat
-    from protocols.imu_frame import ImuFrameFormat
+    from protocols.imu_frame import FpgaFrameFormat
+    from protocols.monitor import MonitorFormat
     from protocols.nmea import NmeaFormat
     from protocols.psns import PsnsFormat
     from protocols.stim import Stim210Format
+    from protocols.ubx import UbxFormat
 
-    table: dict[str, Callable[[str], list[Any]]] = {
+    return {
         "host": lambda arg: [HostFormat()],
-        "imu": lambda arg: [ImuFrameFormat()],
+        "imu": lambda arg: [FpgaFrameFormat()],
         "stim210": lambda arg: [Stim210Format(arg or "m")],
         "nmea": lambda arg: [NmeaFormat()],
         "psns": lambda arg: [PsnsFormat()],
+        "ubx": lambda arg: [UbxFormat()],
+        "monitor": lambda arg: [MonitorFormat()],
     }
-    try:
-        from protocols.ubx import UbxFormat
-
-        table["ubx"] = lambda arg: [UbxFormat()]
-    except ImportError:
-        pass
-    try:
-        from protocols.monitor import MonitorFormat
-
-        table["monitor"] = lambda arg: [MonitorFormat()]
-    except ImportError:
-        pass
-    try:
-        from protocols.imu_frame import FpgaFrameFormat  # type: ignore[attr-defined]
-
-        table["imu"] = lambda arg: [FpgaFrameFormat()]
-    except ImportError:
-        pass
-    return table
 
 
 #: protocol names accepted by ``--protocol`` (besides ``auto``)

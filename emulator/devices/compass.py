@@ -5,8 +5,8 @@ Each unit u is a single-direction polarization analyser (contract C1): its view 
 unit's x, y, z axes in body coordinates) is its mounting matrix. The default geometry (unit 0 at
 the zenith, 8 units on a ring at zenith angle 45 deg every 45 deg of azimuth from body +y towards
 +x, each ring unit's +y axis up the hemisphere) is the one of ``firmware_model.psns_geometry``;
-this module uses that shared definition when the firmware package provides it and otherwise
-builds the identical matrices itself (:func:`default_mountings`; a test checks they agree).
+this module uses that shared definition (:func:`default_mountings`) and keeps its own construction of
+the identical matrices, which a test checks against it.
 
 Measurement model: a unit sees the sky polarization along its ray (``emulator.world.sky``),
 analyses it with four polarizers (0/45/90/135 deg, extinction ratio ``ER``) and reports Stokes ->
@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from firmware_model.psns_geometry import compass_unit_mountings
 from protocols.psns import CompassUnit, PsnsHeader, PsnsStatus, encode_compass
 
 from ..links.base import Link
@@ -62,11 +63,7 @@ def _own_mountings() -> np.ndarray:
 
 
 def default_mountings() -> np.ndarray:
-    """``C_u^b`` of the 9 default units, (9, 3, 3): the shared firmware definition when available."""
-    try:
-        from firmware_model.psns_geometry import compass_unit_mountings
-    except ImportError:
-        return _own_mountings()
+    """``C_u^b`` of the 9 default units, (9, 3, 3): the shared firmware definition."""
     return np.asarray(compass_unit_mountings(), dtype=np.float64)
 
 

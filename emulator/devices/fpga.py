@@ -33,16 +33,16 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from protocols.imu_frame import ADC_CODE_MAX, FpgaStatus, ImuFrame, ImuFrameFormat
+from protocols.imu_frame import ADC_CODE_MAX, FpgaStatus, ImuFrame, ImuFrameFormat, MagFrame, encode_mag_frame
+from protocols.monitor import MONITOR_CHANNELS, MONITOR_MAX_DATA, MonitorRecord, encode_monitor
 from protocols.stim import Stim210Format
 from protocols.stream import StreamDecoder
 
-from ..errors import EmulatorError
 from ..links.base import Link
 from .base import EventSink, NullEvents
 from .imu import AnalogAccelerometers, Stim210Gyro
 
-__all__ = ["FpgaConfig", "VirtualFpga", "DEFAULT_ROUTING", "MONITOR_DIRECTIONS", "monitor_api"]
+__all__ = ["FpgaConfig", "VirtualFpga", "DEFAULT_ROUTING", "MONITOR_DIRECTIONS"]
 
 #: external port -> DSP UART (DESIGN.md section 2: PSNS = RS232 -> UART2, GNSS = RS422 -> UART3)
 DEFAULT_ROUTING = {"host": "uart0", "psns": "uart2", "gnss": "uart3"}
@@ -63,25 +63,6 @@ class FpgaConfig:
 
 #: (link end held by the FPGA, link direction) -> monitor direction (C2: 0 towards the DSP, 1 away)
 MONITOR_DIRECTIONS = {("port", "in"): 0, ("port", "out"): 1, ("uart", "out"): 0, ("uart", "in"): 1}
-
-
-def mag_api() -> tuple[Any, Any] | None:
-    """``(MagFrame, encode_mag_frame)`` from :mod:`protocols.imu_frame` (C2), or None without them."""
-    try:
-        from protocols.imu_frame import MagFrame, encode_mag_frame  # type: ignore[attr-defined]
-    except ImportError:
-        return None
-    return MagFrame, encode_mag_frame
-
-
-def monitor_api() -> tuple[Any, Any, dict[str, int]] | None:
-    """``(MonitorRecord, encode_monitor, MONITOR_CHANNELS)`` from :mod:`protocols.monitor` (C2),
-    or None while that module is not part of this build."""
-    try:
-        from protocols.monitor import MONITOR_CHANNELS, MonitorRecord, encode_monitor
-    except ImportError:
-        return None
-    return MonitorRecord, encode_monitor, dict(MONITOR_CHANNELS)
 
 
 class _MonitorTap:
@@ -149,26 +130,18 @@ class VirtualFpga:
         self.mag = mag
         self.mag_frames = 0
         self._mag_seq = 0
-        self._mag_api = mag_api() if mag is not None else None
+        self._mag_api = (MagFrame, encode_mag_frame) if mag is not None else None
         self._mag_pending: bytes | None = None
         self._mag_div = max(1, int(round(cfg.imu_rate_hz / cfg.mag_rate_hz)))
         self._mag_channel: int | None = None
-        if mag is not None and self._mag_api is None:
-            self.events.emit(0.0, "fpga", "mag_frames_unavailable",
-                             reason="protocols.imu_frame has no MagFrame (CONTRACTS C2) in this build")
         self.monitor = monitor
         self.monitor_records = 0
         self._mon_record: Any = None
         self._mon_encode: Any = None
         self._mon_max = 1 << 30
         if monitor is not None:
-            api = monitor_api()
-            if api is None:
-                raise EmulatorError("links.monitor needs protocols.monitor (CONTRACTS C2), which this build lacks")
-            self._mon_record, self._mon_encode, channels = api
-            import protocols.monitor as _pm
-
-            self._mon_max = int(getattr(_pm, "MONITOR_MAX_DATA", 1 << 30))
+            self._mon_record, self._mon_encode, channels = MonitorRecord, encode_monitor, dict(MONITOR_CHANNELS)
+            self._mon_max = int(MONITOR_MAX_DATA)
             wanted = set(cfg.monitor_channels) if cfg.monitor_channels is not None else None
             if "mag" in channels and (wanted is None or "mag" in wanted):
                 self._mag_channel = channels["mag"]

@@ -9,11 +9,9 @@
 * PPS rising edges latch the counter (``t_pps_us``, ``pps_count``), carried in every IMU frame.
 * A magnetometer (when the scenario has one) is sampled on every ``imu_rate / mag_rate_hz``-th
   trigger (100 Hz by default, the ICD's budget); its MAG frame
-  (:class:`protocols.imu_frame.MagFrame`, CONTRACTS C2: sequence, trigger time stamp, field in
+  (:class:`protocols.imu_frame.MagFrame`, docs/icd.md: sequence, trigger time stamp, field in
   0.1 nT, status) follows that trigger's IMU frame on UART1 and is mirrored on the MONITOR
-  port's ``mag`` channel. This needs the C2 MAG frame in
-  :mod:`protocols.imu_frame`; without it no MAG frame is sent and a ``mag_frames_unavailable``
-  event says so once.
+  port's ``mag`` channel.
 * Byte routing (the crossbar, scenario ``fpga.routing``): each external serial port is
   forwarded to its DSP UART and back, cut-through (a byte leaves as soon as it has arrived and
   the output line is free). Baud conversion happens because the two sides are separate links

@@ -18,6 +18,15 @@ scenario clock in seconds since scenario start.
     spacing and the loop catches up: asyncio alone would run every overdue timer in one batch,
     and a sensor datagram scheduled during the batch would land after the FPGA's timeout for it.
 
+Fast path. In fast mode with no file descriptor of its own, the loop runs batches of iterations
+(:meth:`EmulatorLoop._run_fast`) instead of asyncio's ``BaseEventLoop._run_once``, and ``call_at``
+builds lighter timer handles: both re-implement asyncio steps on CPython's private fields
+(``_scheduled``, ``_ready``, the timer handles' slots). They are used only on the CPython versions in
+:data:`FAST_PATH_VERSIONS`, where those fields were checked, and only when the fields are really there
+(:func:`fast_path_supported`); elsewhere the loop runs asyncio's own iteration and ``call_at``, with the
+same results, more slowly. (The virtual clock itself needs only the timer heap, ``_scheduled``, and its
+handles' ``_when``, which every asyncio since 3.4 has.)
+
 Devices use only ``loop.time()`` and ``loop.call_at()`` / ``asyncio.sleep``, so the same code
 runs in both modes. :func:`sleep_until` waits for an absolute scenario time without the drift
 that repeated relative sleeps accumulate.
@@ -28,12 +37,36 @@ from __future__ import annotations
 import asyncio
 import heapq
 import selectors
+import sys
 import time as _time
 from asyncio import events as _events
 from contextvars import copy_context as _copy_context
 from typing import Any
 
-__all__ = ["EmulatorLoop", "new_loop", "sleep_until"]
+__all__ = ["FAST_PATH_VERSIONS", "EmulatorLoop", "fast_path_supported", "new_loop", "sleep_until"]
+
+#: CPython versions whose asyncio internals the fast path was checked against (the steps of
+#: ``BaseEventLoop._run_once``, the fields of ``TimerHandle``); 3.11 is the version the project is tested on.
+FAST_PATH_VERSIONS: frozenset[tuple[int, int]] = frozenset({(3, 11)})
+#: private loop fields the fast path reads and writes
+_LOOP_FIELDS = ("_scheduled", "_ready", "_stopping", "_timer_cancelled_count", "_clock_resolution", "_debug", "_closed")
+#: private timer-handle fields :class:`_Timer` sets and the fast path reads
+_HANDLE_FIELDS = ("_context", "_loop", "_callback", "_args", "_cancelled", "_repr", "_source_traceback", "_when",
+                  "_scheduled")
+
+
+def fast_path_supported(loop: asyncio.AbstractEventLoop) -> bool:
+    """True when ``loop`` may take the fast path: a CPython version of :data:`FAST_PATH_VERSIONS` whose
+    event loop and timer handles have the private fields the fast path uses."""
+    if sys.implementation.name != "cpython" or sys.version_info[:2] not in FAST_PATH_VERSIONS:
+        return False
+    slots: set[str] = set()
+    for cls in _events.TimerHandle.__mro__:
+        s = cls.__dict__.get("__slots__", ())
+        slots.update((s,) if isinstance(s, str) else s)
+    return (callable(getattr(asyncio.BaseEventLoop, "_run_once", None))
+            and all(f in slots for f in _HANDLE_FIELDS)
+            and all(hasattr(loop, f) for f in _LOOP_FIELDS))
 
 
 class _ClockSelector(selectors.BaseSelector):
@@ -164,8 +197,11 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
         self._now = 0.0
         self._wall0 = _time.monotonic()
         self._cap: float | None = None  # realtime: the overdue instant this iteration runs
+        self.fast_path = False  # decided below, once asyncio has set up its fields
         super().__init__(selector=_ClockSelector(self))
         self._clock_resolution = 1e-9
+        #: the fast path (batched iterations, light timer handles) is used: see :func:`fast_path_supported`
+        self.fast_path = fast_path_supported(self)
 
     def time(self) -> float:
         if self.mode == "fast":
@@ -178,7 +214,7 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
     def _run_once(self) -> None:
         self._cap = None
         sel = self._selector
-        if self.mode != "fast" or self._debug or sel._nfds > 1:  # type: ignore[attr-defined]
+        if self.mode != "fast" or self._debug or not self.fast_path or sel._nfds > 1:  # type: ignore[attr-defined]
             super()._run_once()  # type: ignore[misc]
             return
         self._run_fast(sel)
@@ -233,8 +269,9 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
                 return
 
     def call_at(self, when: float, callback: Any, *args: Any, context: Any = None) -> asyncio.TimerHandle:
-        """:meth:`asyncio.BaseEventLoop.call_at` without its debug-mode checks (when debug is off)."""
-        if self._debug or when is None:
+        """:meth:`asyncio.BaseEventLoop.call_at` without its debug-mode checks (when debug is off, on the fast
+        path)."""
+        if self._debug or when is None or not self.fast_path:
             return super().call_at(when, callback, *args, context=context)
         if self._closed:  # type: ignore[attr-defined]
             raise RuntimeError("Event loop is closed")

@@ -18,6 +18,7 @@ import numpy as np
 
 from ..errors import ScenarioError
 from ..links.base import Link
+from ..scenario.presets import merged, preset
 from ..scenario.schema import Scenario
 from ..world.sky import SkyModel, sky_from_spec
 from ..world.sun import SunModel
@@ -28,7 +29,6 @@ from .compass import CompassConfig, CompassModel, PolarizationCompass, default_m
 from .gnss import GnssConfig, GnssErrors, GnssGlitch, GnssOutage, GnssReceiver
 from .imu import AccelErrors, AnalogAccelerometers, GyroErrors, ImuTemperature, ImuTruthTap, Stim210Gyro
 from .magnetometer import MagConfig, Magnetometer, soft_iron_matrix
-from .presets import merged, preset
 
 __all__ = ["SensorSet", "build_sensors", "gyro_errors", "accel_errors", "gnss_config", "camera_config",
            "compass_config", "mag_config", "build_sky", "build_sun"]

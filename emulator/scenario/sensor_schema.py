@@ -12,6 +12,7 @@ from typing import Literal
 from pydantic import Field, field_validator, model_validator
 
 from .base import Model
+from .presets import preset_names
 
 __all__ = [
     "GyroSpec",
@@ -38,8 +39,6 @@ Vec3 = tuple[float, float, float]
 
 
 def _check_preset(kind: str, name: str) -> str:
-    from ..devices.presets import preset_names
-
     names = preset_names(kind)
     if name not in names:
         raise ValueError(f"unknown {kind} preset {name!r}; available: {', '.join(names)}")

@@ -7,9 +7,17 @@ import math
 import numpy as np
 import pytest
 
-from emulator.devices.imu import (AccelErrors, FlickerBank, GyroErrors, ImuTemperature, InertialErrorModel,
-                                  accel_error_model, allan_deviation, gyro_error_model)
-from emulator.devices.presets import preset, preset_names
+from emulator.devices.imu import (
+    AccelErrors,
+    FlickerBank,
+    GyroErrors,
+    ImuTemperature,
+    InertialErrorModel,
+    accel_error_model,
+    allan_deviation,
+    gyro_error_model,
+)
+from emulator.scenario.presets import preset, preset_names
 from emulator.scenario.schema import Scenario
 
 DEG = math.pi / 180.0

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from emulator.assembly.runner import run_scenario
-from emulator.devices.presets import preset
+from emulator.scenario.presets import preset
 from emulator.testing import load_test_scenario
 from tests.conftest import ROOT, SCENARIOS
 

@@ -1,6 +1,6 @@
 """The emulator's event loop and its two time modes.
 
-One asyncio event loop drives everything (DESIGN.md section 4). Its ``time()`` is the
+One asyncio event loop drives everything (docs/architecture.md, section "Time"). Its ``time()`` is the
 scenario clock in seconds since scenario start.
 
 ``fast``

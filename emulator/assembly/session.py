@@ -128,7 +128,7 @@ class Emulator:
                 ext[port] = open_link(spec.url, port, loop, default_line=line, hub=hub, run_dir=port_dir)
             self.links[port] = ext[port]
         uart_fpga, uart_dsp, rx_cfg = self._build_uarts(hub, loop, ext)
-        # sensors (C3)
+        # sensors (docs/architecture.md, section "Firmware interface")
         if self.replay is None:
             sensors = build_sensors(scn, self.seed, traj, internal, pps=self._pps)
             self.sensors = sensors

@@ -1,6 +1,6 @@
 """Division-of-focal-plane polarization camera (Sony IMX250MZR) on the RS232 PSNS port.
 
-Geometry and conventions are the cross-helper contract C1 (``notes/CONTRACTS.md``):
+Geometry and conventions (``docs/architecture.md``, section "Conventions"):
 
 * camera frame c: +z optical axis, +x along columns (x = 1..nx), +y along rows (y = 1..ny);
   pinhole pixel (x, y) looks along ``(Dx (x - (nx+1)/2), Dy (y - (ny+1)/2), f)`` (base paper
@@ -17,7 +17,7 @@ Geometry and conventions are the cross-helper contract C1 (``notes/CONTRACTS.md`
 * mounting: ``C_c^b`` (nominal rotation and a small installation error from the scenario);
 * ``latency_us`` runs from the middle of the exposure to the start bit of the frame's first byte.
 
-Sensor (``shared/reference/algorithms.md`` 2.2-2.3, reference values of its simulation):
+Sensor (``docs/reference/algorithms.md`` 2.2-2.3, reference values of its simulation):
 2448 x 2048 pixels of 3.45 um, full well 10 000 e-, read noise 5 e-, 12-bit ADC, extinction
 ratio 300. The sky (``emulator.world.sky``) gives DOP, E-vector and a relative radiance; the
 exposure is taken as auto-exposed so that unpolarized sky of radiance 1 puts ``signal_e``
@@ -83,7 +83,7 @@ DEG = math.pi / 180.0
 IMX250MZR_NX = 2448
 IMX250MZR_NY = 2048
 IMX250MZR_PIXEL_M = 3.45e-6
-#: micro-polarizer angle (deg) -> (row, col) offset inside the 2x2 super-pixel (C1 / polanalyser layout).
+#: micro-polarizer angle (deg) -> (row, col) offset inside the 2x2 super-pixel (camera conventions, polanalyser layout).
 CHANNEL_OFFSETS = {90: (0, 0), 45: (0, 1), 135: (1, 0), 0: (1, 1)}
 
 
@@ -157,7 +157,7 @@ class CameraGeometry:
     sp_v : (3, ny/2, nx/2) float32 unit rays of the super-pixel centres, camera frame.
     sp_valid : (ny/2, nx/2) bool, False outside a fisheye's image circle.
     x_px, y_px : (P,) int observation-point pixels (1-based column, row).
-    pt_v : (P, 3) float64 rays of those pixels (C1 formula, exact).
+    pt_v : (P, 3) float64 rays of those pixels (the pinhole / fisheye formula of the conventions, exact).
     win_rows, win_cols : (P, n+1) super-pixel row / column indices of each window.
     w_row, w_col : (n+1,) separable window weights.
     kappa : ``sum w^2 / (sum w)^2`` of the 2-D window (variance factor of its weighted mean).
@@ -212,7 +212,7 @@ class CameraGeometry:
         return len(self.x_px)
 
     def rays(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Unit view rays (camera frame) of 1-based pixel coordinates ``x`` (column), ``y`` (row); C1."""
+        """Unit view rays (camera frame) of 1-based pixel coordinates ``x`` (column), ``y`` (row) (conventions)."""
         c = self.cfg
         X = c.pixel_m * (np.asarray(x, dtype=np.float64) - (c.nx + 1) / 2.0)
         Y = c.pixel_m * (np.asarray(y, dtype=np.float64) - (c.ny + 1) / 2.0)
@@ -255,7 +255,7 @@ def wire_aop_cdeg(aop: np.ndarray) -> np.ndarray:
 def stokes_superpixel(mosaic: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Half-resolution super-pixel split: S0, DOP and psi (rad, ``atan2(S2, S1)/2``) images, float32.
 
-    This is the fast on-camera path of algorithms.md section 4 (no interpolation).
+    This is the fast on-camera path of docs/reference/algorithms.md section 4 (no interpolation).
     """
     m = mosaic
     i90 = m[0::2, 0::2].astype(np.float32)

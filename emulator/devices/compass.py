@@ -1,6 +1,6 @@
 """Multi-unit polarization compass (9 single-direction units) on the PSNS port (COMPASS frames).
 
-Each unit u is a single-direction polarization analyser (contract C1): its view ray is its own
+Each unit u is a single-direction polarization analyser (docs/architecture.md, "Conventions"): its view ray is its own
 +z axis, its AOP is measured in its x-y plane from +y towards +x, and ``C_u^b`` (columns: the
 unit's x, y, z axes in body coordinates) is its mounting matrix. The default geometry (unit 0 at
 the zenith, 8 units on a ring at zenith angle 45 deg every 45 deg of azimuth from body +y towards
@@ -13,7 +13,7 @@ analyses it with four polarizers (0/45/90/135 deg, extinction ratio ``ER``) and 
 DOP/AOP exactly as the camera does. The channel noise (relative to S0) is set from the
 accuracy figure: ``aop_sigma`` (1 sigma) at ``dop_ref``, so ``sigma_I = sqrt(2) S0 DOP_ref
 sigma_AOP``, and the AOP error grows as ``sigma_I/(sqrt(2) S0 DOP)`` when the DOP falls
-(algorithms.md 2.3). The sun inside a unit's field of view (``fov_half``) saturates it (the unit
+(docs/reference/algorithms.md 2.3). The sun inside a unit's field of view (``fov_half``) saturates it (the unit
 is left out of the frame and SATURATED is set); a sun below ``min_sun_elevation`` gives frames
 with no units and SUN_BELOW_HORIZON.
 
@@ -201,7 +201,7 @@ class CompassModel:
 
 
 class PolarizationCompass:
-    """The compass as a device: COMPASS frames at ``rate_hz`` on the PSNS link (C1 latency tag)."""
+    """The compass as a device: COMPASS frames at ``rate_hz`` on the PSNS link (latency tag as in the conventions)."""
 
     def __init__(self, link: Link, model: CompassModel, rate_hz: float = 5.0, integration_s: float = 0.01,
                  processing_s: float = 0.005, phase_s: float = 0.0) -> None:

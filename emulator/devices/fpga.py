@@ -20,7 +20,7 @@
 * The MONITOR port (``links.monitor``): every chunk on every channel (external ports and DSP
   UARTs, both directions) is mirrored as a :class:`protocols.monitor.MonitorRecord` (channel id,
   direction 0 = towards the DSP / 1 = away from it, FPGA time stamp in us, the bytes),
-  COBS-framed by :func:`protocols.monitor.encode_monitor` (CONTRACTS C2). A monitor line slower
+  COBS-framed by :func:`protocols.monitor.encode_monitor` (docs/icd.md). A monitor line slower
   than the traffic overflows and counts, like any other.
 """
 
@@ -42,7 +42,7 @@ from .imu import AnalogAccelerometers, Stim210Gyro
 
 __all__ = ["FpgaConfig", "VirtualFpga", "DEFAULT_ROUTING", "MONITOR_DIRECTIONS"]
 
-#: external port -> DSP UART (DESIGN.md section 2: PSNS = RS232 -> UART2, GNSS = RS422 -> UART3)
+#: external port -> DSP UART (docs/architecture.md: PSNS = RS232 -> UART2, GNSS = RS422 -> UART3)
 DEFAULT_ROUTING = {"host": "uart0", "psns": "uart2", "gnss": "uart3"}
 
 
@@ -59,7 +59,7 @@ class FpgaConfig:
     mag_rate_hz: float = 100.0
 
 
-#: (link end held by the FPGA, link direction) -> monitor direction (C2: 0 towards the DSP, 1 away)
+#: (link end held by the FPGA, link direction) -> monitor direction (docs/icd.md: 0 towards the DSP, 1 away)
 MONITOR_DIRECTIONS = {("port", "in"): 0, ("port", "out"): 1, ("uart", "out"): 0, ("uart", "in"): 1}
 
 

@@ -5,7 +5,7 @@ edge carries a Gaussian jitter, the paper's "second pulse accuracy 50 ns" read a
 ``latency_s`` later, writes the sentences of that epoch; at 9600 baud a GGA + RMC pair takes
 ~0.15 s on the wire.
 
-Errors (:class:`GnssErrorModel`; base paper figures, DESIGN.md section 2, read as 95 % bounds,
+Errors (:class:`GnssErrorModel`; base paper figures, docs/architecture.md, read as 95 % bounds,
 docs/decisions.md D1): horizontal position < 10 m (95 % radial: 4.08 m per axis), vertical
 < 15 m (95 %: 7.5 m), each axis the sum of a first-order Gauss-Markov process
 (``pos_corr_time_s``) and a white part (``pos_white_fraction`` of the sigma), with the total

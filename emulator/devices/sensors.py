@@ -1,7 +1,7 @@
 """Build the sensor devices of a scenario (presets + overrides -> error models -> devices).
 
-:func:`build_sensors` is the runner's single call site (contract C3). It creates every sensor
-whose port is wired in-process (an ``internal`` link end) and the FPGA-sampled devices
+:func:`build_sensors` is the assembly's single call site (docs/architecture.md, section "Firmware
+interface"). It creates every sensor whose port is wired in-process (an ``internal`` link end) and the FPGA-sampled devices
 (accelerometers, magnetometer), from the scenario's ``sensors`` section: each sensor takes its
 named preset (``emulator/presets/*.yaml``), applies the scenario's overrides, and reads a
 recorded file instead of its model when ``recorded:`` is given.

@@ -1,6 +1,6 @@
 """The virtual TMS320C6747: UARTs, the firmware host, cycles turned into time, the watchdog.
 
-UARTs (DESIGN.md section 2, SPRS377 section 6.24): UART0-2 are the C6747's on-chip 16550-style
+UARTs (docs/architecture.md, SPRS377 section 6.24): UART0-2 are the C6747's on-chip 16550-style
 UARTs, fed by serial lines from the FPGA; UART3 is a 16550-compatible core inside the FPGA that
 the DSP reads over EMIFA (its FIFO fills at the GNSS line's pace). Each has
 (:class:`UartRxModel`):

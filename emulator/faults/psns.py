@@ -101,7 +101,7 @@ class PsnsUnitBlocked(Injector):
         return "polarization camera"
 
     def on(self, t: float) -> None:
-        if self.comp is not None:  # the compass's own blocked-units schedule (issue 6): a window from now
+        if self.comp is not None:  # the compass's own blocked-units schedule: a window from now
             end = self.spec.end_s(self.targets.duration_s)
             self.comp.model.block_units(self.units, t, max(end, t + 1e-9))
         else:

@@ -14,7 +14,7 @@ cycle time has passed in *navigation* time (``time_s`` of the solutions), so the
 reproducible and follows the navigation rate (a 50 Hz solution sends the 10 ms messages at 50 Hz).
 ``rate=HZ`` caps the whole set further.
 
-Buses (python-can 4.x, ``shared/reference/protocols.md`` section 3):
+Buses (python-can 4.x, ``docs/reference/wire-formats.md`` section 3):
 
 ``can://virtual/CH``
     python-can's in-process ``virtual`` interface, channel ``CH`` (what the tests and CI use).

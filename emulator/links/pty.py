@@ -2,7 +2,7 @@
 
 The master side stays in the emulator; the slave side is what a user opens, through a stable
 symlink ``<run_dir>/NAME`` (the run directory is private: mode 0700; the pty node is 0600).
-Measured behaviour this module is built around (``shared/reference/protocols.md`` section 5):
+Measured behaviour this module is built around (``docs/reference/wire-formats.md`` section 5):
 
 * with no peer holding the slave open, reading the master gives EIO and ``poll`` reports
   POLLHUP; an fd reader would spin, so the link polls for attachment instead and only reads

@@ -1,6 +1,6 @@
 """``zenoh://RUN/PORT``: a port's bytes carried over eclipse-zenoh 1.x (another process or host).
 
-Key expressions (``shared/reference/protocols.md`` section 4)::
+Key expressions (``docs/reference/wire-formats.md`` section 4)::
 
     psns/<RUN>/<PORT>/tx     bytes transmitted by the port's owner (the box side: the FPGA, or the
                              emulator's external port), i.e. what a peer tool receives
@@ -27,7 +27,7 @@ URL options (besides the common ``baud``, ``mode``, ``queue``)::
                               on psns/<RUN>/nav (default: tx for a port named ``host``, else off)
 
 Default session configuration: peer mode on loopback, multicast AND gossip scouting off (the
-default configuration would send UDP multicast and wait ~0.5 s at open, protocols.md section 0.4),
+default configuration would send UDP multicast and wait ~0.5 s at open, docs/reference/wire-formats.md section 0.4),
 listening on ``tcp/127.0.0.1:7447`` unless ``listen`` or ``connect`` is given. Links of one
 process that ask for the same session configuration share one zenoh session (reference-counted;
 the last close closes it), so four UART links do not need four listening sockets.

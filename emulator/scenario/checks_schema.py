@@ -18,8 +18,9 @@ has exactly one key naming the kind of check. Time windows are ``after_s`` / ``u
 Cross-field checks that need the whole scenario (a fault at a time outside the run, a fault or an
 expectation on a link the scenario does not have, a fault on a sensor it does not have, a Python
 hook that does not import...) are in :func:`emulator.scenario.cross_checks.cross_check`, which the
-loader runs after the schema validation. An expectation window after the end of the run is not an error here (tests shorten
-library scenarios by overriding ``duration_s``); it fails at the end with "nothing measured".
+loader runs after the schema validation. An expectation window after the end of the run is not an error
+here (tests shorten library scenarios by overriding ``duration_s``); it fails at the end with "nothing
+measured".
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 Everything here is what the firmware team configures or calibrates (the DSP's view of the system);
 the sensors' true behaviour lives in the sensor sections. ``firmware.variants`` holds the parameters of
-the issue-6 filter variants (``firmware_model.variants.params``; docs/variants.md); only the selected
+the filter variants (``firmware_model.variants.params``; docs/variants.md); only the selected
 variant reads its own.
 """
 
@@ -34,7 +34,7 @@ class AlignmentSpec(Model):
 
 
 class CameraCalibrationSpec(Model):
-    """The polarization camera as the firmware knows it (CONTRACTS C1).
+    """The polarization camera as the firmware knows it (conventions: docs/architecture.md, "Conventions").
 
     Every field left out is taken from the camera's nominal design (``sensors.camera``: lens, focal length,
     nominal mounting without the installation error), or from the IMX250MZR defaults without a camera section.

@@ -216,7 +216,7 @@ class CameraSpec(Model):
 
 
 class CompassUnitSpec(Model):
-    """View direction of one single-direction unit (CONTRACTS C1 mounting convention)."""
+    """View direction of one single-direction unit (mounting convention: docs/architecture.md, "Conventions")."""
 
     zenith_deg: float = Field(ge=0, le=90, description="angle from body +z")
     azimuth_deg: float = Field(ge=-360, le=360, description="from body +y (forward) towards +x (right)")

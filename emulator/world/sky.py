@@ -1,6 +1,6 @@
 """Skylight polarization: Rayleigh single scattering, Berry's neutral-point model, clouds and occluders.
 
-Rayleigh (``shared/reference/algorithms.md`` section 2.1): for the unit sun vector ``S`` and
+Rayleigh (``docs/reference/algorithms.md`` section 2.1): for the unit sun vector ``S`` and
 view ray ``V`` with scattering angle ``gamma`` (``cos gamma = S . V``)::
 
     DOP = P_max sin^2(gamma) / (1 + cos^2(gamma)),     E  ∝  S x V  (perpendicular to S and V)

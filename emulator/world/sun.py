@@ -1,8 +1,8 @@
 """Sun truth from NREL SPA (Reda & Andreas 2004, corrigendum 2007) through ``pvlib.spa``.
 
 :class:`SunModel` gives the geometric (unrefracted, topocentric) unit sun vector in ENU and its
-azimuth/elevation for a scenario time and an observer position (``shared/reference/
-algorithms.md`` section 3: ``S^n = [sin(Az) cos(el), cos(Az) cos(el), sin(el)]``, Az clockwise
+azimuth/elevation for a scenario time and an observer position (``docs/reference/algorithms.md``
+section 3: ``S^n = [sin(Az) cos(el), cos(Az) cos(el), sin(el)]``, Az clockwise
 from north).
 
 Evaluating the full SPA costs ~4 ms per call, too much for the 5 Hz polarization sensors of a

@@ -3,7 +3,7 @@
 A :class:`Trajectory` answers, at any scenario time ``t`` (s):
 
 * :meth:`Trajectory.state` -- position ``[L, lambda, h]`` (rad, rad, m), ENU velocity (m/s),
-  attitude ``C_b^n`` and Euler angles (DESIGN.md section 5 conventions);
+  attitude ``C_b^n`` and Euler angles (docs/architecture.md, section "Conventions");
 * :meth:`Trajectory.angular_rate` and :meth:`Trajectory.specific_force` -- body-frame
   ``omega_ib^b`` (rad/s) and ``f^b`` (m/s^2), consistent with WGS-84 normal gravity
   (:mod:`firmware_model.earth`, the same model the firmware uses) and Earth rotation;
@@ -15,7 +15,7 @@ A :class:`Trajectory` answers, at any scenario time ``t`` (s):
 Kinematic model of :class:`SegmentTrajectory` (the PSINS ``trjsimu`` model)
 ---------------------------------------------------------------------------
 The trajectory is a chain of *phases*. In a phase the three Euler angles (PSINS convention,
-``shared/reference/algorithms.md`` section 0: pitch theta about x, roll gamma about y, yaw psi
+``docs/reference/algorithms.md`` section 0: pitch theta about x, roll gamma about y, yaw psi
 about z, counter-clockwise) change at constant rates and the forward speed ``u`` changes at a
 constant rate. The vehicle moves along its body +y axis (no sideslip, no angle of attack)::
 
@@ -28,7 +28,7 @@ so every quantity is a closed-form function of time inside a phase:
 * ``a^n = dv^n/dt`` (differentiating the expression above);
 * ``omega_ib^b = omega_nb^b + C_n^b (omega_ie^n + omega_en^n)``;
 * ``f^b = C_n^b (a^n - g^n + (2 omega_ie^n + omega_en^n) x v^n)`` with ``g^n = [0, 0, -g(L, h)]``
-  (these are the strapdown equations of algorithms.md 1.2 solved for the sensor outputs).
+  (these are the strapdown equations of docs/reference/algorithms.md 1.2 solved for the sensor outputs).
 
 Position is the only integrated quantity: ``L' = v_N/R_Mh``, ``lambda' = v_E/(R_Nh cos L)``,
 ``h' = v_U``. Inside moving phases it is tabulated on nodes every :data:`NODE_STEP_S` seconds

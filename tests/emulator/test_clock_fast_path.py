@@ -1,8 +1,9 @@
 """The fast-mode loop's batched iterations run callbacks exactly as asyncio's own iteration does.
 
 :meth:`emulator.clock.EmulatorLoop._run_fast` replaces ``asyncio.BaseEventLoop._run_once`` in fast
-mode for speed (issue 10), and its ``call_at`` builds lighter timer handles. The reference here is the
-same loop class with both switched off (asyncio's ``_run_once`` and ``call_at``): a random workload of timers (ties at the
+mode for speed (the fast path), and its ``call_at`` builds lighter timer handles. The reference here is
+the same loop class with both switched off (asyncio's ``_run_once`` and ``call_at``): a random workload of
+timers (ties at the
 same instant, cancellations, callbacks that schedule more callbacks, ``call_soon`` chains, a
 coroutine sleeping) must give the identical trace of (virtual time, callback id), in order.
 """

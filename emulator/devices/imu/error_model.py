@@ -19,7 +19,7 @@ DPH = DEG / 3600.0
 G_STD = 9.80665
 BLOCK = 200
 
-#: Base-paper limits (DESIGN.md section 2); the presets use them as 3 sigma.
+#: Base-paper limits (docs/architecture.md); the presets use them as 3 sigma.
 PAPER_GYRO_BIAS_REPEATABILITY_DPH = 40.0
 PAPER_GYRO_BIAS_STABILITY_DPH = 20.0
 PAPER_ACCEL_BIAS_REPEATABILITY_MG = (7.0, 7.0, 7.0)

@@ -1,4 +1,4 @@
-"""Polarization camera: C1 geometry, the mosaic layout against polanalyser, exact inversion, noise."""
+"""Polarization camera: the conventions' geometry, the mosaic layout against polanalyser, exact inversion, noise."""
 
 from __future__ import annotations
 
@@ -30,7 +30,7 @@ def model(fidelity="binned", noise=True, seed=1, heading=30.0, pitch=0.0, roll=0
 
 
 def inverted_e(geo_cfg, x, y, aop):
-    """The firmware's inversion (C1): E^c from the wire AOP at pixel (x, y)."""
+    """The firmware's inversion (the camera conventions): E^c from the wire AOP at pixel (x, y)."""
     X = geo_cfg.pixel_m * (x - (geo_cfg.nx + 1) / 2.0)
     Y = geo_cfg.pixel_m * (y - (geo_cfg.ny + 1) / 2.0)
     if geo_cfg.lens == "pinhole":
@@ -224,6 +224,6 @@ def test_camera_device_frames_latency_and_budget():
         assert len(f.points) == 225 <= max_points(115200, 5.0)
         n_bytes = 7 + 13 + 10 * len(f.points)
         t_exp = t_rx - n_bytes * 10 / 115200 - f.header.latency_us * 1e-6
-        assert t_exp == pytest.approx(k * 0.2 + 1e-3, abs=1e-6)  # C1 time tag: the middle of the exposure
+        assert t_exp == pytest.approx(k * 0.2 + 1e-3, abs=1e-6)  # time tag (conventions): the middle of the exposure
     with pytest.raises(ValueError, match="max_points"):
         PolarizationCamera(a, model("binned", grid=(20, 20)), rate_hz=5.0)

@@ -1,5 +1,5 @@
-"""The compass device with its own unit layout and a blocked-units schedule (issue 6; the issue-8 fault injector
-maps "psns unit blocked" onto CompassModel.block_units)."""
+"""The compass device with its own unit layout and a blocked-units schedule (the psns_unit_blocked fault
+injector maps onto CompassModel.block_units)."""
 
 from __future__ import annotations
 

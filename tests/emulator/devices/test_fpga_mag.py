@@ -1,4 +1,4 @@
-"""Magnetometer on the FPGA trigger: MAG frames on UART1 (CONTRACTS C2)."""
+"""Magnetometer on the FPGA trigger: MAG frames on UART1 (docs/icd.md)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The IMU models' look-ahead (issue 10) gives bit for bit the per-interval path's output.
+"""The IMU models' look-ahead (a speed-up of the fast path) gives bit for bit the per-interval path's output.
 
 :func:`emulator.devices.imu.lookahead.measure_ahead` computes the measured means of the coming trigger
 intervals in one vectorised pass. The reference is the same device with the look-ahead switched

@@ -1,4 +1,4 @@
-"""The FPGA MONITOR port: every channel mirrored, tagged and time-stamped (CONTRACTS C2)."""
+"""The FPGA MONITOR port: every channel mirrored, tagged and time-stamped (docs/icd.md)."""
 
 from __future__ import annotations
 

@@ -33,7 +33,7 @@ HOMES: tuple[tuple[str, str], ...] = (
     ("/emulator/world/", "world / truth (trajectory, sun, sky)"),
     ("/emulator/devices/imu/", "device: IMU (STIM210 + accelerometers)"),
     ("/emulator/devices/gnss.py", "device: GNSS receiver"),
-    ("/emulator/devices/camera.py", "device: camera (PSNS)"),
+    ("/emulator/devices/camera/", "device: camera (PSNS)"),
     ("/emulator/devices/compass.py", "device: compass"),
     ("/emulator/devices/magnetometer.py", "device: magnetometer"),
     ("/emulator/devices/fpga.py", "FPGA"),

@@ -79,7 +79,7 @@ class _ClockSelector(selectors.BaseSelector):
     #: realtime: waits shorter than this are slept precisely (epoll has 1 ms resolution)
     FINE_S = 0.0015
 
-    def __init__(self, loop: "EmulatorLoop") -> None:
+    def __init__(self, loop: EmulatorLoop) -> None:
         self._real = selectors.DefaultSelector()
         self._loop = loop
         self._nfds = 0
@@ -112,7 +112,7 @@ class _ClockSelector(selectors.BaseSelector):
     def select(self, timeout: float | None = None) -> list[tuple[selectors.SelectorKey, int]]:
         loop = self._loop
         if loop.mode == "fast":
-            sched = loop._scheduled  # noqa: SLF001 - the virtual clock needs the timer heap
+            sched = loop._scheduled
             if self._nfds > 1 or self._skipped >= self.SELF_PIPE_POLL_EVERY or not sched:
                 self._skipped = 0
                 events = self._real.select(0)
@@ -124,7 +124,7 @@ class _ClockSelector(selectors.BaseSelector):
             if timeout == 0:
                 return events
             if sched:
-                when = sched[0]._when  # noqa: SLF001
+                when = sched[0]._when
                 if when > loop._now:
                     loop._now = when
                 return events
@@ -143,11 +143,11 @@ class _ClockSelector(selectors.BaseSelector):
                     events = self._real.select(0)
         else:
             events = self._real.select(timeout)
-        sched = loop._scheduled  # noqa: SLF001
+        sched = loop._scheduled
         if sched:
-            when = sched[0]._when  # noqa: SLF001
+            when = sched[0]._when
             if when < loop.time():
-                loop._cap = when  # noqa: SLF001 - overdue: this iteration is the instant `when`
+                loop._cap = when
         return events
 
 
@@ -288,7 +288,7 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
         """
         delta = self.time()
         for h in self._scheduled:  # a uniform shift keeps the heap ordered
-            h._when -= delta  # noqa: SLF001
+            h._when -= delta
         self._cap = None
         self._wall0 = _time.monotonic()
         self._now = 0.0

@@ -52,7 +52,7 @@ from .verification.harness import (
     start_emulator,
 )
 
-__all__ = ["start_emulator", "EmulatorHarness", "PortWatcher", "run", "DEFAULT_DIRECTION", "load_test_scenario"]
+__all__ = ["DEFAULT_DIRECTION", "EmulatorHarness", "PortWatcher", "load_test_scenario", "run", "start_emulator"]
 
 
 # -- pytest plugin ------------------------------------------------------------------------------
@@ -82,7 +82,7 @@ def pytest_pyfunc_call(pyfuncitem: Any) -> Any:
         raise RuntimeError(f"{pyfuncitem.nodeid}: use either @pytest.mark.psns_emulator or @pytest.mark.asyncio")
     mode = marker.kwargs.get("mode", marker.args[0] if marker.args else "fast")
     speed = float(marker.kwargs.get("speed", 1.0))
-    names = pyfuncitem._fixtureinfo.argnames  # noqa: SLF001 - the test's own arguments
+    names = pyfuncitem._fixtureinfo.argnames
     kwargs = {n: pyfuncitem.funcargs[n] for n in names}
     run(pyfuncitem.obj, mode=mode, speed=speed, **kwargs)
     return True

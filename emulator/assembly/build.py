@@ -19,7 +19,7 @@ def fpga_config(scn: Scenario) -> FpgaConfig:
     """The virtual FPGA's configuration from the scenario's ``fpga`` and IMU sections."""
     return FpgaConfig(imu_rate_hz=scn.sensors.imu.rate_hz, gyro_timeout_s=scn.fpga.gyro_timeout_s,
                       gyro_format=scn.sensors.imu.format,
-                      gyro_counter_step=int(round(2000 / scn.sensors.imu.rate_hz)),
+                      gyro_counter_step=round(2000 / scn.sensors.imu.rate_hz),
                       routing=dict(scn.fpga.routing),
                       monitor_channels=tuple(scn.fpga.monitor_channels) if scn.fpga.monitor_channels else None,
                       mag_rate_hz=scn.fpga.mag_rate_hz)
@@ -42,7 +42,7 @@ def build_uarts(scn: Scenario, hub: MemHub, loop: Any
         bits, parity, stop = parse_mode(uspec.mode)
         emifa = uspec.effective_bus(uname) == "emifa"
         if emifa:  # the FPGA's UART core, read by the DSP over EMIFA
-            f_line = LineConfig(baud=int(round(10 / EMIFA_BYTE_TIME_S)), tx_queue_bytes=uspec.fifo_bytes)
+            f_line = LineConfig(baud=round(10 / EMIFA_BYTE_TIME_S), tx_queue_bytes=uspec.fifo_bytes)
             d_line = f_line.with_(tx_queue_bytes=dspec.tx_ring_bytes)
         else:
             f_line = LineConfig(baud=uspec.effective_baud(uname), data_bits=bits, parity=parity, stop_bits=stop,

@@ -87,8 +87,8 @@ def dsp_uart_baud(nominal: int, uart_clock_hz: float | None, oversampling: int) 
     """Baud a C6747 UART really runs at: ``clock / (os x divisor)``, divisor rounded (SPRS377 6.24)."""
     if uart_clock_hz is None:
         return nominal
-    div = max(1, min(65535, int(round(uart_clock_hz / (oversampling * nominal)))))
-    return int(round(uart_clock_hz / (oversampling * div)))
+    div = max(1, min(65535, round(uart_clock_hz / (oversampling * nominal))))
+    return round(uart_clock_hz / (oversampling * div))
 
 
 def port_specs(scn: Scenario) -> dict[str, LinkSpec]:

@@ -244,7 +244,7 @@ class Emulator:
     def _sample_tick(self) -> None:
         assert self.loop is not None
         t = self.loop.time()
-        sec = int(round(t - SAMPLE_OFFSET_S))
+        sec = round(t - SAMPLE_OFFSET_S)
         self._sample(float(sec))
         if sec + 1 + SAMPLE_OFFSET_S < self.scn.duration_s:
             self.loop.call_at(sec + 1 + SAMPLE_OFFSET_S, self._sample_tick)

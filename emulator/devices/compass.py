@@ -41,7 +41,7 @@ from ..world.sun import SunModel
 from ..world.trajectory import Trajectory
 from .camera import rotation_vector_matrix, wire_aop_cdeg
 
-__all__ = ["default_mountings", "CompassConfig", "CompassReading", "CompassModel", "PolarizationCompass"]
+__all__ = ["CompassConfig", "CompassModel", "CompassReading", "PolarizationCompass", "default_mountings"]
 
 DEG = math.pi / 180.0
 N_UNITS = 9
@@ -230,11 +230,11 @@ class PolarizationCompass:
         r = self.model.read(t_mid)
         self.last = r
         now = self.link.loop.time()
-        latency_us = int(round((max(now, self.link.busy_until()) - t_mid) * 1e6))
+        latency_us = round((max(now, self.link.busy_until()) - t_mid) * 1e6)
         aop = wire_aop_cdeg(r.aop)
         dop = np.clip(np.round(r.dop * 65535.0), 0, 65535).astype(np.int64)
         units = [CompassUnit(int(u), int(a), int(d)) for u, a, d in zip(r.units, aop, dop)]
-        hdr = PsnsHeader(self.seq, int(round(self.integration_s * 1e6)), latency_us, r.status, len(units))
+        hdr = PsnsHeader(self.seq, round(self.integration_s * 1e6), latency_us, r.status, len(units))
         self.link.send(encode_compass(hdr, units))
         self.frames_sent += 1
         self.seq = (self.seq + 1) & 0xFFFF

@@ -40,7 +40,7 @@ from ..links.base import Link
 from .base import EventSink, NullEvents
 from .imu import AnalogAccelerometers, Stim210Gyro
 
-__all__ = ["FpgaConfig", "VirtualFpga", "DEFAULT_ROUTING", "MONITOR_DIRECTIONS"]
+__all__ = ["DEFAULT_ROUTING", "MONITOR_DIRECTIONS", "FpgaConfig", "VirtualFpga"]
 
 #: external port -> DSP UART (docs/architecture.md: PSNS = RS232 -> UART2, GNSS = RS422 -> UART3)
 DEFAULT_ROUTING = {"host": "uart0", "psns": "uart2", "gnss": "uart3"}
@@ -66,15 +66,15 @@ MONITOR_DIRECTIONS = {("port", "in"): 0, ("port", "out"): 1, ("uart", "out"): 0,
 class _MonitorTap:
     """Listener on one FPGA-held link end that mirrors its chunks to the MONITOR port."""
 
-    __slots__ = ("fpga", "channel", "dirs")
+    __slots__ = ("channel", "dirs", "fpga")
 
-    def __init__(self, fpga: "VirtualFpga", channel: int, side: str) -> None:
+    def __init__(self, fpga: VirtualFpga, channel: int, side: str) -> None:
         self.fpga = fpga
         self.channel = channel
         self.dirs = {"in": MONITOR_DIRECTIONS[(side, "in")], "out": MONITOR_DIRECTIONS[(side, "out")]}
 
     def on_link_bytes(self, link: Link, direction: str, t: float, data: bytes) -> None:
-        self.fpga._mirror(self.channel, self.dirs[direction], t, data)  # noqa: SLF001
+        self.fpga._mirror(self.channel, self.dirs[direction], t, data)
 
 class VirtualFpga:
     """See module docstring.
@@ -130,7 +130,7 @@ class VirtualFpga:
         self._mag_seq = 0
         self._mag_api = (MagFrame, encode_mag_frame) if mag is not None else None
         self._mag_pending: bytes | None = None
-        self._mag_div = max(1, int(round(cfg.imu_rate_hz / cfg.mag_rate_hz)))
+        self._mag_div = max(1, round(cfg.imu_rate_hz / cfg.mag_rate_hz))
         self._mag_channel: int | None = None
         self.monitor = monitor
         self.monitor_records = 0
@@ -152,7 +152,7 @@ class VirtualFpga:
     @staticmethod
     def counter_us(t: float) -> int:
         """The FPGA's 1 MHz counter at scenario time ``t`` (wraps at 2^32 us)."""
-        return int(math.floor(t * 1e6 + 1e-6)) & 0xFFFFFFFF
+        return math.floor(t * 1e6 + 1e-6) & 0xFFFFFFFF
 
     def start(self) -> None:
         self._trigger_handle = self.loop.call_at(0.0, self._trigger)

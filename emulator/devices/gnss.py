@@ -26,8 +26,8 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
@@ -37,7 +37,7 @@ from protocols.gnss import GnssFix, GnssOutputSet, build_epoch
 from ..links.base import Link
 from ..world.trajectory import Trajectory
 
-__all__ = ["GnssErrors", "GnssConfig", "GnssOutage", "GnssGlitch", "GnssErrorModel", "GnssReceiver", "RADIAL_95"]
+__all__ = ["RADIAL_95", "GnssConfig", "GnssErrorModel", "GnssErrors", "GnssGlitch", "GnssOutage", "GnssReceiver"]
 
 DEG = math.pi / 180.0
 #: PRNs reported in GSA / numSV (a fixed, plausible constellation; the count follows ``num_sats``).

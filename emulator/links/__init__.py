@@ -33,17 +33,17 @@ from .mem import MemHub, MemLink
 
 __all__ = [
     "LINK_SCHEMES",
-    "LinkUrl",
-    "parse_link_url",
-    "open_link",
-    "Link",
+    "ByteFault",
     "LineConfig",
     "LineModel",
-    "LinkStats",
+    "Link",
     "LinkListener",
-    "ByteFault",
+    "LinkStats",
+    "LinkUrl",
     "MemHub",
     "MemLink",
+    "open_link",
+    "parse_link_url",
     "parse_mode",
 ]
 
@@ -76,7 +76,7 @@ _USAGE = {
 class LinkUrl:
     """A parsed link URL: scheme, target (name or device path) and options."""
 
-    __slots__ = ("url", "scheme", "target", "options")
+    __slots__ = ("options", "scheme", "target", "url")
 
     def __init__(self, url: str, scheme: str, target: str, options: dict[str, str]) -> None:
         self.url = url

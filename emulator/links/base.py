@@ -33,19 +33,20 @@ unchanged.
 from __future__ import annotations
 
 import asyncio
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable, ClassVar, Protocol
+from typing import ClassVar, Protocol
 
 from .framing import UartReceiver, uart_compatible
 from .line import LineConfig, LineModel, parse_mode
 
 __all__ = [
+    "ByteFault",
     "LineConfig",
     "LineModel",
-    "LinkStats",
-    "LinkListener",
-    "ByteFault",
     "Link",
+    "LinkListener",
+    "LinkStats",
     "parse_mode",
 ]
 
@@ -94,13 +95,13 @@ class LinkStats:
 class LinkListener(Protocol):
     """Receives every chunk that crosses a link (recorder captures, statistics, monitor)."""
 
-    def on_link_bytes(self, link: "Link", direction: str, t: float, data: bytes) -> None: ...
+    def on_link_bytes(self, link: Link, direction: str, t: float, data: bytes) -> None: ...
 
 
 class ByteFault(Protocol):
     """A fault injector on a link direction: returns the bytes as they arrive (maybe altered)."""
 
-    def apply(self, link: "Link", direction: str, t: float, data: bytes) -> bytes: ...
+    def apply(self, link: Link, direction: str, t: float, data: bytes) -> bytes: ...
 
 
 class Link:
@@ -179,7 +180,7 @@ class Link:
                 return 0
             data = data[:accepted]
         sb = self._slice_bytes
-        bt = self.out_line._bt  # noqa: SLF001
+        bt = self.out_line._bt
         if sb and accepted > sb:
             for i in range(0, accepted, sb):
                 piece = data[i:i + sb]
@@ -206,10 +207,10 @@ class Link:
                 self.stats.dropped_chunks_out += 1
                 return 0
             data = data[:accepted]
-        self.loop.call_at(end, self._emit, data, start, self.out_line._bt)  # noqa: SLF001
+        self.loop.call_at(end, self._emit, data, start, self.out_line._bt)
         return accepted
 
-    def forward(self, data: bytes, src: "Link") -> int:
+    def forward(self, data: bytes, src: Link) -> int:
         """Cut-through transmit of a chunk that has just arrived on ``src`` (see module docstring)."""
         if self.closed or not data:
             return 0
@@ -255,7 +256,7 @@ class Link:
             return
         n = len(data)
         if not self.paces_input:
-            bt = self.in_line._bt  # noqa: SLF001
+            bt = self.in_line._bt
             self._arrive(data, self.loop.time() - n * bt, bt, self.in_line)
             return
         accepted, start, end = self.in_line.admit(self.loop.time(), n)
@@ -263,7 +264,7 @@ class Link:
             self.stats.dropped_in += n - accepted
             data = data[:accepted]
         if accepted:
-            self.loop.call_at(end, self._arrive, data, start, self.in_line._bt, self.in_line)  # noqa: SLF001
+            self.loop.call_at(end, self._arrive, data, start, self.in_line._bt, self.in_line)
 
     def _arrive(self, data: bytes, start: float, pitch: float, tx_model: LineModel) -> None:
         """A chunk whose last stop bit ends now; ``tx_model`` paced it (start, byte spacing)."""
@@ -277,7 +278,7 @@ class Link:
         fr.feed(start, data, pitch)
         self._framed(fr, tx_model, self.loop.time())
 
-    def _framed(self, fr: "UartReceiver", tx_model: LineModel, final_until: float) -> None:
+    def _framed(self, fr: UartReceiver, tx_model: LineModel, final_until: float) -> None:
         got = fr.decode(final_until)
         self.stats.framing_errors = fr.framing_errors
         self.stats.parity_errors = fr.parity_errors

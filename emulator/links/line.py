@@ -66,7 +66,7 @@ class LineConfig:
         stop = "1.5" if self.stop_bits == 1.5 else str(int(self.stop_bits))
         return f"{self.data_bits}{self.parity}{stop}"
 
-    def with_(self, **kw: Any) -> "LineConfig":
+    def with_(self, **kw: Any) -> LineConfig:
         """A copy with some fields changed."""
         d = {"baud": self.baud, "data_bits": self.data_bits, "parity": self.parity,
              "stop_bits": self.stop_bits, "tx_queue_bytes": self.tx_queue_bytes}
@@ -80,7 +80,7 @@ class LineModel:
     ``free_at`` is the scenario time at which the last admitted byte's stop bit ends.
     """
 
-    __slots__ = ("cfg", "free_at", "_bt", "_q")
+    __slots__ = ("_bt", "_q", "cfg", "free_at")
 
     def __init__(self, cfg: LineConfig) -> None:
         self.cfg = cfg
@@ -93,7 +93,7 @@ class LineModel:
         fa = self.free_at
         if fa <= now:
             return 0
-        return int(math.ceil((fa - now) / self._bt - 1e-9))
+        return math.ceil((fa - now) / self._bt - 1e-9)
 
     def admit(self, now: float, n: int, atomic: bool = False) -> tuple[int, float, float]:
         """Queue ``n`` bytes written at once at time ``now``.
@@ -106,7 +106,7 @@ class LineModel:
         fa = self.free_at
         if fa > now:
             start = fa
-            room = self._q - int(math.ceil((fa - now) / bt - 1e-9))
+            room = self._q - math.ceil((fa - now) / bt - 1e-9)
         else:
             start = now
             room = self._q

@@ -39,7 +39,7 @@ from ..errors import LinkConfigError
 from .base import Link
 from .line import LineConfig
 
-__all__ = ["PtyLink", "ATTACH_POLL_S"]
+__all__ = ["ATTACH_POLL_S", "PtyLink"]
 
 #: Attachment poll period, s of scenario time.
 ATTACH_POLL_S = 0.02

@@ -36,14 +36,41 @@ from pydantic import ConfigDict, Field, field_validator, model_validator
 from .base import Model, OneKindModel
 
 __all__ = [
-    "FaultWindow", "GnssOutageFault", "GnssGlitchFault", "GnssDegradedFault", "PsnsCloudCoverFault",
-    "PsnsUnitBlockedFault", "PsnsSunOccludedFault", "PsnsInstallationErrorFault", "ImuBiasStepFault",
-    "ImuStuckAxisFault", "ImuSaturationFault", "ImuDroppedDatagramsFault", "LinkBitErrorsFault",
-    "LinkByteDropsFault", "LinkNoiseBurstFault", "LinkBaudMismatchFault", "LinkDisconnectFault", "LinkStallFault",
-    "FpgaChannelStallFault", "DspExtraLoadFault", "Fault", "FAULT_KINDS",
-    "TimeWindow", "NavErrorBound", "EventExpectation", "FieldRange", "LinkCounterBound", "DspBound",
-    "NavModeExpectation", "SummaryValueBound", "PythonHook", "Expectation", "EXPECTATION_KINDS",
-    "load_hook", "HookError",
+    "EXPECTATION_KINDS",
+    "FAULT_KINDS",
+    "DspBound",
+    "DspExtraLoadFault",
+    "EventExpectation",
+    "Expectation",
+    "Fault",
+    "FaultWindow",
+    "FieldRange",
+    "FpgaChannelStallFault",
+    "GnssDegradedFault",
+    "GnssGlitchFault",
+    "GnssOutageFault",
+    "HookError",
+    "ImuBiasStepFault",
+    "ImuDroppedDatagramsFault",
+    "ImuSaturationFault",
+    "ImuStuckAxisFault",
+    "LinkBaudMismatchFault",
+    "LinkBitErrorsFault",
+    "LinkByteDropsFault",
+    "LinkCounterBound",
+    "LinkDisconnectFault",
+    "LinkNoiseBurstFault",
+    "LinkStallFault",
+    "NavErrorBound",
+    "NavModeExpectation",
+    "PsnsCloudCoverFault",
+    "PsnsInstallationErrorFault",
+    "PsnsSunOccludedFault",
+    "PsnsUnitBlockedFault",
+    "PythonHook",
+    "SummaryValueBound",
+    "TimeWindow",
+    "load_hook",
 ]
 
 Vec3 = tuple[float, float, float]
@@ -144,7 +171,7 @@ class ImuBiasStepFault(FaultWindow):
     accel_mg: Vec3 | None = Field(None, description="accelerometer bias step per body axis, mg")
 
     @model_validator(mode="after")
-    def _one(self) -> "ImuBiasStepFault":
+    def _one(self) -> ImuBiasStepFault:
         if (self.gyro_deg_h is None) == (self.accel_mg is None):
             raise ValueError("imu_bias_step needs exactly one of gyro_deg_h, accel_mg")
         v = self.gyro_deg_h if self.gyro_deg_h is not None else self.accel_mg
@@ -171,7 +198,7 @@ class ImuSaturationFault(FaultWindow):
     accel_range_g: float | None = Field(None, gt=0.0, le=30.0)
 
     @model_validator(mode="after")
-    def _one(self) -> "ImuSaturationFault":
+    def _one(self) -> ImuSaturationFault:
         if (self.gyro_range_dps is None) == (self.accel_range_g is None):
             raise ValueError("imu_saturation needs exactly one of gyro_range_dps, accel_range_g")
         return self
@@ -224,7 +251,7 @@ class LinkBaudMismatchFault(_LinkFault):
     rx_baud: int | None = Field(None, gt=0, le=20_000_000)
 
     @model_validator(mode="after")
-    def _one(self) -> "LinkBaudMismatchFault":
+    def _one(self) -> LinkBaudMismatchFault:
         if (self.baud_error_pct is None) == (self.rx_baud is None):
             raise ValueError("link_baud_mismatch needs exactly one of baud_error_pct, rx_baud")
         if self.baud_error_pct == 0.0:
@@ -262,7 +289,7 @@ class DspExtraLoadFault(FaultWindow):
     load_pct: float | None = Field(None, gt=0.0, le=10000.0)
 
     @model_validator(mode="after")
-    def _one(self) -> "DspExtraLoadFault":
+    def _one(self) -> DspExtraLoadFault:
         if (self.cycles_per_tick is None) == (self.load_pct is None):
             raise ValueError("dsp_extra_load needs exactly one of cycles_per_tick, load_pct")
         return self
@@ -312,7 +339,7 @@ class TimeWindow(Model):
     between_s: tuple[float, float] | None = Field(None, description="[after_s, until_s] in one field")
 
     @model_validator(mode="after")
-    def _window(self) -> "TimeWindow":
+    def _window(self) -> TimeWindow:
         if self.between_s is not None:
             a, b = (float(x) for x in self.between_s)
             if a < 0 or b <= a:
@@ -361,7 +388,7 @@ class EventExpectation(TimeWindow):
     fields: dict[str, str | int | float | bool | FieldRange] = Field(default_factory=dict)
 
     @model_validator(mode="after")
-    def _counts(self) -> "EventExpectation":
+    def _counts(self) -> EventExpectation:
         if self.max_count is not None and "min_count" not in self.model_fields_set:
             self.min_count = 0  # "at most N" (max_count: 0 = must not occur)
         if self.max_count is not None and self.max_count < self.min_count:
@@ -378,7 +405,7 @@ class LinkCounterBound(Model):
     max: int | None = Field(None, ge=0)
 
     @model_validator(mode="after")
-    def _some(self) -> "LinkCounterBound":
+    def _some(self) -> LinkCounterBound:
         if self.min is None and self.max is None:
             raise ValueError("a link expectation needs min, max or both")
         if self.min is not None and self.max is not None and self.max < self.min:
@@ -394,7 +421,7 @@ class DspBound(Model):
     max: float | None = Field(None, ge=0)
 
     @model_validator(mode="after")
-    def _some(self) -> "DspBound":
+    def _some(self) -> DspBound:
         if self.min is None and self.max is None:
             raise ValueError("a dsp expectation needs min, max or both")
         if self.min is not None and self.max is not None and self.max < self.min:
@@ -413,7 +440,7 @@ class NavModeExpectation(TimeWindow):
     max_fraction: float | None = Field(None, ge=0.0, le=1.0)
 
     @model_validator(mode="after")
-    def _some(self) -> "NavModeExpectation":
+    def _some(self) -> NavModeExpectation:
         if self.min_fraction is None and self.max_fraction is None:
             raise ValueError("a nav_mode expectation needs min_fraction, max_fraction or both")
         return self
@@ -427,7 +454,7 @@ class SummaryValueBound(Model):
     max: float | None = None
 
     @model_validator(mode="after")
-    def _some(self) -> "SummaryValueBound":
+    def _some(self) -> SummaryValueBound:
         if self.min is None and self.max is None:
             raise ValueError("a summary expectation needs min, max or both")
         return self
@@ -483,7 +510,7 @@ def load_hook(base_dir: str | Path | None, file: str, function: str) -> Any:
         spec.loader.exec_module(mod)
     except SyntaxError as exc:
         raise HookError(f"{p.name}:{exc.lineno}: syntax error: {exc.msg}") from exc
-    except Exception as exc:  # noqa: BLE001 - any import-time failure is the scenario's problem
+    except Exception as exc:
         raise HookError(f"importing {p.name} raised {type(exc).__name__}: {exc}") from exc
     fn = getattr(mod, function, None)
     if fn is None:

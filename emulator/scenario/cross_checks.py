@@ -30,8 +30,8 @@ def cross_check(scn: Scenario) -> list[tuple[tuple[Any, ...], str]]:
     dur = scn.duration_s
     links = link_names(scn)
     sensors = scn.sensors
-    has_camera = "psns" in links and (sensors.camera is not None and sensors.camera.enabled
-                                      or sensors.camera is None and not (sensors.compass and sensors.compass.enabled))
+    has_camera = "psns" in links and ((sensors.camera is not None and sensors.camera.enabled)
+                                      or (sensors.camera is None and not (sensors.compass and sensors.compass.enabled)))
     has_compass = "psns" in links and sensors.compass is not None and sensors.compass.enabled
     for i, f in enumerate(scn.faults):
         kind = f.kind

@@ -14,8 +14,18 @@ from pydantic import Field
 
 from .base import Model
 
-__all__ = ["AlignmentSpec", "CameraCalibrationSpec", "PsnsFirmwareSpec", "FirmwareSpec", "VariantsSpec",
-           "ModeManagerSpec", "DualVectorSpec", "KmeansSpec", "FederatedSpec", "SunElevationSpec"]
+__all__ = [
+    "AlignmentSpec",
+    "CameraCalibrationSpec",
+    "DualVectorSpec",
+    "FederatedSpec",
+    "FirmwareSpec",
+    "KmeansSpec",
+    "ModeManagerSpec",
+    "PsnsFirmwareSpec",
+    "SunElevationSpec",
+    "VariantsSpec",
+]
 
 Vec3 = tuple[float, float, float]
 

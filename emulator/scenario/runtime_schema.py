@@ -9,8 +9,18 @@ from pydantic import AliasChoices, Field, field_validator, model_validator
 
 from .base import Model
 
-__all__ = ["LinkSpec", "Links", "UartSpec", "FpgaSpec", "DspUartSpec", "WatchdogSpec", "DspSpec",
-           "EXTERNAL_PORTS", "DSP_UARTS", "DEFAULT_UART_BAUD"]
+__all__ = [
+    "DEFAULT_UART_BAUD",
+    "DSP_UARTS",
+    "EXTERNAL_PORTS",
+    "DspSpec",
+    "DspUartSpec",
+    "FpgaSpec",
+    "LinkSpec",
+    "Links",
+    "UartSpec",
+    "WatchdogSpec",
+]
 
 #: External ports of the box (FPGA connectors) that can be routed to a DSP UART.
 EXTERNAL_PORTS = ("host", "gnss", "psns")
@@ -126,7 +136,7 @@ class DspUartSpec(Model):
     tx_ring_bytes: int = Field(4096, ge=16, le=1 << 20, description="firmware TX ring buffer, bytes")
 
     @model_validator(mode="after")
-    def _trigger_fits(self) -> "DspUartSpec":
+    def _trigger_fits(self) -> DspUartSpec:
         if self.trigger_level > self.fifo_bytes:
             raise ValueError(f"trigger_level {self.trigger_level} exceeds fifo_bytes {self.fifo_bytes}")
         return self

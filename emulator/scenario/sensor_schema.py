@@ -15,23 +15,23 @@ from .base import Model
 from .presets import preset_names
 
 __all__ = [
-    "GyroSpec",
     "AccelSpec",
-    "ImuTemperatureSpec",
-    "RecordedImuSpec",
-    "ImuSpec",
-    "GnssErrorSpec",
-    "GnssOutageSpec",
-    "GnssGlitchSpec",
-    "RecordedGnssSpec",
-    "GnssSpec",
-    "MountingSpec",
-    "RecordedImagesSpec",
+    "BlockedUnitsSpec",
     "CameraSpec",
     "CompassSpec",
     "CompassUnitSpec",
-    "BlockedUnitsSpec",
+    "GnssErrorSpec",
+    "GnssGlitchSpec",
+    "GnssOutageSpec",
+    "GnssSpec",
+    "GyroSpec",
+    "ImuSpec",
+    "ImuTemperatureSpec",
     "MagnetometerSpec",
+    "MountingSpec",
+    "RecordedGnssSpec",
+    "RecordedImagesSpec",
+    "RecordedImuSpec",
     "Sensors",
 ]
 
@@ -176,7 +176,7 @@ class RecordedImagesSpec(Model):
     start_s: float = 0.0
 
     @model_validator(mode="after")
-    def _one(self) -> "RecordedImagesSpec":
+    def _one(self) -> RecordedImagesSpec:
         if (self.index is None) == (self.files is None):
             raise ValueError("recorded images need exactly one of index, files")
         if self.files is not None and self.rate_hz is None:
@@ -252,7 +252,7 @@ class CompassSpec(Model):
         return _check_preset("compass", v)
 
     @model_validator(mode="after")
-    def _blocked_units_exist(self) -> "CompassSpec":
+    def _blocked_units_exist(self) -> CompassSpec:
         n = len(self.units) if self.units is not None else 9
         for i, b in enumerate(self.blocked):
             bad = [u for u in b.units if not 0 <= u < n]

@@ -9,14 +9,16 @@ from __future__ import annotations
 import asyncio
 import re
 from collections import deque
+from collections.abc import Awaitable, Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Awaitable, Callable, Pattern
+from re import Pattern
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from ..assembly.runner import Emulator
     from ..scenario.schema import Scenario
 
-__all__ = ["start_emulator", "EmulatorHarness", "PortWatcher", "run", "DEFAULT_DIRECTION", "load_test_scenario"]
+__all__ = ["DEFAULT_DIRECTION", "EmulatorHarness", "PortWatcher", "load_test_scenario", "run", "start_emulator"]
 
 #: Direction watched by default per port (see module docstring).
 DEFAULT_DIRECTION = {"host": "out", "uart0": "out", "monitor": "out"}
@@ -113,14 +115,14 @@ def _compile_text(pattern: str | Pattern[str]) -> Pattern[str]:
 class EmulatorHarness:
     """A running emulator with Renode-style waits on its ports (see module docstring)."""
 
-    def __init__(self, emulator: "Emulator") -> None:
+    def __init__(self, emulator: Emulator) -> None:
         self.emulator = emulator
         self.watchers: dict[tuple[str, str], PortWatcher] = {}
         self.summary: dict[str, Any] | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
 
     # -- lifecycle ---------------------------------------------------------------------------
-    async def start(self) -> "EmulatorHarness":
+    async def start(self) -> EmulatorHarness:
         from ..assembly.runner import port_formats
         from ..clock import EmulatorLoop
         from ..errors import EmulatorError
@@ -165,7 +167,7 @@ class EmulatorHarness:
                 fpga.stop()
         return self.summary
 
-    async def __aenter__(self) -> "EmulatorHarness":
+    async def __aenter__(self) -> EmulatorHarness:
         return self
 
     async def __aexit__(self, *exc: Any) -> None:
@@ -414,8 +416,8 @@ def _set_path(data: dict[str, Any], dotted: str, value: Any) -> None:
     d[keys[-1]] = value
 
 
-def load_test_scenario(scenario: "str | Path | Scenario | dict[str, Any]",
-                       overrides: dict[str, Any] | None = None) -> "Scenario":
+def load_test_scenario(scenario: str | Path | Scenario | dict[str, Any],
+                       overrides: dict[str, Any] | None = None) -> Scenario:
     """A validated scenario from a path, a mapping or a Scenario, with dotted-path overrides
     (``{"duration_s": 70, "links.host.url": "pty://uart0"}``) applied before validation."""
     import yaml
@@ -441,9 +443,9 @@ def load_test_scenario(scenario: "str | Path | Scenario | dict[str, Any]",
     return validate_scenario_data(data, marks, file, base_dir=base_dir)
 
 
-def start_emulator(scenario: "str | Path | Scenario | dict[str, Any]", run_dir: str | Path | None = None,
+def start_emulator(scenario: str | Path | Scenario | dict[str, Any], run_dir: str | Path | None = None,
                    mode: str | None = None, seed: int | None = None,
-                   overrides: dict[str, Any] | None = None) -> "_Starter":
+                   overrides: dict[str, Any] | None = None) -> _Starter:
     """Start an emulator for ``scenario`` on the running EmulatorLoop.
 
     Use as ``async with start_emulator(...) as emu`` (stopped at the end of the block) or

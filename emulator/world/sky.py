@@ -37,8 +37,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["Cloud", "Occluder", "SunOccluder", "SkyModel", "SkyField", "rayleigh_dop", "sky_from_spec",
-           "textured_cloud"]
+__all__ = [
+    "Cloud",
+    "Occluder",
+    "SkyField",
+    "SkyModel",
+    "SunOccluder",
+    "rayleigh_dop",
+    "sky_from_spec",
+    "textured_cloud",
+]
 
 DEG = math.pi / 180.0
 #: Radiance of the ground relative to the sky (a diffuse, unpolarized surface).

@@ -49,16 +49,23 @@ from __future__ import annotations
 import bisect
 import math
 from abc import ABC, abstractmethod
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
 from firmware_model import earth
 from firmware_model.attitude import a2mat, heading_from_yaw, m2att, yaw_from_heading
 
-__all__ = ["TruthState", "Trajectory", "StaticTrajectory", "Phase", "SegmentTrajectory", "NODE_STEP_S",
-           "euler_to_cbn"]
+__all__ = [
+    "NODE_STEP_S",
+    "Phase",
+    "SegmentTrajectory",
+    "StaticTrajectory",
+    "Trajectory",
+    "TruthState",
+    "euler_to_cbn",
+]
 
 DEG = math.pi / 180.0
 TWO_PI = 2.0 * math.pi
@@ -252,7 +259,7 @@ class _PhaseTable:
             self.pos_end = self.pos0.copy()
             return
         T = ph.t1 - ph.t0
-        n = max(1, int(math.ceil(T / NODE_STEP_S - 1e-9)))
+        n = max(1, math.ceil(T / NODE_STEP_S - 1e-9))
         tau = np.linspace(0.0, T, n + 1)
         self.nodes_tau = tau
         # fixed-point iteration of the position ODE on the node grid
@@ -473,12 +480,12 @@ class SegmentTrajectory(Trajectory):
         for j in np.nonzero(~same)[0]:
             dth[j], dv[j] = self._increments_exact(float(a[j]), float(b[j]))
         self._block = {}
-        dt_ns = int(round(dt * 1e9))
+        dt_ns = round(dt * 1e9)
         for j in range(BLOCK_INTERVALS):
-            self._block[(int(round(a[j] * 1e9)), dt_ns)] = (dth[j], dv[j])
+            self._block[(round(a[j] * 1e9), dt_ns)] = (dth[j], dv[j])
 
     def imu_increments(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
-        key = (int(round(t0 * 1e9)), int(round((t1 - t0) * 1e9)))
+        key = (round(t0 * 1e9), round((t1 - t0) * 1e9))
         hit = self._block.get(key)
         if hit is None:
             if t1 - t0 <= 0.0:
@@ -492,7 +499,7 @@ class SegmentTrajectory(Trajectory):
     def imu_increments_ready(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray] | None:
         if t1 - t0 <= 0.0:
             return None
-        return self._block.get((int(round(t0 * 1e9)), int(round((t1 - t0) * 1e9))))
+        return self._block.get((round(t0 * 1e9), round((t1 - t0) * 1e9)))
 
     def imu_increments_exact(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
         """The same increments without the block cache (for tests and irregular intervals)."""

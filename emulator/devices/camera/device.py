@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -39,7 +39,7 @@ class PolarizationCamera:
         self.processing_s = processing_s
         self.phase_s = phase_s
         self.mosaic_source = mosaic_source
-        budget = max_points(link.line.baud, rate_hz, int(round(link.line.bits_per_byte)))
+        budget = max_points(link.line.baud, rate_hz, round(link.line.bits_per_byte))
         if model.geo.n_points > budget:
             raise ValueError(f"{model.geo.n_points} observation points do not fit the PSNS line: "
                              f"{link.line.baud} baud at {rate_hz:g} frames/s carries at most {budget} "
@@ -88,7 +88,7 @@ class PolarizationCamera:
         """The POLARIZATION_OBS frame of ``obs`` with its latency from ``t_mid`` to the first start bit."""
         now = self.link.loop.time()
         t_first_bit = max(now, self.link.busy_until())
-        latency_us = int(round((t_first_bit - t_mid) * 1e6))
+        latency_us = round((t_first_bit - t_mid) * 1e6)
         aop = wire_aop_cdeg(obs.aop)
         dop = np.clip(np.round(obs.dop * 65535.0), 0, 65535).astype(np.int64)
         s0 = np.clip(np.round(obs.s0_dn), 0, 65535).astype(np.int64)
@@ -96,5 +96,5 @@ class PolarizationCamera:
                for x, y, a, d, i in zip(np.asarray(obs.x_px).astype(np.int64).tolist(),
                                         np.asarray(obs.y_px).astype(np.int64).tolist(),
                                         aop.tolist(), dop.tolist(), s0.tolist())]
-        hdr = PsnsHeader(self.seq, int(round(self.exposure_s * 1e6)), latency_us, obs.status, len(pts))
+        hdr = PsnsHeader(self.seq, round(self.exposure_s * 1e6), latency_us, obs.status, len(pts))
         return encode_polarization_obs(hdr, pts)

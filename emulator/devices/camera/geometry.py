@@ -10,8 +10,20 @@ import numpy as np
 
 from firmware_model.attitude import a2mat
 
-__all__ = ["IMX250MZR_NX", "IMX250MZR_NY", "IMX250MZR_PIXEL_M", "CHANNEL_OFFSETS", "DEG", "CameraConfig", "CameraGeometry",
-           "PointObservations", "rotation_vector_matrix", "stokes_superpixel", "wire_aop_cdeg", "mounting_matrix"]
+__all__ = [
+    "CHANNEL_OFFSETS",
+    "DEG",
+    "IMX250MZR_NX",
+    "IMX250MZR_NY",
+    "IMX250MZR_PIXEL_M",
+    "CameraConfig",
+    "CameraGeometry",
+    "PointObservations",
+    "mounting_matrix",
+    "rotation_vector_matrix",
+    "stokes_superpixel",
+    "wire_aop_cdeg",
+]
 
 DEG = math.pi / 180.0
 IMX250MZR_NX = 2448

@@ -50,16 +50,16 @@ from .lookahead import ImuTruthTap
 from .stim210 import Stim210Gyro
 
 __all__ = [
-    "GyroErrors",
-    "AccelErrors",
-    "ImuTemperature",
-    "ImuTruthTap",
-    "InertialErrorModel",
-    "FlickerBank",
-    "gyro_error_model",
-    "accel_error_model",
-    "Stim210Gyro",
-    "AnalogAccelerometers",
-    "InjectedFaults",
-    "allan_deviation",
+                          "AccelErrors",
+                          "AnalogAccelerometers",
+                          "FlickerBank",
+                          "GyroErrors",
+                          "ImuTemperature",
+                          "ImuTruthTap",
+                          "InertialErrorModel",
+                          "InjectedFaults",
+                          "Stim210Gyro",
+                          "accel_error_model",
+                          "allan_deviation",
+                          "gyro_error_model",
 ]

@@ -11,8 +11,19 @@ from scipy.signal import lfilter
 
 from protocols.imu_frame import ACCEL_VOLTS_PER_G
 
-__all__ = ["GyroErrors", "AccelErrors", "ImuTemperature", "FlickerBank", "InertialErrorModel", "gyro_error_model",
-           "accel_error_model", "BLOCK", "DEG", "DPH", "G_STD"]
+__all__ = [
+    "BLOCK",
+    "DEG",
+    "DPH",
+    "G_STD",
+    "AccelErrors",
+    "FlickerBank",
+    "GyroErrors",
+    "ImuTemperature",
+    "InertialErrorModel",
+    "accel_error_model",
+    "gyro_error_model",
+]
 
 DEG = math.pi / 180.0
 DPH = DEG / 3600.0

@@ -17,8 +17,17 @@ class InjectedFaults:
     range (only when the input really exceeded it).
     """
 
-    __slots__ = ("bias", "_biases", "stuck", "stuck_value", "range_limit", "active", "biased", "stuck_samples",
-                 "clipped")
+    __slots__ = (
+        "_biases",
+        "active",
+        "bias",
+        "biased",
+        "clipped",
+        "range_limit",
+        "stuck",
+        "stuck_samples",
+        "stuck_value",
+    )
 
     def __init__(self) -> None:
         self.bias = np.zeros(3)

@@ -13,7 +13,7 @@ import numpy as np
 from ...world.trajectory import Trajectory
 from .error_model import BLOCK, ImuTemperature, InertialErrorModel
 
-__all__ = ["ImuTruthTap", "Ahead", "measure_ahead"]
+__all__ = ["Ahead", "ImuTruthTap", "measure_ahead"]
 
 
 class ImuTruthTap:
@@ -40,7 +40,7 @@ class Ahead:
     the one peeked at, at the row ``i0 + j`` (so nothing was drawn in between).
     """
 
-    __slots__ = ("times", "raw", "post", "j", "block", "i0", "stochastic")
+    __slots__ = ("block", "i0", "j", "post", "raw", "stochastic", "times")
 
     def __init__(self, times: list[tuple[float, float]], raw: np.ndarray, block: np.ndarray | None, i0: int,
                  stochastic: bool) -> None:

@@ -56,7 +56,7 @@ class Stim210Gyro:
         self.temperature = temperature or ImuTemperature()
         self.source = source
         self.counter = 0
-        self.counter_step = int(round(STIM_COUNTER_HZ / trigger_rate_hz))
+        self.counter_step = round(STIM_COUNTER_HZ / trigger_rate_hz)
         self._queued = 0
         self._last_send_t = -math.inf
         self.last_measured = np.zeros(3)
@@ -147,7 +147,7 @@ class Stim210Gyro:
 
     def _transmit(self, t: float, t_c: float, gyro_words: tuple[int, int, int]) -> None:
         self.counter = (self.counter + self.counter_step) & 0xFF
-        tw = int(round(t_c / TEMP_LSB_DEGC))
+        tw = round(t_c / TEMP_LSB_DEGC)
         d = StimDatagram(
             ident=self.format.ident,
             gyro=gyro_words,

@@ -10,8 +10,16 @@ import numpy as np
 import pytest
 
 from emulator.clock import EmulatorLoop
-from emulator.devices.camera import (CHANNEL_OFFSETS, CameraConfig, CameraGeometry, PolarizationCamera,
-                                     PolarizationCameraModel, mounting_matrix, stokes_superpixel, wire_aop_cdeg)
+from emulator.devices.camera import (
+    CHANNEL_OFFSETS,
+    CameraConfig,
+    CameraGeometry,
+    PolarizationCamera,
+    PolarizationCameraModel,
+    mounting_matrix,
+    stokes_superpixel,
+    wire_aop_cdeg,
+)
 from emulator.links import LineConfig, MemHub
 from emulator.world.sky import SkyModel
 from emulator.world.sun import SunModel
@@ -20,7 +28,7 @@ from protocols.psns import PolarizationObs, PsnsFormat, PsnsStatus, max_points
 from protocols.stream import StreamDecoder
 
 DEG = math.pi / 180.0
-EPOCH = dt.datetime(2019, 9, 18, 8, 14, tzinfo=dt.timezone.utc)  # sun az 252.1, el 22.9 in Beijing
+EPOCH = dt.datetime(2019, 9, 18, 8, 14, tzinfo=dt.UTC)  # sun az 252.1, el 22.9 in Beijing
 
 
 def model(fidelity="binned", noise=True, seed=1, heading=30.0, pitch=0.0, roll=0.0, epoch=EPOCH, sky=None, **kw):
@@ -172,7 +180,7 @@ def test_full_aop_noise_matches_formula_and_binned():
 
 
 def test_sun_below_horizon_reports_invalid():
-    m = model("binned", epoch=dt.datetime(2019, 9, 18, 16, 0, tzinfo=dt.timezone.utc))
+    m = model("binned", epoch=dt.datetime(2019, 9, 18, 16, 0, tzinfo=dt.UTC))
     obs = m.observe(0.0)
     assert obs.status & PsnsStatus.SUN_BELOW_HORIZON and not obs.status & PsnsStatus.VALID
     assert len(obs.aop) == 0

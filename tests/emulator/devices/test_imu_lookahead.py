@@ -40,7 +40,7 @@ def _run(look_ahead: bool, temp: ImuTemperature) -> tuple[list[tuple[float, byte
     link = _Link()
     gyro = Stim210Gyro(link, tap, np.random.default_rng(5), gyro_errors(scn), temperature=temp)  # type: ignore[arg-type]
     accel = AnalogAccelerometers(tap, np.random.default_rng(6), accel_errors(scn), temperature=temp)
-    gyro._look_ahead = accel._look_ahead = look_ahead  # noqa: SLF001
+    gyro._look_ahead = accel._look_ahead = look_ahead
     period = 1.0 / 200.0
     codes = []
     for k in range(0, 1300):

@@ -142,8 +142,8 @@ def test_gyro_bias_step_stuck_axis_and_range_limit_act_on_the_words():
     gyro.set_bias_step("a", None)
     gyro.set_bias_step("b", None)
     _trigger(loop, gyro, 5, 6)
-    base = tuple(int(round(x)) for x in w)
-    step = tuple(int(round(x)) for x in w + np.array([0.5, 0.0, 1.0]) / GYRO_RATE_LSB_DPS)
+    base = tuple(round(x) for x in w)
+    step = tuple(round(x) for x in w + np.array([0.5, 0.0, 1.0]) / GYRO_RATE_LSB_DPS)
     assert [d.gyro for d in got] == [base, base, step, step, base]
     assert gyro.faults.biased == 2 and not gyro.faults.active
     # a stuck axis holds its last output while the others move on
@@ -159,7 +159,7 @@ def test_gyro_bias_step_stuck_axis_and_range_limit_act_on_the_words():
     # a range of 0.001 deg/s clips the Earth rate's vertical component (~0.0027 deg/s at 40 N)
     gyro.set_range_limit(0.001 * DEG)
     _trigger(loop, gyro, 9, 11)
-    lim = int(round(0.001 / GYRO_RATE_LSB_DPS))
+    lim = round(0.001 / GYRO_RATE_LSB_DPS)
     assert all(abs(x) <= lim for x in got[-1].gyro) and gyro.faults.clipped == 2
     loop.close()
 

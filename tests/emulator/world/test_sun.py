@@ -12,7 +12,7 @@ import pytest
 from emulator.world.sun import SunModel
 
 DEG = math.pi / 180.0
-UTC = dt.timezone.utc
+UTC = dt.UTC
 
 # docs/reference/algorithms.md section 3 (pvlib 0.16.1, delta_t = 69 s, altitude 0)
 REFERENCE = [

@@ -40,8 +40,9 @@ import selectors
 import sys
 import time as _time
 from asyncio import events as _events
+from collections import deque
 from contextvars import copy_context as _copy_context
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 __all__ = ["FAST_PATH_VERSIONS", "EmulatorLoop", "fast_path_supported", "new_loop", "sleep_until"]
 
@@ -160,6 +161,8 @@ class _Timer(_events.TimerHandle):
     """
 
     __slots__ = ()
+    if TYPE_CHECKING:
+        _when: float
 
     def __init__(self, when: float, callback: Any, args: Any, loop: Any, context: Any = None) -> None:
         self._context = _copy_context() if context is None else context
@@ -172,7 +175,7 @@ class _Timer(_events.TimerHandle):
         self._when = when
         self._scheduled = False
 
-    def __lt__(self, other: Any) -> bool:
+    def __lt__(self, other: _Timer) -> bool:  # type: ignore[override]  # the heap holds timer handles only
         return self._when < other._when
 
 
@@ -186,6 +189,16 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
     speed:
         Real-time scale factor; only used in realtime mode.
     """
+
+    if TYPE_CHECKING:  # asyncio's private fields the clock and the fast path use (see the module docstring)
+        _scheduled: list[Any]  # asyncio.TimerHandle, read through its private _when / _scheduled
+        _ready: deque[Any]
+        _stopping: bool
+        _timer_cancelled_count: int
+        _clock_resolution: float
+        _debug: bool
+        _closed: bool
+        _selector: _ClockSelector
 
     def __init__(self, mode: str = "fast", speed: float = 1.0) -> None:
         if mode not in ("fast", "realtime"):
@@ -214,7 +227,7 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
     def _run_once(self) -> None:
         self._cap = None
         sel = self._selector
-        if self.mode != "fast" or self._debug or not self.fast_path or sel._nfds > 1:  # type: ignore[attr-defined]
+        if self.mode != "fast" or self._debug or not self.fast_path or sel._nfds > 1:
             super()._run_once()  # type: ignore[misc]
             return
         self._run_fast(sel)
@@ -241,14 +254,14 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
             sched = self._scheduled
             n_sched = len(sched)
             if n_sched > 100 and self._timer_cancelled_count / n_sched > 0.5:
-                super()._run_once()  # type: ignore[misc] - the rare full clean-up
+                super()._run_once()  # type: ignore[misc]  # the rare full clean-up
                 return
             while sched and sched[0]._cancelled:
                 self._timer_cancelled_count -= 1
                 heappop(sched)._scheduled = False
             if not ready and not self._stopping:
                 if not sched:
-                    super()._run_once()  # type: ignore[misc] - waits in the real selector
+                    super()._run_once()  # type: ignore[misc]  # waits in the real selector
                     return
                 when = sched[0]._when
                 if when > self._now:
@@ -268,15 +281,15 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
             if self._stopping:
                 return
 
-    def call_at(self, when: float, callback: Any, *args: Any, context: Any = None) -> asyncio.TimerHandle:
+    def call_at(self, when: float, callback: Any, *args: Any, context: Any = None) -> asyncio.TimerHandle:  # type: ignore[override]
         """:meth:`asyncio.BaseEventLoop.call_at` without its debug-mode checks (when debug is off, on the fast
         path)."""
         if self._debug or when is None or not self.fast_path:
             return super().call_at(when, callback, *args, context=context)
-        if self._closed:  # type: ignore[attr-defined]
+        if self._closed:
             raise RuntimeError("Event loop is closed")
         timer = _Timer(when, callback, args, self, context)
-        heapq.heappush(self._scheduled, timer)  # type: ignore[attr-defined]
+        heapq.heappush(self._scheduled, timer)
         timer._scheduled = True
         return timer
 

@@ -3,7 +3,7 @@ firmware, and the port map printed at start. The session (:mod:`.session`) calls
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, cast
 
 from ..devices.fpga import FpgaConfig
 from ..dsp.firmware_setup import build_firmware
@@ -20,7 +20,7 @@ def fpga_config(scn: Scenario) -> FpgaConfig:
     return FpgaConfig(imu_rate_hz=scn.sensors.imu.rate_hz, gyro_timeout_s=scn.fpga.gyro_timeout_s,
                       gyro_format=scn.sensors.imu.format,
                       gyro_counter_step=round(2000 / scn.sensors.imu.rate_hz),
-                      routing=dict(scn.fpga.routing),
+                      routing={str(k): str(v) for k, v in scn.fpga.routing.items()},
                       monitor_channels=tuple(scn.fpga.monitor_channels) if scn.fpga.monitor_channels else None,
                       mag_rate_hz=scn.fpga.mag_rate_hz)
 
@@ -36,7 +36,7 @@ def build_uarts(scn: Scenario, hub: MemHub, loop: Any
     dsp_ends: dict[str, Link] = {}
     uart_dsp: dict[int, Link] = {}
     rx_cfg: dict[int, UartRxConfig] = {}
-    routed_from = {u: p for p, u in scn.fpga.routing.items()}
+    routed_from: dict[str, str] = {u: p for p, u in scn.fpga.routing.items()}
     for uname, uspec in scn.fpga.uarts.items():
         dspec = scn.dsp.uarts[uname]
         bits, parity, stop = parse_mode(uspec.mode)
@@ -62,7 +62,7 @@ def build_uarts(scn: Scenario, hub: MemHub, loop: Any
         min_pitch = d_line.byte_time
         src = routed_from.get(uname)
         src_spec = port_specs(scn).get(src) if src is not None else None
-        if emifa and src_spec is not None:
+        if emifa and src is not None and src_spec is not None:
             min_pitch = max(min_pitch, port_line(src_spec, PORT_BAUD[src]).byte_time)
         rx_cfg[UART_NUM[uname]] = UartRxConfig(
             fifo_bytes=dspec.fifo_bytes, trigger_level=dspec.trigger_level, service=dspec.service,
@@ -88,10 +88,11 @@ def port_map(scn: Scenario, links: dict[str, Link], uart_fpga: dict[str, Link]) 
             continue
         ports.append(PortInfo(name=port, role=PORT_ROLES.get(port, port), url=link.url,
                               baud=link.line.baud, mode=link.line.mode, path=link.describe()))
-    routed_from = {u: p for p, u in scn.fpga.routing.items()}
+    routed_from: dict[str, str] = {u: p for p, u in scn.fpga.routing.items()}
+    uarts = cast("dict[str, Any]", scn.fpga.uarts)
     for uname, f_end in uart_fpga.items():
         d_end = links[uname]
-        emifa = scn.fpga.uarts[uname].effective_bus(uname) == "emifa"
+        emifa = uarts[uname].effective_bus(uname) == "emifa"
         src = "IMU frames" if uname == "uart1" else routed_from.get(uname, "unrouted")
         role = (f"FPGA UART core on EMIFA -> DSP {uname.upper()} ({src})" if emifa
                 else f"FPGA -> DSP {uname.upper()} 16550 ({src})")

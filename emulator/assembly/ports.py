@@ -66,7 +66,7 @@ def port_formats(name: str) -> dict[str, list[Any]]:
     return {d: list(f) for d, f in table.get(name, {}).items()}
 
 
-class PortInfo(dict):
+class PortInfo(dict[str, Any]):
     """One row of the port map printed at start: name, role, url, baud, mode, path."""
 
 

@@ -18,7 +18,7 @@ import gc
 import json
 import math
 import signal
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -146,7 +146,7 @@ class Emulator:
             self.faults = FaultScheduler(self.fault_targets(), scn.faults, self.seed, rec)
         # recorder taps
         for name, link in self.links.items():
-            fm = port_formats(name)
+            fm: dict[str, Sequence[Any]] = dict(port_formats(name))
             if name == "gyro":
                 fm = {"in": [Stim210Format(scn.sensors.imu.format)]}
             rec.tap(name, link, fm)

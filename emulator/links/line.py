@@ -68,7 +68,7 @@ class LineConfig:
 
     def with_(self, **kw: Any) -> LineConfig:
         """A copy with some fields changed."""
-        d = {"baud": self.baud, "data_bits": self.data_bits, "parity": self.parity,
+        d: dict[str, Any] = {"baud": self.baud, "data_bits": self.data_bits, "parity": self.parity,
              "stop_bits": self.stop_bits, "tx_queue_bytes": self.tx_queue_bytes}
         d.update(kw)
         return LineConfig(**d)

@@ -254,7 +254,8 @@ class EmulatorHarness:
             w.base += m.end()
             return got
 
-        return await self._wait(w, check, timeout, f"no bytes matching {rx.pattern!r} on {port}/{w.direction}")
+        got: bytes = await self._wait(w, check, timeout, f"no bytes matching {rx.pattern!r} on {port}/{w.direction}")
+        return got
 
     async def wait_for_line(self, port: str, pattern: str | Pattern[str], timeout: float = 1.0,
                             direction: str | None = None) -> str:
@@ -276,7 +277,8 @@ class EmulatorHarness:
                     self.last_match_time = w.last_t
                     return line
 
-        return await self._wait(w, check, timeout, f"no line matching {rx.pattern!r} on {port}/{w.direction}")
+        found: str = await self._wait(w, check, timeout, f"no line matching {rx.pattern!r} on {port}/{w.direction}")
+        return found
 
     async def assert_not_seen(self, port: str, pattern: bytes | str | Pattern[bytes] | Callable[[Any], bool],
                               during: float, direction: str | None = None) -> None:

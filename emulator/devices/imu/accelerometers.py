@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import numpy as np
 
 from protocols.imu_frame import ADC_CODE_MAX, ADC_VOLTS_PER_LSB
@@ -20,7 +23,8 @@ class AnalogAccelerometers:
     """
 
     def __init__(self, tap: ImuTruthTap, rng: np.random.Generator, errors: AccelErrors | None = None,
-                 temperature: ImuTemperature | None = None, source=None, trigger_rate_hz: float = 200.0) -> None:
+                 temperature: ImuTemperature | None = None, source: Callable[[float, float], Any] | None = None,
+                 trigger_rate_hz: float = 200.0) -> None:
         self.tap = tap
         self.rng = rng
         self.err = e = errors or AccelErrors()
@@ -76,7 +80,7 @@ class AnalogAccelerometers:
             else:
                 _, dv = self.tap.increments(t_prev, t)
                 f = self.model.measure(dv / dt, dt, temp.at(t), temp.rate_c_per_min, temp.cal_c)
-        rng_g = self._range
+        rng_g: np.ndarray | float = self._range
         if self.faults.active:
             f, lim = self.faults.apply(f, self._range * G_STD)
             rng_g = lim / G_STD
@@ -91,4 +95,4 @@ class AnalogAccelerometers:
         f_g = np.clip(ahead.raw / G_STD, -self._range, self._range)
         volts = f_g * self._vpg
         codes = np.clip(np.round(volts / ADC_VOLTS_PER_LSB), -ADC_CODE_MAX - 1, ADC_CODE_MAX).astype(np.int64)
-        return [(tuple(c), m) for c, m in zip(codes.tolist(), f_g * G_STD)]  # type: ignore[misc]
+        return [(tuple(c), m) for c, m in zip(codes.tolist(), f_g * G_STD)]

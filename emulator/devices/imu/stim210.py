@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -43,7 +45,7 @@ class Stim210Gyro:
     def __init__(self, link: Link, tap: ImuTruthTap, rng: np.random.Generator, errors: GyroErrors | None = None,
                  fmt: str = "m", output: str = "rate", response_delay_s: float = 40e-6,
                  trigger_rate_hz: float = 200.0, latency_us: int = 0, temperature: ImuTemperature | None = None,
-                 source=None) -> None:
+                 source: Callable[[float, float], Any] | None = None) -> None:
         self.link = link
         self.tap = tap
         self.rng = rng
@@ -121,7 +123,7 @@ class Stim210Gyro:
             else:
                 dtheta, dv = self.tap.increments(t_prev, t)
                 rate = self.model.measure(dtheta / dt, dt, t_c, temp.rate_c_per_min, temp.cal_c, dv / dt)
-        lim = self.err.range_dps * DEG
+        lim: np.ndarray | float = self.err.range_dps * DEG
         if self.faults.active:
             rate, lim = self.faults.apply(rate, lim)
         rate = np.clip(rate, -lim, lim)
@@ -143,7 +145,7 @@ class Stim210Gyro:
             dts = np.array([a - b for a, b in ahead.times])[:, None]
             words = np.round(rate * dts / (GYRO_ANGLE_LSB_DEG * DEG))
         words = np.clip(words, -0x800000, 0x7FFFFF).astype(np.int64)
-        return [(tuple(w), r) for w, r in zip(words.tolist(), rate)]  # type: ignore[misc]
+        return [(tuple(w), r) for w, r in zip(words.tolist(), rate)]
 
     def _transmit(self, t: float, t_c: float, gyro_words: tuple[int, int, int]) -> None:
         self.counter = (self.counter + self.counter_step) & 0xFF

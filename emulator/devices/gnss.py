@@ -238,7 +238,8 @@ class GnssReceiver:
             utc=utc, lat_deg=lat_deg, lon_deg=lon_deg, height_m=h_m, geoid_sep_m=cfg.geoid_sep_m, vel_enu_mps=vel_enu,
             fix_type=fix_type, quality=fq if quality is None else quality,
             sat_ids=_SAT_IDS[: max(0, min(num_sats, len(_SAT_IDS)))] if fix_type else (), hdop=hdop,
-            h_acc_m=e.pos_sigma_h_m * math.sqrt(2.0), v_acc_m=e.pos_sigma_v_m, s_acc_mps=e.vel_sigma_h_mps * math.sqrt(2.0),
+            h_acc_m=e.pos_sigma_h_m * math.sqrt(2.0), v_acc_m=e.pos_sigma_v_m,
+            s_acc_mps=e.vel_sigma_h_mps * math.sqrt(2.0),
         )
 
     def sentences(self, t: float, fix: bool = True) -> bytes:

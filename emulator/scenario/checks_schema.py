@@ -106,7 +106,8 @@ class GnssDegradedFault(FaultWindow):
     noise_scale: float = Field(3.0, ge=1.0, le=1000.0, description="position and velocity noise multiplier")
     num_sats: int | None = Field(None, ge=0, le=99, description="satellites used (< 4: no fix)")
     hdop: float | None = Field(None, gt=0.0, le=99.0)
-    fix_quality: Literal[1, 2, 4, 5] | None = Field(None, description="GGA quality reported (1 GPS, 2 DGPS, 4 RTK fixed, 5 RTK float)")
+    fix_quality: Literal[1, 2, 4, 5] | None = Field(
+        None, description="GGA quality reported (1 GPS, 2 DGPS, 4 RTK fixed, 5 RTK float)")
 
 
 class PsnsCloudCoverFault(FaultWindow):

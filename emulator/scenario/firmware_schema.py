@@ -125,7 +125,8 @@ class SunElevationSpec(Model):
     min_pair_sine: float = Field(0.2, gt=0, le=1)
     attitude_coupling: bool = Field(False, description="tilt columns in H (the paper's H has none)")
     update_every: int = Field(1, ge=1, le=100)
-    attitude_aiding: bool = Field(False, description="also the compass's solar-vector attitude update (not in the paper)")
+    attitude_aiding: bool = Field(False,
+                                  description="also the compass's solar-vector attitude update (not in the paper)")
 
 
 class VariantsSpec(Model):

@@ -98,9 +98,10 @@ class FpgaSpec(Model):
     uarts: dict[Literal["uart0", "uart1", "uart2", "uart3"], UartSpec] = Field(default_factory=_default_uarts)
     gyro_timeout_s: float = Field(0.004, gt=0, lt=0.1)
     mag_rate_hz: float = Field(100.0, gt=0, le=2000,
-                               description="magnetometer sample / MAG frame rate; the trigger rate divided by an integer")
-    monitor_channels: list[Literal["gyro", "gnss", "psns", "host", "uart0", "uart1", "uart2", "uart3", "mag"]] | None = (
-        Field(None, description="channels mirrored on the MONITOR port (default: all)"))
+                               description="magnetometer sample / MAG frame rate; the trigger rate divided by an "
+                                           "integer")
+    monitor_channels: list[Literal["gyro", "gnss", "psns", "host", "uart0", "uart1", "uart2", "uart3", "mag"]] | None \
+        = Field(None, description="channels mirrored on the MONITOR port (default: all)")
 
     @field_validator("uarts")
     @classmethod

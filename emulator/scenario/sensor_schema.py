@@ -164,7 +164,8 @@ class MountingSpec(Model):
     heading_deg: float = Field(0.0, ge=-360, le=360)
     pitch_deg: float = Field(0.0, ge=-90, le=90)
     roll_deg: float = Field(0.0, ge=-180, le=180)
-    installation_error_deg: Vec3 = Field((0.0, 0.0, 0.0), description="small rotation vector about the sensor axes, deg")
+    installation_error_deg: Vec3 = Field((0.0, 0.0, 0.0),
+                                         description="small rotation vector about the sensor axes, deg")
 
 
 class RecordedImagesSpec(Model):

@@ -14,9 +14,9 @@ on the stereographic plane ``zeta = (V_E + i V_N)/(1 + V_U)`` the sky is describ
 with the Brewster and Babinet neutral points ``zB``, ``zb`` on the sun's vertical at ``delta``
 (half the ``neutral_point_sep_deg``) below and above the sun, and their antipodes (Arago and the
 fourth point). ``DOP = P_max |w|/(2 - |w|)`` and the E-vector makes the angle
-``arg(w exp(-2 i phi_sun))/2`` with the real axis of the zeta plane (``phi_sun = arg(zeta_sun)``) (the projection is conformal, so that direction is carried back to
-the sphere by the projection's Jacobian). With ``delta = 0`` it is exactly Rayleigh (a test
-checks this).
+``arg(w exp(-2 i phi_sun))/2`` with the real axis of the zeta plane (``phi_sun = arg(zeta_sun)``) (the
+projection is conformal, so that direction is carried back to the sphere by the projection's Jacobian).
+With ``delta = 0`` it is exactly Rayleigh (a test checks this).
 
 Clouds are circular sky regions (ENU azimuth/elevation, optional azimuth drift and a time
 window): inside, DOP is multiplied by ``dop_scale``, the radiance by ``intensity_scale`` and the

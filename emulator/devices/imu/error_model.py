@@ -149,8 +149,9 @@ class InertialErrorModel:
     g_sens : (3, 3) bias per m/s^2 of specific force (gyro), or None.
     """
 
-    def __init__(self, rng: np.random.Generator, white: np.ndarray, bias_instability: np.ndarray, bias_corr_time_s: float,
-                 rrw: np.ndarray, bias0: np.ndarray, m: np.ndarray, asym: np.ndarray, nl: np.ndarray, fs: np.ndarray,
+    def __init__(self, rng: np.random.Generator, white: np.ndarray, bias_instability: np.ndarray,
+                 bias_corr_time_s: float, rrw: np.ndarray, bias0: np.ndarray, m: np.ndarray, asym: np.ndarray,
+                 nl: np.ndarray, fs: np.ndarray,
                  temp_coeff: np.ndarray, temp_gradient: np.ndarray, g_sens: np.ndarray | None = None) -> None:
         self.rng = rng
         self.white = np.asarray(white, dtype=np.float64)

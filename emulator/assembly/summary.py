@@ -38,8 +38,8 @@ def take_sample(rec: Recorder, dsp: Any, t: float, final: bool = False) -> None:
     if final or not local:
         return
     fw = dsp.fw
-    flt = getattr(fw, "filter", None)
-    st: dict[str, Any] = {"time_s": t, "state": getattr(fw, "state", ""), "mode": int(getattr(fw, "mode", 0))}
+    flt = fw.filter  # the filter variants differ in their state: P and the bias estimates are read if present
+    st: dict[str, Any] = {"time_s": t, "state": fw.state, "mode": int(fw.mode)}
     p = getattr(flt, "P", None)
     if p is not None:
         for i, v in enumerate(np.asarray(p).diagonal().tolist()):

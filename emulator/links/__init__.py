@@ -102,7 +102,8 @@ class LinkUrl:
                 kw["tx_queue_bytes"] = int(self.options["queue"])
             return LineConfig(**kw)
         except ValueError as exc:
-            raise LinkConfigError(f"{self.url}: {exc}; expected {_USAGE.get(self.scheme, self.scheme + '://...')}") from exc
+            usage = _USAGE.get(self.scheme, self.scheme + "://...")
+            raise LinkConfigError(f"{self.url}: {exc}; expected {usage}") from exc
 
 
 def parse_link_url(url: str, extra_options: frozenset[str] = frozenset()) -> LinkUrl:

@@ -49,17 +49,17 @@ Fidelity:
 
 from .device import PolarizationCamera
 from .geometry import (
-                       CHANNEL_OFFSETS,
+    CHANNEL_OFFSETS,
                        IMX250MZR_NX,
                        IMX250MZR_NY,
                        IMX250MZR_PIXEL_M,
-                       CameraConfig,
-                       CameraGeometry,
-                       PointObservations,
-                       mounting_matrix,
-                       rotation_vector_matrix,
-                       stokes_superpixel,
-                       wire_aop_cdeg,
+    CameraConfig,
+    CameraGeometry,
+    PointObservations,
+    mounting_matrix,
+    rotation_vector_matrix,
+    stokes_superpixel,
+    wire_aop_cdeg,
 )
 from .model import PolarizationCameraModel
 

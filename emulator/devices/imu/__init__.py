@@ -37,13 +37,13 @@ The paper's "< X" limits are 3 sigma (docs/decisions.md D1): the presets hold ``
 from .accelerometers import AnalogAccelerometers
 from .allan import allan_deviation
 from .error_model import (
-                          AccelErrors,
-                          FlickerBank,
-                          GyroErrors,
-                          ImuTemperature,
-                          InertialErrorModel,
-                          accel_error_model,
-                          gyro_error_model,
+    AccelErrors,
+    FlickerBank,
+    GyroErrors,
+    ImuTemperature,
+    InertialErrorModel,
+    accel_error_model,
+    gyro_error_model,
 )
 from .injected import InjectedFaults
 from .lookahead import ImuTruthTap

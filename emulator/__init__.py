@@ -8,4 +8,4 @@ from protocols import __version__
 
 from .errors import EmulatorError, LinkError, ScenarioError
 
-__all__ = ["__version__", "EmulatorError", "LinkError", "ScenarioError"]
+__all__ = ["EmulatorError", "LinkError", "ScenarioError", "__version__"]

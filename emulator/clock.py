@@ -1,6 +1,6 @@
 """The emulator's event loop and its two time modes.
 
-One asyncio event loop drives everything (DESIGN.md section 4). Its ``time()`` is the
+One asyncio event loop drives everything (docs/architecture.md, section "Time"). Its ``time()`` is the
 scenario clock in seconds since scenario start.
 
 ``fast``
@@ -18,6 +18,15 @@ scenario clock in seconds since scenario start.
     spacing and the loop catches up: asyncio alone would run every overdue timer in one batch,
     and a sensor datagram scheduled during the batch would land after the FPGA's timeout for it.
 
+Fast path. In fast mode with no file descriptor of its own, the loop runs batches of iterations
+(:meth:`EmulatorLoop._run_fast`) instead of asyncio's ``BaseEventLoop._run_once``, and ``call_at``
+builds lighter timer handles: both re-implement asyncio steps on CPython's private fields
+(``_scheduled``, ``_ready``, the timer handles' slots). They are used only on the CPython versions in
+:data:`FAST_PATH_VERSIONS`, where those fields were checked, and only when the fields are really there
+(:func:`fast_path_supported`); elsewhere the loop runs asyncio's own iteration and ``call_at``, with the
+same results, more slowly. (The virtual clock itself needs only the timer heap, ``_scheduled``, and its
+handles' ``_when``, which every asyncio since 3.4 has.)
+
 Devices use only ``loop.time()`` and ``loop.call_at()`` / ``asyncio.sleep``, so the same code
 runs in both modes. :func:`sleep_until` waits for an absolute scenario time without the drift
 that repeated relative sleeps accumulate.
@@ -28,12 +37,37 @@ from __future__ import annotations
 import asyncio
 import heapq
 import selectors
+import sys
 import time as _time
 from asyncio import events as _events
+from collections import deque
 from contextvars import copy_context as _copy_context
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-__all__ = ["EmulatorLoop", "new_loop", "sleep_until"]
+__all__ = ["FAST_PATH_VERSIONS", "EmulatorLoop", "fast_path_supported", "new_loop", "sleep_until"]
+
+#: CPython versions whose asyncio internals the fast path was checked against (the steps of
+#: ``BaseEventLoop._run_once``, the fields of ``TimerHandle``); 3.11 is the version the project is tested on.
+FAST_PATH_VERSIONS: frozenset[tuple[int, int]] = frozenset({(3, 11)})
+#: private loop fields the fast path reads and writes
+_LOOP_FIELDS = ("_scheduled", "_ready", "_stopping", "_timer_cancelled_count", "_clock_resolution", "_debug", "_closed")
+#: private timer-handle fields :class:`_Timer` sets and the fast path reads
+_HANDLE_FIELDS = ("_context", "_loop", "_callback", "_args", "_cancelled", "_repr", "_source_traceback", "_when",
+                  "_scheduled")
+
+
+def fast_path_supported(loop: asyncio.AbstractEventLoop) -> bool:
+    """True when ``loop`` may take the fast path: a CPython version of :data:`FAST_PATH_VERSIONS` whose
+    event loop and timer handles have the private fields the fast path uses."""
+    if sys.implementation.name != "cpython" or sys.version_info[:2] not in FAST_PATH_VERSIONS:
+        return False
+    slots: set[str] = set()
+    for cls in _events.TimerHandle.__mro__:
+        s = cls.__dict__.get("__slots__", ())
+        slots.update((s,) if isinstance(s, str) else s)
+    return (callable(getattr(asyncio.BaseEventLoop, "_run_once", None))
+            and all(f in slots for f in _HANDLE_FIELDS)
+            and all(hasattr(loop, f) for f in _LOOP_FIELDS))
 
 
 class _ClockSelector(selectors.BaseSelector):
@@ -46,7 +80,7 @@ class _ClockSelector(selectors.BaseSelector):
     #: realtime: waits shorter than this are slept precisely (epoll has 1 ms resolution)
     FINE_S = 0.0015
 
-    def __init__(self, loop: "EmulatorLoop") -> None:
+    def __init__(self, loop: EmulatorLoop) -> None:
         self._real = selectors.DefaultSelector()
         self._loop = loop
         self._nfds = 0
@@ -79,7 +113,7 @@ class _ClockSelector(selectors.BaseSelector):
     def select(self, timeout: float | None = None) -> list[tuple[selectors.SelectorKey, int]]:
         loop = self._loop
         if loop.mode == "fast":
-            sched = loop._scheduled  # noqa: SLF001 - the virtual clock needs the timer heap
+            sched = loop._scheduled
             if self._nfds > 1 or self._skipped >= self.SELF_PIPE_POLL_EVERY or not sched:
                 self._skipped = 0
                 events = self._real.select(0)
@@ -91,7 +125,7 @@ class _ClockSelector(selectors.BaseSelector):
             if timeout == 0:
                 return events
             if sched:
-                when = sched[0]._when  # noqa: SLF001
+                when = sched[0]._when
                 if when > loop._now:
                     loop._now = when
                 return events
@@ -110,11 +144,11 @@ class _ClockSelector(selectors.BaseSelector):
                     events = self._real.select(0)
         else:
             events = self._real.select(timeout)
-        sched = loop._scheduled  # noqa: SLF001
+        sched = loop._scheduled
         if sched:
-            when = sched[0]._when  # noqa: SLF001
+            when = sched[0]._when
             if when < loop.time():
-                loop._cap = when  # noqa: SLF001 - overdue: this iteration is the instant `when`
+                loop._cap = when
         return events
 
 
@@ -127,6 +161,8 @@ class _Timer(_events.TimerHandle):
     """
 
     __slots__ = ()
+    if TYPE_CHECKING:
+        _when: float
 
     def __init__(self, when: float, callback: Any, args: Any, loop: Any, context: Any = None) -> None:
         self._context = _copy_context() if context is None else context
@@ -139,7 +175,7 @@ class _Timer(_events.TimerHandle):
         self._when = when
         self._scheduled = False
 
-    def __lt__(self, other: Any) -> bool:
+    def __lt__(self, other: _Timer) -> bool:  # type: ignore[override]  # the heap holds timer handles only
         return self._when < other._when
 
 
@@ -154,6 +190,16 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
         Real-time scale factor; only used in realtime mode.
     """
 
+    if TYPE_CHECKING:  # asyncio's private fields the clock and the fast path use (see the module docstring)
+        _scheduled: list[Any]  # asyncio.TimerHandle, read through its private _when / _scheduled
+        _ready: deque[Any]
+        _stopping: bool
+        _timer_cancelled_count: int
+        _clock_resolution: float
+        _debug: bool
+        _closed: bool
+        _selector: _ClockSelector
+
     def __init__(self, mode: str = "fast", speed: float = 1.0) -> None:
         if mode not in ("fast", "realtime"):
             raise ValueError(f"mode must be 'fast' or 'realtime', got {mode!r}")
@@ -164,8 +210,11 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
         self._now = 0.0
         self._wall0 = _time.monotonic()
         self._cap: float | None = None  # realtime: the overdue instant this iteration runs
+        self.fast_path = False  # decided below, once asyncio has set up its fields
         super().__init__(selector=_ClockSelector(self))
         self._clock_resolution = 1e-9
+        #: the fast path (batched iterations, light timer handles) is used: see :func:`fast_path_supported`
+        self.fast_path = fast_path_supported(self)
 
     def time(self) -> float:
         if self.mode == "fast":
@@ -178,7 +227,7 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
     def _run_once(self) -> None:
         self._cap = None
         sel = self._selector
-        if self.mode != "fast" or self._debug or sel._nfds > 1:  # type: ignore[attr-defined]
+        if self.mode != "fast" or self._debug or not self.fast_path or sel._nfds > 1:
             super()._run_once()  # type: ignore[misc]
             return
         self._run_fast(sel)
@@ -205,14 +254,14 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
             sched = self._scheduled
             n_sched = len(sched)
             if n_sched > 100 and self._timer_cancelled_count / n_sched > 0.5:
-                super()._run_once()  # type: ignore[misc] - the rare full clean-up
+                super()._run_once()  # type: ignore[misc]  # the rare full clean-up
                 return
             while sched and sched[0]._cancelled:
                 self._timer_cancelled_count -= 1
                 heappop(sched)._scheduled = False
             if not ready and not self._stopping:
                 if not sched:
-                    super()._run_once()  # type: ignore[misc] - waits in the real selector
+                    super()._run_once()  # type: ignore[misc]  # waits in the real selector
                     return
                 when = sched[0]._when
                 if when > self._now:
@@ -232,14 +281,15 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
             if self._stopping:
                 return
 
-    def call_at(self, when: float, callback: Any, *args: Any, context: Any = None) -> asyncio.TimerHandle:
-        """:meth:`asyncio.BaseEventLoop.call_at` without its debug-mode checks (when debug is off)."""
-        if self._debug or when is None:
+    def call_at(self, when: float, callback: Any, *args: Any, context: Any = None) -> asyncio.TimerHandle:  # type: ignore[override]
+        """:meth:`asyncio.BaseEventLoop.call_at` without its debug-mode checks (when debug is off, on the fast
+        path)."""
+        if self._debug or when is None or not self.fast_path:
             return super().call_at(when, callback, *args, context=context)
-        if self._closed:  # type: ignore[attr-defined]
+        if self._closed:
             raise RuntimeError("Event loop is closed")
         timer = _Timer(when, callback, args, self, context)
-        heapq.heappush(self._scheduled, timer)  # type: ignore[attr-defined]
+        heapq.heappush(self._scheduled, timer)
         timer._scheduled = True
         return timer
 
@@ -251,7 +301,7 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
         """
         delta = self.time()
         for h in self._scheduled:  # a uniform shift keeps the heap ordered
-            h._when -= delta  # noqa: SLF001
+            h._when -= delta
         self._cap = None
         self._wall0 = _time.monotonic()
         self._now = 0.0

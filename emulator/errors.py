@@ -6,14 +6,14 @@ from protocols.errors import PsnsHilError
 
 __all__ = [
     "EmulatorError",
-    "ScenarioError",
-    "ScenarioIssue",
-    "LinkError",
-    "LinkConfigError",
-    "LinkClosedError",
     "LinkBrokenError",
+    "LinkClosedError",
+    "LinkConfigError",
+    "LinkError",
     "LinkTimeoutError",
     "RecordingError",
+    "ScenarioError",
+    "ScenarioIssue",
 ]
 
 
@@ -24,7 +24,7 @@ class EmulatorError(PsnsHilError):
 class ScenarioIssue:
     """One problem in a scenario file: where (file, line, column, field path) and what."""
 
-    __slots__ = ("file", "line", "column", "path", "message")
+    __slots__ = ("column", "file", "line", "message", "path")
 
     def __init__(self, file: str, line: int | None, column: int | None, path: str, message: str) -> None:
         self.file = file

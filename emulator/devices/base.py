@@ -19,7 +19,7 @@ class EventSink(Protocol):
 class NullEvents:
     """An :class:`EventSink` that drops everything."""
 
-    def emit(self, t: float, source: str, kind: str, /, **data: Any) -> None:  # noqa: D102
+    def emit(self, t: float, source: str, kind: str, /, **data: Any) -> None:
         return None
 
 

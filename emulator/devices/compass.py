@@ -1,19 +1,19 @@
 """Multi-unit polarization compass (9 single-direction units) on the PSNS port (COMPASS frames).
 
-Each unit u is a single-direction polarization analyser (contract C1): its view ray is its own
+Each unit u is a single-direction polarization analyser (docs/architecture.md, "Conventions"): its view ray is its own
 +z axis, its AOP is measured in its x-y plane from +y towards +x, and ``C_u^b`` (columns: the
 unit's x, y, z axes in body coordinates) is its mounting matrix. The default geometry (unit 0 at
 the zenith, 8 units on a ring at zenith angle 45 deg every 45 deg of azimuth from body +y towards
 +x, each ring unit's +y axis up the hemisphere) is the one of ``firmware_model.psns_geometry``;
-this module uses that shared definition when the firmware package provides it and otherwise
-builds the identical matrices itself (:func:`default_mountings`; a test checks they agree).
+this module uses that shared definition (:func:`default_mountings`) and keeps its own construction of
+the identical matrices, which a test checks against it.
 
 Measurement model: a unit sees the sky polarization along its ray (``emulator.world.sky``),
 analyses it with four polarizers (0/45/90/135 deg, extinction ratio ``ER``) and reports Stokes ->
 DOP/AOP exactly as the camera does. The channel noise (relative to S0) is set from the
 accuracy figure: ``aop_sigma`` (1 sigma) at ``dop_ref``, so ``sigma_I = sqrt(2) S0 DOP_ref
 sigma_AOP``, and the AOP error grows as ``sigma_I/(sqrt(2) S0 DOP)`` when the DOP falls
-(algorithms.md 2.3). The sun inside a unit's field of view (``fov_half``) saturates it (the unit
+(docs/reference/algorithms.md 2.3). The sun inside a unit's field of view (``fov_half``) saturates it (the unit
 is left out of the frame and SATURATED is set); a sun below ``min_sun_elevation`` gives frames
 with no units and SUN_BELOW_HORIZON.
 
@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from firmware_model.psns_geometry import compass_unit_mountings
 from protocols.psns import CompassUnit, PsnsHeader, PsnsStatus, encode_compass
 
 from ..links.base import Link
@@ -40,7 +41,7 @@ from ..world.sun import SunModel
 from ..world.trajectory import Trajectory
 from .camera import rotation_vector_matrix, wire_aop_cdeg
 
-__all__ = ["default_mountings", "CompassConfig", "CompassReading", "CompassModel", "PolarizationCompass"]
+__all__ = ["CompassConfig", "CompassModel", "CompassReading", "PolarizationCompass", "default_mountings"]
 
 DEG = math.pi / 180.0
 N_UNITS = 9
@@ -62,11 +63,7 @@ def _own_mountings() -> np.ndarray:
 
 
 def default_mountings() -> np.ndarray:
-    """``C_u^b`` of the 9 default units, (9, 3, 3): the shared firmware definition when available."""
-    try:
-        from firmware_model.psns_geometry import compass_unit_mountings
-    except ImportError:
-        return _own_mountings()
+    """``C_u^b`` of the 9 default units, (9, 3, 3): the shared firmware definition."""
     return np.asarray(compass_unit_mountings(), dtype=np.float64)
 
 
@@ -204,7 +201,7 @@ class CompassModel:
 
 
 class PolarizationCompass:
-    """The compass as a device: COMPASS frames at ``rate_hz`` on the PSNS link (C1 latency tag)."""
+    """The compass as a device: COMPASS frames at ``rate_hz`` on the PSNS link (latency tag as in the conventions)."""
 
     def __init__(self, link: Link, model: CompassModel, rate_hz: float = 5.0, integration_s: float = 0.01,
                  processing_s: float = 0.005, phase_s: float = 0.0) -> None:
@@ -233,11 +230,11 @@ class PolarizationCompass:
         r = self.model.read(t_mid)
         self.last = r
         now = self.link.loop.time()
-        latency_us = int(round((max(now, self.link.busy_until()) - t_mid) * 1e6))
+        latency_us = round((max(now, self.link.busy_until()) - t_mid) * 1e6)
         aop = wire_aop_cdeg(r.aop)
         dop = np.clip(np.round(r.dop * 65535.0), 0, 65535).astype(np.int64)
         units = [CompassUnit(int(u), int(a), int(d)) for u, a, d in zip(r.units, aop, dop)]
-        hdr = PsnsHeader(self.seq, int(round(self.integration_s * 1e6)), latency_us, r.status, len(units))
+        hdr = PsnsHeader(self.seq, round(self.integration_s * 1e6), latency_us, r.status, len(units))
         self.link.send(encode_compass(hdr, units))
         self.frames_sent += 1
         self.seq = (self.seq + 1) & 0xFFFF

@@ -9,11 +9,9 @@
 * PPS rising edges latch the counter (``t_pps_us``, ``pps_count``), carried in every IMU frame.
 * A magnetometer (when the scenario has one) is sampled on every ``imu_rate / mag_rate_hz``-th
   trigger (100 Hz by default, the ICD's budget); its MAG frame
-  (:class:`protocols.imu_frame.MagFrame`, CONTRACTS C2: sequence, trigger time stamp, field in
+  (:class:`protocols.imu_frame.MagFrame`, docs/icd.md: sequence, trigger time stamp, field in
   0.1 nT, status) follows that trigger's IMU frame on UART1 and is mirrored on the MONITOR
-  port's ``mag`` channel. This needs the C2 MAG frame in
-  :mod:`protocols.imu_frame`; without it no MAG frame is sent and a ``mag_frames_unavailable``
-  event says so once.
+  port's ``mag`` channel.
 * Byte routing (the crossbar, scenario ``fpga.routing``): each external serial port is
   forwarded to its DSP UART and back, cut-through (a byte leaves as soon as it has arrived and
   the output line is free). Baud conversion happens because the two sides are separate links
@@ -22,7 +20,7 @@
 * The MONITOR port (``links.monitor``): every chunk on every channel (external ports and DSP
   UARTs, both directions) is mirrored as a :class:`protocols.monitor.MonitorRecord` (channel id,
   direction 0 = towards the DSP / 1 = away from it, FPGA time stamp in us, the bytes),
-  COBS-framed by :func:`protocols.monitor.encode_monitor` (CONTRACTS C2). A monitor line slower
+  COBS-framed by :func:`protocols.monitor.encode_monitor` (docs/icd.md). A monitor line slower
   than the traffic overflows and counts, like any other.
 """
 
@@ -33,18 +31,18 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from protocols.imu_frame import ADC_CODE_MAX, FpgaStatus, ImuFrame, ImuFrameFormat
+from protocols.imu_frame import ADC_CODE_MAX, FpgaStatus, ImuFrame, ImuFrameFormat, MagFrame, encode_mag_frame
+from protocols.monitor import MONITOR_CHANNELS, MONITOR_MAX_DATA, MonitorRecord, encode_monitor
 from protocols.stim import Stim210Format
 from protocols.stream import StreamDecoder
 
-from ..errors import EmulatorError
 from ..links.base import Link
 from .base import EventSink, NullEvents
 from .imu import AnalogAccelerometers, Stim210Gyro
 
-__all__ = ["FpgaConfig", "VirtualFpga", "DEFAULT_ROUTING", "MONITOR_DIRECTIONS", "monitor_api"]
+__all__ = ["DEFAULT_ROUTING", "MONITOR_DIRECTIONS", "FpgaConfig", "VirtualFpga"]
 
-#: external port -> DSP UART (DESIGN.md section 2: PSNS = RS232 -> UART2, GNSS = RS422 -> UART3)
+#: external port -> DSP UART (docs/architecture.md: PSNS = RS232 -> UART2, GNSS = RS422 -> UART3)
 DEFAULT_ROUTING = {"host": "uart0", "psns": "uart2", "gnss": "uart3"}
 
 
@@ -61,41 +59,22 @@ class FpgaConfig:
     mag_rate_hz: float = 100.0
 
 
-#: (link end held by the FPGA, link direction) -> monitor direction (C2: 0 towards the DSP, 1 away)
+#: (link end held by the FPGA, link direction) -> monitor direction (docs/icd.md: 0 towards the DSP, 1 away)
 MONITOR_DIRECTIONS = {("port", "in"): 0, ("port", "out"): 1, ("uart", "out"): 0, ("uart", "in"): 1}
-
-
-def mag_api() -> tuple[Any, Any] | None:
-    """``(MagFrame, encode_mag_frame)`` from :mod:`protocols.imu_frame` (C2), or None without them."""
-    try:
-        from protocols.imu_frame import MagFrame, encode_mag_frame  # type: ignore[attr-defined]
-    except ImportError:
-        return None
-    return MagFrame, encode_mag_frame
-
-
-def monitor_api() -> tuple[Any, Any, dict[str, int]] | None:
-    """``(MonitorRecord, encode_monitor, MONITOR_CHANNELS)`` from :mod:`protocols.monitor` (C2),
-    or None while that module is not part of this build."""
-    try:
-        from protocols.monitor import MONITOR_CHANNELS, MonitorRecord, encode_monitor
-    except ImportError:
-        return None
-    return MonitorRecord, encode_monitor, dict(MONITOR_CHANNELS)
 
 
 class _MonitorTap:
     """Listener on one FPGA-held link end that mirrors its chunks to the MONITOR port."""
 
-    __slots__ = ("fpga", "channel", "dirs")
+    __slots__ = ("channel", "dirs", "fpga")
 
-    def __init__(self, fpga: "VirtualFpga", channel: int, side: str) -> None:
+    def __init__(self, fpga: VirtualFpga, channel: int, side: str) -> None:
         self.fpga = fpga
         self.channel = channel
         self.dirs = {"in": MONITOR_DIRECTIONS[(side, "in")], "out": MONITOR_DIRECTIONS[(side, "out")]}
 
     def on_link_bytes(self, link: Link, direction: str, t: float, data: bytes) -> None:
-        self.fpga._mirror(self.channel, self.dirs[direction], t, data)  # noqa: SLF001
+        self.fpga._mirror(self.channel, self.dirs[direction], t, data)
 
 class VirtualFpga:
     """See module docstring.
@@ -149,26 +128,18 @@ class VirtualFpga:
         self.mag = mag
         self.mag_frames = 0
         self._mag_seq = 0
-        self._mag_api = mag_api() if mag is not None else None
+        self._mag_api = (MagFrame, encode_mag_frame) if mag is not None else None
         self._mag_pending: bytes | None = None
-        self._mag_div = max(1, int(round(cfg.imu_rate_hz / cfg.mag_rate_hz)))
+        self._mag_div = max(1, round(cfg.imu_rate_hz / cfg.mag_rate_hz))
         self._mag_channel: int | None = None
-        if mag is not None and self._mag_api is None:
-            self.events.emit(0.0, "fpga", "mag_frames_unavailable",
-                             reason="protocols.imu_frame has no MagFrame (CONTRACTS C2) in this build")
         self.monitor = monitor
         self.monitor_records = 0
         self._mon_record: Any = None
         self._mon_encode: Any = None
         self._mon_max = 1 << 30
         if monitor is not None:
-            api = monitor_api()
-            if api is None:
-                raise EmulatorError("links.monitor needs protocols.monitor (CONTRACTS C2), which this build lacks")
-            self._mon_record, self._mon_encode, channels = api
-            import protocols.monitor as _pm
-
-            self._mon_max = int(getattr(_pm, "MONITOR_MAX_DATA", 1 << 30))
+            self._mon_record, self._mon_encode, channels = MonitorRecord, encode_monitor, dict(MONITOR_CHANNELS)
+            self._mon_max = int(MONITOR_MAX_DATA)
             wanted = set(cfg.monitor_channels) if cfg.monitor_channels is not None else None
             if "mag" in channels and (wanted is None or "mag" in wanted):
                 self._mag_channel = channels["mag"]
@@ -181,7 +152,7 @@ class VirtualFpga:
     @staticmethod
     def counter_us(t: float) -> int:
         """The FPGA's 1 MHz counter at scenario time ``t`` (wraps at 2^32 us)."""
-        return int(math.floor(t * 1e6 + 1e-6)) & 0xFFFFFFFF
+        return math.floor(t * 1e6 + 1e-6) & 0xFFFFFFFF
 
     def start(self) -> None:
         self._trigger_handle = self.loop.call_at(0.0, self._trigger)

@@ -5,7 +5,7 @@ edge carries a Gaussian jitter, the paper's "second pulse accuracy 50 ns" read a
 ``latency_s`` later, writes the sentences of that epoch; at 9600 baud a GGA + RMC pair takes
 ~0.15 s on the wire.
 
-Errors (:class:`GnssErrorModel`; base paper figures, DESIGN.md section 2, read as 95 % bounds,
+Errors (:class:`GnssErrorModel`; base paper figures, docs/architecture.md, read as 95 % bounds,
 docs/decisions.md D1): horizontal position < 10 m (95 % radial: 4.08 m per axis), vertical
 < 15 m (95 %: 7.5 m), each axis the sum of a first-order Gauss-Markov process
 (``pos_corr_time_s``) and a white part (``pos_white_fraction`` of the sigma), with the total
@@ -26,8 +26,8 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
@@ -37,7 +37,7 @@ from protocols.gnss import GnssFix, GnssOutputSet, build_epoch
 from ..links.base import Link
 from ..world.trajectory import Trajectory
 
-__all__ = ["GnssErrors", "GnssConfig", "GnssOutage", "GnssGlitch", "GnssErrorModel", "GnssReceiver", "RADIAL_95"]
+__all__ = ["RADIAL_95", "GnssConfig", "GnssErrorModel", "GnssErrors", "GnssGlitch", "GnssOutage", "GnssReceiver"]
 
 DEG = math.pi / 180.0
 #: PRNs reported in GSA / numSV (a fixed, plausible constellation; the count follows ``num_sats``).
@@ -238,7 +238,8 @@ class GnssReceiver:
             utc=utc, lat_deg=lat_deg, lon_deg=lon_deg, height_m=h_m, geoid_sep_m=cfg.geoid_sep_m, vel_enu_mps=vel_enu,
             fix_type=fix_type, quality=fq if quality is None else quality,
             sat_ids=_SAT_IDS[: max(0, min(num_sats, len(_SAT_IDS)))] if fix_type else (), hdop=hdop,
-            h_acc_m=e.pos_sigma_h_m * math.sqrt(2.0), v_acc_m=e.pos_sigma_v_m, s_acc_mps=e.vel_sigma_h_mps * math.sqrt(2.0),
+            h_acc_m=e.pos_sigma_h_m * math.sqrt(2.0), v_acc_m=e.pos_sigma_v_m,
+            s_acc_mps=e.vel_sigma_h_mps * math.sqrt(2.0),
         )
 
     def sentences(self, t: float, fix: bool = True) -> bytes:

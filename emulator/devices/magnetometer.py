@@ -27,7 +27,7 @@ import numpy as np
 
 from ..world.trajectory import Trajectory
 
-__all__ = ["MagConfig", "Magnetometer", "field_enu", "BEIJING_FIELD", "MAG_LSB_NT"]
+__all__ = ["BEIJING_FIELD", "MAG_LSB_NT", "MagConfig", "Magnetometer", "field_enu"]
 
 DEG = math.pi / 180.0
 #: MAG frame resolution, nT per LSB.

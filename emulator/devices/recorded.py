@@ -41,8 +41,8 @@ import csv
 import datetime as _dt
 import glob as _glob
 import math
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -53,8 +53,16 @@ from ..links.base import Link
 from .camera import CHANNEL_OFFSETS
 from .gnss import GnssConfig, GnssReceiver
 
-__all__ = ["IMU_COLUMNS", "GNSS_COLUMNS", "RecordedImu", "RecordedGnssCsv", "RecordedNmea", "RecordedImages",
-           "recorded_gnss", "read_mosaic"]
+__all__ = [
+    "GNSS_COLUMNS",
+    "IMU_COLUMNS",
+    "RecordedGnssCsv",
+    "RecordedImages",
+    "RecordedImu",
+    "RecordedNmea",
+    "read_mosaic",
+    "recorded_gnss",
+]
 
 DEG = math.pi / 180.0
 IMU_COLUMNS = ("time_s", "gyro_x_dps", "gyro_y_dps", "gyro_z_dps", "accel_x_mps2", "accel_y_mps2", "accel_z_mps2")
@@ -237,13 +245,13 @@ class RecordedNmea:
                 raise RecordingError(f"{self.path}: line {i}, column {col + star}: NMEA checksum mismatch")
             try:
                 msg = fmt.parse(frame)
-            except Exception as exc:  # noqa: BLE001 - any parser complaint is a bad record
+            except Exception as exc:
                 raise RecordingError(f"{self.path}: line {i}, column {col}: bad NMEA sentence: {exc}") from exc
             tm = msg.time_utc if isinstance(msg, (Gga, Rmc)) else None
             if isinstance(msg, Rmc) and getattr(msg, "date", None) is not None:
                 date = msg.date
             if tm is not None:
-                utc = _dt.datetime.combine(date, tm, tzinfo=_dt.timezone.utc)
+                utc = _dt.datetime.combine(date, tm, tzinfo=_dt.UTC)
                 t = (utc - epoch).total_seconds() + time_offset_s
                 if not groups or abs(groups[-1][0] - t) > 1e-6:
                     groups.append([t, bytearray(), False])

@@ -1,8 +1,8 @@
 """Build the sensor devices of a scenario (presets + overrides -> error models -> devices).
 
-:func:`build_sensors` is the runner's single call site (contract C3). It creates every sensor
-whose port is wired in-process (an ``internal`` link end) and the FPGA-sampled devices
-(accelerometers, magnetometer), from the scenario's ``sensors`` section: each sensor takes its
+:func:`build_sensors` is the assembly's single call site (docs/architecture.md, section "Firmware
+interface"). It creates every sensor whose port is wired in-process (an ``internal`` link end) and the
+FPGA-sampled devices (accelerometers, magnetometer), from the scenario's ``sensors`` section: each sensor takes its
 named preset (``emulator/presets/*.yaml``), applies the scenario's overrides, and reads a
 recorded file instead of its model when ``recorded:`` is given.
 """
@@ -10,14 +10,16 @@ recorded file instead of its model when ``recorded:`` is given.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
 from ..errors import ScenarioError
 from ..links.base import Link
+from ..scenario.presets import merged, preset
 from ..scenario.schema import Scenario
 from ..world.sky import SkyModel, sky_from_spec
 from ..world.sun import SunModel
@@ -28,10 +30,19 @@ from .compass import CompassConfig, CompassModel, PolarizationCompass, default_m
 from .gnss import GnssConfig, GnssErrors, GnssGlitch, GnssOutage, GnssReceiver
 from .imu import AccelErrors, AnalogAccelerometers, GyroErrors, ImuTemperature, ImuTruthTap, Stim210Gyro
 from .magnetometer import MagConfig, Magnetometer, soft_iron_matrix
-from .presets import merged, preset
 
-__all__ = ["SensorSet", "build_sensors", "gyro_errors", "accel_errors", "gnss_config", "camera_config",
-           "compass_config", "mag_config", "build_sky", "build_sun"]
+__all__ = [
+    "SensorSet",
+    "accel_errors",
+    "build_sensors",
+    "build_sky",
+    "build_sun",
+    "camera_config",
+    "compass_config",
+    "gnss_config",
+    "gyro_errors",
+    "mag_config",
+]
 
 DEG = math.pi / 180.0
 

@@ -20,7 +20,7 @@ from firmware_model.variants.params import (
 from ..devices.sensors import accel_errors, camera_config, gnss_config, gyro_errors
 from ..scenario.schema import Scenario
 
-__all__ = ["firmware_config", "build_firmware"]
+__all__ = ["build_firmware", "firmware_config"]
 
 DEG = math.pi / 180.0
 
@@ -63,7 +63,7 @@ def _variant_params(scn: Scenario) -> VariantParams:
     )
 
 
-def _compass_mountings(scn: Scenario):  # noqa: ANN202
+def _compass_mountings(scn: Scenario):
     """The compass's nominal unit layout as the firmware knows it (no installation error); None: default 9."""
     c = scn.sensors.compass
     if c is None or c.units is None:
@@ -82,7 +82,7 @@ def firmware_config(scn: Scenario) -> FirmwareConfig:
         clock_hz=scn.dsp.clock_hz,
         imu_rate_hz=scn.sensors.imu.rate_hz,
         gyro_output=scn.sensors.imu.output,
-        gyro_counter_step=int(round(2000 / scn.sensors.imu.rate_hz)),
+        gyro_counter_step=round(2000 / scn.sensors.imu.rate_hz),
         coning_samples=fw.coning_samples,
         kf_predict_every=fw.kf_predict_every,
         output_rate_hz=fw.output_rate_hz,

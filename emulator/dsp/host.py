@@ -1,6 +1,6 @@
 """The virtual TMS320C6747: UARTs, the firmware host, cycles turned into time, the watchdog.
 
-UARTs (DESIGN.md section 2, SPRS377 section 6.24): UART0-2 are the C6747's on-chip 16550-style
+UARTs (docs/architecture.md, SPRS377 section 6.24): UART0-2 are the C6747's on-chip 16550-style
 UARTs, fed by serial lines from the FPGA; UART3 is a 16550-compatible core inside the FPGA that
 the DSP reads over EMIFA (its FIFO fills at the GNSS line's pace). Each has
 (:class:`UartRxModel`):
@@ -36,15 +36,16 @@ from __future__ import annotations
 import asyncio
 import math
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 from firmware_model import UART_IMU, Firmware
 
 from ..devices.base import EventSink, NullEvents
 from ..links.base import Link
 
-__all__ = ["VirtualDsp", "UartRxConfig", "UartRxModel", "WatchdogConfig"]
+__all__ = ["UartRxConfig", "UartRxModel", "VirtualDsp", "WatchdogConfig"]
 
 
 @dataclass(frozen=True)
@@ -71,8 +72,21 @@ class WatchdogConfig:
 class UartRxModel:
     """16550 RX FIFO + service + firmware ring of one UART (see module docstring)."""
 
-    __slots__ = ("uart", "cfg", "lossless", "level", "t_drain", "t_last", "ring_fill", "bytes_in",
-                 "overrun_bytes", "ring_overflow_bytes", "drains", "polls", "_char_timeout")
+    __slots__ = (
+        "_char_timeout",
+        "bytes_in",
+        "cfg",
+        "drains",
+        "level",
+        "lossless",
+        "overrun_bytes",
+        "polls",
+        "ring_fill",
+        "ring_overflow_bytes",
+        "t_drain",
+        "t_last",
+        "uart",
+    )
 
     def __init__(self, uart: int, cfg: UartRxConfig) -> None:
         self.uart = uart

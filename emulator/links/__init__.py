@@ -27,22 +27,23 @@ from typing import Any
 from urllib.parse import parse_qsl, urlsplit
 
 from ..errors import LinkConfigError
-from .base import ByteFault, LineConfig, LineModel, Link, LinkListener, LinkStats, parse_mode
+from .base import ByteFault, Link, LinkListener, LinkStats
+from .line import LineConfig, LineModel, parse_mode
 from .mem import MemHub, MemLink
 
 __all__ = [
     "LINK_SCHEMES",
-    "LinkUrl",
-    "parse_link_url",
-    "open_link",
-    "Link",
+    "ByteFault",
     "LineConfig",
     "LineModel",
-    "LinkStats",
+    "Link",
     "LinkListener",
-    "ByteFault",
+    "LinkStats",
+    "LinkUrl",
     "MemHub",
     "MemLink",
+    "open_link",
+    "parse_link_url",
     "parse_mode",
 ]
 
@@ -75,7 +76,7 @@ _USAGE = {
 class LinkUrl:
     """A parsed link URL: scheme, target (name or device path) and options."""
 
-    __slots__ = ("url", "scheme", "target", "options")
+    __slots__ = ("options", "scheme", "target", "url")
 
     def __init__(self, url: str, scheme: str, target: str, options: dict[str, str]) -> None:
         self.url = url
@@ -101,7 +102,8 @@ class LinkUrl:
                 kw["tx_queue_bytes"] = int(self.options["queue"])
             return LineConfig(**kw)
         except ValueError as exc:
-            raise LinkConfigError(f"{self.url}: {exc}; expected {_USAGE.get(self.scheme, self.scheme + '://...')}") from exc
+            usage = _USAGE.get(self.scheme, self.scheme + "://...")
+            raise LinkConfigError(f"{self.url}: {exc}; expected {usage}") from exc
 
 
 def parse_link_url(url: str, extra_options: frozenset[str] = frozenset()) -> LinkUrl:

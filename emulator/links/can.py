@@ -14,7 +14,7 @@ cycle time has passed in *navigation* time (``time_s`` of the solutions), so the
 reproducible and follows the navigation rate (a 50 Hz solution sends the 10 ms messages at 50 Hz).
 ``rate=HZ`` caps the whole set further.
 
-Buses (python-can 4.x, ``shared/reference/protocols.md`` section 3):
+Buses (python-can 4.x, ``docs/reference/wire-formats.md`` section 3):
 
 ``can://virtual/CH``
     python-can's in-process ``virtual`` interface, channel ``CH`` (what the tests and CI use).
@@ -40,10 +40,18 @@ from protocols.host import HostFormat, NavSolution
 from protocols.stream import StreamDecoder
 
 from ..errors import LinkBrokenError, LinkConfigError
-from .base import LineConfig, Link
+from .base import Link
+from .line import LineConfig
 
-__all__ = ["CanLink", "CAN_OPTIONS", "default_dbc_path", "nav_signal_values", "NavCanEncoder",
-           "DefaultNavCanEncoder", "DbcNavCanEncoder"]
+__all__ = [
+    "CAN_OPTIONS",
+    "CanLink",
+    "DbcNavCanEncoder",
+    "DefaultNavCanEncoder",
+    "NavCanEncoder",
+    "default_dbc_path",
+    "nav_signal_values",
+]
 
 CAN_OPTIONS = frozenset({"dbc", "rate", "bitrate", "fd"})
 _USAGE = "can://virtual/CHANNEL or can://socketcan/IFACE[?dbc=FILE&rate=HZ&bitrate=N&fd=0|1]"
@@ -113,7 +121,7 @@ class DefaultNavCanEncoder(NavCanEncoder):
 
 
 class _SignalPlan:
-    __slots__ = ("name", "lo", "hi", "wrap")
+    __slots__ = ("hi", "lo", "name", "wrap")
 
     def __init__(self, sig: Any) -> None:
         self.name = sig.name
@@ -157,7 +165,7 @@ class DbcNavCanEncoder(NavCanEncoder):
             self.db = cantools.database.load_file(str(dbc_path))
         except FileNotFoundError as exc:
             raise LinkConfigError(f"DBC file {dbc_path} not found; give can://...?dbc=FILE") from exc
-        except Exception as exc:  # noqa: BLE001 - cantools raises ParseError and friends
+        except Exception as exc:
             raise LinkConfigError(f"DBC file {dbc_path} could not be parsed: {exc}") from exc
         known = set(nav_signal_values(_ZERO_NAV))
         plans: dict[str, tuple[Any, list[_SignalPlan]]] = {}
@@ -275,7 +283,7 @@ class CanLink(Link):
         if bus is not None:
             try:
                 bus.shutdown()
-            except Exception:  # noqa: BLE001 - shutting down must not mask the run's result
+            except Exception:
                 pass
 
     def describe(self) -> str:

@@ -30,9 +30,9 @@ from __future__ import annotations
 import math
 from collections import deque
 
-from .base import LineConfig
+from .line import LineConfig
 
-__all__ = ["UartReceiver", "uart_compatible", "baud_tolerance"]
+__all__ = ["UartReceiver", "baud_tolerance", "uart_compatible"]
 
 #: Mean start-edge detection delay of a 16x-oversampling receiver, in receiver bit times.
 DETECT_DELAY_BITS = 1.0 / 32.0
@@ -71,7 +71,7 @@ def _parity_bit(value: int, parity: str) -> int:
 class _Segment:
     """Bytes on the wire: byte ``i`` starts at ``t0 + i * pitch`` (idle high in any gap)."""
 
-    __slots__ = ("t0", "pitch", "data", "t_end")
+    __slots__ = ("data", "pitch", "t0", "t_end")
 
     def __init__(self, t0: float, pitch: float, data: bytes, frame_time: float) -> None:
         self.t0 = t0

@@ -16,9 +16,10 @@ from __future__ import annotations
 import asyncio
 
 from ..errors import LinkConfigError
-from .base import LineConfig, Link
+from .base import Link
+from .line import LineConfig
 
-__all__ = ["MemLink", "MemHub"]
+__all__ = ["MemHub", "MemLink"]
 
 
 class MemLink(Link):
@@ -34,7 +35,7 @@ class MemLink(Link):
     def _write_raw(self, data: bytes) -> None:
         peer = self.peer
         if peer is not None and not peer.closed:
-            peer._arrive(data, self._tx_start, self._tx_pitch, self.out_line)  # noqa: SLF001
+            peer._arrive(data, self._tx_start, self._tx_pitch, self.out_line)
         else:
             self.stats.dropped_out += len(data)
 

@@ -2,7 +2,7 @@
 
 The master side stays in the emulator; the slave side is what a user opens, through a stable
 symlink ``<run_dir>/NAME`` (the run directory is private: mode 0700; the pty node is 0600).
-Measured behaviour this module is built around (``shared/reference/protocols.md`` section 5):
+Measured behaviour this module is built around (``docs/reference/wire-formats.md`` section 5):
 
 * with no peer holding the slave open, reading the master gives EIO and ``poll`` reports
   POLLHUP; an fd reader would spin, so the link polls for attachment instead and only reads
@@ -36,9 +36,10 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import LinkConfigError
-from .base import LineConfig, Link
+from .base import Link
+from .line import LineConfig
 
-__all__ = ["PtyLink", "ATTACH_POLL_S"]
+__all__ = ["ATTACH_POLL_S", "PtyLink"]
 
 #: Attachment poll period, s of scenario time.
 ATTACH_POLL_S = 0.02

@@ -17,7 +17,8 @@ import os
 from typing import Any
 
 from ..errors import LinkBrokenError, LinkConfigError
-from .base import LineConfig, Link
+from .base import Link
+from .line import LineConfig
 
 __all__ = ["SerialLink"]
 

@@ -1,6 +1,6 @@
 """``zenoh://RUN/PORT``: a port's bytes carried over eclipse-zenoh 1.x (another process or host).
 
-Key expressions (``shared/reference/protocols.md`` section 4)::
+Key expressions (``docs/reference/wire-formats.md`` section 4)::
 
     psns/<RUN>/<PORT>/tx     bytes transmitted by the port's owner (the box side: the FPGA, or the
                              emulator's external port), i.e. what a peer tool receives
@@ -27,7 +27,7 @@ URL options (besides the common ``baud``, ``mode``, ``queue``)::
                               on psns/<RUN>/nav (default: tx for a port named ``host``, else off)
 
 Default session configuration: peer mode on loopback, multicast AND gossip scouting off (the
-default configuration would send UDP multicast and wait ~0.5 s at open, protocols.md section 0.4),
+default configuration would send UDP multicast and wait ~0.5 s at open, docs/reference/wire-formats.md section 0.4),
 listening on ``tcp/127.0.0.1:7447`` unless ``listen`` or ``connect`` is given. Links of one
 process that ask for the same session configuration share one zenoh session (reference-counted;
 the last close closes it), so four UART links do not need four listening sockets.
@@ -49,24 +49,26 @@ import json
 import re
 import struct
 import threading
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from protocols.host import HostFormat, NavMode, NavSolution
 from protocols.stream import StreamDecoder
 
 from ..errors import LinkBrokenError, LinkConfigError
-from .base import LineConfig, Link
+from .base import Link
+from .line import LineConfig
 
 __all__ = [
-    "ZenohLink",
-    "ZenohEndpointConfig",
-    "ZENOH_OPTIONS",
     "DEFAULT_LISTEN",
-    "acquire_session",
-    "release_session",
-    "open_sessions",
-    "nav_to_json",
+    "ZENOH_OPTIONS",
     "NavJsonPublisher",
+    "ZenohEndpointConfig",
+    "ZenohLink",
+    "acquire_session",
+    "nav_to_json",
+    "open_sessions",
+    "release_session",
     "zenoh_key_prefix",
 ]
 
@@ -120,7 +122,7 @@ class ZenohEndpointConfig:
         Optional zenoh JSON5 configuration file applied first.
     """
 
-    __slots__ = ("listen", "connect", "session_mode", "config_file")
+    __slots__ = ("config_file", "connect", "listen", "session_mode")
 
     def __init__(self, listen: tuple[str, ...] = (), connect: tuple[str, ...] = (), session_mode: str = "peer",
                  config_file: str | None = None) -> None:
@@ -198,7 +200,7 @@ def release_session(cfg: ZenohEndpointConfig) -> None:
         session = entry[0]
     try:
         session.close()
-    except Exception:  # noqa: BLE001 - closing twice or a dead runtime must not raise at shutdown
+    except Exception:
         pass
 
 
@@ -335,7 +337,7 @@ class ZenohLink(Link):
             self._call(self._input_from_peer, data, att.to_bytes() if att is not None else None)
         except RuntimeError:  # the loop is closed: the run is over
             self.received_after_close += 1
-        except Exception:  # noqa: BLE001 - an exception here would be lost on a Rust thread
+        except Exception:
             self.received_after_close += 1
 
     def _input_from_peer(self, data: bytes, attachment: bytes | None) -> None:
@@ -356,7 +358,7 @@ class ZenohLink(Link):
             return False
         try:
             return bool(self._pub.matching_status.matching)
-        except Exception:  # noqa: BLE001
+        except Exception:
             return False
 
     async def wait_matched(self, timeout_s: float = 5.0, poll_s: float = 0.002) -> bool:
@@ -381,7 +383,7 @@ class ZenohLink(Link):
             return
         try:
             pub.put(data, attachment=_PITCH.pack(self._tx_pitch))
-        except Exception as exc:  # noqa: BLE001 - zenoh.ZError once the session is gone
+        except Exception as exc:
             self.stats.dropped_out += len(data)
             if not self.closed:
                 raise LinkBrokenError(f"{self.name}: zenoh put on {self.pub_key} failed: {exc}") from exc
@@ -398,7 +400,7 @@ class ZenohLink(Link):
             if ent is not None:
                 try:
                     ent.undeclare()
-                except Exception:  # noqa: BLE001 - already undeclared with its session
+                except Exception:
                     pass
         if self.nav_publisher is not None and self.nav_publisher in self.listeners:
             self.listeners.remove(self.nav_publisher)

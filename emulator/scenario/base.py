@@ -23,7 +23,7 @@ class OneKindModel(Model):
     kind_label: ClassVar[str] = "an entry"
 
     @model_validator(mode="after")
-    def _exactly_one_kind(self) -> "OneKindModel":
+    def _exactly_one_kind(self) -> OneKindModel:
         set_keys = [k for k in type(self).model_fields if getattr(self, k) is not None]
         if len(set_keys) != 1:
             raise ValueError(f"{self.kind_label} has exactly one kind, got {set_keys or 'none'}")

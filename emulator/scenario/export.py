@@ -13,7 +13,7 @@ from pathlib import Path
 
 from .schema import Scenario
 
-__all__ = ["scenario_json_schema", "main"]
+__all__ = ["main", "scenario_json_schema"]
 
 
 def scenario_json_schema() -> dict:

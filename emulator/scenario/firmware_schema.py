@@ -2,7 +2,7 @@
 
 Everything here is what the firmware team configures or calibrates (the DSP's view of the system);
 the sensors' true behaviour lives in the sensor sections. ``firmware.variants`` holds the parameters of
-the issue-6 filter variants (``firmware_model.variants.params``; docs/variants.md); only the selected
+the filter variants (``firmware_model.variants.params``; docs/variants.md); only the selected
 variant reads its own.
 """
 
@@ -14,8 +14,18 @@ from pydantic import Field
 
 from .base import Model
 
-__all__ = ["AlignmentSpec", "CameraCalibrationSpec", "PsnsFirmwareSpec", "FirmwareSpec", "VariantsSpec",
-           "ModeManagerSpec", "DualVectorSpec", "KmeansSpec", "FederatedSpec", "SunElevationSpec"]
+__all__ = [
+    "AlignmentSpec",
+    "CameraCalibrationSpec",
+    "DualVectorSpec",
+    "FederatedSpec",
+    "FirmwareSpec",
+    "KmeansSpec",
+    "ModeManagerSpec",
+    "PsnsFirmwareSpec",
+    "SunElevationSpec",
+    "VariantsSpec",
+]
 
 Vec3 = tuple[float, float, float]
 
@@ -34,7 +44,7 @@ class AlignmentSpec(Model):
 
 
 class CameraCalibrationSpec(Model):
-    """The polarization camera as the firmware knows it (CONTRACTS C1).
+    """The polarization camera as the firmware knows it (conventions: docs/architecture.md, "Conventions").
 
     Every field left out is taken from the camera's nominal design (``sensors.camera``: lens, focal length,
     nominal mounting without the installation error), or from the IMX250MZR defaults without a camera section.
@@ -115,7 +125,8 @@ class SunElevationSpec(Model):
     min_pair_sine: float = Field(0.2, gt=0, le=1)
     attitude_coupling: bool = Field(False, description="tilt columns in H (the paper's H has none)")
     update_every: int = Field(1, ge=1, le=100)
-    attitude_aiding: bool = Field(False, description="also the compass's solar-vector attitude update (not in the paper)")
+    attitude_aiding: bool = Field(False,
+                                  description="also the compass's solar-vector attitude update (not in the paper)")
 
 
 class VariantsSpec(Model):

@@ -15,7 +15,7 @@ import yaml
 from pydantic import BaseModel, ValidationError
 
 from ..errors import ScenarioError, ScenarioIssue
-from .checks_schema import cross_check
+from .cross_checks import cross_check
 from .schema import Scenario
 
 __all__ = ["load_scenario", "load_yaml_with_marks", "validate_scenario_data"]

@@ -9,8 +9,18 @@ from pydantic import AliasChoices, Field, field_validator, model_validator
 
 from .base import Model
 
-__all__ = ["LinkSpec", "Links", "UartSpec", "FpgaSpec", "DspUartSpec", "WatchdogSpec", "DspSpec",
-           "EXTERNAL_PORTS", "DSP_UARTS", "DEFAULT_UART_BAUD"]
+__all__ = [
+    "DEFAULT_UART_BAUD",
+    "DSP_UARTS",
+    "EXTERNAL_PORTS",
+    "DspSpec",
+    "DspUartSpec",
+    "FpgaSpec",
+    "LinkSpec",
+    "Links",
+    "UartSpec",
+    "WatchdogSpec",
+]
 
 #: External ports of the box (FPGA connectors) that can be routed to a DSP UART.
 EXTERNAL_PORTS = ("host", "gnss", "psns")
@@ -88,9 +98,10 @@ class FpgaSpec(Model):
     uarts: dict[Literal["uart0", "uart1", "uart2", "uart3"], UartSpec] = Field(default_factory=_default_uarts)
     gyro_timeout_s: float = Field(0.004, gt=0, lt=0.1)
     mag_rate_hz: float = Field(100.0, gt=0, le=2000,
-                               description="magnetometer sample / MAG frame rate; the trigger rate divided by an integer")
-    monitor_channels: list[Literal["gyro", "gnss", "psns", "host", "uart0", "uart1", "uart2", "uart3", "mag"]] | None = (
-        Field(None, description="channels mirrored on the MONITOR port (default: all)"))
+                               description="magnetometer sample / MAG frame rate; the trigger rate divided by an "
+                                           "integer")
+    monitor_channels: list[Literal["gyro", "gnss", "psns", "host", "uart0", "uart1", "uart2", "uart3", "mag"]] | None \
+        = Field(None, description="channels mirrored on the MONITOR port (default: all)")
 
     @field_validator("uarts")
     @classmethod
@@ -126,7 +137,7 @@ class DspUartSpec(Model):
     tx_ring_bytes: int = Field(4096, ge=16, le=1 << 20, description="firmware TX ring buffer, bytes")
 
     @model_validator(mode="after")
-    def _trigger_fits(self) -> "DspUartSpec":
+    def _trigger_fits(self) -> DspUartSpec:
         if self.trigger_level > self.fifo_bytes:
             raise ValueError(f"trigger_level {self.trigger_level} exceeds fifo_bytes {self.fifo_bytes}")
         return self

@@ -28,42 +28,51 @@ from typing import Literal
 from pydantic import Field, PrivateAttr, field_validator, model_validator
 
 from .base import Model
-from .checks_schema import (DspBound, EventExpectation, Expectation, Fault, LinkCounterBound, NavErrorBound,
-                            NavModeExpectation, PythonHook, SummaryValueBound)
+from .checks_schema import (
+    DspBound,
+    EventExpectation,
+    Expectation,
+    Fault,
+    LinkCounterBound,
+    NavErrorBound,
+    NavModeExpectation,
+    PythonHook,
+    SummaryValueBound,
+)
 from .firmware_schema import AlignmentSpec, FirmwareSpec
 from .runtime_schema import DspSpec, FpgaSpec, Links, LinkSpec, UartSpec
 from .sensor_schema import AccelSpec, GnssErrorSpec, GnssSpec, GyroSpec, ImuSpec, Sensors
 from .world_schema import Attitude, MotionSegment, Origin, SkySpec, StaticParams
 
 __all__ = [
-    "Scenario",
-    "Origin",
-    "Attitude",
-    "MotionSegment",
-    "StaticParams",
-    "LinkSpec",
-    "Links",
-    "UartSpec",
-    "FpgaSpec",
-    "DspSpec",
-    "GyroSpec",
     "AccelSpec",
-    "ImuSpec",
-    "GnssErrorSpec",
-    "GnssSpec",
-    "Sensors",
-    "SkySpec",
     "AlignmentSpec",
-    "FirmwareSpec",
-    "NavErrorBound",
-    "LinkCounterBound",
+    "Attitude",
     "DspBound",
+    "DspSpec",
     "EventExpectation",
-    "NavModeExpectation",
-    "SummaryValueBound",
-    "PythonHook",
     "Expectation",
     "Fault",
+    "FirmwareSpec",
+    "FpgaSpec",
+    "GnssErrorSpec",
+    "GnssSpec",
+    "GyroSpec",
+    "ImuSpec",
+    "LinkCounterBound",
+    "LinkSpec",
+    "Links",
+    "MotionSegment",
+    "NavErrorBound",
+    "NavModeExpectation",
+    "Origin",
+    "PythonHook",
+    "Scenario",
+    "Sensors",
+    "SkySpec",
+    "StaticParams",
+    "SummaryValueBound",
+    "UartSpec",
 ]
 
 
@@ -107,10 +116,10 @@ class Scenario(Model):
     def _utc(cls, v: _dt.datetime) -> _dt.datetime:
         if v.tzinfo is None:
             raise ValueError("epoch needs a time zone; write UTC as e.g. 2019-09-18T08:14:00Z")
-        return v.astimezone(_dt.timezone.utc)
+        return v.astimezone(_dt.UTC)
 
     @model_validator(mode="after")
-    def _motion_covers(self) -> "Scenario":
+    def _motion_covers(self) -> Scenario:
         total = sum(seg.duration_s for seg in self.motion)
         if self.motion and total + 1e-9 < self.duration_s:
             raise ValueError(

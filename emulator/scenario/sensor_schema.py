@@ -12,25 +12,26 @@ from typing import Literal
 from pydantic import Field, field_validator, model_validator
 
 from .base import Model
+from .presets import preset_names
 
 __all__ = [
-    "GyroSpec",
     "AccelSpec",
-    "ImuTemperatureSpec",
-    "RecordedImuSpec",
-    "ImuSpec",
-    "GnssErrorSpec",
-    "GnssOutageSpec",
-    "GnssGlitchSpec",
-    "RecordedGnssSpec",
-    "GnssSpec",
-    "MountingSpec",
-    "RecordedImagesSpec",
+    "BlockedUnitsSpec",
     "CameraSpec",
     "CompassSpec",
     "CompassUnitSpec",
-    "BlockedUnitsSpec",
+    "GnssErrorSpec",
+    "GnssGlitchSpec",
+    "GnssOutageSpec",
+    "GnssSpec",
+    "GyroSpec",
+    "ImuSpec",
+    "ImuTemperatureSpec",
     "MagnetometerSpec",
+    "MountingSpec",
+    "RecordedGnssSpec",
+    "RecordedImagesSpec",
+    "RecordedImuSpec",
     "Sensors",
 ]
 
@@ -38,8 +39,6 @@ Vec3 = tuple[float, float, float]
 
 
 def _check_preset(kind: str, name: str) -> str:
-    from ..devices.presets import preset_names
-
     names = preset_names(kind)
     if name not in names:
         raise ValueError(f"unknown {kind} preset {name!r}; available: {', '.join(names)}")
@@ -165,7 +164,8 @@ class MountingSpec(Model):
     heading_deg: float = Field(0.0, ge=-360, le=360)
     pitch_deg: float = Field(0.0, ge=-90, le=90)
     roll_deg: float = Field(0.0, ge=-180, le=180)
-    installation_error_deg: Vec3 = Field((0.0, 0.0, 0.0), description="small rotation vector about the sensor axes, deg")
+    installation_error_deg: Vec3 = Field((0.0, 0.0, 0.0),
+                                         description="small rotation vector about the sensor axes, deg")
 
 
 class RecordedImagesSpec(Model):
@@ -177,7 +177,7 @@ class RecordedImagesSpec(Model):
     start_s: float = 0.0
 
     @model_validator(mode="after")
-    def _one(self) -> "RecordedImagesSpec":
+    def _one(self) -> RecordedImagesSpec:
         if (self.index is None) == (self.files is None):
             raise ValueError("recorded images need exactly one of index, files")
         if self.files is not None and self.rate_hz is None:
@@ -217,7 +217,7 @@ class CameraSpec(Model):
 
 
 class CompassUnitSpec(Model):
-    """View direction of one single-direction unit (CONTRACTS C1 mounting convention)."""
+    """View direction of one single-direction unit (mounting convention: docs/architecture.md, "Conventions")."""
 
     zenith_deg: float = Field(ge=0, le=90, description="angle from body +z")
     azimuth_deg: float = Field(ge=-360, le=360, description="from body +y (forward) towards +x (right)")
@@ -253,7 +253,7 @@ class CompassSpec(Model):
         return _check_preset("compass", v)
 
     @model_validator(mode="after")
-    def _blocked_units_exist(self) -> "CompassSpec":
+    def _blocked_units_exist(self) -> CompassSpec:
         n = len(self.units) if self.units is not None else 9
         for i, b in enumerate(self.blocked):
             bad = [u for u in b.units if not 0 <= u < n]

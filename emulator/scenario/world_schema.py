@@ -33,18 +33,18 @@ from pydantic import Field, model_validator
 from .base import Model, OneKindModel
 
 __all__ = [
-    "Origin",
-    "Attitude",
-    "StaticParams",
     "AccelerateParams",
-    "CruiseParams",
-    "TurnParams",
+    "Attitude",
     "ClimbParams",
-    "RotateParams",
-    "MotionSegment",
     "CloudSpec",
+    "CruiseParams",
+    "MotionSegment",
     "OccluderSpec",
+    "Origin",
+    "RotateParams",
     "SkySpec",
+    "StaticParams",
+    "TurnParams",
 ]
 
 
@@ -74,7 +74,7 @@ class AccelerateParams(Model):
     accel_mps2: float | None = Field(None, ge=-100.0, le=100.0, description="forward acceleration, m/s^2")
 
     @model_validator(mode="after")
-    def _one(self) -> "AccelerateParams":
+    def _one(self) -> AccelerateParams:
         if (self.to_speed_mps is None) == (self.accel_mps2 is None):
             raise ValueError("accelerate needs exactly one of to_speed_mps, accel_mps2")
         return self
@@ -98,7 +98,7 @@ class TurnParams(Model):
     duration_s: float | None = Field(None, gt=0.0, description="s")
 
     @model_validator(mode="after")
-    def _check(self) -> "TurnParams":
+    def _check(self) -> TurnParams:
         if (self.angle_deg is None) == (self.duration_s is None):
             raise ValueError("turn needs exactly one of angle_deg, duration_s")
         if self.rate_dps == 0.0:
@@ -128,7 +128,7 @@ class ClimbParams(Model):
     transition_s: float = Field(2.0, gt=0.0, description="pitch-in and pitch-out time, s each")
 
     @model_validator(mode="after")
-    def _check(self) -> "ClimbParams":
+    def _check(self) -> ClimbParams:
         if (self.vertical_speed_mps is None) == (self.pitch_deg is None):
             raise ValueError("climb/descend needs exactly one of vertical_speed_mps, pitch_deg")
         if 2.0 * self.transition_s > self.duration_s + 1e-9:
@@ -147,7 +147,7 @@ class RotateParams(Model):
     duration_s: float | None = Field(None, gt=0.0, description="s (manoeuvre + hold)")
 
     @model_validator(mode="after")
-    def _check(self) -> "RotateParams":
+    def _check(self) -> RotateParams:
         if (self.by_deg is None) == (self.to_deg is None):
             raise ValueError("pitch/roll needs exactly one of by_deg, to_deg")
         if self.to_deg is not None and self.duration_s is None:

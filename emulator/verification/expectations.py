@@ -146,7 +146,7 @@ def evaluate_expectations(expectations: list[Expectation], recorder: Any, summar
             hits = matching_events(recorder.events, ev)
             n = len(hits)
             src = f" from {ev.source}" if ev.source else ""
-            flds = "".join(f", {k} {'in [' + _bounds(w.min, w.max) + ']' if isinstance(w, FieldRange) else '= ' + repr(w)}"
+            flds = "".join(f", {k} {'in [' + _bounds(w.min, w.max) + ']' if isinstance(w, FieldRange) else '= ' + repr(w)}"  # noqa: E501
                            for k, w in ev.fields.items())
             desc = f"event {ev.name}{src}{flds} in {ev.describe_window()}: count {_bounds(ev.min_count, ev.max_count)}"
             msg = f"first at t = {hits[0]['t_s']:.3f} s" if hits else (
@@ -181,7 +181,8 @@ def evaluate_expectations(expectations: list[Expectation], recorder: Any, summar
                     total += 1
                     hit += 1 if int(ser[k + 1]) & bit else 0
             frac = hit / total if total else None
-            desc = f"fraction of nav frames with {nm.flag} in {nm.describe_window()} {_bounds(nm.min_fraction, nm.max_fraction)}"
+            desc = (f"fraction of nav frames with {nm.flag} in {nm.describe_window()} "
+                    f"{_bounds(nm.min_fraction, nm.max_fraction)}")
             ok = frac is not None and _within(frac, nm.min_fraction, nm.max_fraction)
             out.append(ExpectationResult(i, kind, desc, frac, ok,
                                          f"{hit} of {total} frames" if total else empty(nm)))
@@ -212,8 +213,9 @@ def evaluate_expectations(expectations: list[Expectation], recorder: Any, summar
             except HookError as exc:
                 out.append(ExpectationResult(i, kind, desc, None, False, f"python hook: {exc}"))
                 continue
-            except Exception as exc:  # noqa: BLE001 - a failing hook is a failing check, with its reason
-                out.append(ExpectationResult(i, kind, desc, None, False, f"the hook raised {type(exc).__name__}: {exc}"))
+            except Exception as exc:
+                out.append(ExpectationResult(i, kind, desc, None, False,
+                                             f"the hook raised {type(exc).__name__}: {exc}"))
                 continue
             out.append(ExpectationResult(i, kind, desc, _plain(v), ok, msg))
     return out

@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import math
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -53,7 +54,8 @@ def phases_from_segments(segments: Sequence[MotionSegment], pitch0: float, roll0
         where = f"motion[{i}].{kind}"
         if kind == "static":
             if u != 0.0:
-                raise _err(where, f"the vehicle moves at {u:g} m/s; stop it first (accelerate: {{to_speed_mps: 0}})", file)
+                raise _err(where, f"the vehicle moves at {u:g} m/s; stop it first (accelerate: {{to_speed_mps: 0}})",
+                           file)
             add(p.duration_s, label=where)
         elif kind == "accelerate":
             du = p.accel_mps2 if p.accel_mps2 is not None else (p.to_speed_mps - u) / p.duration_s

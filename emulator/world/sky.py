@@ -1,6 +1,6 @@
 """Skylight polarization: Rayleigh single scattering, Berry's neutral-point model, clouds and occluders.
 
-Rayleigh (``shared/reference/algorithms.md`` section 2.1): for the unit sun vector ``S`` and
+Rayleigh (``docs/reference/algorithms.md`` section 2.1): for the unit sun vector ``S`` and
 view ray ``V`` with scattering angle ``gamma`` (``cos gamma = S . V``)::
 
     DOP = P_max sin^2(gamma) / (1 + cos^2(gamma)),     E  ∝  S x V  (perpendicular to S and V)
@@ -14,9 +14,9 @@ on the stereographic plane ``zeta = (V_E + i V_N)/(1 + V_U)`` the sky is describ
 with the Brewster and Babinet neutral points ``zB``, ``zb`` on the sun's vertical at ``delta``
 (half the ``neutral_point_sep_deg``) below and above the sun, and their antipodes (Arago and the
 fourth point). ``DOP = P_max |w|/(2 - |w|)`` and the E-vector makes the angle
-``arg(w exp(-2 i phi_sun))/2`` with the real axis of the zeta plane (``phi_sun = arg(zeta_sun)``) (the projection is conformal, so that direction is carried back to
-the sphere by the projection's Jacobian). With ``delta = 0`` it is exactly Rayleigh (a test
-checks this).
+``arg(w exp(-2 i phi_sun))/2`` with the real axis of the zeta plane (``phi_sun = arg(zeta_sun)``) (the
+projection is conformal, so that direction is carried back to the sphere by the projection's Jacobian).
+With ``delta = 0`` it is exactly Rayleigh (a test checks this).
 
 Clouds are circular sky regions (ENU azimuth/elevation, optional azimuth drift and a time
 window): inside, DOP is multiplied by ``dop_scale``, the radiance by ``intensity_scale`` and the
@@ -37,8 +37,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["Cloud", "Occluder", "SunOccluder", "SkyModel", "SkyField", "rayleigh_dop", "sky_from_spec",
-           "textured_cloud"]
+__all__ = [
+    "Cloud",
+    "Occluder",
+    "SkyField",
+    "SkyModel",
+    "SunOccluder",
+    "rayleigh_dop",
+    "sky_from_spec",
+    "textured_cloud",
+]
 
 DEG = math.pi / 180.0
 #: Radiance of the ground relative to the sky (a diffuse, unpolarized surface).

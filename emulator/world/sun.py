@@ -1,8 +1,8 @@
 """Sun truth from NREL SPA (Reda & Andreas 2004, corrigendum 2007) through ``pvlib.spa``.
 
 :class:`SunModel` gives the geometric (unrefracted, topocentric) unit sun vector in ENU and its
-azimuth/elevation for a scenario time and an observer position (``shared/reference/
-algorithms.md`` section 3: ``S^n = [sin(Az) cos(el), cos(Az) cos(el), sin(el)]``, Az clockwise
+azimuth/elevation for a scenario time and an observer position (``docs/reference/algorithms.md``
+section 3: ``S^n = [sin(Az) cos(el), cos(Az) cos(el), sin(el)]``, Az clockwise
 from north).
 
 Evaluating the full SPA costs ~4 ms per call, too much for the 5 Hz polarization sensors of a
@@ -27,7 +27,7 @@ from pvlib import spa
 
 from firmware_model import earth
 
-__all__ = ["SunModel", "sun_vector_from_az_el", "AU_M"]
+__all__ = ["AU_M", "SunModel", "sun_vector_from_az_el"]
 
 DEG = math.pi / 180.0
 #: Astronomical unit, m (IAU 2012).
@@ -88,7 +88,7 @@ class SunModel:
     def geocentric(self, t: float) -> tuple[float, float, float]:
         """Interpolated Greenwich hour angle (deg), declination (deg) and distance (AU) at scenario time ``t``."""
         span = (CHUNK_NODES - 1) * NODE_STEP_S
-        k = int(math.floor(t / span))
+        k = math.floor(t / span)
         tn, gha, delta, r = self._chunk(k)
         i = min(max(int((t - tn[0]) / NODE_STEP_S), 0), CHUNK_NODES - 2)
         s = (t - tn[i]) / NODE_STEP_S

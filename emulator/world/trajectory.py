@@ -3,7 +3,7 @@
 A :class:`Trajectory` answers, at any scenario time ``t`` (s):
 
 * :meth:`Trajectory.state` -- position ``[L, lambda, h]`` (rad, rad, m), ENU velocity (m/s),
-  attitude ``C_b^n`` and Euler angles (DESIGN.md section 5 conventions);
+  attitude ``C_b^n`` and Euler angles (docs/architecture.md, section "Conventions");
 * :meth:`Trajectory.angular_rate` and :meth:`Trajectory.specific_force` -- body-frame
   ``omega_ib^b`` (rad/s) and ``f^b`` (m/s^2), consistent with WGS-84 normal gravity
   (:mod:`firmware_model.earth`, the same model the firmware uses) and Earth rotation;
@@ -15,7 +15,7 @@ A :class:`Trajectory` answers, at any scenario time ``t`` (s):
 Kinematic model of :class:`SegmentTrajectory` (the PSINS ``trjsimu`` model)
 ---------------------------------------------------------------------------
 The trajectory is a chain of *phases*. In a phase the three Euler angles (PSINS convention,
-``shared/reference/algorithms.md`` section 0: pitch theta about x, roll gamma about y, yaw psi
+``docs/reference/algorithms.md`` section 0: pitch theta about x, roll gamma about y, yaw psi
 about z, counter-clockwise) change at constant rates and the forward speed ``u`` changes at a
 constant rate. The vehicle moves along its body +y axis (no sideslip, no angle of attack)::
 
@@ -28,7 +28,7 @@ so every quantity is a closed-form function of time inside a phase:
 * ``a^n = dv^n/dt`` (differentiating the expression above);
 * ``omega_ib^b = omega_nb^b + C_n^b (omega_ie^n + omega_en^n)``;
 * ``f^b = C_n^b (a^n - g^n + (2 omega_ie^n + omega_en^n) x v^n)`` with ``g^n = [0, 0, -g(L, h)]``
-  (these are the strapdown equations of algorithms.md 1.2 solved for the sensor outputs).
+  (these are the strapdown equations of docs/reference/algorithms.md 1.2 solved for the sensor outputs).
 
 Position is the only integrated quantity: ``L' = v_N/R_Mh``, ``lambda' = v_E/(R_Nh cos L)``,
 ``h' = v_U``. Inside moving phases it is tabulated on nodes every :data:`NODE_STEP_S` seconds
@@ -49,16 +49,23 @@ from __future__ import annotations
 import bisect
 import math
 from abc import ABC, abstractmethod
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
 from firmware_model import earth
 from firmware_model.attitude import a2mat, heading_from_yaw, m2att, yaw_from_heading
 
-__all__ = ["TruthState", "Trajectory", "StaticTrajectory", "Phase", "SegmentTrajectory", "NODE_STEP_S",
-           "euler_to_cbn"]
+__all__ = [
+    "NODE_STEP_S",
+    "Phase",
+    "SegmentTrajectory",
+    "StaticTrajectory",
+    "Trajectory",
+    "TruthState",
+    "euler_to_cbn",
+]
 
 DEG = math.pi / 180.0
 TWO_PI = 2.0 * math.pi
@@ -252,7 +259,7 @@ class _PhaseTable:
             self.pos_end = self.pos0.copy()
             return
         T = ph.t1 - ph.t0
-        n = max(1, int(math.ceil(T / NODE_STEP_S - 1e-9)))
+        n = max(1, math.ceil(T / NODE_STEP_S - 1e-9))
         tau = np.linspace(0.0, T, n + 1)
         self.nodes_tau = tau
         # fixed-point iteration of the position ODE on the node grid
@@ -473,12 +480,12 @@ class SegmentTrajectory(Trajectory):
         for j in np.nonzero(~same)[0]:
             dth[j], dv[j] = self._increments_exact(float(a[j]), float(b[j]))
         self._block = {}
-        dt_ns = int(round(dt * 1e9))
+        dt_ns = round(dt * 1e9)
         for j in range(BLOCK_INTERVALS):
-            self._block[(int(round(a[j] * 1e9)), dt_ns)] = (dth[j], dv[j])
+            self._block[(round(a[j] * 1e9), dt_ns)] = (dth[j], dv[j])
 
     def imu_increments(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
-        key = (int(round(t0 * 1e9)), int(round((t1 - t0) * 1e9)))
+        key = (round(t0 * 1e9), round((t1 - t0) * 1e9))
         hit = self._block.get(key)
         if hit is None:
             if t1 - t0 <= 0.0:
@@ -492,7 +499,7 @@ class SegmentTrajectory(Trajectory):
     def imu_increments_ready(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray] | None:
         if t1 - t0 <= 0.0:
             return None
-        return self._block.get((int(round(t0 * 1e9)), int(round((t1 - t0) * 1e9))))
+        return self._block.get((round(t0 * 1e9), round((t1 - t0) * 1e9)))
 
     def imu_increments_exact(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
         """The same increments without the block cache (for tests and irregular intervals)."""

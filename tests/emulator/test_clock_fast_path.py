@@ -1,8 +1,9 @@
 """The fast-mode loop's batched iterations run callbacks exactly as asyncio's own iteration does.
 
 :meth:`emulator.clock.EmulatorLoop._run_fast` replaces ``asyncio.BaseEventLoop._run_once`` in fast
-mode for speed (issue 10), and its ``call_at`` builds lighter timer handles. The reference here is the
-same loop class with both switched off (asyncio's ``_run_once`` and ``call_at``): a random workload of timers (ties at the
+mode for speed (the fast path), and its ``call_at`` builds lighter timer handles. The reference here is
+the same loop class with both switched off (asyncio's ``_run_once`` and ``call_at``): a random workload of
+timers (ties at the
 same instant, cancellations, callbacks that schedule more callbacks, ``call_soon`` chains, a
 coroutine sleeping) must give the identical trace of (virtual time, callback id), in order.
 """
@@ -14,7 +15,11 @@ import asyncio
 import numpy as np
 import pytest
 
-from emulator.clock import EmulatorLoop
+from emulator import clock
+from emulator.assembly.runner import run_scenario
+from emulator.clock import FAST_PATH_VERSIONS, EmulatorLoop, fast_path_supported
+from emulator.testing import load_test_scenario
+from tests.conftest import SCENARIOS
 
 
 class _ReferenceLoop(EmulatorLoop):
@@ -86,6 +91,9 @@ def test_fast_path_is_taken() -> None:
             return super()._run_fast(sel)
 
     loop = Probe("fast")
+    if not loop.fast_path:
+        loop.close()
+        pytest.skip(f"the fast path is used on CPython {sorted(FAST_PATH_VERSIONS)} only")
     try:
         for i in range(100):
             loop.call_at(i * 0.01, lambda: None)
@@ -94,3 +102,62 @@ def test_fast_path_is_taken() -> None:
         loop.close()
     assert calls
     assert loop.time() == pytest.approx(1.5)
+
+
+def test_fast_path_is_used_on_the_tested_python_versions() -> None:
+    loop = EmulatorLoop("fast")
+    try:
+        import sys
+
+        assert loop.fast_path == fast_path_supported(loop)
+        if sys.implementation.name == "cpython" and sys.version_info[:2] in FAST_PATH_VERSIONS:
+            assert loop.fast_path  # the private fields it needs are there
+    finally:
+        loop.close()
+
+
+def _untested_python(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Make this interpreter a Python version the fast path was not tested on."""
+    monkeypatch.setattr(clock, "FAST_PATH_VERSIONS", frozenset())
+
+
+def test_fallback_runs_asyncios_own_iteration(monkeypatch: pytest.MonkeyPatch) -> None:
+    """On an untested Python version: asyncio's ``_run_once`` and ``call_at``, never the batched path."""
+    _untested_python(monkeypatch)
+    calls = []
+
+    class Probe(EmulatorLoop):
+        def _run_fast(self, sel):  # type: ignore[override]
+            calls.append(1)
+            return super()._run_fast(sel)
+
+    loop = Probe("fast")
+    try:
+        assert not loop.fast_path
+        h = loop.call_at(0.5, lambda: None)
+        assert type(h) is asyncio.TimerHandle
+        loop.run_until_complete(asyncio.sleep(1.5))
+    finally:
+        loop.close()
+    assert not calls
+    assert loop.time() == pytest.approx(1.5)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_fallback_gives_the_same_callback_trace(monkeypatch: pytest.MonkeyPatch, seed: int) -> None:
+    fast = _trace(EmulatorLoop, seed)
+    _untested_python(monkeypatch)
+    assert _trace(EmulatorLoop, seed) == fast
+
+
+def test_fallback_gives_the_same_run_output(tmp_path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A scenario run on asyncio's own loop writes the same files, byte for byte, as on the fast path."""
+    scn = load_test_scenario(SCENARIOS / "quickstart.yaml", {"duration_s": 5.0})
+    s_fast = run_scenario(scn, tmp_path / "fast")
+    _untested_python(monkeypatch)
+    s_stock = run_scenario(scn, tmp_path / "stock")
+    for name in ("capture.psnscap", "nav.csv", "truth.csv", "events.jsonl", "timeline.csv", "filter_state.csv"):
+        assert (tmp_path / "fast" / name).read_bytes() == (tmp_path / "stock" / name).read_bytes(), name
+    wall = {"wall_s", "realtime_factor", "run_dir"}
+    assert {k: v for k, v in s_fast.items() if k not in wall} == {k: v for k, v in s_stock.items() if k not in wall}
+    assert s_fast["nav_frames"] > 400

@@ -71,16 +71,10 @@ def test_dsp_uart_format_mismatch_breaks_the_imu_link(tmp_path):
     assert s["firmware"]["counters"]["imu_frames"] < 10
 
 
-def test_monitor_port_needs_the_c2_protocol_module(tmp_path):
-    from emulator.devices.fpga import monitor_api
-
+def test_monitor_port_records_every_channel(tmp_path):
     scn = _scn(**{"links.monitor": {"url": "mem://monitor", "baud": 921600}})
-    if monitor_api() is None:
-        with pytest.raises(Exception, match="protocols.monitor"):
-            run_scenario(scn, tmp_path / "mon")
-    else:
-        s = run_scenario(scn, tmp_path / "mon")
-        assert s["fpga"]["monitor_records"] > 1000
+    s = run_scenario(scn, tmp_path / "mon")
+    assert s["fpga"]["monitor_records"] > 1000
 
 
 def test_uart3_is_an_emifa_core_unless_given_a_serial_baud(tmp_path):
@@ -100,7 +94,6 @@ def test_uart3_is_an_emifa_core_unless_given_a_serial_baud(tmp_path):
 
 
 def test_gnss_port_with_ubx_counts_ubx_frames_not_garbage(tmp_path):
-    pytest.importorskip("protocols.ubx")
     s = run_scenario(_scn(**{"sensors.gnss.ubx": ["NAV-PVT"]}), tmp_path / "ubx")
     for name in ("gnss", "uart3"):
         assert s["links"][name]["garbage_bytes"] == 0

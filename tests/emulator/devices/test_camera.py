@@ -1,4 +1,4 @@
-"""Polarization camera: C1 geometry, the mosaic layout against polanalyser, exact inversion, noise."""
+"""Polarization camera: the conventions' geometry, the mosaic layout against polanalyser, exact inversion, noise."""
 
 from __future__ import annotations
 
@@ -10,8 +10,16 @@ import numpy as np
 import pytest
 
 from emulator.clock import EmulatorLoop
-from emulator.devices.camera import (CHANNEL_OFFSETS, CameraConfig, CameraGeometry, PolarizationCamera,
-                                     PolarizationCameraModel, mounting_matrix, stokes_superpixel, wire_aop_cdeg)
+from emulator.devices.camera import (
+    CHANNEL_OFFSETS,
+    CameraConfig,
+    CameraGeometry,
+    PolarizationCamera,
+    PolarizationCameraModel,
+    mounting_matrix,
+    stokes_superpixel,
+    wire_aop_cdeg,
+)
 from emulator.links import LineConfig, MemHub
 from emulator.world.sky import SkyModel
 from emulator.world.sun import SunModel
@@ -20,7 +28,7 @@ from protocols.psns import PolarizationObs, PsnsFormat, PsnsStatus, max_points
 from protocols.stream import StreamDecoder
 
 DEG = math.pi / 180.0
-EPOCH = dt.datetime(2019, 9, 18, 8, 14, tzinfo=dt.timezone.utc)  # sun az 252.1, el 22.9 in Beijing
+EPOCH = dt.datetime(2019, 9, 18, 8, 14, tzinfo=dt.UTC)  # sun az 252.1, el 22.9 in Beijing
 
 
 def model(fidelity="binned", noise=True, seed=1, heading=30.0, pitch=0.0, roll=0.0, epoch=EPOCH, sky=None, **kw):
@@ -30,7 +38,7 @@ def model(fidelity="binned", noise=True, seed=1, heading=30.0, pitch=0.0, roll=0
 
 
 def inverted_e(geo_cfg, x, y, aop):
-    """The firmware's inversion (C1): E^c from the wire AOP at pixel (x, y)."""
+    """The firmware's inversion (the camera conventions): E^c from the wire AOP at pixel (x, y)."""
     X = geo_cfg.pixel_m * (x - (geo_cfg.nx + 1) / 2.0)
     Y = geo_cfg.pixel_m * (y - (geo_cfg.ny + 1) / 2.0)
     if geo_cfg.lens == "pinhole":
@@ -172,7 +180,7 @@ def test_full_aop_noise_matches_formula_and_binned():
 
 
 def test_sun_below_horizon_reports_invalid():
-    m = model("binned", epoch=dt.datetime(2019, 9, 18, 16, 0, tzinfo=dt.timezone.utc))
+    m = model("binned", epoch=dt.datetime(2019, 9, 18, 16, 0, tzinfo=dt.UTC))
     obs = m.observe(0.0)
     assert obs.status & PsnsStatus.SUN_BELOW_HORIZON and not obs.status & PsnsStatus.VALID
     assert len(obs.aop) == 0
@@ -224,6 +232,6 @@ def test_camera_device_frames_latency_and_budget():
         assert len(f.points) == 225 <= max_points(115200, 5.0)
         n_bytes = 7 + 13 + 10 * len(f.points)
         t_exp = t_rx - n_bytes * 10 / 115200 - f.header.latency_us * 1e-6
-        assert t_exp == pytest.approx(k * 0.2 + 1e-3, abs=1e-6)  # C1 time tag: the middle of the exposure
+        assert t_exp == pytest.approx(k * 0.2 + 1e-3, abs=1e-6)  # time tag (conventions): the middle of the exposure
     with pytest.raises(ValueError, match="max_points"):
         PolarizationCamera(a, model("binned", grid=(20, 20)), rate_hz=5.0)

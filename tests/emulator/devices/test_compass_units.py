@@ -1,5 +1,5 @@
-"""The compass device with its own unit layout and a blocked-units schedule (issue 6; the issue-8 fault injector
-maps "psns unit blocked" onto CompassModel.block_units)."""
+"""The compass device with its own unit layout and a blocked-units schedule (the psns_unit_blocked fault
+injector maps onto CompassModel.block_units)."""
 
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ THREE = compass_mountings([(0.0, 0.0), (45.0, 0.0), (45.0, 90.0)])
 
 def _model(**kw) -> CompassModel:
     traj = StaticTrajectory(39.979, 116.339, 50.0, 30.0, 2.0, -3.0)
-    sun = SunModel(dt.datetime(2019, 9, 18, 8, 14, tzinfo=dt.timezone.utc), 69.0)
+    sun = SunModel(dt.datetime(2019, 9, 18, 8, 14, tzinfo=dt.UTC), 69.0)
     return CompassModel(CompassConfig(mountings=THREE, **kw), sky_from_spec(None), sun, traj, np.random.default_rng(1))
 
 

@@ -1,19 +1,15 @@
-"""Magnetometer on the FPGA trigger: MAG frames on UART1 (CONTRACTS C2)."""
+"""Magnetometer on the FPGA trigger: MAG frames on UART1 (docs/icd.md)."""
 
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from emulator.assembly.runner import run_scenario
 from emulator.recording.capture import read_capture
 from emulator.testing import load_test_scenario
+from protocols import imu_frame
 from protocols.stream import StreamDecoder
 from tests.conftest import SCENARIOS
-
-imu_frame = pytest.importorskip("protocols.imu_frame")
-if not hasattr(imu_frame, "MagFrame"):
-    pytest.skip("protocols.imu_frame has no MagFrame (CONTRACTS C2) in this build yet", allow_module_level=True)
 
 
 def test_mag_frames_follow_the_imu_frames_with_the_modelled_field(tmp_path):

@@ -17,7 +17,7 @@ from firmware_model import earth
 from protocols.nmea import Gga, NmeaFormat, Rmc
 from protocols.stream import StreamDecoder
 
-EPOCH = dt.datetime(2019, 9, 18, 8, 14, tzinfo=dt.timezone.utc)
+EPOCH = dt.datetime(2019, 9, 18, 8, 14, tzinfo=dt.UTC)
 DEG = math.pi / 180.0
 
 

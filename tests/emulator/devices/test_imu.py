@@ -7,9 +7,17 @@ import math
 import numpy as np
 import pytest
 
-from emulator.devices.imu import (AccelErrors, FlickerBank, GyroErrors, ImuTemperature, InertialErrorModel,
-                                  accel_error_model, allan_deviation, gyro_error_model)
-from emulator.devices.presets import preset, preset_names
+from emulator.devices.imu import (
+    AccelErrors,
+    FlickerBank,
+    GyroErrors,
+    ImuTemperature,
+    InertialErrorModel,
+    accel_error_model,
+    allan_deviation,
+    gyro_error_model,
+)
+from emulator.scenario.presets import preset, preset_names
 from emulator.scenario.schema import Scenario
 
 DEG = math.pi / 180.0
@@ -179,7 +187,7 @@ def test_perfect_gyro_words_are_truth_quantized():
     assert len(got) == 10
     w = traj.angular_rate(0.0) / DEG / GYRO_RATE_LSB_DPS
     for d in got:
-        assert d.gyro == tuple(int(round(x)) for x in w)
+        assert d.gyro == tuple(round(x) for x in w)
     assert [d.counter for d in got] == [(10 * k) & 0xFF for k in range(1, 11)]
 
 

@@ -1,6 +1,6 @@
-"""The IMU models' look-ahead (issue 10) gives bit for bit the per-interval path's output.
+"""The IMU models' look-ahead (a speed-up of the fast path) gives bit for bit the per-interval path's output.
 
-:func:`emulator.devices.imu._measure_ahead` computes the measured means of the coming trigger
+:func:`emulator.devices.imu.lookahead.measure_ahead` computes the measured means of the coming trigger
 intervals in one vectorised pass. The reference is the same device with the look-ahead switched
 off: on a moving trajectory (turns, acceleration: the truth changes every interval), with every
 error term of the ``paper`` preset, injected faults switched on and off mid-block, and a break
@@ -40,7 +40,7 @@ def _run(look_ahead: bool, temp: ImuTemperature) -> tuple[list[tuple[float, byte
     link = _Link()
     gyro = Stim210Gyro(link, tap, np.random.default_rng(5), gyro_errors(scn), temperature=temp)  # type: ignore[arg-type]
     accel = AnalogAccelerometers(tap, np.random.default_rng(6), accel_errors(scn), temperature=temp)
-    gyro._look_ahead = accel._look_ahead = look_ahead  # noqa: SLF001
+    gyro._look_ahead = accel._look_ahead = look_ahead
     period = 1.0 / 200.0
     codes = []
     for k in range(0, 1300):

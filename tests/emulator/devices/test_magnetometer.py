@@ -8,7 +8,14 @@ import math
 import numpy as np
 import pytest
 
-from emulator.devices.magnetometer import BEIJING_FIELD, MAG_LSB_NT, MagConfig, Magnetometer, field_enu, soft_iron_matrix
+from emulator.devices.magnetometer import (
+    BEIJING_FIELD,
+    MAG_LSB_NT,
+    MagConfig,
+    Magnetometer,
+    field_enu,
+    soft_iron_matrix,
+)
 from emulator.world.trajectory import StaticTrajectory
 from firmware_model.attitude import a2mat, yaw_from_heading
 

@@ -1,4 +1,4 @@
-"""The FPGA MONITOR port: every channel mirrored, tagged and time-stamped (CONTRACTS C2)."""
+"""The FPGA MONITOR port: every channel mirrored, tagged and time-stamped (docs/icd.md)."""
 
 from __future__ import annotations
 
@@ -7,10 +7,9 @@ import pytest
 from emulator.assembly.runner import run_scenario
 from emulator.recording.capture import read_capture
 from emulator.testing import load_test_scenario
+from protocols import monitor
 from protocols.stream import StreamDecoder
 from tests.conftest import SCENARIOS
-
-monitor = pytest.importorskip("protocols.monitor", reason="protocols.monitor (CONTRACTS C2) is not in this build yet")
 
 
 @pytest.fixture(scope="module")

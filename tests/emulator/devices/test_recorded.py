@@ -21,7 +21,7 @@ from emulator.world.trajectory import StaticTrajectory
 from protocols.nmea import Gga, NmeaFormat, build_gga, build_rmc
 from protocols.stream import StreamDecoder
 
-EPOCH = dt.datetime(2019, 9, 18, 8, 14, tzinfo=dt.timezone.utc)
+EPOCH = dt.datetime(2019, 9, 18, 8, 14, tzinfo=dt.UTC)
 DEG = math.pi / 180.0
 
 

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 import pytest
 
 from emulator.assembly.runner import dsp_uart_baud
@@ -74,9 +73,9 @@ def test_poll_service_overruns_when_more_than_the_fifo_arrives_between_ticks():
     for tick in range(200):  # 1 s of a continuous stream, the main loop polling every 5 ms
         t_tick = tick * 0.005
         m.tick(t_tick)
-        n = int(round(0.005 / p))
+        n = round(0.005 / p)
         # the bytes that complete during this tick interval
-        start = int(round(t_tick / p))
+        start = round(t_tick / p)
         ts_last = (start + n) * p
         out += m.accept(ts_last, bytes(n), p)
     assert m.overrun_bytes > 0

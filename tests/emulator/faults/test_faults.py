@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from emulator.assembly.runner import run_scenario
-from emulator.devices.presets import preset
+from emulator.scenario.presets import preset
 from emulator.testing import load_test_scenario
 from tests.conftest import ROOT, SCENARIOS
 
@@ -142,8 +142,8 @@ def test_gyro_bias_step_stuck_axis_and_range_limit_act_on_the_words():
     gyro.set_bias_step("a", None)
     gyro.set_bias_step("b", None)
     _trigger(loop, gyro, 5, 6)
-    base = tuple(int(round(x)) for x in w)
-    step = tuple(int(round(x)) for x in w + np.array([0.5, 0.0, 1.0]) / GYRO_RATE_LSB_DPS)
+    base = tuple(round(x) for x in w)
+    step = tuple(round(x) for x in w + np.array([0.5, 0.0, 1.0]) / GYRO_RATE_LSB_DPS)
     assert [d.gyro for d in got] == [base, base, step, step, base]
     assert gyro.faults.biased == 2 and not gyro.faults.active
     # a stuck axis holds its last output while the others move on
@@ -159,7 +159,7 @@ def test_gyro_bias_step_stuck_axis_and_range_limit_act_on_the_words():
     # a range of 0.001 deg/s clips the Earth rate's vertical component (~0.0027 deg/s at 40 N)
     gyro.set_range_limit(0.001 * DEG)
     _trigger(loop, gyro, 9, 11)
-    lim = int(round(0.001 / GYRO_RATE_LSB_DPS))
+    lim = round(0.001 / GYRO_RATE_LSB_DPS)
     assert all(abs(x) <= lim for x in got[-1].gyro) and gyro.faults.clipped == 2
     loop.close()
 
@@ -178,7 +178,7 @@ def test_gyro_datagram_drop_probability_and_counter_gap():
 
 def test_bit_errors_flip_bits_at_the_configured_rate():
     """The injector's bit-error count over many bytes follows Binomial(n bits, BER)."""
-    from emulator.faults import _LinkBitErrors
+    from emulator.faults.link import LinkBitErrors
     from emulator.links import LineConfig, MemHub
     from emulator.scenario.checks_schema import LinkBitErrorsFault
 
@@ -189,7 +189,7 @@ def test_bit_errors_flip_bits_at_the_configured_rate():
     a, _b = MemHub().pair("gnss", LineConfig(baud=9600), loop)
     Emu.links = {"gnss": a}
     spec = LinkBitErrorsFault(link="gnss", ber=1e-3)
-    inj = _LinkBitErrors(Emu, "link_bit_errors", spec, 0, np.random.default_rng(3))
+    inj = LinkBitErrors(Emu, "link_bit_errors", spec, 0, np.random.default_rng(3))
     data = bytes(range(256)) * 400  # 102 400 bytes, 1 024 000 bits on the wire
     out = b"".join(inj.apply(a, "in", 0.0, data[i:i + 100]) for i in range(0, len(data), 100))
     loop.close()

@@ -49,13 +49,13 @@ def _reference_receive(tx: LineConfig, rx: LineConfig, data: bytes, grid: int = 
         if tx.parity != "N":
             p = bin(v).count("1") & 1
             frame.append(p if tx.parity == "E" else p ^ 1)
-        frame += [1] * int(round(tx.stop_bits * 2))  # half-bit resolution for 1.5 stop bits
+        frame += [1] * round(tx.stop_bits * 2)  # half-bit resolution for 1.5 stop bits
         bits_tx.append(frame)
 
     def level(u: float) -> int:
         pos = 0.0
         for frame in bits_tx:
-            nbits = len(frame) - int(round(tx.stop_bits * 2)) + tx.stop_bits
+            nbits = len(frame) - round(tx.stop_bits * 2) + tx.stop_bits
             dur = nbits * t_tx
             if u < pos + dur:
                 j = int((u - pos) // t_tx)
@@ -63,7 +63,7 @@ def _reference_receive(tx: LineConfig, rx: LineConfig, data: bytes, grid: int = 
             pos += dur
         return 1
 
-    total = sum((len(f) - int(round(tx.stop_bits * 2)) + tx.stop_bits) * t_tx for f in bits_tx)
+    total = sum((len(f) - round(tx.stop_bits * 2) + tx.stop_bits) * t_tx for f in bits_tx)
     n_stop = 1 + rx.data_bits + (0 if rx.parity == "N" else 1)
     out: list[int] = []
     u = 0.0
@@ -114,7 +114,7 @@ def test_receiver_model_matches_an_independent_sampler(ratio, fmt):
     dt, pt, st = parse_mode(fmt[0])
     dr, pr, sr = parse_mode(fmt[1])
     tx = LineConfig(baud=100000, data_bits=dt, parity=pt, stop_bits=st)
-    rx = LineConfig(baud=int(round(100000 * ratio)), data_bits=dr, parity=pr, stop_bits=sr)
+    rx = LineConfig(baud=round(100000 * ratio), data_bits=dr, parity=pr, stop_bits=sr)
     if dt < 8:
         data = bytes(b & ((1 << dt) - 1) for b in data)
     m = UartReceiver(tx, rx)
@@ -129,7 +129,7 @@ def _mismatch_run(rx_ratio: float, n_frames: int = 50) -> tuple[bytes, bytes, di
     loop = EmulatorLoop("fast")
     hub = MemHub()
     tx = LineConfig(baud=115200)
-    rx = tx.with_(baud=int(round(115200 * rx_ratio)))
+    rx = tx.with_(baud=round(115200 * rx_ratio))
     a, b = hub.pair("x", tx, loop, line_b=rx)
     got = bytearray()
     b.on_receive = got.extend

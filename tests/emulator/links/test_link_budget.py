@@ -40,7 +40,7 @@ def test_dsp_uart0_below_its_need_drops_whole_frames_at_the_budgeted_rate(tmp_pa
     rate = scn.firmware.output_rate_hz
     st = s["link_stats"]["uart0"]
     # bytes the firmware wrote: one NAV_SOLUTION per output period, one STATUS per whole second
-    n_nav = s["dsp"]["ticks"] // int(round(scn.sensors.imu.rate_hz / rate))
+    n_nav = s["dsp"]["ticks"] // round(scn.sensors.imu.rate_hz / rate)
     t_last_tick = (s["dsp"]["ticks"] - 1) / scn.sensors.imu.rate_hz  # ticks at t = 0, 5 ms, ...
     n_status = int(t_last_tick)  # STATUS at t = 1, 2, ... s
     assert n_nav >= rate * T - 1

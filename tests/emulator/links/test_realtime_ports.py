@@ -157,7 +157,7 @@ async def test_socat_bridges_the_uart0_pty_to_tcp_and_a_client_reads_frames(tmp_
             while emu.time < t_end:
                 try:
                     data = await asyncio.wait_for(reader.read(65536), 0.5)
-                except asyncio.TimeoutError:
+                except TimeoutError:
                     continue
                 if not data:
                     break

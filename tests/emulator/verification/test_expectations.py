@@ -155,7 +155,7 @@ def test_python_hooks_pass_fail_raise_and_cannot_corrupt_the_summary(tmp_path):
     assert "RuntimeError: disk on fire" in r[4].message
     assert "returns bool" in r[5].message
     assert summary["x"] == 0.5  # each hook gets a copy
-    assert "hooks.py:ok(limit=0.1)" == r[1].description
+    assert r[1].description == "hooks.py:ok(limit=0.1)"
 
 
 WRONG = """\

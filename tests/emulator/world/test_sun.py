@@ -12,9 +12,9 @@ import pytest
 from emulator.world.sun import SunModel
 
 DEG = math.pi / 180.0
-UTC = dt.timezone.utc
+UTC = dt.UTC
 
-# algorithms.md section 3 (pvlib 0.16.1, delta_t = 69 s, altitude 0)
+# docs/reference/algorithms.md section 3 (pvlib 0.16.1, delta_t = 69 s, altitude 0)
 REFERENCE = [
     (dt.datetime(2019, 9, 18, 8, 14, tzinfo=UTC), 39.979, 116.339, 252.1164, 22.9402,
      [-0.876416, -0.282797, 0.389770]),

@@ -53,7 +53,7 @@ def run_strapdown(traj, duration, T=0.005, dtype=np.float64, samples=1):
     two-sample coning/sculling); return the max position error against truth (m)."""
     st = traj.state(0.0)
     s = NavState(mat2q(st.c_bn).astype(dtype), st.v_enu.astype(dtype), st.pos.copy(), a_prev=np.zeros(3, dtype))
-    n = int(round(duration / (T * samples)))
+    n = round(duration / (T * samples))
     worst = 0.0
     for k in range(1, n + 1):
         incs = [traj.imu_increments((samples * (k - 1) + j) * T, (samples * (k - 1) + j + 1) * T) for j in range(samples)]

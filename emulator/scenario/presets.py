@@ -8,18 +8,18 @@ overrides (``None`` values are "not given") on top.
 from __future__ import annotations
 
 import copy
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-__all__ = ["PRESET_DIR", "preset_names", "preset", "merged"]
+__all__ = ["PRESET_DIR", "merged", "preset", "preset_names"]
 
 PRESET_DIR = Path(__file__).resolve().parents[1] / "presets"
 
 
-@lru_cache(maxsize=None)
+@cache
 def _load(kind: str) -> dict[str, Any]:
     path = PRESET_DIR / f"{kind}.yaml"
     with open(path, encoding="utf-8") as fh:

@@ -1,0 +1,118 @@
+"""The port table: external ports and FPGA-DSP UARTs, their roles, default lines and stream formats.
+
+Time mode: ``--fast`` / ``--realtime`` on the command line win; else the scenario's ``mode`` if
+the file sets one; else ``realtime`` when any port has a real endpoint (``pty://``, ``serial://``:
+real peers live in wall time) and ``fast`` otherwise (docs/architecture.md).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from firmware_model import UART_GNSS, UART_HOST, UART_IMU, UART_PSNS
+from protocols.host import HostFormat
+from protocols.imu_frame import FpgaFrameFormat
+from protocols.monitor import MonitorFormat
+from protocols.nmea import NmeaFormat
+from protocols.psns import PsnsFormat
+from protocols.stim import Stim210Format
+from protocols.ubx import UbxFormat
+
+from ..links import LineConfig, parse_link_url, parse_mode
+from ..scenario.schema import LinkSpec, Scenario
+
+__all__ = [
+    "EMIFA_BYTE_TIME_S",
+    "PORT_BAUD",
+    "PORT_ROLES",
+    "UART_NUM",
+    "PortInfo",
+    "device_line",
+    "dsp_uart_baud",
+    "port_formats",
+    "port_line",
+    "port_specs",
+    "resolve_mode",
+]
+
+UART_NUM = {"uart0": UART_HOST, "uart1": UART_IMU, "uart2": UART_PSNS, "uart3": UART_GNSS}
+PORT_ROLES = {
+    "gyro": "STIM210 gyro -> FPGA (RS422)",
+    "gnss": "GNSS receiver -> FPGA (RS422)",
+    "psns": "polarization sensor -> FPGA (RS232)",
+    "host": "FPGA HOST (RS422) <-> DSP UART0: navigation out, commands in",
+    "monitor": "FPGA MONITOR: every channel, tagged and time-stamped",
+}
+#: default baud of each external port
+PORT_BAUD = {"gyro": 460800, "gnss": 9600, "host": 460800, "psns": 115200, "monitor": 3_000_000}
+#: One byte read by the DSP from the FPGA UART core over EMIFA, s [E: a few EMIFA async cycles].
+EMIFA_BYTE_TIME_S = 1e-7
+
+
+def port_formats(name: str) -> dict[str, list[Any]]:
+    """Stream-decoder formats per direction for a port / UART name (recorder, monitor, tests)."""
+    host = {"out": [HostFormat()], "in": [HostFormat()]}
+    table: dict[str, dict[str, list[Any]]] = {
+        "gyro": {"in": [Stim210Format("m")]},
+        "gnss": {"in": [NmeaFormat(), UbxFormat()]},  # UBX may follow the NMEA sentences
+        "psns": {"in": [PsnsFormat()]},
+        "host": host,
+        "monitor": {"out": [MonitorFormat()]},
+        "uart0": host,
+        "uart1": {"in": [FpgaFrameFormat()]},  # IMU frames and MAG frames (docs/icd.md)
+        "uart2": {"in": [PsnsFormat()]},
+        "uart3": {"in": [NmeaFormat(), UbxFormat()]},
+    }
+    return {d: list(f) for d, f in table.get(name, {}).items()}
+
+
+class PortInfo(dict[str, Any]):
+    """One row of the port map printed at start: name, role, url, baud, mode, path."""
+
+
+
+def resolve_mode(scn: Scenario, requested: str | None = None) -> str:
+    """The time mode of a run (see module docstring)."""
+    if requested:
+        return requested
+    if "mode" in scn.model_fields_set:
+        return scn.mode
+    for spec in port_specs(scn).values():
+        if parse_link_url(spec.url).scheme != "mem":
+            return "realtime"
+    return "fast"
+
+
+def dsp_uart_baud(nominal: int, uart_clock_hz: float | None, oversampling: int) -> int:
+    """Baud a C6747 UART really runs at: ``clock / (os x divisor)``, divisor rounded (SPRS377 6.24)."""
+    if uart_clock_hz is None:
+        return nominal
+    div = max(1, min(65535, round(uart_clock_hz / (oversampling * nominal))))
+    return round(uart_clock_hz / (oversampling * div))
+
+
+def port_specs(scn: Scenario) -> dict[str, LinkSpec]:
+    """The scenario's external ports that are wired (gyro, gnss, host; psns and monitor when given)."""
+    specs = {"gyro": scn.links.gyro, "gnss": scn.links.gnss, "host": scn.links.host}
+    if scn.links.psns is not None:
+        specs["psns"] = scn.links.psns
+    if scn.links.monitor is not None:
+        specs["monitor"] = scn.links.monitor
+    return specs
+
+
+def port_line(spec: LinkSpec, default_baud: int) -> LineConfig:
+    """The line of a port's FPGA end (the scenario's baud, mode and queue)."""
+    bits, parity, stop = parse_mode(spec.mode)
+    return LineConfig(baud=spec.baud or default_baud, data_bits=bits, parity=parity, stop_bits=stop,
+                      tx_queue_bytes=spec.queue_bytes)
+
+
+def device_line(spec: LinkSpec, fpga_line: LineConfig) -> LineConfig:
+    """The line of a port's device end: the FPGA end's, unless the scenario sets the device's own."""
+    kw: dict[str, Any] = {}
+    if spec.device_baud is not None:
+        kw["baud"] = spec.device_baud
+    if spec.device_mode is not None:
+        kw["data_bits"], kw["parity"], kw["stop_bits"] = parse_mode(spec.device_mode)
+    return fpga_line.with_(**kw) if kw else fpga_line

@@ -1,0 +1,442 @@
+"""The run session: :class:`Emulator` owns one run, :func:`run_emulator` runs it on its own loop.
+
+:class:`Emulator` opens the links, wires sensors -> FPGA -> DSP -> host (the pieces come from
+:mod:`.build` and :mod:`.ports`), attaches the recorder, runs the clock to ``duration_s`` and writes the
+summary (:mod:`.summary`). It lives inside an :class:`~emulator.clock.EmulatorLoop`; :func:`run_scenario`
+creates that loop, installs the Ctrl-C / SIGTERM handlers (an interrupted run still writes its captures
+and a summary with ``"interrupted": true``) and returns the summary.
+
+Replay (:mod:`emulator.recording.replay`): the same assembly without sensors and FPGA acquisition; the
+bytes a capture says each DSP UART received are handed to the DSP at their recorded times.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import datetime as _dt
+import gc
+import json
+import math
+import signal
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from firmware_model import Firmware
+from protocols import __version__ as VERSION
+from protocols.stim import Stim210Format
+
+from ..clock import EmulatorLoop, sleep_until
+from ..devices.fpga import VirtualFpga
+from ..devices.gnss import GnssReceiver
+from ..devices.imu import Stim210Gyro
+from ..devices.sensors import build_sensors
+from ..dsp.host import UartRxConfig, VirtualDsp
+from ..errors import EmulatorError
+from ..faults import FaultScheduler, FaultTargets
+from ..links import Link, MemHub, open_link, parse_link_url
+from ..recording.recorder import CaptureRecord, Recorder
+from ..scenario.schema import Scenario
+from ..verification.expectations import evaluate_expectations
+from ..world.build import build_trajectory
+from .build import build_dsp, build_uarts, fpga_config, port_map
+from .ports import PORT_BAUD, UART_NUM, PortInfo, device_line, port_formats, port_line, port_specs, resolve_mode
+from .summary import SAMPLE_OFFSET_S, dsp_sections, fpga_section, take_sample
+
+__all__ = ["Emulator", "default_run_dir", "run_emulator", "run_scenario"]
+
+
+def default_run_dir(name: str, base: str | Path = "runs") -> Path:
+    """``runs/<name>-<UTC timestamp>``: where a run writes unless told otherwise."""
+    stamp = _dt.datetime.now(_dt.UTC).strftime("%Y%m%dT%H%M%SZ")
+    return Path(base) / f"{name}-{stamp}"
+
+
+class Emulator:
+    """One emulated run (see module docstring).
+
+    Parameters
+    ----------
+    scn : the validated scenario.
+    run_dir : where the recorder writes.
+    mode : ``fast`` / ``realtime`` (None: :func:`resolve_mode`).
+    seed : overrides the scenario's seed.
+    progress : called once per simulated second with ``(t, duration)``.
+    replay : capture records to replay into the DSP instead of running sensors.
+    """
+
+    def __init__(self, scn: Scenario, run_dir: Path, mode: str | None = None, seed: int | None = None,
+                 progress: Callable[[float, float], None] | None = None,
+                 replay: list[CaptureRecord] | None = None) -> None:
+        self.scn = scn
+        self.run_dir = Path(run_dir)
+        self.mode = resolve_mode(scn, mode)
+        self.seed = scn.seed if seed is None else seed
+        self.progress = progress
+        self.replay = replay
+        self.loop: EmulatorLoop | None = None
+        self.links: dict[str, Link] = {}
+        self.device_ends: dict[str, Link] = {}
+        self.ports: list[PortInfo] = []
+        self.recorder: Recorder | None = None
+        self.dsp: VirtualDsp | None = None
+        self.fpga: VirtualFpga | None = None
+        self.gyro: Stim210Gyro | None = None
+        self.gnss: GnssReceiver | None = None
+        self.sensors: Any = None
+        self.summary: dict[str, Any] = {}
+        self.replayed_records = 0
+        self.replay_source: str | None = None
+        self._fw0: Firmware | None = None
+        self.faults: Any = None
+        self._last_sample_t = 0.0
+        self._started = False
+        self._stopped = False
+        self._wall0 = 0.0
+        self._status_prev = (0.0, 0.0, 0)
+
+    @property
+    def fw(self) -> Firmware | None:
+        """The firmware the DSP runs now (a watchdog reset replaces it)."""
+        return self.dsp.fw if self.dsp is not None else self._fw0
+
+    # -- construction ------------------------------------------------------------------------
+    async def start(self) -> None:
+        loop = asyncio.get_running_loop()
+        if not isinstance(loop, EmulatorLoop):
+            raise EmulatorError("the emulator runs on an emulator.clock.EmulatorLoop")
+        self.loop = loop
+        scn = self.scn
+        traj = self.trajectory = build_trajectory(scn)
+        rec = self.recorder = Recorder(self.run_dir, traj)
+        hub = MemHub()
+        port_dir = self.run_dir / "ports"
+        ext: dict[str, Link] = {}
+        internal: dict[str, Link] = {}
+        specs = port_specs(scn)
+        if self.replay is not None:
+            specs = {"host": specs["host"]}  # sensors are replaced by the capture
+        for port, spec in specs.items():
+            line = port_line(spec, PORT_BAUD[port])
+            u = parse_link_url(spec.url)
+            if u.scheme == "mem" or self.replay is not None:
+                a, b = hub.pair(port, line, loop, line_b=device_line(spec, line), key=f"{port}:{u.target}")
+                a.url = b.url = spec.url if u.scheme == "mem" else f"mem://{port}"
+                ext[port], internal[port] = a, b
+                self.device_ends[port] = b
+            else:
+                ext[port] = open_link(spec.url, port, loop, default_line=line, hub=hub, run_dir=port_dir)
+            self.links[port] = ext[port]
+        uart_fpga, uart_dsp, rx_cfg = self._build_uarts(hub, loop, ext)
+        # sensors (docs/architecture.md, section "Firmware interface")
+        if self.replay is None:
+            sensors = build_sensors(scn, self.seed, traj, internal, pps=self._pps)
+            self.sensors = sensors
+            self.gyro, self.gnss = sensors.gyro, sensors.gnss
+            gyro, accel = sensors.gyro, sensors.accel
+        else:
+            gyro = accel = None
+        fcfg = fpga_config(scn)
+        fpga_ports = {k: v for k, v in ext.items() if k != "monitor"}
+        mag = getattr(self.sensors, "mag", None) if self.replay is None else None
+        self.fpga = VirtualFpga(loop, fcfg, fpga_ports, uart_fpga, gyro, accel, rec, monitor=ext.get("monitor"),
+                                mag=mag)
+        self.dsp = self.build_dsp(uart_dsp, rx_cfg, rec)
+        if scn.faults and self.replay is None:  # bound now: a fault on a missing device fails before the run
+            self.faults = FaultScheduler(self.fault_targets(), scn.faults, self.seed, rec)
+        # recorder taps
+        for name, link in self.links.items():
+            fm: dict[str, Sequence[Any]] = dict(port_formats(name))
+            if name == "gyro":
+                fm = {"in": [Stim210Format(scn.sensors.imu.format)]}
+            rec.tap(name, link, fm)
+        for link in ext.values():
+            if link.scheme != "mem":
+                await link.open()
+        self.ports.extend(port_map(scn, self.links, uart_fpga))
+        (self.run_dir / "ports.json").write_text(json.dumps([dict(p) for p in self.ports], indent=2) + "\n")
+        rec.start({"scenario": scn.name, "seed": self.seed, "epoch": scn.epoch.isoformat(),
+                   "mode": self.mode, "link_baud": {k: v.line.baud for k, v in self.links.items()},
+                   "psns_hil_version": VERSION, "replay": self.replay is not None,
+                   "scenario_spec": scn.model_dump(mode="json")})
+        if self.mode == "realtime":
+            # everything built so far (modules, scenario, models) lives for the whole run: move it out of
+            # the collector's generations, so a full collection no longer walks it (tens of ms, a late frame)
+            gc.collect()
+            gc.freeze()
+        loop.restart_clock()
+        self._wall0 = loop.wall_elapsed()
+        if self.faults is not None:
+            self.faults.start()
+        loop.call_at(1.0 + SAMPLE_OFFSET_S, self._sample_tick)
+        if self.replay is None:
+            self.fpga.start()
+            self.sensors.start()
+        else:
+            self._start_replay()
+        if self.progress is not None:
+            self._progress_tick()
+        self._started = True
+
+    def fault_targets(self) -> FaultTargets:
+        """What the scenario's faults may touch (:mod:`emulator.faults`): sensors, links, FPGA, DSP."""
+        assert self.loop is not None
+        return FaultTargets(clock=self.loop, duration_s=self.scn.duration_s, imu_rate_hz=self.scn.sensors.imu.rate_hz,
+                            source_file=self.scn.source_file, sensors=self.sensors, links=self.links, fpga=self.fpga,
+                            dsp=self.dsp, firmware_counters=self._firmware_counters)
+
+    def _firmware_counters(self) -> dict[str, int]:
+        fw = self.fw
+        return getattr(fw, "counters", {}) if fw is not None else {}
+
+    def build_dsp(self, uart_dsp: dict[int, Link], rx_cfg: dict[int, UartRxConfig], events: Any) -> VirtualDsp:
+        """The virtual DSP hosting this scenario's firmware on ``uart_dsp`` (also used by a split run's DSP
+        process, :mod:`emulator.distributed.split`)."""
+        assert self.loop is not None
+        dsp = build_dsp(self.scn, self.loop, uart_dsp, rx_cfg, events)
+        self._fw0 = dsp.fw
+        return dsp
+
+    def _pps(self, t: float) -> None:
+        assert self.fpga is not None
+        self.fpga.pps_edge(t)
+
+    def _build_uarts(self, hub: MemHub, loop: EmulatorLoop, ext: dict[str, Link]
+                     ) -> tuple[dict[str, Link], dict[int, Link], dict[int, UartRxConfig]]:
+        """The FPGA-DSP UARTs (:func:`.build.build_uarts`); their DSP ends join :attr:`links`. A split run
+        overrides this to cut them."""
+        uart_fpga, dsp_ends, uart_dsp, rx_cfg = build_uarts(self.scn, hub, loop)
+        self.links.update(dsp_ends)
+        return uart_fpga, uart_dsp, rx_cfg
+
+    def _start_replay(self) -> None:
+        """Schedule the captured DSP-UART input (see :mod:`emulator.recording.replay`)."""
+        assert self.loop is not None and self.replay is not None
+        recs = [r for r in self.replay if r.link in UART_NUM and r.direction == "in"]
+        self._replay_recs = recs
+        self._replay_i = 0
+        if recs:
+            self.loop.call_at(recs[0].t_s, self._replay_step)
+
+    def _replay_step(self) -> None:
+        recs = self._replay_recs
+        i = self._replay_i
+        t = recs[i].t_s
+        while i < len(recs) and recs[i].t_s == t:
+            r = recs[i]
+            link = self.links[r.link]
+            link.last_rx_pitch = r.pitch_s if r.pitch_s is not None else link.line.byte_time
+            link._deliver(r.data)
+            self.replayed_records += 1
+            i += 1
+        self._replay_i = i
+        if i < len(recs) and self.loop is not None:
+            self.loop.call_at(recs[i].t_s, self._replay_step)
+
+    def _progress_tick(self) -> None:
+        assert self.loop is not None and self.progress is not None
+        t = self.loop.time()
+        self.progress(t, self.scn.duration_s)
+        if t < self.scn.duration_s:
+            self.loop.call_at(math.floor(t) + 1.0, self._progress_tick)
+
+    # -- 1 Hz samples: timeline.csv and filter_state.csv -------------------------------------------
+    def _sample_tick(self) -> None:
+        assert self.loop is not None
+        t = self.loop.time()
+        sec = round(t - SAMPLE_OFFSET_S)
+        self._sample(float(sec))
+        if sec + 1 + SAMPLE_OFFSET_S < self.scn.duration_s:
+            self.loop.call_at(sec + 1 + SAMPLE_OFFSET_S, self._sample_tick)
+
+    def _sample(self, t: float, final: bool = False) -> None:
+        """One 1 Hz sample (:func:`.summary.take_sample`)."""
+        rec, dsp = self.recorder, self.dsp
+        if rec is None or dsp is None:
+            return
+        self._last_sample_t = t
+        take_sample(rec, dsp, t, final)
+
+    # -- live status -----------------------------------------------------------------------------
+    def status(self) -> dict[str, Any]:
+        """Sim time, real-time factor, nav frames/s and error counts since the last call."""
+        assert self.loop is not None and self.recorder is not None
+        t = self.loop.time()
+        wall = self.loop.wall_elapsed()
+        t0, w0, n0 = self._status_prev
+        n = self.recorder.nav_count
+        self._status_prev = (t, wall, n)
+        dt_sim = t - t0
+        links = self.recorder.link_summary()
+        crc = sum(v["crc_errors"] for v in links.values())
+        dropped = sum(v["dropped"] for v in links.values())
+        framing = sum(lk.stats.framing_errors for lk in self.links.values())
+        return {
+            "t_s": t,
+            "wall_s": wall,
+            "realtime_factor": (dt_sim / (wall - w0)) if wall > w0 else None,
+            "nav_fps": (n - n0) / dt_sim if dt_sim > 0 else 0.0,
+            "nav_frames": n,
+            "crc_errors": crc,
+            "dropped": dropped,
+            "framing_errors": framing,
+            "deadline_misses": self.dsp.deadline_misses if self.dsp else 0,
+        }
+
+    # -- running -------------------------------------------------------------------------------
+    async def run_until(self, t: float) -> None:
+        await sleep_until(t)
+
+    async def run(self) -> dict[str, Any]:
+        interrupted = False
+        try:
+            await self.start()
+            await self.run_until(self.scn.duration_s)
+        except asyncio.CancelledError:
+            interrupted = True
+        except BaseException:
+            await self._abort()
+            raise
+        return await self.stop(interrupted=interrupted)
+
+    async def _abort(self) -> None:
+        """Start failed: release what was opened (ptys, files); no summary."""
+        self._stopped = True
+        for link in list(self.links.values()) + list(self.device_ends.values()):
+            try:
+                await link.close()
+            except Exception:
+                pass
+        if self.recorder is not None:
+            self.recorder.close()
+
+    async def stop(self, interrupted: bool = False) -> dict[str, Any]:
+        loop = self.loop
+        rec = self.recorder
+        if loop is None or rec is None or self._stopped:
+            return self.summary
+        if not self._started:  # interrupted while starting
+            await self._abort()
+            self.summary = {"scenario": self.scn.name, "interrupted": interrupted, "started": False,
+                            "run_dir": str(self.run_dir), "passed": False}
+            rec.write_summary(self.summary)
+            return self.summary
+        self._stopped = True
+        fault_records = self.faults.finish() if self.faults is not None else []
+        sim_t = min(loop.time(), self.scn.duration_s) if not interrupted else loop.time()
+        if sim_t > self._last_sample_t + 1e-9:
+            self._sample(sim_t, final=True)  # the end of the run
+        for link in list(self.links.values()) + list(self.device_ends.values()):
+            try:
+                await link.close()
+            except Exception:
+                pass
+        wall = loop.wall_elapsed()
+        try:
+            self.summary = s = self._summary(sim_t, wall, interrupted)
+            s["faults"] = fault_records
+            s["valid"] = self.faults.valid if self.faults is not None else True
+            rec.flush()
+            results = evaluate_expectations(self.scn.expectations, rec, s, run_dir=self.run_dir,
+                                            base_dir=self.scn.base_dir)
+            s["expectations"] = [r.as_dict() for r in results]
+            s["passed"] = all(r.passed for r in results) and not interrupted and s["valid"]
+            rec.write_summary(s)
+        finally:
+            rec.close()
+        return s
+
+    def _summary(self, sim_t: float, wall: float, interrupted: bool) -> dict[str, Any]:
+        rec = self.recorder
+        assert rec is not None and self.dsp is not None and self.fpga is not None
+        return {
+            "psns_hil_version": VERSION,
+            "scenario": self.scn.name,
+            "scenario_file": self.scn.source_file,
+            "seed": self.seed,
+            "mode": self.mode,
+            "speed": self.loop.speed if self.loop is not None else None,
+            "epoch": self.scn.epoch.isoformat(),
+            "sim_duration_s": sim_t,
+            "wall_s": wall,
+            "realtime_factor": sim_t / wall if wall > 0 else None,
+            "interrupted": interrupted,
+            "replay": {"source": self.replay_source, "records": self.replayed_records} if self.replay is not None
+            else None,
+            "run_dir": str(self.run_dir),
+            "nav_error": {k: v.as_dict() for k, v in rec.errors.items()},
+            "nav_frames": rec.nav_count,
+            "links": rec.link_summary(),
+            "link_stats": {k: dict(v.stats.as_dict(), error=v.error) for k, v in self.links.items()},
+            **self.dsp_sections(),
+            "fpga": fpga_section(self.fpga),
+            "devices": self.sensors.counters() if self.sensors is not None else {},
+            "ports": [dict(p) for p in self.ports],
+            "events": dict(rec.event_counts),
+        }
+
+
+    def dsp_sections(self) -> dict[str, Any]:
+        """The ``dsp`` and ``firmware`` sections of the summary (a split run's come from the DSP process)."""
+        assert self.dsp is not None
+        return dsp_sections(self.dsp)
+
+
+def run_emulator(emu: Emulator, speed: float = 1.0, on_started: Callable[[Emulator], None] | None = None
+                 ) -> dict[str, Any]:
+    """Run ``emu`` to completion (or interruption) on a fresh :class:`EmulatorLoop`.
+
+    SIGINT and SIGTERM cancel the run; the recorder still writes everything it has and a
+    summary with ``"interrupted": true``.
+    """
+    loop = EmulatorLoop(emu.mode, speed)
+    asyncio.set_event_loop(loop)
+    failure: list[dict[str, Any]] = []
+
+    def on_error(lp: asyncio.AbstractEventLoop, context: dict[str, Any]) -> None:
+        # an exception in a device callback is a bug: end the run (summary kept) and report it
+        if not failure:
+            failure.append(context)
+            task.cancel()
+
+    async def main() -> dict[str, Any]:
+        if on_started is not None:
+            async def _notify() -> None:
+                while not emu._started:
+                    await asyncio.sleep(0)
+                on_started(emu)
+            loop.create_task(_notify())
+        return await emu.run()
+
+    task = loop.create_task(main())
+    loop.set_exception_handler(on_error)
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        try:
+            loop.add_signal_handler(sig, task.cancel)
+        except (NotImplementedError, RuntimeError, ValueError):
+            pass
+    try:
+        summary = loop.run_until_complete(task)
+        if failure:
+            ctx = failure[0]
+            exc = ctx.get("exception")
+            raise EmulatorError(f"the run stopped at t = {summary.get('sim_duration_s', 0):.6f} s: "
+                                f"{ctx.get('message', 'error')}: {exc!r} (summary and captures kept in "
+                                f"{emu.run_dir})") from exc
+        return summary
+    finally:
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            try:
+                loop.remove_signal_handler(sig)
+            except (NotImplementedError, RuntimeError, ValueError):
+                pass
+        asyncio.set_event_loop(None)
+        loop.close()
+
+
+def run_scenario(scn: Scenario, run_dir: Path, mode: str | None = None, speed: float | None = None,
+                 seed: int | None = None, progress: Callable[[float, float], None] | None = None,
+                 on_started: Callable[[Emulator], None] | None = None) -> dict[str, Any]:
+    """Run ``scn`` to completion (or interruption) on a fresh :class:`EmulatorLoop`."""
+    emu = Emulator(scn, run_dir, mode=mode, seed=seed, progress=progress)
+    return run_emulator(emu, speed if speed is not None else scn.speed, on_started)

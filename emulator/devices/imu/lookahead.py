@@ -1,0 +1,119 @@
+"""The look-ahead: the measured means of the coming trigger intervals, computed in one vectorised pass.
+
+Both inertial devices sample the same truth (:class:`ImuTruthTap`) on the FPGA's trigger grid; instead of one
+error-model call per interval, :func:`measure_ahead` evaluates as many intervals as the error model's current
+noise block and the trajectory's current increment block hold, bit for bit what the per-interval path gives,
+and :class:`Ahead` hands the rows out while nothing else drew from the noise block.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...world.trajectory import Trajectory
+from .error_model import BLOCK, ImuTemperature, InertialErrorModel
+
+__all__ = ["Ahead", "ImuTruthTap", "measure_ahead"]
+
+
+class ImuTruthTap:
+    """Caches the exact truth increments of the last trigger interval for both sensors."""
+
+    def __init__(self, trajectory: Trajectory) -> None:
+        self.trajectory = trajectory
+        self._key: tuple[float, float] | None = None
+        self._val: tuple[np.ndarray, np.ndarray] = (np.zeros(3), np.zeros(3))
+
+    def increments(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
+        if self._key != (t0, t1):
+            self._val = self.trajectory.imu_increments(t0, t1)
+            self._key = (t0, t1)
+        return self._val
+
+
+class Ahead:
+    """Measured means of the coming trigger intervals of one sensor triad (see :func:`measure_ahead`).
+
+    ``times[j]`` is the ``(t, t_prev)`` of row ``j``; ``raw[j]`` the measured mean before injected
+    faults; ``post[j]`` what the device makes of it without faults (words / codes as ints, and the
+    clipped value it remembers). Row ``j`` may be used only while the error model's noise block is
+    the one peeked at, at the row ``i0 + j`` (so nothing was drawn in between).
+    """
+
+    __slots__ = ("block", "i0", "j", "post", "raw", "stochastic", "times")
+
+    def __init__(self, times: list[tuple[float, float]], raw: np.ndarray, block: np.ndarray | None, i0: int,
+                 stochastic: bool) -> None:
+        self.times = times
+        self.raw = raw
+        self.post: list[tuple[tuple[int, int, int], np.ndarray]] = []
+        self.j = 1
+        self.block = block
+        self.i0 = i0
+        self.stochastic = stochastic
+
+    def take(self, t: float, t_prev: float, model: InertialErrorModel, dt: float) -> int:
+        """Index of the row for the interval ``(t_prev, t)`` (its noise row consumed), or -1."""
+        j = self.j
+        if j >= len(self.times) or self.times[j] != (t, t_prev):
+            return -1
+        if self.stochastic and not model.consume_noise_row(self.block, self.i0 + j, dt):
+            return -1  # something drew from the noise block in between: next_noise would draw
+        self.j = j + 1
+        return j
+
+
+def measure_ahead(model: InertialErrorModel, tap: ImuTruthTap, t: float, t_prev: float, period: float,
+                  temp: ImuTemperature, gyro: bool) -> tuple[np.ndarray, Ahead | None]:
+    """The measured mean of the interval ``(t_prev, t)`` (pre-fault, exactly :meth:`InertialErrorModel.measure`)
+    and the same for the following trigger intervals ``t_j = (k + j) period``, ``t_prev_j = t_j - period``
+    computed in one vectorised pass: as many as the current noise block and the trajectory's current
+    increment block hold (neither is advanced; rows are bit for bit what the per-interval path gives).
+
+    ``gyro``: the input is the mean angular rate and the g-sensitivity input the mean specific force;
+    else (the accelerometers) the input is the mean specific force.
+    """
+    dt = t - t_prev
+    dth, dv = tap.increments(t_prev, t)
+    k = round(t / period)
+    if k * period != t or t - period != t_prev:  # not the FPGA's trigger grid: no look-ahead
+        if gyro:
+            return model.measure(dth / dt, dt, temp.at(t), temp.rate_c_per_min, temp.cal_c, dv / dt), None
+        return model.measure(dv / dt, dt, temp.at(t), temp.rate_c_per_min, temp.cal_c), None
+    noise0 = model.next_noise(dt)
+    stochastic = model.stochastic
+    if stochastic:
+        block, i_next = model.noise_position()
+        i0 = i_next - 1  # the row noise0 came from
+        n_max = BLOCK - i0
+    else:
+        block, i0 = None, 0
+        n_max = BLOCK
+    traj = tap.trajectory
+    times = [(t, t_prev)]
+    dths, dvs = [dth], [dv]
+    for j in range(1, n_max):
+        tj = (k + j) * period
+        tpj = tj - period
+        inc = traj.imu_increments_ready(tpj, tj)
+        if inc is None:
+            break
+        times.append((tj, tpj))
+        dths.append(inc[0])
+        dvs.append(inc[1])
+    n = len(times)
+    dts = np.array([a - b for a, b in times])[:, None]
+    temps = np.array([temp.at(a) for a, _b in times])
+    if gyro:
+        x = np.array(dths) / dts
+        f = np.array(dvs) / dts
+    else:
+        x = np.array(dvs) / dts
+        f = None
+    det = model.deterministic_rows(x, temps, temp.rate_c_per_min, temp.cal_c, f)
+    if stochastic:
+        noise = np.concatenate([noise0[None, :], block[i0 + 1:i0 + n]])  # type: ignore[index]
+    else:
+        noise = np.zeros((n, 3))
+    raw = det + noise
+    return raw[0], (Ahead(times, raw, block, i0, stochastic) if n > 1 else None)

@@ -1,0 +1,177 @@
+"""The STIM210 gyro in external-trigger mode: datagrams on its RS422 link."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from protocols.stim import (
+    GYRO_ANGLE_LSB_DEG,
+    GYRO_RATE_LSB_DPS,
+    STIM_COUNTER_HZ,
+    TEMP_LSB_DEGC,
+    Stim210Format,
+    StimDatagram,
+)
+
+from ...links.base import Link
+from .error_model import DEG, GyroErrors, ImuTemperature, gyro_error_model
+from .injected import InjectedFaults
+from .lookahead import Ahead, ImuTruthTap, measure_ahead
+
+__all__ = ["Stim210Gyro"]
+
+
+class Stim210Gyro:
+    """A STIM210 in external-trigger mode on an RS422 link.
+
+    Parameters
+    ----------
+    link : the gyro's serial link to the FPGA GYRO port.
+    tap : truth increments.
+    errors : the unit's figures (drawn once into an :class:`InertialErrorModel`).
+    fmt : datagram format letter (default ``"m"``: rate, counter, latency).
+    output : ``"rate"`` (average angular rate) or ``"angle"`` (incremental angle).
+    response_delay_s : trigger edge to start of transmission (<= 86 us, TS1524 5.3).
+    latency_us : value reported in the latency field.
+    temperature : temperature profile (reported in formats with temperature words).
+    source : recorded data (:mod:`emulator.devices.recorded`): ``f(t0, t1) -> mean rate (3,) rad/s``
+        replaces truth and error model.
+    """
+
+    def __init__(self, link: Link, tap: ImuTruthTap, rng: np.random.Generator, errors: GyroErrors | None = None,
+                 fmt: str = "m", output: str = "rate", response_delay_s: float = 40e-6,
+                 trigger_rate_hz: float = 200.0, latency_us: int = 0, temperature: ImuTemperature | None = None,
+                 source: Callable[[float, float], Any] | None = None) -> None:
+        self.link = link
+        self.tap = tap
+        self.rng = rng
+        self.err = errors or GyroErrors()
+        self.model = gyro_error_model(self.err, rng)
+        self.format = Stim210Format(fmt)
+        self.output = output
+        self.response_delay_s = response_delay_s
+        self.latency_us = latency_us
+        self.temperature = temperature or ImuTemperature()
+        self.source = source
+        self.counter = 0
+        self.counter_step = round(STIM_COUNTER_HZ / trigger_rate_hz)
+        self._queued = 0
+        self._last_send_t = -math.inf
+        self.last_measured = np.zeros(3)
+        self._accel_hint: np.ndarray | None = None
+        #: injected faults (bias step, stuck axis, reduced range); see :class:`InjectedFaults`
+        self.faults = InjectedFaults()
+        self.drop_probability = 0.0
+        self.datagrams_dropped = 0
+        self._drop_rng: np.random.Generator | None = None
+        #: look-ahead (:func:`measure_ahead`): on the trigger grid of ``trigger_rate_hz``, block-wise
+        self._period = 1.0 / trigger_rate_hz
+        self._look_ahead = source is None
+        self._ahead: Ahead | None = None
+
+    @property
+    def turn_on_bias(self) -> np.ndarray:
+        return self.model.bias0
+
+    # -- injected faults (emulator.faults) ----------------------------------------------------------
+    def set_bias_step(self, key: object, delta_rad_s: np.ndarray | None) -> None:
+        """Step the rate bias by ``delta_rad_s`` (3,) rad/s, body axes; ``None`` removes the step ``key``."""
+        self.faults.set_bias(key, delta_rad_s)
+
+    def set_stuck_axis(self, axis: int, stuck: bool) -> None:
+        """Freeze axis ``axis`` (0..2) at its last output, or release it."""
+        self.faults.set_stuck(axis, stuck, float(self.last_measured[axis]))
+
+    def set_range_limit(self, limit_rad_s: float | None) -> None:
+        """Clip every axis at ``limit_rad_s`` (a gain fault; None restores the full range)."""
+        self.faults.set_range_limit(limit_rad_s)
+
+    def set_datagram_drop(self, probability: float, rng: np.random.Generator | None = None) -> None:
+        """Skip each datagram with ``probability`` (0 turns it off); the counter still advances."""
+        self.drop_probability = probability
+        if rng is not None:
+            self._drop_rng = rng
+
+    def trigger(self, t: float, t_prev: float) -> None:
+        """External-trigger falling edge at ``t`` (scenario s); interval started at ``t_prev``."""
+        dt = t - t_prev
+        temp = self.temperature
+        t_c = temp.at(t)
+        if self.source is not None:
+            rec = self.source(t_prev, t)
+            if rec is None:  # outside the record: silent (the FPGA flags the missing datagram)
+                return
+            rate = np.asarray(rec, dtype=np.float64)
+        else:
+            ahead = self._ahead
+            j = ahead.take(t, t_prev, self.model, dt) if ahead is not None else -1
+            if j >= 0 and not self.faults.active:  # the common case: all done in the look-ahead pass
+                gw, self.last_measured = ahead.post[j]  # type: ignore[union-attr]
+                self._transmit(t, t_c, gw)
+                return
+            if j >= 0:
+                rate = ahead.raw[j]  # type: ignore[union-attr]
+            elif self._look_ahead:
+                rate, ahead = measure_ahead(self.model, self.tap, t, t_prev, self._period, temp, True)
+                self._ahead = ahead
+                if ahead is not None:
+                    ahead.post = self._words(ahead)
+            else:
+                dtheta, dv = self.tap.increments(t_prev, t)
+                rate = self.model.measure(dtheta / dt, dt, t_c, temp.rate_c_per_min, temp.cal_c, dv / dt)
+        lim: np.ndarray | float = self.err.range_dps * DEG
+        if self.faults.active:
+            rate, lim = self.faults.apply(rate, lim)
+        rate = np.clip(rate, -lim, lim)
+        self.last_measured = rate
+        if self.output == "rate":
+            words = np.round(rate / (GYRO_RATE_LSB_DPS * DEG))
+        else:
+            words = np.round(rate * dt / (GYRO_ANGLE_LSB_DEG * DEG))
+        words = np.clip(words, -0x800000, 0x7FFFFF).astype(np.int64)
+        self._transmit(t, t_c, (int(words[0]), int(words[1]), int(words[2])))
+
+    def _words(self, ahead: Ahead) -> list[tuple[tuple[int, int, int], np.ndarray]]:
+        """The look-ahead rows as the fault-free path of :meth:`trigger` turns them into words."""
+        lim = self.err.range_dps * DEG
+        rate = np.clip(ahead.raw, -lim, lim)
+        if self.output == "rate":
+            words = np.round(rate / (GYRO_RATE_LSB_DPS * DEG))
+        else:
+            dts = np.array([a - b for a, b in ahead.times])[:, None]
+            words = np.round(rate * dts / (GYRO_ANGLE_LSB_DEG * DEG))
+        words = np.clip(words, -0x800000, 0x7FFFFF).astype(np.int64)
+        return [(tuple(w), r) for w, r in zip(words.tolist(), rate)]
+
+    def _transmit(self, t: float, t_c: float, gyro_words: tuple[int, int, int]) -> None:
+        self.counter = (self.counter + self.counter_step) & 0xFF
+        tw = round(t_c / TEMP_LSB_DEGC)
+        d = StimDatagram(
+            ident=self.format.ident,
+            gyro=gyro_words,
+            status=0,
+            counter=self.counter,
+            latency_us=self.latency_us,
+            temperature=(tw, tw, tw),
+        )
+        frame = self.format.build(d)
+        if self.drop_probability > 0.0:
+            rng = self._drop_rng if self._drop_rng is not None else self.rng
+            if rng.random() < self.drop_probability:
+                self.datagrams_dropped += 1
+                return
+        # the gyro is its link's only writer, in time order: decide the transmission now (one timer,
+        # the delivery, instead of two)
+        t_send = t + self.response_delay_s
+        self.link.send_at(t_send, frame)
+        self._queued += 1
+        self._last_send_t = t_send
+
+    @property
+    def datagrams_sent(self) -> int:
+        """Datagrams whose transmission has started (one may be queued for its response delay)."""
+        return self._queued - (1 if self._last_send_t > self.link.loop.time() else 0)

@@ -1,0 +1,94 @@
+"""Checks across the scenario's sections (faults and expectations against links and sensors).
+
+They need the whole :class:`~emulator.scenario.schema.Scenario`, so they live above it: the loader runs
+:func:`cross_check` after validation.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from .checks_schema import HookError, load_hook
+from .schema import Scenario
+
+__all__ = ["cross_check", "link_names"]
+
+
+def link_names(scn: Scenario) -> list[str]:
+    """The links a run of ``scn`` taps (the names of the summary's link table)."""
+    names = ["gyro", "gnss", "host"]
+    if scn.links.psns is not None:
+        names.append("psns")
+    if scn.links.monitor is not None:
+        names.append("monitor")
+    return names + ["uart0", "uart1", "uart2", "uart3"]
+
+
+def cross_check(scn: Scenario) -> list[tuple[tuple[Any, ...], str]]:
+    """Problems that involve several sections; each ``(field path, message)``. Empty when all is well."""
+    issues: list[tuple[tuple[Any, ...], str]] = []
+    dur = scn.duration_s
+    links = link_names(scn)
+    sensors = scn.sensors
+    has_camera = "psns" in links and ((sensors.camera is not None and sensors.camera.enabled)
+                                      or (sensors.camera is None and not (sensors.compass and sensors.compass.enabled)))
+    has_compass = "psns" in links and sensors.compass is not None and sensors.compass.enabled
+    for i, f in enumerate(scn.faults):
+        kind = f.kind
+        spec = f.spec
+        loc = ("faults", i, kind)
+        if spec.start_s >= dur:
+            issues.append((loc + ("start_s",), f"{kind} starts at {spec.start_s:g} s, at or after the end of the "
+                                               f"run ({dur:g} s)"))
+        elif spec.duration_s is not None and spec.start_s + spec.duration_s > dur + 1e-9:
+            issues.append((loc + ("duration_s",),
+                           f"{kind} ends at {spec.start_s + spec.duration_s:g} s, after the end of the run "
+                           f"({dur:g} s); omit duration_s to last until the end"))
+        target = getattr(spec, "link", None)
+        if target is not None and target not in links:
+            issues.append((loc + ("link",), _unknown_link(target, links)))
+        if kind.startswith("gnss_"):
+            if not sensors.gnss.enabled:
+                issues.append((loc, f"{kind} needs the GNSS receiver (sensors.gnss.enabled is false)"))
+            elif sensors.gnss.recorded is not None:
+                issues.append((loc, f"{kind} needs the modelled GNSS receiver, not a recorded file"))
+        if kind.startswith("psns_"):
+            if "psns" not in links:
+                issues.append((loc, f"{kind} needs a polarization sensor; the scenario has no links.psns"))
+            elif kind == "psns_unit_blocked" and spec.units is not None and not has_compass:  # type: ignore[attr-defined]
+                issues.append((loc + ("units",), "units are compass units; a camera is blocked as a whole "
+                                                 "(omit units)"))
+            elif kind in ("psns_cloud_cover", "psns_sun_occluded") and has_camera and sensors.camera is not None \
+                    and sensors.camera.recorded is not None:
+                issues.append((loc, f"{kind} changes the modelled sky; the camera reads recorded images"))
+        if kind.startswith("imu_") and not scn.links.gyro.url.startswith("mem://") and \
+                (kind == "imu_dropped_datagrams" or getattr(spec, "sensor", "") == "gyro"):
+            issues.append((loc, f"{kind} acts on the STIM210 model; links.gyro is an external endpoint"))
+        if kind == "fpga_channel_stall":
+            ch = spec.channel  # type: ignore[attr-defined]
+            if ch == "mag" and (sensors.magnetometer is None or not sensors.magnetometer.enabled):
+                issues.append((loc + ("channel",), "channel mag needs sensors.magnetometer"))
+            if ch in ("host", "gnss", "psns") and ch not in scn.fpga.routing:
+                issues.append((loc + ("channel",), f"{ch} is not routed (fpga.routing)"))
+            if ch == "psns" and "psns" not in links:
+                issues.append((loc + ("channel",), "the scenario has no links.psns"))
+    for i, e in enumerate(scn.expectations):
+        kind = e.kind
+        body = getattr(e, kind)
+        loc = ("expectations", i, kind)
+        if kind == "link" and body.name not in links:
+            issues.append((loc + ("name",), _unknown_link(body.name, links)))
+        if kind == "python":
+            try:
+                load_hook(scn.base_dir, body.file, body.function)
+            except HookError as exc:
+                issues.append((loc + ("file",), f"python hook: {exc}"))
+    return issues
+
+
+def _unknown_link(name: str, links: list[str]) -> str:
+    import difflib
+
+    close = difflib.get_close_matches(name, links, n=1, cutoff=0.5)
+    hint = f"; did you mean {close[0]!r}?" if close else ""
+    return f"no link {name!r} in this scenario (links: {', '.join(links)}){hint}"

@@ -123,7 +123,8 @@ def _link_rows() -> list[dict]:
         {"name": "pty frame lateness, median", "value": med, "unit": "us", "baseline": RAW_PTY_MEDIAN_US,
          "ratio": med / RAW_PTY_MEDIAN_US, "note": f"{len(late)} frames of 109 B at 460800 baud, 100 Hz, realtime"},
         {"name": "pty frame lateness, p99", "value": p(0.99), "unit": "us", "baseline": RAW_PTY_P99_US,
-         "ratio": p(0.99) / RAW_PTY_P99_US, "note": "baseline: raw pty without the emulator (docs/reference/wire-formats.md 5.2)"},
+         "ratio": p(0.99) / RAW_PTY_P99_US,
+         "note": "baseline: raw pty without the emulator (docs/reference/wire-formats.md 5.2)"},
         {"name": "pty frame lateness, max", "value": late[-1], "unit": "us", "baseline": None, "ratio": None,
          "note": f"min {late[0]:.0f} us (negative = before the modelled end: a read woke mid-frame)"},
     ]

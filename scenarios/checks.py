@@ -9,6 +9,7 @@ the expectation results), ``run_dir`` the run directory (``nav.csv``, ``events.j
 from __future__ import annotations
 
 import csv
+import itertools
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +25,7 @@ def nav_gap(summary: dict[str, Any], run_dir: Path, after_s: float, until_s: flo
     (by the frames' arrival times at the host)."""
     times = [t for t in _nav_times(run_dir) if after_s - 1.0 <= t <= until_s + 1.0]
     best, at = 0.0, after_s
-    for a, b in zip(times, times[1:]):
+    for a, b in itertools.pairwise(times):
         lo, hi = max(a, after_s), min(b, until_s)
         if hi - lo > best:
             best, at = hi - lo, lo

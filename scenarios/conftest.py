@@ -31,7 +31,7 @@ import pytest
 _WALL: list[tuple[str, float, float, bool]] = []
 
 
-def pytest_collect_file(parent: pytest.Collector, file_path: Path):  # noqa: D103
+def pytest_collect_file(parent: pytest.Collector, file_path: Path):
     if file_path.suffix in (".yaml", ".yml"):
         return ScenarioFile.from_parent(parent, path=file_path)
     return None
@@ -49,7 +49,7 @@ class _Run:
         self.kept = False
         self.error: BaseException | None = None
 
-    def get(self) -> "_Run":
+    def get(self) -> _Run:
         if self.summary is not None or self.error is not None:
             return self
         from emulator.assembly.runner import run_scenario
@@ -62,7 +62,7 @@ class _Run:
         try:
             self.summary = run_scenario(scn, self.run_dir, mode="fast")
             self.golden_diffs = compare_golden(self.run_dir, scn.name, scn.seed, scn.duration_s)
-        except BaseException as exc:  # noqa: BLE001 - reported by both tests
+        except BaseException as exc:
             self.error = exc
         wall = time.perf_counter() - t0
         s = self.summary or {}
@@ -77,7 +77,7 @@ class _Run:
                     from emulator.recording.report import write_report
 
                     write_report(self.run_dir)
-                except Exception:  # noqa: BLE001 - the report is a help, not the verdict
+                except Exception:
                     pass
         return self
 
@@ -113,10 +113,10 @@ class _Item(pytest.Item):
         r = self.run
         return f"  run directory kept: {r.run_dir} (summary.json, report.html, events.jsonl)" if r.kept else ""
 
-    def reportinfo(self):  # noqa: D102
+    def reportinfo(self):
         return self.path, 0, f"scenario: {self.name}"
 
-    def repr_failure(self, excinfo, style=None):  # noqa: D102
+    def repr_failure(self, excinfo, style=None):
         if isinstance(excinfo.value, ScenarioFailed):
             return "\n".join(excinfo.value.args[0])
         return super().repr_failure(excinfo, style=style)
@@ -135,7 +135,8 @@ class ScenarioItem(_Item):
         for e in s.get("expectations", []):
             if not e["passed"]:
                 note = f" ({e['message']})" if e.get("message") else ""
-                lines.append(f"  expectation #{e['index']} {e['kind']}: {e['description']}: measured {e['value']}{note}")
+                lines.append(f"  expectation #{e['index']} {e['kind']}: {e['description']}: "
+                             f"measured {e['value']}{note}")
         for f in s.get("faults", []):
             if f.get("fired") is False:
                 ev = ", ".join(f"{k} {v}" for k, v in f.get("evidence", {}).items()) or "none"
@@ -163,7 +164,7 @@ class GoldenItem(_Item):
             raise ScenarioFailed([head, *(f"  {d}" for d in r.golden_diffs), self._kept()])
 
 
-def pytest_terminal_summary(terminalreporter, exitstatus, config):  # noqa: D103
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
     if not _WALL:
         return
     tr = terminalreporter

@@ -13,6 +13,7 @@ bytes a capture says each DSP UART received are handed to the DSP at their recor
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import datetime as _dt
 import gc
 import json
@@ -35,7 +36,8 @@ from ..dsp.host import UartRxConfig, VirtualDsp
 from ..errors import EmulatorError
 from ..faults import FaultScheduler, FaultTargets
 from ..links import Link, MemHub, open_link, parse_link_url
-from ..recording.recorder import CaptureRecord, Recorder
+from ..recording.capture import CaptureRecord
+from ..recording.recorder import Recorder
 from ..scenario.schema import Scenario
 from ..verification.expectations import evaluate_expectations
 from ..world.build import build_trajectory
@@ -303,10 +305,8 @@ class Emulator:
         """Start failed: release what was opened (ptys, files); no summary."""
         self._stopped = True
         for link in list(self.links.values()) + list(self.device_ends.values()):
-            try:
+            with contextlib.suppress(Exception):
                 await link.close()
-            except Exception:
-                pass
         if self.recorder is not None:
             self.recorder.close()
 
@@ -327,10 +327,8 @@ class Emulator:
         if sim_t > self._last_sample_t + 1e-9:
             self._sample(sim_t, final=True)  # the end of the run
         for link in list(self.links.values()) + list(self.device_ends.values()):
-            try:
+            with contextlib.suppress(Exception):
                 await link.close()
-            except Exception:
-                pass
         wall = loop.wall_elapsed()
         try:
             self.summary = s = self._summary(sim_t, wall, interrupted)
@@ -411,10 +409,8 @@ def run_emulator(emu: Emulator, speed: float = 1.0, on_started: Callable[[Emulat
     task = loop.create_task(main())
     loop.set_exception_handler(on_error)
     for sig in (signal.SIGINT, signal.SIGTERM):
-        try:
+        with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):
             loop.add_signal_handler(sig, task.cancel)
-        except (NotImplementedError, RuntimeError, ValueError):
-            pass
     try:
         summary = loop.run_until_complete(task)
         if failure:
@@ -426,10 +422,8 @@ def run_emulator(emu: Emulator, speed: float = 1.0, on_started: Callable[[Emulat
         return summary
     finally:
         for sig in (signal.SIGINT, signal.SIGTERM):
-            try:
+            with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):
                 loop.remove_signal_handler(sig)
-            except (NotImplementedError, RuntimeError, ValueError):
-                pass
         asyncio.set_event_loop(None)
         loop.close()
 

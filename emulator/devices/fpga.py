@@ -226,9 +226,9 @@ class VirtualFpga:
         self._flags = 0
         if d is not None:
             gyro = d.gyro  # type: ignore[attr-defined]
-            if self._last_counter is not None and d.counter is not None:  # type: ignore[attr-defined]
-                if (d.counter - self._last_counter) % 256 != self.cfg.gyro_counter_step:  # type: ignore[attr-defined]
-                    flags |= FpgaStatus.GYRO_COUNTER_JUMP
+            if (self._last_counter is not None and d.counter is not None  # type: ignore[attr-defined]
+                    and (d.counter - self._last_counter) % 256 != self.cfg.gyro_counter_step):  # type: ignore[attr-defined]
+                flags |= FpgaStatus.GYRO_COUNTER_JUMP
             if d.counter is not None:  # type: ignore[attr-defined]
                 self._last_counter = d.counter  # type: ignore[attr-defined]
             self._last_gyro = (gyro, d.status, d.counter or 0, d.latency_us or 0)  # type: ignore[attr-defined]

@@ -199,9 +199,7 @@ class GnssReceiver:
             if o.covers(t) or (o.start_s + o.duration_s <= t < o.start_s + o.duration_s + cfg.reacquisition_s):
                 return False
         sats = self._deg("num_sats")
-        if sats is not None and sats < 4:  # no 3-D solution from fewer than four satellites
-            return False
-        return True
+        return sats is None or sats >= 4  # no 3-D solution from fewer than four satellites
 
     def _epoch(self, t: float) -> None:
         fix = self.has_fix(t)

@@ -136,11 +136,15 @@ def _transport_class(scheme: str) -> type[Link]:
     return getattr(mod, cls_name)
 
 
+#: The line of a link whose scenario entry gives none: 8N1 at the LineConfig defaults (immutable, so shared).
+DEFAULT_LINE = LineConfig()
+
+
 def open_link(
     url: str,
     name: str,
     loop: asyncio.AbstractEventLoop,
-    default_line: LineConfig = LineConfig(),
+    default_line: LineConfig = DEFAULT_LINE,
     hub: MemHub | None = None,
     **transport_kw: Any,
 ) -> Link:

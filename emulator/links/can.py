@@ -31,6 +31,7 @@ python-can and cantools exceptions are mapped to :class:`~emulator.errors.LinkEr
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import math
 from pathlib import Path
 from typing import Any
@@ -281,10 +282,8 @@ class CanLink(Link):
         await super().close()
         bus, self.bus = self.bus, None
         if bus is not None:
-            try:
+            with contextlib.suppress(Exception):
                 bus.shutdown()
-            except Exception:
-                pass
 
     def describe(self) -> str:
         dbc = self.dbc_path.name if self.dbc_path is not None else "psns_nav.dbc"

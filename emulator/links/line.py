@@ -143,10 +143,7 @@ class LineModel:
                 end = last_ready
             pitch = (end - bt - start) / (n - 1)
         # bytes of this chunk still waiting at `now` (not yet started)
-        if start <= now:
-            started = min(n, int((now - start) / pitch + 1e-9) + 1)
-        else:
-            started = 0
+        started = min(n, int((now - start) / pitch + 1e-09) + 1) if start <= now else 0
         waiting = prior + (n - started)
         accepted = n
         if waiting > self._q:

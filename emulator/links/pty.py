@@ -128,10 +128,7 @@ class PtyLink(Link):
     # attach / detach ------------------------------------------------------------------
     def _hung_up(self) -> bool:
         assert self._poller is not None
-        for _fd, ev in self._poller.poll(0):
-            if ev & select.POLLHUP:
-                return True
-        return False
+        return any(ev & select.POLLHUP for _fd, ev in self._poller.poll(0))
 
     def _peer_line(self) -> LineConfig | None:
         """The client's termios settings as a line config (None if unknown or unchecked)."""

@@ -13,6 +13,7 @@ URL form: ``serial:///dev/ttyUSB0[?baud=460800&mode=8N1&queue=BYTES]``.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import os
 from typing import Any
 
@@ -70,10 +71,8 @@ class SerialLink(Link):
     def _broken(self, why: str) -> None:
         """The device went away: stop reading (no busy loop), keep the reason for the summary."""
         self.error = why
-        try:
+        with contextlib.suppress(ValueError, OSError):
             self.loop.remove_reader(self._ser.fd)
-        except (ValueError, OSError):
-            pass
 
     def _write_raw(self, data: bytes) -> None:
         if self._ser is None:
@@ -99,9 +98,7 @@ class SerialLink(Link):
     async def close(self) -> None:
         await super().close()
         if self._ser is not None:
-            try:
+            with contextlib.suppress(ValueError, OSError):
                 self.loop.remove_reader(self._ser.fileno())
-            except (ValueError, OSError):
-                pass
             self._ser.close()
             self._ser = None

@@ -45,6 +45,7 @@ outlive their Python object otherwise) and releases the session.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import re
 import struct
@@ -198,10 +199,8 @@ def release_session(cfg: ZenohEndpointConfig) -> None:
             return
         del _pool[cfg.key]
         session = entry[0]
-    try:
+    with contextlib.suppress(Exception):
         session.close()
-    except Exception:
-        pass
 
 
 def open_sessions() -> int:
@@ -398,10 +397,8 @@ class ZenohLink(Link):
             ent = getattr(self, attr)
             setattr(self, attr, None)
             if ent is not None:
-                try:
+                with contextlib.suppress(Exception):
                     ent.undeclare()
-                except Exception:
-                    pass
         if self.nav_publisher is not None and self.nav_publisher in self.listeners:
             self.listeners.remove(self.nav_publisher)
         if self.session is not None:

@@ -21,7 +21,7 @@ def link_names(scn: Scenario) -> list[str]:
         names.append("psns")
     if scn.links.monitor is not None:
         names.append("monitor")
-    return names + ["uart0", "uart1", "uart2", "uart3"]
+    return [*names, "uart0", "uart1", "uart2", "uart3"]
 
 
 def cross_check(scn: Scenario) -> list[tuple[tuple[Any, ...], str]]:
@@ -38,15 +38,15 @@ def cross_check(scn: Scenario) -> list[tuple[tuple[Any, ...], str]]:
         spec = f.spec
         loc = ("faults", i, kind)
         if spec.start_s >= dur:
-            issues.append((loc + ("start_s",), f"{kind} starts at {spec.start_s:g} s, at or after the end of the "
+            issues.append(((*loc, "start_s"), f"{kind} starts at {spec.start_s:g} s, at or after the end of the "
                                                f"run ({dur:g} s)"))
         elif spec.duration_s is not None and spec.start_s + spec.duration_s > dur + 1e-9:
-            issues.append((loc + ("duration_s",),
+            issues.append(((*loc, "duration_s"),
                            f"{kind} ends at {spec.start_s + spec.duration_s:g} s, after the end of the run "
                            f"({dur:g} s); omit duration_s to last until the end"))
         target = getattr(spec, "link", None)
         if target is not None and target not in links:
-            issues.append((loc + ("link",), _unknown_link(target, links)))
+            issues.append(((*loc, "link"), _unknown_link(target, links)))
         if kind.startswith("gnss_"):
             if not sensors.gnss.enabled:
                 issues.append((loc, f"{kind} needs the GNSS receiver (sensors.gnss.enabled is false)"))
@@ -56,7 +56,7 @@ def cross_check(scn: Scenario) -> list[tuple[tuple[Any, ...], str]]:
             if "psns" not in links:
                 issues.append((loc, f"{kind} needs a polarization sensor; the scenario has no links.psns"))
             elif kind == "psns_unit_blocked" and spec.units is not None and not has_compass:  # type: ignore[attr-defined]
-                issues.append((loc + ("units",), "units are compass units; a camera is blocked as a whole "
+                issues.append(((*loc, "units"), "units are compass units; a camera is blocked as a whole "
                                                  "(omit units)"))
             elif kind in ("psns_cloud_cover", "psns_sun_occluded") and has_camera and sensors.camera is not None \
                     and sensors.camera.recorded is not None:
@@ -67,22 +67,22 @@ def cross_check(scn: Scenario) -> list[tuple[tuple[Any, ...], str]]:
         if kind == "fpga_channel_stall":
             ch = spec.channel  # type: ignore[attr-defined]
             if ch == "mag" and (sensors.magnetometer is None or not sensors.magnetometer.enabled):
-                issues.append((loc + ("channel",), "channel mag needs sensors.magnetometer"))
+                issues.append(((*loc, "channel"), "channel mag needs sensors.magnetometer"))
             if ch in ("host", "gnss", "psns") and ch not in scn.fpga.routing:
-                issues.append((loc + ("channel",), f"{ch} is not routed (fpga.routing)"))
+                issues.append(((*loc, "channel"), f"{ch} is not routed (fpga.routing)"))
             if ch == "psns" and "psns" not in links:
-                issues.append((loc + ("channel",), "the scenario has no links.psns"))
+                issues.append(((*loc, "channel"), "the scenario has no links.psns"))
     for i, e in enumerate(scn.expectations):
         kind = e.kind
         body = getattr(e, kind)
         loc = ("expectations", i, kind)
         if kind == "link" and body.name not in links:
-            issues.append((loc + ("name",), _unknown_link(body.name, links)))
+            issues.append(((*loc, "name"), _unknown_link(body.name, links)))
         if kind == "python":
             try:
                 load_hook(scn.base_dir, body.file, body.function)
             except HookError as exc:
-                issues.append((loc + ("file",), f"python hook: {exc}"))
+                issues.append(((*loc, "file"), f"python hook: {exc}"))
     return issues
 
 

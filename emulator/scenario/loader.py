@@ -34,15 +34,15 @@ def _construct(node: yaml.Node, path: Loc, marks: dict[Loc, tuple[int, int]], fi
                                                   _fmt_path(path), "mapping keys must be plain scalars"))
             if key in out:
                 raise ScenarioError(ScenarioIssue(file, knode.start_mark.line + 1, knode.start_mark.column + 1,
-                                                  _fmt_path(path + (key,)), f"duplicate key {key!r}"))
-            marks[path + (key,)] = (knode.start_mark.line + 1, knode.start_mark.column + 1)
-            out[key] = _construct(vnode, path + (key,), marks, file)
+                                                  _fmt_path((*path, key)), f"duplicate key {key!r}"))
+            marks[(*path, key)] = (knode.start_mark.line + 1, knode.start_mark.column + 1)
+            out[key] = _construct(vnode, (*path, key), marks, file)
         return out
     if isinstance(node, yaml.SequenceNode):
         items = []
         for i, item in enumerate(node.value):
-            marks[path + (i,)] = (item.start_mark.line + 1, item.start_mark.column + 1)
-            items.append(_construct(item, path + (i,), marks, file))
+            marks[(*path, i)] = (item.start_mark.line + 1, item.start_mark.column + 1)
+            items.append(_construct(item, (*path, i), marks, file))
         return items
     return _scalar(node)
 
@@ -126,10 +126,7 @@ def _issue_from_error(err: dict[str, Any], marks: dict[Loc, tuple[int, int]], fi
         hint = ""
         if owner is not None:
             close = difflib.get_close_matches(key, list(owner.model_fields), n=1, cutoff=0.6)
-            if close:
-                hint = f"; did you mean {close[0]!r}?"
-            else:
-                hint = f"; allowed keys: {', '.join(owner.model_fields)}"
+            hint = f"; did you mean {close[0]!r}?" if close else f"; allowed keys: {', '.join(owner.model_fields)}"
         msg = f"unknown key {key!r}{hint}"
     elif "input" in err and err.get("type") not in ("missing",):
         inp = err["input"]

@@ -159,7 +159,8 @@ class GnssSpec(Model):
 
 
 class MountingSpec(Model):
-    """Sensor-to-body rotation: a nominal mount (Euler angles, the body-attitude convention) and an installation error."""
+    """Sensor-to-body rotation: a nominal mount (Euler angles, the body-attitude convention) and an installation
+    error."""
 
     heading_deg: float = Field(0.0, ge=-360, le=360)
     pitch_deg: float = Field(0.0, ge=-90, le=90)

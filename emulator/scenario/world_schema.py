@@ -154,9 +154,9 @@ class RotateParams(Model):
             raise ValueError("pitch/roll with to_deg needs duration_s")
         if self.by_deg is not None and self.duration_s is None and self.rate_dps is None:
             raise ValueError("pitch/roll needs rate_dps or duration_s")
-        if self.by_deg is not None and self.rate_dps is not None and self.duration_s is not None:
-            if abs(self.by_deg) / self.rate_dps > self.duration_s + 1e-9:
-                raise ValueError("pitch/roll: by_deg / rate_dps exceeds duration_s")
+        if (self.by_deg is not None and self.rate_dps is not None and self.duration_s is not None
+                and abs(self.by_deg) / self.rate_dps > self.duration_s + 1e-9):
+            raise ValueError("pitch/roll: by_deg / rate_dps exceeds duration_s")
         return self
 
     @property

@@ -183,7 +183,7 @@ def euler_to_cbn(pitch: np.ndarray, roll: np.ndarray, yaw: np.ndarray) -> np.nda
     sp, cp = np.sin(pitch), np.cos(pitch)
     sr, cr = np.sin(roll), np.cos(roll)
     sy, cy = np.sin(yaw), np.cos(yaw)
-    c = np.empty(np.shape(pitch) + (3, 3))
+    c = np.empty((*np.shape(pitch), 3, 3))
     c[..., 0, 0] = cr * cy - sp * sr * sy
     c[..., 0, 1] = -cp * sy
     c[..., 0, 2] = sr * cy + sp * cr * sy
@@ -406,7 +406,7 @@ class SegmentTrajectory(Trajectory):
             ev = tab.evaluate(t[m] - tab.ph.t0)
             for k, v in ev.items():
                 if k not in out:
-                    out[k] = np.empty((len(t),) + v.shape[1:])
+                    out[k] = np.empty((len(t), *v.shape[1:]))
                 out[k][m] = v
         return out
 

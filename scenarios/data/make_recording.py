@@ -36,7 +36,7 @@ def make(out_dir: Path = HERE) -> tuple[Path, Path]:
     gyro = gyro_error_model(GyroErrors(), rng)
     accel = accel_error_model(AccelErrors(), rng)
     dt = 1.0 / RATE_HZ
-    n = int(round(scn.duration_s * RATE_HZ))
+    n = round(scn.duration_s * RATE_HZ)
     lines = ["# psns-hil recording (synthetic): scenarios/data/make_recording.py, seed 2019; body axes x right, "
              "y forward, z up; interval means over 10 ms",
              "time_s,gyro_x_dps,gyro_y_dps,gyro_z_dps,accel_x_mps2,accel_y_mps2,accel_z_mps2"]

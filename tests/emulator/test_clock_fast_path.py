@@ -63,7 +63,7 @@ def _trace(loop_cls: type, seed: int) -> list[tuple[float, int]]:
 
     try:
         asyncio.set_event_loop(loop)
-        for i in range(300):
+        for _i in range(300):
             counter[0] += 1
             handles.append(loop.call_at(float(rng.integers(0, 100)) * 0.001, cb, counter[0], 0))
         loop.run_until_complete(asyncio.gather(sleeper(), asyncio.sleep(0.5)))

@@ -13,6 +13,11 @@ from protocols.imu_frame import ImuFrame
 from protocols.nmea import build_gga, build_rmc
 from tests.conftest import SCENARIOS
 
+
+def _static(seconds: int) -> dict:
+    """Scenario overrides: stand still for ``seconds`` s, s."""
+    return {"duration_s": float(seconds), "motion": [{"static": {"duration_s": seconds}}]}
+
 QUICKSTART = SCENARIOS / "quickstart.yaml"
 #: a light variant: 10 Hz IMU and output, no GNSS receiver (its port stays open for injection)
 LIGHT = {
@@ -40,10 +45,9 @@ async def test_sixty_virtual_seconds_of_waiting_take_well_under_a_second(tmp_pat
 
 @pytest.mark.psns_emulator
 async def test_wait_for_frame_line_and_bytes(tmp_path):
-    async with start_emulator(QUICKSTART, run_dir=tmp_path, overrides={"duration_s": 20.0,
-                                                                       "motion": [{"static": {"duration_s": 20}}]}) as emu:
-        nav = await emu.wait_for_frame("host", lambda f: isinstance(f, NavSolution) and bool(f.mode & NavMode.NAVIGATING),
-                                       timeout=10.0)
+    async with start_emulator(QUICKSTART, run_dir=tmp_path, overrides=_static(20)) as emu:
+        nav = await emu.wait_for_frame(
+            "host", lambda f: isinstance(f, NavSolution) and bool(f.mode & NavMode.NAVIGATING), timeout=10.0)
         # alignment takes 2 s plus the first GNSS fix; the frame arrived after its time of validity
         assert 2.0 <= nav.time_s < 4.0
         assert emu.last_match_time > nav.time_s
@@ -61,8 +65,7 @@ async def test_wait_for_frame_line_and_bytes(tmp_path):
 
 @pytest.mark.psns_emulator
 async def test_assert_not_seen_fails_fast_when_the_pattern_appears(tmp_path):
-    async with start_emulator(QUICKSTART, run_dir=tmp_path, overrides={"duration_s": 10.0,
-                                                                       "motion": [{"static": {"duration_s": 10}}]}) as emu:
+    async with start_emulator(QUICKSTART, run_dir=tmp_path, overrides=_static(10)) as emu:
         await emu.assert_not_seen("host", lambda f: f.deadline_misses > 0, during=2.0)
         t0 = emu.time
         with pytest.raises(AssertionError, match="GPRMC"):
@@ -72,8 +75,7 @@ async def test_assert_not_seen_fails_fast_when_the_pattern_appears(tmp_path):
 
 @pytest.mark.psns_emulator
 async def test_wait_idle_finds_the_gap_between_gnss_epochs(tmp_path):
-    async with start_emulator(QUICKSTART, run_dir=tmp_path, overrides={"duration_s": 10.0,
-                                                                       "motion": [{"static": {"duration_s": 10}}]}) as emu:
+    async with start_emulator(QUICKSTART, run_dir=tmp_path, overrides=_static(10)) as emu:
         await emu.wait_for_line("gnss", "GPRMC", timeout=2.0)
         last = await emu.wait_idle("gnss", quiet_time=0.5, timeout=2.0)
         # GGA + RMC leave the receiver 50 ms after the whole second and take ~0.15 s at 9600 baud

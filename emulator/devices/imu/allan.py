@@ -13,7 +13,7 @@ def allan_deviation(y: np.ndarray, dt: float, taus: np.ndarray) -> tuple[np.ndar
     Returns the cluster times actually used (multiples of ``dt``) and the deviations.
     """
     y = np.asarray(y, dtype=np.float64)
-    theta = np.concatenate([np.zeros((1,) + y.shape[1:]), np.cumsum(y, axis=0) * dt])
+    theta = np.concatenate([np.zeros((1, *y.shape[1:])), np.cumsum(y, axis=0) * dt])
     n = len(y)
     ms = np.unique(np.maximum(1, np.round(np.asarray(taus) / dt).astype(int)))
     ms = ms[ms < n // 2]

@@ -125,7 +125,7 @@ class FlickerBank:
             for ax in range(w.shape[2]):
                 if self.sigma[ax] == 0.0:
                     continue
-                y, zf = lfilter([b * self.sigma[ax]], [1.0, -a], w[:, i, ax], zi=[a * self.state[i, ax]])
+                y, _zf = lfilter([b * self.sigma[ax]], [1.0, -a], w[:, i, ax], zi=[a * self.state[i, ax]])
                 out[:, ax] += y
                 self.state[i, ax] = y[-1]
         return out

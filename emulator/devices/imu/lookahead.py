@@ -111,9 +111,7 @@ def measure_ahead(model: InertialErrorModel, tap: ImuTruthTap, t: float, t_prev:
         x = np.array(dvs) / dts
         f = None
     det = model.deterministic_rows(x, temps, temp.rate_c_per_min, temp.cal_c, f)
-    if stochastic:
-        noise = np.concatenate([noise0[None, :], block[i0 + 1:i0 + n]])  # type: ignore[index]
-    else:
-        noise = np.zeros((n, 3))
+    noise = (np.concatenate([noise0[None, :], block[i0 + 1:i0 + n]])  # type: ignore[index]
+             if stochastic else np.zeros((n, 3)))
     raw = det + noise
     return raw[0], (Ahead(times, raw, block, i0, stochastic) if n > 1 else None)

@@ -1,5 +1,6 @@
 """The quickstart slice end to end: sensors -> FPGA -> DSP firmware -> host, against truth."""
 
+import itertools
 import json
 
 import pytest
@@ -25,8 +26,8 @@ def short_run(tmp_path_factory):
 
 
 def test_dsp_decoded_exactly_the_frames_the_devices_sent(short_run):
-    scn, s, run_dir = short_run
-    header, records = read_capture(run_dir / "capture.psnscap")
+    _scn, s, run_dir = short_run
+    _header, records = read_capture(run_dir / "capture.psnscap")
     gyro_in = b"".join(r.data for r in records if r.link == "gyro" and r.direction == "in")
     uart1_in = b"".join(r.data for r in records if r.link == "uart1" and r.direction == "in")
     datagrams = StreamDecoder([Stim210Format("m")]).feed(gyro_in)
@@ -36,7 +37,7 @@ def test_dsp_decoded_exactly_the_frames_the_devices_sent(short_run):
     assert len(imu_frames) in (len(datagrams), len(datagrams) - 1)  # the last may still be in flight
     assert [f.gyro for f in imu_frames] == [d.gyro for d in datagrams[: len(imu_frames)]]
     assert [f.gyro_counter for f in imu_frames] == [d.counter for d in datagrams[: len(imu_frames)]]
-    assert all((b.gyro_counter - a.gyro_counter) % 256 == 10 for a, b in zip(imu_frames, imu_frames[1:]))
+    assert all((b.gyro_counter - a.gyro_counter) % 256 == 10 for a, b in itertools.pairwise(imu_frames))
     # the firmware decoded each of them once and nothing else
     fw = s["firmware"]
     assert fw["counters"]["imu_frames"] == len(imu_frames)
@@ -66,7 +67,7 @@ def test_navigation_error_is_bounded_against_truth(short_run):
 
 
 def test_run_directory_contents(short_run):
-    _, s, run_dir = short_run
+    _, _s, run_dir = short_run
     summary = json.loads((run_dir / "summary.json").read_text())
     for key in ("scenario", "seed", "mode", "sim_duration_s", "wall_s", "realtime_factor", "nav_error", "links", "dsp"):
         assert key in summary
@@ -100,7 +101,7 @@ def test_same_seed_gives_identical_bytes(tmp_path):
 def test_replay_reproduces_the_navigation_output_bit_for_bit(short_run, tmp_path):
     from emulator.recording.replay import run_replay, same_file
 
-    scn, s, run_dir = short_run
+    _scn, s, run_dir = short_run
     r = run_replay(run_dir / "capture.psnscap", tmp_path / "replay")
     assert r["replay"]["records"] > 6000
     assert same_file(run_dir / "nav.csv", tmp_path / "replay" / "nav.csv")

@@ -127,9 +127,9 @@ def test_mosaic_layout_matches_polanalyser():
     assert np.max(np.abs(np.degrees(d[good]))) < 0.05
     assert np.max(np.abs(dolp[y, x] - obs.dop)[good]) < 2e-3
     # and our own half-resolution super-pixel split agrees with the channel layout
-    s0, dop, psi_img = stokes_superpixel(mosaic)
+    s0, dop, _psi_img = stokes_superpixel(mosaic)
     assert s0.shape == (1024, 1224) and np.nanmax(dop) < 0.75
-    for theta, (r, c) in CHANNEL_OFFSETS.items():
+    for _theta, (r, c) in CHANNEL_OFFSETS.items():
         assert mosaic[r::2, c::2].shape == (1024, 1224)
 
 

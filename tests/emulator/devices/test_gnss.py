@@ -67,7 +67,7 @@ def run_receiver(cfg, seconds, traj=None):
 
 def test_epochs_pps_and_fix_quality():
     cfg = GnssConfig(fix_quality=2, errors=GnssErrors(pps_jitter_ns=25.0))
-    rx, got, pps = run_receiver(cfg, 10.5)
+    _rx, got, pps = run_receiver(cfg, 10.5)
     ggas = [s for _, s in got if isinstance(s, Gga)]
     rmcs = [s for _, s in got if isinstance(s, Rmc)]
     assert len(ggas) == len(rmcs) == 11 and len(pps) == 11
@@ -78,7 +78,7 @@ def test_epochs_pps_and_fix_quality():
 
 def test_outage_then_reacquisition_within_one_second():
     cfg = GnssConfig(outages=(GnssOutage(3.0, 4.0),), reacquisition_s=0.8)
-    rx, got, pps = run_receiver(cfg, 12.5)
+    _rx, got, pps = run_receiver(cfg, 12.5)
     q = [(round(t - cfg.latency_s), s.quality) for t, s in got if isinstance(s, Gga)]
     lost = [t for t, qq in q if qq == 0]
     assert lost == [3, 4, 5, 6, 7]  # 7.0 is within the 0.8 s re-acquisition after the 7.0 end
@@ -91,7 +91,7 @@ def test_outage_then_reacquisition_within_one_second():
 def test_glitch_jumps_the_position():
     cfg = GnssConfig(errors=GnssErrors(0.0, 0.0, 0.2, 300.0, 0.0, 0.0, 0.0),
                      glitches=(GnssGlitch(4.0, 2.0, (30.0, -20.0, 5.0)),))
-    rx, got, _ = run_receiver(cfg, 8.5)
+    _rx, got, _ = run_receiver(cfg, 8.5)
     lat0, lon0 = 39.979 * DEG, 116.339 * DEG
     rm, rn = earth.radii(lat0)
     for t, s in got:

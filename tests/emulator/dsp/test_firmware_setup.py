@@ -61,7 +61,10 @@ def test_camera_calibration_defaults_to_the_sensor_nominal_design(tmp_path):
 links:
   psns: {url: "mem://psns", baud: 115200}
 sensors:
-  camera: {lens: fisheye, focal_length_mm: 1.8, mounting: {heading_deg: 10, pitch_deg: 5, installation_error_deg: [0.3, 0, 0]}}
+  camera:
+    lens: fisheye
+    focal_length_mm: 1.8
+    mounting: {heading_deg: 10, pitch_deg: 5, installation_error_deg: [0.3, 0, 0]}
 """)
     cam = firmware_config(scn).camera
     assert cam.projection == "fisheye" and math.isclose(cam.focal_m, 1.8e-3)

@@ -4,10 +4,12 @@ took effect invalidates the run; runs with faults are deterministic."""
 from __future__ import annotations
 
 import asyncio
+import itertools
 import json
 import math
 import subprocess
 import sys
+from typing import ClassVar
 
 import numpy as np
 import pytest
@@ -172,7 +174,7 @@ def test_gyro_datagram_drop_probability_and_counter_gap():
     n = gyro.datagrams_dropped
     assert abs(n - 500) < 5 * math.sqrt(2000 * 0.25 * 0.75)  # binomial within 5 sigma
     assert len(got) == 2000 - n
-    steps = {(b.counter - a.counter) % 256 for a, b in zip(got, got[1:])}
+    steps = {(b.counter - a.counter) % 256 for a, b in itertools.pairwise(got)}
     assert 10 in steps and 20 in steps  # the STIM counter keeps counting: a drop is a visible gap
 
 
@@ -183,7 +185,7 @@ def test_bit_errors_flip_bits_at_the_configured_rate():
     from emulator.scenario.checks_schema import LinkBitErrorsFault
 
     class Emu:
-        links = {}
+        links: ClassVar[dict] = {}
 
     loop = asyncio.new_event_loop()
     a, _b = MemHub().pair("gnss", LineConfig(baud=9600), loop)
@@ -237,12 +239,13 @@ def test_link_faults_fire_and_show_in_the_link_counters(link_run):
 
 
 def test_disconnect_leaves_a_gap_and_a_stalled_line_delivers_its_backlog_at_the_end(link_run):
-    s, d = link_run
+    _s, d = link_run
     import csv
 
-    rows = list(csv.DictReader(open(d / "nav.csv")))
+    with open(d / "nav.csv") as f:
+        rows = list(csv.DictReader(f))
     arr = [float(r["arrival_s"]) for r in rows]
-    gaps = [(b - a, a) for a, b in zip(arr, arr[1:])]
+    gaps = [(b - a, a) for a, b in itertools.pairwise(arr)]
     big = [(g, a) for g, a in gaps if g > 0.2]
     assert any(0.99 < g < 1.02 and 5.99 < a < 6.01 for g, a in big), big  # the disconnect
     # the stalled half second: frames arrive in one burst at 8.5 s (the backlog), none before
@@ -275,7 +278,7 @@ def test_a_fault_that_never_fires_invalidates_the_run_and_exits_1(tmp_path):
     s = json.loads((out / "summary.json").read_text())
     assert s["valid"] is False and s["passed"] is False
     assert all(e["passed"] for e in s["expectations"])  # the expectations alone would have passed
-    end = [e for e in _events(out) if e["event"] == "fault_end"][0]
+    end = next(e for e in _events(out) if e["event"] == "fault_end")
     assert end["fired"] is False and end["evidence"] == {"samples_clipped": 0}
 
 

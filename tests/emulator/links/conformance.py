@@ -20,6 +20,7 @@ Checks (each names what a transport must do):
 from __future__ import annotations
 
 import asyncio
+import contextlib
 from collections.abc import Awaitable, Callable
 
 import numpy as np
@@ -53,10 +54,8 @@ class _Rx:
             if left <= 0:
                 raise AssertionError(f"{self.link.name}: got {len(self.data)} of {n} bytes within {timeout} s")
             self.changed.clear()
-            try:
+            with contextlib.suppress(TimeoutError):
                 await asyncio.wait_for(self.changed.wait(), left)
-            except TimeoutError:
-                pass
 
 
 class _Tap:

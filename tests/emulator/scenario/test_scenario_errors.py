@@ -102,7 +102,8 @@ def test_fault_on_a_link_or_sensor_the_scenario_does_not_have(tmp_path):
 
 
 def test_a_fault_or_an_expectation_with_two_kinds_or_contradictory_fields(tmp_path):
-    got, _ = issues(tmp_path, HEAD + "faults:\n  - gnss_outage: {start_s: 1}\n    gnss_glitch: {offset_enu_m: [1, 0, 0]}\n"
+    got, _ = issues(tmp_path, HEAD + "faults:\n  - gnss_outage: {start_s: 1}\n"
+                                     "    gnss_glitch: {offset_enu_m: [1, 0, 0]}\n"
                                      "  - imu_bias_step: {gyro_deg_h: [1, 0, 0], accel_mg: [1, 0, 0]}\n"
                                      "  - link_baud_mismatch: {link: gnss, baud_error_pct: 0}\n"
                                      "expectations:\n  - event: {name: x, min_count: 3, max_count: 1}\n"

@@ -8,7 +8,8 @@ from tests.conftest import ROOT
 
 def test_committed_json_schema_is_current():
     committed = (ROOT / "docs" / "scenario.schema.json").read_text()
-    assert committed == render(), "regenerate with: .venv/bin/python -m emulator.scenario.export docs/scenario.schema.json"
+    regenerate = ".venv/bin/python -m emulator.scenario.export docs/scenario.schema.json"
+    assert committed == render(), f"regenerate with: {regenerate}"
 
 
 def test_schema_forbids_unknown_keys():

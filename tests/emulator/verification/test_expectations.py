@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import shutil
 from array import array
+from typing import ClassVar
 
 import pytest
 
@@ -251,7 +252,7 @@ def test_event_expectations_on_a_variants_events_with_an_injected_glitch(tmp_pat
     from emulator.verification.expectations import evaluate_expectations
 
     class Rec:
-        events = [json.loads(ln) for ln in (tmp_path / "run" / "events.jsonl").read_text().splitlines()]
+        events: ClassVar[list] = [json.loads(ln) for ln in (tmp_path / "run" / "events.jsonl").read_text().splitlines()]
 
     (r,) = evaluate_expectations(scn2.expectations, Rec(), {"sim_duration_s": 72.0})
     assert r.passed is False and r.value == 0

@@ -67,7 +67,8 @@ def test_berry_neutral_points_sit_on_the_sun_vertical():
         return np.array([math.sin(az) * math.cos(el), math.cos(az) * math.cos(el), math.sin(el)])
 
     s = ray(az_s, el_s)
-    pts = np.array([ray(az_s, el_s + sep / 2), ray(az_s, el_s - sep / 2), ray(az_s, el_s), ray(az_s + math.pi, 30 * DEG)])
+    pts = np.array([ray(az_s, el_s + sep / 2), ray(az_s, el_s - sep / 2), ray(az_s, el_s),
+                    ray(az_s + math.pi, 30 * DEG)])
     f = sky.evaluate_enu(0.0, s, pts)
     assert f.dop[0] < 1e-9 and f.dop[1] < 1e-9  # Babinet above, Brewster below
     assert f.dop[2] > 0.01  # the sun itself is no longer a neutral point
@@ -110,10 +111,11 @@ def test_clouds_lower_dop_and_scramble_aop():
 def test_occluders_and_ground_are_unpolarized():
     spec = SkySpec(occluders=[{"az_min_deg": 350.0, "az_max_deg": 20.0, "el_max_deg": 30.0}])
     sky = sky_from_spec(spec)
-    v = np.array([[math.sin(5 * DEG) * math.cos(10 * DEG), math.cos(5 * DEG) * math.cos(10 * DEG), math.sin(10 * DEG)],
-                  [math.sin(355 * DEG) * math.cos(20 * DEG), math.cos(355 * DEG) * math.cos(20 * DEG), math.sin(20 * DEG)],
-                  [math.sin(40 * DEG) * math.cos(10 * DEG), math.cos(40 * DEG) * math.cos(10 * DEG), math.sin(10 * DEG)],
-                  [0.6, 0.0, -0.8]])
+    def enu(az_deg: float, el_deg: float) -> list[float]:
+        az, el = az_deg * DEG, el_deg * DEG
+        return [math.sin(az) * math.cos(el), math.cos(az) * math.cos(el), math.sin(el)]
+
+    v = np.array([enu(5, 10), enu(355, 20), enu(40, 10), [0.6, 0.0, -0.8]])
     f = sky.evaluate_enu(0.0, S_BEIJING, v)
     assert f.dop[0] == 0.0 and f.dop[1] == 0.0 and f.dop[2] > 0.1 and f.dop[3] == 0.0
     assert f.radiance[0] == pytest.approx(0.3) and f.radiance[2] == 1.0

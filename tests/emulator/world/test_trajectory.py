@@ -56,7 +56,8 @@ def run_strapdown(traj, duration, T=0.005, dtype=np.float64, samples=1):
     n = round(duration / (T * samples))
     worst = 0.0
     for k in range(1, n + 1):
-        incs = [traj.imu_increments((samples * (k - 1) + j) * T, (samples * (k - 1) + j + 1) * T) for j in range(samples)]
+        first = samples * (k - 1)
+        incs = [traj.imu_increments((first + j) * T, (first + j + 1) * T) for j in range(samples)]
         phi, dvm = coning_sculling(np.array([a for a, _ in incs]), np.array([b for _, b in incs]))
         strapdown_step(s, phi, dvm, T * samples, dtype)
         if k % (200 // samples) == 0 or k == n:
@@ -164,7 +165,8 @@ def test_segment_state_is_continuous_and_reports_euler_angles():
 
 def test_motion_errors_name_the_segment():
     with pytest.raises(ScenarioError, match=r"motion\[2\]\.static"):
-        trajectory_from_segments(segments([{"static": {"duration_s": 1}}, {"accelerate": {"duration_s": 5, "to_speed_mps": 3}},
+        trajectory_from_segments(segments([{"static": {"duration_s": 1}},
+                                           {"accelerate": {"duration_s": 5, "to_speed_mps": 3}},
                                            {"static": {"duration_s": 1}}]), LAT, LON, H)
     with pytest.raises(ScenarioError, match="vertical_speed_mps"):
         trajectory_from_segments(segments([{"climb": {"duration_s": 10, "vertical_speed_mps": 3}}]), LAT, LON, H)

@@ -1,7 +1,7 @@
 """WGS-84 Earth model: radii, normal gravity, Earth and transport rates (ENU).
 
-The truth model in ``emulator.world`` imports these same functions, so truth and firmware use
-one gravity model (``docs/reference/algorithms.md`` section 1.1, which requires it).
+The firmware's own kernels. The WGS-84 defining constants come from :mod:`protocols.constants`, which the
+world shares; the models built on them here are the firmware's (``docs/reference/algorithms.md`` section 1.1).
 
 Conventions: navigation frame n = ENU; position ``p = [L, lambda, h]`` = latitude (rad),
 longitude (rad), ellipsoidal height (m).
@@ -12,6 +12,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
+from protocols.constants import A_WGS84, E2_WGS84, F_WGS84, OMEGA_IE
 
 from .arrays import FloatArray
 
@@ -30,14 +32,6 @@ __all__ = [
     "radii",
 ]
 
-#: Semi-major axis, m (WGS-84).
-A_WGS84 = 6378137.0
-#: Flattening (WGS-84).
-F_WGS84 = 1.0 / 298.257223563
-#: First eccentricity squared, e^2 = f(2 - f).
-E2_WGS84 = F_WGS84 * (2.0 - F_WGS84)
-#: Earth rotation rate, rad/s (WGS-84 value; PSINS uses 7.2921151467e-5).
-OMEGA_IE = 7.2921151467e-5
 #: Equatorial normal gravity, m/s^2 (PSINS ``G0``).
 G0 = 9.7803267714
 #: Gravity-model coefficients (PSINS ``pos2g``, "grs80" in ``earth.m``).

@@ -43,6 +43,7 @@ import glob as _glob
 import math
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -52,6 +53,9 @@ from ..errors import RecordingError
 from ..links.base import Link
 from .camera import CHANNEL_OFFSETS
 from .gnss import GnssConfig, GnssReceiver
+
+if TYPE_CHECKING:
+    from ..world.trajectory import Trajectory
 
 __all__ = [
     "GNSS_COLUMNS",
@@ -187,7 +191,8 @@ class _CsvReplayReceiver(GnssReceiver):
 
     def __init__(self, link: Link, src: RecordedGnssCsv, epoch: _dt.datetime, cfg: GnssConfig,
                  pps: Callable[[float], None] | None, rng: np.random.Generator) -> None:
-        super().__init__(link, _NoTruth(), epoch, rng, cfg, pps)
+        # the receiver's truth is never read: it replays the recorded fixes instead
+        super().__init__(link, cast("Trajectory", _NoTruth()), epoch, rng, cfg, pps)
         self.src = src
 
     def has_fix(self, t: float) -> bool:
@@ -248,7 +253,7 @@ class RecordedNmea:
             except Exception as exc:
                 raise RecordingError(f"{self.path}: line {i}, column {col}: bad NMEA sentence: {exc}") from exc
             tm = msg.time_utc if isinstance(msg, (Gga, Rmc)) else None
-            if isinstance(msg, Rmc) and getattr(msg, "date", None) is not None:
+            if isinstance(msg, Rmc) and msg.date is not None:
                 date = msg.date
             if tm is not None:
                 utc = _dt.datetime.combine(date, tm, tzinfo=_dt.UTC)

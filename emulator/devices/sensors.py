@@ -10,7 +10,7 @@ recorded file instead of its model when ``recorded:`` is given.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -78,6 +78,11 @@ class SensorSet:
         }
 
 
+def _enu3(v: Sequence[float]) -> tuple[float, float, float]:
+    """A validated 3-vector (east, north, up) of the scenario as a tuple."""
+    return (v[0], v[1], v[2])
+
+
 def _dataclass_from(cls: type, values: dict[str, Any]) -> Any:
     obj = cls()
     for k, v in values.items():
@@ -108,7 +113,7 @@ def gnss_config(scn: Scenario) -> GnssConfig:
         reacquisition_s=g.reacquisition_s if g.reacquisition_s is not None else float(p.get("reacquisition_s", 0.8)),
         num_sats=g.num_sats, hdop=g.hdop,
         outages=tuple(GnssOutage(o.start_s, o.duration_s) for o in g.outages),
-        glitches=tuple(GnssGlitch(x.start_s, x.duration_s, tuple(x.offset_enu_m)) for x in g.glitches),
+        glitches=tuple(GnssGlitch(x.start_s, x.duration_s, _enu3(x.offset_enu_m)) for x in g.glitches),
         errors=err,
     )
 

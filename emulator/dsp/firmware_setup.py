@@ -108,7 +108,8 @@ def firmware_config(scn: Scenario) -> FirmwareConfig:
         gnss_vel_sigma_h_mps=max(gnss.vel_sigma_h_mps, 0.01),
         gnss_vel_sigma_v_mps=max(gnss.vel_sigma_v_mps, 0.01),
         psns_enabled=psns_enabled,
-        psns_baud=scn.fpga.uarts[psns_uart].baud,
+        # an EMIFA UART core has no line baud of its own: the firmware's default line then dates the frames
+        psns_baud=scn.fpga.uarts[psns_uart].baud or FirmwareConfig.psns_baud,
         psns_sigma_deg=fw.psns.sigma_deg,
         psns_dop_min=fw.psns.dop_min,
         psns_quality_max=fw.psns.quality_max,
@@ -116,7 +117,8 @@ def firmware_config(scn: Scenario) -> FirmwareConfig:
         psns_gate_chi2=fw.psns.gate_chi2,
         camera=_camera(scn),
         compass_mountings=_compass_mountings(scn),
-        initial_misalignment_deg=tuple(fw.alignment.misalignment_deg),
+        initial_misalignment_deg=(fw.alignment.misalignment_deg[0], fw.alignment.misalignment_deg[1],
+                                  fw.alignment.misalignment_deg[2]),
         variants=_variant_params(scn),
     )
 

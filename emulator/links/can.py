@@ -163,11 +163,14 @@ class DbcNavCanEncoder(NavCanEncoder):
 
         self.path = Path(dbc_path)
         try:
-            self.db = cantools.database.load_file(str(dbc_path))
+            db = cantools.database.load_file(str(dbc_path))
         except FileNotFoundError as exc:
             raise LinkConfigError(f"DBC file {dbc_path} not found; give can://...?dbc=FILE") from exc
         except Exception as exc:
             raise LinkConfigError(f"DBC file {dbc_path} could not be parsed: {exc}") from exc
+        if not isinstance(db, cantools.database.can.Database):
+            raise LinkConfigError(f"DBC file {dbc_path} is not a CAN database ({type(db).__name__})")
+        self.db = db
         known = set(nav_signal_values(_ZERO_NAV))
         plans: dict[str, tuple[Any, list[_SignalPlan]]] = {}
         missing = []
@@ -211,7 +214,7 @@ class CanLink(Link):
         from . import parse_link_url
 
         opts = parse_link_url(url).options
-        iface, _, channel = target.partition("/")
+        iface, _sep, channel = target.partition("/")
         if iface not in _INTERFACES or not channel:
             raise LinkConfigError(f"{url!r}: expected {_USAGE}")
         self.interface, self.channel = iface, channel

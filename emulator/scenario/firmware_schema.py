@@ -73,7 +73,9 @@ class PsnsFirmwareSpec(Model):
 
 
 class ModeManagerSpec(Model):
-    chi2_alpha: Literal[0.05, 0.01, 0.005, 0.001] = Field(0.001, description="false-alarm rate of the chi-square gates")
+    # floats in Literal: pydantic validates them as an enum; the typing spec allows no floats there
+    chi2_alpha: Literal[0.05, 0.01, 0.005, 0.001] = Field(  # type: ignore[valid-type]
+        0.001, description="false-alarm rate of the chi-square gates")
     dop_min: float = Field(0.05, ge=0, lt=1, description="a polarization unit/point below this DOP is not valid")
     min_sun_elevation_deg: float = Field(5.0, ge=-10, le=80)
 
@@ -104,11 +106,16 @@ class KmeansSpec(Model):
     heading_sigma_deg: float = Field(0.3, gt=0, le=30)
 
 
+#: The federated filter's sub-filters.
+SubfilterName = Literal["sins_gnss", "pol_mimu"]
+DEFAULT_SUBFILTERS: tuple[SubfilterName, ...] = ("sins_gnss", "pol_mimu")
+
+
 class FederatedSpec(Model):
     beta_sins_gnss: float = Field(0.5, gt=0, le=1)
     beta_pol_mimu: float = Field(0.5, gt=0, le=1)
-    subfilters: list[Literal["sins_gnss", "pol_mimu"]] = Field(
-        default_factory=lambda: ["sins_gnss", "pol_mimu"], min_length=1, description="what the master fuses")
+    subfilters: list[SubfilterName] = Field(
+        default_factory=lambda: list(DEFAULT_SUBFILTERS), min_length=1, description="what the master fuses")
     readmit_after: int = Field(1, ge=1, le=100, description="consecutive passing epochs before GNSS is readmitted")
     motion_accel_tau_s: float = Field(5.0, gt=0)
     motion_accel_sigma_mps2: float = Field(0.05, gt=0)

@@ -13,6 +13,7 @@ from typing import Any
 
 import yaml
 from pydantic import BaseModel, ValidationError
+from pydantic_core import ErrorDetails
 
 from ..errors import ScenarioError, ScenarioIssue
 from .cross_checks import cross_check
@@ -112,7 +113,7 @@ def _unwrap(ann: Any) -> Any:
     return ann
 
 
-def _issue_from_error(err: dict[str, Any], marks: dict[Loc, tuple[int, int]], file: str) -> ScenarioIssue:
+def _issue_from_error(err: ErrorDetails, marks: dict[Loc, tuple[int, int]], file: str) -> ScenarioIssue:
     loc: Loc = tuple(p for p in err.get("loc", ()) if not (isinstance(p, str) and p.startswith("function-")))
     # drop pydantic's union-member tags ("static", "Static[...]") that are not data keys
     probe = loc

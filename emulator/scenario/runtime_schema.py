@@ -24,7 +24,6 @@ __all__ = [
 
 #: External ports of the box (FPGA connectors) that can be routed to a DSP UART.
 EXTERNAL_PORTS = ("host", "gnss", "psns")
-DSP_UARTS = ("uart0", "uart1", "uart2", "uart3")
 _MODE = r"^[5-8][NEO](1|1\.5|2)$"
 
 
@@ -81,7 +80,18 @@ class UartSpec(Model):
         return self.baud or DEFAULT_UART_BAUD[name]
 
 
-def _default_uarts() -> dict[str, UartSpec]:
+#: The DSP UARTs, and the FPGA ports the crossbar routes to them.
+UartName = Literal["uart0", "uart1", "uart2", "uart3"]
+DSP_UARTS: tuple[UartName, ...] = ("uart0", "uart1", "uart2", "uart3")
+RoutedPort = Literal["host", "gnss", "psns"]
+RoutedUart = Literal["uart0", "uart2", "uart3"]
+
+
+def _default_routing() -> dict[RoutedPort, RoutedUart]:
+    return {"host": "uart0", "psns": "uart2", "gnss": "uart3"}
+
+
+def _default_uarts() -> dict[UartName, UartSpec]:
     return {
         "uart0": UartSpec(baud=460800),
         "uart1": UartSpec(baud=460800),
@@ -91,11 +101,11 @@ def _default_uarts() -> dict[str, UartSpec]:
 
 
 class FpgaSpec(Model):
-    routing: dict[Literal["host", "gnss", "psns"], Literal["uart0", "uart2", "uart3"]] = Field(
-        default_factory=lambda: {"host": "uart0", "psns": "uart2", "gnss": "uart3"},
+    routing: dict[RoutedPort, RoutedUart] = Field(
+        default_factory=_default_routing,
         description="crossbar: external port -> DSP UART (uart1 carries the FPGA's IMU frames)",
     )
-    uarts: dict[Literal["uart0", "uart1", "uart2", "uart3"], UartSpec] = Field(default_factory=_default_uarts)
+    uarts: dict[UartName, UartSpec] = Field(default_factory=_default_uarts)
     gyro_timeout_s: float = Field(0.004, gt=0, lt=0.1)
     mag_rate_hz: float = Field(100.0, gt=0, le=2000,
                                description="magnetometer sample / MAG frame rate; the trigger rate divided by an "
@@ -105,7 +115,7 @@ class FpgaSpec(Model):
 
     @field_validator("uarts")
     @classmethod
-    def _fill(cls, v: dict[str, UartSpec]) -> dict[str, UartSpec]:
+    def _fill(cls, v: dict[UartName, UartSpec]) -> dict[UartName, UartSpec]:
         out = _default_uarts()
         out.update(v)
         return out
@@ -149,7 +159,7 @@ class DspUartSpec(Model):
         return {"isr": 2e-6, "edma": 0.5e-6, "poll": 0.0}[self.service]
 
 
-def _default_dsp_uarts() -> dict[str, DspUartSpec]:
+def _default_dsp_uarts() -> dict[UartName, DspUartSpec]:
     return {u: DspUartSpec() for u in DSP_UARTS}
 
 
@@ -166,12 +176,12 @@ class DspSpec(Model):
     uart_clock_hz: float | None = Field(
         None, gt=0, le=1e9, description="UART input clock (C6747: PLL0_SYSCLK2 = clock_hz / 2); when set, UART0-2 "
         "run at the baud their divisor gives: clock / (oversampling x round(clock / (oversampling x baud)))")
-    uarts: dict[Literal["uart0", "uart1", "uart2", "uart3"], DspUartSpec] = Field(default_factory=_default_dsp_uarts)
+    uarts: dict[UartName, DspUartSpec] = Field(default_factory=_default_dsp_uarts)
     watchdog: WatchdogSpec = WatchdogSpec()
 
     @field_validator("uarts")
     @classmethod
-    def _fill(cls, v: dict[str, DspUartSpec]) -> dict[str, DspUartSpec]:
+    def _fill(cls, v: dict[UartName, DspUartSpec]) -> dict[UartName, DspUartSpec]:
         out = _default_dsp_uarts()
         out.update(v)
         return out

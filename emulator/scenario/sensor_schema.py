@@ -132,13 +132,18 @@ class RecordedGnssSpec(Model):
     time_offset_s: float = 0.0
 
 
+#: NMEA sentences the modelled receiver can emit.
+NmeaSentenceName = Literal["GGA", "RMC", "VTG", "GSA", "ZDA"]
+DEFAULT_NMEA_SENTENCES: tuple[NmeaSentenceName, ...] = ("GGA", "RMC")
+
+
 class GnssSpec(Model):
     enabled: bool = True
     preset: str = "paper"
     rate_hz: float = Field(1.0, gt=0, le=20)
     latency_s: float = Field(0.05, ge=0, lt=1)
-    sentences: list[Literal["GGA", "RMC", "VTG", "GSA", "ZDA"]] = Field(
-        default_factory=lambda: ["GGA", "RMC"], description="NMEA sentences per epoch, in this order")
+    sentences: list[NmeaSentenceName] = Field(
+        default_factory=lambda: list(DEFAULT_NMEA_SENTENCES), description="NMEA sentences per epoch, in this order")
     ubx: list[Literal["NAV-PVT", "NAV-STATUS"]] = Field(
         default_factory=list, description="UBX messages per epoch, after the NMEA sentences")
     talker: Literal["GP", "GN", "GL", "GA", "GB", "BD"] = "GP"
@@ -159,8 +164,7 @@ class GnssSpec(Model):
 
 
 class MountingSpec(Model):
-    """Sensor-to-body rotation: a nominal mount (Euler angles, the body-attitude convention) and an installation
-    error."""
+    """Sensor-to-body rotation: a nominal mount (Euler angles, body-attitude convention) and an installation error."""
 
     heading_deg: float = Field(0.0, ge=-360, le=360)
     pitch_deg: float = Field(0.0, ge=-90, le=90)

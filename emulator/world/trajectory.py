@@ -481,8 +481,8 @@ class SegmentTrajectory(Trajectory):
             dth[j], dv[j] = self._increments_exact(float(a[j]), float(b[j]))
         self._block = {}
         dt_ns = round(dt * 1e9)
-        for j in range(BLOCK_INTERVALS):
-            self._block[(round(a[j] * 1e9), dt_ns)] = (dth[j], dv[j])
+        for n_iv in range(BLOCK_INTERVALS):
+            self._block[(round(a[n_iv] * 1e9), dt_ns)] = (dth[n_iv], dv[n_iv])
 
     def imu_increments(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
         key = (round(t0 * 1e9), round((t1 - t0) * 1e9))

@@ -102,7 +102,7 @@ class PolarizationCameraModel:
             np.maximum(r2, f32(1e-30), out=r2)
             k = (f32(1.0) - c2) / ((f32(1.0) + c2) * r2)
             k *= A * D * f32(self.sky.p_max)
-            radiance: np.ndarray | float = A
+            radiance: np.ndarray | np.float32 = A
         else:
             fld = self.sky.evaluate(t, s_c, vx, vy, vz, c_nc)
             ex, ey = fld.ex, fld.ey

@@ -3,6 +3,8 @@
 import asyncio
 import time
 
+import pytest
+
 from emulator.clock import EmulatorLoop, sleep_until
 
 
@@ -42,6 +44,7 @@ def test_fast_mode_orders_timers_by_time():
     assert order == [0.1, 0.2, 0.3]
 
 
+@pytest.mark.realtime
 def test_realtime_speed_scales_the_clock():
     loop = EmulatorLoop("realtime", speed=20.0)
 

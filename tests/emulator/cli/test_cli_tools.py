@@ -81,6 +81,7 @@ def test_replay_of_a_file_that_is_not_a_capture_is_exit_2(tmp_path):
 
 
 @pytest.mark.pty
+@pytest.mark.realtime
 def test_realtime_run_prints_port_map_and_status_lines(tmp_path):
     """A pty port implies real time; the port map names the pty; a status line every second."""
     links = 'links:\n  gyro: {url: "mem://gyro", baud: 460800}\n  host: {url: "pty://uart0", baud: 460800}\n'
@@ -107,6 +108,7 @@ def test_realtime_run_prints_port_map_and_status_lines(tmp_path):
 
 @pytest.mark.pty
 @pytest.mark.psns_emulator(mode="realtime")
+@pytest.mark.realtime
 async def test_monitor_command_decodes_a_live_pty(tmp_path):
     from emulator.testing import start_emulator
 
@@ -140,6 +142,7 @@ def _matched(publisher: Any) -> bool:
     return bool(publisher.matching_status.matching)
 
 
+@pytest.mark.realtime
 def test_monitor_decodes_what_is_published_on_a_zenoh_key():
     """``psns-hil monitor zenoh://RUN/PORT``: the key's tx (out) and rx (in) decoded, garbage counted."""
     import zenoh

@@ -27,6 +27,9 @@ from .conftest import write_short_scenario
 DURATION_S = 4.0
 SPEED = 2.0  # realtime at twice the wall clock: 2 s of wall time per run
 
+pytestmark = pytest.mark.realtime  # sockets and processes on the wall clock
+
+
 
 def _nav(path):
     return {round(float(r["time_s"]), 6): r for r in csv.DictReader(open(path))}

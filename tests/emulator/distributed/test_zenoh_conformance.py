@@ -15,6 +15,9 @@ from .conftest import free_tcp_port
 
 _keys = itertools.count()
 
+pytestmark = pytest.mark.realtime  # sockets and processes on the wall clock
+
+
 
 def _make_pair(pace: int):
     async def make_pair(loop, line_a, line_b):

@@ -14,6 +14,9 @@ from protocols.host import NavMode, NavSolution, encode_nav_solution
 
 from .conftest import DEFAULT_LINE, free_tcp_port, wait_until
 
+pytestmark = pytest.mark.realtime  # sockets and processes on the wall clock
+
+
 
 def _pair(zenoh_links, run: str, port: str = "uart1", a_opts: str = "", b_opts: str = "",
           line: LineConfig = DEFAULT_LINE):

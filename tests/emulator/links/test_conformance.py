@@ -42,6 +42,7 @@ async def _wait_attached(link: PtyLink, timeout: float = 2.0) -> None:
 
 
 @pytest.mark.pty
+@pytest.mark.realtime
 def test_pty_transport_conforms(tmp_path):
     """The device end is a PtyLink; the peer is pyserial on its stable symlink (a serial:// link)."""
     counter = iter(range(100))
@@ -79,6 +80,7 @@ def _socat_pair(d: Path) -> tuple[subprocess.Popen, Path, Path]:
 @pytest.mark.pty
 @pytest.mark.skipif(shutil.which("socat") is None, reason="socat is not installed (apt-get install socat); "
                     "the serial transport needs a socat pty pair to talk to itself")
+@pytest.mark.realtime
 def test_serial_transport_conforms(tmp_path):
     """Both ends are serial:// links (pyserial) on the two ptys of a socat pair."""
     procs: list[subprocess.Popen] = []
@@ -111,6 +113,7 @@ def test_serial_transport_conforms(tmp_path):
                 p.wait(5)
 
 
+@pytest.mark.realtime
 def test_socat_is_available_in_ci():
     """CI (.ci/run) installs socat; say so loudly here rather than silently skipping above."""
     if shutil.which("socat") is None:

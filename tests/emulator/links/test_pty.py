@@ -10,7 +10,7 @@ from emulator.clock import EmulatorLoop
 from emulator.links import LineConfig
 from emulator.links.pty import PtyLink
 
-pytestmark = pytest.mark.pty
+pytestmark = [pytest.mark.pty, pytest.mark.realtime]
 
 
 def _run(coro_fn, tmp_path):
@@ -21,12 +21,17 @@ def _run(coro_fn, tmp_path):
         loop.close()
 
 
-async def _attached(link: PtyLink) -> None:
-    for _ in range(200):
-        if link.attached:
-            return
+async def _until(cond, what: str, timeout_s: float = 2.0) -> None:
+    """Poll ``cond`` every 5 ms until it holds; fail naming ``what`` after ``timeout_s`` (wall clock, s)."""
+    deadline = asyncio.get_running_loop().time() + timeout_s
+    while not cond():
+        if asyncio.get_running_loop().time() > deadline:
+            raise AssertionError(f"timed out after {timeout_s} s waiting for {what}")
         await asyncio.sleep(0.005)
-    raise AssertionError("peer never attached")
+
+
+async def _attached(link: PtyLink) -> None:
+    await _until(lambda: link.attached, "the peer to attach")
 
 
 def test_peer_that_never_reads_causes_counted_overflow_not_memory(tmp_path):
@@ -43,7 +48,7 @@ def test_peer_that_never_reads_causes_counted_overflow_not_memory(tmp_path):
             for _ in range(60):  # 60 x 2 KiB offered over ~0.4 s at 300 kB/s; nobody reads
                 sent += link.send(bytes(2048))
                 await asyncio.sleep(0.007)
-            await asyncio.sleep(0.05)
+            await _until(lambda: link.stats.bytes_out == sent, "the line to hand every accepted byte to the pty")
             st = link.stats
             offered = 60 * 2048
             queue_drops = offered - sent  # the line model's TX queue (4 KiB) overflowed
@@ -83,11 +88,15 @@ def test_client_at_another_baud_sees_framing_errors_only_when_checked(tmp_path, 
         client = serial.Serial(str(link.link_path), 9600, timeout=0)  # 12x slower than the port
         try:
             await _attached(link)
-            await asyncio.sleep(0.05)  # one attach poll reads the client's termios speed
+            await _until(lambda: link.peer_baud is not None, "an attach poll to read the client's termios speed")
             assert link.peer_baud == 9600
             payload = bytes(range(256)) * 2
             client.write(payload)
-            await asyncio.sleep(0.2)  # 512 bytes at 115200 = 44 ms (the client's speed is not real)
+            # 512 bytes at 115200 = 44 ms (the client's speed is not real)
+            if check:
+                await _until(lambda: link.stats.framing_errors > 0, "framing errors")
+            else:
+                await _until(lambda: len(got) >= len(payload), "the whole payload")
             if check:
                 assert link.stats.framing_errors > 0 and bytes(got) != payload
             else:

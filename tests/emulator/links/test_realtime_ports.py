@@ -21,7 +21,7 @@ from protocols.nmea import build_gga, build_rmc
 from protocols.stream import StreamDecoder
 from tests.conftest import SCENARIOS
 
-pytestmark = pytest.mark.pty
+pytestmark = [pytest.mark.pty, pytest.mark.realtime]
 
 QUICKSTART = SCENARIOS / "quickstart.yaml"
 

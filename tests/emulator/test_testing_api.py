@@ -30,7 +30,7 @@ LIGHT = {
 
 
 @pytest.mark.psns_emulator
-async def test_sixty_virtual_seconds_of_waiting_take_well_under_a_second(tmp_path):
+async def test_sixty_virtual_seconds_of_waiting_do_not_wait_on_the_wall_clock(tmp_path):
     async with start_emulator(QUICKSTART, run_dir=tmp_path, overrides=LIGHT) as emu:
         t0 = emu.time
         wall0 = time.perf_counter()
@@ -40,7 +40,9 @@ async def test_sixty_virtual_seconds_of_waiting_take_well_under_a_second(tmp_pat
         assert emu.time == pytest.approx(t0 + 60.0, abs=1e-9)
         # the emulator really ran those 60 s: ~600 nav frames at 10 Hz went by
         assert emu.watcher("host").total_frames >= 595
-        assert wall < 1.0, f"60 virtual seconds took {wall:.2f} s of wall time"
+        # a loop that waited on the wall clock would take 60 s; how fast it is instead is make bench's business
+        # (about 0.3 s on an idle machine), so the bound leaves room for a loaded CI machine
+        assert wall < 15.0, f"60 virtual seconds took {wall:.2f} s of wall time"
 
 
 @pytest.mark.psns_emulator

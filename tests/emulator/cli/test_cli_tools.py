@@ -117,13 +117,16 @@ async def test_monitor_command_decodes_a_live_pty(tmp_path):
     async with start_emulator(SCENARIOS / "quickstart.yaml", run_dir=tmp_path / "run", overrides=ov) as emu:
         proc = await asyncio.create_subprocess_exec(
             sys.executable, "-m", "emulator", "monitor", str(tmp_path / "run" / "ports" / "uart0"),
-            "--count", "30", "--json", cwd=ROOT, stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE)
+            "--count", "40", "--json", cwd=ROOT, stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE)
         out, err = await asyncio.wait_for(proc.communicate(), timeout=30.0)
         assert proc.returncode == 0, err.decode()
         rows = [json.loads(x) for x in out.decode().splitlines()]
-        assert len(rows) == 30 and all(x["type"] == "NavSolution" for x in rows)
-        seqs = [x["fields"]["seq"] for x in rows]
-        assert seqs == list(range(seqs[0], seqs[0] + 30))
+        # 40 frames of the host port: NavSolution at 100 Hz and, once a second, a HostStatus (own sequence)
+        assert len(rows) == 40 and {x["type"] for x in rows} <= {"NavSolution", "HostStatus"}
+        nav = [x for x in rows if x["type"] == "NavSolution"]
+        assert len(nav) >= 38
+        seqs = [x["fields"]["seq"] for x in nav]
+        assert seqs == list(range(seqs[0], seqs[0] + len(nav)))
         assert emu.link_stats("host")["bytes_out"] > 0
 
 

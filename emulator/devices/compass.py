@@ -4,9 +4,11 @@ Each unit u is a single-direction polarization analyser (docs/architecture.md, "
 +z axis, its AOP is measured in its x-y plane from +y towards +x, and ``C_u^b`` (columns: the
 unit's x, y, z axes in body coordinates) is its mounting matrix. The default geometry (unit 0 at
 the zenith, 8 units on a ring at zenith angle 45 deg every 45 deg of azimuth from body +y towards
-+x, each ring unit's +y axis up the hemisphere) is the one of ``firmware_model.psns_geometry``;
-this module uses that shared definition (:func:`default_mountings`) and keeps its own construction of
-the identical matrices, which a test checks against it.
++x, each ring unit's +y axis up the hemisphere) is the world's own declaration of the installed
+compass (:func:`default_mountings`, built here with :func:`unit_mounting`). The firmware keeps its own nominal
+copy of the layout (and, with a calibration, an estimate of it); a test compares the two, and a per-unit
+installation error (``installation_error_sigma_deg``) makes the installed geometry differ from the nominal one,
+as it does on real hardware (docs/sensors.md).
 
 Measurement model: a unit sees the sky polarization along its ray (``emulator.world.sky``),
 analyses it with four polarizers (0/45/90/135 deg, extinction ratio ``ER``) and reports Stokes ->
@@ -18,7 +20,7 @@ is left out of the frame and SATURATED is set); a sun below ``min_sun_elevation`
 with no units and SUN_BELOW_HORIZON.
 
 Units and mountings are configurable (``sensors.compass.units``: view directions as zenith/azimuth,
-:func:`firmware_model.variants.common.unit_mounting`), e.g. the three sensors of the dual-vector
+:func:`unit_mounting`), e.g. the three sensors of the dual-vector
 switching study. **Blocked units** (``sensors.compass.blocked``, or :meth:`CompassModel.block_units` for
 a fault injector): while a unit is blocked it sees unpolarized light (an obstruction, a thick cloud in its
 narrow field of view): its DOP is that of the channel noise (~0) and its AOP is scrambled (uniform); the
@@ -32,7 +34,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from firmware_model.psns_geometry import compass_unit_mountings
 from protocols.psns import CompassUnit, PsnsHeader, PsnsStatus, encode_compass
 
 from ..links.base import Link
@@ -41,30 +42,46 @@ from ..world.sun import SunModel
 from ..world.trajectory import Trajectory
 from .camera import rotation_vector_matrix, wire_aop_cdeg
 
-__all__ = ["CompassConfig", "CompassModel", "CompassReading", "PolarizationCompass", "default_mountings"]
+__all__ = ["CompassConfig", "CompassModel", "CompassReading", "PolarizationCompass", "default_mountings",
+           "mountings_from_directions", "unit_mounting"]
 
 DEG = math.pi / 180.0
 N_UNITS = 9
 RING_ZENITH = 45.0 * DEG
 
 
+def unit_mounting(zenith: float, azimuth: float) -> np.ndarray:
+    """``C_u^b`` (3, 3) of a single-direction unit whose view ray has ``zenith`` / ``azimuth`` (rad) in the body frame.
+
+    Azimuth in the body x-y plane from body +y (forward) towards +x (right), zenith angle from body +z. The unit's
+    +z is its view ray, its +y points up the hemisphere (towards body +z in the ray's vertical plane) and
+    ``x = y x z``; a unit at the zenith is the identity turned by ``azimuth`` about z. Columns: the unit's axes in
+    body coordinates (docs/architecture.md, "Conventions", contract C1).
+    """
+    if zenith < 1e-9:
+        c, s = math.cos(azimuth), math.sin(azimuth)
+        return np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+    st, ct = math.sin(zenith), math.cos(zenith)
+    sa, ca = math.sin(azimuth), math.cos(azimuth)
+    z = np.array([st * sa, st * ca, ct])
+    y = np.array([-ct * sa, -ct * ca, st])
+    return np.column_stack([np.cross(y, z), y, z])
+
+
+def mountings_from_directions(directions_deg: list[tuple[float, float]] | tuple[tuple[float, float], ...]
+                              ) -> np.ndarray:
+    """Mountings (n, 3, 3) of units given as ``(zenith_deg, azimuth_deg)`` pairs (:func:`unit_mounting`)."""
+    return np.stack([unit_mounting(z * DEG, a * DEG) for z, a in directions_deg])
+
+
 def _own_mountings() -> np.ndarray:
-    out = np.empty((N_UNITS, 3, 3))
-    out[0] = np.eye(3)
-    st, ct = math.sin(RING_ZENITH), math.cos(RING_ZENITH)
-    for k in range(N_UNITS - 1):
-        az = 2.0 * math.pi * k / (N_UNITS - 1)
-        sa, ca = math.sin(az), math.cos(az)
-        z = np.array([st * sa, st * ca, ct])
-        y = np.array([-ct * sa, -ct * ca, st])
-        x = np.array([y[1] * z[2] - y[2] * z[1], y[2] * z[0] - y[0] * z[2], y[0] * z[1] - y[1] * z[0]])
-        out[1 + k] = np.column_stack([x, y, z])
-    return out
+    return mountings_from_directions([(0.0, 0.0)] + [(RING_ZENITH / DEG, 360.0 * k / (N_UNITS - 1))
+                                                     for k in range(N_UNITS - 1)])
 
 
 def default_mountings() -> np.ndarray:
-    """``C_u^b`` of the 9 default units, (9, 3, 3): the shared firmware definition."""
-    return np.asarray(compass_unit_mountings(), dtype=np.float64)
+    """``C_u^b`` of the 9 installed units, (9, 3, 3): the world's own declaration (module docstring)."""
+    return _own_mountings()
 
 
 @dataclass

@@ -30,8 +30,9 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+import pymap3d
 
-from firmware_model import earth
+from protocols.constants import A_WGS84, F_WGS84
 from protocols.gnss import GnssFix, GnssOutputSet, build_epoch
 
 from ..links.base import Link
@@ -44,6 +45,8 @@ DEG = math.pi / 180.0
 _SAT_IDS = (2, 5, 6, 12, 13, 15, 17, 19, 24, 25, 29, 30, 1, 3, 7, 9, 10, 14, 18, 20, 21, 22, 23, 26)
 #: 95 % radius of a circular 2-D normal error, in per-axis sigmas: sqrt(-2 ln 0.05).
 RADIAL_95 = math.sqrt(-2.0 * math.log(0.05))
+#: WGS-84 from its defining constants (protocols.constants), for pymap3d's ENU -> geodetic conversion.
+WGS84 = pymap3d.Ellipsoid(A_WGS84, A_WGS84 * (1.0 - F_WGS84), "WGS-84 (protocols.constants)")
 
 
 @dataclass
@@ -271,10 +274,9 @@ class GnssReceiver:
         self.last_vel_error_enu = vel_err
         st = self.traj.state(t)
         lat, lon, h = (float(x) for x in st.pos)
-        rm, rn = earth.radii(lat)
-        lat_m = lat + err[1] / (rm + h)
-        lon_m = lon + err[0] / ((rn + h) * math.cos(lat))
-        h_m = h + err[2]
+        # the error is a displacement in the local ENU frame of the true position (pymap3d, WGS-84 ellipsoid)
+        lat_m, lon_m, h_m = (float(x) for x in pymap3d.enu2geodetic(
+            float(err[0]), float(err[1]), float(err[2]), lat, lon, h, ell=WGS84, deg=False))
         v = st.v_enu + vel_err
         out = build_epoch(self._fix(utc, lat_m / DEG, lon_m / DEG, h_m, (float(v[0]), float(v[1]), float(v[2]))),
                           self._output)

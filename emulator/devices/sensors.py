@@ -26,7 +26,14 @@ from ..world.sun import SunModel
 from ..world.trajectory import Trajectory
 from .base import device_rng
 from .camera import CameraConfig, PolarizationCamera, PolarizationCameraModel, mounting_matrix
-from .compass import CompassConfig, CompassModel, PolarizationCompass, default_mountings, perturbed_mountings
+from .compass import (
+    CompassConfig,
+    CompassModel,
+    PolarizationCompass,
+    default_mountings,
+    mountings_from_directions,
+    perturbed_mountings,
+)
 from .gnss import GnssConfig, GnssErrors, GnssGlitch, GnssOutage, GnssReceiver
 from .imu import AccelErrors, AnalogAccelerometers, GyroErrors, ImuTemperature, ImuTruthTap, Stim210Gyro
 from .magnetometer import MagConfig, Magnetometer, soft_iron_matrix
@@ -145,9 +152,7 @@ def compass_config(scn: Scenario, rng: np.random.Generator | None = None) -> Com
         "aop_sigma_deg", "dop_ref", "extinction_ratio", "fov_half_deg")})
     mounts = default_mountings()
     if c.units is not None:  # a compass with its own unit layout (e.g. the dual-vector study's three sensors)
-        from firmware_model.variants.common import compass_mountings
-
-        mounts = compass_mountings([(u.zenith_deg, u.azimuth_deg) for u in c.units])
+        mounts = mountings_from_directions([(u.zenith_deg, u.azimuth_deg) for u in c.units])
     if c.installation_error_sigma_deg > 0:
         mounts = perturbed_mountings(mounts, c.installation_error_sigma_deg * DEG, rng or np.random.default_rng(0))
     return CompassConfig(mountings=mounts, aop_sigma=p["aop_sigma_deg"] * DEG, dop_ref=p["dop_ref"],

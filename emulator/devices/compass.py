@@ -19,6 +19,11 @@ sigma_AOP``, and the AOP error grows as ``sigma_I/(sqrt(2) S0 DOP)`` when the DO
 is left out of the frame and SATURATED is set); a sun below ``min_sun_elevation`` gives frames
 with no units and SUN_BELOW_HORIZON.
 
+``dop_noise_model: zhang`` (the ``field`` preset) replaces the 1/DOP law for the AOP by the one Zhang et al.
+(2021) measured outdoors: per DOP bin a mean error and a spread that grow ~14x from DOP 0.525 to 0.275
+(:func:`zhang_aop_error_deg`); each unit keeps its own sign of the mean (a systematic error), the spread is
+drawn per reading.
+
 Units and mountings are configurable (``sensors.compass.units``: view directions as zenith/azimuth,
 :func:`unit_mounting`), e.g. the three sensors of the dual-vector
 switching study. **Blocked units** (``sensors.compass.blocked``, or :meth:`CompassModel.block_units` for
@@ -96,6 +101,8 @@ class CompassConfig:
     min_sun_elevation: float = 0.0
     dop_threshold: float = 0.05
     noise: bool = True
+    #: AOP error law: ``inverse`` (channel noise, sigma ~ 1/DOP) or ``zhang`` (:func:`zhang_aop_error_deg`)
+    dop_noise_model: str = "inverse"
     #: blocked windows: (units, start_s, end_s)
     blocked: tuple[tuple[tuple[int, ...], float, float], ...] = ()
 
@@ -113,6 +120,19 @@ class CompassReading:
     aop: np.ndarray
     dop: np.ndarray
     status: int
+
+
+#: Zhang et al. 2021 (sun-elevation positioning paper, docs/reference/sources.md), Fig. 16b: E-vector error
+#: statistics of their 9-unit compass under a clear sky, per DOP bin: (bin centre, mean deg, standard deviation deg).
+ZHANG_BINS = ((0.275, 2.05, 2.38), (0.525, 0.14, 0.17))
+
+
+def zhang_aop_error_deg(dop: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and standard deviation (deg) of a unit's E-vector error at ``dop``: log-linear in DOP through Zhang et
+    al.'s two measured bins (14.6x from DOP 0.525 to 0.275, 14.0x for the spread), DOP clipped to [0.05, 0.75]."""
+    (d1, m1, s1), (d2, m2, s2) = ZHANG_BINS
+    x = (np.clip(dop, 0.05, 0.75) - d1) / (d2 - d1)
+    return m1 * (m2 / m1) ** x, s1 * (s2 / s1) ** x
 
 
 class CompassModel:
@@ -135,6 +155,8 @@ class CompassModel:
         self.mountings = m
         self.rays_b = m[:, :, 2].copy()  # (U, 3) view rays, body frame
         self.blocked: list[tuple[tuple[int, ...], float, float]] = []
+        #: zhang law: each unit's systematic E-vector error has its own sign (drawn once)
+        self.error_sign = rng.choice([-1.0, 1.0], len(m)) if cfg.dop_noise_model == "zhang" else np.ones(len(m))
         for units, start, end in cfg.blocked:
             self.block_units(units, start, end)
 
@@ -187,6 +209,13 @@ class CompassModel:
         s1, s2 = i0 - i90, i45 - i135
         dop = np.hypot(s1, s2) / s0
         aop = math.pi / 2 - 0.5 * np.arctan2(s2, s1)
+        if cfg.noise and cfg.dop_noise_model == "zhang":
+            # the measured law replaces the 1/DOP growth of the channel noise: systematic part plus spread
+            aop0 = math.pi / 2 - 0.5 * np.arctan2(u, q)
+            mean, sd = zhang_aop_error_deg(np.asarray(sky_dop, dtype=np.float64))
+            aop = aop0 + (self.error_sign * mean + sd * self.rng.standard_normal(n_u)) * DEG
+            aop = np.mod(aop + math.pi / 2, math.pi) - math.pi / 2
+            aop = np.where(aop <= -math.pi / 2, aop + math.pi, aop)
         aop = np.where(aop > math.pi / 2, aop - math.pi, aop)
         if blocked:  # scrambled AOP (also without channel noise)
             aop[blocked] = self.rng.uniform(-0.5 * math.pi, 0.5 * math.pi, len(blocked))

@@ -19,6 +19,11 @@ recapture time < 1 s"), and the Gauss-Markov error restarts from a fresh draw. G
 (``glitches``): a position jump (ENU metres) added during a time window, as a multipath or
 false-lock event would.
 
+Multipath (``multipath_sigma_*``, ``multipath_corr_time_s``; the ``field`` preset): a second, faster
+first-order Gauss-Markov process per axis added to the position; both correlated processes restart from a
+fresh draw at re-acquisition, so the solution jumps when the fixes return. ``latency_s`` is the receiver's
+output latency (epoch to first byte).
+
 Height in GGA is above MSL: ``h_msl = h - geoid_sep_m``.
 """
 
@@ -57,6 +62,10 @@ class GnssErrors:
     pos_sigma_v_m: float = 15.0 / 2.0
     pos_white_fraction: float = 0.2
     pos_corr_time_s: float = 300.0
+    #: multipath: a second, faster Gauss-Markov process per axis (0 = none)
+    multipath_sigma_h_m: float = 0.0
+    multipath_sigma_v_m: float = 0.0
+    multipath_corr_time_s: float = 15.0
     vel_sigma_h_mps: float = 0.1 / RADIAL_95
     vel_sigma_v_mps: float = 0.2 / 2.0
     pps_jitter_ns: float = 50.0 / 2.0
@@ -118,17 +127,28 @@ class GnssErrorModel:
         self.sig_v = np.array([e.vel_sigma_h_mps, e.vel_sigma_h_mps, e.vel_sigma_v_mps])
         self.batch = batch
         self.gm = self.rng.standard_normal((batch, 3)) * self.sig_gm
+        self.sig_mp = np.array([e.multipath_sigma_h_m, e.multipath_sigma_h_m, e.multipath_sigma_v_m])
+        self.mp = np.zeros((batch, 3))
+        if self.sig_mp.any():
+            self.mp = self.rng.standard_normal((batch, 3)) * self.sig_mp
 
     def restart(self) -> None:
-        """Fresh Gauss-Markov draw (after re-acquisition)."""
+        """Fresh Gauss-Markov draws (after re-acquisition: the solution jumps)."""
         self.gm = self.rng.standard_normal((self.batch, 3)) * self.sig_gm
+        if self.sig_mp.any():
+            self.mp = self.rng.standard_normal((self.batch, 3)) * self.sig_mp
 
     def step(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """Advance by ``dt`` s; returns (batch, 3) position and velocity errors (E, N, U)."""
         a = math.exp(-dt / self.e.pos_corr_time_s)
         w = self.rng.standard_normal((3, self.batch, 3))
         self.gm = a * self.gm + math.sqrt(1.0 - a * a) * self.sig_gm * w[0]
-        return self.gm + self.sig_w * w[1], self.sig_v * w[2]
+        pos = self.gm + self.sig_w * w[1]
+        if self.sig_mp.any():
+            b = math.exp(-dt / self.e.multipath_corr_time_s)
+            self.mp = b * self.mp + math.sqrt(1.0 - b * b) * self.sig_mp * self.rng.standard_normal((self.batch, 3))
+            pos = pos + self.mp
+        return pos, self.sig_v * w[2]
 
 
 class GnssReceiver:

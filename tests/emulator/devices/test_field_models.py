@@ -82,3 +82,22 @@ def test_gnss_multipath_adds_a_fast_correlated_error_and_jumps_on_reacquisition(
     before = m.mp.copy()
     m.restart()
     assert np.corrcoef(before[:, 0], m.mp[:, 0])[0, 1] == pytest.approx(0.0, abs=0.05)
+
+
+def test_every_preset_figure_is_a_number():
+    """PyYAML reads 1.0e12 (no exponent sign) as a string; the suite presets must build every sensor."""
+    from emulator.scenario.presets import preset, preset_names
+
+    def walk(x):
+        if isinstance(x, dict):
+            for v in x.values():
+                walk(v)
+        elif isinstance(x, list):
+            for v in x:
+                walk(v)
+        else:
+            assert not isinstance(x, str) or x in ("pinhole", "fisheye", "zhang", "inverse"), x
+
+    for kind in ("imu", "gnss", "camera", "compass", "magnetometer"):
+        for name in preset_names(kind):
+            walk(preset(kind, name))

@@ -101,3 +101,45 @@ def test_every_preset_figure_is_a_number():
     for kind in ("imu", "gnss", "camera", "compass", "magnetometer"):
         for name in preset_names(kind):
             walk(preset(kind, name))
+
+
+def test_stim_filter_delays_the_rate_and_fills_the_latency_field():
+    """A 16 Hz filter (14.1 ms delay) during a rate ramp: each word is the rate one group delay earlier."""
+    import asyncio
+
+    from emulator.clock import EmulatorLoop
+    from emulator.devices.imu import GyroErrors, Stim210Gyro
+    from emulator.links import LineConfig, MemHub
+    from emulator.scenario.presets import preset
+    from protocols.stim import GYRO_RATE_LSB_DPS, Stim210Format
+    from protocols.stream import StreamDecoder
+
+    class Ramp:  # z rate = 10 deg/s^2 * t: the mean over [t0, t1] is 10 (t0 + t1) / 2 deg/s
+        def increments(self, t0, t1):
+            return np.array([0.0, 0.0, 5.0 * (t1 * t1 - t0 * t0) * DEG]), np.zeros(3)
+
+        def specific_force(self, t):
+            return np.zeros(3)
+
+    loop = EmulatorLoop("fast")
+    a, b = MemHub().pair("gyro", LineConfig(baud=460800), loop)
+    errs = GyroErrors(**dict(preset("imu", "perfect")["gyro"].items()))
+    gyro = Stim210Gyro(a, Ramp(), np.random.default_rng(1), errs, lp_filter_hz=16.0)  # type: ignore[arg-type]
+    gyro._look_ahead = False
+    dec = StreamDecoder([Stim210Format("m")])
+    got = []
+    b.on_receive = lambda d: got.extend(dec.feed(d))
+
+    async def main():
+        for k in range(10, 20):
+            gyro.trigger(k * 0.005, (k - 1) * 0.005)
+        await asyncio.sleep(0.1)
+
+    loop.run_until_complete(main())
+    loop.close()
+    tau = group_delay_s(16.0)
+    assert len(got) == 10
+    for k, d in zip(range(10, 20), got):
+        expect = 10.0 * ((k - 0.5) * 0.005 - tau) / GYRO_RATE_LSB_DPS
+        assert d.gyro[2] == pytest.approx(expect, abs=1.0)
+        assert d.latency_us == round((tau + 40e-6) * 1e6)

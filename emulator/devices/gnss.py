@@ -279,7 +279,7 @@ class GnssReceiver:
         err = perr[0].copy()
         vel_err = verr[0]
         if self._degraded is not None:
-            scale = float(self._deg("noise_scale") or 1.0)  # type: ignore[arg-type]
+            scale = float(self._deg("noise_scale") or 1.0)
             err = err * scale
             vel_err = vel_err * scale
             self.degraded_fixes += 1

@@ -4,9 +4,11 @@ Each unit u is a single-direction polarization analyser (docs/architecture.md, "
 +z axis, its AOP is measured in its x-y plane from +y towards +x, and ``C_u^b`` (columns: the
 unit's x, y, z axes in body coordinates) is its mounting matrix. The default geometry (unit 0 at
 the zenith, 8 units on a ring at zenith angle 45 deg every 45 deg of azimuth from body +y towards
-+x, each ring unit's +y axis up the hemisphere) is the one of ``firmware_model.psns_geometry``;
-this module uses that shared definition (:func:`default_mountings`) and keeps its own construction of
-the identical matrices, which a test checks against it.
++x, each ring unit's +y axis up the hemisphere) is the world's own declaration of the installed
+compass (:func:`default_mountings`, built here with :func:`unit_mounting`). The firmware keeps its own nominal
+copy of the layout (and, with a calibration, an estimate of it); a test compares the two, and a per-unit
+installation error (``installation_error_sigma_deg``) makes the installed geometry differ from the nominal one,
+as it does on real hardware (docs/sensors.md).
 
 Measurement model: a unit sees the sky polarization along its ray (``emulator.world.sky``),
 analyses it with four polarizers (0/45/90/135 deg, extinction ratio ``ER``) and reports Stokes ->
@@ -17,8 +19,13 @@ sigma_AOP``, and the AOP error grows as ``sigma_I/(sqrt(2) S0 DOP)`` when the DO
 is left out of the frame and SATURATED is set); a sun below ``min_sun_elevation`` gives frames
 with no units and SUN_BELOW_HORIZON.
 
+``dop_noise_model: zhang`` (the ``field`` preset) replaces the 1/DOP law for the AOP by the one Zhang et al.
+(2021) measured outdoors: per DOP bin a mean error and a spread that grow ~14x from DOP 0.525 to 0.275
+(:func:`zhang_aop_error_deg`); each unit keeps its own sign of the mean (a systematic error), the spread is
+drawn per reading.
+
 Units and mountings are configurable (``sensors.compass.units``: view directions as zenith/azimuth,
-:func:`firmware_model.variants.common.unit_mounting`), e.g. the three sensors of the dual-vector
+:func:`unit_mounting`), e.g. the three sensors of the dual-vector
 switching study. **Blocked units** (``sensors.compass.blocked``, or :meth:`CompassModel.block_units` for
 a fault injector): while a unit is blocked it sees unpolarized light (an obstruction, a thick cloud in its
 narrow field of view): its DOP is that of the channel noise (~0) and its AOP is scrambled (uniform); the
@@ -32,7 +39,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from firmware_model.psns_geometry import compass_unit_mountings
 from protocols.psns import CompassUnit, PsnsHeader, PsnsStatus, encode_compass
 
 from ..links.base import Link
@@ -41,30 +47,46 @@ from ..world.sun import SunModel
 from ..world.trajectory import Trajectory
 from .camera import rotation_vector_matrix, wire_aop_cdeg
 
-__all__ = ["CompassConfig", "CompassModel", "CompassReading", "PolarizationCompass", "default_mountings"]
+__all__ = ["CompassConfig", "CompassModel", "CompassReading", "PolarizationCompass", "default_mountings",
+           "mountings_from_directions", "unit_mounting"]
 
 DEG = math.pi / 180.0
 N_UNITS = 9
 RING_ZENITH = 45.0 * DEG
 
 
+def unit_mounting(zenith: float, azimuth: float) -> np.ndarray:
+    """``C_u^b`` (3, 3) of a single-direction unit whose view ray has ``zenith`` / ``azimuth`` (rad) in the body frame.
+
+    Azimuth in the body x-y plane from body +y (forward) towards +x (right), zenith angle from body +z. The unit's
+    +z is its view ray, its +y points up the hemisphere (towards body +z in the ray's vertical plane) and
+    ``x = y x z``; a unit at the zenith is the identity turned by ``azimuth`` about z. Columns: the unit's axes in
+    body coordinates (docs/architecture.md, "Conventions", contract C1).
+    """
+    if zenith < 1e-9:
+        c, s = math.cos(azimuth), math.sin(azimuth)
+        return np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+    st, ct = math.sin(zenith), math.cos(zenith)
+    sa, ca = math.sin(azimuth), math.cos(azimuth)
+    z = np.array([st * sa, st * ca, ct])
+    y = np.array([-ct * sa, -ct * ca, st])
+    return np.column_stack([np.cross(y, z), y, z])
+
+
+def mountings_from_directions(directions_deg: list[tuple[float, float]] | tuple[tuple[float, float], ...]
+                              ) -> np.ndarray:
+    """Mountings (n, 3, 3) of units given as ``(zenith_deg, azimuth_deg)`` pairs (:func:`unit_mounting`)."""
+    return np.stack([unit_mounting(z * DEG, a * DEG) for z, a in directions_deg])
+
+
 def _own_mountings() -> np.ndarray:
-    out = np.empty((N_UNITS, 3, 3))
-    out[0] = np.eye(3)
-    st, ct = math.sin(RING_ZENITH), math.cos(RING_ZENITH)
-    for k in range(N_UNITS - 1):
-        az = 2.0 * math.pi * k / (N_UNITS - 1)
-        sa, ca = math.sin(az), math.cos(az)
-        z = np.array([st * sa, st * ca, ct])
-        y = np.array([-ct * sa, -ct * ca, st])
-        x = np.array([y[1] * z[2] - y[2] * z[1], y[2] * z[0] - y[0] * z[2], y[0] * z[1] - y[1] * z[0]])
-        out[1 + k] = np.column_stack([x, y, z])
-    return out
+    return mountings_from_directions([(0.0, 0.0)] + [(RING_ZENITH / DEG, 360.0 * k / (N_UNITS - 1))
+                                                     for k in range(N_UNITS - 1)])
 
 
 def default_mountings() -> np.ndarray:
-    """``C_u^b`` of the 9 default units, (9, 3, 3): the shared firmware definition."""
-    return np.asarray(compass_unit_mountings(), dtype=np.float64)
+    """``C_u^b`` of the 9 installed units, (9, 3, 3): the world's own declaration (module docstring)."""
+    return _own_mountings()
 
 
 @dataclass
@@ -79,6 +101,8 @@ class CompassConfig:
     min_sun_elevation: float = 0.0
     dop_threshold: float = 0.05
     noise: bool = True
+    #: AOP error law: ``inverse`` (channel noise, sigma ~ 1/DOP) or ``zhang`` (:func:`zhang_aop_error_deg`)
+    dop_noise_model: str = "inverse"
     #: blocked windows: (units, start_s, end_s)
     blocked: tuple[tuple[tuple[int, ...], float, float], ...] = ()
 
@@ -96,6 +120,19 @@ class CompassReading:
     aop: np.ndarray
     dop: np.ndarray
     status: int
+
+
+#: Zhang et al. 2021 (sun-elevation positioning paper, docs/reference/sources.md), Fig. 16b: E-vector error
+#: statistics of their 9-unit compass under a clear sky, per DOP bin: (bin centre, mean deg, standard deviation deg).
+ZHANG_BINS = ((0.275, 2.05, 2.38), (0.525, 0.14, 0.17))
+
+
+def zhang_aop_error_deg(dop: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and standard deviation (deg) of a unit's E-vector error at ``dop``: log-linear in DOP through Zhang et
+    al.'s two measured bins (14.6x from DOP 0.525 to 0.275, 14.0x for the spread), DOP clipped to [0.05, 0.75]."""
+    (d1, m1, s1), (d2, m2, s2) = ZHANG_BINS
+    x = (np.clip(dop, 0.05, 0.75) - d1) / (d2 - d1)
+    return m1 * (m2 / m1) ** x, s1 * (s2 / s1) ** x
 
 
 class CompassModel:
@@ -118,6 +155,8 @@ class CompassModel:
         self.mountings = m
         self.rays_b = m[:, :, 2].copy()  # (U, 3) view rays, body frame
         self.blocked: list[tuple[tuple[int, ...], float, float]] = []
+        #: zhang law: each unit's systematic E-vector error has its own sign (drawn once)
+        self.error_sign = rng.choice([-1.0, 1.0], len(m)) if cfg.dop_noise_model == "zhang" else np.ones(len(m))
         for units, start, end in cfg.blocked:
             self.block_units(units, start, end)
 
@@ -170,6 +209,13 @@ class CompassModel:
         s1, s2 = i0 - i90, i45 - i135
         dop = np.hypot(s1, s2) / s0
         aop = math.pi / 2 - 0.5 * np.arctan2(s2, s1)
+        if cfg.noise and cfg.dop_noise_model == "zhang":
+            # the measured law replaces the 1/DOP growth of the channel noise: systematic part plus spread
+            aop0 = math.pi / 2 - 0.5 * np.arctan2(u, q)
+            mean, sd = zhang_aop_error_deg(np.asarray(sky_dop, dtype=np.float64))
+            aop = aop0 + (self.error_sign * mean + sd * self.rng.standard_normal(n_u)) * DEG
+            aop = np.mod(aop + math.pi / 2, math.pi) - math.pi / 2
+            aop = np.where(aop <= -math.pi / 2, aop + math.pi, aop)
         aop = np.where(aop > math.pi / 2, aop - math.pi, aop)
         if blocked:  # scrambled AOP (also without channel noise)
             aop[blocked] = self.rng.uniform(-0.5 * math.pi, 0.5 * math.pi, len(blocked))

@@ -19,6 +19,11 @@ recapture time < 1 s"), and the Gauss-Markov error restarts from a fresh draw. G
 (``glitches``): a position jump (ENU metres) added during a time window, as a multipath or
 false-lock event would.
 
+Multipath (``multipath_sigma_*``, ``multipath_corr_time_s``; the ``field`` preset): a second, faster
+first-order Gauss-Markov process per axis added to the position; both correlated processes restart from a
+fresh draw at re-acquisition, so the solution jumps when the fixes return. ``latency_s`` is the receiver's
+output latency (epoch to first byte).
+
 Height in GGA is above MSL: ``h_msl = h - geoid_sep_m``.
 """
 
@@ -30,8 +35,9 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+import pymap3d
 
-from firmware_model import earth
+from protocols.constants import A_WGS84, F_WGS84
 from protocols.gnss import GnssFix, GnssOutputSet, build_epoch
 
 from ..links.base import Link
@@ -44,6 +50,8 @@ DEG = math.pi / 180.0
 _SAT_IDS = (2, 5, 6, 12, 13, 15, 17, 19, 24, 25, 29, 30, 1, 3, 7, 9, 10, 14, 18, 20, 21, 22, 23, 26)
 #: 95 % radius of a circular 2-D normal error, in per-axis sigmas: sqrt(-2 ln 0.05).
 RADIAL_95 = math.sqrt(-2.0 * math.log(0.05))
+#: WGS-84 from its defining constants (protocols.constants), for pymap3d's ENU -> geodetic conversion.
+WGS84 = pymap3d.Ellipsoid(A_WGS84, A_WGS84 * (1.0 - F_WGS84), "WGS-84 (protocols.constants)")
 
 
 @dataclass
@@ -54,6 +62,10 @@ class GnssErrors:
     pos_sigma_v_m: float = 15.0 / 2.0
     pos_white_fraction: float = 0.2
     pos_corr_time_s: float = 300.0
+    #: multipath: a second, faster Gauss-Markov process per axis (0 = none)
+    multipath_sigma_h_m: float = 0.0
+    multipath_sigma_v_m: float = 0.0
+    multipath_corr_time_s: float = 15.0
     vel_sigma_h_mps: float = 0.1 / RADIAL_95
     vel_sigma_v_mps: float = 0.2 / 2.0
     pps_jitter_ns: float = 50.0 / 2.0
@@ -115,17 +127,28 @@ class GnssErrorModel:
         self.sig_v = np.array([e.vel_sigma_h_mps, e.vel_sigma_h_mps, e.vel_sigma_v_mps])
         self.batch = batch
         self.gm = self.rng.standard_normal((batch, 3)) * self.sig_gm
+        self.sig_mp = np.array([e.multipath_sigma_h_m, e.multipath_sigma_h_m, e.multipath_sigma_v_m])
+        self.mp = np.zeros((batch, 3))
+        if self.sig_mp.any():
+            self.mp = self.rng.standard_normal((batch, 3)) * self.sig_mp
 
     def restart(self) -> None:
-        """Fresh Gauss-Markov draw (after re-acquisition)."""
+        """Fresh Gauss-Markov draws (after re-acquisition: the solution jumps)."""
         self.gm = self.rng.standard_normal((self.batch, 3)) * self.sig_gm
+        if self.sig_mp.any():
+            self.mp = self.rng.standard_normal((self.batch, 3)) * self.sig_mp
 
     def step(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """Advance by ``dt`` s; returns (batch, 3) position and velocity errors (E, N, U)."""
         a = math.exp(-dt / self.e.pos_corr_time_s)
         w = self.rng.standard_normal((3, self.batch, 3))
         self.gm = a * self.gm + math.sqrt(1.0 - a * a) * self.sig_gm * w[0]
-        return self.gm + self.sig_w * w[1], self.sig_v * w[2]
+        pos = self.gm + self.sig_w * w[1]
+        if self.sig_mp.any():
+            b = math.exp(-dt / self.e.multipath_corr_time_s)
+            self.mp = b * self.mp + math.sqrt(1.0 - b * b) * self.sig_mp * self.rng.standard_normal((self.batch, 3))
+            pos = pos + self.mp
+        return pos, self.sig_v * w[2]
 
 
 class GnssReceiver:
@@ -271,10 +294,9 @@ class GnssReceiver:
         self.last_vel_error_enu = vel_err
         st = self.traj.state(t)
         lat, lon, h = (float(x) for x in st.pos)
-        rm, rn = earth.radii(lat)
-        lat_m = lat + err[1] / (rm + h)
-        lon_m = lon + err[0] / ((rn + h) * math.cos(lat))
-        h_m = h + err[2]
+        # the error is a displacement in the local ENU frame of the true position (pymap3d, WGS-84 ellipsoid)
+        lat_m, lon_m, h_m = (float(x) for x in pymap3d.enu2geodetic(
+            float(err[0]), float(err[1]), float(err[2]), lat, lon, h, ell=WGS84, deg=False))
         v = st.v_enu + vel_err
         out = build_epoch(self._fix(utc, lat_m / DEG, lon_m / DEG, h_m, (float(v[0]), float(v[1]), float(v[2]))),
                           self._output)

@@ -21,12 +21,20 @@ from ..errors import ScenarioError
 from ..links.base import Link
 from ..scenario.presets import merged, preset
 from ..scenario.schema import Scenario
+from ..scenario.sensor_schema import preset_of
 from ..world.sky import SkyModel, sky_from_spec
 from ..world.sun import SunModel
 from ..world.trajectory import Trajectory
 from .base import device_rng
 from .camera import CameraConfig, PolarizationCamera, PolarizationCameraModel, mounting_matrix
-from .compass import CompassConfig, CompassModel, PolarizationCompass, default_mountings, perturbed_mountings
+from .compass import (
+    CompassConfig,
+    CompassModel,
+    PolarizationCompass,
+    default_mountings,
+    mountings_from_directions,
+    perturbed_mountings,
+)
 from .gnss import GnssConfig, GnssErrors, GnssGlitch, GnssOutage, GnssReceiver
 from .imu import AccelErrors, AnalogAccelerometers, GyroErrors, ImuTemperature, ImuTruthTap, Stim210Gyro
 from .magnetometer import MagConfig, Magnetometer, soft_iron_matrix
@@ -94,20 +102,31 @@ def _dataclass_from(cls: type, values: dict[str, Any]) -> Any:
 
 def gyro_errors(scn: Scenario) -> GyroErrors:
     imu = scn.sensors.imu
-    return _dataclass_from(GyroErrors, merged(preset("imu", imu.preset)["gyro"], imu.gyro.model_dump()))
+    return _dataclass_from(GyroErrors, merged(preset("imu", _imu_preset(scn))["gyro"], imu.gyro.model_dump()))
 
 
 def accel_errors(scn: Scenario) -> AccelErrors:
     imu = scn.sensors.imu
-    return _dataclass_from(AccelErrors, merged(preset("imu", imu.preset)["accel"], imu.accel.model_dump()))
+    return _dataclass_from(AccelErrors, merged(preset("imu", _imu_preset(scn))["accel"], imu.accel.model_dump()))
+
+
+def _imu_preset(scn: Scenario) -> str:
+    return preset_of(scn.sensors, "imu", scn.sensors.imu)
+
+
+def gyro_lp_filter_hz(scn: Scenario) -> float:
+    """The STIM210 low-pass setting (-3 dB, Hz; 0 = none): the scenario's, else the IMU preset's."""
+    f = scn.sensors.imu.lp_filter_hz
+    return float(f if f is not None else preset("imu", _imu_preset(scn)).get("lp_filter_hz", 0))
 
 
 def gnss_config(scn: Scenario) -> GnssConfig:
     g = scn.sensors.gnss
-    p = preset("gnss", g.preset)
+    p = preset("gnss", preset_of(scn.sensors, "gnss", g))
     err = _dataclass_from(GnssErrors, merged(p["errors"], g.errors.model_dump()))
     return GnssConfig(
-        rate_hz=g.rate_hz, latency_s=g.latency_s, sentences=tuple(g.sentences), ubx=tuple(g.ubx), talker=g.talker,
+        rate_hz=g.rate_hz, latency_s=g.latency_s if g.latency_s is not None else float(p.get("latency_s", 0.05)),
+        sentences=tuple(g.sentences), ubx=tuple(g.ubx), talker=g.talker,
         geoid_sep_m=g.geoid_sep_m,
         fix_quality=g.fix_quality if g.fix_quality is not None else int(p.get("fix_quality", 1)),
         reacquisition_s=g.reacquisition_s if g.reacquisition_s is not None else float(p.get("reacquisition_s", 0.8)),
@@ -124,7 +143,7 @@ def camera_config(scn: Scenario) -> CameraConfig:
         from ..scenario.sensor_schema import CameraSpec
 
         c = CameraSpec()
-    p = merged(preset("camera", c.preset), {k: getattr(c, k) for k in (
+    p = merged(preset("camera", preset_of(scn.sensors, "camera", scn.sensors.camera)), {k: getattr(c, k) for k in (
         "full_well_e", "read_noise_e", "adc_bits", "extinction_ratio", "signal_e", "lens", "noise")})
     if c.focal_length_mm is not None:
         p["focal_length_mm"] = c.focal_length_mm
@@ -146,18 +165,20 @@ def compass_config(scn: Scenario, rng: np.random.Generator | None = None) -> Com
         from ..scenario.sensor_schema import CompassSpec
 
         c = CompassSpec()
-    p = merged(preset("compass", c.preset), {k: getattr(c, k) for k in (
+    p = merged(preset("compass", preset_of(scn.sensors, "compass", scn.sensors.compass)), {k: getattr(c, k) for k in (
         "aop_sigma_deg", "dop_ref", "extinction_ratio", "fov_half_deg")})
     mounts = default_mountings()
     if c.units is not None:  # a compass with its own unit layout (e.g. the dual-vector study's three sensors)
-        from firmware_model.variants.common import compass_mountings
-
-        mounts = compass_mountings([(u.zenith_deg, u.azimuth_deg) for u in c.units])
-    if c.installation_error_sigma_deg > 0:
-        mounts = perturbed_mountings(mounts, c.installation_error_sigma_deg * DEG, rng or np.random.default_rng(0))
+        mounts = mountings_from_directions([(u.zenith_deg, u.azimuth_deg) for u in c.units])
+    inst = c.installation_error_sigma_deg
+    if inst is None:
+        inst = float(p.get("installation_error_sigma_deg", 0.0))
+    if inst > 0:
+        mounts = perturbed_mountings(mounts, inst * DEG, rng or np.random.default_rng(0))
     return CompassConfig(mountings=mounts, aop_sigma=p["aop_sigma_deg"] * DEG, dop_ref=p["dop_ref"],
                          extinction_ratio=p["extinction_ratio"], fov_half=p["fov_half_deg"] * DEG,
                          min_sun_elevation=c.min_sun_elevation_deg * DEG, noise=p["aop_sigma_deg"] > 0,
+                         dop_noise_model=c.dop_noise_model or p.get("dop_noise_model", "inverse"),
                          blocked=tuple((tuple(b.units), b.start_s, b.start_s + b.duration_s) for b in c.blocked))
 
 
@@ -167,7 +188,8 @@ def mag_config(scn: Scenario) -> MagConfig:
         from ..scenario.sensor_schema import MagnetometerSpec
 
         c = MagnetometerSpec()
-    p = merged(preset("magnetometer", c.preset), {k: getattr(c, k) for k in (
+    name = preset_of(scn.sensors, "magnetometer", scn.sensors.magnetometer)
+    p = merged(preset("magnetometer", name), {k: getattr(c, k) for k in (
         "noise_nt", "hard_iron_nt", "soft_iron_scale", "soft_iron_cross")})
     return MagConfig(declination_deg=c.declination_deg, inclination_deg=c.inclination_deg,
                      intensity_nt=c.intensity_nt, noise_nt=p["noise_nt"], hard_iron_nt=tuple(p["hard_iron_nt"]),
@@ -205,7 +227,7 @@ def build_sensors(scn: Scenario, seed: int, traj: Trajectory, internal: dict[str
     if "gyro" in internal:
         gyro = Stim210Gyro(internal["gyro"], tap, device_rng(seed, "gyro"), gyro_errors(scn),
                            fmt=s.imu.format, output=s.imu.output, trigger_rate_hz=s.imu.rate_hz,
-                           temperature=temp, source=gyro_src)
+                           temperature=temp, source=gyro_src, lp_filter_hz=gyro_lp_filter_hz(scn))
     accel = AnalogAccelerometers(tap, device_rng(seed, "accel"), accel_errors(scn), temperature=temp,
                                  source=accel_src, trigger_rate_hz=s.imu.rate_hz)
     gnss: Any = None

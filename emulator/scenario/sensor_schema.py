@@ -15,6 +15,7 @@ from .base import Model
 from .presets import preset_names
 
 __all__ = [
+    "SUITE_PRESETS",
     "AccelSpec",
     "BlockedUnitsSpec",
     "CameraSpec",
@@ -33,6 +34,7 @@ __all__ = [
     "RecordedImagesSpec",
     "RecordedImuSpec",
     "Sensors",
+    "preset_of",
 ]
 
 Vec3 = tuple[float, float, float]
@@ -92,6 +94,8 @@ class ImuSpec(Model):
     format: Literal["s", "e", "j", "k", "l", "m", "n", "o", "p"] = "m"
     output: Literal["rate", "angle"] = "rate"
     rate_hz: float = Field(200.0, gt=0, le=2000)
+    lp_filter_hz: Literal[0, 16, 33, 66, 131, 262] | None = Field(
+        None, description="STIM210 low-pass filter -3 dB setting (0: none); default from the preset")
     gyro: GyroSpec = GyroSpec()
     accel: AccelSpec = AccelSpec()
     temperature: ImuTemperatureSpec = ImuTemperatureSpec()
@@ -107,7 +111,10 @@ class GnssErrorSpec(Model):
     pos_sigma_h_m: float | None = Field(None, ge=0)
     pos_sigma_v_m: float | None = Field(None, ge=0)
     pos_white_fraction: float | None = Field(None, ge=0, le=1)
-    pos_corr_time_s: float | None = Field(None, gt=0)
+    pos_corr_time_s: float | None = Field(None, gt=0, le=86400)
+    multipath_sigma_h_m: float | None = Field(None, ge=0, le=100)
+    multipath_sigma_v_m: float | None = Field(None, ge=0, le=100)
+    multipath_corr_time_s: float | None = Field(None, gt=0, le=3600)
     vel_sigma_h_mps: float | None = Field(None, ge=0)
     vel_sigma_v_mps: float | None = Field(None, ge=0)
     pps_jitter_ns: float | None = Field(None, ge=0)
@@ -141,7 +148,7 @@ class GnssSpec(Model):
     enabled: bool = True
     preset: str = "paper"
     rate_hz: float = Field(1.0, gt=0, le=20)
-    latency_s: float = Field(0.05, ge=0, lt=1)
+    latency_s: float | None = Field(None, ge=0, lt=1, description="epoch to first byte, s; default from the preset")
     sentences: list[NmeaSentenceName] = Field(
         default_factory=lambda: list(DEFAULT_NMEA_SENTENCES), description="NMEA sentences per epoch, in this order")
     ubx: list[Literal["NAV-PVT", "NAV-STATUS"]] = Field(
@@ -246,7 +253,10 @@ class CompassSpec(Model):
     dop_ref: float | None = Field(None, gt=0, le=1)
     extinction_ratio: float | None = Field(None, gt=1)
     fov_half_deg: float | None = Field(None, ge=0, le=45)
-    installation_error_sigma_deg: float = Field(0.0, ge=0, le=10, description="random per-unit mounting error")
+    installation_error_sigma_deg: float | None = Field(
+        None, ge=0, le=10, description="random per-unit mounting error, deg (1 sigma); default from the preset")
+    dop_noise_model: Literal["inverse", "zhang"] | None = Field(
+        None, description="AOP error vs DOP: inverse (sigma ~ 1/DOP) or zhang (Zhang et al. 2021 measured bins)")
     min_sun_elevation_deg: float = Field(0.0, ge=-18, le=30)
     units: list[CompassUnitSpec] | None = Field(
         None, min_length=1, max_length=16, description="unit view directions; default: the 9-unit compass")
@@ -284,9 +294,29 @@ class MagnetometerSpec(Model):
         return _check_preset("magnetometer", v)
 
 
+#: What a suite-level ``sensors.preset`` means for each sensor (a sensor's own ``preset`` wins when given):
+#: ``ideal`` for debugging (no errors), ``paper`` the source papers' figures, ``field`` realistic figures from
+#: datasheets and the literature (docs/sensors.md, "Presets").
+SUITE_PRESETS: dict[str, dict[str, str]] = {
+    "ideal": {"imu": "perfect", "gnss": "perfect", "camera": "ideal", "compass": "ideal", "magnetometer": "perfect"},
+    "paper": {"imu": "paper", "gnss": "paper", "camera": "reference", "compass": "paper", "magnetometer": "default"},
+    "field": {"imu": "field", "gnss": "field", "camera": "reference", "compass": "field", "magnetometer": "field"},
+}
+
+
 class Sensors(Model):
+    preset: Literal["ideal", "paper", "field"] = Field(
+        "paper", description="suite preset: ideal (no errors), paper (the papers' figures) or field (realistic, "
+                             "datasheets and literature; docs/sensors.md); a sensor's own preset wins")
     imu: ImuSpec = ImuSpec()
     gnss: GnssSpec = GnssSpec()
     camera: CameraSpec | None = None
     compass: CompassSpec | None = None
     magnetometer: MagnetometerSpec | None = None
+
+
+def preset_of(sensors: Sensors, kind: str, spec: Model | None) -> str:
+    """The preset a sensor uses: its own ``preset`` if the scenario gave one, else the suite preset's choice."""
+    if spec is not None and "preset" in spec.model_fields_set:
+        return str(spec.preset)  # type: ignore[attr-defined]
+    return SUITE_PRESETS[sensors.preset][kind]

@@ -215,10 +215,18 @@ class OccluderSpec(Model):
 class SkySpec(Model):
     """Sky polarization model (``emulator.world.sky``)."""
 
-    model: str = Field("rayleigh", pattern="^(rayleigh|berry)$")
-    p_max: float = Field(0.7, gt=0.0, le=1.0, description="maximum degree of polarization")
-    neutral_point_sep_deg: float = Field(20.0, ge=0.0, le=40.0,
-                                         description="Berry model: Babinet-Brewster separation (2 delta), deg")
+    model: str = Field("realistic", pattern="^(realistic|rayleigh|berry)$",
+                       description="realistic (turbid sky, neutral points, aerosol aureole, CIE radiance; docs/"
+                                   "sensors.md), rayleigh (clear single scattering) or berry (neutral points)")
+    p_max: float = Field(0.7, gt=0.0, le=1.0, description="rayleigh/berry: maximum degree of polarization")
+    neutral_point_sep_deg: float | None = Field(
+        None, ge=0.0, le=60.0, description="berry/realistic: Babinet-Brewster separation (2 delta), deg; default 20 "
+                                           "(berry), 40 (realistic: each point ~20 deg from the sun, Coulson 1988)")
+    turbidity: float = Field(3.0, ge=1.0, le=20.0,
+                             description="realistic: Preetham turbidity (1 molecules only, 2 very clear, 3 clear, "
+                                         "6+ hazy)")
+    aerosol_g: float = Field(0.7, ge=0.0, lt=1.0,
+                             description="realistic: Henyey-Greenstein asymmetry of the aerosol phase function")
     delta_t_s: float | None = Field(None, description="TT - UT1 for SPA, s (default: pvlib's estimate)")
     pressure_hpa: float = Field(1013.25, gt=0.0)
     temperature_c: float = Field(12.0)

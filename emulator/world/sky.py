@@ -1,4 +1,5 @@
-"""Skylight polarization: Rayleigh single scattering, Berry's neutral-point model, clouds and occluders.
+"""Skylight polarization: a realistic turbid sky, Rayleigh single scattering, Berry's neutral-point model, clouds
+and occluders.
 
 Rayleigh (``docs/reference/algorithms.md`` section 2.1): for the unit sun vector ``S`` and
 view ray ``V`` with scattering angle ``gamma`` (``cos gamma = S . V``)::
@@ -17,6 +18,22 @@ fourth point). ``DOP = P_max |w|/(2 - |w|)`` and the E-vector makes the angle
 ``arg(w exp(-2 i phi_sun))/2`` with the real axis of the zeta plane (``phi_sun = arg(zeta_sun)``) (the
 projection is conformal, so that direction is carried back to the sphere by the projection's Jacobian).
 With ``delta = 0`` it is exactly Rayleigh (a test checks this).
+
+The **realistic** sky (``model: realistic``, the scenario default; docs/sensors.md "Sky") keeps Berry's
+polarization pattern (four neutral points; their distance ``delta`` from the sun and the antisun, 20 deg by
+default, the typical clear-sky distances of the Babinet, Brewster and Arago points, Horvath et al. 2002) and adds
+the aerosol of a turbid atmosphere as a second, unpolarized single scatterer. With Preetham's turbidity
+``T = (tau_m + tau_a) / tau_m`` (Preetham, Shirley & Smits 1999) the aerosol-to-molecule radiance ratio at
+scattering angle ``gamma`` is ``(T - 1) p_HG(gamma; g) / p_R(gamma)`` (Henyey-Greenstein phase function, asymmetry
+``g`` 0.7 for continental aerosol; Rayleigh phase ``3/(16 pi) (1 + cos^2 gamma)``), so::
+
+    DOP = P_mol * berry(V) * L_R / (L_R + L_A)          P_mol = 0.94 (depolarization factor of air 0.0279)
+
+which gives a maximum DOP of ~0.68 at T = 2, ~0.55 at T = 3, ~0.38 at T = 5 (the DOP falls with haze), and a
+bright, nearly unpolarized aureole round the sun (glare: the radiance rises steeply within ~10 deg and the DOP
+goes to ~0 there). The radiance is ``(p_R + (T - 1) p_HG)`` times the CIE standard clear-sky gradation
+``phi(Z) = 1 + a exp(b / cos Z)`` (a = -1, b = -0.32; CIE S 011/E:2003, sky type 12), normalised to 1 at 90 deg
+from the sun at the zenith. A sun at the zenith is handled (the Babinet point goes through the zenith).
 
 Clouds are circular sky regions (ENU azimuth/elevation, optional azimuth drift and a time
 window): inside, DOP is multiplied by ``dop_scale``, the radiance by ``intensity_scale`` and the
@@ -43,6 +60,8 @@ __all__ = [
     "SkyField",
     "SkyModel",
     "SunOccluder",
+    "aerosol_fraction",
+    "cie_gradation",
     "rayleigh_dop",
     "sky_from_spec",
     "textured_cloud",
@@ -51,6 +70,32 @@ __all__ = [
 DEG = math.pi / 180.0
 #: Radiance of the ground relative to the sky (a diffuse, unpolarized surface).
 GROUND_RADIANCE = 0.3
+#: Maximum DOP of pure molecular scattering: (1 - rho) / (1 + rho) with the depolarization factor of air
+#: rho = 0.0279 (Young 1980, Appl. Opt. 19:3427).
+P_MOLECULAR = (1.0 - 0.0279) / (1.0 + 0.0279)
+#: CIE standard clear sky (type 12) gradation coefficients a, b (CIE S 011/E:2003).
+CIE_CLEAR_A, CIE_CLEAR_B = -1.0, -0.32
+SKY_MODELS = ("realistic", "rayleigh", "berry")
+
+
+def _rayleigh_phase(cos_gamma: np.ndarray) -> np.ndarray:
+    return 3.0 / (16.0 * math.pi) * (1.0 + cos_gamma * cos_gamma)
+
+
+def _hg_phase(cos_gamma: np.ndarray, g: float) -> np.ndarray:
+    return (1.0 - g * g) / (4.0 * math.pi * (1.0 + g * g - 2.0 * g * cos_gamma) ** 1.5)
+
+
+def aerosol_fraction(cos_gamma: np.ndarray, turbidity: float, g: float = 0.7) -> np.ndarray:
+    """Share of the sky radiance scattered by aerosol at scattering angle ``gamma`` (module docstring)."""
+    la = (turbidity - 1.0) * _hg_phase(cos_gamma, g)
+    return np.asarray(la / (_rayleigh_phase(cos_gamma) + la))
+
+
+def cie_gradation(cos_zenith: np.ndarray) -> np.ndarray:
+    """CIE clear-sky gradation ``phi(Z) / phi(0)`` (module docstring); brighter towards the horizon."""
+    cz = np.maximum(cos_zenith, 1e-3)
+    return np.asarray((1.0 + CIE_CLEAR_A * np.exp(CIE_CLEAR_B / cz)) / (1.0 + CIE_CLEAR_A * math.exp(CIE_CLEAR_B)))
 
 
 def rayleigh_dop(cos_gamma: np.ndarray, p_max: float) -> np.ndarray:
@@ -129,18 +174,25 @@ class SkyModel:
 
     Parameters
     ----------
-    model : ``"rayleigh"`` or ``"berry"``.
-    p_max : maximum DOP (0..1).
+    model : ``"realistic"``, ``"rayleigh"`` or ``"berry"``.
+    p_max : maximum DOP (0..1) of the rayleigh and berry models (the realistic sky derives it from ``turbidity``).
     neutral_point_sep : Berry's Babinet-Brewster separation ``2 delta``, rad.
+    turbidity : realistic sky: Preetham's turbidity ``T`` (1 = molecules only, 2 very clear, 3 clear, 6+ hazy).
+    aerosol_g : realistic sky: Henyey-Greenstein asymmetry of the aerosol.
     clouds, occluders : regions.
     """
 
     def __init__(self, model: str = "rayleigh", p_max: float = 0.7, neutral_point_sep: float = 20.0 * DEG,
-                 clouds: list[Cloud] | None = None, occluders: list[Occluder] | None = None) -> None:
-        if model not in ("rayleigh", "berry"):
-            raise ValueError(f"sky model must be rayleigh or berry, got {model!r}")
+                 clouds: list[Cloud] | None = None, occluders: list[Occluder] | None = None,
+                 turbidity: float = 3.0, aerosol_g: float = 0.7) -> None:
+        if model not in SKY_MODELS:
+            raise ValueError(f"sky model must be one of {', '.join(SKY_MODELS)}, got {model!r}")
+        if not 1.0 <= turbidity <= 20.0 or not 0.0 <= aerosol_g < 1.0:
+            raise ValueError(f"turbidity must be in [1, 20] and aerosol_g in [0, 1), got {turbidity}, {aerosol_g}")
         self.model = model
-        self.p_max = float(p_max)
+        self.p_max = float(p_max) if model != "realistic" else P_MOLECULAR
+        self.turbidity = float(turbidity)
+        self.aerosol_g = float(aerosol_g)
         self.delta = 0.5 * float(neutral_point_sep)
         self.clouds = clouds or []
         self.occluders = occluders or []
@@ -160,7 +212,10 @@ class SkyModel:
         """
         dt = vx.dtype
         sx, sy, sz = (dt.type(s_f[0]), dt.type(s_f[1]), dt.type(s_f[2]))
-        if self.model == "rayleigh":
+        sun_up = float(np.asarray(c_nf[:, 2], dtype=np.float64) @ np.asarray(s_f, dtype=np.float64))
+        if self.model == "rayleigh" or (self.model == "realistic" and sun_up > 1.0 - 1e-12):
+            # (a realistic sky with the sun at the zenith: the neutral points have merged into the sun and
+            # the antisun, leaving the symmetric pattern)
             ex = sy * vz - sz * vy
             ey = sz * vx - sx * vz
             ez = sx * vy - sy * vx
@@ -168,6 +223,17 @@ class SkyModel:
             dop = rayleigh_dop(cg, dt.type(self.p_max))
         else:
             dop, ex, ey, ez = self._berry(s_f, vx, vy, vz, c_nf)
+        radiance = np.ones_like(vx)
+        up = c_nf[:, 2]
+        vu = up[0] * vx + up[1] * vy + up[2] * vz
+        if self.model == "realistic":
+            cg64 = np.clip((sx * vx + sy * vy + sz * vz).astype(np.float64), -1.0, 1.0)
+            frac = aerosol_fraction(cg64, self.turbidity, self.aerosol_g)
+            dop = (dop * (1.0 - frac)).astype(dt)
+            lum = (_rayleigh_phase(cg64) + (self.turbidity - 1.0) * _hg_phase(cg64, self.aerosol_g))
+            ref = float(_rayleigh_phase(np.zeros(1))[0]
+                        + (self.turbidity - 1.0) * _hg_phase(np.zeros(1), self.aerosol_g)[0])
+            radiance = (lum / ref * cie_gradation(vu.astype(np.float64))).astype(dt)
         n = np.sqrt(ex * ex + ey * ey + ez * ez)
         tiny = n < 1e-12
         if np.any(tiny):  # looking straight at the sun or anti-sun: unpolarized, any E ⟂ V
@@ -179,9 +245,6 @@ class SkyModel:
             dop = np.where(tiny, 0.0, dop).astype(dt)
         inv = (1.0 / n).astype(dt)
         ex, ey, ez = ex * inv, ey * inv, ez * inv
-        radiance = np.ones_like(vx)
-        up = c_nf[:, 2]
-        vu = up[0] * vx + up[1] * vy + up[2] * vz
         ground = vu < 0.0
         if np.any(ground):
             dop = np.where(ground, 0.0, dop).astype(dt)
@@ -250,8 +313,13 @@ class SkyModel:
         th_s = 2.0 * math.atan(abs(zs))  # sun zenith angle
         phi_s = math.atan2(zs.imag, zs.real)
         ph = complex(math.cos(phi_s), math.sin(phi_s))
-        zB = ph * math.tan((th_s + self.delta) / 2.0)  # Brewster: below the sun
-        zb = ph * math.tan((th_s - self.delta) / 2.0)  # Babinet: above the sun
+        delta = self.delta
+        if self.model == "realistic" and th_s < delta:
+            # sun near the zenith: the sun's vertical loses its meaning and, by symmetry, the Babinet and Brewster
+            # points close in on the sun (and Arago on the antisun): the pattern tends to the symmetric one
+            delta = 0.5 * th_s
+        zB = ph * math.tan((th_s + delta) / 2.0)  # Brewster: below the sun
+        zb = ph * math.tan((th_s - delta) / 2.0)  # Babinet: above the sun
         aB = -1.0 / np.conj(zB)
         ab = -1.0 / np.conj(zb) if zb != 0 else complex(1e300, 0.0)
         w = (-4.0 * (zeta - zB) * (zeta - zb) * (zeta - aB) * (zeta - ab)
@@ -328,4 +396,8 @@ def sky_from_spec(spec: object | None, rng: np.random.Generator | None = None) -
                             rng.uniform(0, 2 * math.pi, k)))
     occ = [Occluder(o.az_min_deg * DEG, o.az_max_deg * DEG, o.el_max_deg * DEG, o.intensity_scale)
            for o in spec.occluders]  # type: ignore[attr-defined]
-    return SkyModel(spec.model, spec.p_max, spec.neutral_point_sep_deg * DEG, clouds, occ)  # type: ignore[attr-defined]
+    sep = spec.neutral_point_sep_deg  # type: ignore[attr-defined]
+    if sep is None:
+        sep = 40.0 if spec.model == "realistic" else 20.0  # type: ignore[attr-defined]
+    return SkyModel(spec.model, spec.p_max, sep * DEG, clouds, occ,  # type: ignore[attr-defined]
+                    turbidity=spec.turbidity, aerosol_g=spec.aerosol_g)  # type: ignore[attr-defined]

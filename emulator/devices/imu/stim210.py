@@ -22,7 +22,15 @@ from .error_model import DEG, GyroErrors, ImuTemperature, gyro_error_model
 from .injected import InjectedFaults
 from .lookahead import Ahead, ImuTruthTap, measure_ahead
 
-__all__ = ["Stim210Gyro"]
+__all__ = ["LP_FILTER_SETTINGS_HZ", "Stim210Gyro", "group_delay_s"]
+
+#: The STIM210's selectable low-pass filter -3 dB frequencies, Hz (datasheet; 0 here means no filter).
+LP_FILTER_SETTINGS_HZ = (16.0, 33.0, 66.0, 131.0, 262.0)
+
+
+def group_delay_s(f_c_hz: float) -> float:
+    """Group delay at DC of a 2nd-order Butterworth low-pass with -3 dB frequency ``f_c_hz``: sqrt(2)/(2 pi f_c)."""
+    return 0.0 if f_c_hz <= 0 else math.sqrt(2.0) / (2.0 * math.pi * f_c_hz)
 
 
 class Stim210Gyro:
@@ -36,7 +44,12 @@ class Stim210Gyro:
     fmt : datagram format letter (default ``"m"``: rate, counter, latency).
     output : ``"rate"`` (average angular rate) or ``"angle"`` (incremental angle).
     response_delay_s : trigger edge to start of transmission (<= 86 us, TS1524 5.3).
-    latency_us : value reported in the latency field.
+    latency_us : value reported in the latency field; None: from the low-pass setting (below).
+    lp_filter_hz : the STIM210's low-pass filter setting, -3 dB frequency (16, 33, 66, 131 or 262 Hz; 0 = none).
+        The filtered output lags the motion by the filter's group delay, modelled as that of a 2nd-order
+        Butterworth low-pass at DC, ``sqrt(2) / (2 pi f_c)`` (0.86 ms at 262 Hz, 14 ms at 16 Hz; docs/sensors.md):
+        each datagram carries the mean rate over the trigger interval shifted back by that delay, and its
+        latency field reports the delay plus the response delay (sampling to start of transmission).
     temperature : temperature profile (reported in formats with temperature words).
     source : recorded data (:mod:`emulator.devices.recorded`): ``f(t0, t1) -> mean rate (3,) rad/s``
         replaces truth and error model.
@@ -44,8 +57,9 @@ class Stim210Gyro:
 
     def __init__(self, link: Link, tap: ImuTruthTap, rng: np.random.Generator, errors: GyroErrors | None = None,
                  fmt: str = "m", output: str = "rate", response_delay_s: float = 40e-6,
-                 trigger_rate_hz: float = 200.0, latency_us: int = 0, temperature: ImuTemperature | None = None,
-                 source: Callable[[float, float], Any] | None = None) -> None:
+                 trigger_rate_hz: float = 200.0, latency_us: int | None = None,
+                 temperature: ImuTemperature | None = None, source: Callable[[float, float], Any] | None = None,
+                 lp_filter_hz: float = 0.0) -> None:
         self.link = link
         self.tap = tap
         self.rng = rng
@@ -54,7 +68,9 @@ class Stim210Gyro:
         self.format = Stim210Format(fmt)
         self.output = output
         self.response_delay_s = response_delay_s
-        self.latency_us = latency_us
+        self.group_delay_s = group_delay_s(lp_filter_hz)
+        self.latency_us = (latency_us if latency_us is not None
+                           else round((self.group_delay_s + response_delay_s) * 1e6) if lp_filter_hz > 0 else 0)
         self.temperature = temperature or ImuTemperature()
         self.source = source
         self.counter = 0
@@ -98,9 +114,12 @@ class Stim210Gyro:
 
     def trigger(self, t: float, t_prev: float) -> None:
         """External-trigger falling edge at ``t`` (scenario s); interval started at ``t_prev``."""
-        dt = t - t_prev
         temp = self.temperature
         t_c = temp.at(t)
+        t_edge = t
+        if self.group_delay_s > 0.0:  # the filtered output describes the motion one group delay ago
+            t, t_prev = max(t - self.group_delay_s, 1e-9), max(t_prev - self.group_delay_s, 0.0)
+        dt = t - t_prev
         if self.source is not None:
             rec = self.source(t_prev, t)
             if rec is None:  # outside the record: silent (the FPGA flags the missing datagram)
@@ -111,7 +130,7 @@ class Stim210Gyro:
             j = ahead.take(t, t_prev, self.model, dt) if ahead is not None else -1
             if j >= 0 and not self.faults.active:  # the common case: all done in the look-ahead pass
                 gw, self.last_measured = ahead.post[j]  # type: ignore[union-attr]
-                self._transmit(t, t_c, gw)
+                self._transmit(t_edge, t_c, gw)
                 return
             if j >= 0:
                 rate = ahead.raw[j]  # type: ignore[union-attr]
@@ -133,7 +152,7 @@ class Stim210Gyro:
         else:
             words = np.round(rate * dt / (GYRO_ANGLE_LSB_DEG * DEG))
         words = np.clip(words, -0x800000, 0x7FFFFF).astype(np.int64)
-        self._transmit(t, t_c, (int(words[0]), int(words[1]), int(words[2])))
+        self._transmit(t_edge, t_c, (int(words[0]), int(words[1]), int(words[2])))
 
     def _words(self, ahead: Ahead) -> list[tuple[tuple[int, int, int], np.ndarray]]:
         """The look-ahead rows as the fault-free path of :meth:`trigger` turns them into words."""

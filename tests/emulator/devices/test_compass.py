@@ -42,10 +42,15 @@ def test_default_geometry():
         assert y[2] > 0 and abs(y @ z) < 1e-15 and abs(m[k][2, 0]) < 1e-15  # y up the hemisphere, x level
 
 
-def test_geometry_is_the_firmware_definition():
+def test_installed_geometry_matches_the_firmware_nominal_layout():
+    """The world's declaration and the firmware's nominal copy are written separately; they describe one layout."""
+    from emulator.devices.compass import mountings_from_directions
     from firmware_model import psns_geometry as geo
+    from firmware_model.variants.common import compass_mountings
 
     assert np.allclose(geo.compass_unit_mountings(), _own_mountings(), atol=1e-15)
+    dirs = [(0.0, 30.0), (60.0, 0.0), (60.0, 120.0), (30.0, 250.0)]
+    assert np.allclose(compass_mountings(dirs), mountings_from_directions(dirs), atol=1e-15)
 
 
 def test_noise_free_units_invert_exactly():

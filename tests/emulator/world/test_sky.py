@@ -83,7 +83,7 @@ def test_berry_neutral_points_sit_on_the_sun_vertical():
 
 
 def test_clouds_lower_dop_and_scramble_aop():
-    spec = SkySpec(clouds=[{"az_deg": 0.0, "el_deg": 60.0, "radius_deg": 15.0, "dop_scale": 0.25,
+    spec = SkySpec(model="rayleigh", clouds=[{"az_deg": 0.0, "el_deg": 60.0, "radius_deg": 15.0, "dop_scale": 0.25,
                             "aop_sigma_deg": 20.0}])
     sky = sky_from_spec(spec, np.random.default_rng(5))
     clear = SkyModel()
@@ -103,13 +103,13 @@ def test_clouds_lower_dop_and_scramble_aop():
     again = sky.evaluate_enu(10.0, S_BEIJING, v)
     assert np.array_equal(again.ex, fc.ex)
     # the time window
-    spec2 = SkySpec(clouds=[{"az_deg": 0.0, "el_deg": 60.0, "radius_deg": 15.0, "start_s": 100.0}])
+    spec2 = SkySpec(model="rayleigh", clouds=[{"az_deg": 0.0, "el_deg": 60.0, "radius_deg": 15.0, "start_s": 100.0}])
     f_before = sky_from_spec(spec2).evaluate_enu(10.0, S_BEIJING, v)
     assert np.allclose(f_before.dop, f0.dop)
 
 
 def test_occluders_and_ground_are_unpolarized():
-    spec = SkySpec(occluders=[{"az_min_deg": 350.0, "az_max_deg": 20.0, "el_max_deg": 30.0}])
+    spec = SkySpec(model="rayleigh", occluders=[{"az_min_deg": 350.0, "az_max_deg": 20.0, "el_max_deg": 30.0}])
     sky = sky_from_spec(spec)
     def enu(az_deg: float, el_deg: float) -> list[float]:
         az, el = az_deg * DEG, el_deg * DEG
@@ -135,3 +135,65 @@ def test_any_frame_gives_the_rotated_field():
         assert np.allclose(fn.dop, fb.dop, atol=1e-12)
         e_back = e_of(fb) @ c_bn.T
         assert np.max(np.abs(np.abs(np.sum(e_back * e_of(fn), axis=1)) - 1)) < 1e-9
+
+
+def _vertical_rays(sun_el_deg, n=721):
+    """Rays along the sun's vertical (az 0 side = the sun), elevation -0..180 through the zenith."""
+    a = np.linspace(0.5, 179.5, n) * DEG  # angle from the horizon below the sun, over the zenith
+    return np.stack([np.zeros(n), np.cos(a), np.sin(a)], axis=1), a
+
+
+def test_realistic_sky_max_dop_falls_with_turbidity():
+    """Aerosol (unpolarized, Henyey-Greenstein) dilutes the molecular DOP: ~0.7 at T=2, ~0.55 at T=3, ~0.4 at T=5
+    (clear skies rarely exceed 0.75: Zhang et al. 2021; hazy skies fall to ~0.3-0.4)."""
+    s = np.array([0.0, math.cos(40 * DEG), math.sin(40 * DEG)])
+    v = upper_rays(20000)
+    top = [float(SkyModel("realistic", turbidity=t).evaluate_enu(0, s, v).dop.max()) for t in (1.0, 2.0, 3.0, 5.0)]
+    assert top[0] == pytest.approx(0.946, abs=0.005)  # molecules only: the depolarization factor of air
+    assert top[0] > top[1] > top[2] > top[3]
+    assert 0.62 < top[1] < 0.75 and 0.5 < top[2] < 0.62 and 0.33 < top[3] < 0.46
+
+
+def test_realistic_sky_has_neutral_points_and_an_unpolarized_aureole():
+    sky = SkyModel("realistic", neutral_point_sep=40 * DEG, turbidity=3.0)
+    # Babinet 20 deg above the sun, Brewster 20 deg below it, Arago 20 deg above the antisun (visible when the sun
+    # is lower than 20 deg); angles along the sun's vertical from the horizon under the sun, over the zenith
+    for s_el, centres in ((35.0, (55.0, 15.0)), (10.0, (30.0, 170.0))):
+        s = np.array([0.0, math.cos(s_el * DEG), math.sin(s_el * DEG)])
+        v, a = _vertical_rays(s_el)
+        f = sky.evaluate_enu(0, s, v)
+        ang = np.degrees(a)
+        for centre in centres:
+            win = np.abs(ang - centre) < 3.0
+            assert f.dop[win].min() < 0.01, (s_el, centre)
+        far = np.abs(ang - 90.0 - s_el) < 20.0  # the DOP maximum, 90 deg from the sun, stays polarized
+        assert f.dop[far].max() > 0.4
+    # the aureole: within 10 deg of the sun the sky is brighter than anywhere 60+ deg away and nearly unpolarized
+    s = np.array([0.0, math.cos(35 * DEG), math.sin(35 * DEG)])
+    v = upper_rays(20000)
+    f = sky.evaluate_enu(0, s, v)
+    gam = np.degrees(np.arccos(np.clip(v @ s, -1, 1)))
+    assert f.radiance[gam < 10].min() > 3.0 * np.median(f.radiance[gam > 60])
+    assert f.dop[gam < 10].max() < 0.1
+
+
+def test_realistic_sky_with_the_sun_at_the_zenith_is_finite_and_symmetric():
+    s = np.array([0.0, 0.0, 1.0])
+    v = upper_rays(4000)
+    f = SkyModel("realistic").evaluate_enu(0, s, v)
+    for x in (f.dop, f.ex, f.ey, f.ez, f.radiance):
+        assert np.all(np.isfinite(x))
+    e = e_of(f)
+    assert np.allclose(np.einsum("ij,ij->i", e, v), 0.0, atol=1e-9)
+    # E-vectors are tangent to circles round the zenith (perpendicular to the sun and the ray)
+    horiz = v[:, 2] < 0.9
+    assert np.allclose(e[horiz, 2], 0.0, atol=1e-6)
+
+
+def test_realistic_is_the_scenario_default_and_validates_its_range():
+    from pydantic import ValidationError
+
+    assert SkySpec().model == "realistic"
+    assert sky_from_spec(SkySpec()).delta == pytest.approx(20.0 * DEG)
+    with pytest.raises(ValidationError):
+        SkySpec(turbidity=0.5)

@@ -16,7 +16,6 @@ clear message per problem, no traceback.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -50,6 +49,13 @@ def _print_error(exc: PsnsHilError) -> None:
         err.print(f"[bold red]error:[/] {exc}", markup=True, soft_wrap=True)
 
 
+def strict_json(obj: Any) -> str:
+    """Strict JSON (NaN as null, flagged): :func:`emulator.recording.formatting.strict_json`."""
+    from ..recording.formatting import strict_json as _strict
+
+    return _strict(obj)
+
+
 def _fmt(v: Any, digits: int = 3) -> str:
     if v is None:
         return "-"
@@ -58,12 +64,12 @@ def _fmt(v: Any, digits: int = 3) -> str:
     return str(v)
 
 
-def print_port_map(ports: list[dict[str, Any]]) -> None:
-    """One plain line per port (never wrapped: users copy the pty paths from here)."""
+def print_port_map(ports: list[dict[str, Any]], out: Any = None) -> None:
+    """One plain line per port (never wrapped: users copy the pty paths from here); on ``out`` (stdout)."""
     rows = [("port", "role", "baud", "mode", "endpoint")]
     rows += [(p["name"], p["role"], str(p["baud"]), p["mode"], p["path"]) for p in ports]
     w = [max(len(r[i]) for r in rows) for i in range(4)]
-    out = sys.stdout
+    out = out if out is not None else sys.stdout
     out.write("ports:\n")
     for r in rows:
         out.write("  " + "  ".join(r[i].ljust(w[i]) for i in range(4)) + "  " + r[4] + "\n")
@@ -176,7 +182,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             raise EmulatorError("--split runs the DSP in another process on the wall clock: it cannot be --fast")
         mode = "realtime"
     run_dir = Path(args.out) if args.out else default_run_dir(scn.name)
-    console = _console()
+    console = _console(stderr=args.json)  # --json: stdout carries the one JSON document, nothing else
     speed = args.speed if args.speed is not None else scn.speed
     console.print(f"psns-hil {__version__}: running {args.scenario} ({scn.duration_s:g} s, {mode}"
                   + (f" x{speed:g}" if mode == "realtime" else "") + f") -> {run_dir}")
@@ -206,7 +212,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     def on_started(emu: Any) -> None:
         state["emu"] = emu
-        print_port_map(emu.ports)
+        print_port_map(emu.ports, sys.stderr if args.json else None)
 
     with progress:
         if getattr(args, "split", False):
@@ -216,7 +222,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
                                 on_started=on_started)
         else:
             summary = run_scenario(scn, run_dir, mode=mode, speed=speed, seed=args.seed,
-                                   progress=on_progress, on_started=on_started)
+                                   progress=on_progress, on_started=on_started, force=args.force)
     if realtime and tty and not args.quiet:
         err.write("\n")
     report = None
@@ -225,7 +231,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
         report = write_report(run_dir)
     if args.json:
-        print(json.dumps(summary, indent=2))
+        print(strict_json(summary))
     else:
         print_summary(summary)
         if report is not None:
@@ -273,11 +279,11 @@ def _cmd_replay(args: argparse.Namespace) -> int:
         raise RecordingError(f"{cap}: no such capture file")
     run_dir = Path(args.out) if args.out else default_run_dir(cap.parent.name + "-replay")
     mode = "realtime" if args.realtime else "fast"
-    console = _console()
+    console = _console(stderr=args.json)
     console.print(f"psns-hil {__version__}: replaying {cap} ({mode}) -> {run_dir}")
-    summary = run_replay(cap, run_dir, mode=mode, speed=args.speed or 1.0)
+    summary = run_replay(cap, run_dir, mode=mode, speed=args.speed or 1.0, force=args.force)
     if args.json:
-        print(json.dumps(summary, indent=2))
+        print(strict_json(summary))
     else:
         print_summary(summary)
         console.print(f"replayed {summary['replay']['records']} captured DSP UART records")
@@ -298,7 +304,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     r = sub.add_parser("run", help="run a scenario")
     r.add_argument("scenario", help="scenario YAML file")
-    r.add_argument("--out", help="run directory (default runs/<scenario>-<UTC time>)")
+    r.add_argument("--out", help="run directory (default runs/<scenario>-<UTC time>); a new or empty directory")
+    r.add_argument("--force", action="store_true",
+                   help="replace a finished run in --out (its contents are removed first)")
     m = r.add_mutually_exclusive_group()
     m.add_argument("--realtime", action="store_true",
                    help="follow the wall clock (default: the scenario's mode; realtime when a port is pty/serial)")
@@ -307,7 +315,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--status", type=float, default=None, metavar="S",
                    help="realtime status line every S simulated seconds (default 1 on a terminal, 5 otherwise; 0 off)")
     r.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
-    r.add_argument("--json", action="store_true", help="print the summary as JSON")
+    r.add_argument("--json", action="store_true",
+                   help="print the summary as one strict JSON document on stdout (everything else on stderr)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.add_argument("--no-report", action="store_true", help="do not write report.html at the end")
     r.add_argument("--split", action="store_true",
@@ -343,6 +352,8 @@ def build_parser() -> argparse.ArgumentParser:
     rp = sub.add_parser("replay", help="re-run the firmware on a capture's DSP UART input")
     rp.add_argument("capture", help="capture.psnscap of an earlier run")
     rp.add_argument("--out", help="run directory (default runs/<capture dir>-replay-<UTC time>)")
+    rp.add_argument("--force", action="store_true",
+                    help="replace a finished run in --out (its contents are removed first)")
     rp.add_argument("--realtime", action="store_true", help="replay in real time (default: fast)")
     rp.add_argument("--speed", type=float, default=None, help="real-time scale factor")
     rp.add_argument("--compare", metavar="RUN_DIR",

@@ -18,6 +18,7 @@ from typing import IO, Any
 
 from ..errors import RecordingError
 from .formatting import json_default
+from .rundir import open_no_follow
 
 __all__ = [
     "CAPTURE_MAGIC",
@@ -55,7 +56,7 @@ class CaptureWriter:
     """
 
     def __init__(self, path: Path, header: dict[str, Any], links: list[str]) -> None:
-        self.file: IO[bytes] = open(path, "wb")  # noqa: SIM115 - open for the run, closed by close()
+        self.file: IO[bytes] = open_no_follow(path, "wb")  # open for the run, closed by close()
         hdr = dict(header)
         hdr["version"] = CAPTURE_VERSION
         hdr["links"] = list(links)

@@ -42,14 +42,14 @@ def load_replay(capture: str | Path) -> tuple[Any, list[Any], dict[str, Any]]:
 
 def run_replay(capture: str | Path, run_dir: str | Path, mode: str = "fast", speed: float = 1.0,
                on_started: Callable[[Any], None] | None = None,
-               progress: Callable[[float, float], None] | None = None) -> dict[str, Any]:
+               progress: Callable[[float, float], None] | None = None, force: bool = False) -> dict[str, Any]:
     """Replay ``capture`` into a fresh DSP/firmware; returns the run summary."""
     from ..assembly.runner import Emulator, run_emulator
 
     scn, records, header = load_replay(capture)
     emu = Emulator(scn, Path(run_dir), mode=mode, seed=header.get("seed"), progress=progress, replay=records)
     emu.replay_source = str(capture)
-    return run_emulator(emu, speed, on_started)
+    return run_emulator(emu, speed, on_started, force=force)
 
 
 def same_file(a: str | Path, b: str | Path) -> bool:

@@ -9,6 +9,7 @@ exception's message; it never stops the evaluation of the other checks.
 from __future__ import annotations
 
 import copy
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -218,4 +219,14 @@ def evaluate_expectations(expectations: list[Expectation], recorder: Any, summar
                                              f"the hook raised {type(exc).__name__}: {exc}"))
                 continue
             out.append(ExpectationResult(i, kind, desc, _plain(v), ok, msg))
-    return out
+    return [_not_a_number(r) for r in out]
+
+
+def _not_a_number(r: ExpectationResult) -> ExpectationResult:
+    """A NaN / infinite value never passes: no bound holds for it, and the reason says so."""
+    v = r.value
+    if isinstance(v, float) and not math.isfinite(v):
+        why = f"the value is {v!r} (not a finite number: a metric went NaN or infinite in the run)"
+        return ExpectationResult(r.index, r.kind, r.description, v, False, f"{why}; {r.message}" if r.message
+                                 else why)
+    return r

@@ -136,8 +136,11 @@ def _issue_from_error(err: dict[str, Any], marks: dict[Loc, tuple[int, int]], fi
 
 
 def validate_scenario_data(data: Any, marks: dict[Loc, tuple[int, int]], file: str = "<scenario>",
-                           base_dir: Path | None = None) -> Scenario:
-    """Validate parsed YAML against the schema; raise :class:`ScenarioError` with every issue."""
+                           base_dir: Path | None = None, check_environment: bool = True) -> Scenario:
+    """Validate parsed YAML against the schema; raise :class:`ScenarioError` with every issue.
+
+    ``check_environment``: also check what the run needs from this machine (referenced files, serial
+    devices); a replay, which uses neither, turns it off."""
     if not isinstance(data, dict):
         raise ScenarioError(ScenarioIssue(file, 1, 1, "", "a scenario must be a mapping of keys to values"))
     try:
@@ -148,7 +151,7 @@ def validate_scenario_data(data: Any, marks: dict[Loc, tuple[int, int]], file: s
         raise ScenarioError(issues) from None
     scn._source_file = file
     scn._base_dir = str(base_dir) if base_dir is not None else None
-    problems = cross_check(scn)
+    problems = cross_check(scn, environment=check_environment)
     if problems:
         issues = []
         for loc, msg in problems:

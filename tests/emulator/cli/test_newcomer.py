@@ -83,3 +83,49 @@ def test_strict_json_nan_as_null_with_flag():
     doc = json.loads(strict_json({"a": {"max": float("nan"), "rms": 1.0}, "b": [float("inf")]}))
     assert doc["a"]["max"] is None and doc["a"]["rms"] == 1.0 and doc["b"] == [None]
     assert doc["non_finite"] == ["a.max", "b[0]"]
+
+
+def _with(tmp_path, changes: dict, name="s2.yaml"):
+    import yaml
+
+    data = yaml.safe_load(open(_scenario(tmp_path)).read())
+    for dotted, value in changes.items():
+        *head, last = dotted.split(".")
+        node = data
+        for k in head:
+            node = node.setdefault(k, {})
+        node[last] = value
+    p = tmp_path / name
+    p.write_text(yaml.safe_dump(data))
+    return str(p)
+
+
+def test_validate_catches_a_camera_without_its_link(tmp_path):
+    p = _with(tmp_path, {"sensors.camera": {"preset": "reference"}})
+    r = psns_hil("validate", p)
+    assert r.returncode == 2 and "links.psns" in r.stderr and "sensors.camera" in r.stderr
+
+
+def test_validate_catches_missing_files_devices_and_shared_ptys(tmp_path):
+    p = _with(tmp_path, {"sensors.gnss.recorded": {"file": "nosuch.csv"}, "links.host": {"url": "pty://same"},
+                        "links.gnss": {"url": "pty://same"}, "links.gyro": {"url": "serial:///dev/ttyNOSUCH0"}})
+    out = tmp_path / "run"
+    r = psns_hil("run", p, "--out", str(out), "--quiet")
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert "no such file" in r.stderr and "nosuch.csv" in r.stderr
+    assert "no such serial device: /dev/ttyNOSUCH0" in r.stderr
+    assert "same pty name 'same'" in r.stderr
+    assert not out.exists()  # a bad-input exit leaves no run directory
+
+
+def test_a_run_that_fails_to_start_leaves_no_run_directory(tmp_path):
+    import pytest
+
+    from emulator.errors import EmulatorError
+    from emulator.recording.rundir import claim_run_dir
+
+    out = tmp_path / "a" / "run"
+    with pytest.raises(EmulatorError), claim_run_dir(out):
+        (out / "nav.csv").write_text("partial")
+        raise EmulatorError("bad port")
+    assert not out.exists()

@@ -170,15 +170,19 @@ def _cmd_validate(args: argparse.Namespace) -> int:
 def _cmd_run(args: argparse.Namespace) -> int:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from ..assembly.runner import default_run_dir, resolve_mode, run_scenario
+    from ..assembly.runner import default_run_dir, real_time_ports, resolve_mode, run_scenario
+    from ..errors import EmulatorError
     from ..scenario import load_scenario
 
     scn = load_scenario(args.scenario)
     mode = resolve_mode(scn, "realtime" if args.realtime else "fast" if args.fast else None)
+    real = real_time_ports(scn)
+    if mode == "fast" and real and not args.fast and not getattr(args, "split", False):
+        raise EmulatorError(f"{args.scenario}: mode fast with a real peer on {', '.join(real)}: in virtual time a "
+                            "tool on that port would see frames far faster than the line's rate; pass --realtime "
+                            "(what a peer expects) or --fast to run in virtual time anyway")
     if getattr(args, "split", False):
         if args.fast:
-            from ..errors import EmulatorError
-
             raise EmulatorError("--split runs the DSP in another process on the wall clock: it cannot be --fast")
         mode = "realtime"
     run_dir = Path(args.out) if args.out else default_run_dir(scn.name)

@@ -129,3 +129,12 @@ def test_a_run_that_fails_to_start_leaves_no_run_directory(tmp_path):
         (out / "nav.csv").write_text("partial")
         raise EmulatorError("bad port")
     assert not out.exists()
+
+
+def test_a_pty_port_in_fast_mode_needs_an_explicit_fast(tmp_path):
+    p = _with(tmp_path, {"links.host": {"url": "pty://uart0"}})  # the file says mode: fast
+    r = psns_hil("run", p, "--out", str(tmp_path / "run"), "--quiet")
+    assert r.returncode == 2 and "links.host (pty://uart0)" in r.stderr
+    assert "--realtime" in r.stderr and "--fast" in r.stderr and not (tmp_path / "run").exists()
+    r = psns_hil("run", p, "--out", str(tmp_path / "run"), "--quiet", "--fast", "--no-report")
+    assert r.returncode == 0, r.stderr

@@ -38,15 +38,22 @@ def _console(stderr: bool = False) -> Any:
     return c
 
 
+def escape_markup(text: Any) -> str:
+    """``text`` safe to print through rich with markup on (a scenario key ``[/]`` is text, not a closing tag)."""
+    from rich.markup import escape
+
+    return escape(str(text))
+
+
 def _print_error(exc: PsnsHilError) -> None:
     from ..errors import ScenarioError
 
     err = _console(stderr=True)
     if isinstance(exc, ScenarioError):
         for issue in exc.issues:
-            err.print(f"[bold red]error:[/] {issue}", markup=True, soft_wrap=True)
+            err.print(f"[bold red]error:[/] {escape_markup(issue)}", markup=True, soft_wrap=True)
     else:
-        err.print(f"[bold red]error:[/] {exc}", markup=True, soft_wrap=True)
+        err.print(f"[bold red]error:[/] {escape_markup(exc)}", markup=True, soft_wrap=True)
 
 
 def strict_json(obj: Any) -> str:
@@ -145,9 +152,10 @@ def print_summary(s: dict[str, Any]) -> None:
         for col in ("#", "check", "value", "result"):
             ex.add_column(col)
         for r in s["expectations"]:
-            note = f" ({r['message']})" if r.get("message") and not r["passed"] else ""
-            ex.add_row(str(r["index"]), r["description"] + note, _fmt(r["value"]),
-                       "[green]pass[/]" if r["passed"] else "[bold red]FAIL[/]")
+            na = r.get("applicable") is False
+            note = f" ({r['message']})" if r.get("message") and (na or not r["passed"]) else ""
+            ex.add_row(str(r["index"]), escape_markup(r["description"] + note), escape_markup(_fmt(r["value"])),
+                       "[dim]n/a[/]" if na else "[green]pass[/]" if r["passed"] else "[bold red]FAIL[/]")
         c.print(ex)
     if s.get("valid") is False:
         for f in s.get("faults", []):
@@ -274,7 +282,7 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
 
 def _cmd_replay(args: argparse.Namespace) -> int:
     from ..assembly.runner import default_run_dir
-    from ..recording.replay import run_replay, same_file
+    from ..recording.replay import run_replay
 
     cap = Path(args.capture)
     if not cap.exists():
@@ -292,10 +300,27 @@ def _cmd_replay(args: argparse.Namespace) -> int:
         print_summary(summary)
         console.print(f"replayed {summary['replay']['records']} captured DSP UART records")
     original = Path(args.compare) if args.compare else cap.parent
+    rep = summary.get("replay") or {}
+    if rep.get("truncated"):
+        console.print(f"[yellow]the capture is truncated: it holds {rep['captured_s']:.3f} s of the scenario's "
+                      f"{rep['scenario_duration_s']:g} s; replayed that much[/]")
+    na = [r for r in summary.get("expectations", []) if r.get("applicable") is False]
+    if na:
+        console.print(f"{len(na)} expectation(s) not applicable to a replay (not counted)")
     rc = EXIT_OK if summary.get("passed", True) else EXIT_FAILED
     if (original / "nav.csv").exists():
-        same = same_file(original / "nav.csv", run_dir / "nav.csv")
-        console.print(f"nav.csv identical to {original / 'nav.csv'}: {'yes' if same else '[bold red]no[/]'}")
+        from ..recording.replay import compare_nav
+
+        cmp = compare_nav(original / "nav.csv", run_dir / "nav.csv")
+        same = bool(cmp["identical"])
+        detail = ""
+        if not same:
+            ra, rb = cmp["rows"]
+            detail = (" (only the arrival times differ: the solutions are identical)" if cmp["only_arrival"] else
+                      f" (differing columns: {', '.join(cmp['differing_columns']) or 'none'}"
+                      + (f"; rows {ra} vs {rb}" if ra != rb else "") + ")")
+        console.print(f"nav.csv identical to {original / 'nav.csv'}: {'yes' if same else '[bold red]no[/]'}"
+                      + escape_markup(detail))
         if args.compare and not same:
             rc = EXIT_FAILED
     return rc

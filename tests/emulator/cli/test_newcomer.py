@@ -138,3 +138,49 @@ def test_a_pty_port_in_fast_mode_needs_an_explicit_fast(tmp_path):
     assert "--realtime" in r.stderr and "--fast" in r.stderr and not (tmp_path / "run").exists()
     r = psns_hil("run", p, "--out", str(tmp_path / "run"), "--quiet", "--fast", "--no-report")
     assert r.returncode == 0, r.stderr
+
+
+def test_replay_marks_sensor_link_expectations_not_applicable_and_reports_truncation(tmp_path):
+    p = short_quickstart(tmp_path, "expectations:\n  - link: {name: gnss, counter: crc_errors, max: 0}\n"
+                                   "  - link: {name: uart1, counter: crc_errors, max: 0}\n")
+    run = tmp_path / "run"
+    assert psns_hil("run", p, "--out", str(run), "--quiet", "--no-report").returncode == 0
+    r = psns_hil("replay", str(run / "capture.psnscap"), "--out", str(tmp_path / "rp"))
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "not applicable" in r.stdout and ": yes" in r.stdout
+    s = json.loads((tmp_path / "rp" / "summary.json").read_text())
+    assert [e["applicable"] for e in s["expectations"]] == [False, True] and s["passed"] is True
+    assert s["replay"]["truncated"] is False
+    # cut the capture at ~60 %: detected, replayed for what it holds
+    cap = run / "capture.psnscap"
+    data = cap.read_bytes()
+    cut = tmp_path / "cut" / "capture.psnscap"
+    cut.parent.mkdir()
+    cut.write_bytes(data[: int(len(data) * 0.6)])
+    r = psns_hil("replay", str(cut), "--out", str(tmp_path / "rp2"), "--compare", str(run))
+    assert "truncated" in r.stdout and r.returncode == 1
+    s = json.loads((tmp_path / "rp2" / "summary.json").read_text())
+    assert s["replay"]["truncated"] is True and s["replay"]["captured_s"] < 3.5
+    assert s["sim_duration_s"] < 3.5
+    assert "differing columns" in r.stdout or "rows" in r.stdout
+
+
+def test_compare_nav_names_columns_and_arrival_only(tmp_path):
+    from emulator.recording.replay import compare_nav
+
+    a, b, c = tmp_path / "a.csv", tmp_path / "b.csv", tmp_path / "c.csv"
+    a.write_text("time_s,lat_deg,arrival_s\n1,2,3\n")
+    b.write_text("time_s,lat_deg,arrival_s\n1,2,3.5\n")
+    c.write_text("time_s,lat_deg,arrival_s\n1,2.5,3.5\n")
+    assert compare_nav(a, a)["identical"]
+    ab = compare_nav(a, b)
+    assert not ab["identical"] and ab["only_arrival"] and ab["differing_columns"] == ["arrival_s"]
+    ac = compare_nav(a, c)
+    assert ac["differing_columns"] == ["lat_deg", "arrival_s"] and not ac["only_arrival"]
+
+
+def test_error_text_is_never_markup(tmp_path):
+    p = tmp_path / "m.yaml"
+    p.write_text(open(_scenario(tmp_path)).read() + "\n'[/]': 1\n")
+    r = psns_hil("validate", str(p))
+    assert r.returncode == 2 and "MarkupError" not in r.stderr and "[/]" in r.stderr

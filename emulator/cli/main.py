@@ -409,6 +409,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         _print_error(exc)
         return EXIT_USAGE
     except KeyboardInterrupt:
+        # the first Ctrl-C of a run is handled by the run (it stops and keeps its data); one that gets here is a
+        # second one, or one outside a run: say what happened
+        sys.stderr.write(f"\npsns-hil {args.command}: interrupted again: stopped at once without finishing; the "
+                         "run directory may lack its summary and report (captures written so far are kept)\n")
         return EXIT_FAILED
 
 

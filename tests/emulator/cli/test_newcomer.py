@@ -3,6 +3,7 @@
 import fcntl
 import json
 import os
+from pathlib import Path
 
 from tests.emulator.cli.test_cli import psns_hil, short_quickstart
 
@@ -88,7 +89,7 @@ def test_strict_json_nan_as_null_with_flag():
 def _with(tmp_path, changes: dict, name="s2.yaml"):
     import yaml
 
-    data = yaml.safe_load(open(_scenario(tmp_path)).read())
+    data = yaml.safe_load(Path(_scenario(tmp_path)).read_text())
     for dotted, value in changes.items():
         *head, last = dotted.split(".")
         node = data
@@ -181,6 +182,30 @@ def test_compare_nav_names_columns_and_arrival_only(tmp_path):
 
 def test_error_text_is_never_markup(tmp_path):
     p = tmp_path / "m.yaml"
-    p.write_text(open(_scenario(tmp_path)).read() + "\n'[/]': 1\n")
+    p.write_text(Path(_scenario(tmp_path)).read_text() + "\n'[/]': 1\n")
     r = psns_hil("validate", str(p))
     assert r.returncode == 2 and "MarkupError" not in r.stderr and "[/]" in r.stderr
+
+
+def test_monitor_unknown_protocol_or_link_is_exit_2_with_the_choices(tmp_path):
+    run = tmp_path / "run"
+    assert psns_hil("run", _scenario(tmp_path), "--out", str(run), "--quiet", "--no-report").returncode == 0
+    cap = str(run / "capture.psnscap")
+    r = psns_hil("monitor", cap, "--protocol", "bogus")
+    assert r.returncode == 2 and "unknown protocol 'bogus'" in r.stderr and "host" in r.stderr
+    r = psns_hil("monitor", cap, "--link", "nosuch")
+    assert r.returncode == 2 and "no link 'nosuch'" in r.stderr and "uart0" in r.stderr
+    assert "t_s" not in r.stdout
+
+
+def test_a_second_ctrl_c_says_what_it_did(monkeypatch, capsys):
+    import importlib
+
+    cli = importlib.import_module("emulator.cli.main")
+
+    def boom(args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "_cmd_validate", boom)
+    assert cli.main(["validate", "x.yaml"]) == 1
+    assert "interrupted again" in capsys.readouterr().err

@@ -95,7 +95,8 @@ def print_summary(s: dict[str, Any]) -> None:
     from rich.table import Table
 
     c = _console()
-    head = Table(title=f"psns-hil run: {s['scenario']}", title_justify="left", show_header=False)
+    what = "replay" if s.get("replay") else "run"
+    head = Table(title=escape_markup(f"psns-hil {what}: {s['scenario']}"), title_justify="left", show_header=False)
     head.add_column("k")
     head.add_column("v")
     rtf = s.get("realtime_factor")
@@ -169,7 +170,7 @@ def _cmd_validate(args: argparse.Namespace) -> int:
 
     scn = load_scenario(args.scenario)
     if args.json:
-        print(scn.model_dump_json(indent=2))
+        print(scn.model_dump_json(indent=2, exclude_none=True))
     else:
         _console().print(f"{args.scenario}: ok ({scn.name}, {scn.duration_s:g} s, mode {scn.mode})")
     return EXIT_OK
@@ -359,7 +360,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     v = sub.add_parser("validate", help="check a scenario file and report every problem")
     v.add_argument("scenario")
-    v.add_argument("--json", action="store_true", help="print the validated scenario with defaults")
+    v.add_argument("--json", action="store_true",
+                   help="print the validated scenario with defaults (keys left unset, null, are omitted)")
     v.set_defaults(func=_cmd_validate)
 
     mo = sub.add_parser("monitor", help="decode a port live (pty, serial device, zenoh key) or a capture file "

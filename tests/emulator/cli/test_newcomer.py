@@ -148,7 +148,7 @@ def test_replay_marks_sensor_link_expectations_not_applicable_and_reports_trunca
     assert psns_hil("run", p, "--out", str(run), "--quiet", "--no-report").returncode == 0
     r = psns_hil("replay", str(run / "capture.psnscap"), "--out", str(tmp_path / "rp"))
     assert r.returncode == 0, r.stdout + r.stderr
-    assert "not applicable" in r.stdout and ": yes" in r.stdout
+    assert "not applicable" in r.stdout and ": yes" in r.stdout and "psns-hil replay:" in r.stdout
     s = json.loads((tmp_path / "rp" / "summary.json").read_text())
     assert [e["applicable"] for e in s["expectations"]] == [False, True] and s["passed"] is True
     assert s["replay"]["truncated"] is False
@@ -209,3 +209,19 @@ def test_a_second_ctrl_c_says_what_it_did(monkeypatch, capsys):
     monkeypatch.setattr(cli, "_cmd_validate", boom)
     assert cli.main(["validate", "x.yaml"]) == 1
     assert "interrupted again" in capsys.readouterr().err
+
+
+def test_validate_json_omits_unused_keys():
+    from tests.conftest import ROOT
+
+    r = psns_hil("validate", str(ROOT / "scenarios" / "quickstart.yaml"), "--json")
+    assert r.returncode == 0 and "null" not in r.stdout and json.loads(r.stdout)["name"] == "quickstart"
+
+
+def test_pyproject_license_is_an_spdx_string():
+    import tomllib
+
+    from tests.conftest import ROOT
+
+    meta = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    assert meta["project"]["license"] == "MIT"  # a table is deprecated (setuptools warns on every install)

@@ -168,7 +168,7 @@ def print_summary(s: dict[str, Any]) -> None:
 def _cmd_validate(args: argparse.Namespace) -> int:
     from ..scenario import load_scenario
 
-    scn = load_scenario(args.scenario)
+    scn = load_scenario(args.scenario, args.set or ())
     if args.json:
         print(scn.model_dump_json(indent=2, exclude_none=True))
     else:
@@ -183,7 +183,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from ..errors import EmulatorError
     from ..scenario import load_scenario
 
-    scn = load_scenario(args.scenario)
+    scn = load_scenario(args.scenario, args.set or ())
     mode = resolve_mode(scn, "realtime" if args.realtime else "fast" if args.fast else None)
     real = real_time_ports(scn)
     if mode == "fast" and real and not args.fast and not getattr(args, "split", False):
@@ -345,6 +345,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--status", type=float, default=None, metavar="S",
                    help="realtime status line every S simulated seconds (default 1 on a terminal, 5 otherwise; 0 off)")
     r.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
+    r.add_argument("--set", action="append", metavar="KEY=VALUE",
+                   help="override one scenario value, validated like the file (repeatable): --set duration_s=30, "
+                        "--set links.host.url=pty://uart0, --set faults.0.start_s=12")
     r.add_argument("--json", action="store_true",
                    help="print the summary as one strict JSON document on stdout (everything else on stderr)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -360,6 +363,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     v = sub.add_parser("validate", help="check a scenario file and report every problem")
     v.add_argument("scenario")
+    v.add_argument("--set", action="append", metavar="KEY=VALUE", help="override one value, as for run (repeatable)")
     v.add_argument("--json", action="store_true",
                    help="print the validated scenario with defaults (keys left unset, null, are omitted)")
     v.set_defaults(func=_cmd_validate)

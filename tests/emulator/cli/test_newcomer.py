@@ -225,3 +225,22 @@ def test_pyproject_license_is_an_spdx_string():
 
     meta = tomllib.loads((ROOT / "pyproject.toml").read_text())
     assert meta["project"]["license"] == "MIT"  # a table is deprecated (setuptools warns on every install)
+
+
+def test_run_set_overrides_are_validated_like_the_file(tmp_path):
+    from tests.conftest import ROOT
+
+    qs = str(ROOT / "scenarios" / "quickstart.yaml")
+    r = psns_hil("validate", qs, "--set", "duration_s=7", "--set", "links.host.baud=115200", "--json")
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(r.stdout)
+    assert doc["duration_s"] == 7 and doc["links"]["host"]["baud"] == 115200
+    r = psns_hil("validate", qs, "--set", "duration_s=-3")
+    assert r.returncode == 2 and "--set duration_s=-3" in r.stderr and "duration_s" in r.stderr
+    r = psns_hil("validate", qs, "--set", "links.host.bud=1")
+    assert r.returncode == 2 and "--set links.host.bud=1" in r.stderr and "did you mean 'baud'" in r.stderr
+    r = psns_hil("validate", qs, "--set", "nonsense")
+    assert r.returncode == 2 and "dotted.key=value" in r.stderr
+    r = psns_hil("run", _scenario(tmp_path), "--set", "duration_s=2", "--out", str(tmp_path / "r"), "--quiet",
+                 "--no-report")
+    assert r.returncode == 0 and json.loads((tmp_path / "r" / "summary.json").read_text())["sim_duration_s"] == 2.0

@@ -240,6 +240,7 @@ class Recorder:
                 "frames": frames,
                 "crc_errors": crc,
                 "dropped": st.dropped,
+                "no_peer": st.no_peer_out,
                 "garbage_bytes": sum(d.stats.garbage_bytes for d in tap.decoders.values()),
                 "framing_errors": st.framing_errors,
             }

@@ -256,12 +256,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from ..errors import RecordingError
     from ..recording.report import write_report
+    from ..recording.summary_model import load_summary
 
     run_dir = Path(args.run_dir)
-    if not (run_dir / "summary.json").exists():
-        raise RecordingError(f"{run_dir}: not a run directory (no summary.json)")
+    load_summary(run_dir)  # a run directory with a valid summary, or exit 2 saying what is wrong
     out = write_report(run_dir)
     _console().print(f"report: {out}")
     return EXIT_OK

@@ -265,7 +265,9 @@ def _fmt(x: Any) -> str:
 def write_report(run_dir: str | Path) -> Path:
     """Write ``report.html`` into ``run_dir`` and return its path."""
     run_dir = Path(run_dir)
-    summary = json.loads((run_dir / "summary.json").read_text(encoding="utf-8"))
+    from .summary_model import load_summary
+
+    summary = load_summary(run_dir).model_dump(mode="json")  # validated: a clear error for a foreign file
     nav = load_nav_csv(run_dir / "nav.csv") if (run_dir / "nav.csv").exists() else {}
     events: list[dict[str, Any]] = []
     ev_path = run_dir / "events.jsonl"

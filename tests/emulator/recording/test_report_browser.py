@@ -29,7 +29,8 @@ window.addEventListener('load', () => {
       const d = g.getImageData(0, 0, c.width, c.height).data;
       for (let i = 0; i < d.length; i += 4) if (d[i] < 200 || d[i+1] < 200 || d[i+2] < 200) ink++;
     }
-    out.push(img.alt + '|' + img.naturalWidth + 'x' + img.naturalHeight + '|' + (ink / Math.max(1, c.width * c.height)).toFixed(4));
+    const frac = (ink / Math.max(1, c.width * c.height)).toFixed(4);
+    out.push(img.alt + '|' + img.naturalWidth + 'x' + img.naturalHeight + '|' + frac);
   }
   const pre = document.createElement('pre'); pre.id = 'probe'; pre.textContent = out.join('\\n');
   document.body.appendChild(pre);

@@ -70,6 +70,7 @@ __all__ = [
     "MSG_ACK",
     "MSG_NAV_SOLUTION",
     "MSG_STATUS",
+    "NAV_MODE_VARIANT_MASK",
     "NAV_SOLUTION_SPEC",
     "NAV_VARIANT_BLOCK_ID",
     "NAV_VARIANT_BLOCK_SPEC",
@@ -91,6 +92,7 @@ __all__ = [
     "SelectVariant",
     "SetOutputRate",
     "build_host_frame",
+    "describe_nav_mode",
     "encode_ack",
     "encode_command",
     "encode_host",
@@ -148,6 +150,40 @@ class NavMode(enum.IntFlag):
     GNSS_AIDED = 0x0004  #: a GNSS update was applied within the last 2 s
     PSNS_AIDED = 0x0008  #: a solar-vector update was applied within the last 2 s
     DEGRADED = 0x0010  #: inputs missing or rejected (see status bytes)
+    # bits 8-11 carry the FilterVariant number (1 BASE .. 5 SUN_ELEVATION): named so that a mode prints as
+    # ``ALIGNING|NAVIGATING|GNSS_AIDED|VARIANT_BIT0``, not ``...|256``; :func:`describe_nav_mode` spells it out
+    VARIANT_BIT0 = 0x0100  #: FilterVariant number, bit 0
+    VARIANT_BIT1 = 0x0200  #: FilterVariant number, bit 1
+    VARIANT_BIT2 = 0x0400  #: FilterVariant number, bit 2
+    VARIANT_BIT3 = 0x0800  #: FilterVariant number, bit 3
+
+
+#: the NavMode bits that carry the filter variant
+NAV_MODE_VARIANT_MASK = 0x0F00
+
+
+def describe_nav_mode(mode: int) -> str:
+    """A NAV_SOLUTION ``mode`` in words: its phase (coarse alignment, fine alignment, navigating), aiding flags
+    and filter variant, e.g. ``fine alignment, GNSS-aided, variant BASE``."""
+    m = int(mode)
+    if m & NavMode.ALIGNING and m & NavMode.NAVIGATING:
+        phase = "fine alignment"
+    elif m & NavMode.ALIGNING:
+        phase = "coarse alignment"
+    elif m & NavMode.NAVIGATING:
+        phase = "navigating"
+    else:
+        phase = "idle"
+    parts = [phase]
+    parts += [name for bit, name in ((NavMode.GNSS_AIDED, "GNSS-aided"), (NavMode.PSNS_AIDED, "PSNS-aided"),
+                                     (NavMode.DEGRADED, "degraded")) if m & bit]
+    v = (m & NAV_MODE_VARIANT_MASK) >> 8
+    if v:
+        try:
+            parts.append(f"variant {FilterVariant(v).name}")
+        except ValueError:
+            parts.append(f"variant {v}")
+    return ", ".join(parts)
 
 
 # Field docs are "scale | unit | meaning" (read by protocols.icd for docs/icd.md).

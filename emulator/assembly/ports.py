@@ -32,6 +32,7 @@ __all__ = [
     "port_formats",
     "port_line",
     "port_specs",
+    "real_time_ports",
     "resolve_mode",
 ]
 
@@ -81,6 +82,13 @@ def resolve_mode(scn: Scenario, requested: str | None = None) -> str:
         if parse_link_url(spec.url).scheme != "mem":
             return "realtime"
     return "fast"
+
+
+def real_time_ports(scn: Scenario) -> list[str]:
+    """``links.NAME (URL)`` of each port with a real peer (``pty://``, ``serial://``): in fast mode virtual time
+    races past such a peer, which then sees frames far faster than the line's rate."""
+    return [f"links.{port} ({spec.url})" for port, spec in port_specs(scn).items()
+            if parse_link_url(spec.url).scheme in ("pty", "serial")]
 
 
 def dsp_uart_baud(nominal: int, uart_clock_hz: float | None, oversampling: int) -> int:

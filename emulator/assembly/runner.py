@@ -8,8 +8,8 @@ This module re-exports them for the callers that import ``emulator.assembly.runn
 
 from __future__ import annotations
 
-from .ports import EMIFA_BYTE_TIME_S, UART_NUM, PortInfo, dsp_uart_baud, port_formats, resolve_mode
+from .ports import EMIFA_BYTE_TIME_S, UART_NUM, PortInfo, dsp_uart_baud, port_formats, real_time_ports, resolve_mode
 from .session import Emulator, default_run_dir, run_emulator, run_scenario
 
 __all__ = ["EMIFA_BYTE_TIME_S", "UART_NUM", "Emulator", "PortInfo", "default_run_dir", "dsp_uart_baud",
-           "port_formats", "resolve_mode", "run_emulator", "run_scenario"]
+           "port_formats", "real_time_ports", "resolve_mode", "run_emulator", "run_scenario"]

@@ -38,6 +38,7 @@ from ..faults import FaultScheduler, FaultTargets
 from ..links import Link, MemHub, open_link, parse_link_url
 from ..recording.capture import CaptureRecord
 from ..recording.recorder import Recorder
+from ..recording.rundir import claim_run_dir
 from ..scenario.schema import Scenario
 from ..verification.expectations import evaluate_expectations
 from ..world.build import build_trajectory
@@ -380,13 +381,19 @@ class Emulator:
         return dsp_sections(self.dsp)
 
 
-def run_emulator(emu: Emulator, speed: float = 1.0, on_started: Callable[[Emulator], None] | None = None
-                 ) -> dict[str, Any]:
+def run_emulator(emu: Emulator, speed: float = 1.0, on_started: Callable[[Emulator], None] | None = None,
+                 force: bool = False) -> dict[str, Any]:
     """Run ``emu`` to completion (or interruption) on a fresh :class:`EmulatorLoop`.
 
     SIGINT and SIGTERM cancel the run; the recorder still writes everything it has and a
-    summary with ``"interrupted": true``.
+    summary with ``"interrupted": true``. The run directory is held for the run
+    (:func:`emulator.recording.rundir.claim_run_dir`: busy, finished-unless-``force`` and file paths refused).
     """
+    with claim_run_dir(emu.run_dir, force=force):
+        return _run_emulator(emu, speed, on_started)
+
+
+def _run_emulator(emu: Emulator, speed: float, on_started: Callable[[Emulator], None] | None) -> dict[str, Any]:
     loop = EmulatorLoop(emu.mode, speed)
     asyncio.set_event_loop(loop)
     failure: list[dict[str, Any]] = []
@@ -430,7 +437,7 @@ def run_emulator(emu: Emulator, speed: float = 1.0, on_started: Callable[[Emulat
 
 def run_scenario(scn: Scenario, run_dir: Path, mode: str | None = None, speed: float | None = None,
                  seed: int | None = None, progress: Callable[[float, float], None] | None = None,
-                 on_started: Callable[[Emulator], None] | None = None) -> dict[str, Any]:
+                 on_started: Callable[[Emulator], None] | None = None, force: bool = False) -> dict[str, Any]:
     """Run ``scn`` to completion (or interruption) on a fresh :class:`EmulatorLoop`."""
     emu = Emulator(scn, run_dir, mode=mode, seed=seed, progress=progress)
-    return run_emulator(emu, speed if speed is not None else scn.speed, on_started)
+    return run_emulator(emu, speed if speed is not None else scn.speed, on_started, force=force)

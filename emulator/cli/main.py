@@ -16,7 +16,6 @@ clear message per problem, no traceback.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -39,15 +38,29 @@ def _console(stderr: bool = False) -> Any:
     return c
 
 
+def escape_markup(text: Any) -> str:
+    """``text`` safe to print through rich with markup on (a scenario key ``[/]`` is text, not a closing tag)."""
+    from rich.markup import escape
+
+    return escape(str(text))
+
+
 def _print_error(exc: PsnsHilError) -> None:
     from ..errors import ScenarioError
 
     err = _console(stderr=True)
     if isinstance(exc, ScenarioError):
         for issue in exc.issues:
-            err.print(f"[bold red]error:[/] {issue}", markup=True, soft_wrap=True)
+            err.print(f"[bold red]error:[/] {escape_markup(issue)}", markup=True, soft_wrap=True)
     else:
-        err.print(f"[bold red]error:[/] {exc}", markup=True, soft_wrap=True)
+        err.print(f"[bold red]error:[/] {escape_markup(exc)}", markup=True, soft_wrap=True)
+
+
+def strict_json(obj: Any) -> str:
+    """Strict JSON (NaN as null, flagged): :func:`emulator.recording.formatting.strict_json`."""
+    from ..recording.formatting import strict_json as _strict
+
+    return _strict(obj)
 
 
 def _fmt(v: Any, digits: int = 3) -> str:
@@ -58,12 +71,12 @@ def _fmt(v: Any, digits: int = 3) -> str:
     return str(v)
 
 
-def print_port_map(ports: list[dict[str, Any]]) -> None:
-    """One plain line per port (never wrapped: users copy the pty paths from here)."""
+def print_port_map(ports: list[dict[str, Any]], out: Any = None) -> None:
+    """One plain line per port (never wrapped: users copy the pty paths from here); on ``out`` (stdout)."""
     rows = [("port", "role", "baud", "mode", "endpoint")]
     rows += [(p["name"], p["role"], str(p["baud"]), p["mode"], p["path"]) for p in ports]
     w = [max(len(r[i]) for r in rows) for i in range(4)]
-    out = sys.stdout
+    out = out if out is not None else sys.stdout
     out.write("ports:\n")
     for r in rows:
         out.write("  " + "  ".join(r[i].ljust(w[i]) for i in range(4)) + "  " + r[4] + "\n")
@@ -82,7 +95,8 @@ def print_summary(s: dict[str, Any]) -> None:
     from rich.table import Table
 
     c = _console()
-    head = Table(title=f"psns-hil run: {s['scenario']}", title_justify="left", show_header=False)
+    what = "replay" if s.get("replay") else "run"
+    head = Table(title=escape_markup(f"psns-hil {what}: {s['scenario']}"), title_justify="left", show_header=False)
     head.add_column("k")
     head.add_column("v")
     rtf = s.get("realtime_factor")
@@ -139,9 +153,10 @@ def print_summary(s: dict[str, Any]) -> None:
         for col in ("#", "check", "value", "result"):
             ex.add_column(col)
         for r in s["expectations"]:
-            note = f" ({r['message']})" if r.get("message") and not r["passed"] else ""
-            ex.add_row(str(r["index"]), r["description"] + note, _fmt(r["value"]),
-                       "[green]pass[/]" if r["passed"] else "[bold red]FAIL[/]")
+            na = r.get("applicable") is False
+            note = f" ({r['message']})" if r.get("message") and (na or not r["passed"]) else ""
+            ex.add_row(str(r["index"]), escape_markup(r["description"] + note), escape_markup(_fmt(r["value"])),
+                       "[dim]n/a[/]" if na else "[green]pass[/]" if r["passed"] else "[bold red]FAIL[/]")
         c.print(ex)
     if s.get("valid") is False:
         for f in s.get("faults", []):
@@ -153,9 +168,9 @@ def print_summary(s: dict[str, Any]) -> None:
 def _cmd_validate(args: argparse.Namespace) -> int:
     from ..scenario import load_scenario
 
-    scn = load_scenario(args.scenario)
+    scn = load_scenario(args.scenario, args.set or ())
     if args.json:
-        print(scn.model_dump_json(indent=2))
+        print(scn.model_dump_json(indent=2, exclude_none=True))
     else:
         _console().print(f"{args.scenario}: ok ({scn.name}, {scn.duration_s:g} s, mode {scn.mode})")
     return EXIT_OK
@@ -164,19 +179,23 @@ def _cmd_validate(args: argparse.Namespace) -> int:
 def _cmd_run(args: argparse.Namespace) -> int:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from ..assembly.runner import default_run_dir, resolve_mode, run_scenario
+    from ..assembly.runner import default_run_dir, real_time_ports, resolve_mode, run_scenario
+    from ..errors import EmulatorError
     from ..scenario import load_scenario
 
-    scn = load_scenario(args.scenario)
+    scn = load_scenario(args.scenario, args.set or ())
     mode = resolve_mode(scn, "realtime" if args.realtime else "fast" if args.fast else None)
+    real = real_time_ports(scn)
+    if mode == "fast" and real and not args.fast and not getattr(args, "split", False):
+        raise EmulatorError(f"{args.scenario}: mode fast with a real peer on {', '.join(real)}: in virtual time a "
+                            "tool on that port would see frames far faster than the line's rate; pass --realtime "
+                            "(what a peer expects) or --fast to run in virtual time anyway")
     if getattr(args, "split", False):
         if args.fast:
-            from ..errors import EmulatorError
-
             raise EmulatorError("--split runs the DSP in another process on the wall clock: it cannot be --fast")
         mode = "realtime"
     run_dir = Path(args.out) if args.out else default_run_dir(scn.name)
-    console = _console()
+    console = _console(stderr=args.json)  # --json: stdout carries the one JSON document, nothing else
     speed = args.speed if args.speed is not None else scn.speed
     console.print(f"psns-hil {__version__}: running {args.scenario} ({scn.duration_s:g} s, {mode}"
                   + (f" x{speed:g}" if mode == "realtime" else "") + f") -> {run_dir}")
@@ -206,7 +225,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     def on_started(emu: Any) -> None:
         state["emu"] = emu
-        print_port_map(emu.ports)
+        print_port_map(emu.ports, sys.stderr if args.json else None)
 
     with progress:
         if getattr(args, "split", False):
@@ -216,7 +235,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
                                 on_started=on_started)
         else:
             summary = run_scenario(scn, run_dir, mode=mode, speed=speed, seed=args.seed,
-                                   progress=on_progress, on_started=on_started)
+                                   progress=on_progress, on_started=on_started, force=args.force)
     if realtime and tty and not args.quiet:
         err.write("\n")
     report = None
@@ -225,7 +244,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
         report = write_report(run_dir)
     if args.json:
-        print(json.dumps(summary, indent=2))
+        print(strict_json(summary))
     else:
         print_summary(summary)
         if report is not None:
@@ -237,12 +256,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from ..errors import RecordingError
     from ..recording.report import write_report
+    from ..recording.summary_model import load_summary
 
     run_dir = Path(args.run_dir)
-    if not (run_dir / "summary.json").exists():
-        raise RecordingError(f"{run_dir}: not a run directory (no summary.json)")
+    load_summary(run_dir)  # a run directory with a valid summary, or exit 2 saying what is wrong
     out = write_report(run_dir)
     _console().print(f"report: {out}")
     return EXIT_OK
@@ -264,7 +282,7 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
 
 def _cmd_replay(args: argparse.Namespace) -> int:
     from ..assembly.runner import default_run_dir
-    from ..recording.replay import run_replay, same_file
+    from ..recording.replay import run_replay
 
     cap = Path(args.capture)
     if not cap.exists():
@@ -273,19 +291,36 @@ def _cmd_replay(args: argparse.Namespace) -> int:
         raise RecordingError(f"{cap}: no such capture file")
     run_dir = Path(args.out) if args.out else default_run_dir(cap.parent.name + "-replay")
     mode = "realtime" if args.realtime else "fast"
-    console = _console()
+    console = _console(stderr=args.json)
     console.print(f"psns-hil {__version__}: replaying {cap} ({mode}) -> {run_dir}")
-    summary = run_replay(cap, run_dir, mode=mode, speed=args.speed or 1.0)
+    summary = run_replay(cap, run_dir, mode=mode, speed=args.speed or 1.0, force=args.force)
     if args.json:
-        print(json.dumps(summary, indent=2))
+        print(strict_json(summary))
     else:
         print_summary(summary)
         console.print(f"replayed {summary['replay']['records']} captured DSP UART records")
     original = Path(args.compare) if args.compare else cap.parent
+    rep = summary.get("replay") or {}
+    if rep.get("truncated"):
+        console.print(f"[yellow]the capture is truncated: it holds {rep['captured_s']:.3f} s of the scenario's "
+                      f"{rep['scenario_duration_s']:g} s; replayed that much[/]")
+    na = [r for r in summary.get("expectations", []) if r.get("applicable") is False]
+    if na:
+        console.print(f"{len(na)} expectation(s) not applicable to a replay (not counted)")
     rc = EXIT_OK if summary.get("passed", True) else EXIT_FAILED
     if (original / "nav.csv").exists():
-        same = same_file(original / "nav.csv", run_dir / "nav.csv")
-        console.print(f"nav.csv identical to {original / 'nav.csv'}: {'yes' if same else '[bold red]no[/]'}")
+        from ..recording.replay import compare_nav
+
+        cmp = compare_nav(original / "nav.csv", run_dir / "nav.csv")
+        same = bool(cmp["identical"])
+        detail = ""
+        if not same:
+            ra, rb = cmp["rows"]
+            detail = (" (only the arrival times differ: the solutions are identical)" if cmp["only_arrival"] else
+                      f" (differing columns: {', '.join(cmp['differing_columns']) or 'none'}"
+                      + (f"; rows {ra} vs {rb}" if ra != rb else "") + ")")
+        console.print(f"nav.csv identical to {original / 'nav.csv'}: {'yes' if same else '[bold red]no[/]'}"
+                      + escape_markup(detail))
         if args.compare and not same:
             rc = EXIT_FAILED
     return rc
@@ -298,7 +333,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     r = sub.add_parser("run", help="run a scenario")
     r.add_argument("scenario", help="scenario YAML file")
-    r.add_argument("--out", help="run directory (default runs/<scenario>-<UTC time>)")
+    r.add_argument("--out", help="run directory (default runs/<scenario>-<UTC time>); a new or empty directory")
+    r.add_argument("--force", action="store_true",
+                   help="replace a finished run in --out (its contents are removed first)")
     m = r.add_mutually_exclusive_group()
     m.add_argument("--realtime", action="store_true",
                    help="follow the wall clock (default: the scenario's mode; realtime when a port is pty/serial)")
@@ -307,7 +344,11 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--status", type=float, default=None, metavar="S",
                    help="realtime status line every S simulated seconds (default 1 on a terminal, 5 otherwise; 0 off)")
     r.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
-    r.add_argument("--json", action="store_true", help="print the summary as JSON")
+    r.add_argument("--set", action="append", metavar="KEY=VALUE",
+                   help="override one scenario value, validated like the file (repeatable): --set duration_s=30, "
+                        "--set links.host.url=pty://uart0, --set faults.0.start_s=12")
+    r.add_argument("--json", action="store_true",
+                   help="print the summary as one strict JSON document on stdout (everything else on stderr)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.add_argument("--no-report", action="store_true", help="do not write report.html at the end")
     r.add_argument("--split", action="store_true",
@@ -321,7 +362,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     v = sub.add_parser("validate", help="check a scenario file and report every problem")
     v.add_argument("scenario")
-    v.add_argument("--json", action="store_true", help="print the validated scenario with defaults")
+    v.add_argument("--set", action="append", metavar="KEY=VALUE", help="override one value, as for run (repeatable)")
+    v.add_argument("--json", action="store_true",
+                   help="print the validated scenario with defaults (keys left unset, null, are omitted)")
     v.set_defaults(func=_cmd_validate)
 
     mo = sub.add_parser("monitor", help="decode a port live (pty, serial device, zenoh key) or a capture file "
@@ -343,6 +386,8 @@ def build_parser() -> argparse.ArgumentParser:
     rp = sub.add_parser("replay", help="re-run the firmware on a capture's DSP UART input")
     rp.add_argument("capture", help="capture.psnscap of an earlier run")
     rp.add_argument("--out", help="run directory (default runs/<capture dir>-replay-<UTC time>)")
+    rp.add_argument("--force", action="store_true",
+                    help="replace a finished run in --out (its contents are removed first)")
     rp.add_argument("--realtime", action="store_true", help="replay in real time (default: fast)")
     rp.add_argument("--speed", type=float, default=None, help="real-time scale factor")
     rp.add_argument("--compare", metavar="RUN_DIR",
@@ -369,6 +414,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         _print_error(exc)
         return EXIT_USAGE
     except KeyboardInterrupt:
+        # the first Ctrl-C of a run is handled by the run (it stops and keeps its data); one that gets here is a
+        # second one, or one outside a run: say what happened
+        sys.stderr.write(f"\npsns-hil {args.command}: interrupted again: stopped at once without finishing; the "
+                         "run directory may lack its summary and report (captures written so far are kept)\n")
         return EXIT_FAILED
 
 

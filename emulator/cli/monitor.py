@@ -206,7 +206,20 @@ class Monitor:
 
 
 def _capture_rows(path: Path, mon: Monitor, links: set[str] | None) -> Iterator[FrameRow]:
-    _header, recs = iter_capture(path)
+    """The frames of a capture (``links``: only these; an unknown one is an error, raised here at once)."""
+    header, recs = iter_capture(path)
+    known = [str(x) for x in header.get("links", [])]
+    unknown = sorted((links or set()) - set(known))
+    if unknown:
+        close = getattr(recs, "close", None)
+        if close is not None:
+            close()
+        raise EmulatorError(f"{path}: no link {', '.join(map(repr, unknown))} in this capture; its links: "
+                            f"{', '.join(known)}")
+    return _capture_iter(recs, mon, links)
+
+
+def _capture_iter(recs: Iterator[Any], mon: Monitor, links: set[str] | None) -> Iterator[FrameRow]:
     for r in recs:
         if links is not None and r.link not in links:
             continue
@@ -316,6 +329,8 @@ def run_monitor(endpoint: str, protocol: str = "auto", baud: int = 460800, links
                 out: TextIO | None = None, port_name: str | None = None) -> dict[str, Any]:
     """Decode ``endpoint`` and print one line (or JSON object) per frame; returns the statistics."""
     out = out or sys.stdout
+    if protocol != "auto":
+        formats_for(None, protocol)  # an unknown name is an error (exit 2) listing the known ones
     mon = Monitor(protocol)
     if endpoint.startswith("serial://"):
         endpoint = endpoint[len("serial://"):]

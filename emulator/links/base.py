@@ -58,6 +58,8 @@ class LinkStats:
     ``bytes_out`` counts what left the line model (and the listeners saw); ``dropped_out`` counts
     both what the TX queue could not hold and what the transport then could not hand over (no
     peer on a pty, a full kernel buffer). ``bytes_in`` counts what reached the device.
+    ``no_peer_out`` counts what a pty sent while no peer was attached: not lost on a line, just unheard, so it is
+    kept apart from ``dropped_out`` (a ``dropped: max 0`` expectation holds whether or not a tool listens).
     """
 
     bytes_out: int = 0
@@ -67,6 +69,7 @@ class LinkStats:
     dropped_out: int = 0
     dropped_in: int = 0
     dropped_chunks_out: int = 0
+    no_peer_out: int = 0
     corrupted_bytes: int = 0
     framing_errors: int = 0
     parity_errors: int = 0
@@ -85,6 +88,7 @@ class LinkStats:
             "dropped_out": self.dropped_out,
             "dropped_in": self.dropped_in,
             "dropped_chunks_out": self.dropped_chunks_out,
+            "no_peer_out": self.no_peer_out,
             "corrupted_bytes": self.corrupted_bytes,
             "framing_errors": self.framing_errors,
             "parity_errors": self.parity_errors,

@@ -7,8 +7,8 @@ Measured behaviour this module is built around (``docs/reference/wire-formats.md
 * with no peer holding the slave open, reading the master gives EIO and ``poll`` reports
   POLLHUP; an fd reader would spin, so the link polls for attachment instead and only reads
   while a peer is attached;
-* bytes written while nobody listens would be read by the next opener: they are dropped (and
-  counted) instead, so a new peer never sees stale data;
+* bytes written while nobody listens would be read by the next opener: they are discarded (and
+  counted as ``no_peer_out``, apart from ``dropped_out``) instead, so a new peer never sees stale data;
 * a peer that opens but does not read makes the master's writes fail with EAGAIN after
   ~18 KiB: the excess is dropped and counted, memory stays bounded;
 * a peer that closes leaves what it did not read in the slave's input queue, where the next
@@ -225,11 +225,11 @@ class PtyLink(Link):
     # transport --------------------------------------------------------------------------
     def _write_raw(self, data: bytes) -> None:
         if self.master_fd is None or not self.attached:
-            self.stats.dropped_out += len(data)
+            self.stats.no_peer_out += len(data)
             return
         if self._hung_up():  # the peer left since the last poll: do not leave stale bytes
             self._detach()
-            self.stats.dropped_out += len(data)
+            self.stats.no_peer_out += len(data)
             return
         if self._out_framer is not None:
             fr = self._out_framer
@@ -246,7 +246,7 @@ class PtyLink(Link):
         except OSError as exc:
             if exc.errno == errno.EIO:
                 self._detach()
-                self.stats.dropped_out += len(data)
+                self.stats.no_peer_out += len(data)
                 return
             self.error = f"writing {self.slave_path} failed: {exc}"
             self.stats.dropped_out += len(data)

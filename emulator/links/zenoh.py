@@ -53,7 +53,7 @@ import threading
 from collections.abc import Callable
 from typing import Any
 
-from protocols.host import HostFormat, NavMode, NavSolution
+from protocols.host import NAV_MODE_VARIANT_MASK, HostFormat, NavMode, NavSolution
 from protocols.stream import StreamDecoder
 
 from ..errors import LinkBrokenError, LinkConfigError
@@ -220,7 +220,7 @@ def nav_to_json(n: NavSolution, t_s: float | None = None) -> bytes:
         "seq": n.seq, "time_s": n.time_s, "lat_deg": n.lat_deg, "lon_deg": n.lon_deg,
         "height_m": n.height_m, "vel_enu_mps": list(n.vel_enu_mps), "roll_deg": n.roll_deg,
         "pitch_deg": n.pitch_deg, "heading_deg": n.heading_deg, "sigma": list(n.sigma), "mode": n.mode,
-        "mode_flags": [f.name for f in NavMode if n.mode & f],
+        "mode_flags": [f.name for f in NavMode if n.mode & f and not f & NAV_MODE_VARIANT_MASK],
         "gnss_status": n.gnss_status, "psns_status": n.psns_status, "cpu_load_pct": n.cpu_load_pct,
         "deadline_misses": n.deadline_misses,
     }

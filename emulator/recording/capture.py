@@ -18,6 +18,7 @@ from typing import IO, Any
 
 from ..errors import RecordingError
 from .formatting import json_default
+from .rundir import open_no_follow
 
 __all__ = [
     "CAPTURE_MAGIC",
@@ -55,7 +56,7 @@ class CaptureWriter:
     """
 
     def __init__(self, path: Path, header: dict[str, Any], links: list[str]) -> None:
-        self.file: IO[bytes] = open(path, "wb")  # noqa: SIM115 - open for the run, closed by close()
+        self.file: IO[bytes] = open_no_follow(path, "wb")  # open for the run, closed by close()
         hdr = dict(header)
         hdr["version"] = CAPTURE_VERSION
         hdr["links"] = list(links)
@@ -100,7 +101,8 @@ def _read_header(f: IO[bytes], path: str | Path) -> dict[str, Any]:
 def iter_capture(path: str | Path) -> tuple[dict[str, Any], Iterator[CaptureRecord]]:
     """Header and a lazy iterator over the records (constant memory for any file size).
 
-    A truncated last record (interrupted run) ends the iteration silently.
+    A truncated last record (interrupted run, a file cut short) ends the iteration; it then sets
+    ``header["truncated_record"] = True`` (the header dict returned here).
     """
     f = open(path, "rb")  # noqa: SIM115 - handed to the generator, which closes it
     try:
@@ -116,16 +118,20 @@ def iter_capture(path: str | Path) -> tuple[dict[str, Any], Iterator[CaptureReco
             while True:
                 head = f.read(size)
                 if len(head) < size:
+                    if head:
+                        header["truncated_record"] = True
                     return
                 t, idx, d, flags, n = _REC.unpack(head)
                 pitch = None
                 if flags & FLAG_PITCH:
                     raw = f.read(_PITCH.size)
                     if len(raw) < _PITCH.size:
+                        header["truncated_record"] = True
                         return
                     pitch = _PITCH.unpack(raw)[0]
                 data = f.read(n)
                 if len(data) < n:
+                    header["truncated_record"] = True
                     return
                 name = links[idx] if idx < len(links) else f"link{idx}"
                 yield CaptureRecord(t, name, "out" if d == 0 else "in", data, pitch)

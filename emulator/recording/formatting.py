@@ -8,13 +8,17 @@ anything else by ``str``); :func:`csv_row_fast` gives the same text by joining `
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-__all__ = ["csv_cell", "csv_row", "csv_row_fast", "json_default"]
+__all__ = ["NON_FINITE_KEY", "csv_cell", "csv_row", "csv_row_fast", "finite_json", "json_default", "strict_json"]
+
+#: the key under which :func:`finite_json` lists the paths of the values it turned into ``null``
+NON_FINITE_KEY = "non_finite"
 
 
 def csv_cell(x: Any) -> str:
@@ -50,3 +54,35 @@ def json_default(o: Any) -> Any:
     if isinstance(o, Path):
         return str(o)
     return str(o)
+
+
+def finite_json(obj: Any) -> tuple[Any, list[str]]:
+    """``obj`` with every NaN / infinity (numpy ones too) replaced by ``None``, and the dotted paths of the
+    values replaced (``nav_error.heading_deg.max``), so strict JSON parsers read the result."""
+    paths: list[str] = []
+
+    def walk(o: Any, path: str) -> Any:
+        if isinstance(o, (float, np.floating)):
+            if o - o == 0.0:
+                return float(o)
+            paths.append(path or "$")
+            return None
+        if isinstance(o, dict):
+            return {k: walk(v, f"{path}.{k}" if path else str(k)) for k, v in o.items()}
+        if isinstance(o, (list, tuple)):
+            return [walk(v, f"{path}[{i}]") for i, v in enumerate(o)]
+        if isinstance(o, np.ndarray):
+            return walk(o.tolist(), path)
+        return o
+
+    return walk(obj, ""), paths
+
+
+def strict_json(obj: Any, indent: int | None = 2) -> str:
+    """``obj`` as strict JSON (RFC 8259: no bare ``NaN`` / ``Infinity``): non-finite numbers become ``null``
+    and, for a dict, their paths are listed under :data:`NON_FINITE_KEY` (the flag that they were not
+    numbers)."""
+    clean, paths = finite_json(obj)
+    if isinstance(clean, dict) and (paths or NON_FINITE_KEY in clean):
+        clean[NON_FINITE_KEY] = sorted(set(paths) | set(clean.get(NON_FINITE_KEY) or []))
+    return json.dumps(clean, indent=indent, default=json_default, allow_nan=False)

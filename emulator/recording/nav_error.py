@@ -55,7 +55,9 @@ class ErrorStats:
     def add(self, v: float) -> None:
         self.n += 1
         self.sum_sq += v * v
-        self.max = max(self.max, abs(v))
+        a = abs(v)
+        if self.max == self.max and not a <= self.max:  # a NaN sample makes the max NaN (max() would drop it)
+            self.max = a
 
     def as_dict(self) -> dict[str, float | None]:
         if not self.n:

@@ -53,8 +53,9 @@ from ..links.base import Link
 from ..world.trajectory import Trajectory
 from .capture import CaptureWriter
 from .counting import counting_decoder
-from .formatting import csv_row_fast, json_default
+from .formatting import csv_row_fast, json_default, strict_json
 from .nav_error import ErrorStats, NavVsTruth
+from .rundir import open_no_follow
 
 __all__ = ["Recorder"]
 
@@ -91,9 +92,9 @@ class Recorder:
         self._taps: dict[str, _Tap] = {}
         self._link_index: dict[str, int] = {}
         self._cap: CaptureWriter | None = None
-        self._events: IO[str] = open(self.run_dir / "events.jsonl", "w", encoding="utf-8")  # noqa: SIM115
-        self._nav_f: IO[str] = open(self.run_dir / "nav.csv", "w", encoding="utf-8", newline="")  # noqa: SIM115
-        self._truth_f: IO[str] = open(self.run_dir / "truth.csv", "w", encoding="utf-8", newline="")  # noqa: SIM115
+        self._events: IO[str] = open_no_follow(self.run_dir / "events.jsonl")
+        self._nav_f: IO[str] = open_no_follow(self.run_dir / "nav.csv", newline="")
+        self._truth_f: IO[str] = open_no_follow(self.run_dir / "truth.csv", newline="")
         self._compare = NavVsTruth(trajectory)
         #: navigation frames (arrival time, frame) whose truth comparison is still to be done
         self._nav_pending: list[tuple[float, NavSolution]] = []
@@ -239,6 +240,7 @@ class Recorder:
                 "frames": frames,
                 "crc_errors": crc,
                 "dropped": st.dropped,
+                "no_peer": st.no_peer_out,
                 "garbage_bytes": sum(d.stats.garbage_bytes for d in tap.decoders.values()),
                 "framing_errors": st.framing_errors,
             }
@@ -253,7 +255,7 @@ class Recorder:
         """Append ``row`` to ``<name>.csv`` in the run directory (the first row's keys are the header)."""
         tab = self._tables.get(name)
         if tab is None:
-            f: IO[str] = open(self.run_dir / f"{name}.csv", "w", encoding="utf-8", newline="")  # noqa: SIM115
+            f: IO[str] = open_no_follow(self.run_dir / f"{name}.csv", newline="")
             cols = list(row)
             tab = self._tables[name] = (f, cols, [",".join(cols) + "\r\n"])
         _f, cols, rows = tab
@@ -284,7 +286,7 @@ class Recorder:
     def write_summary(self, summary: dict[str, Any]) -> Path:
         path = self.run_dir / "summary.json"
         tmp = path.with_suffix(".json.tmp")
-        tmp.write_text(json.dumps(summary, indent=2, default=json_default) + "\n", encoding="utf-8")
+        tmp.write_text(strict_json(summary) + "\n", encoding="utf-8")
         tmp.replace(path)
         return path
 

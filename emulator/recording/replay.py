@@ -20,7 +20,11 @@ from typing import Any
 from ..errors import RecordingError
 from .capture import read_capture
 
-__all__ = ["load_replay", "run_replay", "same_file"]
+__all__ = ["NavComparison", "compare_nav", "load_replay", "run_replay", "same_file"]
+
+#: a capture whose last record is this much before the scenario's end holds less than the run (IMU frames
+#: arrive every 5 ms, so a complete capture ends within a few ms of the end)
+TRUNCATION_SLACK_S = 0.5
 
 
 def load_replay(capture: str | Path) -> tuple[Any, list[Any], dict[str, Any]]:
@@ -34,7 +38,7 @@ def load_replay(capture: str | Path) -> tuple[Any, list[Any], dict[str, Any]]:
         raise RecordingError(f"{capture}: the capture carries no scenario (recorded by an older psns-hil); "
                              "replay needs the scenario_spec header field")
     try:
-        scn: Scenario = validate_scenario_data(spec, {}, f"{capture}#scenario_spec")
+        scn: Scenario = validate_scenario_data(spec, {}, f"{capture}#scenario_spec", check_environment=False)
     except Exception as exc:  # ScenarioError lists the issues
         raise RecordingError(f"{capture}: its scenario does not validate in this version: {exc}") from exc
     return scn, records, header
@@ -42,14 +46,57 @@ def load_replay(capture: str | Path) -> tuple[Any, list[Any], dict[str, Any]]:
 
 def run_replay(capture: str | Path, run_dir: str | Path, mode: str = "fast", speed: float = 1.0,
                on_started: Callable[[Any], None] | None = None,
-               progress: Callable[[float, float], None] | None = None) -> dict[str, Any]:
+               progress: Callable[[float, float], None] | None = None, force: bool = False) -> dict[str, Any]:
     """Replay ``capture`` into a fresh DSP/firmware; returns the run summary."""
     from ..assembly.runner import Emulator, run_emulator
 
     scn, records, header = load_replay(capture)
+    held = max((r.t_s for r in records), default=0.0)
+    full = scn.duration_s
+    truncated = bool(header.get("truncated_record")) or held < full - TRUNCATION_SLACK_S
+    if truncated:  # replay what the capture holds, and say so
+        scn = scn.model_copy(update={"duration_s": max(held, 1e-3)})
     emu = Emulator(scn, Path(run_dir), mode=mode, seed=header.get("seed"), progress=progress, replay=records)
     emu.replay_source = str(capture)
-    return run_emulator(emu, speed, on_started)
+    summary = run_emulator(emu, speed, on_started, force=force)
+    if summary.get("replay") is not None:
+        summary["replay"].update(truncated=truncated, captured_s=held, scenario_duration_s=full)
+        (Path(run_dir) / "summary.json").write_text(_strict(summary) + "\n", encoding="utf-8")
+    return summary
+
+
+def _strict(summary: dict[str, Any]) -> str:
+    from .formatting import strict_json
+
+    return strict_json(summary)
+
+
+class NavComparison(dict[str, Any]):
+    """``identical``, ``rows`` (a, b), ``differing_columns`` (in column order), ``only_arrival``: whether the
+    only differences are in ``arrival_s`` (a realtime capture: the solution is the same, its delivery time is not)."""
+
+
+def compare_nav(a: str | Path, b: str | Path) -> NavComparison:
+    """Compare two ``nav.csv`` files column by column (see :class:`NavComparison`)."""
+    import csv
+
+    with open(a, newline="", encoding="utf-8") as fa, open(b, newline="", encoding="utf-8") as fb:
+        ra, rb = list(csv.reader(fa)), list(csv.reader(fb))
+    head_a, head_b = (ra[0] if ra else []), (rb[0] if rb else [])
+    cols = head_a if head_a == head_b else sorted(set(head_a) | set(head_b))
+    differing: list[str] = []
+    if head_a != head_b:
+        differing = [c for c in cols if c not in head_a or c not in head_b]
+    ia, ib = {c: i for i, c in enumerate(head_a)}, {c: i for i, c in enumerate(head_b)}
+    for c in cols:
+        if c in differing or c not in ia or c not in ib:
+            continue
+        i, j = ia[c], ib[c]
+        if any((x[i] if i < len(x) else None) != (y[j] if j < len(y) else None) for x, y in zip(ra[1:], rb[1:])):
+            differing.append(c)
+    same_rows = len(ra) == len(rb)
+    return NavComparison(identical=same_rows and not differing, rows=(max(len(ra) - 1, 0), max(len(rb) - 1, 0)),
+                         differing_columns=differing, only_arrival=same_rows and differing == ["arrival_s"])
 
 
 def same_file(a: str | Path, b: str | Path) -> bool:

@@ -5,7 +5,11 @@
 writes ``report.html``. The plots are embedded as base64 PNG, so the report is one file.
 
 * whether the run is valid (every scheduled fault took effect) and passed, the faults with their
-  evidence, the expectations with their measured values;
+  evidence, the expectations with their measured values (numbers readable: ``22 710``, ``300 MHz``);
+* a trajectory map (truth vs estimate, periods without GNSS aiding and fault windows marked), attitude and
+  heading against truth with the filter's 3 sigma band, an error CDF, a GNSS panel (updates, innovations,
+  aided periods) and a PSNS/sky panel (solar vector used / rejected, aided periods, the firmware's counters);
+  a panel with nothing to show is left out rather than drawn empty;
 * attitude (roll, pitch, heading), velocity and position errors against truth, each with the
   filter's own +-3 sigma envelope, with the fault windows shaded;
 * the mode timeline (aligning / navigating / GNSS- and PSNS-aided / degraded) with the fault
@@ -166,9 +170,210 @@ def _nav_figures(nav: dict[str, list[float]], events: list[dict[str, Any]]) -> l
         shown.add(kind)
     ax.set_xlabel("time (s)")
     ax.set_title("mode timeline, faults (orange) and events")
-    ax.legend(loc="upper right", fontsize=6, ncol=3)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=6, ncol=1, borderaxespad=0.0)
     out.append(("Mode timeline", _png(fig)))
     return out
+
+
+def _plt() -> Any:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _en_m(lat: list[float], lon: list[float], lat0: float, lon0: float) -> tuple[list[float], list[float]]:
+    """East/North offsets (m) from (lat0, lon0), local flat-Earth (a report plot, not a navigation equation)."""
+    r = 6378137.0
+    c = math.cos(math.radians(lat0))
+    return ([math.radians(b - lon0) * r * c for b in lon], [math.radians(a - lat0) * r for a in lat])
+
+
+def _bit_spans(t: list[float], flags: list[float], bit: int, want: bool) -> list[tuple[float, float]]:
+    """Time spans where ``flags & bit`` is ``want`` (NaN rows count as not set)."""
+    spans, start = [], None
+    for tt, m in zip(t, flags):
+        on = (not math.isnan(m) and bool(int(m) & bit)) == want
+        if on and start is None:
+            start = tt
+        elif not on and start is not None:
+            spans.append((start, tt))
+            start = None
+    if start is not None and t:
+        spans.append((start, t[-1]))
+    return spans
+
+
+def _trajectory_figure(nav: dict[str, list[float]], truth: dict[str, list[float]],
+                       events: list[dict[str, Any]]) -> list[tuple[str, str]]:
+    """Truth and estimate on a local East/North map; GNSS outages (not GNSS-aided) and fault windows marked."""
+    t, lat, lon = nav.get("time_s", []), nav.get("lat_deg", []), nav.get("lon_deg", [])
+    tl, tlat, tlon = truth.get("time_s", []), truth.get("lat_deg", []), truth.get("lon_deg", [])
+    if not tlat or not lat:
+        return []
+    plt = _plt()
+    lat0, lon0 = tlat[0], tlon[0]
+    te, tn = _en_m(tlat, tlon, lat0, lon0)
+    ee, en = _en_m(lat, lon, lat0, lon0)
+    fig, ax = plt.subplots(figsize=(7.5, 6.5))
+    ax.plot(te, tn, "k-", lw=1.4, label="truth")
+    ax.plot(ee, en, "-", color="tab:blue", lw=0.8, alpha=0.8, label="estimate")
+    ax.plot(te[:1], tn[:1], "go", label="start")
+    modes = nav.get("mode", [])
+
+    def mark(spans: list[tuple[float, float]], color: str, label: str) -> None:
+        for k, (a, b) in enumerate(spans):
+            idx = [i for i, x in enumerate(t) if a <= x <= b]
+            if idx:
+                ax.plot([ee[i] for i in idx], [en[i] for i in idx], ".", ms=2, color=color,
+                        label=label if k == 0 else None)
+
+    mark([s for s in _bit_spans(t, modes, 0x0004, False) if s[1] - s[0] >= 2.0 and s[0] > (t[0] if t else 0)],
+         "tab:orange", "no GNSS aiding (>= 2 s)")
+    mark([(a, b) for a, b, _ in fault_spans(events)], "tab:red", "fault active")
+    ax.set_xlabel("East (m)")
+    ax.set_ylabel("North (m)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7, loc="best")
+    ax.set_title(f"trajectory: truth vs estimate (origin {lat0:.5f} N, {lon0:.5f} E; {len(tl)} truth rows)")
+    return [("Trajectory map", _png(fig))]
+
+
+def _attitude_vs_truth_figure(nav: dict[str, list[float]], truth: dict[str, list[float]],
+                              events: list[dict[str, Any]]) -> list[tuple[str, str]]:
+    """Roll, pitch and heading: the estimate with the filter's 3 sigma band, against truth."""
+    t = nav.get("time_s", [])
+    if not t or not truth.get("time_s"):
+        return []
+    plt = _plt()
+    import numpy as np
+
+    tt = np.asarray(truth["time_s"])
+    fig, axes = plt.subplots(3, 1, figsize=(10, 7.5), sharex=True)
+    sig_h = nav.get("sig_att_u_deg", [])
+    se, sn = nav.get("sig_att_e_deg", []), nav.get("sig_att_n_deg", [])
+    sig_tilt = [math.hypot(a, b) / math.sqrt(2) for a, b in zip(se, sn)]
+    for ax, col, sig in zip(axes, ("roll_deg", "pitch_deg", "heading_deg"), (sig_tilt, sig_tilt, sig_h)):
+        est = np.asarray(nav.get(col, []), dtype=float)
+        if est.size == 0:
+            continue
+        tv = np.asarray(truth.get(col, []), dtype=float)
+        ta = np.asarray(t, dtype=float)
+        if col == "heading_deg" and tv.size:  # unwrap both on the truth's branch, so 359 -> 1 is no jump
+            ref = np.interp(ta, tt, np.unwrap(np.radians(tv)))
+            est = np.degrees(ref + (np.radians(est) - ref + np.pi) % (2 * np.pi) - np.pi)
+            tv = np.degrees(np.unwrap(np.radians(tv)))
+        nav_on = np.asarray([not math.isnan(m) and bool(int(m) & 0x0002) for m in nav.get("mode", [])], dtype=bool)
+        if nav_on.size == est.size:
+            est = np.where(nav_on, est, np.nan)  # before alignment there is no estimate to show
+        if tv.size:
+            ax.plot(tt, tv, "k-", lw=1.2, label="truth")
+        ax.plot(ta, est, "-", color="tab:blue", lw=0.8, label="estimate")
+        if len(sig) == est.size:
+            s3 = 3.0 * np.asarray(sig, dtype=float)
+            ax.fill_between(ta, est - s3, est + s3, color="tab:blue", alpha=0.2, lw=0, label="estimate +-3 sigma")
+        _shade(ax, fault_spans(events))
+        ax.set_ylabel(col.replace("_deg", " (deg)"))
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    axes[-1].set_xlabel("time (s)")
+    fig.suptitle("attitude and heading against truth")
+    return [("Attitude and heading against truth", _png(fig))]
+
+
+def _error_cdf_figure(nav: dict[str, list[float]]) -> list[tuple[str, str]]:
+    """Empirical CDF of the absolute errors while navigating (heading, attitude, position, velocity)."""
+    cols = [("err_heading_deg", "heading (deg)"), ("err_att_deg", "attitude (deg)"), ("err_pos_m", "position (m)"),
+            ("err_vel_mps", "velocity (m/s)")]
+    data = [(label, sorted(abs(v) for v in nav.get(c, []) if not math.isnan(v))) for c, label in cols]
+    data = [(label, v) for label, v in data if v]
+    if not data:
+        return []
+    plt = _plt()
+    fig, axes = plt.subplots(1, len(data), figsize=(3.0 * len(data) + 1, 3.2), squeeze=False)
+    for ax, (label, v) in zip(axes[0], data):
+        n = len(v)
+        ax.step(v, [(i + 1) / n for i in range(n)], where="post", lw=1.0)
+        for q in (0.5, 0.95):
+            x = v[min(n - 1, int(q * n))]
+            ax.axvline(x, color="grey", ls=":", lw=0.8)
+            ax.text(x, q, f" {int(q * 100)} %: {_fmt(x)}", fontsize=7, va="bottom")
+        ax.set_xlabel(f"|error| {label}")
+        ax.set_ylim(0, 1.02)
+        ax.grid(True, alpha=0.3)
+    axes[0][0].set_ylabel("fraction of navigating frames")
+    fig.suptitle("error CDF (while navigating)")
+    return [("Error CDF", _png(fig))]
+
+
+def _gnss_figure(nav: dict[str, list[float]], events: list[dict[str, Any]]) -> list[tuple[str, str]]:
+    """GNSS: updates used (measurements per update, largest normalised innovation) and the aided periods."""
+    ups = [e for e in events if e.get("event") == "gnss_update"]
+    t = nav.get("time_s", [])
+    if not ups and not t:
+        return []
+    plt = _plt()
+    fig, axes = plt.subplots(2, 1, figsize=(10, 4.5), sharex=True)
+    ax = axes[0]
+    if ups:
+        ax.plot([e["t_s"] for e in ups], [e.get("n_meas", math.nan) for e in ups], "o", ms=3,
+                label="measurements per update")
+        ax2 = ax.twinx()
+        ax2.plot([e["t_s"] for e in ups], [e.get("max_norm_innov", math.nan) for e in ups], "r.", ms=3,
+                 label="largest normalised innovation")
+        ax2.set_ylabel("innovation (sigma)")
+        ax2.legend(loc="upper right", fontsize=7)
+    else:
+        ax.text(0.5, 0.5, "no GNSS update in this run", transform=ax.transAxes, ha="center")
+    ax.set_ylabel("measurements")
+    ax.legend(loc="upper left", fontsize=7)
+    ax.set_title(f"GNSS: {len(ups)} updates")
+    ax.grid(True, alpha=0.3)
+    modes = nav.get("mode", [])
+    axes[1].fill_between(t, 0, [1 if not math.isnan(m) and int(m) & 0x0004 else 0 for m in modes], step="post",
+                         alpha=0.6, label="GNSS-aided")
+    status = nav.get("gnss_status", [])
+    if status:
+        axes[1].plot(t, [min(v, 255) / 255 if not math.isnan(v) else math.nan for v in status], "k-", lw=0.6,
+                     label="gnss_status (/255)")
+    axes[1].set_ylim(-0.05, 1.1)
+    axes[1].set_xlabel("time (s)")
+    axes[1].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
+    return [("GNSS", _png(fig))]
+
+
+def _psns_figure(nav: dict[str, list[float]], events: list[dict[str, Any]],
+                 counters: dict[str, Any] | None = None) -> list[tuple[str, str]]:
+    """PSNS / sky: the per-frame PSNS status (solar vector used / rejected), the PSNS-aided periods and the
+    firmware's PSNS counters (frames, solutions, updates, rejections)."""
+    t = nav.get("time_s", [])
+    modes = nav.get("mode", [])
+    status = nav.get("psns_status", [])
+    aided = [1 if not math.isnan(m) and int(m) & 0x0008 else 0 for m in modes]
+    used = [x for x, v in zip(t, status) if v == 1]
+    rejected = [x for x, v in zip(t, status) if v == 2]
+    c = {k: v for k, v in (counters or {}).items() if k.startswith("psns_")}
+    if not used and not rejected and not any(aided) and not c.get("psns_frames"):
+        return []  # no polarization sensor in this run: no empty panel
+    plt = _plt()
+    fig, axes = plt.subplots(2, 1, figsize=(10, 4.5), sharex=True)
+    ax = axes[0]
+    ax.plot(used, [1] * len(used), "|", color="tab:green", ms=8, label=f"solar vector used ({len(used)} frames)")
+    ax.plot(rejected, [0] * len(rejected), "|", color="tab:red", ms=8, label=f"rejected ({len(rejected)} frames)")
+    ax.set_yticks([0, 1])
+    ax.set_yticklabels(["rejected", "used"])
+    ax.set_ylim(-0.5, 1.5)
+    ax.set_title("PSNS / sky: " + (", ".join(f"{k[5:]} {_fmt(v)}" for k, v in c.items()) or "solar-vector use"))
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
+    axes[1].fill_between(t, 0, aided, step="post", alpha=0.6, color="tab:purple", label="PSNS-aided")
+    axes[1].set_ylim(-0.05, 1.1)
+    axes[1].set_xlabel("time (s)")
+    axes[1].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
+    return [("PSNS and sky", _png(fig))]
 
 
 def _timeline_figures(path: Path) -> list[tuple[str, str]]:
@@ -184,12 +389,12 @@ def _timeline_figures(path: Path) -> list[tuple[str, str]]:
     if not t:
         return []
     out = []
-    err_cols = [c for c in cols if c.endswith(("crc_errors", "dropped", "garbage_bytes", "framing_errors"))]
-    if err_cols:
+    err_cols = [c for c in cols if c.endswith(("crc_errors", "dropped", "garbage_bytes", "framing_errors"))
+                and any(v for v in cols[c] if not math.isnan(v))]
+    if err_cols:  # no plot at all when no link ever counted an error (an empty axis reads as a failure)
         fig, ax = plt.subplots(figsize=(10, 3.5))
         for c in err_cols:
-            if any(v for v in cols[c] if not math.isnan(v)):
-                ax.plot(t, cols[c], lw=0.8, label=c)
+            ax.plot(t, cols[c], lw=0.8, label=c)
         ax.set_yscale("symlog", linthresh=1.0)
         ax.set_xlabel("time (s)")
         ax.set_ylabel("cumulative count (symlog)")
@@ -255,17 +460,38 @@ def _table(rows: list[list[Any]], header: list[str]) -> str:
 
 
 def _fmt(x: Any) -> str:
+    """Readable numbers: ``22 710`` not ``2.271e+04``, ``0.0123``, thousands grouped with thin spaces."""
     if x is None:
         return "-"
+    if isinstance(x, bool):
+        return str(x)
+    if isinstance(x, int):
+        return f"{x:,}".replace(",", "\u2009")
     if isinstance(x, float):
-        return f"{x:.4g}"
+        if not math.isfinite(x):
+            return "-"
+        a = abs(x)
+        if a == 0.0:
+            return "0"
+        if a >= 1000:
+            return f"{x:,.0f}".replace(",", "\u2009")
+        if a >= 0.01:
+            return f"{x:.4g}" if a < 1 else f"{x:.{max(0, 3 - len(str(int(a))))}f}".rstrip("0").rstrip(".")
+        return f"{x:.2e}"
     return str(x)
+
+
+def _hz(x: Any) -> str:
+    """A clock frequency in MHz (``300 MHz``, not ``3e+08 Hz``)."""
+    return "-" if not isinstance(x, (int, float)) else f"{x / 1e6:g} MHz"
 
 
 def write_report(run_dir: str | Path) -> Path:
     """Write ``report.html`` into ``run_dir`` and return its path."""
     run_dir = Path(run_dir)
-    summary = json.loads((run_dir / "summary.json").read_text(encoding="utf-8"))
+    from .summary_model import load_summary
+
+    summary = load_summary(run_dir).model_dump(mode="json")  # validated: a clear error for a foreign file
     nav = load_nav_csv(run_dir / "nav.csv") if (run_dir / "nav.csv").exists() else {}
     events: list[dict[str, Any]] = []
     ev_path = run_dir / "events.jsonl"
@@ -276,9 +502,14 @@ def write_report(run_dir: str | Path) -> Path:
                     events.append(json.loads(line))
                 except json.JSONDecodeError:
                     continue  # a truncated last line of an interrupted run
-    figs = _nav_figures(nav, events) + _timeline_figures(run_dir / "timeline.csv") + _task_figure(summary)
+    truth = load_nav_csv(run_dir / "truth.csv") if (run_dir / "truth.csv").exists() else {}
+    figs = (_trajectory_figure(nav, truth, events) + _attitude_vs_truth_figure(nav, truth, events)
+            + _nav_figures(nav, events) + _error_cdf_figure(nav) + _gnss_figure(nav, events)
+            + _psns_figure(nav, events, summary.get("firmware", {}).get("counters"))
+            + _timeline_figures(run_dir / "timeline.csv") + _task_figure(summary))
 
-    parts = [f"<h1>psns-hil run: {html.escape(str(summary.get('scenario')))}</h1>"]
+    what = "replay" if summary.get("replay") else "run"
+    parts = [f"<h1>psns-hil {what}: {html.escape(str(summary.get('scenario')))}</h1>"]
     valid = summary.get("valid", True)
     passed = summary.get("passed")
     verdict = ("INVALID: a scheduled fault never took effect" if valid is False else
@@ -316,7 +547,7 @@ def write_report(run_dir: str | Path) -> Path:
                          for k, v in summary.get("links", {}).items()],
                         ["link", "bytes", "frames", "crc_errors", "dropped", "garbage_bytes", "framing_errors"]))
     dsp = summary.get("dsp", {})
-    parts.append(f"<h2>DSP load ({_fmt(dsp.get('clock_hz'))} Hz, tick budget "
+    parts.append(f"<h2>DSP load ({_hz(dsp.get('clock_hz'))}, tick budget "
                  f"{_fmt(dsp.get('tick_budget_cycles'))} cycles)</h2>")
     parts.append(_table([[t["task"], t["calls"], t["cycles_min"], t["cycles_avg"], t["cycles_max"],
                           t["utilization_max_pct"]] for t in dsp.get("tasks", [])],

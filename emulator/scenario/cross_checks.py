@@ -24,8 +24,10 @@ def link_names(scn: Scenario) -> list[str]:
     return [*names, "uart0", "uart1", "uart2", "uart3"]
 
 
-def cross_check(scn: Scenario) -> list[tuple[tuple[Any, ...], str]]:
-    """Problems that involve several sections; each ``(field path, message)``. Empty when all is well."""
+def cross_check(scn: Scenario, environment: bool = True) -> list[tuple[tuple[Any, ...], str]]:
+    """Problems that involve several sections; each ``(field path, message)``. Empty when all is well.
+
+    ``environment``: also what the run needs from this machine (referenced files, serial devices)."""
     issues: list[tuple[tuple[Any, ...], str]] = []
     dur = scn.duration_s
     links = link_names(scn)
@@ -83,6 +85,76 @@ def cross_check(scn: Scenario) -> list[tuple[tuple[Any, ...], str]]:
                 load_hook(scn.base_dir, body.file, body.function)
             except HookError as exc:
                 issues.append(((*loc, "file"), f"python hook: {exc}"))
+    issues += _devices_and_links(scn)
+    issues += _files_and_ports(scn, environment)
+    return issues
+
+
+def _devices_and_links(scn: Scenario) -> list[tuple[tuple[Any, ...], str]]:
+    """Every modelled polarization sensor needs ``links.psns`` (without it the run silently leaves it out), and a
+    simulated ``links.psns`` needs a sensor to feed it."""
+    issues: list[tuple[tuple[Any, ...], str]] = []
+    s = scn.sensors
+    psns = scn.links.psns
+    for name, spec in (("camera", s.camera), ("compass", s.compass)):
+        if spec is not None and spec.enabled and psns is None:
+            issues.append((("sensors", name), f"a {name} is modelled but the scenario has no links.psns, so the run "
+                                              f"would leave it out; add links: {{psns: {{url: mem://psns}}}} or set "
+                                              f"sensors.{name}.enabled: false"))
+    if psns is not None and psns.url.startswith("mem://"):
+        camera_off = s.camera is not None and not s.camera.enabled
+        compass_on = s.compass is not None and s.compass.enabled
+        if camera_off and not compass_on:
+            issues.append((("links", "psns"), "links.psns is simulated (mem://) but no polarization sensor is "
+                                              "modelled (sensors.camera.enabled is false, no compass): nothing "
+                                              "would send on it; remove links.psns or enable a sensor"))
+    return issues
+
+
+def _files_and_ports(scn: Scenario, environment: bool) -> list[tuple[tuple[Any, ...], str]]:
+    """Referenced files and serial devices exist; no two ports share a pty name or a serial device."""
+    import glob
+    from pathlib import Path
+
+    from ..links import parse_link_url
+
+    issues: list[tuple[tuple[Any, ...], str]] = []
+
+    def path(name: str) -> Path:
+        p = Path(name)
+        return p if p.is_absolute() or scn.base_dir is None else Path(scn.base_dir) / p
+
+    s = scn.sensors
+    files: list[tuple[tuple[Any, ...], str | None]] = [
+        (("sensors", "imu", "recorded", "file"), s.imu.recorded.file if s.imu.recorded else None),
+        (("sensors", "gnss", "recorded", "file"), s.gnss.recorded.file if s.gnss.recorded else None),
+        (("sensors", "camera", "recorded", "index"),
+         s.camera.recorded.index if s.camera is not None and s.camera.recorded is not None else None),
+    ]
+    for loc, name in files if environment else []:
+        if name is not None and not path(name).is_file():
+            issues.append((loc, f"no such file: {path(name)}"))
+    if environment and s.camera is not None and s.camera.recorded is not None and s.camera.recorded.files is not None:
+        pattern = str(path(s.camera.recorded.files))
+        if not glob.glob(pattern):
+            issues.append((("sensors", "camera", "recorded", "files"), f"no file matches {pattern}"))
+    seen: dict[tuple[str, str], str] = {}
+    for port in ("gyro", "gnss", "psns", "host", "monitor"):
+        spec = getattr(scn.links, port, None)
+        if spec is None:
+            continue
+        u = parse_link_url(spec.url)
+        if u.scheme not in ("pty", "serial"):
+            continue
+        if environment and u.scheme == "serial" and not Path(u.target).exists():
+            issues.append((("links", port, "url"), f"no such serial device: {u.target}"))
+        key = (u.scheme, u.target)
+        if key in seen:
+            what = "pty name" if u.scheme == "pty" else "serial device"
+            issues.append((("links", port, "url"), f"links.{port} uses the same {what} {u.target!r} as "
+                                                   f"links.{seen[key]}; every port needs its own"))
+        else:
+            seen[key] = port
     return issues
 
 

@@ -19,7 +19,7 @@ from ..errors import ScenarioError, ScenarioIssue
 from .cross_checks import cross_check
 from .schema import Scenario
 
-__all__ = ["load_scenario", "load_yaml_with_marks", "validate_scenario_data"]
+__all__ = ["apply_overrides", "load_scenario", "load_yaml_with_marks", "validate_scenario_data"]
 
 Loc = tuple[Any, ...]
 
@@ -137,8 +137,11 @@ def _issue_from_error(err: ErrorDetails, marks: dict[Loc, tuple[int, int]], file
 
 
 def validate_scenario_data(data: Any, marks: dict[Loc, tuple[int, int]], file: str = "<scenario>",
-                           base_dir: Path | None = None) -> Scenario:
-    """Validate parsed YAML against the schema; raise :class:`ScenarioError` with every issue."""
+                           base_dir: Path | None = None, check_environment: bool = True) -> Scenario:
+    """Validate parsed YAML against the schema; raise :class:`ScenarioError` with every issue.
+
+    ``check_environment``: also check what the run needs from this machine (referenced files, serial
+    devices); a replay, which uses neither, turns it off."""
     if not isinstance(data, dict):
         raise ScenarioError(ScenarioIssue(file, 1, 1, "", "a scenario must be a mapping of keys to values"))
     try:
@@ -149,7 +152,7 @@ def validate_scenario_data(data: Any, marks: dict[Loc, tuple[int, int]], file: s
         raise ScenarioError(issues) from None
     scn._source_file = file
     scn._base_dir = str(base_dir) if base_dir is not None else None
-    problems = cross_check(scn)
+    problems = cross_check(scn, environment=check_environment)
     if problems:
         issues = []
         for loc, msg in problems:
@@ -163,8 +166,54 @@ def validate_scenario_data(data: Any, marks: dict[Loc, tuple[int, int]], file: s
     return scn
 
 
-def load_scenario(path: str | Path) -> Scenario:
-    """Read, parse and validate a scenario file."""
+def apply_overrides(data: Any, overrides: list[str] | tuple[str, ...], marks: dict[Loc, tuple[int, int]]
+                    ) -> dict[Loc, str]:
+    """Apply ``--set dotted.key=value`` overrides to parsed scenario data, in place.
+
+    The value is read as YAML (``5``, ``true``, ``pty://uart0``, ``{a: 1}``); a number in the path indexes a list
+    (``faults.0.start_s``). The overridden keys lose their file position (``marks``). Returns each override's
+    location -> its text, so that validation problems there name the override rather than the file.
+    """
+    where: dict[Loc, str] = {}
+    for raw in overrides:
+        key, eq, text = raw.partition("=")
+        key = key.strip()
+        if not eq or not key or any(not k for k in key.split(".")):
+            raise ScenarioError(ScenarioIssue(f"--set {raw}", None, None, "", "expected --set dotted.key=value "
+                                              "(for example --set duration_s=30 or --set links.host.url=pty://uart0)"))
+        try:
+            value = yaml.safe_load(text) if text.strip() else ""
+        except yaml.YAMLError as exc:
+            raise ScenarioError(ScenarioIssue(f"--set {raw}", None, None, key, f"the value is not YAML: {exc}")) \
+                from None
+        loc: Loc = tuple(int(k) if k.isdigit() else k for k in key.split("."))
+        node = data
+        for i, k in enumerate(loc[:-1]):
+            nxt = loc[i + 1]
+            if isinstance(node, list) and isinstance(k, int):
+                if k >= len(node):
+                    raise ScenarioError(ScenarioIssue(f"--set {raw}", None, None, _fmt_path(loc[: i + 1]),
+                                                      f"index {k} is past the end (the list has {len(node)} items)"))
+            elif isinstance(node, dict):
+                if not isinstance(node.get(k), (dict, list)):
+                    node[k] = [] if isinstance(nxt, int) else {}
+            else:
+                raise ScenarioError(ScenarioIssue(f"--set {raw}", None, None, _fmt_path(loc[:i]),
+                                                  "is not a mapping or a list"))
+            node = node[k]
+        last = loc[-1]
+        if isinstance(node, dict) or (isinstance(node, list) and isinstance(last, int) and last < len(node)):
+            node[last] = value
+        else:
+            raise ScenarioError(ScenarioIssue(f"--set {raw}", None, None, _fmt_path(loc), "cannot be set here"))
+        for m in [m for m in marks if m[: len(loc)] == loc]:
+            del marks[m]
+        where[loc] = raw
+    return where
+
+
+def load_scenario(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Scenario:
+    """Read, parse and validate a scenario file; ``overrides``: ``dotted.key=value`` (:func:`apply_overrides`)."""
     p = Path(path)
     file = str(path)
     try:
@@ -178,4 +227,17 @@ def load_scenario(path: str | Path) -> Scenario:
     except OSError as exc:
         raise ScenarioError(ScenarioIssue(file, None, None, "", f"cannot read: {exc.strerror}")) from None
     data, marks = load_yaml_with_marks(text, file)
-    return validate_scenario_data(data, marks, file, base_dir=p.resolve().parent)
+    if not overrides:
+        return validate_scenario_data(data, marks, file, base_dir=p.resolve().parent)
+    if not isinstance(data, dict):
+        raise ScenarioError(ScenarioIssue(file, 1, 1, "", "a scenario must be a mapping of keys to values"))
+    where = apply_overrides(data, overrides, marks)
+    try:
+        return validate_scenario_data(data, marks, file, base_dir=p.resolve().parent)
+    except ScenarioError as exc:
+        by_path = {_fmt_path(loc): raw for loc, raw in where.items()}
+        for issue in exc.issues:
+            for path_text, raw in by_path.items():
+                if issue.path == path_text or issue.path.startswith((path_text + ".", path_text + "[")):
+                    issue.file, issue.line, issue.column = f"{file} (--set {raw})", None, None
+        raise

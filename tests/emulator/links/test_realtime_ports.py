@@ -181,9 +181,9 @@ async def test_reopened_pty_gets_no_stale_bytes_and_absent_peer_is_counted(tmp_p
     async with start_emulator_rt(tmp_path, _overrides(8.0, host="pty://uart0")) as emu:
         link = emu.emulator.links["host"]
         path = tmp_path / "ports" / "uart0"
-        await emu.run_for(0.3)  # nobody attached: every frame is dropped and counted
-        dropped0 = link.stats.dropped_out
-        assert dropped0 >= 20 * 109
+        await emu.run_for(0.3)  # nobody attached: every frame is discarded and counted as unheard, not dropped
+        dropped0 = link.stats.no_peer_out
+        assert dropped0 >= 20 * 109 and link.stats.dropped_out == 0
         # a peer that opens, reads nothing and leaves behind unread frames
         lazy = serial.Serial(str(path), 460800, timeout=0)
         await emu.wait_until(lambda: link.attached, timeout=1.0)
@@ -207,5 +207,5 @@ async def test_reopened_pty_gets_no_stale_bytes_and_absent_peer_is_counted(tmp_p
         assert dec.stats.garbage_bytes == 0
         # time of validity of the first frame read: after the reopen (no stale frame from before)
         assert navs[0].time_s >= t_open - 0.05
-        assert link.stats.dropped_out > dropped0
+        assert link.stats.no_peer_out > dropped0 and link.stats.dropped_out == 0
         assert link.attach_count == 2 and link.detach_count >= 1

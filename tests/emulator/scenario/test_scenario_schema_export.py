@@ -16,3 +16,16 @@ def test_schema_forbids_unknown_keys():
     s = json.loads(render())
     assert s["additionalProperties"] is False
     assert "origin" in s["required"] and "epoch" in s["required"]
+
+
+def _undescribed(schema):
+    return [f"{name}.{k}" for name, d in [("Scenario", schema), *schema.get("$defs", {}).items()]
+            for k, p in d.get("properties", {}).items() if "description" not in p]
+
+
+def test_section_properties_take_their_section_docstring_and_the_undescribed_only_shrink():
+    s = json.loads(render())
+    assert s["properties"]["sensors"]["description"] and s["$defs"]["Sensors"]["properties"]["camera"]["description"]
+    assert "links.psns" in s["$defs"]["Sensors"]["properties"]["camera"]["description"]
+    # a ratchet until every property has its own description (issue 19): lower it as descriptions are added
+    assert len(_undescribed(s)) <= 57, _undescribed(s)

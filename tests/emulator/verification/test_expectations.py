@@ -256,3 +256,13 @@ def test_event_expectations_on_a_variants_events_with_an_injected_glitch(tmp_pat
 
     (r,) = evaluate_expectations(scn2.expectations, Rec(), {"sim_duration_s": 72.0})
     assert r.passed is False and r.value == 0
+
+
+def test_nan_in_a_metric_fails_its_expectation_with_the_reason():
+    nan = float("nan")
+    rec = FakeRecorder(errors=[(10.0, 0.1, 0.2, 1.0, 0.1), (11.0, nan, nan, nan, nan), (12.0, 0.1, 0.2, 1.0, 0.1)])
+    r = _eval([{"nav_error": {"metric": "heading_deg", "stat": "max", "max": 1.0}},
+               {"summary": {"path": "dsp.cpu_load_pct_max", "max": 50}}],
+              rec=rec, summary={"sim_duration_s": 20.0, "dsp": {"cpu_load_pct_max": nan}})
+    assert [x.passed for x in r] == [False, False]
+    assert all("not a finite number" in x.message for x in r)

@@ -1,0 +1,151 @@
+"""The run summary (``summary.json``) as a typed model: :class:`RunSummary`.
+
+The assembly builds the summary as a dict (:mod:`emulator.assembly.session`) and the recorder writes it as strict
+JSON; readers load it through :func:`load_summary`, which validates it against this model, so a reader gets
+typed sections and a clear error for a file that is not a summary. Sections that grow with the firmware (``dsp``,
+``firmware``, ``fpga``, ``devices``) are typed where readers depend on them and open (``extra="allow"``)
+elsewhere. ``docs/summary.schema.json`` is generated from this model (:func:`summary_json_schema`;
+``tests/emulator/recording/test_summary_model.py`` keeps it current).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from ..errors import RecordingError
+
+__all__ = ["ErrorStat", "ExpectationRecord", "LinkCounters", "RunSummary", "load_summary", "summary_json_schema"]
+
+
+class _Open(BaseModel):
+    model_config = ConfigDict(extra="allow")
+
+
+class ErrorStat(_Open):
+    rms: float | None = Field(None, description="RMS over the navigating frames (null: none, or not a number)")
+    max: float | None = Field(None, description="largest absolute value (null: none, or not a number)")
+
+
+class LinkCounters(_Open):
+    bytes: int = Field(0, description="bytes that crossed the link, both directions")
+    frames: int = Field(0, description="frames decoded on the link")
+    crc_errors: int = Field(0, description="frames with a bad checksum")
+    dropped: int = Field(0, description="bytes lost: TX queue overflow, a full kernel buffer")
+    no_peer: int = Field(0, description="bytes a pty sent while no peer was attached (unheard, not dropped)")
+    garbage_bytes: int = Field(0, description="bytes the decoders skipped while resynchronising")
+    framing_errors: int = Field(0, description="characters with a bad stop bit")
+
+
+class DspTask(_Open):
+    task: str
+    calls: int
+    cycles_min: int | None = None
+    cycles_avg: float | None = None
+    cycles_max: int | None = None
+    utilization_max_pct: float | None = None
+    kernels: dict[str, float] = Field(default_factory=dict, description="cycles per kernel, summed over calls")
+
+
+class DspSection(_Open):
+    clock_hz: float = Field(description="DSP clock, Hz")
+    cpu_load_pct_max: float | None = Field(None, description="CPU load of the worst 1 s, %")
+    tick_budget_cycles: int | None = None
+    deadline_misses: int = 0
+    cost_model: str | None = None
+    tasks: list[DspTask] = Field(default_factory=list)
+
+
+class FaultRecord(_Open):
+    index: int
+    kind: str
+    target: str
+    fired: bool | None = Field(None, description="whether the fault took effect (null: nothing to check)")
+    active_from_s: float | None = None
+    active_until_s: float | None = None
+    evidence: dict[str, Any] = Field(default_factory=dict)
+
+
+class ExpectationRecord(_Open):
+    index: int
+    kind: str
+    description: str
+    value: float | int | str | None = None
+    passed: bool
+    message: str = ""
+    applicable: bool = Field(True, description="false when the expectation cannot apply (a replay); it then "
+                                               "does not fail")
+
+
+class ReplayInfo(_Open):
+    source: str | None = Field(None, description="the capture replayed")
+    records: int = Field(0, description="captured DSP UART records replayed")
+    truncated: bool | None = Field(None, description="the capture ends before the scenario did")
+    captured_s: float | None = Field(None, description="the duration the capture really holds, s")
+    scenario_duration_s: float | None = None
+
+
+class RunSummary(_Open):
+    """``summary.json`` of one run (see module docstring)."""
+
+    psns_hil_version: str | None = None
+    scenario: str = Field(description="the scenario's name")
+    scenario_file: str | None = None
+    seed: int | None = None
+    mode: str | None = Field(None, description="fast or realtime")
+    speed: float | None = None
+    epoch: str | None = Field(None, description="UTC epoch of t = 0, ISO 8601")
+    sim_duration_s: float | None = Field(None, description="simulated time the run covered, s")
+    wall_s: float | None = None
+    realtime_factor: float | None = None
+    interrupted: bool = False
+    started: bool | None = Field(None, description="false when the run was interrupted while starting")
+    replay: ReplayInfo | None = None
+    run_dir: str
+    nav_error: dict[str, ErrorStat] = Field(default_factory=dict, description="error against truth while "
+                                                                               "navigating, per metric")
+    nav_frames: int | None = None
+    links: dict[str, LinkCounters] = Field(default_factory=dict)
+    link_stats: dict[str, dict[str, Any]] = Field(default_factory=dict, description="raw counters per link end")
+    dsp: DspSection | None = None
+    firmware: dict[str, Any] = Field(default_factory=dict)
+    fpga: dict[str, Any] = Field(default_factory=dict)
+    devices: dict[str, Any] = Field(default_factory=dict)
+    ports: list[dict[str, Any]] = Field(default_factory=list)
+    events: dict[str, int] = Field(default_factory=dict, description="event counts by name")
+    faults: list[FaultRecord] = Field(default_factory=list)
+    valid: bool = Field(True, description="false when a scheduled fault never took effect")
+    expectations: list[ExpectationRecord] = Field(default_factory=list)
+    passed: bool = False
+    non_finite: list[str] = Field(default_factory=list, description="paths of values that were NaN or infinite, "
+                                                                    "written as null")
+
+
+def load_summary(path: str | Path) -> RunSummary:
+    """Read and validate a ``summary.json`` (a run directory is accepted too)."""
+    p = Path(path)
+    if p.is_dir():
+        p = p / "summary.json"
+    try:
+        data = json.loads(p.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise RecordingError(f"{p.parent}: not a run directory (no summary.json)") from None
+    except (OSError, ValueError) as exc:
+        raise RecordingError(f"{p}: cannot read the run summary: {exc}") from None
+    try:
+        return RunSummary.model_validate(data)
+    except ValidationError as exc:
+        first = exc.errors(include_url=False)[0]
+        where = ".".join(str(x) for x in first["loc"])
+        raise RecordingError(f"{p}: not a psns-hil run summary ({where}: {first['msg']})") from None
+
+
+def summary_json_schema() -> str:
+    """The JSON Schema of ``summary.json`` (``docs/summary.schema.json``)."""
+    schema = RunSummary.model_json_schema()
+    schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+    schema["title"] = "psns-hil run summary (summary.json)"
+    return json.dumps(schema, indent=2, sort_keys=True) + "\n"

@@ -100,6 +100,9 @@ DESCRIPTIONS: dict[str, str] = {
     "GnssErrorSpec.pos_sigma_v_m": "vertical position error, 1 sigma, m",
     "GnssErrorSpec.pos_white_fraction": "fraction of the position error variance that is white (the rest correlated)",
     "GnssErrorSpec.pps_jitter_ns": "PPS edge jitter, ns",
+    "GnssErrorSpec.multipath_corr_time_s": "correlation time of the multipath error (a second Gauss-Markov term), s",
+    "GnssErrorSpec.multipath_sigma_h_m": "horizontal multipath error, 1 sigma per axis, m",
+    "GnssErrorSpec.multipath_sigma_v_m": "vertical multipath error, 1 sigma, m",
     "GnssErrorSpec.vel_sigma_h_mps": "horizontal velocity error, 1 sigma per axis, m/s",
     "GnssErrorSpec.vel_sigma_v_mps": "vertical velocity error, 1 sigma, m/s",
     "GnssGlitchSpec.start_s": "start of the glitch, s",
@@ -115,6 +118,7 @@ DESCRIPTIONS: dict[str, str] = {
     "RecordedImagesSpec.start_s": "scenario time of the first image, s",
     # polarization camera and compass
     "CameraSpec.enabled": "whether the camera is modelled (false: no PSNS frames)",
+    "CameraSpec.mounting": "camera-to-body rotation: the nominal mount and the installation error",
     "CameraSpec.preset": "named camera preset whose figures the fields below override",
     "CameraSpec.fidelity": "full: every pixel; binned: superpixels (faster, the default)",
     "CameraSpec.lens": "lens projection: pinhole or fisheye (default: the preset's)",

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -166,7 +167,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     from ..assembly.runner import default_run_dir, resolve_mode, run_scenario
     from ..scenario import load_scenario
+    from ..scenario.paths import ALLOW_HOOKS_ENV
 
+    if getattr(args, "allow_hooks", False):  # the run (and a --split DSP process) may import the scenario's hooks
+        os.environ[ALLOW_HOOKS_ENV] = "1"
     scn = load_scenario(args.scenario)
     mode = resolve_mode(scn, "realtime" if args.realtime else "fast" if args.fast else None)
     if getattr(args, "split", False):
@@ -312,6 +316,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--no-report", action="store_true", help="do not write report.html at the end")
     r.add_argument("--split", action="store_true",
                    help="run the virtual DSP in its own process, joined to the FPGA over zenoh (realtime)")
+    r.add_argument("--allow-hooks", action="store_true",
+                   help="import and run the scenario's Python expectation hooks (expectations[].python): only for "
+                        "a scenario you trust, they run any code (docs/hostile-input.md)")
     r.set_defaults(func=_cmd_run)
 
     rep = sub.add_parser("report", help="write report.html (plots of errors, modes, faults, links, DSP load) "

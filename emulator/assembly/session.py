@@ -27,6 +27,7 @@ from firmware_model import Firmware
 from protocols import __version__ as VERSION
 from protocols.stim import Stim210Format
 
+from .. import early_signals
 from ..clock import EmulatorLoop, sleep_until
 from ..devices.fpga import VirtualFpga
 from ..devices.gnss import GnssReceiver
@@ -293,6 +294,8 @@ class Emulator:
         interrupted = False
         try:
             await self.start()
+            if getattr(self, "_interrupt_requested", False):  # a signal during start-up: never run on
+                raise asyncio.CancelledError
             await self.run_until(self.scn.duration_s)
         except asyncio.CancelledError:
             interrupted = True
@@ -408,9 +411,17 @@ def run_emulator(emu: Emulator, speed: float = 1.0, on_started: Callable[[Emulat
 
     task = loop.create_task(main())
     loop.set_exception_handler(on_error)
+
+    def on_signal() -> None:
+        emu._interrupt_requested = True  # type: ignore[attr-defined]  (read by Emulator.run after start-up)
+        task.cancel()
+
     for sig in (signal.SIGINT, signal.SIGTERM):
         with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):
-            loop.add_signal_handler(sig, task.cancel)
+            loop.add_signal_handler(sig, on_signal)
+    if early_signals.PENDING:  # a signal arrived before this loop existed (emulator.early_signals): the run
+        early_signals.PENDING.clear()  # starts (run directory, recorder) and ends at once, interrupted
+        emu._interrupt_requested = True  # type: ignore[attr-defined]
     try:
         summary = loop.run_until_complete(task)
         if failure:

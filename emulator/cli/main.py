@@ -368,6 +368,10 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    if argv is None and args.command == "run":  # catch SIGINT/SIGTERM before any work (docs/hostile-input.md)
+        from ..early_signals import install
+
+        install()  # (already done by emulator.cli for the usual entry points)
     if getattr(args, "speed", None) is not None and args.speed <= 0:
         parser.error("--speed must be > 0")
     try:

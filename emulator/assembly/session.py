@@ -68,6 +68,10 @@ class Emulator:
     replay : capture records to replay into the DSP instead of running sensors.
     """
 
+    #: set by run_emulator's signal handler (or a signal before it existed): the run ends once started
+    _interrupt_requested = False
+
+
     def __init__(self, scn: Scenario, run_dir: Path, mode: str | None = None, seed: int | None = None,
                  progress: Callable[[float, float], None] | None = None,
                  replay: list[CaptureRecord] | None = None) -> None:
@@ -294,7 +298,7 @@ class Emulator:
         interrupted = False
         try:
             await self.start()
-            if getattr(self, "_interrupt_requested", False):  # a signal during start-up: never run on
+            if self._interrupt_requested:  # a signal during start-up: never run on
                 raise asyncio.CancelledError
             await self.run_until(self.scn.duration_s)
         except asyncio.CancelledError:
@@ -413,7 +417,7 @@ def run_emulator(emu: Emulator, speed: float = 1.0, on_started: Callable[[Emulat
     loop.set_exception_handler(on_error)
 
     def on_signal() -> None:
-        emu._interrupt_requested = True  # type: ignore[attr-defined]  (read by Emulator.run after start-up)
+        emu._interrupt_requested = True  # read by Emulator.run after start-up
         task.cancel()
 
     for sig in (signal.SIGINT, signal.SIGTERM):
@@ -421,7 +425,7 @@ def run_emulator(emu: Emulator, speed: float = 1.0, on_started: Callable[[Emulat
             loop.add_signal_handler(sig, on_signal)
     if early_signals.PENDING:  # a signal arrived before this loop existed (emulator.early_signals): the run
         early_signals.PENDING.clear()  # starts (run directory, recorder) and ends at once, interrupted
-        emu._interrupt_requested = True  # type: ignore[attr-defined]
+        emu._interrupt_requested = True
     try:
         summary = loop.run_until_complete(task)
         if failure:

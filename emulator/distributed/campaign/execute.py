@@ -118,7 +118,8 @@ def local_cluster(workers: int, dashboard: bool = False) -> tuple[Any, Any]:
         sec = Security.temporary()
     except ImportError as exc:
         raise CampaignError(f"the campaign's TLS certificates need the cryptography package: {exc}") from exc
-    http = {} if dashboard else {"distributed.scheduler.http.routes": [], "distributed.worker.http.routes": []}
+    http: dict[str, Any] = {} if dashboard else {"distributed.scheduler.http.routes": [],
+                                                 "distributed.worker.http.routes": []}
     with dask.config.set(http):
         cluster = dd.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
                                   protocol="tls://", security=sec, worker_dashboard_address=None,

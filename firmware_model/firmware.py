@@ -431,7 +431,9 @@ class Firmware(HostTask, GnssTask):
                     self._last_psns_t = t
                     self._psns_reject_since = None
                 else:
-                    if self._psns_reject_since is None:
+                    # divergence evidence only from an innovation test (a geometric refusal, e.g. the sun outside
+                    # the field of view, says nothing about the state)
+                    if self._psns_reject_since is None and prep.max_norm_innov > 0.0:
                         self._psns_reject_since = t
                     self.counters["psns_rejected"] += 1
                     if t - self._last_psns_reject_t >= 1.0:  # at most one event per second

@@ -8,7 +8,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 SCENARIO ?= scenarios/quickstart.yaml
 
-.PHONY: install run test test-realtime test-all lint bench bench-quick golden clean distclean check-python
+.PHONY: install run test test-realtime test-all fuzz lint bench bench-quick golden clean distclean check-python
 
 check-python:
 	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "psns-hil needs Python >= 3.11, found " + sys.version.split()[0])'
@@ -33,6 +33,12 @@ test-realtime: install
 
 test-all: install
 	$(PY) -m pytest -m ''
+
+# Long seeded fuzz of every decoder and of the firmware's input path (>= 10^6 cases; not in `make test`):
+# prints the case counts, exits 1 on any exception or non-finite state (docs/hostile-input.md).
+FUZZ_ARGS ?=
+fuzz: install
+	$(PY) -m tests.fuzz.fuzz_inputs $(FUZZ_ARGS)
 
 # The linters .ci/run runs before the tests: style and errors, types, layers.
 lint: install

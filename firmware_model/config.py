@@ -72,6 +72,12 @@ class FirmwareConfig:
     gnss_vel_sigma_h_mps: float = 0.041
     gnss_vel_sigma_v_mps: float = 0.1
     gnss_max_age_s: float = 1.5
+    #: innovation gate of each GNSS row (normalised innovation squared, 1 dof; 36 = 6 sigma) (docs/hostile-input.md)
+    gnss_gate_chi2: float = 36.0
+    #: divergence detection (docs/hostile-input.md): consecutive refused GNSS fixes, or seconds of refused solar
+    #: vectors with none accepted, after which the loop re-aligns (gravity + sun/GNSS); 0 turns a criterion off
+    fdir_gnss_reject_limit: int = 30
+    fdir_psns_reject_s: float = 30.0
     # PSNS
     psns_enabled: bool = True
     psns_baud: int = 115200  # DSP UART2 baud (for the exposure time tag, docs/architecture.md "Conventions")

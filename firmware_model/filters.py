@@ -327,20 +327,42 @@ class BaseFilter(NavFilter):
 
     # -- measurement updates --------------------------------------------------------------------
     def _scalar(self, h: FloatArray, z: float, r: float) -> float:
-        self.x, self.P, nu, s = kf_update_scalar(self.x, self.P, h, z, r)
+        x, P, nu, s = kf_update_scalar(self.x, self.P, h, z, r)
+        if not (s > 0.0 and math.isfinite(s) and math.isfinite(nu)):
+            # a covariance that lost positive definiteness, or a non-finite measurement that got this far:
+            # the update is refused and the state kept (counted; the loop's divergence check re-aligns)
+            self.counters["kf_update_refused"] = self.counters.get("kf_update_refused", 0) + 1
+            return 0.0
+        self.x, self.P = x, P
         return nu / math.sqrt(s)
+
+    def _gnss_row_gated(self, h: FloatArray, z: float, r: float) -> bool:
+        """Innovation gate of one GNSS row: ``nu^2 / (h P h^T + r) > gnss_gate_chi2`` (or not finite) refuses it."""
+        s = float(h @ (self.P @ h)) + r
+        nu = float(z - h @ self.x)
+        nis = nu * nu / s if s > 0.0 else math.inf
+        if not nis <= self.cfg.gnss_gate_chi2:
+            self.counters["gnss_rows_gated"] = self.counters.get("gnss_rows_gated", 0) + 1
+            return True
+        return False
 
     def update_gnss(self, nav: NavState, meas: GnssMeasurement, p_ins: FloatArray, v_ins: FloatArray) -> UpdateReport:
         dt = self.dtype
         rows = gnss_measurement_rows(self.cfg, self.meter, meas, p_ins, v_ins)
         innov = []
         h = np.zeros(N_STATES, dtype=dt)
+        gated = 0
         for idx, hval, z, r in rows:
             h[:] = 0
             h[idx] = hval
+            if self._gnss_row_gated(h, z, r):
+                gated += 1
+                continue
             innov.append(self._scalar(h, z, r))
         self.meter.charge("kf_update", len(rows) * self._cyc_update)
-        return UpdateReport("gnss", True, len(rows), max((abs(v) for v in innov), default=0.0))
+        n = len(rows) - gated
+        return UpdateReport("gnss", n > 0 or not rows, n, max((abs(v) for v in innov), default=0.0),
+                            {"gated_rows": gated} if gated else None)
 
     def update_solar(self, nav: NavState, obs: SolarObservation, s_n: FloatArray, cbn_exp: FloatArray) -> UpdateReport:
         """Eqs. 31-42: ``Z = S^n - C_b^{n'} (+-S^b)``, sign by the smaller ``|Z|``, ``H = -[S^n x]``."""

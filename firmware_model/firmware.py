@@ -33,6 +33,8 @@ The filter itself is a variant (:mod:`firmware_model.filters`), picked by ``Firm
 
 from __future__ import annotations
 
+import dataclasses
+import os
 from collections import deque
 from typing import Any
 
@@ -46,7 +48,7 @@ from protocols.stim import GYRO_ANGLE_LSB_DEG, GYRO_RATE_LSB_DPS
 from protocols.stream import StreamDecoder
 from protocols.ubx import NavPvt, UbxFormat
 
-from . import c674x
+from . import c674x, input_guard
 from .alignment import level_cycles, triad_cycles
 from .arrays import FloatArray
 from .config import UART_GNSS, UART_HOST, UART_IMU, UART_PSNS, FirmwareConfig
@@ -100,6 +102,8 @@ def tick_kernel_cycles(c: c674x.KernelCosts, nav_dp: bool = True) -> dict[str, i
 
 _PPS_VALID = int(FpgaStatus.PPS_VALID)
 _GYRO_MISSING = int(FpgaStatus.GYRO_MISSING)
+#: consecutive IMU frames with an out-of-range time-stamp step after which the new time base is taken
+_IMU_RESYNC = 5
 
 
 class Firmware(HostTask, GnssTask):
@@ -182,7 +186,25 @@ class Firmware(HostTask, GnssTask):
                          "psns_updates": 0, "psns_rejected": 0, "psns_invalid": 0, "psns_sun_low": 0,
                          "psns_dropped": 0, "compass_frames": 0, "mag_frames": 0,
                          "gnss_pvt": 0, "commands_accepted": 0, "commands_rejected": 0, "commands_dropped": 0,
-                         "status_frames": 0}
+                         "status_frames": 0, "input_rejected": 0, "input_faults": 0}
+        #: True: an exception while handling one input message propagates (tests of the emulator itself set
+        #: ``PSNS_HIL_STRICT=1``); False (the box): it is contained, counted (``input_faults``) and reported
+        self.raise_faults = os.environ.get("PSNS_HIL_STRICT", "") not in ("", "0")
+        self._fault_events: list[dict[str, Any]] = []
+        self._imu_hold: tuple[tuple[int, int, int], tuple[int, int, int]] | None = None
+        self._imu_bad_steps = 0
+        self._gnss_reject_run = 0
+        self._psns_reject_since: float | None = None
+
+    # -- input validation and fault containment (docs/hostile-input.md) --------------------------------
+    def _fault(self, where: str, exc: BaseException) -> None:
+        """An exception while handling one input message: counted, reported as an event, the run goes on."""
+        if self.raise_faults:
+            raise exc
+        self.counters["input_faults"] += 1
+        if len(self._fault_events) < 16:
+            self._fault_events.append({"event": "firmware_fault", "where": where, "error": type(exc).__name__,
+                                       "t_fpga_s": self._now_s()})
 
     # -- ISR side -------------------------------------------------------------------------------------
     def receive(self, uart: int, data: bytes, t_rx_s: float | None = None) -> None:
@@ -191,6 +213,12 @@ class Firmware(HostTask, GnssTask):
         ``t_rx_s`` is the DSP's time (s, FPGA time base) when the last byte arrived, as the ISR
         reads it from the time-stamp counter; PSNS frames are time-tagged from it (docs/architecture.md "Conventions").
         """
+        try:
+            self._receive(uart, data, t_rx_s)
+        except Exception as e:
+            self._fault(f"receive uart{uart}", e)
+
+    def _receive(self, uart: int, data: bytes, t_rx_s: float | None) -> None:
         if uart == UART_IMU:
             for f in self._dec_imu.feed(data):
                 if isinstance(f, ImuFrame):
@@ -202,10 +230,13 @@ class Firmware(HostTask, GnssTask):
                         self._mag_hist.append((self._unwrap_near(f.t_sample_us) / 1e6, f.field))
         elif uart == UART_GNSS:
             for s in self._dec_gnss.feed(data):
-                if isinstance(s, NavPvt):
-                    self._on_nav_pvt(s)
-                else:
-                    self._on_nmea(s)
+                try:
+                    if isinstance(s, NavPvt):
+                        self._on_nav_pvt(s)
+                    else:
+                        self._on_nmea(s)
+                except Exception as e:
+                    self._fault("gnss message", e)
         elif uart == UART_HOST:
             for c in self._dec_host.feed(data):
                 if len(self._pending_cmd) == self._pending_cmd.maxlen:
@@ -241,8 +272,48 @@ class Firmware(HostTask, GnssTask):
         """Run the cyclic executive over every pending IMU frame."""
         out: list[TickResult] = []
         while self._pending_imu:
-            out.append(self._imu_tick(self._pending_imu.popleft()))
+            fr = self._screen_imu(self._pending_imu.popleft())
+            if fr is None:
+                continue
+            try:
+                out.append(self._imu_tick(fr))
+            except Exception as e:
+                self.meter._stack.clear()
+                self._fault("imu tick", e)
+        if self._fault_events and out:
+            out[-1].events.extend(self._fault_events)
+            self._fault_events.clear()
         return out
+
+    def _screen_imu(self, fr: ImuFrame) -> ImuFrame | None:
+        """Validate one IMU frame (:mod:`.input_guard`): a corrupt time stamp drops the frame (after
+        ``_IMU_RESYNC`` consecutive ones, the new time base is taken); saturated words are replaced by the last
+        good sample (hold), so the strapdown never integrates a clipped value."""
+        if self._t_last_us is not None:
+            t_new = self._unwrap_near(fr.t_trigger_us)
+            reason = input_guard.check_imu_step(t_new - (self._t_epoch_us + self._t_last_us), 1e6 * self.T)
+            if reason is not None:
+                self._imu_bad_steps += 1
+                if self._imu_bad_steps < _IMU_RESYNC:
+                    self._reject(reason)
+                    return None
+                # the FPGA time base really moved (a reset): take it, without a KF interval across the jump
+                self.counters["imu_time_resync"] = self.counters.get("imu_time_resync", 0) + 1
+                self._t_epoch_us = t_new - fr.t_trigger_us
+                self._t_last_us = None
+                t_s = (self._t_epoch_us + fr.t_trigger_us) / 1e6
+                self._t_last_predict = t_s - (self._tick % self.cfg.kf_predict_every) * self.T
+                self._hist.clear()
+                self._fault_events.append({"event": "imu_time_resync", "t_fpga_s": t_s})
+            self._imu_bad_steps = 0
+        reason = input_guard.check_imu_words(fr.gyro, fr.accel)
+        if reason is not None:
+            self._reject(reason)
+            if self._imu_hold is None:
+                return None
+            return dataclasses.replace(fr, gyro=self._imu_hold[0], accel=self._imu_hold[1])
+        self._imu_hold = (fr.gyro, fr.accel)
+        return fr
 
     def _imu_tick(self, fr: ImuFrame) -> TickResult:
         cfg = self.cfg
@@ -337,6 +408,11 @@ class Firmware(HostTask, GnssTask):
                 p_ins, v_ins, _ = self._ins_at(g.t_fpga_s)
                 rep = self.filter.update_gnss(nav, g, p_ins, v_ins)
                 m.end()
+                if not rep.accepted:
+                    self._gnss_reject_run += 1
+                    self.counters["gnss_rejected"] = self.counters.get("gnss_rejected", 0) + 1
+                else:
+                    self._gnss_reject_run = 0
                 if rep.accepted:  # a variant may refuse a fix (federated: chi-square isolation)
                     self.counters["gnss_updates"] += 1
                     self._last_gnss_update_t = t
@@ -353,7 +429,12 @@ class Firmware(HostTask, GnssTask):
                     updated = True
                     self.counters["psns_updates"] += 1
                     self._last_psns_t = t
+                    self._psns_reject_since = None
                 else:
+                    # divergence evidence only from an innovation test (a geometric refusal, e.g. the sun outside
+                    # the field of view, says nothing about the state)
+                    if self._psns_reject_since is None and prep.max_norm_innov > 0.0:
+                        self._psns_reject_since = t
                     self.counters["psns_rejected"] += 1
                     if t - self._last_psns_reject_t >= 1.0:  # at most one event per second
                         res.events.append({"event": "psns_rejected", "t_fpga_s": t, "measurement": prep.kind,
@@ -363,6 +444,35 @@ class Firmware(HostTask, GnssTask):
             m.begin("kf_feedback", 0.0)
             self.filter.feedback(nav)
             m.end()
+        if self.filter.counters:
+            self.counters.update(self.filter.counters)
+        self._divergence_check(t, res)
+
+    def _divergence_check(self, t: float, res: TickResult) -> None:
+        """Fault detection and recovery (docs/hostile-input.md): sustained refusal of GNSS fixes or of solar
+        vectors, or a navigation state / covariance that is no longer finite, mean the filter diverged; the loop
+        re-aligns (coarse alignment: gravity + sun or configured heading, position from the next GNSS fix)."""
+        cfg = self.cfg
+        reason = None
+        if cfg.fdir_gnss_reject_limit and self._gnss_reject_run >= cfg.fdir_gnss_reject_limit:
+            reason = "gnss_rejected"
+        elif (cfg.fdir_psns_reject_s and self._psns_reject_since is not None
+              and t - self._psns_reject_since >= cfg.fdir_psns_reject_s and t - self._last_gnss_update_t < 5.0):
+            reason = "psns_rejected"
+        elif self._tick % cfg.kf_predict_every == 0:
+            nav = self.nav
+            assert nav is not None
+            if not (np.isfinite(nav.q).all() and np.isfinite(nav.v).all() and np.isfinite(nav.pos).all()
+                    and np.isfinite(self.filter.P).all()) or abs(float(nav.pos[0])) > 1.6:
+                reason = "state_not_finite"
+        if reason is None:
+            return
+        self.counters["fdir_recoveries"] = self.counters.get("fdir_recoveries", 0) + 1
+        res.events.append({"event": "filter_recovery", "t_fpga_s": t, "reason": reason,
+                           "action": "re-alignment", "filter": self.cfg.filter})
+        self._gnss_reject_run = 0
+        self._psns_reject_since = None
+        self._restart_alignment()
 
     # -- introspection (tests, reports) ----------------------------------------------------------------
     @property

@@ -143,6 +143,11 @@ def encode_monitor(rec: MonitorRecord) -> bytes:
 _decode_header = _HDR.decoder(MonitorRecord, ignore=("length",))
 
 
+#: zeros after a candidate's opening 0x00 beyond which the candidate is refused (docs/hostile-input.md)
+_ZERO_RUN_MAX = 64
+_ZEROS = bytes(_ZERO_RUN_MAX + 1)
+
+
 class MonitorFormat:
     """:class:`~protocols.stream.FrameFormat` of the MONITOR port (yields :class:`MonitorRecord`).
 
@@ -170,6 +175,10 @@ class MonitorFormat:
     def frame_length(self, buf: bytes | bytearray, start: int) -> int:
         n = len(buf)
         i = start + 1
+        if buf[i : i + _ZERO_RUN_MAX + 1] == _ZEROS:
+            # a long run of 0x00 (a line held low, BREAK): the candidates inside it are refused at once, so the
+            # scan stays linear; the last _ZERO_RUN_MAX zeros of the run still open the next record as idle fill
+            return BAD_LENGTH
         while i < n and buf[i] == 0:
             i += 1
         first = i

@@ -172,14 +172,22 @@ class StreamDecoder:
             self._in_garbage = True
             self.stats.resyncs += 1
 
-    def _find(self, pos: int) -> tuple[int, FrameFormat | None]:
+    def _find(self, pos: int, nxt: list[int] | None = None) -> tuple[int, FrameFormat | None]:
+        """The earliest sync at or after ``pos``. ``nxt`` (one entry per format, for one scan of an unchanged
+        buffer) remembers where each format's sync was found, so a flood of one format's sync does not re-search
+        the whole buffer for the others at every position (linear time, docs/hostile-input.md)."""
         buf = self._buf
         if self._single is not None:
             return buf.find(self._single.sync, pos), self._single
         best = -1
         best_fmt = None
-        for fmt in self.formats:
-            p = buf.find(fmt.sync, pos)
+        for k, fmt in enumerate(self.formats):
+            if nxt is not None:
+                p = nxt[k]
+                if p != -1 and p < pos:  # -1: absent from an earlier pos on, so absent from pos on as well
+                    p = nxt[k] = buf.find(fmt.sync, pos)
+            else:
+                p = buf.find(fmt.sync, pos)
             if p >= 0 and (best < 0 or p < best):
                 best, best_fmt = p, fmt
         return best, best_fmt
@@ -251,8 +259,9 @@ class StreamDecoder:
         pos = self._pos
         stats = self.stats
         max_buffer = self._max_buffer
+        nxt = [-2] * len(self.formats)  # -2: not searched yet in this scan
         while True:
-            p, fmt = self._find(pos)
+            p, fmt = self._find(pos, nxt)
             if p < 0 or fmt is None:
                 # Keep a tail that might be the beginning of a sync sequence.
                 keep_from = max(pos, len(buf) - (self._max_sync - 1))

@@ -20,6 +20,7 @@ every problem, file:line:column. The terminal summary lists each scenario's wall
 
 from __future__ import annotations
 
+import os
 import shutil
 import tempfile
 import time
@@ -27,6 +28,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
+# the library's scenarios are trusted: their Python expectation hooks run (psns-hil run --allow-hooks)
+os.environ.setdefault("PSNS_HIL_ALLOW_HOOKS", "1")
 
 _WALL: list[tuple[str, float, float, bool]] = []
 

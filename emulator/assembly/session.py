@@ -27,6 +27,7 @@ from firmware_model import Firmware
 from protocols import __version__ as VERSION
 from protocols.stim import Stim210Format
 
+from .. import early_signals
 from ..clock import EmulatorLoop, sleep_until
 from ..devices.fpga import VirtualFpga
 from ..devices.gnss import GnssReceiver
@@ -67,6 +68,10 @@ class Emulator:
     progress : called once per simulated second with ``(t, duration)``.
     replay : capture records to replay into the DSP instead of running sensors.
     """
+
+    #: set by run_emulator's signal handler (or a signal before it existed): the run ends once started
+    _interrupt_requested = False
+
 
     def __init__(self, scn: Scenario, run_dir: Path, mode: str | None = None, seed: int | None = None,
                  progress: Callable[[float, float], None] | None = None,
@@ -294,6 +299,8 @@ class Emulator:
         interrupted = False
         try:
             await self.start()
+            if self._interrupt_requested:  # a signal during start-up: never run on
+                raise asyncio.CancelledError
             await self.run_until(self.scn.duration_s)
         except asyncio.CancelledError:
             interrupted = True
@@ -415,9 +422,17 @@ def _run_emulator(emu: Emulator, speed: float, on_started: Callable[[Emulator], 
 
     task = loop.create_task(main())
     loop.set_exception_handler(on_error)
+
+    def on_signal() -> None:
+        emu._interrupt_requested = True  # read by Emulator.run after start-up
+        task.cancel()
+
     for sig in (signal.SIGINT, signal.SIGTERM):
         with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):
-            loop.add_signal_handler(sig, task.cancel)
+            loop.add_signal_handler(sig, on_signal)
+    if early_signals.PENDING:  # a signal arrived before this loop existed (emulator.early_signals): the run
+        early_signals.PENDING.clear()  # starts (run directory, recorder) and ends at once, interrupted
+        emu._interrupt_requested = True
     try:
         summary = loop.run_until_complete(task)
         if failure:

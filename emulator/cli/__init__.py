@@ -1,6 +1,10 @@
 """The command line: ``psns-hil`` (:func:`main`: run, validate, report, monitor, replay, campaign, golden) and
 the DSP process of a split run (:mod:`emulator.cli.dsp_process`). No other package parses arguments."""
 
-from .main import main
+from ..early_signals import install_for_cli
+
+install_for_cli()  # before the heavy imports: a SIGTERM during start-up still leaves an interrupted run
+
+from .main import main  # noqa: E402
 
 __all__ = ["main"]

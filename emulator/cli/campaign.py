@@ -35,6 +35,10 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     c.add_argument("--no-plots", action="store_true", help="skip campaign.png / sensitivity.png")
     c.add_argument("--json", action="store_true", help="print campaign.json's statistics as JSON")
     c.add_argument("--quiet", action="store_true", help="no progress bar")
+    c.add_argument("--dashboard", action="store_true",
+                   help="serve the Dask dashboard of the local cluster on 127.0.0.1:8787 (off by default)")
+    c.add_argument("--allow-hooks", action="store_true",
+                   help="run the scenario's Python expectation hooks in the members (a trusted scenario only)")
     return c
 
 
@@ -49,7 +53,13 @@ def run(args: argparse.Namespace) -> int:
     cfg = CampaignConfig(scenario=Path(args.scenario), runs=args.runs,
                          variations=[parse_vary(v) for v in args.vary], seed=args.seed, scheduler=args.scheduler,
                          workers=args.workers, out_dir=Path(args.out) if args.out else None,
-                         keep_all=args.keep_all, plots=not args.no_plots)
+                         keep_all=args.keep_all, plots=not args.no_plots, dashboard=args.dashboard)
+    if args.allow_hooks:  # before the cluster exists: its worker processes inherit the setting
+        import os
+
+        from ..scenario.paths import ALLOW_HOOKS_ENV
+
+        os.environ[ALLOW_HOOKS_ENV] = "1"
     console = Console(highlight=False)
     if not console.is_terminal:  # a log or a pipe: wide enough for the statistics table
         console = Console(highlight=False, width=140)

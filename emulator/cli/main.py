@@ -16,6 +16,7 @@ clear message per problem, no traceback.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -182,7 +183,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from ..assembly.runner import default_run_dir, real_time_ports, resolve_mode, run_scenario
     from ..errors import EmulatorError
     from ..scenario import load_scenario
+    from ..scenario.paths import ALLOW_HOOKS_ENV
 
+    if getattr(args, "allow_hooks", False):  # the run (and a --split DSP process) may import the scenario's hooks
+        os.environ[ALLOW_HOOKS_ENV] = "1"
     scn = load_scenario(args.scenario, args.set or ())
     mode = resolve_mode(scn, "realtime" if args.realtime else "fast" if args.fast else None)
     real = real_time_ports(scn)
@@ -353,6 +357,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--no-report", action="store_true", help="do not write report.html at the end")
     r.add_argument("--split", action="store_true",
                    help="run the virtual DSP in its own process, joined to the FPGA over zenoh (realtime)")
+    r.add_argument("--allow-hooks", action="store_true",
+                   help="import and run the scenario's Python expectation hooks (expectations[].python): only for "
+                        "a scenario you trust, they run any code (docs/hostile-input.md)")
     r.set_defaults(func=_cmd_run)
 
     rep = sub.add_parser("report", help="write report.html (plots of errors, modes, faults, links, DSP load) "
@@ -406,6 +413,10 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    if argv is None and args.command == "run":  # catch SIGINT/SIGTERM before any work (docs/hostile-input.md)
+        from ..early_signals import install
+
+        install()  # (already done by emulator.cli for the usual entry points)
     if getattr(args, "speed", None) is not None and args.speed <= 0:
         parser.error("--speed must be > 0")
     try:

@@ -93,7 +93,7 @@ def _read_csv(path: Path, required: tuple[str, ...], optional: tuple[str, ...] =
     missing = [c for c in required if c not in header]
     if missing:
         raise RecordingError(f"{path}: line {header_line + 1}, column 1: missing column(s) {', '.join(missing)} "
-                             f"(header is: {', '.join(header)})")
+                             f"(the header has {len(header)} columns)")  # never the file's text (docs/hostile-input.md)
     want = [c for c in required + optional if c in header]
     idx = {c: header.index(c) for c in want}
     rows: dict[str, list[float]] = {c: [] for c in want}
@@ -113,10 +113,10 @@ def _read_csv(path: Path, required: tuple[str, ...], optional: tuple[str, ...] =
             try:
                 v = float(cells[j])
             except ValueError:
-                raise RecordingError(f"{path}: line {i + 1}, column {starts[j] + 1}: {c} = {cells[j]!r} "
-                                     f"is not a number") from None
+                raise RecordingError(f"{path}: line {i + 1}, column {starts[j] + 1}: {c} "
+                                     f"({len(cells[j])} characters) is not a number") from None
             if not math.isfinite(v):
-                raise RecordingError(f"{path}: line {i + 1}, column {starts[j] + 1}: {c} = {cells[j]!r} is not finite")
+                raise RecordingError(f"{path}: line {i + 1}, column {starts[j] + 1}: {c} is not finite")
             rows[c].append(v)
     out = {c: np.array(v, dtype=np.float64) for c, v in rows.items()}
     t = out[required[0]]
@@ -397,7 +397,7 @@ def _read_index(path: Path) -> tuple[np.ndarray, list[Path]]:
         try:
             times.append(float(cells[0]))
         except ValueError:
-            raise RecordingError(f"{path}: line {i}, column 1: time_s = {cells[0]!r} is not a number") from None
+            raise RecordingError(f"{path}: line {i}, column 1: time_s is not a number") from None
         files.append(path.parent / cells[1])
     if not times:
         raise RecordingError(f"{path}: line 1, column 1: no frames listed")

@@ -205,10 +205,10 @@ def build_sun(scn: Scenario) -> SunModel:
 
 
 def _path(scn: Scenario, name: str) -> Path:
-    p = Path(name)
-    if not p.is_absolute() and scn.base_dir is not None:
-        p = Path(scn.base_dir) / p
-    return p
+    """A recorded file's path, confined to the scenario's directory (docs/hostile-input.md)."""
+    from ..scenario.paths import confine
+
+    return confine(scn.base_dir, name, "recorded file")
 
 
 def build_sensors(scn: Scenario, seed: int, traj: Trajectory, internal: dict[str, Link],

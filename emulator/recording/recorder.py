@@ -41,7 +41,8 @@ import asyncio
 import json
 import time as _time
 from array import array
-from collections.abc import Callable, Sequence
+from collections import deque
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
@@ -103,7 +104,10 @@ class Recorder:
         self._tables: dict[str, tuple[IO[str], list[str], list[str]]] = {}
         self.nav_count = 0
         self.event_counts: dict[str, int] = {}
-        self.events: list[dict[str, Any]] = []
+        #: the latest :data:`EVENTS_TAIL` events (all of them are in events.jsonl: :meth:`iter_events`), so a
+        #: flood of events (commands, rejections) cannot grow the memory without bound (docs/hostile-input.md)
+        self.events: deque[dict[str, Any]] = deque(maxlen=self.EVENTS_TAIL)
+        self.events_total = 0
         self.nav_listeners: list[Callable[[float, NavSolution], None]] = []
         self._flush_interval = flush_interval_s
         self._last_flush = _time.monotonic()
@@ -161,12 +165,28 @@ class Recorder:
                 self.flush()
                 self._last_flush = now
 
+    #: events kept in memory besides events.jsonl
+    EVENTS_TAIL = 4096
+
     def emit(self, t: float, source: str, kind: str, /, **data: Any) -> None:
         rec = {"t_s": round(t, 9), "source": source, "event": kind}
         rec.update(data)
         self._events.write(json.dumps(rec, default=json_default) + "\n")
         self.event_counts[kind] = self.event_counts.get(kind, 0) + 1
         self.events.append(rec)
+        self.events_total += 1
+
+    def iter_events(self) -> Iterator[dict[str, Any]]:
+        """Every event of the run, in order, streamed from events.jsonl (the memory holds only a tail)."""
+        if self.events_total <= len(self.events):  # nothing dropped from the tail: no need to read the file
+            yield from list(self.events)
+            return
+        if not self._events.closed:
+            self._events.flush()
+        with open(self.run_dir / "events.jsonl", encoding="utf-8") as f:
+            for line in f:
+                if line.strip():
+                    yield json.loads(line)
 
     # -- navigation output against truth (batched) ------------------------------------------------
     #: frames compared with truth in one batch (the trajectory is evaluated vectorised, ~1 us per frame

@@ -42,6 +42,7 @@ from .expectations_schema import (
     PythonHook,
     SummaryValueBound,
     TimeWindow,
+    check_hook_path,
     load_hook,
 )
 from .faults_schema import (
@@ -78,5 +79,5 @@ __all__ = [
     "LinkBaudMismatchFault", "LinkBitErrorsFault", "LinkByteDropsFault", "LinkCounterBound", "LinkDisconnectFault",
     "LinkNoiseBurstFault", "LinkStallFault", "NavErrorBound", "NavModeExpectation", "PsnsCloudCoverFault",
     "PsnsInstallationErrorFault", "PsnsSunOccludedFault", "PsnsUnitBlockedFault", "PythonHook",
-    "SummaryValueBound", "TimeWindow", "load_hook",
+    "SummaryValueBound", "TimeWindow", "check_hook_path", "load_hook",
 ]

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from .checks_schema import HookError, load_hook
+from .checks_schema import HookError, check_hook_path
 from .schema import Scenario
 
 __all__ = ["cross_check", "link_names"]
@@ -74,6 +74,7 @@ def cross_check(scn: Scenario, environment: bool = True) -> list[tuple[tuple[Any
                 issues.append(((*loc, "channel"), f"{ch} is not routed (fpga.routing)"))
             if ch == "psns" and "psns" not in links:
                 issues.append(((*loc, "channel"), "the scenario has no links.psns"))
+    issues.extend(_confined_files(scn))
     for i, e in enumerate(scn.expectations):
         kind = e.kind
         body = getattr(e, kind)
@@ -82,7 +83,7 @@ def cross_check(scn: Scenario, environment: bool = True) -> list[tuple[tuple[Any
             issues.append(((*loc, "name"), _unknown_link(body.name, links)))
         if kind == "python":
             try:
-                load_hook(scn.base_dir, body.file, body.function)
+                check_hook_path(scn.base_dir, body.file)  # confined and present; never imported here
             except HookError as exc:
                 issues.append(((*loc, "file"), f"python hook: {exc}"))
     issues += _devices_and_links(scn)
@@ -156,6 +157,31 @@ def _files_and_ports(scn: Scenario, environment: bool) -> list[tuple[tuple[Any, 
         else:
             seen[key] = port
     return issues
+
+
+def _confined_files(scn: Scenario) -> list[tuple[tuple[Any, ...], str]]:
+    """Every recorded-data path must lie in the scenario's directory (:mod:`emulator.scenario.paths`)."""
+    from .paths import PathNotAllowed, confine
+
+    s = scn.sensors
+    named: list[tuple[tuple[Any, ...], str | None]] = []
+    if s.imu.recorded is not None:
+        named.append((("sensors", "imu", "recorded", "file"), s.imu.recorded.file))
+    if s.gnss.recorded is not None:
+        named.append((("sensors", "gnss", "recorded", "file"), s.gnss.recorded.file))
+    cam = getattr(s, "camera", None)
+    if cam is not None and cam.recorded is not None:
+        named.append((("sensors", "camera", "recorded", "index"), cam.recorded.index))
+        named.append((("sensors", "camera", "recorded", "files"), cam.recorded.files))
+    out = []
+    for loc, name in named:
+        if name is None:
+            continue
+        try:
+            confine(scn.base_dir, name, "recorded file")
+        except PathNotAllowed as exc:
+            out.append((loc, str(exc)))
+    return out
 
 
 def _unknown_link(name: str, links: list[str]) -> str:

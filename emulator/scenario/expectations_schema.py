@@ -197,13 +197,28 @@ class HookError(Exception):
     """A Python hook file that cannot be loaded (message says why)."""
 
 
-def load_hook(base_dir: str | Path | None, file: str, function: str) -> Any:
-    """Import ``file`` (relative to ``base_dir``) and return its ``function``; :class:`HookError` otherwise."""
-    p = Path(file)
-    if not p.is_absolute() and base_dir is not None:
-        p = Path(base_dir) / p
+def check_hook_path(base_dir: str | Path | None, file: str) -> Path:
+    """The hook file's confined path (:func:`emulator.scenario.paths.confine`); :class:`HookError` when it is
+    outside the scenario's directory or missing. Imports nothing (what ``validate`` runs)."""
+    from .paths import PathNotAllowed, confine
+
+    try:
+        p = confine(base_dir, file, "python hook")
+    except PathNotAllowed as exc:
+        raise HookError(str(exc)) from None
     if not p.is_file():
-        raise HookError(f"no such file {str(p)!r}")
+        raise HookError(f"no such file {file!r}")
+    return p
+
+
+def load_hook(base_dir: str | Path | None, file: str, function: str, allow: bool | None = None) -> Any:
+    """Import ``file`` (relative to ``base_dir``, confined to it) and return its ``function``; :class:`HookError`
+    otherwise, and always when hooks are not allowed (``allow``; default: ``psns-hil run --allow-hooks``)."""
+    from .paths import hooks_allowed
+
+    if not (hooks_allowed() if allow is None else allow):
+        raise HookError(f"{file}: python hooks are not run without --allow-hooks (a scenario could run any code)")
+    p = check_hook_path(base_dir, file)
     mod_name = f"_psns_hil_hook_{abs(hash(str(p.resolve())))}"
     spec = importlib.util.spec_from_file_location(mod_name, p)
     if spec is None or spec.loader is None:

@@ -56,9 +56,22 @@ def _scalar(node: yaml.Node) -> Any:
         loader.dispose()
 
 
+def _refuse_aliases(text: str, file: str) -> None:
+    """Scan the event stream (linear in the text; nothing is expanded) and refuse the first alias."""
+    for ev in yaml.parse(text, Loader=yaml.SafeLoader):
+        if isinstance(ev, yaml.AliasEvent):
+            m = ev.start_mark
+            raise ScenarioError(ScenarioIssue(file, m.line + 1 if m else None, m.column + 1 if m else None, "",
+                                              f"YAML aliases are not allowed (*{ev.anchor}): write the value out"))
+
+
 def load_yaml_with_marks(text: str, file: str = "<scenario>") -> tuple[Any, dict[Loc, tuple[int, int]]]:
-    """Parse YAML text; return the data and a map from field path to (line, column), 1-based."""
+    """Parse YAML text; return the data and a map from field path to (line, column), 1-based.
+
+    Aliases (``*name``, also in ``<<: *name``) are refused: a scenario may come from anyone, and aliases expand to
+    exponential size (billion laughs) or refer to themselves (docs/hostile-input.md)."""
     try:
+        _refuse_aliases(text, file)
         root = yaml.compose(text, Loader=yaml.SafeLoader)
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark

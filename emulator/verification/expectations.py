@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import copy
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -63,7 +64,7 @@ def _field_ok(have: Any, want: Any) -> bool:
     return str(have) == str(want)
 
 
-def matching_events(events: list[dict[str, Any]], e: EventExpectation) -> list[dict[str, Any]]:
+def matching_events(events: Iterable[dict[str, Any]], e: EventExpectation) -> list[dict[str, Any]]:
     """The events that match name, source, window and field values of ``e``."""
     out = []
     for ev in events:
@@ -146,7 +147,8 @@ def evaluate_expectations(expectations: list[Expectation], recorder: Any, summar
         elif kind == "event":
             ev = e.event
             assert ev is not None
-            hits = matching_events(recorder.events, ev)
+            it = getattr(recorder, "iter_events", None)  # the whole run from events.jsonl (memory: a tail)
+            hits = matching_events(it() if it is not None else recorder.events, ev)
             n = len(hits)
             src = f" from {ev.source}" if ev.source else ""
             flds = "".join(f", {k} {'in [' + _bounds(w.min, w.max) + ']' if isinstance(w, FieldRange) else '= ' + repr(w)}"  # noqa: E501

@@ -6,7 +6,6 @@ INS state at the fix's time of validity.
 
 from __future__ import annotations
 
-import datetime as _dt
 import math
 from typing import Any
 
@@ -15,6 +14,7 @@ import numpy as np
 from protocols.nmea import Gga, Rmc
 from protocols.ubx import NavPvt
 
+from .. import input_guard
 from ..filters import GnssMeasurement
 from ..units import DEG
 from .timekeeping import TimeKeeping
@@ -30,6 +30,10 @@ class GnssTask(TimeKeeping):
         if isinstance(s, Gga):
             if s.quality == 0 or s.lat_deg is None or s.lon_deg is None or s.altitude_msl_m is None:
                 return
+            reason = input_guard.check_gga(s)
+            if reason is not None:
+                self._reject(reason)
+                return
             pos = (s.lat_deg * DEG, s.lon_deg * DEG, s.altitude_msl_m + (s.geoid_sep_m or 0.0))
             self.counters["gnss_fixes"] += 1
             m = self._stage_gnss(t_meas)
@@ -38,6 +42,10 @@ class GnssTask(TimeKeeping):
             if s.time_utc is not None and self._date is not None:
                 self._set_utc(t_meas, self._date, s.time_utc)
         elif isinstance(s, Rmc):
+            reason = input_guard.check_rmc(s)
+            if reason is not None:
+                self._reject(reason)
+                return
             if s.date is not None:
                 self._date = s.date
                 if s.time_utc is not None:
@@ -55,10 +63,17 @@ class GnssTask(TimeKeeping):
         t_pps = self._t_pps_s if self._t_pps_s is not None else self._now_s()
         t_meas = t_pps + p.nano * 1e-9 if abs(p.nano) < 500_000_000 else t_pps
         if p.valid & 0x03 == 0x03:  # validDate | validTime
-            date = _dt.date(p.year, p.month, p.day)
-            self._date = date
-            self._set_utc(t_pps, date, _dt.time(p.hour, p.min, p.sec))
+            dt = input_guard.nav_pvt_datetime(p)  # a leap second (sec = 60) is legal; month 13 is not
+            if dt is None:
+                self._reject("date")
+            else:
+                self._date = dt[0]
+                self._set_utc(t_pps, dt[0], dt[1])
         if not p.flags & 0x01 or p.fixType not in (3, 4):  # gnssFixOK and a 3-D (or GNSS + DR) fix
+            return
+        reason = input_guard.check_nav_pvt(p)
+        if reason is not None:
+            self._reject(reason)
             return
         quality = {1: 5, 2: 4}.get((p.flags >> 6) & 0x03, 2 if p.flags & 0x02 else 1)  # RTK float/fixed, DGNSS
         pos = (p.lat * 1e-7 * DEG, p.lon * 1e-7 * DEG, p.height * 1e-3)

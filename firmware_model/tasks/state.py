@@ -123,3 +123,10 @@ class LoopState:
     _load_max: int
     _next_status_t: float
     _status_seq: int
+
+    def _reject(self, reason: str) -> None:
+        """Count one message refused by :mod:`firmware_model.input_guard` (``input_rejected_<reason>``)."""
+        c = self.counters
+        c["input_rejected"] += 1
+        key = "input_rejected_" + reason
+        c[key] = c.get(key, 0) + 1

@@ -97,9 +97,35 @@ def _connect(cfg: CampaignConfig) -> tuple[Any, Any]:
             raise CampaignError(f"cannot reach the Dask scheduler at {cfg.scheduler}: {exc}") from exc
     if cfg.workers < 1:
         raise CampaignError("--workers must be >= 1")
-    cluster = dd.LocalCluster(n_workers=cfg.workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-                              dashboard_address=None, worker_dashboard_address=None)
-    return dd.Client(cluster), cluster
+    return local_cluster(cfg.workers, dashboard=cfg.dashboard)
+
+
+def local_cluster(workers: int, dashboard: bool = False) -> tuple[Any, Any]:
+    """``(client, cluster)``: the campaign's own cluster on 127.0.0.1, secured (docs/distributed.md "Security").
+
+    * TLS with mutual authentication: certificates generated for this cluster only
+      (``distributed.security.Security.temporary``), so no other process, local or not, can submit work to it or
+      read from it (a plain ``tcp://`` or a certificate-less ``tls://`` client is refused);
+    * no dashboard unless ``dashboard``; without it the scheduler's HTTP server (which dask always starts) serves
+      no route and listens on a random port of 127.0.0.1 instead of 8787.
+    """
+    import dask
+
+    dd = _dask()
+    from distributed.security import Security
+
+    try:
+        sec = Security.temporary()
+    except ImportError as exc:
+        raise CampaignError(f"the campaign's TLS certificates need the cryptography package: {exc}") from exc
+    http: dict[str, Any] = {} if dashboard else {"distributed.scheduler.http.routes": [],
+                                                 "distributed.worker.http.routes": []}
+    with dask.config.set(http):
+        cluster = dd.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                  protocol="tls://", security=sec, worker_dashboard_address=None,
+                                  dashboard_address="127.0.0.1:8787" if dashboard else "127.0.0.1:0",
+                                  scheduler_kwargs={"dashboard": dashboard})
+    return dd.Client(cluster, security=sec), cluster
 
 
 def execute_members(client: Any, tasks: Sequence[MemberTask],

@@ -223,6 +223,8 @@ class CampaignConfig:
     out_dir: Path | None = None
     keep_all: bool = False
     plots: bool = True
+    #: serve the Dask dashboard of the campaign's own cluster (off by default; docs/distributed.md "Security")
+    dashboard: bool = False
 
 
 def load_campaign_scenario(path: Path) -> tuple[dict[str, Any], Any, str, str]:

@@ -76,7 +76,7 @@ def test_recorded_imu_drives_the_gyro_words(tmp_path):
 @pytest.mark.parametrize("text, where", [
     ("time_s,gyro_x_dps\n0,1\n", "line 1, column 1: missing column"),
     ("time_s,gyro_x_dps,gyro_y_dps,gyro_z_dps,accel_x_mps2,accel_y_mps2,accel_z_mps2\n0,0,0,0,0,0,9.8\n"
-     "0.005,0,abc,0,0,0,9.8\n", "line 3, column 9: gyro_y_dps = 'abc' is not a number"),
+     "0.005,0,abc,0,0,0,9.8\n", "line 3, column 9: gyro_y_dps (3 characters) is not a number"),
     ("# c\ntime_s,gyro_x_dps,gyro_y_dps,gyro_z_dps,accel_x_mps2,accel_y_mps2,accel_z_mps2\n0,0,0,0,0,0,9.8\n"
      "0.005,0,0\n", "line 4, column 10"),
 ])

@@ -238,3 +238,38 @@ def test_cli_campaign_bad_vary_is_a_usage_error(tmp_path, capsys):
     assert "no key 'arw'; keys there: arw_deg_rt_h" in capsys.readouterr().err
     assert main(["campaign", str(p), "--runs", "2", "--vary", "duration_s=triangular(1,2,3)"]) == 2
     assert "unknown distribution 'triangular'" in capsys.readouterr().err
+
+
+# -- security of the campaign's own cluster (docs/distributed.md "Security") -----------------------------------
+def test_own_cluster_is_tls_authenticated_and_serves_no_dashboard():
+    """Before: a plain tcp:// scheduler that any local process could submit code to, and an HTTP server on 8787."""
+    import urllib.error
+    import urllib.request
+
+    from emulator.distributed.campaign.execute import local_cluster
+
+    client, cluster = local_cluster(1)
+    try:
+        addr = cluster.scheduler_address
+        assert addr.startswith("tls://127.0.0.1:")
+        assert client.submit(lambda: 41 + 1).result(timeout=60) == 42
+        # a client without the cluster's certificate is refused, over TLS and over plain TCP
+        for a in (addr, addr.replace("tls://", "tcp://")):
+            with pytest.raises((OSError, TimeoutError, TypeError, ValueError)):
+                distributed.Client(a, timeout="3s")
+        # the HTTP server dask always starts: not on 8787, and no route (no dashboard, no metrics)
+        ports = [s.getsockname()[1] for s in cluster.scheduler.http_server._sockets.values()]
+        assert ports and 8787 not in ports
+        for path in ("/status", "/metrics", "/health", "/info/main/workers.html"):
+            with pytest.raises(urllib.error.HTTPError) as ei:
+                urllib.request.urlopen(f"http://127.0.0.1:{ports[0]}{path}", timeout=5)
+            assert ei.value.code == 404
+    finally:
+        client.close()
+        cluster.close()
+
+
+def test_campaign_on_its_own_secured_cluster(tmp_path):
+    path = write_short_scenario(tmp_path / "s.yaml", 1.0, name="sec", expectations=[])
+    res = run_campaign(CampaignConfig(path, runs=1, seed=1, out_dir=tmp_path / "o", plots=False, workers=1))
+    assert res.stats["completed"] == 1

@@ -116,21 +116,20 @@ def test_a_fault_or_an_expectation_with_two_kinds_or_contradictory_fields(tmp_pa
     assert any("between_s must be [a, b] with 0 <= a < b" in m for m in msgs)
 
 
-def test_python_hooks_that_do_not_import_are_scenario_errors(tmp_path):
+def test_python_hooks_are_checked_without_being_imported(tmp_path):
+    """validate confines and finds the hook file but never imports it (a scenario could run any code); a file that
+    does not import fails when the run evaluates it (with --allow-hooks)."""
     (tmp_path / "bad_syntax.py").write_text("def f(summary, run_dir:\n    return True\n")
     (tmp_path / "good.py").write_text("def nav_ok(summary, run_dir):\n    return True\n")
-    (tmp_path / "raises.py").write_text("import not_a_module_anywhere\n")
     got, _ = issues(tmp_path, HEAD + "expectations:\n"
                                      "  - python: {file: missing.py, function: f}\n"
                                      "  - python: {file: bad_syntax.py, function: f}\n"
-                                     "  - python: {file: good.py, function: nav_okk}\n"
-                                     "  - python: {file: raises.py, function: f}\n"
+                                     "  - python: {file: ../outside.py, function: f}\n"
+                                     "  - python: {file: /etc/hostname.py, function: f}\n"
                                      "  - python: {file: good.py, function: nav_ok}\n")
-    assert [i.line for i in got] == [6, 7, 8, 9]
+    assert [i.line for i in got] == [6, 8, 9]
     assert "no such file" in got[0].message
-    assert "bad_syntax.py:1: syntax error" in got[1].message
-    assert "has no function 'nav_okk'; did you mean 'nav_ok'?" in got[2].message
-    assert "ModuleNotFoundError" in got[3].message
+    assert "outside the scenario's directory" in got[1].message and "outside the scenario's directory" in got[2].message
 
 
 def test_every_problem_at_once_sorted_by_line(tmp_path):

@@ -1,0 +1,141 @@
+"""Input validation at the firmware boundary (docs/hostile-input.md).
+
+Every decoded message is checked here before any of its fields reaches the navigation: finite numbers, physical
+ranges, valid dates and times (a leap second ``sec = 60`` is legal), plausible IMU words and time-stamp steps. A
+check returns the *reason* a message is refused (a short snake-case string, counted by the loop as
+``input_rejected_<reason>``) or None when the message may be used.
+
+The checks are pure functions of the message (and, for the IMU time stamp, of the previous accepted stamp); they
+hold no state, so the same functions serve the fuzz harness (``tests/fuzz``).
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import math
+from typing import Any
+
+__all__ = [
+    "ALT_MAX_M",
+    "ALT_MIN_M",
+    "GEOID_MAX_M",
+    "IMU_STEP_MAX_FACTOR",
+    "S24_MAX",
+    "S24_MIN",
+    "SPEED_MAX_MPS",
+    "check_gga",
+    "check_imu_step",
+    "check_imu_words",
+    "check_nav_pvt",
+    "check_rmc",
+    "nav_pvt_datetime",
+]
+
+#: Height above the ellipsoid accepted from a receiver, m (below the Dead Sea shore minus margin; above an airliner's
+#: ceiling with margin: COCOM limits a receiver to 18 km anyway).
+ALT_MIN_M = -1000.0
+ALT_MAX_M = 60_000.0
+#: |geoid separation| accepted, m (EGM96 spans -107 .. +86 m).
+GEOID_MAX_M = 200.0
+#: Ground speed accepted, m/s (COCOM limit 515 m/s plus margin).
+SPEED_MAX_MPS = 600.0
+#: A 24-bit word at either rail is a saturated (clipped) sample, not a measurement.
+S24_MAX = 2**23 - 1
+S24_MIN = -(2**23)
+#: An IMU time-stamp step above this many nominal periods (or not positive) is refused (a dropped frame or two is
+#: a gap, counted by the loop; a jump of seconds is a corrupt stamp).
+IMU_STEP_MAX_FACTOR = 50
+
+
+def _finite(*xs: float | None) -> bool:
+    return all(x is None or math.isfinite(x) for x in xs)
+
+
+def _time_ok(t: _dt.time | None) -> bool:
+    return t is None or isinstance(t, _dt.time)
+
+
+def check_gga(s: Any) -> str | None:
+    """Reason a GGA with a fix is refused, or None. (A GGA with quality 0 carries no fix and is not checked.)"""
+    if not _finite(s.lat_deg, s.lon_deg, s.altitude_msl_m, s.geoid_sep_m, s.hdop):
+        return "not_finite"
+    if s.lat_deg is not None and not -90.0 <= s.lat_deg <= 90.0:
+        return "latitude"
+    if s.lon_deg is not None and not -180.0 <= s.lon_deg <= 180.0:
+        return "longitude"
+    if s.geoid_sep_m is not None and abs(s.geoid_sep_m) > GEOID_MAX_M:
+        return "height"
+    if s.altitude_msl_m is not None:
+        h = s.altitude_msl_m + (s.geoid_sep_m or 0.0)
+        if not ALT_MIN_M <= h <= ALT_MAX_M:
+            return "height"
+    if not 0 <= s.quality <= 9:
+        return "quality"
+    return None
+
+
+def check_rmc(s: Any) -> str | None:
+    """Reason an RMC is refused, or None."""
+    if not _finite(s.lat_deg, s.lon_deg, s.speed_mps, s.course_deg):
+        return "not_finite"
+    if s.lat_deg is not None and not -90.0 <= s.lat_deg <= 90.0:
+        return "latitude"
+    if s.lon_deg is not None and not -180.0 <= s.lon_deg <= 180.0:
+        return "longitude"
+    if s.speed_mps is not None and not 0.0 <= s.speed_mps <= SPEED_MAX_MPS:
+        return "speed"
+    if s.course_deg is not None and not 0.0 <= s.course_deg <= 360.0:
+        return "course"
+    if s.date is not None and not 2000 <= s.date.year <= 2099:
+        return "date"
+    return None
+
+
+def nav_pvt_datetime(p: Any) -> tuple[_dt.date, _dt.time] | None:
+    """The UTC date and time of a NAV-PVT, None when a field is out of range.
+
+    A leap second (``sec = 60``, which u-blox receivers send at 23:59:60) is legal: it maps to 23:59:59.999999
+    (``datetime`` has no 61st second; the 1 s of UT1-UTC ambiguity is far below the ephemeris' need)."""
+    if not (2000 <= p.year <= 2099 and 1 <= p.month <= 12 and 0 <= p.hour <= 23 and 0 <= p.min <= 59
+            and 0 <= p.sec <= 60):
+        return None
+    try:
+        date = _dt.date(p.year, p.month, p.day)
+    except ValueError:  # day 0, 31 April, 29 February of a common year
+        return None
+    if p.sec == 60:
+        return date, _dt.time(p.hour, p.min, 59, 999_999)
+    return date, _dt.time(p.hour, p.min, p.sec)
+
+
+def check_nav_pvt(p: Any) -> str | None:
+    """Reason the position/velocity of a NAV-PVT is refused, or None (its date and time: :func:`nav_pvt_datetime`)."""
+    if not -900_000_000 <= p.lat <= 900_000_000:
+        return "latitude"
+    if not -1_800_000_000 <= p.lon <= 1_800_000_000:
+        return "longitude"
+    if not ALT_MIN_M <= p.height * 1e-3 <= ALT_MAX_M:
+        return "height"
+    if max(abs(p.velN), abs(p.velE), abs(p.velD)) * 1e-3 > SPEED_MAX_MPS:
+        return "speed"
+    if not -1_000_000_000 < p.nano < 1_000_000_000:
+        return "time"
+    return None
+
+
+def check_imu_words(gyro: tuple[int, int, int], accel: tuple[int, int, int]) -> str | None:
+    """Reason the inertial words of an IMU frame are refused (a word at a 24-bit rail: saturated), or None."""
+    for w in gyro:
+        if w >= S24_MAX or w <= S24_MIN:
+            return "gyro_saturated"
+    for w in accel:
+        if w >= S24_MAX or w <= S24_MIN:
+            return "accel_saturated"
+    return None
+
+
+def check_imu_step(step_us: int, period_us: float) -> str | None:
+    """Reason an IMU time-stamp step (unwrapped, us) is refused, or None."""
+    if step_us <= 0 or step_us > IMU_STEP_MAX_FACTOR * period_us:
+        return "imu_time_step"
+    return None

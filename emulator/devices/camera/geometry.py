@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from firmware_model.attitude import a2mat
+from ...world.frames import cbn_from_euler, rotvec_matrix, yaw_from_heading
 
 __all__ = [
     "CHANNEL_OFFSETS",
@@ -34,14 +34,8 @@ CHANNEL_OFFSETS = {90: (0, 0), 45: (0, 1), 135: (1, 0), 0: (1, 1)}
 
 
 def rotation_vector_matrix(rv: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a rotation vector (rad), Rodrigues."""
-    rv = np.asarray(rv, dtype=np.float64)
-    a = float(np.linalg.norm(rv))
-    if a < 1e-15:
-        return np.eye(3)
-    k = rv / a
-    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + math.sin(a) * kx + (1.0 - math.cos(a)) * (kx @ kx)
+    """Rotation matrix of a rotation vector (rad) (scipy ``Rotation``)."""
+    return rotvec_matrix(rv)
 
 
 @dataclass
@@ -212,7 +206,5 @@ def mounting_matrix(heading_deg: float = 0.0, pitch_deg: float = 0.0, roll_deg: 
                     installation_error_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> np.ndarray:
     """``C_c^b``: a nominal mount (Euler angles, the body-attitude convention) times a small installation
     error (rotation vector about the camera axes, deg)."""
-    from firmware_model.attitude import yaw_from_heading
-
-    nominal = a2mat(pitch_deg * DEG, roll_deg * DEG, yaw_from_heading(heading_deg * DEG))
+    nominal = cbn_from_euler(pitch_deg * DEG, roll_deg * DEG, yaw_from_heading(heading_deg * DEG))
     return nominal @ rotation_vector_matrix(np.asarray(installation_error_deg, dtype=np.float64) * DEG)

@@ -68,7 +68,7 @@ class PolarizationCameraModel:
                 self._maps = maps
             g = self.geo
             norm = g.w_row.sum() * g.w_col.sum()
-            self._pt_maps = {th: tuple(  # type: ignore[misc]
+            self._pt_maps = {th: tuple(
                 np.einsum("pij,i,j->p", m[g.win_rows[:, :, None], g.win_cols[:, None, :]].astype(np.float64),
                           g.w_row, g.w_col) / norm for m in ms) for th, ms in maps.items()}
 

@@ -29,7 +29,7 @@ def test_lens_projection_round_trip_with_distortion_and_principal_point():
     x, y = rng.uniform(1, 2448, 200), rng.uniform(1, 2048, 200)
     for lens in (LensModel(k1=-0.03, k2=0.004, cx_px=1236.5, cy_px=1016.0),
                  LensModel(projection="fisheye", focal_m=1.8e-3, k1=-0.02, k2=0.001)):
-        v, th, _, _ = lens.rays(x, y)
+        v, _th, _, _ = lens.rays(x, y)
         assert np.allclose(np.linalg.norm(v, axis=0), 1.0)
         px, py = lens.project(v)
         assert np.allclose(px, x, atol=1e-6) and np.allclose(py, y, atol=1e-6)

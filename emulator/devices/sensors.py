@@ -142,7 +142,7 @@ def camera_config(scn: Scenario, seed: int | None = None) -> CameraConfig:
         lens=p["lens"], focal_m=p["focal_length_mm"] * 1e-3, fisheye_max_theta=c.fisheye_max_theta_deg * DEG,
         mounting_c_b=mounting_matrix(m.heading_deg, m.pitch_deg, m.roll_deg, m.installation_error_deg),
         full_well_e=p["full_well_e"], read_noise_e=p["read_noise_e"], adc_bits=int(p["adc_bits"]),
-        extinction_ratio=p["extinction_ratio"], signal_e=p["signal_e"], grid=tuple(c.grid),  # type: ignore[arg-type]
+        extinction_ratio=float(p["extinction_ratio"]), signal_e=p["signal_e"], grid=tuple(c.grid),  # type: ignore[arg-type]
         bin_superpixels=c.bin_superpixels, fidelity=c.fidelity, sun_glare=c.sun_glare_deg * DEG,
         min_sun_elevation=c.min_sun_elevation_deg * DEG, dop_threshold=c.dop_threshold, min_points=c.min_points,
         noise=bool(p.get("noise", True)),

@@ -93,3 +93,41 @@ def test_residuals_out_of_range_name_file_line_field_and_range(tmp_path):
         load_scenario(p)
     msg = str(exc.value)
     assert "s.yaml:12" in msg and "boresight_deg" in msg and "2" in msg
+
+
+
+def _static_camera_scenario(tmp_path, name, calibration_yaml):
+    """static_psns_camera with the camera turned 0.5 deg about its optical axis (the heading axis of an up-looking
+    camera), and the given firmware.calibration."""
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[3] / "scenarios" / "static_psns_camera.yaml").read_text()
+    text = text.replace("bin_superpixels: 8, rate_hz: 5, exposure_us: 1000}",
+                        "bin_superpixels: 8, rate_hz: 5, exposure_us: 1000,\n"
+                        "           mounting: {installation_error_deg: [0.0, 0.0, 0.5]}}")
+    fw = "firmware:\n"
+    assert fw in text
+    text = text.replace(fw, fw + f"  calibration: {calibration_yaml}\n")
+    p = tmp_path / f"{name}.yaml"
+    p.write_text(text)
+    return load_scenario(p)
+
+
+def test_a_boresight_error_the_calibration_knows_vs_one_it_does_not(tmp_path):
+    """Known to the calibration, the 0.5 deg boresight error leaves the heading within noise; unknown (the same
+    file with the nominal boresight), the heading is off by about 0.5 deg."""
+    from dataclasses import replace
+
+    from emulator.assembly.runner import run_scenario
+
+    perfect = calibration_for(_static_camera_scenario(tmp_path, "probe", "{source: perfect}"), 3)
+    save_calibration(perfect, tmp_path / "known.json")
+    save_calibration(replace(perfect, camera=replace(perfect.camera, boresight_rotvec_deg=(0.0, 0.0, 0.0))),
+                     tmp_path / "unknown.json")
+    rms = {}
+    for name in ("known", "unknown"):
+        scn = _static_camera_scenario(tmp_path, name, f"{{source: file, file: {name}.json}}")
+        s = run_scenario(scn, tmp_path / f"run_{name}")
+        rms[name] = next(r["value"] for r in s["expectations"] if "heading" in json.dumps(r))
+    assert rms["known"] < 0.2, rms
+    assert 0.4 < rms["unknown"] < 0.85 and rms["unknown"] - rms["known"] > 0.3, rms  # 0.5 deg plus the rest

@@ -1,8 +1,9 @@
 """Solar-vector error of the camera + firmware solve, per frame, for a camera preset and a calibration source.
 
 ``python -m benchmarks.solar_vector_error [--preset reference|ideal] [--calibration residuals|perfect|nominal]
-[--units N] [--frames F]``: N camera units (seeds: fixed pattern, calibration residuals, noise), F frames each at
-random headings and tilts (+-10 deg) in Beijing at 08:14 UTC (sun elevation 23 deg), binned fidelity, 15 x 15
+[--units N] [--frames F] [--paper-lens]``: N camera units (seeds: fixed pattern, calibration residuals, noise),
+F frames each at random headings and tilts (+-10 deg) in Beijing at 08:14 UTC (sun elevation 23 deg), binned,
+15 x 15
 points; the firmware inverts with its calibration file (``firmware_model.psns``, float32). Prints the median
 and the 95th percentile of the angle between the solved and the true sun vector in the body frame (deg).
 docs/sensors.md quotes its output.
@@ -12,10 +13,12 @@ from __future__ import annotations
 
 import argparse
 import math
+from dataclasses import replace
 
 import numpy as np
 
 from emulator.devices.camera import PolarizationCameraModel
+from emulator.devices.camera.optics import SensorDefects
 from emulator.devices.sensors import camera_config
 from emulator.dsp.firmware_setup import calibration_for, firmware_config
 from emulator.scenario.loader import validate_scenario_data
@@ -31,13 +34,16 @@ SCENARIO = {
 }
 
 
-def errors(preset: str, calibration: str, units: int, frames: int) -> np.ndarray:
+def errors(preset: str, calibration: str, units: int, frames: int, paper_lens: bool = False) -> np.ndarray:
     out = []
     for unit in range(units):
         scn = validate_scenario_data({**SCENARIO, "seed": unit, "sensors": {"camera": {"preset": preset}},
                                       "firmware": {"calibration": {"source": calibration}}}, {})
         cc = camera_config(scn, unit)
         cam = firmware_config(scn, calibration_for(scn, unit)).camera
+        if paper_lens:  # the old shared contract: the paper's lens on both sides, no sensor defects
+            cc = replace(cc, cx_px=None, cy_px=None, k1=0.0, k2=0.0, exit_pupil_m=None, defects=SensorDefects())
+            cam = replace(cam, cx_px=None, cy_px=None, k1=0.0, k2=0.0, exit_pupil_m=None, c_c_b=cc.mounting_c_b)
         rng = np.random.default_rng(1000 + unit)
         for _ in range(frames):
             hd, p, r = rng.uniform(0, 360), rng.uniform(-10, 10), rng.uniform(-10, 10)
@@ -63,9 +69,10 @@ def main() -> None:
     ap.add_argument("--calibration", default="residuals", choices=["residuals", "perfect", "nominal"])
     ap.add_argument("--units", type=int, default=10)
     ap.add_argument("--frames", type=int, default=20)
+    ap.add_argument("--paper-lens", action="store_true", help="the old shared contract (paper lens, no defects)")
     a = ap.parse_args()
-    e = errors(a.preset, a.calibration, a.units, a.frames)
-    print(f"preset={a.preset} calibration={a.calibration} frames={len(e)}: "
+    e = errors(a.preset, a.calibration, a.units, a.frames, a.paper_lens)
+    print(f"preset={a.preset} calibration={a.calibration} paper_lens={a.paper_lens} frames={len(e)}: "
           f"median {np.median(e):.3f} deg, p95 {np.percentile(e, 95):.3f} deg")
 
 

@@ -48,6 +48,16 @@ def pos_error_m(pos, truth_pos):
                      (pos[0] - truth_pos[0]) * (rm + truth_pos[2]), pos[2] - truth_pos[2]])
 
 
+def gravity_model_height(traj, t):
+    """Height error (m) a perfect strapdown accumulates by ``t`` from the world's and the firmware's normal-gravity
+    models alone: ``d2(dh)/dt2 = dg + (2 g / R) dh`` gives ``dg / w_s^2 (cosh(w_s t) - 1)``."""
+    st = traj.state(0.0)
+    lat0, h0 = float(st.pos[0]), float(st.pos[2])
+    dg = float(_gravity(np.array(lat0), np.array(h0))) - earth.gravity(lat0, h0)
+    w_s = math.sqrt(2.0 * earth.gravity(lat0, h0) / earth.A_WGS84)
+    return dg / w_s**2 * (math.cosh(w_s * t) - 1.0)
+
+
 def run_strapdown(traj, duration, T=0.005, dtype=np.float64, samples=1):
     """Feed exact 200 Hz increments to firmware_model.strapdown (``samples`` per update, 1 or 2 with
     two-sample coning/sculling); return the max position error against truth (m).

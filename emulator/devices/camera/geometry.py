@@ -149,7 +149,8 @@ class CameraGeometry:
         if cfg.lens == "fisheye":  # the whole window must be inside the image circle
             r_win = (n + 1) * cfg.pixel_m
             _, _, r0 = self.lens.radial_m(x_px, y_px)
-            keep &= self.lens._theta((r0 + r_win) / cfg.focal_m) <= cfg.fisheye_max_theta
+            with np.errstate(invalid="ignore"):
+                keep &= self.lens._theta((r0 + r_win) / cfg.focal_m) <= cfg.fisheye_max_theta
         self.x_px = x_px[keep]
         self.y_px = y_px[keep]
         self.pt_v = np.stack([pvx[keep], pvy[keep], pvz[keep]], axis=1)
@@ -165,7 +166,8 @@ class CameraGeometry:
         """Unit view rays (camera frame) of 1-based pixel coordinates ``x`` (column), ``y`` (row), through the lens
         (:class:`emulator.devices.camera.optics.LensModel`), and whether they are inside the image circle."""
         v, th, _, _ = self.lens.rays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
-        valid = np.ones(th.shape, dtype=bool) if self.cfg.lens == "pinhole" else th <= self.cfg.fisheye_max_theta
+        with np.errstate(invalid="ignore"):
+            valid = ~np.isnan(th) if self.cfg.lens == "pinhole" else th <= self.cfg.fisheye_max_theta
         return v[0], v[1], v[2], valid
 
     def cos_cra(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:

@@ -67,16 +67,20 @@ class LensModel:
         return th * (1.0 + self.k1 * th * th + self.k2 * th ** 4)
 
     def _theta(self, rho: np.ndarray) -> np.ndarray:
-        """Invert ``rho(theta)`` (Newton, from the undistorted guess)."""
+        """Invert ``rho(theta)`` (Newton, from the undistorted guess); NaN where no field angle images there
+        (beyond the largest radius a barrel-distorted lens reaches)."""
+        rho = np.asarray(rho, dtype=np.float64)
         th = np.arctan(rho) if self.projection == "pinhole" else rho.copy()
         if self.k1 == 0.0 and self.k2 == 0.0:
             return th
-        for _ in range(8):
-            h = 1e-7
-            f0 = self._rho(th) - rho
-            d = (self._rho(th + h) - self._rho(th - h)) / (2 * h)
-            th = th - f0 / np.where(np.abs(d) > 1e-12, d, 1e-12)
-        return th
+        with np.errstate(all="ignore"):
+            for _ in range(12):
+                h = 1e-7
+                f0 = self._rho(th) - rho
+                d = (self._rho(th + h) - self._rho(th - h)) / (2 * h)
+                th = th - f0 / np.where(np.abs(d) > 1e-12, d, 1e-12)
+            ok = (np.abs(self._rho(th) - rho) < 1e-9) & (th >= 0.0) & (th < math.pi)
+        return np.where(ok, th, np.nan)
 
     def radial_m(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Image-plane offsets ``(X, Y)`` and radius ``r`` (m) of 1-based pixel coordinates from the principal
@@ -88,10 +92,11 @@ class LensModel:
     def rays(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Unit object-space rays (camera frame) of pixels and their field angles ``theta`` (rad)."""
         X, Y, r = self.radial_m(x, y)
-        th = self._theta(r / self.focal_m)
+        th = self._theta(r / self.focal_m)  # NaN outside the lens's image: reported as invalid by the caller
         al = np.arctan2(Y, X)
-        st = np.sin(th)
-        return np.stack([st * np.cos(al), st * np.sin(al), np.cos(th)]), th, np.cos(self.chief_ray_angle(r)), al
+        tv = np.where(np.isnan(th), 0.0, th)
+        st = np.sin(tv)
+        return np.stack([st * np.cos(al), st * np.sin(al), np.cos(tv)]), th, np.cos(self.chief_ray_angle(r)), al
 
     def chief_ray_angle(self, r: np.ndarray) -> np.ndarray:
         """Chief-ray angle ``theta'`` (rad) at image radius ``r`` (m)."""

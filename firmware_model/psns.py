@@ -118,7 +118,14 @@ def mosaic_observations(
 
 def evectors_camera(x_px: FloatArray, y_px: FloatArray, aop: FloatArray, cam: CameraGeometry,
                     dtype: FloatDtype = np.float32) -> FloatArray:
-    """Unit E-vectors in the camera frame (N, 3) from pixel positions and AOP (rad) (Eq. 5-8)."""
+    """Unit E-vectors in the camera frame (N, 3) from pixel positions and AOP (rad) (Eq. 5-8).
+
+    With a calibrated lens (:attr:`CameraGeometry.paper_lens` False) the measured in-plane direction is split
+    into its radial and azimuthal parts about the principal point and carried back through the lens by the
+    meridional-plane rule (docs/sensors.md, "Polarization camera"): ``E_s = a_phi``, ``E_p = a_rho / cos(theta')``
+    with ``theta'`` the chief-ray angle of the calibrated exit pupil, ``E = E_s e_phi + E_p p``."""
+    if not cam.paper_lens:
+        return _evectors_calibrated(x_px, y_px, aop, cam, dtype)
     X, Y = cam.focal_plane(x_px, y_px)
     X, Y = X.astype(dtype), Y.astype(dtype)
     a = np.asarray(aop, dtype=dtype)
@@ -129,6 +136,30 @@ def evectors_camera(x_px: FloatArray, y_px: FloatArray, aop: FloatArray, cam: Ca
         v = cam.view_rays(x_px, y_px).astype(dtype)
         ez = -(v[:, 0] * sa + v[:, 1] * ca) / v[:, 2]
     e = np.stack([sa, ca, ez], axis=-1)
+    unit: FloatArray = e / np.sqrt(np.sum(e * e, axis=-1, keepdims=True))
+    return unit
+
+
+def _evectors_calibrated(x_px: FloatArray, y_px: FloatArray, aop: FloatArray, cam: CameraGeometry,
+                         dtype: FloatDtype) -> FloatArray:
+    X, Y = cam.focal_plane(x_px, y_px)
+    r = np.hypot(X, Y)
+    th = cam.field_angle(r)
+    safe = np.where(r > 0.0, r, 1.0)
+    cal = np.where(r > 0.0, X / safe, 1.0).astype(dtype)
+    sal = np.where(r > 0.0, Y / safe, 0.0).astype(dtype)
+    ct, st = np.cos(th).astype(dtype), np.sin(th).astype(dtype)
+    if cam.exit_pupil_m is None:
+        ccra = ct
+    else:
+        q = (r / cam.exit_pupil_m).astype(dtype)
+        ccra = (1.0 / np.sqrt(1.0 + q * q)).astype(dtype)
+    a = np.asarray(aop, dtype=dtype)
+    ax, ay = np.sin(a), np.cos(a)  # AOP from image +y towards +x
+    a_rho = ax * cal + ay * sal
+    e_s = -ax * sal + ay * cal
+    e_p = a_rho / ccra
+    e = np.stack([e_p * ct * cal - e_s * sal, e_p * ct * sal + e_s * cal, -e_p * st], axis=-1)
     unit: FloatArray = e / np.sqrt(np.sum(e * e, axis=-1, keepdims=True))
     return unit
 

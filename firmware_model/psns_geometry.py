@@ -29,6 +29,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .arrays import FloatArray
+from .attitude import q2mat, rv2q
+from .calibration import CameraCalibration
 from .units import DEG
 
 __all__ = [
@@ -38,6 +40,7 @@ __all__ = [
     "IMX250MZR_NY",
     "IMX250MZR_PITCH_M",
     "CameraGeometry",
+    "camera_from_calibration",
     "compass_unit_mountings",
     "compass_view_rays",
 ]
@@ -62,6 +65,9 @@ class CameraGeometry:
     focal_m : focal length, m (default 4 mm, the reference study's lens).
     projection : ``"pinhole"`` or ``"fisheye"`` (equidistant).
     c_c_b : (3, 3) mounting ``C_c^b``.
+    cx_px, cy_px : principal point, 1-based pixels (None: the sensor centre, the paper's Eq. 4).
+    k1, k2 : radial distortion (pinhole: on ``tan(theta)``; fisheye: on ``theta``), from the calibration file.
+    exit_pupil_m : exit pupil to image plane, m (None: thin lens, the chief ray keeps the field angle).
     """
 
     nx: int = IMX250MZR_NX
@@ -71,6 +77,17 @@ class CameraGeometry:
     focal_m: float = 4.0e-3
     projection: str = "pinhole"
     c_c_b: FloatArray = field(default_factory=lambda: np.eye(3))
+    cx_px: float | None = None
+    cy_px: float | None = None
+    k1: float = 0.0
+    k2: float = 0.0
+    exit_pupil_m: float | None = None
+
+    @property
+    def paper_lens(self) -> bool:
+        """The paper's lens: centred, undistorted, thin (the E-vector is the orthographic inverse, Eq. 5-8)."""
+        return (self.cx_px is None and self.cy_px is None and self.k1 == 0.0 and self.k2 == 0.0
+                and self.exit_pupil_m is None)
 
     def __post_init__(self) -> None:
         if self.projection not in ("pinhole", "fisheye"):
@@ -78,12 +95,32 @@ class CameraGeometry:
 
     def focal_plane(self, x_px: FloatArray, y_px: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Focal-plane coordinates ``(X, Y)`` in m of 1-based pixel indices (Eq. 4)."""
-        return (self.dx_m * (np.asarray(x_px, dtype=np.float64) - (self.nx + 1) / 2.0),
-                self.dy_m * (np.asarray(y_px, dtype=np.float64) - (self.ny + 1) / 2.0))
+        cx = (self.nx + 1) / 2.0 if self.cx_px is None else self.cx_px
+        cy = (self.ny + 1) / 2.0 if self.cy_px is None else self.cy_px
+        return (self.dx_m * (np.asarray(x_px, dtype=np.float64) - cx),
+                self.dy_m * (np.asarray(y_px, dtype=np.float64) - cy))
+
+    def field_angle(self, r_m: FloatArray) -> FloatArray:
+        """Field angle (rad) of image radius ``r_m``: the distortion polynomial inverted by fixed-point steps
+        (``u = rho / (1 + k1 u^2 + k2 u^4)``, six iterations; converges for |k1| u^2 < 0.3)."""
+        rho = np.asarray(r_m, dtype=np.float64) / self.focal_m
+        u = rho
+        if self.k1 != 0.0 or self.k2 != 0.0:
+            for _ in range(6):
+                u2 = u * u
+                u = rho / (1.0 + self.k1 * u2 + self.k2 * u2 * u2)
+        th: FloatArray = np.arctan(u) if self.projection == "pinhole" else u
+        return th
 
     def view_rays(self, x_px: FloatArray, y_px: FloatArray) -> FloatArray:
         """Unit view rays ``V^c`` (N, 3) of 1-based pixels, for the configured projection."""
         X, Y = self.focal_plane(x_px, y_px)
+        if not self.paper_lens:
+            r = np.hypot(X, Y)
+            th = self.field_angle(r)
+            al = np.arctan2(Y, X)
+            st = np.sin(th)
+            return np.stack([st * np.cos(al), st * np.sin(al), np.cos(th)], axis=-1)
         if self.projection == "pinhole":
             v = np.stack([X, Y, np.full_like(X, self.focal_m)], axis=-1)
             rays: FloatArray = v / np.linalg.norm(v, axis=-1, keepdims=True)
@@ -93,6 +130,14 @@ class CameraGeometry:
         alpha = np.arctan2(Y, X)
         st = np.sin(theta)
         return np.stack([st * np.cos(alpha), st * np.sin(alpha), np.cos(theta)], axis=-1)
+
+
+def camera_from_calibration(cal: CameraCalibration) -> CameraGeometry:
+    """The firmware's camera model from its calibration file (:mod:`firmware_model.calibration`)."""
+    rv = np.asarray(cal.boresight_rotvec_deg, dtype=np.float64) * DEG
+    return CameraGeometry(nx=cal.nx, ny=cal.ny, dx_m=cal.pixel_m, dy_m=cal.pixel_m, focal_m=cal.focal_m,
+                          projection=cal.projection, c_c_b=q2mat(rv2q(rv)), cx_px=cal.cx_px, cy_px=cal.cy_px,
+                          k1=cal.k1, k2=cal.k2, exit_pupil_m=cal.exit_pupil_m)
 
 
 def compass_unit_mountings(n_ring: int = COMPASS_N_UNITS - 1,

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from typing import Any, cast
 
+from firmware_model.calibration import Calibration
+
 from ..devices.fpga import FpgaConfig
 from ..dsp.firmware_setup import build_firmware
 from ..dsp.host import UartRxConfig, VirtualDsp, WatchdogConfig
@@ -70,14 +72,14 @@ def build_uarts(scn: Scenario, hub: MemHub, loop: Any
     return uart_fpga, dsp_ends, uart_dsp, rx_cfg
 
 
-def build_dsp(scn: Scenario, loop: Any, uart_dsp: dict[int, Link], rx_cfg: dict[int, UartRxConfig], events: Any
-              ) -> VirtualDsp:
+def build_dsp(scn: Scenario, loop: Any, uart_dsp: dict[int, Link], rx_cfg: dict[int, UartRxConfig], events: Any,
+              calibration: Calibration | None = None) -> VirtualDsp:
     """The virtual DSP hosting the scenario's firmware on ``uart_dsp`` (a watchdog reset builds a new one)."""
     wd = scn.dsp.watchdog
-    return VirtualDsp(loop, build_firmware(scn), uart_dsp, scn.dsp.clock_hz, events,
+    return VirtualDsp(loop, build_firmware(scn, calibration), uart_dsp, scn.dsp.clock_hz, events,
                       tick_period_s=1.0 / scn.sensors.imu.rate_hz, rx=rx_cfg,
                       watchdog=WatchdogConfig(wd.enabled, wd.overrun_multiple, wd.action, wd.reset_time_s),
-                      firmware_factory=lambda: build_firmware(scn))
+                      firmware_factory=lambda: build_firmware(scn, calibration))
 
 
 def port_map(scn: Scenario, links: dict[str, Link], uart_fpga: dict[str, Link]) -> list[PortInfo]:

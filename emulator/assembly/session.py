@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from firmware_model import Firmware
+from firmware_model.calibration import load_calibration, save_calibration
 from protocols import __version__ as VERSION
 from protocols.stim import Stim210Format
 
@@ -33,6 +34,7 @@ from ..devices.fpga import VirtualFpga
 from ..devices.gnss import GnssReceiver
 from ..devices.imu import Stim210Gyro
 from ..devices.sensors import build_sensors
+from ..dsp.firmware_setup import calibration_for
 from ..dsp.host import UartRxConfig, VirtualDsp
 from ..errors import EmulatorError
 from ..faults import FaultScheduler, FaultTargets
@@ -201,7 +203,12 @@ class Emulator:
         """The virtual DSP hosting this scenario's firmware on ``uart_dsp`` (also used by a split run's DSP
         process, :mod:`emulator.distributed.split`)."""
         assert self.loop is not None
-        dsp = build_dsp(self.scn, self.loop, uart_dsp, rx_cfg, events)
+        # the calibration file: made from the world's truth plus residuals (or handed in), written into the run
+        # directory, and read back: the firmware is configured from the file alone
+        path = self.run_dir / "calibration.json"
+        self.run_dir.mkdir(parents=True, exist_ok=True)
+        save_calibration(calibration_for(self.scn, self.seed), path)
+        dsp = build_dsp(self.scn, self.loop, uart_dsp, rx_cfg, events, calibration=load_calibration(path))
         self._fw0 = dsp.fw
         return dsp
 

@@ -26,7 +26,15 @@ from ..world.sky import SkyModel, sky_from_spec
 from ..world.sun import SunModel
 from ..world.trajectory import Trajectory
 from .base import device_rng
-from .camera import CameraConfig, PolarizationCamera, PolarizationCameraModel, mounting_matrix
+from .camera import (
+    IMX250MZR_NX,
+    IMX250MZR_NY,
+    CameraConfig,
+    PolarizationCamera,
+    PolarizationCameraModel,
+    mounting_matrix,
+)
+from .camera.optics import SensorDefects
 from .compass import (
     CompassConfig,
     CompassModel,
@@ -137,7 +145,12 @@ def gnss_config(scn: Scenario) -> GnssConfig:
     )
 
 
-def camera_config(scn: Scenario) -> CameraConfig:
+def _defect_args(d: dict[str, Any]) -> dict[str, Any]:
+    return {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}
+
+
+def camera_config(scn: Scenario, seed: int | None = None) -> CameraConfig:
+    """The camera of ``scn`` (the world's truth); ``seed`` picks the physical sensor's fixed pattern."""
     c = scn.sensors.camera
     if c is None:
         from ..scenario.sensor_schema import CameraSpec
@@ -148,14 +161,21 @@ def camera_config(scn: Scenario) -> CameraConfig:
     if c.focal_length_mm is not None:
         p["focal_length_mm"] = c.focal_length_mm
     m = c.mounting
+    pp = p.get("principal_point_offset_px", (0.0, 0.0))
     return CameraConfig(
         lens=p["lens"], focal_m=p["focal_length_mm"] * 1e-3, fisheye_max_theta=c.fisheye_max_theta_deg * DEG,
         mounting_c_b=mounting_matrix(m.heading_deg, m.pitch_deg, m.roll_deg, m.installation_error_deg),
         full_well_e=p["full_well_e"], read_noise_e=p["read_noise_e"], adc_bits=int(p["adc_bits"]),
-        extinction_ratio=p["extinction_ratio"], signal_e=p["signal_e"], grid=tuple(c.grid),  # type: ignore[arg-type]
+        extinction_ratio=float(p["extinction_ratio"]), signal_e=p["signal_e"], grid=tuple(c.grid),  # type: ignore[arg-type]
         bin_superpixels=c.bin_superpixels, fidelity=c.fidelity, sun_glare=c.sun_glare_deg * DEG,
         min_sun_elevation=c.min_sun_elevation_deg * DEG, dop_threshold=c.dop_threshold, min_points=c.min_points,
         noise=bool(p.get("noise", True)),
+        cx_px=(IMX250MZR_NX + 1) / 2.0 + pp[0] if pp[0] else None,
+        cy_px=(IMX250MZR_NY + 1) / 2.0 + pp[1] if pp[1] else None,
+        k1=float(p.get("distortion_k1", 0.0)), k2=float(p.get("distortion_k2", 0.0)),
+        exit_pupil_m=p["exit_pupil_mm"] * 1e-3 if p.get("exit_pupil_mm") is not None else None,
+        defects=SensorDefects(**_defect_args(p.get("defects", {}))),
+        defect_seed=scn.seed if seed is None else seed,
     )
 
 
@@ -248,7 +268,8 @@ def build_sensors(scn: Scenario, seed: int, traj: Trajectory, internal: dict[str
         sky, sun = build_sky(scn, seed), build_sun(scn)
         if want_camera:
             cs = s.camera
-            model = PolarizationCameraModel(camera_config(scn), sky, sun, traj, device_rng(seed, "psns_camera"))
+            model = PolarizationCameraModel(camera_config(scn, seed), sky, sun, traj,
+                                            device_rng(seed, "psns_camera"))
             src = None
             if cs is not None and cs.recorded is not None:
                 r = cs.recorded

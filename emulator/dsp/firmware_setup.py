@@ -3,10 +3,16 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
 
 from firmware_model import Firmware, FirmwareConfig
 from firmware_model.attitude import a2mat, yaw_from_heading
-from firmware_model.psns_geometry import CameraGeometry
+from firmware_model.calibration import Calibration, CalibrationError, CameraCalibration, load_calibration
+from firmware_model.psns_geometry import CameraGeometry, camera_from_calibration
 from firmware_model.variants.common import compass_mountings
 from firmware_model.variants.params import (
     DualVectorParams,
@@ -17,34 +23,89 @@ from firmware_model.variants.params import (
     VariantParams,
 )
 
+from ..devices.base import device_rng
 from ..devices.sensors import accel_errors, camera_config, gnss_config, gyro_errors
+from ..errors import ScenarioError
 from ..scenario.schema import Scenario
 
-__all__ = ["build_firmware", "firmware_config"]
+__all__ = ["build_firmware", "calibration_for", "firmware_config"]
 
 DEG = math.pi / 180.0
 
 
-def _camera(scn: Scenario) -> CameraGeometry:
-    """The firmware's camera calibration: the nominal design of ``sensors.camera`` unless overridden."""
+def _rotvec_deg(c: np.ndarray) -> tuple[float, float, float]:
+    x, y, z = (float(a) for a in np.degrees(Rotation.from_matrix(c).as_rotvec()))
+    return x, y, z
+
+
+def calibration_for(scn: Scenario, seed: int | None = None) -> Calibration:
+    """The calibration file the DSP gets (``firmware.calibration``): the camera's truth plus residuals drawn with
+    the run's seed, the truth itself, the design values, or the user's file (confined to the scenario's
+    directory). This is the one place where the world's truth reaches the firmware, and only through the file."""
+    spec = scn.firmware.calibration
+    seed = scn.seed if seed is None else seed
+    if spec.source == "file":
+        assert spec.file is not None
+        base = Path(scn.base_dir).resolve() if scn.base_dir is not None else Path.cwd().resolve()
+        path = (base / spec.file).resolve()
+        if not path.is_relative_to(base):
+            raise ScenarioError(f"firmware.calibration.file: {spec.file} is outside the scenario's directory")
+        try:
+            return load_calibration(path)
+        except CalibrationError as exc:
+            raise ScenarioError(f"firmware.calibration.file: {exc}") from exc
+    if scn.sensors.camera is None:
+        return Calibration()
+    cc = camera_config(scn, seed)
+    m = scn.sensors.camera.mounting
+    if spec.source == "nominal":  # the design: the lens drawing and the nominal mount, no bench measurement
+        nominal_c_b = a2mat(m.pitch_deg * DEG, m.roll_deg * DEG, yaw_from_heading(m.heading_deg * DEG))
+        return Calibration(camera=CameraCalibration(
+            projection=cc.lens, nx=cc.nx, ny=cc.ny, pixel_m=cc.pixel_m, focal_m=cc.focal_m,
+            boresight_rotvec_deg=_rotvec_deg(nominal_c_b), extinction_ratio=min(cc.extinction_ratio, 1e9)))
+    truth = CameraCalibration(
+        projection=cc.lens, nx=cc.nx, ny=cc.ny, pixel_m=cc.pixel_m, focal_m=cc.focal_m,
+        cx_px=cc.lens_model.cx, cy_px=cc.lens_model.cy, k1=cc.k1, k2=cc.k2, exit_pupil_m=cc.exit_pupil_m,
+        boresight_rotvec_deg=_rotvec_deg(cc.mounting_c_b),
+        polarizer_deg=tuple(th + b for th, b in zip((0.0, 45.0, 90.0, 135.0),  # type: ignore[arg-type]
+                                                     cc.defects.orientation_bias_deg, strict=True)),
+        extinction_ratio=min(cc.extinction_ratio, 1e9))
+    if spec.source == "perfect":
+        return Calibration(camera=truth)
+    r = spec.residuals
+    rng = device_rng(seed, "calibration")
+    err = Rotation.from_rotvec(np.radians(r.boresight_deg * rng.standard_normal(3)))
+    c_b = cc.mounting_c_b @ err.as_matrix()
+    pp = r.principal_point_px * rng.standard_normal(2)
+    return Calibration(camera=replace(
+        truth, focal_m=truth.focal_m * (1.0 + r.focal_rel * float(rng.standard_normal())),
+        cx_px=float(cc.lens_model.cx + pp[0]), cy_px=float(cc.lens_model.cy + pp[1]),
+        k1=truth.k1 + r.distortion_k1 * float(rng.standard_normal()),
+        exit_pupil_m=None if truth.exit_pupil_m is None
+        else truth.exit_pupil_m * (1.0 + r.exit_pupil_rel * float(rng.standard_normal())),
+        boresight_rotvec_deg=_rotvec_deg(c_b),
+        polarizer_deg=tuple(a + r.polarizer_deg * float(rng.standard_normal())  # type: ignore[arg-type]
+                            for a in truth.polarizer_deg)))
+
+
+def _camera(scn: Scenario, calibration: Calibration) -> CameraGeometry:
+    """The firmware's camera model: its calibration file, then any ``firmware.psns.camera`` override."""
     cal = scn.firmware.psns.camera
-    nominal = CameraGeometry()
-    heading = pitch = roll = 0.0
-    if scn.sensors.camera is not None:
-        cc = camera_config(scn)
-        m = scn.sensors.camera.mounting
-        nominal = CameraGeometry(nx=cc.nx, ny=cc.ny, dx_m=cc.pixel_m, dy_m=cc.pixel_m, focal_m=cc.focal_m,
-                                 projection=cc.lens)
-        heading, pitch, roll = m.heading_deg, m.pitch_deg, m.roll_deg  # installation error: unknown to the DSP
+    cam = camera_from_calibration(calibration.camera)
+    if all(v is None for v in cal.model_dump().values()):
+        return cam
     pick = lambda v, default: default if v is None else v  # noqa: E731
-    pixel_m = cal.pixel_um * 1e-6 if cal.pixel_um is not None else nominal.dx_m
-    return CameraGeometry(
-        nx=pick(cal.nx, nominal.nx), ny=pick(cal.ny, nominal.ny), dx_m=pixel_m, dy_m=pixel_m,
-        focal_m=cal.focal_mm * 1e-3 if cal.focal_mm is not None else nominal.focal_m,
-        projection=pick(cal.projection, nominal.projection),
-        c_c_b=a2mat(pick(cal.mounting_pitch_deg, pitch) * DEG, pick(cal.mounting_roll_deg, roll) * DEG,
-                    yaw_from_heading(pick(cal.mounting_heading_deg, heading) * DEG)),
-    )
+    if any(v is not None for v in (cal.mounting_heading_deg, cal.mounting_pitch_deg, cal.mounting_roll_deg)):
+        m = scn.sensors.camera.mounting if scn.sensors.camera is not None else None
+        c_c_b = a2mat(pick(cal.mounting_pitch_deg, m.pitch_deg if m else 0.0) * DEG,
+                      pick(cal.mounting_roll_deg, m.roll_deg if m else 0.0) * DEG,
+                      yaw_from_heading(pick(cal.mounting_heading_deg, m.heading_deg if m else 0.0) * DEG))
+    else:
+        c_c_b = cam.c_c_b
+    pixel_m = cal.pixel_um * 1e-6 if cal.pixel_um is not None else cam.dx_m
+    return replace(cam, nx=pick(cal.nx, cam.nx), ny=pick(cal.ny, cam.ny), dx_m=pixel_m, dy_m=pixel_m,
+                   focal_m=cal.focal_mm * 1e-3 if cal.focal_mm is not None else cam.focal_m,
+                   projection=pick(cal.projection, cam.projection), c_c_b=c_c_b)
 
 
 def _variant_params(scn: Scenario) -> VariantParams:
@@ -71,7 +132,11 @@ def _compass_mountings(scn: Scenario):
     return compass_mountings([(u.zenith_deg, u.azimuth_deg) for u in c.units])
 
 
-def firmware_config(scn: Scenario) -> FirmwareConfig:
+def firmware_config(scn: Scenario, calibration: Calibration | None = None) -> FirmwareConfig:
+    """The firmware's configuration: the scenario's firmware section and the calibration file (by default the
+    one :func:`calibration_for` makes with the scenario's seed)."""
+    if calibration is None:
+        calibration = calibration_for(scn)
     fw = scn.firmware
     gnss = gnss_config(scn).errors
     gyro = gyro_errors(scn)
@@ -115,7 +180,7 @@ def firmware_config(scn: Scenario) -> FirmwareConfig:
         psns_quality_max=fw.psns.quality_max,
         psns_min_sun_elevation_deg=fw.psns.min_sun_elevation_deg,
         psns_gate_chi2=fw.psns.gate_chi2,
-        camera=_camera(scn),
+        camera=_camera(scn, calibration),
         compass_mountings=_compass_mountings(scn),
         initial_misalignment_deg=(fw.alignment.misalignment_deg[0], fw.alignment.misalignment_deg[1],
                                   fw.alignment.misalignment_deg[2]),
@@ -123,6 +188,6 @@ def firmware_config(scn: Scenario) -> FirmwareConfig:
     )
 
 
-def build_firmware(scn: Scenario) -> Firmware:
-    """The firmware the virtual DSP hosts for this scenario."""
-    return Firmware(firmware_config(scn))
+def build_firmware(scn: Scenario, calibration: Calibration | None = None) -> Firmware:
+    """The firmware the virtual DSP hosts for this scenario, configured from its calibration file."""
+    return Firmware(firmware_config(scn, calibration))

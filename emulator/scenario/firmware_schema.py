@@ -8,14 +8,17 @@ variant reads its own.
 
 from __future__ import annotations
 
+from pathlib import PurePosixPath, PureWindowsPath
 from typing import Literal
 
-from pydantic import Field
+from pydantic import Field, field_validator, model_validator
 
 from .base import Model
 
 __all__ = [
     "AlignmentSpec",
+    "CalibrationResidualsSpec",
+    "CalibrationSpec",
     "CameraCalibrationSpec",
     "DualVectorSpec",
     "FederatedSpec",
@@ -144,6 +147,47 @@ class VariantsSpec(Model):
     sun_elevation: SunElevationSpec = SunElevationSpec()
 
 
+class CalibrationResidualsSpec(Model):
+    """One sigma of what a bench calibration leaves unknown (docs/calibration.md). The calibration file the DSP
+    loads is the world's truth plus one draw of these (seeded by the run's seed)."""
+
+    boresight_deg: float = Field(0.05, ge=0, le=2, description="camera-to-body rotation, per axis")
+    focal_rel: float = Field(1e-3, ge=0, le=0.02, description="relative focal-length error")
+    principal_point_px: float = Field(0.5, ge=0, le=20, description="per axis")
+    distortion_k1: float = Field(1e-3, ge=0, le=0.05)
+    exit_pupil_rel: float = Field(0.02, ge=0, le=0.3, description="relative exit-pupil distance error")
+    polarizer_deg: float = Field(0.05, ge=0, le=2, description="per micro-polarizer channel")
+
+
+class CalibrationSpec(Model):
+    """How the firmware's calibration file (``calibration.json`` in the run directory) comes about.
+
+    ``residuals``: the world's truth plus the residuals below (the default: a calibrated unit); ``perfect``: the
+    truth itself (for debugging); ``nominal``: the design values, no calibration (an installation error or a lens
+    defect is unknown to the DSP); ``file``: the user's own file (``file``, relative to the scenario's directory).
+    """
+
+    source: Literal["residuals", "perfect", "nominal", "file"] = "residuals"
+    residuals: CalibrationResidualsSpec = CalibrationResidualsSpec()
+    file: str | None = Field(None, description="calibration JSON, relative to the scenario file's directory")
+
+    @field_validator("file")
+    @classmethod
+    def _confined(cls, v: str | None) -> str | None:
+        if v is None:
+            return v
+        for p in (PurePosixPath(v), PureWindowsPath(v)):
+            if p.is_absolute() or p.drive or ".." in p.parts:
+                raise ValueError("the calibration file must be a relative path inside the scenario's directory")
+        return v
+
+    @model_validator(mode="after")
+    def _file_given(self) -> CalibrationSpec:
+        if (self.source == "file") != (self.file is not None):
+            raise ValueError("source: file needs file, and file needs source: file")
+        return self
+
+
 class FirmwareSpec(Model):
     filter: Literal["base", "dual_vector", "kmeans_3d", "federated", "sun_elevation"] = "base"
     precision: Literal["float32", "float64"] = "float32"
@@ -154,4 +198,5 @@ class FirmwareSpec(Model):
     coning_samples: Literal[0, 1, 2] = Field(0, description="0: two-sample with angle increments, else one")
     alignment: AlignmentSpec = AlignmentSpec()
     psns: PsnsFirmwareSpec = PsnsFirmwareSpec()
+    calibration: CalibrationSpec = CalibrationSpec()
     variants: VariantsSpec = VariantsSpec()

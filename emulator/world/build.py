@@ -8,11 +8,10 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model.attitude import yaw_from_heading
-
 from ..errors import ScenarioError
 from ..scenario.schema import Scenario
 from ..scenario.world_schema import MotionSegment
+from .frames import yaw_from_heading
 from .trajectory import Phase, SegmentTrajectory, StaticTrajectory, Trajectory
 
 __all__ = ["build_trajectory", "phases_from_segments", "trajectory_from_segments"]

@@ -25,7 +25,7 @@ import math
 import numpy as np
 from pvlib import spa
 
-from firmware_model import earth
+from . import geodesy
 
 __all__ = ["AU_M", "SunModel", "sun_vector_from_az_el"]
 
@@ -103,14 +103,9 @@ class SunModel:
         cd = math.cos(dec * DEG)
         r = r_au * AU_M
         sun = np.array([r * cd * math.cos(lam_s), r * cd * math.sin(lam_s), r * math.sin(dec * DEG)])
-        d = sun - earth.geodetic_to_ecef(lat, lon, h)
-        sl, cl = math.sin(lat), math.cos(lat)
-        so, co = math.sin(lon), math.cos(lon)
-        e = -so * d[0] + co * d[1]
-        n = -sl * co * d[0] - sl * so * d[1] + cl * d[2]
-        u = cl * co * d[0] + cl * so * d[1] + sl * d[2]
-        s = np.array([e, n, u])
-        return s / math.sqrt(e * e + n * n + u * u)
+        s = geodesy.ecef_to_enu_vector(sun - geodesy.geodetic_to_ecef(lat, lon, h), lat, lon)
+        unit: np.ndarray = s / float(np.linalg.norm(s))
+        return unit
 
     def az_el(self, t: float, lat: float, lon: float, h: float) -> tuple[float, float]:
         """Azimuth (clockwise from north, [0, 2 pi)) and geometric elevation, rad."""

@@ -6,7 +6,7 @@ A :class:`Trajectory` answers, at any scenario time ``t`` (s):
   attitude ``C_b^n`` and Euler angles (docs/architecture.md, section "Conventions");
 * :meth:`Trajectory.angular_rate` and :meth:`Trajectory.specific_force` -- body-frame
   ``omega_ib^b`` (rad/s) and ``f^b`` (m/s^2), consistent with WGS-84 normal gravity
-  (:mod:`firmware_model.earth`, the same model the firmware uses) and Earth rotation;
+  (the world's own Somigliana model, :mod:`emulator.world.geodesy`, not the firmware's) and Earth rotation;
 * :meth:`Trajectory.imu_increments` -- the integrals of both over ``[t0, t1]``.
 
 :class:`StaticTrajectory` is the closed-form case (vehicle at rest on the rotating Earth).
@@ -54,8 +54,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from firmware_model import earth
-from firmware_model.attitude import a2mat, heading_from_yaw, m2att, yaw_from_heading
+from protocols.constants import OMEGA_IE
+
+from . import geodesy
+from .frames import cbn_from_euler, euler_from_cbn, heading_from_yaw, yaw_from_heading
 
 __all__ = [
     "NODE_STEP_S",
@@ -148,13 +150,13 @@ class StaticTrajectory(Trajectory):
         self.duration = duration
         self.pos = np.array([lat_deg * DEG, lon_deg * DEG, h_m])
         yaw = yaw_from_heading(heading_deg * DEG)
-        self.c_bn = a2mat(pitch_deg * DEG, roll_deg * DEG, yaw)
-        p, r, y = m2att(self.c_bn)
+        self.c_bn = cbn_from_euler(pitch_deg * DEG, roll_deg * DEG, yaw)
+        p, r, y = euler_from_cbn(self.c_bn)
         self._state = (p, r, heading_from_yaw(y))
         c_nb = self.c_bn.T
         lat, h = self.pos[0], self.pos[2]
-        self._w = c_nb @ earth.omega_ie_n(lat)
-        self._f = c_nb @ np.array([0.0, 0.0, earth.gravity(lat, h)])
+        self._w = c_nb @ np.array([0.0, OMEGA_IE * math.cos(lat), OMEGA_IE * math.sin(lat)])
+        self._f = c_nb @ np.array([0.0, 0.0, float(geodesy.normal_gravity(lat, h))])
 
     def state(self, t: float) -> TruthState:
         p, r, hd = self._state
@@ -179,34 +181,17 @@ class StaticTrajectory(Trajectory):
 
 
 def euler_to_cbn(pitch: np.ndarray, roll: np.ndarray, yaw: np.ndarray) -> np.ndarray:
-    """Vectorised :func:`firmware_model.attitude.a2mat`: (N,) angles (rad) -> (N, 3, 3) ``C_b^n``."""
-    sp, cp = np.sin(pitch), np.cos(pitch)
-    sr, cr = np.sin(roll), np.cos(roll)
-    sy, cy = np.sin(yaw), np.cos(yaw)
-    c = np.empty((*np.shape(pitch), 3, 3))
-    c[..., 0, 0] = cr * cy - sp * sr * sy
-    c[..., 0, 1] = -cp * sy
-    c[..., 0, 2] = sr * cy + sp * cr * sy
-    c[..., 1, 0] = cr * sy + sp * sr * cy
-    c[..., 1, 1] = cp * cy
-    c[..., 1, 2] = sr * sy - sp * cr * cy
-    c[..., 2, 0] = -cp * sr
-    c[..., 2, 1] = sp
-    c[..., 2, 2] = cp * cr
-    return c
+    """(N,) Euler angles (rad) -> (N, 3, 3) ``C_b^n`` (:func:`emulator.world.frames.cbn_from_euler`, scipy)."""
+    return cbn_from_euler(pitch, roll, yaw)
 
 
 def _radii(lat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    s2 = np.sin(lat) ** 2
-    d = 1.0 - earth.E2_WGS84 * s2
-    rn = earth.A_WGS84 / np.sqrt(d)
-    return rn * (1.0 - earth.E2_WGS84) / d, rn
+    return geodesy.radii(lat)
 
 
 def _gravity(lat: np.ndarray, h: np.ndarray) -> np.ndarray:
-    """Vectorised :func:`firmware_model.earth.gravity` (the same coefficients; a test checks equality)."""
-    s2 = np.sin(lat) ** 2
-    return earth.G0 * (1.0 + earth._G_B1 * s2 + earth._G_B2 * s2 * s2) - earth._G_H * h
+    """WGS-84 normal gravity, the world's own (:func:`emulator.world.geodesy.normal_gravity`)."""
+    return geodesy.normal_gravity(lat, h)
 
 
 @dataclass
@@ -338,7 +323,7 @@ class _PhaseTable:
         lat, h = pos[:, 0], pos[:, 2]
         rm, rn = _radii(lat)
         sl, cl = np.sin(lat), np.cos(lat)
-        w_ie = np.stack([np.zeros_like(lat), earth.OMEGA_IE * cl, earth.OMEGA_IE * sl], axis=-1)
+        w_ie = np.stack([np.zeros_like(lat), OMEGA_IE * cl, OMEGA_IE * sl], axis=-1)
         rnh = rn + h
         w_en = np.stack([-v[:, 1] / (rm + h), v[:, 0] / rnh, v[:, 0] * sl / cl / rnh], axis=-1)
         c_bn = euler_to_cbn(th, ga, psi)

@@ -261,18 +261,22 @@ def find_sun(x_px: FloatArray, y_px: FloatArray, aop: FloatArray, dop: FloatArra
 
 
 def _inside_image(s_c: FloatArray, cam: CameraGeometry, x_px: FloatArray, y_px: FloatArray) -> bool:
-    """Whether the sun's image lies inside the bounding box of the observed points (the camera projection)."""
+    """Whether the sun's image lies inside the bounding box of the observed points (the calibrated projection:
+    principal point and radial distortion of the camera model)."""
     sx, sy, sz = (float(v) for v in s_c)
+    al = math.atan2(sy, sx)
     if cam.projection == "pinhole":
         if sz <= 0:
             return False
-        X, Y = cam.focal_m * sx / sz, cam.focal_m * sy / sz
+        u = math.hypot(sx, sy) / sz
     else:
-        th = math.acos(max(-1.0, min(1.0, sz)))
-        al = math.atan2(sy, sx)
-        X, Y = cam.focal_m * th * math.cos(al), cam.focal_m * th * math.sin(al)
-    x = X / cam.dx_m + (cam.nx + 1) / 2.0
-    y = Y / cam.dy_m + (cam.ny + 1) / 2.0
+        u = math.acos(max(-1.0, min(1.0, sz)))
+    rho = u * (1.0 + cam.k1 * u * u + cam.k2 * u ** 4)
+    X, Y = cam.focal_m * rho * math.cos(al), cam.focal_m * rho * math.sin(al)
+    cx = (cam.nx + 1) / 2.0 if cam.cx_px is None else cam.cx_px
+    cy = (cam.ny + 1) / 2.0 if cam.cy_px is None else cam.cy_px
+    x = X / cam.dx_m + cx
+    y = Y / cam.dy_m + cy
     return float(x_px.min()) <= x <= float(x_px.max()) and float(y_px.min()) <= y <= float(y_px.max())
 
 

@@ -3,14 +3,17 @@
 Geometry and conventions (``docs/architecture.md``, section "Conventions"):
 
 * camera frame c: +z optical axis, +x along columns (x = 1..nx), +y along rows (y = 1..ny);
-  pinhole pixel (x, y) looks along ``(Dx (x - (nx+1)/2), Dy (y - (ny+1)/2), f)`` (base paper
-  Eq. 4); equidistant fisheye: ``theta = r/f``, ``alpha = atan2(Y, X)``,
-  ``V = (sin theta cos alpha, sin theta sin alpha, cos theta)``;
+  the lens (:mod:`emulator.devices.camera.optics`) maps a pixel to its view ray through its principal point,
+  radial distortion and projection (pinhole or equidistant fisheye); with the defaults (centred, undistorted)
+  pixel (x, y) looks along ``(Dx (x - (nx+1)/2), Dy (y - (ny+1)/2), f)`` (base paper Eq. 4);
 * micro-polarizers per 2x2 super-pixel: (row 0, col 0) = 90 deg, (0, 1) = 45, (1, 0) = 135,
   (1, 1) = 0 (the layout polanalyser expects); angles from +x towards +y;
-* the E-vector enters as its orthographic projection ``(E_x, E_y)`` on the image plane,
+* the E-vector reaches the sensor plane through the lens by the meridional-plane rule (s kept, p scaled by
+  the cosine of the chief-ray angle; :mod:`emulator.devices.camera.optics`); with a thin lens (the default
+  ``exit_pupil_m`` None) that is the orthographic projection ``(E_x, E_y)`` of the paper;
   ``psi = atan2(E_y, E_x)``, Malus ``I_theta = S0/2 [1 + D DOP cos 2(psi - theta)]`` with
-  ``D = (ER - 1)/(ER + 1)``;
+  ``D = (ER - 1)/(ER + 1)``, then the sensor's fixed pattern (orientation error, extinction spread, PRNU,
+  dark signal, crosstalk, vignetting: :class:`emulator.devices.camera.optics.SensorDefects`);
 * on-camera processing ``S0 = (I0+I45+I90+I135)/2``, ``S1 = I0 - I90``, ``S2 = I45 - I135``,
   ``DOP = sqrt(S1^2 + S2^2)/S0``, ``psi = atan2(S2, S1)/2``; on the wire ``AOP = 90 deg - psi``
   wrapped to (-90, 90] (from image +y towards +x, base paper Eq. 5);

@@ -8,7 +8,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from firmware_model.attitude import a2mat
+from ...world.frames import cbn_from_euler, rotvec_matrix, yaw_from_heading
+from .optics import LensModel, SensorDefects
 
 __all__ = [
     "CHANNEL_OFFSETS",
@@ -34,14 +35,8 @@ CHANNEL_OFFSETS = {90: (0, 0), 45: (0, 1), 135: (1, 0), 0: (1, 1)}
 
 
 def rotation_vector_matrix(rv: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a rotation vector (rad), Rodrigues."""
-    rv = np.asarray(rv, dtype=np.float64)
-    a = float(np.linalg.norm(rv))
-    if a < 1e-15:
-        return np.eye(3)
-    k = rv / a
-    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + math.sin(a) * kx + (1.0 - math.cos(a)) * (kx @ kx)
+    """Rotation matrix of a rotation vector (rad) (scipy ``Rotation``)."""
+    return rotvec_matrix(rv)
 
 
 @dataclass
@@ -71,6 +66,21 @@ class CameraConfig:
     dop_threshold: float = 0.05
     min_points: int = 10
     noise: bool = True
+    #: principal point (1-based pixels; None: the sensor centre), radial distortion, exit pupil to image plane (m;
+    #: None: a thin lens with its stop at the lens, chief-ray angle = field angle; inf: image-space telecentric)
+    cx_px: float | None = None
+    cy_px: float | None = None
+    k1: float = 0.0
+    k2: float = 0.0
+    exit_pupil_m: float | None = None
+    defects: SensorDefects = field(default_factory=SensorDefects)
+    #: seed of the sensor's fixed pattern (orientation, extinction, PRNU maps): one physical sensor per seed
+    defect_seed: int = 0
+
+    @property
+    def lens_model(self) -> LensModel:
+        return LensModel(self.lens, self.focal_m, self.pixel_m, self.nx, self.ny, self.cx_px, self.cy_px, self.k1,
+                         self.k2, math.inf if self.exit_pupil_m is None else self.exit_pupil_m)
 
     @property
     def diattenuation(self) -> float:
@@ -110,9 +120,12 @@ class CameraGeometry:
         xc = 2.0 * np.arange(nsx) + 1.5  # 1-based pixel coordinate of super-pixel centres
         yc = 2.0 * np.arange(nsy) + 1.5
         X, Y = np.meshgrid(xc, yc)
+        self.lens = cfg.lens_model
         vx, vy, vz, valid = self.rays(X, Y)
         self.sp_v = np.stack([vx, vy, vz]).astype(np.float32)
         self.sp_valid = valid
+        #: cos of the chief-ray angle on the sensor of every super-pixel (polarization transfer, vignetting)
+        self.sp_cos_cra = self.cos_cra(X, Y).astype(np.float32)
         #: largest angle between a (valid) super-pixel ray and the optical axis, rad
         self.max_field_angle = float(np.arccos(np.clip(np.min(np.where(valid, vz, 1.0)), -1.0, 1.0))) + 2e-3
         n = cfg.bin_superpixels
@@ -135,12 +148,13 @@ class CameraGeometry:
         keep = pvalid
         if cfg.lens == "fisheye":  # the whole window must be inside the image circle
             r_win = (n + 1) * cfg.pixel_m
-            X0 = cfg.pixel_m * (x_px - (cfg.nx + 1) / 2.0)
-            Y0 = cfg.pixel_m * (y_px - (cfg.ny + 1) / 2.0)
-            keep &= (np.hypot(X0, Y0) + r_win) / cfg.focal_m <= cfg.fisheye_max_theta
+            _, _, r0 = self.lens.radial_m(x_px, y_px)
+            with np.errstate(invalid="ignore"):
+                keep &= self.lens._theta((r0 + r_win) / cfg.focal_m) <= cfg.fisheye_max_theta
         self.x_px = x_px[keep]
         self.y_px = y_px[keep]
         self.pt_v = np.stack([pvx[keep], pvy[keep], pvz[keep]], axis=1)
+        self.pt_cos_cra = self.cos_cra(self.x_px.astype(np.float64), self.y_px.astype(np.float64))
         self.win_cols = J0[keep, None] + np.arange(n + 1)[None, :]
         self.win_rows = I0[keep, None] + np.arange(n + 1)[None, :]
 
@@ -149,18 +163,20 @@ class CameraGeometry:
         return len(self.x_px)
 
     def rays(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Unit view rays (camera frame) of 1-based pixel coordinates ``x`` (column), ``y`` (row) (conventions)."""
-        c = self.cfg
-        X = c.pixel_m * (np.asarray(x, dtype=np.float64) - (c.nx + 1) / 2.0)
-        Y = c.pixel_m * (np.asarray(y, dtype=np.float64) - (c.ny + 1) / 2.0)
-        if c.lens == "pinhole":
-            n = np.sqrt(X * X + Y * Y + c.focal_m * c.focal_m)
-            return X / n, Y / n, np.full_like(X, c.focal_m) / n, np.ones(X.shape, dtype=bool)
-        r = np.hypot(X, Y)
-        th = r / c.focal_m
-        al = np.arctan2(Y, X)
-        st = np.sin(th)
-        return st * np.cos(al), st * np.sin(al), np.cos(th), th <= c.fisheye_max_theta
+        """Unit view rays (camera frame) of 1-based pixel coordinates ``x`` (column), ``y`` (row), through the lens
+        (:class:`emulator.devices.camera.optics.LensModel`), and whether they are inside the image circle."""
+        v, th, _, _ = self.lens.rays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
+        with np.errstate(invalid="ignore"):
+            valid = ~np.isnan(th) if self.cfg.lens == "pinhole" else th <= self.cfg.fisheye_max_theta
+        return v[0], v[1], v[2], valid
+
+    def cos_cra(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """cos of the chief-ray angle on the sensor at pixels ``(x, y)``; a thin lens (``exit_pupil_m`` None)
+        keeps the field angle."""
+        if self.cfg.exit_pupil_m is None:
+            return np.asarray(self.rays(x, y)[2], dtype=np.float64)
+        _, _, r = self.lens.radial_m(x, y)
+        return np.cos(self.lens.chief_ray_angle(r))
 
 
 @dataclass
@@ -212,7 +228,5 @@ def mounting_matrix(heading_deg: float = 0.0, pitch_deg: float = 0.0, roll_deg: 
                     installation_error_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> np.ndarray:
     """``C_c^b``: a nominal mount (Euler angles, the body-attitude convention) times a small installation
     error (rotation vector about the camera axes, deg)."""
-    from firmware_model.attitude import yaw_from_heading
-
-    nominal = a2mat(pitch_deg * DEG, roll_deg * DEG, yaw_from_heading(heading_deg * DEG))
+    nominal = cbn_from_euler(pitch_deg * DEG, roll_deg * DEG, yaw_from_heading(heading_deg * DEG))
     return nominal @ rotation_vector_matrix(np.asarray(installation_error_deg, dtype=np.float64) * DEG)

@@ -14,6 +14,7 @@ from ...world.sky import SkyModel
 from ...world.sun import SunModel
 from ...world.trajectory import Trajectory
 from .geometry import CHANNEL_OFFSETS, CameraConfig, CameraGeometry, PointObservations, rotation_vector_matrix
+from .optics import SensorDefects, defect_maps, sensor_plane_field
 
 __all__ = ["PolarizationCameraModel"]
 
@@ -54,6 +55,22 @@ class PolarizationCameraModel:
         self.frames_with_mounting_error = 0
         self._att_key: tuple[float, bool, int] | None = None
         self._att: tuple[np.ndarray, np.ndarray, float] | None = None
+        # the sensor's fixed pattern: per-super-pixel maps (full) and their window means (binned), one draw per
+        # physical sensor (defect_seed), the same in both fidelities
+        d = cfg.defects
+        self._maps: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
+        self._pt_maps: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
+        if d != SensorDefects() and (d.orientation_sigma_deg or d.extinction_spread or d.prnu
+                                     or any(d.orientation_bias_deg)):
+            maps = defect_maps(d, cfg.extinction_ratio, (cfg.ny // 2, cfg.nx // 2),
+                               np.random.default_rng(cfg.defect_seed))
+            if cfg.fidelity == "full":
+                self._maps = maps
+            g = self.geo
+            norm = g.w_row.sum() * g.w_col.sum()
+            self._pt_maps = {th: tuple(
+                np.einsum("pij,i,j->p", m[g.win_rows[:, :, None], g.win_cols[:, None, :]].astype(np.float64),
+                          g.w_row, g.w_col) / norm for m in ms) for th, ms in maps.items()}
 
     # -- injected faults (emulator.faults) ----------------------------------------------------------
     def set_mounting_error(self, rotation_vector_rad: np.ndarray | None) -> None:
@@ -89,48 +106,25 @@ class PolarizationCameraModel:
         c_nc, s_c, _ = self.camera_attitude(t)
         vx, vy, vz = self.geo.sp_v
         f32 = np.float32
-        A = f32(cfg.signal_e)
-        D = f32(cfg.diattenuation)
-        if self.sky.uniform:
-            sx, sy, sz = f32(s_c[0]), f32(s_c[1]), f32(s_c[2])
-            ex = sy * vz - sz * vy
-            ey = sz * vx - sx * vz
-            c2 = sx * vx + sy * vy + sz * vz
-            c2 *= c2
-            # k = A D P sin^2(g) / ((1 + cos^2(g)) (Ex^2 + Ey^2)): Malus amplitude over the projection's norm^2
-            r2 = ex * ex + ey * ey
-            np.maximum(r2, f32(1e-30), out=r2)
-            k = (f32(1.0) - c2) / ((f32(1.0) + c2) * r2)
-            k *= A * D * f32(self.sky.p_max)
-            radiance: np.ndarray | np.float32 = A
-        else:
-            fld = self.sky.evaluate(t, s_c, vx, vy, vz, c_nc)
-            ex, ey = fld.ex, fld.ey
-            r2 = ex * ex + ey * ey
-            np.maximum(r2, f32(1e-30), out=r2)
-            radiance = (A * fld.radiance).astype(f32)
-            k = D * fld.dop * radiance / r2
+        fld = self.sky.evaluate(t, s_c, vx, vy, vz, c_nc)
+        ex, ey = sensor_plane_field(vx, vy, vz, fld.ex, fld.ey, fld.ez, self.geo.sp_cos_cra)
+        radiance = (f32(cfg.signal_e) * fld.radiance).astype(f32)
+        means = self._channel_means(radiance, fld.dop.astype(f32), ex, ey, self.geo.sp_cos_cra, self._maps)
         glare = None
         if math.acos(max(-1.0, min(1.0, float(s_c[2])))) < self.geo.max_field_angle + cfg.sun_glare:
             cs = s_c.astype(np.float32)
             glare = (cs[0] * vx + cs[1] * vy + cs[2] * vz) > f32(math.cos(cfg.sun_glare))
-        dq = k * (ex * ex - ey * ey)
-        du = f32(2.0) * k * ex * ey
         if not self.geo.sp_valid.all():
             valid = self.geo.sp_valid
-            dq = np.where(valid, dq, f32(0.0))
-            du = np.where(valid, du, f32(0.0))
-            radiance = np.where(valid, radiance, f32(0.0)).astype(f32)
+            means = {th: np.where(valid, m, f32(0.0)).astype(f32) for th, m in means.items()}
         if out is None:
             out = np.empty((cfg.ny, cfg.nx), dtype=np.uint16)
         g = f32(cfg.gain_dn_per_e)
         r2n = f32(cfg.read_noise_e ** 2)
         dn_max = f32(cfg.dn_max)
         nsy, nsx = cfg.ny // 2, cfg.nx // 2
-        for theta, sign, d in ((0, 1.0, dq), (90, -1.0, dq), (45, 1.0, du), (135, -1.0, du)):
-            mean = radiance + d if sign > 0 else radiance - d
-            if not isinstance(mean, np.ndarray):
-                mean = np.full((nsy, nsx), mean, dtype=f32)
+        for theta in (0, 90, 45, 135):
+            mean = np.broadcast_to(means[theta], (nsy, nsx)).astype(f32)
             if glare is not None and np.any(glare):
                 mean = np.where(glare, f32(4.0 * cfg.full_well_e), mean).astype(f32)
             np.maximum(mean, f32(0.0), out=mean)
@@ -167,6 +161,47 @@ class PolarizationCameraModel:
             means[theta] = np.einsum("pij,i,j->p", blk.astype(np.float64), wr, wc) / norm
         return means[0], means[45], means[90], means[135], sat
 
+    def _channel_means(self, radiance: np.ndarray, dop: np.ndarray, ex: np.ndarray, ey: np.ndarray,
+                       cos_cra: np.ndarray, maps: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] | None
+                       ) -> dict[int, np.ndarray]:
+        """Mean electrons of the four channels: Malus through a polarizer at ``theta + delta`` with
+        diattenuation D, PRNU gain, cos^4 vignetting of the chief-ray angle, dark signal, then the crosstalk of
+        the four edge neighbours (docs/sensors.md, "Polarization camera")."""
+        cfg = self.cfg
+        dfx = cfg.defects
+        dt = ex.dtype
+        r2 = np.maximum(ex * ex + ey * ey, dt.type(1e-30))
+        pr = dop * radiance / r2
+        c2 = pr * (ex * ex - ey * ey)
+        s2 = pr * dt.type(2.0) * ex * ey
+        if dfx.vignetting:
+            c4 = cos_cra * cos_cra
+            c4 = (c4 * c4).astype(dt, copy=False)
+            radiance, c2, s2 = radiance * c4, c2 * c4, s2 * c4
+        out = {}
+        for i, theta in enumerate((0, 45, 90, 135)):
+            if maps is None:
+                ang = math.radians(theta + dfx.orientation_bias_deg[i])
+                dia: np.ndarray | float = cfg.diattenuation
+                gain: np.ndarray | float = 1.0
+                ca: np.ndarray | float = math.cos(2 * ang)
+                sa: np.ndarray | float = math.sin(2 * ang)
+            else:
+                delta, dia, gain = maps[theta]
+                ang2 = 2.0 * (math.radians(theta) + delta)
+                ca, sa = np.cos(ang2).astype(dt), np.sin(ang2).astype(dt)
+            m = radiance + dia * (c2 * ca + s2 * sa)
+            if maps is not None or dfx.prnu:
+                m = m * gain
+            out[theta] = (m + dt.type(dfx.dark_e)).astype(dt, copy=False)
+        c = dfx.crosstalk
+        if c:
+            k0, k1 = dt.type(1.0 - 4.0 * c), dt.type(2.0 * c)
+            a, b = out[45] + out[135], out[0] + out[90]
+            out = {0: k0 * out[0] + k1 * a, 90: k0 * out[90] + k1 * a, 45: k0 * out[45] + k1 * b,
+                   135: k0 * out[135] + k1 * b}
+        return out
+
     # -- binned fidelity -------------------------------------------------------------------------
     def binned_channels(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Window-mean channels drawn directly (see module docstring); same outputs as :meth:`process_mosaic`."""
@@ -174,11 +209,9 @@ class PolarizationCameraModel:
         c_nc, s_c, _ = self.camera_attitude(t)
         v = self.geo.pt_v
         fld = self.sky.evaluate(t, s_c, v[:, 0], v[:, 1], v[:, 2], c_nc)
-        r2 = np.maximum(fld.ex * fld.ex + fld.ey * fld.ey, 1e-30)
-        a = cfg.signal_e * fld.radiance
-        k = cfg.diattenuation * fld.dop * a / r2
-        dq = k * (fld.ex * fld.ex - fld.ey * fld.ey)
-        du = 2.0 * k * fld.ex * fld.ey
+        ex, ey = sensor_plane_field(v[:, 0], v[:, 1], v[:, 2], fld.ex, fld.ey, fld.ez, self.geo.pt_cos_cra)
+        means = self._channel_means(cfg.signal_e * fld.radiance, fld.dop, ex, ey, self.geo.pt_cos_cra,
+                                    self._pt_maps)
         g = cfg.gain_dn_per_e
         # the window's angular half-size around the point ray decides glare
         half = (cfg.bin_superpixels + 1) * cfg.pixel_m / cfg.focal_m
@@ -186,8 +219,8 @@ class PolarizationCameraModel:
         glare = cos_sun > math.cos(cfg.sun_glare + half)
         out = []
         sat = glare.copy()
-        for d in (a + dq, a + du, a - dq, a - du):  # 0, 45, 90, 135
-            d = np.maximum(d, 0.0)
+        for theta in (0, 45, 90, 135):
+            d = np.maximum(means[theta], 0.0)
             mean_dn = d * g
             if cfg.noise:
                 var = self.geo.kappa * ((d + cfg.read_noise_e ** 2) * g * g + 1.0 / 12.0)

@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 
-from emulator.dsp.firmware_setup import build_firmware, firmware_config
+from emulator.dsp.firmware_setup import build_firmware, calibration_for, firmware_config
 from emulator.scenario import load_scenario
 from firmware_model.attitude import a2mat, yaw_from_heading
 
@@ -56,8 +56,7 @@ firmware:
     assert fw.cost.double and fw.dtype == np.float64
 
 
-def test_camera_calibration_defaults_to_the_sensor_nominal_design(tmp_path):
-    scn = _load(tmp_path, """\
+CAM_SCN = """\
 links:
   psns: {url: "mem://psns", baud: 115200}
 sensors:
@@ -65,8 +64,30 @@ sensors:
     lens: fisheye
     focal_length_mm: 1.8
     mounting: {heading_deg: 10, pitch_deg: 5, installation_error_deg: [0.3, 0, 0]}
-""")
+"""
+
+
+def test_camera_calibration_nominal_is_the_design_and_ignores_the_installation_error(tmp_path):
+    # (this test used to be the default; the default is now a calibrated unit, tested below)
+    scn = _load(tmp_path, CAM_SCN + "firmware: {calibration: {source: nominal}}\n")
     cam = firmware_config(scn).camera
     assert cam.projection == "fisheye" and math.isclose(cam.focal_m, 1.8e-3)
+    assert cam.paper_lens  # no lens measurement: the paper's model
     # nominal mount only: the installation error is what the DSP does not know
     assert np.allclose(cam.c_c_b, a2mat(math.radians(5), 0.0, yaw_from_heading(math.radians(10))))
+
+
+def test_camera_calibration_perfect_knows_the_truth_and_residuals_are_close_to_it(tmp_path):
+    from emulator.devices.sensors import camera_config
+
+    scn = _load(tmp_path, CAM_SCN + "firmware: {calibration: {source: perfect}}\n")
+    truth = camera_config(scn)
+    cam = firmware_config(scn).camera
+    assert np.allclose(cam.c_c_b, truth.mounting_c_b, atol=1e-12)
+    assert (cam.k1, cam.exit_pupil_m, cam.cx_px) == (truth.k1, truth.exit_pupil_m, truth.lens_model.cx)
+    scn = _load(tmp_path, CAM_SCN)  # default: residuals
+    cams = [firmware_config(scn, calibration_for(scn, seed)).camera for seed in range(20)]
+    ang = [math.degrees(math.acos(min(1.0, (np.trace(c.c_c_b.T @ truth.mounting_c_b) - 1) / 2))) for c in cams]
+    assert 0.0 < np.median(ang) < 0.2  # three axes of 0.05 deg
+    assert all(abs(c.focal_m / truth.focal_m - 1) < 5e-3 for c in cams)
+    assert len({c.cx_px for c in cams}) == 20

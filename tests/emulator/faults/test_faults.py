@@ -55,7 +55,9 @@ def imu_gnss_run(tmp_path_factory):
         {"dsp_extra_load": {"start_s": 18, "load_pct": 50}},
         {"gnss_outage": {"start_s": 18.5, "duration_s": 1}},
     ]
-    scn = _scn(QS, 20, faults)
+    # the IMU + GNSS box (the quickstart without the camera it now carries)
+    scn = _scn(QS, 20, faults, **{"links.psns": None, "sensors.camera": None,
+                                  "firmware.alignment.heading_source": "config"})
     d = tmp_path_factory.mktemp("faults") / "run"
     return run_scenario(scn, d), d
 

@@ -1,0 +1,133 @@
+"""The firmware's calibration file: round trip, rejection of unusable files, and the scenario's way to it."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+
+from emulator.dsp.firmware_setup import calibration_for, firmware_config
+from emulator.errors import ScenarioError
+from emulator.scenario.loader import load_scenario
+from firmware_model.calibration import (
+    Calibration,
+    CalibrationError,
+    CameraCalibration,
+    MagnetometerCalibration,
+    load_calibration,
+    save_calibration,
+)
+
+SCN = """\
+name: cal
+epoch: 2019-09-18T08:14:00Z
+duration_s: 10
+origin: {lat_deg: 39.979, lon_deg: 116.339, height_m: 50}
+links:
+  psns: {url: "mem://psns", baud: 115200}
+sensors:
+  camera: {}
+"""
+
+
+def test_round_trip(tmp_path):
+    cal = Calibration(camera=CameraCalibration(cx_px=1230.2, k1=-0.031, exit_pupil_m=math.inf,
+                                               boresight_rotvec_deg=(0.1, -0.2, 0.3)),
+                      magnetometer=MagnetometerCalibration(hard_iron_nt=(100.0, -50.0, 3.0)))
+    save_calibration(cal, tmp_path / "c.json")
+    assert load_calibration(tmp_path / "c.json") == cal
+    assert load_calibration_defaults(tmp_path) == Calibration()
+
+
+def load_calibration_defaults(tmp_path):
+    (tmp_path / "d.json").write_text(json.dumps({"format": "psns-hil-calibration", "version": 1}))
+    return load_calibration(tmp_path / "d.json")
+
+
+@pytest.mark.parametrize("bad", [
+    {"camera": {"focal_m": -1.0}},
+    {"camera": {"k1": float("nan")}},
+    {"camera": {"polarizer_deg": [0, 45, 90]}},
+    {"camera": {"lens": "pinhole"}},
+    {"camera": {"projection": "orthographic"}},
+    {"magnetometer": {"soft_iron": [1, 0, 0]}},
+    {"extra": {}},
+    {"version": 2},
+    {"format": "other"},
+])
+def test_unusable_files_are_rejected(tmp_path, bad):
+    d = {"format": "psns-hil-calibration", "version": 1, **bad}
+    (tmp_path / "c.json").write_text(json.dumps(d))
+    with pytest.raises(CalibrationError):
+        load_calibration(tmp_path / "c.json")
+    (tmp_path / "n.json").write_text("{not json")
+    with pytest.raises(CalibrationError):
+        load_calibration(tmp_path / "n.json")
+
+
+def test_a_users_file_inside_the_scenario_directory(tmp_path):
+    cal = Calibration(camera=CameraCalibration(k1=-0.02, boresight_rotvec_deg=(0.0, 0.0, 0.5)))
+    (tmp_path / "cal").mkdir()
+    save_calibration(cal, tmp_path / "cal" / "unit7.json")
+    p = tmp_path / "s.yaml"
+    p.write_text(SCN + "firmware: {calibration: {source: file, file: cal/unit7.json}}\n")
+    scn = load_scenario(p)
+    assert calibration_for(scn) == cal
+    assert firmware_config(scn).camera.k1 == -0.02
+
+
+@pytest.mark.parametrize("path", ["/etc/passwd", "../outside.json", "cal/../../x.json", "C:\\\\x.json"])
+def test_a_file_outside_the_scenario_directory_is_rejected(tmp_path, path):
+    p = tmp_path / "s.yaml"
+    p.write_text(SCN + f"firmware: {{calibration: {{source: file, file: '{path}'}}}}\n")
+    with pytest.raises(ScenarioError) as exc:
+        load_scenario(p)
+    assert "s.yaml:" in str(exc.value) and "calibration" in str(exc.value)
+
+
+def test_residuals_out_of_range_name_file_line_field_and_range(tmp_path):
+    p = tmp_path / "s.yaml"
+    p.write_text(SCN + "firmware:\n  calibration:\n    residuals:\n      boresight_deg: 10\n")
+    with pytest.raises(ScenarioError) as exc:
+        load_scenario(p)
+    msg = str(exc.value)
+    assert "s.yaml:12" in msg and "boresight_deg" in msg and "2" in msg
+
+
+
+def _static_camera_scenario(tmp_path, name, calibration_yaml):
+    """static_psns_camera with the camera turned 0.5 deg about its optical axis (the heading axis of an up-looking
+    camera), and the given firmware.calibration."""
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[3] / "scenarios" / "static_psns_camera.yaml").read_text()
+    text = text.replace("bin_superpixels: 8, rate_hz: 5, exposure_us: 1000}",
+                        "bin_superpixels: 8, rate_hz: 5, exposure_us: 1000,\n"
+                        "           mounting: {installation_error_deg: [0.0, 0.0, 0.5]}}")
+    fw = "firmware:\n"
+    assert fw in text
+    text = text.replace(fw, fw + f"  calibration: {calibration_yaml}\n")
+    p = tmp_path / f"{name}.yaml"
+    p.write_text(text)
+    return load_scenario(p)
+
+
+def test_a_boresight_error_the_calibration_knows_vs_one_it_does_not(tmp_path):
+    """Known to the calibration, the 0.5 deg boresight error leaves the heading within noise; unknown (the same
+    file with the nominal boresight), the heading is off by about 0.5 deg."""
+    from dataclasses import replace
+
+    from emulator.assembly.runner import run_scenario
+
+    perfect = calibration_for(_static_camera_scenario(tmp_path, "probe", "{source: perfect}"), 3)
+    save_calibration(perfect, tmp_path / "known.json")
+    save_calibration(replace(perfect, camera=replace(perfect.camera, boresight_rotvec_deg=(0.0, 0.0, 0.0))),
+                     tmp_path / "unknown.json")
+    rms = {}
+    for name in ("known", "unknown"):
+        scn = _static_camera_scenario(tmp_path, name, f"{{source: file, file: {name}.json}}")
+        s = run_scenario(scn, tmp_path / f"run_{name}")
+        rms[name] = next(r["value"] for r in s["expectations"] if "heading" in json.dumps(r))
+    assert rms["known"] < 0.2, rms
+    assert 0.4 < rms["unknown"] < 0.85 and rms["unknown"] - rms["known"] > 0.3, rms  # 0.5 deg plus the rest

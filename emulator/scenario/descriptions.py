@@ -100,6 +100,9 @@ DESCRIPTIONS: dict[str, str] = {
     "GnssErrorSpec.pos_sigma_v_m": "vertical position error, 1 sigma, m",
     "GnssErrorSpec.pos_white_fraction": "fraction of the position error variance that is white (the rest correlated)",
     "GnssErrorSpec.pps_jitter_ns": "PPS edge jitter, ns",
+    "CalibrationResidualsSpec.distortion_k1": "1-sigma residual of the lens's first radial distortion coefficient",
+    "CalibrationSpec.source": "residuals: truth plus drawn residuals; perfect: the truth; nominal: design values; "
+    "file: the calibration file named below (docs/calibration.md)",
     "GnssErrorSpec.multipath_corr_time_s": "correlation time of the multipath error (a second Gauss-Markov term), s",
     "GnssErrorSpec.multipath_sigma_h_m": "horizontal multipath error, 1 sigma per axis, m",
     "GnssErrorSpec.multipath_sigma_v_m": "vertical multipath error, 1 sigma, m",

@@ -95,14 +95,18 @@ def _with(tmp_path, changes: dict, name="s2.yaml"):
         node = data
         for k in head:
             node = node.setdefault(k, {})
-        node[last] = value
+        if value is None:  # None removes the key
+            node.pop(last, None)
+        else:
+            node[last] = value
     p = tmp_path / name
     p.write_text(yaml.safe_dump(data))
     return str(p)
 
 
 def test_validate_catches_a_camera_without_its_link(tmp_path):
-    p = _with(tmp_path, {"sensors.camera": {"preset": "reference"}})
+    # the quickstart carries the camera and its link: take the link away
+    p = _with(tmp_path, {"sensors.camera": {"preset": "reference"}, "links.psns": None})
     r = psns_hil("validate", p)
     assert r.returncode == 2 and "links.psns" in r.stderr and "sensors.camera" in r.stderr
 

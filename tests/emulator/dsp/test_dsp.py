@@ -141,14 +141,14 @@ def test_watchdog_reset_restarts_the_firmware(tmp_path):
 
 def test_polled_gnss_uart_at_115200_loses_sentences(tmp_path):
     """A GNSS port at 115200 into UART3 polled once per tick: the FIFO overruns, sentences break."""
-    scn, run_scenario = _short({"links": {"gnss": {"url": "mem://gnss", "baud": 115200}},
+    scn, run_scenario = _short({"links.gnss": {"url": "mem://gnss", "baud": 115200},
                                 "dsp": {"uarts": {"uart3": {"service": "poll"}}}})
     s = run_scenario(scn, tmp_path / "r")
     u3 = s["dsp"]["uarts"]["uart3"]
     assert u3["overrun_bytes"] > 0 and not u3["lossless_config"]
     assert s["firmware"]["decoders"]["uart3"]["frames"] < s["links"]["uart3"]["frames"]
     # the same port serviced by the ISR loses nothing
-    scn2, _ = _short({"links": {"gnss": {"url": "mem://gnss", "baud": 115200}}})
+    scn2, _ = _short({"links.gnss": {"url": "mem://gnss", "baud": 115200}})
     s2 = run_scenario(scn2, tmp_path / "r2")
     assert s2["dsp"]["uarts"]["uart3"]["overrun_bytes"] == 0
     assert s2["firmware"]["decoders"]["uart3"]["frames"] == s2["links"]["uart3"]["frames"]

@@ -52,6 +52,7 @@ def _recipe(doc, verb):
 
 
 @pytest.mark.pty
+@pytest.mark.realtime
 @pytest.mark.parametrize("doc", DOCS, ids=lambda p: p.name)
 def test_the_pty_recipe_runs_as_written(doc, tmp_path):
     readme_links = next(b for b in _blocks(ROOT / "README.md", ("yaml",)) if "pty://" in b)
@@ -65,7 +66,7 @@ def test_the_pty_recipe_runs_as_written(doc, tmp_path):
     run = subprocess.Popen([sys.executable, "-m", "emulator", *run_argv], cwd=tmp_path, text=True,
                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=_env())
     try:
-        deadline = time.monotonic() + 20
+        deadline = time.monotonic() + 90  # start-up builds the camera's fixed pattern first
         while not (tmp_path / "runs" / "live" / "ports" / "uart0").exists():
             assert run.poll() is None, run.communicate()
             assert time.monotonic() < deadline, "the pty never appeared"

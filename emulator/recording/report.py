@@ -117,33 +117,23 @@ def _nav_figures(nav: dict[str, list[float]], events: list[dict[str, Any]]) -> l
         sh, ch = math.sin(math.radians(h)), math.cos(math.radians(h))
         sig_roll.append(math.sqrt((sh * se) ** 2 + (ch * sn) ** 2))
         sig_pitch.append(math.sqrt((ch * se) ** 2 + (sh * sn) ** 2))
-    fig, axes = plt.subplots(3, 1, figsize=(10, 7), sharex=True)
-    for ax, (col, sig, name) in zip(axes, [("err_roll_deg", sig_roll, "roll"),
-                                           ("err_pitch_deg", sig_pitch, "pitch"),
-                                           ("err_heading_deg", nav.get("sig_att_u_deg"), "heading")]):
-        _err_panel(ax, t, nav.get(col, []), sig, name, "deg")
-        _shade(ax, spans)
-    axes[-1].set_xlabel("time (s)")
-    fig.suptitle("attitude error against truth")
-    out.append(("Attitude error", _png(fig)))
+    def error_figure(title: str, panels: list[tuple[str, Any, str, str]]) -> str:
+        """Three stacked error panels (column, sigma column, label, unit) with the outage/fault spans shaded."""
+        fig, axes = plt.subplots(3, 1, figsize=(10, 7), sharex=True)
+        for ax, (col, sig, name, unit) in zip(axes, panels):
+            _err_panel(ax, t, nav.get(col, []), sig, name, unit)
+            _shade(ax, spans)
+        axes[-1].set_xlabel("time (s)")
+        fig.suptitle(f"{title} against truth")
+        return _png(fig)
 
-    fig, axes = plt.subplots(3, 1, figsize=(10, 7), sharex=True)
-    for ax, ax_name in zip(axes, ("e", "n", "u")):
-        _err_panel(ax, t, nav.get(f"err_vel_{ax_name}_mps", []), nav.get(f"sig_vel_{ax_name}_mps"),
-                   f"v_{ax_name.upper()}", "m/s")
-        _shade(ax, spans)
-    axes[-1].set_xlabel("time (s)")
-    fig.suptitle("velocity error against truth")
-    out.append(("Velocity error", _png(fig)))
-
-    fig, axes = plt.subplots(3, 1, figsize=(10, 7), sharex=True)
-    for ax, ax_name in zip(axes, ("e", "n", "u")):
-        _err_panel(ax, t, nav.get(f"err_pos_{ax_name}_m", []), nav.get(f"sig_pos_{ax_name}_m"),
-                   f"p_{ax_name.upper()}", "m")
-        _shade(ax, spans)
-    axes[-1].set_xlabel("time (s)")
-    fig.suptitle("position error against truth")
-    out.append(("Position error", _png(fig)))
+    out.append(("Attitude error", error_figure("attitude error", [
+        ("err_roll_deg", sig_roll, "roll", "deg"), ("err_pitch_deg", sig_pitch, "pitch", "deg"),
+        ("err_heading_deg", nav.get("sig_att_u_deg"), "heading", "deg")])))
+    out.append(("Velocity error", error_figure("velocity error", [
+        (f"err_vel_{a}_mps", nav.get(f"sig_vel_{a}_mps"), f"v_{a.upper()}", "m/s") for a in "enu"])))
+    out.append(("Position error", error_figure("position error", [
+        (f"err_pos_{a}_m", nav.get(f"sig_pos_{a}_m"), f"p_{a.upper()}", "m") for a in "enu"])))
 
     # mode timeline + fault bars + events
     n_rows = len(_MODE_BITS) + len(spans)

@@ -19,6 +19,7 @@ import gc
 import json
 import math
 import signal
+import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -430,9 +431,17 @@ def _run_emulator(emu: Emulator, speed: float, on_started: Callable[[Emulator], 
     task = loop.create_task(main())
     loop.set_exception_handler(on_error)
 
+    interrupts = [0]
+
     def on_signal() -> None:
+        interrupts[0] += 1
+        if interrupts[0] > 1:  # a second Ctrl-C: stop at once (emulator.cli.main says what that leaves)
+            raise KeyboardInterrupt
         emu._interrupt_requested = True  # read by Emulator.run after start-up
         task.cancel()
+        sys.stderr.write(f"\npsns-hil run: interrupted at t = {loop.time():.3f} s (emulated); writing the summary "
+                         "and closing the captures (interrupt again to stop at once)\n")
+        sys.stderr.flush()
 
     for sig in (signal.SIGINT, signal.SIGTERM):
         with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):

@@ -6,6 +6,7 @@ import json
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 import pytest
@@ -59,3 +60,32 @@ def test_signal_leaves_a_readable_capture_and_an_interrupted_summary(tmp_path, s
     # events are whole JSON lines
     for ln in (out / "events.jsonl").read_text().splitlines():
         json.loads(ln)
+
+
+def test_a_second_interrupt_stops_at_once_and_says_what_it_left(tmp_path):
+    """The first Ctrl-C says the run is finishing; a second one stops at once, says so, and keeps the captures."""
+    out = tmp_path / "run"
+    proc = subprocess.Popen([sys.executable, "-m", "emulator", "run", str(ROOT / "scenarios" / "quickstart.yaml"),
+                             "--out", str(out), "--quiet"], cwd=ROOT, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True)
+    err_lines: list[str] = []
+    reader = threading.Thread(target=lambda: err_lines.extend(iter(proc.stderr.readline, "")), daemon=True)
+    reader.start()
+    try:
+        cap = out / "capture.psnscap"
+        _wait_for(lambda: cap.exists() and cap.stat().st_size > 200_000, 60.0, "capture data")
+        proc.send_signal(signal.SIGINT)
+        _wait_for(lambda: any("interrupt again to stop at once" in ln for ln in err_lines), 30.0,
+                  "the first interrupt's message")
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=60)
+        reader.join(timeout=10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    stderr = "".join(err_lines)
+    assert proc.returncode == 1, stderr
+    assert "interrupted again: stopped at once" in stderr and "Traceback" not in stderr
+    header, records = read_capture(cap)
+    assert header["scenario"] == "quickstart" and records

@@ -379,6 +379,7 @@ class Emulator:
             else None,
             "run_dir": str(self.run_dir),
             "nav_error": {k: v.as_dict() for k, v in rec.errors.items()},
+            "nav_error_by_phase": {ph: {k: v.as_dict() for k, v in e.items()} for ph, e in rec.errors_by_phase.items()},
             "nav_frames": rec.nav_count,
             "links": rec.link_summary(),
             "link_stats": {k: dict(v.stats.as_dict(), error=v.error) for k, v in self.links.items()},

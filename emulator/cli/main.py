@@ -111,10 +111,12 @@ def print_summary(s: dict[str, Any]) -> None:
     c.print(head)
 
     err = Table(title="navigation error against truth (while navigating)", title_justify="left")
-    for col in ("quantity", "rms", "max"):
+    phases = s.get("nav_error_by_phase") or {}
+    cols = ["quantity", "rms", "max"] + [f"{ph.replace('_', ' ')} rms" for ph in phases]
+    for col in cols:
         err.add_column(col, justify="right" if col != "quantity" else "left")
     for k, v in s["nav_error"].items():
-        err.add_row(k, _fmt(v["rms"]), _fmt(v["max"]))
+        err.add_row(k, _fmt(v["rms"]), _fmt(v["max"]), *(_fmt(phases[ph].get(k, {}).get("rms")) for ph in phases))
     c.print(err)
 
     links = Table(title="links", title_justify="left")

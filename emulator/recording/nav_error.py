@@ -39,6 +39,8 @@ TRUTH_COLUMNS = [
 ]
 #: the error metrics, in the order of the error series' columns after the time
 ERROR_METRICS = ("attitude_deg", "heading_deg", "position_m", "velocity_mps")
+#: the phases of a navigating frame, as the summary's ``nav_error_by_phase`` names them
+NAV_PHASES = ("fine_alignment", "navigating")
 _SERIES_COLUMN = {m: 1 + i for i, m in enumerate(ERROR_METRICS)}
 #: the error cells of a frame that is not navigating (empty)
 _NO_ERRORS = "," * 11 + "\r\n"
@@ -76,6 +78,9 @@ class NavVsTruth:
         self.nav_rows: list[str] = [",".join(NAV_COLUMNS) + "\r\n"]
         self.truth_rows: list[str] = [",".join(TRUTH_COLUMNS) + "\r\n"]
         self.errors = {k: ErrorStats() for k in ERROR_METRICS}
+        #: the same statistics split by phase: fine alignment (ALIGNING and NAVIGATING: the strapdown runs while the
+        #: filter still calibrates its heading and biases) and navigating proper (NAVIGATING alone)
+        self.errors_by_phase = {phase: {k: ErrorStats() for k in ERROR_METRICS} for phase in NAV_PHASES}
         #: flat rows of (t, attitude, heading, position, velocity) errors, 40 bytes per navigating frame
         self.error_series: array[float] = array("d")
         #: flat rows of (time of validity, mode bits) of every frame, 16 bytes per frame
@@ -109,11 +114,11 @@ class NavVsTruth:
             v = n.vel_enu_mps
             ev = (v[0] - ve, v[1] - vn, v[2] - vu)
             e_vel = math.sqrt(ev[0] * ev[0] + ev[1] * ev[1] + ev[2] * ev[2])
-            err = self.errors
-            err["attitude_deg"].add(att)
-            err["heading_deg"].add(e_hdg)
-            err["position_m"].add(e_pos)
-            err["velocity_mps"].add(e_vel)
+            for err in (self.errors, self.errors_by_phase[NAV_PHASES[0 if n.mode & NavMode.ALIGNING else 1]]):
+                err["attitude_deg"].add(att)
+                err["heading_deg"].add(e_hdg)
+                err["position_m"].add(e_pos)
+                err["velocity_mps"].add(e_vel)
             self.error_series.extend((n.time_s, att, e_hdg, e_pos, e_vel))
             errs = csv_row_fast((att, e_roll, e_pitch, e_hdg, e_e, e_n, e_u, e_pos, *ev, e_vel))
         else:

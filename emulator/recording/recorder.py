@@ -204,6 +204,12 @@ class Recorder:
         return self._compare.errors
 
     @property
+    def errors_by_phase(self) -> dict[str, dict[str, ErrorStats]]:
+        """:attr:`errors` split into fine alignment and navigating proper (``NAV_PHASES``)."""
+        self._drain_nav()
+        return self._compare.errors_by_phase
+
+    @property
     def error_series(self) -> array[float]:
         """Flat rows of (t, attitude, heading, position, velocity) errors, 40 bytes per nav frame."""
         self._drain_nav()

@@ -105,8 +105,11 @@ class RunSummary(_Open):
     started: bool | None = Field(None, description="false when the run was interrupted while starting")
     replay: ReplayInfo | None = None
     run_dir: str
-    nav_error: dict[str, ErrorStat] = Field(default_factory=dict, description="error against truth while "
-                                                                               "navigating, per metric")
+    nav_error: dict[str, ErrorStat] = Field(
+        default_factory=dict, description="error against truth while navigating (fine alignment included), per metric")
+    nav_error_by_phase: dict[str, dict[str, ErrorStat]] = Field(
+        default_factory=dict, description="nav_error split by phase: fine_alignment (ALIGNING with NAVIGATING) "
+                                          "and navigating (NAVIGATING alone), per metric")
     nav_frames: int | None = None
     links: dict[str, LinkCounters] = Field(default_factory=dict)
     link_stats: dict[str, dict[str, Any]] = Field(default_factory=dict, description="raw counters per link end")

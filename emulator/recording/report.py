@@ -299,14 +299,32 @@ def _error_cdf_figure(nav: dict[str, list[float]]) -> list[tuple[str, str]]:
     return [("Error CDF", _png(fig))]
 
 
-def _gnss_figure(nav: dict[str, list[float]], events: list[dict[str, Any]]) -> list[tuple[str, str]]:
-    """GNSS: updates used (measurements per update, largest normalised innovation) and the aided periods."""
+def _gnss_figure(nav: dict[str, list[float]], events: list[dict[str, Any]],
+                 series: dict[str, list[float]] | None = None) -> list[tuple[str, str]]:
+    """GNSS: updates used (measurements per update, largest normalised innovation), the aided periods, and what the
+    receiver reported (satellites used and DOP, decoded from the capture: :func:`sensor_series`)."""
     ups = [e for e in events if e.get("event") == "gnss_update"]
     t = nav.get("time_s", [])
-    if not ups and not t:
+    sv = series or {}
+    if not ups and not t and not sv.get("gnss_t"):
         return []
     plt = _plt()
-    fig, axes = plt.subplots(2, 1, figsize=(10, 4.5), sharex=True)
+    fig, axes = plt.subplots(3, 1, figsize=(10, 6.5), sharex=True)
+    ax3 = axes[2]
+    if sv.get("gnss_t"):
+        ax3.plot(sv["gnss_t"], sv["gnss_sats"], "b.", ms=3, label="satellites used")
+        ax3.set_ylabel("satellites")
+        ax3.set_ylim(0, max([x for x in sv["gnss_sats"] if x == x] + [4]) + 2)
+        ax3b = ax3.twinx()
+        ax3b.plot(sv["gnss_t"], sv["gnss_dop"], "g-", lw=0.8, label="DOP (HDOP, or pDOP for UBX)")
+        ax3b.set_ylabel("DOP")
+        ax3b.set_ylim(0, max([x for x in sv["gnss_dop"] if x == x] + [2]) * 1.2)
+        ax3b.legend(loc="upper right", fontsize=7)
+        ax3.set_title(f"receiver: {len(sv['gnss_t'])} fixes in the capture")
+    else:
+        ax3.text(0.5, 0.5, "no modelled or captured receiver output", transform=ax3.transAxes, ha="center")
+    ax3.legend(loc="upper left", fontsize=7)
+    ax3.grid(True, alpha=0.3)
     ax = axes[0]
     if ups:
         ax.plot([e["t_s"] for e in ups], [e.get("n_meas", math.nan) for e in ups], "o", ms=3,
@@ -330,15 +348,86 @@ def _gnss_figure(nav: dict[str, list[float]], events: list[dict[str, Any]]) -> l
         axes[1].plot(t, [min(v, 255) / 255 if not math.isnan(v) else math.nan for v in status], "k-", lw=0.6,
                      label="gnss_status (/255)")
     axes[1].set_ylim(-0.05, 1.1)
-    axes[1].set_xlabel("time (s)")
+    axes[2].set_xlabel("time (s)")
     axes[1].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
     return [("GNSS", _png(fig))]
 
 
+def sensor_series(run_dir: Path) -> dict[str, list[float]]:
+    """What the sensors sent, decoded from the run's capture with the ports' own stream decoders.
+
+    ``gnss_t``/``gnss_sats``/``gnss_dop``: per GGA (satellites used, HDOP) or NAV-PVT (numSV, pDOP / 100);
+    ``psns_t``/``psns_points``/``psns_dop``: per polarization frame (points sent, their mean DOP) or compass frame
+    (units, mean DOP). Times are arrival times at the FPGA (s). Empty lists when the capture holds no such link.
+    """
+    from protocols.nmea import Gga
+    from protocols.psns import CompassFrame, PolarizationObs
+    from protocols.stream import StreamDecoder
+    from protocols.ubx import NavPvt
+
+    from ..assembly.ports import port_formats
+    from .capture import iter_capture
+
+    out: dict[str, list[float]] = {k: [] for k in ("gnss_t", "gnss_sats", "gnss_dop", "psns_t", "psns_points",
+                                                    "psns_dop")}
+    cap = run_dir / "capture.psnscap"
+    if not cap.exists():
+        return out
+    decoders = {name: StreamDecoder(port_formats(name)["in"]) for name in ("gnss", "psns")}
+    try:
+        _header, records = iter_capture(cap)
+        for r in records:
+            dec = decoders.get(r.link) if r.direction == "in" else None
+            if dec is None:
+                continue
+            for fr in dec.feed(r.data):
+                if isinstance(fr, Gga) and fr.quality > 0:
+                    out["gnss_t"].append(r.t_s)
+                    out["gnss_sats"].append(math.nan if fr.num_sats is None else fr.num_sats)
+                    out["gnss_dop"].append(math.nan if fr.hdop is None else fr.hdop)
+                elif isinstance(fr, NavPvt) and fr.fixType >= 2:
+                    out["gnss_t"].append(r.t_s)
+                    out["gnss_sats"].append(fr.numSV)
+                    out["gnss_dop"].append(fr.pDOP / 100.0)
+                elif isinstance(fr, PolarizationObs | CompassFrame):
+                    pts = fr.points if isinstance(fr, PolarizationObs) else fr.units
+                    out["psns_t"].append(r.t_s)
+                    out["psns_points"].append(len(pts))
+                    out["psns_dop"].append(sum(p.dop for p in pts) / 65535.0 / len(pts) if pts else math.nan)
+    except (OSError, ValueError):  # a truncated capture of an interrupted run: what was read is kept
+        pass
+    return out
+
+
+def _sun_track(summary: dict[str, Any], truth: dict[str, list[float]]) -> tuple[list[float], list[float],
+                                                                                list[float]]:
+    """Sun azimuth and elevation (deg) over the run at the truth's position, 200 samples (world sun model)."""
+    t = truth.get("time_s", [])
+    epoch = summary.get("epoch")
+    if not t or not epoch:
+        return [], [], []
+    import datetime as _dt
+
+    from ..world.sun import SunModel
+
+    sun = SunModel(_dt.datetime.fromisoformat(epoch))
+    step = max(1, len(t) // 200)
+    ts, az, el = [], [], []
+    for k in range(0, len(t), step):
+        a, e = sun.az_el(t[k], math.radians(truth["lat_deg"][k]), math.radians(truth["lon_deg"][k]),
+                         truth["height_m"][k])
+        ts.append(t[k])
+        az.append(math.degrees(a) % 360.0)
+        el.append(math.degrees(e))
+    return ts, az, el
+
+
 def _psns_figure(nav: dict[str, list[float]], events: list[dict[str, Any]],
-                 counters: dict[str, Any] | None = None) -> list[tuple[str, str]]:
-    """PSNS / sky: the per-frame PSNS status (solar vector used / rejected), the PSNS-aided periods and the
-    firmware's PSNS counters (frames, solutions, updates, rejections)."""
+                 counters: dict[str, Any] | None = None, series: dict[str, list[float]] | None = None,
+                 sun: tuple[list[float], list[float], list[float]] = ([], [], [])) -> list[tuple[str, str]]:
+    """PSNS / sky: the per-frame PSNS status (solar vector used / rejected), the PSNS-aided periods, the firmware's
+    PSNS counters (frames, solutions, updates, rejections), the sun's azimuth and elevation (world model) and what
+    the sensor sent (points per frame and their mean DOP, decoded from the capture)."""
     t = nav.get("time_s", [])
     modes = nav.get("mode", [])
     status = nav.get("psns_status", [])
@@ -346,10 +435,41 @@ def _psns_figure(nav: dict[str, list[float]], events: list[dict[str, Any]],
     used = [x for x, v in zip(t, status) if v == 1]
     rejected = [x for x, v in zip(t, status) if v == 2]
     c = {k: v for k, v in (counters or {}).items() if k.startswith("psns_")}
-    if not used and not rejected and not any(aided) and not c.get("psns_frames"):
+    if not used and not rejected and not any(aided) and not c.get("psns_frames") \
+            and not (series or {}).get("psns_t"):
         return []  # no polarization sensor in this run: no empty panel
     plt = _plt()
-    fig, axes = plt.subplots(2, 1, figsize=(10, 4.5), sharex=True)
+    fig, axes = plt.subplots(4, 1, figsize=(10, 8.5), sharex=True)
+    sv = series or {}
+    ax = axes[2]
+    if sun[0]:
+        ax.plot(sun[0], sun[2], "-", color="tab:orange", label="sun elevation")
+        ax.set_ylabel("elevation (deg)")
+        axb = ax.twinx()
+        axb.plot(sun[0], sun[1], "--", color="tab:brown", lw=0.8, label="sun azimuth")
+        axb.set_ylabel("azimuth (deg)")
+        axb.legend(loc="upper right", fontsize=7)
+        ax.set_title(f"sun: elevation {min(sun[2]):.1f} to {max(sun[2]):.1f} deg, azimuth {min(sun[1]):.1f} to "
+                     f"{max(sun[1]):.1f} deg")
+        ax.legend(loc="upper left", fontsize=7)
+    else:
+        ax.text(0.5, 0.5, "no truth or epoch: sun track not shown", transform=ax.transAxes, ha="center")
+    ax.grid(True, alpha=0.3)
+    ax = axes[3]
+    if sv.get("psns_t"):
+        ax.plot(sv["psns_t"], sv["psns_points"], "b.", ms=3, label="points (or compass units) per frame")
+        ax.set_ylabel("points")
+        axb = ax.twinx()
+        axb.plot(sv["psns_t"], sv["psns_dop"], "g.", ms=2, label="mean DOP of the frame")
+        axb.set_ylabel("DOP")
+        axb.set_ylim(0, 1)
+        axb.legend(loc="upper right", fontsize=7)
+        ax.legend(loc="upper left", fontsize=7)
+        ax.set_title(f"sensor: {len(sv['psns_t'])} frames in the capture")
+    else:
+        ax.text(0.5, 0.5, "no polarization frames in the capture", transform=ax.transAxes, ha="center")
+    ax.grid(True, alpha=0.3)
+    ax.set_xlabel("time (s)")
     ax = axes[0]
     ax.plot(used, [1] * len(used), "|", color="tab:green", ms=8, label=f"solar vector used ({len(used)} frames)")
     ax.plot(rejected, [0] * len(rejected), "|", color="tab:red", ms=8, label=f"rejected ({len(rejected)} frames)")
@@ -361,7 +481,6 @@ def _psns_figure(nav: dict[str, list[float]], events: list[dict[str, Any]],
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
     axes[1].fill_between(t, 0, aided, step="post", alpha=0.6, color="tab:purple", label="PSNS-aided")
     axes[1].set_ylim(-0.05, 1.1)
-    axes[1].set_xlabel("time (s)")
     axes[1].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
     return [("PSNS and sky", _png(fig))]
 
@@ -493,9 +612,11 @@ def write_report(run_dir: str | Path) -> Path:
                 except json.JSONDecodeError:
                     continue  # a truncated last line of an interrupted run
     truth = load_nav_csv(run_dir / "truth.csv") if (run_dir / "truth.csv").exists() else {}
+    series = sensor_series(run_dir)
     figs = (_trajectory_figure(nav, truth, events) + _attitude_vs_truth_figure(nav, truth, events)
-            + _nav_figures(nav, events) + _error_cdf_figure(nav) + _gnss_figure(nav, events)
-            + _psns_figure(nav, events, summary.get("firmware", {}).get("counters"))
+            + _nav_figures(nav, events) + _error_cdf_figure(nav) + _gnss_figure(nav, events, series)
+            + _psns_figure(nav, events, summary.get("firmware", {}).get("counters"), series,
+                           _sun_track(summary, truth))
             + _timeline_figures(run_dir / "timeline.csv") + _task_figure(summary))
 
     what = "replay" if summary.get("replay") else "run"

@@ -38,3 +38,24 @@ def test_report_survives_truncated_event_line(run_dir):
     with open(run_dir / "events.jsonl", "a") as f:
         f.write('{"t_s": 1.0, "sour')  # an interrupted writer
     assert write_report(run_dir).exists()
+
+
+def test_report_decodes_what_the_sensors_sent_from_the_capture(run_dir):
+    """The GNSS and PSNS panels read the capture with the ports' own decoders: the quickstart's receiver sends one
+    GGA a second with the GnssConfig defaults (12 satellites, HDOP 0.8) and the camera 5 frames a second."""
+    from emulator.devices.gnss import GnssConfig
+    from emulator.recording.report import sensor_series
+
+    s = sensor_series(run_dir)
+    assert len(s["gnss_t"]) in (5, 6, 7) and set(s["gnss_sats"]) == {GnssConfig.num_sats}
+    assert s["gnss_dop"] == pytest.approx([GnssConfig.hdop] * len(s["gnss_t"]), abs=0.05)  # GGA carries 0.1
+    gaps = [b - a for a, b in zip(s["gnss_t"], s["gnss_t"][1:])]
+    assert gaps == pytest.approx([1.0] * len(gaps), abs=0.01)
+    assert len(s["psns_t"]) == pytest.approx(30, abs=1) and min(s["psns_points"]) > 10
+    assert all(0.0 < d < 1.0 for d in s["psns_dop"])
+
+
+def test_sensor_series_of_a_run_without_capture_is_empty(tmp_path):
+    from emulator.recording.report import sensor_series
+
+    assert all(v == [] for v in sensor_series(tmp_path).values())

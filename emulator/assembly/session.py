@@ -432,14 +432,18 @@ def _run_emulator(emu: Emulator, speed: float, on_started: Callable[[Emulator], 
     task = loop.create_task(main())
     loop.set_exception_handler(on_error)
 
-    interrupts = [0]
+    def stop_at_once(_signum: int, _frame: Any) -> None:
+        raise KeyboardInterrupt  # a second Ctrl-C: stop at once (emulator.cli.main says what that leaves)
 
     def on_signal() -> None:
-        interrupts[0] += 1
-        if interrupts[0] > 1:  # a second Ctrl-C: stop at once (emulator.cli.main says what that leaves)
-            raise KeyboardInterrupt
         emu._interrupt_requested = True  # read by Emulator.run after start-up
         task.cancel()
+        # the next signal must act even while the run writes its summary without returning to the loop (a loop
+        # handler would then never run): a plain handler that raises in the main thread wherever it is
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):
+                loop.remove_signal_handler(sig)
+                signal.signal(sig, stop_at_once)
         sys.stderr.write(f"\npsns-hil run: interrupted at t = {loop.time():.3f} s (emulated); writing the summary "
                          "and closing the captures (interrupt again to stop at once)\n")
         sys.stderr.flush()

@@ -93,16 +93,18 @@ def claim_run_dir(run_dir: Path, force: bool = False) -> Iterator[Path]:
             raise
         os.ftruncate(fd, 0)
         os.write(fd, f"{os.getpid()}\n".encode())
-        ok = False
         try:
             yield run_dir
-            ok = True
-        finally:
-            if not ok and created and not (run_dir / "summary.json").exists():
+        except BaseException as exc:
+            recorded = any((run_dir / name).exists() for name in ("summary.json", "capture.psnscap"))
+            if created and not recorded and not isinstance(exc, KeyboardInterrupt):
                 # a bad-input exit (the run never started): leave nothing behind
                 shutil.rmtree(run_dir, ignore_errors=True)
-            else:
+            else:  # what an interrupted or failed run recorded is kept
                 lock_path.unlink(missing_ok=True)
+            raise
+        else:
+            lock_path.unlink(missing_ok=True)
     finally:
         os.close(fd)
 

@@ -38,6 +38,15 @@ class LinkSpec(Model):
     device_baud: int | None = Field(None, gt=0, le=20_000_000,
                                     description="the device's own UART baud (mem:// only); default = baud")
     device_mode: str | None = Field(None, pattern=_MODE, description="the device's own frame format; default = mode")
+    direction: Literal["in", "out", "tee"] = Field(
+        "in", description="sensor ports (gyro, gnss, psns) with a pty://, serial:// or zenoh:// URL: 'in' the port "
+                          "replaces the modelled sensor (an outside device feeds the FPGA), 'out' the modelled "
+                          "sensor drives the port instead of the FPGA, 'tee' it drives both (docs/runtime.md)")
+
+    @property
+    def modelled(self) -> bool:
+        """Whether the modelled sensor drives this port (a ``mem://`` URL, or direction ``out`` / ``tee``)."""
+        return self.url.startswith("mem://") or self.direction != "in"
 
     @field_validator("url")
     @classmethod

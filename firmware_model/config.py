@@ -55,6 +55,8 @@ class FirmwareConfig:
     nmea_rate_hz: float = 1.0
     nmea_attitude_rate_hz: float = 1.0
     nmea_talker: str = "GN"
+    #: the UART the NMEA sentences leave on: the host UART (next to NAV_SOLUTION) or a second host port's
+    nmea_uart: int = UART_HOST
     align_time_s: float = 2.0
     alignment_heading: str = "auto"  # "auto", "psns" or "config"
     psns_align_timeout_s: float = 10.0
@@ -135,6 +137,8 @@ class FirmwareConfig:
             r = self.imu_rate_hz / getattr(self, name)
             if r < 1 or abs(r - round(r)) > 1e-9:
                 raise FirmwareError(f"{name} must divide imu_rate_hz ({self.imu_rate_hz:g} Hz)")
+        if self.nmea_uart not in (UART_HOST, UART_PSNS, UART_GNSS):
+            raise FirmwareError(f"nmea_uart must be a UART the firmware transmits on (0, 2 or 3), got {self.nmea_uart}")
         if len(self.nmea_talker) != 2 or not self.nmea_talker.isalpha() or not self.nmea_talker.isupper():
             raise FirmwareError(f"nmea_talker must be two capital letters, got {self.nmea_talker!r}")
         if self.kf_predict_every % self.subsamples:

@@ -390,7 +390,7 @@ class Firmware(HostTask, GnssTask):
                 text = self._nmea_output(t, nmea_pos, nmea_att)
                 m.end()
                 if text:
-                    res.outputs.append((UART_HOST, text, m.elapsed))
+                    res.outputs.append((cfg.nmea_uart, text, m.elapsed))
         ev = self.filter.drain_events()
         if ev:
             res.events.extend(ev)

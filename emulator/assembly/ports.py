@@ -50,10 +50,11 @@ PORT_ROLES = {
     "gnss": "GNSS receiver -> FPGA (RS422)",
     "psns": "polarization sensor -> FPGA (RS232)",
     "host": "FPGA HOST (RS422) <-> DSP UART0: navigation out, commands in",
+    "host_nmea": "FPGA second host port: the firmware's NMEA 0183 navigation output",
     "monitor": "FPGA MONITOR: every channel, tagged and time-stamped",
 }
 #: default baud of each external port
-PORT_BAUD = {"gyro": 460800, "gnss": 9600, "host": 460800, "psns": 115200, "monitor": 3_000_000}
+PORT_BAUD = {"gyro": 460800, "gnss": 9600, "host": 460800, "psns": 115200, "monitor": 3_000_000, "host_nmea": 115200}
 #: One byte read by the DSP from the FPGA UART core over EMIFA, s [E: a few EMIFA async cycles].
 EMIFA_BYTE_TIME_S = 1e-7
 
@@ -68,6 +69,7 @@ def port_formats(name: str, nmea_out: bool = False) -> dict[str, list[Any]]:
         "psns": {"in": [PsnsFormat()]},
         "host": host,
         "monitor": {"out": [MonitorFormat()]},
+        "host_nmea": {"out": [NmeaFormat()]},
         "uart0": host,
         "uart1": {"in": [FpgaFrameFormat()]},  # IMU frames and MAG frames (docs/icd.md)
         "uart2": {"in": [PsnsFormat()]},
@@ -87,7 +89,7 @@ def port_direction(port: str, spec: LinkSpec | None) -> str:
     monitor."""
     if port == "host":
         return "in/out"
-    if port == "monitor":
+    if port in ("monitor", "host_nmea"):
         return "out"
     if spec is None:
         return ""
@@ -161,6 +163,8 @@ def port_specs(scn: Scenario) -> dict[str, LinkSpec]:
         specs["psns"] = scn.links.psns
     if scn.links.monitor is not None:
         specs["monitor"] = scn.links.monitor
+    if scn.links.host_nmea is not None:
+        specs["host_nmea"] = scn.links.host_nmea
     return specs
 
 

@@ -176,7 +176,8 @@ class Emulator:
             self.faults = FaultScheduler(self.fault_targets(), scn.faults, self.seed, rec)
         # recorder taps
         for name, link in self.links.items():
-            fm: dict[str, Sequence[Any]] = dict(port_formats(name, nmea_out=bool(scn.firmware.nmea.sentences)))
+            fm: dict[str, Sequence[Any]] = dict(port_formats(name, nmea_out=bool(scn.firmware.nmea.sentences)
+                                                                       and scn.links.host_nmea is None))
             if name == "gyro":
                 fm = {"in": [Stim210Format(scn.sensors.imu.format)]}
             rec.tap(name, link, fm)

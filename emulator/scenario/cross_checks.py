@@ -21,6 +21,8 @@ def link_names(scn: Scenario) -> list[str]:
         names.append("psns")
     if scn.links.monitor is not None:
         names.append("monitor")
+    if scn.links.host_nmea is not None:
+        names.append("host_nmea")
     return [*names, "uart0", "uart1", "uart2", "uart3"]
 
 
@@ -115,8 +117,16 @@ def _devices_and_links(scn: Scenario) -> list[tuple[tuple[Any, ...], str]]:
 
 
 def _nmea_rates(scn: Scenario) -> list[tuple[tuple[Any, ...], str]]:
-    """The firmware writes NMEA on IMU ticks: each NMEA rate must divide the IMU rate."""
+    """The firmware writes NMEA on IMU ticks: each NMEA rate must divide the IMU rate; ``links.host_nmea`` needs a
+    DSP UART (fpga.routing) and sentences to carry."""
     issues: list[tuple[tuple[Any, ...], str]] = []
+    if scn.links.host_nmea is not None:
+        if "host_nmea" not in scn.fpga.routing:
+            issues.append((("links", "host_nmea"), "links.host_nmea needs a DSP UART: route it in fpga.routing "
+                                                   "(e.g. host_nmea: uart2, when there is no PSNS port)"))
+        if not scn.firmware.nmea.sentences:
+            issues.append((("links", "host_nmea"), "links.host_nmea carries the firmware's NMEA output, but "
+                                                   "firmware.nmea.sentences is empty: nothing would be sent"))
     imu = scn.sensors.imu.rate_hz
     for name in ("rate_hz", "attitude_rate_hz"):
         r = imu / getattr(scn.firmware.nmea, name)
@@ -133,7 +143,7 @@ SENSOR_PORTS = ("gyro", "gnss", "psns")
 def _port_directions(scn: Scenario) -> list[tuple[tuple[Any, ...], str]]:
     """``direction: out | tee`` needs a sensor port with a real endpoint (docs/runtime.md, "Sensor ports out")."""
     issues: list[tuple[tuple[Any, ...], str]] = []
-    for port in ("gyro", "gnss", "psns", "host", "monitor"):
+    for port in ("gyro", "gnss", "psns", "host", "monitor", "host_nmea"):
         spec = getattr(scn.links, port, None)
         if spec is None or spec.direction == "in":
             continue
@@ -178,7 +188,7 @@ def _files_and_ports(scn: Scenario, environment: bool) -> list[tuple[tuple[Any, 
         if not glob.glob(pattern):
             issues.append((("sensors", "camera", "recorded", "files"), f"no file matches {pattern}"))
     seen: dict[tuple[str, str], str] = {}
-    for port in ("gyro", "gnss", "psns", "host", "monitor"):
+    for port in ("gyro", "gnss", "psns", "host", "monitor", "host_nmea"):
         spec = getattr(scn.links, port, None)
         if spec is None:
             continue

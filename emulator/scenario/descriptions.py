@@ -36,6 +36,7 @@ DESCRIPTIONS: dict[str, str] = {
     "LinkSpec.direction": "which way a sensor port goes: in (an outside device replaces the modelled sensor; "
                           "the default), out (the modelled sensor drives the port instead of the FPGA), tee (the "
                           "modelled sensor drives both the port and the FPGA); peer bytes reach the sensor",
+    "Links.host_nmea": "a second host port with only the firmware's NMEA output (route it to a free DSP UART)",
     "Links.host": "the host port: navigation frames out, commands in (RS422, 460800 baud by default)",
     "DspSpec.clock_hz": "DSP clock, Hz (the C6747 runs at 300 MHz): cycles become time at this rate",
     "DspSpec.uarts": "per DSP UART (uart0..uart3): FIFO depth and trigger level",

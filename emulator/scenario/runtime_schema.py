@@ -23,7 +23,7 @@ __all__ = [
 ]
 
 #: External ports of the box (FPGA connectors) that can be routed to a DSP UART.
-EXTERNAL_PORTS = ("host", "gnss", "psns")
+EXTERNAL_PORTS = ("host", "gnss", "psns", "host_nmea")
 _MODE = r"^[5-8][NEO](1|1\.5|2)$"
 
 
@@ -62,6 +62,9 @@ class Links(Model):
     gnss: LinkSpec = LinkSpec(url="mem://gnss", baud=9600)
     psns: LinkSpec | None = None
     host: LinkSpec = LinkSpec(url="mem://host", baud=460800)
+    host_nmea: LinkSpec | None = Field(
+        None, description="a second host port carrying only the firmware's NMEA output (firmware.nmea), routed to a "
+                          "free DSP UART in fpga.routing (e.g. uart2 without a PSNS port)")
     monitor: LinkSpec | None = Field(None, description="FPGA MONITOR port: every channel, tagged and time-stamped")
 
 
@@ -92,7 +95,7 @@ class UartSpec(Model):
 #: The DSP UARTs, and the FPGA ports the crossbar routes to them.
 UartName = Literal["uart0", "uart1", "uart2", "uart3"]
 DSP_UARTS: tuple[UartName, ...] = ("uart0", "uart1", "uart2", "uart3")
-RoutedPort = Literal["host", "gnss", "psns"]
+RoutedPort = Literal["host", "gnss", "psns", "host_nmea"]
 RoutedUart = Literal["uart0", "uart2", "uart3"]
 
 

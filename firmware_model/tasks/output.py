@@ -54,8 +54,9 @@ class NavOutput(TimeKeeping):
         return roll, pitch, heading_from_yaw(yaw) / DEG
 
     def _nmea_output(self, t: float, position: bool, attitude: bool) -> bytes:
-        """The NMEA sentences due at tick time ``t`` (s, FPGA time base): the position/velocity/time group and/or
-        the heading/attitude group of ``cfg.nmea_sentences``, in that order, charged to ``nmea_output``.
+        """The NMEA sentences due at tick time ``t`` (s, FPGA time base): the heading/attitude group and/or the
+        position/velocity/time group of ``cfg.nmea_sentences``, in that order (each group in the configured order),
+        charged to ``nmea_output``.
 
         Nothing before GNSS gave UTC (every sentence carries the time, GGA and RMC only it); GGA quality 0 and RMC
         ``V`` while there is no solution. GGA quality 1 (GPS) while GNSS-aided, 6 (dead reckoning) otherwise, RMC/VTG
@@ -73,8 +74,10 @@ class NavOutput(TimeKeeping):
         talker = cfg.nmea_talker
         s = self.nav
         out: list[bytes] = []
-        names = [n for n in cfg.nmea_sentences if (n in _POSITION_SENTENCES and position)
-                 or (n not in _POSITION_SENTENCES and attitude)]
+        # heading and attitude first, the position group last: readers such as gpsd end their reporting cycle at
+        # the last timed sentence of a burst, and a heading sentence after GGA/RMC split gpsd's cycle (no TPV)
+        names = ([n for n in cfg.nmea_sentences if n not in _POSITION_SENTENCES] if attitude else []) + \
+                ([n for n in cfg.nmea_sentences if n in _POSITION_SENTENCES] if position else [])
         if s is None:
             for n in names:
                 if n == "GGA":

@@ -7,6 +7,9 @@ carried (the recorder's capture): the same stream, faults and all, at the same l
 from __future__ import annotations
 
 import asyncio
+import contextlib
+import shutil
+import subprocess
 import time
 
 import pytest
@@ -187,3 +190,38 @@ async def test_bytes_a_peer_writes_into_a_tee_port_reach_the_sensors_own_link(tm
 
     _h, recs = read_capture(tmp_path / "capture.psnscap")
     assert b"".join(r.data for r in recs if r.link == "gnss" and r.direction == "out") == poll
+
+
+@pytest.mark.pty
+@pytest.mark.realtime
+@pytest.mark.skipif(shutil.which("socat") is None,
+                    reason="socat is not installed (apt-get install socat; .ci/run installs it)")
+@pytest.mark.psns_emulator(mode="realtime")
+async def test_tee_on_a_serial_device_reaches_the_other_end_of_the_line(tmp_path):
+    """``serial://`` out: a socat pty pair stands for a USB-serial adapter and its cable; the far end reads the
+    receiver's NMEA (the bytes of the FPGA end's capture) and its writes reach the receiver's link."""
+    import serial
+
+    from emulator.testing import start_emulator
+    from tests.emulator.links.test_conformance import _socat_pair
+
+    proc, near, far = _socat_pair(tmp_path)
+    try:
+        ov = _ov(6.0, **{"links.gnss.url": f"serial://{near}", "links.gnss.direction": "tee"})
+        async with start_emulator(QS, run_dir=tmp_path / "run", overrides=ov) as emu:
+            assert next(p for p in emu.emulator.ports if p["name"] == "gnss")["direction"] == "tee"
+
+            async def until():
+                await emu.wait_until(lambda: emu.fw.counters.get("gnss_fixes", 0) >= 3, timeout=5.5)
+                await emu.run_for(0.4)
+
+            got = await _read_pty(far, until, 9600)
+            with serial.Serial(str(far), 9600, timeout=0) as ser:
+                ser.write(b"\xb5\x62\x0a\x04\x00\x00\x0e\x34")
+                await emu.wait_until(lambda: emu.emulator.bindings["gnss"].peer_bytes == 8, timeout=1.0)
+    finally:
+        proc.terminate()
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            proc.wait(5)
+    sent = _capture_in(tmp_path / "run", "gnss")
+    assert len(got) > 3 * 100 and bytes(got) == sent[:len(got)]

@@ -225,3 +225,27 @@ async def test_tee_on_a_serial_device_reaches_the_other_end_of_the_line(tmp_path
             proc.wait(5)
     sent = _capture_in(tmp_path / "run", "gnss")
     assert len(got) > 3 * 100 and bytes(got) == sent[:len(got)]
+
+
+@pytest.mark.pty
+@pytest.mark.realtime
+@pytest.mark.psns_emulator(mode="realtime")
+async def test_link_faults_act_once_and_the_port_gets_the_same_damaged_bytes_as_the_fpga(tmp_path):
+    """Bit errors on links.gnss (1e-3 per bit from 1.5 s): the pty carries the corrupted stream the FPGA got, byte
+    for byte, so its NMEA checksums fail just as the firmware's do."""
+    from emulator.testing import start_emulator
+
+    ov = _ov(7.0, **{"links.gnss.url": "pty://gnss", "links.gnss.direction": "tee",
+                     "faults": [{"link_bit_errors": {"link": "gnss", "ber": 1e-3, "start_s": 1.5}}]})
+    async with start_emulator(QS, run_dir=tmp_path, overrides=ov) as emu:
+        async def until():
+            await emu.wait_until(lambda: emu.emulator.bindings["gnss"].port.attached, timeout=2.0)
+            await emu.run_for(5.5)
+
+        got = await _read_pty(tmp_path / "ports" / "gnss", until, 9600)
+        corrupted = emu.emulator.links["gnss"].stats.corrupted_bytes
+    sent = _capture_in(tmp_path, "gnss")
+    assert corrupted > 0 and bytes(got) == sent[:len(got)] and len(got) >= len(sent) - 200
+    dec = StreamDecoder([NmeaFormat()])
+    dec.feed(bytes(got))
+    assert dec.stats.crc_errors + dec.stats.garbage_bytes + dec.stats.parse_errors > 0  # the damage is on the pty

@@ -249,3 +249,26 @@ async def test_link_faults_act_once_and_the_port_gets_the_same_damaged_bytes_as_
     dec = StreamDecoder([NmeaFormat()])
     dec.feed(bytes(got))
     assert dec.stats.crc_errors + dec.stats.garbage_bytes + dec.stats.parse_errors > 0  # the damage is on the pty
+
+
+def test_port_map_and_summary_show_each_ports_direction_and_unheard_bytes(tmp_path):
+    """Fast mode (the quickstart says so), nobody on the pty: the port map and the summary say which way each port
+    goes; what the bound port carried is counted as unheard (no_peer_out), not dropped."""
+    import io
+
+    from emulator.assembly.runner import run_scenario
+    from emulator.cli.main import print_port_map
+
+    scn = load_test_scenario(QS, _ov(3.0, **{"links.gnss.url": "pty://gnss", "links.gnss.direction": "tee"}))
+    s = run_scenario(scn, tmp_path)
+    dirs = {p["name"]: p["direction"] for p in s["ports"]}
+    assert dirs == {"gyro": "model", "gnss": "tee", "host": "in/out", "uart0": "internal", "uart1": "internal",
+                    "uart2": "internal", "uart3": "internal"}
+    b = s["bound_ports"]["gnss"]
+    assert b["bytes_out"] == s["link_stats"]["gnss"]["bytes_in"] > 0  # every byte the FPGA got went to the port
+    assert b["no_peer_out"] == b["bytes_out"] and b["dropped_out"] == 0
+    assert s["firmware"]["counters"]["gnss_fixes"] == s["devices"]["gnss_epochs"] == 3  # epochs at t = 0, 1, 2 s
+    out = io.StringIO()
+    print_port_map(s["ports"], out)
+    line = next(x for x in out.getvalue().splitlines() if x.strip().startswith("gnss"))
+    assert " tee " in line and str(tmp_path / "ports" / "gnss") in line

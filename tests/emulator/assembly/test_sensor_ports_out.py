@@ -272,3 +272,17 @@ def test_port_map_and_summary_show_each_ports_direction_and_unheard_bytes(tmp_pa
     print_port_map(s["ports"], out)
     line = next(x for x in out.getvalue().splitlines() if x.strip().startswith("gnss"))
     assert " tee " in line and str(tmp_path / "ports" / "gnss") in line
+
+
+def test_a_psns_compass_stream_tees_like_the_others(tmp_path):
+    """The polarization compass on links.psns (tee, nobody attached, fast mode): every frame the FPGA got also went
+    to the port, and the firmware still solves them."""
+    from emulator.assembly.runner import run_scenario
+
+    scn = load_test_scenario(QS, _ov(3.0, **{"links.psns": {"url": "pty://psns", "direction": "tee"},
+                                             "sensors.compass": {"enabled": True, "rate_hz": 5.0}}))
+    s = run_scenario(scn, tmp_path)
+    b = s["bound_ports"]["psns"]
+    assert s["devices"]["compass_frames"] >= 10
+    assert b["bytes_out"] == s["link_stats"]["psns"]["bytes_in"] > 0 and b["dropped_out"] == 0
+    assert s["links"]["psns"]["frames"] == s["devices"]["compass_frames"]

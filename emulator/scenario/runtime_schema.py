@@ -36,7 +36,8 @@ class LinkSpec(Model):
     mode: str = Field("8N1", pattern=_MODE)
     queue_bytes: int = Field(4096, ge=1, le=1 << 24, description="TX queue / FIFO of the FPGA port, bytes")
     device_baud: int | None = Field(None, gt=0, le=20_000_000,
-                                    description="the device's own UART baud (mem://, or direction out/tee); default = baud")
+                                    description="the device's own UART baud (mem://, or direction out/tee); "
+                                                "default = baud")
     device_mode: str | None = Field(None, pattern=_MODE, description="the device's own frame format; default = mode")
     direction: Literal["in", "out", "tee"] = Field(
         "in", description="sensor ports (gyro, gnss, psns) with a pty://, serial:// or zenoh:// URL: 'in' the port "

@@ -33,6 +33,7 @@ __all__ = [
     "mat_mul_dp",
     "mat_trans",
     "mathlib",
+    "nmea_sentence",
     "vecmul",
     "w_vec",
     "w_vec_dp",
@@ -129,6 +130,19 @@ def flops(n_mul: int, n_add: int, iterations: int = 1, overhead: int = CALL_OVER
     """
     ii = max(math.ceil(n_mul / 2), math.ceil(n_add / 4), 1)
     return iterations * ii + overhead
+
+
+#: Cycles per character of an ASCII sentence built by integer code [D]: one decimal digit per character at most,
+#: each a division by 10 done as a 32x32 multiply-high by the reciprocal plus a multiply-subtract (MPY32 is 4
+#: cycles of latency, issued back to back on two .M units: ~2 cycles/digit), the XOR into the NMEA checksum and
+#: the byte store (1 cycle each on .L/.D), and the loop's branch amortised: ~4 cycles per character.
+NMEA_CYCLES_PER_CHAR = 4
+
+
+def nmea_sentence(n_chars: int, n_scaled: int) -> int:
+    """One NMEA 0183 sentence of ``n_chars`` characters formatted by integer code, with ``n_scaled`` values first
+    scaled from double precision to integer counts (a DP multiply, a DP add for rounding and DPINT each) [D]."""
+    return n_chars * NMEA_CYCLES_PER_CHAR + dp_flops(n_scaled, n_scaled) + CALL_OVERHEAD
 
 
 def dp_flops(n_mul: int, n_add: int, iterations: int = 1, overhead: int = CALL_OVERHEAD) -> int:

@@ -24,9 +24,12 @@ from .errors import FirmwareError
 from .psns_geometry import CameraGeometry
 from .variants.params import VariantParams
 
-__all__ = ["FILTER_VARIANTS", "UART_GNSS", "UART_HOST", "UART_IMU", "UART_PSNS", "FirmwareConfig"]
+__all__ = ["FILTER_VARIANTS", "NMEA_NAV_SENTENCES", "UART_GNSS", "UART_HOST", "UART_IMU", "UART_PSNS",
+           "FirmwareConfig"]
 
 UART_HOST, UART_IMU, UART_PSNS, UART_GNSS = 0, 1, 2, 3
+#: NMEA sentences the firmware can write on the host UART: position/velocity/time, then heading and attitude
+NMEA_NAV_SENTENCES = ("GGA", "RMC", "VTG", "ZDA", "HDT", "THS", "PASHR")
 
 #: The filter variants of this build by ``FirmwareConfig.filter`` name: :class:`firmware_model.filters.NavFilter`
 #: subclasses, entered by :func:`firmware_model.filters.register_filter` (typed loosely here, as the filter
@@ -45,6 +48,15 @@ class FirmwareConfig:
     coning_samples: int = 0  # 0: automatic (2 with angle increments, 1 with rate output), or 1 / 2
     kf_predict_every: int = 20
     output_rate_hz: float = 100.0
+    #: NMEA 0183 sentences of the navigation solution on the host UART, next to NAV_SOLUTION (docs/icd.md, "NMEA
+    #: navigation output"): any of GGA, RMC, VTG, ZDA (at ``nmea_rate_hz``), HDT, THS, PASHR (at
+    #: ``nmea_attitude_rate_hz``); empty: none
+    nmea_sentences: tuple[str, ...] = ()
+    nmea_rate_hz: float = 1.0
+    nmea_attitude_rate_hz: float = 1.0
+    nmea_talker: str = "GN"
+    #: the UART the NMEA sentences leave on: the host UART (next to NAV_SOLUTION) or a second host port's
+    nmea_uart: int = UART_HOST
     align_time_s: float = 2.0
     alignment_heading: str = "auto"  # "auto", "psns" or "config"
     psns_align_timeout_s: float = 10.0
@@ -117,6 +129,18 @@ class FirmwareConfig:
         ratio = self.imu_rate_hz / self.output_rate_hz
         if ratio < 1 or abs(ratio - round(ratio)) > 1e-9:
             raise FirmwareError("output_rate_hz must divide imu_rate_hz")
+        unknown = set(self.nmea_sentences) - set(NMEA_NAV_SENTENCES)
+        if unknown:
+            raise FirmwareError(f"unknown NMEA output sentence(s) {', '.join(sorted(unknown))}; "
+                                f"known: {', '.join(NMEA_NAV_SENTENCES)}")
+        for name in ("nmea_rate_hz", "nmea_attitude_rate_hz"):
+            r = self.imu_rate_hz / getattr(self, name)
+            if r < 1 or abs(r - round(r)) > 1e-9:
+                raise FirmwareError(f"{name} must divide imu_rate_hz ({self.imu_rate_hz:g} Hz)")
+        if self.nmea_uart not in (UART_HOST, UART_PSNS, UART_GNSS):
+            raise FirmwareError(f"nmea_uart must be a UART the firmware transmits on (0, 2 or 3), got {self.nmea_uart}")
+        if len(self.nmea_talker) != 2 or not self.nmea_talker.isalpha() or not self.nmea_talker.isupper():
+            raise FirmwareError(f"nmea_talker must be two capital letters, got {self.nmea_talker!r}")
         if self.kf_predict_every % self.subsamples:
             raise FirmwareError("kf_predict_every must be a multiple of the coning subsamples")
 

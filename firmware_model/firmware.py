@@ -27,6 +27,8 @@ Tasks of one IMU tick (the whole tick is the task ``imu_tick``), each metered (`
 * ``psns_update``: a PSNS frame is pending (frame rate): E-vectors -> K -> ``+-S^b``
   (:mod:`firmware_model.psns`), ephemeris (:mod:`firmware_model.sun`) at the exposure time, Eqs. 31-42;
 * ``output``: NAV_SOLUTION at ``output_rate_hz``.
+* ``nmea_output``: the NMEA 0183 sentences of ``nmea_sentences`` at ``nmea_rate_hz`` / ``nmea_attitude_rate_hz``
+  on the host UART after NAV_SOLUTION (off by default).
 
 The filter itself is a variant (:mod:`firmware_model.filters`), picked by ``FirmwareConfig.filter``.
 """
@@ -133,6 +135,10 @@ class Firmware(HostTask, GnssTask):
         self._pack6, self._unpack6 = rounder(dt, 6).pack, rounder(dt, 6).unpack
         self._bias_cache = (None, None, ())
         self._out_every = round(cfg.imu_rate_hz / cfg.output_rate_hz)
+        pos = any(n in ("GGA", "RMC", "VTG", "ZDA") for n in cfg.nmea_sentences)
+        att = any(n in ("HDT", "THS", "PASHR") for n in cfg.nmea_sentences)
+        self._nmea_every = round(cfg.imu_rate_hz / cfg.nmea_rate_hz) if pos else 0
+        self._nmea_att_every = round(cfg.imu_rate_hz / cfg.nmea_attitude_rate_hz) if att else 0
         self._dec_imu = StreamDecoder([FpgaFrameFormat()])
         self._dec_gnss = StreamDecoder([NmeaFormat(), UbxFormat()])
         self._dec_host = StreamDecoder([HostFormat()])
@@ -376,6 +382,15 @@ class Firmware(HostTask, GnssTask):
             m.charge("nav_output", self._cyc["nav_output"])
             m.end()
             res.outputs.append((UART_HOST, frame, m.elapsed))
+        if self._nmea_every or self._nmea_att_every:
+            nmea_pos = bool(self._nmea_every) and self._tick % self._nmea_every == 0
+            nmea_att = bool(self._nmea_att_every) and self._tick % self._nmea_att_every == 0
+            if nmea_pos or nmea_att:
+                m.begin("nmea_output", min(e for e in (self._nmea_every, self._nmea_att_every) if e) * self.T)
+                text = self._nmea_output(t, nmea_pos, nmea_att)
+                m.end()
+                if text:
+                    res.outputs.append((cfg.nmea_uart, text, m.elapsed))
         ev = self.filter.drain_events()
         if ev:
             res.events.extend(ev)

@@ -228,6 +228,52 @@ def _psns_max_points_table() -> str:
     return _table(rows, ("frame rate, Hz", "line bytes per frame period", "largest N", "frame bytes", "line load"))
 
 
+def _nmea_nav_output(w: Any) -> None:
+    """Section 7.1: the firmware's NMEA 0183 navigation output (builders: protocols.nmea_build, protocols.nmea_nav)."""
+    import datetime as _dt
+
+    from . import nmea_build, nmea_nav
+
+    tm, day = _dt.time(8, 14, 30), _dt.date(2019, 9, 18)
+    w("### 7.1 NMEA navigation output\n")
+    w("`firmware.nmea` makes the firmware write NMEA 0183 sentences of its navigation solution: on the host port "
+      "after the tick's NAV_SOLUTION frame, or alone on a second host port (`links.host_nmea`, routed to a DSP UART "
+      "with a free transmitter; a reader that sniffs binary protocols, such as gpsd, can take a NAV_SOLUTION frame "
+      "for a Trimble TSIP packet and stop reporting the NMEA fixes, so give it the second port). Position, "
+      "velocity and time (GGA, RMC, VTG, ZDA) at `rate_hz`, heading and attitude (HDT, THS, PASHR) at "
+      "`attitude_rate_hz`, both on IMU ticks (the rates divide the IMU rate). In a tick with both, the heading "
+      "group comes first: gpsd ends its reporting cycle at the last timed sentence of a burst. Nothing before GNSS "
+      "gave UTC; before the first solution GGA quality 0, RMC `V`, THS `V` and ZDA only. Talker `firmware.nmea."
+      "talker` (default GN).\n")
+    rows = [
+        ("GGA", "UTC of the tick (hhmmss.ss, to 10 ms), lat/lon (ddmm.mmmmm: 1e-5 arc-minute, 1.85 cm), quality 1 "
+                "GNSS-aided / 6 dead reckoning, 12 satellites, HDOP 1.00, altitude = WGS-84 ellipsoidal height "
+                "(m, 3 decimals) with geoid separation 0.000 (the firmware has no geoid model)",
+         nmea_build.build_gga(tm, 39.979, 116.339, 50.0, 0.0, quality=1, num_sats=12, hdop=1.0, talker="GN")),
+        ("RMC", "UTC, A, lat/lon, horizontal speed (knots, 3 decimals), course over ground = atan2(v_E, v_N) (deg "
+                "true, 2 decimals), date, mode A / E",
+         nmea_build.build_rmc(tm, day, 39.979, 116.339, 10.0, 30.0, mode="A", talker="GN")),
+        ("VTG", "course (deg true), speed in knots and km/h, mode A / E",
+         nmea_build.build_vtg(30.0, 10.0, mode="A", talker="GN")),
+        ("ZDA", "UTC, day, month, year, zone 00:00", nmea_build.build_zda(tm, day, talker="GN")),
+        ("HDT", "heading from the attitude quaternion (deg true, 2 decimals, [0, 360))",
+         nmea_nav.build_hdt(30.25, talker="GN")),
+        ("THS", "heading and mode A (GNSS-aided) / E (dead reckoning) / V (no solution)",
+         nmea_nav.build_ths(30.25, "A", talker="GN")),
+        ("PASHR", "UTC (hhmmss.sss), heading (deg true), T, roll (deg, positive right wing down), pitch (deg, nose "
+                  "up), heave 0.00 m, roll / pitch / heading 1-sigma (deg, 3 decimals: the filter's level and "
+                  "azimuth misalignment), aiding 1 GNSS / 0 none, IMU flag 0",
+         nmea_nav.build_pashr(tm, 30.25, 0.5, -1.25, 0.0, 0.012, 0.011, 0.095, aiding=1)),
+    ]
+    w(_table([(k, d, "`" + s.decode().strip() + "`") for k, d, s in rows], ("sentence", "fields", "example")) + "\n")
+    w("PASHR is the Ashtech/Applanix attitude layout (`$PASHR,hhmmss.sss,HHH.HH,T,RRR.RR,PPP.PP,heave,rr.rrr,pp.ppp,"
+      "hh.hhh,aiding,imu*hh`) that Applanix POS MV and Hemisphere units emit and pynmea2 reads as `ASHRATT` (the "
+      "tests read it back with pynmea2); gpsd 3.22 reports the heading of HDT as an ATT record. Cycle cost per "
+      "sentence: 4 cycles per character plus the DP scaling of its "
+      "values (`firmware_model.c674x.nmea_sentence`), and the course, speed and Euler angles (MATHLIB atan2, "
+      "sqrt, asin).\n")
+
+
 def generate() -> str:
     z = frame_sizes()
     out: list[str] = []
@@ -400,6 +446,7 @@ def generate() -> str:
             for k, (names, fmts) in host.TEXT_SENTENCES.items()]
     w(_table(rows, ("sentence", "fields after the address (Python format spec)")) + "\n")
     w("Example: `" + host.nav_text_sentences(_sample_nav()).decode().split("\r\n")[0] + "`\n")
+    _nmea_nav_output(w)
 
     # -- CAN -----------------------------------------------------------------------------------
     w(f"## 8. CAN (CAN 2.0B, 29-bit ids, {can_nav.CAN_BITRATE} bit/s; `protocols/psns_nav.dbc`)\n")

@@ -12,7 +12,17 @@ from ..dsp.firmware_setup import build_firmware
 from ..dsp.host import UartRxConfig, VirtualDsp, WatchdogConfig
 from ..links import LineConfig, Link, MemHub, parse_mode
 from ..scenario.schema import Scenario
-from .ports import EMIFA_BYTE_TIME_S, PORT_BAUD, PORT_ROLES, UART_NUM, PortInfo, dsp_uart_baud, port_line, port_specs
+from .ports import (
+    EMIFA_BYTE_TIME_S,
+    PORT_BAUD,
+    PORT_ROLES,
+    UART_NUM,
+    PortInfo,
+    dsp_uart_baud,
+    port_direction,
+    port_line,
+    port_specs,
+)
 
 __all__ = ["build_dsp", "build_uarts", "fpga_config", "port_map"]
 
@@ -82,14 +92,22 @@ def build_dsp(scn: Scenario, loop: Any, uart_dsp: dict[int, Link], rx_cfg: dict[
                       firmware_factory=lambda: build_firmware(scn, calibration))
 
 
-def port_map(scn: Scenario, links: dict[str, Link], uart_fpga: dict[str, Link]) -> list[PortInfo]:
-    """One row per external port, then one per FPGA-DSP UART (``ports.json`` and the table printed at start)."""
+def port_map(scn: Scenario, links: dict[str, Link], uart_fpga: dict[str, Link],
+             bound: dict[str, Link] | None = None) -> list[PortInfo]:
+    """One row per external port, then one per FPGA-DSP UART (``ports.json`` and the table printed at start).
+
+    ``bound``: the real ports that modelled sensors' streams are bound to (``direction: out | tee``), by port; each
+    row's ``direction`` says which way the port goes (:func:`.ports.port_direction`)."""
     ports: list[PortInfo] = []
+    bound = bound or {}
+    specs = port_specs(scn)
     for port, link in links.items():
         if port.startswith("uart"):
             continue
-        ports.append(PortInfo(name=port, role=PORT_ROLES.get(port, port), url=link.url,
-                              baud=link.line.baud, mode=link.line.mode, path=link.describe()))
+        shown = bound.get(port, link)
+        ports.append(PortInfo(name=port, role=PORT_ROLES.get(port, port), url=shown.url,
+                              baud=link.line.baud, mode=link.line.mode, path=shown.describe(),
+                              direction=port_direction(port, specs.get(port))))
     routed_from: dict[str, str] = {u: p for p, u in scn.fpga.routing.items()}
     uarts = cast("dict[str, Any]", scn.fpga.uarts)
     for uname, f_end in uart_fpga.items():
@@ -101,5 +119,5 @@ def port_map(scn: Scenario, links: dict[str, Link], uart_fpga: dict[str, Link]) 
         baud = "EMIFA" if emifa else (f"{f_end.line.baud}" if f_end.line.baud == d_end.line.baud
                                       else f"{f_end.line.baud}/{d_end.line.baud}")
         ports.append(PortInfo(name=uname, role=role, url="internal", baud=baud, mode=d_end.line.mode,
-                              path="internal"))
+                              path="internal", direction="internal"))
     return ports

@@ -3,6 +3,12 @@
 Time mode: ``--fast`` / ``--realtime`` on the command line win; else the scenario's ``mode`` if
 the file sets one; else ``realtime`` when any port has a real endpoint (``pty://``, ``serial://``:
 real peers live in wall time) and ``fast`` otherwise (docs/architecture.md).
+
+Which way a sensor port goes (``links.NAME.direction``, docs/runtime.md "Sensor ports out", decision D-7.12):
+``in`` (default) an outside device on the port replaces the modelled sensor; ``out`` the modelled sensor drives
+the port and the FPGA's port stays idle; ``tee`` it drives both. Out and tee keep the in-process pair (sensor end,
+FPGA end) so that the line model and the link's faults act once, as inside, and a :class:`SensorPortBinding`
+copies what arrives at the FPGA end onto the real port and hands what the port's peer sends to the sensor.
 """
 
 from __future__ import annotations
@@ -18,7 +24,7 @@ from protocols.psns import PsnsFormat
 from protocols.stim import Stim210Format
 from protocols.ubx import UbxFormat
 
-from ..links import LineConfig, parse_link_url, parse_mode
+from ..links import LineConfig, Link, parse_link_url, parse_mode
 from ..scenario.schema import LinkSpec, Scenario
 
 __all__ = [
@@ -27,8 +33,10 @@ __all__ = [
     "PORT_ROLES",
     "UART_NUM",
     "PortInfo",
+    "SensorPortBinding",
     "device_line",
     "dsp_uart_baud",
+    "port_direction",
     "port_formats",
     "port_line",
     "port_specs",
@@ -42,23 +50,26 @@ PORT_ROLES = {
     "gnss": "GNSS receiver -> FPGA (RS422)",
     "psns": "polarization sensor -> FPGA (RS232)",
     "host": "FPGA HOST (RS422) <-> DSP UART0: navigation out, commands in",
+    "host_nmea": "FPGA second host port: the firmware's NMEA 0183 navigation output",
     "monitor": "FPGA MONITOR: every channel, tagged and time-stamped",
 }
 #: default baud of each external port
-PORT_BAUD = {"gyro": 460800, "gnss": 9600, "host": 460800, "psns": 115200, "monitor": 3_000_000}
+PORT_BAUD = {"gyro": 460800, "gnss": 9600, "host": 460800, "psns": 115200, "monitor": 3_000_000, "host_nmea": 115200}
 #: One byte read by the DSP from the FPGA UART core over EMIFA, s [E: a few EMIFA async cycles].
 EMIFA_BYTE_TIME_S = 1e-7
 
 
-def port_formats(name: str) -> dict[str, list[Any]]:
-    """Stream-decoder formats per direction for a port / UART name (recorder, monitor, tests)."""
-    host = {"out": [HostFormat()], "in": [HostFormat()]}
+def port_formats(name: str, nmea_out: bool = False) -> dict[str, list[Any]]:
+    """Stream-decoder formats per direction for a port / UART name (recorder, monitor, tests); ``nmea_out``: the
+    firmware also writes NMEA sentences on the host port (``firmware.nmea``)."""
+    host = {"out": [HostFormat(), NmeaFormat()] if nmea_out else [HostFormat()], "in": [HostFormat()]}
     table: dict[str, dict[str, list[Any]]] = {
         "gyro": {"in": [Stim210Format("m")]},
         "gnss": {"in": [NmeaFormat(), UbxFormat()]},  # UBX may follow the NMEA sentences
         "psns": {"in": [PsnsFormat()]},
         "host": host,
         "monitor": {"out": [MonitorFormat()]},
+        "host_nmea": {"out": [NmeaFormat()]},
         "uart0": host,
         "uart1": {"in": [FpgaFrameFormat()]},  # IMU frames and MAG frames (docs/icd.md)
         "uart2": {"in": [PsnsFormat()]},
@@ -68,7 +79,53 @@ def port_formats(name: str) -> dict[str, list[Any]]:
 
 
 class PortInfo(dict[str, Any]):
-    """One row of the port map printed at start: name, role, url, baud, mode, path."""
+    """One row of the port map printed at start: name, role, url, baud, mode, path, direction."""
+
+
+def port_direction(port: str, spec: LinkSpec | None) -> str:
+    """The port map's ``direction`` of an external port: for a sensor port ``model`` (in-process, the modelled
+    sensor feeds the FPGA), ``in`` (an outside device feeds the FPGA), ``out`` or ``tee`` (the modelled sensor's
+    stream goes out on the real port; with tee also to the FPGA); ``in/out`` for the host port, ``out`` for the
+    monitor."""
+    if port == "host":
+        return "in/out"
+    if port in ("monitor", "host_nmea"):
+        return "out"
+    if spec is None:
+        return ""
+    if spec.direction == "in" and parse_link_url(spec.url).scheme == "mem":
+        return "model"
+    return spec.direction
+
+
+class SensorPortBinding:
+    """A modelled sensor's stream bound to a real port (``direction: out | tee``; see the module docstring).
+
+    ``fpga_end`` is the FPGA end of the sensor's in-process pair: every chunk that arrives there (paced by the
+    sensor's line, after the link's faults) is relayed to ``port`` at that moment (:meth:`Link.relay`), so the
+    peer sees the bytes the FPGA sees, at the same times. Bytes the peer writes (a host polling a u-blox receiver)
+    go back through ``fpga_end`` (cut-through, the line's pace) to the sensor's own link, where the device reads
+    them as it reads the FPGA's. With ``out`` the FPGA is given an idle port instead of ``fpga_end``.
+    """
+
+    def __init__(self, name: str, direction: str, fpga_end: Link, port: Link) -> None:
+        self.name = name
+        self.direction = direction
+        self.fpga_end = fpga_end
+        self.port = port
+        #: bytes the peer sent towards the sensor
+        self.peer_bytes = 0
+        fpga_end.listeners.insert(0, self)
+        port.on_receive = self._from_peer
+
+    def on_link_bytes(self, link: Link, direction: str, t: float, data: bytes) -> None:  # LinkListener
+        if direction == "in":  # the sensor's bytes, as they reach the FPGA end
+            pitch = link.last_rx_pitch
+            self.port.relay(data, t - len(data) * pitch, pitch)
+
+    def _from_peer(self, data: bytes) -> None:
+        self.peer_bytes += len(data)
+        self.fpga_end.forward(data, self.port)
 
 
 
@@ -106,6 +163,8 @@ def port_specs(scn: Scenario) -> dict[str, LinkSpec]:
         specs["psns"] = scn.links.psns
     if scn.links.monitor is not None:
         specs["monitor"] = scn.links.monitor
+    if scn.links.host_nmea is not None:
+        specs["host_nmea"] = scn.links.host_nmea
     return specs
 
 

@@ -47,7 +47,17 @@ from ..scenario.schema import Scenario
 from ..verification.expectations import evaluate_expectations
 from ..world.build import build_trajectory
 from .build import build_dsp, build_uarts, fpga_config, port_map
-from .ports import PORT_BAUD, UART_NUM, PortInfo, device_line, port_formats, port_line, port_specs, resolve_mode
+from .ports import (
+    PORT_BAUD,
+    UART_NUM,
+    PortInfo,
+    SensorPortBinding,
+    device_line,
+    port_formats,
+    port_line,
+    port_specs,
+    resolve_mode,
+)
 from .summary import SAMPLE_OFFSET_S, dsp_sections, fpga_section, take_sample
 
 __all__ = ["Emulator", "default_run_dir", "run_emulator", "run_scenario"]
@@ -88,6 +98,8 @@ class Emulator:
         self.loop: EmulatorLoop | None = None
         self.links: dict[str, Link] = {}
         self.device_ends: dict[str, Link] = {}
+        #: sensor ports bound out to real ports (links.NAME.direction out / tee), by port
+        self.bindings: dict[str, SensorPortBinding] = {}
         self.ports: list[PortInfo] = []
         self.recorder: Recorder | None = None
         self.dsp: VirtualDsp | None = None
@@ -130,11 +142,15 @@ class Emulator:
         for port, spec in specs.items():
             line = port_line(spec, PORT_BAUD[port])
             u = parse_link_url(spec.url)
-            if u.scheme == "mem" or self.replay is not None:
+            bound_out = spec.direction != "in" and u.scheme != "mem" and self.replay is None
+            if u.scheme == "mem" or self.replay is not None or bound_out:
                 a, b = hub.pair(port, line, loop, line_b=device_line(spec, line), key=f"{port}:{u.target}")
                 a.url = b.url = spec.url if u.scheme == "mem" else f"mem://{port}"
                 ext[port], internal[port] = a, b
                 self.device_ends[port] = b
+                if bound_out:  # the modelled sensor's stream also (tee) or only (out) on the real port
+                    x = open_link(spec.url, port, loop, default_line=line, hub=hub, run_dir=port_dir)
+                    self.bindings[port] = SensorPortBinding(port, spec.direction, a, x)
             else:
                 ext[port] = open_link(spec.url, port, loop, default_line=line, hub=hub, run_dir=port_dir)
             self.links[port] = ext[port]
@@ -149,6 +165,9 @@ class Emulator:
             gyro = accel = None
         fcfg = fpga_config(scn)
         fpga_ports = {k: v for k, v in ext.items() if k != "monitor"}
+        for port, bnd in self.bindings.items():
+            if bnd.direction == "out":  # the FPGA's port stays idle: its sensor drives the real port only
+                fpga_ports[port] = hub.pair(f"{port}:idle", ext[port].line, loop)[0]
         mag = getattr(self.sensors, "mag", None) if self.replay is None else None
         self.fpga = VirtualFpga(loop, fcfg, fpga_ports, uart_fpga, gyro, accel, rec, monitor=ext.get("monitor"),
                                 mag=mag)
@@ -157,14 +176,15 @@ class Emulator:
             self.faults = FaultScheduler(self.fault_targets(), scn.faults, self.seed, rec)
         # recorder taps
         for name, link in self.links.items():
-            fm: dict[str, Sequence[Any]] = dict(port_formats(name))
+            fm: dict[str, Sequence[Any]] = dict(port_formats(name, nmea_out=bool(scn.firmware.nmea.sentences)
+                                                                       and scn.links.host_nmea is None))
             if name == "gyro":
                 fm = {"in": [Stim210Format(scn.sensors.imu.format)]}
             rec.tap(name, link, fm)
-        for link in ext.values():
+        for link in [*ext.values(), *(bnd.port for bnd in self.bindings.values())]:
             if link.scheme != "mem":
                 await link.open()
-        self.ports.extend(port_map(scn, self.links, uart_fpga))
+        self.ports.extend(port_map(scn, self.links, uart_fpga, {p: b.port for p, b in self.bindings.items()}))
         (self.run_dir / "ports.json").write_text(json.dumps([dict(p) for p in self.ports], indent=2) + "\n")
         rec.start({"scenario": scn.name, "seed": self.seed, "epoch": scn.epoch.isoformat(),
                    "mode": self.mode, "link_baud": {k: v.line.baud for k, v in self.links.items()},
@@ -317,10 +337,14 @@ class Emulator:
             raise
         return await self.stop(interrupted=interrupted)
 
+    def _all_links(self) -> list[Link]:
+        """Every link this run opened: the ports, the device ends and the real ports sensors are bound to."""
+        return [*self.links.values(), *self.device_ends.values(), *(b.port for b in self.bindings.values())]
+
     async def _abort(self) -> None:
         """Start failed: release what was opened (ptys, files); no summary."""
         self._stopped = True
-        for link in list(self.links.values()) + list(self.device_ends.values()):
+        for link in self._all_links():
             with contextlib.suppress(Exception):
                 await link.close()
         if self.recorder is not None:
@@ -342,7 +366,7 @@ class Emulator:
         sim_t = min(loop.time(), self.scn.duration_s) if not interrupted else loop.time()
         if sim_t > self._last_sample_t + 1e-9:
             self._sample(sim_t, final=True)  # the end of the run
-        for link in list(self.links.values()) + list(self.device_ends.values()):
+        for link in self._all_links():
             with contextlib.suppress(Exception):
                 await link.close()
         wall = loop.wall_elapsed()
@@ -383,6 +407,8 @@ class Emulator:
             "nav_frames": rec.nav_count,
             "links": rec.link_summary(),
             "link_stats": {k: dict(v.stats.as_dict(), error=v.error) for k, v in self.links.items()},
+            "bound_ports": {k: dict(b.port.stats.as_dict(), direction=b.direction, url=b.port.url,
+                                    peer_bytes=b.peer_bytes, error=b.port.error) for k, b in self.bindings.items()},
             **self.dsp_sections(),
             "fpga": fpga_section(self.fpga),
             "devices": self.sensors.counters() if self.sensors is not None else {},

@@ -74,13 +74,14 @@ def _fmt(v: Any, digits: int = 3) -> str:
 
 def print_port_map(ports: list[dict[str, Any]], out: Any = None) -> None:
     """One plain line per port (never wrapped: users copy the pty paths from here); on ``out`` (stdout)."""
-    rows = [("port", "role", "baud", "mode", "endpoint")]
-    rows += [(p["name"], p["role"], str(p["baud"]), p["mode"], p["path"]) for p in ports]
-    w = [max(len(r[i]) for r in rows) for i in range(4)]
+    rows = [("port", "role", "baud", "mode", "dir", "endpoint")]
+    rows += [(p["name"], p["role"], str(p["baud"]), p["mode"], str(p.get("direction", "")), p["path"])
+             for p in ports]
+    w = [max(len(r[i]) for r in rows) for i in range(5)]
     out = out if out is not None else sys.stdout
     out.write("ports:\n")
     for r in rows:
-        out.write("  " + "  ".join(r[i].ljust(w[i]) for i in range(4)) + "  " + r[4] + "\n")
+        out.write("  " + "  ".join(r[i].ljust(w[i]) for i in range(5)) + "  " + r[5] + "\n")
     out.flush()  # tools waiting for the pty paths must see them now, even through a pipe
 
 

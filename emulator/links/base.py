@@ -228,6 +228,14 @@ class Link:
         self.loop.call_at(end, self._emit, data, start, pitch)
         return accepted
 
+    def relay(self, data: bytes, start: float, pitch: float) -> None:
+        """Transmit, now, a chunk that another link's line model has already paced (its first start bit at
+        ``start``, bytes ``pitch`` s apart): a sensor stream bound out to a real port (emulator.assembly.ports,
+        ``direction: out | tee``). Counted, seen by the listeners and the output fault hooks, not paced again."""
+        if self.closed or not data:
+            return
+        self._emit(data, start, pitch)
+
     def busy_until(self) -> float:
         """Scenario time at which the output line becomes idle."""
         return self.out_line.free_at

@@ -113,6 +113,10 @@ class RunSummary(_Open):
     nav_frames: int | None = None
     links: dict[str, LinkCounters] = Field(default_factory=dict)
     link_stats: dict[str, dict[str, Any]] = Field(default_factory=dict, description="raw counters per link end")
+    bound_ports: dict[str, dict[str, Any]] = Field(
+        default_factory=dict, description="sensor ports bound out to a real port (links.NAME.direction out / tee): "
+                                          "the real port's counters, its direction and url, and peer_bytes (what its "
+                                          "peer sent to the sensor)")
     dsp: DspSection | None = None
     firmware: dict[str, Any] = Field(default_factory=dict)
     fpga: dict[str, Any] = Field(default_factory=dict)

@@ -21,6 +21,8 @@ def link_names(scn: Scenario) -> list[str]:
         names.append("psns")
     if scn.links.monitor is not None:
         names.append("monitor")
+    if scn.links.host_nmea is not None:
+        names.append("host_nmea")
     return [*names, "uart0", "uart1", "uart2", "uart3"]
 
 
@@ -63,7 +65,7 @@ def cross_check(scn: Scenario, environment: bool = True) -> list[tuple[tuple[Any
             elif kind in ("psns_cloud_cover", "psns_sun_occluded") and has_camera and sensors.camera is not None \
                     and sensors.camera.recorded is not None:
                 issues.append((loc, f"{kind} changes the modelled sky; the camera reads recorded images"))
-        if kind.startswith("imu_") and not scn.links.gyro.url.startswith("mem://") and \
+        if kind.startswith("imu_") and not scn.links.gyro.modelled and \
                 (kind == "imu_dropped_datagrams" or getattr(spec, "sensor", "") == "gyro"):
             issues.append((loc, f"{kind} acts on the STIM210 model; links.gyro is an external endpoint"))
         if kind == "fpga_channel_stall":
@@ -102,13 +104,59 @@ def _devices_and_links(scn: Scenario) -> list[tuple[tuple[Any, ...], str]]:
             issues.append((("sensors", name), f"a {name} is modelled but the scenario has no links.psns, so the run "
                                               f"would leave it out; add links: {{psns: {{url: mem://psns}}}} or set "
                                               f"sensors.{name}.enabled: false"))
-    if psns is not None and psns.url.startswith("mem://"):
+    if psns is not None and psns.modelled:
         camera_off = s.camera is not None and not s.camera.enabled
         compass_on = s.compass is not None and s.compass.enabled
         if camera_off and not compass_on:
             issues.append((("links", "psns"), "links.psns is simulated (mem://) but no polarization sensor is "
                                               "modelled (sensors.camera.enabled is false, no compass): nothing "
                                               "would send on it; remove links.psns or enable a sensor"))
+    issues += _port_directions(scn)
+    issues += _nmea_rates(scn)
+    return issues
+
+
+def _nmea_rates(scn: Scenario) -> list[tuple[tuple[Any, ...], str]]:
+    """The firmware writes NMEA on IMU ticks: each NMEA rate must divide the IMU rate; ``links.host_nmea`` needs a
+    DSP UART (fpga.routing) and sentences to carry."""
+    issues: list[tuple[tuple[Any, ...], str]] = []
+    if scn.links.host_nmea is not None:
+        if "host_nmea" not in scn.fpga.routing:
+            issues.append((("links", "host_nmea"), "links.host_nmea needs a DSP UART: route it in fpga.routing "
+                                                   "(e.g. host_nmea: uart2, when there is no PSNS port)"))
+        if not scn.firmware.nmea.sentences:
+            issues.append((("links", "host_nmea"), "links.host_nmea carries the firmware's NMEA output, but "
+                                                   "firmware.nmea.sentences is empty: nothing would be sent"))
+    imu = scn.sensors.imu.rate_hz
+    for name in ("rate_hz", "attitude_rate_hz"):
+        r = imu / getattr(scn.firmware.nmea, name)
+        if r < 1 or abs(r - round(r)) > 1e-9:
+            issues.append((("firmware", "nmea", name), f"must divide the IMU rate ({imu:g} Hz): the firmware "
+                                                       f"writes NMEA on IMU ticks"))
+    return issues
+
+
+#: ports a modelled sensor drives, which therefore can be bound out (direction out / tee)
+SENSOR_PORTS = ("gyro", "gnss", "psns")
+
+
+def _port_directions(scn: Scenario) -> list[tuple[tuple[Any, ...], str]]:
+    """``direction: out | tee`` needs a sensor port with a real endpoint (docs/runtime.md, "Sensor ports out")."""
+    issues: list[tuple[tuple[Any, ...], str]] = []
+    for port in ("gyro", "gnss", "psns", "host", "monitor", "host_nmea"):
+        spec = getattr(scn.links, port, None)
+        if spec is None or spec.direction == "in":
+            continue
+        loc = ("links", port, "direction")
+        if port not in SENSOR_PORTS:
+            issues.append((loc, f"links.{port} is not a sensor port: only {', '.join(SENSOR_PORTS)} can be bound "
+                                f"out (direction: out or tee); remove the direction"))
+        elif spec.url.startswith("mem://"):
+            issues.append((loc, f"direction: {spec.direction} binds the modelled sensor's stream to a real port, "
+                                f"but links.{port}.url is mem:// (in-process); use pty://, serial:// or zenoh://"))
+        elif spec.url.startswith("can://"):
+            issues.append((loc, f"links.{port}: a sensor stream cannot go out on can:// (it carries the "
+                                f"navigation solution only)"))
     return issues
 
 
@@ -140,7 +188,7 @@ def _files_and_ports(scn: Scenario, environment: bool) -> list[tuple[tuple[Any, 
         if not glob.glob(pattern):
             issues.append((("sensors", "camera", "recorded", "files"), f"no file matches {pattern}"))
     seen: dict[tuple[str, str], str] = {}
-    for port in ("gyro", "gnss", "psns", "host", "monitor"):
+    for port in ("gyro", "gnss", "psns", "host", "monitor", "host_nmea"):
         spec = getattr(scn.links, port, None)
         if spec is None:
             continue

@@ -33,6 +33,10 @@ DESCRIPTIONS: dict[str, str] = {
     "Links.gyro": "the STIM210 gyro port (RS422, 460800 baud by default)",
     "Links.gnss": "the GNSS receiver port (RS422, 9600 baud by default)",
     "Links.psns": "the polarization sensor port (RS232, 115200 baud by default); required by a camera or compass",
+    "LinkSpec.direction": "which way a sensor port goes: in (an outside device replaces the modelled sensor; "
+                          "the default), out (the modelled sensor drives the port instead of the FPGA), tee (the "
+                          "modelled sensor drives both the port and the FPGA); peer bytes reach the sensor",
+    "Links.host_nmea": "a second host port with only the firmware's NMEA output (route it to a free DSP UART)",
     "Links.host": "the host port: navigation frames out, commands in (RS422, 460800 baud by default)",
     "DspSpec.clock_hz": "DSP clock, Hz (the C6747 runs at 300 MHz): cycles become time at this rate",
     "DspSpec.uarts": "per DSP UART (uart0..uart3): FIFO depth and trigger level",
@@ -63,6 +67,12 @@ DESCRIPTIONS: dict[str, str] = {
                            "sun_elevation",
     "FirmwareSpec.precision": "floating-point precision of the filter (float32 as the C674x, or float64)",
     "FirmwareSpec.output_rate_hz": "NAV_SOLUTION rate on the host port, Hz",
+    "FirmwareSpec.nmea": "NMEA 0183 sentences of the navigation solution on the host port, next to NAV_SOLUTION",
+    "NmeaOutputSpec.sentences": "which sentences: GGA, RMC, VTG, ZDA (position, velocity, time), HDT or THS "
+                                "(true heading), PASHR (attitude); empty: no NMEA output",
+    "NmeaOutputSpec.rate_hz": "rate of GGA, RMC, VTG and ZDA, Hz (must divide the IMU rate)",
+    "NmeaOutputSpec.attitude_rate_hz": "rate of HDT, THS and PASHR, Hz (must divide the IMU rate)",
+    "NmeaOutputSpec.talker": "talker id of the standard sentences (GN, GP, IN, ...); PASHR is proprietary",
     "FirmwareSpec.kf_predict_every": "Kalman time update every N IMU ticks",
     "FirmwareSpec.alignment": "coarse and fine alignment settings",
     "FirmwareSpec.psns": "solar-vector measurement settings",

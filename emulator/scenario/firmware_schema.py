@@ -25,6 +25,7 @@ __all__ = [
     "FirmwareSpec",
     "KmeansSpec",
     "ModeManagerSpec",
+    "NmeaOutputSpec",
     "PsnsFirmwareSpec",
     "SunElevationSpec",
     "VariantsSpec",
@@ -188,12 +189,23 @@ class CalibrationSpec(Model):
         return self
 
 
+class NmeaOutputSpec(Model):
+    """NMEA 0183 navigation output on the host port, written by the firmware next to NAV_SOLUTION (docs/icd.md,
+    "NMEA navigation output")."""
+
+    sentences: list[Literal["GGA", "RMC", "VTG", "ZDA", "HDT", "THS", "PASHR"]] = Field(default_factory=list)
+    rate_hz: float = Field(1.0, gt=0, le=200)
+    attitude_rate_hz: float = Field(1.0, gt=0, le=200)
+    talker: str = Field("GN", pattern=r"^[A-Z]{2}$")
+
+
 class FirmwareSpec(Model):
     filter: Literal["base", "dual_vector", "kmeans_3d", "federated", "sun_elevation"] = "base"
     precision: Literal["float32", "float64"] = "float32"
     nav_state_precision: Literal["float32", "float64"] = Field(
         "float64", description="strapdown quaternion/velocity accumulators (docs/decisions.md D-L.1)")
     output_rate_hz: float = Field(100.0, gt=0, le=200)
+    nmea: NmeaOutputSpec = NmeaOutputSpec()
     kf_predict_every: int = Field(20, ge=1, le=200)
     coning_samples: Literal[0, 1, 2] = Field(0, description="0: two-sample with angle increments, else one")
     alignment: AlignmentSpec = AlignmentSpec()

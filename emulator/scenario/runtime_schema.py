@@ -23,7 +23,7 @@ __all__ = [
 ]
 
 #: External ports of the box (FPGA connectors) that can be routed to a DSP UART.
-EXTERNAL_PORTS = ("host", "gnss", "psns")
+EXTERNAL_PORTS = ("host", "gnss", "psns", "host_nmea")
 _MODE = r"^[5-8][NEO](1|1\.5|2)$"
 
 
@@ -36,8 +36,18 @@ class LinkSpec(Model):
     mode: str = Field("8N1", pattern=_MODE)
     queue_bytes: int = Field(4096, ge=1, le=1 << 24, description="TX queue / FIFO of the FPGA port, bytes")
     device_baud: int | None = Field(None, gt=0, le=20_000_000,
-                                    description="the device's own UART baud (mem:// only); default = baud")
+                                    description="the device's own UART baud (mem://, or direction out/tee); "
+                                                "default = baud")
     device_mode: str | None = Field(None, pattern=_MODE, description="the device's own frame format; default = mode")
+    direction: Literal["in", "out", "tee"] = Field(
+        "in", description="sensor ports (gyro, gnss, psns) with a pty://, serial:// or zenoh:// URL: 'in' the port "
+                          "replaces the modelled sensor (an outside device feeds the FPGA), 'out' the modelled "
+                          "sensor drives the port instead of the FPGA, 'tee' it drives both (docs/runtime.md)")
+
+    @property
+    def modelled(self) -> bool:
+        """Whether the modelled sensor drives this port (a ``mem://`` URL, or direction ``out`` / ``tee``)."""
+        return self.url.startswith("mem://") or self.direction != "in"
 
     @field_validator("url")
     @classmethod
@@ -53,6 +63,9 @@ class Links(Model):
     gnss: LinkSpec = LinkSpec(url="mem://gnss", baud=9600)
     psns: LinkSpec | None = None
     host: LinkSpec = LinkSpec(url="mem://host", baud=460800)
+    host_nmea: LinkSpec | None = Field(
+        None, description="a second host port carrying only the firmware's NMEA output (firmware.nmea), routed to a "
+                          "free DSP UART in fpga.routing (e.g. uart2 without a PSNS port)")
     monitor: LinkSpec | None = Field(None, description="FPGA MONITOR port: every channel, tagged and time-stamped")
 
 
@@ -83,7 +96,7 @@ class UartSpec(Model):
 #: The DSP UARTs, and the FPGA ports the crossbar routes to them.
 UartName = Literal["uart0", "uart1", "uart2", "uart3"]
 DSP_UARTS: tuple[UartName, ...] = ("uart0", "uart1", "uart2", "uart3")
-RoutedPort = Literal["host", "gnss", "psns"]
+RoutedPort = Literal["host", "gnss", "psns", "host_nmea"]
 RoutedUart = Literal["uart0", "uart2", "uart3"]
 
 

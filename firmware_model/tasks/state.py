@@ -74,6 +74,8 @@ class LoopState:
     _unpack6: Callable[[bytes], tuple[Any, ...]]
     _bias_cache: tuple[Any, Any, tuple[float, ...]]
     _out_every: int  # IMU ticks per NAV_SOLUTION (0: off)
+    _nmea_every: int  # IMU ticks per NMEA position/velocity/time group (0: off)
+    _nmea_att_every: int  # IMU ticks per NMEA heading/attitude group (0: off)
     # UART decoders and what they staged
     _dec_imu: StreamDecoder
     _dec_gnss: StreamDecoder

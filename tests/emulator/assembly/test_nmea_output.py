@@ -1,0 +1,152 @@
+"""The firmware's NMEA 0183 navigation output (firmware.nmea; docs/icd.md "NMEA navigation output"), in fast mode.
+
+Each tick's NMEA group follows that tick's NAV_SOLUTION frame on the host port: the sentences must carry that
+frame's solution, rounded as the sentence formats round (checked against the NAV_SOLUTION fields, re-derived
+here: course from the ENU velocity, knots from m/s), and the cycles the firmware charges for them are the declared
+cost of the sentences it wrote.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import itertools
+import math
+
+import pynmea2
+import pytest
+
+from firmware_model import c674x
+from protocols.host import HostFormat, NavSolution
+from protocols.nmea import NmeaFormat
+from protocols.nmea_build import KNOT_MPS
+from protocols.stream import StreamDecoder
+from tests.conftest import SCENARIOS
+
+QS = SCENARIOS / "quickstart.yaml"
+ALL = ["GGA", "RMC", "VTG", "ZDA", "HDT", "THS", "PASHR"]
+
+
+def _run(tmp_path, **extra):
+    from emulator.assembly.runner import run_scenario
+    from emulator.testing import load_test_scenario
+
+    motion = [{"static": {"duration_s": 4.0}}, {"accelerate": {"duration_s": 3.0, "to_speed_mps": 8.0}},
+              {"cruise": {"duration_s": 3.0}}]
+    ov = {"duration_s": 10.0, "motion": motion, "expectations": [], "links.psns": None, "sensors.camera": None,
+          "firmware.alignment.heading_source": "config", "firmware.alignment.heading_deg": 30.0,
+          "firmware.nmea": {"sentences": ALL, "rate_hz": 1.0, "attitude_rate_hz": 2.0}}
+    ov.update(extra)
+    scn = load_test_scenario(QS, ov)
+    return scn, run_scenario(scn, tmp_path)
+
+
+def _host_out(run_dir) -> bytes:
+    from emulator.recording.capture import read_capture
+
+    _h, recs = read_capture(run_dir / "capture.psnscap")
+    return b"".join(r.data for r in recs if r.link == "host" and r.direction == "out")
+
+
+def test_nmea_sentences_carry_the_nav_frame_of_their_tick(tmp_path):
+    scn, s = _run(tmp_path)
+    assert s["links"]["host"]["garbage_bytes"] == 0 and s["links"]["host"]["crc_errors"] == 0
+    epoch = scn.epoch.replace(tzinfo=None)
+    # the host stream in order: NAV_SOLUTION frames, and the NMEA sentences after each (our decoder frames them;
+    # pynmea2 reads them: HDT, PASHR and THS come back from our decoder as generic sentences)
+    dec = StreamDecoder([HostFormat(), NmeaFormat()])
+    groups: list[tuple[NavSolution, list]] = []
+    for f in dec.feed(_host_out(tmp_path)):
+        if isinstance(f, NavSolution):
+            groups.append((f, []))
+        elif type(f).__name__ in ("Gga", "Rmc", "Vtg", "Zda", "NmeaSentence"):
+            groups[-1][1].append(f)
+    assert dec.stats.crc_errors == 0 and dec.stats.garbage_bytes == 0
+    with_nmea = [(n, g) for n, g in groups if g]
+    kinds_of = [[getattr(f, "kind", type(f).__name__.upper()) for f in g] for _n, g in with_nmea]
+    # 1 Hz position group from the first UTC (the first GNSS fix, t = 1.05 s): 1.995 .. 9.995 s; 2 Hz attitude,
+    # every half second without a gap, from the first solution to the end
+    assert sum("GGA" in k for k in kinds_of) == 9
+    t_att = [n.time_s for (n, _g), k in zip(with_nmea, kinds_of, strict=True) if "HDT" in k]
+    assert t_att[0] < 3.5 and t_att[-1] == pytest.approx(9.495, abs=1e-6)  # 9.995: on the line at the end
+    assert all(b - a == pytest.approx(0.5, abs=1e-6) for a, b in itertools.pairwise(t_att))
+    # heading and attitude first (HDT, THS, PASHR), then the position group in its order; before the first
+    # solution only what can say "no solution" (THS mode V, GGA quality 0, RMC V) and ZDA
+    att, pos, none_att, none_pos = ["HDT", "THS", "SHR"], ["GGA", "RMC", "VTG", "ZDA"], ["THS"], ["GGA", "RMC", "ZDA"]
+    for k in kinds_of:
+        assert k in (att, pos, att + pos, none_att, none_pos, none_att + none_pos), k
+    checked = 0
+    for n, g in with_nmea:
+        utc = epoch + dt.timedelta(seconds=n.time_s)
+        for f in g:
+            tm = getattr(f, "time_utc", None)
+            if tm is not None:
+                ts = dt.datetime.combine(utc.date(), tm)
+                assert abs((ts - utc).total_seconds()) <= 0.0051  # UTC of the tick, to the 10 ms of hhmmss.ss
+            name = type(f).__name__
+            if name == "NmeaSentence" and f.kind == "THS":  # pynmea2 1.19 has no THS: heading, mode
+                assert f.fields[1] in "AV" and (f.fields[1] == "V" or float(f.fields[0]) == pytest.approx(
+                    n.heading_deg % 360.0, abs=0.0051))
+            elif name == "NmeaSentence":
+                m = pynmea2.parse(f"${f.talker}{f.kind}," + ",".join(f.fields))  # independent reader
+                if f.kind == "HDT":
+                    assert float(m.heading) == pytest.approx(n.heading_deg % 360.0, abs=0.0051)
+                elif f.kind == "SHR":
+                    assert m.true_heading == pytest.approx(n.heading_deg % 360.0, abs=0.0051)
+                    assert m.roll == pytest.approx(n.roll_deg, abs=0.0051)
+                    assert m.pitch == pytest.approx(n.pitch_deg, abs=0.0051)
+                    ts = dt.datetime.combine(utc.date(), m.timestamp.replace(tzinfo=None))
+                    assert abs((ts - utc).total_seconds()) <= 0.0051
+            elif name == "Gga" and f.quality > 0:
+                assert round(f.lat_deg * 60e5) == round(n.lat_deg * 60e5)  # 1e-5 arc-minute
+                assert round(f.lon_deg * 60e5) == round(n.lon_deg * 60e5)
+                assert f.altitude_msl_m == pytest.approx(n.height_m, abs=6e-4) and f.geoid_sep_m == 0.0
+                assert f.quality == 1  # GNSS-aided all along
+                checked += 1
+            elif name == "Rmc" and f.valid:
+                ve, vn, _ = n.vel_enu_mps
+                assert f.speed_mps == pytest.approx(math.hypot(ve, vn), abs=0.0006 * KNOT_MPS + 1e-6)
+                if math.hypot(ve, vn) > 1.0:
+                    course = math.degrees(math.atan2(ve, vn)) % 360.0
+                    assert f.course_deg == pytest.approx(course, abs=0.0051)
+    assert checked >= 7
+
+
+def test_nmea_output_is_charged_its_declared_cycles(tmp_path):
+    from emulator.assembly.session import Emulator, run_emulator
+
+    scn, _ = _run(tmp_path / "a", **{"firmware.nmea": {"sentences": ["GGA", "HDT"], "rate_hz": 1.0,
+                                                        "attitude_rate_hz": 1.0}})
+    emu = Emulator(scn, tmp_path / "b")
+    run_emulator(emu)
+    task = emu.fw.meter.tasks["nmea_output"]
+    fmt = c674x.nmea_sentence(72, 4) + c674x.nmea_sentence(18, 1)
+    math_ = c674x.mathlib("asinsp") + 2 * c674x.mathlib("atan2sp") + c674x.mathlib("sqrtsp") + c674x.mathlib("atan2sp")
+    assert task.cycles_max == fmt + math_  # a navigating tick: both sentences, attitude and course
+    assert task.kernels["nmea_format"] >= fmt and task.calls == 10  # one call per second, t = 1 .. 10 s
+
+
+def test_nmea_on_a_second_host_port_leaves_the_host_port_binary(tmp_path):
+    _scn, s = _run(tmp_path, **{"links.host_nmea": {"url": "mem://nmea"},
+                               "fpga.routing": {"host": "uart0", "gnss": "uart3", "host_nmea": "uart2"}})
+    assert s["links"]["host"]["garbage_bytes"] == 0 and b"$GN" not in _host_out(tmp_path)
+    assert s["links"]["host_nmea"]["frames"] >= 9 * 4 + 18 * 3 - 10 and s["links"]["host_nmea"]["garbage_bytes"] == 0
+    row = next(p for p in s["ports"] if p["name"] == "host_nmea")
+    assert row["direction"] == "out"
+    dec = StreamDecoder([NmeaFormat()])
+    from emulator.recording.capture import read_capture
+
+    _h, recs = read_capture(tmp_path / "capture.psnscap")
+    dec.feed(b"".join(r.data for r in recs if r.link == "host_nmea" and r.direction == "out"))
+    assert dec.stats.crc_errors == 0
+
+
+def test_host_nmea_without_a_uart_or_sentences_is_a_validation_error():
+    from emulator.errors import ScenarioError
+    from emulator.testing import load_test_scenario
+
+    with pytest.raises(ScenarioError, match=r"route it in fpga\.routing"):
+        load_test_scenario(QS, {"links.host_nmea": {"url": "mem://nmea"}, "firmware.nmea.sentences": ["GGA"]})
+    with pytest.raises(ScenarioError, match=r"firmware\.nmea\.sentences is empty"):
+        load_test_scenario(QS, {"links.host_nmea": {"url": "mem://nmea"}, "links.psns": None, "sensors.camera": None,
+                                "firmware.alignment.heading_source": "config",
+                                "fpga.routing": {"host": "uart0", "gnss": "uart3", "host_nmea": "uart2"}})

@@ -34,6 +34,7 @@ from ..devices.fpga import VirtualFpga
 from ..devices.gnss import GnssReceiver
 from ..devices.imu import Stim210Gyro
 from ..devices.sensors import build_sensors
+from ..dsp.external import DirectionSwap, ExternalDsp, UartWatch, cut_dsp_uarts
 from ..dsp.firmware_setup import calibration_for
 from ..dsp.host import UartRxConfig, VirtualDsp
 from ..errors import EmulatorError
@@ -104,6 +105,8 @@ class Emulator:
         self._stopped = False
         self._wall0 = 0.0
         self._status_prev = (0.0, 0.0, 0)
+        #: the cut FPGA-DSP UARTs when the DSP is outside (``dsp.external``), by UART name
+        self.external_uarts: dict[str, Link] = {}
 
     @property
     def fw(self) -> Firmware | None:
@@ -138,6 +141,9 @@ class Emulator:
                 ext[port] = open_link(spec.url, port, loop, default_line=line, hub=hub, run_dir=port_dir)
             self.links[port] = ext[port]
         uart_fpga, uart_dsp, rx_cfg = self._build_uarts(hub, loop, ext)
+        if scn.dsp.external is not None and self.replay is None:  # the DSP outside (docs/runtime.md, DSP out)
+            self.external_uarts = cut_dsp_uarts(scn.dsp.external.uarts, uart_fpga, loop, hub, port_dir)
+            self.links.update(self.external_uarts)
         # sensors (docs/architecture.md, section "Firmware interface")
         if self.replay is None:
             sensors = build_sensors(scn, self.seed, traj, internal, pps=self._pps)
@@ -160,10 +166,18 @@ class Emulator:
             if name == "gyro":
                 fm = {"in": [Stim210Format(scn.sensors.imu.format)]}
             rec.tap(name, link, fm)
-        for link in ext.values():
+        for link in self.external_uarts.values():  # recorded from the DSP's side, as with the virtual DSP
+            link.listeners[:] = [lst if isinstance(lst, UartWatch) else DirectionSwap(lst)
+                                 for lst in link.listeners]
+        for link in [*ext.values(), *self.external_uarts.values()]:
             if link.scheme != "mem":
                 await link.open()
         self.ports.extend(port_map(scn, self.links, uart_fpga))
+        for p in self.ports:
+            cut = self.external_uarts.get(p["name"])
+            if cut is not None:
+                p["url"], p["path"] = cut.url, cut.describe()
+                p["role"] = f"FPGA -> external DSP {p['name'].upper()}"
         (self.run_dir / "ports.json").write_text(json.dumps([dict(p) for p in self.ports], indent=2) + "\n")
         rec.start({"scenario": scn.name, "seed": self.seed, "epoch": scn.epoch.isoformat(),
                    "mode": self.mode, "link_baud": {k: v.line.baud for k, v in self.links.items()},
@@ -182,6 +196,8 @@ class Emulator:
         if self.replay is None:
             self.fpga.start()
             self.sensors.start()
+            if isinstance(self.dsp, ExternalDsp):
+                self.dsp.start()
         else:
             self._start_replay()
         if self.progress is not None:
@@ -203,6 +219,9 @@ class Emulator:
         """The virtual DSP hosting this scenario's firmware on ``uart_dsp`` (also used by a split run's DSP
         process, :mod:`emulator.distributed.split`)."""
         assert self.loop is not None
+        ext = self.scn.dsp.external
+        if ext is not None and self.replay is None:  # the DSP is outside: nothing of the firmware model runs
+            return ExternalDsp(self.loop, self.external_uarts, ext.silence_s, events)  # type: ignore[return-value]
         # the calibration file: made from the world's truth plus residuals (or handed in), written into the run
         # directory, and read back: the firmware is configured from the file alone
         path = self.run_dir / "calibration.json"
@@ -392,6 +411,8 @@ class Emulator:
     def dsp_sections(self) -> dict[str, Any]:
         """The ``dsp`` and ``firmware`` sections of the summary (a split run's come from the DSP process)."""
         assert self.dsp is not None
+        if isinstance(self.dsp, ExternalDsp):
+            return self.dsp.sections(self.loop.time() if self.loop is not None else None)
         return dsp_sections(self.dsp)
 
 

@@ -23,8 +23,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from firmware_model import Firmware
 from firmware_model.calibration import load_calibration, save_calibration
+from firmware_model.registry import FirmwareProtocol
 from protocols import __version__ as VERSION
 from protocols.stim import Stim210Format
 
@@ -98,7 +98,7 @@ class Emulator:
         self.summary: dict[str, Any] = {}
         self.replayed_records = 0
         self.replay_source: str | None = None
-        self._fw0: Firmware | None = None
+        self._fw0: FirmwareProtocol | None = None
         self.faults: Any = None
         self._last_sample_t = 0.0
         self._started = False
@@ -109,7 +109,7 @@ class Emulator:
         self.external_uarts: dict[str, Link] = {}
 
     @property
-    def fw(self) -> Firmware | None:
+    def fw(self) -> FirmwareProtocol | None:
         """The firmware the DSP runs now (a watchdog reset replaces it)."""
         return self.dsp.fw if self.dsp is not None else self._fw0
 
@@ -213,7 +213,7 @@ class Emulator:
 
     def _firmware_counters(self) -> dict[str, int]:
         fw = self.fw
-        return getattr(fw, "counters", {}) if fw is not None else {}
+        return fw.snapshot().counters if fw is not None else {}
 
     def build_dsp(self, uart_dsp: dict[int, Link], rx_cfg: dict[int, UartRxConfig], events: Any) -> VirtualDsp:
         """The virtual DSP hosting this scenario's firmware on ``uart_dsp`` (also used by a split run's DSP

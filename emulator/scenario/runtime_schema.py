@@ -189,7 +189,12 @@ class ExternalDspSpec(Model):
     def _urls(cls, v: dict[str, str]) -> dict[str, str]:
         from ..links import parse_link_url
 
+        seen: dict[str, str] = {}
         for uname, url in v.items():
+            target = parse_link_url(url).target
+            if target in seen:
+                raise ValueError(f"{uname} and {seen[target]} are both bound to {url!r}: one port per UART")
+            seen[target] = uname
             scheme = parse_link_url(url).scheme  # raises LinkConfigError (a ValueError) with the accepted form
             if scheme in ("mem", "can"):
                 raise ValueError(f"{uname}: {url!r}: an external DSP needs a byte port (pty://, serial://, "

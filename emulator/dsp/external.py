@@ -157,7 +157,7 @@ class ExternalDsp:
         st = self.host_decoder.stats.as_dict()
         return {
             "uarts": {u: {"url": lk.url, "path": lk.describe(), "bytes_to_dsp": self.bytes_to_dsp[u],
-                          "bytes_from_dsp": self.bytes_from_dsp[u]} for u, lk in self.links.items()},
+                          "unheard_bytes": lk.stats.no_peer_out, "bytes_from_dsp": self.bytes_from_dsp[u]} for u, lk in self.links.items()},
             "host_frames": dict(self.frames_by_kind),
             "nav_frames": self.frames_by_kind.get("NavSolution", 0),
             "host_decoder": st,
@@ -176,6 +176,6 @@ class ExternalDsp:
 
     def sections(self, end_t: float | None = None) -> dict[str, Any]:
         """The ``dsp`` and ``firmware`` sections of the summary when the DSP is outside."""
-        return {"dsp": {"external": True, "deadline_misses": None, "ticks": None},
+        return {"dsp": {"external": True, "clock_hz": None, "deadline_misses": None, "ticks": None},
                 "firmware": {"external": True, "filter": None},
                 "external_dsp": self.section(end_t)}

@@ -26,6 +26,7 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 from emulator.assembly.runner import Emulator, run_emulator
+from emulator.recording.summary_model import load_summary
 from emulator.scenario import load_scenario
 
 pytestmark = [pytest.mark.realtime, pytest.mark.pty]
@@ -105,6 +106,9 @@ def test_c_firmware_navigates_in_the_loop_over_ptys(gyro_nav, tmp_path):
     assert ext["silences"] == 0 and not ext["silent"]
     assert summary["links"]["host"]["crc_errors"] == 0
     assert summary["dsp"]["external"] is True
+    typed = load_summary(run_dir)  # summary.json reads through the typed model
+    assert typed.external_dsp is not None and typed.external_dsp.nav_frames == ext["nav_frames"]
+    assert typed.dsp is not None and typed.dsp.deadline_misses is None  # the board's own: not observed
 
     # the closed form: the drift of a gyro-only integration
     assert emu.sensors is not None

@@ -157,7 +157,8 @@ class ExternalDsp:
         st = self.host_decoder.stats.as_dict()
         return {
             "uarts": {u: {"url": lk.url, "path": lk.describe(), "bytes_to_dsp": self.bytes_to_dsp[u],
-                          "unheard_bytes": lk.stats.no_peer_out, "bytes_from_dsp": self.bytes_from_dsp[u]} for u, lk in self.links.items()},
+                          "unheard_bytes": lk.stats.no_peer_out, "bytes_from_dsp": self.bytes_from_dsp[u]}
+                      for u, lk in self.links.items()},
             "host_frames": dict(self.frames_by_kind),
             "nav_frames": self.frames_by_kind.get("NavSolution", 0),
             "host_decoder": st,

@@ -60,7 +60,7 @@ def dsp_sections(dsp: VirtualDsp) -> dict[str, Any]:
             "deadline_misses": dsp.deadline_misses,
             "ticks": dsp.ticks,
             "cost_model": COST_MODEL_VERSION,
-            "tasks": snap.cycles,
+            "tasks": snap.cycles if snap.cycles is not None else [],
             **dsp.counters(),
         },
         "firmware": {"filter": snap.filter, "precision": snap.precision, "counters": dict(snap.counters),

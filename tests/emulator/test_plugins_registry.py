@@ -129,5 +129,5 @@ def test_link_schemes_come_from_entry_points(eps):
     with pytest.raises(LinkConfigError, match=r"unknown option\(s\) bogus; expected memo://\.\.\."):
         parse_link_url("memo://x?bogus=1")
     eps("psns_hil.links", "gone", "no_such_module_xyz:Link")
-    with pytest.raises(LinkConfigError, match="the gone:// transport .* could not be loaded: .*ModuleNotFoundError"):
+    with pytest.raises(LinkConfigError, match=r"the gone:// transport .* could not be loaded: .*ModuleNotFoundError"):
         parse_link_url("gone://x")

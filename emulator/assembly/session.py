@@ -142,6 +142,9 @@ class Emulator:
             self.links[port] = ext[port]
         uart_fpga, uart_dsp, rx_cfg = self._build_uarts(hub, loop, ext)
         if scn.dsp.external is not None and self.replay is None:  # the DSP outside (docs/runtime.md, DSP out)
+            if type(self)._build_uarts is not Emulator._build_uarts:
+                raise EmulatorError("dsp.external puts the DSP outside; a split run also cuts its UARTs: "
+                                    "run it without --split")
             self.external_uarts = cut_dsp_uarts(scn.dsp.external.uarts, uart_fpga, loop, hub, port_dir)
             self.links.update(self.external_uarts)
         # sensors (docs/architecture.md, section "Firmware interface")

@@ -34,7 +34,7 @@ from ..devices.fpga import VirtualFpga
 from ..devices.gnss import GnssReceiver
 from ..devices.imu import Stim210Gyro
 from ..devices.sensors import build_sensors
-from ..dsp.external import DirectionSwap, ExternalDsp, UartWatch, cut_dsp_uarts
+from ..dsp.external import DirectionSwap, ExternalDsp, cut_dsp_uarts
 from ..dsp.firmware_setup import calibration_for
 from ..dsp.host import UartRxConfig, VirtualDsp
 from ..errors import EmulatorError
@@ -168,10 +168,10 @@ class Emulator:
             fm: dict[str, Sequence[Any]] = dict(port_formats(name))
             if name == "gyro":
                 fm = {"in": [Stim210Format(scn.sensors.imu.format)]}
+            n0 = len(link.listeners)
             rec.tap(name, link, fm)
-        for link in self.external_uarts.values():  # recorded from the DSP's side, as with the virtual DSP
-            link.listeners[:] = [lst if isinstance(lst, UartWatch) else DirectionSwap(lst)
-                                 for lst in link.listeners]
+            if name in self.external_uarts:  # a cut UART is recorded from the DSP's side, as with the virtual DSP
+                link.listeners[n0:] = [DirectionSwap(lst) for lst in link.listeners[n0:]]
         for link in [*ext.values(), *self.external_uarts.values()]:
             if link.scheme != "mem":
                 await link.open()

@@ -28,6 +28,8 @@ from scipy.spatial.transform import Rotation
 from emulator.assembly.runner import Emulator, run_emulator
 from emulator.recording.summary_model import load_summary
 from emulator.scenario import load_scenario
+from protocols.monitor import MONITOR_CHANNELS, MonitorFormat
+from protocols.stream import StreamDecoder
 
 pytestmark = [pytest.mark.realtime, pytest.mark.pty]
 
@@ -43,14 +45,17 @@ GYRO_BIAS_ONLY = {"arw_deg_rt_h": 0.0, "bias_repeatability_deg_h": 300.0, "bias_
                   "bias_temp_gradient_deg_h": 0.0, "g_sensitivity_deg_h_per_g": 0.0}
 
 
-def _scenario(path: Path, uarts: dict[str, str], duration_s: float = DURATION_S, silence_s: float = 2.0) -> Path:
-    data = {
+def _scenario(path: Path, uarts: dict[str, str], duration_s: float = DURATION_S, silence_s: float = 2.0,
+              monitor: bool = False) -> Path:
+    data: dict = {
         "name": "dsp_out", "seed": 7, "epoch": "2019-09-18T02:30:00Z", "duration_s": duration_s,
         "mode": "realtime", "origin": ORIGIN, "attitude": ATTITUDE,
         "motion": [{"static": {"duration_s": duration_s}}],
         "sensors": {"imu": {"gyro": GYRO_BIAS_ONLY}},
         "dsp": {"external": {"uarts": uarts, "silence_s": silence_s}},
     }
+    if monitor:
+        data["links"] = {"monitor": {"url": "mem://monitor"}}
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     return path
 
@@ -75,13 +80,21 @@ def _expected_angles(c_bn0: Rotation, w_b: np.ndarray, dt: np.ndarray) -> np.nda
 
 
 def test_c_firmware_navigates_in_the_loop_over_ptys(gyro_nav, tmp_path):
-    scn = load_scenario(_scenario(tmp_path / "dsp_out.yaml", {"uart0": "pty://dsp_uart0", "uart1": "pty://dsp_uart1"}))
+    scn = load_scenario(_scenario(tmp_path / "dsp_out.yaml", {"uart0": "pty://dsp_uart0", "uart1": "pty://dsp_uart1"},
+                                  monitor=True))
     run_dir = tmp_path / "run"
     procs: list[subprocess.Popen[bytes]] = []
+    monitor = bytearray()
+
+    class _Monitor:
+        def on_link_bytes(self, link, direction, t, data):
+            if direction == "out":
+                monitor.extend(data)
     att = f"{ATTITUDE['heading_deg']},{ATTITUDE['pitch_deg']},{ATTITUDE['roll_deg']}"
     pos = f"{ORIGIN['lat_deg']},{ORIGIN['lon_deg']},{ORIGIN['height_m']}"
 
     def on_started(emu: Emulator) -> None:  # the ports exist: the foreign firmware attaches to them
+        emu.links["monitor"].listeners.append(_Monitor())
         ports = run_dir / "ports"
         procs.append(subprocess.Popen([str(gyro_nav), "--imu", str(ports / "dsp_uart1"), "--host",
                                        str(ports / "dsp_uart0"), "--attitude", att, "--position", pos],
@@ -106,6 +119,11 @@ def test_c_firmware_navigates_in_the_loop_over_ptys(gyro_nav, tmp_path):
     assert ext["silences"] == 0 and not ext["silent"]
     assert summary["links"]["host"]["crc_errors"] == 0
     assert summary["dsp"]["external"] is True
+    # the FPGA's MONITOR port still mirrors the cut UARTs: UART1 towards the DSP, UART0 from it, byte for byte
+    recs = StreamDecoder([MonitorFormat()]).feed(bytes(monitor))
+    by = {(c, d): sum(len(r.data) for r in recs if (r.channel, r.direction) == (c, d)) for c in (4, 5) for d in (0, 1)}
+    assert by[(MONITOR_CHANNELS["uart1"], 0)] == ext["uarts"]["uart1"]["bytes_to_dsp"] > 0
+    assert by[(MONITOR_CHANNELS["uart0"], 1)] == ext["uarts"]["uart0"]["bytes_from_dsp"] > 0
     typed = load_summary(run_dir)  # summary.json reads through the typed model
     assert typed.external_dsp is not None and typed.external_dsp.nav_frames == ext["nav_frames"]
     assert typed.dsp is not None and typed.dsp.deadline_misses is None  # the board's own: not observed

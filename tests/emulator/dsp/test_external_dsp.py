@@ -31,8 +31,6 @@ from emulator.scenario import load_scenario
 from protocols.monitor import MONITOR_CHANNELS, MonitorFormat
 from protocols.stream import StreamDecoder
 
-pytestmark = [pytest.mark.realtime, pytest.mark.pty]
-
 ROOT = Path(__file__).resolve().parents[3]
 OMEGA_IE = 7.2921151467e-5  # WGS-84 Earth rotation rate, rad/s
 ORIGIN = {"lat_deg": 39.979, "lon_deg": 116.339, "height_m": 50.0}
@@ -79,6 +77,8 @@ def _expected_angles(c_bn0: Rotation, w_b: np.ndarray, dt: np.ndarray) -> np.nda
     return np.column_stack([np.degrees(roll), np.degrees(pitch), np.degrees(-yaw) % 360.0])
 
 
+@pytest.mark.realtime
+@pytest.mark.pty
 def test_c_firmware_navigates_in_the_loop_over_ptys(gyro_nav, tmp_path):
     scn = load_scenario(_scenario(tmp_path / "dsp_out.yaml", {"uart0": "pty://dsp_uart0", "uart1": "pty://dsp_uart1"},
                                   monitor=True))
@@ -153,6 +153,8 @@ def test_c_firmware_navigates_in_the_loop_over_ptys(gyro_nav, tmp_path):
     assert abs(got_err[-1]).max() > 0.1
 
 
+@pytest.mark.realtime
+@pytest.mark.pty
 def test_an_external_dsp_that_sends_garbage_is_counted_not_a_crash(tmp_path):
     scn = load_scenario(_scenario(tmp_path / "g.yaml", {"uart0": "pty://dsp_uart0", "uart1": "pty://dsp_uart1"},
                                   duration_s=3.0))
@@ -181,6 +183,8 @@ def test_an_external_dsp_that_sends_garbage_is_counted_not_a_crash(tmp_path):
     assert saved["external_dsp"]["crc_errors"] == 1
 
 
+@pytest.mark.realtime
+@pytest.mark.pty
 def test_an_external_dsp_that_says_nothing_is_counted_silent(tmp_path):
     scn = load_scenario(_scenario(tmp_path / "s.yaml", {"uart0": "pty://dsp_uart0", "uart1": "pty://dsp_uart1"},
                                   duration_s=3.0, silence_s=1.0))
@@ -204,3 +208,24 @@ def test_an_external_dsp_that_says_nothing_is_counted_silent(tmp_path):
     assert summary["nav_frames"] == 0
     events = [json.loads(line) for line in (run_dir / "events.jsonl").read_text().splitlines()]
     assert [e["source"] for e in events if e["event"] == "external_dsp_silent"] == ["external_dsp"]
+
+
+@pytest.mark.parametrize("case", ["same_pty_as_a_port", "same_pty_twice", "mem"])
+def test_external_dsp_ports_are_validated(tmp_path, case):
+    from emulator.scenario.loader import ScenarioError
+
+    uarts = {"uart0": "pty://dsp0", "uart1": "pty://dsp1"}
+    if case == "same_pty_twice":
+        uarts["uart3"] = "pty://dsp0"
+    if case == "mem":
+        uarts["uart1"] = "mem://dsp1"
+    path = _scenario(tmp_path / "v.yaml", uarts)
+    if case == "same_pty_as_a_port":
+        data = yaml.safe_load(path.read_text())
+        data["links"] = {"host": {"url": "pty://dsp1"}}
+        path.write_text(yaml.safe_dump(data, sort_keys=False))
+    want = {"same_pty_as_a_port": r"dsp.external.uarts.uart1 uses the same pty name 'dsp1' as links.host",
+            "same_pty_twice": r"uart3 and uart0 are both bound to 'pty://dsp0'",
+            "mem": r"an external DSP needs a byte port \(pty://, serial://, zenoh://\), not mem://"}[case]
+    with pytest.raises(ScenarioError, match=want):
+        load_scenario(path)

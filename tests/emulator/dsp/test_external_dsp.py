@@ -229,3 +229,8 @@ def test_external_dsp_ports_are_validated(tmp_path, case):
             "mem": r"an external DSP needs a byte port \(pty://, serial://, zenoh://\), not mem://"}[case]
     with pytest.raises(ScenarioError, match=want):
         load_scenario(path)
+
+
+def test_the_example_dsp_out_scenario_validates():
+    scn = load_scenario(ROOT / "examples" / "c_firmware" / "dsp_out.yaml")
+    assert scn.dsp.external is not None and set(scn.dsp.external.uarts) == {"uart0", "uart1", "uart3"}

@@ -8,7 +8,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 SCENARIO ?= scenarios/quickstart.yaml
 
-.PHONY: install run test test-realtime test-all fuzz lint bench bench-quick golden clean distclean check-python
+.PHONY: install run examples test test-realtime test-all fuzz lint bench bench-quick golden clean distclean check-python
 
 check-python:
 	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "psns-hil needs Python >= 3.11, found " + sys.version.split()[0])'
@@ -24,11 +24,16 @@ install: $(STAMP)
 run: install
 	$(VENV)/bin/psns-hil run $(SCENARIO)
 
-test: install
+# The example foreign firmware in C (examples/c_firmware, docs/runtime.md section DSP out); its test builds it too.
+examples:
+	@if command -v $${CC:-gcc} >/dev/null 2>&1; then $(MAKE) -C examples/c_firmware; \
+	else echo "examples: no C compiler (gcc): examples/c_firmware not built, its test will be skipped"; fi
+
+test: install examples
 	$(PY) -m pytest --cov --cov-report=term:skip-covered
 
 # Tests that follow the wall clock (ptys, sockets, other processes): their own step in .ci/run.
-test-realtime: install
+test-realtime: install examples
 	$(PY) -m pytest -m realtime
 
 test-all: install

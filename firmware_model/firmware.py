@@ -56,6 +56,7 @@ from .arrays import FloatArray
 from .config import UART_GNSS, UART_HOST, UART_IMU, UART_PSNS, FirmwareConfig
 from .kf import N_STATES
 from .precision import rounder
+from .registry import FirmwareSnapshot, register_firmware
 from .tasks.gnss import GnssTask
 from .tasks.host import HostTask
 from .tasks.psns import psns_frame_len
@@ -272,6 +273,18 @@ class Firmware(HostTask, GnssTask):
     def note_deadline_miss(self) -> None:
         """Called by the host DSP when a tick started after its deadline."""
         self.deadline_misses += 1
+
+    def snapshot(self) -> FirmwareSnapshot:
+        """What the recorder and the report read (:class:`firmware_model.registry.FirmwareSnapshot`)."""
+        flt = self.filter
+        gb, ab = flt.gyro_bias, flt.accel_bias
+        return FirmwareSnapshot(
+            state=str(self.state), mode=int(self.mode), filter=self.cfg.filter, precision=self.cfg.precision,
+            covariance_diag=tuple(float(v) for v in np.asarray(flt.P).diagonal()),
+            gyro_bias_rad_s=(float(gb[0]), float(gb[1]), float(gb[2])),
+            accel_bias_mps2=(float(ab[0]), float(ab[1]), float(ab[2])),
+            counters=dict(self.counters), decoders=self.decoder_stats(), cycles=self.meter.table(),
+            tick_budget_cycles=self.meter.tick_budget)
 
     # -- the cyclic executive ---------------------------------------------------------------------------
     def service(self) -> list[TickResult]:
@@ -499,3 +512,6 @@ class Firmware(HostTask, GnssTask):
     @property
     def P(self) -> FloatArray:
         return self.filter.P
+
+
+register_firmware("psns_hil", Firmware)

@@ -138,14 +138,18 @@ def resolve_mode(scn: Scenario, requested: str | None = None) -> str:
     for spec in port_specs(scn).values():
         if parse_link_url(spec.url).scheme != "mem":
             return "realtime"
+    if scn.dsp.external is not None:  # the DSP outside is a real peer
+        return "realtime"
     return "fast"
 
 
 def real_time_ports(scn: Scenario) -> list[str]:
     """``links.NAME (URL)`` of each port with a real peer (``pty://``, ``serial://``): in fast mode virtual time
     races past such a peer, which then sees frames far faster than the line's rate."""
+    ext = scn.dsp.external.uarts if scn.dsp.external is not None else {}
     return [f"links.{port} ({spec.url})" for port, spec in port_specs(scn).items()
-            if parse_link_url(spec.url).scheme in ("pty", "serial")]
+            if parse_link_url(spec.url).scheme in ("pty", "serial")] + [
+        f"dsp.external.uarts.{u} ({url})" for u, url in ext.items() if parse_link_url(url).scheme in ("pty", "serial")]
 
 
 def dsp_uart_baud(nominal: int, uart_clock_hz: float | None, oversampling: int) -> int:

@@ -24,8 +24,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from firmware_model import Firmware
 from firmware_model.calibration import load_calibration, save_calibration
+from firmware_model.registry import FirmwareProtocol
 from protocols import __version__ as VERSION
 from protocols.stim import Stim210Format
 
@@ -35,6 +35,7 @@ from ..devices.fpga import VirtualFpga
 from ..devices.gnss import GnssReceiver
 from ..devices.imu import Stim210Gyro
 from ..devices.sensors import build_sensors
+from ..dsp.external import DirectionSwap, ExternalDsp, cut_dsp_uarts
 from ..dsp.firmware_setup import calibration_for
 from ..dsp.host import UartRxConfig, VirtualDsp
 from ..errors import EmulatorError
@@ -110,16 +111,18 @@ class Emulator:
         self.summary: dict[str, Any] = {}
         self.replayed_records = 0
         self.replay_source: str | None = None
-        self._fw0: Firmware | None = None
+        self._fw0: FirmwareProtocol | None = None
         self.faults: Any = None
         self._last_sample_t = 0.0
         self._started = False
         self._stopped = False
         self._wall0 = 0.0
         self._status_prev = (0.0, 0.0, 0)
+        #: the cut FPGA-DSP UARTs when the DSP is outside (``dsp.external``), by UART name
+        self.external_uarts: dict[str, Link] = {}
 
     @property
-    def fw(self) -> Firmware | None:
+    def fw(self) -> FirmwareProtocol | None:
         """The firmware the DSP runs now (a watchdog reset replaces it)."""
         return self.dsp.fw if self.dsp is not None else self._fw0
 
@@ -155,6 +158,12 @@ class Emulator:
                 ext[port] = open_link(spec.url, port, loop, default_line=line, hub=hub, run_dir=port_dir)
             self.links[port] = ext[port]
         uart_fpga, uart_dsp, rx_cfg = self._build_uarts(hub, loop, ext)
+        if scn.dsp.external is not None and self.replay is None:  # the DSP outside (docs/runtime.md, DSP out)
+            if type(self)._build_uarts is not Emulator._build_uarts:
+                raise EmulatorError("dsp.external puts the DSP outside; a split run also cuts its UARTs: "
+                                    "run it without --split")
+            self.external_uarts = cut_dsp_uarts(scn.dsp.external.uarts, uart_fpga, loop, hub, port_dir)
+            self.links.update(self.external_uarts)
         # sensors (docs/architecture.md, section "Firmware interface")
         if self.replay is None:
             sensors = build_sensors(scn, self.seed, traj, internal, pps=self._pps)
@@ -180,11 +189,19 @@ class Emulator:
                                                                        and scn.links.host_nmea is None))
             if name == "gyro":
                 fm = {"in": [Stim210Format(scn.sensors.imu.format)]}
+            n0 = len(link.listeners)
             rec.tap(name, link, fm)
-        for link in [*ext.values(), *(bnd.port for bnd in self.bindings.values())]:
+            if name in self.external_uarts:  # a cut UART is recorded from the DSP's side, as with the virtual DSP
+                link.listeners[n0:] = [DirectionSwap(lst) for lst in link.listeners[n0:]]
+        for link in [*ext.values(), *(bnd.port for bnd in self.bindings.values()), *self.external_uarts.values()]:
             if link.scheme != "mem":
                 await link.open()
         self.ports.extend(port_map(scn, self.links, uart_fpga, {p: b.port for p, b in self.bindings.items()}))
+        for p in self.ports:
+            cut = self.external_uarts.get(p["name"])
+            if cut is not None:
+                p["url"], p["path"] = cut.url, cut.describe()
+                p["role"] = f"FPGA -> external DSP {p['name'].upper()}"
         (self.run_dir / "ports.json").write_text(json.dumps([dict(p) for p in self.ports], indent=2) + "\n")
         rec.start({"scenario": scn.name, "seed": self.seed, "epoch": scn.epoch.isoformat(),
                    "mode": self.mode, "link_baud": {k: v.line.baud for k, v in self.links.items()},
@@ -203,6 +220,8 @@ class Emulator:
         if self.replay is None:
             self.fpga.start()
             self.sensors.start()
+            if isinstance(self.dsp, ExternalDsp):
+                self.dsp.start()
         else:
             self._start_replay()
         if self.progress is not None:
@@ -218,12 +237,15 @@ class Emulator:
 
     def _firmware_counters(self) -> dict[str, int]:
         fw = self.fw
-        return getattr(fw, "counters", {}) if fw is not None else {}
+        return fw.snapshot().counters if fw is not None else {}
 
     def build_dsp(self, uart_dsp: dict[int, Link], rx_cfg: dict[int, UartRxConfig], events: Any) -> VirtualDsp:
         """The virtual DSP hosting this scenario's firmware on ``uart_dsp`` (also used by a split run's DSP
         process, :mod:`emulator.distributed.split`)."""
         assert self.loop is not None
+        ext = self.scn.dsp.external
+        if ext is not None and self.replay is None:  # the DSP is outside: nothing of the firmware model runs
+            return ExternalDsp(self.loop, self.external_uarts, ext.silence_s, events)  # type: ignore[return-value]
         # the calibration file: made from the world's truth plus residuals (or handed in), written into the run
         # directory, and read back: the firmware is configured from the file alone
         path = self.run_dir / "calibration.json"
@@ -420,6 +442,8 @@ class Emulator:
     def dsp_sections(self) -> dict[str, Any]:
         """The ``dsp`` and ``firmware`` sections of the summary (a split run's come from the DSP process)."""
         assert self.dsp is not None
+        if isinstance(self.dsp, ExternalDsp):
+            return self.dsp.sections(self.loop.time() if self.loop is not None else None)
         return dsp_sections(self.dsp)
 
 

@@ -5,8 +5,6 @@ from __future__ import annotations
 import math
 from typing import Any
 
-import numpy as np
-
 from firmware_model.c674x import COST_MODEL_VERSION
 
 from ..dsp.host import VirtualDsp
@@ -37,38 +35,36 @@ def take_sample(rec: Recorder, dsp: Any, t: float, final: bool = False) -> None:
     rec.table_row("timeline", row)
     if final or not local:
         return
-    fw = dsp.fw
-    flt = fw.filter  # the filter variants differ in their state: P and the bias estimates are read if present
-    st: dict[str, Any] = {"time_s": t, "state": fw.state, "mode": int(fw.mode)}
-    p = getattr(flt, "P", None)
-    if p is not None:
-        for i, v in enumerate(np.asarray(p).diagonal().tolist()):
-            st[f"p{i}"] = float(v)
-    for name in ("gyro_bias", "accel_bias"):
-        bias = getattr(flt, name, None)
+    snap = dsp.fw.snapshot()  # the firmware interface (firmware_model.registry.FirmwareProtocol)
+    st: dict[str, Any] = {"time_s": t, "state": snap.state, "mode": snap.mode}
+    if snap.covariance_diag is not None:
+        for i, v in enumerate(snap.covariance_diag):
+            st[f"p{i}"] = v
+    for name, bias in (("gyro_bias", snap.gyro_bias_rad_s), ("accel_bias", snap.accel_bias_mps2)):
         if bias is not None:
-            for ax, v in zip("xyz", np.asarray(bias).tolist()):
-                st[f"{name}_{ax}"] = float(v)
+            for ax, v in zip("xyz", bias):
+                st[f"{name}_{ax}"] = v
     rec.table_row("filter_state", st)
 
 
 def dsp_sections(dsp: VirtualDsp) -> dict[str, Any]:
     """The ``dsp`` and ``firmware`` sections of the summary."""
-    fw = dsp.fw
+    snap = dsp.fw.snapshot()
+    budget = snap.tick_budget_cycles
     return {
         "dsp": {
             "clock_hz": dsp.clock_hz,
             "cpu_load_pct_max": dsp.cpu_load_pct_max(),
-            "tick_utilization_max_pct": 100.0 * dsp.max_tick_cycles / fw.meter.tick_budget,
-            "tick_budget_cycles": fw.meter.tick_budget,
+            "tick_utilization_max_pct": 100.0 * dsp.max_tick_cycles / budget if budget else None,
+            "tick_budget_cycles": budget,
             "deadline_misses": dsp.deadline_misses,
             "ticks": dsp.ticks,
             "cost_model": COST_MODEL_VERSION,
-            "tasks": fw.meter.table(),
+            "tasks": snap.cycles if snap.cycles is not None else [],
             **dsp.counters(),
         },
-        "firmware": {"filter": fw.cfg.filter, "precision": fw.cfg.precision, "counters": dict(fw.counters),
-                     "decoders": fw.decoder_stats()},
+        "firmware": {"filter": snap.filter, "precision": snap.precision, "counters": dict(snap.counters),
+                     "decoders": snap.decoders},
     }
 
 

@@ -128,17 +128,26 @@ def print_summary(s: dict[str, Any]) -> None:
     c.print(links)
 
     d = s["dsp"]
-    cyc = Table(title=f"DSP cycles @ {d['clock_hz'] / 1e6:.0f} MHz, tick budget {d['tick_budget_cycles']} "
-                      f"cycles ({d['cost_model']})", title_justify="left")
-    for col in ("task", "calls", "min", "avg", "max", "max % of budget"):
-        cyc.add_column(col, justify="right" if col != "task" else "left")
-    for t in d["tasks"]:
-        cyc.add_row(t["task"], str(t["calls"]), str(t["cycles_min"]), f"{t['cycles_avg']:.0f}",
-                    str(t["cycles_max"]), f"{t['utilization_max_pct']:.3f}")
-        for k, v in sorted(t["kernels"].items(), key=lambda kv: -kv[1]):
-            cyc.add_row(f"  {k}", "", "", f"{v / max(t['calls'], 1):.0f}", "", "")
-    c.print(cyc)
-    c.print(f"CPU load (worst 1 s): {d['cpu_load_pct_max']:.3f} %   deadline misses: {d['deadline_misses']}")
+    ext = s.get("external_dsp")
+    if ext is not None:  # the DSP is outside (dsp.external): what it sent, not what it spent
+        et = Table(title="external DSP (dsp.external)", title_justify="left")
+        for col in ("nav_frames", "garbage_bytes", "crc_errors", "length_errors", "silences", "silent_s"):
+            et.add_column(col, justify="right")
+        et.add_row(str(ext["nav_frames"]), str(ext["garbage_bytes"]), str(ext["crc_errors"]),
+                   str(ext["length_errors"]), str(ext["silences"]), f"{ext['silent_s']:.3f}")
+        c.print(et)
+    else:
+        cyc = Table(title=f"DSP cycles @ {d['clock_hz'] / 1e6:.0f} MHz, tick budget {d['tick_budget_cycles']} "
+                          f"cycles ({d['cost_model']})", title_justify="left")
+        for col in ("task", "calls", "min", "avg", "max", "max % of budget"):
+            cyc.add_column(col, justify="right" if col != "task" else "left")
+        for t in d["tasks"]:
+            cyc.add_row(t["task"], str(t["calls"]), str(t["cycles_min"]), f"{t['cycles_avg']:.0f}",
+                        str(t["cycles_max"]), f"{t['utilization_max_pct']:.3f}")
+            for k, v in sorted(t["kernels"].items(), key=lambda kv: -kv[1]):
+                cyc.add_row(f"  {k}", "", "", f"{v / max(t['calls'], 1):.0f}", "", "")
+        c.print(cyc)
+        c.print(f"CPU load (worst 1 s): {d['cpu_load_pct_max']:.3f} %   deadline misses: {d['deadline_misses']}")
 
     if s.get("faults"):
         ft = Table(title="faults", title_justify="left")

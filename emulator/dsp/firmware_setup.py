@@ -9,10 +9,16 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from firmware_model import Firmware, FirmwareConfig
+from firmware_model import FirmwareConfig
 from firmware_model.attitude import a2mat, yaw_from_heading
 from firmware_model.calibration import Calibration, CalibrationError, CameraCalibration, load_calibration
 from firmware_model.psns_geometry import CameraGeometry, camera_from_calibration
+from firmware_model.registry import (
+    BUILTIN_FILTER_PARAMS,
+    FIRMWARE_IMPLEMENTATIONS,
+    FirmwareProtocol,
+    filter_params_model,
+)
 from firmware_model.variants.common import compass_mountings
 from firmware_model.variants.params import (
     DualVectorParams,
@@ -26,9 +32,10 @@ from firmware_model.variants.params import (
 from ..devices.base import device_rng
 from ..devices.sensors import accel_errors, camera_config, gnss_config, gyro_errors
 from ..errors import ScenarioError
+from ..plugins import PLUGIN_ERRORS, plugin, plugin_names
 from ..scenario.schema import Scenario
 
-__all__ = ["build_firmware", "calibration_for", "firmware_config"]
+__all__ = ["build_firmware", "calibration_for", "firmware_config", "register_plugins"]
 
 DEG = math.pi / 180.0
 
@@ -121,7 +128,52 @@ def _variant_params(scn: Scenario) -> VariantParams:
         kmeans_3d=KmeansParams(**v.kmeans_3d.model_dump()),
         federated=FederatedParams(**fed),
         sun_elevation=SunElevationParams(**v.sun_elevation.model_dump()),
+        plugins=_plugin_params(scn),
     )
+
+
+def register_plugins() -> None:
+    """Enter the ``psns_hil.filters`` and ``psns_hil.firmware`` entry points (:mod:`emulator.plugins`) in the
+    firmware's tables (:data:`firmware_model.FILTER_VARIANTS`,
+    :data:`firmware_model.registry.FIRMWARE_IMPLEMENTATIONS`). A built-in name is never replaced; what cannot be
+    entered is kept in :data:`emulator.plugins.PLUGIN_ERRORS`."""
+    from firmware_model.config import FILTER_VARIANTS
+    from firmware_model.filters import NavFilter, register_filter
+    from firmware_model.registry import register_firmware
+
+    for name in plugin_names("psns_hil.filters"):
+        if name in FILTER_VARIANTS:
+            if getattr(FILTER_VARIANTS[name], "__module__", "").startswith("firmware_model."):
+                PLUGIN_ERRORS.setdefault(("psns_hil.filters", name), f"the name {name!r} is built in; not replaced")
+            continue
+        cls = plugin("psns_hil.filters", name)
+        if cls is None:
+            continue
+        if not (isinstance(cls, type) and issubclass(cls, NavFilter)):
+            PLUGIN_ERRORS[("psns_hil.filters", name)] = "not a firmware_model.filters.NavFilter subclass"
+            continue
+        register_filter(name)(cls)
+    for name in plugin_names("psns_hil.firmware"):
+        if name in FIRMWARE_IMPLEMENTATIONS:
+            continue
+        factory = plugin("psns_hil.firmware", name)
+        if callable(factory):
+            register_firmware(name, factory)
+
+
+def _plugin_params(scn: Scenario) -> dict[str, object]:
+    """``firmware.params`` of a filter added by entry point, as an instance of the model it declares (validated
+    by the scenario schema; a built-in variant's are merged into ``firmware.variants`` there)."""
+    name = scn.firmware.filter
+    if name in BUILTIN_FILTER_PARAMS:
+        return {}
+    register_plugins()
+    model = filter_params_model(name)
+    if model is None:
+        return {}
+    from pydantic import TypeAdapter
+
+    return {name: TypeAdapter(model).validate_python(scn.firmware.params)}
 
 
 def _compass_mountings(scn: Scenario):
@@ -193,6 +245,12 @@ def firmware_config(scn: Scenario, calibration: Calibration | None = None) -> Fi
     )
 
 
-def build_firmware(scn: Scenario, calibration: Calibration | None = None) -> Firmware:
-    """The firmware the virtual DSP hosts for this scenario, configured from its calibration file."""
-    return Firmware(firmware_config(scn, calibration))
+def build_firmware(scn: Scenario, calibration: Calibration | None = None) -> FirmwareProtocol:
+    """The firmware the virtual DSP hosts for this scenario (``firmware.implementation``: this package's or a
+    ``psns_hil.firmware`` plugin's), configured from its calibration file."""
+    register_plugins()
+    try:
+        factory = FIRMWARE_IMPLEMENTATIONS[scn.firmware.implementation]
+    except KeyError:
+        raise ScenarioError(f"firmware.implementation: {scn.firmware.implementation!r} is not registered") from None
+    return factory(firmware_config(scn, calibration))

@@ -14,7 +14,8 @@ the DSP reads over EMIFA (its FIFO fills at the GNSS line's pace). Each has
 * the firmware's RX ring buffer (``rx_ring_bytes``), emptied by the main loop at every tick;
   bytes that do not fit are lost and counted.
 
-The surviving bytes go to :meth:`firmware_model.Firmware.receive` with their reception time; an
+The surviving bytes go to the firmware's ``receive`` (:class:`firmware_model.registry.FirmwareProtocol`, the
+only thing the DSP uses of a firmware) with their reception time; an
 IMU frame on UART1 starts the cyclic executive. When no overrun is possible (the trigger level
 plus the bytes that can arrive during the service latency fit in the FIFO) the byte-by-byte FIFO
 model is skipped: it could not change anything.
@@ -40,7 +41,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from firmware_model import UART_IMU, Firmware
+from firmware_model import UART_IMU
+from firmware_model.registry import FirmwareProtocol
 
 from ..devices.base import EventSink, NullEvents
 from ..links.base import Link
@@ -194,10 +196,10 @@ class VirtualDsp:
     firmware_factory : builds a fresh firmware after a watchdog reset (None: ``flag`` only).
     """
 
-    def __init__(self, loop: asyncio.AbstractEventLoop, firmware: Firmware, uarts: dict[int, Link],
+    def __init__(self, loop: asyncio.AbstractEventLoop, firmware: FirmwareProtocol, uarts: dict[int, Link],
                  clock_hz: float, events: EventSink | None = None, tick_period_s: float = 0.005,
                  rx: dict[int, UartRxConfig] | None = None, watchdog: WatchdogConfig | None = None,
-                 firmware_factory: Callable[[], Firmware] | None = None) -> None:
+                 firmware_factory: Callable[[], FirmwareProtocol] | None = None) -> None:
         self.loop = loop
         self.fw = firmware
         self.uarts = uarts

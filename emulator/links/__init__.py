@@ -17,6 +17,13 @@ Common options (query string): ``baud=N``, ``mode=8N1``, ``queue=BYTES`` (TX que
 ``pty://`` also takes ``peer_baud=ignore|check`` (model a client set to another baud).
 Unknown options are errors that show the accepted form. "Unknown scheme" and "the transport
 module failed to import" are different errors, and the import failure keeps its cause.
+
+More schemes come from packages installed next to psns-hil, through the ``psns_hil.links`` entry points
+(:mod:`emulator.plugins`, docs/plugins.md): the entry point's name is the scheme, its value a
+:class:`~emulator.links.base.Link` subclass taking ``(name, url, line, loop, target=, options=, run_dir=)``,
+which may declare ``url_options`` (a frozenset of the query options it accepts beyond the common ones) and
+``url_usage`` (the accepted form, shown in errors). They join :func:`link_schemes` at first use; a built-in
+scheme is never replaced.
 """
 
 from __future__ import annotations
@@ -42,6 +49,7 @@ __all__ = [
     "LinkUrl",
     "MemHub",
     "MemLink",
+    "link_schemes",
     "open_link",
     "parse_link_url",
     "parse_mode",
@@ -73,6 +81,49 @@ _USAGE = {
 }
 
 
+def link_schemes() -> dict[str, str]:
+    """Scheme -> ``module:Class``: the built-in transports and the ``psns_hil.links`` entry points."""
+    from ..plugins import PLUGIN_ERRORS, entry_points_of
+
+    out = dict(LINK_SCHEMES)
+    for ep in entry_points_of("psns_hil.links"):
+        if ep.name in LINK_SCHEMES:
+            PLUGIN_ERRORS.setdefault(("psns_hil.links", ep.name), f"{ep.value}: the scheme {ep.name!r} is built in; "
+                                     "not replaced")
+            continue
+        out[ep.name] = ep.value
+    return out
+
+
+def _plugin_class(scheme: str) -> type[Link] | None:
+    """The transport class of a plugin scheme (imported at first use), None for a built-in one."""
+    if scheme in LINK_SCHEMES:
+        return None
+    from ..plugins import PLUGIN_ERRORS, plugin
+
+    cls = plugin("psns_hil.links", scheme)
+    if cls is None:
+        why = PLUGIN_ERRORS.get(("psns_hil.links", scheme), "no such entry point")
+        raise LinkConfigError(f"the {scheme}:// transport (a psns_hil.links plugin) could not be loaded: {why}")
+    if not (isinstance(cls, type) and issubclass(cls, Link)):
+        raise LinkConfigError(f"the {scheme}:// transport (a psns_hil.links plugin) is not a Link subclass: {cls!r}")
+    return cls
+
+
+def _usage(scheme: str) -> str:
+    if scheme in _USAGE:
+        return _USAGE[scheme]
+    cls = _plugin_class(scheme) if scheme not in LINK_SCHEMES else None
+    return str(getattr(cls, "url_usage", scheme + "://..."))
+
+
+def _options(scheme: str) -> frozenset[str]:
+    if scheme in LINK_SCHEMES:
+        return _SCHEME_OPTIONS.get(scheme, frozenset())
+    cls = _plugin_class(scheme)
+    return frozenset(getattr(cls, "url_options", frozenset()))
+
+
 class LinkUrl:
     """A parsed link URL: scheme, target (name or device path) and options."""
 
@@ -102,7 +153,7 @@ class LinkUrl:
                 kw["tx_queue_bytes"] = int(self.options["queue"])
             return LineConfig(**kw)
         except ValueError as exc:
-            usage = _USAGE.get(self.scheme, self.scheme + "://...")
+            usage = _usage(self.scheme)
             raise LinkConfigError(f"{self.url}: {exc}; expected {usage}") from exc
 
 
@@ -110,23 +161,31 @@ def parse_link_url(url: str, extra_options: frozenset[str] = frozenset()) -> Lin
     """Split and validate a link URL (scheme known, options known)."""
     parts = urlsplit(url)
     scheme = parts.scheme
-    if scheme not in LINK_SCHEMES:
+    schemes = LINK_SCHEMES if scheme in LINK_SCHEMES else link_schemes()
+    if scheme not in schemes:
+        import difflib
+
+        close = difflib.get_close_matches(scheme, list(schemes), n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
         raise LinkConfigError(
-            f"unknown link scheme {scheme!r} in {url!r}; known schemes: {', '.join(sorted(LINK_SCHEMES))}"
+            f"unknown link scheme {scheme!r} in {url!r}{hint}; known schemes: {', '.join(sorted(schemes))}"
         )
     target = parts.netloc + parts.path if scheme != "serial" else parts.path or parts.netloc
     if not target:
-        raise LinkConfigError(f"{url!r} names no target; expected {_USAGE.get(scheme, scheme + '://NAME')}")
+        raise LinkConfigError(f"{url!r} names no target; expected {_usage(scheme)}")
     options = dict(parse_qsl(parts.query, keep_blank_values=True))
-    unknown = set(options) - _COMMON_OPTIONS - extra_options - _SCHEME_OPTIONS.get(scheme, frozenset())
+    unknown = set(options) - _COMMON_OPTIONS - extra_options - _options(scheme)
     if unknown:
         raise LinkConfigError(
-            f"{url!r}: unknown option(s) {', '.join(sorted(unknown))}; expected {_USAGE.get(scheme, scheme + '://...')}"
+            f"{url!r}: unknown option(s) {', '.join(sorted(unknown))}; expected {_usage(scheme)}"
         )
     return LinkUrl(url, scheme, target, options)
 
 
 def _transport_class(scheme: str) -> type[Link]:
+    plugin_cls = _plugin_class(scheme)
+    if plugin_cls is not None:
+        return plugin_cls
     target = LINK_SCHEMES[scheme]
     mod_name, cls_name = target.split(":")
     try:

@@ -51,12 +51,27 @@ class DspTask(_Open):
 
 
 class DspSection(_Open):
-    clock_hz: float = Field(description="DSP clock, Hz")
+    clock_hz: float | None = Field(description="DSP clock, Hz (null: the DSP is outside, dsp.external)")
     cpu_load_pct_max: float | None = Field(None, description="CPU load of the worst 1 s, %")
     tick_budget_cycles: int | None = None
-    deadline_misses: int = 0
+    deadline_misses: int | None = Field(0, description="ticks that ended late (null: not observed, the DSP is "
+                                           "outside)")
     cost_model: str | None = None
     tasks: list[DspTask] = Field(default_factory=list)
+
+
+class ExternalDspSection(_Open):
+    """What the emulator saw of a DSP outside (``dsp.external``; docs/runtime.md, DSP out)."""
+
+    nav_frames: int = Field(0, description="NAV_SOLUTION frames the outside DSP wrote on UART0")
+    garbage_bytes: int = Field(0, description="UART0 bytes from the outside DSP that were no frame")
+    crc_errors: int = Field(0, description="UART0 frames from the outside DSP with a bad CRC")
+    length_errors: int = Field(0, description="UART0 frame headers with an impossible length")
+    unexpected_bytes: dict[str, int] = Field(default_factory=dict,
+                                             description="bytes the outside DSP wrote on an input-only UART")
+    silent: bool = Field(False, description="the outside DSP never sent a byte")
+    silences: int = Field(0, description="times it said nothing for silence_s once it had IMU frames")
+    silent_s: float = Field(0.0, description="time it spent silent, s")
 
 
 class FaultRecord(_Open):
@@ -119,6 +134,7 @@ class RunSummary(_Open):
                                           "peer sent to the sensor)")
     dsp: DspSection | None = None
     firmware: dict[str, Any] = Field(default_factory=dict)
+    external_dsp: ExternalDspSection | None = None
     fpga: dict[str, Any] = Field(default_factory=dict)
     devices: dict[str, Any] = Field(default_factory=dict)
     ports: list[dict[str, Any]] = Field(default_factory=list)

@@ -204,6 +204,22 @@ def _files_and_ports(scn: Scenario, environment: bool) -> list[tuple[tuple[Any, 
                                                    f"links.{seen[key]}; every port needs its own"))
         else:
             seen[key] = port
+    ext = scn.dsp.external.uarts if scn.dsp.external is not None else {}
+    for uname, url in ext.items():  # the DSP outside: its UARTs' ports (docs/runtime.md, DSP out)
+        u = parse_link_url(url)
+        if u.scheme not in ("pty", "serial"):
+            continue
+        loc = ("dsp", "external", "uarts", uname)
+        if environment and u.scheme == "serial" and not Path(u.target).exists():
+            issues.append((loc, f"no such serial device: {u.target}"))
+        key = (u.scheme, u.target)
+        if key in seen:
+            what = "pty name" if u.scheme == "pty" else "serial device"
+            other = seen[key] if seen[key].startswith("dsp.") else f"links.{seen[key]}"
+            issues.append((loc, f"dsp.external.uarts.{uname} uses the same {what} {u.target!r} as {other}; "
+                                "every port needs its own"))
+        else:
+            seen[key] = f"dsp.external.uarts.{uname}"
     return issues
 
 

@@ -41,6 +41,8 @@ DESCRIPTIONS: dict[str, str] = {
     "DspSpec.clock_hz": "DSP clock, Hz (the C6747 runs at 300 MHz): cycles become time at this rate",
     "DspSpec.uarts": "per DSP UART (uart0..uart3): FIFO depth and trigger level",
     "DspSpec.watchdog": "the DSP watchdog: resets the firmware after a long overrun",
+    "DspSpec.external": "the DSP outside: its UARTs bound to ports, a real board or a foreign firmware process "
+                        "in the virtual DSP's place (docs/runtime.md, section DSP out)",
     "ImuSpec.preset": "named IMU preset whose figures the fields below override",
     "ImuSpec.format": "STIM210 datagram content code (s, e, j..p: the datasheet's datagram types), "
                       "as the gyro is configured",

@@ -9,7 +9,7 @@ variant reads its own.
 from __future__ import annotations
 
 from pathlib import PurePosixPath, PureWindowsPath
-from typing import Literal
+from typing import Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
@@ -199,8 +199,73 @@ class NmeaOutputSpec(Model):
     talker: str = Field("GN", pattern=r"^[A-Z]{2}$")
 
 
+def _check_filter(name: str) -> str:
+    """``firmware.filter`` against the filter registry (built-in variants and ``psns_hil.filters`` plugins)."""
+    from ..plugins import did_you_mean, filter_names
+
+    known = filter_names()
+    if name not in known:
+        raise ValueError(did_you_mean("filter", name, known, "psns_hil.filters"))
+    return name
+
+
+def _check_params(name: str, params: dict[str, Any], variants: VariantsSpec) -> VariantsSpec:
+    """``firmware.params`` against the parameter model the filter ``name`` declares; for a built-in variant they
+    override ``firmware.variants.NAME`` (same fields, same ranges). Returns the variants section to keep."""
+    from dataclasses import MISSING, fields, is_dataclass
+
+    from pydantic import TypeAdapter, ValidationError
+
+    from ..plugins import PLUGIN_ERRORS, plugin
+
+    if name in VariantsSpec.model_fields and name != "mode_manager":
+        spec = getattr(variants, name)
+        try:  # its ranges; extra keys refused
+            merged = type(spec).model_validate({**spec.model_dump(), **params})
+        except ValidationError as exc:
+            raise ValueError(f"filter {name!r}: " + "; ".join(
+                f"params.{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in exc.errors())) from None
+        return variants.model_copy(update={name: merged})
+    cls = plugin("psns_hil.filters", name)  # the plugin's filter class: it declares its parameter model
+    if cls is None and ("psns_hil.filters", name) in PLUGIN_ERRORS:
+        raise ValueError(f"filter {name!r}: its plugin failed to load: {PLUGIN_ERRORS['psns_hil.filters', name]}")
+    model = getattr(cls, "params_model", None)
+    if model is not None and not (isinstance(model, type) and is_dataclass(model)):
+        raise ValueError(f"filter {name!r}: its params_model is not a dataclass ({model!r})")
+    if model is None:
+        if params:
+            raise ValueError(f"filter {name!r} declares no parameters; firmware.params must be empty")
+        return variants
+    names = [f.name for f in fields(model)]
+    unknown = sorted(set(params) - set(names))
+    if unknown:
+        import difflib
+
+        hints = [f"{k!r} (did you mean {c[0]!r}?)" if (c := difflib.get_close_matches(k, names, n=1)) else repr(k)
+                 for k in unknown]
+        raise ValueError(f"filter {name!r} has no parameter {', '.join(hints)}; its parameters: {', '.join(names)}")
+    missing = [f.name for f in fields(model) if f.default is MISSING and f.default_factory is MISSING
+               and f.name not in params]
+    if missing:
+        raise ValueError(f"filter {name!r} needs firmware.params: {', '.join(missing)}")
+    try:
+        TypeAdapter(model).validate_python(params)
+    except ValidationError as exc:
+        raise ValueError(f"filter {name!r}: " + "; ".join(
+            f"params.{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in exc.errors())) from None
+    return variants
+
+
 class FirmwareSpec(Model):
-    filter: Literal["base", "dual_vector", "kmeans_3d", "federated", "sun_elevation"] = "base"
+    filter: str = Field("base", description="the filter variant: a built-in one (base, dual_vector, kmeans_3d, "
+                        "federated, sun_elevation) or one a plugin package registers (psns_hil.filters entry points, "
+                        "docs/plugins.md)")
+    params: dict[str, Any] = Field(
+        default_factory=dict, description="parameters of the selected filter, validated against the parameter "
+        "model it declares (built-in variants: the fields of firmware.variants.NAME, which they override)")
+    implementation: str = Field(
+        "psns_hil", description="the firmware the virtual DSP runs: psns_hil (this package's) or one a plugin "
+        "registers (psns_hil.firmware entry points)")
     precision: Literal["float32", "float64"] = "float32"
     nav_state_precision: Literal["float32", "float64"] = Field(
         "float64", description="strapdown quaternion/velocity accumulators (docs/decisions.md D-L.1)")
@@ -212,3 +277,25 @@ class FirmwareSpec(Model):
     psns: PsnsFirmwareSpec = PsnsFirmwareSpec()
     calibration: CalibrationSpec = CalibrationSpec()
     variants: VariantsSpec = VariantsSpec()
+
+    @field_validator("filter")
+    @classmethod
+    def _filter(cls, v: str) -> str:
+        return _check_filter(v)
+
+    @field_validator("implementation")
+    @classmethod
+    def _implementation(cls, v: str) -> str:
+        from ..plugins import did_you_mean, firmware_names
+
+        known = firmware_names()
+        if v not in known:
+            raise ValueError(did_you_mean("firmware implementation", v, known, "psns_hil.firmware"))
+        return v
+
+    @model_validator(mode="after")
+    def _params(self) -> FirmwareSpec:
+        variants = _check_params(self.filter, self.params, self.variants)
+        if variants is not self.variants:
+            self.variants = variants
+        return self

@@ -15,6 +15,7 @@ __all__ = [
     "EXTERNAL_PORTS",
     "DspSpec",
     "DspUartSpec",
+    "ExternalDspSpec",
     "FpgaSpec",
     "LinkSpec",
     "Links",
@@ -184,6 +185,36 @@ class WatchdogSpec(Model):
     reset_time_s: float = Field(0.05, ge=0, le=10, description="DSP busy rebooting after a watchdog reset")
 
 
+class ExternalDspSpec(Model):
+    """The DSP outside the emulator (``dsp.external``): the virtual FPGA's DSP-side UARTs are bound to ports, and a
+    real C6747 board (over USB-serial adapters) or a firmware process in any language takes the virtual DSP's
+    place. FPGA timing, routing and monitor are unchanged; the recorder still decodes the host stream."""
+
+    uarts: dict[UartName, str] = Field(
+        min_length=1, description="DSP UART -> port URL (pty://NAME, serial:///dev/ttyXXX, zenoh://RUN/PORT); the "
+        "line is the FPGA side's (fpga.uarts); an unlisted UART's bytes go nowhere")
+    silence_s: float = Field(
+        2.0, gt=0, le=3600, description="no byte from the external DSP for this long (s, after the first IMU frame "
+        "it was sent) is counted as a silence in summary.json's external_dsp section")
+
+    @field_validator("uarts")
+    @classmethod
+    def _urls(cls, v: dict[str, str]) -> dict[str, str]:
+        from ..links import parse_link_url
+
+        seen: dict[str, str] = {}
+        for uname, url in v.items():
+            target = parse_link_url(url).target
+            if target in seen:
+                raise ValueError(f"{uname} and {seen[target]} are both bound to {url!r}: one port per UART")
+            seen[target] = uname
+            scheme = parse_link_url(url).scheme  # raises LinkConfigError (a ValueError) with the accepted form
+            if scheme in ("mem", "can"):
+                raise ValueError(f"{uname}: {url!r}: an external DSP needs a byte port (pty://, serial://, "
+                                 f"zenoh://), not {scheme}://")
+        return v
+
+
 class DspSpec(Model):
     clock_hz: float = Field(300e6, ge=1e6, le=2e9)
     uart_clock_hz: float | None = Field(
@@ -191,6 +222,7 @@ class DspSpec(Model):
         "run at the baud their divisor gives: clock / (oversampling x round(clock / (oversampling x baud)))")
     uarts: dict[UartName, DspUartSpec] = Field(default_factory=_default_dsp_uarts)
     watchdog: WatchdogSpec = WatchdogSpec()
+    external: ExternalDspSpec | None = None
 
     @field_validator("uarts")
     @classmethod

@@ -9,6 +9,7 @@ One dataclass per variant plus the mode manager's; :class:`VariantParams` holds 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 __all__ = [
     "DualVectorParams",
@@ -137,3 +138,6 @@ class VariantParams:
     kmeans_3d: KmeansParams = field(default_factory=KmeansParams)
     federated: FederatedParams = field(default_factory=FederatedParams)
     sun_elevation: SunElevationParams = field(default_factory=SunElevationParams)
+    #: parameters of filters added by entry point (``psns_hil.filters``), by filter name: an instance of the
+    #: filter's own ``params_model`` (:mod:`firmware_model.registry`)
+    plugins: dict[str, Any] = field(default_factory=dict)

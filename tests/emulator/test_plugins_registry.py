@@ -1,0 +1,133 @@
+"""The entry-point registries (emulator.plugins) with entry points made in the test (no package installed):
+a whole firmware through ``psns_hil.firmware`` is all the virtual DSP and the summary use (FirmwareProtocol), a
+broken plugin is reported where a scenario names it, built-in names are never replaced, link schemes come
+from ``psns_hil.links``."""
+
+from __future__ import annotations
+
+from importlib.metadata import EntryPoint
+from pathlib import Path
+
+import pytest
+import yaml
+
+import emulator.plugins as plugins
+from emulator.assembly.runner import run_scenario
+from emulator.errors import LinkConfigError
+from emulator.links import parse_link_url
+from emulator.scenario import load_scenario
+from emulator.scenario.loader import ScenarioError
+from firmware_model.config import FILTER_VARIANTS
+from firmware_model.registry import FIRMWARE_IMPLEMENTATIONS, FirmwareProtocol, FirmwareSnapshot
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+class CountingFirmware:
+    """A firmware that takes every byte and never runs a tick: it counts what each UART brought."""
+
+    def __init__(self, cfg) -> None:
+        self.cfg = cfg
+        self.rx: dict[int, int] = {}
+        self.misses = 0
+
+    def receive(self, uart: int, data: bytes, t_rx_s: float | None = None) -> None:
+        self.rx[uart] = self.rx.get(uart, 0) + len(data)
+
+    def service(self) -> list:
+        return []
+
+    def note_deadline_miss(self) -> None:
+        self.misses += 1
+
+    def snapshot(self) -> FirmwareSnapshot:
+        return FirmwareSnapshot(state="counting", mode=0, filter=self.cfg.filter, precision=self.cfg.precision,
+                                counters={f"uart{u}_bytes": n for u, n in sorted(self.rx.items())})
+
+
+@pytest.fixture
+def eps(monkeypatch):
+    """Install entry points (group -> [(name, value)]) for one test; the registries are restored after it."""
+    filters, impls = dict(FILTER_VARIANTS), dict(FIRMWARE_IMPLEMENTATIONS)
+    table: dict[str, list[EntryPoint]] = {}
+
+    def fake(group: str):
+        return table.get(group, [])
+
+    def install(group: str, name: str, value: str) -> None:
+        table.setdefault(group, []).append(EntryPoint(name=name, value=value, group=group))
+        plugins.reset()
+
+    monkeypatch.setattr(plugins, "entry_points", fake)
+    plugins.reset()
+    yield install
+    plugins.reset()
+    FILTER_VARIANTS.clear()
+    FILTER_VARIANTS.update(filters)
+    FIRMWARE_IMPLEMENTATIONS.clear()
+    FIRMWARE_IMPLEMENTATIONS.update(impls)
+
+
+def _scenario(path: Path, firmware: dict) -> Path:
+    data = {"name": "plugins", "seed": 3, "epoch": "2019-09-18T02:30:00Z", "duration_s": 2.0, "mode": "fast",
+            "origin": {"lat_deg": 39.9, "lon_deg": 116.3, "height_m": 50.0},
+            "attitude": {"heading_deg": 30.0, "pitch_deg": 0.0, "roll_deg": 0.0},
+            "motion": [{"static": {"duration_s": 2.0}}], "firmware": firmware}
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def test_a_firmware_plugin_is_all_the_dsp_and_the_summary_use(eps, tmp_path):
+    eps("psns_hil.firmware", "counting", f"{__name__}:CountingFirmware")
+    assert isinstance(CountingFirmware(None), FirmwareProtocol)
+    scn = load_scenario(_scenario(tmp_path / "s.yaml", {"implementation": "counting"}))
+    s = run_scenario(scn, tmp_path / "run")
+    # the DSP empties the firmware's RX ring at every tick; this firmware never runs one, so UART1 fills the ring
+    # (dsp.uarts.uart1.rx_ring_bytes, 4096) once and the rest is lost and counted, as on the real DSP
+    imu_in = s["link_stats"]["uart1"]["bytes_in"]
+    assert imu_in > 4096 and s["firmware"]["counters"]["uart1_bytes"] == 4096
+    assert s["dsp"]["uarts"]["uart1"]["ring_overflow_bytes"] == imu_in - 4096
+    assert s["firmware"]["counters"]["uart3_bytes"] == s["link_stats"]["uart3"]["bytes_in"] > 0
+    assert s["nav_frames"] == 0 and s["dsp"]["ticks"] == 0 and s["dsp"]["tasks"] == []
+    rows = (tmp_path / "run" / "filter_state.csv").read_text().splitlines()
+    assert rows[0] == "time_s,state,mode" and rows[1].split(",")[1:] == ["counting", "0"]
+
+
+def test_unknown_firmware_lists_the_registered_ones(eps, tmp_path):
+    eps("psns_hil.firmware", "counting", f"{__name__}:CountingFirmware")
+    with pytest.raises(ScenarioError, match=r"unknown firmware implementation 'countin'; did you mean 'counting'\? "
+                                            r"registered: counting, psns_hil"):
+        load_scenario(_scenario(tmp_path / "s.yaml", {"implementation": "countin"}))
+
+
+def test_a_broken_filter_plugin_is_reported_where_a_scenario_names_it(eps, tmp_path):
+    eps("psns_hil.filters", "broken", "no_such_module_xyz:Filter")
+    with pytest.raises(ScenarioError, match=r"filter 'broken': its plugin failed to load: no_such_module_xyz:Filter: "
+                                            r"ModuleNotFoundError"):
+        load_scenario(_scenario(tmp_path / "s.yaml", {"filter": "broken"}))
+    load_scenario(_scenario(tmp_path / "ok.yaml", {"filter": "base"}))  # the others are not affected
+
+
+def test_a_plugin_never_replaces_a_built_in_name(eps, tmp_path):
+    base = FILTER_VARIANTS["base"]
+    eps("psns_hil.filters", "base", f"{__name__}:CountingFirmware")
+    eps("psns_hil.links", "pty", "emulator.links.mem:MemLink")
+    from emulator.dsp.firmware_setup import register_plugins
+    from emulator.links import link_schemes
+
+    register_plugins()
+    assert FILTER_VARIANTS["base"] is base
+    assert "built in" in plugins.PLUGIN_ERRORS[("psns_hil.filters", "base")]
+    assert link_schemes()["pty"] == "emulator.links.pty:PtyLink"
+
+
+def test_link_schemes_come_from_entry_points(eps):
+    with pytest.raises(LinkConfigError, match=r"unknown link scheme 'memo' in 'memo://x' \(did you mean 'mem'\?\)"):
+        parse_link_url("memo://x")
+    eps("psns_hil.links", "memo", "emulator.links.mem:MemLink")
+    assert parse_link_url("memo://x?baud=9600").scheme == "memo"
+    with pytest.raises(LinkConfigError, match=r"unknown option\(s\) bogus; expected memo://\.\.\."):
+        parse_link_url("memo://x?bogus=1")
+    eps("psns_hil.links", "gone", "no_such_module_xyz:Link")
+    with pytest.raises(LinkConfigError, match=r"the gone:// transport .* could not be loaded: .*ModuleNotFoundError"):
+        parse_link_url("gone://x")

@@ -1,4 +1,4 @@
-"""NMEA 0183 sentences: framing, checksum, GGA, RMC, VTG, GSA and ZDA.
+"""NMEA 0183 sentences: framing, checksum, GGA, GNS, RMC, VTG, GSA and ZDA.
 
 Source: ``docs/reference/wire-formats.md`` section 2.3 (gpsd NMEA notes; field order as in
 pynmea2). A sentence is ``$`` + talker (2 letters) + type (3 letters) + ``,``-separated fields
@@ -6,6 +6,12 @@ pynmea2). A sentence is ``$`` + talker (2 letters) + type (3 letters) + ``,``-se
 + ``<CR><LF>``; at most 82 characters including ``$`` and ``<CR><LF>``. Proprietary sentences
 start ``$P`` + a three-letter maker code (``$PSNSPOS``: maker ``SNS``); they are framed and
 checked the same way and come out as :class:`NmeaSentence` with ``talker="PSNS"``.
+
+What real receivers send beyond the standard (docs/icd.md "GNSS input"): a line ended by LF alone (the
+checksum then sits at ``[-4:-2]``) is accepted and counted in :attr:`NmeaFormat.lf_only`; a receiving
+decoder built with ``max_len=NMEA_RX_MAX_LEN`` accepts the long sentences of real receivers (u-blox
+``$PUBX,00`` is 108-110 characters, its high-precision GGA 84). GNS (NMEA 3.0/4.10: one mode character
+per constellation) is typed as :class:`Gns`.
 
 The builders and their number formats are in :mod:`protocols.nmea_build` (re-exported here). Every typed
 sentence re-encodes with :func:`encode_nmea`; for sentences written by these
@@ -35,10 +41,17 @@ from .nmea_build import (
 )
 from .stream import BAD_LENGTH, NEED_MORE
 
+#: Longest line a receiving decoder accepts: the 82 of the standard plus the proprietary and
+#: high-precision sentences of real receivers (u-blox ``$PUBX,00`` with its 108-110 characters is the
+#: longest of the quirks corpus, tests/protocols/quirks/); 128 leaves room for a wider field.
+NMEA_RX_MAX_LEN = 128
+
 __all__ = [
     "KNOT_MPS",
     "NMEA_MAX_LEN",
+    "NMEA_RX_MAX_LEN",
     "Gga",
+    "Gns",
     "Gsa",
     "NmeaFormat",
     "NmeaSentence",
@@ -83,6 +96,25 @@ class Gga:
     hdop: float | None
     altitude_msl_m: float | None
     geoid_sep_m: float | None
+
+
+@fast_frozen_init
+@dataclass(frozen=True, slots=True)
+class Gns:
+    """GNS fix data (NMEA 3.0 / 4.10): ``mode`` has one character per constellation (GPS, GLONASS, Galileo,
+    BeiDou, ...): N none, A autonomous, D differential, P precise, R RTK fixed, F RTK float, E estimated (DR),
+    M manual, S simulator. ``nav_status`` (4.10: S safe, C caution, U unsafe, V not valid) or None."""
+
+    talker: str
+    time_utc: _dt.time | None
+    lat_deg: float | None
+    lon_deg: float | None
+    mode: str
+    num_sats: int | None
+    hdop: float | None
+    altitude_msl_m: float | None
+    geoid_sep_m: float | None
+    nav_status: str | None
 
 
 @fast_frozen_init
@@ -165,8 +197,17 @@ def _parse_time(s: str) -> _dt.time | None:
     return t
 
 
-def encode_nmea(obj: Gga | Rmc | Vtg | Gsa | Zda | NmeaSentence) -> bytes:
+def encode_nmea(obj: Gga | Gns | Rmc | Vtg | Gsa | Zda | NmeaSentence) -> bytes:
     """Encode any object :class:`NmeaFormat` decodes (the inverse of its ``parse``)."""
+    if isinstance(obj, Gns):
+        fields = [_format_time_nmea(obj.time_utc), *format_lat(obj.lat_deg or 0.0), *format_lon(obj.lon_deg or 0.0),
+                  obj.mode, "" if obj.num_sats is None else f"{obj.num_sats:02d}", _opt_f(obj.hdop, ".2f"),
+                  _opt_f(obj.altitude_msl_m, ".3f"), _opt_f(obj.geoid_sep_m, ".3f"), "", ""]
+        if obj.lat_deg is None:
+            fields[1:5] = ["", "", "", ""]
+        if obj.nav_status is not None:
+            fields.append(obj.nav_status)
+        return build_sentence(obj.talker, "GNS", fields)
     if isinstance(obj, Gga):
         if obj.quality == 0:
             return build_gga(obj.time_utc or _dt.time(), 0.0, 0.0, 0.0, 0.0, quality=0, talker=obj.talker)
@@ -184,6 +225,16 @@ def encode_nmea(obj: Gga | Rmc | Vtg | Gsa | Zda | NmeaSentence) -> bytes:
         return build_zda(obj.time_utc or _dt.time(), obj.date or _dt.date(2000, 1, 1), obj.zone_hours,
                          obj.zone_minutes, obj.talker)
     return build_sentence(obj.talker, obj.kind, obj.fields)
+
+
+def _format_time_nmea(t: _dt.time | None) -> str:
+    if t is None:
+        return ""
+    return f"{t.hour:02d}{t.minute:02d}{t.second:02d}.{t.microsecond // 10000:02d}"
+
+
+def _opt_f(v: float | None, fmt: str) -> str:
+    return "" if v is None else format(v, fmt)
 
 
 def _date_ddmmyy(d: str) -> _dt.date | None:
@@ -246,6 +297,23 @@ def _gga(talker: str, f: list[str]) -> Gga:
         float(f[8]) if f[8] else None,
         float(f[9]) if f[9] else None,
         float(f[11]) if f[11] else None,
+    )
+
+
+def _gns(talker: str, f: list[str]) -> Gns:
+    if len(f) < 13:
+        raise ValueError("GNS needs at least 12 fields")
+    return Gns(
+        talker,
+        _TIME_CACHE.get(f[1]) or _parse_time(f[1]),
+        _lat(f[2], f[3]),
+        _lon(f[4], f[5]),
+        f[6],
+        int(f[7]) if f[7] else None,
+        float(f[8]) if f[8] else None,
+        float(f[9]) if f[9] else None,
+        float(f[10]) if f[10] else None,
+        f[13] if len(f) > 13 and f[13] else None,
     )
 
 
@@ -317,8 +385,8 @@ _HEX2 = {**{f"{i:02X}".encode(): i for i in range(256)}, **{f"{i:02x}".encode():
 #: The same, pre-XORed with the framing bytes '$', '*', the two hex digits, CR and LF.
 _HEX2_FRAMED = {k: v ^ 0x24 ^ 0x2A ^ k[0] ^ k[1] ^ 0x0D ^ 0x0A for k, v in _HEX2.items()}
 
-_PARSERS: dict[str, Callable[[str, list[str]], Gga | Rmc | Vtg | Gsa | Zda]] = {
-    "GGA": _gga, "RMC": _rmc, "VTG": _vtg, "GSA": _gsa, "ZDA": _zda}
+_PARSERS: dict[str, Callable[[str, list[str]], Gga | Gns | Rmc | Vtg | Gsa | Zda]] = {
+    "GGA": _gga, "GNS": _gns, "RMC": _rmc, "VTG": _vtg, "GSA": _gsa, "ZDA": _zda}
 
 
 def sentence_ok(frame: bytes) -> bool:
@@ -372,6 +440,8 @@ class NmeaFormat:
         if not 11 <= max_len <= 1024:
             raise ValueError(f"max_len {max_len} outside [11, 1024]")
         self.max_len = max_len
+        #: sentences accepted with an LF-only line end (NMEA wants CR LF; many receivers and loggers send LF)
+        self.lf_only = 0
 
     @staticmethod
     def encode(obj: Any) -> bytes:
@@ -389,11 +459,22 @@ class NmeaFormat:
             return BAD_LENGTH
         return end + 1 - start
 
-    #: framing and checksum of one candidate sentence
-    check = staticmethod(sentence_ok_fast)
+    def check(self, frame: bytes) -> bool:
+        """Framing and checksum of one candidate (:func:`sentence_ok_fast`); a line ended by LF alone is
+        checked with its checksum at ``[-4:-2]`` and counted in :attr:`lf_only`."""
+        if frame[-2] == 0x0D:
+            return sentence_ok_fast(frame)
+        if len(frame) < 10 or frame[-4] != 0x2A or frame[-1] != 0x0A or frame[0] != 0x24:
+            return False
+        want = _HEX2.get(frame[-3:-1])
+        if want is None or nmea_checksum(frame[1:-4]) != want:
+            return False
+        self.lf_only += 1
+        return True
 
-    def parse(self, frame: bytes) -> NmeaSentence | Gga | Rmc | Vtg | Gsa | Zda:
-        parts = frame[1:-5].decode("ascii").split(",")
+    def parse(self, frame: bytes) -> NmeaSentence | Gga | Gns | Rmc | Vtg | Gsa | Zda:
+        end = -5 if frame[-2] == 0x0D else -4
+        parts = frame[1:end].decode("ascii").split(",")
         head = _HEADS.get(parts[0])
         if head is None:
             head = _classify_head(parts[0])
@@ -404,7 +485,7 @@ class NmeaFormat:
 
 
 #: A typed sentence parser: (talker, the split sentence) -> the sentence object.
-_Parser = Callable[[str, list[str]], Gga | Rmc | Vtg | Gsa | Zda]
+_Parser = Callable[[str, list[str]], Gga | Gns | Rmc | Vtg | Gsa | Zda]
 _HEADS: dict[str, tuple[str, str, _Parser | None]] = {}
 
 

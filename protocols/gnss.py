@@ -22,12 +22,14 @@ __all__ = [
     "FAA_MODE",
     "GPS_EPOCH",
     "GPS_UTC_LEAP_S",
+    "GPS_UTC_LEAP_TABLE",
     "NMEA_SENTENCES",
     "UBX_MESSAGES",
     "GnssFix",
     "GnssOutputSet",
     "build_epoch",
     "gps_time_of_week_ms",
+    "gps_utc_offset_s",
     "nav_pvt_from_fix",
     "nav_status_from_fix",
 ]
@@ -35,6 +37,26 @@ __all__ = [
 GPS_EPOCH = _dt.datetime(1980, 1, 6, tzinfo=_dt.UTC)
 #: GPS - UTC in seconds since 2017-01-01 (IERS Bulletin C: no leap second announced since).
 GPS_UTC_LEAP_S = 18
+#: GPS - UTC (s) from each date on: the leap seconds since the GPS epoch, from the IERS table of TAI - UTC
+#: (``Leap_Second.dat`` of the IERS Earth Orientation Centre, Bulletin C; GPS - UTC = TAI - UTC - 19 s).
+GPS_UTC_LEAP_TABLE: tuple[tuple[_dt.date, int], ...] = (
+    (_dt.date(1980, 1, 6), 0), (_dt.date(1981, 7, 1), 1), (_dt.date(1982, 7, 1), 2), (_dt.date(1983, 7, 1), 3),
+    (_dt.date(1985, 7, 1), 4), (_dt.date(1988, 1, 1), 5), (_dt.date(1990, 1, 1), 6), (_dt.date(1991, 1, 1), 7),
+    (_dt.date(1992, 7, 1), 8), (_dt.date(1993, 7, 1), 9), (_dt.date(1994, 7, 1), 10), (_dt.date(1996, 1, 1), 11),
+    (_dt.date(1997, 7, 1), 12), (_dt.date(1999, 1, 1), 13), (_dt.date(2006, 1, 1), 14), (_dt.date(2009, 1, 1), 15),
+    (_dt.date(2012, 7, 1), 16), (_dt.date(2015, 7, 1), 17), (_dt.date(2017, 1, 1), GPS_UTC_LEAP_S),
+)
+
+
+def gps_utc_offset_s(utc: _dt.datetime | _dt.date) -> int:
+    """GPS - UTC (s) at a UTC instant (:data:`GPS_UTC_LEAP_TABLE`; 0 before the GPS epoch)."""
+    d = utc.date() if isinstance(utc, _dt.datetime) else utc
+    n = 0
+    for start, leap in GPS_UTC_LEAP_TABLE:
+        if d < start:
+            break
+        n = leap
+    return n
 NMEA_SENTENCES = ("RMC", "VTG", "GGA", "GSA", "ZDA")
 #: NMEA 2.3 mode indicator (RMC/VTG) for each GGA fix quality.
 FAA_MODE = {1: "A", 2: "D", 4: "R", 5: "F", 6: "E"}
@@ -93,8 +115,8 @@ class GnssOutputSet:
 
 
 def gps_time_of_week_ms(utc: _dt.datetime) -> int:
-    """GPS time of week, ms, of a UTC instant (GPS = UTC + :data:`GPS_UTC_LEAP_S`)."""
-    dt = utc - GPS_EPOCH + _dt.timedelta(seconds=GPS_UTC_LEAP_S)
+    """GPS time of week, ms, of a UTC instant (GPS = UTC + the leap seconds of that date, :func:`gps_utc_offset_s`)."""
+    dt = utc - GPS_EPOCH + _dt.timedelta(seconds=gps_utc_offset_s(utc))
     ms = dt.days * 86_400_000 + dt.seconds * 1000 + dt.microseconds // 1000
     return ms % (7 * 86_400_000)
 

@@ -1,9 +1,11 @@
 """GNSS receiver: fixes as NMEA GGA + RMC on an RS422 link, the PPS line, outages and glitches.
 
-At every epoch (whole UTC seconds at 1 Hz) the receiver raises PPS (latched by the FPGA; its
-edge carries a Gaussian jitter, the paper's "second pulse accuracy 50 ns" read as 95 %) and,
-``latency_s`` later, writes the sentences of that epoch; at 9600 baud a GGA + RMC pair takes
-~0.15 s on the wire.
+Epochs come at ``rate_hz`` on a grid aligned to whole UTC seconds; PPS rises at every whole UTC second only
+(a timepulse is 1 Hz at any navigation rate; latched by the FPGA; its edge carries a Gaussian jitter, the
+paper's "second pulse accuracy 50 ns" read as 95 %); ``latency_s`` after each epoch the receiver writes the
+sentences of that epoch. NAV-STATUS ``msss`` counts from power-on (scenario t = 0), ``ttff`` is the time of
+the first epoch with a fix; without a fix the accuracies are reported unknown (:data:`NO_FIX_ACC_M`). At
+9600 baud a GGA + RMC pair takes ~0.15 s on the wire.
 
 Errors (:class:`GnssErrorModel`; base paper figures, docs/architecture.md, read as 95 % bounds,
 docs/decisions.md D1): horizontal position < 10 m (95 % radial: 4.08 m per axis), vertical
@@ -43,11 +45,17 @@ from protocols.gnss import GnssFix, GnssOutputSet, build_epoch
 from ..links.base import Link
 from ..world.trajectory import Trajectory
 
-__all__ = ["RADIAL_95", "GnssConfig", "GnssErrorModel", "GnssErrors", "GnssGlitch", "GnssOutage", "GnssReceiver"]
+__all__ = ["NO_FIX_ACC_M", "RADIAL_95", "GnssConfig", "GnssErrorModel", "GnssErrors", "GnssGlitch", "GnssOutage",
+           "GnssReceiver"]
 
 DEG = math.pi / 180.0
 #: PRNs reported in GSA / numSV (a fixed, plausible constellation; the count follows ``num_sats``).
 _SAT_IDS = (2, 5, 6, 12, 13, 15, 17, 19, 24, 25, 29, 30, 1, 3, 7, 9, 10, 14, 18, 20, 21, 22, 23, 26)
+#: accuracies a receiver without a fix reports (UBX-NAV-PVT hAcc/vAcc, sAcc, tAcc): "unknown", the largest values
+#: of their fields that the message's builders accept (hAcc/vAcc U4 mm: 4294967.295 m)
+NO_FIX_ACC_M = 4294967.295
+NO_FIX_SACC_MPS = 4294967.295
+NO_FIX_TACC_NS = 4294967295
 #: 95 % radius of a circular 2-D normal error, in per-axis sigmas: sqrt(-2 ln 0.05).
 RADIAL_95 = math.sqrt(-2.0 * math.log(0.05))
 #: WGS-84 from its defining constants (protocols.constants), for pymap3d's ENU -> geodetic conversion.
@@ -185,6 +193,12 @@ class GnssReceiver:
         self.no_fix_epochs = 0
         self.glitched_fixes = 0
         self.degraded_fixes = 0
+        #: PPS pulses raised (1 Hz at any rate_hz, none without a fix)
+        self.pps_pulses = 0
+        self._t0 = 0.0
+        self._k = 0
+        #: scenario time of the first epoch with a fix (ttff), None before it
+        self._first_fix_t: float | None = None
 
     # -- injected faults (emulator.faults) ----------------------------------------------------------
     def add_outage(self, start_s: float, duration_s: float) -> None:
@@ -207,13 +221,20 @@ class GnssReceiver:
         return self._degraded.get(key) if self._degraded is not None else None
 
     def start(self) -> None:
-        """Schedule the first epoch at the first whole UTC second at or after t = 0."""
+        """Schedule the first epoch at the first whole UTC second at or after t = 0 (the receiver's power-on is
+        t = 0: ``msss`` counts from there)."""
         frac = self.epoch.microsecond / 1e6
-        t0 = 0.0 if frac == 0 else 1.0 - frac
-        self._schedule(t0)
+        self._t0 = 0.0 if frac == 0 else 1.0 - frac
+        self._k = 0
+        self._schedule(self._t0)
 
     def _schedule(self, t: float) -> None:
         self.link.loop.call_at(t, self._epoch, t)
+
+    def _is_whole_second(self, t: float) -> bool:
+        """Whether the epoch at scenario time ``t`` is a whole UTC second (PPS is 1 Hz at any navigation rate)."""
+        u = t + self.epoch.microsecond / 1e6
+        return abs(u - round(u)) < 1e-6
 
     def has_fix(self, t: float) -> bool:
         """No fix inside an outage and for ``reacquisition_s`` after it."""
@@ -226,11 +247,15 @@ class GnssReceiver:
 
     def _epoch(self, t: float) -> None:
         fix = self.has_fix(t)
-        if fix and self.pps is not None:
+        if fix and self.pps is not None and self._is_whole_second(t):
             jitter = self.rng.standard_normal() * self.cfg.errors.pps_jitter_ns * 1e-9
             self.pps(t + jitter)
+            self.pps_pulses += 1
+        if fix and self._first_fix_t is None:
+            self._first_fix_t = t
         self.link.loop.call_at(t + self.cfg.latency_s, self._emit, t, fix)
-        self._schedule(t + 1.0 / self.cfg.rate_hz)
+        self._k += 1
+        self._schedule(self._t0 + self._k / self.cfg.rate_hz)  # no accumulated rounding: PPS stays on the second
 
     def _emit(self, t: float, fix: bool) -> None:
         if not fix:
@@ -255,12 +280,24 @@ class GnssReceiver:
             num_sats = int(self._deg("num_sats") if self._deg("num_sats") is not None else num_sats)  # type: ignore[arg-type]
             hdop = float(self._deg("hdop") if self._deg("hdop") is not None else hdop)  # type: ignore[arg-type]
             fq = int(self._deg("fix_quality") if self._deg("fix_quality") is not None else fq)  # type: ignore[arg-type]
+        t = (utc - self.epoch).total_seconds()
+        msss = max(0, round(t * 1000.0))  # ms since start-up (power-on at t = 0)
+        ttff = 0 if self._first_fix_t is None else round(self._first_fix_t * 1000.0)
+        if not fix_type:
+            # no fix: the receiver reports its accuracies as unknown (U4 / U2 at their largest valid values; the
+            # DOPs at 99.99 as NMEA receivers print them in GGA/GSA without a fix)
+            return GnssFix(
+                utc=utc, lat_deg=lat_deg, lon_deg=lon_deg, height_m=h_m, geoid_sep_m=cfg.geoid_sep_m,
+                vel_enu_mps=vel_enu, fix_type=0, quality=0, sat_ids=(), hdop=99.99, vdop=99.99, pdop=99.99,
+                h_acc_m=NO_FIX_ACC_M, v_acc_m=NO_FIX_ACC_M, s_acc_mps=NO_FIX_SACC_MPS, head_acc_deg=180.0,
+                t_acc_ns=NO_FIX_TACC_NS, ttff_ms=ttff, msss_ms=msss,
+            )
         return GnssFix(
             utc=utc, lat_deg=lat_deg, lon_deg=lon_deg, height_m=h_m, geoid_sep_m=cfg.geoid_sep_m, vel_enu_mps=vel_enu,
             fix_type=fix_type, quality=fq if quality is None else quality,
             sat_ids=_SAT_IDS[: max(0, min(num_sats, len(_SAT_IDS)))] if fix_type else (), hdop=hdop,
             h_acc_m=e.pos_sigma_h_m * math.sqrt(2.0), v_acc_m=e.pos_sigma_v_m,
-            s_acc_mps=e.vel_sigma_h_mps * math.sqrt(2.0),
+            s_acc_mps=e.vel_sigma_h_mps * math.sqrt(2.0), ttff_ms=ttff, msss_ms=msss,
         )
 
     def sentences(self, t: float, fix: bool = True) -> bytes:

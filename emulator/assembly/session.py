@@ -151,6 +151,10 @@ class Emulator:
         mag = getattr(self.sensors, "mag", None) if self.replay is None else None
         self.fpga = VirtualFpga(loop, fcfg, fpga_ports, uart_fpga, gyro, accel, rec, monitor=ext.get("monitor"),
                                 mag=mag)
+        gnss_port = ext.get("gnss")
+        if gnss_port is not None and getattr(gnss_port, "pps_line", None):
+            # an external receiver's PPS on a modem line (serial:// ?pps=dcd|cts): latched like the modelled one's
+            gnss_port.on_pps = self._pps  # type: ignore[attr-defined]
         self.dsp = self.build_dsp(uart_dsp, rx_cfg, rec)
         if scn.faults and self.replay is None:  # bound now: a fault on a missing device fails before the run
             self.faults = FaultScheduler(self.fault_targets(), scn.faults, self.seed, rec)

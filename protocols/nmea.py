@@ -32,6 +32,7 @@ from .nmea_build import (
     NMEA_MAX_LEN,
     build_gga,
     build_gsa,
+    build_gsv,
     build_rmc,
     build_sentence,
     build_vtg,
@@ -53,6 +54,7 @@ __all__ = [
     "Gga",
     "Gns",
     "Gsa",
+    "Gsv",
     "NmeaFormat",
     "NmeaSentence",
     "Rmc",
@@ -60,6 +62,7 @@ __all__ = [
     "Zda",
     "build_gga",
     "build_gsa",
+    "build_gsv",
     "build_rmc",
     "build_sentence",
     "build_vtg",
@@ -131,6 +134,8 @@ class Rmc:
     course_deg: float | None
     date: _dt.date | None
     mode: str | None
+    #: NMEA 4.10 navigational status (13th field), None in the 2.3 layout
+    nav_status: str | None = None
 
 
 @fast_frozen_init
@@ -157,6 +162,22 @@ class Gsa:
     pdop: float | None
     hdop: float | None
     vdop: float | None
+    #: NMEA 4.10 GNSS system id (18th field: 1 GPS, 2 GLONASS, 3 Galileo, 4 BeiDou), None in the 2.3 layout
+    system_id: int | None = None
+
+
+@fast_frozen_init
+@dataclass(frozen=True, slots=True)
+class Gsv:
+    """One GSV sentence: ``sats`` = (number, elevation deg, azimuth deg, C/N0 dBHz) with None for empty fields;
+    ``signal_id`` (NMEA 4.10) or None."""
+
+    talker: str
+    num_msgs: int
+    msg_num: int
+    num_sv: int
+    sats: tuple[tuple[int, int | None, int | None, int | None], ...]
+    signal_id: int | None = None
 
 
 @fast_frozen_init
@@ -197,8 +218,16 @@ def _parse_time(s: str) -> _dt.time | None:
     return t
 
 
-def encode_nmea(obj: Gga | Gns | Rmc | Vtg | Gsa | Zda | NmeaSentence) -> bytes:
+def encode_nmea(obj: Gga | Gns | Gsv | Rmc | Vtg | Gsa | Zda | NmeaSentence) -> bytes:
     """Encode any object :class:`NmeaFormat` decodes (the inverse of its ``parse``)."""
+    if isinstance(obj, Gsv):
+        fields = [str(obj.num_msgs), str(obj.msg_num), f"{obj.num_sv:02d}"]
+        for prn, elev, az, snr in obj.sats:
+            fields += [f"{prn:02d}", "" if elev is None else f"{elev:02d}", "" if az is None else f"{az:03d}",
+                       "" if snr is None else f"{snr:02d}"]
+        if obj.signal_id is not None:
+            fields.append(f"{obj.signal_id:X}")
+        return build_sentence(obj.talker, "GSV", fields)
     if isinstance(obj, Gns):
         fields = [_format_time_nmea(obj.time_utc), *format_lat(obj.lat_deg or 0.0), *format_lon(obj.lon_deg or 0.0),
                   obj.mode, "" if obj.num_sats is None else f"{obj.num_sats:02d}", _opt_f(obj.hdop, ".2f"),
@@ -216,11 +245,13 @@ def encode_nmea(obj: Gga | Gns | Rmc | Vtg | Gsa | Zda | NmeaSentence) -> bytes:
     if isinstance(obj, Rmc):
         date = obj.date or _dt.date(2000, 1, 1)
         return build_rmc(obj.time_utc or _dt.time(), date, obj.lat_deg or 0.0, obj.lon_deg or 0.0, obj.speed_mps or 0.0,
-                         obj.course_deg or 0.0, valid=obj.valid, mode=obj.mode or "", talker=obj.talker)
+                         obj.course_deg or 0.0, valid=obj.valid, mode=obj.mode or "", talker=obj.talker,
+                         nav_status=obj.nav_status)
     if isinstance(obj, Vtg):
         return build_vtg(obj.course_true_deg, obj.speed_mps, obj.mode or "", obj.course_mag_deg, obj.talker)
     if isinstance(obj, Gsa):
-        return build_gsa(obj.fix_type, obj.sat_ids, obj.pdop, obj.hdop, obj.vdop, obj.mode, obj.talker)
+        return build_gsa(obj.fix_type, obj.sat_ids, obj.pdop, obj.hdop, obj.vdop, obj.mode, obj.talker,
+                         system_id=obj.system_id)
     if isinstance(obj, Zda):
         return build_zda(obj.time_utc or _dt.time(), obj.date or _dt.date(2000, 1, 1), obj.zone_hours,
                          obj.zone_minutes, obj.talker)
@@ -331,6 +362,7 @@ def _rmc(talker: str, f: list[str]) -> Rmc:
         float(f[8]) if f[8] else None,
         _DATE_CACHE.get(f[9]) or _date_ddmmyy(f[9]),
         f[12] if len(f) > 12 and f[12] else None,
+        f[13] if len(f) > 13 and f[13] else None,
     )
 
 
@@ -355,7 +387,23 @@ def _gsa(talker: str, f: list[str]) -> Gsa:
     except KeyError:
         ids = tuple(int(s) if s else None for s in f[3:15])
     return Gsa(talker, f[1], int(f[2] or 1), ids, float(f[15]) if f[15] else None, float(f[16]) if f[16] else None,
-               float(f[17]) if f[17] else None)
+               float(f[17]) if f[17] else None, int(f[18], 16) if len(f) > 18 and f[18] else None)
+
+
+def _gsv(talker: str, f: list[str]) -> Gsv:
+    if len(f) < 4:
+        raise ValueError("GSV needs at least 3 fields")
+    n_sat_fields = len(f) - 4
+    signal_id = None
+    if n_sat_fields % 4 == 1:  # NMEA 4.10: a trailing signal id
+        signal_id = int(f[-1], 16) if f[-1] else None
+        n_sat_fields -= 1
+    if n_sat_fields % 4:
+        raise ValueError("GSV satellite blocks are 4 fields each")
+    sats = tuple((int(f[4 + 4 * i]), int(f[5 + 4 * i]) if f[5 + 4 * i] else None,
+                  int(f[6 + 4 * i]) if f[6 + 4 * i] else None, int(f[7 + 4 * i]) if f[7 + 4 * i] else None)
+                 for i in range(n_sat_fields // 4))
+    return Gsv(talker, int(f[1]), int(f[2]), int(f[3]), sats, signal_id)
 
 
 #: Satellite-ID strings of GSA slots (NMEA writes 2 digits, some receivers 1 or 3).
@@ -385,8 +433,8 @@ _HEX2 = {**{f"{i:02X}".encode(): i for i in range(256)}, **{f"{i:02x}".encode():
 #: The same, pre-XORed with the framing bytes '$', '*', the two hex digits, CR and LF.
 _HEX2_FRAMED = {k: v ^ 0x24 ^ 0x2A ^ k[0] ^ k[1] ^ 0x0D ^ 0x0A for k, v in _HEX2.items()}
 
-_PARSERS: dict[str, Callable[[str, list[str]], Gga | Gns | Rmc | Vtg | Gsa | Zda]] = {
-    "GGA": _gga, "GNS": _gns, "RMC": _rmc, "VTG": _vtg, "GSA": _gsa, "ZDA": _zda}
+_PARSERS: dict[str, Callable[[str, list[str]], Gga | Gns | Gsv | Rmc | Vtg | Gsa | Zda]] = {
+    "GGA": _gga, "GNS": _gns, "GSV": _gsv, "RMC": _rmc, "VTG": _vtg, "GSA": _gsa, "ZDA": _zda}
 
 
 def sentence_ok(frame: bytes) -> bool:
@@ -472,7 +520,7 @@ class NmeaFormat:
         self.lf_only += 1
         return True
 
-    def parse(self, frame: bytes) -> NmeaSentence | Gga | Gns | Rmc | Vtg | Gsa | Zda:
+    def parse(self, frame: bytes) -> NmeaSentence | Gga | Gns | Gsv | Rmc | Vtg | Gsa | Zda:
         end = -5 if frame[-2] == 0x0D else -4
         parts = frame[1:end].decode("ascii").split(",")
         head = _HEADS.get(parts[0])
@@ -485,7 +533,7 @@ class NmeaFormat:
 
 
 #: A typed sentence parser: (talker, the split sentence) -> the sentence object.
-_Parser = Callable[[str, list[str]], Gga | Gns | Rmc | Vtg | Gsa | Zda]
+_Parser = Callable[[str, list[str]], Gga | Gns | Gsv | Rmc | Vtg | Gsa | Zda]
 _HEADS: dict[str, tuple[str, str, _Parser | None]] = {}
 
 

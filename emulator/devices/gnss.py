@@ -46,11 +46,34 @@ from ..links.base import Link
 from ..world.trajectory import Trajectory
 
 __all__ = ["NO_FIX_ACC_M", "RADIAL_95", "GnssConfig", "GnssErrorModel", "GnssErrors", "GnssGlitch", "GnssOutage",
-           "GnssReceiver"]
+           "GnssReceiver", "constellation"]
 
 DEG = math.pi / 180.0
 #: PRNs reported in GSA / numSV (a fixed, plausible constellation; the count follows ``num_sats``).
 _SAT_IDS = (2, 5, 6, 12, 13, 15, 17, 19, 24, 25, 29, 30, 1, 3, 7, 9, 10, 14, 18, 20, 21, 22, 23, 26)
+#: satellite numbers per system talker, in NMEA 4.10 numbering (protocols.nmea_build.SV_NUMBERS): GPS as above,
+#: GLONASS 65-96, Galileo 1-36, BeiDou 1-63
+_SYSTEM_SATS = {"GP": _SAT_IDS, "GL": (65, 66, 71, 72, 73, 79, 80, 81, 86, 87, 88, 70),
+                "GA": (2, 3, 5, 7, 8, 11, 12, 19, 24, 25, 26, 30), "GB": (6, 9, 11, 12, 14, 16, 19, 20, 22, 23, 29, 32)}
+_SYSTEM_SATS["BD"] = _SYSTEM_SATS["GB"]
+
+
+def constellation(talker: str, n: int) -> tuple[tuple[str, int, int, int, int | None], ...]:
+    """``n`` satellites in view for ``talker`` as (system talker, NMEA 4.10 number, elevation deg, azimuth deg,
+    C/N0 dBHz): a fixed sky (not propagated from orbits), spread over elevation 15-85 deg and the whole azimuth;
+    ``GN`` alternates GPS and GLONASS."""
+    systems = ("GP", "GL") if talker == "GN" else (talker if talker in _SYSTEM_SATS else "GP",)
+    out = []
+    used = dict.fromkeys(systems, 0)
+    for i in range(max(0, n)):
+        sys_tk = systems[i % len(systems)]
+        ids = _SYSTEM_SATS[sys_tk]
+        k = used[sys_tk]
+        if k >= len(ids):
+            break
+        used[sys_tk] += 1
+        out.append((sys_tk, ids[k], 15 + (37 * i) % 71, (73 * i + 20) % 360, 32 + (11 * i) % 16))
+    return tuple(out)
 #: accuracies a receiver without a fix reports (UBX-NAV-PVT hAcc/vAcc, sAcc, tAcc): "unknown", the largest values
 #: of their fields that the message's builders accept (hAcc/vAcc U4 mm: 4294967.295 m)
 NO_FIX_ACC_M = 4294967.295
@@ -105,6 +128,8 @@ class GnssConfig:
     sentences: tuple[str, ...] = ("GGA", "RMC")
     ubx: tuple[str, ...] = ()
     talker: str = "GP"
+    #: NMEA layout: "2.3" or "4.10" (RMC navStatus, GSA systemId, GSV signalId)
+    nmea_version: str = "2.3"
     num_sats: int = 12
     hdop: float = 0.8
     geoid_sep_m: float = 0.0
@@ -268,7 +293,8 @@ class GnssReceiver:
     @property
     def _output(self) -> GnssOutputSet:
         cfg = self.cfg
-        return GnssOutputSet(nmea=tuple(cfg.sentences), ubx=tuple(cfg.ubx), talker=cfg.talker, rate_hz=cfg.rate_hz)
+        return GnssOutputSet(nmea=tuple(cfg.sentences), ubx=tuple(cfg.ubx), talker=cfg.talker, rate_hz=cfg.rate_hz,
+                             version=cfg.nmea_version)
 
     def _fix(self, utc: _dt.datetime, lat_deg: float, lon_deg: float, h_m: float,
              vel_enu: tuple[float, float, float], fix_type: int = 3, quality: int | None = None) -> GnssFix:
@@ -289,13 +315,15 @@ class GnssReceiver:
             return GnssFix(
                 utc=utc, lat_deg=lat_deg, lon_deg=lon_deg, height_m=h_m, geoid_sep_m=cfg.geoid_sep_m,
                 vel_enu_mps=vel_enu, fix_type=0, quality=0, sat_ids=(), hdop=99.99, vdop=99.99, pdop=99.99,
+                sky=tuple((e[0], e[1], e[2], e[3], None) for e in constellation(cfg.talker, cfg.num_sats)),
                 h_acc_m=NO_FIX_ACC_M, v_acc_m=NO_FIX_ACC_M, s_acc_mps=NO_FIX_SACC_MPS, head_acc_deg=180.0,
                 t_acc_ns=NO_FIX_TACC_NS, ttff_ms=ttff, msss_ms=msss,
             )
+        sky = constellation(cfg.talker, num_sats)
         return GnssFix(
             utc=utc, lat_deg=lat_deg, lon_deg=lon_deg, height_m=h_m, geoid_sep_m=cfg.geoid_sep_m, vel_enu_mps=vel_enu,
             fix_type=fix_type, quality=fq if quality is None else quality,
-            sat_ids=_SAT_IDS[: max(0, min(num_sats, len(_SAT_IDS)))] if fix_type else (), hdop=hdop,
+            sat_ids=tuple(e[1] for e in sky), sky=sky, hdop=hdop,
             h_acc_m=e.pos_sigma_h_m * math.sqrt(2.0), v_acc_m=e.pos_sigma_v_m,
             s_acc_mps=e.vel_sigma_h_mps * math.sqrt(2.0), ttff_ms=ttff, msss_ms=msss,
         )

@@ -49,8 +49,10 @@ DESCRIPTIONS: dict[str, str] = {
     "GnssSpec.enabled": "whether the receiver is present (false: no fixes, no PPS)",
     "GnssSpec.preset": "named receiver preset whose figures the fields below override",
     "GnssSpec.rate_hz": "fix rate, Hz",
-    "GnssSpec.latency_s": "delay from the PPS edge to the first sentence, s",
-    "GnssSpec.talker": "NMEA talker id (GP, GN, ...)",
+    "GnssSpec.latency_s": "delay from the epoch (PPS edge) to the first byte, s; also the firmware's receiver "
+                          "latency for time tags without PPS",
+    "GnssSpec.talker": "NMEA talker id (GP, GN, ...); satellite numbers follow NMEA 4.10 (GLONASS 65-96)",
+    "GnssSpec.nmea_version": "NMEA layout: 2.3, or 4.10 (RMC navStatus, GSA systemId, GSV signalId)",
     "GnssSpec.geoid_sep_m": "geoid separation reported in GGA, m",
     "GnssSpec.fix_quality": "GGA fix quality to report (default: from the fix)",
     "GnssSpec.num_sats": "satellites in use reported in GGA",

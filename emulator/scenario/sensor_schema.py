@@ -140,7 +140,7 @@ class RecordedGnssSpec(Model):
 
 
 #: NMEA sentences the modelled receiver can emit.
-NmeaSentenceName = Literal["GGA", "RMC", "VTG", "GSA", "ZDA"]
+NmeaSentenceName = Literal["GGA", "RMC", "VTG", "GSA", "GSV", "ZDA"]
 DEFAULT_NMEA_SENTENCES: tuple[NmeaSentenceName, ...] = ("GGA", "RMC")
 
 
@@ -154,6 +154,7 @@ class GnssSpec(Model):
     ubx: list[Literal["NAV-PVT", "NAV-STATUS"]] = Field(
         default_factory=list, description="UBX messages per epoch, after the NMEA sentences")
     talker: Literal["GP", "GN", "GL", "GA", "GB", "BD"] = "GP"
+    nmea_version: Literal["2.3", "4.10"] = "2.3"
     geoid_sep_m: float = 0.0
     fix_quality: Literal[1, 2, 4, 5] | None = None
     reacquisition_s: float | None = Field(None, ge=0, lt=1.0, description="paper: < 1 s")

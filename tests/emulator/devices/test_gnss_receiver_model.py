@@ -106,3 +106,47 @@ def test_a_2016_epoch_gives_the_itow_of_17_leap_seconds() -> None:
     peer = next(m for _, m in UBXReader(io.BytesIO(bytes(__import__("protocols.ubx", fromlist=["x"]).encode_nav_pvt(
         pvt))), protfilter=2))
     assert peer.iTOW == pvt.iTOW
+
+
+@pytest.mark.parametrize(("talker", "lo", "hi"), [("GL", 65, 96), ("GA", 1, 36), ("GB", 1, 63), ("GP", 1, 32)])
+def test_satellite_numbers_follow_nmea_4_10_per_constellation(talker: str, lo: int, hi: int) -> None:
+    from protocols.nmea import Gsa, Gsv
+
+    cfg = GnssConfig(talker=talker, sentences=("GGA", "GSA", "GSV"), num_sats=10)
+    _rx, got, _ = _run(cfg, 0.5)
+    gsa = next(s for _, s in got if isinstance(s, Gsa))
+    gsv = [s for _, s in got if isinstance(s, Gsv)]
+    ids = [i for i in gsa.sat_ids if i is not None]
+    assert len(ids) == 10 and all(lo <= i <= hi for i in ids)
+    assert gsv and gsv[0].num_sv == 10 and sorted(s[0] for g in gsv for s in g.sats) == sorted(ids)
+    assert all(g.talker == talker for g in gsv)
+
+
+def test_multi_gnss_nmea_4_10_sends_gsa_and_gsv_per_system_and_pynmeagps_reads_them() -> None:
+    from pynmeagps import NMEAReader
+
+    from protocols.nmea import Gsa, Gsv, Rmc
+
+    cfg = GnssConfig(talker="GN", nmea_version="4.10", sentences=("RMC", "GGA", "GSA", "GSV"), num_sats=12)
+    loop = EmulatorLoop("fast")
+    a, b = MemHub().pair("gnss", LineConfig(baud=460800), loop)
+    rx = GnssReceiver(a, StaticTrajectory(39.979, 116.339, 50.0), EPOCH, np.random.default_rng(1), cfg)
+    raw = bytearray()
+    b.on_receive = raw.extend
+
+    async def main() -> None:
+        rx.start()
+        await asyncio.sleep(0.5)
+
+    loop.run_until_complete(main())
+    loop.close()
+    objs = StreamDecoder([NmeaFormat()]).feed(bytes(raw))
+    gsa = [o for o in objs if isinstance(o, Gsa)]
+    assert [g.system_id for g in gsa] == [1, 2]  # GPS, GLONASS
+    assert all(i <= 32 for i in gsa[0].sat_ids if i) and all(65 <= i <= 96 for i in gsa[1].sat_ids if i)
+    gsv = [o for o in objs if isinstance(o, Gsv)]
+    assert {g.talker for g in gsv} == {"GP", "GL"} and all(g.signal_id == 1 for g in gsv)
+    rmc = next(o for o in objs if isinstance(o, Rmc))
+    assert rmc.nav_status == "V"
+    peer = [m for _, m in NMEAReader(io.BytesIO(bytes(raw)))]
+    assert [m.msgID for m in peer].count("GSV") == len(gsv) and peer[0].navStatus == "V"

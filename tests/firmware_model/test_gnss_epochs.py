@@ -106,3 +106,18 @@ def test_without_pps_the_tag_is_not_the_parse_tick() -> None:
     for e in ups:
         assert abs(e["t_meas_s"] - round(e["t_meas_s"])) < 1e-6  # whole seconds: the epochs' own UTC
         assert e["t_fpga_s"] - e["t_meas_s"] > latency  # parsed later than it is valid
+
+
+def test_every_gnss_counter_is_in_the_summary_from_the_start_and_documented() -> None:
+    """The summary's firmware counters (``dict(fw.counters)``) carry every GNSS cause from t = 0; docs/icd.md
+    section 5.1.1 names each one."""
+    from pathlib import Path
+
+    from firmware_model.tasks.gnss import GNSS_COUNTERS
+
+    fw = Firmware(FirmwareConfig())
+    assert set(GNSS_COUNTERS) <= set(fw.counters)
+    assert "lf_only" in fw.decoder_stats()["uart3"]
+    icd = (Path(__file__).resolve().parents[2] / "docs" / "icd.md").read_text()
+    missing = [c for c in GNSS_COUNTERS if f"`{c}`" not in icd]
+    assert not missing, missing

@@ -203,9 +203,14 @@ class Monitor:
 
     def stats(self) -> dict[str, dict[str, Any]]:
         # NMEA lines accepted with an LF-only end are counted apart (never as CRC errors)
-        return {f"{p}/{d}": {**dec.stats.as_dict(), **{"lf_only": f.lf_only for f in dec.formats
-                                                       if isinstance(f, NmeaFormat)}}
-                for (p, d), dec in self.decoders.items()}
+        out = {}
+        for (p, d), dec in self.decoders.items():
+            st = dec.stats.as_dict()
+            nmea = [f for f in dec.formats if isinstance(f, NmeaFormat)]
+            if nmea:
+                st["lf_only"] = sum(f.lf_only for f in nmea)
+            out[f"{p}/{d}"] = st
+        return out
 
 
 def _capture_rows(path: Path, mon: Monitor, links: set[str] | None) -> Iterator[FrameRow]:

@@ -325,6 +325,8 @@ class Firmware(HostTask, GnssTask):
             if full > t_us:
                 full -= 2**32
             self._t_pps_s = full / 1e6
+        if self._gnss_epoch is not None:
+            self._gnss_hold(t)
         if fr.fpga_status & _GYRO_MISSING:
             self.counters["fpga_gyro_missing"] += 1
         if self._last_counter is not None and (fr.gyro_counter - self._last_counter) % 256 != cfg.gyro_counter_step:

@@ -171,6 +171,7 @@ class GnssTask(TimeKeeping):
                 e.pos2 = (s.lat_deg * DEG, s.lon_deg * DEG)
             else:
                 e.pos3 = (s.lat_deg * DEG, s.lon_deg * DEG, s.altitude_msl_m + (s.geoid_sep_m or 0.0))
+                self._last_fix = (*e.pos3, s.quality)
             e.quality = s.quality
         elif isinstance(s, Gns):
             reason = input_guard.check_gns(s) if s.lat_deg is not None else None
@@ -193,6 +194,7 @@ class GnssTask(TimeKeeping):
                 e.pos2 = (s.lat_deg * DEG, s.lon_deg * DEG)
             else:
                 e.pos3 = (s.lat_deg * DEG, s.lon_deg * DEG, s.altitude_msl_m + (s.geoid_sep_m or 0.0))
+                self._last_fix = (*e.pos3, best)
             e.quality = best
         elif isinstance(s, Rmc):
             reason = input_guard.check_rmc(s)
@@ -265,6 +267,7 @@ class GnssTask(TimeKeeping):
             e.pos2 = (p.lat * 1e-7 * DEG, p.lon * 1e-7 * DEG)
         else:  # 3 (3-D) or 4 (GNSS + DR)
             e.pos3 = (p.lat * 1e-7 * DEG, p.lon * 1e-7 * DEG, p.height * 1e-3)
+            self._last_fix = (*e.pos3, e.quality)
         e.vel = np.array([p.velE * 1e-3, p.velN * 1e-3, -p.velD * 1e-3])
         e.vel_up = p.fixType != 2
 
@@ -388,20 +391,22 @@ class GnssTask(TimeKeeping):
             return
         if m.pos is not None:
             self.counters["gnss_fixes"] += 1
-            if m.pos_up:
-                self._last_fix = (m.pos[0], m.pos[1], m.pos[2], m.quality)
-            else:
+            if not m.pos_up:
                 # a 2-D fix: the receiver's held height (GGA) or the last 3-D one, else 0 m (alignment input only)
                 h = e.pos3[2] if e.pos3 is not None else (self._last_fix[2] if self._last_fix is not None else 0.0)
                 self._last_fix = (m.pos[0], m.pos[1], h, m.quality)
         self._gnss_ready.append((m, e))
 
-    def _gnss_poll(self, t: float) -> None:
-        """Loop side, once per tick: close an epoch held too long; hand the oldest closed one to the update."""
+    def _gnss_hold(self, t: float) -> None:
+        """Every tick (also while aligning): close an epoch held longer than ``gnss_epoch_hold_s``."""
         e = self._gnss_epoch
         if e is not None and t - e.t_first > self.cfg.gnss_epoch_hold_s:
             self.counters["gnss_epoch_timeouts"] += 1
             self._gnss_close(e)
+
+    def _gnss_poll(self, t: float) -> None:
+        """Loop side, once per tick: close an epoch held too long; hand the oldest closed one to the update."""
+        self._gnss_hold(t)
         if self._gnss_pending is None and self._gnss_ready:
             self._gnss_pending = self._gnss_ready.popleft()[0]
 

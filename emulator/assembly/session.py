@@ -26,7 +26,7 @@ from typing import Any
 from firmware_model import Firmware
 from firmware_model.calibration import load_calibration, save_calibration
 from protocols import __version__ as VERSION
-from protocols.stim import Stim210Format
+from protocols.stim import gyro_port_format
 
 from .. import early_signals
 from ..clock import EmulatorLoop, sleep_until
@@ -162,7 +162,8 @@ class Emulator:
         for name, link in self.links.items():
             fm: dict[str, Sequence[Any]] = dict(port_formats(name))
             if name == "gyro":
-                fm = {"in": [Stim210Format(scn.sensors.imu.format)]}
+                fm = {"in": [gyro_port_format(scn.sensors.imu.device, scn.sensors.imu.format,
+                                              int(scn.sensors.imu.stim300_datagram, 16))]}
             rec.tap(name, link, fm)
         for link in ext.values():
             if link.scheme != "mem":

@@ -45,6 +45,7 @@ from .compass import (
 )
 from .gnss import GnssConfig, GnssErrors, GnssGlitch, GnssOutage, GnssReceiver
 from .imu import AccelErrors, AnalogAccelerometers, GyroErrors, ImuTemperature, ImuTruthTap, Stim210Gyro
+from .imu.stim300 import Stim300Imu
 from .magnetometer import MagConfig, Magnetometer, soft_iron_matrix
 
 __all__ = [
@@ -251,9 +252,11 @@ def build_sensors(scn: Scenario, seed: int, traj: Trajectory, internal: dict[str
         gyro_src, accel_src = rec.mean_rate, rec.mean_specific_force
     gyro = None
     if "gyro" in internal:
-        gyro = Stim210Gyro(internal["gyro"], tap, device_rng(seed, "gyro"), gyro_errors(scn),
-                           fmt=s.imu.format, output=s.imu.output, trigger_rate_hz=s.imu.rate_hz,
-                           temperature=temp, source=gyro_src, lp_filter_hz=gyro_lp_filter_hz(scn))
+        kw: dict[str, Any] = {"ident": int(s.imu.stim300_datagram, 16)} if s.imu.device == "stim300" else {}
+        gyro = (Stim300Imu if s.imu.device == "stim300" else Stim210Gyro)(
+            internal["gyro"], tap, device_rng(seed, "gyro"), gyro_errors(scn),
+            fmt=s.imu.format, output=s.imu.output, trigger_rate_hz=s.imu.rate_hz,
+            temperature=temp, source=gyro_src, lp_filter_hz=gyro_lp_filter_hz(scn), **kw)
     accel = AnalogAccelerometers(tap, device_rng(seed, "accel"), accel_errors(scn), temperature=temp,
                                  source=accel_src, trigger_rate_hz=s.imu.rate_hz)
     gnss: Any = None

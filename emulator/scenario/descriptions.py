@@ -46,6 +46,8 @@ DESCRIPTIONS: dict[str, str] = {
     "ImuSpec.accel": "accelerometer error model (bias, scale factor, noise)",
     "ImuSpec.temperature": "IMU temperature profile (drives temperature-dependent errors)",
     "ImuSpec.recorded": "IMU samples from a CSV file instead of the model",
+    "ImuSpec.device": "IMU on the gyro port: stim210 (datagram letter in format) or stim300 (stim300_datagram)",
+    "ImuSpec.stim300_datagram": "STIM300 normal-mode datagram ID (TS1524 r31; 0x93 rate + acc + incl, the default)",
     "GnssSpec.enabled": "whether the receiver is present (false: no fixes, no PPS)",
     "GnssSpec.preset": "named receiver preset whose figures the fields below override",
     "GnssSpec.rate_hz": "fix rate, Hz",

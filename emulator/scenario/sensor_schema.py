@@ -92,6 +92,9 @@ class RecordedImuSpec(Model):
 class ImuSpec(Model):
     preset: str = "paper"
     format: Literal["s", "e", "j", "k", "l", "m", "n", "o", "p"] = "m"
+    device: Literal["stim210", "stim300"] = "stim210"
+    stim300_datagram: Literal["0x90", "0x91", "0x92", "0x93", "0x94", "0xA5", "0xA6", "0xA7", "0xF0", "0xF1", "0xF2",
+                              "0xF3", "0xF4", "0xF5", "0xF6", "0xF7"] = "0x93"
     output: Literal["rate", "angle"] = "rate"
     rate_hz: float = Field(200.0, gt=0, le=2000)
     lp_filter_hz: Literal[0, 16, 33, 66, 131, 262] | None = Field(

@@ -107,6 +107,18 @@ CORPUS: tuple[Quirk, ...] = (
     Quirk("nmea_4_10_rmc", "NMEA 4.10 RMC with the navStatus field (13th) as u-blox protocol 23.01+ sends",
           lambda u, a, o, h: gga(u, a, o, h) + rmc(u, a, o, nav_status="V"),
           {"gnss_updates": (">=", 0.6), "parse_errors": ("==", 0)}),
+    Quirk("cold_start_no_fix", "u-blox NEO-6M power-up before its first fix (captured output at "
+          "http://chris.cnie.de/avr/neo-6.html): $GPTXT banners, GGA and RMC with empty time and position",
+          lambda u, a, o, h: frame("GPTXT,01,01,02,u-blox ag - www.u-blox.com") + frame("GPRMC,,V,,,,,,,,,,N")
+          + frame("GPGGA,,,,,,0,00,99.99,,,,,,"),
+          {"gnss_updates": ("==", 0), "gnss_fixes": ("==", 0), "gnss_no_fix_epochs": (">=", 0.4),
+           "gnss_nmea_other": (">=", 1), "crc_errors": ("==", 0), "parse_errors": ("==", 0)}),
+    Quirk("gsa_per_system_4_10", "NMEA 4.10 multi-GNSS: one GNGSA per system with systemId (1 GPS, 2 GLONASS; "
+          "GLONASS satellites 65-96), as u-blox M8/F9 send with NMEA 4.10",
+          lambda u, a, o, h: rmc(u, a, o, talker="GN", nav_status="V") + gga(u, a, o, h, talker="GN")
+          + frame("GNGSA,A,3,02,05,06,12,,,,,,,,,1.50,0.90,1.20,1")
+          + frame("GNGSA,A,3,65,66,72,,,,,,,,,,1.50,0.90,1.20,2"),
+          {"gnss_updates": (">=", 0.6), "gnss_2d_fixes": ("==", 0), "parse_errors": ("==", 0)}),
     Quirk("nav_pvt_u_blox_7", "UBX-NAV-PVT protocol 14 (u-blox 7 receiver description): 84-byte payload",
           _nav_pvt(84), {"gnss_updates": (">=", 0.6), "gnss_pvt": (">=", 0.9), "length_errors": ("==", 0)}),
     Quirk("nav_pvt_m8", "UBX-NAV-PVT protocol 15-23 (u-blox M8 receiver description): 92-byte payload",

@@ -89,12 +89,12 @@ class SensorSet:
         return {
             "gyro_datagrams": self.gyro.datagrams_sent if self.gyro else None,
             "gnss_epochs": self.gnss.epochs_sent if self.gnss else None,
-            "gnss_pps_pulses": self.gnss.pps_pulses if self.gnss else None,
+            "gnss_pps_pulses": getattr(self.gnss, "pps_pulses", None),
             # what a host sent the receiver (UBX polls answered, CFG sets acknowledged / refused, other input)
-            "gnss_host_polls": self.gnss.host_polls if self.gnss else None,
-            "gnss_host_acks": self.gnss.host_acks if self.gnss else None,
-            "gnss_host_naks": self.gnss.host_naks if self.gnss else None,
-            "gnss_host_ignored": self.gnss.host_ignored if self.gnss else None,
+            "gnss_host_polls": getattr(self.gnss, "host_polls", None),
+            "gnss_host_acks": getattr(self.gnss, "host_acks", None),
+            "gnss_host_naks": getattr(self.gnss, "host_naks", None),
+            "gnss_host_ignored": getattr(self.gnss, "host_ignored", None),
             "psns_frames": self.psns.frames_sent if self.psns else None,
             "compass_frames": self.compass.frames_sent if self.compass else None,
             "mag_samples": self.mag.samples if self.mag else None,

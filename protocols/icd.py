@@ -19,7 +19,7 @@ from typing import Any
 from construct import Array, BytesInteger, Const, FormatField, Renamed, Struct
 from construct import Bytes as _Bytes
 
-from . import can_nav, crc, gnss, host, imu_frame, monitor, nmea, psns, stim, ubx
+from . import can_nav, crc, gnss, host, imu_frame, monitor, nmea, psns, stim, ubx, ubx_cfg
 
 __all__ = ["LINK_BAUD", "budget_rows", "generate", "spec_rows"]
 
@@ -400,6 +400,24 @@ def generate() -> str:
     w(_spec_table(ubx.NAV_PVT_SPEC) + "\n")
     w(f"UBX-NAV-STATUS payload (class 0x01, id 0x03, {ubx.NAV_STATUS_LEN} bytes):\n")
     w(_spec_table(ubx.NAV_STATUS_SPEC) + "\n")
+    w("### 5.3 UBX from the host to the receiver (`protocols/ubx_cfg.py`)\n")
+    w("The modelled u-blox answers on its own link as a real one does: a poll (the message with an empty payload; "
+      "CFG-PRT with a 1-byte portID, CFG-MSG with class and id) is answered with the message, and every CFG "
+      "message with ACK-ACK or, when it cannot be applied (another port, an unknown message, a rate above 20 Hz), "
+      "ACK-NAK. CFG-MSG rates (send every N epochs on UART1) and CFG-PRT's outProtoMask change the output at the "
+      "next epoch, CFG-RATE at the next whole UTC second; a CFG-PRT baud rate is acknowledged and reported back, "
+      "the line itself stays at `links.gnss.baud`. MON-VER reports a u-blox M8 (\"ROM CORE 3.01 (107888)\", "
+      "PROTVER=18.00). Counted in the summary's `devices`: `gnss_host_polls`, `gnss_host_acks`, `gnss_host_naks`, "
+      "`gnss_host_ignored`.\n")
+    for title, spec in (("ACK-ACK (0x05 0x01) / ACK-NAK (0x05 0x00)", ubx_cfg.ACK_SPEC),
+                        ("CFG-PRT (0x06 0x00), UART port", ubx_cfg.CFG_PRT_SPEC),
+                        ("CFG-MSG (0x06 0x01); the 3-byte set form is class, id, rate on this port",
+                         ubx_cfg.CFG_MSG_SPEC),
+                        ("CFG-RATE (0x06 0x08)", ubx_cfg.CFG_RATE_SPEC),
+                        (f"MON-VER (0x0A 0x04): then {ubx_cfg.MON_VER_EXT_LEN}-byte extension strings",
+                         ubx_cfg.MON_VER_HEAD_SPEC)):
+        w(f"{title}:\n")
+        w(_spec_table(spec) + "\n")
 
     # -- PSNS ----------------------------------------------------------------------------------
     w("## 6. Polarization sensor (link `psns`, RS232, 115200 baud; through the FPGA to `uart2`)\n")

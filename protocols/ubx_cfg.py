@@ -104,7 +104,7 @@ MON_VER_HEAD_SPEC = Struct(
 @fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class Ack:
-    """ACK-ACK (``ack`` True) or ACK-NAK of the message (``clsID``, ``msgID``)."""
+    """The payload of ACK-ACK and ACK-NAK: the acknowledged message (``clsID``, ``msgID``)."""
 
     clsID: int
     msgID: int

@@ -385,7 +385,7 @@ class Emulator:
             "nav_error": {k: v.as_dict() for k, v in rec.errors.items()},
             "nav_frames": rec.nav_count,
             "links": rec.link_summary(),
-            "link_stats": {k: dict(v.stats.as_dict(), error=v.error) for k, v in self.links.items()},
+            "link_stats": {k: dict(v.stats.as_dict(), error=v.error, **_pps_stats(v)) for k, v in self.links.items()},
             **self.dsp_sections(),
             "fpga": fpga_section(self.fpga),
             "devices": self.sensors.counters() if self.sensors is not None else {},
@@ -398,6 +398,14 @@ class Emulator:
         """The ``dsp`` and ``firmware`` sections of the summary (a split run's come from the DSP process)."""
         assert self.dsp is not None
         return dsp_sections(self.dsp)
+
+
+def _pps_stats(link: Link) -> dict[str, Any]:
+    """PPS of a port with a modem-line PPS (``serial://...?pps=dcd``): edges latched and why none came (a pty)."""
+    if not getattr(link, "pps_line", None):
+        return {}
+    return {"pps_line": link.pps_line, "pps_edges": link.pps_edges,  # type: ignore[attr-defined]
+            "pps_error": link.pps_error}  # type: ignore[attr-defined]
 
 
 def run_emulator(emu: Emulator, speed: float = 1.0, on_started: Callable[[Emulator], None] | None = None,

@@ -148,3 +148,24 @@ def test_unknown_pps_line_is_a_config_error() -> None:
             ModemPpsWatcher(0, "ri", loop, print, print)
     finally:
         loop.close()
+
+
+def test_a_run_with_pps_on_dcd_of_a_pty_reports_that_there_is_no_pps(tmp_path) -> None:
+    """End to end: a scenario puts the GNSS port on ``serial://<pty>?pps=dcd``; the run goes on (the data path is
+    the pty's) and the summary says why no PPS came."""
+    from emulator.assembly.session import run_scenario
+    from emulator.scenario.schema import Scenario
+
+    master, slave = pty.openpty()
+    try:
+        scn = Scenario.model_validate({
+            "name": "pps-on-pty", "epoch": "2019-09-18T08:14:00Z", "duration_s": 2, "mode": "realtime",
+            "origin": {"lat_deg": 39.979, "lon_deg": 116.339, "height_m": 50},
+            "links": {"gnss": {"url": f"serial://{os.ttyname(slave)}?pps=dcd", "baud": 9600}}})
+        summary = run_scenario(scn, tmp_path / "run")
+    finally:
+        os.close(master)
+        os.close(slave)
+    st = summary["link_stats"]["gnss"]
+    assert st["pps_line"] == "dcd" and st["pps_edges"] == 0
+    assert "no modem lines" in st["pps_error"] and "Errno 25" in st["pps_error"]

@@ -121,3 +121,26 @@ def test_every_gnss_counter_is_in_the_summary_from_the_start_and_documented() ->
     icd = (Path(__file__).resolve().parents[2] / "docs" / "icd.md").read_text()
     missing = [c for c in GNSS_COUNTERS if f"`{c}`" not in icd]
     assert not missing, missing
+
+
+def test_emulated_10_hz_receiver_one_update_per_epoch_tagged_from_the_1_hz_pps(tmp_path) -> None:
+    """End to end in the emulator: the modelled receiver at 10 Hz (PPS 1 Hz), 9600 baud on the receiver's line, so
+    GGA and RMC of an epoch take 70 ms on the line: every epoch after alignment is one update, tagged at
+    its epoch (whole multiple of 0.1 s after the PPS) within the PPS jitter."""
+    import json
+
+    from emulator.assembly.session import run_scenario
+    from emulator.scenario.schema import Scenario
+
+    scn = Scenario.model_validate({
+        "name": "gnss10", "epoch": "2019-09-18T08:14:00Z", "duration_s": 8,
+        "origin": {"lat_deg": 39.979, "lon_deg": 116.339, "height_m": 50},
+        "links": {"gnss": {"url": "mem://gnss", "baud": 19200}},
+        "sensors": {"gnss": {"rate_hz": 10, "latency_s": 0.02}}})
+    summary = run_scenario(scn, tmp_path / "run")
+    c = summary["firmware"]["counters"]
+    ev = [json.loads(x) for x in (tmp_path / "run" / "events.jsonl").read_text().splitlines()]
+    t = np.array([e["t_meas_s"] for e in ev if e.get("event") == "gnss_update"])
+    assert len(t) >= 10 * (8 - 2 - 1) and len(set(np.round(t * 10))) == len(t)  # one update per epoch
+    assert np.abs(t * 10 - np.round(t * 10)).max() < 1e-5 * 10  # on the 100 ms grid of the PPS (jitter 25 ns)
+    assert c["gnss_tag_pps"] >= len(t) and c["gnss_epochs"] >= 70 and c["gnss_tag_utc"] <= 1

@@ -509,19 +509,23 @@ class NmeaFormat:
 
     def check(self, frame: bytes) -> bool:
         """Framing and checksum of one candidate (:func:`sentence_ok_fast`); a line ended by LF alone is
-        checked with its checksum at ``[-4:-2]`` and counted in :attr:`lf_only`."""
+        checked with its checksum at ``[-4:-2]`` (and counted in :attr:`lf_only` when parsed)."""
         if frame[-2] == 0x0D:
             return sentence_ok_fast(frame)
         if len(frame) < 10 or frame[-4] != 0x2A or frame[-1] != 0x0A or frame[0] != 0x24:
             return False
         want = _HEX2.get(frame[-3:-1])
-        if want is None or nmea_checksum(frame[1:-4]) != want:
-            return False
-        self.lf_only += 1
-        return True
+        return want is not None and nmea_checksum(frame[1:-4]) == want
 
     def parse(self, frame: bytes) -> NmeaSentence | Gga | Gns | Gsv | Rmc | Vtg | Gsa | Zda:
-        end = -5 if frame[-2] == 0x0D else -4
+        if frame[-2] != 0x0D:
+            obj = self._parse(frame, -4)
+            self.lf_only += 1  # counted once the sentence is accepted (parse errors are counted as such)
+            return obj
+        return self._parse(frame, -5)
+
+    @staticmethod
+    def _parse(frame: bytes, end: int) -> NmeaSentence | Gga | Gns | Gsv | Rmc | Vtg | Gsa | Zda:
         parts = frame[1:end].decode("ascii").split(",")
         head = _HEADS.get(parts[0])
         if head is None:

@@ -173,3 +173,17 @@ def test_gsv_and_nmea_4_10_fields_round_trip_and_agree_with_pynmeagps():
     assert (g.svid_01, g.elv_01, g.az_01, g.cno_01, int(g.signalID, 16)) == (65, 45, 120, 40, 1)
     assert peer[1].svid_01 == 80 and peer[2].navStatus == "V" and int(peer[3].systemId) == 2
     assert peer[3].svid_01 == 65
+
+
+def test_lf_only_lines_are_accepted_and_counted_apart_from_crc_errors():
+    """A sentence ended by LF alone (no CR) decodes like its CR LF twin and is counted in ``lf_only``; a corrupted
+    one is still a CRC error; the reference scanner and the fast path count the same."""
+    good = build_gga(T, 39.979, 116.339, 50.0, 0.0)
+    lf = good[:-2] + b"\n"
+    bad = lf[:10] + b"9" + lf[11:]
+    for fast in (True, False):
+        fmt = NmeaFormat()
+        dec = StreamDecoder([fmt], fast_paths=fast)
+        got = dec.feed(lf) + dec.feed(bad) + dec.feed(good) + dec.feed(lf + lf)
+        assert got == [parse_one(NmeaFormat(), good)] * 4
+        assert fmt.lf_only == 3 and dec.stats.crc_errors == 1

@@ -255,8 +255,9 @@ kind of the previous whole epoch has arrived (the stream's composition, learned 
 `gnss_epoch_hold_s` (0.5 s) after its first byte (`gnss_epoch_timeouts`); content for an epoch already closed is
 dropped (`gnss_late_messages`).
 
-Time tags. With a PPS latched within the last 1.5 s, an epoch at UTC S + f is valid at the PPS edge of second S
-plus f (`gnss_tag_pps`). Without PPS the tag comes from the epoch's own UTC: the UTC-to-FPGA offset is the
+Time tags. With a PPS latched within the last 2 s, an epoch at UTC S + f is valid at the PPS edge of second S
+plus f: the latest PPS edge + f + whole seconds at or before the arrival of its first message (`gnss_tag_pps`).
+Without PPS the tag comes from the epoch's own UTC: the UTC-to-FPGA offset is the
 smallest (first-byte time - UTC) over the last 32 epochs (the first byte's time is the UART's time stamp of the
 chunk minus its bytes at the line rate), and the tag is UTC + offset - `gnss_latency_s`, the receiver's configured
 latency from epoch to first byte (scenario `sensors.gnss.latency_s`) (`gnss_tag_utc`); an offset step of more

@@ -12,9 +12,9 @@ measurement for the loop's measurement task) when
 
 Time of validity (FPGA time base, docs/icd.md "GNSS time tags"):
 
-* with a valid PPS (latched by the FPGA within the last 1.5 s): the PPS edge marks the whole UTC second, so
-  an epoch at UTC ``S + f`` is valid at ``t_pps + f`` (minus whole seconds until it precedes the arrival of
-  the epoch's first byte: PPS is 1 Hz at any navigation rate);
+* with a PPS (latched by the FPGA within the last 2 s): the PPS edge marks the whole UTC second, so an epoch
+  at UTC ``S + f`` is valid at ``t_pps + f + n``, the latest such time (``n`` whole seconds) at or before the
+  arrival of its first message (PPS is 1 Hz at any navigation rate; the output latency is under a second);
 * without PPS (an external receiver on a pty, no modem line): from the epoch's own UTC, ``t = UTC + c``,
   where the UTC-to-FPGA offset ``c`` is the smallest ``t_first_byte - latency - UTC`` over the last
   ``_OFFSET_WINDOW`` epochs (the first byte of an epoch is never early; the minimum removes the line and
@@ -85,6 +85,7 @@ class _Epoch:
 
     utc_s: float | None            # UTC seconds (days since the first epoch * 86400 + time of day)
     t_first: float                  # FPGA time of its first byte (s)
+    t_rx: float = 0.0               # FPGA time the chunk completing its first message arrived (s)
     kinds: set[str] = field(default_factory=set)
     chunks: int = 0
     last_chunk: int = -1
@@ -116,6 +117,7 @@ class GnssTask(TimeKeeping):
         self._gnss_last_tod: float | None = None
         self._gnss_chunk = 0
         self._gnss_chunk_start = 0.0
+        self._gnss_chunk_t_rx = 0.0
         for k in GNSS_COUNTERS:
             self.counters.setdefault(k, 0)
 
@@ -125,6 +127,7 @@ class GnssTask(TimeKeeping):
         dec = self._dec_gnss
         t_rx = t_rx_s if t_rx_s is not None else self._now_s()
         self._gnss_chunk += 1
+        self._gnss_chunk_t_rx = t_rx
         if dec.pending() == 0:
             # line idle before this chunk: its first byte started (n bytes before its end) at
             byte_s = self.cfg.gnss_bits_per_byte / self.cfg.gnss_baud
@@ -310,7 +313,7 @@ class GnssTask(TimeKeeping):
                 first_ok = False
             else:
                 first_ok = True
-            e = self._gnss_epoch = _Epoch(utc_s=utc, t_first=t_first)
+            e = self._gnss_epoch = _Epoch(utc_s=utc, t_first=t_first, t_rx=self._gnss_chunk_t_rx)
             e.tod = tod
             if utc is not None and first_ok:
                 self._gnss_offset_sample(t_first - utc)
@@ -345,11 +348,16 @@ class GnssTask(TimeKeeping):
         if e.utc_s is None:
             self.counters["gnss_no_utc"] += 1
             return t_ref - self.cfg.gnss_latency_s
-        if t_pps is not None and t_pps <= t_ref + 1e-6 and t_ref - t_pps < 1.5:
+        t_rx = max(e.t_rx, t_ref)
+        if t_pps is not None and t_rx - t_pps < 2.0:
+            # the latest t_pps + f + n (n whole seconds) at or before the arrival: the epoch precedes its bytes by
+            # less than a second; the PPS edge of its own second may not be latched yet (n = 1)
             frac = e.utc_s - math.floor(e.utc_s + 1e-9)
             frac = frac if frac > 1e-9 else 0.0
             t = t_pps + frac
-            while t > t_ref + 1e-6:
+            while t + 1.0 <= t_rx + 1e-6:
+                t += 1.0
+            while t > t_rx + 1e-6:
                 t -= 1.0
             self.counters["gnss_tag_pps"] += 1
             return t

@@ -144,3 +144,20 @@ def test_emulated_10_hz_receiver_one_update_per_epoch_tagged_from_the_1_hz_pps(t
     assert len(t) >= 10 * (8 - 2 - 1) and len(set(np.round(t * 10))) == len(t)  # one update per epoch
     assert np.abs(t * 10 - np.round(t * 10)).max() < 1e-5 * 10  # on the 100 ms grid of the PPS (jitter 25 ns)
     assert c["gnss_tag_pps"] >= len(t) and c["gnss_epochs"] >= 70 and c["gnss_tag_utc"] <= 1
+
+
+def test_an_epoch_that_arrives_before_its_own_pps_is_latched_is_still_tagged_at_its_second() -> None:
+    """A receiver with a very short output latency: the epoch's bytes reach the DSP (S + 1.0 ms) before the IMU
+    frame that carries the PPS of second S (S + 1.27 ms). The tag is the latest PPS edge + whole seconds at or
+    before the arrival: S, not the previous second's edge."""
+    truth, duration = StaticTruth(), 8.0
+    cfg = FirmwareConfig(gnss_baud=921600, gnss_latency_s=0.0002, align_time_s=2.0)
+    chunks = []
+    for k in range(1, int(duration)):
+        gga, rmc = _nmea_epoch(truth, k, 1.0)
+        chunks.append((k + 0.001, UART_GNSS, gga + rmc))
+    _fw, events = _run(cfg, chunks, duration, pps=True)
+    t = np.array([e["t_meas_s"] for e in events if e["event"] == "gnss_update"])
+    assert len(t) >= 4 and np.all(np.abs(t - np.round(t)) < 1e-9)
+    # one update per epoch 1..7, each at its own second (tagged at S - 1, the last epoch would be missing)
+    assert list(np.round(t).astype(int)) == list(range(int(duration) - len(t), int(duration)))

@@ -84,6 +84,14 @@ class FirmwareConfig:
     gnss_vel_sigma_h_mps: float = 0.041
     gnss_vel_sigma_v_mps: float = 0.1
     gnss_max_age_s: float = 1.5
+    #: GNSS receiver port (DSP UART3) line, for the first-byte time of an epoch (docs/icd.md "GNSS time tags")
+    gnss_baud: int = 9600
+    gnss_bits_per_byte: int = 10
+    #: receiver output latency (s, epoch to the first byte of its output): the time tag without PPS is UTC plus
+    #: the measured UTC-to-FPGA offset minus this (docs/icd.md "GNSS time tags")
+    gnss_latency_s: float = 0.05
+    #: an epoch whose composition is not complete is closed this long (s) after its first byte
+    gnss_epoch_hold_s: float = 0.5
     #: innovation gate of each GNSS row (normalised innovation squared, 1 dof; 1e4 = 100 sigma) (docs/hostile-input.md).
     #: Wide on purpose while the filter's covariance is not consistent with the field sensors: a 6-sigma gate refused
     #: every fix after the vehicle loop's 30 s outage (278 rows) and the position never came back; 100 sigma still

@@ -121,6 +121,8 @@ class GnssMeasurement:
     pos: tuple[float, float, float] | None = None
     vel: FloatArray | None = None
     vel_up: bool = False
+    #: False: a 2-D fix (horizontal position only; ``pos[2]`` is no measurement)
+    pos_up: bool = True
     quality: int = 1
     sigma_pos_h_m: float | None = None
     sigma_pos_v_m: float | None = None
@@ -147,8 +149,9 @@ def gnss_measurement_rows(cfg: FirmwareConfig, meter: c674x.CycleMeter, meas: Gn
         rows += [
             (D_LAT, rmh, (float(p_ins[0]) - meas.pos[0]) * rmh, sh**2),
             (D_LON, rnh * cl, (float(p_ins[1]) - meas.pos[1]) * rnh * cl, sh**2),
-            (D_H, 1.0, float(p_ins[2]) - meas.pos[2], sv**2),
         ]
+        if meas.pos_up:
+            rows.append((D_H, 1.0, float(p_ins[2]) - meas.pos[2], sv**2))
         meter.charge("gnss_residual", c674x.dp_flops(8, 6) + c674x.mathlib("cosdp") + c674x.mathlib("sqrtdp")
                      + c674x.mathlib("divdp"))
     if meas.vel is not None:

@@ -44,11 +44,11 @@ import numpy as np
 
 from protocols.host import HostFormat, NavMode
 from protocols.imu_frame import ADC_VOLTS_PER_LSB, FpgaFrameFormat, FpgaStatus, ImuFrame
-from protocols.nmea import NmeaFormat
+from protocols.nmea import NMEA_RX_MAX_LEN, NmeaFormat
 from protocols.psns import PsnsFormat
 from protocols.stim import GYRO_ANGLE_LSB_DEG, GYRO_RATE_LSB_DPS
 from protocols.stream import StreamDecoder
-from protocols.ubx import NavPvt, UbxFormat
+from protocols.ubx import UbxFormat
 
 from . import c674x, input_guard
 from .alignment import level_cycles, triad_cycles
@@ -141,7 +141,7 @@ class Firmware(HostTask, GnssTask):
         self._nmea_every = round(cfg.imu_rate_hz / cfg.nmea_rate_hz) if pos else 0
         self._nmea_att_every = round(cfg.imu_rate_hz / cfg.nmea_attitude_rate_hz) if att else 0
         self._dec_imu = StreamDecoder([FpgaFrameFormat()])
-        self._dec_gnss = StreamDecoder([NmeaFormat(), UbxFormat()])
+        self._dec_gnss = StreamDecoder([NmeaFormat(NMEA_RX_MAX_LEN), UbxFormat()])
         self._dec_host = StreamDecoder([HostFormat()])
         self._pending_cmd = deque(maxlen=16)
         self.last_mag = None
@@ -202,6 +202,7 @@ class Firmware(HostTask, GnssTask):
         self._imu_bad_steps = 0
         self._gnss_reject_run = 0
         self._psns_reject_since: float | None = None
+        self._gnss_init()
 
     # -- input validation and fault containment (docs/hostile-input.md) --------------------------------
     def _fault(self, where: str, exc: BaseException) -> None:
@@ -236,14 +237,7 @@ class Firmware(HostTask, GnssTask):
                     if not f.status & 0x01:  # not over range: into the history a variant may average
                         self._mag_hist.append((self._unwrap_near(f.t_sample_us) / 1e6, f.field))
         elif uart == UART_GNSS:
-            for s in self._dec_gnss.feed(data):
-                try:
-                    if isinstance(s, NavPvt):
-                        self._on_nav_pvt(s)
-                    else:
-                        self._on_nmea(s)
-                except Exception as e:
-                    self._fault("gnss message", e)
+            self._on_gnss_bytes(data, t_rx_s)
         elif uart == UART_HOST:
             for c in self._dec_host.feed(data):
                 if len(self._pending_cmd) == self._pending_cmd.maxlen:
@@ -268,7 +262,7 @@ class Firmware(HostTask, GnssTask):
 
     def decoder_stats(self) -> dict[str, dict[str, Any]]:
         return {"uart0": self._dec_host.stats.as_dict(), "uart1": self._dec_imu.stats.as_dict(),
-                "uart2": self._dec_psns.stats.as_dict(), "uart3": self._dec_gnss.stats.as_dict()}
+                "uart2": self._dec_psns.stats.as_dict(), "uart3": self._gnss_decoder_stats()}
 
     def note_deadline_miss(self) -> None:
         """Called by the host DSP when a tick started after its deadline."""
@@ -350,6 +344,8 @@ class Firmware(HostTask, GnssTask):
             if full > t_us:
                 full -= 2**32
             self._t_pps_s = full / 1e6
+        if self._gnss_epoch is not None:
+            self._gnss_hold(t)
         if fr.fpga_status & _GYRO_MISSING:
             self.counters["fpga_gyro_missing"] += 1
         if self._last_counter is not None and (fr.gyro_counter - self._last_counter) % 256 != cfg.gyro_counter_step:
@@ -428,6 +424,7 @@ class Firmware(HostTask, GnssTask):
         nav = self.nav
         assert nav is not None  # measurement tasks run after the coarse alignment
         updated = False
+        self._gnss_poll(t)
         g = self._gnss_pending
         if g is not None and (g.pos is not None or g.vel is not None) and self._hist:
             self._gnss_pending = None

@@ -74,6 +74,21 @@ def check_gga(s: Any) -> str | None:
     return None
 
 
+def check_gns(s: Any) -> str | None:
+    """Reason a GNS with a position is refused, or None (the GGA checks; GNS has modes instead of a quality)."""
+    if not _finite(s.lat_deg, s.lon_deg, s.altitude_msl_m, s.geoid_sep_m, s.hdop):
+        return "not_finite"
+    if s.lat_deg is not None and not -90.0 <= s.lat_deg <= 90.0:
+        return "latitude"
+    if s.lon_deg is not None and not -180.0 <= s.lon_deg <= 180.0:
+        return "longitude"
+    if s.geoid_sep_m is not None and abs(s.geoid_sep_m) > GEOID_MAX_M:
+        return "height"
+    if s.altitude_msl_m is not None and not ALT_MIN_M <= s.altitude_msl_m + (s.geoid_sep_m or 0.0) <= ALT_MAX_M:
+        return "height"
+    return None
+
+
 def check_rmc(s: Any) -> str | None:
     """Reason an RMC is refused, or None."""
     if not _finite(s.lat_deg, s.lon_deg, s.speed_mps, s.course_deg):

@@ -15,19 +15,23 @@ import datetime as _dt
 import math
 from dataclasses import dataclass
 
-from .nmea import build_gga, build_gsa, build_rmc, build_vtg, build_zda
+from .nmea import build_gga, build_gsa, build_gsv, build_rmc, build_vtg, build_zda
+from .nmea_build import NMEA_SYSTEM_ID
 from .ubx import NavPvt, NavStatus, encode_nav_pvt, encode_nav_status
 
 __all__ = [
     "FAA_MODE",
     "GPS_EPOCH",
     "GPS_UTC_LEAP_S",
+    "GPS_UTC_LEAP_TABLE",
     "NMEA_SENTENCES",
+    "NMEA_VERSIONS",
     "UBX_MESSAGES",
     "GnssFix",
     "GnssOutputSet",
     "build_epoch",
     "gps_time_of_week_ms",
+    "gps_utc_offset_s",
     "nav_pvt_from_fix",
     "nav_status_from_fix",
 ]
@@ -35,7 +39,29 @@ __all__ = [
 GPS_EPOCH = _dt.datetime(1980, 1, 6, tzinfo=_dt.UTC)
 #: GPS - UTC in seconds since 2017-01-01 (IERS Bulletin C: no leap second announced since).
 GPS_UTC_LEAP_S = 18
-NMEA_SENTENCES = ("RMC", "VTG", "GGA", "GSA", "ZDA")
+#: GPS - UTC (s) from each date on: the leap seconds since the GPS epoch, from the IERS table of TAI - UTC
+#: (``Leap_Second.dat`` of the IERS Earth Orientation Centre, Bulletin C; GPS - UTC = TAI - UTC - 19 s).
+GPS_UTC_LEAP_TABLE: tuple[tuple[_dt.date, int], ...] = (
+    (_dt.date(1980, 1, 6), 0), (_dt.date(1981, 7, 1), 1), (_dt.date(1982, 7, 1), 2), (_dt.date(1983, 7, 1), 3),
+    (_dt.date(1985, 7, 1), 4), (_dt.date(1988, 1, 1), 5), (_dt.date(1990, 1, 1), 6), (_dt.date(1991, 1, 1), 7),
+    (_dt.date(1992, 7, 1), 8), (_dt.date(1993, 7, 1), 9), (_dt.date(1994, 7, 1), 10), (_dt.date(1996, 1, 1), 11),
+    (_dt.date(1997, 7, 1), 12), (_dt.date(1999, 1, 1), 13), (_dt.date(2006, 1, 1), 14), (_dt.date(2009, 1, 1), 15),
+    (_dt.date(2012, 7, 1), 16), (_dt.date(2015, 7, 1), 17), (_dt.date(2017, 1, 1), GPS_UTC_LEAP_S),
+)
+
+
+def gps_utc_offset_s(utc: _dt.datetime | _dt.date) -> int:
+    """GPS - UTC (s) at a UTC instant (:data:`GPS_UTC_LEAP_TABLE`; 0 before the GPS epoch)."""
+    d = utc.date() if isinstance(utc, _dt.datetime) else utc
+    n = 0
+    for start, leap in GPS_UTC_LEAP_TABLE:
+        if d < start:
+            break
+        n = leap
+    return n
+NMEA_SENTENCES = ("RMC", "VTG", "GGA", "GSA", "GSV", "ZDA")
+#: NMEA layouts: 2.3 (mode indicator) and 4.10 (RMC navStatus, GSA systemId, GSV signalId)
+NMEA_VERSIONS = ("2.3", "4.10")
 #: NMEA 2.3 mode indicator (RMC/VTG) for each GGA fix quality.
 FAA_MODE = {1: "A", 2: "D", 4: "R", 5: "F", 6: "E"}
 UBX_MESSAGES = ("NAV-PVT", "NAV-STATUS")
@@ -69,6 +95,9 @@ class GnssFix:
     t_acc_ns: int = 20
     ttff_ms: int = 28000
     msss_ms: int = 60000
+    #: satellites in view for GSV: (system talker GP/GL/GA/GB, NMEA 4.10 number, elevation deg, azimuth deg,
+    #: C/N0 dBHz or None); empty: GSV lists none
+    sky: tuple[tuple[str, int, int, int, int | None], ...] = ()
 
 
 @dataclass(frozen=True, slots=True)
@@ -76,25 +105,30 @@ class GnssOutputSet:
     """Messages sent once per epoch, in this order: NMEA sentences then UBX messages.
 
     ``nmea`` is any ordered subset of :data:`NMEA_SENTENCES`; ``ubx`` of :data:`UBX_MESSAGES`;
-    ``talker`` the NMEA talker (``GP`` GPS only, ``GN`` multi-GNSS).
+    ``talker`` the NMEA talker (``GP`` GPS only, ``GN`` multi-GNSS: then GSA and GSV come once per system
+    with the system's own talker, as u-blox receivers send them); ``version`` the NMEA layout
+    (:data:`NMEA_VERSIONS`).
     """
 
     nmea: tuple[str, ...] = ("RMC", "VTG", "GGA", "GSA", "ZDA")
     ubx: tuple[str, ...] = ()
     talker: str = "GP"
     rate_hz: float = 1.0
+    version: str = "2.3"
 
     def __post_init__(self) -> None:
         bad = [s for s in self.nmea if s not in NMEA_SENTENCES] + [m for m in self.ubx if m not in UBX_MESSAGES]
         if bad:
             raise ValueError(f"unknown GNSS output message(s) {bad}; NMEA: {NMEA_SENTENCES}, UBX: {UBX_MESSAGES}")
+        if self.version not in NMEA_VERSIONS:
+            raise ValueError(f"NMEA version {self.version!r}; expected one of {NMEA_VERSIONS}")
         if not 0 < self.rate_hz <= 25:
             raise ValueError(f"GNSS output rate {self.rate_hz} Hz outside (0, 25]")
 
 
 def gps_time_of_week_ms(utc: _dt.datetime) -> int:
-    """GPS time of week, ms, of a UTC instant (GPS = UTC + :data:`GPS_UTC_LEAP_S`)."""
-    dt = utc - GPS_EPOCH + _dt.timedelta(seconds=GPS_UTC_LEAP_S)
+    """GPS time of week, ms, of a UTC instant (GPS = UTC + the leap seconds of that date, :func:`gps_utc_offset_s`)."""
+    dt = utc - GPS_EPOCH + _dt.timedelta(seconds=gps_utc_offset_s(utc))
     ms = dt.days * 86_400_000 + dt.seconds * 1000 + dt.microseconds // 1000
     return ms % (7 * 86_400_000)
 
@@ -136,11 +170,12 @@ def build_epoch(fix: GnssFix, output: GnssOutputSet = GnssOutputSet()) -> bytes:
     course, speed = _course_speed(fix.vel_enu_mps)
     ok = fix.fix_type >= 2
     tk = output.talker
+    v410 = output.version == "4.10"
     out = bytearray()
     for s in output.nmea:
         if s == "RMC":
             out += build_rmc(t, d, fix.lat_deg, fix.lon_deg, speed, course, valid=ok, talker=tk,
-                             mode=FAA_MODE.get(fix.quality, "A"))
+                             mode=FAA_MODE.get(fix.quality, "A") if ok else "N", nav_status="V" if v410 else None)
         elif s == "VTG":
             out += (build_vtg(course, speed, FAA_MODE.get(fix.quality, "A"), talker=tk) if ok
                     else build_vtg(None, None, "N", talker=tk))
@@ -148,9 +183,23 @@ def build_epoch(fix: GnssFix, output: GnssOutputSet = GnssOutputSet()) -> bytes:
             out += build_gga(t, fix.lat_deg, fix.lon_deg, fix.height_m - fix.geoid_sep_m, fix.geoid_sep_m,
                              quality=fix.quality if ok else 0, num_sats=len(fix.sat_ids), hdop=fix.hdop, talker=tk)
         elif s == "GSA":
-            ids = fix.sat_ids[:12] if ok else ()
-            out += build_gsa(fix.fix_type if ok else 1, ids, fix.pdop if ok else None, fix.hdop if ok else None,
-                             fix.vdop if ok else None, talker=tk)
+            if v410 and tk == "GN" and fix.sky:
+                # one GSA per system (NMEA 4.10 systemId), each with that system's satellites used
+                for sys_tk in dict.fromkeys(e[0] for e in fix.sky):
+                    ids = tuple(e[1] for e in fix.sky if e[0] == sys_tk and e[1] in fix.sat_ids)[:12] if ok else ()
+                    out += build_gsa(fix.fix_type if ok else 1, ids, fix.pdop if ok else None,
+                                     fix.hdop if ok else None, fix.vdop if ok else None, talker=tk,
+                                     system_id=NMEA_SYSTEM_ID.get(sys_tk))
+            else:
+                ids = fix.sat_ids[:12] if ok else ()
+                out += build_gsa(fix.fix_type if ok else 1, ids, fix.pdop if ok else None, fix.hdop if ok else None,
+                                 fix.vdop if ok else None, talker=tk,
+                                 system_id=NMEA_SYSTEM_ID.get(tk, 1) if v410 else None)
+        elif s == "GSV":
+            systems = list(dict.fromkeys(e[0] for e in fix.sky)) or [tk if tk != "GN" else "GP"]
+            for sys_tk in systems:
+                sats = [(e[1], e[2], e[3], e[4]) for e in fix.sky if e[0] == sys_tk]
+                out += build_gsv(sats, talker=sys_tk if tk == "GN" else tk, signal_id=1 if v410 else None)
         else:  # ZDA
             out += build_zda(t, d, 0, 0, talker=tk)
     for m in output.ubx:

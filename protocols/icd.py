@@ -19,7 +19,7 @@ from typing import Any
 from construct import Array, BytesInteger, Const, FormatField, Renamed, Struct
 from construct import Bytes as _Bytes
 
-from . import can_nav, crc, gnss, host, imu_frame, monitor, nmea, psns, stim, ubx
+from . import can_nav, crc, gnss, host, imu_frame, monitor, nmea, psns, stim, ubx, ubx_cfg
 
 __all__ = ["LINK_BAUD", "budget_rows", "generate", "spec_rows"]
 
@@ -214,9 +214,57 @@ NMEA_FIELDS = {
     "GSA": [("mode", "M/A", "manual / automatic"), ("fixType", "1/2/3", "none / 2D / 3D"),
             ("sv1..sv12", "2 digits or empty", "satellites used (12 slots)"), ("PDOP", "x.xx", ""),
             ("HDOP", "x.xx", ""), ("VDOP", "x.xx", "")],
+    "GSV": [("numMsg", "digit", "sentences in this group"), ("msgNum", "digit", "this sentence's number"),
+            ("numSV", "2 digits", "satellites in view"),
+            ("svid/elv/az/cno x 1..4", "2 / 2 / 3 / 2 digits", "NMEA 4.10 number, elevation deg, azimuth deg, "
+             "C/N0 dBHz (empty: not tracked)"), ("signalId", "hex digit", "NMEA 4.10 only (1 = L1 C/A, L1OF)")],
     "ZDA": [("time", "hhmmss.ss", "UTC"), ("day", "dd", ""), ("month", "mm", ""), ("year", "yyyy", ""),
             ("ltzh", "hh (sign)", "local zone hours"), ("ltzn", "mm", "local zone minutes")],
 }
+
+
+#: What the firmware accepts on the GNSS input, what it refuses and under which counter (docs/icd.md 5.1.1).
+GNSS_INPUT_TEXT = f"""#### 5.1.1 GNSS input: accepted, refused, counted
+
+What the firmware (`firmware_model/tasks/gnss.py`) takes from real receivers, and the counter each refusal goes to
+(firmware counters and the `uart3` decoder counters, in `summary.json` under `firmware` and in the monitor):
+
+| input | outcome | counted in |
+|---|---|---|
+| CR LF line end | accepted | `uart3.frames` |
+| LF-only line end (loggers, some receivers) | accepted | `uart3.lf_only` (never a CRC error) |
+| sentence of 83..{nmea.NMEA_RX_MAX_LEN} characters (`$PUBX,00` 110, u-blox high-precision GGA 84) | accepted \
+| `uart3.frames`; a longer line: `uart3.length_errors` |
+| bad checksum | dropped | `uart3.crc_errors` |
+| GGA, GNS (NMEA 4.10 mode per constellation) | 3-D position | `gnss_fixes` |
+| RMC | horizontal velocity (speed, course), date; its position when the epoch has no GGA/GNS | - |
+| RMC alone, GGA without altitude, GSA fix type 2, NAV-PVT fixType 2 | 2-D fix: horizontal position only \
+(no height row) | `gnss_2d_fixes` |
+| GGA quality 6, GNS mode E, RMC mode E, NAV-PVT fixType 1 (dead reckoning) | never a measurement | `gnss_dr_refused` |
+| GGA quality 0, RMC V, GNS N, NAV-PVT fixType 0/5 | no fix | `gnss_no_fix_epochs` |
+| NAV-PVT with gnssFixOK clear | no fix | `gnss_pvt_ignored_flags` |
+| NAV-PVT 84 (u-blox 7), 92 (M8, F9), > 92 bytes | position, 3-D velocity, UTC | `gnss_pvt` |
+| NAV-PVT of another length, unknown UBX class | refused at the header | `uart3.length_errors` |
+| other UBX (NAV-STATUS, ACK, MON ...) | not used | `gnss_ubx_other` |
+| other NMEA (VTG, ZDA, GSV, TXT, proprietary) | not used | `gnss_nmea_other` |
+| out-of-range field (latitude, height, speed, date ...) | refused | `input_rejected_<reason>` |
+
+Epochs. Messages with the same UTC are one epoch and give one measurement, however many writes they arrive in
+(`gnss_epochs`, `gnss_epochs_split`). An epoch closes when a message of a later UTC arrives, when every message
+kind of the previous whole epoch has arrived (the stream's composition, learned as gpsd learns its cycle), or
+`gnss_epoch_hold_s` (0.5 s) after its first byte (`gnss_epoch_timeouts`); content for an epoch already closed is
+dropped (`gnss_late_messages`).
+
+Time tags. With a PPS latched within the last 2 s, an epoch at UTC S + f is valid at the PPS edge of second S
+plus f: the latest PPS edge + f + whole seconds at or before the arrival of its first message (`gnss_tag_pps`).
+Without PPS the tag comes from the epoch's own UTC: the UTC-to-FPGA offset is the
+smallest (first-byte time - UTC) over the last 32 epochs (the first byte's time is the UART's time stamp of the
+chunk minus its bytes at the line rate), and the tag is UTC + offset - `gnss_latency_s`, the receiver's configured
+latency from epoch to first byte (scenario `sensors.gnss.latency_s`) (`gnss_tag_utc`); an offset step of more
+than 1 s restarts the estimate (`gnss_utc_offset_resets`). A fix without UTC is tagged at its first byte minus
+the latency (`gnss_no_utc`). Never the tick that parsed it.
+
+"""
 
 
 def _psns_max_points_table() -> str:
@@ -374,10 +422,13 @@ def generate() -> str:
 
     # -- GNSS ----------------------------------------------------------------------------------
     w("## 5. GNSS (link `gnss`, RS422, 9600 baud; through the FPGA to `uart3` at 115200)\n")
-    w(f"One epoch per second (`protocols.gnss.build_epoch`): the default NMEA set RMC, VTG, GGA, GSA, ZDA is "
-      f"{z['nmea_epoch']} bytes ({z['nmea_epoch'] * 10 / 9600 * 1000:.0f} ms of line time at 9600 baud); "
-      f"UBX NAV-PVT + NAV-STATUS add {z['ubx_epoch']} bytes. The PPS edge marks the epoch; the FPGA latches its "
-      "counter on it and the IMU frame carries the latch.\n")
+    w(f"One epoch per second by default (`protocols.gnss.build_epoch`; `rate_hz` up to 20): the default NMEA set "
+      f"RMC, VTG, GGA, GSA, ZDA is {z['nmea_epoch']} bytes ({z['nmea_epoch'] * 10 / 9600 * 1000:.0f} ms of line "
+      f"time at 9600 baud); UBX NAV-PVT + NAV-STATUS add {z['ubx_epoch']} bytes. PPS rises at every whole UTC "
+      "second (1 Hz at any navigation rate); the FPGA latches its counter on it and the IMU frame carries the "
+      "latch. An external receiver's PPS comes from a modem line of a real serial port (`serial:///dev/ttyUSB0?"
+      "pps=dcd` or `pps=cts`, waited for with TIOCMIWAIT); a pty carries no modem lines, so a receiver on "
+      "`pty://gnss` has no PPS (the port reports it).\n")
     w("### 5.1 NMEA 0183 sentences\n")
     w("`$` + talker (GP, GN, ...) + type + comma-separated fields + `*` + XOR checksum (2 hex digits) + CR LF, "
       f"at most {nmea.NMEA_MAX_LEN} characters.\n")
@@ -385,12 +436,35 @@ def generate() -> str:
         w(f"{kind}:\n")
         w(_table([(str(i + 1), n, f, m) for i, (n, f, m) in enumerate(fields)], ("field", "name", "format", "meaning"))
           + "\n")
+    w(GNSS_INPUT_TEXT)
     w("### 5.2 UBX frame\n")
     w(_spec_table(ubx.UBX_FRAME_SPEC) + "\n")
-    w(f"UBX-NAV-PVT payload (class 0x01, id 0x07, {ubx.NAV_PVT_LEN} bytes, frame {ubx.NAV_PVT_LEN + 8} bytes):\n")
+    w(f"UBX-NAV-PVT payload (class 0x01, id 0x07, {ubx.NAV_PVT_LEN} bytes, frame {ubx.NAV_PVT_LEN + 8} bytes; "
+      f"read by its prefix: protocol 14 (u-blox 7) sends {ubx.NAV_PVT_LEN_V14} bytes, the layout below up to pDOP "
+      f"(the first {ubx.NAV_PVT_PREFIX_V14} bytes) then 6 reserved bytes, and the fields after pDOP read as 0; "
+      f"a longer payload of a later protocol is read by its first {ubx.NAV_PVT_LEN} bytes; any other length is a "
+      "length error):\n")
     w(_spec_table(ubx.NAV_PVT_SPEC) + "\n")
     w(f"UBX-NAV-STATUS payload (class 0x01, id 0x03, {ubx.NAV_STATUS_LEN} bytes):\n")
     w(_spec_table(ubx.NAV_STATUS_SPEC) + "\n")
+    w("### 5.3 UBX from the host to the receiver (`protocols/ubx_cfg.py`)\n")
+    w("The modelled u-blox answers on its own link as a real one does: a poll (the message with an empty payload; "
+      "CFG-PRT with a 1-byte portID, CFG-MSG with class and id) is answered with the message, and every CFG "
+      "message with ACK-ACK or, when it cannot be applied (another port, an unknown message, a rate above 20 Hz), "
+      "ACK-NAK. CFG-MSG rates (send every N epochs on UART1) and CFG-PRT's outProtoMask change the output at the "
+      "next epoch, CFG-RATE at the next whole UTC second; a CFG-PRT baud rate is acknowledged and reported back, "
+      "the line itself stays at `links.gnss.baud`. MON-VER reports a u-blox M8 (\"ROM CORE 3.01 (107888)\", "
+      "PROTVER=18.00). Counted in the summary's `devices`: `gnss_host_polls`, `gnss_host_acks`, `gnss_host_naks`, "
+      "`gnss_host_ignored`.\n")
+    for title, spec in (("ACK-ACK (0x05 0x01) / ACK-NAK (0x05 0x00)", ubx_cfg.ACK_SPEC),
+                        ("CFG-PRT (0x06 0x00), UART port", ubx_cfg.CFG_PRT_SPEC),
+                        ("CFG-MSG (0x06 0x01); the 3-byte set form is class, id, rate on this port",
+                         ubx_cfg.CFG_MSG_SPEC),
+                        ("CFG-RATE (0x06 0x08)", ubx_cfg.CFG_RATE_SPEC),
+                        (f"MON-VER (0x0A 0x04): then {ubx_cfg.MON_VER_EXT_LEN}-byte extension strings",
+                         ubx_cfg.MON_VER_HEAD_SPEC)):
+        w(f"{title}:\n")
+        w(_spec_table(spec) + "\n")
 
     # -- PSNS ----------------------------------------------------------------------------------
     w("## 6. Polarization sensor (link `psns`, RS232, 115200 baud; through the FPGA to `uart2`)\n")

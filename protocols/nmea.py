@@ -1,4 +1,4 @@
-"""NMEA 0183 sentences: framing, checksum, GGA, RMC, VTG, GSA and ZDA.
+"""NMEA 0183 sentences: framing, checksum, GGA, GNS, RMC, VTG, GSA and ZDA.
 
 Source: ``docs/reference/wire-formats.md`` section 2.3 (gpsd NMEA notes; field order as in
 pynmea2). A sentence is ``$`` + talker (2 letters) + type (3 letters) + ``,``-separated fields
@@ -6,6 +6,12 @@ pynmea2). A sentence is ``$`` + talker (2 letters) + type (3 letters) + ``,``-se
 + ``<CR><LF>``; at most 82 characters including ``$`` and ``<CR><LF>``. Proprietary sentences
 start ``$P`` + a three-letter maker code (``$PSNSPOS``: maker ``SNS``); they are framed and
 checked the same way and come out as :class:`NmeaSentence` with ``talker="PSNS"``.
+
+What real receivers send beyond the standard (docs/icd.md "GNSS input"): a line ended by LF alone (the
+checksum then sits at ``[-4:-2]``) is accepted and counted in :attr:`NmeaFormat.lf_only`; a receiving
+decoder built with ``max_len=NMEA_RX_MAX_LEN`` accepts the long sentences of real receivers (u-blox
+``$PUBX,00`` is 108-110 characters, its high-precision GGA 84). GNS (NMEA 3.0/4.10: one mode character
+per constellation) is typed as :class:`Gns`.
 
 The builders and their number formats are in :mod:`protocols.nmea_build` (re-exported here). Every typed
 sentence re-encodes with :func:`encode_nmea`; for sentences written by these
@@ -26,6 +32,7 @@ from .nmea_build import (
     NMEA_MAX_LEN,
     build_gga,
     build_gsa,
+    build_gsv,
     build_rmc,
     build_sentence,
     build_vtg,
@@ -35,11 +42,19 @@ from .nmea_build import (
 )
 from .stream import BAD_LENGTH, NEED_MORE
 
+#: Longest line a receiving decoder accepts: the 82 of the standard plus the proprietary and
+#: high-precision sentences of real receivers (u-blox ``$PUBX,00`` with its 108-110 characters is the
+#: longest of the quirks corpus, tests/protocols/quirks/); 128 leaves room for a wider field.
+NMEA_RX_MAX_LEN = 128
+
 __all__ = [
     "KNOT_MPS",
     "NMEA_MAX_LEN",
+    "NMEA_RX_MAX_LEN",
     "Gga",
+    "Gns",
     "Gsa",
+    "Gsv",
     "NmeaFormat",
     "NmeaSentence",
     "Rmc",
@@ -47,6 +62,7 @@ __all__ = [
     "Zda",
     "build_gga",
     "build_gsa",
+    "build_gsv",
     "build_rmc",
     "build_sentence",
     "build_vtg",
@@ -87,6 +103,25 @@ class Gga:
 
 @fast_frozen_init
 @dataclass(frozen=True, slots=True)
+class Gns:
+    """GNS fix data (NMEA 3.0 / 4.10): ``mode`` has one character per constellation (GPS, GLONASS, Galileo,
+    BeiDou, ...): N none, A autonomous, D differential, P precise, R RTK fixed, F RTK float, E estimated (DR),
+    M manual, S simulator. ``nav_status`` (4.10: S safe, C caution, U unsafe, V not valid) or None."""
+
+    talker: str
+    time_utc: _dt.time | None
+    lat_deg: float | None
+    lon_deg: float | None
+    mode: str
+    num_sats: int | None
+    hdop: float | None
+    altitude_msl_m: float | None
+    geoid_sep_m: float | None
+    nav_status: str | None
+
+
+@fast_frozen_init
+@dataclass(frozen=True, slots=True)
 class Rmc:
     """RMC recommended minimum data. Speed in m/s, course in degrees clockwise from true north."""
 
@@ -99,6 +134,8 @@ class Rmc:
     course_deg: float | None
     date: _dt.date | None
     mode: str | None
+    #: NMEA 4.10 navigational status (13th field), None in the 2.3 layout
+    nav_status: str | None = None
 
 
 @fast_frozen_init
@@ -125,6 +162,22 @@ class Gsa:
     pdop: float | None
     hdop: float | None
     vdop: float | None
+    #: NMEA 4.10 GNSS system id (18th field: 1 GPS, 2 GLONASS, 3 Galileo, 4 BeiDou), None in the 2.3 layout
+    system_id: int | None = None
+
+
+@fast_frozen_init
+@dataclass(frozen=True, slots=True)
+class Gsv:
+    """One GSV sentence: ``sats`` = (number, elevation deg, azimuth deg, C/N0 dBHz) with None for empty fields;
+    ``signal_id`` (NMEA 4.10) or None."""
+
+    talker: str
+    num_msgs: int
+    msg_num: int
+    num_sv: int
+    sats: tuple[tuple[int, int | None, int | None, int | None], ...]
+    signal_id: int | None = None
 
 
 @fast_frozen_init
@@ -165,8 +218,25 @@ def _parse_time(s: str) -> _dt.time | None:
     return t
 
 
-def encode_nmea(obj: Gga | Rmc | Vtg | Gsa | Zda | NmeaSentence) -> bytes:
+def encode_nmea(obj: Gga | Gns | Gsv | Rmc | Vtg | Gsa | Zda | NmeaSentence) -> bytes:
     """Encode any object :class:`NmeaFormat` decodes (the inverse of its ``parse``)."""
+    if isinstance(obj, Gsv):
+        fields = [str(obj.num_msgs), str(obj.msg_num), f"{obj.num_sv:02d}"]
+        for prn, elev, az, snr in obj.sats:
+            fields += [f"{prn:02d}", "" if elev is None else f"{elev:02d}", "" if az is None else f"{az:03d}",
+                       "" if snr is None else f"{snr:02d}"]
+        if obj.signal_id is not None:
+            fields.append(f"{obj.signal_id:X}")
+        return build_sentence(obj.talker, "GSV", fields)
+    if isinstance(obj, Gns):
+        fields = [_format_time_nmea(obj.time_utc), *format_lat(obj.lat_deg or 0.0), *format_lon(obj.lon_deg or 0.0),
+                  obj.mode, "" if obj.num_sats is None else f"{obj.num_sats:02d}", _opt_f(obj.hdop, ".2f"),
+                  _opt_f(obj.altitude_msl_m, ".3f"), _opt_f(obj.geoid_sep_m, ".3f"), "", ""]
+        if obj.lat_deg is None:
+            fields[1:5] = ["", "", "", ""]
+        if obj.nav_status is not None:
+            fields.append(obj.nav_status)
+        return build_sentence(obj.talker, "GNS", fields)
     if isinstance(obj, Gga):
         if obj.quality == 0:
             return build_gga(obj.time_utc or _dt.time(), 0.0, 0.0, 0.0, 0.0, quality=0, talker=obj.talker)
@@ -175,15 +245,27 @@ def encode_nmea(obj: Gga | Rmc | Vtg | Gsa | Zda | NmeaSentence) -> bytes:
     if isinstance(obj, Rmc):
         date = obj.date or _dt.date(2000, 1, 1)
         return build_rmc(obj.time_utc or _dt.time(), date, obj.lat_deg or 0.0, obj.lon_deg or 0.0, obj.speed_mps or 0.0,
-                         obj.course_deg or 0.0, valid=obj.valid, mode=obj.mode or "", talker=obj.talker)
+                         obj.course_deg or 0.0, valid=obj.valid, mode=obj.mode or "", talker=obj.talker,
+                         nav_status=obj.nav_status)
     if isinstance(obj, Vtg):
         return build_vtg(obj.course_true_deg, obj.speed_mps, obj.mode or "", obj.course_mag_deg, obj.talker)
     if isinstance(obj, Gsa):
-        return build_gsa(obj.fix_type, obj.sat_ids, obj.pdop, obj.hdop, obj.vdop, obj.mode, obj.talker)
+        return build_gsa(obj.fix_type, obj.sat_ids, obj.pdop, obj.hdop, obj.vdop, obj.mode, obj.talker,
+                         system_id=obj.system_id)
     if isinstance(obj, Zda):
         return build_zda(obj.time_utc or _dt.time(), obj.date or _dt.date(2000, 1, 1), obj.zone_hours,
                          obj.zone_minutes, obj.talker)
     return build_sentence(obj.talker, obj.kind, obj.fields)
+
+
+def _format_time_nmea(t: _dt.time | None) -> str:
+    if t is None:
+        return ""
+    return f"{t.hour:02d}{t.minute:02d}{t.second:02d}.{t.microsecond // 10000:02d}"
+
+
+def _opt_f(v: float | None, fmt: str) -> str:
+    return "" if v is None else format(v, fmt)
 
 
 def _date_ddmmyy(d: str) -> _dt.date | None:
@@ -249,6 +331,23 @@ def _gga(talker: str, f: list[str]) -> Gga:
     )
 
 
+def _gns(talker: str, f: list[str]) -> Gns:
+    if len(f) < 13:
+        raise ValueError("GNS needs at least 12 fields")
+    return Gns(
+        talker,
+        _TIME_CACHE.get(f[1]) or _parse_time(f[1]),
+        _lat(f[2], f[3]),
+        _lon(f[4], f[5]),
+        f[6],
+        int(f[7]) if f[7] else None,
+        float(f[8]) if f[8] else None,
+        float(f[9]) if f[9] else None,
+        float(f[10]) if f[10] else None,
+        f[13] if len(f) > 13 and f[13] else None,
+    )
+
+
 def _rmc(talker: str, f: list[str]) -> Rmc:
     if len(f) < 12:
         raise ValueError("RMC needs at least 11 fields")
@@ -263,6 +362,7 @@ def _rmc(talker: str, f: list[str]) -> Rmc:
         float(f[8]) if f[8] else None,
         _DATE_CACHE.get(f[9]) or _date_ddmmyy(f[9]),
         f[12] if len(f) > 12 and f[12] else None,
+        f[13] if len(f) > 13 and f[13] else None,
     )
 
 
@@ -287,7 +387,23 @@ def _gsa(talker: str, f: list[str]) -> Gsa:
     except KeyError:
         ids = tuple(int(s) if s else None for s in f[3:15])
     return Gsa(talker, f[1], int(f[2] or 1), ids, float(f[15]) if f[15] else None, float(f[16]) if f[16] else None,
-               float(f[17]) if f[17] else None)
+               float(f[17]) if f[17] else None, int(f[18], 16) if len(f) > 18 and f[18] else None)
+
+
+def _gsv(talker: str, f: list[str]) -> Gsv:
+    if len(f) < 4:
+        raise ValueError("GSV needs at least 3 fields")
+    n_sat_fields = len(f) - 4
+    signal_id = None
+    if n_sat_fields % 4 == 1:  # NMEA 4.10: a trailing signal id
+        signal_id = int(f[-1], 16) if f[-1] else None
+        n_sat_fields -= 1
+    if n_sat_fields % 4:
+        raise ValueError("GSV satellite blocks are 4 fields each")
+    sats = tuple((int(f[4 + 4 * i]), int(f[5 + 4 * i]) if f[5 + 4 * i] else None,
+                  int(f[6 + 4 * i]) if f[6 + 4 * i] else None, int(f[7 + 4 * i]) if f[7 + 4 * i] else None)
+                 for i in range(n_sat_fields // 4))
+    return Gsv(talker, int(f[1]), int(f[2]), int(f[3]), sats, signal_id)
 
 
 #: Satellite-ID strings of GSA slots (NMEA writes 2 digits, some receivers 1 or 3).
@@ -317,8 +433,8 @@ _HEX2 = {**{f"{i:02X}".encode(): i for i in range(256)}, **{f"{i:02x}".encode():
 #: The same, pre-XORed with the framing bytes '$', '*', the two hex digits, CR and LF.
 _HEX2_FRAMED = {k: v ^ 0x24 ^ 0x2A ^ k[0] ^ k[1] ^ 0x0D ^ 0x0A for k, v in _HEX2.items()}
 
-_PARSERS: dict[str, Callable[[str, list[str]], Gga | Rmc | Vtg | Gsa | Zda]] = {
-    "GGA": _gga, "RMC": _rmc, "VTG": _vtg, "GSA": _gsa, "ZDA": _zda}
+_PARSERS: dict[str, Callable[[str, list[str]], Gga | Gns | Gsv | Rmc | Vtg | Gsa | Zda]] = {
+    "GGA": _gga, "GNS": _gns, "GSV": _gsv, "RMC": _rmc, "VTG": _vtg, "GSA": _gsa, "ZDA": _zda}
 
 
 def sentence_ok(frame: bytes) -> bool:
@@ -372,6 +488,8 @@ class NmeaFormat:
         if not 11 <= max_len <= 1024:
             raise ValueError(f"max_len {max_len} outside [11, 1024]")
         self.max_len = max_len
+        #: sentences accepted with an LF-only line end (NMEA wants CR LF; many receivers and loggers send LF)
+        self.lf_only = 0
 
     @staticmethod
     def encode(obj: Any) -> bytes:
@@ -389,11 +507,26 @@ class NmeaFormat:
             return BAD_LENGTH
         return end + 1 - start
 
-    #: framing and checksum of one candidate sentence
-    check = staticmethod(sentence_ok_fast)
+    def check(self, frame: bytes) -> bool:
+        """Framing and checksum of one candidate (:func:`sentence_ok_fast`); a line ended by LF alone is
+        checked with its checksum at ``[-4:-2]`` (and counted in :attr:`lf_only` when parsed)."""
+        if frame[-2] == 0x0D:
+            return sentence_ok_fast(frame)
+        if len(frame) < 10 or frame[-4] != 0x2A or frame[-1] != 0x0A or frame[0] != 0x24:
+            return False
+        want = _HEX2.get(frame[-3:-1])
+        return want is not None and nmea_checksum(frame[1:-4]) == want
 
-    def parse(self, frame: bytes) -> NmeaSentence | Gga | Rmc | Vtg | Gsa | Zda:
-        parts = frame[1:-5].decode("ascii").split(",")
+    def parse(self, frame: bytes) -> NmeaSentence | Gga | Gns | Gsv | Rmc | Vtg | Gsa | Zda:
+        if frame[-2] != 0x0D:
+            obj = self._parse(frame, -4)
+            self.lf_only += 1  # counted once the sentence is accepted (parse errors are counted as such)
+            return obj
+        return self._parse(frame, -5)
+
+    @staticmethod
+    def _parse(frame: bytes, end: int) -> NmeaSentence | Gga | Gns | Gsv | Rmc | Vtg | Gsa | Zda:
+        parts = frame[1:end].decode("ascii").split(",")
         head = _HEADS.get(parts[0])
         if head is None:
             head = _classify_head(parts[0])
@@ -404,7 +537,7 @@ class NmeaFormat:
 
 
 #: A typed sentence parser: (talker, the split sentence) -> the sentence object.
-_Parser = Callable[[str, list[str]], Gga | Rmc | Vtg | Gsa | Zda]
+_Parser = Callable[[str, list[str]], Gga | Gns | Gsv | Rmc | Vtg | Gsa | Zda]
 _HEADS: dict[str, tuple[str, str, _Parser | None]] = {}
 
 

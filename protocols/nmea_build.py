@@ -1,4 +1,4 @@
-"""NMEA 0183 sentence builders: framing, checksum and the number formats of GGA, RMC, VTG, GSA and ZDA.
+"""NMEA 0183 sentence builders: framing, checksum and the number formats of GGA, RMC, VTG, GSA, GSV and ZDA.
 
 The writing half of :mod:`protocols.nmea` (which re-exports every name here, and parses what these write).
 Number formats (a u-blox-like rendering, and the one that the golden vectors pin down):
@@ -14,19 +14,29 @@ speed       knots, 3 decimals (RMC, VTG); VTG km/h is derived from the *rounded*
             decoded sentence re-encodes to the same bytes
 course      degrees true, 2 decimals, [0, 360)
 ==========  =======================================================================
+
+NMEA 4.10 (the layout u-blox receivers send from protocol 23.01 on, NMEA 0183 v4.10): RMC gains a 13th field
+``navStatus`` (``nav_status=``), GSA an 18th ``systemId`` (``system_id=``: 1 GPS, 2 GLONASS, 3 Galileo,
+4 BeiDou) and GSV a last ``signalId`` (``signal_id=``); the arguments default to None, the 2.3 layout.
+Satellite numbers per NMEA 4.10 / the u-blox numbering: GPS 1-32, SBAS 33-64, GLONASS 65-96 (talker GL),
+Galileo 1-36 (GA), BeiDou 1-63 (GB / BD): :data:`SV_NUMBERS`.
 """
 
 from __future__ import annotations
 
 import datetime as _dt
+from collections.abc import Sequence
 
 from .crc import nmea_checksum
 
 __all__ = [
     "KNOT_MPS",
     "NMEA_MAX_LEN",
+    "NMEA_SYSTEM_ID",
+    "SV_NUMBERS",
     "build_gga",
     "build_gsa",
+    "build_gsv",
     "build_rmc",
     "build_sentence",
     "build_vtg",
@@ -39,6 +49,12 @@ __all__ = [
 NMEA_MAX_LEN = 82
 #: One knot in m/s.
 KNOT_MPS = 1852.0 / 3600.0
+#: NMEA 4.10 satellite-number ranges per talker (u-blox receiver descriptions, "Satellite numbering", NMEA 4.10
+#: column): GPS 1-32, GLONASS 65-96, Galileo 1-36, BeiDou 1-63
+SV_NUMBERS: dict[str, range] = {"GP": range(1, 33), "GL": range(65, 97), "GA": range(1, 37), "GB": range(1, 64),
+                                "BD": range(1, 64)}
+#: NMEA 4.10 GNSS system id (GSA field 18, GSV signal id companion) per talker
+NMEA_SYSTEM_ID: dict[str, int] = {"GP": 1, "GL": 2, "GA": 3, "GB": 4, "BD": 4}
 
 
 def format_lat(lat_deg: float, decimals: int = 5) -> tuple[str, str]:
@@ -129,11 +145,14 @@ def build_rmc(
     valid: bool = True,
     mode: str = "A",
     talker: str = "GP",
+    nav_status: str | None = None,
 ) -> bytes:
-    """RMC sentence (NMEA 2.3 with the mode indicator). Speed in m/s is written in knots."""
+    """RMC sentence (NMEA 2.3 with the mode indicator; NMEA 4.10 with ``nav_status``, e.g. ``V``). Speed in m/s is
+    written in knots."""
+    tail = [] if nav_status is None else [nav_status]
     if not valid:
         return build_sentence(talker, "RMC", [_format_time(time_utc), "V", "", "", "", "", "", "",
-                                              date.strftime("%d%m%y"), "", "", "N"])
+                                              date.strftime("%d%m%y"), "", "", "N", *tail])
     lat, ns = format_lat(lat_deg)
     lon, ew = format_lon(lon_deg)
     return build_sentence(
@@ -152,6 +171,7 @@ def build_rmc(
             "",
             "",
             mode,
+            *tail,
         ],
     )
 
@@ -200,8 +220,10 @@ def build_gsa(
     vdop: float | None,
     mode: str = "A",
     talker: str = "GP",
+    system_id: int | None = None,
 ) -> bytes:
-    """GSA sentence: ``mode`` A (automatic) / M (manual), ``fix_type`` 1 none / 2 2D / 3 3D.
+    """GSA sentence: ``mode`` A (automatic) / M (manual), ``fix_type`` 1 none / 2 2D / 3 3D; NMEA 4.10 adds
+    ``system_id`` (:data:`NMEA_SYSTEM_ID`).
 
     ``sat_ids`` fills the 12 satellite slots in order (``None`` = empty slot; fewer than 12
     entries leave the remaining slots empty). DOPs with 2 decimals.
@@ -211,8 +233,30 @@ def build_gsa(
         raise ValueError(f"GSA has 12 satellite slots, got {len(slots)}")
     slots += [None] * (12 - len(slots))
     ids = ["" if s is None else f"{s:02d}" for s in slots]
+    tail = [] if system_id is None else [f"{system_id:X}"]
     return build_sentence(talker, "GSA", [mode, str(fix_type), *ids, _opt(pdop, ".2f"), _opt(hdop, ".2f"),
-                                          _opt(vdop, ".2f")])
+                                          _opt(vdop, ".2f"), *tail])
+
+
+def build_gsv(
+    sats: Sequence[tuple[int, int | None, int | None, int | None]],
+    talker: str = "GP",
+    signal_id: int | None = None,
+) -> bytes:
+    """GSV sentences (as many as needed, 4 satellites each): ``sats`` = (number, elevation deg, azimuth deg,
+    C/N0 dBHz or None when not tracked). NMEA 4.10 adds ``signal_id`` (1 = GPS L1 C/A, GLONASS L1 OF, ...).
+    No satellite in view: one sentence with 0 satellites (as u-blox receivers send)."""
+    n = len(sats)
+    total = max(1, (n + 3) // 4)
+    tail = [] if signal_id is None else [f"{signal_id:X}"]
+    out = bytearray()
+    for k in range(total):
+        fields = [str(total), str(k + 1), f"{n:02d}"]
+        for prn, elev, az, snr in sats[4 * k: 4 * k + 4]:
+            fields += [f"{prn:02d}", "" if elev is None else f"{elev:02d}", "" if az is None else f"{az:03d}",
+                       "" if snr is None else f"{snr:02d}"]
+        out += build_sentence(talker, "GSV", [*fields, *tail])
+    return bytes(out)
 
 
 def build_zda(

@@ -65,6 +65,7 @@ from .stim300 import (
 
 __all__ = [
     "GYRO_ANGLE_LSB_DEG",
+    "GYRO_DEVICES",
     "GYRO_RATE_LSB_DPS",
     "INCL_DV_LSB_MPS",
     "INCL_LSB_G",
@@ -81,6 +82,7 @@ __all__ = [
     "StimDatagram",
     "StimStatus",
     "counter_step",
+    "gyro_port_format",
     "stim210_spec",
     "stim300_spec",
     "utility_mode_crc",
@@ -250,3 +252,16 @@ class Stim210Format:
         return body + bytes((crc8_stim(body),)) + (b"\r\n" if self.crlf else b"")
 
     encode = build
+
+
+#: IMUs that can sit on the gyro port: the STIM210 (datagram format letter) or the STIM300 (datagram ID)
+GYRO_DEVICES = ("stim210", "stim300")
+
+
+def gyro_port_format(device: str = "stim210", fmt: str = "m", ident: int = 0x93) -> Stim210Format | Stim300Format:
+    """The datagram format on the gyro port: a STIM210 of format letter ``fmt`` or a STIM300 sending ID ``ident``."""
+    if device == "stim300":
+        return Stim300Format(ident)
+    if device == "stim210":
+        return Stim210Format(fmt)
+    raise ValueError(f"unknown gyro-port device {device!r}; expected one of {GYRO_DEVICES}")

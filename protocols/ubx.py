@@ -30,7 +30,12 @@ UBX-NAV-STATUS payload (16 bytes)::
     b3 towSet)   6 X1 fixStat   7 X1 flags2   8 U4 ttff ms   12 U4 msss ms (since start-up)
 
 :class:`UbxFormat` decodes NAV-PVT and NAV-STATUS into :class:`NavPvt` / :class:`NavStatus` and
-every other checked frame (including the 84-byte protocol-14 NAV-PVT) into :class:`UbxFrame`.
+every other checked frame into :class:`UbxFrame`. NAV-PVT is parsed by its known prefix, as the u-blox
+descriptions ask of a reader ("the payload may be extended in later versions"): the 84-byte payload of
+protocol 14 (u-blox 7: the layout above up to ``pDOP``, then 6 reserved bytes) fills the fields after
+``pDOP`` with zero; the 92-byte payload of protocols 15-34 (M8, F9, M10) is parsed whole; a longer one
+(a later protocol) is parsed by its first 92 bytes. Any other NAV-PVT length is refused at the header
+(a length error).
 Frames of an unknown message class are refused at the header, so a stray ``B5 62`` in noise
 costs at most six bytes.
 """
@@ -52,6 +57,8 @@ __all__ = [
     "ID_NAV_PVT",
     "ID_NAV_STATUS",
     "NAV_PVT_LEN",
+    "NAV_PVT_LEN_V14",
+    "NAV_PVT_PREFIX_V14",
     "NAV_PVT_SPEC",
     "NAV_STATUS_LEN",
     "NAV_STATUS_SPEC",
@@ -76,12 +83,14 @@ CLS_NAV = 0x01
 ID_NAV_PVT = 0x07
 ID_NAV_STATUS = 0x03
 NAV_PVT_LEN = 92
+#: NAV-PVT payload of protocol 14 (u-blox 7)
+NAV_PVT_LEN_V14 = 84
 NAV_STATUS_LEN = 16
 #: Message classes of the u-blox protocol (NAV, RXM, INF, ACK, CFG, UPD, MON, AID, TIM, ESF,
 #: MGA, LOG, SEC, HNR, NAV2); a header naming any other class is refused at once.
 UBX_CLASSES = frozenset({0x01, 0x02, 0x04, 0x05, 0x06, 0x09, 0x0A, 0x0B, 0x0D, 0x10, 0x13, 0x21, 0x27, 0x28, 0x29})
 #: Fixed payload lengths of the messages decoded here; others only need the class check.
-_FIXED_LEN = {(CLS_NAV, ID_NAV_STATUS): (NAV_STATUS_LEN,), (CLS_NAV, ID_NAV_PVT): (NAV_PVT_LEN, 84)}
+_FIXED_LEN = {(CLS_NAV, ID_NAV_STATUS): (NAV_STATUS_LEN,)}
 
 
 @fast_frozen_init
@@ -204,6 +213,10 @@ UBX_FRAME_SPEC = Struct(
     "ck_b" / Int8ul * " |  | Fletcher CK_B = sum of the running CK_A mod 256",
 )
 
+#: bytes protocol 14 shares with the later layout: ``iTOW`` .. ``pDOP`` (derived from the spec)
+_PVT_NAMES = [sc.name for sc in NAV_PVT_SPEC.subcons]
+NAV_PVT_PREFIX_V14 = Struct(*NAV_PVT_SPEC.subcons[: _PVT_NAMES.index("pDOP") + 1]).sizeof()
+_PVT_TAIL_ZERO = bytes(NAV_PVT_LEN - NAV_PVT_PREFIX_V14)
 _PVT = StructCodec(NAV_PVT_SPEC, "UBX_NAV_PVT")
 _STATUS = StructCodec(NAV_STATUS_SPEC, "UBX_NAV_STATUS")
 if (_PVT.size, _STATUS.size) != (NAV_PVT_LEN, NAV_STATUS_LEN):  # pragma: no cover
@@ -263,8 +276,11 @@ class UbxFormat:
         if cls not in UBX_CLASSES:
             return BAD_LENGTH
         n = buf[start + 4] | (buf[start + 5] << 8)
-        fixed = _FIXED_LEN.get((cls, buf[start + 3]))
+        mid = buf[start + 3]
+        fixed = _FIXED_LEN.get((cls, mid))
         if (fixed is not None and n not in fixed) or n > UBX_MAX_PAYLOAD:
+            return BAD_LENGTH
+        if cls == CLS_NAV and mid == ID_NAV_PVT and n != NAV_PVT_LEN_V14 and n < NAV_PVT_LEN:
             return BAD_LENGTH
         return n + 8
 
@@ -276,8 +292,11 @@ class UbxFormat:
         cls, mid = frame[2], frame[3]
         n = len(frame) - 8
         if cls == CLS_NAV:
-            if mid == ID_NAV_PVT and n == NAV_PVT_LEN:
-                return NavPvt(*_unpack_pvt(frame, 6))
+            if mid == ID_NAV_PVT:
+                if n >= NAV_PVT_LEN:
+                    return NavPvt(*_unpack_pvt(frame, 6))
+                if n == NAV_PVT_LEN_V14:
+                    return NavPvt(*_unpack_pvt(bytes(frame[6 : 6 + NAV_PVT_PREFIX_V14]) + _PVT_TAIL_ZERO, 0))
             if mid == ID_NAV_STATUS and n == NAV_STATUS_LEN:
                 return NavStatus(*_unpack_status(frame, 6))
         return UbxFrame(cls, mid, bytes(frame[6:-2]))

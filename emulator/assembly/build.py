@@ -30,7 +30,8 @@ __all__ = ["build_dsp", "build_uarts", "fpga_config", "port_map"]
 def fpga_config(scn: Scenario) -> FpgaConfig:
     """The virtual FPGA's configuration from the scenario's ``fpga`` and IMU sections."""
     return FpgaConfig(imu_rate_hz=scn.sensors.imu.rate_hz, gyro_timeout_s=scn.fpga.gyro_timeout_s,
-                      gyro_format=scn.sensors.imu.format,
+                      gyro_format=scn.sensors.imu.format, gyro_device=scn.sensors.imu.device,
+                      stim300_ident=int(scn.sensors.imu.stim300_datagram, 16),
                       gyro_counter_step=round(2000 / scn.sensors.imu.rate_hz),
                       routing={str(k): str(v) for k, v in scn.fpga.routing.items()},
                       monitor_channels=tuple(scn.fpga.monitor_channels) if scn.fpga.monitor_channels else None,

@@ -19,7 +19,7 @@ from firmware_model import UART_GNSS, UART_HOST, UART_IMU, UART_PSNS
 from protocols.host import HostFormat
 from protocols.imu_frame import FpgaFrameFormat
 from protocols.monitor import MonitorFormat
-from protocols.nmea import NmeaFormat
+from protocols.nmea import NMEA_RX_MAX_LEN, NmeaFormat
 from protocols.psns import PsnsFormat
 from protocols.stim import Stim210Format
 from protocols.ubx import UbxFormat
@@ -65,7 +65,7 @@ def port_formats(name: str, nmea_out: bool = False) -> dict[str, list[Any]]:
     host = {"out": [HostFormat(), NmeaFormat()] if nmea_out else [HostFormat()], "in": [HostFormat()]}
     table: dict[str, dict[str, list[Any]]] = {
         "gyro": {"in": [Stim210Format("m")]},
-        "gnss": {"in": [NmeaFormat(), UbxFormat()]},  # UBX may follow the NMEA sentences
+        "gnss": {"in": [NmeaFormat(NMEA_RX_MAX_LEN), UbxFormat()]},  # UBX may follow; real receivers: long lines
         "psns": {"in": [PsnsFormat()]},
         "host": host,
         "monitor": {"out": [MonitorFormat()]},
@@ -73,7 +73,7 @@ def port_formats(name: str, nmea_out: bool = False) -> dict[str, list[Any]]:
         "uart0": host,
         "uart1": {"in": [FpgaFrameFormat()]},  # IMU frames and MAG frames (docs/icd.md)
         "uart2": {"in": [PsnsFormat()]},
-        "uart3": {"in": [NmeaFormat(), UbxFormat()]},
+        "uart3": {"in": [NmeaFormat(NMEA_RX_MAX_LEN), UbxFormat()]},
     }
     return {d: list(f) for d, f in table.get(name, {}).items()}
 

@@ -27,7 +27,7 @@ from typing import Any
 from firmware_model.calibration import load_calibration, save_calibration
 from firmware_model.registry import FirmwareProtocol
 from protocols import __version__ as VERSION
-from protocols.stim import Stim210Format
+from protocols.stim import gyro_port_format
 
 from .. import early_signals
 from ..clock import EmulatorLoop, sleep_until
@@ -180,6 +180,10 @@ class Emulator:
         mag = getattr(self.sensors, "mag", None) if self.replay is None else None
         self.fpga = VirtualFpga(loop, fcfg, fpga_ports, uart_fpga, gyro, accel, rec, monitor=ext.get("monitor"),
                                 mag=mag)
+        gnss_port = ext.get("gnss")
+        if gnss_port is not None and getattr(gnss_port, "pps_line", None):
+            # an external receiver's PPS on a modem line (serial:// ?pps=dcd|cts): latched like the modelled one's
+            gnss_port.on_pps = self._pps  # type: ignore[attr-defined]
         self.dsp = self.build_dsp(uart_dsp, rx_cfg, rec)
         if scn.faults and self.replay is None:  # bound now: a fault on a missing device fails before the run
             self.faults = FaultScheduler(self.fault_targets(), scn.faults, self.seed, rec)
@@ -188,7 +192,8 @@ class Emulator:
             fm: dict[str, Sequence[Any]] = dict(port_formats(name, nmea_out=bool(scn.firmware.nmea.sentences)
                                                                        and scn.links.host_nmea is None))
             if name == "gyro":
-                fm = {"in": [Stim210Format(scn.sensors.imu.format)]}
+                fm = {"in": [gyro_port_format(scn.sensors.imu.device, scn.sensors.imu.format,
+                                              int(scn.sensors.imu.stim300_datagram, 16))]}
             n0 = len(link.listeners)
             rec.tap(name, link, fm)
             if name in self.external_uarts:  # a cut UART is recorded from the DSP's side, as with the virtual DSP
@@ -428,7 +433,7 @@ class Emulator:
             "nav_error_by_phase": {ph: {k: v.as_dict() for k, v in e.items()} for ph, e in rec.errors_by_phase.items()},
             "nav_frames": rec.nav_count,
             "links": rec.link_summary(),
-            "link_stats": {k: dict(v.stats.as_dict(), error=v.error) for k, v in self.links.items()},
+            "link_stats": {k: dict(v.stats.as_dict(), error=v.error, **_pps_stats(v)) for k, v in self.links.items()},
             "bound_ports": {k: dict(b.port.stats.as_dict(), direction=b.direction, url=b.port.url,
                                     peer_bytes=b.peer_bytes, error=b.port.error) for k, b in self.bindings.items()},
             **self.dsp_sections(),
@@ -445,6 +450,14 @@ class Emulator:
         if isinstance(self.dsp, ExternalDsp):
             return self.dsp.sections(self.loop.time() if self.loop is not None else None)
         return dsp_sections(self.dsp)
+
+
+def _pps_stats(link: Link) -> dict[str, Any]:
+    """PPS of a port with a modem-line PPS (``serial://...?pps=dcd``): edges latched and why none came (a pty)."""
+    if not getattr(link, "pps_line", None):
+        return {}
+    return {"pps_line": link.pps_line, "pps_edges": link.pps_edges,  # type: ignore[attr-defined]
+            "pps_error": link.pps_error}  # type: ignore[attr-defined]
 
 
 def run_emulator(emu: Emulator, speed: float = 1.0, on_started: Callable[[Emulator], None] | None = None,

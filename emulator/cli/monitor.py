@@ -40,7 +40,7 @@ from typing import Any, TextIO
 from protocols.host import HostFormat
 from protocols.imu_frame import FpgaFrameFormat
 from protocols.monitor import MONITOR_CHANNELS, MonitorFormat
-from protocols.nmea import NmeaFormat
+from protocols.nmea import NMEA_RX_MAX_LEN, NmeaFormat
 from protocols.psns import PsnsFormat
 from protocols.stim import Stim210Format
 from protocols.stream import StreamDecoder
@@ -60,7 +60,7 @@ def _protocol_table() -> dict[str, Callable[[str], list[Any]]]:
         "host": lambda arg: [HostFormat()],
         "imu": lambda arg: [FpgaFrameFormat()],  # the IMU frame and the MAG frame that share the FPGA's UART
         "stim210": lambda arg: [Stim210Format(arg or "m")],
-        "nmea": lambda arg: [NmeaFormat()],
+        "nmea": lambda arg: [NmeaFormat(NMEA_RX_MAX_LEN)],  # a receiving tool: real receivers' long sentences
         "psns": lambda arg: [PsnsFormat()],
         "ubx": lambda arg: [UbxFormat()],
         "monitor": lambda arg: [MonitorFormat()],
@@ -202,7 +202,15 @@ class Monitor:
         return [FrameRow(t, ch, d, fr) for fr in dec.feed(rec.data)]
 
     def stats(self) -> dict[str, dict[str, Any]]:
-        return {f"{p}/{d}": dec.stats.as_dict() for (p, d), dec in self.decoders.items()}
+        # NMEA lines accepted with an LF-only end are counted apart (never as CRC errors)
+        out = {}
+        for (p, d), dec in self.decoders.items():
+            st = dec.stats.as_dict()
+            nmea = [f for f in dec.formats if isinstance(f, NmeaFormat)]
+            if nmea:
+                st["lf_only"] = sum(f.lf_only for f in nmea)
+            out[f"{p}/{d}"] = st
+        return out
 
 
 def _capture_rows(path: Path, mon: Monitor, links: set[str] | None) -> Iterator[FrameRow]:

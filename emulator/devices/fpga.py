@@ -33,7 +33,7 @@ from typing import Any
 
 from protocols.imu_frame import ADC_CODE_MAX, FpgaStatus, ImuFrame, ImuFrameFormat, MagFrame, encode_mag_frame
 from protocols.monitor import MONITOR_CHANNELS, MONITOR_MAX_DATA, MonitorRecord, encode_monitor
-from protocols.stim import Stim210Format
+from protocols.stim import gyro_port_format
 from protocols.stream import StreamDecoder
 
 from ..links.base import Link
@@ -51,6 +51,9 @@ class FpgaConfig:
     imu_rate_hz: float = 200.0
     gyro_timeout_s: float = 0.004
     gyro_format: str = "m"
+    #: the IMU on the gyro port (``stim210`` / ``stim300``) and the STIM300's datagram ID
+    gyro_device: str = "stim210"
+    stim300_ident: int = 0x93
     gyro_counter_step: int = 10
     routing: dict[str, str] = field(default_factory=lambda: dict(DEFAULT_ROUTING))
     #: channels mirrored on the MONITOR port (None = every channel)
@@ -119,7 +122,7 @@ class VirtualFpga:
         self.stalled: set[str] = set()
         self.stall_counts: dict[str, int] = {}
         if "gyro" in ports:
-            self._gyro_dec = StreamDecoder([Stim210Format(cfg.gyro_format)])
+            self._gyro_dec = StreamDecoder([gyro_port_format(cfg.gyro_device, cfg.gyro_format, cfg.stim300_ident)])
             ports["gyro"].on_receive = self._on_gyro_bytes
         for port, uart in cfg.routing.items():
             if port in ports and uart in uarts:
@@ -231,7 +234,8 @@ class VirtualFpga:
                 flags |= FpgaStatus.GYRO_COUNTER_JUMP
             if d.counter is not None:  # type: ignore[attr-defined]
                 self._last_counter = d.counter  # type: ignore[attr-defined]
-            self._last_gyro = (gyro, d.status, d.counter or 0, d.latency_us or 0)  # type: ignore[attr-defined]
+            status = d.status if hasattr(d, "status") else d.gyro_status  # type: ignore[attr-defined]  # STIM300
+            self._last_gyro = (gyro, status, d.counter or 0, d.latency_us or 0)  # type: ignore[attr-defined]
         else:
             flags |= FpgaStatus.GYRO_MISSING
             self.gyro_missing += 1

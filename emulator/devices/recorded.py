@@ -47,6 +47,7 @@ from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
+from protocols.gnss import GnssOutputSet
 from protocols.nmea import Gga, NmeaFormat, Rmc
 
 from ..errors import RecordingError
@@ -198,20 +199,20 @@ class _CsvReplayReceiver(GnssReceiver):
     def has_fix(self, t: float) -> bool:
         return self.src.fix_at(t, 0.5 / self.cfg.rate_hz) is not None
 
-    def sentences(self, t: float, fix: bool = True) -> bytes:
+    def sentences(self, t: float, fix: bool = True, output: GnssOutputSet | None = None) -> bytes:
         from protocols.gnss import build_epoch
 
         cfg = self.cfg
         utc = self.epoch + _dt.timedelta(seconds=t)
         row = self.src.fix_at(t, 0.5 / cfg.rate_hz)
         if row is None:
-            return super().sentences(t, False)
+            return super().sentences(t, False, output)
         q = int(row.get("fix_quality", cfg.fix_quality))
         f = self._fix(utc, row["lat_deg"], row["lon_deg"], row["height_m"],
                       (row["vel_e_mps"], row["vel_n_mps"], row.get("vel_u_mps", 0.0)),
                       fix_type=3 if q > 0 else 0, quality=q)
         self.fixes_sent += 1
-        return build_epoch(f, self._output)
+        return build_epoch(f, output if output is not None else self._output)
 
 
 class _NoTruth:

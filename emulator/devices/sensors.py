@@ -45,6 +45,7 @@ from .compass import (
 )
 from .gnss import GnssConfig, GnssErrors, GnssGlitch, GnssOutage, GnssReceiver
 from .imu import AccelErrors, AnalogAccelerometers, GyroErrors, ImuTemperature, ImuTruthTap, Stim210Gyro
+from .imu.stim300 import Stim300Imu
 from .magnetometer import MagConfig, Magnetometer, soft_iron_matrix
 
 __all__ = [
@@ -88,6 +89,12 @@ class SensorSet:
         return {
             "gyro_datagrams": self.gyro.datagrams_sent if self.gyro else None,
             "gnss_epochs": self.gnss.epochs_sent if self.gnss else None,
+            "gnss_pps_pulses": getattr(self.gnss, "pps_pulses", None),
+            # what a host sent the receiver (UBX polls answered, CFG sets acknowledged / refused, other input)
+            "gnss_host_polls": getattr(self.gnss, "host_polls", None),
+            "gnss_host_acks": getattr(self.gnss, "host_acks", None),
+            "gnss_host_naks": getattr(self.gnss, "host_naks", None),
+            "gnss_host_ignored": getattr(self.gnss, "host_ignored", None),
             "psns_frames": self.psns.frames_sent if self.psns else None,
             "compass_frames": self.compass.frames_sent if self.compass else None,
             "mag_samples": self.mag.samples if self.mag else None,
@@ -134,7 +141,7 @@ def gnss_config(scn: Scenario) -> GnssConfig:
     err = _dataclass_from(GnssErrors, merged(p["errors"], g.errors.model_dump()))
     return GnssConfig(
         rate_hz=g.rate_hz, latency_s=g.latency_s if g.latency_s is not None else float(p.get("latency_s", 0.05)),
-        sentences=tuple(g.sentences), ubx=tuple(g.ubx), talker=g.talker,
+        sentences=tuple(g.sentences), ubx=tuple(g.ubx), talker=g.talker, nmea_version=g.nmea_version,
         geoid_sep_m=g.geoid_sep_m,
         fix_quality=g.fix_quality if g.fix_quality is not None else int(p.get("fix_quality", 1)),
         reacquisition_s=g.reacquisition_s if g.reacquisition_s is not None else float(p.get("reacquisition_s", 0.8)),
@@ -245,9 +252,11 @@ def build_sensors(scn: Scenario, seed: int, traj: Trajectory, internal: dict[str
         gyro_src, accel_src = rec.mean_rate, rec.mean_specific_force
     gyro = None
     if "gyro" in internal:
-        gyro = Stim210Gyro(internal["gyro"], tap, device_rng(seed, "gyro"), gyro_errors(scn),
-                           fmt=s.imu.format, output=s.imu.output, trigger_rate_hz=s.imu.rate_hz,
-                           temperature=temp, source=gyro_src, lp_filter_hz=gyro_lp_filter_hz(scn))
+        kw: dict[str, Any] = {"ident": int(s.imu.stim300_datagram, 16)} if s.imu.device == "stim300" else {}
+        gyro = (Stim300Imu if s.imu.device == "stim300" else Stim210Gyro)(
+            internal["gyro"], tap, device_rng(seed, "gyro"), gyro_errors(scn),
+            fmt=s.imu.format, output=s.imu.output, trigger_rate_hz=s.imu.rate_hz,
+            temperature=temp, source=gyro_src, lp_filter_hz=gyro_lp_filter_hz(scn), **kw)
     accel = AnalogAccelerometers(tap, device_rng(seed, "accel"), accel_errors(scn), temperature=temp,
                                  source=accel_src, trigger_rate_hz=s.imu.rate_hz)
     gnss: Any = None

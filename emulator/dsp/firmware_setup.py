@@ -190,7 +190,12 @@ def firmware_config(scn: Scenario, calibration: Calibration | None = None) -> Fi
     if calibration is None:
         calibration = calibration_for(scn)
     fw = scn.firmware
-    gnss = gnss_config(scn).errors
+    gnss_cfg = gnss_config(scn)
+    gnss = gnss_cfg.errors
+    gnss_uart = scn.fpga.routing.get("gnss", "uart3")
+    # the slower of the receiver's line and the DSP UART paces the bytes (the FPGA forwards cut-through)
+    gnss_bauds = [b for b in (scn.fpga.uarts[gnss_uart].baud if gnss_uart in scn.fpga.uarts else None,
+                              scn.links.gnss.baud) if b]
     gyro = gyro_errors(scn)
     acc = accel_errors(scn)
     psns_uart = scn.fpga.routing.get("psns", "uart2")
@@ -229,6 +234,8 @@ def firmware_config(scn: Scenario, calibration: Calibration | None = None) -> Fi
         gnss_pos_sigma_v_m=max(gnss.pos_sigma_v_m, 0.5),
         gnss_vel_sigma_h_mps=max(gnss.vel_sigma_h_mps, 0.01),
         gnss_vel_sigma_v_mps=max(gnss.vel_sigma_v_mps, 0.01),
+        gnss_baud=min(gnss_bauds) if gnss_bauds else FirmwareConfig.gnss_baud,
+        gnss_latency_s=gnss_cfg.latency_s,
         psns_enabled=psns_enabled,
         # an EMIFA UART core has no line baud of its own: the firmware's default line then dates the frames
         psns_baud=scn.fpga.uarts[psns_uart].baud or FirmwareConfig.psns_baud,

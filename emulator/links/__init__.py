@@ -68,13 +68,14 @@ _COMMON_OPTIONS = {"baud", "mode", "queue"}
 #: options a scheme accepts beyond the common ones (kept here so that validation needs no import)
 _SCHEME_OPTIONS: dict[str, frozenset[str]] = {
     "pty": frozenset({"peer_baud"}),
+    "serial": frozenset({"pps"}),
     "zenoh": frozenset({"role", "listen", "connect", "session", "config", "pace", "nav"}),
     "can": frozenset({"dbc", "rate", "bitrate", "fd"}),
 }
 _USAGE = {
     "mem": "mem://NAME[?baud=N&mode=8N1&queue=BYTES]",
     "pty": "pty://NAME[?baud=N&mode=8N1&queue=BYTES&peer_baud=ignore|check]",
-    "serial": "serial:///dev/ttyXXX[?baud=N&mode=8N1&queue=BYTES]",
+    "serial": "serial:///dev/ttyXXX[?baud=N&mode=8N1&queue=BYTES&pps=dcd|cts]",
     "zenoh": "zenoh://RUN/PORT[?role=device|peer&listen=tcp/127.0.0.1:7447&connect=tcp/HOST:PORT"
              "&session=peer|client&config=FILE&pace=1|0&nav=tx|rx|off&baud=N&mode=8N1&queue=BYTES]",
     "can": "can://virtual/CHANNEL or can://socketcan/IFACE[?dbc=FILE&rate=HZ&bitrate=N&fd=0|1]",

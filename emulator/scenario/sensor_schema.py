@@ -92,6 +92,9 @@ class RecordedImuSpec(Model):
 class ImuSpec(Model):
     preset: str = "paper"
     format: Literal["s", "e", "j", "k", "l", "m", "n", "o", "p"] = "m"
+    device: Literal["stim210", "stim300"] = "stim210"
+    stim300_datagram: Literal["0x90", "0x91", "0x92", "0x93", "0x94", "0xA5", "0xA6", "0xA7", "0xF0", "0xF1", "0xF2",
+                              "0xF3", "0xF4", "0xF5", "0xF6", "0xF7"] = "0x93"
     output: Literal["rate", "angle"] = "rate"
     rate_hz: float = Field(200.0, gt=0, le=2000)
     lp_filter_hz: Literal[0, 16, 33, 66, 131, 262] | None = Field(
@@ -140,7 +143,7 @@ class RecordedGnssSpec(Model):
 
 
 #: NMEA sentences the modelled receiver can emit.
-NmeaSentenceName = Literal["GGA", "RMC", "VTG", "GSA", "ZDA"]
+NmeaSentenceName = Literal["GGA", "RMC", "VTG", "GSA", "GSV", "ZDA"]
 DEFAULT_NMEA_SENTENCES: tuple[NmeaSentenceName, ...] = ("GGA", "RMC")
 
 
@@ -154,6 +157,7 @@ class GnssSpec(Model):
     ubx: list[Literal["NAV-PVT", "NAV-STATUS"]] = Field(
         default_factory=list, description="UBX messages per epoch, after the NMEA sentences")
     talker: Literal["GP", "GN", "GL", "GA", "GB", "BD"] = "GP"
+    nmea_version: Literal["2.3", "4.10"] = "2.3"
     geoid_sep_m: float = 0.0
     fix_quality: Literal[1, 2, 4, 5] | None = None
     reacquisition_s: float | None = Field(None, ge=0, lt=1.0, description="paper: < 1 s")

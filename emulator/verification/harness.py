@@ -150,9 +150,10 @@ class EmulatorHarness:
             for d in ("in", "out"):
                 formats = fm.get(d, [])
                 if name == "gyro" and d == "in":
-                    from protocols.stim import Stim210Format
+                    from protocols.stim import gyro_port_format
 
-                    formats = [Stim210Format(emu.scn.sensors.imu.format)]
+                    imu = emu.scn.sensors.imu
+                    formats = [gyro_port_format(imu.device, imu.format, int(imu.stim300_datagram, 16))]
                 w = PortWatcher(name, d, formats)
                 self.watchers[(name, d)] = w
             link.listeners.append(_Both(self.watchers[(name, "in")], self.watchers[(name, "out")]))

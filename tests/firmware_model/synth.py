@@ -76,6 +76,7 @@ class StreamConfig:
     gnss_outage_s: tuple[float, float] | None = None  # no sentences (and no PPS latch change) in [start, end)
     gnss_output: str = "nmea"  # "nmea" (GGA + RMC), "ubx" (NAV-PVT) or "both"
     gnss_vel_up_error_mps: float = 0.0  # a constant error on the GNSS vertical velocity (tests of the velD path)
+    pps: bool = True  # False: the IMU frames never carry PPS_VALID (an external receiver without a PPS line)
     psns: str | None = "solar_vector"  # None, "solar_vector" or "polarization_obs"
     psns_rate_hz: float = 5.0
     psns_latency_us: int = 30000
@@ -136,7 +137,7 @@ def static_stream(truth: StaticTruth, err: SensorErrors, cfg: StreamConfig, dura
         fr = ImuFrame(seq=k & 0xFFFF, t_trigger_us=round(t * 1e6) & 0xFFFFFFFF,
                       t_pps_us=(pps * 1_000_000) & 0xFFFFFFFF, pps_count=pps & 0xFF, gyro=gyro,  # type: ignore[arg-type]
                       gyro_status=0, gyro_counter=counter, gyro_latency_us=500,
-                      accel=accel, fpga_status=int(FpgaStatus.PPS_VALID) if pps >= 1 else 0)  # type: ignore[arg-type]
+                      accel=accel, fpga_status=int(FpgaStatus.PPS_VALID) if pps >= 1 and cfg.pps else 0)  # type: ignore[arg-type]
         push(t + 40 * 10 / 460800 + 0.0004, UART_IMU, fmt.build(fr))
         while heap and heap[0][0] <= t:
             tt, _, uart, data = heapq.heappop(heap)

@@ -17,7 +17,7 @@ FIX = GnssFix(utc=UTC, lat_deg=39.979, lon_deg=116.339, height_m=50.0, geoid_sep
 def test_gps_time_of_week():
     # 2019-09-18 is a Wednesday: 3 days + 08:14:00 + 18 leap seconds into the GPS week
     assert gps_time_of_week_ms(UTC) == (3 * 86400 + 8 * 3600 + 14 * 60 + 18) * 1000
-    assert gps_time_of_week_ms(dt.datetime(1980, 1, 6, tzinfo=dt.UTC)) == 18_000
+    assert gps_time_of_week_ms(dt.datetime(1980, 1, 6, tzinfo=dt.UTC)) == 0  # GPS = UTC at the GPS epoch (no leap yet)
 
 
 def test_default_set_is_rmc_vtg_gga_gsa_zda_and_consistent():
@@ -60,7 +60,9 @@ def test_epoch_byte_budget_at_9600_baud():
 
 
 def test_output_set_validation():
-    with pytest.raises(ValueError, match="GSV"):
-        GnssOutputSet(nmea=("GSV",))
+    with pytest.raises(ValueError, match="GLL"):
+        GnssOutputSet(nmea=("GLL",))
+    with pytest.raises(ValueError, match=r"4\.1"):
+        GnssOutputSet(version="4.1")
     with pytest.raises(ValueError):
         GnssOutputSet(rate_hz=0)

@@ -1,6 +1,7 @@
 """NMEA GGA/RMC against pynmea2 (an independent peer), both directions."""
 
 import datetime as dt
+import io
 
 import pynmea2
 import pytest
@@ -131,10 +132,10 @@ def test_proprietary_and_unknown_sentences():
     assert encode_nmea(s) == raw if len(raw) <= 82 else True
     from protocols.nmea import build_sentence
 
-    gsv = build_sentence("GP", "GSV", ["1", "1", "01", "02", "45", "120", "40"])
-    s = parse_one(NmeaFormat(), gsv)
-    assert (s.talker, s.kind, s.fields[:2]) == ("GP", "GSV", ("1", "1"))
-    assert encode_nmea(s) == gsv
+    gll = build_sentence("GP", "GLL", ["4717.11321", "N", "00833.91519", "E", "081350.00", "A", "A"])
+    s = parse_one(NmeaFormat(), gll)
+    assert (s.talker, s.kind, s.fields[:2]) == ("GP", "GLL", ("4717.11321", "N"))
+    assert encode_nmea(s) == gll
 
 
 def test_sentence_length_limit_is_enforced_both_ways():
@@ -146,3 +147,43 @@ def test_sentence_length_limit_is_enforced_both_ways():
     dec = StreamDecoder([NmeaFormat()])
     assert dec.feed(b"$" + b"A" * 100 + b"\r\n" + build_zda(T, D)) != []
     assert dec.stats.length_errors == 1
+
+
+def test_gsv_and_nmea_4_10_fields_round_trip_and_agree_with_pynmeagps():
+    """GSV (4 satellites per sentence, GLONASS numbered 65-96) and the NMEA 4.10 fields (RMC navStatus, GSA systemId,
+    GSV signalId) decode in ours and in pynmeagps, and re-encode byte for byte."""
+    import datetime as dt
+
+    from pynmeagps import NMEAReader
+
+    from protocols.nmea import Gsa, Gsv, Rmc, build_gsa, build_gsv, build_rmc
+
+    sats = [(65, 45, 120, 40), (66, 10, 300, None), (72, 80, 5, 33), (79, 20, 200, 30), (80, 5, 10, 21)]
+    raw = build_gsv(sats, talker="GL", signal_id=1)
+    raw += build_rmc(dt.time(8, 14, 0), dt.date(2019, 9, 18), 39.979, 116.339, 1.0, 30.0, talker="GN", nav_status="V")
+    raw += build_gsa(3, [65, 66, 72, 79], 1.5, 0.9, 1.2, talker="GN", system_id=2)
+    objs = StreamDecoder([NmeaFormat()]).feed(raw)
+    assert [type(o) for o in objs] == [Gsv, Gsv, Rmc, Gsa]
+    assert [s for o in objs[:2] for s in o.sats] == sats and objs[0].num_sv == 5 and objs[0].signal_id == 1
+    assert objs[2].nav_status == "V" and objs[3].system_id == 2 and objs[3].sat_ids[:4] == (65, 66, 72, 79)
+    assert b"".join(encode_nmea(o) for o in objs) == raw
+    peer = [m for _, m in NMEAReader(io.BytesIO(raw))]
+    assert [m.msgID for m in peer] == ["GSV", "GSV", "RMC", "GSA"]
+    g = peer[0]
+    assert (g.svid_01, g.elv_01, g.az_01, g.cno_01, int(g.signalID, 16)) == (65, 45, 120, 40, 1)
+    assert peer[1].svid_01 == 80 and peer[2].navStatus == "V" and int(peer[3].systemId) == 2
+    assert peer[3].svid_01 == 65
+
+
+def test_lf_only_lines_are_accepted_and_counted_apart_from_crc_errors():
+    """A sentence ended by LF alone (no CR) decodes like its CR LF twin and is counted in ``lf_only``; a corrupted
+    one is still a CRC error; the reference scanner and the fast path count the same."""
+    good = build_gga(T, 39.979, 116.339, 50.0, 0.0)
+    lf = good[:-2] + b"\n"
+    bad = lf[:10] + b"9" + lf[11:]
+    for fast in (True, False):
+        fmt = NmeaFormat()
+        dec = StreamDecoder([fmt], fast_paths=fast)
+        got = dec.feed(lf) + dec.feed(bad) + dec.feed(good) + dec.feed(lf + lf)
+        assert got == [parse_one(NmeaFormat(), good)] * 4
+        assert fmt.lf_only == 3 and dec.stats.crc_errors == 1

@@ -84,10 +84,27 @@ def test_stream_with_nmea_on_the_same_port_and_pyubx2_reader():
 def test_header_checks_refuse_noise_quickly():
     fmt = UbxFormat()
     assert fmt.frame_length(bytearray(b"\xb5\x62\x77\x07\x5c\x00"), 0) < 0  # unknown class
-    assert fmt.frame_length(bytearray(b"\xb5\x62\x01\x07\x5d\x00"), 0) < 0  # NAV-PVT is 92 bytes
+    assert fmt.frame_length(bytearray(b"\xb5\x62\x01\x07\x55\x00"), 0) < 0  # NAV-PVT: 84 or >= 92 bytes
+    assert fmt.frame_length(bytearray(b"\xb5\x62\x01\x07\x5b\x00"), 0) < 0
+    assert fmt.frame_length(bytearray(b"\xb5\x62\x01\x07\x54\x00"), 0) == 84 + 8  # protocol 14 (u-blox 7)
+    assert fmt.frame_length(bytearray(b"\xb5\x62\x01\x07\x64\x00"), 0) == 100 + 8  # a later, longer payload
     assert fmt.frame_length(bytearray(b"\xb5\x62\x01\x07\x5c\x00"), 0) == 100
-    proto14 = build_ubx_frame(0x01, 0x07, bytes(84))  # u-blox 7 NAV-PVT: no typed decoder
-    assert parse_one(fmt, proto14) == UbxFrame(0x01, 0x07, bytes(84))
+
+
+def test_nav_pvt_of_every_protocol_version_is_parsed_by_its_prefix():
+    """u-blox 7 (protocol 14: 84 bytes, the 92-byte layout up to pDOP then 6 reserved bytes), M8/F9 (92 bytes) and
+    a later, longer payload (100 bytes) all give the same typed fields; the fields protocol 14 lacks are zero."""
+    import dataclasses
+
+    from protocols.ubx import NAV_PVT_PREFIX_V14
+
+    fmt = UbxFormat()
+    payload = encode_nav_pvt(PVT)[6:-2]
+    assert NAV_PVT_PREFIX_V14 == 78  # iTOW .. pDOP (u-blox 7 receiver description, UBX-NAV-PVT)
+    v14 = parse_one(fmt, build_ubx_frame(0x01, 0x07, payload[:78] + b"\xaa" * 6))  # reserved bytes need not be 0
+    assert v14 == dataclasses.replace(PVT, flags3=0, reserved0=0, headVeh=0, magDec=0, magAcc=0)
+    assert parse_one(fmt, build_ubx_frame(0x01, 0x07, payload)) == PVT
+    assert parse_one(fmt, build_ubx_frame(0x01, 0x07, payload + bytes(range(8)))) == PVT
 
 
 def test_specs_agree_with_struct_codec():

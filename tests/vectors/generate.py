@@ -304,10 +304,10 @@ def damaged() -> None:
                   {"frames": 4, "crc_errors": 1, "length_errors": 0, "garbage_bytes": 50, "resyncs": 1},
                   "a NAV-PVT cut after 50 bytes: its 100-byte candidate fails the checksum, resync finds the next")
     bad = bytearray(pvt_b)
-    bad[4] = 93
+    bad[4] = 88
     write_damaged("ubx_bad_length", "ubx", st_b + bytes(bad) + st_b, [st_o, st_o],
                   {"frames": 2, "crc_errors": 0, "length_errors": 1, "garbage_bytes": 100, "resyncs": 1},
-                  "a NAV-PVT declaring 93 payload bytes (NAV-PVT is 92): refused at the header")
+                  "a NAV-PVT declaring 88 payload bytes (84 on protocol 14, else >= 92): refused at the header")
     # PSNS ---------------------------------------------------------------------------------
     h = PsnsHeader(seq=42, exposure_us=1000, latency_us=45000, status=1, count=2)
     pts = (PolarizationPoint(10, 20, 1234, 40000, 3000), PolarizationPoint(30, 40, -1234, 20000, 2000))

@@ -1,0 +1,88 @@
+"""The STIM300 IMU as a gyro-port device: STIM300 normal-mode datagrams on the same RS422 link as the STIM210.
+
+The gyro channel is the STIM210 model's (:class:`~.stim210.Stim210Gyro`: the same error model, low-pass group
+delay, look-ahead and injected faults; the STIM300 gyros share the STIM210's LSBs, TS1524 r31 7.5.2.2); the
+datagram is the configured STIM300 ID (:data:`protocols.stim300.STIM300_DATAGRAMS`, default 0x93: rate,
+acceleration, inclination; the datasheet's default), CRC-32/MPEG-2 with its dummy bytes. The other clusters:
+
+* accelerometers (10 g range, 2^-19 g/LSB) and inclinometers (2^-22 g/LSB): the interval's mean specific force
+  from truth, body axes, quantised; no error model of their own (the virtual FPGA navigates with its analog
+  accelerometers and uses only the gyro words; these words are for a consumer of the datagram, e.g. a real
+  board on a ``pty://``/``serial://`` gyro port);
+* temperatures from the IMU temperature profile (2^-8 degC);
+* the PPS/AUX word 0 (no PPS wired to the IMU).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from protocols.stim import TEMP_LSB_DEGC
+from protocols.stim300 import INCL_LSB_G, STIM300_ACCEL_LSB_G, STIM300_DATAGRAMS, Stim300Datagram, Stim300Format
+
+from ...links.base import Link
+from .lookahead import ImuTruthTap
+from .stim210 import Stim210Gyro
+
+__all__ = ["STIM300_ACCEL_RANGE_G", "Stim300Imu"]
+
+#: accelerometer range option of the modelled unit, g (TS1524 r31: 5, 10, 30 or 80 g)
+STIM300_ACCEL_RANGE_G = 10
+G0 = 9.80665
+
+
+class Stim300Imu(Stim210Gyro):
+    """A STIM300 in external-trigger mode sending datagram ``ident`` (see module docstring); the other
+    parameters are those of :class:`~.stim210.Stim210Gyro`."""
+
+    def __init__(self, link: Link, tap: ImuTruthTap, rng: np.random.Generator, *args: Any, ident: int = 0x93,
+                 **kw: Any) -> None:
+        super().__init__(link, tap, rng, *args, **kw)
+        self.format = Stim300Format(ident)  # type: ignore[assignment]  # the gyro port's datagram
+        self.ident = ident
+        self.groups = STIM300_DATAGRAMS[ident][0]
+        self._interval = (0.0, 0.0)
+
+    def trigger(self, t: float, t_prev: float) -> None:
+        self._interval = (t_prev, t)
+        super().trigger(t, t_prev)
+
+    def _specific_force_words(self, lsb_g: float) -> tuple[int, int, int]:
+        t0, t1 = self._interval
+        if t1 <= t0:
+            return (0, 0, 0)
+        _dtheta, dv = self.tap.increments(t0, t1)
+        w = np.clip(np.round(np.asarray(dv) / (t1 - t0) / (lsb_g * G0)), -0x800000, 0x7FFFFF).astype(np.int64)
+        return (int(w[0]), int(w[1]), int(w[2]))
+
+    def _transmit(self, t: float, t_c: float, gyro_words: tuple[int, int, int]) -> None:
+        self.counter = (self.counter + self.counter_step) & 0xFF
+        tw = round(t_c / TEMP_LSB_DEGC)
+        temps = (tw, tw, tw)
+        g = self.groups
+        acc = self._specific_force_words(STIM300_ACCEL_LSB_G[STIM300_ACCEL_RANGE_G]) if "acc" in g else None
+        incl = self._specific_force_words(INCL_LSB_G) if "incl" in g else None
+        has_t = "temp" in g
+        d = Stim300Datagram(
+            ident=self.ident, gyro=gyro_words, gyro_status=0, counter=self.counter, latency_us=self.latency_us,
+            accel=acc, accel_status=0 if acc is not None else None,
+            incl=incl, incl_status=0 if incl is not None else None,
+            gyro_temp=temps if has_t else None, gyro_temp_status=0 if has_t else None,
+            accel_temp=temps if has_t and acc is not None else None,
+            accel_temp_status=0 if has_t and acc is not None else None,
+            incl_temp=temps if has_t and incl is not None else None,
+            incl_temp_status=0 if has_t and incl is not None else None,
+            aux=0 if "aux" in g else None, aux_status=0 if "aux" in g else None,
+        )
+        frame = self.format.build(d)  # type: ignore[arg-type]
+        if self.drop_probability > 0.0:
+            rng = self._drop_rng if self._drop_rng is not None else self.rng
+            if rng.random() < self.drop_probability:
+                self.datagrams_dropped += 1
+                return
+        t_send = t + self.response_delay_s
+        self.link.send_at(t_send, frame)
+        self._queued += 1
+        self._last_send_t = t_send

@@ -67,8 +67,10 @@ def dsp_sections(dsp: VirtualDsp) -> dict[str, Any]:
             "tasks": fw.meter.table(),
             **dsp.counters(),
         },
-        "firmware": {"filter": fw.cfg.filter, "precision": fw.cfg.precision, "counters": dict(fw.counters),
-                     "decoders": fw.decoder_stats()},
+        "firmware": {"filter": fw.cfg.filter, "precision": fw.cfg.precision, "spec_sheet": fw.cfg.spec_sheet,
+                     "counters": dict(fw.counters), "decoders": fw.decoder_stats(),
+                     # NIS sums per measurement type (consistency check, emulator/distributed/campaign/consistency.py)
+                     "innovation": {k: dict(v) for k, v in getattr(fw.filter, "innovation_stats", {}).items()}},
     }
 
 

@@ -37,6 +37,10 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     c.add_argument("--quiet", action="store_true", help="no progress bar")
     c.add_argument("--dashboard", action="store_true",
                    help="serve the Dask dashboard of the local cluster on 127.0.0.1:8787 (off by default)")
+    c.add_argument("--consistency", action="store_true",
+                   help="filter consistency: average NEES per state group and NIS per measurement type against the "
+                        "two-sided chi-square bounds for N runs; writes consistency.json (the scenario's consistency: "
+                        "expectation chooses groups and confidence, default all at 95 %%)")
     c.add_argument("--allow-hooks", action="store_true",
                    help="run the scenario's Python expectation hooks in the members (a trusted scenario only)")
     return c
@@ -53,7 +57,8 @@ def run(args: argparse.Namespace) -> int:
     cfg = CampaignConfig(scenario=Path(args.scenario), runs=args.runs,
                          variations=[parse_vary(v) for v in args.vary], seed=args.seed, scheduler=args.scheduler,
                          workers=args.workers, out_dir=Path(args.out) if args.out else None,
-                         keep_all=args.keep_all, plots=not args.no_plots, dashboard=args.dashboard)
+                         keep_all=args.keep_all, plots=not args.no_plots, dashboard=args.dashboard,
+                         consistency=args.consistency)
     if args.allow_hooks:  # before the cluster exists: its worker processes inherit the setting
         import os
 
@@ -102,4 +107,32 @@ def run(args: argparse.Namespace) -> int:
                       + (f" ({100 * st['pass_rate']:.1f} % of completed)" if st["pass_rate"] is not None else ""))
         for r in res.failed:
             console.print(f"[bold red]member {r['index']} (seed {r['seed']}) failed:[/] {r['error']}", soft_wrap=True)
-    return 0 if res.all_passed else 1
+        if res.consistency is not None:
+            console.print(consistency_table(res.consistency))
+    consistent = res.consistency is None or bool(res.consistency.get("passed"))
+    return 0 if res.all_passed and consistent else 1
+
+
+def consistency_table(c: dict[str, Any]) -> Any:
+    """The consistency check as a rich table: NEES per state group, NIS per measurement type, bounds, pass/fail."""
+    from rich.table import Table
+
+    t = Table(title=f"consistency over {c['runs']} runs ({100 * c['confidence']:.0f} % two-sided chi-square bounds)",
+              title_justify="left")
+    for col in ("quantity", "dof / rows", "average", "lower", "upper", "inside (share of times)", "result"):
+        t.add_column(col, justify="left" if col == "quantity" else "right", no_wrap=True)
+    for g, d in c.get("groups", {}).items():
+        share = "-" if d["share_inside"] is None else f"{100 * d['share_inside']:.0f} %"
+        t.add_row(f"NEES {g}", str(d["dof"]), f"{d['mean_nees']:.3g}", f"{d['lower']:.3g}", f"{d['upper']:.3g}",
+                  share, "pass" if d["passed"] else "FAIL")
+    for m, d in c.get("measurements", {}).items():
+        if d["passed"] is None:
+            t.add_row(f"NIS {m}", "0", "-", "-", "-", "-", "no rows")
+            continue
+        t.add_row(f"NIS {m}", str(d["rows"]), f"{d['mean_nis']:.3g}", f"{d['lower']:.3g}", f"{d['upper']:.3g}", "-",
+                  "pass" if d["passed"] else "FAIL")
+    h = c.get("heading_in_3sigma") or {}
+    if h.get("mean") is not None:
+        t.caption = (f"heading error inside 3 sigma: {100 * h['mean']:.1f} % of navigating frames on average "
+                     f"(worst run {100 * h['min']:.1f} %)")
+    return t

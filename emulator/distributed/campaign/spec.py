@@ -225,6 +225,8 @@ class CampaignConfig:
     plots: bool = True
     #: serve the Dask dashboard of the campaign's own cluster (off by default; docs/distributed.md "Security")
     dashboard: bool = False
+    #: the filter-consistency check (NEES / NIS with chi-square bounds, :mod:`.consistency`): consistency.json
+    consistency: bool = False
 
 
 def load_campaign_scenario(path: Path) -> tuple[dict[str, Any], Any, str, str]:

@@ -166,6 +166,8 @@ def run_campaign(cfg: CampaignConfig, progress: Callable[[dict[str, Any], int, i
     """
     if cfg.runs < 1:
         raise CampaignError("--runs must be >= 1")
+    if cfg.seeds is not None and len(cfg.seeds) != cfg.runs:
+        raise CampaignError(f"--seeds gives {len(cfg.seeds)} seeds for {cfg.runs} runs")
     data, scn, source, base_dir = load_campaign_scenario(cfg.scenario)
     validate_variations(data, scn, cfg.variations, source, base_dir)
     seed = scn.seed if cfg.seed is None else int(cfg.seed)
@@ -173,8 +175,11 @@ def run_campaign(cfg: CampaignConfig, progress: Callable[[dict[str, Any], int, i
     out = Path(cfg.out_dir) if cfg.out_dir else Path("runs") / f"campaign-{scn.name}-{stamp}"
     out.mkdir(parents=True, exist_ok=True)
     spec = consistency_spec(scn) if cfg.consistency else None
+    if spec is not None and cfg.consistency_after_s is not None:
+        spec["after_s"] = cfg.consistency_after_s
     tasks = plan_members(data, cfg.runs, seed, cfg.variations, out, source, base_dir, cfg.keep_all,
-                         consistency=cfg.consistency, consistency_after_s=spec["after_s"] if spec else 0.0)
+                         consistency=cfg.consistency, consistency_after_s=spec["after_s"] if spec else 0.0,
+                         seeds=cfg.seeds)
     own = client is None
     cluster = None
     if own:

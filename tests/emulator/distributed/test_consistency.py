@@ -71,3 +71,16 @@ def test_errors_twice_the_sigmas_fail(tmp_path):
     assert c["heading_in_3sigma"]["mean"] == pytest.approx(2 * 0.5 * (1 + math.erf(1.5 / math.sqrt(2))) - 1,
                                                            abs=0.02)
     assert not c["measurements"]["gnss_position"]["passed"] and not c["passed"]
+
+
+def test_explicit_seeds_for_the_members(tmp_path):
+    from emulator.cli.campaign import parse_seeds
+    from emulator.distributed.campaign import CampaignError, plan_members
+
+    assert parse_seeds("1-3,7") == [1, 2, 3, 7]
+    for bad in ("3-1", "x", "-2"):
+        with pytest.raises(CampaignError):
+            parse_seeds(bad)
+    tasks = plan_members({"seed": 5}, 3, 5, [], tmp_path, seeds=[1, 2, 3], consistency=True, consistency_after_s=10)
+    assert [t.seed for t in tasks] == [1, 2, 3] and [t.data["seed"] for t in tasks] == [1, 2, 3]
+    assert all(t.consistency and t.consistency_after_s == 10 for t in tasks)

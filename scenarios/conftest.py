@@ -47,7 +47,7 @@ FAST_SEEDS_MAX_S = 45.0
 
 
 def pytest_collect_file(parent: pytest.Collector, file_path: Path):
-    if file_path.suffix in (".yaml", ".yml"):
+    if file_path.suffix in (".yaml", ".yml") and "spec_sheets" not in file_path.parts:  # spec sheets are data
         return ScenarioFile.from_parent(parent, path=file_path)
     return None
 

@@ -187,7 +187,8 @@ class SeedsItem(_Item):
             base = Path(tempfile.mkdtemp(prefix=f"scn-{scn.name}-seed{seed}-"))
             t0 = time.perf_counter()
             s = run_scenario(scn, base / "run", mode="fast", seed=seed)
-            _WALL.append((f"{scn.name}[seed {seed}]", time.perf_counter() - t0, scn.duration_s, True))
+            _WALL.append((f"{scn.name}[seed {seed}]", time.perf_counter() - t0, scn.duration_s,
+                          len(self.seeds) > len(FAST_SEEDS)))
             failed = [e for e in s.get("expectations", []) if not e["passed"]]
             bad_faults = [f for f in s.get("faults", []) if f.get("fired") is False]
             if failed or bad_faults or s.get("interrupted") or not s.get("passed", False):

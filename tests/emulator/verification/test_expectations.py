@@ -180,12 +180,18 @@ def test_a_deliberately_wrong_expectation_fails_the_run_and_its_library_test(pyt
     (pytester.path / "wrong.yaml").write_text(WRONG)
     (pytester.path / "right.yaml").write_text(WRONG.replace("deliberately_wrong", "right")
                                               .replace("max: 0.001", "max: 100"))
-    res = pytester.runpytest_subprocess("-p", "no:cacheprovider", "-k", "not golden")
+    res = pytester.runpytest_subprocess("-p", "no:cacheprovider", "-k", "not golden and not seeds")
     res.assert_outcomes(passed=1, failed=1)
     out = res.stdout.str()
     assert "scenario deliberately_wrong" in out and "failed:" in out
     assert "expectation #1 nav_error: max position_m <= 0.001 for t >= 2.5 s: measured" in out
     assert "run directory kept:" in out and "scenario library: wall time" in out
+    # the seed-robustness items (issue 15): the 4 s scenarios get [seeds-fast] with seeds 1 and 2
+    res = pytester.runpytest_subprocess("-p", "no:cacheprovider", "-k", "seeds-fast")
+    res.assert_outcomes(passed=1, failed=1)
+    out = res.stdout.str()
+    assert "scenario deliberately_wrong (" in out and "is not seed-robust over seeds [1, 2]:" in out
+    assert "  seed 1: run directory kept:" in out and "  seed 2: run directory kept:" in out
     # the same file on the command line: exit code 1, the failure in summary.json
     import subprocess
     import sys

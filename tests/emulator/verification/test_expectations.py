@@ -208,7 +208,7 @@ def test_the_golden_item_of_a_scenario_without_a_record_fails_with_the_command(p
     shutil.copy(SCENARIOS / "conftest.py", pytester.path / "conftest.py")
     (pytester.path / "right.yaml").write_text(WRONG.replace("deliberately_wrong", "no_golden_yet")
                                               .replace("max: 0.001", "max: 100"))
-    res = pytester.runpytest_subprocess("-p", "no:cacheprovider")
+    res = pytester.runpytest_subprocess("-p", "no:cacheprovider", "-k", "not seeds")
     res.assert_outcomes(passed=1, failed=1)
     assert "no golden record for no_golden_yet" in res.stdout.str() and "make golden" in res.stdout.str()
 
@@ -219,7 +219,8 @@ def test_slow_library_scenarios_get_the_slow_marker(pytester):
     (pytester.path / "s.yaml").write_text(WRONG.replace("deliberately_wrong", "tagged").replace(
         "duration_s: 4\n", "duration_s: 4\ntags: [slow]\n"))
     res = pytester.runpytest_subprocess("-p", "no:cacheprovider", "-m", "not slow", "--collect-only", "-q")
-    assert "2 deselected" in res.stdout.str()
+    # the scenario, its golden and its 10-seed check; a slow scenario gets no fast-seed item
+    assert "3 deselected" in res.stdout.str()
 
 
 def test_a_broken_library_file_is_a_collection_error_with_every_problem(pytester):

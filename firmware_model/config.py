@@ -78,6 +78,9 @@ class FirmwareConfig:
     accel_bias_sigma_mg: float = 7.0 / 3.0
     accel_bias_instability_mg: float = 4.0 / 3.0
     bias_corr_time_s: float = 600.0
+    accel_bias_corr_time_s: float = 600.0
+    #: the spec sheet these figures come from (:class:`firmware_model.spec_sheet.SensorSpecSheet.config_fields`)
+    spec_sheet: str = "default"
     # GNSS measurement noise (1 sigma per axis)
     gnss_pos_sigma_h_m: float = 4.08
     gnss_pos_sigma_v_m: float = 7.5
@@ -92,11 +95,17 @@ class FirmwareConfig:
     gnss_latency_s: float = 0.05
     #: an epoch whose composition is not complete is closed this long (s) after its first byte
     gnss_epoch_hold_s: float = 0.5
-    #: innovation gate of each GNSS row (normalised innovation squared, 1 dof; 1e4 = 100 sigma) (docs/hostile-input.md).
-    #: Wide on purpose while the filter's covariance is not consistent with the field sensors: a 6-sigma gate refused
-    #: every fix after the vehicle loop's 30 s outage (278 rows) and the position never came back; 100 sigma still
-    #: refuses a 5 km jump.
-    gnss_gate_chi2: float = 1.0e4
+    #: the time-correlated part of the GNSS position error: white receiver noise per axis (the rest of
+    #: ``gnss_pos_sigma_*`` is a first-order Gauss-Markov of ``gnss_pos_corr_time_s``, estimated as three augmented
+    #: states when ``gnss_error_states``; docs/decisions/filter-consistency.md)
+    gnss_pos_white_sigma_h_m: float = 1.0
+    gnss_pos_white_sigma_v_m: float = 1.5
+    gnss_pos_corr_time_s: float = 300.0
+    gnss_error_states: bool = True
+    #: innovation gate of each GNSS row (normalised innovation squared, 1 dof) (docs/hostile-input.md): chi-square(1)
+    #: at alpha = 1e-5 (4.4 sigma), now that the covariance is consistent with the sensors (it was 1e4 = 100 sigma
+    #: while the filter treated the correlated GNSS error as white and refused every fix after an outage)
+    gnss_gate_chi2: float = 19.51
     #: divergence detection (docs/hostile-input.md): consecutive refused GNSS fixes, or seconds of refused solar
     #: vectors with none accepted, after which the loop re-aligns (gravity + sun/GNSS); 0 turns a criterion off
     fdir_gnss_reject_limit: int = 30
@@ -105,7 +114,14 @@ class FirmwareConfig:
     psns_enabled: bool = True
     psns_baud: int = 115200  # DSP UART2 baud (for the exposure time tag, docs/architecture.md "Conventions")
     psns_bits_per_byte: int = 10
-    psns_sigma_deg: float = 0.1  # solar-vector noise per axis, 1 sigma
+    psns_sigma_deg: float = 0.05  # solar-vector noise floor per axis, 1 sigma
+    #: solve noise: variance per axis = psns_noise_scale * lambda_min / lambda_mid / n_used (rad^2), at least the floor
+    psns_noise_scale: float = 1.0
+    #: systematic solar-vector error per body axis (camera mount residual + sky model), 1 sigma, as three augmented
+    #: Gauss-Markov states when ``psns_bias_states``
+    psns_bias_sigma_deg: float = 0.2
+    psns_bias_corr_time_s: float = 600.0
+    psns_bias_states: bool = True
     psns_dop_min: float = 0.05
     psns_quality_max: float = 0.2
     psns_min_sun_elevation_deg: float = 5.0

@@ -84,22 +84,36 @@ __all__ = [
 ]
 
 
-def kf_scalar_update_cycles(c: c674x.KernelCosts) -> int:
-    """One scalar Joseph update over 15 states [D, docs/reference/c674x-cycles.md section 6 fallback].
+def kf_scalar_update_cycles(c: c674x.KernelCosts, n: int = N_STATES) -> int:
+    """One scalar Joseph update over ``n`` states [D, docs/reference/c674x-cycles.md section 6 fallback].
 
-    ``a = P h`` and ``c = B h`` (2 x 225 MAC), ``B = P - K a^T`` (225 MAC),
-    ``P' = B - c K^T + r K K^T`` (450 MAC), symmetrise (105 ADD), one reciprocal (MATHLIB [S]).
+    ``a = P h`` and ``c = B h`` (2 x n^2 MAC), ``B = P - K a^T`` (n^2 MAC),
+    ``P' = B - c K^T + r K K^T`` (2 n^2 MAC), symmetrise (n(n-1)/2 ADD), one reciprocal (MATHLIB [S]).
     """
-    return (2 * c.flops(225, 225) + c.flops(225, 225) + c.flops(450, 450) + c.flops(0, 105)
-            + c.math("recip") + c.flops(30, 30))
+    n2 = n * n
+    return (2 * c.flops(n2, n2) + c.flops(n2, n2) + c.flops(2 * n2, 2 * n2) + c.flops(0, n * (n - 1) // 2)
+            + c.math("recip") + c.flops(2 * n, 2 * n))
 
 
-def kf_predict_cycles(c: c674x.KernelCosts) -> int:
+def kf_predict_cycles(c: c674x.KernelCosts, n: int = N_STATES) -> int:
     """Time update [S formulas, D sum]: F elements (~40 MUL/ADD, DP sin/cos and 4 divisions of the
-    latitude terms), ``Phi = I + F T`` (DSPF_sp_w_vec, 225), ``Phi P`` and ``(Phi P) Phi^T``
-    (2 x DSPF_sp_mat_mul 15x15x15), one transpose (DSPF_sp_mat_trans), Q on the diagonal, symmetrise."""
+    latitude terms), ``Phi = I + F T`` (DSPF_sp_w_vec, n^2), ``Phi P`` and ``(Phi P) Phi^T``
+    (2 x DSPF_sp_mat_mul n x n x n), one transpose (DSPF_sp_mat_trans), Q on the diagonal, symmetrise."""
     return (c.flops(40, 40) + c674x.mathlib("divdp", 4) + c674x.mathlib("sindp") + c674x.mathlib("cosdp")
-            + c.w_vec(225) + 2 * c.mat_mul(15, 15, 15) + c.mat_trans(15, 15) + c.flops(0, 15) + c.flops(0, 105))
+            + c.w_vec(n * n) + 2 * c.mat_mul(n, n, n) + c.mat_trans(n, n) + c.flops(0, n)
+            + c.flops(0, n * (n - 1) // 2))
+
+
+def solar_noise_variance(cfg: FirmwareConfig, quality: float, n_used: int) -> float:
+    """Variance (rad^2 per axis) of a solved solar vector from the solve's own quality (docs/decisions/
+    filter-consistency.md): with ``K = sum w E E^T`` and per-point misfit of variance ``sigma_e^2``,
+    ``lambda_min ~ W sigma_e^2`` and ``lambda_j ~ W c_j``; first-order perturbation of the smallest eigenvector gives
+    ``var_j = sigma_e^2 / (n c_j) = lambda_min / (n lambda_j)`` along the other eigenvectors. ``psns_noise_scale``
+    absorbs the points' correlation (neighbouring pixels see the same sky); the spec sheet's floor bounds it below."""
+    floor = (cfg.psns_sigma_deg * DEG) ** 2
+    if n_used <= 0 or not math.isfinite(quality):
+        return floor
+    return max(floor, cfg.psns_noise_scale * max(quality, 0.0) / n_used)
 
 
 def feedback_cycles(c: c674x.KernelCosts) -> int:
@@ -229,6 +243,17 @@ class NavFilter:
         self.cost = c674x.KernelCosts("float64" if np.dtype(dtype) == np.float64 else "float32")
         self.host: FilterHost | None = None
         self.counters: dict[str, int] = {}
+        #: innovation statistics per measurement type: ``{"rows": n, "nis_sum": sum of nu^2 / s}`` of every scalar
+        #: row processed (accepted), for the consistency check (emulator/distributed/campaign/consistency.py)
+        self.innovation_stats: dict[str, dict[str, float]] = {}
+
+    def _count_nis(self, kind: str, norm_innov: float) -> None:
+        """Add one scalar row's normalised innovation ``nu / sqrt(s)`` to :attr:`innovation_stats`."""
+        st = self.innovation_stats.get(kind)
+        if st is None:
+            st = self.innovation_stats[kind] = {"rows": 0, "nis_sum": 0.0}
+        st["rows"] += 1
+        st["nis_sum"] += norm_innov * norm_innov
 
     def attach(self, host: FilterHost) -> None:
         """Called by the main loop once the filter exists (and again after a variant switch)."""
@@ -287,41 +312,97 @@ def register_filter(name: str) -> Callable[[_FilterClass], _FilterClass]:
 class BaseFilter(NavFilter):
     """Bi-direction solar-vector 15-state KF (base paper): GNSS position/velocity + ``+-S`` updates."""
 
+    #: augmented states this variant carries when the configuration asks for them (docs/decisions/
+    #: filter-consistency.md): 3 GNSS position errors (E, N, U m, Gauss-Markov) and 3 solar-vector biases (body rad)
+    augmentable = True
+
     def __init__(self, cfg: FirmwareConfig, meter: c674x.CycleMeter, dtype: FloatDtype) -> None:
         super().__init__(cfg, meter, dtype)
-        self.x = np.zeros(N_STATES, dtype=dtype)
+        n = N_STATES
+        #: first index of the GNSS position-error states (E, N, U, m) and of the solar-vector bias states (body x, y,
+        #: z, rad), or None when the variant or the configuration has none (layout: firmware_model/kf.py + these)
+        self.i_gnss: int | None = None
+        self.i_sun: int | None = None
+        if self.augmentable and cfg.gnss_error_states:
+            self.i_gnss, n = n, n + 3
+        if self.augmentable and cfg.psns_bias_states and cfg.psns_enabled:
+            self.i_sun, n = n, n + 3
+        self.n = n
+        self.x = np.zeros(n, dtype=dtype)
+        self.P = np.zeros((n, n), dtype=dtype)
         arw = cfg.gyro_arw_deg_rt_h * DEG / 60.0
         vrw = cfg.accel_noise_ug_rt_hz * 1e-6 * G_STD
-        tau = cfg.bias_corr_time_s
-        qg = 2.0 * (cfg.gyro_bias_instability_deg_h * DPH) ** 2 / tau
-        qa = 2.0 * (cfg.accel_bias_instability_mg * 1e-3 * G_STD) ** 2 / tau
-        self.q = process_noise_psd(arw, vrw, qg, qa)
-        self._eye = np.eye(N_STATES, dtype=dtype)
+        qg = 2.0 * (cfg.gyro_bias_instability_deg_h * DPH) ** 2 / cfg.bias_corr_time_s
+        qa = 2.0 * (cfg.accel_bias_instability_mg * 1e-3 * G_STD) ** 2 / cfg.accel_bias_corr_time_s
+        q = np.zeros(n)
+        q[:N_STATES] = process_noise_psd(arw, vrw, qg, qa)
+        #: Gauss-Markov decay rates (1/s) of the augmented states, on F's diagonal
+        self._aug_rate = np.zeros(n)
+        if self.i_gnss is not None:
+            sc_h, sc_v = self._gnss_corr_sigmas()
+            tau = cfg.gnss_pos_corr_time_s
+            q[self.i_gnss:self.i_gnss + 3] = (2.0 * sc_h**2 / tau, 2.0 * sc_h**2 / tau, 2.0 * sc_v**2 / tau)
+            self._aug_rate[self.i_gnss:self.i_gnss + 3] = 1.0 / tau
+        if self.i_sun is not None:
+            tau = cfg.psns_bias_corr_time_s
+            q[self.i_sun:self.i_sun + 3] = 2.0 * (cfg.psns_bias_sigma_deg * DEG) ** 2 / tau
+            self._aug_rate[self.i_sun:self.i_sun + 3] = 1.0 / tau
+        self.q = q
+        self._eye = np.eye(n, dtype=dtype)
         self._qk_interval, self._qk = math.nan, self.q  # Q_k of the last KF interval (predict)
-        self._cyc_update = kf_scalar_update_cycles(self.cost)
-        self._cyc_predict = kf_predict_cycles(self.cost)
+        self._cyc_update = kf_scalar_update_cycles(self.cost, n)
+        self._cyc_predict = kf_predict_cycles(self.cost, n)
         self._cyc_feedback = feedback_cycles(self.cost)
+
+    def _gnss_corr_sigmas(self) -> tuple[float, float]:
+        """Sigmas (m, horizontal per axis and vertical) of the time-correlated GNSS position error: the spec's
+        total less its white part, in quadrature."""
+        cfg = self.cfg
+        h = math.sqrt(max(cfg.gnss_pos_sigma_h_m**2 - cfg.gnss_pos_white_sigma_h_m**2, 0.0))
+        v = math.sqrt(max(cfg.gnss_pos_sigma_v_m**2 - cfg.gnss_pos_white_sigma_v_m**2, 0.0))
+        return h, v
 
     # -- initialisation -------------------------------------------------------------------------
     def initialise(self, nav: NavState, heading_sigma_rad: float) -> None:
+        """P0 from the spec sheet (:mod:`firmware_model.spec_sheet`): level from the accelerometer bias, heading from
+        the alignment, position from the first fix (its correlated error shared with the GNSS-error states)."""
         cfg = self.cfg
+        n = self.n
         lat, h = float(nav.pos[0]), float(nav.pos[2])
         rm, rn = earth.radii(lat)
+        rmh, rnh_cl = rm + h, (rn + h) * math.cos(lat)
         lvl = cfg.accel_bias_sigma_mg * 1e-3  # rad: level error from the accelerometer bias
-        p0 = np.zeros(N_STATES)
+        P = np.zeros((n, n))
+        p0 = np.zeros(n)
         p0[IDX_ATT] = (lvl**2, lvl**2, heading_sigma_rad**2)
         p0[IDX_VEL] = 0.1**2
-        p0[IDX_POS] = ((cfg.gnss_pos_sigma_h_m / (rm + h)) ** 2,
-                       (cfg.gnss_pos_sigma_h_m / ((rn + h) * math.cos(lat))) ** 2, cfg.gnss_pos_sigma_v_m**2)
+        p0[IDX_POS] = ((cfg.gnss_pos_sigma_h_m / rmh) ** 2, (cfg.gnss_pos_sigma_h_m / rnh_cl) ** 2,
+                       cfg.gnss_pos_sigma_v_m**2)
         p0[IDX_GYRO] = (cfg.gyro_bias_sigma_deg_h * DPH) ** 2
         p0[IDX_ACC] = (cfg.accel_bias_sigma_mg * 1e-3 * G_STD) ** 2
-        self.P = np.diag(p0).astype(self.dtype)
-        self.x = np.zeros(N_STATES, dtype=self.dtype)
+        if self.i_gnss is not None:
+            # the position comes from a fix: dp = b + w, so cov(dp, b) = var(b) (per axis, in the states' units)
+            sc_h, sc_v = self._gnss_corr_sigmas()
+            i = self.i_gnss
+            p0[i:i + 3] = (sc_h**2, sc_h**2, sc_v**2)
+            for pos_idx, b_idx, scale in ((D_LON, i, 1.0 / rnh_cl), (D_LAT, i + 1, 1.0 / rmh), (D_H, i + 2, 1.0)):
+                P[pos_idx, b_idx] = P[b_idx, pos_idx] = p0[b_idx] * scale
+        if self.i_sun is not None:
+            p0[self.i_sun:self.i_sun + 3] = (cfg.psns_bias_sigma_deg * DEG) ** 2
+        P[np.diag_indices(n)] = p0
+        self.P = P.astype(self.dtype)
+        self.x = np.zeros(n, dtype=self.dtype)
 
     # -- time update --------------------------------------------------------------------------
     def predict(self, nav: NavState, f_n: FloatArray, Tk: float) -> None:
         dt = self.dtype
-        F = error_transition_matrix(q2mat_fast(nav.q), nav.v, nav.pos, f_n, dtype=dt)
+        F15 = error_transition_matrix(q2mat_fast(nav.q), nav.v, nav.pos, f_n, dtype=dt)
+        if self.n > N_STATES:  # augmented states: first-order Gauss-Markov, no coupling into the navigation errors
+            F = np.zeros((self.n, self.n), dtype=dt)
+            F[:N_STATES, :N_STATES] = F15
+            F[np.diag_indices(self.n)] -= self._aug_rate.astype(dt)
+        else:
+            F = F15
         Phi = self._eye + F * dt(Tk)
         if Tk != self._qk_interval:  # Q_k = q T_k: the same every interval but the first after alignment
             self._qk_interval, self._qk = Tk, (self.q * Tk).astype(dt)
@@ -353,15 +434,23 @@ class BaseFilter(NavFilter):
         dt = self.dtype
         rows = gnss_measurement_rows(self.cfg, self.meter, meas, p_ins, v_ins)
         innov = []
-        h = np.zeros(N_STATES, dtype=dt)
+        h = np.zeros(self.n, dtype=dt)
         gated = 0
+        cfg = self.cfg
         for idx, hval, z, r in rows:
             h[:] = 0
             h[idx] = hval
+            kind = "gnss_position" if idx in (D_LAT, D_LON, D_H) else "gnss_velocity"
+            if self.i_gnss is not None and kind == "gnss_position":
+                # z = p_INS - p_GNSS = dp - b: the correlated error is a state, R only its white part
+                h[self.i_gnss + {D_LON: 0, D_LAT: 1, D_H: 2}[idx]] = -1.0
+                r = (cfg.gnss_pos_white_sigma_v_m if idx == D_H else cfg.gnss_pos_white_sigma_h_m) ** 2
             if self._gnss_row_gated(h, z, r):
                 gated += 1
                 continue
-            innov.append(self._scalar(h, z, r))
+            nu = self._scalar(h, z, r)
+            self._count_nis(kind, nu)
+            innov.append(nu)
         self.meter.charge("kf_update", len(rows) * self._cyc_update)
         n = len(rows) - gated
         return UpdateReport("gnss", n > 0 or not rows, n, max((abs(v) for v in innov), default=0.0),
@@ -373,19 +462,24 @@ class BaseFilter(NavFilter):
         dt = self.dtype
         s_n = s_n.astype(dt)
         z, sign = solar_vector_residual(s_n, cbn_exp.astype(dt), obs.s_b.astype(dt))
-        H = solar_vector_rows(s_n, dt)
-        r = (cfg.psns_sigma_deg * DEG) ** 2
+        H = solar_vector_rows(s_n, dt, self.n)
+        if self.i_sun is not None:
+            # s_b measured = (I + [mu x]) s_b: Z = -[S^n x] phi + [S^n x] C_b^n mu
+            # (docs/decisions/filter-consistency.md)
+            H[:, self.i_sun:self.i_sun + 3] = -H[:, IDX_ATT] @ cbn_exp.astype(dt)
+        r = solar_noise_variance(cfg, obs.quality, obs.n_used)
         self.meter.charge("solar_residual", self.cost.flops(18 + 9, 18 + 6))
         # innovation gate: |Z|^2 against its predicted variance tr(H P H^T) + 3 r (no 3x3 inverse)
-        Pa = self.P[IDX_ATT, IDX_ATT]
-        Hs = H[:, IDX_ATT]
-        var = float(np.einsum("ij,jk,ik->", Hs, Pa, Hs)) + 3.0 * r
-        z2 = float(z @ z)
+        var = float(np.einsum("ij,jk,ik->", H, self.P, H)) + 3.0 * r
+        nu3 = z - H @ self.x  # the augmented solar-bias states carry an estimate between feedbacks
+        z2 = float(nu3 @ nu3)
         self.meter.charge("solar_gate", self.cost.flops(45, 40))
         nis = z2 / var
         if nis > cfg.psns_gate_chi2:
             return UpdateReport("solar", False, 0, math.sqrt(nis), {"residual_deg": math.sqrt(z2) / DEG, "sign": sign})
         innov = [self._scalar(H[i], float(z[i]), r) for i in range(3)]
+        for nu in innov:
+            self._count_nis("solar_vector", nu)
         self.meter.charge("kf_update", 3 * self._cyc_update)
         return UpdateReport("solar", True, 3, max(abs(v) for v in innov),
                             {"residual_deg": math.sqrt(z2) / DEG, "sign": sign})
@@ -401,5 +495,7 @@ class BaseFilter(NavFilter):
         nav.pos = nav.pos - x[IDX_POS].astype(np.float64)
         self.gyro_bias = (self.gyro_bias + x[IDX_GYRO]).astype(dt)
         self.accel_bias = (self.accel_bias + x[IDX_ACC]).astype(dt)
-        self.x = np.zeros(N_STATES, dtype=dt)
+        x_new = np.zeros(self.n, dtype=dt)
+        x_new[N_STATES:] = x[N_STATES:]  # the augmented states are estimates of sensor errors, not fed back
+        self.x = x_new
         self.meter.charge("kf_feedback", self._cyc_feedback)

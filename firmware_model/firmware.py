@@ -278,7 +278,8 @@ class Firmware(HostTask, GnssTask):
             gyro_bias_rad_s=(float(gb[0]), float(gb[1]), float(gb[2])),
             accel_bias_mps2=(float(ab[0]), float(ab[1]), float(ab[2])),
             counters=dict(self.counters), decoders=self.decoder_stats(), cycles=self.meter.table(),
-            tick_budget_cycles=self.meter.tick_budget)
+            tick_budget_cycles=self.meter.tick_budget, spec_sheet=self.cfg.spec_sheet,
+            innovation={k: dict(v) for k, v in getattr(flt, "innovation_stats", {}).items()})
 
     # -- the cyclic executive ---------------------------------------------------------------------------
     def service(self) -> list[TickResult]:

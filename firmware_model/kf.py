@@ -221,10 +221,11 @@ def solar_vector_residual(s_n: FloatArray, cbn: FloatArray, s_b: FloatArray) -> 
     return zm, -1
 
 
-def solar_vector_rows(s_n: FloatArray, dtype: FloatDtype = np.float32) -> FloatArray:
-    """``H_s = [-[S^n x], 0_{3x12}]`` (3, 15) (Eq. 41 as derived in the module docstring)."""
+def solar_vector_rows(s_n: FloatArray, dtype: FloatDtype = np.float32, n_states: int = N_STATES) -> FloatArray:
+    """``H_s = [-[S^n x], 0_{3x12}]`` (3, n_states) (Eq. 41 as derived in the module docstring; the columns of
+    augmented states beyond the 15 are zero here)."""
     e, n, u = (float(v) for v in s_n)
-    H = np.zeros((3, N_STATES), dtype=dtype)
+    H = np.zeros((3, n_states), dtype=dtype)
     H[0, PHI_N], H[0, PHI_U] = u, -n
     H[1, PHI_E], H[1, PHI_U] = -u, e
     H[2, PHI_E], H[2, PHI_N] = n, -e

@@ -53,6 +53,10 @@ class FirmwareSnapshot:
     decoders: dict[str, dict[str, Any]] = field(default_factory=dict)
     cycles: list[dict[str, Any]] | dict[str, Any] | None = None
     tick_budget_cycles: int | None = None
+    #: the sensor spec sheet the filter was configured from (None: not applicable)
+    spec_sheet: str | None = None
+    #: normalised innovation squared sums per measurement type (``{"gnss_pos": {"n": .., "nis_sum": .., ...}}``)
+    innovation: dict[str, dict[str, float]] = field(default_factory=dict)
 
 
 @runtime_checkable

@@ -63,8 +63,10 @@ def dsp_sections(dsp: VirtualDsp) -> dict[str, Any]:
             "tasks": snap.cycles if snap.cycles is not None else [],
             **dsp.counters(),
         },
-        "firmware": {"filter": snap.filter, "precision": snap.precision, "counters": dict(snap.counters),
-                     "decoders": snap.decoders},
+        "firmware": {"filter": snap.filter, "precision": snap.precision, "spec_sheet": snap.spec_sheet,
+                     "counters": dict(snap.counters), "decoders": snap.decoders,
+                     # NIS sums per measurement type (consistency check, emulator/distributed/campaign/consistency.py)
+                     "innovation": {k: dict(v) for k, v in snap.innovation.items()}},
     }
 
 

@@ -23,7 +23,9 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
                                    "seed and parameters drawn per --vary; write runs.csv, stats.csv, "
                                    "campaign.json and plots.")
     c.add_argument("scenario", help="scenario YAML file")
-    c.add_argument("--runs", type=int, required=True, help="number of members")
+    c.add_argument("--runs", type=int, default=None, help="number of members (default: the number of --seeds)")
+    c.add_argument("--seeds", default=None, metavar="A-B|A,B,...",
+                   help="explicit run seeds of the members (e.g. 1-10), instead of seeds derived from --seed")
     c.add_argument("--vary", action="append", default=[], metavar="KEY=DISTRIBUTION",
                    help="e.g. sensors.imu.gyro.arw_deg_rt_h=normal(0.15,0.02); uniform(a,b); choice(a,b,c)")
     c.add_argument("--seed", type=int, default=None, help="campaign seed (default: the scenario's seed)")
@@ -37,6 +39,12 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     c.add_argument("--quiet", action="store_true", help="no progress bar")
     c.add_argument("--dashboard", action="store_true",
                    help="serve the Dask dashboard of the local cluster on 127.0.0.1:8787 (off by default)")
+    c.add_argument("--consistency", action="store_true",
+                   help="filter consistency: average NEES per state group and NIS per measurement type against the "
+                        "two-sided chi-square bounds for N runs; writes consistency.json (the scenario's consistency: "
+                        "expectation chooses groups and confidence, default all at 95 %%)")
+    c.add_argument("--after-s", type=float, default=None, metavar="S",
+                   help="consistency from this scenario time on (default: the consistency: expectation's, else 0)")
     c.add_argument("--allow-hooks", action="store_true",
                    help="run the scenario's Python expectation hooks in the members (a trusted scenario only)")
     return c
@@ -50,10 +58,15 @@ def run(args: argparse.Namespace) -> int:
 
     if args.workers < 1:
         raise CampaignError("--workers must be >= 1")
-    cfg = CampaignConfig(scenario=Path(args.scenario), runs=args.runs,
+    seeds = parse_seeds(args.seeds) if args.seeds else None
+    runs = args.runs if args.runs is not None else (len(seeds) if seeds else None)
+    if runs is None:
+        raise CampaignError("give --runs N or --seeds A-B")
+    cfg = CampaignConfig(scenario=Path(args.scenario), runs=runs, seeds=seeds,
                          variations=[parse_vary(v) for v in args.vary], seed=args.seed, scheduler=args.scheduler,
                          workers=args.workers, out_dir=Path(args.out) if args.out else None,
-                         keep_all=args.keep_all, plots=not args.no_plots, dashboard=args.dashboard)
+                         keep_all=args.keep_all, plots=not args.no_plots, dashboard=args.dashboard,
+                         consistency=args.consistency, consistency_after_s=args.after_s)
     if args.allow_hooks:  # before the cluster exists: its worker processes inherit the setting
         import os
 
@@ -102,4 +115,52 @@ def run(args: argparse.Namespace) -> int:
                       + (f" ({100 * st['pass_rate']:.1f} % of completed)" if st["pass_rate"] is not None else ""))
         for r in res.failed:
             console.print(f"[bold red]member {r['index']} (seed {r['seed']}) failed:[/] {r['error']}", soft_wrap=True)
-    return 0 if res.all_passed else 1
+        if res.consistency is not None:
+            console.print(consistency_table(res.consistency))
+    consistent = res.consistency is None or bool(res.consistency.get("passed"))
+    return 0 if res.all_passed and consistent else 1
+
+
+def parse_seeds(text: str) -> list[int]:
+    """``"1-10"`` or ``"1,4,7"`` (or both, comma-separated) -> the list of seeds; CampaignError on anything else."""
+    out: list[int] = []
+    for part in text.split(","):
+        part = part.strip()
+        try:
+            if "-" in part:
+                a, b = (int(x) for x in part.split("-", 1))
+                if b < a:
+                    raise ValueError
+                out += list(range(a, b + 1))
+            else:
+                out.append(int(part))
+        except ValueError:
+            raise CampaignError(f"--seeds: {part!r} is not a seed or a range A-B") from None
+    if not out or any(s < 0 for s in out):
+        raise CampaignError("--seeds: give non-negative seeds")
+    return out
+
+
+def consistency_table(c: dict[str, Any]) -> Any:
+    """The consistency check as a rich table: NEES per state group, NIS per measurement type, bounds, pass/fail."""
+    from rich.table import Table
+
+    t = Table(title=f"consistency over {c['runs']} runs ({100 * c['confidence']:.0f} % two-sided chi-square bounds)",
+              title_justify="left")
+    for col in ("quantity", "dof / rows", "average", "lower", "upper", "inside (share of times)", "result"):
+        t.add_column(col, justify="left" if col == "quantity" else "right", no_wrap=True)
+    for g, d in c.get("groups", {}).items():
+        share = "-" if d["share_inside"] is None else f"{100 * d['share_inside']:.0f} %"
+        t.add_row(f"NEES {g}", str(d["dof"]), f"{d['mean_nees']:.3g}", f"{d['lower']:.3g}", f"{d['upper']:.3g}",
+                  share, "pass" if d["passed"] else "FAIL")
+    for m, d in c.get("measurements", {}).items():
+        if d["passed"] is None:
+            t.add_row(f"NIS {m}", "0", "-", "-", "-", "-", "no rows")
+            continue
+        t.add_row(f"NIS {m}", str(d["rows"]), f"{d['mean_nis']:.3g}", f"{d['lower']:.3g}", f"{d['upper']:.3g}", "-",
+                  "pass" if d["passed"] else "FAIL")
+    h = c.get("heading_in_3sigma") or {}
+    if h.get("mean") is not None:
+        t.caption = (f"heading error inside 3 sigma: {100 * h['mean']:.1f} % of navigating frames on average "
+                     f"(worst run {100 * h['min']:.1f} %)")
+    return t

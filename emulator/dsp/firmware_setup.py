@@ -19,6 +19,7 @@ from firmware_model.registry import (
     FirmwareProtocol,
     filter_params_model,
 )
+from firmware_model.spec_sheet import SensorSpecSheet, SpecSheetError
 from firmware_model.variants.common import compass_mountings
 from firmware_model.variants.params import (
     DualVectorParams,
@@ -30,12 +31,16 @@ from firmware_model.variants.params import (
 )
 
 from ..devices.base import device_rng
-from ..devices.sensors import accel_errors, camera_config, gnss_config, gyro_errors
+from ..devices.sensors import camera_config
 from ..errors import ScenarioError
 from ..plugins import PLUGIN_ERRORS, plugin, plugin_names
 from ..scenario.schema import Scenario
 
-__all__ = ["build_firmware", "calibration_for", "firmware_config", "register_plugins"]
+__all__ = ["SPEC_SHEET_DIR", "build_firmware", "calibration_for", "firmware_config", "register_plugins",
+           "spec_sheet_for"]
+
+#: the spec sheets bundled with the firmware (``firmware.spec_sheet: <name>``)
+SPEC_SHEET_DIR = Path(__file__).resolve().parents[2] / "firmware_model" / "spec_sheets"
 
 DEG = math.pi / 180.0
 
@@ -93,6 +98,33 @@ def calibration_for(scn: Scenario, seed: int | None = None) -> Calibration:
         boresight_rotvec_deg=_rotvec_deg(c_b),
         polarizer_deg=tuple(a + r.polarizer_deg * float(rng.standard_normal())  # type: ignore[arg-type]
                             for a in truth.polarizer_deg)))
+
+
+def spec_sheet_for(scn: Scenario) -> SensorSpecSheet:
+    """The firmware's sensor spec sheet (``firmware.spec_sheet``): a bundled sheet by name, or a YAML file confined to
+    the scenario's directory. The world's presets never reach the firmware (docs/firmware.md "Spec sheet")."""
+    import yaml
+
+    ref = scn.firmware.spec_sheet
+    if "/" not in ref and not ref.endswith((".yaml", ".yml")):
+        path = SPEC_SHEET_DIR / f"{ref}.yaml"
+        if not path.is_file():
+            names = sorted(p.stem for p in SPEC_SHEET_DIR.glob("*.yaml"))
+            raise ScenarioError(f"firmware.spec_sheet: no bundled spec sheet {ref!r} (bundled: {', '.join(names)})")
+    else:
+        base = Path(scn.base_dir).resolve() if scn.base_dir is not None else Path.cwd().resolve()
+        path = (base / ref).resolve()
+        if not path.is_relative_to(base):
+            raise ScenarioError(f"firmware.spec_sheet: {ref} is outside the scenario's directory")
+        if not path.is_file():
+            raise ScenarioError(f"firmware.spec_sheet: {ref}: no such file")
+    try:
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        return SensorSpecSheet.from_dict(data, f"firmware.spec_sheet: {ref}")
+    except (OSError, yaml.YAMLError) as exc:
+        raise ScenarioError(f"firmware.spec_sheet: {ref}: {exc}") from exc
+    except SpecSheetError as exc:
+        raise ScenarioError(str(exc)) from exc
 
 
 def _camera(scn: Scenario, calibration: Calibration) -> CameraGeometry:
@@ -190,14 +222,13 @@ def firmware_config(scn: Scenario, calibration: Calibration | None = None) -> Fi
     if calibration is None:
         calibration = calibration_for(scn)
     fw = scn.firmware
-    gnss_cfg = gnss_config(scn)
-    gnss = gnss_cfg.errors
+    spec = spec_sheet_for(scn).config_fields()
+    if fw.psns.sigma_deg is not None:
+        spec["psns_sigma_deg"] = fw.psns.sigma_deg
     gnss_uart = scn.fpga.routing.get("gnss", "uart3")
     # the slower of the receiver's line and the DSP UART paces the bytes (the FPGA forwards cut-through)
     gnss_bauds = [b for b in (scn.fpga.uarts[gnss_uart].baud if gnss_uart in scn.fpga.uarts else None,
                               scn.links.gnss.baud) if b]
-    gyro = gyro_errors(scn)
-    acc = accel_errors(scn)
     psns_uart = scn.fpga.routing.get("psns", "uart2")
     psns_enabled = fw.psns.enabled if fw.psns.enabled is not None else scn.links.psns is not None
     return FirmwareConfig(
@@ -223,23 +254,11 @@ def firmware_config(scn: Scenario, calibration: Calibration | None = None) -> Fi
         precision=fw.precision,
         nav_state_precision=fw.nav_state_precision,
         filter=fw.filter,
-        gyro_arw_deg_rt_h=max(gyro.arw_deg_rt_h, 0.01),
-        gyro_bias_sigma_deg_h=max(gyro.bias_repeatability_deg_h, 1.0),
-        gyro_bias_instability_deg_h=max(gyro.bias_instability_deg_h, 0.1),
-        accel_noise_ug_rt_hz=max(acc.noise_ug_rt_hz, 10.0),
-        accel_bias_sigma_mg=max(max(acc.bias_repeatability_mg), 0.1),
-        accel_bias_instability_mg=max(max(acc.bias_instability_mg), 0.01),
-        bias_corr_time_s=gyro.bias_corr_time_s,
-        gnss_pos_sigma_h_m=max(gnss.pos_sigma_h_m, 0.5),
-        gnss_pos_sigma_v_m=max(gnss.pos_sigma_v_m, 0.5),
-        gnss_vel_sigma_h_mps=max(gnss.vel_sigma_h_mps, 0.01),
-        gnss_vel_sigma_v_mps=max(gnss.vel_sigma_v_mps, 0.01),
+        **spec,  # the sensors' figures: from the firmware's own spec sheet, never from the world's presets
         gnss_baud=min(gnss_bauds) if gnss_bauds else FirmwareConfig.gnss_baud,
-        gnss_latency_s=gnss_cfg.latency_s,
         psns_enabled=psns_enabled,
         # an EMIFA UART core has no line baud of its own: the firmware's default line then dates the frames
         psns_baud=scn.fpga.uarts[psns_uart].baud or FirmwareConfig.psns_baud,
-        psns_sigma_deg=fw.psns.sigma_deg,
         psns_dop_min=fw.psns.dop_min,
         psns_quality_max=fw.psns.quality_max,
         psns_min_sun_elevation_deg=fw.psns.min_sun_elevation_deg,

@@ -134,6 +134,9 @@ def _nav_figures(nav: dict[str, list[float]], events: list[dict[str, Any]]) -> l
         (f"err_vel_{a}_mps", nav.get(f"sig_vel_{a}_mps"), f"v_{a.upper()}", "m/s") for a in "enu"])))
     out.append(("Position error", error_figure("position error", [
         (f"err_pos_{a}_m", nav.get(f"sig_pos_{a}_m"), f"p_{a.upper()}", "m") for a in "enu"])))
+    nees = _nees_figure(plt, nav, spans)
+    if nees is not None:
+        out.append(("Filter consistency (NEES)", nees))
 
     # mode timeline + fault bars + events
     n_rows = len(_MODE_BITS) + len(spans)
@@ -163,6 +166,51 @@ def _nav_figures(nav: dict[str, list[float]], events: list[dict[str, Any]]) -> l
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=6, ncol=1, borderaxespad=0.0)
     out.append(("Mode timeline", _png(fig)))
     return out
+
+
+def _nees_figure(plt: Any, nav: dict[str, list[float]], spans: list[tuple[float, float, str]]) -> str | None:
+    """NEES of this run over time (diagonal form, ``sum (error / sigma)^2`` of the group) for velocity, position and
+    heading, with the two-sided 95 % chi-square bounds of one run (``psns-hil campaign --consistency`` averages N runs
+    and narrows them; emulator/distributed/campaign/consistency.py). Points outside the band are expected about 5 % of
+    the time; most of them above: the sigma is too small."""
+    from ..scenario.consistency_schema import chi2_bounds
+
+    t = nav.get("time_s", [])
+    groups = [("velocity", [f"vel_{a}_mps" for a in "enu"]), ("position", [f"pos_{a}_m" for a in "enu"])]
+    fig, axes = plt.subplots(3, 1, figsize=(10, 7), sharex=True)
+    drawn = False
+    for ax, (name, cols) in zip(axes, [*groups, ("heading", None)]):
+        tt, vals = [], []
+        for i, ti in enumerate(t):
+            try:
+                if cols is None:  # heading error against the vertical tilt sigma
+                    e, sg = nav["err_heading_deg"][i], nav["sig_att_u_deg"][i]
+                    v = (e / sg) ** 2
+                else:
+                    v = sum((nav[f"err_{c}"][i] / nav[f"sig_{c}"][i]) ** 2 for c in cols)
+            except (KeyError, IndexError, ZeroDivisionError):
+                continue
+            if math.isfinite(v):
+                tt.append(ti)
+                vals.append(v)
+        dof = 1 if cols is None else len(cols)
+        lo, hi = chi2_bounds(1, dof, 0.95)
+        if vals:
+            drawn = True
+            ax.semilogy(tt, [max(v, 1e-6) for v in vals], lw=0.6, label=f"NEES {name}")
+            inside = sum(lo <= v <= hi for v in vals) / len(vals)
+            ax.set_title(f"{name}: {100 * inside:.0f} % inside the 95 % band of one run ({dof} dof)", fontsize=9)
+        for b in (lo, hi):
+            ax.axhline(b, color="r", lw=0.8, ls="--")
+        ax.axhline(dof, color="k", lw=0.6, ls=":")
+        _shade(ax, spans)
+        ax.set_ylabel("NEES")
+    axes[-1].set_xlabel("time (s)")
+    fig.suptitle("normalised estimation error squared against the chi-square bounds")
+    if not drawn:
+        plt.close(fig)
+        return None
+    return _png(fig)
 
 
 def _plt() -> Any:

@@ -11,6 +11,7 @@ from typing import Any, ClassVar, Literal
 from pydantic import ConfigDict, Field, model_validator
 
 from .base import Model, OneKindModel
+from .consistency_schema import ConsistencyExpectation
 
 __all__ = [
     "EXPECTATION_KINDS",
@@ -187,6 +188,7 @@ class Expectation(OneKindModel):
     nav_mode: NavModeExpectation | None = None
     summary: SummaryValueBound | None = None
     python: PythonHook | None = None
+    consistency: ConsistencyExpectation | None = None
 
 
 EXPECTATION_KINDS = tuple(Expectation.model_fields)

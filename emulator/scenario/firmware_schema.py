@@ -68,7 +68,8 @@ class CameraCalibrationSpec(Model):
 
 class PsnsFirmwareSpec(Model):
     enabled: bool | None = Field(None, description="use PSNS frames; default: on when a psns link exists")
-    sigma_deg: float = Field(0.1, gt=0, le=10, description="solar-vector noise per axis (R of Eq. 42)")
+    sigma_deg: float | None = Field(None, gt=0, le=10, description="solar-vector noise floor per axis (R of Eq. 42); "
+                                    "default: the spec sheet's psns.noise_floor_deg")
     dop_min: float = Field(0.05, ge=0, lt=1)
     quality_max: float = Field(0.2, gt=0, le=1, description="largest lambda_min/lambda_mid accepted")
     min_sun_elevation_deg: float = Field(5.0, ge=-10, le=80)
@@ -266,6 +267,9 @@ class FirmwareSpec(Model):
     implementation: str = Field(
         "psns_hil", description="the firmware the virtual DSP runs: psns_hil (this package's) or one a plugin "
         "registers (psns_hil.firmware entry points)")
+    spec_sheet: str = Field("default", pattern=r"^[A-Za-z0-9_][A-Za-z0-9_./-]*$",
+                            description="the firmware's sensor spec sheet: a bundled name (default, field) or a "
+                                        "YAML file relative to the scenario's directory")
     precision: Literal["float32", "float64"] = "float32"
     nav_state_precision: Literal["float32", "float64"] = Field(
         "float64", description="strapdown quaternion/velocity accumulators (docs/decisions.md D-L.1)")

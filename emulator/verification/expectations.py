@@ -217,6 +217,12 @@ def evaluate_expectations(expectations: list[Expectation], recorder: Any, summar
                 out.append(ExpectationResult(i, kind, desc, _plain(v), False, f"{sb.path} is not a number"))
                 continue
             out.append(ExpectationResult(i, kind, desc, v, _within(v, sb.min, sb.max)))
+        elif kind == "consistency":
+            c = e.consistency
+            assert c is not None
+            desc = (f"consistency of {', '.join(c.groups + c.measurements)} at {c.confidence:.0%} over {c.runs} runs")
+            out.append(ExpectationResult(i, kind, desc, None, True, "a campaign-level check: run psns-hil campaign "
+                                         f"SCENARIO --runs {c.runs} --consistency", applicable=False))
         elif kind == "python":
             h = e.python
             assert h is not None

@@ -144,6 +144,10 @@ def discrimination_cycles(n: int, c: c674x.KernelCosts) -> int:
 class DualVectorFilter(BaseFilter):
     """Base 15-state filter + the patent's switching polarization measurements (module docstring)."""
 
+    #: 15 states only: this variant's own updates build 15-wide rows (the augmented GNSS / solar-bias states are
+    #: the base filter's; docs/variants.md "Consistency")
+    augmentable = False
+
     def __init__(self, cfg: Any, meter: c674x.CycleMeter, dtype: FloatDtype) -> None:
         super().__init__(cfg, meter, dtype)
         self.p = cfg.variants.dual_vector

@@ -354,6 +354,10 @@ def kmeans_attitude(finding: SunFinding, c_c_b: FloatArray, s_n: FloatArray, m_b
 class Kmeans3dFilter(BaseFilter):
     """Base 15-state filter fed with the K-means/sun/magnetometer attitude fix (module docstring)."""
 
+    #: 15 states only: this variant's own updates build 15-wide rows (the augmented GNSS / solar-bias states are
+    #: the base filter's; docs/variants.md "Consistency")
+    augmentable = False
+
     raw_polarization_obs = True
 
     def __init__(self, cfg: Any, meter: c674x.CycleMeter, dtype: FloatDtype) -> None:

@@ -128,6 +128,10 @@ class SageHusaR:
 class SunElevationFilter(BaseFilter):
     """Base 15-state filter with the sun-elevation position measurement and adaptive R (module docstring)."""
 
+    #: 15 states only: this variant's own updates build 15-wide rows (the augmented GNSS / solar-bias states are
+    #: the base filter's; docs/variants.md "Consistency")
+    augmentable = False
+
     def __init__(self, cfg: Any, meter: c674x.CycleMeter, dtype: FloatDtype) -> None:
         super().__init__(cfg, meter, dtype)
         self.p = cfg.variants.sun_elevation

@@ -102,9 +102,12 @@ def test_covariance_stays_symmetric_positive_definite_over_1h_in_float32():
     d32 = np.sqrt(np.diag(flt32.P).astype(np.float64))
     d64 = np.sqrt(np.diag(flt64.P))
     assert np.allclose(d32, d64, rtol=0.02)
-    # heading is observable through the Sun: its sigma fell from 1 deg to the level the tilt allows
-    # (the rotation about S^n is unobservable and the tilt is only as good as the accelerometer bias)
-    assert d32[2] < 0.2 * DEG
+    # heading is observable through the Sun: its sigma fell from 1 deg towards the level the tilt allows (the
+    # rotation about S^n is unobservable, the tilt only as good as the accelerometer bias), but not below the solar
+    # vector's own systematic error (the augmented solar-bias states, psns_bias_sigma_deg = 0.2 deg): a static box
+    # cannot tell a mount / sky error from a heading error
+    bias = flt32.cfg.psns_bias_sigma_deg * DEG
+    assert 0.5 * bias < d32[2] < 0.3 * DEG
 
 
 def test_solar_update_sign_choice_and_gate():

@@ -5,6 +5,7 @@ collect, summarise, write)."""
 from __future__ import annotations
 
 import datetime as _dt
+import json
 import time
 import traceback
 from collections.abc import Callable, Sequence
@@ -53,6 +54,10 @@ def run_member(task: MemberTask) -> dict[str, Any]:
         row["expectations"] = [{"index": e["index"], "description": e["description"], "value": e["value"],
                                 "passed": bool(e["passed"])} for e in summary.get("expectations", [])]
         row["passed"] = bool(summary.get("passed"))
+        if task.consistency:
+            from .consistency import member_consistency
+
+            row["consistency"] = member_consistency(Path(task.run_dir), summary, task.consistency_after_s)
         row["ok"] = not summary.get("interrupted", False)
         if not row["ok"]:
             row["error"] = "run interrupted"
@@ -161,13 +166,20 @@ def run_campaign(cfg: CampaignConfig, progress: Callable[[dict[str, Any], int, i
     """
     if cfg.runs < 1:
         raise CampaignError("--runs must be >= 1")
+    if cfg.seeds is not None and len(cfg.seeds) != cfg.runs:
+        raise CampaignError(f"--seeds gives {len(cfg.seeds)} seeds for {cfg.runs} runs")
     data, scn, source, base_dir = load_campaign_scenario(cfg.scenario)
     validate_variations(data, scn, cfg.variations, source, base_dir)
     seed = scn.seed if cfg.seed is None else int(cfg.seed)
     stamp = _dt.datetime.now(_dt.UTC).strftime("%Y%m%dT%H%M%SZ")
     out = Path(cfg.out_dir) if cfg.out_dir else Path("runs") / f"campaign-{scn.name}-{stamp}"
     out.mkdir(parents=True, exist_ok=True)
-    tasks = plan_members(data, cfg.runs, seed, cfg.variations, out, source, base_dir, cfg.keep_all)
+    spec = consistency_spec(scn) if cfg.consistency else None
+    if spec is not None and cfg.consistency_after_s is not None:
+        spec["after_s"] = cfg.consistency_after_s
+    tasks = plan_members(data, cfg.runs, seed, cfg.variations, out, source, base_dir, cfg.keep_all,
+                         consistency=cfg.consistency, consistency_after_s=spec["after_s"] if spec else 0.0,
+                         seeds=cfg.seeds)
     own = client is None
     cluster = None
     if own:
@@ -191,5 +203,23 @@ def run_campaign(cfg: CampaignConfig, progress: Callable[[dict[str, Any], int, i
         "started_utc": stamp,
     }
     result = CampaignResult(out, rows, stats, wall, info["runs_per_min"] or 0.0, info)
+    if spec is not None:
+        from .consistency import campaign_consistency
+
+        result.consistency = campaign_consistency([r.get("consistency") or {} for r in rows if r.get("ok")],
+                                                  spec["confidence"], spec["groups"], spec["measurements"])
+        result.consistency["scenario"] = scn.name
+        (out / "consistency.json").write_text(json.dumps(result.consistency, indent=1) + "\n", encoding="utf-8")
     write_outputs(result, cfg.plots)
     return result
+
+
+def consistency_spec(scn: Any) -> dict[str, Any]:
+    """What the consistency check evaluates: the scenario's ``consistency:`` expectation (groups, measurement
+    types, confidence, start time), or every group and measurement type at 95 % from the start."""
+    for e in getattr(scn, "expectations", []) or []:
+        c = getattr(e, "consistency", None)
+        if c is not None:
+            return {"groups": list(c.groups), "measurements": list(c.measurements), "confidence": c.confidence,
+                    "after_s": c.after_s}
+    return {"groups": None, "measurements": None, "confidence": 0.95, "after_s": 0.0}

@@ -26,6 +26,8 @@ class CampaignResult:
     wall_s: float
     runs_per_min: float
     info: dict[str, Any]
+    #: the consistency check over the members (``--consistency``), as written to consistency.json
+    consistency: dict[str, Any] | None = None
 
     @property
     def failed(self) -> list[dict[str, Any]]:

@@ -30,6 +30,9 @@ class MemberTask:
     base_dir: str | None
     run_dir: str
     keep_all: bool = False
+    #: compute the member's NEES samples (:func:`.consistency.member_consistency`) from ``after_s`` on
+    consistency: bool = False
+    consistency_after_s: float = 0.0
 
 
 def _seed_of(ss: np.random.SeedSequence) -> int:
@@ -38,8 +41,10 @@ def _seed_of(ss: np.random.SeedSequence) -> int:
 
 def plan_members(data: dict[str, Any], runs: int, campaign_seed: int, variations: Sequence[Variation],
                  out_dir: Path, source_file: str = "<scenario>", base_dir: str | None = None,
-                 keep_all: bool = False) -> list[MemberTask]:
-    """The members of a campaign: seeds and drawn parameters (deterministic in ``campaign_seed``)."""
+                 keep_all: bool = False, consistency: bool = False,
+                 consistency_after_s: float = 0.0, seeds: Sequence[int] | None = None) -> list[MemberTask]:
+    """The members of a campaign: seeds and drawn parameters (deterministic in ``campaign_seed``); ``seeds`` gives
+    the members' run seeds explicitly (``--seeds 1-10``: the seeds a scenario's bounds were derived with)."""
     root = np.random.SeedSequence(campaign_seed)
     tasks = []
     for i, child in enumerate(root.spawn(runs)):
@@ -47,7 +52,8 @@ def plan_members(data: dict[str, Any], runs: int, campaign_seed: int, variations
         rng = np.random.default_rng(vary_ss)
         params = {v.key: v.dist.sample(rng) for v in variations}
         member = apply_variations(data, params)
-        member["seed"] = _seed_of(run_ss)
+        member["seed"] = int(seeds[i]) if seeds is not None else _seed_of(run_ss)
         tasks.append(MemberTask(i, member["seed"], params, member, source_file, base_dir,
-                                str(Path(out_dir) / "runs" / f"{i:04d}"), keep_all))
+                                str(Path(out_dir) / "runs" / f"{i:04d}"), keep_all, consistency,
+                                consistency_after_s))
     return tasks

@@ -225,6 +225,12 @@ class CampaignConfig:
     plots: bool = True
     #: serve the Dask dashboard of the campaign's own cluster (off by default; docs/distributed.md "Security")
     dashboard: bool = False
+    #: the filter-consistency check (NEES / NIS with chi-square bounds, :mod:`.consistency`): consistency.json
+    consistency: bool = False
+    #: explicit run seeds of the members (``--seeds``; then ``runs`` = their number), else derived from ``seed``
+    seeds: list[int] | None = None
+    #: start of the consistency evaluation, s (None: the scenario's consistency: expectation, else 0)
+    consistency_after_s: float | None = None
 
 
 def load_campaign_scenario(path: Path) -> tuple[dict[str, Any], Any, str, str]:

@@ -29,7 +29,8 @@ def test_report_is_self_contained_with_plots(run_dir):
     assert len(imgs) >= 4
     for b in imgs:
         assert base64.b64decode(b).startswith(b"\x89PNG")
-    for title in ("Attitude error", "Velocity error", "Position error", "Mode timeline", "DSP load"):
+    for title in ("Attitude error", "Velocity error", "Position error", "Filter consistency (NEES)", "Mode timeline",
+                  "DSP load"):
         assert title in doc
     assert "uart1" in doc and "imu_tick" in doc
 

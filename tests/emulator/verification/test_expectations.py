@@ -180,12 +180,18 @@ def test_a_deliberately_wrong_expectation_fails_the_run_and_its_library_test(pyt
     (pytester.path / "wrong.yaml").write_text(WRONG)
     (pytester.path / "right.yaml").write_text(WRONG.replace("deliberately_wrong", "right")
                                               .replace("max: 0.001", "max: 100"))
-    res = pytester.runpytest_subprocess("-p", "no:cacheprovider", "-k", "not golden")
+    res = pytester.runpytest_subprocess("-p", "no:cacheprovider", "-k", "not golden and not seeds")
     res.assert_outcomes(passed=1, failed=1)
     out = res.stdout.str()
     assert "scenario deliberately_wrong" in out and "failed:" in out
     assert "expectation #1 nav_error: max position_m <= 0.001 for t >= 2.5 s: measured" in out
     assert "run directory kept:" in out and "scenario library: wall time" in out
+    # the seed-robustness items (issue 15): the 4 s scenarios get [seeds-fast] with seeds 1 and 2
+    res = pytester.runpytest_subprocess("-p", "no:cacheprovider", "-k", "seeds-fast")
+    res.assert_outcomes(passed=1, failed=1)
+    out = res.stdout.str()
+    assert "scenario deliberately_wrong (" in out and "is not seed-robust over seeds [1, 2]:" in out
+    assert "  seed 1: run directory kept:" in out and "  seed 2: run directory kept:" in out
     # the same file on the command line: exit code 1, the failure in summary.json
     import subprocess
     import sys
@@ -202,7 +208,7 @@ def test_the_golden_item_of_a_scenario_without_a_record_fails_with_the_command(p
     shutil.copy(SCENARIOS / "conftest.py", pytester.path / "conftest.py")
     (pytester.path / "right.yaml").write_text(WRONG.replace("deliberately_wrong", "no_golden_yet")
                                               .replace("max: 0.001", "max: 100"))
-    res = pytester.runpytest_subprocess("-p", "no:cacheprovider")
+    res = pytester.runpytest_subprocess("-p", "no:cacheprovider", "-k", "not seeds")
     res.assert_outcomes(passed=1, failed=1)
     assert "no golden record for no_golden_yet" in res.stdout.str() and "make golden" in res.stdout.str()
 
@@ -213,7 +219,8 @@ def test_slow_library_scenarios_get_the_slow_marker(pytester):
     (pytester.path / "s.yaml").write_text(WRONG.replace("deliberately_wrong", "tagged").replace(
         "duration_s: 4\n", "duration_s: 4\ntags: [slow]\n"))
     res = pytester.runpytest_subprocess("-p", "no:cacheprovider", "-m", "not slow", "--collect-only", "-q")
-    assert "2 deselected" in res.stdout.str()
+    # the scenario, its golden and its 10-seed check; a slow scenario gets no fast-seed item
+    assert "3 deselected" in res.stdout.str()
 
 
 def test_a_broken_library_file_is_a_collection_error_with_every_problem(pytester):

@@ -1,0 +1,155 @@
+"""Filter consistency over a campaign: NEES per state group and NIS per measurement type, with chi-square bounds.
+
+A filter is *consistent* when its errors are as large as its covariance says (Bar-Shalom, Li & Kirubarajan,
+*Estimation with Applications to Tracking and Navigation*, 2001, section 5.4.2). Over ``N`` independent runs:
+
+``NEES`` (normalised estimation error squared) of a state group with ``n`` components at time ``k``::
+
+    eps_k = sum_i (e_i / sigma_i)^2          (error e against truth, sigma the filter's reported 1 sigma)
+
+``N * mean_N(eps_k)`` is chi-square with ``N n`` degrees of freedom, so the average NEES lies inside the
+two-sided ``1 - alpha`` interval ``[chi2.ppf(alpha/2, N n) / N, chi2.ppf(1 - alpha/2, N n) / N]`` for a consistent
+filter (Bar-Shalom Eq. 5.4.2-8). The host receives only the sigmas of the navigation errors (NAV_SOLUTION, the
+diagonal of P), so ``eps`` here is the diagonal form: it equals the full-covariance NEES when the group's errors
+are uncorrelated and is a close proxy otherwise (its expectation is still ``n``).
+
+``NIS`` (normalised innovation squared) of a measurement type: the firmware accumulates ``nu^2 / s`` of every
+scalar row it processes (:attr:`firmware_model.filters.NavFilter.innovation_stats`, in the run summary under
+``firmware.innovation``); a row's NIS is chi-square with 1 dof, so the average over ``M`` rows of all runs lies
+inside ``[chi2.ppf(alpha/2, M) / M, chi2.ppf(1 - alpha/2, M) / M]``. Sequential rows of one fix are not
+independent of the previous fixes when the GNSS error is correlated in time; the bound is then optimistic,
+which is said in the table.
+
+State groups (the names a ``consistency:`` expectation may use, :data:`STATE_GROUPS`): ``attitude`` (phi E, N, U,
+from the computed against the true ``C_b^n``), ``heading`` (phi U alone), ``velocity`` (E, N, U), ``position``
+(E, N, U), ``horizontal_position`` (E, N). The biases have no truth in ``truth.csv``; they are not a group.
+
+Per member (:func:`member_consistency`, on the worker that ran it, before ``nav.csv`` is deleted): the group NEES
+sampled once per second of navigation after ``after_s``, and the share of those samples whose heading error lies
+inside the reported 3 sigma. Over the campaign (:func:`campaign_consistency`): the average NEES per group and per
+sample time, its time mean, the share of sample times inside the bounds, and pass/fail.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ...scenario.consistency_schema import MEASUREMENT_TYPES, STATE_GROUPS, chi2_bounds, min_runs
+
+__all__ = [
+    "MEASUREMENT_TYPES",
+    "STATE_GROUPS",
+    "campaign_consistency",
+    "chi2_bounds",
+    "member_consistency",
+    "min_runs",
+]
+
+DEG = math.pi / 180.0
+
+def _rows(path: Path) -> list[dict[str, str]]:
+    with open(path, newline="", encoding="utf-8") as f:
+        return list(csv.DictReader(f))
+
+
+def _cbn(roll_deg: float, pitch_deg: float, heading_deg: float) -> np.ndarray:
+    """``C_b^n`` (ENU) from roll, pitch and heading (deg, heading clockwise from North), firmware convention."""
+    from firmware_model.attitude import a2mat, yaw_from_heading
+
+    return np.asarray(a2mat(pitch_deg * DEG, roll_deg * DEG, yaw_from_heading(heading_deg * DEG)), dtype=np.float64)
+
+
+def member_consistency(run_dir: Path, summary: dict[str, Any], after_s: float = 0.0, step_s: float = 1.0
+                       ) -> dict[str, Any]:
+    """One member's NEES samples and innovation statistics (see module docstring).
+
+    Returns ``{"t": [...], "nees": {group: [...]}, "heading_in_3sigma": share or None, "samples": n,
+    "zero_sigma": n, "innovation": summary["firmware"]["innovation"]}``."""
+    nav = _rows(run_dir / "nav.csv")
+    truth = _rows(run_dir / "truth.csv")
+    out_t: list[float] = []
+    nees: dict[str, list[float]] = {g: [] for g in STATE_GROUPS}
+    inside = total = zero = 0
+    next_t = -math.inf
+    for n, tr in zip(nav, truth, strict=False):
+        if not n.get("err_att_deg"):  # not navigating
+            continue
+        t = float(n["time_s"])
+        if t < after_s:
+            continue
+        sig_att = np.array([float(n["sig_att_e_deg"]), float(n["sig_att_n_deg"]), float(n["sig_att_u_deg"])]) * DEG
+        c_comp = _cbn(float(n["roll_deg"]), float(n["pitch_deg"]), float(n["heading_deg"]))
+        c_true = _cbn(float(tr["roll_deg"]), float(tr["pitch_deg"]), float(tr["heading_deg"]))
+        a = c_comp @ c_true.T  # = I - [phi x]
+        phi = np.array([a[1, 2] - a[2, 1], a[2, 0] - a[0, 2], a[0, 1] - a[1, 0]]) * 0.5
+        if sig_att[2] > 0.0:
+            total += 1
+            inside += abs(phi[2]) <= 3.0 * sig_att[2]
+        if t < next_t:
+            continue
+        sig_vel = np.array([float(n["sig_vel_e_mps"]), float(n["sig_vel_n_mps"]), float(n["sig_vel_u_mps"])])
+        sig_pos = np.array([float(n["sig_pos_e_m"]), float(n["sig_pos_n_m"]), float(n["sig_pos_u_m"])])
+        err_vel = np.array([float(n["err_vel_e_mps"]), float(n["err_vel_n_mps"]), float(n["err_vel_u_mps"])])
+        err_pos = np.array([float(n["err_pos_e_m"]), float(n["err_pos_n_m"]), float(n["err_pos_u_m"])])
+        if not (np.all(sig_att > 0) and np.all(sig_vel > 0) and np.all(sig_pos > 0)):
+            zero += 1  # a sigma below the frame's resolution: no NEES sample
+            continue
+        next_t = t + step_s - 1e-6  # (float times of a 1 s grid)
+        out_t.append(t)
+        za, zv, zp = phi / sig_att, err_vel / sig_vel, err_pos / sig_pos
+        nees["attitude"].append(float(za @ za))
+        nees["heading"].append(float(za[2] ** 2))
+        nees["velocity"].append(float(zv @ zv))
+        nees["position"].append(float(zp @ zp))
+        nees["horizontal_position"].append(float(zp[:2] @ zp[:2]))
+    return {"t": out_t, "nees": nees, "heading_in_3sigma": inside / total if total else None, "samples": len(out_t),
+            "zero_sigma": zero, "innovation": summary.get("firmware", {}).get("innovation", {})}
+
+
+def campaign_consistency(members: list[dict[str, Any]], confidence: float = 0.95,
+                         groups: list[str] | None = None, measurements: list[str] | None = None) -> dict[str, Any]:
+    """Average NEES per group and NIS per measurement type over the members (``member_consistency`` results).
+
+    Sample times are aligned by their index (members of one scenario navigate on the same schedule); a group passes
+    when its time-averaged NEES lies inside the two-sided bounds for the number of runs. Also reported: the share of
+    sample times whose N-run average lies inside the bounds (about ``confidence`` for a consistent filter)."""
+    members = [m for m in members if m and m.get("samples")]
+    runs = len(members)
+    out: dict[str, Any] = {"runs": runs, "confidence": confidence, "groups": {}, "measurements": {}}
+    if not runs:
+        return out
+    k = min(m["samples"] for m in members)
+    out["t"] = members[0]["t"][:k]
+    for g in groups or list(STATE_GROUPS):
+        dof = STATE_GROUPS[g]
+        arr = np.array([m["nees"][g][:k] for m in members], dtype=np.float64)
+        avg_t = arr.mean(axis=0)
+        lo, hi = chi2_bounds(runs, dof, confidence)
+        mean = float(avg_t.mean()) if k else math.nan
+        out["groups"][g] = {
+            "dof": dof, "mean_nees": mean, "lower": lo, "upper": hi,
+            "share_inside": float(np.mean((avg_t >= lo) & (avg_t <= hi))) if k else None,
+            "passed": bool(lo <= mean <= hi), "series": [round(float(v), 4) for v in avg_t],
+        }
+    shares = [m["heading_in_3sigma"] for m in members if m.get("heading_in_3sigma") is not None]
+    out["heading_in_3sigma"] = {"mean": float(np.mean(shares)) if shares else None,
+                                "min": float(np.min(shares)) if shares else None}
+    for name in measurements or list(MEASUREMENT_TYPES):
+        s = sum(float(m["innovation"].get(name, {}).get("nis_sum", 0.0)) for m in members)
+        n = sum(int(m["innovation"].get(name, {}).get("rows", 0)) for m in members)
+        if not n:
+            out["measurements"][name] = {"rows": 0, "mean_nis": None, "lower": None, "upper": None, "passed": None}
+            continue
+        lo, hi = chi2_bounds(n, 1, confidence)
+        mean = s / n
+        out["measurements"][name] = {"rows": n, "mean_nis": mean, "lower": lo, "upper": hi,
+                                     "passed": bool(lo <= mean <= hi)}
+    checked = [d["passed"] for d in out["groups"].values()]
+    checked += [d["passed"] for d in out["measurements"].values() if d["passed"] is not None]
+    out["passed"] = all(checked)
+    return out

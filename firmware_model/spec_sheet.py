@@ -1,0 +1,166 @@
+"""The firmware's own sensor spec sheet: what the navigation computer's team knows about its sensors.
+
+A real team configures its filter from the datasheets of the parts it bought and from its own bench and sky
+tests, never from the error draws of the world its box will meet. :class:`SensorSpecSheet` is that knowledge,
+typed; the emulator reads it from a YAML file (``firmware_model/spec_sheets/*.yaml`` or the user's file, chosen by
+the scenario's ``firmware.spec_sheet``; :mod:`emulator.dsp.firmware_setup`) and hands it over as a dict: this
+package does no file I/O. :meth:`SensorSpecSheet.config_fields` derives the filter's working figures
+(:class:`firmware_model.config.FirmwareConfig` fields) from it, in one place:
+
+* gyro / accelerometer noise: ARW and VRW as the white process noise of the attitude and velocity rows;
+* in-run bias: a first-order Gauss-Markov of sigma ``bias_instability`` and correlation time ``bias_corr_time_s``
+  (the Allan floor read as the flicker's stationary level), modelled in the filter as a random walk of the same
+  short-term growth (``q = 2 sigma^2 / tau``); its stationary part enters ``P0`` with the turn-on repeatability and
+  the environmental terms the datasheet gives (g-sensitivity at 1 g, temperature-gradient bias, scale factor at
+  1 g for the accelerometers), all added in quadrature;
+* GNSS: the receiver's 95 % figures (horizontal 2DRMS -> sigma per axis = X / 2.448, vertical X / 2) split into a
+  white part (``white_sigma_h_m`` / ``_v_m``: receiver noise and fast multipath) and a time-correlated remainder
+  (atmosphere, orbit) of correlation time ``corr_time_s``, estimated as three augmented Gauss-Markov states
+  (docs/decisions/filter-consistency.md);
+* PSNS: the solve's own noise from its eigenvalues (``noise_scale * lambda_min / lambda_mid / n_used``, see
+  :func:`firmware_model.filters.solar_noise_variance`), a floor, and the systematic solar-vector error (camera
+  mount residual of the calibration plus the sky's departure from the Rayleigh pattern) as three augmented body-frame
+  states.
+
+Every figure is 1 sigma per axis unless its name says 95 %.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field, fields
+from typing import Any
+
+from .errors import FirmwareError
+
+__all__ = ["AccelSpec", "GnssSpec", "GyroSpec", "PsnsSpec", "SensorSpecSheet", "SpecSheetError"]
+
+
+class SpecSheetError(FirmwareError):
+    """A spec sheet that is not well formed (the message names the field)."""
+
+
+@dataclass(frozen=True)
+class GyroSpec:
+    """Rate gyro (per axis): ARW deg/sqrt(h); biases deg/h; correlation time s; g-sensitivity deg/h/g."""
+
+    arw_deg_rt_h: float = 0.15
+    bias_repeatability_deg_h: float = 13.333
+    bias_instability_deg_h: float = 6.667
+    bias_corr_time_s: float = 600.0
+    g_sensitivity_deg_h_per_g: float = 0.0
+    bias_temp_gradient_deg_h: float = 0.0
+
+
+@dataclass(frozen=True)
+class AccelSpec:
+    """Accelerometer (worst axis): VRW ug/sqrt(Hz); biases mg; correlation time s; scale-factor ppm."""
+
+    vrw_ug_rt_hz: float = 100.0
+    bias_repeatability_mg: float = 2.333
+    bias_instability_mg: float = 1.333
+    bias_corr_time_s: float = 600.0
+    scale_factor_ppm: float = 0.0
+
+
+@dataclass(frozen=True)
+class GnssSpec:
+    """GNSS receiver: 95 % accuracies (m, m/s), white receiver noise (m, per axis), error correlation time (s)."""
+
+    horizontal_95_m: float = 10.0
+    vertical_95_m: float = 15.0
+    velocity_h_95_mps: float = 0.1
+    velocity_v_95_mps: float = 0.2
+    white_sigma_h_m: float = 1.0
+    white_sigma_v_m: float = 1.5
+    corr_time_s: float = 300.0
+    #: time from a fix's UTC epoch to the first byte of its first message (s): dates fixes without PPS
+    output_latency_s: float = 0.1
+
+
+@dataclass(frozen=True)
+class PsnsSpec:
+    """Polarization sensor: solve-noise scale (1), noise floor and systematic solar-vector error (deg per axis)."""
+
+    noise_scale: float = 1.0
+    noise_floor_deg: float = 0.05
+    mount_residual_deg: float = 0.05
+    sky_bias_deg: float = 0.2
+    bias_corr_time_s: float = 600.0
+
+
+@dataclass(frozen=True)
+class SensorSpecSheet:
+    """The sensors as the team's spec sheet states them (see module docstring)."""
+
+    name: str = "default"
+    gyro: GyroSpec = field(default_factory=GyroSpec)
+    accel: AccelSpec = field(default_factory=AccelSpec)
+    gnss: GnssSpec = field(default_factory=GnssSpec)
+    psns: PsnsSpec = field(default_factory=PsnsSpec)
+
+    @classmethod
+    def from_dict(cls, data: Any, source: str = "<spec sheet>") -> SensorSpecSheet:
+        """Parse a spec sheet mapping; unknown or non-numeric fields and negative figures raise
+        :class:`SpecSheetError` naming ``source`` and the field."""
+        if not isinstance(data, dict):
+            raise SpecSheetError(f"{source}: a spec sheet is a mapping of sections")
+        sections = {"gyro": GyroSpec, "accel": AccelSpec, "gnss": GnssSpec, "psns": PsnsSpec}
+        extra = set(data) - set(sections) - {"name", "description"}
+        if extra:
+            raise SpecSheetError(f"{source}: unknown sections {sorted(extra)}")
+        parts: dict[str, Any] = {}
+        for key, typ in sections.items():
+            sec = data.get(key, {})
+            if not isinstance(sec, dict):
+                raise SpecSheetError(f"{source}: {key}: a mapping of figures")
+            known = {f.name for f in fields(typ)}
+            bad = set(sec) - known
+            if bad:
+                raise SpecSheetError(f"{source}: {key}: unknown fields {sorted(bad)} (known: {sorted(known)})")
+            vals: dict[str, float] = {}
+            for k, v in sec.items():
+                if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+                    raise SpecSheetError(f"{source}: {key}.{k}: a finite figure >= 0, got {v!r}")
+                vals[k] = float(v)
+            parts[key] = typ(**vals)
+        for key, tau in (("gyro", parts["gyro"].bias_corr_time_s), ("accel", parts["accel"].bias_corr_time_s),
+                         ("gnss", parts["gnss"].corr_time_s), ("psns", parts["psns"].bias_corr_time_s)):
+            if tau <= 0:
+                raise SpecSheetError(f"{source}: {key}: the correlation time must be > 0 s")
+        return cls(name=str(data.get("name", "unnamed")), **parts)
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    def config_fields(self) -> dict[str, Any]:
+        """The :class:`~firmware_model.config.FirmwareConfig` figures this sheet implies (module docstring)."""
+        g, a, n, p = self.gyro, self.accel, self.gnss, self.psns
+        sh = n.horizontal_95_m / 2.448  # 2DRMS 95 % of a circular Gaussian -> sigma per axis
+        sv = n.vertical_95_m / 2.0
+        gyro_p0 = math.sqrt(g.bias_repeatability_deg_h**2 + g.bias_instability_deg_h**2
+                            + g.g_sensitivity_deg_h_per_g**2 + g.bias_temp_gradient_deg_h**2)
+        acc_p0 = math.sqrt(a.bias_repeatability_mg**2 + a.bias_instability_mg**2 + (a.scale_factor_ppm * 1e-3) ** 2)
+        return {
+            "spec_sheet": self.name,
+            "gyro_arw_deg_rt_h": max(g.arw_deg_rt_h, 0.01),
+            "gyro_bias_sigma_deg_h": max(gyro_p0, 0.1),
+            "gyro_bias_instability_deg_h": max(g.bias_instability_deg_h, 0.05),
+            "bias_corr_time_s": g.bias_corr_time_s,
+            "accel_noise_ug_rt_hz": max(a.vrw_ug_rt_hz, 10.0),
+            "accel_bias_sigma_mg": max(acc_p0, 0.05),
+            "accel_bias_instability_mg": max(a.bias_instability_mg, 0.01),
+            "accel_bias_corr_time_s": a.bias_corr_time_s,
+            "gnss_pos_sigma_h_m": max(sh, 0.5),
+            "gnss_pos_sigma_v_m": max(sv, 0.5),
+            "gnss_pos_white_sigma_h_m": max(min(n.white_sigma_h_m, sh), 0.1),
+            "gnss_pos_white_sigma_v_m": max(min(n.white_sigma_v_m, sv), 0.1),
+            "gnss_pos_corr_time_s": n.corr_time_s,
+            "gnss_vel_sigma_h_mps": max(n.velocity_h_95_mps / 2.448, 0.01),
+            "gnss_vel_sigma_v_mps": max(n.velocity_v_95_mps / 2.0, 0.01),
+            "gnss_latency_s": n.output_latency_s,
+            "psns_noise_scale": p.noise_scale,
+            "psns_sigma_deg": max(p.noise_floor_deg, 0.001),
+            "psns_bias_sigma_deg": math.hypot(p.mount_residual_deg, p.sky_bias_deg),
+            "psns_bias_corr_time_s": p.bias_corr_time_s,
+        }

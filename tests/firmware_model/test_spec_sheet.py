@@ -1,0 +1,143 @@
+"""The firmware's sensor spec sheet (firmware_model/spec_sheet.py) and what the base filter derives from it:
+figures by closed form, bad sheets refused by field, the augmented GNSS-error and solar-bias states."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from firmware_model import FirmwareConfig, c674x
+from firmware_model.attitude import a2mat, mat2q, yaw_from_heading
+from firmware_model.filters import (
+    BaseFilter,
+    GnssMeasurement,
+    SolarObservation,
+    kf_predict_cycles,
+    kf_scalar_update_cycles,
+    solar_noise_variance,
+)
+from firmware_model.kf import D_H, D_LON, N_STATES
+from firmware_model.nav_state import NavState
+from firmware_model.spec_sheet import SensorSpecSheet, SpecSheetError
+
+DEG = math.pi / 180.0
+SHEETS = Path(__file__).resolve().parents[2] / "firmware_model" / "spec_sheets"
+
+
+@pytest.mark.parametrize("name", ["default", "field"])
+def test_bundled_sheets_parse_and_give_a_valid_configuration(name):
+    sheet = SensorSpecSheet.from_dict(yaml.safe_load((SHEETS / f"{name}.yaml").read_text()), name)
+    assert sheet.name == name
+    cfg = FirmwareConfig(**sheet.config_fields())
+    assert cfg.spec_sheet == name
+
+
+def test_config_fields_by_closed_form():
+    sheet = SensorSpecSheet.from_dict({
+        "gyro": {"arw_deg_rt_h": 0.15, "bias_repeatability_deg_h": 3.0, "bias_instability_deg_h": 4.0,
+                 "g_sensitivity_deg_h_per_g": 12.0, "bias_temp_gradient_deg_h": 0.0},
+        "accel": {"bias_repeatability_mg": 3.0, "bias_instability_mg": 0.0, "scale_factor_ppm": 4000.0},
+        "gnss": {"horizontal_95_m": 24.48, "vertical_95_m": 10.0, "white_sigma_h_m": 20.0},
+        "psns": {"mount_residual_deg": 0.3, "sky_bias_deg": 0.4}})
+    f = sheet.config_fields()
+    assert f["gyro_bias_sigma_deg_h"] == pytest.approx(13.0)  # sqrt(3^2 + 4^2 + 12^2)
+    assert f["accel_bias_sigma_mg"] == pytest.approx(5.0)  # sqrt(3^2 + (4000 ppm * 1 g)^2) = sqrt(9 + 16)
+    assert f["gnss_pos_sigma_h_m"] == pytest.approx(10.0) and f["gnss_pos_sigma_v_m"] == pytest.approx(5.0)
+    assert f["gnss_pos_white_sigma_h_m"] == pytest.approx(10.0)  # the white part never exceeds the total
+    assert f["psns_bias_sigma_deg"] == pytest.approx(0.5)
+
+
+@pytest.mark.parametrize("data, needle", [
+    ({"gyro": {"arw": 0.1}}, "gyro: unknown fields ['arw']"),
+    ({"accel": {"vrw_ug_rt_hz": -1}}, "accel.vrw_ug_rt_hz"),
+    ({"gnss": {"corr_time_s": 0}}, "gnss: the correlation time"),
+    ({"imu": {}}, "unknown sections ['imu']"),
+    ({"psns": {"noise_scale": "big"}}, "psns.noise_scale"),
+])
+def test_bad_sheets_are_refused_naming_the_field(data, needle):
+    with pytest.raises(SpecSheetError) as ei:
+        SensorSpecSheet.from_dict(data, "my.yaml")
+    assert "my.yaml" in str(ei.value) and needle in str(ei.value)
+
+
+def _filter(**kw):
+    cfg = FirmwareConfig(precision="float64", **kw)
+    meter = c674x.CycleMeter(cfg.clock_hz, cfg.imu_rate_hz)
+    flt = BaseFilter(cfg, meter, np.float64)
+    lat, lon, h = 39.979 * DEG, 116.339 * DEG, 50.0
+    cbn = a2mat(0.0, 0.0, yaw_from_heading(30 * DEG))
+    nav = NavState(q=mat2q(cbn), v=np.zeros(3), pos=np.array([lat, lon, h]))
+    flt.initialise(nav, 1.0 * DEG)
+    return flt, nav, cbn
+
+
+def test_augmented_states_layout_p0_and_cycle_charge():
+    flt, _, _ = _filter()
+    assert flt.n == N_STATES + 6 and flt.i_gnss == N_STATES and flt.i_sun == N_STATES + 3
+    cfg = flt.cfg
+    sc_h = math.sqrt(cfg.gnss_pos_sigma_h_m**2 - cfg.gnss_pos_white_sigma_h_m**2)
+    P = flt.P
+    assert P[flt.i_gnss, flt.i_gnss] == pytest.approx(sc_h**2)
+    # the position comes from the first fix: height error and the vertical GNSS error are correlated by var(b)
+    assert P[D_H, flt.i_gnss + 2] == pytest.approx(P[flt.i_gnss + 2, flt.i_gnss + 2])
+    np.linalg.cholesky(P)
+    assert flt._cyc_predict == kf_predict_cycles(flt.cost, 21) > kf_predict_cycles(flt.cost, 15)
+    assert kf_scalar_update_cycles(flt.cost, 21) > kf_scalar_update_cycles(flt.cost, 15)
+    plain, _, _ = _filter(gnss_error_states=False, psns_bias_states=False)
+    assert plain.n == N_STATES and plain.i_gnss is None and plain.i_sun is None
+
+
+def test_a_constant_gnss_offset_goes_into_the_gnss_error_states_not_the_position():
+    """A static box whose receiver reports 3 m east of the truth for 60 s: with the correlated error modelled, the
+    filter explains the offset mostly as receiver error (its prior, 3.9 m, is much larger than the white 1 m),
+    so the position estimate keeps its sigma near the correlated part instead of shrinking to sigma_white / sqrt(60)."""
+    flt, nav, _ = _filter()
+    pos = nav.pos.copy()
+    rnh_cl = 6378137.0 * math.cos(pos[0])
+    meas = GnssMeasurement(t_fpga_s=0.0, pos=(pos[0], pos[1] + 3.0 / rnh_cl, pos[2]), vel=np.zeros(3), vel_up=True)
+    for _ in range(60):
+        for _ in range(10):
+            flt.predict(nav, np.array([0.0, 0.0, 9.8]), 0.1)
+        rep = flt.update_gnss(nav, meas, nav.pos, nav.v)
+        assert rep.accepted
+        flt.feedback(nav)
+    east_pos_sigma = math.sqrt(flt.P[D_LON, D_LON]) * rnh_cl
+    assert east_pos_sigma > 2.0  # not the white sigma / sqrt(60) = 0.13 m of a white-noise model
+    assert flt.x[flt.i_gnss] != 0.0  # the receiver-error estimate survives the feedback
+    white, nav_w, _ = _filter(gnss_error_states=False)
+    for _ in range(60):
+        for _ in range(10):
+            white.predict(nav_w, np.array([0.0, 0.0, 9.8]), 0.1)
+        white.update_gnss(nav_w, meas, nav_w.pos, nav_w.v)
+        white.feedback(nav_w)
+    assert math.sqrt(white.P[D_LON, D_LON]) * rnh_cl < 1.0
+    assert flt.innovation_stats["gnss_position"]["rows"] == 180
+
+
+def test_solar_noise_from_the_solve_quality():
+    cfg = FirmwareConfig(psns_noise_scale=0.5, psns_sigma_deg=0.01)
+    assert solar_noise_variance(cfg, 0.02, 100) == pytest.approx(0.5 * 0.02 / 100)
+    assert solar_noise_variance(cfg, 1e-9, 100) == pytest.approx((0.01 * DEG) ** 2)  # the floor
+    assert solar_noise_variance(cfg, 0.02, 0) == pytest.approx((0.01 * DEG) ** 2)
+
+
+def test_solar_bias_rows_are_the_sun_cross_body_to_nav():
+    """Z = -[S^n x] phi + [S^n x] C_b^n mu: a mount error mu seen through the residual of a perfect attitude."""
+    flt, nav, cbn = _filter()
+    s_n = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
+    mu = np.array([0.002, -0.001, 0.003])  # rad, body
+    s_b_true = cbn.T @ s_n
+    s_b_meas = s_b_true + np.cross(mu, s_b_true)  # (I + [mu x]) s_b
+    obs = SolarObservation(0.0, s_b_meas, 0.001, 200, "sensor")
+    x0 = flt.x.copy()
+    rep = flt.update_solar(nav, obs, s_n, cbn)
+    assert rep.accepted
+    dx = flt.x - x0
+    z = s_n - cbn @ s_b_meas
+    expected = np.cross(s_n, cbn @ mu)  # [S^n x] C_b^n mu
+    assert np.allclose(z, expected, atol=1e-8)
+    assert np.linalg.norm(dx[flt.i_sun:flt.i_sun + 3]) > 0.0

@@ -246,7 +246,7 @@ class GnssReceiver:
         self._order: list[str] = [*self.cfg.sentences, *self.cfg.ubx]
         self._out_proto = 0x03  # b0 UBX, b1 NMEA
         self._in_proto = 0x03
-        self._prt_baud = link.line.baud
+        self._prt_baud = link.line.baud if link is not None else 9600  # CFG-PRT reports the line's baud
         self._pending_rate: tuple[float, int, int] | None = None
         self._meas_nav = (round(1000.0 / self.cfg.rate_hz), 1)
         self._host_dec = StreamDecoder([UbxFormat(), NmeaFormat(NMEA_RX_MAX_LEN)])

@@ -57,25 +57,15 @@ def _time_ok(t: _dt.time | None) -> bool:
 
 def check_gga(s: Any) -> str | None:
     """Reason a GGA with a fix is refused, or None. (A GGA with quality 0 carries no fix and is not checked.)"""
-    if not _finite(s.lat_deg, s.lon_deg, s.altitude_msl_m, s.geoid_sep_m, s.hdop):
-        return "not_finite"
-    if s.lat_deg is not None and not -90.0 <= s.lat_deg <= 90.0:
-        return "latitude"
-    if s.lon_deg is not None and not -180.0 <= s.lon_deg <= 180.0:
-        return "longitude"
-    if s.geoid_sep_m is not None and abs(s.geoid_sep_m) > GEOID_MAX_M:
-        return "height"
-    if s.altitude_msl_m is not None:
-        h = s.altitude_msl_m + (s.geoid_sep_m or 0.0)
-        if not ALT_MIN_M <= h <= ALT_MAX_M:
-            return "height"
-    if not 0 <= s.quality <= 9:
+    reason = check_gns(s)
+    if reason is None and not 0 <= s.quality <= 9:
         return "quality"
-    return None
+    return reason
 
 
 def check_gns(s: Any) -> str | None:
-    """Reason a GNS with a position is refused, or None (the GGA checks; GNS has modes instead of a quality)."""
+    """Reason a GNS (or the position part of a GGA) is refused, or None: finite values, latitude, longitude,
+    geoid separation and ellipsoidal height in range (GNS has modes instead of a quality)."""
     if not _finite(s.lat_deg, s.lon_deg, s.altitude_msl_m, s.geoid_sep_m, s.hdop):
         return "not_finite"
     if s.lat_deg is not None and not -90.0 <= s.lat_deg <= 90.0:

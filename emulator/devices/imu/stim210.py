@@ -177,7 +177,10 @@ class Stim210Gyro:
             latency_us=self.latency_us,
             temperature=(tw, tw, tw),
         )
-        frame = self.format.build(d)
+        self._send(t, self.format.build(d))
+
+    def _send(self, t: float, frame: bytes) -> None:
+        """Put one datagram on the line ``response_delay_s`` after the trigger at ``t`` (or drop it, counted)."""
         if self.drop_probability > 0.0:
             rng = self._drop_rng if self._drop_rng is not None else self.rng
             if rng.random() < self.drop_probability:

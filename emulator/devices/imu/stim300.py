@@ -76,13 +76,4 @@ class Stim300Imu(Stim210Gyro):
             incl_temp_status=0 if has_t and incl is not None else None,
             aux=0 if "aux" in g else None, aux_status=0 if "aux" in g else None,
         )
-        frame = self.format.build(d)  # type: ignore[arg-type]
-        if self.drop_probability > 0.0:
-            rng = self._drop_rng if self._drop_rng is not None else self.rng
-            if rng.random() < self.drop_probability:
-                self.datagrams_dropped += 1
-                return
-        t_send = t + self.response_delay_s
-        self.link.send_at(t_send, frame)
-        self._queued += 1
-        self._last_send_t = t_send
+        self._send(t, self.format.build(d))  # type: ignore[arg-type]

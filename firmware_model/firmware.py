@@ -201,6 +201,8 @@ class Firmware(HostTask, GnssTask):
         self._imu_hold: tuple[tuple[int, int, int], tuple[int, int, int]] | None = None
         self._imu_bad_steps = 0
         self._gnss_reject_run = 0
+        #: the innovation gate refused rows of the last GNSS fix (bit 7 of the nav frame's gnss_status)
+        self._gnss_gated = False
         self._psns_reject_since: float | None = None
         self._gnss_init()
 
@@ -434,6 +436,7 @@ class Firmware(HostTask, GnssTask):
                 p_ins, v_ins, _ = self._ins_at(g.t_fpga_s)
                 rep = self.filter.update_gnss(nav, g, p_ins, v_ins)
                 m.end()
+                self._gnss_gated = not rep.accepted or bool((rep.detail or {}).get("gated_rows"))
                 if not rep.accepted:
                     self._gnss_reject_run += 1
                     self.counters["gnss_rejected"] = self.counters.get("gnss_rejected", 0) + 1

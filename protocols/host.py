@@ -206,7 +206,8 @@ NAV_SOLUTION_SPEC = Struct(
     "heading_deg" / Float32l * "1 | deg | heading clockwise from true north, [0, 360)",
     "sigma" / Array(9, Float32l) * "1 | deg, m/s, m | 1-sigma: attitude E,N,U; velocity E,N,U; position N,E,U",
     "mode" / Int16ul * " |  | NavMode bits; bits 8-11 filter variant",
-    "gnss_status" / Int8ul * " |  | fix quality of the last GNSS fix used (GGA codes)",
+    "gnss_status" / Int8ul * (" |  | bits 0-6: fix quality of the last GNSS fix (GGA codes); bit 7: the innovation "
+                              "gate refused rows of it"),
     "psns_status" / Int8ul * " |  | 0 none, 1 solar vector used, 2 rejected",
     "cpu_load" / Int16ul * "0.01 | % | worst tick of the last second",
     "deadline_misses" / Int32ul * "1 |  | cumulative",

@@ -114,7 +114,7 @@ class HostTask(AlignmentTask, NavOutput):
         st = HostStatus(
             seq=self._status_seq, time_s=t, filter_variant=self.filter.variant_id, mode=int(self.mode),
             output_rate_hz=self.cfg.imu_rate_hz / self._out_every if self._out_every else 0.0,
-            gnss_status=self._last_fix[3] if self._last_fix is not None else 0,
+            gnss_status=self._gnss_status_byte(),
             psns_status=self._psns_status_now(t), cpu_load_pct=self.cpu_load_pct(),
             cpu_load_max_pct=100.0 * self._load_max / self.meter.tick_budget, fw_version=FW_VERSION,
             deadline_misses=self.deadline_misses,

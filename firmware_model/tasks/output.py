@@ -43,6 +43,12 @@ class NavOutput(TimeKeeping):
     def _psns_status_now(self, t: float) -> int:
         return 1 if t - self._last_psns_t < 2.0 else 2 if t - self._last_psns_reject_t < 2.0 else 0
 
+    def _gnss_status_byte(self) -> int:
+        """``gnss_status``: the last fix's GGA quality (bits 0-6), bit 7 when the innovation gate refused rows of
+        the last GNSS fix (docs/hostile-input.md)."""
+        quality = self._last_fix[3] & 0x7F if self._last_fix is not None else 0
+        return quality | (0x80 if self._gnss_gated else 0)
+
     def _euler_deg(self, x: Sequence[float]) -> tuple[float, float, float]:
         """``(roll, pitch, heading)`` in degrees from the quaternion of the state floats ``x`` (PSINS m2att from
         C32, C31, C33, C12, C22 of C_b^n; heading clockwise from true north)."""
@@ -157,7 +163,6 @@ class NavOutput(TimeKeeping):
                 d[PHI_E] / DEG, d[PHI_N] / DEG, d[PHI_U] / DEG, d[DV_E], d[DV_N], d[DV_U],
                 d[D_LAT] * (rm + h), d[D_LON] * (rn + h) * math.cos(lat), d[D_H],
             )
-        fix = self._last_fix
         vs = self.filter.variant_status()
         if vs is not None:  # VARIANT block: pack 4 bytes + CRC over 6 more [E]
             self.meter.charge("nav_variant_block", 6 * 4 + 4 * 2)
@@ -166,7 +171,7 @@ class NavOutput(TimeKeeping):
         # the NavSolution fields in order (protocols.host.nav_solution_frame), without building the object
         return nav_solution_frame(
             seq, t, lat / DEG, lon / DEG, h, vel, roll, pitch, heading, sigma, int(mode),
-            fix[3] if fix is not None else 0, self._psns_status_now(t), self.cpu_load_pct(), self.deadline_misses,
+            self._gnss_status_byte(), self._psns_status_now(t), self.cpu_load_pct(), self.deadline_misses,
             *(vs if vs is not None else (None, 0, 0)))
 
 

@@ -117,6 +117,7 @@ class LoopState:
     _gnss_pending: GnssMeasurement | None
     _last_fix: tuple[float, float, float, int] | None  # (lat rad, lon rad, h m, quality)
     _last_gnss_update_t: float
+    _gnss_gated: bool  # the innovation gate refused rows of the last GNSS fix
     _last_psns_t: float
     _last_psns_reject_t: float
     # output and status

@@ -11,13 +11,14 @@ import dataclasses
 import datetime as dt
 import math
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from firmware_model import Firmware, FirmwareConfig, earth
 from firmware_model.attitude import heading_from_yaw, m2att, q2mat
 from protocols.crc import nmea_checksum
+from protocols.host import HostFormat, NavSolution
 from protocols.imu_frame import ImuFrame, ImuFrameFormat
 from protocols.stream import StreamDecoder
 from protocols.ubx import NavPvt, encode_nav_pvt
@@ -153,6 +154,8 @@ class CaseResult:
     #: (t, heading error deg, level error deg, horizontal position error m) once per second after alignment
     samples: list[tuple[float, float, float, float]]
     any_nan: bool
+    #: (time of validity, gnss_status byte) of every NAV_SOLUTION frame the firmware sent
+    gnss_status: list[tuple[float, int]] = field(default_factory=list)
 
     def worst_after(self, t0: float) -> tuple[float, float, float]:
         tail = [s for s in self.samples if s[0] >= t0]
@@ -191,6 +194,8 @@ def run_case(name: str, variant: str = "base", duration_s: float = 70.0, gnss_ou
     events: list[dict] = []
     any_nan = False
     next_sample = 1.0
+    host = StreamDecoder([HostFormat()])
+    gnss_status: list[tuple[float, int]] = []
     for t_rx, uart, data in s:
         fw.receive(uart, data, t_rx)
         if uart != UART_IMU:
@@ -200,6 +205,10 @@ def run_case(name: str, variant: str = "base", duration_s: float = 70.0, gnss_ou
             upset = None
         for r in fw.service():
             events.extend(r.events)
+            for out_uart, frame, _cycles in r.outputs:
+                if out_uart == 0:
+                    gnss_status.extend((f.time_s, f.gnss_status) for f in host.feed(frame)
+                                       if isinstance(f, NavSolution))
             if r.t_fpga_s < next_sample - 1e-9:
                 continue
             next_sample = math.floor(r.t_fpga_s) + 1.0
@@ -217,4 +226,4 @@ def run_case(name: str, variant: str = "base", duration_s: float = 70.0, gnss_ou
             de = (nav.pos[1] - truth.lon_deg * DEG) * (rn + truth.height_m) * math.cos(truth.lat_deg * DEG)
             samples.append((r.t_fpga_s, _wrap180(heading_from_yaw(y) / DEG - truth.heading_deg),
                             max(abs(p / DEG - truth.pitch_deg), abs(ro / DEG - truth.roll_deg)), math.hypot(dn, de)))
-    return CaseResult(name, variant, dict(fw.counters), events, samples, any_nan)
+    return CaseResult(name, variant, dict(fw.counters), events, samples, any_nan, gnss_status)

@@ -33,6 +33,11 @@ def test_corpus_case_recovers(case: str, variant: str) -> None:
 def test_gate_refuses_an_in_range_jump() -> None:
     r = run_case("gga_jump_5km", "base")
     assert r.counters.get("gnss_rows_gated", 0) >= 2
+    # the gate's state is in the nav frame: bit 7 of gnss_status while the jumped fixes are refused, clear after
+    gated = [t for t, st in r.gnss_status if st & 0x80]
+    assert gated and T_BAD[0] <= min(gated) and max(gated) <= T_BAD[1] + 1.5, (min(gated), max(gated), T_BAD)
+    assert all(st & 0x7F == 1 for _t, st in r.gnss_status if st)  # the quality bits keep the GGA code
+    assert not any(st & 0x80 for t, st in r.gnss_status if t > T_BAD[1] + 1.5)
 
 
 def test_heading_flip_is_detected_and_reported() -> None:

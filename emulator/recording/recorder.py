@@ -107,6 +107,8 @@ class Recorder:
         #: the latest :data:`EVENTS_TAIL` events (all of them are in events.jsonl: :meth:`iter_events`), so a
         #: flood of events (commands, rejections) cannot grow the memory without bound (docs/hostile-input.md)
         self.events: deque[dict[str, Any]] = deque(maxlen=self.EVENTS_TAIL)
+        #: events emitted after close() (callbacks already due when the run stopped), not recorded
+        self.events_after_close = 0
         self.events_total = 0
         self.nav_listeners: list[Callable[[float, NavSolution], None]] = []
         self._flush_interval = flush_interval_s
@@ -169,6 +171,9 @@ class Recorder:
     EVENTS_TAIL = 4096
 
     def emit(self, t: float, source: str, kind: str, /, **data: Any) -> None:
+        if self._events.closed:  # a callback that was already due when the run stopped (realtime): the run is over
+            self.events_after_close += 1
+            return
         rec = {"t_s": round(t, 9), "source": source, "event": kind}
         rec.update(data)
         self._events.write(json.dumps(rec, default=json_default) + "\n")

@@ -61,6 +61,11 @@ class ErrorStats:
         if self.max == self.max and not a <= self.max:  # a NaN sample makes the max NaN (max() would drop it)
             self.max = a
 
+    def merged(self, other: ErrorStats) -> ErrorStats:
+        """The statistics of both sample sets together (a NaN max in either stays NaN)."""
+        m = math.nan if math.isnan(self.max) or math.isnan(other.max) else max(self.max, other.max)
+        return ErrorStats(self.n + other.n, self.sum_sq + other.sum_sq, m)
+
     def as_dict(self) -> dict[str, float | None]:
         if not self.n:
             return {"rms": None, "max": None}
@@ -77,8 +82,7 @@ class NavVsTruth:
         self.traj = trajectory
         self.nav_rows: list[str] = [",".join(NAV_COLUMNS) + "\r\n"]
         self.truth_rows: list[str] = [",".join(TRUTH_COLUMNS) + "\r\n"]
-        self.errors = {k: ErrorStats() for k in ERROR_METRICS}
-        #: the same statistics split by phase: fine alignment (ALIGNING and NAVIGATING: the strapdown runs while the
+        #: the error statistics by phase: fine alignment (ALIGNING and NAVIGATING: the strapdown runs while the
         #: filter still calibrates its heading and biases) and navigating proper (NAVIGATING alone)
         self.errors_by_phase = {phase: {k: ErrorStats() for k in ERROR_METRICS} for phase in NAV_PHASES}
         #: flat rows of (t, attitude, heading, position, velocity) errors, 40 bytes per navigating frame
@@ -114,11 +118,11 @@ class NavVsTruth:
             v = n.vel_enu_mps
             ev = (v[0] - ve, v[1] - vn, v[2] - vu)
             e_vel = math.sqrt(ev[0] * ev[0] + ev[1] * ev[1] + ev[2] * ev[2])
-            for err in (self.errors, self.errors_by_phase[NAV_PHASES[0 if n.mode & NavMode.ALIGNING else 1]]):
-                err["attitude_deg"].add(att)
-                err["heading_deg"].add(e_hdg)
-                err["position_m"].add(e_pos)
-                err["velocity_mps"].add(e_vel)
+            err = self.errors_by_phase[NAV_PHASES[0 if n.mode & NavMode.ALIGNING else 1]]
+            err["attitude_deg"].add(att)
+            err["heading_deg"].add(e_hdg)
+            err["position_m"].add(e_pos)
+            err["velocity_mps"].add(e_vel)
             self.error_series.extend((n.time_s, att, e_hdg, e_pos, e_vel))
             errs = csv_row_fast((att, e_roll, e_pitch, e_hdg, e_e, e_n, e_u, e_pos, *ev, e_vel))
         else:
@@ -128,6 +132,12 @@ class NavVsTruth:
             *n.sigma, n.mode, n.gnss_status, n.psns_status, n.cpu_load_pct, n.deadline_misses, t_arrival,
         )
         self.nav_rows.append(csv_row_fast(row)[:-2] + "," + errs)
+
+    @property
+    def errors(self) -> dict[str, ErrorStats]:
+        """Error statistics over every navigating frame (both phases), per metric."""
+        fine, nav = (self.errors_by_phase[ph] for ph in NAV_PHASES)
+        return {k: fine[k].merged(nav[k]) for k in ERROR_METRICS}
 
     def error_window(self, metric: str, after_s: float, until_s: float | None) -> ErrorStats:
         """RMS / max of ``metric`` over the navigating frames valid in [``after_s``, ``until_s``]."""

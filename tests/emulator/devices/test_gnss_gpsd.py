@@ -80,25 +80,35 @@ def test_gpsd_identifies_the_u_blox_by_its_polls_and_shows_its_sky_and_fixes(tmp
             buf.extend(chunk)
 
         loop.add_reader(pipe.stdout.fileno(), on_pipe)
-        deadline = loop.time() + 25.0
+        def query_devices() -> list[dict]:
+            """gpsd's answer to ?DEVICES: the identification it keeps (subtype = our MON-VER's versions; gpsd
+            sends the subtype to watchers only once, so it is asked for)."""
+            with socket.create_connection(("127.0.0.1", port), timeout=3.0) as c:
+                c.sendall(b"?DEVICES;\n")
+                got = b""
+                while b'"class":"DEVICES"' not in got or not got.endswith(b"\n"):
+                    part = c.recv(65536)
+                    if not part:
+                        break
+                    got += part
+            return [json.loads(x) for x in got.splitlines() if x.startswith(b"{")]
+
+        # polled in the emulator's (wall) clock: gpsd polls MON-VER only after it identified the u-blox, which on
+        # a loaded machine comes well after the first fixes
+        deadline = loop.time() + 40.0
+        devices: list[dict] = []
         while loop.time() < deadline:
             await asyncio.sleep(0.2)
             lines = [json.loads(x) for x in bytes(buf).splitlines() if x.startswith(b"{")]
-            drivers = [r.get("driver", "") + r.get("subtype", "") for r in lines if r.get("class") == "DEVICE"]
+            drivers = [r.get("driver", "") for r in lines if r.get("class") == "DEVICE"]
             sky = [r for r in lines if r.get("class") == "SKY" and r.get("satellites")]
             tpv = [r for r in lines if r.get("class") == "TPV" and r.get("mode", 0) >= 3]
             if any("u-blox" in d for d in drivers) and sky and len(tpv) >= 2:
-                break
-        # the identification gpsd keeps: its answer to ?DEVICES (subtype = our MON-VER's versions)
-        with socket.create_connection(("127.0.0.1", port), timeout=3.0) as c:
-            c.sendall(b"?DEVICES;\n")
-            got = b""
-            while b'"class":"DEVICES"' not in got or not got.endswith(b"\n"):
-                part = c.recv(65536)
-                if not part:
+                devices = query_devices()
+                if any(MON_VER.swVersion in d.get("subtype", "") for r in devices
+                       for d in r.get("devices", [])):
                     break
-                got += part
-        reports.extend(json.loads(x) for x in got.splitlines() if x.startswith(b"{"))
+        reports.extend(devices)
         reports.extend(json.loads(x) for x in bytes(buf).splitlines() if x.startswith(b"{"))
         loop.remove_reader(pipe.stdout.fileno())
         pipe.terminate()

@@ -25,6 +25,7 @@ from ..scenario.sensor_schema import preset_of
 from ..world.sky import SkyModel, sky_from_spec
 from ..world.sun import SunModel
 from ..world.trajectory import Trajectory
+from ..world.vibration import VibrationModel
 from .base import device_rng
 from .camera import (
     IMX250MZR_NX,
@@ -54,10 +55,13 @@ __all__ = [
     "build_sensors",
     "build_sky",
     "build_sun",
+    "build_vibration",
     "camera_config",
     "compass_config",
     "gnss_config",
     "gyro_errors",
+    "imu_temperature",
+    "imu_vibration",
     "mag_config",
 ]
 
@@ -133,6 +137,37 @@ def gyro_lp_filter_hz(scn: Scenario) -> float:
     """The STIM210 low-pass setting (-3 dB, Hz; 0 = none): the scenario's, else the IMU preset's."""
     f = scn.sensors.imu.lp_filter_hz
     return float(f if f is not None else preset("imu", _imu_preset(scn)).get("lp_filter_hz", 0))
+
+
+def imu_temperature(scn: Scenario) -> ImuTemperature:
+    """The IMU temperature profile: the scenario's ``sensors.imu.temperature``, the warm-up from the IMU preset
+    where the scenario leaves it out (docs/sensors.md, "IMU temperature")."""
+    t = scn.sensors.imu.temperature
+    p = merged(preset("imu", _imu_preset(scn)).get("temperature", {}),
+               {"warmup_c": t.warmup_c, "warmup_tau_s": t.warmup_tau_s})
+    return ImuTemperature(t.start_c, t.rate_c_per_min, t.cal_c, warmup_c=float(p.get("warmup_c", 0.0)),
+                          warmup_tau_s=float(p.get("warmup_tau_s", 600.0)))
+
+
+def imu_vibration(scn: Scenario) -> dict[str, Any] | None:
+    """The vibration profile ``{psd, axes}`` of the scenario (its ``sensors.imu.vibration`` over the IMU preset's),
+    or None when there is none or it is disabled."""
+    v = scn.sensors.imu.vibration
+    base = preset("imu", _imu_preset(scn)).get("vibration")
+    if v is not None and not v.enabled:
+        return None
+    p = merged(base or {}, {} if v is None else {"psd": v.psd, "axes": v.axes})
+    if not p.get("psd"):
+        return None
+    return {"psd": [(float(f), float(g)) for f, g in p["psd"]], "axes": tuple(p.get("axes", (1.0, 1.0, 1.0)))}
+
+
+def build_vibration(scn: Scenario, seed: int) -> VibrationModel | None:
+    """The world's vibration (:mod:`emulator.world.vibration`) of ``scn``, None without a profile."""
+    prof = imu_vibration(scn)
+    if prof is None:
+        return None
+    return VibrationModel(prof["psd"], prof["axes"], scn.sensors.imu.rate_hz, device_rng(seed, "vibration"))
 
 
 def gnss_config(scn: Scenario) -> GnssConfig:
@@ -244,8 +279,8 @@ def build_sensors(scn: Scenario, seed: int, traj: Trajectory, internal: dict[str
     from . import recorded
 
     s = scn.sensors
-    tap = ImuTruthTap(traj)
-    temp = ImuTemperature(s.imu.temperature.start_c, s.imu.temperature.rate_c_per_min, s.imu.temperature.cal_c)
+    tap = ImuTruthTap(traj, build_vibration(scn, seed) if s.imu.recorded is None else None)
+    temp = imu_temperature(scn)
     gyro_src = accel_src = None
     if s.imu.recorded is not None:
         rec = recorded.RecordedImu(_path(scn, s.imu.recorded.file), s.imu.recorded.time_offset_s)

@@ -9,7 +9,9 @@ from __future__ import annotations
 from typing import Any
 
 from .checks_schema import HookError, check_hook_path
+from .presets import preset
 from .schema import Scenario
+from .sensor_schema import preset_of
 
 __all__ = ["cross_check", "link_names"]
 
@@ -89,7 +91,35 @@ def cross_check(scn: Scenario, environment: bool = True) -> list[tuple[tuple[Any
             except HookError as exc:
                 issues.append(((*loc, "file"), f"python hook: {exc}"))
     issues += _devices_and_links(scn)
+    issues += _vibration(scn)
     issues += _files_and_ports(scn, environment)
+    return issues
+
+
+def _vibration(scn: Scenario) -> list[tuple[tuple[Any, ...], str]]:
+    """A vibration PSD's frequencies increase strictly and end at or below the IMU's Nyquist frequency (the world
+    draws it at the IMU's trigger rate); an enabled vibration without a PSD needs one from the IMU preset."""
+    imu = scn.sensors.imu
+    v = imu.vibration
+    if v is None or not v.enabled:
+        return []
+    loc = ("sensors", "imu", "vibration", "psd")
+    if v.psd is None:
+        name = preset_of(scn.sensors, "imu", imu)
+        if not preset("imu", name).get("vibration"):
+            return [(loc, f"vibration needs a psd: the IMU preset {name!r} has none "
+                          "(give psd: [[f_hz, g2_per_hz], ...], or enabled: false)")]
+        return []
+    issues: list[tuple[tuple[Any, ...], str]] = []
+    nyq = imu.rate_hz / 2.0
+    for i in range(1, len(v.psd)):
+        if v.psd[i][0] <= v.psd[i - 1][0]:
+            issues.append(((*loc, i, 0), f"PSD frequencies must increase: {v.psd[i][0]:g} Hz follows "
+                                         f"{v.psd[i - 1][0]:g} Hz"))
+    for i, (f, _g) in enumerate(v.psd):
+        if f > nyq:
+            issues.append(((*loc, i, 0), f"{f:g} Hz is beyond the IMU's Nyquist frequency {nyq:g} Hz "
+                                         f"(sensors.imu.rate_hz {imu.rate_hz:g} Hz); allowed range (0, {nyq:g}] Hz"))
     return issues
 
 

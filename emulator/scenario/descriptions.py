@@ -110,6 +110,17 @@ DESCRIPTIONS: dict[str, str] = {
     "ImuTemperatureSpec.cal_c": "temperature of the calibration, C (temperature errors are zero there)",
     "ImuTemperatureSpec.rate_c_per_min": "temperature ramp during the run, C per minute",
     "ImuTemperatureSpec.start_c": "IMU temperature at t = 0, C",
+    "ImuTemperatureSpec.warmup_c": "rise of the IMU's warm-up after power-on, C: T(t) = start_c + warmup_c "
+                                   "(1 - exp(-t / warmup_tau_s)) + rate_c_per_min t; default from the IMU preset",
+    "ImuTemperatureSpec.warmup_tau_s": "time constant of the warm-up, s (1 to 36000); default from the IMU preset",
+    "ImuSpec.vibration": "vibration as a PSD profile, drawn by the world and felt by the accelerometers (with "
+                         "rectification) and the gyro (g-sensitivity); default from the IMU preset (docs/sensors.md)",
+    "VibrationSpec.enabled": "false: no vibration, even if the IMU preset has a profile",
+    "VibrationSpec.psd": "breakpoints [[f_hz, g2_per_hz], ...], log-log between them, zero outside; frequencies "
+                         "increasing, above 0 and at most half the IMU rate; levels in (0, 100] g^2/Hz",
+    "VibrationSpec.axes": "PSD level multiplier per body axis (x right, y forward, z up), 0 to 10",
+    "AccelSpec.vre_ug_per_g2": "vibration rectification error per axis, ug/g^2: a vibration of g_rms shifts the "
+                               "mean by vre g_rms^2 (-1000 to 1000)",
     # GNSS
     "GnssErrorSpec.pos_corr_time_s": "correlation time of the position error, s",
     "GnssErrorSpec.pos_sigma_h_m": "horizontal position error, 1 sigma per axis, m",

@@ -7,7 +7,7 @@ its model (``recorded:``; formats in ``docs/sensors.md``). Units are in the fiel
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import Field, field_validator, model_validator
 
@@ -34,6 +34,7 @@ __all__ = [
     "RecordedImagesSpec",
     "RecordedImuSpec",
     "Sensors",
+    "VibrationSpec",
     "preset_of",
 ]
 
@@ -45,6 +46,13 @@ def _check_preset(kind: str, name: str) -> str:
     if name not in names:
         raise ValueError(f"unknown {kind} preset {name!r}; available: {', '.join(names)}")
     return name
+
+
+#: a PSD breakpoint's frequency, Hz, and level, g^2/Hz (the IMU's Nyquist limit is a scenario check)
+PsdFrequency = Annotated[float, Field(gt=0, le=1000)]
+PsdLevel = Annotated[float, Field(gt=0, le=100)]
+AxisLevel = Annotated[float, Field(ge=0, le=10)]
+VreCoeff = Annotated[float, Field(ge=-1000, le=1000)]
 
 
 class GyroSpec(Model):
@@ -74,12 +82,23 @@ class AccelSpec(Model):
     misalignment_mrad: float | None = Field(None, ge=0)
     bias_temp_coeff_mg_per_c: float | None = Field(None, ge=0)
     range_g: Vec3 | None = None
+    vre_ug_per_g2: tuple[VreCoeff, VreCoeff, VreCoeff] | None = None
 
 
 class ImuTemperatureSpec(Model):
     start_c: float = Field(25.0, ge=-60, le=125)
     rate_c_per_min: float = Field(0.0, ge=-20, le=20)
     cal_c: float = Field(25.0, ge=-60, le=125)
+    warmup_c: float | None = Field(None, ge=-40, le=60)
+    warmup_tau_s: float | None = Field(None, ge=1, le=36000)
+
+
+class VibrationSpec(Model):
+    """Vibration as a PSD profile (MIL-STD-810 / DO-160 style breakpoints), drawn by the world (docs/sensors.md)."""
+
+    enabled: bool = True
+    psd: list[tuple[PsdFrequency, PsdLevel]] | None = Field(None, min_length=2)
+    axes: tuple[AxisLevel, AxisLevel, AxisLevel] | None = None
 
 
 class RecordedImuSpec(Model):
@@ -102,6 +121,7 @@ class ImuSpec(Model):
     gyro: GyroSpec = GyroSpec()
     accel: AccelSpec = AccelSpec()
     temperature: ImuTemperatureSpec = ImuTemperatureSpec()
+    vibration: VibrationSpec | None = None
     recorded: RecordedImuSpec | None = None
 
     @field_validator("preset")

@@ -11,7 +11,7 @@ from protocols.imu_frame import ADC_CODE_MAX, ADC_VOLTS_PER_LSB
 
 from .error_model import G_STD, AccelErrors, ImuTemperature, accel_error_model
 from .injected import InjectedFaults
-from .lookahead import Ahead, ImuTruthTap, measure_ahead
+from .lookahead import Ahead, ImuTruthTap, measure_ahead, sensor_input
 
 __all__ = ["AnalogAccelerometers"]
 
@@ -29,6 +29,9 @@ class AnalogAccelerometers:
         self.rng = rng
         self.err = e = errors or AccelErrors()
         self.model = accel_error_model(e, rng)
+        #: vibration rectification per axis, 1/(m/s^2): a vibration v adds vre * v^2 (mean vre g_rms^2)
+        vre = np.asarray(e.vre_ug_per_g2, dtype=np.float64) * 1e-6 / G_STD
+        self.vre: np.ndarray | None = vre if np.any(vre) else None
         self.temperature = temperature or ImuTemperature()
         self.source = source
         self.last_measured = np.zeros(3)
@@ -73,13 +76,14 @@ class AnalogAccelerometers:
             if j >= 0:
                 f = ahead.raw[j]  # type: ignore[union-attr]
             elif self._look_ahead:
-                f, ahead = measure_ahead(self.model, self.tap, t, t_prev, self._period, temp, False)
+                f, ahead = measure_ahead(self.model, self.tap, t, t_prev, self._period, temp, False, self.vre)
                 self._ahead = ahead
                 if ahead is not None:
                     ahead.post = self._codes(ahead)
             else:
-                _, dv = self.tap.increments(t_prev, t)
-                f = self.model.measure(dv / dt, dt, temp.at(t), temp.rate_c_per_min, temp.cal_c)
+                dth, dv = self.tap.increments(t_prev, t)
+                x, _f = sensor_input(self.tap, t, dt, dth, dv, False, self.vre)
+                f = self.model.measure(x, dt, temp.at(t), temp.rate_at(t), temp.cal_c)
         rng_g: np.ndarray | float = self._range
         if self.faults.active:
             f, lim = self.faults.apply(f, self._range * G_STD)

@@ -70,19 +70,45 @@ class AccelErrors:
     misalignment_mrad: float = 1.0 / 3.0
     bias_temp_coeff_mg_per_c: float = 0.0
     range_g: tuple[float, float, float] = (30.0, 25.0, 25.0)
+    #: vibration rectification error per axis, ug/g^2: a vibration of g_rms shifts the mean by vre g_rms^2
+    vre_ug_per_g2: tuple[float, float, float] = (0.0, 0.0, 0.0)
     volts_per_g: tuple[float, float, float] = field(default_factory=lambda: ACCEL_VOLTS_PER_G)
 
 
 @dataclass
 class ImuTemperature:
-    """IMU temperature profile ``T(t) = start_c + rate_c_per_min t / 60`` and the calibration temperature."""
+    """IMU temperature profile and the calibration temperature.
+
+    ``T(t) = start_c + warmup_c (1 - exp(-t / warmup_tau_s)) + rate_c_per_min t / 60`` (degC, ``t`` s since
+    power-on = scenario start): a first-order thermal warm-up after power-on (the unit's self-heating, a rise
+    ``warmup_c`` with time constant ``warmup_tau_s``) on top of a linear ambient ramp. ``warmup_c = 0`` is the
+    linear ramp of before. :meth:`rate_at` is ``dT/dt`` in degC/min, the input of the temperature-gradient
+    bias term (docs/sensors.md, "IMU temperature").
+    """
 
     start_c: float = 25.0
     rate_c_per_min: float = 0.0
     cal_c: float = 25.0
+    warmup_c: float = 0.0
+    warmup_tau_s: float = 600.0
+
+    @property
+    def warms_up(self) -> bool:
+        """True when the profile has a warm-up (its rate changes with time)."""
+        return self.warmup_c != 0.0
 
     def at(self, t: float) -> float:
-        return self.start_c + self.rate_c_per_min * t / 60.0
+        """Temperature at ``t`` (s), degC."""
+        if self.warmup_c == 0.0:
+            return self.start_c + self.rate_c_per_min * t / 60.0
+        return (self.start_c + self.warmup_c * -math.expm1(-t / self.warmup_tau_s)
+                + self.rate_c_per_min * t / 60.0)
+
+    def rate_at(self, t: float) -> float:
+        """``dT/dt`` at ``t`` (s), degC per minute: ``rate_c_per_min + 60 warmup_c / tau exp(-t / tau)``."""
+        if self.warmup_c == 0.0:
+            return self.rate_c_per_min
+        return self.rate_c_per_min + 60.0 * self.warmup_c / self.warmup_tau_s * math.exp(-t / self.warmup_tau_s)
 
 
 def _av_gm(q: float, tau_c: float, T: np.ndarray) -> np.ndarray:
@@ -236,9 +262,11 @@ class InertialErrorModel:
             y = y + self.g_sens @ f_b if np.ndim(f_b) == 1 else y + f_b @ self.g_sens.T
         return y
 
-    def deterministic_rows(self, x: np.ndarray, temp_c: np.ndarray, temp_rate_c_per_min: float = 0.0,
+    def deterministic_rows(self, x: np.ndarray, temp_c: np.ndarray,
+                           temp_rate_c_per_min: float | np.ndarray = 0.0,
                            cal_c: float = 25.0, f_b: np.ndarray | None = None) -> np.ndarray:
-        """:meth:`deterministic` of ``n`` inputs at once: ``x`` (n, 3), ``temp_c`` (n,), ``f_b`` (n, 3).
+        """:meth:`deterministic` of ``n`` inputs at once: ``x`` (n, 3), ``temp_c`` (n,), ``f_b`` (n, 3);
+        ``temp_rate_c_per_min`` one rate or one per row (n,).
 
         Bit for bit the per-row results: the matrix products are stacked (numpy runs the same
         1 x 3 kernel per row), every other step is element-wise in the same order."""
@@ -250,7 +278,9 @@ class InertialErrorModel:
             y = y + self.nl * (1.5 * math.sqrt(3.0)) * (u * u * u - u)
         y = y + self.bias0
         if self._has_temp:
-            y = y + self.temp_coeff * (temp_c[:, None] - cal_c) + self.temp_gradient * temp_rate_c_per_min
+            rates = np.asarray(temp_rate_c_per_min, dtype=np.float64)
+            y = y + self.temp_coeff * (temp_c[:, None] - cal_c) + self.temp_gradient * (
+                rates[:, None] if rates.ndim else rates)
         if self.g_sens is not None and f_b is not None:
             y = y + (self.g_sens[None, :, :] @ f_b[:, :, None])[:, :, 0]
         return y

@@ -11,16 +11,19 @@ from __future__ import annotations
 import numpy as np
 
 from ...world.trajectory import Trajectory
+from ...world.vibration import VibrationModel
 from .error_model import BLOCK, ImuTemperature, InertialErrorModel
 
-__all__ = ["Ahead", "ImuTruthTap", "measure_ahead"]
+__all__ = ["Ahead", "ImuTruthTap", "measure_ahead", "sensor_input"]
 
 
 class ImuTruthTap:
-    """Caches the exact truth increments of the last trigger interval for both sensors."""
+    """Caches the exact truth increments of the last trigger interval for both sensors, and holds the world's
+    vibration (:class:`~emulator.world.vibration.VibrationModel`, None: none) that both sensors feel."""
 
-    def __init__(self, trajectory: Trajectory) -> None:
+    def __init__(self, trajectory: Trajectory, vibration: VibrationModel | None = None) -> None:
         self.trajectory = trajectory
+        self.vibration = vibration
         self._key: tuple[float, float] | None = None
         self._val: tuple[np.ndarray, np.ndarray] = (np.zeros(3), np.zeros(3))
 
@@ -29,6 +32,29 @@ class ImuTruthTap:
             self._val = self.trajectory.imu_increments(t0, t1)
             self._key = (t0, t1)
         return self._val
+
+    def vibration_at(self, t: float) -> np.ndarray | None:
+        """The vibration acceleration (3,) m/s^2, body axes, of the interval ending at ``t`` (None: none)."""
+        return None if self.vibration is None else self.vibration.at(t)
+
+
+def sensor_input(tap: ImuTruthTap, t: float, dt: float, dth: np.ndarray, dv: np.ndarray, gyro: bool,
+                 vre: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
+    """What one triad measures over the interval ``(t - dt, t)``: ``(x, f_b)``.
+
+    Gyro: ``x`` the mean angular rate, ``f_b`` the mean specific force with the vibration (its g-sensitivity
+    input). Accelerometers: ``x`` the mean specific force plus the vibration ``v`` plus the vibration
+    rectification ``vre * v^2`` (per axis; ``vre`` in 1/(m/s^2), its mean is ``vre g_rms^2``), ``f_b`` None."""
+    v = tap.vibration_at(t)
+    if gyro:
+        f = dv / dt
+        return dth / dt, (f if v is None else f + v)
+    x = dv / dt
+    if v is not None:
+        x = x + v
+        if vre is not None:
+            x = x + vre * v * v
+    return x, None
 
 
 class Ahead:
@@ -64,22 +90,23 @@ class Ahead:
 
 
 def measure_ahead(model: InertialErrorModel, tap: ImuTruthTap, t: float, t_prev: float, period: float,
-                  temp: ImuTemperature, gyro: bool) -> tuple[np.ndarray, Ahead | None]:
+                  temp: ImuTemperature, gyro: bool,
+                  vre: np.ndarray | None = None) -> tuple[np.ndarray, Ahead | None]:
     """The measured mean of the interval ``(t_prev, t)`` (pre-fault, exactly :meth:`InertialErrorModel.measure`)
     and the same for the following trigger intervals ``t_j = (k + j) period``, ``t_prev_j = t_j - period``
     computed in one vectorised pass: as many as the current noise block and the trajectory's current
     increment block hold (neither is advanced; rows are bit for bit what the per-interval path gives).
 
     ``gyro``: the input is the mean angular rate and the g-sensitivity input the mean specific force;
-    else (the accelerometers) the input is the mean specific force.
+    else (the accelerometers) the input is the mean specific force (:func:`sensor_input`, with the
+    vibration and, ``vre``, its rectification).
     """
     dt = t - t_prev
     dth, dv = tap.increments(t_prev, t)
     k = round(t / period)
     if k * period != t or t - period != t_prev:  # not the FPGA's trigger grid: no look-ahead
-        if gyro:
-            return model.measure(dth / dt, dt, temp.at(t), temp.rate_c_per_min, temp.cal_c, dv / dt), None
-        return model.measure(dv / dt, dt, temp.at(t), temp.rate_c_per_min, temp.cal_c), None
+        x, f_b = sensor_input(tap, t, dt, dth, dv, gyro, vre)
+        return model.measure(x, dt, temp.at(t), temp.rate_at(t), temp.cal_c, f_b), None
     noise0 = model.next_noise(dt)
     stochastic = model.stochastic
     if stochastic:
@@ -110,7 +137,17 @@ def measure_ahead(model: InertialErrorModel, tap: ImuTruthTap, t: float, t_prev:
     else:
         x = np.array(dvs) / dts
         f = None
-    det = model.deterministic_rows(x, temps, temp.rate_c_per_min, temp.cal_c, f)
+    vib = tap.vibration
+    if vib is not None:  # as sensor_input, row by row
+        v = vib.samples(np.array([round(a * vib.fs) for a, _b in times]))
+        if gyro:
+            f = f + v
+        else:
+            x = x + v
+            if vre is not None:
+                x = x + vre * v * v
+    rates = np.array([temp.rate_at(a) for a, _b in times]) if temp.warms_up else temp.rate_c_per_min
+    det = model.deterministic_rows(x, temps, rates, temp.cal_c, f)
     noise = (np.concatenate([noise0[None, :], block[i0 + 1:i0 + n]])  # type: ignore[index]
              if stochastic else np.zeros((n, 3)))
     raw = det + noise

@@ -20,7 +20,7 @@ from protocols.stim import (
 from ...links.base import Link
 from .error_model import DEG, GyroErrors, ImuTemperature, gyro_error_model
 from .injected import InjectedFaults
-from .lookahead import Ahead, ImuTruthTap, measure_ahead
+from .lookahead import Ahead, ImuTruthTap, measure_ahead, sensor_input
 
 __all__ = ["LP_FILTER_SETTINGS_HZ", "Stim210Gyro", "group_delay_s"]
 
@@ -141,7 +141,8 @@ class Stim210Gyro:
                     ahead.post = self._words(ahead)
             else:
                 dtheta, dv = self.tap.increments(t_prev, t)
-                rate = self.model.measure(dtheta / dt, dt, t_c, temp.rate_c_per_min, temp.cal_c, dv / dt)
+                x, f_b = sensor_input(self.tap, t, dt, dtheta, dv, True, None)
+                rate = self.model.measure(x, dt, t_c, temp.rate_at(t_edge), temp.cal_c, f_b)
         lim: np.ndarray | float = self.err.range_dps * DEG
         if self.faults.active:
             rate, lim = self.faults.apply(rate, lim)

@@ -54,7 +54,11 @@ class Stim300Imu(Stim210Gyro):
         if t1 <= t0:
             return (0, 0, 0)
         _dtheta, dv = self.tap.increments(t0, t1)
-        w = np.clip(np.round(np.asarray(dv) / (t1 - t0) / (lsb_g * G0)), -0x800000, 0x7FFFFF).astype(np.int64)
+        f = np.asarray(dv) / (t1 - t0)
+        v = self.tap.vibration_at(t1)
+        if v is not None:
+            f = f + v
+        w = np.clip(np.round(f / (lsb_g * G0)), -0x800000, 0x7FFFFF).astype(np.int64)
         return (int(w[0]), int(w[1]), int(w[2]))
 
     def _transmit(self, t: float, t_c: float, gyro_words: tuple[int, int, int]) -> None:

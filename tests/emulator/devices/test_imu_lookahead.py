@@ -18,7 +18,9 @@ import pytest
 from emulator.devices.imu import AnalogAccelerometers, ImuTemperature, ImuTruthTap, Stim210Gyro
 from emulator.devices.sensors import accel_errors, gyro_errors
 from emulator.scenario import load_scenario
+from emulator.scenario.presets import preset
 from emulator.world.build import build_trajectory
+from emulator.world.vibration import VibrationModel
 
 SCENARIOS = Path(__file__).resolve().parents[3] / "scenarios"
 
@@ -33,10 +35,15 @@ class _Link:
         return len(data)
 
 
-def _run(look_ahead: bool, temp: ImuTemperature) -> tuple[list[tuple[float, bytes]], list[tuple[int, int, int]]]:
+def _run(look_ahead: bool, temp: ImuTemperature,
+         vibration: bool = False) -> tuple[list[tuple[float, bytes]], list[tuple[int, int, int]]]:
     scn = load_scenario(SCENARIOS / "vehicle_loop_gnss_outage.yaml")
     traj = build_trajectory(scn)
-    tap = ImuTruthTap(traj)
+    vib = None
+    if vibration:  # the field preset's profile at 4x its level, and the accelerometers' rectification
+        prof = preset("imu", "field")["vibration"]
+        vib = VibrationModel(prof["psd"], [4 * a for a in prof["axes"]], 200.0, np.random.default_rng(7))
+    tap = ImuTruthTap(traj, vib)
     link = _Link()
     gyro = Stim210Gyro(link, tap, np.random.default_rng(5), gyro_errors(scn), temperature=temp)  # type: ignore[arg-type]
     accel = AnalogAccelerometers(tap, np.random.default_rng(6), accel_errors(scn), temperature=temp)
@@ -65,10 +72,14 @@ def _run(look_ahead: bool, temp: ImuTemperature) -> tuple[list[tuple[float, byte
     return link.out, codes
 
 
-@pytest.mark.parametrize("temp", [ImuTemperature(), ImuTemperature(start_c=20.0, rate_c_per_min=1.5, cal_c=25.0)])
-def test_look_ahead_is_bit_identical_to_per_interval(temp: ImuTemperature) -> None:
-    ref_out, ref_codes = _run(False, temp)
-    out, codes = _run(True, temp)
+@pytest.mark.parametrize(("temp", "vibration"), [
+    (ImuTemperature(), False),
+    (ImuTemperature(start_c=20.0, rate_c_per_min=1.5, cal_c=25.0), False),
+    (ImuTemperature(start_c=20.0, rate_c_per_min=0.5, cal_c=25.0, warmup_c=12.0, warmup_tau_s=3.0), True),
+])
+def test_look_ahead_is_bit_identical_to_per_interval(temp: ImuTemperature, vibration: bool) -> None:
+    ref_out, ref_codes = _run(False, temp, vibration)
+    out, codes = _run(True, temp, vibration)
     assert len(ref_out) == 1295
     assert codes == ref_codes
     assert out == ref_out

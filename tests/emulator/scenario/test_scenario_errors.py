@@ -204,3 +204,62 @@ def test_the_exported_json_schema_accepts_the_library_and_rejects_broken_items()
            {"expectations": [{"event": {"name": "x", "nope": 1}}]}]
     for extra in bad:
         assert list(v.iter_errors({**base, **extra})), extra
+
+
+VIB = "sensors:\n  imu:\n    vibration:\n      psd: "
+
+
+@pytest.mark.parametrize(("psd", "path", "col", "words"), [
+    ("[[10, 0.01], [40, 0.01], [30, 0.001]]", "sensors.imu.vibration.psd[2][0]", 38,
+     "PSD frequencies must increase: 30 Hz follows 40 Hz"),
+    ("[[10, 0.01], [10, 0.001]]", "sensors.imu.vibration.psd[1][0]", 26, "must increase"),
+    ("[[10, -0.01], [40, 0.01]]", "sensors.imu.vibration.psd[0][1]", 18, "greater than 0"),
+    ("[[10, 0.01], [40, 500]]", "sensors.imu.vibration.psd[1][1]", 30, "less than or equal to 100"),
+    ("[[0, 0.01], [40, 0.01]]", "sensors.imu.vibration.psd[0][0]", 14, "greater than 0"),
+    ("[[10, 0.01], [150, 0.01]]", "sensors.imu.vibration.psd[1][0]", 26,
+     "150 Hz is beyond the IMU's Nyquist frequency 100 Hz (sensors.imu.rate_hz 200 Hz); allowed range (0, 100] Hz"),
+    ("[[10, 0.01]]", "sensors.imu.vibration.psd", 7, "at least 2"),
+])
+def test_vibration_psd_out_of_range_names_the_breakpoint(tmp_path, psd, path, col, words):
+    i = one(tmp_path, HEAD + VIB + psd + "\n")
+    assert i.path == path and i.line == 8 and i.column == col, (i.path, i.line, i.column)
+    assert words in i.message
+
+
+def test_vibration_beyond_nyquist_follows_the_imu_rate(tmp_path):
+    # at 400 Hz the IMU's Nyquist frequency is 200 Hz: 150 Hz is fine, 250 Hz is not
+    ok = tmp_path / "ok.yaml"
+    ok.write_text(HEAD + "sensors:\n  imu:\n    rate_hz: 400\n    vibration:\n      psd: [[10, 0.01], [150, 0.01]]\n")
+    assert load_scenario(ok).sensors.imu.vibration.psd[-1] == (150.0, 0.01)
+    i = one(tmp_path, HEAD + "sensors:\n  imu:\n    rate_hz: 400\n    vibration:\n"
+                             "      psd: [[10, 0.01], [250, 0.01]]\n")
+    assert i.path == "sensors.imu.vibration.psd[1][0]" and "allowed range (0, 200] Hz" in i.message
+
+
+def test_vibration_without_a_profile_needs_one_from_the_preset(tmp_path):
+    i = one(tmp_path, HEAD + "sensors:\n  imu:\n    vibration: {axes: [1, 1, 1]}\n")
+    assert i.path == "sensors.imu.vibration.psd" and "IMU preset 'paper' has none" in i.message
+    ok = tmp_path / "ok.yaml"  # the field preset has one: its axes may be overridden alone
+    ok.write_text(HEAD + "sensors:\n  preset: field\n  imu:\n    vibration: {axes: [0, 0, 2]}\n")
+    assert load_scenario(ok).sensors.imu.vibration.axes == (0.0, 0.0, 2.0)
+
+
+@pytest.mark.parametrize(("body", "path", "words"), [
+    ("temperature: {warmup_tau_s: 0}", "sensors.imu.temperature.warmup_tau_s", "greater than or equal to 1"),
+    ("temperature: {warmup_c: 80}", "sensors.imu.temperature.warmup_c", "less than or equal to 60"),
+    ("vibration: {psd: [[10, 0.01], [40, 0.01]], axes: [1, 1, 11]}", "sensors.imu.vibration.axes[2]",
+     "less than or equal to 10"),
+    ("accel: {vre_ug_per_g2: [50, 50, 5000]}", "sensors.imu.accel.vre_ug_per_g2[2]", "less than or equal to 1000"),
+])
+def test_warm_up_and_vibration_figures_out_of_range(tmp_path, body, path, words):
+    i = one(tmp_path, HEAD + "sensors:\n  imu:\n    " + body + "\n")
+    assert i.path == path and i.line == 7 and words in i.message
+
+
+def test_validate_rejects_a_bad_vibration_profile_and_runs_nothing(tmp_path):
+    p = tmp_path / "bad.yaml"
+    p.write_text(HEAD + VIB + "[[10, 0.01], [150, 0.01]]\n")
+    r = subprocess.run([sys.executable, "-m", "emulator", "validate", str(p)], capture_output=True, text=True,
+                       cwd=ROOT, timeout=120)
+    assert r.returncode != 0
+    assert f"{p}:8:26" in r.stdout + r.stderr and "sensors.imu.vibration.psd[1][0]" in r.stdout + r.stderr

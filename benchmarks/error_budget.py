@@ -40,6 +40,13 @@ CONFIGS: dict[str, dict[str, Any]] = {
                                                 "sensors.imu.accel": "FIELD_ACCEL"},
     "gyro filter delay (262 Hz)": {"sensors.preset": "ideal", **CLEAR, **IDEAL_CAMERA,
                                    "sensors.imu.lp_filter_hz": 262},
+    "IMU warm-up (12 degC, 10 min)": {"sensors.preset": "ideal", **CLEAR, **IDEAL_CAMERA,
+                                      "sensors.imu.temperature": {"warmup_c": 12.0, "warmup_tau_s": 600.0},
+                                      "sensors.imu.gyro": {"bias_temp_gradient_deg_h": 10.0}},
+    "vibration (field profile)": {"sensors.preset": "ideal", **CLEAR, **IDEAL_CAMERA,
+                                  "sensors.imu.vibration": "FIELD_VIBRATION",
+                                  "sensors.imu.accel": {"vre_ug_per_g2": "FIELD_VRE"},
+                                  "sensors.imu.gyro": {"g_sensitivity_deg_h_per_g": 10.0}},
     "GNSS (field)": {"sensors.preset": "ideal", **CLEAR, **IDEAL_CAMERA, "sensors.gnss.preset": "field"},
     "camera (reference noise; ideal optics in the rest)": {"sensors.preset": "ideal", **CLEAR,
                                                            "sensors.camera.preset": "reference"},
@@ -62,6 +69,10 @@ def _expand(ov: dict[str, Any]) -> dict[str, Any]:
             out[k] = _field("gyro")
         elif v == "FIELD_ACCEL":
             out[k] = _field("accel")
+        elif v == "FIELD_VIBRATION":
+            out[k] = _field("vibration")
+        elif isinstance(v, dict) and v.get("vre_ug_per_g2") == "FIELD_VRE":
+            out[k] = {**v, "vre_ug_per_g2": _field("accel")["vre_ug_per_g2"]}
     return out
 
 

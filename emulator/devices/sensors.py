@@ -36,6 +36,7 @@ from .camera import (
     mounting_matrix,
 )
 from .camera.optics import SensorDefects
+from .camera.spectral import WireGrid, effective_extinction_ratio
 from .compass import (
     CompassConfig,
     CompassModel,
@@ -57,6 +58,7 @@ __all__ = [
     "build_sun",
     "build_vibration",
     "camera_config",
+    "camera_extinction_ratio",
     "compass_config",
     "gnss_config",
     "gyro_errors",
@@ -191,6 +193,14 @@ def _defect_args(d: dict[str, Any]) -> dict[str, Any]:
     return {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}
 
 
+def camera_extinction_ratio(p: dict[str, Any]) -> float:
+    """The camera's extinction ratio: the scenario's or preset's ``extinction_ratio`` if given (an override), else
+    the effective ratio of the preset's ``wire_grid`` under a Rayleigh sky (:mod:`.camera.spectral`)."""
+    if p.get("extinction_ratio") is not None:
+        return float(p["extinction_ratio"])
+    return effective_extinction_ratio(WireGrid(**{k: float(v) for k, v in p["wire_grid"].items()}))
+
+
 def camera_config(scn: Scenario, seed: int | None = None) -> CameraConfig:
     """The camera of ``scn`` (the world's truth); ``seed`` picks the physical sensor's fixed pattern."""
     c = scn.sensors.camera
@@ -208,7 +218,7 @@ def camera_config(scn: Scenario, seed: int | None = None) -> CameraConfig:
         lens=p["lens"], focal_m=p["focal_length_mm"] * 1e-3, fisheye_max_theta=c.fisheye_max_theta_deg * DEG,
         mounting_c_b=mounting_matrix(m.heading_deg, m.pitch_deg, m.roll_deg, m.installation_error_deg),
         full_well_e=p["full_well_e"], read_noise_e=p["read_noise_e"], adc_bits=int(p["adc_bits"]),
-        extinction_ratio=float(p["extinction_ratio"]), signal_e=p["signal_e"], grid=tuple(c.grid),  # type: ignore[arg-type]
+        extinction_ratio=camera_extinction_ratio(p), signal_e=p["signal_e"], grid=tuple(c.grid),  # type: ignore[arg-type]
         bin_superpixels=c.bin_superpixels, fidelity=c.fidelity, sun_glare=c.sun_glare_deg * DEG,
         min_sun_elevation=c.min_sun_elevation_deg * DEG, dop_threshold=c.dop_threshold, min_points=c.min_points,
         noise=bool(p.get("noise", True)),

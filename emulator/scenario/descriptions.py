@@ -161,7 +161,8 @@ DESCRIPTIONS: dict[str, str] = {
     "CameraSpec.full_well_e": "full-well capacity, electrons",
     "CameraSpec.read_noise_e": "read noise, electrons rms",
     "CameraSpec.signal_e": "electrons that unpolarized sky of radiance 1 gives at the auto exposure",
-    "CameraSpec.extinction_ratio": "polarizer extinction ratio",
+    "CameraSpec.extinction_ratio": "polarizer extinction ratio, one number; default: the preset's wire grid over "
+                                   "wavelength under the sky's spectrum (281 for reference; docs/sensors.md)",
     "CameraSpec.noise": "whether sensor noise is modelled (default: the preset's)",
     "CameraSpec.bin_superpixels": "superpixel size of the binned fidelity, pixels per side",
     "CameraSpec.grid": "grid of sample points over the image (columns, rows) for the solar-vector fit",

@@ -22,7 +22,8 @@ Geometry and conventions (``docs/architecture.md``, section "Conventions"):
 
 Sensor (``docs/reference/algorithms.md`` 2.2-2.3, reference values of its simulation):
 2448 x 2048 pixels of 3.45 um, full well 10 000 e-, read noise 5 e-, 12-bit ADC, extinction
-ratio 300. The sky (``emulator.world.sky``) gives DOP, E-vector and a relative radiance; the
+ratio 300 at 525 nm, over wavelength and under the sky's spectrum an effective 281 (:mod:`.spectral`).
+The sky (``emulator.world.sky``) gives DOP, E-vector and a relative radiance; the
 exposure is taken as auto-exposed so that unpolarized sky of radiance 1 puts ``signal_e``
 electrons into a pixel behind an ideal polarizer (``S0/2``; default half the full well).
 

@@ -9,7 +9,8 @@ the one-sided PSD ``|H|^2 2 / fs = S(f)``. The filter is normalised so that the 
 integral exactly (``sum h^2 = integral S df``), so the drawn signal's RMS is the profile's g_rms.
 
 Sample ``k`` is the mean vibration acceleration over the trigger interval that ends at ``k / fs``: what the
-FPGA's boxcar-averaging ADC and the STIM's integrating output see. Components above the IMU's Nyquist
+FPGA's boxcar-averaging ADC and the STIM's integrating output see. The filter resolves about ``fs / NUMTAPS``
+(0.4 Hz at 200 Hz): finer detail of a profile is smoothed, its RMS is kept. Components above the IMU's Nyquist
 frequency are outside the model (the scenario check rejects a profile reaching beyond ``fs / 2``); the
 vibration is linear acceleration only (no angular vibration, so no coning or sculling), and its displacement
 (millimetres) is not added to the trajectory: it adds to the specific force the accelerometers measure and,

@@ -121,6 +121,9 @@ def test_stim_filter_delays_the_rate_and_fills_the_latency_field():
         def specific_force(self, t):
             return np.zeros(3)
 
+        def vibration_at(self, t):  # no vibration (ImuTruthTap's interface)
+            return None
+
     loop = EmulatorLoop("fast")
     a, b = MemHub().pair("gyro", LineConfig(baud=460800), loop)
     errs = GyroErrors(**dict(preset("imu", "perfect")["gyro"].items()))

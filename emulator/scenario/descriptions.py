@@ -111,7 +111,8 @@ DESCRIPTIONS: dict[str, str] = {
     "ImuTemperatureSpec.rate_c_per_min": "temperature ramp during the run, C per minute",
     "ImuTemperatureSpec.start_c": "IMU temperature at t = 0, C",
     "ImuTemperatureSpec.warmup_c": "rise of the IMU's warm-up after power-on, C: T(t) = start_c + warmup_c "
-                                   "(1 - exp(-t / warmup_tau_s)) + rate_c_per_min t; default from the IMU preset",
+                                   "(1 - exp(-t / warmup_tau_s)) + rate_c_per_min t / 60 (t in s); "
+                                   "default from the IMU preset",
     "ImuTemperatureSpec.warmup_tau_s": "time constant of the warm-up, s (1 to 36000); default from the IMU preset",
     "ImuSpec.vibration": "vibration as a PSD profile, drawn by the world and felt by the accelerometers (with "
                          "rectification) and the gyro (g-sensitivity); default from the IMU preset (docs/sensors.md)",

@@ -133,4 +133,8 @@ class VibrationModel:
 
     def at(self, t1: float) -> np.ndarray:
         """Vibration (3,) m/s^2 of the trigger interval that ends at ``t1`` (s): sample ``round(t1 fs)``."""
-        return self.sample(round(t1 * self.fs))
+        k = round(t1 * self.fs)
+        i = k - self._k0
+        if 0 <= i < len(self._buf):  # the common case, once per IMU tick: already drawn
+            return self._buf[i]
+        return self.sample(k)

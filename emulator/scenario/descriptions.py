@@ -119,7 +119,8 @@ DESCRIPTIONS: dict[str, str] = {
     "VibrationSpec.enabled": "false: no vibration, even if the IMU preset has a profile",
     "VibrationSpec.psd": "breakpoints [[f_hz, g2_per_hz], ...], log-log between them, zero outside; frequencies "
                          "increasing, above 0 and at most half the IMU rate; levels in (0, 100] g^2/Hz",
-    "VibrationSpec.axes": "PSD level multiplier per body axis (x right, y forward, z up), 0 to 10",
+    "VibrationSpec.axes": "PSD level multiplier per body axis (x right, y forward, z up), 0 to 10; default: the "
+                          "IMU preset's (field: 0.05, 0.5, 1), else 1, 1, 1",
     "AccelSpec.vre_ug_per_g2": "vibration rectification error per axis, ug/g^2: a vibration of g_rms shifts the "
                                "mean by vre g_rms^2 (-1000 to 1000)",
     # GNSS

@@ -74,6 +74,10 @@ class FirmwareConfig:
     gyro_arw_deg_rt_h: float = 0.15
     gyro_bias_sigma_deg_h: float = 40.0 / 3.0
     gyro_bias_instability_deg_h: float = 20.0 / 3.0
+    #: gyro scale-factor error (ppm) and misalignment (mrad), 1 sigma: attitude process noise per rotation angle
+    #: (filters.BaseFilter.predict, "rotation-dependent noise")
+    gyro_scale_factor_ppm: float = 0.0
+    gyro_misalignment_mrad: float = 0.0
     accel_noise_ug_rt_hz: float = 100.0
     accel_bias_sigma_mg: float = 7.0 / 3.0
     accel_bias_instability_mg: float = 4.0 / 3.0

@@ -68,6 +68,9 @@ from .kf import (
 from .nav_state import NavState
 from .units import DEG, DPH, G_STD
 
+#: reference angle of the rotation-dependent attitude noise (BaseFilter._rotation_noise), rad
+_THETA_REF_RAD = math.pi / 2.0
+
 __all__ = [
     "FILTER_VARIANTS",
     "BaseFilter",
@@ -232,6 +235,9 @@ class NavFilter:
     variant_id = 0
     #: True: POLARIZATION_OBS frames go to :meth:`update_polarization_obs` instead of the firmware's solve.
     raw_polarization_obs = False
+    #: the rotation the gyros measured over the coming predict's interval: the sum of the absolute angle
+    #: increments per body axis (rad), set by the loop before each :meth:`predict` (rotation-dependent noise)
+    rotation_b_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __init__(self, cfg: FirmwareConfig, meter: c674x.CycleMeter, dtype: FloatDtype) -> None:
         self.cfg = cfg
@@ -275,6 +281,8 @@ class NavFilter:
         raise NotImplementedError
 
     def predict(self, nav: NavState, f_n: FloatArray, Tk: float) -> None:
+        """Time update over ``Tk`` s; ``f_n``: mean specific force (m/s^2, n). The loop sets
+        :attr:`rotation_b_rad` before the call."""
         raise NotImplementedError
 
     def update_gnss(self, nav: NavState, meas: GnssMeasurement, p_ins: FloatArray, v_ins: FloatArray) -> UpdateReport:
@@ -348,6 +356,10 @@ class BaseFilter(NavFilter):
             q[self.i_sun:self.i_sun + 3] = 2.0 * (cfg.psns_bias_sigma_deg * DEG) ** 2 / tau
             self._aug_rate[self.i_sun:self.i_sun + 3] = 1.0 / tau
         self.q = q
+        #: rotation-dependent attitude noise (see _rotation_noise): variances per radian, scale factor, misalignment
+        self._rot_var_sf = (cfg.gyro_scale_factor_ppm * 1e-6) ** 2
+        self._rot_var_mis = (cfg.gyro_misalignment_mrad * 1e-3) ** 2
+        self._rot_var = self._rot_var_sf + self._rot_var_mis
         self._eye = np.eye(n, dtype=dtype)
         self._qk_interval, self._qk = math.nan, self.q  # Q_k of the last KF interval (predict)
         self._cyc_update = kf_scalar_update_cycles(self.cost, n)
@@ -364,22 +376,26 @@ class BaseFilter(NavFilter):
 
     # -- initialisation -------------------------------------------------------------------------
     def initialise(self, nav: NavState, heading_sigma_rad: float) -> None:
-        """P0 from the spec sheet (:mod:`firmware_model.spec_sheet`): level from the accelerometer bias, heading from
-        the alignment, position from the first fix (its correlated error shared with the GNSS-error states)."""
+        """P0 from the spec sheet (:mod:`firmware_model.spec_sheet`): level from the accelerometer bias (correlated
+        with the bias states), heading from the alignment, position from the first fix (its correlated error shared
+        with the GNSS-error states)."""
         cfg = self.cfg
         n = self.n
         lat, h = float(nav.pos[0]), float(nav.pos[2])
         rm, rn = earth.radii(lat)
         rmh, rnh_cl = rm + h, (rn + h) * math.cos(lat)
-        lvl = cfg.accel_bias_sigma_mg * 1e-3  # rad: level error from the accelerometer bias
         P = np.zeros((n, n))
         p0 = np.zeros(n)
-        p0[IDX_ATT] = (lvl**2, lvl**2, heading_sigma_rad**2)
+        sig_acc = cfg.accel_bias_sigma_mg * 1e-3 * G_STD  # m/s^2, per body axis
+        # the level comes from the accelerometers averaged over the coarse alignment: its error is the bias (below)
+        # plus the averaged white noise (VRW / sqrt(T_align)), rad
+        lvl_noise = cfg.accel_noise_ug_rt_hz * 1e-6 / math.sqrt(max(cfg.align_time_s, 0.1))
+        p0[IDX_ATT] = (lvl_noise**2, lvl_noise**2, heading_sigma_rad**2)
         p0[IDX_VEL] = 0.1**2
         p0[IDX_POS] = ((cfg.gnss_pos_sigma_h_m / rmh) ** 2, (cfg.gnss_pos_sigma_h_m / rnh_cl) ** 2,
                        cfg.gnss_pos_sigma_v_m**2)
         p0[IDX_GYRO] = (cfg.gyro_bias_sigma_deg_h * DPH) ** 2
-        p0[IDX_ACC] = (cfg.accel_bias_sigma_mg * 1e-3 * G_STD) ** 2
+        p0[IDX_ACC] = sig_acc**2
         if self.i_gnss is not None:
             # the position comes from a fix: dp = b + w, so cov(dp, b) = var(b) (per axis, in the states' units)
             sc_h, sc_v = self._gnss_corr_sigmas()
@@ -390,6 +406,18 @@ class BaseFilter(NavFilter):
         if self.i_sun is not None:
             p0[self.i_sun:self.i_sun + 3] = (cfg.psns_bias_sigma_deg * DEG) ** 2
         P[np.diag_indices(n)] = p0
+        # Levelling leaves the tilt error that cancels the accelerometer bias in the horizontal specific force
+        # (velocity error equation dv' = f^n x phi + C_b^n nabla with f^n = (0, 0, g)): phi_E = -nabla^n_N / g,
+        # phi_N = nabla^n_E / g. The two are one error, so P0 carries it once, as phi_level = A nabla^b with
+        # A = [[0, -1, 0], [1, 0, 0]] C_b^n[:, :] / g: cov(phi, phi) += A P_nabla A^T, cov(phi, nabla) = A P_nabla.
+        # Independent priors would count the bias twice and halve the level variance after the first fixes
+        # (Groves, Principles of GNSS, Inertial, and Multisensor Integrated Navigation Systems, 2nd ed., 14.2.1).
+        cbn = q2mat_fast(nav.q).astype(np.float64)
+        a = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]]) @ cbn / G_STD
+        p_acc = sig_acc**2 * a
+        P[IDX_ATT, IDX_ATT] += p_acc @ a.T
+        P[IDX_ATT, IDX_ACC] = p_acc
+        P[IDX_ACC, IDX_ATT] = p_acc.T
         self.P = P.astype(self.dtype)
         self.x = np.zeros(n, dtype=self.dtype)
 
@@ -406,8 +434,34 @@ class BaseFilter(NavFilter):
         Phi = self._eye + F * dt(Tk)
         if Tk != self._qk_interval:  # Q_k = q T_k: the same every interval but the first after alignment
             self._qk_interval, self._qk = Tk, (self.q * Tk).astype(dt)
-        self.x, self.P = kf_predict(self.x, self.P, Phi, self._qk)
+        rot_b = self.rotation_b_rad
+        if self._rot_var > 0.0 and any(rot_b):
+            self.x, self.P = kf_predict(self.x, self.P, Phi, self._rotation_noise(nav, rot_b))
+        else:
+            self.x, self.P = kf_predict(self.x, self.P, Phi, self._qk)
         self.meter.charge("kf_predict", self._cyc_predict)
+
+    def _rotation_noise(self, nav: NavState, rot_b: tuple[float, float, float]) -> FloatArray:
+        """Q_k with the attitude noise the gyros' scale-factor error s and misalignment m add while the body turns.
+
+        A rotation ``theta_i`` about body axis i leaves ``s theta_i`` about that axis and ``m theta_i`` about each of
+        the other two; the filter has no states for them (a consider approach: Groves 2013, section 14.2.7). The
+        error of one manoeuvre is coherent (a 90 deg turn with m = 0.33 mrad tilts the level by 0.03 deg), while the
+        white noise of Q adds in quadrature; the variance added per interval is therefore ``sigma^2 theta_i
+        THETA_REF`` (``THETA_REF`` = 90 deg): over one turn of 90 deg it sums to ``(sigma * 90 deg)^2``, the turn's
+        coherent error, and over several turns it grows with the total angle, as errors of alternating turns do.
+        Body variances ``s^2 t_i + m^2 (t_j + t_k)`` (times ``THETA_REF``), rotated to n: ``C_b^n diag C_b^n^T``.
+        """
+        s2, m2 = self._rot_var_sf, self._rot_var_mis
+        tx, ty, tz = (abs(float(v)) for v in rot_b)
+        var_b = np.array([s2 * tx + m2 * (ty + tz), s2 * ty + m2 * (tx + tz), s2 * tz + m2 * (tx + ty)])
+        var_b *= _THETA_REF_RAD
+        cbn = q2mat_fast(nav.q).astype(np.float64)
+        qk_att = (cbn * var_b) @ cbn.T
+        qk = np.diag(self._qk.astype(np.float64)) if self._qk.ndim == 1 else self._qk.astype(np.float64, copy=True)
+        qk[IDX_ATT, IDX_ATT] += qk_att
+        self.meter.charge("kf_rotation_noise", c674x.flops(45, 36) + c674x.CALL_OVERHEAD)
+        return qk.astype(self.dtype)
 
     # -- measurement updates --------------------------------------------------------------------
     def _scalar(self, h: FloatArray, z: float, r: float) -> float:

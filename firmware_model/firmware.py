@@ -174,6 +174,7 @@ class Firmware(HostTask, GnssTask):
         self._tick = 0
         self._sub = []
         self._fn_sum = [0.0, 0.0, 0.0]  # sum of f^n over the KF interval (Python floats, float64)
+        self._rot_sum = [0.0, 0.0, 0.0]  # sum of |phi_m| per body axis over the KF interval (rad)
         self._fn_n = 0
         self._hist = deque(maxlen=int(2 * cfg.imu_rate_hz))
         self._gnss_pending = None
@@ -373,10 +374,13 @@ class Firmware(HostTask, GnssTask):
                 m.begin("kf_predict", cfg.kf_predict_every * self.T)
                 n = self._fn_n
                 fn = np.array([x / n for x in self._fn_sum])
+                rot = (self._rot_sum[0], self._rot_sum[1], self._rot_sum[2])
                 self._fn_sum = [0.0, 0.0, 0.0]
+                self._rot_sum = [0.0, 0.0, 0.0]
                 self._fn_n = 0
                 Tk = t - self._t_last_predict  # the first interval after alignment may be shorter
                 self._t_last_predict = t
+                self.filter.rotation_b_rad = rot
                 self.filter.predict(self.nav, fn, Tk)
                 m.end()
             m.end()

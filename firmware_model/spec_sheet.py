@@ -50,6 +50,9 @@ class GyroSpec:
     bias_corr_time_s: float = 600.0
     g_sensitivity_deg_h_per_g: float = 0.0
     bias_temp_gradient_deg_h: float = 0.0
+    #: scale-factor error (ppm) and axis misalignment (mrad), 1 sigma: attitude error that grows with the rotation
+    scale_factor_ppm: float = 0.0
+    misalignment_mrad: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -163,4 +166,6 @@ class SensorSpecSheet:
             "psns_sigma_deg": max(p.noise_floor_deg, 0.001),
             "psns_bias_sigma_deg": math.hypot(p.mount_residual_deg, p.sky_bias_deg),
             "psns_bias_corr_time_s": p.bias_corr_time_s,
+            "gyro_scale_factor_ppm": g.scale_factor_ppm,
+            "gyro_misalignment_mrad": g.misalignment_mrad,
         }

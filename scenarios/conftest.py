@@ -12,7 +12,9 @@ run directory):
     seed robustness (issue 15): the scenario's expectations hold for every one of :data:`SEEDS` (seeds 1-10,
     ``slow``: ``make test-all``); short scenarios (at most :data:`FAST_SEEDS_MAX_S` simulated seconds and not
     tagged ``slow``) also get ``<name>[seeds-fast]`` with :data:`FAST_SEEDS` in ``make test``. A bound that holds
-    for the scenario's own seed only is a defect: re-derive it from the measured distribution.
+    for the scenario's own seed only is a defect: re-derive it from the measured distribution. A ``consistency:``
+    expectation is checked there too: the average NEES of its groups (and NIS of its measurements) over its first
+    ``runs`` seeds (seeds after 10 are added when it asks for more) must lie inside the chi-square bounds.
 ``<name>[golden]``
     the change indicator (``emulator.recording.golden``): the captured input bytes must match
     ``tests/golden/<name>.inputs.txt`` exactly and the estimator's state history
@@ -183,12 +185,27 @@ class SeedsItem(_Item):
 
         scn = self.scenario
         lines = []
-        for seed in self.seeds:
+        # a consistency: expectation is a campaign-level check: the full [seeds] item evaluates it over its first
+        # `runs` seeds (adding seeds after SEEDS when it asks for more)
+        demands = [e.consistency for e in scn.expectations if getattr(e, "consistency", None) is not None] \
+            if len(self.seeds) > len(FAST_SEEDS) else []
+        seeds = tuple(self.seeds)
+        need = max((c.runs for c in demands), default=0)
+        if need > len(seeds):
+            seeds += tuple(range(max(seeds) + 1, max(seeds) + 1 + need - len(seeds)))
+        members: list[list[dict[str, Any]]] = [[] for _ in demands]
+        for seed in seeds:
             base = Path(tempfile.mkdtemp(prefix=f"scn-{scn.name}-seed{seed}-"))
             t0 = time.perf_counter()
             s = run_scenario(scn, base / "run", mode="fast", seed=seed)
+            if demands:
+                from emulator.distributed.campaign.consistency import member_consistency
+
+                for i, c in enumerate(demands):
+                    if len(members[i]) < c.runs:
+                        members[i].append(member_consistency(base / "run", s, after_s=c.after_s))
             _WALL.append((f"{scn.name}[seed {seed}]", time.perf_counter() - t0, scn.duration_s,
-                          len(self.seeds) > len(FAST_SEEDS)))
+                          len(seeds) > len(FAST_SEEDS)))
             failed = [e for e in s.get("expectations", []) if not e["passed"]]
             bad_faults = [f for f in s.get("faults", []) if f.get("fired") is False]
             if failed or bad_faults or s.get("interrupted") or not s.get("passed", False):
@@ -197,9 +214,20 @@ class SeedsItem(_Item):
                 lines += [f"    fault #{f['index']} {f['kind']} never took effect" for f in bad_faults]
             else:
                 shutil.rmtree(base, ignore_errors=True)
+        for c, mem in zip(demands, members, strict=True):
+            from emulator.distributed.campaign.consistency import campaign_consistency
+
+            res = campaign_consistency(mem, c.confidence, c.groups, c.measurements)
+            demanded = [("groups", g, "mean_nees") for g in c.groups]
+            demanded += [("measurements", m, "mean_nis") for m in c.measurements]
+            for kind, name, key in demanded:
+                d = res[kind][name]
+                if not d.get("passed"):
+                    lines.append(f"  consistency over {len(mem)} seeds: {name}: average {d.get(key)} outside "
+                                 f"[{d.get('lower')}, {d.get('upper')}] ({c.confidence:.0%})")
         if lines:
             raise ScenarioFailed([f"scenario {scn.name} ({self.path}) is not seed-robust over seeds "
-                                  f"{list(self.seeds)}:", *lines])
+                                  f"{list(seeds)}:", *lines])
 
 
 class GoldenItem(_Item):

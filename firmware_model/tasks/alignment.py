@@ -117,6 +117,7 @@ class AlignmentTask(PsnsTask):
         self._align_sun.clear()
         self._sub.clear()
         self._fn_sum = [0.0, 0.0, 0.0]
+        self._rot_sum = [0.0, 0.0, 0.0]
         self._fn_n = 0
         self._hist.clear()
         self._gnss_pending = None

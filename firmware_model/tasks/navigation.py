@@ -81,6 +81,10 @@ class Navigation(TimeKeeping):
         acc[0] += x[FE]
         acc[1] += x[FN]
         acc[2] += x[FU]
+        rot = self._rot_sum  # |angle| per body axis over the KF interval (rotation-dependent noise)
+        rot[0] += abs(phi_m[0])
+        rot[1] += abs(phi_m[1])
+        rot[2] += abs(phi_m[2])
         self._fn_n += 1
         self._hist.append((t, x))  # the state as floats (q, v, pos, ...; NavState.as_floats)
 

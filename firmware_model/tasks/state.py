@@ -113,6 +113,7 @@ class LoopState:
     _sub: list[tuple[FloatArray, FloatArray]]
     _fn_sum: list[float]  # sum of f^n over the KF interval (Python floats, float64)
     _fn_n: int
+    _rot_sum: list[float]  # sum of |phi_m| per body axis over the KF interval (rad, Python floats)
     _hist: deque[tuple[float, NavFloats]]  # INS history: (t, NavState.as_floats())
     _gnss_pending: GnssMeasurement | None
     _last_fix: tuple[float, float, float, int] | None  # (lat rad, lon rad, h m, quality)

@@ -141,3 +141,47 @@ def test_solar_bias_rows_are_the_sun_cross_body_to_nav():
     expected = np.cross(s_n, cbn @ mu)  # [S^n x] C_b^n mu
     assert np.allclose(z, expected, atol=1e-8)
     assert np.linalg.norm(dx[flt.i_sun:flt.i_sun + 3]) > 0.0
+
+
+def test_the_level_p0_is_the_accelerometer_bias_seen_through_gravity():
+    """Levelling cancels the horizontal specific force: g phi_E + nabla^n_N = 0 and -g phi_N + nabla^n_E = 0 up to
+    the averaged white noise. P0 carries that: the variance of those combinations is the noise part only, while
+    each level angle alone has the bias's variance / g^2 (independent priors would halve it after the first fix)."""
+    from firmware_model.kf import IDX_ACC, IDX_ATT
+    from firmware_model.units import G_STD
+
+    flt, _, cbn = _filter()
+    P, cfg = flt.P, flt.cfg
+    sig_acc = cfg.accel_bias_sigma_mg * 1e-3 * G_STD
+    noise = cfg.accel_noise_ug_rt_hz * 1e-6 / math.sqrt(cfg.align_time_s)
+    for row_att, row_nav, sign in ((0, 1, 1.0), (1, 0, -1.0)):  # (phi_E, N, +g), (phi_N, E, -g)
+        h = np.zeros(flt.n)
+        h[IDX_ATT.start + row_att] = sign * G_STD
+        h[IDX_ACC] = cbn[row_nav]
+        assert float(h @ P @ h) == pytest.approx((G_STD * noise) ** 2, rel=1e-6)
+        assert P[row_att, row_att] == pytest.approx((sig_acc / G_STD) ** 2 + noise**2, rel=1e-9)
+    np.linalg.cholesky(P)
+
+
+def test_rotation_noise_by_closed_form():
+    """A 90 deg turn about body z: the misalignment m tilts about x and y by m * 90 deg, the scale-factor error s
+    about z by s * 90 deg (variance sigma^2 theta THETA_REF with THETA_REF = 90 deg); rotated to n."""
+    sheet = SensorSpecSheet.from_dict({"gyro": {"scale_factor_ppm": 300.0, "misalignment_mrad": 1.0}})
+    cfg_fields = sheet.config_fields()
+    assert cfg_fields["gyro_scale_factor_ppm"] == 300.0 and cfg_fields["gyro_misalignment_mrad"] == 1.0
+    flt, nav, cbn = _filter(gyro_scale_factor_ppm=300.0, gyro_misalignment_mrad=1.0)
+    quarter = math.pi / 2.0
+    qk = flt._rotation_noise(nav, (0.0, 0.0, quarter))
+    want_b = np.diag([(1e-3 * quarter) ** 2, (1e-3 * quarter) ** 2, (300e-6 * quarter) ** 2])
+    base = np.diag(flt._qk) if flt._qk.ndim == 1 else flt._qk
+    np.testing.assert_allclose(qk[:3, :3] - base[:3, :3], cbn @ want_b @ cbn.T, rtol=1e-9, atol=1e-18)
+    np.testing.assert_array_equal(qk[3:, 3:], base[3:, 3:])
+    # no rotation, no added noise: predict uses the plain Q
+    flt.rotation_b_rad = (0.0, 0.0, 0.0)
+    p_before = flt.P.copy()
+    flt.predict(nav, np.array([0.0, 0.0, 9.8]), 0.1)
+    still = flt.P.copy()
+    flt.P = p_before
+    flt.rotation_b_rad = (0.0, 0.0, quarter)
+    flt.predict(nav, np.array([0.0, 0.0, 9.8]), 0.1)
+    np.testing.assert_allclose(flt.P[:3, :3] - still[:3, :3], cbn @ want_b @ cbn.T, rtol=1e-6, atol=1e-15)

@@ -155,10 +155,12 @@ def imu_vibration(scn: Scenario) -> dict[str, Any] | None:
     """The vibration profile ``{psd, axes}`` of the scenario (its ``sensors.imu.vibration`` over the IMU preset's),
     or None when there is none or it is disabled."""
     v = scn.sensors.imu.vibration
-    base = preset("imu", _imu_preset(scn)).get("vibration")
-    if v is not None and not v.enabled:
+    base = dict(preset("imu", _imu_preset(scn)).get("vibration") or {})
+    # the preset says whether its profile is on when the scenario does not mention vibration (field: off)
+    on_by_default = bool(base.pop("enabled", True))
+    if not (v.enabled if v is not None else on_by_default):
         return None
-    p = merged(base or {}, {} if v is None else {"psd": v.psd, "axes": v.axes})
+    p = merged(base, {} if v is None else {"psd": v.psd, "axes": v.axes})
     if not p.get("psd"):
         return None
     return {"psd": [(float(f), float(g)) for f, g in p["psd"]], "axes": tuple(p.get("axes", (1.0, 1.0, 1.0)))}

@@ -68,6 +68,10 @@ class CameraGeometry:
     cx_px, cy_px : principal point, 1-based pixels (None: the sensor centre, the paper's Eq. 4).
     k1, k2 : radial distortion (pinhole: on ``tan(theta)``; fisheye: on ``theta``), from the calibration file.
     exit_pupil_m : exit pupil to image plane, m (None: thin lens, the chief ray keeps the field angle).
+    polarizer_deg : the calibrated orientations of the four micro-polarizer channels (nominally 0, 45, 90, 135),
+        deg from image +x towards +y; :func:`firmware_model.psns.correct_polarizer` inverts the camera's nominal
+        Stokes processing with them.
+    extinction_ratio : the calibrated extinction ratio of the polarizers (None: the DOP is not rescaled).
     """
 
     nx: int = IMX250MZR_NX
@@ -82,6 +86,8 @@ class CameraGeometry:
     k1: float = 0.0
     k2: float = 0.0
     exit_pupil_m: float | None = None
+    polarizer_deg: tuple[float, float, float, float] = (0.0, 45.0, 90.0, 135.0)
+    extinction_ratio: float | None = None
 
     @property
     def paper_lens(self) -> bool:
@@ -137,7 +143,8 @@ def camera_from_calibration(cal: CameraCalibration) -> CameraGeometry:
     rv = np.asarray(cal.boresight_rotvec_deg, dtype=np.float64) * DEG
     return CameraGeometry(nx=cal.nx, ny=cal.ny, dx_m=cal.pixel_m, dy_m=cal.pixel_m, focal_m=cal.focal_m,
                           projection=cal.projection, c_c_b=q2mat(rv2q(rv)), cx_px=cal.cx_px, cy_px=cal.cy_px,
-                          k1=cal.k1, k2=cal.k2, exit_pupil_m=cal.exit_pupil_m)
+                          k1=cal.k1, k2=cal.k2, exit_pupil_m=cal.exit_pupil_m, polarizer_deg=cal.polarizer_deg,
+                          extinction_ratio=cal.extinction_ratio)
 
 
 def compass_unit_mountings(n_ring: int = COMPASS_N_UNITS - 1,

@@ -49,6 +49,7 @@ def load_calibration_defaults(tmp_path):
     {"camera": {"focal_m": -1.0}},
     {"camera": {"k1": float("nan")}},
     {"camera": {"polarizer_deg": [0, 45, 90]}},
+    {"camera": {"polarizer_deg": [0, 90, 45, 135]}},  # the camera's Stokes assume 0/45/90/135 within 10 deg
     {"camera": {"lens": "pinhole"}},
     {"camera": {"projection": "orthographic"}},
     {"magnetometer": {"soft_iron": [1, 0, 0]}},
@@ -96,15 +97,18 @@ def test_residuals_out_of_range_name_file_line_field_and_range(tmp_path):
 
 
 
-def _static_camera_scenario(tmp_path, name, calibration_yaml):
-    """static_psns_camera with the camera turned 0.5 deg about its optical axis (the heading axis of an up-looking
-    camera), and the given firmware.calibration."""
+BORESIGHT = "mounting: {installation_error_deg: [0.0, 0.0, 0.5]}"
+
+
+def _static_camera_scenario(tmp_path, name, calibration_yaml, camera_extra=BORESIGHT):
+    """static_psns_camera with a world-only perturbation of the camera (by default turned 0.5 deg about its
+    optical axis, the heading axis of an up-looking camera), and the given firmware.calibration."""
     from pathlib import Path
 
     text = (Path(__file__).resolve().parents[3] / "scenarios" / "static_psns_camera.yaml").read_text()
     text = text.replace("bin_superpixels: 8, rate_hz: 5, exposure_us: 1000}",
                         "bin_superpixels: 8, rate_hz: 5, exposure_us: 1000,\n"
-                        "           mounting: {installation_error_deg: [0.0, 0.0, 0.5]}}")
+                        f"           {camera_extra}}}")
     fw = "firmware:\n"
     assert fw in text
     text = text.replace(fw, fw + f"  calibration: {calibration_yaml}\n")
@@ -131,3 +135,44 @@ def test_a_boresight_error_the_calibration_knows_vs_one_it_does_not(tmp_path):
         rms[name] = next(r["value"] for r in s["expectations"] if "heading" in json.dumps(r))
     assert rms["known"] < 0.2, rms
     assert 0.4 < rms["unknown"] < 0.85 and rms["unknown"] - rms["known"] > 0.3, rms  # 0.5 deg plus the rest
+
+
+def test_a_polarizer_rotation_the_calibration_knows_vs_one_it_does_not(tmp_path):
+    """The polarizer analogue: all four micro-polarizer channels turned by 0.5 deg more than the preset's biases
+    (a world-only perturbation: the camera's on-board Stokes assume the nominal angles, so every AOP turns by
+    0.5 deg). Known to the calibration (the firmware inverts its Stokes processing with the calibrated angles) the
+    heading stays within noise; unknown (the file says the preset's angles) the heading is off by about 0.5 deg
+    (the solved sun azimuth moves by 0.59 deg for 0.5 deg at this sun elevation of 23 deg, noise-free solve)."""
+    from dataclasses import replace
+
+    from emulator.assembly.runner import run_scenario
+
+    turned = "defects: {orientation_bias_deg: [0.6, 0.4, 0.55, 0.45]}"  # the reference preset's + 0.5 deg
+    perfect = calibration_for(_static_camera_scenario(tmp_path, "probe", "{source: perfect}", turned), 3)
+    assert perfect.camera.polarizer_deg == pytest.approx((0.6, 45.4, 90.55, 135.45))
+    save_calibration(perfect, tmp_path / "known.json")
+    unknown = tuple(a - 0.5 for a in perfect.camera.polarizer_deg)
+    save_calibration(replace(perfect, camera=replace(perfect.camera, polarizer_deg=unknown)),
+                     tmp_path / "unknown.json")
+    rms = {}
+    for name in ("known", "unknown"):
+        scn = _static_camera_scenario(tmp_path, name, f"{{source: file, file: {name}.json}}", turned)
+        s = run_scenario(scn, tmp_path / f"run_{name}")
+        rms[name] = next(r["value"] for r in s["expectations"] if "heading" in json.dumps(r))
+    assert rms["known"] < 0.2, rms
+    assert 0.4 < rms["unknown"] < 0.85 and rms["unknown"] - rms["known"] > 0.3, rms
+
+
+def test_camera_defects_override_the_preset_and_are_range_checked(tmp_path):
+    from emulator.devices.sensors import camera_config
+
+    p = tmp_path / "s.yaml"
+    p.write_text(SCN.replace("camera: {}", "camera: {defects: {orientation_bias_deg: [0.6, 0.4, 0.55, 0.45], "
+                                           "prnu: 0.0}}"))
+    d = camera_config(load_scenario(p)).defects
+    assert d.orientation_bias_deg == (0.6, 0.4, 0.55, 0.45) and d.prnu == 0.0
+    assert d.orientation_sigma_deg == 0.2 and d.crosstalk == 0.01  # the reference preset's, not overridden
+    p.write_text(SCN.replace("camera: {}", "camera:\n    defects:\n      orientation_bias_deg: [0, 0, 6, 0]"))
+    with pytest.raises(ScenarioError) as exc:
+        load_scenario(p)
+    assert "s.yaml:10" in str(exc.value) and "orientation_bias_deg" in str(exc.value) and "[-5, 5]" in str(exc.value)

@@ -152,6 +152,11 @@ def _check(cal: Calibration) -> None:
         _vec(f"compass.unit_installation_deg[{i}]", u, 3, -30.0, 30.0)
     _vec("magnetometer.hard_iron_nt", cal.magnetometer.hard_iron_nt, 3, -1e6, 1e6)
     _vec("magnetometer.soft_iron", cal.magnetometer.soft_iron, 9, -10.0, 10.0)
+    w = cal.magnetometer.soft_iron
+    det = (w[0] * (w[4] * w[8] - w[5] * w[7]) - w[1] * (w[3] * w[8] - w[5] * w[6])
+           + w[2] * (w[3] * w[7] - w[4] * w[6]))
+    if not abs(det) > 1e-6:
+        raise CalibrationError(f"magnetometer.soft_iron: not invertible (determinant {det:g})")
 
 
 def save_calibration(cal: Calibration, path: str | Path) -> None:

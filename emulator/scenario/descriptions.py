@@ -117,6 +117,11 @@ DESCRIPTIONS: dict[str, str] = {
     "GnssErrorSpec.pos_white_fraction": "fraction of the position error variance that is white (the rest correlated)",
     "GnssErrorSpec.pps_jitter_ns": "PPS edge jitter, ns",
     "CalibrationResidualsSpec.distortion_k1": "1-sigma residual of the lens's first radial distortion coefficient",
+    "CalibrationResidualsSpec.compass_installation_deg": "1-sigma residual of each compass unit's installation "
+                                                         "angles, per unit axis, deg (Zhang et al. 2021 Table 2: "
+                                                         "0.1-0.3 deg after calibration)",
+    "CalibrationResidualsSpec.mag_hard_iron_nt": "1-sigma residual of the magnetometer's hard iron, per body axis, nT",
+    "CalibrationResidualsSpec.mag_soft_iron": "1-sigma residual of each soft-iron matrix element (symmetric), -",
     "CalibrationSpec.source": "residuals: truth plus drawn residuals; perfect: the truth; nominal: design values; "
     "file: the calibration file named below (docs/calibration.md)",
     "GnssErrorSpec.multipath_corr_time_s": "correlation time of the multipath error (a second Gauss-Markov term), s",

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 
+import numpy as np
 import pytest
 
 from emulator.dsp.firmware_setup import calibration_for, firmware_config
@@ -176,3 +177,101 @@ def test_camera_defects_override_the_preset_and_are_range_checked(tmp_path):
     with pytest.raises(ScenarioError) as exc:
         load_scenario(p)
     assert "s.yaml:10" in str(exc.value) and "orientation_bias_deg" in str(exc.value) and "[-5, 5]" in str(exc.value)
+
+
+COMPASS_SCN = """\
+name: cal_compass
+seed: 11
+epoch: 2019-09-18T08:14:00Z
+duration_s: 10
+origin: {lat_deg: 39.979, lon_deg: 116.339, height_m: 50}
+attitude: {heading_deg: 30.0, pitch_deg: 2.0, roll_deg: -1.0}
+sky: {model: rayleigh}
+links:
+  psns: {url: "mem://psns", baud: 115200}
+sensors:
+  compass: {preset: paper, aop_sigma_deg: 0.0, installation_error_sigma_deg: 1.0}
+  magnetometer: {preset: field, noise_nt: 0.0}
+"""
+
+
+def _compass_solve_error_deg(scn, source):
+    """Angle (deg) between the true body-frame sun and the firmware's solve of one noise-free compass reading, the
+    firmware knowing its units through the calibration file of ``source``."""
+    import numpy as np
+
+    from emulator.devices.base import device_rng
+    from emulator.devices.compass import CompassModel
+    from emulator.devices.sensors import build_sky, build_sun, compass_config
+    from emulator.world.trajectory import StaticTrajectory
+    from firmware_model import psns
+    from firmware_model.psns_geometry import compass_unit_mountings
+
+    scn = scn.model_copy(update={"firmware": scn.firmware.model_copy(update={
+        "calibration": scn.firmware.calibration.model_copy(update={"source": source})})})
+    traj = StaticTrajectory(39.979, 116.339, 50.0, 30.0, 2.0, -1.0)
+    sun = build_sun(scn)
+    model = CompassModel(compass_config(scn, device_rng(scn.seed, "compass_mount")), build_sky(scn, scn.seed), sun,
+                         traj, np.random.default_rng(0))
+    r = model.read(0.0)
+    cfg = firmware_config(scn, calibration_for(scn))
+    m = cfg.compass_mountings if cfg.compass_mountings is not None else compass_unit_mountings()  # the firmware's
+    assert len(m) == 9
+    e = psns.evectors_compass(r.aop.astype(np.float64), m[r.units], dtype=np.float64)
+    sol = psns.solve_solar_vector(e, r.dop.astype(np.float64))
+    st = traj.state(0.0)
+    s_b = st.c_bn.T @ sun.sun_enu(0.0, *st.pos)
+    return math.degrees(math.acos(min(1.0, abs(float(sol.s @ s_b)))))
+
+
+def test_compass_installation_angles_reach_the_firmware(tmp_path):
+    """The firmware's compass units are its nominal layout turned by the calibrated installation angles: with the
+    truth (perfect) a noise-free reading of units installed with 1 deg (1 sigma) errors gives the sun back to
+    float precision; with the layout drawing (nominal) the error stays; residuals (0.18 deg, Zhang et al. Table 2)
+    sit between."""
+    from emulator.devices.base import device_rng
+    from emulator.devices.sensors import compass_config
+
+    p = tmp_path / "c.yaml"
+    p.write_text(COMPASS_SCN)
+    scn = load_scenario(p)
+    true = compass_config(scn, device_rng(scn.seed, "compass_mount")).mountings
+    perfect = scn.model_copy(update={"firmware": scn.firmware.model_copy(update={
+        "calibration": scn.firmware.calibration.model_copy(update={"source": "perfect"})})})
+    cal = calibration_for(perfect)
+    assert len(cal.compass.unit_installation_deg) == 9
+    assert abs(cal.compass.unit_installation_deg[4][2]) > 0.01  # about the unit's own view axis
+    m = firmware_config(perfect, cal).compass_mountings
+    assert m is not None and np.allclose(m, true, atol=1e-12)
+    errs = {src: _compass_solve_error_deg(scn, src) for src in ("perfect", "residuals", "nominal")}
+    assert errs["perfect"] < 1e-4 and errs["nominal"] > 0.3 and errs["perfect"] < errs["residuals"] < errs["nominal"]
+
+
+def test_magnetometer_iron_reaches_the_firmware(tmp_path):
+    """The firmware's magnetometer consumer returns ``W^-1 (m - h)``: with the truth in the calibration file the
+    field preset's 350 nT hard iron and 3 % soft iron leave only the MAG frame's 0.1 nT quantisation; with the
+    nominal file (no iron) the error is the iron itself."""
+    from emulator.devices.magnetometer import Magnetometer
+    from emulator.devices.sensors import mag_config
+    from emulator.world.trajectory import StaticTrajectory
+    from firmware_model.firmware import Firmware
+
+    p = tmp_path / "c.yaml"
+    p.write_text(COMPASS_SCN)
+    scn = load_scenario(p)
+    traj = StaticTrajectory(39.979, 116.339, 50.0, 30.0, 2.0, -1.0)
+    mag = Magnetometer(traj, np.random.default_rng(0), mag_config(scn))
+    words, _ = mag.sample(1.0, 0.995)
+    truth = mag.field_body(1.0)
+    err = {}
+    for source in ("perfect", "nominal", "residuals"):
+        s = scn.model_copy(update={"firmware": scn.firmware.model_copy(update={
+            "calibration": scn.firmware.calibration.model_copy(update={"source": source})})})
+        fw = Firmware(firmware_config(s, calibration_for(s)))
+        fw._mag_hist.append((1.0, words))
+        b, n = fw.mag_mean_nt(1.0)
+        assert n == 1
+        err[source] = float(np.linalg.norm(b - truth))
+    assert err["perfect"] < 0.2, err
+    assert err["nominal"] > 300.0, err
+    assert err["perfect"] < err["residuals"] < 500.0, err  # 30 nT and 0.003 (1 sigma) of a calibrated unit

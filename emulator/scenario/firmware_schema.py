@@ -161,7 +161,7 @@ class CalibrationResidualsSpec(Model):
     polarizer_deg: float = Field(0.05, ge=0, le=2, description="per micro-polarizer channel")
     compass_installation_deg: float = Field(0.18, ge=0, le=5)
     mag_hard_iron_nt: float = Field(30.0, ge=0, le=5000)
-    mag_soft_iron: float = Field(0.003, ge=0, le=0.1)
+    mag_soft_iron: float = Field(0.001, ge=0, le=0.1)
 
 
 class CalibrationSpec(Model):

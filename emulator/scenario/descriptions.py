@@ -118,8 +118,8 @@ DESCRIPTIONS: dict[str, str] = {
     "GnssErrorSpec.pps_jitter_ns": "PPS edge jitter, ns",
     "CalibrationResidualsSpec.distortion_k1": "1-sigma residual of the lens's first radial distortion coefficient",
     "CalibrationResidualsSpec.compass_installation_deg": "1-sigma residual of each compass unit's installation "
-                                                         "angles, per unit axis, deg (Zhang et al. 2021 Table 2: "
-                                                         "0.1-0.3 deg after calibration)",
+                                                         "angles, per unit axis, deg (0.13: a unit's AOP error "
+                                                         "rms 0.18 deg, Zhang et al. 2021 Table 2)",
     "CalibrationResidualsSpec.mag_hard_iron_nt": "1-sigma residual of the magnetometer's hard iron, per body axis, nT",
     "CalibrationResidualsSpec.mag_soft_iron": "1-sigma residual of each soft-iron matrix element (symmetric), -",
     "CalibrationSpec.source": "residuals: truth plus drawn residuals; perfect: the truth; nominal: design values; "

@@ -227,8 +227,8 @@ def _compass_solve_error_deg(scn, source):
 def test_compass_installation_angles_reach_the_firmware(tmp_path):
     """The firmware's compass units are its nominal layout turned by the calibrated installation angles: with the
     truth (perfect) a noise-free reading of units installed with 1 deg (1 sigma) errors gives the sun back to
-    float precision; with the layout drawing (nominal) the error stays; residuals (0.18 deg, Zhang et al. Table 2)
-    sit between."""
+    float precision; with the layout drawing (nominal) the error stays; residuals (0.13 deg per axis, Zhang et al.
+    Table 2) sit between."""
     from emulator.devices.base import device_rng
     from emulator.devices.sensors import compass_config
 
@@ -275,3 +275,14 @@ def test_magnetometer_iron_reaches_the_firmware(tmp_path):
     assert err["perfect"] < 0.2, err
     assert err["nominal"] > 300.0, err
     assert err["perfect"] < err["residuals"] < 500.0, err  # 30 nT and 0.001 (1 sigma) of a calibrated unit
+
+
+def test_a_file_with_installation_angles_for_the_wrong_number_of_units_is_refused(tmp_path):
+    from firmware_model.calibration import CompassCalibration
+
+    save_calibration(Calibration(compass=CompassCalibration(unit_installation_deg=((0.1, 0.0, 0.2),) * 2)),
+                     tmp_path / "two.json")
+    p = tmp_path / "c.yaml"
+    p.write_text(COMPASS_SCN + "firmware: {calibration: {source: file, file: two.json}}\n")
+    with pytest.raises(ScenarioError, match="installation angles for 2 compass units, the compass has 9"):
+        firmware_config(load_scenario(p))

@@ -1,11 +1,12 @@
 """Solar-vector error of the camera + firmware solve, per frame, for a camera preset and a calibration source.
 
 ``python -m benchmarks.solar_vector_error [--preset reference|ideal] [--calibration residuals|perfect|nominal]
-[--units N] [--frames F] [--paper-lens]``: N camera units (seeds: fixed pattern, calibration residuals, noise),
-F frames each at random headings and tilts (+-10 deg) in Beijing at 08:14 UTC (sun elevation 23 deg), binned,
-15 x 15
-points; the firmware inverts with its calibration file (``firmware_model.psns``, float32). Prints the median
-and the 95th percentile of the angle between the solved and the true sun vector in the body frame (deg).
+[--units N] [--frames F] [--paper-lens] [--uncorrected]``: N camera units (seeds: fixed pattern, calibration
+residuals, noise), F frames each at random headings and tilts (+-10 deg) in Beijing at 08:14 UTC (sun elevation
+23 deg), binned, 15 x 15 points; the firmware inverts with its calibration file (``firmware_model.psns``,
+float32): the polarizer-angle correction (``--uncorrected`` skips it), the E-vectors through the calibrated lens,
+the solve. Prints the median and the 95th percentile of the angle between the solved and the true sun vector in
+the body frame (deg).
 docs/sensors.md quotes its output.
 """
 
@@ -34,7 +35,8 @@ SCENARIO = {
 }
 
 
-def errors(preset: str, calibration: str, units: int, frames: int, paper_lens: bool = False) -> np.ndarray:
+def errors(preset: str, calibration: str, units: int, frames: int, paper_lens: bool = False,
+           uncorrected: bool = False) -> np.ndarray:
     out = []
     for unit in range(units):
         scn = validate_scenario_data({**SCENARIO, "seed": unit, "sensors": {"camera": {"preset": preset}},
@@ -51,9 +53,11 @@ def errors(preset: str, calibration: str, units: int, frames: int, paper_lens: b
             sun = SunModel(scn.epoch, 69.0)
             m = PolarizationCameraModel(cc, SkyModel(), sun, traj, rng)
             obs = m.observe(0.0)
-            e = psns.evectors_camera(obs.x_px.astype(float), obs.y_px.astype(float), obs.aop.astype(np.float32),
-                                     cam, dtype=np.float32)
-            sol = psns.solve_solar_vector(e, obs.dop.astype(np.float32), 0.05)
+            aop, dop = obs.aop.astype(np.float32), obs.dop.astype(np.float32)
+            if not uncorrected:
+                aop, dop = psns.correct_polarizer(aop, dop, cam, dtype=np.float32)
+            e = psns.evectors_camera(obs.x_px.astype(float), obs.y_px.astype(float), aop, cam, dtype=np.float32)
+            sol = psns.solve_solar_vector(e, dop, 0.05)
             if not sol.valid:
                 continue
             st = traj.state(0.0)
@@ -70,9 +74,12 @@ def main() -> None:
     ap.add_argument("--units", type=int, default=10)
     ap.add_argument("--frames", type=int, default=20)
     ap.add_argument("--paper-lens", action="store_true", help="the old shared contract (paper lens, no defects)")
+    ap.add_argument("--uncorrected", action="store_true",
+                    help="skip the firmware's polarizer-angle correction (the AOP as the camera sends it)")
     a = ap.parse_args()
-    e = errors(a.preset, a.calibration, a.units, a.frames, a.paper_lens)
-    print(f"preset={a.preset} calibration={a.calibration} paper_lens={a.paper_lens} frames={len(e)}: "
+    e = errors(a.preset, a.calibration, a.units, a.frames, a.paper_lens, a.uncorrected)
+    print(f"preset={a.preset} calibration={a.calibration} paper_lens={a.paper_lens} "
+          f"uncorrected={a.uncorrected} frames={len(e)}: "
           f"median {np.median(e):.3f} deg, p95 {np.percentile(e, 95):.3f} deg")
 
 

@@ -143,12 +143,20 @@ def _check(cal: Calibration) -> None:
     if c.exit_pupil_m != math.inf:  # inf: image-space telecentric
         _num("camera.exit_pupil_m", c.exit_pupil_m, 1e-3, 1e6, none_ok=True)
     _vec("camera.boresight_rotvec_deg", c.boresight_rotvec_deg, 3, -180.0, 180.0)
-    _vec("camera.polarizer_deg", c.polarizer_deg, 4, -10.0, 145.0)
+    if not isinstance(c.polarizer_deg, tuple) or len(c.polarizer_deg) != 4:
+        raise CalibrationError("camera.polarizer_deg: needs 4 numbers")
+    for i, nominal in enumerate((0.0, 45.0, 90.0, 135.0)):  # the camera's Stokes assume this layout
+        _num(f"camera.polarizer_deg[{i}]", c.polarizer_deg[i], nominal - 10.0, nominal + 10.0)
     _num("camera.extinction_ratio", c.extinction_ratio, 1.0001, math.inf)
     for i, u in enumerate(cal.compass.unit_installation_deg):
         _vec(f"compass.unit_installation_deg[{i}]", u, 3, -30.0, 30.0)
     _vec("magnetometer.hard_iron_nt", cal.magnetometer.hard_iron_nt, 3, -1e6, 1e6)
     _vec("magnetometer.soft_iron", cal.magnetometer.soft_iron, 9, -10.0, 10.0)
+    w = cal.magnetometer.soft_iron
+    det = (w[0] * (w[4] * w[8] - w[5] * w[7]) - w[1] * (w[3] * w[8] - w[5] * w[6])
+           + w[2] * (w[3] * w[7] - w[4] * w[6]))
+    if not abs(det) > 1e-6:
+        raise CalibrationError(f"magnetometer.soft_iron: not invertible (determinant {det:g})")
 
 
 def save_calibration(cal: Calibration, path: str | Path) -> None:

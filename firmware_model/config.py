@@ -132,8 +132,14 @@ class FirmwareConfig:
     psns_gate_chi2: float = 16.27  # chi-square(3), alpha = 0.001 (docs/reference/algorithms.md 5.2)
     psns_max_age_s: float = 1.0
     camera: CameraGeometry = field(default_factory=CameraGeometry)
-    #: multi-unit compass mountings C_u^b (n, 3, 3) as the firmware knows them; None: the default 9 units
+    #: multi-unit compass mountings C_u^b (n, 3, 3) as the firmware knows them (the nominal layout turned by each
+    #: unit's calibrated installation angles, :func:`firmware_model.psns_geometry.calibrated_mountings`); None: the
+    #: default 9 units, nominal
     compass_mountings: npt.NDArray[np.float64] | None = None
+    #: magnetometer hard iron h (nT, body axes) and soft iron W (3x3 row-major) from the calibration file; the
+    #: consumer (:meth:`Navigation.mag_mean_nt`) returns ``W^-1 (m - h)``
+    mag_hard_iron_nt: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    mag_soft_iron: tuple[float, ...] = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
     #: misalignment (E, N, U; deg, C_b^{n'} = (I - [phi x]) C_b^n) added to the coarse alignment: reproduces a
     #: paper's initial condition (e.g. Ge et al.: -0.9, 0.6, 0.7 deg)
     initial_misalignment_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -150,6 +156,10 @@ class FirmwareConfig:
         if self.filter not in FILTER_VARIANTS:
             raise FirmwareError(f"filter variant {self.filter!r} is not available in this firmware build "
                                 f"(available: {', '.join(sorted(FILTER_VARIANTS))})")
+        w = np.asarray(self.mag_soft_iron, dtype=np.float64)
+        if w.shape != (9,) or not np.all(np.isfinite(w)) or abs(float(np.linalg.det(w.reshape(3, 3)))) < 1e-6:
+            raise FirmwareError(f"mag_soft_iron must be 9 finite numbers of an invertible 3x3, "
+                                f"got {self.mag_soft_iron}")
         if self.alignment_heading not in ("auto", "psns", "config"):
             raise FirmwareError(f"alignment_heading must be auto, psns or config, got {self.alignment_heading!r}")
         if self.coning_samples not in (0, 1, 2):

@@ -171,6 +171,10 @@ class Firmware(HostTask, GnssTask):
         self.nav = None
         self.filter = self._new_filter(cfg.filter)
         self._mag_hist = deque(maxlen=128)  # (t_sample_s, field)
+        # magnetometer calibration: W^-1 and h, inverted once at start-up (docs/calibration.md)
+        self._mag_w_inv = np.asarray(np.linalg.inv(np.asarray(cfg.mag_soft_iron, dtype=np.float64).reshape(3, 3)),
+                                     dtype=np.float64)
+        self._mag_h = np.asarray(cfg.mag_hard_iron_nt, dtype=np.float64)
         self._tick = 0
         self._sub = []
         self._fn_sum = [0.0, 0.0, 0.0]  # sum of f^n over the KF interval (Python floats, float64)

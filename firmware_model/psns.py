@@ -7,6 +7,8 @@ Base paper (Liang & Bai), section II.A, with the camera/AOP convention of docs/a
    DOP (Eq. 2) ``sqrt(S1^2+S2^2)/S0``; image angle ``psi = 1/2 atan2(S2, S1)`` from image +x towards +y.
    The AOP of the paper (Eq. 3/5) and of the wire is measured from image +y towards +x:
    ``AOP = 90 deg - psi`` wrapped to (-90, 90] deg.
+1a. Calibrated polarizer angles (:func:`correct_polarizer`, docs/calibration.md): the camera computes Stokes
+   with the nominal angles 0/45/90/135; the firmware undoes that with the calibrated angles before step 2.
 2. E-vector (Eq. 5-8 with the sign that makes E perpendicular to the view ray; the paper's Eq. 8 as
    printed has the opposite sign, see docs/decisions.md D-5.1):
    pinhole ``E^c = (sin AOP, cos AOP, -(X sin AOP + Y cos AOP)/f)``; equidistant fisheye
@@ -35,12 +37,15 @@ from .units import HALF_PI
 __all__ = [
     "SolarSolution",
     "aop_from_psi",
+    "correct_polarizer",
     "dop_psi",
     "evector_cycles",
     "evectors_camera",
     "evectors_compass",
     "exposure_time_s",
     "mosaic_observations",
+    "polarizer_cycles",
+    "polarizer_matrix",
     "scatter_matrix",
     "solve_cycles",
     "solve_solar_vector",
@@ -89,6 +94,77 @@ def aop_from_psi(psi: FloatArray) -> FloatArray:
     a = HALF_PI - np.asarray(psi)
     wrapped: FloatArray = a - np.pi * np.ceil((a - HALF_PI) / np.pi)
     return wrapped
+
+
+NOMINAL_POLARIZER_DEG = (0.0, 45.0, 90.0, 135.0)
+
+
+def polarizer_matrix(polarizer_deg: tuple[float, float, float, float]) -> tuple[FloatArray, FloatArray]:
+    """``M`` (2, 2) and ``g`` (2,) of the camera's nominal Stokes processing behind polarizers at ``polarizer_deg``.
+
+    Channel ``i`` at ``theta_i`` (deg from image +x towards +y) sees, by Malus with diattenuation ``D``,
+    ``I_i = A [1 + v_1 cos 2 theta_i + v_2 sin 2 theta_i]`` with ``v = D DOP (cos 2 psi, sin 2 psi)``. The camera
+    forms ``S1 = I0 - I90``, ``S2 = I45 - I135``, ``S0 = (I0 + I45 + I90 + I135) / 2`` as if the angles were
+    nominal, so ``(S1, S2) = A M v`` and ``S0 = A (2 + g . v / 2)`` with
+    ``M = [[cos 2t0 - cos 2t90, sin 2t0 - sin 2t90], [cos 2t45 - cos 2t135, sin 2t45 - sin 2t135]]`` and
+    ``g = (sum cos 2 t_i, sum sin 2 t_i)``. Nominal angles: ``M = 2 I``, ``g = 0``."""
+    t = np.radians(np.asarray(polarizer_deg, dtype=np.float64))
+    a, b = np.cos(2.0 * t), np.sin(2.0 * t)
+    m = np.array([[a[0] - a[2], b[0] - b[2]], [a[1] - a[3], b[1] - b[3]]])
+    return m, np.array([a.sum(), b.sum()])
+
+
+def _diattenuation(extinction_ratio: float | None) -> float:
+    if extinction_ratio is None or math.isinf(extinction_ratio):
+        return 1.0
+    return (extinction_ratio - 1.0) / (extinction_ratio + 1.0)
+
+
+def correct_polarizer(aop: FloatArray, dop: FloatArray, cam: CameraGeometry,
+                      dtype: FloatDtype = np.float32) -> tuple[FloatArray, FloatArray]:
+    """Wire AOP/DOP (rad, -) corrected with the calibrated polarizer angles and extinction ratio of ``cam``.
+
+    The camera reports ``psi_w = 1/2 atan2(S2, S1)`` as ``AOP_w = 90 deg - psi_w`` and ``DOP_w = |(S1, S2)| / S0``,
+    so ``u = DOP_w (cos 2 psi_w, sin 2 psi_w) = DOP_w (-cos 2 AOP_w, sin 2 AOP_w) = M v / (2 + g . v / 2)``
+    (:func:`polarizer_matrix`). Solving for ``v``: ``(M - u g^T / 2) v = 2 u``, a 2x2 system per point,
+    ``v = 2 adj(B) u / det(B)`` with ``B = M - u g^T / 2``. Then ``psi = 1/2 atan2(v_2, v_1)`` (sensor plane,
+    from image +x towards +y), ``AOP = 90 deg - psi`` wrapped to (-90, 90] deg and ``DOP = |v| / D`` with
+    ``D = (ER - 1) / (ER + 1)``. Exact for any angles within the calibration file's range (10 deg of
+    nominal); with nominal angles only the DOP scale ``1 / D`` applies. Frames and units as the wire's
+    (docs/architecture.md "Conventions"); works in ``dtype``.
+    """
+    a = np.asarray(aop, dtype=dtype)
+    d = np.asarray(dop, dtype=dtype)
+    inv_d = dtype(1.0 / _diattenuation(cam.extinction_ratio))
+    if tuple(cam.polarizer_deg) == NOMINAL_POLARIZER_DEG:
+        return a, (d * inv_d).astype(dtype)
+    m, g = polarizer_matrix(cam.polarizer_deg)
+    m, g = m.astype(dtype), g.astype(dtype)
+    two_a = dtype(2.0) * a
+    u1, u2 = -d * np.cos(two_a), d * np.sin(two_a)
+    half = dtype(0.5)
+    b11, b12 = m[0, 0] - half * u1 * g[0], m[0, 1] - half * u1 * g[1]
+    b21, b22 = m[1, 0] - half * u2 * g[0], m[1, 1] - half * u2 * g[1]
+    r = dtype(2.0) / (b11 * b22 - b12 * b21)
+    v1 = r * (b22 * u1 - b12 * u2)
+    v2 = r * (b11 * u2 - b21 * u1)
+    psi = half * np.arctan2(v2, v1)
+    out_dop = (np.sqrt(v1 * v1 + v2 * v2) * inv_d).astype(dtype)
+    return aop_from_psi(psi).astype(dtype), out_dop
+
+
+def polarizer_cycles(n: int, cam: CameraGeometry, c: c674x.KernelCosts | None = None) -> int:
+    """C674x cycles of :func:`correct_polarizer` on ``n`` points [D].
+
+    Nominal angles: one MPYSP per point (the DOP scale), software-pipelined. Otherwise vector MATHLIB per element
+    [S, R2 "Vector"]: sinsp + cossp 9 + 9, recipsp 4, sqrtsp 8, atan2sp 29 (double: 44 + 45, 16, 30, 444), plus
+    18 MPY + 12 ADD per point for ``u``, ``B``, its determinant, ``v``, ``|v|`` and the wrap.
+    """
+    c = c or c674x.KernelCosts()
+    if tuple(cam.polarizer_deg) == NOMINAL_POLARIZER_DEG:
+        return c.flops(1, 0, iterations=n)
+    per = (44 + 45 + 16 + 30 + 444) if c.double else (9 + 9 + 4 + 8 + 29)
+    return n * per + c.flops(18, 12, iterations=n, overhead=3 * c674x.CALL_OVERHEAD)
 
 
 def superpixel_channels(raw: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:

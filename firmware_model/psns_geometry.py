@@ -40,6 +40,7 @@ __all__ = [
     "IMX250MZR_NY",
     "IMX250MZR_PITCH_M",
     "CameraGeometry",
+    "calibrated_mountings",
     "camera_from_calibration",
     "compass_unit_mountings",
     "compass_view_rays",
@@ -68,6 +69,10 @@ class CameraGeometry:
     cx_px, cy_px : principal point, 1-based pixels (None: the sensor centre, the paper's Eq. 4).
     k1, k2 : radial distortion (pinhole: on ``tan(theta)``; fisheye: on ``theta``), from the calibration file.
     exit_pupil_m : exit pupil to image plane, m (None: thin lens, the chief ray keeps the field angle).
+    polarizer_deg : the calibrated orientations of the four micro-polarizer channels (nominally 0, 45, 90, 135),
+        deg from image +x towards +y; :func:`firmware_model.psns.correct_polarizer` inverts the camera's nominal
+        Stokes processing with them.
+    extinction_ratio : the calibrated extinction ratio of the polarizers (None: the DOP is not rescaled).
     """
 
     nx: int = IMX250MZR_NX
@@ -82,6 +87,8 @@ class CameraGeometry:
     k1: float = 0.0
     k2: float = 0.0
     exit_pupil_m: float | None = None
+    polarizer_deg: tuple[float, float, float, float] = (0.0, 45.0, 90.0, 135.0)
+    extinction_ratio: float | None = None
 
     @property
     def paper_lens(self) -> bool:
@@ -137,7 +144,23 @@ def camera_from_calibration(cal: CameraCalibration) -> CameraGeometry:
     rv = np.asarray(cal.boresight_rotvec_deg, dtype=np.float64) * DEG
     return CameraGeometry(nx=cal.nx, ny=cal.ny, dx_m=cal.pixel_m, dy_m=cal.pixel_m, focal_m=cal.focal_m,
                           projection=cal.projection, c_c_b=q2mat(rv2q(rv)), cx_px=cal.cx_px, cy_px=cal.cy_px,
-                          k1=cal.k1, k2=cal.k2, exit_pupil_m=cal.exit_pupil_m)
+                          k1=cal.k1, k2=cal.k2, exit_pupil_m=cal.exit_pupil_m, polarizer_deg=cal.polarizer_deg,
+                          extinction_ratio=cal.extinction_ratio)
+
+
+def calibrated_mountings(nominal: FloatArray, unit_installation_deg: tuple[tuple[float, float, float], ...]
+                         ) -> FloatArray:
+    """Compass mountings as calibrated: each nominal ``C_u^b`` (n, 3, 3) turned by its unit's installation angles,
+    a rotation vector about the unit's own axes (deg; the calibration file's ``compass.unit_installation_deg``):
+    ``C_u^b = C_u,nominal^b R(rv_u)``. An empty tuple keeps the nominal layout; otherwise one angle triple per unit.
+    """
+    if not unit_installation_deg:
+        return np.asarray(nominal, dtype=np.float64)
+    if len(unit_installation_deg) != len(nominal):
+        raise ValueError(f"the calibration gives installation angles for {len(unit_installation_deg)} compass units, "
+                         f"the compass has {len(nominal)}")
+    return np.stack([m @ q2mat(rv2q(np.asarray(rv, dtype=np.float64) * DEG))
+                     for m, rv in zip(nominal, unit_installation_deg, strict=True)])
 
 
 def compass_unit_mountings(n_ring: int = COMPASS_N_UNITS - 1,

@@ -228,7 +228,7 @@ def camera_config(scn: Scenario, seed: int | None = None) -> CameraConfig:
         cy_px=(IMX250MZR_NY + 1) / 2.0 + pp[1] if pp[1] else None,
         k1=float(p.get("distortion_k1", 0.0)), k2=float(p.get("distortion_k2", 0.0)),
         exit_pupil_m=p["exit_pupil_mm"] * 1e-3 if p.get("exit_pupil_mm") is not None else None,
-        defects=SensorDefects(**_defect_args(p.get("defects", {}))),
+        defects=SensorDefects(**_defect_args({**p.get("defects", {}), **c.defects.model_dump(exclude_none=True)})),
         defect_seed=scn.seed if seed is None else seed,
     )
 

@@ -11,8 +11,20 @@ from scipy.spatial.transform import Rotation
 
 from firmware_model import FirmwareConfig
 from firmware_model.attitude import a2mat, yaw_from_heading
-from firmware_model.calibration import Calibration, CalibrationError, CameraCalibration, load_calibration
-from firmware_model.psns_geometry import CameraGeometry, camera_from_calibration
+from firmware_model.calibration import (
+    Calibration,
+    CalibrationError,
+    CameraCalibration,
+    CompassCalibration,
+    MagnetometerCalibration,
+    load_calibration,
+)
+from firmware_model.psns_geometry import (
+    CameraGeometry,
+    calibrated_mountings,
+    camera_from_calibration,
+    compass_unit_mountings,
+)
 from firmware_model.registry import (
     BUILTIN_FILTER_PARAMS,
     FIRMWARE_IMPLEMENTATIONS,
@@ -31,7 +43,8 @@ from firmware_model.variants.params import (
 )
 
 from ..devices.base import device_rng
-from ..devices.sensors import camera_config
+from ..devices.compass import default_mountings, mountings_from_directions
+from ..devices.sensors import camera_config, compass_config, mag_config
 from ..errors import ScenarioError
 from ..plugins import PLUGIN_ERRORS, plugin, plugin_names
 from ..scenario.schema import Scenario
@@ -51,9 +64,12 @@ def _rotvec_deg(c: np.ndarray) -> tuple[float, float, float]:
 
 
 def calibration_for(scn: Scenario, seed: int | None = None) -> Calibration:
-    """The calibration file the DSP gets (``firmware.calibration``): the camera's truth plus residuals drawn with
+    """The calibration file the DSP gets (``firmware.calibration``): the sensors' truth plus residuals drawn with
     the run's seed, the truth itself, the design values, or the user's file (confined to the scenario's
-    directory). This is the one place where the world's truth reaches the firmware, and only through the file."""
+    directory). This is the one place where the world's truth reaches the firmware, and only through the file.
+    Sections: the camera (when fitted), the compass's per-unit installation angles (when fitted) and the
+    magnetometer's hard and soft iron (when fitted); each residual draw has its own random stream, so adding a
+    sensor does not change another's draw."""
     spec = scn.firmware.calibration
     seed = scn.seed if seed is None else seed
     if spec.source == "file":
@@ -66,15 +82,21 @@ def calibration_for(scn: Scenario, seed: int | None = None) -> Calibration:
             return load_calibration(path)
         except CalibrationError as exc:
             raise ScenarioError(f"firmware.calibration.file: {exc}") from exc
+    return Calibration(camera=_camera_calibration(scn, seed), compass=_compass_calibration(scn, seed),
+                       magnetometer=_mag_calibration(scn, seed))
+
+
+def _camera_calibration(scn: Scenario, seed: int) -> CameraCalibration:
+    spec = scn.firmware.calibration
     if scn.sensors.camera is None:
-        return Calibration()
+        return CameraCalibration()
     cc = camera_config(scn, seed)
     m = scn.sensors.camera.mounting
     if spec.source == "nominal":  # the design: the lens drawing and the nominal mount, no bench measurement
         nominal_c_b = a2mat(m.pitch_deg * DEG, m.roll_deg * DEG, yaw_from_heading(m.heading_deg * DEG))
-        return Calibration(camera=CameraCalibration(
+        return CameraCalibration(
             projection=cc.lens, nx=cc.nx, ny=cc.ny, pixel_m=cc.pixel_m, focal_m=cc.focal_m,
-            boresight_rotvec_deg=_rotvec_deg(nominal_c_b), extinction_ratio=min(cc.extinction_ratio, 1e9)))
+            boresight_rotvec_deg=_rotvec_deg(nominal_c_b), extinction_ratio=min(cc.extinction_ratio, 1e9))
     truth = CameraCalibration(
         projection=cc.lens, nx=cc.nx, ny=cc.ny, pixel_m=cc.pixel_m, focal_m=cc.focal_m,
         cx_px=cc.lens_model.cx, cy_px=cc.lens_model.cy, k1=cc.k1, k2=cc.k2, exit_pupil_m=cc.exit_pupil_m,
@@ -83,13 +105,13 @@ def calibration_for(scn: Scenario, seed: int | None = None) -> Calibration:
                                                      cc.defects.orientation_bias_deg, strict=True)),
         extinction_ratio=min(cc.extinction_ratio, 1e9))
     if spec.source == "perfect":
-        return Calibration(camera=truth)
+        return truth
     r = spec.residuals
     rng = device_rng(seed, "calibration")
     err = Rotation.from_rotvec(np.radians(r.boresight_deg * rng.standard_normal(3)))
     c_b = cc.mounting_c_b @ err.as_matrix()
     pp = r.principal_point_px * rng.standard_normal(2)
-    return Calibration(camera=replace(
+    return replace(
         truth, focal_m=truth.focal_m * (1.0 + r.focal_rel * float(rng.standard_normal())),
         cx_px=float(cc.lens_model.cx + pp[0]), cy_px=float(cc.lens_model.cy + pp[1]),
         k1=truth.k1 + r.distortion_k1 * float(rng.standard_normal()),
@@ -97,7 +119,46 @@ def calibration_for(scn: Scenario, seed: int | None = None) -> Calibration:
         else truth.exit_pupil_m * (1.0 + r.exit_pupil_rel * float(rng.standard_normal())),
         boresight_rotvec_deg=_rotvec_deg(c_b),
         polarizer_deg=tuple(a + r.polarizer_deg * float(rng.standard_normal())  # type: ignore[arg-type]
-                            for a in truth.polarizer_deg)))
+                            for a in truth.polarizer_deg))
+
+
+def _compass_calibration(scn: Scenario, seed: int) -> CompassCalibration:
+    """Per-unit installation angles: the rotation (about the unit's own axes) from the nominal unit to the installed
+    one, ``R_u = C_u,nominal^T C_u,true`` (truth), plus a residual per axis; empty for ``nominal`` (the layout
+    drawing) and when no compass is fitted."""
+    spec = scn.firmware.calibration
+    c = scn.sensors.compass
+    if c is None or not c.enabled or spec.source == "nominal":
+        return CompassCalibration()
+    true = compass_config(scn, device_rng(seed, "compass_mount")).mountings
+    nominal = (mountings_from_directions([(u.zenith_deg, u.azimuth_deg) for u in c.units]) if c.units is not None
+               else default_mountings())
+    rv = np.stack([Rotation.from_matrix(n.T @ t).as_rotvec(degrees=True) for n, t in zip(nominal, true, strict=True)])
+    if spec.source == "residuals":
+        rv = rv + spec.residuals.compass_installation_deg * device_rng(seed, "calibration_compass").standard_normal(
+            rv.shape)
+    return CompassCalibration(unit_installation_deg=tuple(
+        (float(a), float(b), float(g)) for a, b, g in rv))
+
+
+def _mag_calibration(scn: Scenario, seed: int) -> MagnetometerCalibration:
+    """Hard and soft iron: the magnetometer's truth plus a residual (hard iron per axis; soft iron per element,
+    kept symmetric); the identity for ``nominal`` and when no magnetometer is fitted."""
+    spec = scn.firmware.calibration
+    m = scn.sensors.magnetometer
+    if m is None or not m.enabled or spec.source == "nominal":
+        return MagnetometerCalibration()
+    mc = mag_config(scn)
+    h = np.asarray(mc.hard_iron_nt, dtype=np.float64)
+    w = np.asarray(mc.soft_iron, dtype=np.float64)
+    if spec.source == "residuals":
+        r = spec.residuals
+        rng = device_rng(seed, "calibration_mag")
+        h = h + r.mag_hard_iron_nt * rng.standard_normal(3)
+        e = np.triu(r.mag_soft_iron * rng.standard_normal((3, 3)))
+        w = w + e + np.triu(e, 1).T
+    return MagnetometerCalibration(hard_iron_nt=(float(h[0]), float(h[1]), float(h[2])),
+                                   soft_iron=tuple(float(x) for x in w.ravel()))
 
 
 def spec_sheet_for(scn: Scenario) -> SensorSpecSheet:
@@ -208,12 +269,20 @@ def _plugin_params(scn: Scenario) -> dict[str, object]:
     return {name: TypeAdapter(model).validate_python(scn.firmware.params)}
 
 
-def _compass_mountings(scn: Scenario):
-    """The compass's nominal unit layout as the firmware knows it (no installation error); None: default 9."""
+def _compass_mountings(scn: Scenario, calibration: Calibration):
+    """The compass's units as the firmware knows them: its own nominal layout (the scenario's unit directions, or
+    the default 9 units) turned by the calibrated installation angles of the calibration file; None: the default 9
+    units with no installation angles."""
     c = scn.sensors.compass
-    if c is None or c.units is None:
+    angles = calibration.compass.unit_installation_deg
+    if (c is None or c.units is None) and not angles:
         return None
-    return compass_mountings([(u.zenith_deg, u.azimuth_deg) for u in c.units])
+    nominal = (compass_mountings([(u.zenith_deg, u.azimuth_deg) for u in c.units])
+               if c is not None and c.units is not None else compass_unit_mountings())
+    try:
+        return calibrated_mountings(nominal, angles)
+    except ValueError as exc:
+        raise ScenarioError(f"firmware.calibration: {exc}") from exc
 
 
 def firmware_config(scn: Scenario, calibration: Calibration | None = None) -> FirmwareConfig:
@@ -264,7 +333,9 @@ def firmware_config(scn: Scenario, calibration: Calibration | None = None) -> Fi
         psns_min_sun_elevation_deg=fw.psns.min_sun_elevation_deg,
         psns_gate_chi2=fw.psns.gate_chi2,
         camera=_camera(scn, calibration),
-        compass_mountings=_compass_mountings(scn),
+        compass_mountings=_compass_mountings(scn, calibration),
+        mag_hard_iron_nt=calibration.magnetometer.hard_iron_nt,
+        mag_soft_iron=calibration.magnetometer.soft_iron,
         initial_misalignment_deg=(fw.alignment.misalignment_deg[0], fw.alignment.misalignment_deg[1],
                                   fw.alignment.misalignment_deg[2]),
         variants=_variant_params(scn),

@@ -130,6 +130,11 @@ DESCRIPTIONS: dict[str, str] = {
     "GnssErrorSpec.pos_white_fraction": "fraction of the position error variance that is white (the rest correlated)",
     "GnssErrorSpec.pps_jitter_ns": "PPS edge jitter, ns",
     "CalibrationResidualsSpec.distortion_k1": "1-sigma residual of the lens's first radial distortion coefficient",
+    "CalibrationResidualsSpec.compass_installation_deg": "1-sigma residual of each compass unit's installation "
+                                                         "angles, per unit axis, deg (0.13: a unit's AOP error "
+                                                         "rms 0.18 deg, Zhang et al. 2021 Table 2)",
+    "CalibrationResidualsSpec.mag_hard_iron_nt": "1-sigma residual of the magnetometer's hard iron, per body axis, nT",
+    "CalibrationResidualsSpec.mag_soft_iron": "1-sigma residual of each soft-iron matrix element (symmetric), -",
     "CalibrationSpec.source": "residuals: truth plus drawn residuals; perfect: the truth; nominal: design values; "
     "file: the calibration file named below (docs/calibration.md)",
     "GnssErrorSpec.multipath_corr_time_s": "correlation time of the multipath error (a second Gauss-Markov term), s",
@@ -172,6 +177,16 @@ DESCRIPTIONS: dict[str, str] = {
     "CameraSpec.min_points": "fewest usable points for a solar vector",
     "CameraSpec.min_sun_elevation_deg": "below this sun elevation the camera reports no solar vector, deg",
     "CameraSpec.sun_glare_deg": "points within this angle of the Sun are not used, deg",
+    "CameraSpec.defects": "the sensor's fixed pattern over the preset's (world truth; the firmware sees only its "
+                          "calibration file)",
+    "CameraDefectsSpec.orientation_sigma_deg": "per-pixel micro-polarizer orientation error, deg rms",
+    "CameraDefectsSpec.orientation_bias_deg": "per-channel orientation bias of the 0/45/90/135 micro-polarizers, "
+                                              "deg from image +x towards +y, each in [-5, 5]",
+    "CameraDefectsSpec.extinction_spread": "relative pixel-to-pixel spread of the extinction ratio (lognormal)",
+    "CameraDefectsSpec.prnu": "photo-response non-uniformity, relative rms",
+    "CameraDefectsSpec.dark_e": "dark signal per exposure, electrons",
+    "CameraDefectsSpec.crosstalk": "fraction of each of the four edge neighbours' signal a pixel collects",
+    "CameraDefectsSpec.vignetting": "whether the cos^4 law of the chief-ray angle applies",
     "CameraCalibrationSpec.focal_mm": "calibrated focal length, mm",
     "CameraCalibrationSpec.mounting_heading_deg": "calibrated mounting heading (camera to body), deg",
     "CameraCalibrationSpec.mounting_pitch_deg": "calibrated mounting pitch (camera to body), deg",

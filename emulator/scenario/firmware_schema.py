@@ -159,6 +159,9 @@ class CalibrationResidualsSpec(Model):
     distortion_k1: float = Field(1e-3, ge=0, le=0.05)
     exit_pupil_rel: float = Field(0.02, ge=0, le=0.3, description="relative exit-pupil distance error")
     polarizer_deg: float = Field(0.05, ge=0, le=2, description="per micro-polarizer channel")
+    compass_installation_deg: float = Field(0.13, ge=0, le=5)
+    mag_hard_iron_nt: float = Field(30.0, ge=0, le=5000)
+    mag_soft_iron: float = Field(0.001, ge=0, le=0.1)
 
 
 class CalibrationSpec(Model):

@@ -18,6 +18,7 @@ __all__ = [
     "SUITE_PRESETS",
     "AccelSpec",
     "BlockedUnitsSpec",
+    "CameraDefectsSpec",
     "CameraSpec",
     "CompassSpec",
     "CompassUnitSpec",
@@ -221,6 +222,26 @@ class RecordedImagesSpec(Model):
         return self
 
 
+class CameraDefectsSpec(Model):
+    """The sensor's fixed pattern, field by field over the preset's ``defects`` (docs/sensors.md, "Polarization
+    camera"): the world's truth only; the firmware knows it through its calibration file."""
+
+    orientation_sigma_deg: float | None = Field(None, ge=0, le=5)
+    orientation_bias_deg: tuple[float, float, float, float] | None = None
+    extinction_spread: float | None = Field(None, ge=0, le=1)
+    prnu: float | None = Field(None, ge=0, le=0.2)
+    dark_e: float | None = Field(None, ge=0, le=100000)
+    crosstalk: float | None = Field(None, ge=0, le=0.1)
+    vignetting: bool | None = None
+
+    @field_validator("orientation_bias_deg")
+    @classmethod
+    def _bias(cls, v: tuple[float, float, float, float] | None) -> tuple[float, float, float, float] | None:
+        if v is not None and any(not -5.0 <= b <= 5.0 for b in v):
+            raise ValueError(f"each channel's orientation bias must be in [-5, 5] deg, got {list(v)}")
+        return v
+
+
 class CameraSpec(Model):
     enabled: bool = True
     preset: str = "reference"
@@ -245,6 +266,7 @@ class CameraSpec(Model):
     dop_threshold: float = Field(0.05, ge=0, le=1)
     min_points: int = Field(10, ge=1)
     recorded: RecordedImagesSpec | None = None
+    defects: CameraDefectsSpec = CameraDefectsSpec()
 
     @field_validator("preset")
     @classmethod

@@ -116,7 +116,9 @@ class Navigation(TimeKeeping):
 
     def mag_mean_nt(self, t_center_s: float, half_window_s: float = 0.025) -> tuple[FloatArray, int] | None:
         """Mean MAG field (nT, body axes) of the frames sampled within ``t_center_s +- half_window_s``
-        (FPGA time; e.g. a camera exposure) and their number; None when there is none."""
+        (FPGA time; e.g. a camera exposure), corrected with the calibrated iron, and their number; None when there is
+        none. The sensor reads ``m = W B + h`` (``W`` soft iron, ``h`` hard iron, body axes); the firmware returns
+        ``B = W^-1 (m - h)`` (docs/calibration.md)."""
         acc = [0, 0, 0]
         n = 0
         for ts, fld in reversed(self._mag_hist):
@@ -130,4 +132,6 @@ class Navigation(TimeKeeping):
         self.meter.charge("mag_mean", c674x.flops(3, 3 * max(n, 1)) + len(self._mag_hist))
         if n == 0:
             return None
-        return np.array(acc, dtype=np.float64) * (0.1 / n), n  # MAG words are 0.1 nT
+        m = np.array(acc, dtype=np.float64) * (0.1 / n)  # MAG words are 0.1 nT
+        self.meter.charge("mag_calibration", c674x.flops(9, 9))  # 3 SUB, 3x3 matrix-vector product
+        return self._mag_w_inv @ (m - self._mag_h), n

@@ -66,6 +66,8 @@ class PsnsTask(Navigation):
             pts = np.array([(p.x_px, p.y_px, p.aop_cdeg, p.dop) for p in f.points], dtype=np.float64)
             aop = (pts[:, 2] * (0.01 * DEG)).astype(dt)
             dop = (pts[:, 3] * (1.0 / 65535.0)).astype(dt)
+            aop, dop = psns.correct_polarizer(aop, dop, cam, dtype=dt)
+            m.charge("psns_polarizer", psns.polarizer_cycles(n, cam, self.cost))
             e = psns.evectors_camera(pts[:, 0], pts[:, 1], aop, cam, dtype=dt)
             sol = psns.solve_solar_vector(e, dop, cfg.psns_dop_min, max_quality=cfg.psns_quality_max)
             m.charge("psns_evectors", psns.evector_cycles(n, self.cost))

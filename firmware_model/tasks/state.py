@@ -18,7 +18,7 @@ from protocols.imu_frame import ImuFrame, MagFrame
 from protocols.stream import StreamDecoder
 
 from .. import c674x
-from ..arrays import FloatArray, FloatDtype
+from ..arrays import F64Array, FloatArray, FloatDtype
 from ..config import FirmwareConfig
 from ..filters import GnssMeasurement, NavFilter, SolarObservation
 from ..nav_state import NavFloats, NavState
@@ -87,6 +87,8 @@ class LoopState:
     _rx_other: dict[int, int]
     last_mag: MagFrame | None
     _mag_hist: deque[tuple[float, tuple[int, int, int]]]  # (t_sample_s, field)
+    _mag_w_inv: F64Array
+    _mag_h: F64Array
     # time keeping (FPGA time base; UTC from GNSS)
     _t_last_us: int | None
     _t_epoch_us: int

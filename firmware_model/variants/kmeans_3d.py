@@ -410,6 +410,8 @@ class Kmeans3dFilter(BaseFilter):
         aop = (pts[:, 2] * (0.01 * DEG)).astype(dt)
         dop = (pts[:, 3] * (1.0 / 65535.0)).astype(dt)
         cam = self.cfg.camera
+        aop, dop = psns.correct_polarizer(aop, dop, cam, dtype=dt)
+        self.meter.charge("psns_polarizer", psns.polarizer_cycles(n, cam, cost))
         p_ins, _, q_exp = host.ins_at(t_exposure_s)
         cbn = q2mat_fast(q_exp)
         # sky mask from the INS tilt: rays below the horizon see the (unpolarized) ground

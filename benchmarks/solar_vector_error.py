@@ -5,8 +5,9 @@
 residuals, noise), F frames each at random headings and tilts (+-10 deg) in Beijing at 08:14 UTC (sun elevation
 23 deg), binned, 15 x 15 points; the firmware inverts with its calibration file (``firmware_model.psns``,
 float32): the polarizer-angle correction (``--uncorrected`` skips it), the E-vectors through the calibrated lens,
-the solve. Prints the median and the 95th percentile of the angle between the solved and the true sun vector in
-the body frame (deg).
+the solve; ``--sky realistic`` the scenario default sky instead of the clear Rayleigh sky, ``--day`` one row per
+hour of a day of sun elevations. Prints the median and the 95th percentile of the angle between the solved and the
+true sun vector in the body frame (deg).
 docs/sensors.md quotes its output.
 """
 
@@ -36,11 +37,12 @@ SCENARIO = {
 
 
 def errors(preset: str, calibration: str, units: int, frames: int, paper_lens: bool = False,
-           uncorrected: bool = False) -> np.ndarray:
+           uncorrected: bool = False, sky: str = "rayleigh", epoch: str | None = None) -> np.ndarray:
     out = []
     for unit in range(units):
         scn = validate_scenario_data({**SCENARIO, "seed": unit, "sensors": {"camera": {"preset": preset}},
-                                      "firmware": {"calibration": {"source": calibration}}}, {})
+                                      "firmware": {"calibration": {"source": calibration}},
+                                      **({"epoch": epoch} if epoch else {})}, {})
         cc = camera_config(scn, unit)
         cam = firmware_config(scn, calibration_for(scn, unit)).camera
         if paper_lens:  # the old shared contract: the paper's lens on both sides, no sensor defects
@@ -51,7 +53,7 @@ def errors(preset: str, calibration: str, units: int, frames: int, paper_lens: b
             hd, p, r = rng.uniform(0, 360), rng.uniform(-10, 10), rng.uniform(-10, 10)
             traj = StaticTrajectory(39.979, 116.339, 50.0, hd, p, r)
             sun = SunModel(scn.epoch, 69.0)
-            m = PolarizationCameraModel(cc, SkyModel(), sun, traj, rng)
+            m = PolarizationCameraModel(cc, SkyModel(sky), sun, traj, rng)
             obs = m.observe(0.0)
             aop, dop = obs.aop.astype(np.float32), obs.dop.astype(np.float32)
             if not uncorrected:
@@ -76,9 +78,28 @@ def main() -> None:
     ap.add_argument("--paper-lens", action="store_true", help="the old shared contract (paper lens, no defects)")
     ap.add_argument("--uncorrected", action="store_true",
                     help="skip the firmware's polarizer-angle correction (the AOP as the camera sends it)")
+    ap.add_argument("--sky", default="rayleigh", choices=["rayleigh", "realistic", "berry"],
+                    help="the world's sky (realistic: the scenario default, Preetham turbidity 3)")
+    ap.add_argument("--day", action="store_true",
+                    help="a day of sun elevations: one row per UTC hour 23:00-10:00 (Beijing 07-18 h local)")
     a = ap.parse_args()
-    e = errors(a.preset, a.calibration, a.units, a.frames, a.paper_lens, a.uncorrected)
-    print(f"preset={a.preset} calibration={a.calibration} paper_lens={a.paper_lens} "
+    if a.day:
+        print(f"preset={a.preset} calibration={a.calibration} sky={a.sky}, Beijing 2019-09-18")
+        print("| UTC | sun elevation (deg) | frames | median (deg) | p95 (deg) |\n|---|---|---|---|---|")
+        for hour in (23, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10):
+            day = "2019-09-17" if hour == 23 else "2019-09-18"
+            ep = f"{day}T{hour:02d}:00:00Z"
+            scn = validate_scenario_data({**SCENARIO, "seed": 0, "epoch": ep}, {})
+            st = StaticTrajectory(39.979, 116.339, 50.0).state(0.0)
+            el = math.degrees(math.asin(float(SunModel(scn.epoch, 69.0).sun_enu(0.0, *st.pos)[2])))
+            e = errors(a.preset, a.calibration, a.units, a.frames, a.paper_lens, a.uncorrected, a.sky, ep)
+            if len(e):
+                print(f"| {hour:02d}:00 | {el:.1f} | {len(e)} | {np.median(e):.3f} | {np.percentile(e, 95):.3f} |")
+            else:
+                print(f"| {hour:02d}:00 | {el:.1f} | 0 | - | - |")
+        return
+    e = errors(a.preset, a.calibration, a.units, a.frames, a.paper_lens, a.uncorrected, a.sky)
+    print(f"preset={a.preset} calibration={a.calibration} sky={a.sky} paper_lens={a.paper_lens} "
           f"uncorrected={a.uncorrected} frames={len(e)}: "
           f"median {np.median(e):.3f} deg, p95 {np.percentile(e, 95):.3f} deg")
 

@@ -52,3 +52,16 @@ def test_zhang_sun_elevation_cuts_the_longitude_error_of_pure_sins():
     for m in res["members"]:
         assert m["lon_change"] < -0.4, m
         assert m["sins"]["lon_mae_deg"] > 0.05, m  # the paper's SINS drifts: Table 1's 5 deg/h, no GNSS calibration
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(2400)
+def test_ge_federated_under_field_presets_keeps_sins_gnss_worst():
+    """Ge et al. under the field presets, seeds 1-2: SINS/GNSS (heading unobservable while static) stays the worst of
+    the three configurations on every seed. Fused < pol/MIMU holds on most seeds only (seed 1: 0.372 against
+    0.338 deg), so it is reported in docs/variants.md 6.3, not asserted here."""
+    res = pr.ge([1, 2], log=lambda s: None)
+    for m in res["members"]:
+        g = m["sins_gnss"]["heading_rms_deg"]
+        assert m["fused"]["heading_rms_deg"] < g and m["pol_mimu"]["heading_rms_deg"] < g, m
+        assert m["fused"]["heading_rms_deg"] < 0.5, m

@@ -48,7 +48,7 @@ from ..world.trajectory import Trajectory
 from .camera import rotation_vector_matrix, wire_aop_cdeg
 
 __all__ = ["CompassConfig", "CompassModel", "CompassReading", "PolarizationCompass", "default_mountings",
-           "mountings_from_directions", "unit_mounting"]
+           "mountings_from_directions", "turned_about_view_rays", "unit_mounting"]
 
 DEG = math.pi / 180.0
 N_UNITS = 9
@@ -284,6 +284,19 @@ class PolarizationCompass:
         self.link.send(encode_compass(hdr, units))
         self.frames_sent += 1
         self.seq = (self.seq + 1) & 0xFFFF
+
+
+def turned_about_view_rays(base: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """Mountings whose units are turned about their own view ray (+z) by ``offsets`` (rad, one per unit).
+
+    ``C_u^b' = C_u^b R_z(delta)``: a fixed E-vector then reads ``A + delta`` (AOP from +y towards +x), the constant
+    E-vector error a calibration leaves per unit (Zhang et al. 2021, Table 2).
+    """
+    out = []
+    for m, d in zip(base, offsets, strict=True):
+        c, s = math.cos(float(d)), math.sin(float(d))
+        out.append(m @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]))
+    return np.stack(out)
 
 
 def perturbed_mountings(base: np.ndarray, sigma: float, rng: np.random.Generator) -> np.ndarray:

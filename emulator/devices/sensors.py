@@ -44,6 +44,7 @@ from .compass import (
     default_mountings,
     mountings_from_directions,
     perturbed_mountings,
+    turned_about_view_rays,
 )
 from .gnss import GnssConfig, GnssErrors, GnssGlitch, GnssOutage, GnssReceiver
 from .imu import AccelErrors, AnalogAccelerometers, GyroErrors, ImuTemperature, ImuTruthTap, Stim210Gyro
@@ -249,6 +250,8 @@ def compass_config(scn: Scenario, rng: np.random.Generator | None = None) -> Com
         inst = float(p.get("installation_error_sigma_deg", 0.0))
     if inst > 0:
         mounts = perturbed_mountings(mounts, inst * DEG, rng or np.random.default_rng(0))
+    if c.aop_offset_deg is not None:  # calibration residual: each unit turned about its view ray (AOP + offset)
+        mounts = turned_about_view_rays(mounts, np.asarray(c.aop_offset_deg, dtype=np.float64) * DEG)
     return CompassConfig(mountings=mounts, aop_sigma=p["aop_sigma_deg"] * DEG, dop_ref=p["dop_ref"],
                          extinction_ratio=p["extinction_ratio"], fov_half=p["fov_half_deg"] * DEG,
                          min_sun_elevation=c.min_sun_elevation_deg * DEG, noise=p["aop_sigma_deg"] > 0,

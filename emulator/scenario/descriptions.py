@@ -206,6 +206,7 @@ DESCRIPTIONS: dict[str, str] = {
     "CompassSpec.fov_half_deg": "half field of view of a unit, deg",
     "CompassSpec.integration_ms": "integration time of a reading, ms",
     "CompassSpec.min_sun_elevation_deg": "below this sun elevation the compass reports no reading, deg",
+    "CompassSpec.aop_offset_deg": "constant E-vector (AOP) error per unit left by the calibration, deg (one per unit)",
     "CompassSpec.processing_ms": "time from the end of the integration to the frame on the wire, ms",
     "CompassSpec.rate_hz": "reading rate, Hz",
     "MagnetometerSpec.enabled": "whether the magnetometer is modelled",

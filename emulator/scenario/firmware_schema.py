@@ -139,6 +139,8 @@ class SunElevationSpec(Model):
     update_every: int = Field(1, ge=1, le=100)
     attitude_aiding: bool = Field(False,
                                   description="also the compass's solar-vector attitude update (not in the paper)")
+    elevation_update: bool = Field(True, description="make the sun-elevation position update (false: the paper's "
+                                                     "pure-SINS baseline, the same filter without it)")
 
 
 class VariantsSpec(Model):

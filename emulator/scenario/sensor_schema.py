@@ -303,6 +303,10 @@ class CompassSpec(Model):
         None, ge=0, le=10, description="random per-unit mounting error, deg (1 sigma); default from the preset")
     dop_noise_model: Literal["inverse", "zhang"] | None = Field(
         None, description="AOP error vs DOP: inverse (sigma ~ 1/DOP) or zhang (Zhang et al. 2021 measured bins)")
+    aop_offset_deg: list[float] | None = Field(
+        None, min_length=1, max_length=16,
+        description="constant E-vector (AOP) error per unit left by the calibration, deg (a turn of the installed unit "
+                    "about its own view ray; e.g. Zhang et al. 2021 Table 2); one value per unit")
     min_sun_elevation_deg: float = Field(0.0, ge=-18, le=30)
     units: list[CompassUnitSpec] | None = Field(
         None, min_length=1, max_length=16, description="unit view directions; default: the 9-unit compass")
@@ -320,6 +324,11 @@ class CompassSpec(Model):
             bad = [u for u in b.units if not 0 <= u < n]
             if bad:
                 raise ValueError(f"blocked[{i}]: the compass has units 0..{n - 1}, not {bad}")
+        if self.aop_offset_deg is not None:
+            if len(self.aop_offset_deg) != n:
+                raise ValueError(f"aop_offset_deg: the compass has {n} units, got {len(self.aop_offset_deg)} values")
+            if any(not -10.0 <= v <= 10.0 for v in self.aop_offset_deg):
+                raise ValueError("aop_offset_deg: each value must lie within +-10 deg")
         return self
 
 

@@ -127,6 +127,9 @@ class SunElevationParams:
     #: also the attitude update from the same frame: the eigen-solution of all units' E-vectors (base paper
     #: Eq. 14) as a solar-vector measurement; the paper's model has the elevation measurement only (False)
     attitude_aiding: bool = False
+    #: make the sun-elevation position update (False: the same filter and stream without it, the paper's pure-SINS
+    #: baseline; the frames are still decoded and the pair chosen, nothing reaches the state)
+    elevation_update: bool = True
 
 
 @dataclass

@@ -38,6 +38,10 @@ Per COMPASS frame (9 units, the geometry of the conventions,
    aiding the tilt perpendicular to the Sun is held, but the rotation about the Sun stays unobserved
    and its tilt part drives the cross-azimuth position error all the same; docs/variants.md compares them.
 
+7. ``elevation_update`` off: the frames are still measured (and logged as ``elevation_update_off``), nothing
+   reaches the state. It is the paper's pure-SINS baseline on the same world and seed
+   (``scenarios/sun_elevation_paper_like_for_like.yaml``, docs/variants.md 6.4).
+
 No GNSS is needed after the initial fix that gives position and UTC (the paper uses GPS for the initial
 position and as the reference only).
 """
@@ -231,6 +235,9 @@ class SunElevationFilter(BaseFilter):
         self.pair_mask = (1 << ui) | (1 << uj)
         self.last = {"t": t_exposure_s, "sin_hc": sin_hc, "sin_hn": sin_hn, "alpha": alpha, "beta": beta,
                      "h_b_deg": math.degrees(math.asin(max(-1.0, min(1.0, float(s_b[2]))))), "nis": nis}
+        if not p.elevation_update:  # the paper's pure-SINS baseline: measured, logged, not used
+            mm.decide(t, "sun_elevation", False, "elevation_update_off")
+            return None
         if not mm.gate(t, "sun_elevation", nis, 1, units=[ui, uj], residual_deg=math.degrees(innov / cos_hc)):
             self.state = 2
             return UpdateReport("sun_elevation", False, 0, math.sqrt(nis), {"reason": "chi2_fail"})

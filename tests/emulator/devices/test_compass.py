@@ -105,3 +105,37 @@ def test_compass_device_frames():
         n_bytes = 7 + 13 + 5 * 9
         t_mid = t_rx - n_bytes * 10 / 115200 - f.header.latency_us * 1e-6
         assert t_mid == pytest.approx(k * 0.1 + 0.005, abs=1e-6)
+
+
+def test_calibration_residuals_turn_each_unit_about_its_ray_and_offset_its_aop_exactly():
+    """``aop_offset_deg`` (Zhang et al. Table 2's residuals): each reported AOP is the nominal one plus its unit's
+    offset, exactly (noise-free), and the view rays do not move."""
+    from emulator.devices.compass import turned_about_view_rays
+    from emulator.devices.sensors import compass_config
+    from emulator.scenario.sensor_schema import Sensors
+
+    table2 = [-0.1, 0.1, 0.3, 0.2, 0.2, 0.2, -0.2, -0.1, -0.1]
+
+    class _Scn:
+        sensors = Sensors.model_validate({"compass": {"preset": "ideal", "aop_offset_deg": table2}})
+
+    mounts = compass_config(_Scn()).mountings  # type: ignore[arg-type]
+    assert np.allclose(mounts, turned_about_view_rays(default_mountings(), np.radians(table2)), atol=0)
+    assert np.allclose(mounts[:, :, 2], default_mountings()[:, :, 2], atol=1e-15)
+    for att in ((10.0, 0.0, 0.0), (123.0, 12.0, -7.0)):
+        nominal = compass(noise=False, heading=att[0], pitch=att[1], roll=att[2]).read(0.0)
+        turned = compass(noise=False, heading=att[0], pitch=att[1], roll=att[2], mountings=mounts).read(0.0)
+        assert list(turned.units) == list(nominal.units)
+        d = (turned.aop - nominal.aop + math.pi / 2) % math.pi - math.pi / 2
+        assert np.allclose(np.degrees(d), np.array(table2)[nominal.units], atol=1e-9)
+
+
+def test_calibration_residuals_need_one_value_per_unit():
+    from pydantic import ValidationError
+
+    from emulator.scenario.sensor_schema import CompassSpec
+
+    with pytest.raises(ValidationError, match="9 units, got 2"):
+        CompassSpec.model_validate({"aop_offset_deg": [0.1, 0.2]})
+    with pytest.raises(ValidationError, match="within"):
+        CompassSpec.model_validate({"aop_offset_deg": [0.1] * 8 + [12.0]})

@@ -121,3 +121,37 @@ def test_gnss_free_20_min_static_sun_elevation_against_pure_sins(capsys):
         print(f"\nsun-elevation: {r_se}\npure SINS:     {r_sins}")
     assert r_se["max_along_km"] < 3.0 and r_sins["max_along_km"] > 10.0
     assert r_se["mae_e_km"] < 0.6 * r_sins["mae_e_km"] and r_se["mae_hor_km"] < r_sins["mae_hor_km"]
+
+
+def test_elevation_update_off_is_the_same_filter_navigating_as_pure_sins():
+    """``elevation_update: false`` (the paper's pure-SINS baseline of sun_elevation_paper_like_for_like): every frame is
+    measured and logged as not used, nothing reaches the state, so the solution drifts as free inertial; the same
+    stream with the update holds the along-azimuth error."""
+    import dataclasses
+
+    bias = (20.0, -20.0, 10.0)
+    noon = dt.datetime(2019, 9, 18, 4, 0, tzinfo=dt.UTC)
+    spec = StreamSpec(static_trajectory(30.0, 1.0, -2.0), 240.0, epoch=noon,
+                      imu=ImuErrors(bias, 0.15, (50.0, -50.0, 50.0), 25.0),
+                      gnss=GnssSpec(True, 2.5, 0.05, outages=((10.0, 1e9),), time_during_outage=True),
+                      psns="compass", psns_rate_hz=1, compass=CompassSpec(compass_unit_mountings(), aop_sigma_deg=0.1))
+    out = {}
+    for on in (True, False):
+        cfg = FirmwareConfig(filter="sun_elevation", initial_heading_deg=30.2, gyro_bias_sigma_deg_h=20.0,
+                             gyro_bias_instability_deg_h=0.5, accel_bias_sigma_mg=0.05, accel_noise_ug_rt_hz=25.0,
+                             gnss_baud=2_000_000, gnss_latency_s=0.05)
+        cfg.variants.sun_elevation = dataclasses.replace(cfg.variants.sun_elevation, elevation_update=on)
+        fw = Firmware(cfg)
+        samples, events = run(fw, spec, seed=3, sample_every_s=10.0)
+        out[on] = (fw, samples, [e for e in events if e.get("channel") == "sun_elevation"])
+    fw_off, _s_off, ev_off = out[False]
+    assert fw_off.counters.get("sun_elevation_admitted", 0) == 0
+    assert fw_off.counters["sun_elevation_rejected"] > 200  # one per 1 Hz frame after the alignment
+    assert {e["reason"] for e in ev_off} == {"elevation_update_off"}
+    assert out[True][0].counters["sun_elevation_admitted"] > 200
+    # along the Sun's azimuth (what one elevation observes): free inertial runs away, the update holds it
+    sun = SunModel(noon, 69.0)
+    az, _ = sun.az_el(240.0, 39.979 * DEG, 116.339 * DEG, 50.0)
+    along = {on: abs(s[-1].pos_err_m[1] * math.sin(az) + s[-1].pos_err_m[0] * math.cos(az))
+             for on, (_fw, s, _e) in out.items()}
+    assert along[False] > 10.0 * along[True]  # 2.2 km against 18 m (seed 3)

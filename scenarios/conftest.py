@@ -116,6 +116,10 @@ class ScenarioFile(pytest.File):
             yield item
         seeds_item = SeedsItem.from_parent(self, name=f"{scn.name}[seeds]", scenario=scn, run=run, seeds=SEEDS)
         seeds_item.add_marker(pytest.mark.slow)
+        # ten runs of a long scenario (and the extra seeds a consistency: expectation asks for) outlast the
+        # per-test timeout of pyproject.toml (a run takes ~1/20 of its simulated time here; 3 s per simulated second
+        # for all seeds together leaves room for a loaded machine)
+        seeds_item.add_marker(pytest.mark.timeout(max(600, int(3 * scn.duration_s))))
         yield seeds_item
         if scn.duration_s <= FAST_SEEDS_MAX_S and "slow" not in scn.tags:
             yield SeedsItem.from_parent(self, name=f"{scn.name}[seeds-fast]", scenario=scn, run=run, seeds=FAST_SEEDS)

@@ -13,6 +13,7 @@ from emulator.devices.imu import AccelErrors, AnalogAccelerometers, GyroErrors, 
 from emulator.devices.imu.error_model import DPH
 from emulator.devices.sensors import imu_temperature
 from emulator.scenario import load_scenario
+from tests.emulator.still_truth import still_truth
 
 SCENARIOS = Path(__file__).resolve().parents[3] / "scenarios"
 
@@ -40,16 +41,6 @@ def test_without_warm_up_the_profile_is_the_linear_ramp():
     assert temp.at(60.0) == 22.0 and temp.rate_at(60.0) == 2.0 and temp.rate_at(0.0) == 2.0
 
 
-class _Still:
-    @staticmethod
-    def imu_increments(t0, t1):
-        return np.zeros(3), np.zeros(3)
-
-    @staticmethod
-    def imu_increments_ready(t0, t1):
-        return np.zeros(3), np.zeros(3)
-
-
 class _Link:
     def __init__(self) -> None:
         self.loop = types.SimpleNamespace(time=lambda: 0.0)
@@ -62,7 +53,7 @@ def test_gyro_gradient_bias_and_accel_temperature_bias_follow_the_warm_up():
     """A still IMU with only temperature errors: the gyro reads ``k_grad dT/dt`` and the accelerometers
     ``k_T (T - T_cal)``, the closed forms at every trigger of a 30 min warm-up."""
     temp = ImuTemperature(start_c=25.0, rate_c_per_min=0.0, cal_c=25.0, warmup_c=12.0, warmup_tau_s=600.0)
-    tap = ImuTruthTap(types.SimpleNamespace(**vars(_Still)))  # type: ignore[arg-type]
+    tap = ImuTruthTap(still_truth())  # type: ignore[arg-type]
     ge = GyroErrors(arw_deg_rt_h=0, bias_repeatability_deg_h=0, bias_instability_deg_h=0, scale_factor_ppm=0,
                     scale_asymmetry_ppm=0, misalignment_mrad=0, nonlinearity_ppm_fs=0, g_sensitivity_deg_h_per_g=0,
                     bias_temp_gradient_deg_h=10.0)

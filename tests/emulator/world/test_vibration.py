@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import itertools
 import math
-import types
 
 import numpy as np
 import pytest
@@ -15,6 +14,7 @@ from scipy.signal import welch
 from emulator.devices.imu import AccelErrors, AnalogAccelerometers, ImuTruthTap
 from emulator.scenario.presets import preset
 from emulator.world.vibration import G_STD, VibrationModel, psd_at, psd_integral
+from tests.emulator.still_truth import still_truth
 
 FS = 200.0
 FIELD = preset("imu", "field")["vibration"]
@@ -76,25 +76,13 @@ def test_drawn_signal_has_the_profile_psd_and_rms():
     assert np.all(pxx[high] < 0.2 * PROFILE[-1][1] * axes[None, :])
 
 
-class _StillTrajectory:
-    """Zero truth: no motion, no gravity (the increments are all zero), so the output is the vibration."""
-
-    @staticmethod
-    def imu_increments(t0, t1):
-        return np.zeros(3), np.zeros(3)
-
-    @staticmethod
-    def imu_increments_ready(t0, t1):
-        return np.zeros(3), np.zeros(3)
-
-
 def _vibration() -> VibrationModel:
     return VibrationModel(FIELD["psd"], [4 * a for a in FIELD["axes"]], FS, np.random.default_rng(21))
 
 
 def _accel_mean(vre: float, n: int, look_ahead: bool = True) -> tuple[np.ndarray, np.ndarray]:
     vib = _vibration()
-    tap = ImuTruthTap(types.SimpleNamespace(**vars(_StillTrajectory)), vib)  # type: ignore[arg-type]
+    tap = ImuTruthTap(still_truth(), vib)  # type: ignore[arg-type]
     e = AccelErrors(bias_repeatability_mg=(0, 0, 0), bias_instability_mg=(0, 0, 0), noise_ug_rt_hz=0,
                     scale_factor_ppm=(0, 0, 0), scale_error_ppm=(0, 0, 0), misalignment_mrad=0,
                     vre_ug_per_g2=(vre, vre, vre))

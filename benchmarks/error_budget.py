@@ -70,7 +70,7 @@ def _expand(ov: dict[str, Any]) -> dict[str, Any]:
         elif v == "FIELD_ACCEL":
             out[k] = _field("accel")
         elif v == "FIELD_VIBRATION":
-            out[k] = _field("vibration")
+            out[k] = {**_field("vibration"), "enabled": True}  # the preset carries it switched off
         elif isinstance(v, dict) and v.get("vre_ug_per_g2") == "FIELD_VRE":
             out[k] = {**v, "vre_ug_per_g2": _field("accel")["vre_ug_per_g2"]}
     return out

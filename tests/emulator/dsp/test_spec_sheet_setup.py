@@ -20,8 +20,10 @@ def test_the_world_presets_do_not_reach_the_firmware():
     cfg = firmware_config(load_scenario(QUICKSTART))
     perfect = ["sensors.imu.preset=perfect", "sensors.gnss.preset=perfect"]
     cfg_perfect = firmware_config(load_scenario(QUICKSTART, perfect))
-    assert cfg.spec_sheet == "default" and cfg.gyro_bias_sigma_deg_h == cfg_perfect.gyro_bias_sigma_deg_h
-    assert cfg.gnss_pos_sigma_h_m == pytest.approx(10.0 / 2.448) == cfg_perfect.gnss_pos_sigma_h_m
+    # the quickstart names the bundled field sheet (its world runs the field presets)
+    field = spec_sheet_for(load_scenario(QUICKSTART))
+    assert cfg.spec_sheet == "field" and cfg.gyro_bias_sigma_deg_h == cfg_perfect.gyro_bias_sigma_deg_h
+    assert cfg.gnss_pos_sigma_h_m == pytest.approx(field.gnss.horizontal_95_m / 2.448) == cfg_perfect.gnss_pos_sigma_h_m
 
 
 def test_bundled_field_sheet():

@@ -20,6 +20,10 @@ from typing import Any
 
 from .errors import FirmwareError
 
+#: the IMX250MZR's nominal micro-polarizer channel angles (deg from image +x towards +y): the layout the camera's
+#: on-chip Stokes processing assumes and the calibration's measured angles deviate from
+NOMINAL_POLARIZER_DEG: tuple[float, float, float, float] = (0.0, 45.0, 90.0, 135.0)
+
 __all__ = ["Calibration", "CalibrationError", "CameraCalibration", "CompassCalibration", "MagnetometerCalibration",
            "load_calibration", "save_calibration"]
 
@@ -53,7 +57,7 @@ class CameraCalibration:
     k2: float = 0.0
     exit_pupil_m: float | None = None
     boresight_rotvec_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    polarizer_deg: tuple[float, float, float, float] = (0.0, 45.0, 90.0, 135.0)
+    polarizer_deg: tuple[float, float, float, float] = NOMINAL_POLARIZER_DEG
     extinction_ratio: float = 300.0
 
 
@@ -145,7 +149,7 @@ def _check(cal: Calibration) -> None:
     _vec("camera.boresight_rotvec_deg", c.boresight_rotvec_deg, 3, -180.0, 180.0)
     if not isinstance(c.polarizer_deg, tuple) or len(c.polarizer_deg) != 4:
         raise CalibrationError("camera.polarizer_deg: needs 4 numbers")
-    for i, nominal in enumerate((0.0, 45.0, 90.0, 135.0)):  # the camera's Stokes assume this layout
+    for i, nominal in enumerate(NOMINAL_POLARIZER_DEG):  # the camera's Stokes assume this layout
         _num(f"camera.polarizer_deg[{i}]", c.polarizer_deg[i], nominal - 10.0, nominal + 10.0)
     _num("camera.extinction_ratio", c.extinction_ratio, 1.0001, math.inf)
     for i, u in enumerate(cal.compass.unit_installation_deg):

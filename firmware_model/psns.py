@@ -26,11 +26,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
 from . import c674x
 from .arrays import FloatArray, FloatDtype
+from .calibration import NOMINAL_POLARIZER_DEG
 from .psns_geometry import CameraGeometry
 from .units import HALF_PI
 
@@ -96,9 +98,7 @@ def aop_from_psi(psi: FloatArray) -> FloatArray:
     return wrapped
 
 
-NOMINAL_POLARIZER_DEG = (0.0, 45.0, 90.0, 135.0)
-
-
+@lru_cache(maxsize=16)
 def polarizer_matrix(polarizer_deg: tuple[float, float, float, float]) -> tuple[FloatArray, FloatArray]:
     """``M`` (2, 2) and ``g`` (2,) of the camera's nominal Stokes processing behind polarizers at ``polarizer_deg``.
 
@@ -107,11 +107,14 @@ def polarizer_matrix(polarizer_deg: tuple[float, float, float, float]) -> tuple[
     forms ``S1 = I0 - I90``, ``S2 = I45 - I135``, ``S0 = (I0 + I45 + I90 + I135) / 2`` as if the angles were
     nominal, so ``(S1, S2) = A M v`` and ``S0 = A (2 + g . v / 2)`` with
     ``M = [[cos 2t0 - cos 2t90, sin 2t0 - sin 2t90], [cos 2t45 - cos 2t135, sin 2t45 - sin 2t135]]`` and
-    ``g = (sum cos 2 t_i, sum sin 2 t_i)``. Nominal angles: ``M = 2 I``, ``g = 0``."""
+    ``g = (sum cos 2 t_i, sum sin 2 t_i)``. Nominal angles: ``M = 2 I``, ``g = 0``. Cached per angle set (the
+    calibration's angles are fixed for a run: computed once, not per frame); the arrays are read-only."""
     t = np.radians(np.asarray(polarizer_deg, dtype=np.float64))
     a, b = np.cos(2.0 * t), np.sin(2.0 * t)
     m = np.array([[a[0] - a[2], b[0] - b[2]], [a[1] - a[3], b[1] - b[3]]])
-    return m, np.array([a.sum(), b.sum()])
+    g = np.array([a.sum(), b.sum()])
+    m.flags.writeable = g.flags.writeable = False
+    return m, g
 
 
 def _diattenuation(extinction_ratio: float | None) -> float:

@@ -30,7 +30,7 @@ import numpy as np
 
 from .arrays import FloatArray
 from .attitude import q2mat, rv2q
-from .calibration import CameraCalibration
+from .calibration import NOMINAL_POLARIZER_DEG, CameraCalibration
 from .units import DEG
 
 __all__ = [
@@ -87,7 +87,7 @@ class CameraGeometry:
     k1: float = 0.0
     k2: float = 0.0
     exit_pupil_m: float | None = None
-    polarizer_deg: tuple[float, float, float, float] = (0.0, 45.0, 90.0, 135.0)
+    polarizer_deg: tuple[float, float, float, float] = NOMINAL_POLARIZER_DEG
     extinction_ratio: float | None = None
 
     @property

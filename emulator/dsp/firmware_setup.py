@@ -12,6 +12,7 @@ from scipy.spatial.transform import Rotation
 from firmware_model import FirmwareConfig
 from firmware_model.attitude import a2mat, yaw_from_heading
 from firmware_model.calibration import (
+    NOMINAL_POLARIZER_DEG,
     Calibration,
     CalibrationError,
     CameraCalibration,
@@ -101,7 +102,7 @@ def _camera_calibration(scn: Scenario, seed: int) -> CameraCalibration:
         projection=cc.lens, nx=cc.nx, ny=cc.ny, pixel_m=cc.pixel_m, focal_m=cc.focal_m,
         cx_px=cc.lens_model.cx, cy_px=cc.lens_model.cy, k1=cc.k1, k2=cc.k2, exit_pupil_m=cc.exit_pupil_m,
         boresight_rotvec_deg=_rotvec_deg(cc.mounting_c_b),
-        polarizer_deg=tuple(th + b for th, b in zip((0.0, 45.0, 90.0, 135.0),  # type: ignore[arg-type]
+        polarizer_deg=tuple(th + b for th, b in zip(NOMINAL_POLARIZER_DEG,  # type: ignore[arg-type]
                                                      cc.defects.orientation_bias_deg, strict=True)),
         extinction_ratio=min(cc.extinction_ratio, 1e9))
     if spec.source == "perfect":

@@ -186,6 +186,7 @@ class Firmware(HostTask, GnssTask):
         self._last_gnss_update_t = -1e9
         self._last_psns_t = -1e9
         self._last_psns_reject_t = -1e9
+        self._solar_solves = []
         self._out_seq = 0
         self.deadline_misses = 0
         self._load_window = deque()
@@ -420,6 +421,9 @@ class Firmware(HostTask, GnssTask):
             self._host_task(t, res)
             m.end()
         res.cycles = m.end()
+        if self._solar_solves:  # the solves of this tick, for the host (contract C3)
+            res.solar_solves = self._solar_solves
+            self._solar_solves = []
         # worst tick of the last second (sliding maximum) and since start, for NAV_SOLUTION / STATUS
         while self._load_window and self._load_window[-1][1] <= res.cycles:
             self._load_window.pop()

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field, fields, is_dataclass
 from typing import Any, Protocol, runtime_checkable
 
 from .config import FILTER_VARIANTS, FirmwareConfig
-from .tasks.state import TickResult
+from .tasks.state import SolarSolve, TickResult
 from .variants.params import DualVectorParams, FederatedParams, KmeansParams, SunElevationParams
 
 __all__ = [
@@ -26,6 +26,8 @@ __all__ = [
     "FIRMWARE_IMPLEMENTATIONS",
     "FirmwareProtocol",
     "FirmwareSnapshot",
+    "SolarSolve",
+    "TickResult",
     "filter_params",
     "filter_params_model",
     "register_firmware",

@@ -34,7 +34,7 @@ from ..clock import EmulatorLoop, sleep_until
 from ..devices.fpga import VirtualFpga
 from ..devices.gnss import GnssReceiver
 from ..devices.imu import Stim210Gyro
-from ..devices.sensors import build_sensors
+from ..devices.sensors import build_sensors, build_sun
 from ..dsp.external import DirectionSwap, ExternalDsp, cut_dsp_uarts
 from ..dsp.firmware_setup import calibration_for
 from ..dsp.host import UartRxConfig, VirtualDsp
@@ -134,7 +134,7 @@ class Emulator:
         self.loop = loop
         scn = self.scn
         traj = self.trajectory = build_trajectory(scn)
-        rec = self.recorder = Recorder(self.run_dir, traj)
+        rec = self.recorder = Recorder(self.run_dir, traj, sun=build_sun(scn))
         hub = MemHub()
         port_dir = self.run_dir / "ports"
         ext: dict[str, Link] = {}
@@ -185,6 +185,8 @@ class Emulator:
             # an external receiver's PPS on a modem line (serial:// ?pps=dcd|cts): latched like the modelled one's
             gnss_port.on_pps = self._pps  # type: ignore[attr-defined]
         self.dsp = self.build_dsp(uart_dsp, rx_cfg, rec)
+        if isinstance(self.dsp, VirtualDsp):  # the solar vectors it solves against truth (psns.csv)
+            self.dsp.solar_listeners.append(rec.on_solar_solves)
         if scn.faults and self.replay is None:  # bound now: a fault on a missing device fails before the run
             self.faults = FaultScheduler(self.fault_targets(), scn.faults, self.seed, rec)
         # recorder taps
@@ -441,6 +443,7 @@ class Emulator:
             "devices": self.sensors.counters() if self.sensors is not None else {},
             "ports": [dict(p) for p in self.ports],
             "events": dict(rec.event_counts),
+            "psns": rec.psns_summary(),
         }
 
 

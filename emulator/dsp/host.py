@@ -42,7 +42,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from firmware_model import UART_IMU
-from firmware_model.registry import FirmwareProtocol
+from firmware_model.registry import FirmwareProtocol, SolarSolve
 
 from ..devices.base import EventSink, NullEvents
 from ..links.base import Link
@@ -226,6 +226,8 @@ class VirtualDsp:
         self._scheduled = False
         self._arrival = 0.0
         self.busy_per_second: dict[int, float] = {}
+        #: called with the solar vectors each tick solved (``TickResult.solar_solves``; the recorder's psns.csv)
+        self.solar_listeners: list[Callable[[list[SolarSolve]], None]] = []
         rx = rx or {}
         self.rx: dict[int, UartRxModel] = {}
         for n, link in uarts.items():
@@ -306,6 +308,9 @@ class VirtualDsp:
                 ev = dict(ev)
                 kind = ev.pop("event")
                 self.events.emit(start, "firmware", kind, **ev)
+            if r.solar_solves:
+                for cb in self.solar_listeners:
+                    cb(r.solar_solves)
             for uart, data, cyc in r.outputs:
                 link = self.uarts.get(uart)
                 if link is not None:  # the firmware's driver is the UART's only writer, in time order

@@ -15,6 +15,9 @@ second, so an interrupted run keeps everything up to the interruption):
     with the error against truth at its time of validity (:mod:`emulator.recording.nav_error`).
 ``truth.csv``
     Truth at the same times.
+``psns.csv``
+    Every solar vector the firmware solved, against the world's sun in the body frame at its exposure time
+    (:mod:`emulator.recording.psns_error`); only in a run with a polarization sensor.
 ``timeline.csv``
     One row per simulated second: cumulative link counters (frames, CRC errors, dropped bytes,
     garbage bytes, framing errors per link), the DSP's CPU load in that second and its deadline
@@ -47,15 +50,18 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
+from firmware_model.registry import SolarSolve
 from protocols.host import NavSolution
 from protocols.stream import FrameFormat, StreamDecoder
 
 from ..links.base import Link
+from ..world.sun import SunModel
 from ..world.trajectory import Trajectory
 from .capture import CaptureWriter
 from .counting import counting_decoder
 from .formatting import csv_row_fast, json_default, strict_json
 from .nav_error import ErrorStats, NavVsTruth
+from .psns_error import SolarVsTruth
 from .rundir import open_no_follow
 
 __all__ = ["Recorder"]
@@ -82,10 +88,11 @@ class Recorder:
     ----------
     run_dir : output directory (created).
     trajectory : truth for the error evaluation.
+    sun : the world's sun (the truth of the firmware's solar vectors; None: they are not compared).
     """
 
     def __init__(self, run_dir: Path, trajectory: Trajectory, flush_interval_s: float = 1.0,
-                 nav_port: str = "host") -> None:
+                 nav_port: str = "host", sun: SunModel | None = None) -> None:
         self.run_dir = Path(run_dir)
         self.run_dir.mkdir(parents=True, exist_ok=True)
         self.traj = trajectory
@@ -97,6 +104,9 @@ class Recorder:
         self._nav_f: IO[str] = open_no_follow(self.run_dir / "nav.csv", newline="")
         self._truth_f: IO[str] = open_no_follow(self.run_dir / "truth.csv", newline="")
         self._compare = NavVsTruth(trajectory)
+        #: the firmware's solar vectors against truth (psns.csv), None without a sun model
+        self.solar = SolarVsTruth(trajectory, sun) if sun is not None else None
+        self._psns_f: IO[str] | None = None
         #: navigation frames (arrival time, frame) whose truth comparison is still to be done
         self._nav_pending: list[tuple[float, NavSolution]] = []
         self._drain_soon = False
@@ -192,6 +202,19 @@ class Recorder:
             for line in f:
                 if line.strip():
                     yield json.loads(line)
+
+    def on_solar_solves(self, solves: list[SolarSolve]) -> None:
+        """The firmware solved solar vectors (``VirtualDsp.solar_listeners``); compared with truth in batches."""
+        if self.solar is not None:
+            self.solar.add(solves)
+
+    def psns_summary(self) -> dict[str, Any] | None:
+        """The summary's ``psns`` section (solar-vector error against truth), None when nothing was solved."""
+        return self.solar.summary() if self.solar is not None else None
+
+    def solar_error_window(self, after_s: float, until_s: float | None) -> list[float]:
+        """The solar-vector errors (deg) of the solves exposed in [``after_s``, ``until_s``]."""
+        return self.solar.window(after_s, until_s) if self.solar is not None else []
 
     # -- navigation output against truth (batched) ------------------------------------------------
     #: frames compared with truth in one batch (the trajectory is evaluated vectorised, ~1 us per frame
@@ -308,6 +331,14 @@ class Recorder:
             if rows and not f.closed:
                 f.write("".join(rows))
                 rows.clear()
+        sol = self.solar
+        if sol is not None:
+            sol.drain()
+            if sol.rows and not self._events.closed:
+                if self._psns_f is None:
+                    self._psns_f = open_no_follow(self.run_dir / "psns.csv", newline="")
+                self._psns_f.write("".join(sol.rows))
+                sol.rows.clear()
         if self._cap is not None:
             self._cap.flush()
         for f in self._text_files():
@@ -330,7 +361,8 @@ class Recorder:
                 f.close()
 
     def _text_files(self) -> list[IO[str]]:
-        return [self._events, self._nav_f, self._truth_f, *(t[0] for t in self._tables.values())]
+        files = [self._events, self._nav_f, self._truth_f, *(t[0] for t in self._tables.values())]
+        return files if self._psns_f is None else [*files, self._psns_f]
 
 
 class _TapListener:

@@ -18,7 +18,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from ..errors import RecordingError
 
-__all__ = ["ErrorStat", "ExpectationRecord", "LinkCounters", "RunSummary", "load_summary", "summary_json_schema"]
+__all__ = ["ErrorStat", "ExpectationRecord", "LinkCounters", "PsnsSection", "RunSummary", "load_summary",
+           "summary_json_schema"]
 
 
 class _Open(BaseModel):
@@ -84,6 +85,23 @@ class FaultRecord(_Open):
     evidence: dict[str, Any] = Field(default_factory=dict)
 
 
+class SolarVectorError(_Open):
+    median: float | None = Field(None, description="median angle between the solved and the true solar vector, deg")
+    p95: float | None = Field(None, description="95th percentile (linear interpolation), deg")
+    max: float | None = Field(None, description="largest, deg")
+
+
+class PsnsSection(_Open):
+    """The firmware's solved solar vectors against truth (``psns.csv``; emulator/recording/psns_error.py)."""
+
+    solves: int = Field(0, description="solar vectors the firmware solved (one row each in psns.csv)")
+    uses: dict[str, int] = Field(default_factory=dict, description="solves by what the loop did with them: "
+                                 "accepted, refused (the filter's gate), alignment, sun_low, stale, no_utc, disabled")
+    solar_vector_error_deg: SolarVectorError = Field(
+        default_factory=SolarVectorError, description="angle between the solved bi-direction solar vector and the "
+                                                      "world's sun in the body frame at the exposure time, deg")
+
+
 class ExpectationRecord(_Open):
     index: int
     kind: str
@@ -139,6 +157,8 @@ class RunSummary(_Open):
     devices: dict[str, Any] = Field(default_factory=dict)
     ports: list[dict[str, Any]] = Field(default_factory=list)
     events: dict[str, int] = Field(default_factory=dict, description="event counts by name")
+    psns: PsnsSection | None = Field(None, description="the solved solar vectors against truth (null: the firmware "
+                                                       "solved none, or the run has no polarization sensor)")
     faults: list[FaultRecord] = Field(default_factory=list)
     valid: bool = Field(True, description="false when a scheduled fault never took effect")
     expectations: list[ExpectationRecord] = Field(default_factory=list)

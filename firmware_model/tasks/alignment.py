@@ -77,6 +77,8 @@ class AlignmentTask(PsnsTask):
             self.meter.begin("psns_update", 0.0)
             obs = self._psns_observation(t_rx, f)
             self.meter.end()
+            if obs is not None:
+                self._solar_solves[-1].use = "alignment"
             if obs is not None and self._align_t0 is not None and obs.t_exposure_s >= self._align_t0 - 1.0:
                 self._align_sun.append(obs)
                 del self._align_sun[:-32]

@@ -18,6 +18,7 @@ from ..attitude import q2mat_fast
 from ..filters import SolarObservation, UpdateReport
 from ..units import DEG
 from .navigation import Navigation
+from .state import SolarSolve
 
 __all__ = ["PsnsTask", "psns_frame_len"]
 
@@ -90,6 +91,8 @@ class PsnsTask(Navigation):
         self.counters["psns_solutions"] += 1
         s_b = (cam.c_c_b.astype(dt) @ s_c).astype(dt)
         m.charge("psns_mounting", self._cyc["mounting"])
+        self._solar_solves.append(SolarSolve(t_exp, (float(s_b[0]), float(s_b[1]), float(s_b[2])), int(n_used),
+                                             float(quality), source))
         return SolarObservation(t_exp, s_b, quality, n_used, source)
 
     def _psns_update(self, t: float, t_rx: float, f: Any) -> UpdateReport | None:
@@ -106,17 +109,26 @@ class PsnsTask(Navigation):
                 return None
             return self.filter.update_polarization_obs(nav, f, t_exp)
         obs = self._psns_observation(t_rx, f)
-        if obs is None or not cfg.psns_enabled:
+        if obs is None:
+            return None
+        solve = self._solar_solves[-1]  # the record of this solve (TickResult.solar_solves)
+        if not cfg.psns_enabled:
+            solve.use = "disabled"
             return None
         if t - obs.t_exposure_s > cfg.psns_max_age_s:
+            solve.use = "stale"
             return None
         days = self.utc_days(obs.t_exposure_s)
         if days is None:
+            solve.use = "no_utc"
             return None
         p_ins, _, q_exp = self._ins_at(obs.t_exposure_s)
         s_n = sun.sun_vector_enu(days, float(p_ins[0]), float(p_ins[1]), dtype=self.dtype)
         self.meter.charge("sun_ephemeris", sun.ephemeris_cycles())
         if float(s_n[2]) < math.sin(cfg.psns_min_sun_elevation_deg * DEG):
             self.counters["psns_sun_low"] += 1  # night or twilight: not an error, no update
+            solve.use = "sun_low"
             return None
-        return self.filter.update_solar(nav, obs, s_n, q2mat_fast(q_exp))
+        rep = self.filter.update_solar(nav, obs, s_n, q2mat_fast(q_exp))
+        solve.use = "accepted" if rep.accepted else "refused"
+        return rep

@@ -23,7 +23,7 @@ from ..config import FirmwareConfig
 from ..filters import GnssMeasurement, NavFilter, SolarObservation
 from ..nav_state import NavFloats, NavState
 
-__all__ = ["FirmwareState", "LoopState", "TickResult"]
+__all__ = ["FirmwareState", "LoopState", "SolarSolve", "TickResult"]
 
 
 class FirmwareState:
@@ -35,16 +35,40 @@ class FirmwareState:
 
 
 @dataclass
+class SolarSolve:
+    """One solar vector the firmware solved from a PSNS frame (what the recorder compares with truth).
+
+    ``t_exposure_s``: the frame's mid-exposure time (s, FPGA time base, docs/architecture.md "Conventions");
+    ``s_b``: the unit bi-direction solar vector ``+-S^b`` in the body frame (x right, y forward, z up), as solved
+    (base paper Eqs. 9-14, the sign is the filter's choice, Eq. 38); ``n_used``: observation points that entered
+    ``K``; ``quality``: ``lambda_1 / lambda_2`` of ``K``; ``source``: ``camera`` (solved here) or ``sensor``
+    (an on-sensor solve); ``use``: what the loop did with it -- ``accepted`` / ``refused`` by the filter's
+    update (its innovation gate), ``alignment`` (coarse alignment), or why no update was tried: ``sun_low``,
+    ``stale``, ``no_utc``, ``disabled``.
+    """
+
+    t_exposure_s: float
+    s_b: tuple[float, float, float]
+    n_used: int
+    quality: float
+    source: str
+    use: str = "solved"
+
+
+@dataclass
 class TickResult:
     """What one run of the cyclic executive produced.
 
-    ``cycles`` is the total charged; each output is ``(uart, bytes, cycles_at_emit)``.
+    ``cycles`` is the total charged; each output is ``(uart, bytes, cycles_at_emit)``. ``solar_solves``: the
+    solar vectors solved in this tick (:class:`SolarSolve`; optional in the interface: a firmware without a
+    solve leaves it empty).
     """
 
     t_fpga_s: float
     cycles: int
     outputs: list[tuple[int, bytes, int]] = field(default_factory=list)
     events: list[dict[str, Any]] = field(default_factory=list)
+    solar_solves: list[SolarSolve] = field(default_factory=list)
 
 
 class LoopState:
@@ -123,6 +147,7 @@ class LoopState:
     _gnss_gated: bool  # the innovation gate refused rows of the last GNSS fix
     _last_psns_t: float
     _last_psns_reject_t: float
+    _solar_solves: list[SolarSolve]  # solved in the current tick (TickResult.solar_solves)
     # output and status
     _out_seq: int
     _load_window: deque[tuple[float, int]]

@@ -1,13 +1,23 @@
-"""Error budget of a scenario: heading and position error with each error source alone, all of them, and none.
+"""Error budget of a scenario: solar-vector and heading error (and position, where the scenario has the windows)
+with each error source alone, all of them, and none.
 
-    python benchmarks/error_budget.py [scenario.yaml] [--seeds 21 22 23] [--configs ideal field ...] [--markdown]
+    python benchmarks/error_budget.py [scenario.yaml] [--seeds 21 22 23] [--configs ideal field ...]
+                                      [--after-s 15] [--jobs 2] [--expectations]
 
-Each configuration starts from ``sensors.preset: ideal`` on a clear Rayleigh sky and switches on one source
-(``field`` and ``ideal`` are the whole suites on the realistic / clear sky). For every configuration and seed the
-scenario runs in fast mode; the table gives, over seeds, the mean of: the maximum heading error after alignment
-(``after_s``), the RMS position error while GNSS is available and the maximum position error in the GNSS outage
-window (taken from the scenario's own ``nav_error`` expectations), and each expectation's measured value, so the
-numbers that scenario expectations are derived from are printed too (docs/sensors.md, "Error budget").
+Every row names every sensor's preset itself (``sensors.preset`` and ``sensors.imu.preset``,
+``sensors.gnss.preset``, ``sensors.camera.preset``: a scenario that names a sensor's own preset would otherwise
+keep it) and the firmware's calibration source. ``ideal`` is the perfect IMU and GNSS, the ideal camera (no noise,
+ideal polarizers, the scenario's optics), a perfect calibration and the clear Rayleigh sky; each single-source row
+switches one thing of ``ideal`` on; ``paper`` and ``field`` are the whole suites (clear sky / realistic sky, the
+calibration as a calibrated unit: truth plus residuals). The scenario's other settings (camera fidelity, grid,
+firmware) stay.
+
+Columns, over the seeds: the solar-vector error after alignment (``--after-s``; the firmware's solved vector
+against the world's sun in the body frame, ``psns.csv``), median and 95th percentile of all seeds' solves
+together; the heading error after alignment, RMS and maximum (mean over seeds, range in brackets); and, when the
+run covers them, the maximum position error in the GNSS outage window (``--outage``) and the RMS position error
+while GNSS is back (``--aided``). ``--expectations`` prints each scenario expectation's measured values.
+docs/sensors.md, "Error budget", has the tables of the library scenarios.
 """
 
 from __future__ import annotations
@@ -15,8 +25,10 @@ from __future__ import annotations
 import argparse
 import csv
 import math
+import statistics
 import sys
 import tempfile
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -27,32 +39,37 @@ from emulator.assembly.runner import run_scenario  # noqa: E402
 from emulator.testing import load_test_scenario  # noqa: E402
 
 CLEAR = {"sky.model": "rayleigh"}
-#: the scenario's camera with the ideal camera preset (the scenario names its own preset, which would win)
-IDEAL_CAMERA = {"sensors.camera.preset": "ideal"}
+REALISTIC = {"sky.model": "realistic"}
+
+
+def suite(name: str, camera: str | None = None, calibration: str = "residuals") -> dict[str, Any]:
+    """Every sensor on the suite preset ``name`` (``ideal``, ``paper``, ``field``), named per sensor so that a
+    scenario's own per-sensor preset does not win; the firmware's calibration source."""
+    imu, gnss, cam = {"ideal": ("perfect", "perfect", "ideal"), "paper": ("paper", "paper", "reference"),
+                      "field": ("field", "field", "reference")}[name]
+    return {"sensors.preset": name, "sensors.imu.preset": imu, "sensors.gnss.preset": gnss,
+            "sensors.camera.preset": camera or cam, "firmware.calibration.source": calibration}
+
+
+IDEAL = {**suite("ideal", calibration="perfect"), **CLEAR}
 #: configuration -> overrides (dotted paths) on top of the scenario
 CONFIGS: dict[str, dict[str, Any]] = {
-    "ideal": {"sensors.preset": "ideal", **CLEAR, **IDEAL_CAMERA},
-    "sky (realistic, T=3)": {"sensors.preset": "ideal", "sky.model": "realistic", **IDEAL_CAMERA},
-    "gyro (STIM210 field)": {"sensors.preset": "ideal", **CLEAR, **IDEAL_CAMERA, "sensors.imu.gyro": "FIELD_GYRO"},
-    "accelerometers (MS1030)": {"sensors.preset": "ideal", **CLEAR, **IDEAL_CAMERA,
-                                "sensors.imu.accel": "FIELD_ACCEL"},
-    "accelerometers (MS1030) + realistic sky": {"sensors.preset": "ideal", "sky.model": "realistic", **IDEAL_CAMERA,
-                                                "sensors.imu.accel": "FIELD_ACCEL"},
-    "gyro filter delay (262 Hz)": {"sensors.preset": "ideal", **CLEAR, **IDEAL_CAMERA,
-                                   "sensors.imu.lp_filter_hz": 262},
-    "IMU warm-up (12 degC, 10 min)": {"sensors.preset": "ideal", **CLEAR, **IDEAL_CAMERA,
-                                      "sensors.imu.temperature": {"warmup_c": 12.0, "warmup_tau_s": 600.0},
+    "ideal": IDEAL,
+    "sky (realistic, T=3)": {**IDEAL, **REALISTIC},
+    "gyro (STIM210 field)": {**IDEAL, "sensors.imu.gyro": "FIELD_GYRO"},
+    "accelerometers (MS1030)": {**IDEAL, "sensors.imu.accel": "FIELD_ACCEL"},
+    "gyro filter delay (262 Hz)": {**IDEAL, "sensors.imu.lp_filter_hz": 262},
+    "IMU warm-up (12 degC, 10 min)": {**IDEAL, "sensors.imu.temperature": {"warmup_c": 12.0, "warmup_tau_s": 600.0},
                                       "sensors.imu.gyro": {"bias_temp_gradient_deg_h": 10.0}},
-    "vibration (field profile)": {"sensors.preset": "ideal", **CLEAR, **IDEAL_CAMERA,
-                                  "sensors.imu.vibration": "FIELD_VIBRATION",
+    "vibration (field profile)": {**IDEAL, "sensors.imu.vibration": "FIELD_VIBRATION",
                                   "sensors.imu.accel": {"vre_ug_per_g2": "FIELD_VRE"},
                                   "sensors.imu.gyro": {"g_sensitivity_deg_h_per_g": 10.0}},
-    "GNSS (field)": {"sensors.preset": "ideal", **CLEAR, **IDEAL_CAMERA, "sensors.gnss.preset": "field"},
-    "camera (reference noise; ideal optics in the rest)": {"sensors.preset": "ideal", **CLEAR,
-                                                           "sensors.camera.preset": "reference"},
-    "paper": {"sensors.preset": "paper", **CLEAR},
-    "field, clear sky": {"sensors.preset": "field", **CLEAR},
-    "field": {"sensors.preset": "field", "sky.model": "realistic"},
+    "GNSS (field)": {**IDEAL, "sensors.gnss.preset": "field"},
+    "camera (reference: noise, polarizers, lens)": {**IDEAL, "sensors.camera.preset": "reference"},
+    "camera calibration residuals": {**IDEAL, "firmware.calibration.source": "residuals"},
+    "paper": {**suite("paper"), **CLEAR},
+    "field, clear sky": {**suite("field"), **CLEAR},
+    "field": {**suite("field"), **REALISTIC},
 }
 
 
@@ -77,53 +94,111 @@ def _expand(ov: dict[str, Any]) -> dict[str, Any]:
 
 
 def run_one(path: Path, overrides: dict[str, Any], seed: int) -> dict[str, Any]:
+    """One fast-mode run: its summary, the navigating rows of nav.csv and the rows of psns.csv."""
     scn = load_test_scenario(path, {**_expand(overrides), "seed": seed})
     with tempfile.TemporaryDirectory() as tmp:
-        summary = run_scenario(scn, Path(tmp) / "run", mode="fast")
-        with open(Path(tmp) / "run" / "nav.csv", newline="") as f:
+        run = Path(tmp) / "run"
+        summary = run_scenario(scn, run, mode="fast")
+        with open(run / "nav.csv", newline="") as f:
             nav = [r for r in csv.DictReader(f) if r["err_heading_deg"]]
-    return {"summary": summary, "nav": nav}
+        psns: list[dict[str, str]] = []
+        if (run / "psns.csv").exists():
+            with open(run / "psns.csv", newline="") as f:
+                psns = list(csv.DictReader(f))
+    return {"summary": summary, "nav": nav, "psns": psns}
+
+
+def _job(args: tuple[str, str, int]) -> tuple[str, int, dict[str, Any]]:
+    path, name, seed = args
+    return name, seed, run_one(Path(path), CONFIGS[name], seed)
 
 
 def _window(nav: list[dict[str, str]], col: str, lo: float, hi: float) -> list[float]:
     return [abs(float(r[col])) for r in nav if lo <= float(r["time_s"]) <= hi and r[col]]
 
 
+def percentile(xs: list[float], q: float) -> float:
+    """The ``q``-th percentile with linear interpolation between order statistics (numpy's default)."""
+    s = sorted(xs)
+    k = (len(s) - 1) * q / 100.0
+    lo = math.floor(k)
+    hi = min(lo + 1, len(s) - 1)
+    return s[lo] + (s[hi] - s[lo]) * (k - lo)
+
+
+def row(name: str, runs: list[dict[str, Any]], after_s: float, outage: tuple[float, float],
+        aided: tuple[float, float]) -> dict[str, Any]:
+    """The table's numbers of one configuration over its runs (see module docstring)."""
+    sv = [float(r["err_deg"]) for run in runs for r in run["psns"] if float(r["time_s"]) >= after_s]
+    hmax, hrms, pmax, prms = [], [], [], []
+    for run in runs:
+        h = _window(run["nav"], "err_heading_deg", after_s, math.inf)
+        hmax.append(max(h))
+        hrms.append(math.sqrt(sum(x * x for x in h) / len(h)))
+        po = _window(run["nav"], "err_pos_m", *outage)
+        if po:
+            pmax.append(max(po))
+        pa = _window(run["nav"], "err_pos_m", *aided)
+        if pa:
+            prms.append(math.sqrt(sum(x * x for x in pa) / len(pa)))
+    return {"name": name, "solves": len(sv), "sv_median": statistics.median(sv) if sv else None,
+            "sv_p95": percentile(sv, 95.0) if sv else None, "hrms": hrms, "hmax": hmax, "pmax": pmax, "prms": prms}
+
+
+def _m(xs: list[float]) -> str:
+    if not xs:
+        return "-"
+    return f"{sum(xs) / len(xs):.3g} ({min(xs):.3g}-{max(xs):.3g})"
+
+
+def _g(x: float | None) -> str:
+    return "-" if x is None else f"{x:.3g}"
+
+
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     ap.add_argument("scenario", nargs="?", default=str(ROOT / "scenarios" / "vehicle_loop_gnss_outage.yaml"))
     ap.add_argument("--seeds", type=int, nargs="+", default=[21, 22, 23])
-    ap.add_argument("--configs", nargs="+", default=list(CONFIGS))
-    ap.add_argument("--after-s", type=float, default=15.0, help="heading statistics after this time (alignment)")
+    ap.add_argument("--configs", nargs="+", default=list(CONFIGS), choices=list(CONFIGS), metavar="CONFIG")
+    ap.add_argument("--after-s", type=float, default=15.0, help="statistics after this time (alignment), s")
     ap.add_argument("--outage", type=float, nargs=2, default=[55.0, 86.0], help="GNSS outage window, s")
     ap.add_argument("--aided", type=float, nargs=2, default=[100.0, 150.0], help="GNSS-aided window, s")
+    ap.add_argument("--jobs", type=int, default=1, help="runs in parallel (processes)")
     ap.add_argument("--expectations", action="store_true", help="print every expectation's measured values")
     a = ap.parse_args(argv)
     path = Path(a.scenario)
-    print(f"| sources ({path.stem}, seeds {' '.join(map(str, a.seeds))}) | heading max (deg) | heading rms (deg) "
-          f"| position max in outage (m) | position rms aided (m) |")
-    print("|---|---|---|---|---|")
-    for name in a.configs:
-        hmax, hrms, pmax, prms = [], [], [], []
-        exp: dict[int, list[Any]] = {}
-        for seed in a.seeds:
-            r = run_one(path, CONFIGS[name], seed)
-            h = _window(r["nav"], "err_heading_deg", a.after_s, math.inf)
-            hmax.append(max(h))
-            hrms.append(math.sqrt(sum(x * x for x in h) / len(h)))
-            pmax.append(max(_window(r["nav"], "err_pos_m", *a.outage)))
-            p = _window(r["nav"], "err_pos_m", *a.aided)
-            prms.append(math.sqrt(sum(x * x for x in p) / len(p)))
-            for e in r["summary"]["expectations"]:
-                exp.setdefault(e["index"], [e["description"]]).append(e["value"])
+    todo = [(str(path), name, seed) for name in a.configs for seed in a.seeds]
+    results: dict[str, list[dict[str, Any]]] = {name: [] for name in a.configs}
+    print(f"| sources ({path.stem}, seeds {' '.join(map(str, a.seeds))}) | solar vector median (deg) "
+          f"| solar vector p95 (deg) | heading rms (deg) | heading max (deg) | position max in outage (m) "
+          f"| position rms aided (m) |")
+    print("|---|---|---|---|---|---|---|", flush=True)
 
-        def m(xs: list[float]) -> str:
-            return f"{sum(xs) / len(xs):.3g} ({min(xs):.3g}-{max(xs):.3g})"
-
-        print(f"| {name} | {m(hmax)} | {m(hrms)} | {m(pmax)} | {m(prms)} |", flush=True)
+    def emit(name: str) -> None:
+        runs = results[name]
+        r = row(name, runs, a.after_s, tuple(a.outage), tuple(a.aided))  # type: ignore[arg-type]
+        print(f"| {name} | {_g(r['sv_median'])} | {_g(r['sv_p95'])} | {_m(r['hrms'])} | {_m(r['hmax'])} "
+              f"| {_m(r['pmax'])} | {_m(r['prms'])} |", flush=True)
         if a.expectations:
+            exp: dict[int, list[Any]] = {}
+            for run in runs:
+                for e in run["summary"]["expectations"]:
+                    exp.setdefault(e["index"], [e["description"]]).append(e["value"])
             for _i, (desc, *vals) in sorted(exp.items()):
                 print(f"    {desc}: {vals}", flush=True)
+
+    if a.jobs > 1:
+        with ProcessPoolExecutor(a.jobs) as ex:
+            for name, _seed, res in ex.map(_job, todo):
+                results[name].append(res)
+                if len(results[name]) == len(a.seeds):
+                    emit(name)
+    else:
+        for job in todo:
+            name, _seed, res = _job(job)
+            results[name].append(res)
+            if len(results[name]) == len(a.seeds):
+                emit(name)
     return 0
 
 

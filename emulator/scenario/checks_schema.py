@@ -39,6 +39,7 @@ from .expectations_schema import (
     LinkCounterBound,
     NavErrorBound,
     NavModeExpectation,
+    PsnsErrorBound,
     PythonHook,
     SummaryValueBound,
     TimeWindow,
@@ -78,6 +79,6 @@ __all__ = [
     "ImuBiasStepFault", "ImuDroppedDatagramsFault", "ImuSaturationFault", "ImuStuckAxisFault",
     "LinkBaudMismatchFault", "LinkBitErrorsFault", "LinkByteDropsFault", "LinkCounterBound", "LinkDisconnectFault",
     "LinkNoiseBurstFault", "LinkStallFault", "NavErrorBound", "NavModeExpectation", "PsnsCloudCoverFault",
-    "PsnsInstallationErrorFault", "PsnsSunOccludedFault", "PsnsUnitBlockedFault", "PythonHook",
+    "PsnsErrorBound", "PsnsInstallationErrorFault", "PsnsSunOccludedFault", "PsnsUnitBlockedFault", "PythonHook",
     "SummaryValueBound", "TimeWindow", "check_hook_path", "load_hook",
 ]

@@ -85,6 +85,9 @@ def cross_check(scn: Scenario, environment: bool = True) -> list[tuple[tuple[Any
         loc = ("expectations", i, kind)
         if kind == "link" and body.name not in links:
             issues.append(((*loc, "name"), _unknown_link(body.name, links)))
+        if kind == "psns" and not has_camera:
+            issues.append((loc, "a psns expectation measures the solar vectors the firmware solves from the "
+                                "polarization camera; the scenario has no camera (sensors.camera with links.psns)"))
         if kind == "python":
             try:
                 check_hook_path(scn.base_dir, body.file)  # confined and present; never imported here

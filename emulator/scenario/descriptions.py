@@ -238,6 +238,12 @@ DESCRIPTIONS: dict[str, str] = {
     "NavErrorBound.max": "the bound the statistic must not exceed",
     "NavErrorBound.after_s": "window start, s",
     "NavErrorBound.until_s": "window end, s (default: the end of the run)",
+    "PsnsErrorBound.metric": "which error: solar_vector_deg, the angle between the firmware's solved solar vector "
+                             "and the world's sun in the body frame (psns.csv), deg",
+    "PsnsErrorBound.stat": "median, p95 (95th percentile) or max over the solves exposed in the window",
+    "PsnsErrorBound.max": "the bound the statistic must not exceed, deg",
+    "PsnsErrorBound.after_s": "window start (exposure time), s",
+    "PsnsErrorBound.until_s": "window end (exposure time), s (default: the end of the run)",
     "NavModeExpectation.flag": "the mode flag counted",
     "NavModeExpectation.min_fraction": "fewest fraction of frames in the window with the flag",
     "NavModeExpectation.max_fraction": "largest fraction of frames in the window with the flag",

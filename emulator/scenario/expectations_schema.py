@@ -25,6 +25,7 @@ __all__ = [
     "LinkCounterBound",
     "NavErrorBound",
     "NavModeExpectation",
+    "PsnsErrorBound",
     "PythonHook",
     "SummaryValueBound",
     "TimeWindow",
@@ -71,6 +72,16 @@ class NavErrorBound(TimeWindow):
 
     metric: Literal["attitude_deg", "heading_deg", "position_m", "velocity_mps"]
     stat: Literal["rms", "max"] = "max"
+    max: float = Field(ge=0)
+
+
+class PsnsErrorBound(TimeWindow):
+    """A statistic of the firmware's solar-vector error against truth (``psns.csv``: the angle between each solved
+    bi-direction solar vector and the world's sun in the body frame) over the solves exposed inside a window, at
+    most ``max``; needs a polarization camera."""
+
+    metric: Literal["solar_vector_deg"] = "solar_vector_deg"
+    stat: Literal["median", "p95", "max"] = "p95"
     max: float = Field(ge=0)
 
 
@@ -186,6 +197,7 @@ class Expectation(OneKindModel):
     link: LinkCounterBound | None = None
     dsp: DspBound | None = None
     nav_mode: NavModeExpectation | None = None
+    psns: PsnsErrorBound | None = None
     summary: SummaryValueBound | None = None
     python: PythonHook | None = None
     consistency: ConsistencyExpectation | None = None

@@ -36,6 +36,7 @@ from .checks_schema import (
     LinkCounterBound,
     NavErrorBound,
     NavModeExpectation,
+    PsnsErrorBound,
     PythonHook,
     SummaryValueBound,
 )
@@ -66,6 +67,7 @@ __all__ = [
     "NavErrorBound",
     "NavModeExpectation",
     "Origin",
+    "PsnsErrorBound",
     "PythonHook",
     "Scenario",
     "Sensors",

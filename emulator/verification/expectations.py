@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ..recording.psns_error import solar_error_stats
 from ..scenario.checks_schema import NAV_MODE_FLAGS, EventExpectation, FieldRange, HookError, load_hook
 from ..scenario.schema import Expectation
 
@@ -144,6 +145,15 @@ def evaluate_expectations(expectations: list[Expectation], recorder: Any, summar
             desc = f"{b.stat} {b.metric} <= {b.max:g} for {b.describe_window()}"
             msg = "" if v is not None else empty(b)
             out.append(ExpectationResult(i, kind, desc, v, v is not None and abs(v) <= b.max, msg))
+        elif kind == "psns":
+            pb = e.psns
+            assert pb is not None
+            errs = recorder.solar_error_window(pb.after_s, pb.until_s)
+            v = solar_error_stats(errs)[pb.stat] if errs else None
+            desc = f"{pb.stat} {pb.metric} <= {pb.max:g} for solves exposed at {pb.describe_window()}"
+            msg = f"{len(errs)} solves" if errs else (
+                empty(pb) if pb.after_s >= t_end else "no solar vector solved in the window")
+            out.append(ExpectationResult(i, kind, desc, v, v is not None and v <= pb.max, msg))
         elif kind == "event":
             ev = e.event
             assert ev is not None

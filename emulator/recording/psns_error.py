@@ -10,7 +10,8 @@ ENU at the trajectory's position (:class:`emulator.world.sun.SunModel`; the same
 model are drawn from). The solve is bi-directional (``+-S``, base paper Eqs. 9-14; the filter picks the sign,
 Eq. 38), so its error is the angle between the two lines:
 
-    ``err = acos(|s_b . S^b_true|)``  (deg, in [0, 90]).
+    ``err = atan2(|s_b x S^b_true|, |s_b . S^b_true|)``  (deg, in [0, 90]; the acos of the normalised
+    ``|s_b . S^b_true|`` without its loss of precision near 0).
 
 It does not depend on the navigation state: it measures the camera, the sky, the solve and the calibration
 (mounting) alone. The comparison runs in batches (at every flush and when the summary is read), so the
@@ -89,12 +90,10 @@ class SolarVsTruth:
             lat, lon, h = (float(x) for x in st.pos)
             tb = st.c_bn.T @ self.sun.sun_enu(s.t_exposure_s, lat, lon, h)
             sb = np.array(s.s_b, dtype=np.float64)
-            nrm = float(np.linalg.norm(sb))
-            if nrm > 0.0 and math.isfinite(nrm):
-                c = abs(float(sb @ tb)) / nrm
-                err = math.degrees(math.acos(min(1.0, c)))
-            else:
-                err = math.nan
+            cr = np.cross(sb, tb)
+            # atan2(|a x b|, |a . b|): exact near 0 (acos loses half the digits there); NaN for a zero vector
+            err = math.degrees(math.atan2(math.sqrt(float(cr @ cr)), abs(float(sb @ tb)))) \
+                if np.isfinite(sb).all() and float(sb @ sb) > 0.0 else math.nan
             self.t_s.append(s.t_exposure_s)
             self.err_deg.append(err)
             self.uses[s.use] = self.uses.get(s.use, 0) + 1

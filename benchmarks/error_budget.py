@@ -176,7 +176,7 @@ def main(argv: list[str] | None = None) -> int:
 
     def emit(name: str) -> None:
         runs = results[name]
-        r = row(name, runs, a.after_s, tuple(a.outage), tuple(a.aided))  # type: ignore[arg-type]
+        r = row(name, runs, a.after_s, (a.outage[0], a.outage[1]), (a.aided[0], a.aided[1]))
         print(f"| {name} | {_g(r['sv_median'])} | {_g(r['sv_p95'])} | {_m(r['hrms'])} | {_m(r['hmax'])} "
               f"| {_m(r['pmax'])} | {_m(r['prms'])} |", flush=True)
         if a.expectations:

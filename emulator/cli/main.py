@@ -148,6 +148,11 @@ def print_summary(s: dict[str, Any]) -> None:
                 cyc.add_row(f"  {k}", "", "", f"{v / max(t['calls'], 1):.0f}", "", "")
         c.print(cyc)
         c.print(f"CPU load (worst 1 s): {d['cpu_load_pct_max']:.3f} %   deadline misses: {d['deadline_misses']}")
+    ps = s.get("psns")
+    if ps and ps["solar_vector_error_deg"]["median"] is not None:
+        e = ps["solar_vector_error_deg"]
+        c.print(f"solar vector against truth (psns.csv): median {e['median']:.4g} deg, p95 {e['p95']:.4g} deg, "
+                f"max {e['max']:.4g} deg over {ps['solves']} solves")
 
     if s.get("faults"):
         ft = Table(title="faults", title_justify="left")

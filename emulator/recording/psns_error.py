@@ -7,8 +7,8 @@ compared with the world's truth at its mid-exposure time ``t``: the body-frame s
 
 with ``C_b^n`` the trajectory's attitude (:mod:`emulator.world.trajectory`) and ``S^n`` the SPA sun vector in
 ENU at the trajectory's position (:class:`emulator.world.sun.SunModel`; the same sun the sky and the camera
-model are drawn from). The solve is bi-directional (``+-S``, base paper Eqs. 9-14; the filter picks the sign,
-Eq. 38), so its error is the angle between the two lines:
+model are drawn from). The solve is bi-directional (``+-S``, base paper Eqs. 9-14; the filter picks the sign
+with the smaller residual, the remark after Eq. 38), so its error is the angle between the two lines:
 
     ``err = atan2(|s_b x S^b_true|, |s_b . S^b_true|)``  (deg, in [0, 90]; the acos of the normalised
     ``|s_b . S^b_true|`` without its loss of precision near 0).

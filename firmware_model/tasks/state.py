@@ -40,11 +40,11 @@ class SolarSolve:
 
     ``t_exposure_s``: the frame's mid-exposure time (s, FPGA time base, docs/architecture.md "Conventions");
     ``s_b``: the unit bi-direction solar vector ``+-S^b`` in the body frame (x right, y forward, z up), as solved
-    (base paper Eqs. 9-14, the sign is the filter's choice, Eq. 38); ``n_used``: observation points that entered
-    ``K``; ``quality``: ``lambda_1 / lambda_2`` of ``K``; ``source``: ``camera`` (solved here) or ``sensor``
-    (an on-sensor solve); ``use``: what the loop did with it -- ``accepted`` / ``refused`` by the filter's
-    update (its innovation gate), ``alignment`` (coarse alignment), or why no update was tried: ``sun_low``,
-    ``stale``, ``no_utc``, ``disabled``.
+    (base paper Eqs. 9-14; the filter picks the sign with the smaller residual, the remark after Eq. 38); ``n_used``:
+    observation points that entered ``K``; ``quality``: ``lambda_1 / lambda_2`` of ``K``; ``source``: ``camera``
+    (solved here) or ``sensor`` (an on-sensor solve); ``use``: what the loop did with it -- ``accepted`` /
+    ``refused`` by the filter's update (its innovation gate), ``alignment`` (coarse alignment), or why no update
+    was tried: ``sun_low``, ``stale``, ``no_utc``, ``disabled``.
     """
 
     t_exposure_s: float

@@ -14,7 +14,9 @@ firmware) stay.
 
 Columns, over the seeds: the solar-vector error after alignment (``--after-s``; the firmware's solved vector
 against the world's sun in the body frame, ``psns.csv``), median and 95th percentile of all seeds' solves
-together; the heading error after alignment, RMS and maximum (mean over seeds, range in brackets); and, when the
+together, and the medians of its azimuth and elevation parts (``err_az_deg``, ``err_el_deg``: the azimuth is
+what a sun-referenced heading inherits, the elevation maps into tilt); the heading error after alignment, RMS
+and maximum (mean over seeds, range in brackets); and, when the
 run covers them, the maximum position error in the GNSS outage window (``--outage``) and the RMS position error
 while GNSS is back (``--aided``). ``--expectations`` prints each scenario expectation's measured values.
 docs/sensors.md, "Error budget", has the tables of the library scenarios.
@@ -130,6 +132,8 @@ def row(name: str, runs: list[dict[str, Any]], after_s: float, outage: tuple[flo
         aided: tuple[float, float]) -> dict[str, Any]:
     """The table's numbers of one configuration over its runs (see module docstring)."""
     sv = [float(r["err_deg"]) for run in runs for r in run["psns"] if float(r["time_s"]) >= after_s]
+    sv_az = [abs(float(r["err_az_deg"])) for run in runs for r in run["psns"] if float(r["time_s"]) >= after_s]
+    sv_el = [abs(float(r["err_el_deg"])) for run in runs for r in run["psns"] if float(r["time_s"]) >= after_s]
     hmax, hrms, pmax, prms = [], [], [], []
     for run in runs:
         h = _window(run["nav"], "err_heading_deg", after_s, math.inf)
@@ -142,7 +146,10 @@ def row(name: str, runs: list[dict[str, Any]], after_s: float, outage: tuple[flo
         if pa:
             prms.append(math.sqrt(sum(x * x for x in pa) / len(pa)))
     return {"name": name, "solves": len(sv), "sv_median": statistics.median(sv) if sv else None,
-            "sv_p95": percentile(sv, 95.0) if sv else None, "hrms": hrms, "hmax": hmax, "pmax": pmax, "prms": prms}
+            "sv_p95": percentile(sv, 95.0) if sv else None,
+            "sv_az_median": statistics.median(sv_az) if sv_az else None,
+            "sv_el_median": statistics.median(sv_el) if sv_el else None,
+            "hrms": hrms, "hmax": hmax, "pmax": pmax, "prms": prms}
 
 
 def _m(xs: list[float]) -> str:
@@ -170,14 +177,16 @@ def main(argv: list[str] | None = None) -> int:
     todo = [(str(path), name, seed) for name in a.configs for seed in a.seeds]
     results: dict[str, list[dict[str, Any]]] = {name: [] for name in a.configs}
     print(f"| sources ({path.stem}, seeds {' '.join(map(str, a.seeds))}) | solar vector median (deg) "
-          f"| solar vector p95 (deg) | heading rms (deg) | heading max (deg) | position max in outage (m) "
+          f"| solar vector p95 (deg) | of it azimuth, median (deg) | of it elevation, median (deg) "
+          f"| heading rms (deg) | heading max (deg) | position max in outage (m) "
           f"| position rms aided (m) |")
-    print("|---|---|---|---|---|---|---|", flush=True)
+    print("|---|---|---|---|---|---|---|---|---|", flush=True)
 
     def emit(name: str) -> None:
         runs = results[name]
         r = row(name, runs, a.after_s, (a.outage[0], a.outage[1]), (a.aided[0], a.aided[1]))
-        print(f"| {name} | {_g(r['sv_median'])} | {_g(r['sv_p95'])} | {_m(r['hrms'])} | {_m(r['hmax'])} "
+        print(f"| {name} | {_g(r['sv_median'])} | {_g(r['sv_p95'])} | {_g(r['sv_az_median'])} "
+              f"| {_g(r['sv_el_median'])} | {_m(r['hrms'])} | {_m(r['hmax'])} "
               f"| {_m(r['pmax'])} | {_m(r['prms'])} |", flush=True)
         if a.expectations:
             exp: dict[int, list[Any]] = {}

@@ -5,9 +5,11 @@
 residuals, noise), F frames each at random headings and tilts (+-10 deg) in Beijing at 08:14 UTC (sun elevation
 23 deg), binned, 15 x 15 points; the firmware inverts with its calibration file (``firmware_model.psns``,
 float32): the polarizer-angle correction (``--uncorrected`` skips it), the E-vectors through the calibrated lens,
-the solve; ``--sky realistic`` the scenario default sky instead of the clear Rayleigh sky, ``--day`` one row per
-hour of a day of sun elevations. Prints the median and the 95th percentile of the angle between the solved and the
-true sun vector in the body frame (deg).
+the solve; ``--sky realistic`` the scenario default sky (built from the scenario's sky section, as a run builds it:
+turbidity 3, neutral points 20 deg from the sun and the antisun) instead of the clear Rayleigh sky, ``--day`` one row
+per hour of a day of sun elevations. Prints the median and the 95th percentile of the angle between the solved and
+the true sun vector in the body frame (deg), and of its azimuth and elevation parts in ENU
+(:func:`emulator.recording.psns_error.azimuth_elevation_error`: the azimuth is what a heading inherits).
 docs/sensors.md quotes its output.
 """
 
@@ -23,8 +25,9 @@ from emulator.devices.camera import PolarizationCameraModel
 from emulator.devices.camera.optics import SensorDefects
 from emulator.devices.sensors import camera_config
 from emulator.dsp.firmware_setup import calibration_for, firmware_config
+from emulator.recording.psns_error import azimuth_elevation_error
 from emulator.scenario.loader import validate_scenario_data
-from emulator.world.sky import SkyModel
+from emulator.world.sky import sky_from_spec
 from emulator.world.sun import SunModel
 from emulator.world.trajectory import StaticTrajectory
 from firmware_model import psns
@@ -38,10 +41,11 @@ SCENARIO = {
 
 def errors(preset: str, calibration: str, units: int, frames: int, paper_lens: bool = False,
            uncorrected: bool = False, sky: str = "rayleigh", epoch: str | None = None) -> np.ndarray:
+    """(frames, 3): the angle, |azimuth error| and |elevation error| of each valid solve, deg."""
     out = []
     for unit in range(units):
         scn = validate_scenario_data({**SCENARIO, "seed": unit, "sensors": {"camera": {"preset": preset}},
-                                      "firmware": {"calibration": {"source": calibration}},
+                                      "firmware": {"calibration": {"source": calibration}}, "sky": {"model": sky},
                                       **({"epoch": epoch} if epoch else {})}, {})
         cc = camera_config(scn, unit)
         cam = firmware_config(scn, calibration_for(scn, unit)).camera
@@ -53,7 +57,7 @@ def errors(preset: str, calibration: str, units: int, frames: int, paper_lens: b
             hd, p, r = rng.uniform(0, 360), rng.uniform(-10, 10), rng.uniform(-10, 10)
             traj = StaticTrajectory(39.979, 116.339, 50.0, hd, p, r)
             sun = SunModel(scn.epoch, 69.0)
-            m = PolarizationCameraModel(cc, SkyModel(sky), sun, traj, rng)
+            m = PolarizationCameraModel(cc, sky_from_spec(scn.sky), sun, traj, rng)
             obs = m.observe(0.0)
             aop, dop = obs.aop.astype(np.float32), obs.dop.astype(np.float32)
             if not uncorrected:
@@ -63,10 +67,17 @@ def errors(preset: str, calibration: str, units: int, frames: int, paper_lens: b
             if not sol.valid:
                 continue
             st = traj.state(0.0)
-            s_b_true = st.c_bn.T @ sun.sun_enu(0.0, *st.pos)
+            s_n_true = sun.sun_enu(0.0, *st.pos)
+            s_b_true = st.c_bn.T @ s_n_true
             s_b = cam.c_c_b @ np.asarray(sol.s, dtype=np.float64)
-            out.append(math.degrees(math.acos(min(1.0, abs(float(s_b @ s_b_true) / np.linalg.norm(s_b))))))
-    return np.array(out)
+            d_az, d_el = azimuth_elevation_error(st.c_bn @ s_b, s_n_true)
+            out.append((math.degrees(math.acos(min(1.0, abs(float(s_b @ s_b_true) / np.linalg.norm(s_b))))),
+                        abs(d_az), abs(d_el)))
+    return np.array(out).reshape(-1, 3)
+
+
+def _stats(x: np.ndarray, sep: str = " / ") -> str:
+    return f"{np.median(x):.3f}{sep}{np.percentile(x, 95):.3f}"
 
 
 def main() -> None:
@@ -85,7 +96,8 @@ def main() -> None:
     a = ap.parse_args()
     if a.day:
         print(f"preset={a.preset} calibration={a.calibration} sky={a.sky}, Beijing 2019-09-18")
-        print("| UTC | sun elevation (deg) | frames | median (deg) | p95 (deg) |\n|---|---|---|---|---|")
+        print("| UTC | sun elevation (deg) | frames | median (deg) | p95 (deg) | azimuth median / p95 (deg) "
+              "| elevation median / p95 (deg) |\n|---|---|---|---|---|---|---|")
         for hour in (23, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10):
             day = "2019-09-17" if hour == 23 else "2019-09-18"
             ep = f"{day}T{hour:02d}:00:00Z"
@@ -94,14 +106,16 @@ def main() -> None:
             el = math.degrees(math.asin(float(SunModel(scn.epoch, 69.0).sun_enu(0.0, *st.pos)[2])))
             e = errors(a.preset, a.calibration, a.units, a.frames, a.paper_lens, a.uncorrected, a.sky, ep)
             if len(e):
-                print(f"| {hour:02d}:00 | {el:.1f} | {len(e)} | {np.median(e):.3f} | {np.percentile(e, 95):.3f} |")
+                print(f"| {hour:02d}:00 | {el:.1f} | {len(e)} | {_stats(e[:, 0], ' | ')} | {_stats(e[:, 1])} "
+                      f"| {_stats(e[:, 2])} |", flush=True)
             else:
-                print(f"| {hour:02d}:00 | {el:.1f} | 0 | - | - |")
+                print(f"| {hour:02d}:00 | {el:.1f} | 0 | - | - | - | - |")
         return
     e = errors(a.preset, a.calibration, a.units, a.frames, a.paper_lens, a.uncorrected, a.sky)
     print(f"preset={a.preset} calibration={a.calibration} sky={a.sky} paper_lens={a.paper_lens} "
-          f"uncorrected={a.uncorrected} frames={len(e)}: "
-          f"median {np.median(e):.3f} deg, p95 {np.percentile(e, 95):.3f} deg")
+          f"uncorrected={a.uncorrected} frames={len(e)}: median {np.median(e[:, 0]):.3f} deg, "
+          f"p95 {np.percentile(e[:, 0], 95):.3f} deg; azimuth {_stats(e[:, 1])}, elevation {_stats(e[:, 2])} deg "
+          "(median / p95)")
 
 
 if __name__ == "__main__":

@@ -153,6 +153,10 @@ def print_summary(s: dict[str, Any]) -> None:
         e = ps["solar_vector_error_deg"]
         c.print(f"solar vector against truth (psns.csv): median {e['median']:.4g} deg, p95 {e['p95']:.4g} deg, "
                 f"max {e['max']:.4g} deg over {ps['solves']} solves")
+        az, el = ps.get("azimuth_error_deg") or {}, ps.get("elevation_error_deg") or {}
+        if az.get("median") is not None and el.get("median") is not None:
+            c.print(f"  of it in azimuth (heading): median {az['median']:.4g} deg, p95 {az['p95']:.4g} deg; "
+                    f"in elevation (tilt): median {el['median']:.4g} deg, p95 {el['p95']:.4g} deg")
 
     if s.get("faults"):
         ft = Table(title="faults", title_justify="left")

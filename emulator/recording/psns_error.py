@@ -13,6 +13,17 @@ with the smaller residual, the remark after Eq. 38), so its error is the angle b
     ``err = atan2(|s_b x S^b_true|, |s_b . S^b_true|)``  (deg, in [0, 90]; the acos of the normalised
     ``|s_b . S^b_true|`` without its loss of precision near 0).
 
+The error is also split in the local level frame (ENU): the solve is turned to ENU with the *true* attitude,
+``s^n = C_b^n(t) s_b`` (sign taken towards the truth), and compared in azimuth and elevation:
+
+    ``err_az = az(s^n) - az(S^n)`` (wrapped to [-180, 180), ``az = atan2(E, N)``),
+    ``err_el = el(s^n) - el(S^n)`` (``el = asin(U)``), both signed, deg.
+
+The azimuth part is what a sun-referenced heading inherits one to one; the elevation part maps into tilt (and into
+the position of a sun-elevation fix). The sky's neutral points lie on the solar meridian and bend the E-vectors
+symmetrically about it, so they bias the elevation and leave the azimuth unbiased (docs/sensors.md, "Error
+budget").
+
 It does not depend on the navigation state: it measures the camera, the sky, the solve and the calibration
 (mounting) alone. The comparison runs in batches (at every flush and when the summary is read), so the
 recorder's per-tick cost does not change; solves arrive at the camera's frame rate (5 Hz).
@@ -31,11 +42,11 @@ from ..world.sun import SunModel
 from ..world.trajectory import Trajectory
 from .formatting import csv_row_fast
 
-__all__ = ["PSNS_COLUMNS", "SolarVsTruth", "solar_error_stats"]
+__all__ = ["PSNS_COLUMNS", "SolarVsTruth", "azimuth_elevation_error", "solar_error_stats"]
 
 PSNS_COLUMNS = [
     "time_s", "s_b_x", "s_b_y", "s_b_z", "true_s_b_x", "true_s_b_y", "true_s_b_z", "err_deg",
-    "n_used", "quality", "source", "use",
+    "err_az_deg", "err_el_deg", "n_used", "quality", "source", "use",
 ]
 
 
@@ -45,6 +56,20 @@ def solar_error_stats(err_deg: list[float] | np.ndarray) -> dict[str, float | No
     if e.size == 0:
         return {"median": None, "p95": None, "max": None}
     return {"median": float(np.median(e)), "p95": float(np.percentile(e, 95.0)), "max": float(np.max(e))}
+
+
+def azimuth_elevation_error(s_n: np.ndarray, true_s_n: np.ndarray) -> tuple[float, float]:
+    """Signed azimuth and elevation errors (deg) of the solved sun ``s_n`` (ENU, any length, either sign: turned
+    towards ``true_s_n``) against the true unit sun ``true_s_n`` (ENU); azimuth ``atan2(E, N)``, wrapped to
+    [-180, 180), elevation ``asin(U)`` (module docstring)."""
+    v = s_n / math.sqrt(float(s_n @ s_n))
+    if float(v @ true_s_n) < 0.0:
+        v = -v
+    d_az = math.degrees(math.atan2(v[0], v[1]) - math.atan2(true_s_n[0], true_s_n[1]))
+    d_az = (d_az + 180.0) % 360.0 - 180.0
+    d_el = math.degrees(math.asin(max(-1.0, min(1.0, float(v[2])))) - math.asin(max(-1.0, min(1.0,
+                                                                                           float(true_s_n[2])))))
+    return d_az, d_el
 
 
 class SolarVsTruth:
@@ -63,6 +88,8 @@ class SolarVsTruth:
         #: every error so far (deg), with the time and whether the filter accepted it
         self.t_s: list[float] = []
         self.err_deg: list[float] = []
+        self.err_az_deg: list[float] = []
+        self.err_el_deg: list[float] = []
         self.uses: dict[str, int] = {}
 
     def add(self, solves: list[SolarSolve]) -> None:
@@ -88,17 +115,23 @@ class SolarVsTruth:
             self.started = True
         for s, st in zip(pend, self.traj.states([s.t_exposure_s for s in pend])):
             lat, lon, h = (float(x) for x in st.pos)
-            tb = st.c_bn.T @ self.sun.sun_enu(s.t_exposure_s, lat, lon, h)
+            tn = self.sun.sun_enu(s.t_exposure_s, lat, lon, h)
+            tb = st.c_bn.T @ tn
             sb = np.array(s.s_b, dtype=np.float64)
             cr = np.cross(sb, tb)
-            # atan2(|a x b|, |a . b|): exact near 0 (acos loses half the digits there); NaN for a zero vector
-            err = math.degrees(math.atan2(math.sqrt(float(cr @ cr)), abs(float(sb @ tb)))) \
-                if np.isfinite(sb).all() and float(sb @ sb) > 0.0 else math.nan
+            if np.isfinite(sb).all() and float(sb @ sb) > 0.0:
+                # atan2(|a x b|, |a . b|): exact near 0 (acos loses half the digits there)
+                err = math.degrees(math.atan2(math.sqrt(float(cr @ cr)), abs(float(sb @ tb))))
+                err_az, err_el = azimuth_elevation_error(st.c_bn @ sb, tn)
+            else:  # a zero or non-finite vector
+                err = err_az = err_el = math.nan
             self.t_s.append(s.t_exposure_s)
             self.err_deg.append(err)
+            self.err_az_deg.append(err_az)
+            self.err_el_deg.append(err_el)
             self.uses[s.use] = self.uses.get(s.use, 0) + 1
             self.rows.append(csv_row_fast((s.t_exposure_s, *s.s_b, float(tb[0]), float(tb[1]), float(tb[2]), err,
-                                           s.n_used, s.quality, s.source, s.use)))
+                                           err_az, err_el, s.n_used, s.quality, s.source, s.use)))
 
     def window(self, after_s: float, until_s: float | None) -> list[float]:
         """The errors (deg) of the solves exposed in [``after_s``, ``until_s``]."""
@@ -111,4 +144,6 @@ class SolarVsTruth:
         if not self.err_deg:
             return None
         return {"solves": len(self.err_deg), "uses": dict(sorted(self.uses.items())),
-                "solar_vector_error_deg": solar_error_stats(self.err_deg)}
+                "solar_vector_error_deg": solar_error_stats(self.err_deg),
+                "azimuth_error_deg": solar_error_stats(np.abs(self.err_az_deg)),
+                "elevation_error_deg": solar_error_stats(np.abs(self.err_el_deg))}

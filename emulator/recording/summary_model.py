@@ -100,6 +100,12 @@ class PsnsSection(_Open):
     solar_vector_error_deg: SolarVectorError = Field(
         default_factory=SolarVectorError, description="angle between the solved bi-direction solar vector and the "
                                                       "world's sun in the body frame at the exposure time, deg")
+    azimuth_error_deg: SolarVectorError = Field(
+        default_factory=SolarVectorError, description="|azimuth error| of the solve turned to ENU with the true "
+                                                      "attitude (what a sun-referenced heading inherits), deg")
+    elevation_error_deg: SolarVectorError = Field(
+        default_factory=SolarVectorError, description="|elevation error| of the solve turned to ENU with the true "
+                                                      "attitude (what maps into tilt), deg")
 
 
 class ExpectationRecord(_Open):

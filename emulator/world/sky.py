@@ -55,6 +55,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 __all__ = [
+    "NEUTRAL_POINT_SEP_DEG",
     "Cloud",
     "Occluder",
     "SkyField",
@@ -76,6 +77,10 @@ P_MOLECULAR = (1.0 - 0.0279) / (1.0 + 0.0279)
 #: CIE standard clear sky (type 12) gradation coefficients a, b (CIE S 011/E:2003).
 CIE_CLEAR_A, CIE_CLEAR_B = -1.0, -0.32
 SKY_MODELS = ("realistic", "rayleigh", "berry")
+#: Default Babinet-Brewster separation ``2 delta`` per model, deg: the realistic sky puts each neutral point ~20 deg
+#: from the sun and the antisun (the typical clear-sky distances, Coulson 1988; Horvath et al. 2002); Berry's model
+#: keeps the 20 deg of its paper's figures; Rayleigh has no neutral points off the sun (the value is unused).
+NEUTRAL_POINT_SEP_DEG = {"realistic": 40.0, "berry": 20.0, "rayleigh": 20.0}
 
 
 def _rayleigh_phase(cos_gamma: np.ndarray) -> np.ndarray:
@@ -176,13 +181,14 @@ class SkyModel:
     ----------
     model : ``"realistic"``, ``"rayleigh"`` or ``"berry"``.
     p_max : maximum DOP (0..1) of the rayleigh and berry models (the realistic sky derives it from ``turbidity``).
-    neutral_point_sep : Berry's Babinet-Brewster separation ``2 delta``, rad.
+    neutral_point_sep : Berry's Babinet-Brewster separation ``2 delta``, rad; None: the model's default
+        (:data:`NEUTRAL_POINT_SEP_DEG`).
     turbidity : realistic sky: Preetham's turbidity ``T`` (1 = molecules only, 2 very clear, 3 clear, 6+ hazy).
     aerosol_g : realistic sky: Henyey-Greenstein asymmetry of the aerosol.
     clouds, occluders : regions.
     """
 
-    def __init__(self, model: str = "rayleigh", p_max: float = 0.7, neutral_point_sep: float = 20.0 * DEG,
+    def __init__(self, model: str = "rayleigh", p_max: float = 0.7, neutral_point_sep: float | None = None,
                  clouds: list[Cloud] | None = None, occluders: list[Occluder] | None = None,
                  turbidity: float = 3.0, aerosol_g: float = 0.7) -> None:
         if model not in SKY_MODELS:
@@ -193,6 +199,8 @@ class SkyModel:
         self.p_max = float(p_max) if model != "realistic" else P_MOLECULAR
         self.turbidity = float(turbidity)
         self.aerosol_g = float(aerosol_g)
+        if neutral_point_sep is None:
+            neutral_point_sep = NEUTRAL_POINT_SEP_DEG[model] * DEG
         self.delta = 0.5 * float(neutral_point_sep)
         self.clouds = clouds or []
         self.occluders = occluders or []
@@ -397,7 +405,5 @@ def sky_from_spec(spec: object | None, rng: np.random.Generator | None = None) -
     occ = [Occluder(o.az_min_deg * DEG, o.az_max_deg * DEG, o.el_max_deg * DEG, o.intensity_scale)
            for o in spec.occluders]  # type: ignore[attr-defined]
     sep = spec.neutral_point_sep_deg  # type: ignore[attr-defined]
-    if sep is None:
-        sep = 40.0 if spec.model == "realistic" else 20.0  # type: ignore[attr-defined]
-    return SkyModel(spec.model, spec.p_max, sep * DEG, clouds, occ,  # type: ignore[attr-defined]
+    return SkyModel(spec.model, spec.p_max, None if sep is None else sep * DEG, clouds, occ,  # type: ignore[attr-defined]
                     turbidity=spec.turbidity, aerosol_g=spec.aerosol_g)  # type: ignore[attr-defined]

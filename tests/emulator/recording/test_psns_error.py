@@ -11,7 +11,7 @@ import pytest
 from pvlib import spa
 from scipy.spatial.transform import Rotation
 
-from emulator.recording.psns_error import SolarVsTruth, solar_error_stats
+from emulator.recording.psns_error import SolarVsTruth, azimuth_elevation_error, solar_error_stats
 from emulator.world.sun import SunModel
 from emulator.world.trajectory import StaticTrajectory
 from firmware_model.registry import SolarSolve
@@ -52,11 +52,14 @@ def test_a_solve_turned_by_a_known_angle_has_that_error_either_sign(angle_deg):
     assert cmp.uses == {"accepted": 1, "refused": 1}
     header, *rows = "".join(cmp.rows).splitlines()
     assert header.split(",") == ["time_s", "s_b_x", "s_b_y", "s_b_z", "true_s_b_x", "true_s_b_y", "true_s_b_z",
-                                 "err_deg", "n_used", "quality", "source", "use"]
+                                 "err_deg", "err_az_deg", "err_el_deg", "n_used", "quality", "source", "use"]
     cells = rows[0].split(",")
     assert float(cells[7]) == pytest.approx(angle_deg, abs=1e-6)
+    # turned about the horizontal axis perpendicular to the sun (the body is level): all of it is elevation, upwards
+    assert cmp.err_el_deg == pytest.approx([angle_deg, angle_deg], abs=1e-6)
+    assert cmp.err_az_deg == pytest.approx([0.0, 0.0], abs=1e-6)
     assert np.allclose([float(c) for c in cells[4:7]], s, atol=1e-12)
-    assert cells[10:] == ["camera", "accepted"]
+    assert cells[12:] == ["camera", "accepted"]
 
 
 def test_statistics_are_numpys_and_a_zero_vector_is_not_a_number():
@@ -80,3 +83,17 @@ def test_no_solve_no_section_and_windows_select_by_exposure_time():
     assert len(cmp.window(1.5, None)) == 2
     assert len(cmp.window(0.0, 2.0)) == 2
     assert max(cmp.window(0.0, None)) < 1e-6
+
+
+def test_azimuth_elevation_error_against_a_known_rotation():
+    # the true sun at azimuth 30 deg, elevation 40 deg; the solve 0.2 deg further in azimuth and 1.1 deg higher,
+    # given with the opposite sign and not normalised
+    def enu(az_deg, el_deg):
+        a, e = np.radians(az_deg), np.radians(el_deg)
+        return np.array([np.cos(e) * np.sin(a), np.cos(e) * np.cos(a), np.sin(e)])
+
+    d_az, d_el = azimuth_elevation_error(-3.0 * enu(30.2, 41.1), enu(30.0, 40.0))
+    assert d_az == pytest.approx(0.2, abs=1e-9) and d_el == pytest.approx(1.1, abs=1e-9)
+    # across north the azimuth error wraps
+    d_az, d_el = azimuth_elevation_error(enu(-0.3, 10.0), enu(359.9, 10.0))
+    assert d_az == pytest.approx(-0.2, abs=1e-9) and d_el == pytest.approx(0.0, abs=1e-9)

@@ -62,15 +62,18 @@ class PolarizationCameraModel:
         self._pt_maps: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
         if d != SensorDefects() and (d.orientation_sigma_deg or d.extinction_spread or d.prnu
                                      or any(d.orientation_bias_deg)):
-            maps = defect_maps(d, cfg.extinction_ratio, (cfg.ny // 2, cfg.nx // 2),
-                               np.random.default_rng(cfg.defect_seed))
-            if cfg.fidelity == "full":
-                self._maps = maps
             g = self.geo
+            win = (g.win_rows[:, :, None], g.win_cols[:, None, :])
+            shape = (cfg.ny // 2, cfg.nx // 2)
+            if cfg.fidelity == "full":
+                self._maps = defect_maps(d, cfg.extinction_ratio, shape, np.random.default_rng(cfg.defect_seed))
+                win_maps = {th: tuple(m[win] for m in ms) for th, ms in self._maps.items()}
+            else:  # the same draw, evaluated at the windows only
+                win_maps = defect_maps(d, cfg.extinction_ratio, shape, np.random.default_rng(cfg.defect_seed), at=win)
             norm = g.w_row.sum() * g.w_col.sum()
             self._pt_maps = {th: tuple(
-                np.einsum("pij,i,j->p", m[g.win_rows[:, :, None], g.win_cols[:, None, :]].astype(np.float64),
-                          g.w_row, g.w_col) / norm for m in ms) for th, ms in maps.items()}
+                np.einsum("pij,i,j->p", m.astype(np.float64), g.w_row, g.w_col) / norm for m in ms)
+                for th, ms in win_maps.items()}
 
     # -- injected faults (emulator.faults) ----------------------------------------------------------
     def set_mounting_error(self, rotation_vector_rad: np.ndarray | None) -> None:

@@ -59,6 +59,7 @@ class PolarizationCameraModel:
         # physical sensor (defect_seed), the same in both fidelities
         d = cfg.defects
         self._maps: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
+        self._trig: dict[tuple[int, str], dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]] = {}
         self._pt_maps: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
         if d != SensorDefects() and (d.orientation_sigma_deg or d.extinction_spread or d.prnu
                                      or any(d.orientation_bias_deg)):
@@ -190,9 +191,7 @@ class PolarizationCameraModel:
                 ca: np.ndarray | float = math.cos(2 * ang)
                 sa: np.ndarray | float = math.sin(2 * ang)
             else:
-                delta, dia, gain = maps[theta]
-                ang2 = 2.0 * (math.radians(theta) + delta)
-                ca, sa = np.cos(ang2).astype(dt), np.sin(ang2).astype(dt)
+                ca, sa, dia, gain = self._polarizer_terms(maps, dt)[theta]
             m = radiance + dia * (c2 * ca + s2 * sa)
             if maps is not None or dfx.prnu:
                 m = m * gain
@@ -204,6 +203,20 @@ class PolarizationCameraModel:
             out = {0: k0 * out[0] + k1 * a, 90: k0 * out[90] + k1 * a, 45: k0 * out[45] + k1 * b,
                    135: k0 * out[135] + k1 * b}
         return out
+
+    def _polarizer_terms(self, maps: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]], dt: np.dtype
+                         ) -> dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+        """Per channel ``(cos 2(theta + delta), sin 2(theta + delta), D, gain)`` of the fixed-pattern ``maps`` in
+        ``dt``: they depend on the sensor only, so they are computed once per maps and dtype, not per frame."""
+        key = (id(maps), dt.str)
+        terms = self._trig.get(key)
+        if terms is None:
+            terms = {}
+            for theta, (delta, dia, gain) in maps.items():
+                ang2 = 2.0 * (math.radians(theta) + delta)
+                terms[theta] = (np.cos(ang2).astype(dt), np.sin(ang2).astype(dt), dia, gain)
+            self._trig[key] = terms
+        return terms
 
     # -- binned fidelity -------------------------------------------------------------------------
     def binned_channels(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -10,9 +10,18 @@ The breakdown comes from a cProfile of the same scenario, aggregated by componen
 (:mod:`benchmarks.profile_breakdown`) and scaled to the unprofiled wall time: microseconds per
 200 Hz tick per component. A second row gives the quickstart scenario (static, IMU + GNSS).
 
+The cost of the world's fidelity (the realistic instrument models of issue 21) is measured in the same table:
+the reference with that fidelity switched off by scenario overrides (:data:`FIDELITY_OFF`: no vibration, no
+thermal warm-up, no low-pass group delay in the gyro, the camera's fixed pattern off and a fixed extinction
+ratio instead of the spectral one; the sky is the reference's Rayleigh sky either way; docs/performance.md
+section 2 says why this approximates the world before that work) against the reference as it is, alternating
+off / on, each run's CPU time (``time.process_time``: the machine is shared, and CPU time is what the other
+processes disturb least). The row is the ratio of the real-time factors, on / off (target >= 0.85).
+
 Environment (see :mod:`benchmarks.common`): ``PSNS_BENCH_REF_S`` simulated seconds of the
 reference run (default 600, the whole scenario), ``PSNS_BENCH_PROFILE_S`` of the profiled run,
-``PSNS_BENCH_REPEAT`` timed repeats (the median is reported).
+``PSNS_BENCH_REPEAT`` timed repeats (the median is reported), ``PSNS_BENCH_FIDELITY_S`` simulated seconds of
+each fidelity on / off run (``PSNS_BENCH_REPEAT`` pairs).
 """
 
 from __future__ import annotations
@@ -28,6 +37,21 @@ from emulator.assembly.runner import run_scenario
 from emulator.scenario import load_scenario
 
 TARGET_RTF = 100.0
+#: the fidelity row's target: the world's instrument fidelity may cost at most 15 % of the real-time factor
+TARGET_FIDELITY_RATIO = 0.85
+#: scenario overrides that switch the world's instrument fidelity off (docs/performance.md section 2)
+FIDELITY_OFF = (
+    "sensors.imu.vibration.enabled=false",
+    "sensors.imu.temperature.warmup_c=0",
+    "sensors.imu.lp_filter_hz=0",
+    "sensors.camera.extinction_ratio=300",
+    "sensors.camera.defects.orientation_sigma_deg=0",
+    "sensors.camera.defects.orientation_bias_deg=[0, 0, 0, 0]",
+    "sensors.camera.defects.extinction_spread=0",
+    "sensors.camera.defects.prnu=0",
+    "sensors.camera.defects.crosstalk=0",
+    "sensors.camera.defects.vignetting=false",
+)
 
 
 def _timed(scn: Any, repeat: int) -> tuple[float, list[float], dict[str, Any]]:
@@ -43,6 +67,31 @@ def _timed(scn: Any, repeat: int) -> tuple[float, list[float], dict[str, Any]]:
 
 def _cut(scn: Any, duration_s: float) -> Any:
     return scn if duration_s >= scn.duration_s else scn.model_copy(update={"duration_s": duration_s})
+
+
+def _cpu_run(scn: Any) -> tuple[float, dict[str, Any]]:
+    """One fast-mode run: its CPU time (s) and summary."""
+    with tempfile.TemporaryDirectory() as d:
+        c0 = time.process_time()
+        s = run_scenario(scn, Path(d) / "run", mode="fast")
+        return time.process_time() - c0, s
+
+
+def fidelity_ratio(duration_s: float, pairs: int) -> dict[str, Any]:
+    """The reference with the world's fidelity off (:data:`FIDELITY_OFF`) and on, ``pairs`` alternating
+    off / on runs of ``duration_s`` simulated seconds each: CPU-time real-time factors and their ratio on / off
+    (median over the pairs; each pair ran back to back, so it shares the machine's load)."""
+    on = _cut(load_scenario(REFERENCE), duration_s)
+    off = _cut(load_scenario(REFERENCE, FIDELITY_OFF), duration_s)
+    rows = []
+    for _ in range(pairs):
+        c_off, s_off = _cpu_run(off)
+        c_on, s_on = _cpu_run(on)
+        rows.append((s_off["sim_duration_s"] / c_off, s_on["sim_duration_s"] / c_on,
+                     bool(s_off.get("passed")) and bool(s_on.get("passed"))))
+    ratios = [r_on / r_off for r_off, r_on, _ok in rows]
+    return {"ratio": median(ratios), "ratios": ratios, "rtf_off": [r[0] for r in rows],
+            "rtf_on": [r[1] for r in rows], "passed": all(r[2] for r in rows), "sim_s": on.duration_s}
 
 
 def run() -> list[dict]:
@@ -83,6 +132,14 @@ def run() -> list[dict]:
         rows.append({"name": f"  breakdown: {p['component']}", "value": p["us_per_tick"], "unit": "us/tick",
                      "baseline": None, "ratio": None,
                      "note": f"{100 * p['share']:.1f} % of the profiled run ({pscn.duration_s:.0f} s simulated)"})
+    fid = fidelity_ratio(number("PSNS_BENCH_FIDELITY_S"), repeat)
+    rows.append({"name": "reference real-time factor, world fidelity on / off", "value": fid["ratio"],
+                 "unit": "ratio", "baseline": TARGET_FIDELITY_RATIO, "ratio": fid["ratio"] / TARGET_FIDELITY_RATIO,
+                 "note": f"{fid['sim_s']:.0f} s simulated per run, CPU time, {repeat} alternating off/on pairs: "
+                         f"off {', '.join(f'{r:.1f}' for r in fid['rtf_off'])} x, on "
+                         f"{', '.join(f'{r:.1f}' for r in fid['rtf_on'])} x, expectations passed: {fid['passed']}, "
+                         f"load avg {load_avg()}; target >= {TARGET_FIDELITY_RATIO} (docs/performance.md 2)",
+                 "ratios": fid["ratios"], "rtf_off": fid["rtf_off"], "rtf_on": fid["rtf_on"]})
     q = load_scenario(ROOT / "scenarios" / "quickstart.yaml")
     qwall, qwalls, qs = _timed(q, repeat)
     qrtf = qs["sim_duration_s"] / qwall

@@ -219,8 +219,38 @@ def evectors_camera(x_px: FloatArray, y_px: FloatArray, aop: FloatArray, cam: Ca
     return unit
 
 
-def _evectors_calibrated(x_px: FloatArray, y_px: FloatArray, aop: FloatArray, cam: CameraGeometry,
-                         dtype: FloatDtype) -> FloatArray:
+class _PointGeometryCache:
+    """The per-point lens terms of :func:`_evectors_calibrated` for the last few (camera, dtype, pixel list)
+    combinations. They depend on the calibration and the pixel positions only, and the camera reports the same
+    observation points frame after frame: computed once per point set (as the DSP keeps a table per point
+    grid), not per frame. Entries are read-only; the camera object is held so its identity stays valid."""
+
+    SIZE = 8
+
+    def __init__(self) -> None:
+        self._entries: dict[tuple[int, str, bytes, bytes], tuple[CameraGeometry, tuple[FloatArray, ...]]] = {}
+
+    def get(self, x_px: FloatArray, y_px: FloatArray, cam: CameraGeometry,
+            dtype: FloatDtype) -> tuple[FloatArray, ...]:
+        xa = np.ascontiguousarray(x_px, dtype=np.float64)
+        ya = np.ascontiguousarray(y_px, dtype=np.float64)
+        key = (id(cam), np.dtype(dtype).str, xa.tobytes(), ya.tobytes())
+        hit = self._entries.get(key)
+        if hit is not None and hit[0] is cam:
+            return hit[1]
+        terms = _point_geometry(xa, ya, cam, dtype)
+        for t in terms:
+            t.flags.writeable = False
+        if len(self._entries) >= self.SIZE:
+            self._entries.pop(next(iter(self._entries)))
+        self._entries[key] = (cam, terms)
+        return terms
+
+
+def _point_geometry(x_px: FloatArray, y_px: FloatArray, cam: CameraGeometry,
+                    dtype: FloatDtype) -> tuple[FloatArray, ...]:
+    """``(cos alpha, sin alpha, cos theta, sin theta, cos theta')`` of the points (azimuth about the principal
+    point, field angle, chief-ray angle), in ``dtype``."""
     X, Y = cam.focal_plane(x_px, y_px)
     r = np.hypot(X, Y)
     th = cam.field_angle(r)
@@ -233,6 +263,15 @@ def _evectors_calibrated(x_px: FloatArray, y_px: FloatArray, aop: FloatArray, ca
     else:
         q = (r / cam.exit_pupil_m).astype(dtype)
         ccra = (1.0 / np.sqrt(1.0 + q * q)).astype(dtype)
+    return cal, sal, ct, st, ccra
+
+
+_POINT_GEOMETRY = _PointGeometryCache()
+
+
+def _evectors_calibrated(x_px: FloatArray, y_px: FloatArray, aop: FloatArray, cam: CameraGeometry,
+                         dtype: FloatDtype) -> FloatArray:
+    cal, sal, ct, st, ccra = _POINT_GEOMETRY.get(x_px, y_px, cam, dtype)
     a = np.asarray(aop, dtype=dtype)
     ax, ay = np.sin(a), np.cos(a)  # AOP from image +y towards +x
     a_rho = ax * cal + ay * sal

@@ -464,10 +464,11 @@ class SegmentTrajectory(Trajectory):
             dv[m] = dt * np.einsum("k,nkc->nc", _GL4_W, f.reshape(n, 4, 3))
         for j in np.nonzero(~same)[0]:
             dth[j], dv[j] = self._increments_exact(float(a[j]), float(b[j]))
-        self._block = {}
         dt_ns = round(dt * 1e9)
-        for n_iv in range(BLOCK_INTERVALS):
-            self._block[(round(a[n_iv] * 1e9), dt_ns)] = (dth[n_iv], dv[n_iv])
+        # the keys as imu_increments forms them, round(t0 * 1e9): np.rint rounds half to even as round() does,
+        # exactly (|t0 * 1e9| < 2^53)
+        keys = np.rint(a * 1e9).astype(np.int64).tolist()
+        self._block = {(k, dt_ns): row for k, row in zip(keys, zip(dth, dv))}
 
     def imu_increments(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
         key = (round(t0 * 1e9), round((t1 - t0) * 1e9))

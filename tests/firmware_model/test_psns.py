@@ -253,3 +253,32 @@ def test_exposure_time_tag_c1():
     # 36-byte SOLAR_VECTOR frame at 115200 8N1 (10 bits/byte), 30 ms latency
     t = psns.exposure_time_s(10.0, 36, 115200, 30000)
     assert t == pytest.approx(10.0 - 36 * 10 / 115200 - 0.030)
+
+
+def test_calibrated_evectors_per_point_terms_cached_per_camera_and_point_set():
+    # the lens terms of a point set are computed once and reused; another camera or point set gets its own
+    from firmware_model.psns import _POINT_GEOMETRY, _point_geometry
+    from firmware_model.psns_geometry import CameraGeometry as _Cam
+
+    cam_a = _Cam(k1=-0.05, k2=0.01, exit_pupil_m=0.02, cx_px=1230.0)
+    cam_b = _Cam(k1=0.03, exit_pupil_m=None)
+    rng = np.random.default_rng(4)
+    x = rng.uniform(1, 2448, 50).round()
+    y = rng.uniform(1, 2048, 50).round()
+    aop = rng.uniform(-1.5, 1.5, 50)
+    for cam in (cam_a, cam_b):
+        for dt in (np.float32, np.float64):
+            first = psns.evectors_camera(x, y, aop, cam, dtype=dt)
+            again = psns.evectors_camera(x.copy(), y.copy(), aop, cam, dtype=dt)
+            assert np.array_equal(first, again)
+            cached = _POINT_GEOMETRY.get(x, y, cam, dt)
+            assert cached[0].dtype == dt and not cached[0].flags.writeable
+            for c, f in zip(cached, _point_geometry(x, y, cam, dt)):
+                assert np.array_equal(c, f)
+            # a unit vector perpendicular to its ray, whatever the lens
+            assert np.allclose(np.linalg.norm(first, axis=1), 1.0, atol=1e-6)
+    e_a = psns.evectors_camera(x, y, aop, cam_a, dtype=np.float64)
+    e_b = psns.evectors_camera(x, y, aop, cam_b, dtype=np.float64)
+    assert np.abs(e_a - e_b).max() > 1e-3  # not the other camera's terms
+    e_sub = psns.evectors_camera(x[:20], y[:20], aop[:20], cam_a, dtype=np.float64)
+    assert np.array_equal(e_sub, e_a[:20])

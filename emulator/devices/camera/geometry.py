@@ -3,6 +3,7 @@ the mosaic layout, the super-pixel Stokes split, the wire AOP and the mounting (
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -103,6 +104,10 @@ class CameraGeometry:
     ----------
     sp_v : (3, ny/2, nx/2) float32 unit rays of the super-pixel centres, camera frame.
     sp_valid : (ny/2, nx/2) bool, False outside a fisheye's image circle.
+    sp_cos_cra : (ny/2, nx/2) float32 cos of the chief-ray angle of the super-pixels.
+    max_field_angle : largest field angle of a valid super-pixel, rad (plus 2 mrad).
+        The four super-pixel attributes cover the whole sensor (1.25 M rays through the lens inversion, about a
+        second): only the full fidelity renders them, so they are computed on first use (binned: never).
     x_px, y_px : (P,) int observation-point pixels (1-based column, row).
     pt_v : (P, 3) float64 rays of those pixels (the pinhole / fisheye formula of the conventions, exact).
     win_rows, win_cols : (P, n+1) super-pixel row / column indices of each window.
@@ -117,17 +122,7 @@ class CameraGeometry:
             raise ValueError(f"lens must be pinhole or fisheye, got {cfg.lens!r}")
         self.cfg = cfg
         nsx, nsy = cfg.nx // 2, cfg.ny // 2
-        xc = 2.0 * np.arange(nsx) + 1.5  # 1-based pixel coordinate of super-pixel centres
-        yc = 2.0 * np.arange(nsy) + 1.5
-        X, Y = np.meshgrid(xc, yc)
         self.lens = cfg.lens_model
-        vx, vy, vz, valid = self.rays(X, Y)
-        self.sp_v = np.stack([vx, vy, vz]).astype(np.float32)
-        self.sp_valid = valid
-        #: cos of the chief-ray angle on the sensor of every super-pixel (polarization transfer, vignetting)
-        self.sp_cos_cra = self.cos_cra(X, Y).astype(np.float32)
-        #: largest angle between a (valid) super-pixel ray and the optical axis, rad
-        self.max_field_angle = float(np.arccos(np.clip(np.min(np.where(valid, vz, 1.0)), -1.0, 1.0))) + 2e-3
         n = cfg.bin_superpixels
         if n < 1:
             raise ValueError("bin_superpixels must be >= 1")
@@ -157,6 +152,38 @@ class CameraGeometry:
         self.pt_cos_cra = self.cos_cra(self.x_px.astype(np.float64), self.y_px.astype(np.float64))
         self.win_cols = J0[keep, None] + np.arange(n + 1)[None, :]
         self.win_rows = I0[keep, None] + np.arange(n + 1)[None, :]
+
+    @functools.cached_property
+    def _superpixels(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """``(sp_v, sp_valid, sp_cos_cra, max_field_angle)`` of the whole sensor (see the class docstring)."""
+        cfg = self.cfg
+        xc = 2.0 * np.arange(cfg.nx // 2) + 1.5  # 1-based pixel coordinate of super-pixel centres
+        yc = 2.0 * np.arange(cfg.ny // 2) + 1.5
+        X, Y = np.meshgrid(xc, yc)
+        vx, vy, vz, valid = self.rays(X, Y)
+        sp_v = np.stack([vx, vy, vz]).astype(np.float32)
+        # cos of the chief-ray angle on the sensor of every super-pixel (polarization transfer, vignetting); a
+        # thin lens keeps the field angle: the rays' z just computed (what cos_cra would compute again)
+        cos_cra = vz if cfg.exit_pupil_m is None else self.cos_cra(X, Y)
+        # largest angle between a (valid) super-pixel ray and the optical axis, rad
+        max_field_angle = float(np.arccos(np.clip(np.min(np.where(valid, vz, 1.0)), -1.0, 1.0))) + 2e-3
+        return sp_v, valid, np.asarray(cos_cra, dtype=np.float64).astype(np.float32), max_field_angle
+
+    @property
+    def sp_v(self) -> np.ndarray:
+        return self._superpixels[0]
+
+    @property
+    def sp_valid(self) -> np.ndarray:
+        return self._superpixels[1]
+
+    @property
+    def sp_cos_cra(self) -> np.ndarray:
+        return self._superpixels[2]
+
+    @property
+    def max_field_angle(self) -> float:
+        return self._superpixels[3]
 
     @property
     def n_points(self) -> int:

@@ -59,18 +59,22 @@ class PolarizationCameraModel:
         # physical sensor (defect_seed), the same in both fidelities
         d = cfg.defects
         self._maps: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
+        self._trig: dict[tuple[int, str], dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]] = {}
         self._pt_maps: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
         if d != SensorDefects() and (d.orientation_sigma_deg or d.extinction_spread or d.prnu
                                      or any(d.orientation_bias_deg)):
-            maps = defect_maps(d, cfg.extinction_ratio, (cfg.ny // 2, cfg.nx // 2),
-                               np.random.default_rng(cfg.defect_seed))
-            if cfg.fidelity == "full":
-                self._maps = maps
             g = self.geo
+            win = (g.win_rows[:, :, None], g.win_cols[:, None, :])
+            shape = (cfg.ny // 2, cfg.nx // 2)
+            if cfg.fidelity == "full":
+                self._maps = defect_maps(d, cfg.extinction_ratio, shape, np.random.default_rng(cfg.defect_seed))
+                win_maps = {th: tuple(m[win] for m in ms) for th, ms in self._maps.items()}
+            else:  # the same draw, evaluated at the windows only
+                win_maps = defect_maps(d, cfg.extinction_ratio, shape, np.random.default_rng(cfg.defect_seed), at=win)
             norm = g.w_row.sum() * g.w_col.sum()
             self._pt_maps = {th: tuple(
-                np.einsum("pij,i,j->p", m[g.win_rows[:, :, None], g.win_cols[:, None, :]].astype(np.float64),
-                          g.w_row, g.w_col) / norm for m in ms) for th, ms in maps.items()}
+                np.einsum("pij,i,j->p", m.astype(np.float64), g.w_row, g.w_col) / norm for m in ms)
+                for th, ms in win_maps.items()}
 
     # -- injected faults (emulator.faults) ----------------------------------------------------------
     def set_mounting_error(self, rotation_vector_rad: np.ndarray | None) -> None:
@@ -187,9 +191,7 @@ class PolarizationCameraModel:
                 ca: np.ndarray | float = math.cos(2 * ang)
                 sa: np.ndarray | float = math.sin(2 * ang)
             else:
-                delta, dia, gain = maps[theta]
-                ang2 = 2.0 * (math.radians(theta) + delta)
-                ca, sa = np.cos(ang2).astype(dt), np.sin(ang2).astype(dt)
+                ca, sa, dia, gain = self._polarizer_terms(maps, dt)[theta]
             m = radiance + dia * (c2 * ca + s2 * sa)
             if maps is not None or dfx.prnu:
                 m = m * gain
@@ -201,6 +203,20 @@ class PolarizationCameraModel:
             out = {0: k0 * out[0] + k1 * a, 90: k0 * out[90] + k1 * a, 45: k0 * out[45] + k1 * b,
                    135: k0 * out[135] + k1 * b}
         return out
+
+    def _polarizer_terms(self, maps: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]], dt: np.dtype
+                         ) -> dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+        """Per channel ``(cos 2(theta + delta), sin 2(theta + delta), D, gain)`` of the fixed-pattern ``maps`` in
+        ``dt``: they depend on the sensor only, so they are computed once per maps and dtype, not per frame."""
+        key = (id(maps), dt.str)
+        terms = self._trig.get(key)
+        if terms is None:
+            terms = {}
+            for theta, (delta, dia, gain) in maps.items():
+                ang2 = 2.0 * (math.radians(theta) + delta)
+                terms[theta] = (np.cos(ang2).astype(dt), np.sin(ang2).astype(dt), dia, gain)
+            self._trig[key] = terms
+        return terms
 
     # -- binned fidelity -------------------------------------------------------------------------
     def binned_channels(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

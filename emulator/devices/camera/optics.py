@@ -151,17 +151,27 @@ class SensorDefects:
 
 
 def defect_maps(d: SensorDefects, extinction_ratio: float, shape: tuple[int, int],
-                rng: np.random.Generator) -> dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """Per channel (0, 45, 90, 135): per-super-pixel ``(delta (rad), diattenuation, gain)`` maps, float32."""
+                rng: np.random.Generator, at: tuple[np.ndarray, np.ndarray] | None = None
+                ) -> dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Per channel (0, 45, 90, 135): per-super-pixel ``(delta (rad), diattenuation, gain)`` maps, float32.
+
+    ``at``: (row, column) index arrays: the maps' values at those super-pixels only (the shape of the indices),
+    the same values as indexing the whole maps (the whole sensor is drawn from ``rng`` either way, in the same
+    order; only the arithmetic is restricted) -- the binned camera needs its windows, not 1.25 M super-pixels."""
+    def draw() -> np.ndarray:
+        z = rng.standard_normal(shape)
+        return z if at is None else z[at]
+
+    out_shape = shape if at is None else np.broadcast_shapes(np.shape(at[0]), np.shape(at[1]))
     out = {}
     for i, theta in enumerate((0, 45, 90, 135)):
-        delta = (d.orientation_bias_deg[i] + d.orientation_sigma_deg * rng.standard_normal(shape)) * math.pi / 180.0
+        delta = (d.orientation_bias_deg[i] + d.orientation_sigma_deg * draw()) * math.pi / 180.0
         if math.isinf(extinction_ratio):
-            dia = np.ones(shape)
+            dia = np.ones(out_shape)
         else:
-            er = extinction_ratio * np.exp(d.extinction_spread * rng.standard_normal(shape)) \
-                if d.extinction_spread > 0 else np.full(shape, extinction_ratio)
+            er = extinction_ratio * np.exp(d.extinction_spread * draw()) \
+                if d.extinction_spread > 0 else np.full(out_shape, extinction_ratio)
             dia = (er - 1.0) / (er + 1.0)
-        gain = 1.0 + d.prnu * rng.standard_normal(shape) if d.prnu > 0 else np.ones(shape)
+        gain = 1.0 + d.prnu * draw() if d.prnu > 0 else np.ones(out_shape)
         out[theta] = (delta.astype(np.float32), dia.astype(np.float32), gain.astype(np.float32))
     return out

@@ -14,7 +14,7 @@ from ...world.trajectory import Trajectory
 from ...world.vibration import VibrationModel
 from .error_model import BLOCK, ImuTemperature, InertialErrorModel
 
-__all__ = ["Ahead", "ImuTruthTap", "measure_ahead", "sensor_input"]
+__all__ = ["Ahead", "ImuTruthTap", "delayed_interval", "measure_ahead", "sensor_input"]
 
 
 class ImuTruthTap:
@@ -36,6 +36,12 @@ class ImuTruthTap:
     def vibration_at(self, t: float) -> np.ndarray | None:
         """The vibration acceleration (3,) m/s^2, body axes, of the interval ending at ``t`` (None: none)."""
         return None if self.vibration is None else self.vibration.at(t)
+
+
+def delayed_interval(t: float, t_prev: float, delay: float) -> tuple[float, float]:
+    """The interval ``(t, t_prev)`` (s) a sensor whose output lags the motion by ``delay`` (s) describes at the
+    trigger edges ``(t, t_prev)``: both moved back by ``delay``, not before the scenario start."""
+    return max(t - delay, 1e-9), max(t_prev - delay, 0.0)
 
 
 def sensor_input(tap: ImuTruthTap, t: float, dt: float, dth: np.ndarray, dv: np.ndarray, gyro: bool,
@@ -90,8 +96,8 @@ class Ahead:
 
 
 def measure_ahead(model: InertialErrorModel, tap: ImuTruthTap, t: float, t_prev: float, period: float,
-                  temp: ImuTemperature, gyro: bool,
-                  vre: np.ndarray | None = None) -> tuple[np.ndarray, Ahead | None]:
+                  temp: ImuTemperature, gyro: bool, vre: np.ndarray | None = None,
+                  delay: float = 0.0) -> tuple[np.ndarray, Ahead | None]:
     """The measured mean of the interval ``(t_prev, t)`` (pre-fault, exactly :meth:`InertialErrorModel.measure`)
     and the same for the following trigger intervals ``t_j = (k + j) period``, ``t_prev_j = t_j - period``
     computed in one vectorised pass: as many as the current noise block and the trajectory's current
@@ -100,11 +106,18 @@ def measure_ahead(model: InertialErrorModel, tap: ImuTruthTap, t: float, t_prev:
     ``gyro``: the input is the mean angular rate and the g-sensitivity input the mean specific force;
     else (the accelerometers) the input is the mean specific force (:func:`sensor_input`, with the
     vibration and, ``vre``, its rectification).
+
+    ``delay`` (s, >= 0): the sensor's output describes the motion ``delay`` earlier (the gyro's low-pass group
+    delay): ``t``/``t_prev`` are the trigger edges, the measured interval is :func:`delayed_interval` of them,
+    and ``Ahead.times`` holds those delayed intervals.
     """
+    k = round(t / period)
+    on_grid = k * period == t and t - period == t_prev
+    if delay > 0.0:
+        t, t_prev = delayed_interval(t, t_prev, delay)
     dt = t - t_prev
     dth, dv = tap.increments(t_prev, t)
-    k = round(t / period)
-    if k * period != t or t - period != t_prev:  # not the FPGA's trigger grid: no look-ahead
+    if not on_grid:  # not the FPGA's trigger grid: no look-ahead
         x, f_b = sensor_input(tap, t, dt, dth, dv, gyro, vre)
         return model.measure(x, dt, temp.at(t), temp.rate_at(t), temp.cal_c, f_b), None
     noise0 = model.next_noise(dt)
@@ -122,6 +135,8 @@ def measure_ahead(model: InertialErrorModel, tap: ImuTruthTap, t: float, t_prev:
     for j in range(1, n_max):
         tj = (k + j) * period
         tpj = tj - period
+        if delay > 0.0:
+            tj, tpj = delayed_interval(tj, tpj, delay)
         inc = traj.imu_increments_ready(tpj, tj)
         if inc is None:
             break

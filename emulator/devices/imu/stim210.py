@@ -20,7 +20,7 @@ from protocols.stim import (
 from ...links.base import Link
 from .error_model import DEG, GyroErrors, ImuTemperature, gyro_error_model
 from .injected import InjectedFaults
-from .lookahead import Ahead, ImuTruthTap, measure_ahead, sensor_input
+from .lookahead import Ahead, ImuTruthTap, delayed_interval, measure_ahead, sensor_input
 
 __all__ = ["LP_FILTER_SETTINGS_HZ", "Stim210Gyro", "group_delay_s"]
 
@@ -116,9 +116,9 @@ class Stim210Gyro:
         """External-trigger falling edge at ``t`` (scenario s); interval started at ``t_prev``."""
         temp = self.temperature
         t_c = temp.at(t)
-        t_edge = t
+        t_edge, t_prev_edge = t, t_prev
         if self.group_delay_s > 0.0:  # the filtered output describes the motion one group delay ago
-            t, t_prev = max(t - self.group_delay_s, 1e-9), max(t_prev - self.group_delay_s, 0.0)
+            t, t_prev = delayed_interval(t, t_prev, self.group_delay_s)
         dt = t - t_prev
         if self.source is not None:
             rec = self.source(t_prev, t)
@@ -135,14 +135,15 @@ class Stim210Gyro:
             if j >= 0:
                 rate = ahead.raw[j]  # type: ignore[union-attr]
             elif self._look_ahead:
-                rate, ahead = measure_ahead(self.model, self.tap, t, t_prev, self._period, temp, True)
+                rate, ahead = measure_ahead(self.model, self.tap, t_edge, t_prev_edge, self._period, temp, True,
+                                            delay=self.group_delay_s)
                 self._ahead = ahead
                 if ahead is not None:
                     ahead.post = self._words(ahead)
             else:
                 dtheta, dv = self.tap.increments(t_prev, t)
                 x, f_b = sensor_input(self.tap, t, dt, dtheta, dv, True, None)
-                rate = self.model.measure(x, dt, t_c, temp.rate_at(t_edge), temp.cal_c, f_b)
+                rate = self.model.measure(x, dt, temp.at(t), temp.rate_at(t), temp.cal_c, f_b)  # as measure_ahead
         lim: np.ndarray | float = self.err.range_dps * DEG
         if self.faults.active:
             rate, lim = self.faults.apply(rate, lim)

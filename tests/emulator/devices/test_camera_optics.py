@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from emulator.devices.camera import CameraConfig, PolarizationCameraModel
-from emulator.devices.camera.optics import LensModel, SensorDefects, sensor_plane_field
+from emulator.devices.camera.optics import LensModel, SensorDefects, defect_maps, sensor_plane_field
 from emulator.world.sky import SkyModel
 from emulator.world.sun import SunModel
 from emulator.world.trajectory import StaticTrajectory
@@ -87,3 +87,19 @@ def test_both_fidelities_see_the_same_instrument():
     ideal = model("binned").observe(0.0)
     d0 = np.degrees((ideal.aop - ob.aop + math.pi / 2) % math.pi - math.pi / 2)
     assert np.median(np.abs(d0[good])) > 0.1
+
+
+def test_defect_maps_at_indices_are_the_whole_maps_indexed():
+    # the binned camera evaluates the fixed pattern at its windows only: same draw, same values
+    d = SensorDefects(orientation_sigma_deg=0.2, orientation_bias_deg=(0.1, -0.1, 0.05, -0.05),
+                      extinction_spread=0.1, prnu=0.006)
+    shape = (64, 80)
+    pick = np.random.default_rng(5)
+    at = (pick.integers(0, shape[0], (7, 3, 1)), pick.integers(0, shape[1], (7, 1, 3)))
+    whole = defect_maps(d, 280.0, shape, np.random.default_rng(0))
+    sub = defect_maps(d, 280.0, shape, np.random.default_rng(0), at=at)
+    for theta in (0, 45, 90, 135):
+        for k in range(3):
+            assert sub[theta][k].shape == (7, 3, 3)
+            assert np.array_equal(sub[theta][k], whole[theta][k][at])
+    assert np.std(whole[0][0]) > 0.0 and np.std(whole[0][2]) > 0.0  # the maps are not constant

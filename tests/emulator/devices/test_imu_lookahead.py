@@ -35,8 +35,8 @@ class _Link:
         return len(data)
 
 
-def _run(look_ahead: bool, temp: ImuTemperature,
-         vibration: bool = False) -> tuple[list[tuple[float, bytes]], list[tuple[int, int, int]]]:
+def _run(look_ahead: bool, temp: ImuTemperature, vibration: bool = False,
+         lp_filter_hz: float = 0.0) -> tuple[list[tuple[float, bytes]], list[tuple[int, int, int]], bool]:
     scn = load_scenario(SCENARIOS / "vehicle_loop_gnss_outage.yaml")
     traj = build_trajectory(scn)
     vib = None
@@ -45,7 +45,8 @@ def _run(look_ahead: bool, temp: ImuTemperature,
         vib = VibrationModel(prof["psd"], [4 * a for a in prof["axes"]], 200.0, np.random.default_rng(7))
     tap = ImuTruthTap(traj, vib)
     link = _Link()
-    gyro = Stim210Gyro(link, tap, np.random.default_rng(5), gyro_errors(scn), temperature=temp)  # type: ignore[arg-type]
+    gyro = Stim210Gyro(link, tap, np.random.default_rng(5), gyro_errors(scn), temperature=temp,  # type: ignore[arg-type]
+                       lp_filter_hz=lp_filter_hz)
     accel = AnalogAccelerometers(tap, np.random.default_rng(6), accel_errors(scn), temperature=temp)
     gyro._look_ahead = accel._look_ahead = look_ahead
     period = 1.0 / 200.0
@@ -69,17 +70,22 @@ def _run(look_ahead: bool, temp: ImuTemperature,
             gyro.set_range_limit(None)
         codes.append(accel.sample(t, t_prev))
         gyro.trigger(t, t_prev)
-    return link.out, codes
+    return link.out, codes, gyro._ahead is not None
 
 
-@pytest.mark.parametrize(("temp", "vibration"), [
-    (ImuTemperature(), False),
-    (ImuTemperature(start_c=20.0, rate_c_per_min=1.5, cal_c=25.0), False),
-    (ImuTemperature(start_c=20.0, rate_c_per_min=0.5, cal_c=25.0, warmup_c=12.0, warmup_tau_s=3.0), True),
+@pytest.mark.parametrize(("temp", "vibration", "lp_filter_hz"), [
+    (ImuTemperature(), False, 0.0),
+    (ImuTemperature(start_c=20.0, rate_c_per_min=1.5, cal_c=25.0), False, 0.0),
+    (ImuTemperature(start_c=20.0, rate_c_per_min=0.5, cal_c=25.0, warmup_c=12.0, warmup_tau_s=3.0), True, 0.0),
+    # the gyro's low-pass group delay (14 ms at 16 Hz): the measured intervals are off the trigger grid
+    (ImuTemperature(start_c=20.0, rate_c_per_min=0.5, cal_c=25.0, warmup_c=12.0, warmup_tau_s=3.0), True, 16.0),
+    (ImuTemperature(), False, 262.0),
 ])
-def test_look_ahead_is_bit_identical_to_per_interval(temp: ImuTemperature, vibration: bool) -> None:
-    ref_out, ref_codes = _run(False, temp, vibration)
-    out, codes = _run(True, temp, vibration)
+def test_look_ahead_is_bit_identical_to_per_interval(temp: ImuTemperature, vibration: bool,
+                                                     lp_filter_hz: float) -> None:
+    ref_out, ref_codes, _ = _run(False, temp, vibration, lp_filter_hz)
+    out, codes, gyro_ahead = _run(True, temp, vibration, lp_filter_hz)
+    assert gyro_ahead  # the gyro took the look-ahead path (with or without the group delay)
     assert len(ref_out) == 1295
     assert codes == ref_codes
     assert out == ref_out

@@ -99,3 +99,18 @@ def test_firmware_gravity_series_agrees_with_somigliana():
 def test_firmware_earth_rate_agrees_with_the_defining_constant():
     lat = 0.7
     assert np.allclose(earth.omega_ie_n(lat), [0.0, earth.OMEGA_IE * math.cos(lat), earth.OMEGA_IE * math.sin(lat)])
+
+
+def test_world_cbn_from_euler_agrees_with_scipy_rotation():
+    # the world's C_b^n is the product of its three axis rotations (not scipy's quaternion path, for speed):
+    # the same rotation as scipy's intrinsic ZXY to rounding, for arrays and for single triples
+    pitch, roll, yaw = _angles(seed=13)
+    ref = Rotation.from_euler("ZXY", np.stack([yaw, pitch, roll], axis=1)).as_matrix()
+    c = frames.cbn_from_euler(pitch, roll, yaw)
+    assert c.shape == (len(pitch), 3, 3)
+    assert np.abs(c - ref).max() < 2e-15
+    for i in range(0, len(pitch), 17):
+        c1 = frames.cbn_from_euler(float(pitch[i]), float(roll[i]), float(yaw[i]))
+        assert c1.shape == (3, 3)
+        assert np.array_equal(c1, c[i])
+        assert np.allclose(frames.euler_from_cbn(c1), (pitch[i], roll[i], yaw[i]), atol=1e-12)

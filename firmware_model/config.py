@@ -124,6 +124,10 @@ class FirmwareConfig:
     #: systematic solar-vector error per body axis (camera mount residual + sky model), 1 sigma, as three augmented
     #: Gauss-Markov states when ``psns_bias_states``
     psns_bias_sigma_deg: float = 0.2
+    #: the part of ``psns_bias_sigma_deg`` that is the sky's (the rest is the camera mount's, isotropic in the body):
+    #: the sky is symmetric about the solar meridian, so the filter puts its variance of both axes across the sun into
+    #: the elevation axis (filters.BaseFilter, docs/decisions/filter-consistency.md D-5.16); 0 = isotropic
+    psns_sky_bias_deg: float = 0.0
     psns_bias_corr_time_s: float = 600.0
     psns_bias_states: bool = True
     psns_dop_min: float = 0.05

@@ -165,6 +165,7 @@ class SensorSpecSheet:
             "psns_noise_scale": p.noise_scale,
             "psns_sigma_deg": max(p.noise_floor_deg, 0.001),
             "psns_bias_sigma_deg": math.hypot(p.mount_residual_deg, p.sky_bias_deg),
+            "psns_sky_bias_deg": p.sky_bias_deg,
             "psns_bias_corr_time_s": p.bias_corr_time_s,
             "gyro_scale_factor_ppm": g.scale_factor_ppm,
             "gyro_misalignment_mrad": g.misalignment_mrad,

@@ -378,6 +378,8 @@ class BaseFilter(NavFilter):
         self._mu_sky2 = sky2 if self.i_sun is not None else 0.0
         self._mu_iso2 = max((cfg.psns_bias_sigma_deg * DEG) ** 2 - sky2, 0.0)
         self._sun_axis_n: F64Array | None = None
+        #: FPGA time of the last GNSS position fix (s), for the loss-of-lock re-draw of the GNSS error states
+        self._t_last_fix: float | None = None
         self._eye = np.eye(n, dtype=dtype)
         self._qk_interval, self._qk = math.nan, self.q  # Q_k of the last KF interval (predict)
         self._cyc_update = kf_scalar_update_cycles(self.cost, n)
@@ -448,6 +450,7 @@ class BaseFilter(NavFilter):
         self.P = P.astype(self.dtype)
         self.x = np.zeros(n, dtype=self.dtype)
         self._sun_axis_n = None
+        self._t_last_fix = None
 
     # -- time update --------------------------------------------------------------------------
     def predict(self, nav: NavState, f_n: FloatArray, Tk: float) -> None:
@@ -532,8 +535,29 @@ class BaseFilter(NavFilter):
             return True
         return False
 
+    def _gnss_relock(self, t_fix: float) -> None:
+        """After a loss of lock (no position fix for more than ``gnss_relock_gap_s``) the receiver's correlated error is
+        a fresh draw (D-5.17): the GNSS error states restart from zero with their stationary variance and no
+        correlation with the navigation errors. Without this, the Gauss-Markov keeps ``exp(-gap / tau)`` of its
+        pre-outage estimate and correlation, and the filter puts the re-acquisition jump into position and vertical
+        velocity."""
+        gap, last = self.cfg.gnss_relock_gap_s, self._t_last_fix
+        self._t_last_fix = t_fix
+        if self.i_gnss is None or gap <= 0.0 or last is None or t_fix - last <= gap:
+            return
+        i = self.i_gnss
+        sc_h, sc_v = self._gnss_corr_sigmas()
+        self.x[i:i + 3] = 0.0
+        self.P[i:i + 3, :] = 0.0
+        self.P[:, i:i + 3] = 0.0
+        self.P[i:i + 3, i:i + 3] = np.diag([sc_h**2, sc_h**2, sc_v**2]).astype(self.dtype)
+        self.counters["gnss_relock_redraws"] = self.counters.get("gnss_relock_redraws", 0) + 1
+        self.meter.charge("gnss_relock", self.cost.flops(0, 6 * self.n))
+
     def update_gnss(self, nav: NavState, meas: GnssMeasurement, p_ins: FloatArray, v_ins: FloatArray) -> UpdateReport:
         dt = self.dtype
+        if meas.pos is not None:
+            self._gnss_relock(meas.t_fpga_s)
         rows = gnss_measurement_rows(self.cfg, self.meter, meas, p_ins, v_ins)
         innov = []
         h = np.zeros(self.n, dtype=dt)

@@ -79,6 +79,9 @@ class GnssSpec:
     corr_time_s: float = 300.0
     #: time from a fix's UTC epoch to the first byte of its first message (s): dates fixes without PPS
     output_latency_s: float = 0.1
+    #: a gap of position fixes longer than this (s) is a loss of lock: the receiver's solution after re-acquisition
+    #: (another satellite set, a restarted code smoother) carries a fresh draw of the correlated error (0 = never)
+    relock_gap_s: float = 5.0
 
 
 @dataclass(frozen=True)
@@ -162,6 +165,7 @@ class SensorSpecSheet:
             "gnss_vel_sigma_h_mps": max(n.velocity_h_95_mps / 2.448, 0.01),
             "gnss_vel_sigma_v_mps": max(n.velocity_v_95_mps / 2.0, 0.01),
             "gnss_latency_s": n.output_latency_s,
+            "gnss_relock_gap_s": n.relock_gap_s,
             "psns_noise_scale": p.noise_scale,
             "psns_sigma_deg": max(p.noise_floor_deg, 0.001),
             "psns_bias_sigma_deg": math.hypot(p.mount_residual_deg, p.sky_bias_deg),

@@ -72,9 +72,8 @@ from .units import DEG, DPH, G_STD
 _THETA_REF_RAD = math.pi / 2.0
 #: Allan-deviation floor of flicker bias noise per unit bias instability B (IEEE Std 952: 0.664 B)
 _ALLAN_FLOOR = math.sqrt(2.0 * math.log(2.0) / math.pi)
-#: time scale (s) at which the white-noise equivalent of the flicker bias matches its Allan floor: the velocity-aiding
-#: time constant of a 1 Hz GNSS-velocity-aided filter (docs/decisions/filter-consistency.md D-5.15)
-_FLICKER_MATCH_S = 10.0
+#: interval of the GNSS velocity aiding (s): 1 Hz fixes (for the flicker's matching time, BaseFilter._flicker_match_s)
+_VEL_AID_INTERVAL_S = 1.0
 
 __all__ = [
     "FILTER_VARIANTS",
@@ -351,8 +350,9 @@ class BaseFilter(NavFilter):
         q[:N_STATES] = process_noise_psd(arw, vrw, qg, qa)
         # the bias instability is flicker noise (Allan floor 0.664 B from ~1 s up to the correlation time): over the
         # seconds the GNSS velocity needs to see a bias, it moves as much as over minutes, which the random walk above
-        # (matched at tau) does not; its white-noise equivalent whose Allan deviation touches the floor at
-        # _FLICKER_MATCH_S (sigma_A^2 = N^2 / T) is added to the attitude and velocity rows (D-5.15)
+        # (matched at tau) does not; its white-noise equivalent whose Allan deviation touches the floor at the
+        # velocity-aiding time constant (sigma_A^2 = N^2 / T) is added to the attitude and velocity rows (D-5.15)
+        self._t_flicker = self._flicker_match_s()
         q[IDX_ATT] += self._flicker_white_psd(cfg.gyro_bias_instability_deg_h * DPH)
         q[IDX_VEL] += self._flicker_white_psd(cfg.accel_bias_instability_mg * 1e-3 * G_STD)
         #: Gauss-Markov decay rates (1/s) of the augmented states, on F's diagonal
@@ -386,11 +386,21 @@ class BaseFilter(NavFilter):
         self._cyc_predict = kf_predict_cycles(self.cost, n)
         self._cyc_feedback = feedback_cycles(self.cost)
 
-    @staticmethod
-    def _flicker_white_psd(b: float) -> float:
+    def _flicker_match_s(self) -> float:
+        """The time (s) over which the filter's velocity estimate averages the GNSS velocity when its process noise
+        is the flicker's white equivalent matched at that same time: a random walk of PSD ``q`` seen through
+        measurements of variance ``r`` every ``D`` s is averaged over ``T = sqrt(r D / q)``; with
+        ``q = (0.664 B_a)^2 T`` this gives ``T = (r D / (0.664 B_a)^2)^(1/3)`` (paper accelerometers: 3.3 s; field:
+        32 s), bounded to [D, accelerometer correlation time]. D-5.15."""
+        cfg = self.cfg
+        floor = _ALLAN_FLOOR * max(cfg.accel_bias_instability_mg, 1e-6) * 1e-3 * G_STD
+        t = (cfg.gnss_vel_sigma_h_mps**2 * _VEL_AID_INTERVAL_S / floor**2) ** (1.0 / 3.0)
+        return float(min(max(t, _VEL_AID_INTERVAL_S), cfg.accel_bias_corr_time_s))
+
+    def _flicker_white_psd(self, b: float) -> float:
         """White-noise PSD (unit^2 s) whose Allan variance ``N^2 / T`` equals the flicker floor ``(0.664 B)^2`` at
-        ``T = _FLICKER_MATCH_S``: ``N^2 = (0.664 B)^2 T`` (B in rad/s or m/s^2)."""
-        return (_ALLAN_FLOOR * b) ** 2 * _FLICKER_MATCH_S
+        the matching time ``T`` (:meth:`_flicker_match_s`): ``N^2 = (0.664 B)^2 T`` (B in rad/s or m/s^2)."""
+        return (_ALLAN_FLOOR * b) ** 2 * self._t_flicker
 
     def _gnss_corr_sigmas(self) -> tuple[float, float]:
         """Sigmas (m, horizontal per axis and vertical) of the time-correlated GNSS position error: the spec's

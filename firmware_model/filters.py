@@ -485,12 +485,13 @@ class BaseFilter(NavFilter):
         self.meter.charge("kf_predict", self._cyc_predict)
 
     def _mu_cov(self) -> F64Array:
-        """Covariance (rad^2, local-level frame) of the solar-vector bias: the mount's isotropic part plus the sky's,
-        whose variance over the two axes across the sun lies on the axis across the solar meridian (D-5.16):
-        ``m^2 I + 2 s^2 u u^T``, ``u = z x S^n / |z x S^n|``."""
+        """Covariance (rad^2, local-level frame) of the solar-vector bias: the spec sheet's isotropic figure (mount
+        and sky, ``m^2 + s^2`` per axis) plus the sky's again on the axis across the solar meridian, along which the
+        turbid sky's departure from the Rayleigh pattern shifts the solved sun (D-5.16):
+        ``(m^2 + s^2) I + s^2 u u^T``, ``u = z x S^n / |z x S^n|``."""
         u = self._sun_axis_n
         assert u is not None
-        return self._mu_iso2 * np.eye(3) + 2.0 * self._mu_sky2 * np.outer(u, u)
+        return (self._mu_iso2 + self._mu_sky2) * np.eye(3) + self._mu_sky2 * np.outer(u, u)
 
     def _sun_bias_noise(self, nav: NavState, qk: FloatArray, Tk: float) -> FloatArray:
         """Q_k of the solar-vector bias states, ``2 T_k / tau`` times :meth:`_mu_cov` (the Gauss-Markov's stationary

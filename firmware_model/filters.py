@@ -353,8 +353,8 @@ class BaseFilter(NavFilter):
         # (matched at tau) does not; its white-noise equivalent whose Allan deviation touches the floor at the
         # velocity-aiding time constant (sigma_A^2 = N^2 / T) is added to the attitude and velocity rows (D-5.15)
         self._t_flicker = self._flicker_match_s()
-        q[IDX_ATT] += self._flicker_white_psd(cfg.gyro_bias_instability_deg_h * DPH)
-        q[IDX_VEL] += self._flicker_white_psd(cfg.accel_bias_instability_mg * 1e-3 * G_STD)
+        q[IDX_ATT] += self._flicker_white_psd(self._flicker_b_gyro())
+        q[IDX_VEL] += self._flicker_white_psd(self._flicker_b_accel())
         #: Gauss-Markov decay rates (1/s) of the augmented states, on F's diagonal
         self._aug_rate = np.zeros(n)
         if self.i_gnss is not None:
@@ -386,6 +386,15 @@ class BaseFilter(NavFilter):
         self._cyc_predict = kf_predict_cycles(self.cost, n)
         self._cyc_feedback = feedback_cycles(self.cost)
 
+    def _flicker_b_gyro(self) -> float:
+        """Gyro bias instability B (rad/s) for the flicker term: at most the gyro bias's total sigma (the in-run part
+        of a bias cannot move more than the bias itself; a configuration that says otherwise is read as the smaller)."""
+        return min(self.cfg.gyro_bias_instability_deg_h, self.cfg.gyro_bias_sigma_deg_h) * DPH
+
+    def _flicker_b_accel(self) -> float:
+        """Accelerometer bias instability B (m/s^2) for the flicker term, at most the bias's total sigma."""
+        return min(self.cfg.accel_bias_instability_mg, self.cfg.accel_bias_sigma_mg) * 1e-3 * G_STD
+
     def _flicker_match_s(self) -> float:
         """The time (s) over which the filter's velocity estimate averages the GNSS velocity when its process noise
         is the flicker's white equivalent matched at that same time: a random walk of PSD ``q`` seen through
@@ -393,7 +402,7 @@ class BaseFilter(NavFilter):
         ``q = (0.664 B_a)^2 T`` this gives ``T = (r D / (0.664 B_a)^2)^(1/3)`` (paper accelerometers: 3.3 s; field:
         32 s), bounded to [D, accelerometer correlation time]. D-5.15."""
         cfg = self.cfg
-        floor = _ALLAN_FLOOR * max(cfg.accel_bias_instability_mg, 1e-6) * 1e-3 * G_STD
+        floor = _ALLAN_FLOOR * max(self._flicker_b_accel(), 1e-8)
         t = (cfg.gnss_vel_sigma_h_mps**2 * _VEL_AID_INTERVAL_S / floor**2) ** (1.0 / 3.0)
         return float(min(max(t, _VEL_AID_INTERVAL_S), cfg.accel_bias_corr_time_s))
 
@@ -427,7 +436,7 @@ class BaseFilter(NavFilter):
         # plus the averaged white noise (VRW / sqrt(T_align)), rad
         # (the accelerometer white noise and the white equivalent of its flicker bias, D-5.15)
         vrw2 = (cfg.accel_noise_ug_rt_hz * 1e-6 * G_STD) ** 2
-        vrw2 += self._flicker_white_psd(cfg.accel_bias_instability_mg * 1e-3 * G_STD)
+        vrw2 += self._flicker_white_psd(self._flicker_b_accel())
         lvl_noise = math.sqrt(vrw2 / max(cfg.align_time_s, 0.1)) / G_STD
         p0[IDX_ATT] = (lvl_noise**2, lvl_noise**2, heading_sigma_rad**2)
         p0[IDX_VEL] = 0.1**2

@@ -265,3 +265,22 @@ def test_gnss_relock_redraws_the_correlated_error_states():
     assert np.count_nonzero(flt.P[i:i + 3, :i]) == 0 and np.count_nonzero(flt.P[:i, i:i + 3]) == 0
     assert flt.counters["gnss_relock_redraws"] == 1
     np.linalg.cholesky(flt.P)
+
+
+def test_flicker_instability_read_as_at_most_the_total_bias():
+    """A configuration whose bias instability exceeds the bias's total sigma (0.05 mg accelerometer, 1.333 mg
+    default instability) is read as the smaller in the flicker term; the spec sheets never give that (their P0
+    includes B)."""
+    from firmware_model.kf import IDX_VEL
+    from firmware_model.units import G_STD
+
+    flt, _, _ = _filter(accel_bias_sigma_mg=0.05, accel_noise_ug_rt_hz=25.0)
+    assert flt._flicker_b_accel() == pytest.approx(0.05e-3 * G_STD)
+    floor = math.sqrt(2.0 * math.log(2.0) / math.pi) * 0.05e-3 * G_STD
+    np.testing.assert_allclose(flt.q[IDX_VEL], (25e-6 * G_STD) ** 2 + floor**2 * flt._t_flicker, rtol=1e-9)
+    for name in ("default", "field"):
+        sheet = SensorSpecSheet.from_dict(yaml.safe_load(
+            (Path(__file__).parents[2] / f"firmware_model/spec_sheets/{name}.yaml").read_text()))
+        f = sheet.config_fields()
+        assert f["accel_bias_sigma_mg"] >= f["accel_bias_instability_mg"]
+        assert f["gyro_bias_sigma_deg_h"] >= f["gyro_bias_instability_deg_h"]

@@ -105,6 +105,9 @@ class FirmwareConfig:
     gnss_pos_white_sigma_h_m: float = 1.0
     gnss_pos_white_sigma_v_m: float = 1.5
     gnss_pos_corr_time_s: float = 300.0
+    #: a gap of position fixes longer than this (s) re-draws the correlated GNSS error states (a loss of lock; the
+    #: filter forgets their estimate and correlations, D-5.17); 0 = never
+    gnss_relock_gap_s: float = 0.0
     gnss_error_states: bool = True
     #: innovation gate of each GNSS row (normalised innovation squared, 1 dof) (docs/hostile-input.md): chi-square(1)
     #: at alpha = 1e-5 (4.4 sigma), now that the covariance is consistent with the sensors (it was 1e4 = 100 sigma
@@ -124,6 +127,10 @@ class FirmwareConfig:
     #: systematic solar-vector error per body axis (camera mount residual + sky model), 1 sigma, as three augmented
     #: Gauss-Markov states when ``psns_bias_states``
     psns_bias_sigma_deg: float = 0.2
+    #: the part of ``psns_bias_sigma_deg`` that is the sky's (the rest is the camera mount's, isotropic in the body):
+    #: the sky is symmetric about the solar meridian, so the filter puts its variance of both axes across the sun into
+    #: the elevation axis (filters.BaseFilter, docs/decisions/filter-consistency.md D-5.16); 0 = isotropic
+    psns_sky_bias_deg: float = 0.0
     psns_bias_corr_time_s: float = 600.0
     psns_bias_states: bool = True
     psns_dop_min: float = 0.05

@@ -70,6 +70,10 @@ from .units import DEG, DPH, G_STD
 
 #: reference angle of the rotation-dependent attitude noise (BaseFilter._rotation_noise), rad
 _THETA_REF_RAD = math.pi / 2.0
+#: Allan-deviation floor of flicker bias noise per unit bias instability B (IEEE Std 952: 0.664 B)
+_ALLAN_FLOOR = math.sqrt(2.0 * math.log(2.0) / math.pi)
+#: interval of the GNSS velocity aiding (s): 1 Hz fixes (for the flicker's matching time, BaseFilter._flicker_match_s)
+_VEL_AID_INTERVAL_S = 1.0
 
 __all__ = [
     "FILTER_VARIANTS",
@@ -344,6 +348,13 @@ class BaseFilter(NavFilter):
         qa = 2.0 * (cfg.accel_bias_instability_mg * 1e-3 * G_STD) ** 2 / cfg.accel_bias_corr_time_s
         q = np.zeros(n)
         q[:N_STATES] = process_noise_psd(arw, vrw, qg, qa)
+        # the bias instability is flicker noise (Allan floor 0.664 B from ~1 s up to the correlation time): over the
+        # seconds the GNSS velocity needs to see a bias, it moves as much as over minutes, which the random walk above
+        # (matched at tau) does not; its white-noise equivalent whose Allan deviation touches the floor at the
+        # velocity-aiding time constant (sigma_A^2 = N^2 / T) is added to the attitude and velocity rows (D-5.15)
+        self._t_flicker = self._flicker_match_s()
+        q[IDX_ATT] += self._flicker_white_psd(self._flicker_b_gyro())
+        q[IDX_VEL] += self._flicker_white_psd(self._flicker_b_accel())
         #: Gauss-Markov decay rates (1/s) of the augmented states, on F's diagonal
         self._aug_rate = np.zeros(n)
         if self.i_gnss is not None:
@@ -360,11 +371,45 @@ class BaseFilter(NavFilter):
         self._rot_var_sf = (cfg.gyro_scale_factor_ppm * 1e-6) ** 2
         self._rot_var_mis = (cfg.gyro_misalignment_mrad * 1e-3) ** 2
         self._rot_var = self._rot_var_sf + self._rot_var_mis
+        #: solar-vector bias (D-5.16): isotropic camera-mount variance, the sky's variance (rad^2 per axis across the
+        #: sun, put into the elevation axis), and the horizontal n-frame axis across the solar meridian (z x s_n,
+        #: from the last solar update; None until the first)
+        sky2 = (cfg.psns_sky_bias_deg * DEG) ** 2
+        self._mu_sky2 = sky2 if self.i_sun is not None else 0.0
+        self._mu_iso2 = max((cfg.psns_bias_sigma_deg * DEG) ** 2 - sky2, 0.0)
+        self._sun_axis_n: F64Array | None = None
+        #: FPGA time of the last GNSS position fix (s), for the loss-of-lock re-draw of the GNSS error states
+        self._t_last_fix: float | None = None
         self._eye = np.eye(n, dtype=dtype)
         self._qk_interval, self._qk = math.nan, self.q  # Q_k of the last KF interval (predict)
         self._cyc_update = kf_scalar_update_cycles(self.cost, n)
         self._cyc_predict = kf_predict_cycles(self.cost, n)
         self._cyc_feedback = feedback_cycles(self.cost)
+
+    def _flicker_b_gyro(self) -> float:
+        """Gyro bias instability B (rad/s) for the flicker term: at most the gyro bias's total sigma (the in-run part
+        of a bias cannot move more than the bias itself; a configuration that says otherwise is read as the smaller)."""
+        return min(self.cfg.gyro_bias_instability_deg_h, self.cfg.gyro_bias_sigma_deg_h) * DPH
+
+    def _flicker_b_accel(self) -> float:
+        """Accelerometer bias instability B (m/s^2) for the flicker term, at most the bias's total sigma."""
+        return min(self.cfg.accel_bias_instability_mg, self.cfg.accel_bias_sigma_mg) * 1e-3 * G_STD
+
+    def _flicker_match_s(self) -> float:
+        """The time (s) over which the filter's velocity estimate averages the GNSS velocity when its process noise
+        is the flicker's white equivalent matched at that same time: a random walk of PSD ``q`` seen through
+        measurements of variance ``r`` every ``D`` s is averaged over ``T = sqrt(r D / q)``; with
+        ``q = (0.664 B_a)^2 T`` this gives ``T = (r D / (0.664 B_a)^2)^(1/3)`` (paper accelerometers: 3.3 s; field:
+        32 s), bounded to [D, accelerometer correlation time]. D-5.15."""
+        cfg = self.cfg
+        floor = _ALLAN_FLOOR * max(self._flicker_b_accel(), 1e-8)
+        t = (cfg.gnss_vel_sigma_h_mps**2 * _VEL_AID_INTERVAL_S / floor**2) ** (1.0 / 3.0)
+        return float(min(max(t, _VEL_AID_INTERVAL_S), cfg.accel_bias_corr_time_s))
+
+    def _flicker_white_psd(self, b: float) -> float:
+        """White-noise PSD (unit^2 s) whose Allan variance ``N^2 / T`` equals the flicker floor ``(0.664 B)^2`` at
+        the matching time ``T`` (:meth:`_flicker_match_s`): ``N^2 = (0.664 B)^2 T`` (B in rad/s or m/s^2)."""
+        return (_ALLAN_FLOOR * b) ** 2 * self._t_flicker
 
     def _gnss_corr_sigmas(self) -> tuple[float, float]:
         """Sigmas (m, horizontal per axis and vertical) of the time-correlated GNSS position error: the spec's
@@ -389,7 +434,10 @@ class BaseFilter(NavFilter):
         sig_acc = cfg.accel_bias_sigma_mg * 1e-3 * G_STD  # m/s^2, per body axis
         # the level comes from the accelerometers averaged over the coarse alignment: its error is the bias (below)
         # plus the averaged white noise (VRW / sqrt(T_align)), rad
-        lvl_noise = cfg.accel_noise_ug_rt_hz * 1e-6 / math.sqrt(max(cfg.align_time_s, 0.1))
+        # (the accelerometer white noise and the white equivalent of its flicker bias, D-5.15)
+        vrw2 = (cfg.accel_noise_ug_rt_hz * 1e-6 * G_STD) ** 2
+        vrw2 += self._flicker_white_psd(self._flicker_b_accel())
+        lvl_noise = math.sqrt(vrw2 / max(cfg.align_time_s, 0.1)) / G_STD
         p0[IDX_ATT] = (lvl_noise**2, lvl_noise**2, heading_sigma_rad**2)
         p0[IDX_VEL] = 0.1**2
         p0[IDX_POS] = ((cfg.gnss_pos_sigma_h_m / rmh) ** 2, (cfg.gnss_pos_sigma_h_m / rnh_cl) ** 2,
@@ -420,6 +468,8 @@ class BaseFilter(NavFilter):
         P[IDX_ACC, IDX_ATT] = p_acc.T
         self.P = P.astype(self.dtype)
         self.x = np.zeros(n, dtype=self.dtype)
+        self._sun_axis_n = None
+        self._t_last_fix = None
 
     # -- time update --------------------------------------------------------------------------
     def predict(self, nav: NavState, f_n: FloatArray, Tk: float) -> None:
@@ -435,13 +485,34 @@ class BaseFilter(NavFilter):
         if Tk != self._qk_interval:  # Q_k = q T_k: the same every interval but the first after alignment
             self._qk_interval, self._qk = Tk, (self.q * Tk).astype(dt)
         rot_b = self.rotation_b_rad
+        qk: FloatArray = self._qk
         if self._rot_var > 0.0 and any(rot_b):
-            self.x, self.P = kf_predict(self.x, self.P, Phi, self._rotation_noise(nav, rot_b))
-        else:
-            self.x, self.P = kf_predict(self.x, self.P, Phi, self._qk)
+            qk = self._rotation_noise(nav, rot_b, qk)
+        if self._sun_axis_n is not None and self._mu_sky2 > 0.0:
+            qk = self._sun_bias_noise(nav, qk, Tk)
+        self.x, self.P = kf_predict(self.x, self.P, Phi, qk)
         self.meter.charge("kf_predict", self._cyc_predict)
 
-    def _rotation_noise(self, nav: NavState, rot_b: tuple[float, float, float]) -> FloatArray:
+    def _mu_cov(self) -> F64Array:
+        """Covariance (rad^2, local-level frame) of the solar-vector bias: the spec sheet's isotropic figure (mount
+        and sky, ``m^2 + s^2`` per axis) plus the sky's again on the axis across the solar meridian, along which the
+        turbid sky's departure from the Rayleigh pattern shifts the solved sun (D-5.16):
+        ``(m^2 + s^2) I + s^2 u u^T``, ``u = z x S^n / |z x S^n|``."""
+        u = self._sun_axis_n
+        assert u is not None
+        return (self._mu_iso2 + self._mu_sky2) * np.eye(3) + self._mu_sky2 * np.outer(u, u)
+
+    def _sun_bias_noise(self, nav: NavState, qk: FloatArray, Tk: float) -> FloatArray:
+        """Q_k of the solar-vector bias states, ``2 T_k / tau`` times :meth:`_mu_cov` (the Gauss-Markov's stationary
+        covariance, its direction following the body's turns), in place of the isotropic diagonal."""
+        assert self.i_sun is not None
+        i = self.i_sun
+        q = np.diag(qk.astype(np.float64)) if qk.ndim == 1 else qk.astype(np.float64, copy=True)
+        q[i:i + 3, i:i + 3] = (2.0 * Tk / self.cfg.psns_bias_corr_time_s) * self._mu_cov()
+        self.meter.charge("kf_sun_bias_noise", c674x.flops(9, 6) + c674x.CALL_OVERHEAD)
+        return q.astype(self.dtype)
+
+    def _rotation_noise(self, nav: NavState, rot_b: tuple[float, float, float], qk_in: FloatArray) -> FloatArray:
         """Q_k with the attitude noise the gyros' scale-factor error s and misalignment m add while the body turns.
 
         A rotation ``theta_i`` about body axis i leaves ``s theta_i`` about that axis and ``m theta_i`` about each of
@@ -458,7 +529,7 @@ class BaseFilter(NavFilter):
         var_b *= _THETA_REF_RAD
         cbn = q2mat_fast(nav.q).astype(np.float64)
         qk_att = (cbn * var_b) @ cbn.T
-        qk = np.diag(self._qk.astype(np.float64)) if self._qk.ndim == 1 else self._qk.astype(np.float64, copy=True)
+        qk = np.diag(qk_in.astype(np.float64)) if qk_in.ndim == 1 else qk_in.astype(np.float64, copy=True)
         qk[IDX_ATT, IDX_ATT] += qk_att
         self.meter.charge("kf_rotation_noise", c674x.flops(45, 36) + c674x.CALL_OVERHEAD)
         return qk.astype(self.dtype)
@@ -484,8 +555,29 @@ class BaseFilter(NavFilter):
             return True
         return False
 
+    def _gnss_relock(self, t_fix: float) -> None:
+        """After a loss of lock (no position fix for more than ``gnss_relock_gap_s``) the receiver's correlated error is
+        a fresh draw (D-5.17): the GNSS error states restart from zero with their stationary variance and no
+        correlation with the navigation errors. Without this, the Gauss-Markov keeps ``exp(-gap / tau)`` of its
+        pre-outage estimate and correlation, and the filter puts the re-acquisition jump into position and vertical
+        velocity."""
+        gap, last = self.cfg.gnss_relock_gap_s, self._t_last_fix
+        self._t_last_fix = t_fix
+        if self.i_gnss is None or gap <= 0.0 or last is None or t_fix - last <= gap:
+            return
+        i = self.i_gnss
+        sc_h, sc_v = self._gnss_corr_sigmas()
+        self.x[i:i + 3] = 0.0
+        self.P[i:i + 3, :] = 0.0
+        self.P[:, i:i + 3] = 0.0
+        self.P[i:i + 3, i:i + 3] = np.diag([sc_h**2, sc_h**2, sc_v**2]).astype(self.dtype)
+        self.counters["gnss_relock_redraws"] = self.counters.get("gnss_relock_redraws", 0) + 1
+        self.meter.charge("gnss_relock", self.cost.flops(0, 6 * self.n))
+
     def update_gnss(self, nav: NavState, meas: GnssMeasurement, p_ins: FloatArray, v_ins: FloatArray) -> UpdateReport:
         dt = self.dtype
+        if meas.pos is not None:
+            self._gnss_relock(meas.t_fpga_s)
         rows = gnss_measurement_rows(self.cfg, self.meter, meas, p_ins, v_ins)
         innov = []
         h = np.zeros(self.n, dtype=dt)
@@ -516,11 +608,18 @@ class BaseFilter(NavFilter):
         dt = self.dtype
         s_n = s_n.astype(dt)
         z, sign = solar_vector_residual(s_n, cbn_exp.astype(dt), obs.s_b.astype(dt))
+        if self._mu_sky2 > 0.0:
+            self._set_sun_axis(s_n)
         H = solar_vector_rows(s_n, dt, self.n)
         if self.i_sun is not None:
-            # s_b measured = (I + [mu x]) s_b: Z = -[S^n x] phi + [S^n x] C_b^n mu
-            # (docs/decisions/filter-consistency.md)
-            H[:, self.i_sun:self.i_sun + 3] = -H[:, IDX_ATT] @ cbn_exp.astype(dt)
+            if self._mu_sky2 > 0.0:
+                # the bias in the local-level frame, where the sky's error stays in the solar meridian whatever the
+                # body does (D-5.16): S^n measured = (I + [mu x]) S^n, Z = -[S^n x] phi + [S^n x] mu
+                H[:, self.i_sun:self.i_sun + 3] = -H[:, IDX_ATT]
+            else:
+                # s_b measured = (I + [mu x]) s_b: Z = -[S^n x] phi + [S^n x] C_b^n mu
+                # (docs/decisions/filter-consistency.md)
+                H[:, self.i_sun:self.i_sun + 3] = -H[:, IDX_ATT] @ cbn_exp.astype(dt)
         r = solar_noise_variance(cfg, obs.quality, obs.n_used)
         self.meter.charge("solar_residual", self.cost.flops(18 + 9, 18 + 6))
         # innovation gate: |Z|^2 against its predicted variance tr(H P H^T) + 3 r (no 3x3 inverse)
@@ -537,6 +636,21 @@ class BaseFilter(NavFilter):
         self.meter.charge("kf_update", 3 * self._cyc_update)
         return UpdateReport("solar", True, 3, max(abs(v) for v in innov),
                             {"residual_deg": math.sqrt(z2) / DEG, "sign": sign})
+
+    def _set_sun_axis(self, s_n: FloatArray) -> None:
+        """Keep the n-frame axis across the solar meridian (D-5.16); at the first solar update, give the bias states
+        their prior in that shape (until then they are uncorrelated with every other state, so this is the P0 the
+        filter would have set knowing the sun)."""
+        e, nn = float(s_n[0]), float(s_n[1])
+        norm = math.hypot(e, nn)
+        if norm < 1e-3:  # sun at the zenith: no meridian
+            return
+        first = self._sun_axis_n is None
+        self._sun_axis_n = np.array([-nn / norm, e / norm, 0.0])
+        if first and self.i_sun is not None:
+            i = self.i_sun
+            self.P[i:i + 3, i:i + 3] = self._mu_cov().astype(self.dtype)
+        self.meter.charge("solar_bias_axis", self.cost.flops(4, 2) + self.cost.math("rsqrt"))
 
     # -- closed loop ----------------------------------------------------------------------------
     def feedback(self, nav: NavState) -> None:

@@ -12,15 +12,18 @@ package does no file I/O. :meth:`SensorSpecSheet.config_fields` derives the filt
   (the Allan floor read as the flicker's stationary level), modelled in the filter as a random walk of the same
   short-term growth (``q = 2 sigma^2 / tau``); its stationary part enters ``P0`` with the turn-on repeatability and
   the environmental terms the datasheet gives (g-sensitivity at 1 g, temperature-gradient bias, scale factor at
-  1 g for the accelerometers), all added in quadrature;
+  1 g for the accelerometers), all added in quadrature; the flicker's short-term motion (Allan floor 0.664 B at
+  every averaging time) as a white-noise equivalent on the attitude and velocity rows, matched at the
+  velocity-aiding time constant (docs/decisions/filter-consistency.md D-5.15);
 * GNSS: the receiver's 95 % figures (horizontal 2DRMS -> sigma per axis = X / 2.448, vertical X / 2) split into a
   white part (``white_sigma_h_m`` / ``_v_m``: receiver noise and fast multipath) and a time-correlated remainder
   (atmosphere, orbit) of correlation time ``corr_time_s``, estimated as three augmented Gauss-Markov states
-  (docs/decisions/filter-consistency.md);
+  (docs/decisions/filter-consistency.md); a gap of fixes longer than ``relock_gap_s`` is a loss of lock after which
+  they restart as a fresh draw (D-5.17);
 * PSNS: the solve's own noise from its eigenvalues (``noise_scale * lambda_min / lambda_mid / n_used``, see
   :func:`firmware_model.filters.solar_noise_variance`), a floor, and the systematic solar-vector error (camera
-  mount residual of the calibration plus the sky's departure from the Rayleigh pattern) as three augmented body-frame
-  states.
+  mount residual of the calibration plus the sky's departure from the Rayleigh pattern) as three augmented states in
+  the local-level frame, the sky's part once more on the axis across the solar meridian (D-5.16).
 
 Every figure is 1 sigma per axis unless its name says 95 %.
 """
@@ -79,6 +82,9 @@ class GnssSpec:
     corr_time_s: float = 300.0
     #: time from a fix's UTC epoch to the first byte of its first message (s): dates fixes without PPS
     output_latency_s: float = 0.1
+    #: a gap of position fixes longer than this (s) is a loss of lock: the receiver's solution after re-acquisition
+    #: (another satellite set, a restarted code smoother) carries a fresh draw of the correlated error (0 = never)
+    relock_gap_s: float = 5.0
 
 
 @dataclass(frozen=True)
@@ -162,9 +168,11 @@ class SensorSpecSheet:
             "gnss_vel_sigma_h_mps": max(n.velocity_h_95_mps / 2.448, 0.01),
             "gnss_vel_sigma_v_mps": max(n.velocity_v_95_mps / 2.0, 0.01),
             "gnss_latency_s": n.output_latency_s,
+            "gnss_relock_gap_s": n.relock_gap_s,
             "psns_noise_scale": p.noise_scale,
             "psns_sigma_deg": max(p.noise_floor_deg, 0.001),
             "psns_bias_sigma_deg": math.hypot(p.mount_residual_deg, p.sky_bias_deg),
+            "psns_sky_bias_deg": p.sky_bias_deg,
             "psns_bias_corr_time_s": p.bias_corr_time_s,
             "gyro_scale_factor_ppm": g.scale_factor_ppm,
             "gyro_misalignment_mrad": g.misalignment_mrad,

@@ -153,7 +153,11 @@ def test_the_level_p0_is_the_accelerometer_bias_seen_through_gravity():
     flt, _, cbn = _filter()
     P, cfg = flt.P, flt.cfg
     sig_acc = cfg.accel_bias_sigma_mg * 1e-3 * G_STD
-    noise = cfg.accel_noise_ug_rt_hz * 1e-6 / math.sqrt(cfg.align_time_s)
+    # white noise and the white equivalent of the flicker bias (D-5.15), averaged over the alignment
+    floor = math.sqrt(2.0 * math.log(2.0) / math.pi) * cfg.accel_bias_instability_mg * 1e-3 * G_STD
+    t_m = (cfg.gnss_vel_sigma_h_mps**2 * 1.0 / floor**2) ** (1.0 / 3.0)
+    vrw = cfg.accel_noise_ug_rt_hz * 1e-6 * G_STD
+    noise = math.sqrt((vrw**2 + floor**2 * t_m) / cfg.align_time_s) / G_STD
     for row_att, row_nav, sign in ((0, 1, 1.0), (1, 0, -1.0)):  # (phi_E, N, +g), (phi_N, E, -g)
         h = np.zeros(flt.n)
         h[IDX_ATT.start + row_att] = sign * G_STD
@@ -171,7 +175,7 @@ def test_rotation_noise_by_closed_form():
     assert cfg_fields["gyro_scale_factor_ppm"] == 300.0 and cfg_fields["gyro_misalignment_mrad"] == 1.0
     flt, nav, cbn = _filter(gyro_scale_factor_ppm=300.0, gyro_misalignment_mrad=1.0)
     quarter = math.pi / 2.0
-    qk = flt._rotation_noise(nav, (0.0, 0.0, quarter))
+    qk = flt._rotation_noise(nav, (0.0, 0.0, quarter), flt._qk)
     want_b = np.diag([(1e-3 * quarter) ** 2, (1e-3 * quarter) ** 2, (300e-6 * quarter) ** 2])
     base = np.diag(flt._qk) if flt._qk.ndim == 1 else flt._qk
     np.testing.assert_allclose(qk[:3, :3] - base[:3, :3], cbn @ want_b @ cbn.T, rtol=1e-9, atol=1e-18)
@@ -185,3 +189,98 @@ def test_rotation_noise_by_closed_form():
     flt.rotation_b_rad = (0.0, 0.0, quarter)
     flt.predict(nav, np.array([0.0, 0.0, 9.8]), 0.1)
     np.testing.assert_allclose(flt.P[:3, :3] - still[:3, :3], cbn @ want_b @ cbn.T, rtol=1e-6, atol=1e-15)
+
+
+def test_flicker_white_equivalent_by_closed_form():
+    """D-5.15: the flicker bias (Allan floor 0.664 B) as white noise whose Allan deviation N / sqrt(T) touches the
+    floor at the velocity-aiding time T = (r D / (0.664 B_a)^2)^(1/3), D = 1 s; added to the attitude and velocity
+    rows of q on top of ARW^2 and VRW^2."""
+    from firmware_model.kf import IDX_ATT, IDX_VEL
+    from firmware_model.units import DPH, G_STD
+
+    sheet = SensorSpecSheet.from_dict(yaml.safe_load(
+        (Path(__file__).parents[2] / "firmware_model/spec_sheets/default.yaml").read_text()))
+    flt, _, _ = _filter(**{k: v for k, v in sheet.config_fields().items() if k != "spec_sheet"})
+    cfg = flt.cfg
+    floor_a = 0.664 * 1.333e-3 * G_STD  # the paper accelerometers' B = 1.333 mg
+    t_m = ((0.13 / 2.448) ** 2 / floor_a**2) ** (1.0 / 3.0)
+    assert t_m == pytest.approx(3.34, abs=0.01)  # the figure D-5.15 quotes
+    assert flt._t_flicker == pytest.approx(t_m, rel=1e-3)
+    vrw2 = (100e-6 * G_STD) ** 2
+    np.testing.assert_allclose(flt.q[IDX_VEL], vrw2 + floor_a**2 * t_m, rtol=1e-3)
+    arw2 = (0.15 * DEG / 60.0) ** 2
+    floor_g = 0.664 * 6.667 * DPH
+    np.testing.assert_allclose(flt.q[IDX_ATT], arw2 + floor_g**2 * t_m, rtol=1e-3)
+    # the white part's Allan deviation at T is the floor
+    assert math.sqrt((flt.q[IDX_VEL][0] - vrw2) / t_m) == pytest.approx(floor_a, rel=1e-3)
+    assert cfg.accel_bias_instability_mg == pytest.approx(1.333)
+
+
+def test_solar_bias_prior_across_the_solar_meridian():
+    """D-5.16: once the sun is known, the solar-bias states (local-level frame) get (m^2 + s^2) I + s^2 u u^T with
+    u = z x S^n / |z x S^n| (the horizontal axis across the solar meridian), and their Q_k is 2 T_k / tau times that;
+    the solar rows see them as [S^n x] (no body rotation)."""
+    flt, nav, cbn = _filter(psns_bias_sigma_deg=math.hypot(0.05, 0.3), psns_sky_bias_deg=0.3)
+    i = flt.i_sun
+    assert i is not None
+    el, az = 40 * DEG, 200 * DEG
+    s_n = np.array([math.cos(el) * math.sin(az), math.cos(el) * math.cos(az), math.sin(el)])
+    u = np.array([-math.cos(az), math.sin(az), 0.0])
+    m2, s2 = (0.05 * DEG) ** 2, (0.3 * DEG) ** 2
+    want = (m2 + s2) * np.eye(3) + s2 * np.outer(u, u)
+    # a rotation about u moves the sun within its vertical plane: d/dt of S^n along u x S^n changes the elevation only
+    ds = np.cross(u, s_n)  # a small rotation about u: only the elevation changes, not the azimuth
+    assert float(ds @ np.array([math.cos(az), -math.sin(az), 0.0])) == pytest.approx(0.0, abs=1e-15)
+    assert abs(float(ds[2])) == pytest.approx(math.cos(el), rel=1e-12)
+    obs = SolarObservation(t_exposure_s=3.0, s_b=cbn.T @ s_n, quality=0.0, n_used=100, source="camera")
+    rep = flt.update_solar(nav, obs, s_n, cbn)
+    assert rep.accepted
+    P = flt.P
+    # the prior was set before the update: the update only shrinks it along the observed axes
+    assert flt._sun_axis_n is not None
+    np.testing.assert_allclose(flt._mu_cov(), want, rtol=1e-12, atol=1e-20)
+    assert np.all(np.linalg.eigvalsh(want - P[i:i + 3, i:i + 3]) > -1e-18)
+    qk = flt._sun_bias_noise(nav, flt._qk, 0.1)
+    np.testing.assert_allclose(qk[i:i + 3, i:i + 3], 2.0 * 0.1 / flt.cfg.psns_bias_corr_time_s * want, rtol=1e-9)
+
+
+def test_gnss_relock_redraws_the_correlated_error_states():
+    """D-5.17: a position fix after a gap longer than gnss_relock_gap_s restarts the GNSS-error states (estimate 0,
+    stationary variance, no correlation); a fix within the gap leaves them alone."""
+    flt, nav, _ = _filter(gnss_relock_gap_s=5.0)
+    i = flt.i_gnss
+    assert i is not None
+    sc_h, sc_v = flt._gnss_corr_sigmas()
+    p_ins = nav.pos.copy()
+    fix = GnssMeasurement(t_fpga_s=3.0, pos=(float(p_ins[0]), float(p_ins[1]), float(p_ins[2]) + 4.0))
+    flt.update_gnss(nav, fix, p_ins, np.zeros(3))
+    cross = flt.P[D_H, i + 2]
+    assert cross != 0.0
+    flt.x[i + 2] = 1.5  # an estimate of the vertical GNSS error (m)
+    flt._gnss_relock(7.9)  # 4.9 s later: not a loss of lock
+    assert flt.P[D_H, i + 2] == cross and flt.x[i + 2] == 1.5
+    flt._gnss_relock(13.0)  # 5.1 s later: a re-draw
+    np.testing.assert_array_equal(flt.x[i:i + 3], 0.0)
+    np.testing.assert_allclose(np.diag(flt.P[i:i + 3, i:i + 3]), [sc_h**2, sc_h**2, sc_v**2])
+    assert np.count_nonzero(flt.P[i:i + 3, :i]) == 0 and np.count_nonzero(flt.P[:i, i:i + 3]) == 0
+    assert flt.counters["gnss_relock_redraws"] == 1
+    np.linalg.cholesky(flt.P)
+
+
+def test_flicker_instability_read_as_at_most_the_total_bias():
+    """A configuration whose bias instability exceeds the bias's total sigma (0.05 mg accelerometer, 1.333 mg
+    default instability) is read as the smaller in the flicker term; the spec sheets never give that (their P0
+    includes B)."""
+    from firmware_model.kf import IDX_VEL
+    from firmware_model.units import G_STD
+
+    flt, _, _ = _filter(accel_bias_sigma_mg=0.05, accel_noise_ug_rt_hz=25.0)
+    assert flt._flicker_b_accel() == pytest.approx(0.05e-3 * G_STD)
+    floor = math.sqrt(2.0 * math.log(2.0) / math.pi) * 0.05e-3 * G_STD
+    np.testing.assert_allclose(flt.q[IDX_VEL], (25e-6 * G_STD) ** 2 + floor**2 * flt._t_flicker, rtol=1e-9)
+    for name in ("default", "field"):
+        sheet = SensorSpecSheet.from_dict(yaml.safe_load(
+            (Path(__file__).parents[2] / f"firmware_model/spec_sheets/{name}.yaml").read_text()))
+        f = sheet.config_fields()
+        assert f["accel_bias_sigma_mg"] >= f["accel_bias_instability_mg"]
+        assert f["gyro_bias_sigma_deg_h"] >= f["gyro_bias_instability_deg_h"]

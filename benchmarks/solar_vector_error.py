@@ -25,7 +25,7 @@ from emulator.devices.camera import PolarizationCameraModel
 from emulator.devices.camera.optics import SensorDefects
 from emulator.devices.sensors import camera_config
 from emulator.dsp.firmware_setup import calibration_for, firmware_config
-from emulator.recording.psns_error import azimuth_elevation_error
+from emulator.recording.psns_error import azimuth_elevation_error, line_angle_deg
 from emulator.scenario.loader import validate_scenario_data
 from emulator.world.sky import sky_from_spec
 from emulator.world.sun import SunModel
@@ -71,8 +71,7 @@ def errors(preset: str, calibration: str, units: int, frames: int, paper_lens: b
             s_b_true = st.c_bn.T @ s_n_true
             s_b = cam.c_c_b @ np.asarray(sol.s, dtype=np.float64)
             d_az, d_el = azimuth_elevation_error(st.c_bn @ s_b, s_n_true)
-            out.append((math.degrees(math.acos(min(1.0, abs(float(s_b @ s_b_true) / np.linalg.norm(s_b))))),
-                        abs(d_az), abs(d_el)))
+            out.append((line_angle_deg(s_b, s_b_true), abs(d_az), abs(d_el)))
     return np.array(out).reshape(-1, 3)
 
 

@@ -42,7 +42,7 @@ from ..world.sun import SunModel
 from ..world.trajectory import Trajectory
 from .formatting import csv_row_fast
 
-__all__ = ["PSNS_COLUMNS", "SolarVsTruth", "azimuth_elevation_error", "solar_error_stats"]
+__all__ = ["PSNS_COLUMNS", "SolarVsTruth", "azimuth_elevation_error", "line_angle_deg", "solar_error_stats"]
 
 PSNS_COLUMNS = [
     "time_s", "s_b_x", "s_b_y", "s_b_z", "true_s_b_x", "true_s_b_y", "true_s_b_z", "err_deg",
@@ -56,6 +56,13 @@ def solar_error_stats(err_deg: list[float] | np.ndarray) -> dict[str, float | No
     if e.size == 0:
         return {"median": None, "p95": None, "max": None}
     return {"median": float(np.median(e)), "p95": float(np.percentile(e, 95.0)), "max": float(np.max(e))}
+
+
+def line_angle_deg(a: np.ndarray, b: np.ndarray) -> float:
+    """Angle (deg, in [0, 90]) between the lines of the vectors ``a`` and ``b`` (any length, either sign):
+    ``atan2(|a x b|, |a . b|)``, exact near 0 where the acos of the normalised dot product loses half the digits."""
+    c = np.cross(a, b)
+    return math.degrees(math.atan2(math.sqrt(float(c @ c)), abs(float(a @ b))))
 
 
 def azimuth_elevation_error(s_n: np.ndarray, true_s_n: np.ndarray) -> tuple[float, float]:
@@ -98,11 +105,14 @@ class SolarVsTruth:
 
     def truth_s_b(self, t: float) -> np.ndarray:
         """``S^b_true(t)``: the unit sun vector in the body frame (x right, y forward, z up) at scenario time ``t``."""
-        st = self.traj.state(t)
+        return self._truth(self.traj.state(t), t)[1]
+
+    def _truth(self, st: Any, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """The true sun ``(S^n, S^b)`` (ENU, body) of the trajectory state ``st`` at scenario time ``t``."""
         lat, lon, h = (float(x) for x in st.pos)
         s_n = self.sun.sun_enu(t, lat, lon, h)
         s_b: np.ndarray = st.c_bn.T @ s_n
-        return s_b
+        return s_n, s_b
 
     def drain(self) -> None:
         """Compare the queued solves with truth (one vectorised trajectory evaluation)."""
@@ -114,14 +124,10 @@ class SolarVsTruth:
             self.rows.append(",".join(PSNS_COLUMNS) + "\r\n")
             self.started = True
         for s, st in zip(pend, self.traj.states([s.t_exposure_s for s in pend])):
-            lat, lon, h = (float(x) for x in st.pos)
-            tn = self.sun.sun_enu(s.t_exposure_s, lat, lon, h)
-            tb = st.c_bn.T @ tn
+            tn, tb = self._truth(st, s.t_exposure_s)
             sb = np.array(s.s_b, dtype=np.float64)
-            cr = np.cross(sb, tb)
             if np.isfinite(sb).all() and float(sb @ sb) > 0.0:
-                # atan2(|a x b|, |a . b|): exact near 0 (acos loses half the digits there)
-                err = math.degrees(math.atan2(math.sqrt(float(cr @ cr)), abs(float(sb @ tb))))
+                err = line_angle_deg(sb, tb)
                 err_az, err_el = azimuth_elevation_error(st.c_bn @ sb, tn)
             else:  # a zero or non-finite vector
                 err = err_az = err_el = math.nan

@@ -99,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
         for col in ("quantity", "n", "mean", "sigma", "p5", "p50", "p95", "max"):
             t.add_column(col, justify="left" if col == "quantity" else "right", no_wrap=True)
         for name, d in st["metrics"].items():
-            if name.endswith("_rms") or name.endswith("_max") or name.startswith("param:"):
+            if name.endswith(("_rms", "_max", "_median", "_p95")) or name.startswith("param:"):
                 t.add_row(name, str(d["n"]), *("-" if d[k] is None else f"{d[k]:.4g}"
                                               for k in ("mean", "sigma", "p5", "p50", "p95", "max")))
         console.print(t)

@@ -8,7 +8,8 @@ writes ``report.html``. The plots are embedded as base64 PNG, so the report is o
   evidence, the expectations with their measured values (numbers readable: ``22 710``, ``300 MHz``);
 * a trajectory map (truth vs estimate, periods without GNSS aiding and fault windows marked), attitude and
   heading against truth with the filter's 3 sigma band, an error CDF, a GNSS panel (updates, innovations,
-  aided periods) and a PSNS/sky panel (solar vector used / rejected, aided periods, the firmware's counters);
+  aided periods), a PSNS/sky panel (solar vector used / rejected, aided periods, the firmware's counters) and,
+  from ``psns.csv``, the solved solar vector against truth over time with its azimuth and elevation parts;
   a panel with nothing to show is left out rather than drawn empty;
 * attitude (roll, pitch, heading), velocity and position errors against truth, each with the
   filter's own +-3 sigma envelope, with the fault windows shaded;
@@ -31,7 +32,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-__all__ = ["fault_spans", "load_nav_csv", "write_report"]
+__all__ = ["fault_spans", "load_nav_csv", "load_psns_csv", "write_report"]
 
 _MODE_BITS = [(0x0001, "aligning"), (0x0002, "navigating"), (0x0004, "GNSS-aided"), (0x0008, "PSNS-aided"),
               (0x0010, "degraded")]
@@ -533,6 +534,60 @@ def _psns_figure(nav: dict[str, list[float]], events: list[dict[str, Any]],
     return [("PSNS and sky", _png(fig))]
 
 
+def load_psns_csv(path: Path) -> dict[str, list[Any]]:
+    """``psns.csv`` (the recorder's solved solar vectors against truth, emulator/recording/psns_error.py) as
+    columns: numbers as floats (an empty cell NaN), ``source`` and ``use`` as text; {} without the file."""
+    if not path.exists():
+        return {}
+    from .psns_error import PSNS_COLUMNS
+
+    text_cols = {"source", "use"}
+    cols: dict[str, list[Any]] = {h: [] for h in PSNS_COLUMNS}
+    with open(path, newline="", encoding="utf-8") as f:
+        r = csv.DictReader(f)
+        for row in r:
+            for h in PSNS_COLUMNS:
+                v = row.get(h) or ""
+                if h in text_cols:
+                    cols[h].append(v)
+                    continue
+                try:
+                    cols[h].append(float(v) if v != "" else math.nan)
+                except ValueError:
+                    cols[h].append(math.nan)
+    return cols
+
+
+def _solar_error_figure(psns: dict[str, list[Any]]) -> list[tuple[str, str]]:
+    """The solved solar vector against truth over time (``psns.csv``): the angle between the solved and the true
+    bi-direction vector and its azimuth / elevation parts in ENU, deg, accepted solves apart from the others."""
+    t = psns.get("time_s", [])
+    if not t:
+        return []
+    plt = _plt()
+    fig, axes = plt.subplots(2, 1, figsize=(10, 5.5), sharex=True)
+    use = psns.get("use", [])
+    for ax, key, title in ((axes[0], "err_deg", "angle between solved and true solar vector"),
+                           (axes[1], None, "azimuth and elevation parts (solve turned to ENU with the true attitude)")):
+        if key is not None:
+            for accepted, color, label in ((True, "tab:green", "accepted by the filter"),
+                                           (False, "tab:gray", "not used (refused, alignment, sun low...)")):
+                sel = [i for i, u in enumerate(use) if (u == "accepted") == accepted]
+                ax.plot([t[i] for i in sel], [psns[key][i] for i in sel], ".", ms=3, color=color,
+                        label=f"{label} ({len(sel)})")
+            ax.set_ylabel("deg")
+        else:
+            ax.plot(t, psns.get("err_az_deg", []), ".", ms=3, color="tab:blue", label="azimuth")
+            ax.plot(t, psns.get("err_el_deg", []), ".", ms=3, color="tab:orange", label="elevation")
+            ax.axhline(0.0, color="k", lw=0.6)
+            ax.set_ylabel("signed error (deg)")
+        ax.set_title(title)
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="upper right", fontsize=7)
+    axes[1].set_xlabel("time (s)")
+    return [("Solar vector against truth", _png(fig))]
+
+
 def _timeline_figures(path: Path) -> list[tuple[str, str]]:
     if not path.exists():
         return []
@@ -665,6 +720,7 @@ def write_report(run_dir: str | Path) -> Path:
             + _nav_figures(nav, events) + _error_cdf_figure(nav) + _gnss_figure(nav, events, series)
             + _psns_figure(nav, events, summary.get("firmware", {}).get("counters"), series,
                            _sun_track(summary, truth))
+            + _solar_error_figure(load_psns_csv(run_dir / "psns.csv"))
             + _timeline_figures(run_dir / "timeline.csv") + _task_figure(summary))
 
     what = "replay" if summary.get("replay") else "run"
@@ -695,6 +751,17 @@ def write_report(run_dir: str | Path) -> Path:
     parts.append("<h2>Navigation error against truth</h2>")
     parts.append(_table([[k, v.get("rms"), v.get("max")] for k, v in summary.get("nav_error", {}).items()],
                         ["quantity", "rms", "max"]))
+    psns = summary.get("psns") or {}
+    if psns.get("solves"):
+        parts.append(f"<h2>Solved solar vector against truth ({_fmt(psns['solves'])} solves: "
+                     + html.escape(", ".join(f"{k} {_fmt(v)}" for k, v in (psns.get("uses") or {}).items()))
+                     + ")</h2>")
+        parts.append(_table([[label, (psns.get(key) or {}).get("median"), (psns.get(key) or {}).get("p95"),
+                              (psns.get(key) or {}).get("max")]
+                             for key, label in (("solar_vector_error_deg", "angle (deg)"),
+                                                ("azimuth_error_deg", "|azimuth| (deg)"),
+                                                ("elevation_error_deg", "|elevation| (deg)"))],
+                            ["quantity", "median", "p95", "max"]))
     if summary.get("expectations"):
         parts.append("<h2>Expectations</h2>")
         parts.append(_table([[e["index"], e["description"], e["value"], e.get("message", ""),

@@ -33,7 +33,9 @@ the members that completed.
 Outputs in ``--out`` (default ``runs/campaign-<scenario>-<UTC time>``):
 
 ``runs.csv``        one row per member: index, seed, drawn parameters, ok, error, passed, the
-                    summary's nav errors (``<metric>_rms``, ``<metric>_max``), expectation results,
+                    summary's nav errors (``<metric>_rms``, ``<metric>_max``), with a polarization sensor
+                    the solved solar vector against truth (``solar_vector_error_deg_median``, ``_p95``,
+                    ``_max``, and the same of ``azimuth_error_deg``, ``elevation_error_deg``), expectation results,
                     DSP load and deadline misses, wall time
 ``stats.csv``       per numeric column: n, mean, sigma (ddof 1), min, p5, p50, p95, max
 ``campaign.json``   configuration, statistics, expectation pass rates, failures, throughput
@@ -61,10 +63,12 @@ from .spec import (
     parse_vary,
     validate_variations,
 )
-from .stats import NAV_METRICS, campaign_statistics
+from .stats import NAV_METRICS, PSNS_METRICS, PSNS_STATS, campaign_statistics
 
 __all__ = [
     "NAV_METRICS",
+    "PSNS_METRICS",
+    "PSNS_STATS",
     "CampaignConfig",
     "CampaignError",
     "CampaignResult",

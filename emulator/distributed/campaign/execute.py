@@ -15,7 +15,7 @@ from typing import Any
 from .outputs import CampaignResult, write_outputs
 from .plan import MemberTask, plan_members
 from .spec import CampaignConfig, CampaignError, load_campaign_scenario, validate_variations
-from .stats import NAV_METRICS, campaign_statistics
+from .stats import NAV_METRICS, PSNS_METRICS, PSNS_STATS, campaign_statistics
 
 __all__ = ["execute_members", "run_campaign", "run_member", "warm_up"]
 
@@ -29,6 +29,11 @@ def _flat_summary(s: dict[str, Any]) -> dict[str, Any]:
         e = s.get("nav_error", {}).get(m, {})
         row[f"{m}_rms"] = e.get("rms")
         row[f"{m}_max"] = e.get("max")
+    psns = s.get("psns") or {}
+    for m in PSNS_METRICS:
+        e = psns.get(m) or {}
+        for st in PSNS_STATS:
+            row[f"{m}_{st}"] = e.get(st)
     dsp = s.get("dsp", {})
     row["deadline_misses"] = dsp.get("deadline_misses")
     row["cpu_load_pct_max"] = dsp.get("cpu_load_pct_max")

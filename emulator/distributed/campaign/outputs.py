@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .stats import NAV_METRICS, PERCENTILES
+from .stats import NAV_METRICS, PERCENTILES, psns_columns
 
 __all__ = ["CampaignResult", "remove_run_dirs", "write_outputs"]
 
@@ -42,7 +42,7 @@ class CampaignResult:
 
 def _table_columns(rows: Sequence[dict[str, Any]]) -> tuple[list[str], list[str], list[int]]:
     keys = sorted({k for r in rows for k in r.get("params", {})})
-    metric_cols = [f"{m}_{s}" for m in NAV_METRICS for s in ("rms", "max")]
+    metric_cols = [f"{m}_{s}" for m in NAV_METRICS for s in ("rms", "max")] + psns_columns(rows)
     exp_idx = sorted({e["index"] for r in rows for e in r.get("expectations", [])})
     return keys, metric_cols, exp_idx
 

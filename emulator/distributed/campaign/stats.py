@@ -9,10 +9,15 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["NAV_METRICS", "PERCENTILES", "campaign_statistics", "describe"]
+__all__ = ["NAV_METRICS", "PERCENTILES", "PSNS_METRICS", "PSNS_STATS", "campaign_statistics", "describe",
+           "psns_columns"]
 
 #: the navigation error metrics of a run's summary that a campaign collects (``<metric>_rms``, ``<metric>_max``)
 NAV_METRICS = ("attitude_deg", "heading_deg", "position_m", "velocity_mps")
+#: the solved solar vector against truth that a campaign collects from a run's ``psns`` summary section (runs with a
+#: polarization sensor only): ``<metric>_<stat>`` for each of the section's statistics, deg
+PSNS_METRICS = ("solar_vector_error_deg", "azimuth_error_deg", "elevation_error_deg")
+PSNS_STATS = ("median", "p95", "max")
 #: percentiles in every column's statistics
 PERCENTILES = (5, 50, 95)
 
@@ -28,10 +33,18 @@ def describe(values: Sequence[float | None]) -> dict[str, float | int | None]:
             "min": float(a.min()), **{f"p{p}": float(v) for p, v in zip(PERCENTILES, pct)}, "max": float(a.max())}
 
 
+def psns_columns(rows: Sequence[dict[str, Any]]) -> list[str]:
+    """The solar-vector columns (``<metric>_<stat>`` of :data:`PSNS_METRICS`) when any row has one, else none (a
+    campaign without a polarization sensor gets no empty columns)."""
+    cols = [f"{m}_{s}" for m in PSNS_METRICS for s in PSNS_STATS]
+    return cols if any(r.get(c) is not None for r in rows for c in cols) else []
+
+
 def campaign_statistics(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
     """Statistics over the completed members of a campaign (see module docstring)."""
     ok = [r for r in rows if r.get("ok")]
     cols = [f"{m}_{s}" for m in NAV_METRICS for s in ("rms", "max")]
+    cols += psns_columns(ok)
     cols += ["deadline_misses", "cpu_load_pct_max", "nav_frames", "wall_s"]
     keys = sorted({k for r in rows for k in r.get("params", {})})
     stats = {c: describe([r.get(c) for r in ok]) for c in cols}

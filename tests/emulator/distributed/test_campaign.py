@@ -273,3 +273,38 @@ def test_campaign_on_its_own_secured_cluster(tmp_path):
     path = write_short_scenario(tmp_path / "s.yaml", 1.0, name="sec", expectations=[])
     res = run_campaign(CampaignConfig(path, runs=1, seed=1, out_dir=tmp_path / "o", plots=False, workers=1))
     assert res.stats["completed"] == 1
+
+
+def test_a_member_with_a_camera_carries_the_solar_vector_error_into_the_table(tmp_path):
+    """run_member (what a worker runs) copies the summary's psns statistics into its row; the statistics and
+    runs.csv carry them; a campaign without a polarization sensor gets no such columns."""
+    from emulator.distributed.campaign import PSNS_METRICS, PSNS_STATS, write_outputs
+    from emulator.distributed.campaign.outputs import CampaignResult
+
+    root = Path(__file__).resolve().parents[3]
+    import yaml
+
+    data = yaml.safe_load((root / "scenarios" / "quickstart.yaml").read_text())
+    data["duration_s"] = 5.0
+    data["motion"] = [{"static": {"duration_s": 5.0}}]
+    data["expectations"] = []
+    scn_path = tmp_path / "cam.yaml"
+    scn_path.write_text(yaml.safe_dump(data, sort_keys=False))
+    data, _scn, source, base_dir = load_campaign_scenario(scn_path)
+    tasks = plan_members(data, 1, 7, [], tmp_path / "out", source, base_dir, seeds=[7])
+    row = run_member(tasks[0])
+    assert row["ok"], row["error"]
+    summary = json.loads((Path(tasks[0].run_dir) / "summary.json").read_text())
+    assert summary["psns"]["solves"] > 0
+    for m in PSNS_METRICS:
+        for st in PSNS_STATS:
+            assert row[f"{m}_{st}"] == summary["psns"][m][st]
+    stats = campaign_statistics([row, dict(row, index=1, seed=8)])
+    assert stats["metrics"]["solar_vector_error_deg_p95"]["mean"] == summary["psns"]["solar_vector_error_deg"]["p95"]
+    res = CampaignResult(tmp_path / "out", [row], stats, 1.0, 1.0, {"scenario": "cam"})
+    write_outputs(res, plots=False)
+    got = _csv_rows(tmp_path / "out" / "runs.csv")[0]
+    assert float(got["azimuth_error_deg_median"]) == summary["psns"]["azimuth_error_deg"]["median"]
+    # no camera: no solar-vector columns at all
+    no_cam = {k: v for k, v in row.items() if not k.startswith(PSNS_METRICS)}
+    assert not any(k.startswith(PSNS_METRICS) for k in campaign_statistics([no_cam])["metrics"])

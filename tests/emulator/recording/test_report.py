@@ -60,3 +60,33 @@ def test_sensor_series_of_a_run_without_capture_is_empty(tmp_path):
     from emulator.recording.report import sensor_series
 
     assert all(v == [] for v in sensor_series(tmp_path).values())
+
+
+def test_report_shows_the_solved_solar_vector_against_truth(run_dir):
+    """The quickstart carries a camera: the report's table holds the summary's psns statistics, its figure the
+    rows of psns.csv, and the reader keeps the text columns."""
+    import json
+
+    from emulator.recording.report import load_psns_csv
+
+    summary = json.loads((run_dir / "summary.json").read_text())
+    psns = summary["psns"]
+    assert psns["solves"] > 0
+    rows = load_psns_csv(run_dir / "psns.csv")
+    assert len(rows["time_s"]) == psns["solves"]
+    assert set(rows["use"]) <= set(psns["uses"]) and set(rows["source"]) == {"camera"}  # solved from images
+    assert max(rows["err_deg"]) == pytest.approx(psns["solar_vector_error_deg"]["max"], rel=1e-6)
+    from emulator.recording.report import _solar_error_figure
+
+    assert len(_solar_error_figure(rows)) == 1 and _solar_error_figure({}) == []
+    doc = write_report(run_dir).read_text()
+    assert "Solved solar vector against truth" in doc and "Solar vector against truth" in doc
+    from emulator.recording.report import _fmt
+
+    assert _fmt(psns["solar_vector_error_deg"]["median"]) in doc
+
+
+def test_psns_csv_reader_without_the_file_is_empty(tmp_path):
+    from emulator.recording.report import load_psns_csv
+
+    assert load_psns_csv(tmp_path / "psns.csv") == {}

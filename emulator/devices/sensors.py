@@ -225,6 +225,7 @@ def camera_config(scn: Scenario, seed: int | None = None) -> CameraConfig:
         bin_superpixels=c.bin_superpixels, fidelity=c.fidelity, sun_glare=c.sun_glare_deg * DEG,
         min_sun_elevation=c.min_sun_elevation_deg * DEG, dop_threshold=c.dop_threshold, min_points=c.min_points,
         noise=bool(p.get("noise", True)),
+        auto_exposure_target=c.auto_exposure_target, auto_exposure_percentile=c.auto_exposure_percentile,
         cx_px=(IMX250MZR_NX + 1) / 2.0 + pp[0] if pp[0] else None,
         cy_px=(IMX250MZR_NY + 1) / 2.0 + pp[1] if pp[1] else None,
         k1=float(p.get("distortion_k1", 0.0)), k2=float(p.get("distortion_k2", 0.0)),

@@ -168,6 +168,12 @@ DESCRIPTIONS: dict[str, str] = {
     "CameraSpec.full_well_e": "full-well capacity, electrons",
     "CameraSpec.read_noise_e": "read noise, electrons rms",
     "CameraSpec.signal_e": "electrons that unpolarized sky of radiance 1 gives at the auto exposure",
+    "CameraSpec.auto_exposure_target": "auto exposure (null: off, every frame at signal_e): each frame is exposed as "
+                                       "the last frame's metering asked, so that the auto_exposure_percentile of "
+                                       "the points' brightest channel (sun glare excluded) reaches this fraction of "
+                                       "the full well; the frame header reports the exposure",
+    "CameraSpec.auto_exposure_percentile": "percentile of the points' brightest channel that auto exposure meters, "
+                                           "percent",
     "CameraSpec.extinction_ratio": "polarizer extinction ratio, one number; default: the preset's wire grid over "
                                    "wavelength under the sky's spectrum (281 for reference; docs/sensors.md)",
     "CameraSpec.noise": "whether sensor noise is modelled (default: the preset's)",

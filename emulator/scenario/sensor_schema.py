@@ -260,6 +260,8 @@ class CameraSpec(Model):
     adc_bits: int | None = Field(None, ge=8, le=16)
     extinction_ratio: float | None = Field(None, gt=1)
     signal_e: float | None = Field(None, gt=0)
+    auto_exposure_target: float | None = Field(None, gt=0, lt=1)
+    auto_exposure_percentile: float = Field(98.0, gt=0, le=100)
     noise: bool | None = None
     sun_glare_deg: float = Field(3.0, ge=0, le=30)
     min_sun_elevation_deg: float = Field(0.0, ge=-18, le=30)

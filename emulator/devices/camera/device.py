@@ -96,5 +96,8 @@ class PolarizationCamera:
                for x, y, a, d, i in zip(np.asarray(obs.x_px).astype(np.int64).tolist(),
                                         np.asarray(obs.y_px).astype(np.int64).tolist(),
                                         aop.tolist(), dop.tolist(), s0.tolist())]
-        hdr = PsnsHeader(self.seq, round(self.exposure_s * 1e6), latency_us, obs.status, len(pts))
+        # the exposure this frame had (auto exposure: the model's scale of the configured one; the capture's timing
+        # keeps the configured exposure, which moves the mid-exposure instant by at most half of it)
+        hdr = PsnsHeader(self.seq, round(self.exposure_s * self.model.exposure_scale * 1e6), latency_us, obs.status,
+                         len(pts))
         return encode_polarization_obs(hdr, pts)

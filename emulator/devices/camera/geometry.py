@@ -59,6 +59,11 @@ class CameraConfig:
     adc_bits: int = 12
     extinction_ratio: float = 300.0
     signal_e: float = 5000.0
+    #: auto exposure (None: off, every frame at ``signal_e``): the exposure of each frame is the one the last frame's
+    #: metering asked for, so that the ``auto_exposure_percentile`` of the observation points' brightest channel
+    #: (glare excluded) reaches this fraction of the full well (:meth:`PolarizationCameraModel.exposure_scale`)
+    auto_exposure_target: float | None = None
+    auto_exposure_percentile: float = 98.0
     grid: tuple[int, int] = (15, 15)
     bin_superpixels: int = 8
     fidelity: str = "binned"

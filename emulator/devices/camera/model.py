@@ -53,6 +53,10 @@ class PolarizationCameraModel:
         self.mounting_error: np.ndarray | None = None
         #: frames observed while the injected installation error was applied (fault evidence)
         self.frames_with_mounting_error = 0
+        #: auto exposure: the electrons per unit radiance the last frame's metering asked for (None: not metered yet)
+        self._ae_signal_e: float | None = None
+        #: this frame's exposure over the configured one (1.0 without auto exposure); the frame header reports it
+        self.exposure_scale = 1.0
         self._att_key: tuple[float, bool, int] | None = None
         self._att: tuple[np.ndarray, np.ndarray, float] | None = None
         # the sensor's fixed pattern: per-super-pixel maps (full) and their window means (binned), one draw per
@@ -103,6 +107,33 @@ class PolarizationCameraModel:
         c_nc = c_cb.T @ st.c_bn.T
         return c_nc, c_nc @ s_n, math.asin(max(-1.0, min(1.0, float(s_n[2]))))
 
+    # -- exposure ------------------------------------------------------------------------------
+    def _frame_signal_e(self, radiance: np.ndarray, dop: np.ndarray, metered: np.ndarray | None) -> float:
+        """Electrons per unit radiance of this frame (``signal_e`` behind an ideal polarizer, module docstring).
+
+        Without auto exposure, ``cfg.signal_e``. With it (``cfg.auto_exposure_target``), a machine-vision camera's
+        loop: this frame is exposed as the last frame's metering asked (the first frame meters itself), and this
+        frame's sky at the observation points (``radiance``, ``dop``; ``metered`` the points that count: not in the
+        sun's glare, inside the image circle) sets the next exposure so that the ``auto_exposure_percentile`` of the
+        brightest channel, ``radiance (1 + D dop)`` per unit signal (D the diattenuation), reaches
+        ``auto_exposure_target`` of the full well."""
+        cfg = self.cfg
+        if cfg.auto_exposure_target is None:
+            return cfg.signal_e
+        pick = np.isfinite(radiance) & (radiance > 0)
+        if metered is not None:
+            pick &= metered
+        use = self._ae_signal_e
+        if pick.any():
+            peak = float(np.percentile(radiance[pick] * (1.0 + cfg.diattenuation * dop[pick]),
+                                       cfg.auto_exposure_percentile))
+            if peak > 0.0:
+                self._ae_signal_e = cfg.auto_exposure_target * cfg.full_well_e / peak
+        if use is None:
+            use = self._ae_signal_e if self._ae_signal_e is not None else cfg.signal_e
+        self.exposure_scale = use / cfg.signal_e
+        return use
+
     # -- full fidelity ---------------------------------------------------------------------------
     def render_mosaic(self, t: float, out: np.ndarray | None = None) -> np.ndarray:
         """The raw 12-bit mosaic (ny, nx) uint16 at scenario time ``t`` (middle of the exposure)."""
@@ -112,7 +143,13 @@ class PolarizationCameraModel:
         f32 = np.float32
         fld = self.sky.evaluate(t, s_c, vx, vy, vz, c_nc)
         ex, ey = sensor_plane_field(vx, vy, vz, fld.ex, fld.ey, fld.ez, self.geo.sp_cos_cra)
-        radiance = (f32(cfg.signal_e) * fld.radiance).astype(f32)
+        signal_e = cfg.signal_e
+        if cfg.auto_exposure_target is not None:  # metered at the observation points, as in the binned fidelity
+            v = self.geo.pt_v
+            pf = self.sky.evaluate(t, s_c, v[:, 0], v[:, 1], v[:, 2], c_nc)
+            half = (cfg.bin_superpixels + 1) * cfg.pixel_m / cfg.focal_m
+            signal_e = self._frame_signal_e(pf.radiance, pf.dop, (v @ s_c) <= math.cos(cfg.sun_glare + half))
+        radiance = (f32(signal_e) * fld.radiance).astype(f32)
         means = self._channel_means(radiance, fld.dop.astype(f32), ex, ey, self.geo.sp_cos_cra, self._maps)
         glare = None
         if math.acos(max(-1.0, min(1.0, float(s_c[2])))) < self.geo.max_field_angle + cfg.sun_glare:
@@ -226,13 +263,13 @@ class PolarizationCameraModel:
         v = self.geo.pt_v
         fld = self.sky.evaluate(t, s_c, v[:, 0], v[:, 1], v[:, 2], c_nc)
         ex, ey = sensor_plane_field(v[:, 0], v[:, 1], v[:, 2], fld.ex, fld.ey, fld.ez, self.geo.pt_cos_cra)
-        means = self._channel_means(cfg.signal_e * fld.radiance, fld.dop, ex, ey, self.geo.pt_cos_cra,
-                                    self._pt_maps)
-        g = cfg.gain_dn_per_e
         # the window's angular half-size around the point ray decides glare
         half = (cfg.bin_superpixels + 1) * cfg.pixel_m / cfg.focal_m
         cos_sun = v @ s_c
         glare = cos_sun > math.cos(cfg.sun_glare + half)
+        signal_e = self._frame_signal_e(fld.radiance, fld.dop, ~glare)
+        means = self._channel_means(signal_e * fld.radiance, fld.dop, ex, ey, self.geo.pt_cos_cra, self._pt_maps)
+        g = cfg.gain_dn_per_e
         out = []
         sat = glare.copy()
         for theta in (0, 45, 90, 135):

@@ -235,3 +235,71 @@ def test_camera_device_frames_latency_and_budget():
         assert t_exp == pytest.approx(k * 0.2 + 1e-3, abs=1e-6)  # time tag (conventions): the middle of the exposure
     with pytest.raises(ValueError, match="max_points"):
         PolarizationCamera(a, model("binned", grid=(20, 20)), rate_hz=5.0)
+
+
+def _fisheye_realistic(**kw):
+    """A zenith-looking fisheye under the realistic sky (turbid, aureole): the Sun 23 deg high is inside its field."""
+    return model("binned", noise=False, sky=SkyModel("realistic"), lens="fisheye", focal_m=1.8e-3,
+                 fisheye_max_theta=85.0 * DEG, grid=(25, 25), **kw)
+
+
+def _glare(m, t):
+    _, s_c, _ = m.camera_attitude(t)
+    half = (m.cfg.bin_superpixels + 1) * m.cfg.pixel_m / m.cfg.focal_m
+    return m.geo.pt_v @ s_c > math.cos(m.cfg.sun_glare + half)
+
+
+def test_auto_exposure_puts_the_metered_percentile_at_its_share_of_the_full_well():
+    """The realistic sky near the horizon on the Sun's side is many times the radiance the fixed exposure was set
+    for: at the fixed signal most of the field saturates; auto exposure brings the 98th percentile of the points'
+    brightest channel to the target share of the full well (between cos(45 deg) of the aligned value and the
+    aligned value itself: the four polarizers are 45 deg apart) and leaves saturated the Sun's glare alone."""
+    fixed = _fisheye_realistic()
+    _, _, _, _, sat_fixed = fixed.binned_channels(0.0)
+    glare = _glare(fixed, 0.0)
+    assert np.count_nonzero(sat_fixed & ~glare) > 0.3 * fixed.geo.n_points
+    m = _fisheye_realistic(auto_exposure_target=0.5)
+    i0, i45, i90, i135, sat = m.binned_channels(0.0)
+    e_max = np.max(np.stack([i0, i45, i90, i135]), axis=0) / m.cfg.gain_dn_per_e  # noise-free: DN / gain
+    p98 = float(np.percentile(e_max[~glare], 98.0))
+    assert 0.5 * m.cfg.full_well_e * 0.85 < p98 <= 0.5 * m.cfg.full_well_e * (1 + 1e-9)
+    assert np.count_nonzero(sat & ~glare) <= 0.02 * m.geo.n_points + 1
+    assert m.exposure_scale < 0.3  # the realistic sky is brighter than the configured exposure assumed
+
+
+def test_auto_exposure_uses_the_last_frames_metering():
+    """A frame is exposed as the one before it metered (the camera's loop lags one frame); the first meters
+    itself; without auto exposure every frame is at the configured signal."""
+    m = _fisheye_realistic(auto_exposure_target=0.5)
+    m.observe(0.0)
+    first = m.exposure_scale
+    metered_at_0 = m._ae_signal_e
+    m.observe(-2 * 3600.0)  # two hours earlier, the Sun higher: the sky changed, the exposure is still the last frame's
+    assert m.exposure_scale == pytest.approx(metered_at_0 / m.cfg.signal_e, rel=1e-15) == first
+    metered_later = m._ae_signal_e
+    assert metered_later != pytest.approx(metered_at_0, rel=1e-3)
+    m.observe(-2 * 3600.0 + 0.5)
+    assert m.exposure_scale == pytest.approx(metered_later / m.cfg.signal_e, rel=1e-15)
+    off = _fisheye_realistic()
+    off.observe(0.0)
+    assert off.exposure_scale == 1.0 and off._ae_signal_e is None
+
+
+def test_camera_frame_header_reports_the_auto_exposure():
+    loop = EmulatorLoop("fast")
+    hub = MemHub()
+    a, b = hub.pair("psns", LineConfig(baud=115200), loop)
+    frames = []
+    dec = StreamDecoder([PsnsFormat()])
+    b.on_receive = lambda data: frames.extend(dec.feed(data))
+    m = model("binned", sky=SkyModel("realistic"), auto_exposure_target=0.5)
+    cam = PolarizationCamera(a, m, rate_hz=5.0, exposure_s=2e-3, processing_s=0.02)
+
+    async def main():
+        cam.start()
+        await asyncio.sleep(0.45)
+
+    loop.run_until_complete(main())
+    loop.close()
+    assert len(frames) == 2
+    assert frames[-1].header.exposure_us == round(2e-3 * m.exposure_scale * 1e6) != 2000

@@ -49,6 +49,11 @@ def run(args: argparse.Namespace) -> int:
                   file=sys.stderr)
             return 2
         scns = [(p, s) for p, s in scns if s.name in args.names]
+    from ..numeric_baseline import describe, pinned
+
+    if args.update and not pinned():
+        print(f"warning: recording without the pinned numeric baseline ({describe()}): other machines will find "
+              "the state histories changed (emulator.numeric_baseline)", file=sys.stderr)
     rc = 0
     for _path, scn in scns:
         with tempfile.TemporaryDirectory(prefix=f"golden-{scn.name}-") as d:

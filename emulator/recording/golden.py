@@ -283,7 +283,15 @@ def compare_golden(run_dir: str | Path, name: str, seed: int, duration_s: float,
         return [f"no golden record for {name} in {golden_dir} (create it with `make golden` or "
                 f"`psns-hil golden --update {name}`, then commit it)"]
     state, inputs = record(run_dir, name, seed, duration_s)
-    return compare_inputs(inputs, pi.read_text(encoding="utf-8")) + compare_state(state, ps.read_text(encoding="utf-8"))
+    diffs = (compare_inputs(inputs, pi.read_text(encoding="utf-8"))
+             + compare_state(state, ps.read_text(encoding="utf-8")))
+    from ..numeric_baseline import describe, pinned
+
+    if diffs and not pinned():
+        diffs.append(f"note: this process did not run the pinned numeric baseline ({describe()}); the goldens are "
+                     "recorded with it (emulator.numeric_baseline: run through `make test` / `psns-hil`, or set "
+                     "its environment before numpy loads)")
+    return diffs
 
 
 def library(library_dir: Path = LIBRARY_DIR) -> list[Path]:

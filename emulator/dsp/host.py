@@ -11,8 +11,11 @@ the DSP reads over EMIFA (its FIFO fills at the GNSS line's pace). Each has
   drained ``service_latency_s`` later; ``poll`` -- the main loop drains it once per tick.
   A byte that completes while the FIFO is full is an **overrun**: lost and counted
   (LSR.OE), exactly what a too-slow drain does to a real 16550;
-* the firmware's RX ring buffer (``rx_ring_bytes``), emptied by the main loop at every tick;
-  bytes that do not fit are lost and counted.
+* the firmware's RX ring buffer (``rx_ring_bytes``), emptied by the main loop whenever it is not
+  running a tick: the bytes that arrive while a tick runs wait there until it ends; bytes that do
+  not fit are lost and counted. (An idle main loop drains the ring whether or not the bytes make
+  a frame: a stream of garbage on UART1 -- no valid IMU frame, hence no tick -- must not fill the
+  ring for good and starve the firmware of the frames that follow: D-7.14.)
 
 The surviving bytes go to the firmware's ``receive`` (:class:`firmware_model.registry.FirmwareProtocol`, the
 only thing the DSP uses of a firmware) with their reception time; an
@@ -167,6 +170,10 @@ class UartRxModel:
             return bytes(keep)
         return data
 
+    def idle(self) -> None:
+        """Bytes arrive while no tick runs: the idle main loop has emptied the ring."""
+        self.ring_fill = 0
+
     def tick(self, t: float) -> None:
         """The main loop ran at ``t``: it empties the ring (and, when polling, the FIFO)."""
         self.ring_fill = 0
@@ -259,6 +266,8 @@ class VirtualDsp:
                 self.dropped_while_resetting += len(data)
                 link.stats.dropped_in += len(data)
                 return
+            if now >= self.busy_until:
+                model.idle()
             kept = model.accept(now, data, link.last_rx_pitch)
             if len(kept) != len(data):
                 link.stats.dropped_in += len(data) - len(kept)

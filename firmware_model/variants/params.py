@@ -99,8 +99,10 @@ class FederatedParams:
     motion_accel_sigma_mps2: float = 0.05
     #: accelerometer gravity measurement noise (1 sigma over one KF interval), m/s^2
     gravity_sigma_mps2: float = 0.02
-    #: sun-vector noise per component of the MIMU/polarization sub-filter (Ge et al.: 0.01)
-    sun_sigma: float = 0.01
+    #: sun-vector noise per component of the MIMU/polarization sub-filter, fixed (Ge et al.'s simulation: 0.01);
+    #: None: the solve's own quality and the spec sheet's floor, as the base filter (filters.solar_noise_variance,
+    #: docs/decisions/filter-consistency.md D-5.18)
+    sun_sigma: float | None = None
     #: initial attitude sigma (E, N, U), deg; None: the base filter's (levelling from the accelerometer bias,
     #: heading from the alignment source). A study that imposes an initial misalignment sets it.
     initial_attitude_sigma_deg: tuple[float, float, float] | None = None

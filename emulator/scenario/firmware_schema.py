@@ -132,7 +132,9 @@ class FederatedSpec(Model):
 
 
 class SunElevationSpec(Model):
-    elevation_sigma_deg: float = Field(0.2, gt=0, le=10)
+    elevation_sigma_deg: float | None = Field(
+        None, gt=0, le=10, description="fixed sigma of the measured sun elevation (Sage-Husa's R0), deg; null: from "
+        "the spec sheet's compass figures and the pair's geometry")
     forgetting: float = Field(0.95, gt=0, lt=1, description="Sage-Husa forgetting factor b")
     r_min_factor: float = Field(0.01, gt=0, le=1)
     r_max_factor: float = Field(100.0, ge=1)

@@ -112,8 +112,9 @@ class FederatedParams:
 class SunElevationParams:
     """Sun-elevation positioning with the 9-unit compass and a Sage-Husa adaptive R (Zhang et al. 2021)."""
 
-    #: sigma of the sun elevation in the body frame from the two E-vectors (R0), deg
-    elevation_sigma_deg: float = 0.2
+    #: sigma of the sun elevation from the two E-vectors (Sage-Husa's R0), deg, fixed; None: from the spec sheet's
+    #: compass figures and the pair's geometry, per measurement (sun_elevation.elevation_noise_variance, D-5.19)
+    elevation_sigma_deg: float | None = None
     #: Sage-Husa forgetting factor b (docs/reference/algorithms.md 5.1: 0.95-0.99); d_k = (1-b)/(1-b^(k+1))
     forgetting: float = 0.95
     #: adaptive R clamped to [r_min_factor, r_max_factor] x R0 (PSINS kfupdate)

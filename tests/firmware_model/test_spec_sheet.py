@@ -52,6 +52,11 @@ def test_config_fields_by_closed_form():
     assert f["gnss_pos_sigma_h_m"] == pytest.approx(10.0) and f["gnss_pos_sigma_v_m"] == pytest.approx(5.0)
     assert f["gnss_pos_white_sigma_h_m"] == pytest.approx(10.0)  # the white part never exceeds the total
     assert f["psns_bias_sigma_deg"] == pytest.approx(0.5)
+    # the compass section (D-5.19): defaults and the sheet's figures carried through
+    assert (f["compass_aop_sigma_deg"], f["compass_aop_dop_ref"], f["compass_aop_residual_deg"],
+            f["compass_installation_residual_deg"]) == (0.1, 0.5, 0.0, 0.13)
+    g = SensorSpecSheet.from_dict({"compass": {"aop_sigma_deg": 0.2, "aop_residual_deg": 0.18}}).config_fields()
+    assert (g["compass_aop_sigma_deg"], g["compass_aop_residual_deg"]) == (0.2, 0.18)
 
 
 @pytest.mark.parametrize("data, needle", [
@@ -60,6 +65,8 @@ def test_config_fields_by_closed_form():
     ({"gnss": {"corr_time_s": 0}}, "gnss: the correlation time"),
     ({"imu": {}}, "unknown sections ['imu']"),
     ({"psns": {"noise_scale": "big"}}, "psns.noise_scale"),
+    ({"compass": {"aop_dop_ref": 0.0}}, "compass.aop_dop_ref"),
+    ({"compass": {"aop": 0.1}}, "compass: unknown fields ['aop']"),
 ])
 def test_bad_sheets_are_refused_naming_the_field(data, needle):
     with pytest.raises(SpecSheetError) as ei:

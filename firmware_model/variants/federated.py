@@ -414,7 +414,8 @@ class FederatedFilter(NavFilter):
         sun = self.sun_states
         if sun is not None:
             # the solar-vector bias, as the base filter models it (D-5.13, D-5.16)
-            if sun.shaped and sun.set_axis(s_n, self.P2):
+            # (its prior in the meridian's shape shared as every P0 of this sub-filter: / beta_2)
+            if sun.shaped and sun.set_axis(s_n, self.P2, 1.0 / self.p.beta_pol_mimu):
                 self.meter.charge("solar_bias_axis", self.cost.flops(4, 2) + self.cost.math("rsqrt"))
             sun.rows(H, Hs, cbn_exp.astype(dt))
         # the solve's own noise (D-5.13), or the study's fixed figure

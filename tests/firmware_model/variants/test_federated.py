@@ -246,3 +246,18 @@ def test_pol_mimu_solar_update_uses_the_solve_quality_noise_and_the_bias_states(
     assert rep.accepted
     np.testing.assert_allclose(fed.P2, want, rtol=1e-6, atol=1e-16)
     assert fed.innovation_stats["solar_vector"]["rows"] == 3
+
+
+def test_pol_mimu_solar_bias_prior_across_the_meridian_is_shared_by_beta():
+    """With a sky figure the solar-bias states take the base filter's meridian-shaped prior at the first sun, divided
+    by beta_2 like every P0 of the sub-filter (no-reset sharing)."""
+    _, fed, nav, _ = _pair()
+    sun = fed.sun_states
+    assert sun is not None and sun.shaped
+    el, az = 35 * DEG, 220 * DEG
+    s_n = np.array([math.cos(el) * math.sin(az), math.cos(el) * math.cos(az), math.sin(el)])
+    P = fed.P2.copy()
+    assert sun.set_axis(s_n, P, 1.0 / fed.p.beta_pol_mimu)
+    u = np.array([-math.cos(az), math.sin(az), 0.0])
+    want = (sun.iso2 + sun.sky2) * np.eye(3) + sun.sky2 * np.outer(u, u)
+    np.testing.assert_allclose(P[sun.i:, sun.i:], want / fed.p.beta_pol_mimu, rtol=1e-12)

@@ -177,6 +177,8 @@ GE_FIELD: dict[str, Any] = {
     "sensors.camera": {"preset": "reference", "fidelity": "binned", "grid": [15, 15], "rate_hz": 5},
     "sky": {"model": "realistic"},
     "firmware.spec_sheet": "field",
+    # the solar vector's noise floor from the field sheet too (the library scenario pins the paper's 0.01 rad)
+    "firmware.psns.sigma_deg": None,
 }
 GE_CONFIGS = {"fused": ["sins_gnss", "pol_mimu"], "pol_mimu": ["pol_mimu"], "sins_gnss": ["sins_gnss"]}
 

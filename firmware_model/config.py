@@ -143,6 +143,13 @@ class FirmwareConfig:
     #: unit's calibrated installation angles, :func:`firmware_model.psns_geometry.calibrated_mountings`); None: the
     #: default 9 units, nominal
     compass_mountings: npt.NDArray[np.float64] | None = None
+    #: multi-unit compass as the spec sheet states it (1 sigma per unit, deg): AOP noise ``compass_aop_sigma_deg`` at
+    #: DOP ``compass_aop_dop_ref`` (growing as 1/DOP), the E-vector angle residual of the calibration and the units'
+    #: installation residual per axis (the sun-elevation variant's R0, docs/decisions/filter-consistency.md D-5.19)
+    compass_aop_sigma_deg: float = 0.1
+    compass_aop_dop_ref: float = 0.5
+    compass_aop_residual_deg: float = 0.0
+    compass_installation_residual_deg: float = 0.13
     #: magnetometer hard iron h (nT, body axes) and soft iron W (3x3 row-major) from the calibration file; the
     #: consumer (:meth:`Navigation.mag_mean_nt`) returns ``W^-1 (m - h)``
     mag_hard_iron_nt: tuple[float, float, float] = (0.0, 0.0, 0.0)

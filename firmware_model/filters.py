@@ -35,7 +35,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Protocol, TypeVar
+from typing import Any, ClassVar, Protocol, TypeVar
 
 import numpy as np
 
@@ -121,6 +121,256 @@ def solar_noise_variance(cfg: FirmwareConfig, quality: float, n_used: int) -> fl
     if n_used <= 0 or not math.isfinite(quality):
         return floor
     return max(floor, cfg.psns_noise_scale * max(quality, 0.0) / n_used)
+
+
+def flicker_b_gyro(cfg: FirmwareConfig) -> float:
+    """Gyro bias instability B (rad/s) for the flicker term: at most the gyro bias's total sigma (the in-run part
+    of a bias cannot move more than the bias itself; a configuration that says otherwise is read as the smaller)."""
+    return min(cfg.gyro_bias_instability_deg_h, cfg.gyro_bias_sigma_deg_h) * DPH
+
+
+def flicker_b_accel(cfg: FirmwareConfig) -> float:
+    """Accelerometer bias instability B (m/s^2) for the flicker term, at most the bias's total sigma."""
+    return min(cfg.accel_bias_instability_mg, cfg.accel_bias_sigma_mg) * 1e-3 * G_STD
+
+
+def flicker_match_s(cfg: FirmwareConfig) -> float:
+    """The time (s) over which the filter's velocity estimate averages the GNSS velocity when its process noise
+    is the flicker's white equivalent matched at that same time: a random walk of PSD ``q`` seen through
+    measurements of variance ``r`` every ``D`` s is averaged over ``T = sqrt(r D / q)``; with
+    ``q = (0.664 B_a)^2 T`` this gives ``T = (r D / (0.664 B_a)^2)^(1/3)`` (paper accelerometers: 3.3 s; field:
+    32 s), bounded to [D, accelerometer correlation time]. D-5.15."""
+    floor = _ALLAN_FLOOR * max(flicker_b_accel(cfg), 1e-8)
+    t = (cfg.gnss_vel_sigma_h_mps**2 * _VEL_AID_INTERVAL_S / floor**2) ** (1.0 / 3.0)
+    return float(min(max(t, _VEL_AID_INTERVAL_S), cfg.accel_bias_corr_time_s))
+
+
+def flicker_white_psd(cfg: FirmwareConfig, b: float) -> float:
+    """White-noise PSD (unit^2 s) whose Allan variance ``N^2 / T`` equals the flicker floor ``(0.664 B)^2`` at
+    the matching time ``T`` (:func:`flicker_match_s`): ``N^2 = (0.664 B)^2 T`` (B in rad/s or m/s^2)."""
+    return (_ALLAN_FLOOR * b) ** 2 * flicker_match_s(cfg)
+
+
+def spec_process_noise(cfg: FirmwareConfig) -> F64Array:
+    """Continuous process-noise PSD ``q`` (15,) of the 15-state model (Eq. 48) from the spec sheet: ARW^2 and VRW^2,
+    the bias random walks matched to the in-run Gauss-Markov (``q = 2 B^2 / tau``, D-5.11), and the flicker's white
+    equivalent on the attitude and velocity rows (D-5.15). Shared by every filter with the 15-state model (the base
+    filter, the federated sub-filters)."""
+    arw = cfg.gyro_arw_deg_rt_h * DEG / 60.0
+    vrw = cfg.accel_noise_ug_rt_hz * 1e-6 * G_STD
+    qg = 2.0 * (cfg.gyro_bias_instability_deg_h * DPH) ** 2 / cfg.bias_corr_time_s
+    qa = 2.0 * (cfg.accel_bias_instability_mg * 1e-3 * G_STD) ** 2 / cfg.accel_bias_corr_time_s
+    q = np.asarray(process_noise_psd(arw, vrw, qg, qa), dtype=np.float64)
+    # the bias instability is flicker noise (Allan floor 0.664 B from ~1 s up to the correlation time): over the
+    # seconds the GNSS velocity needs to see a bias, it moves as much as over minutes, which the random walk above
+    # (matched at tau) does not; its white-noise equivalent whose Allan deviation touches the floor at the
+    # velocity-aiding time constant (sigma_A^2 = N^2 / T) is added to the attitude and velocity rows (D-5.15)
+    q[IDX_ATT] += flicker_white_psd(cfg, flicker_b_gyro(cfg))
+    q[IDX_VEL] += flicker_white_psd(cfg, flicker_b_accel(cfg))
+    return q
+
+
+def spec_initial_covariance(cfg: FirmwareConfig, nav: NavState, heading_sigma_rad: float) -> F64Array:
+    """P0 (15, 15) of the 15-state model from the spec sheet: level from the accelerometer bias (correlated with the
+    bias states, D-5.14) plus the averaged white noise, heading from the alignment, velocity 0.1 m/s, position from the
+    first fix's total sigma, the biases' stationary sigmas (D-5.11). Shared by the base filter and the federated
+    sub-filters."""
+    lat, h = float(nav.pos[0]), float(nav.pos[2])
+    rm, rn = earth.radii(lat)
+    rmh, rnh_cl = rm + h, (rn + h) * math.cos(lat)
+    sig_acc = cfg.accel_bias_sigma_mg * 1e-3 * G_STD  # m/s^2, per body axis
+    # the level comes from the accelerometers averaged over the coarse alignment: its error is the bias (below)
+    # plus the averaged white noise (VRW / sqrt(T_align)), rad
+    # (the accelerometer white noise and the white equivalent of its flicker bias, D-5.15)
+    vrw2 = (cfg.accel_noise_ug_rt_hz * 1e-6 * G_STD) ** 2
+    vrw2 += flicker_white_psd(cfg, flicker_b_accel(cfg))
+    lvl_noise = math.sqrt(vrw2 / max(cfg.align_time_s, 0.1)) / G_STD
+    p0 = np.zeros(N_STATES)
+    p0[IDX_ATT] = (lvl_noise**2, lvl_noise**2, heading_sigma_rad**2)
+    p0[IDX_VEL] = 0.1**2
+    p0[IDX_POS] = ((cfg.gnss_pos_sigma_h_m / rmh) ** 2, (cfg.gnss_pos_sigma_h_m / rnh_cl) ** 2,
+                   cfg.gnss_pos_sigma_v_m**2)
+    p0[IDX_GYRO] = (cfg.gyro_bias_sigma_deg_h * DPH) ** 2
+    p0[IDX_ACC] = sig_acc**2
+    P = np.diag(p0)
+    # Levelling leaves the tilt error that cancels the accelerometer bias in the horizontal specific force
+    # (velocity error equation dv' = f^n x phi + C_b^n nabla with f^n = (0, 0, g)): phi_E = -nabla^n_N / g,
+    # phi_N = nabla^n_E / g. The two are one error, so P0 carries it once, as phi_level = A nabla^b with
+    # A = [[0, -1, 0], [1, 0, 0]] C_b^n[:, :] / g: cov(phi, phi) += A P_nabla A^T, cov(phi, nabla) = A P_nabla.
+    # Independent priors would count the bias twice and halve the level variance after the first fixes
+    # (Groves, Principles of GNSS, Inertial, and Multisensor Integrated Navigation Systems, 2nd ed., 14.2.1).
+    cbn = q2mat_fast(nav.q).astype(np.float64)
+    a = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]]) @ cbn / G_STD
+    p_acc = sig_acc**2 * a
+    P[IDX_ATT, IDX_ATT] += p_acc @ a.T
+    P[IDX_ATT, IDX_ACC] = p_acc
+    P[IDX_ACC, IDX_ATT] = p_acc.T
+    return P
+
+
+def rotation_attitude_noise(cfg: FirmwareConfig, cbn: FloatArray, rot_b: tuple[float, float, float]) -> F64Array:
+    """Attitude noise (3, 3, rad^2, n frame) the gyros' scale-factor error s and misalignment m add over an interval
+    in which the body turned ``rot_b`` (rad per body axis, absolute), D-5.14.
+
+    A rotation ``theta_i`` about body axis i leaves ``s theta_i`` about that axis and ``m theta_i`` about each of
+    the other two; the filters have no states for them (a consider approach: Groves 2013, section 14.2.7). The
+    error of one manoeuvre is coherent (a 90 deg turn with m = 0.33 mrad tilts the level by 0.03 deg), while the
+    white noise of Q adds in quadrature; the variance added per interval is therefore ``sigma^2 theta_i
+    THETA_REF`` (``THETA_REF`` = 90 deg): over one turn of 90 deg it sums to ``(sigma * 90 deg)^2``, the turn's
+    coherent error, and over several turns it grows with the total angle, as errors of alternating turns do.
+    Body variances ``s^2 t_i + m^2 (t_j + t_k)`` (times ``THETA_REF``), rotated to n: ``C_b^n diag C_b^n^T``.
+    Cost: :data:`ROTATION_NOISE_FLOPS` (charged by the caller as ``kf_rotation_noise``)."""
+    s2 = (cfg.gyro_scale_factor_ppm * 1e-6) ** 2
+    m2 = (cfg.gyro_misalignment_mrad * 1e-3) ** 2
+    tx, ty, tz = (abs(float(v)) for v in rot_b)
+    var_b = np.array([s2 * tx + m2 * (ty + tz), s2 * ty + m2 * (tx + tz), s2 * tz + m2 * (tx + ty)])
+    var_b *= _THETA_REF_RAD
+    c = np.asarray(cbn, dtype=np.float64)
+    return np.asarray((c * var_b) @ c.T, dtype=np.float64)
+
+
+#: multiplies and adds of :func:`rotation_attitude_noise` (6 + 9 x 3 for C diag C^T, the 12 body variances)
+ROTATION_NOISE_FLOPS = (45, 36)
+
+
+def gnss_corr_sigmas(cfg: FirmwareConfig) -> tuple[float, float]:
+    """Sigmas (m, horizontal per axis and vertical) of the time-correlated GNSS position error: the spec's
+    total less its white part, in quadrature (D-5.12)."""
+    h = math.sqrt(max(cfg.gnss_pos_sigma_h_m**2 - cfg.gnss_pos_white_sigma_h_m**2, 0.0))
+    v = math.sqrt(max(cfg.gnss_pos_sigma_v_m**2 - cfg.gnss_pos_white_sigma_v_m**2, 0.0))
+    return h, v
+
+
+class GnssErrorStates:
+    """The three augmented Gauss-Markov states of the correlated GNSS position error ``b = [b_E b_N b_U]`` (m) at
+    state index ``i`` (docs/decisions/filter-consistency.md D-5.12, D-5.17), declared once for every filter that
+    carries them (the base filter, the federated SINS/GNSS sub-filter).
+
+    ``db/dt = -b / tau + w``, ``q = 2 sigma_c^2 / tau`` (sigma_c from :func:`gnss_corr_sigmas`); the position rows
+    become ``z = p_INS - p_GNSS = dp - b`` with ``R`` the white part only; P0 correlates the first fix's position
+    error with ``b``; a fix after a gap longer than ``gnss_relock_gap_s`` re-draws them."""
+
+    #: state offset of each position row's error component: E for dlambda, N for dL, U for dh
+    ROW_OFFSET: ClassVar[dict[int, int]] = {D_LON: 0, D_LAT: 1, D_H: 2}
+
+    def __init__(self, cfg: FirmwareConfig, i: int) -> None:
+        self.cfg = cfg
+        self.i = i
+        sc_h, sc_v = gnss_corr_sigmas(cfg)
+        #: stationary variances (m^2, E N U) and the decay rate (1/s)
+        self.var = np.array([sc_h**2, sc_h**2, sc_v**2])
+        self.tau = cfg.gnss_pos_corr_time_s
+        self.rate = 1.0 / self.tau
+        #: FPGA time of the last position fix (s), for the loss-of-lock re-draw
+        self.t_last_fix: float | None = None
+
+    @property
+    def psd(self) -> F64Array:
+        """Process-noise PSD (m^2/s) of the three states: ``2 sigma_c^2 / tau``."""
+        return 2.0 * self.var / self.tau
+
+    def set_prior(self, P: F64Array, rmh: float, rnh_cl: float) -> None:
+        """Stationary variances on the diagonal and the first fix's correlation with the position states:
+        the position comes from a fix, ``dp = b + w``, so ``cov(dp, b) = var(b)`` (in the states' units:
+        ``dL = dN / R_Mh``, ``dlambda = dE / (R_Nh cos L)``)."""
+        i = self.i
+        P[i:i + 3, i:i + 3] = np.diag(self.var)
+        for pos_idx, off, scale in ((D_LON, 0, 1.0 / rnh_cl), (D_LAT, 1, 1.0 / rmh), (D_H, 2, 1.0)):
+            P[pos_idx, i + off] = P[i + off, pos_idx] = self.var[off] * scale
+
+    def position_row(self, h: FloatArray, idx: int) -> float:
+        """Put ``-1`` for the GNSS error of position row ``idx`` into ``h``; the row's R (m^2), the white part."""
+        h[self.i + self.ROW_OFFSET[idx]] = -1.0
+        w = self.cfg.gnss_pos_white_sigma_v_m if idx == D_H else self.cfg.gnss_pos_white_sigma_h_m
+        return w * w
+
+    def relock(self, x: FloatArray, P: FloatArray, t_fix: float) -> bool:
+        """After a loss of lock (no position fix for more than ``gnss_relock_gap_s``) the receiver's correlated error is
+        a fresh draw (D-5.17): the states restart from zero with their stationary variance and no correlation with
+        the other states (``x``, ``P`` in place). Without this, the Gauss-Markov keeps ``exp(-gap / tau)`` of its
+        pre-outage estimate and correlation, and the filter puts the re-acquisition jump into position and vertical
+        velocity. True when it re-drew (the caller counts and charges ``6 n`` adds)."""
+        gap, last = self.cfg.gnss_relock_gap_s, self.t_last_fix
+        self.t_last_fix = t_fix
+        if gap <= 0.0 or last is None or t_fix - last <= gap:
+            return False
+        i = self.i
+        x[i:i + 3] = 0.0
+        P[i:i + 3, :] = 0.0
+        P[:, i:i + 3] = 0.0
+        P[i:i + 3, i:i + 3] = np.diag(self.var).astype(P.dtype)
+        return True
+
+
+class SolarBiasStates:
+    """The three augmented states of the systematic solar-vector error ``mu`` (rad) at state index ``i``
+    (docs/decisions/filter-consistency.md D-5.13, D-5.16), declared once for every filter that carries them (the base
+    filter, the federated MIMU/polarization sub-filter).
+
+    With a sky figure (``psns_sky_bias_deg`` > 0) ``mu`` is the solved sun's rotation in the local-level frame,
+    ``S^n measured = (I + [mu x]) S^n``, ``Z = -[S^n x] phi + [S^n x] mu``, of stationary covariance
+    ``(m^2 + s^2) I + s^2 u u^T`` with ``u = z x S^n / |z x S^n|`` across the solar meridian (set at the first solar
+    update, :meth:`set_axis`); without, a body-frame rotation ``s_b measured = (I + [mu x]) s_b``,
+    ``Z = -[S^n x] phi + [S^n x] C_b^n mu``, isotropic. First-order Gauss-Markov of ``psns_bias_corr_time_s``."""
+
+    def __init__(self, cfg: FirmwareConfig, i: int) -> None:
+        self.cfg = cfg
+        self.i = i
+        self.sigma2 = (cfg.psns_bias_sigma_deg * DEG) ** 2
+        sky2 = (cfg.psns_sky_bias_deg * DEG) ** 2
+        #: the sky's variance (rad^2 per axis across the sun) and the isotropic rest (camera mount)
+        self.sky2 = sky2
+        self.iso2 = max(self.sigma2 - sky2, 0.0)
+        self.tau = cfg.psns_bias_corr_time_s
+        self.rate = 1.0 / self.tau
+        #: horizontal n-frame axis across the solar meridian (z x s_n, from the last solar update; None until the first)
+        self.axis_n: F64Array | None = None
+
+    @property
+    def psd(self) -> F64Array:
+        """Isotropic process-noise PSD (rad^2/s) of the three states: ``2 sigma^2 / tau``."""
+        return np.full(3, 2.0 * self.sigma2 / self.tau)
+
+    def cov(self) -> F64Array:
+        """Stationary covariance (rad^2, local-level frame): ``(m^2 + s^2) I + s^2 u u^T`` (D-5.16)."""
+        u = self.axis_n
+        assert u is not None
+        return (self.iso2 + self.sky2) * np.eye(3) + self.sky2 * np.outer(u, u)
+
+    def noise_block(self, Tk: float) -> F64Array:
+        """Q_k block (3, 3) over ``Tk`` s once the sun is known: ``2 T_k / tau`` times :meth:`cov`. Cost:
+        9 multiplies and 6 adds (``kf_sun_bias_noise``)."""
+        return (2.0 * Tk / self.tau) * self.cov()
+
+    @property
+    def shaped(self) -> bool:
+        """True when the sky's error is modelled across the solar meridian (local-level states, a sky figure)."""
+        return self.sky2 > 0.0
+
+    def set_axis(self, s_n: FloatArray, P: FloatArray, scale: float = 1.0) -> bool:
+        """Keep the n-frame axis across the solar meridian; at the first solar update give the states their prior in
+        that shape in ``P``, times ``scale`` (a federated sub-filter's ``1 / beta``; until then the states are
+        uncorrelated with every other state, so this is the P0 the filter would have set knowing the sun). False
+        (nothing done) with the sun at the zenith. Cost: 4 multiplies, 2 adds, a reciprocal square root
+        (``solar_bias_axis``)."""
+        e, nn = float(s_n[0]), float(s_n[1])
+        norm = math.hypot(e, nn)
+        if norm < 1e-3:  # sun at the zenith: no meridian
+            return False
+        first = self.axis_n is None
+        self.axis_n = np.array([-nn / norm, e / norm, 0.0])
+        if first:
+            i = self.i
+            P[i:i + 3, i:i + 3] = (scale * self.cov()).astype(P.dtype)
+        return True
+
+    def rows(self, H: FloatArray, h_att: FloatArray, cbn: FloatArray) -> None:
+        """Fill the states' columns of the solar rows ``H`` (3, n) from their attitude columns ``h_att = -[S^n x]``:
+        ``[S^n x]`` (local-level states) or ``[S^n x] C_b^n`` (body states)."""
+        if self.shaped:
+            H[:, self.i:self.i + 3] = -h_att
+        else:
+            H[:, self.i:self.i + 3] = -h_att @ cbn
 
 
 def feedback_cycles(c: c674x.KernelCosts) -> int:
@@ -342,134 +592,45 @@ class BaseFilter(NavFilter):
         self.n = n
         self.x = np.zeros(n, dtype=dtype)
         self.P = np.zeros((n, n), dtype=dtype)
-        arw = cfg.gyro_arw_deg_rt_h * DEG / 60.0
-        vrw = cfg.accel_noise_ug_rt_hz * 1e-6 * G_STD
-        qg = 2.0 * (cfg.gyro_bias_instability_deg_h * DPH) ** 2 / cfg.bias_corr_time_s
-        qa = 2.0 * (cfg.accel_bias_instability_mg * 1e-3 * G_STD) ** 2 / cfg.accel_bias_corr_time_s
+        #: the augmented states' models (shared with the federated sub-filters: one declaration)
+        self.gnss_states = GnssErrorStates(cfg, self.i_gnss) if self.i_gnss is not None else None
+        self.sun_states = SolarBiasStates(cfg, self.i_sun) if self.i_sun is not None else None
         q = np.zeros(n)
-        q[:N_STATES] = process_noise_psd(arw, vrw, qg, qa)
-        # the bias instability is flicker noise (Allan floor 0.664 B from ~1 s up to the correlation time): over the
-        # seconds the GNSS velocity needs to see a bias, it moves as much as over minutes, which the random walk above
-        # (matched at tau) does not; its white-noise equivalent whose Allan deviation touches the floor at the
-        # velocity-aiding time constant (sigma_A^2 = N^2 / T) is added to the attitude and velocity rows (D-5.15)
-        self._t_flicker = self._flicker_match_s()
-        q[IDX_ATT] += self._flicker_white_psd(self._flicker_b_gyro())
-        q[IDX_VEL] += self._flicker_white_psd(self._flicker_b_accel())
+        q[:N_STATES] = spec_process_noise(cfg)
         #: Gauss-Markov decay rates (1/s) of the augmented states, on F's diagonal
         self._aug_rate = np.zeros(n)
-        if self.i_gnss is not None:
-            sc_h, sc_v = self._gnss_corr_sigmas()
-            tau = cfg.gnss_pos_corr_time_s
-            q[self.i_gnss:self.i_gnss + 3] = (2.0 * sc_h**2 / tau, 2.0 * sc_h**2 / tau, 2.0 * sc_v**2 / tau)
-            self._aug_rate[self.i_gnss:self.i_gnss + 3] = 1.0 / tau
-        if self.i_sun is not None:
-            tau = cfg.psns_bias_corr_time_s
-            q[self.i_sun:self.i_sun + 3] = 2.0 * (cfg.psns_bias_sigma_deg * DEG) ** 2 / tau
-            self._aug_rate[self.i_sun:self.i_sun + 3] = 1.0 / tau
+        for st in (self.gnss_states, self.sun_states):
+            if st is not None:
+                q[st.i:st.i + 3] = st.psd
+                self._aug_rate[st.i:st.i + 3] = st.rate
         self.q = q
-        #: rotation-dependent attitude noise (see _rotation_noise): variances per radian, scale factor, misalignment
-        self._rot_var_sf = (cfg.gyro_scale_factor_ppm * 1e-6) ** 2
-        self._rot_var_mis = (cfg.gyro_misalignment_mrad * 1e-3) ** 2
-        self._rot_var = self._rot_var_sf + self._rot_var_mis
-        #: solar-vector bias (D-5.16): isotropic camera-mount variance, the sky's variance (rad^2 per axis across the
-        #: sun, put into the elevation axis), and the horizontal n-frame axis across the solar meridian (z x s_n,
-        #: from the last solar update; None until the first)
-        sky2 = (cfg.psns_sky_bias_deg * DEG) ** 2
-        self._mu_sky2 = sky2 if self.i_sun is not None else 0.0
-        self._mu_iso2 = max((cfg.psns_bias_sigma_deg * DEG) ** 2 - sky2, 0.0)
-        self._sun_axis_n: F64Array | None = None
-        #: FPGA time of the last GNSS position fix (s), for the loss-of-lock re-draw of the GNSS error states
-        self._t_last_fix: float | None = None
+        #: rotation-dependent attitude noise (D-5.14) only with a scale-factor or misalignment figure
+        self._rot_var = (cfg.gyro_scale_factor_ppm * 1e-6) ** 2 + (cfg.gyro_misalignment_mrad * 1e-3) ** 2
         self._eye = np.eye(n, dtype=dtype)
         self._qk_interval, self._qk = math.nan, self.q  # Q_k of the last KF interval (predict)
         self._cyc_update = kf_scalar_update_cycles(self.cost, n)
         self._cyc_predict = kf_predict_cycles(self.cost, n)
         self._cyc_feedback = feedback_cycles(self.cost)
 
-    def _flicker_b_gyro(self) -> float:
-        """Gyro bias instability B (rad/s) for the flicker term: at most the gyro bias's total sigma (the in-run part
-        of a bias cannot move more than the bias itself; a configuration that says otherwise is read as the smaller)."""
-        return min(self.cfg.gyro_bias_instability_deg_h, self.cfg.gyro_bias_sigma_deg_h) * DPH
-
-    def _flicker_b_accel(self) -> float:
-        """Accelerometer bias instability B (m/s^2) for the flicker term, at most the bias's total sigma."""
-        return min(self.cfg.accel_bias_instability_mg, self.cfg.accel_bias_sigma_mg) * 1e-3 * G_STD
-
-    def _flicker_match_s(self) -> float:
-        """The time (s) over which the filter's velocity estimate averages the GNSS velocity when its process noise
-        is the flicker's white equivalent matched at that same time: a random walk of PSD ``q`` seen through
-        measurements of variance ``r`` every ``D`` s is averaged over ``T = sqrt(r D / q)``; with
-        ``q = (0.664 B_a)^2 T`` this gives ``T = (r D / (0.664 B_a)^2)^(1/3)`` (paper accelerometers: 3.3 s; field:
-        32 s), bounded to [D, accelerometer correlation time]. D-5.15."""
-        cfg = self.cfg
-        floor = _ALLAN_FLOOR * max(self._flicker_b_accel(), 1e-8)
-        t = (cfg.gnss_vel_sigma_h_mps**2 * _VEL_AID_INTERVAL_S / floor**2) ** (1.0 / 3.0)
-        return float(min(max(t, _VEL_AID_INTERVAL_S), cfg.accel_bias_corr_time_s))
-
-    def _flicker_white_psd(self, b: float) -> float:
-        """White-noise PSD (unit^2 s) whose Allan variance ``N^2 / T`` equals the flicker floor ``(0.664 B)^2`` at
-        the matching time ``T`` (:meth:`_flicker_match_s`): ``N^2 = (0.664 B)^2 T`` (B in rad/s or m/s^2)."""
-        return (_ALLAN_FLOOR * b) ** 2 * self._t_flicker
-
-    def _gnss_corr_sigmas(self) -> tuple[float, float]:
-        """Sigmas (m, horizontal per axis and vertical) of the time-correlated GNSS position error: the spec's
-        total less its white part, in quadrature."""
-        cfg = self.cfg
-        h = math.sqrt(max(cfg.gnss_pos_sigma_h_m**2 - cfg.gnss_pos_white_sigma_h_m**2, 0.0))
-        v = math.sqrt(max(cfg.gnss_pos_sigma_v_m**2 - cfg.gnss_pos_white_sigma_v_m**2, 0.0))
-        return h, v
-
     # -- initialisation -------------------------------------------------------------------------
     def initialise(self, nav: NavState, heading_sigma_rad: float) -> None:
-        """P0 from the spec sheet (:mod:`firmware_model.spec_sheet`): level from the accelerometer bias (correlated
+        """P0 from the spec sheet (:func:`spec_initial_covariance`): level from the accelerometer bias (correlated
         with the bias states), heading from the alignment, position from the first fix (its correlated error shared
-        with the GNSS-error states)."""
-        cfg = self.cfg
+        with the GNSS-error states, :meth:`GnssErrorStates.set_prior`), the solar-bias states' stationary variance."""
         n = self.n
-        lat, h = float(nav.pos[0]), float(nav.pos[2])
-        rm, rn = earth.radii(lat)
-        rmh, rnh_cl = rm + h, (rn + h) * math.cos(lat)
         P = np.zeros((n, n))
-        p0 = np.zeros(n)
-        sig_acc = cfg.accel_bias_sigma_mg * 1e-3 * G_STD  # m/s^2, per body axis
-        # the level comes from the accelerometers averaged over the coarse alignment: its error is the bias (below)
-        # plus the averaged white noise (VRW / sqrt(T_align)), rad
-        # (the accelerometer white noise and the white equivalent of its flicker bias, D-5.15)
-        vrw2 = (cfg.accel_noise_ug_rt_hz * 1e-6 * G_STD) ** 2
-        vrw2 += self._flicker_white_psd(self._flicker_b_accel())
-        lvl_noise = math.sqrt(vrw2 / max(cfg.align_time_s, 0.1)) / G_STD
-        p0[IDX_ATT] = (lvl_noise**2, lvl_noise**2, heading_sigma_rad**2)
-        p0[IDX_VEL] = 0.1**2
-        p0[IDX_POS] = ((cfg.gnss_pos_sigma_h_m / rmh) ** 2, (cfg.gnss_pos_sigma_h_m / rnh_cl) ** 2,
-                       cfg.gnss_pos_sigma_v_m**2)
-        p0[IDX_GYRO] = (cfg.gyro_bias_sigma_deg_h * DPH) ** 2
-        p0[IDX_ACC] = sig_acc**2
-        if self.i_gnss is not None:
-            # the position comes from a fix: dp = b + w, so cov(dp, b) = var(b) (per axis, in the states' units)
-            sc_h, sc_v = self._gnss_corr_sigmas()
-            i = self.i_gnss
-            p0[i:i + 3] = (sc_h**2, sc_h**2, sc_v**2)
-            for pos_idx, b_idx, scale in ((D_LON, i, 1.0 / rnh_cl), (D_LAT, i + 1, 1.0 / rmh), (D_H, i + 2, 1.0)):
-                P[pos_idx, b_idx] = P[b_idx, pos_idx] = p0[b_idx] * scale
-        if self.i_sun is not None:
-            p0[self.i_sun:self.i_sun + 3] = (cfg.psns_bias_sigma_deg * DEG) ** 2
-        P[np.diag_indices(n)] = p0
-        # Levelling leaves the tilt error that cancels the accelerometer bias in the horizontal specific force
-        # (velocity error equation dv' = f^n x phi + C_b^n nabla with f^n = (0, 0, g)): phi_E = -nabla^n_N / g,
-        # phi_N = nabla^n_E / g. The two are one error, so P0 carries it once, as phi_level = A nabla^b with
-        # A = [[0, -1, 0], [1, 0, 0]] C_b^n[:, :] / g: cov(phi, phi) += A P_nabla A^T, cov(phi, nabla) = A P_nabla.
-        # Independent priors would count the bias twice and halve the level variance after the first fixes
-        # (Groves, Principles of GNSS, Inertial, and Multisensor Integrated Navigation Systems, 2nd ed., 14.2.1).
-        cbn = q2mat_fast(nav.q).astype(np.float64)
-        a = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]]) @ cbn / G_STD
-        p_acc = sig_acc**2 * a
-        P[IDX_ATT, IDX_ATT] += p_acc @ a.T
-        P[IDX_ATT, IDX_ACC] = p_acc
-        P[IDX_ACC, IDX_ATT] = p_acc.T
+        P[:N_STATES, :N_STATES] = spec_initial_covariance(self.cfg, nav, heading_sigma_rad)
+        if self.gnss_states is not None:
+            lat, h = float(nav.pos[0]), float(nav.pos[2])
+            rm, rn = earth.radii(lat)
+            self.gnss_states.set_prior(P, rm + h, (rn + h) * math.cos(lat))
+            self.gnss_states.t_last_fix = None
+        if self.sun_states is not None:
+            i = self.sun_states.i
+            P[i:i + 3, i:i + 3] = np.diag(np.full(3, self.sun_states.sigma2))
+            self.sun_states.axis_n = None
         self.P = P.astype(self.dtype)
         self.x = np.zeros(n, dtype=self.dtype)
-        self._sun_axis_n = None
-        self._t_last_fix = None
 
     # -- time update --------------------------------------------------------------------------
     def predict(self, nav: NavState, f_n: FloatArray, Tk: float) -> None:
@@ -488,50 +649,30 @@ class BaseFilter(NavFilter):
         qk: FloatArray = self._qk
         if self._rot_var > 0.0 and any(rot_b):
             qk = self._rotation_noise(nav, rot_b, qk)
-        if self._sun_axis_n is not None and self._mu_sky2 > 0.0:
-            qk = self._sun_bias_noise(nav, qk, Tk)
+        sun = self.sun_states
+        if sun is not None and sun.shaped and sun.axis_n is not None:
+            qk = self._sun_bias_noise(qk, Tk)
         self.x, self.P = kf_predict(self.x, self.P, Phi, qk)
         self.meter.charge("kf_predict", self._cyc_predict)
 
-    def _mu_cov(self) -> F64Array:
-        """Covariance (rad^2, local-level frame) of the solar-vector bias: the spec sheet's isotropic figure (mount
-        and sky, ``m^2 + s^2`` per axis) plus the sky's again on the axis across the solar meridian, along which the
-        turbid sky's departure from the Rayleigh pattern shifts the solved sun (D-5.16):
-        ``(m^2 + s^2) I + s^2 u u^T``, ``u = z x S^n / |z x S^n|``."""
-        u = self._sun_axis_n
-        assert u is not None
-        return (self._mu_iso2 + self._mu_sky2) * np.eye(3) + self._mu_sky2 * np.outer(u, u)
-
-    def _sun_bias_noise(self, nav: NavState, qk: FloatArray, Tk: float) -> FloatArray:
-        """Q_k of the solar-vector bias states, ``2 T_k / tau`` times :meth:`_mu_cov` (the Gauss-Markov's stationary
-        covariance, its direction following the body's turns), in place of the isotropic diagonal."""
-        assert self.i_sun is not None
-        i = self.i_sun
+    def _sun_bias_noise(self, qk: FloatArray, Tk: float) -> FloatArray:
+        """Q_k with the solar-vector bias block :meth:`SolarBiasStates.noise_block` (the Gauss-Markov's stationary
+        covariance, its direction following the sun) in place of the isotropic diagonal."""
+        sun = self.sun_states
+        assert sun is not None
+        i = sun.i
         q = np.diag(qk.astype(np.float64)) if qk.ndim == 1 else qk.astype(np.float64, copy=True)
-        q[i:i + 3, i:i + 3] = (2.0 * Tk / self.cfg.psns_bias_corr_time_s) * self._mu_cov()
+        q[i:i + 3, i:i + 3] = sun.noise_block(Tk)
         self.meter.charge("kf_sun_bias_noise", c674x.flops(9, 6) + c674x.CALL_OVERHEAD)
         return q.astype(self.dtype)
 
     def _rotation_noise(self, nav: NavState, rot_b: tuple[float, float, float], qk_in: FloatArray) -> FloatArray:
-        """Q_k with the attitude noise the gyros' scale-factor error s and misalignment m add while the body turns.
-
-        A rotation ``theta_i`` about body axis i leaves ``s theta_i`` about that axis and ``m theta_i`` about each of
-        the other two; the filter has no states for them (a consider approach: Groves 2013, section 14.2.7). The
-        error of one manoeuvre is coherent (a 90 deg turn with m = 0.33 mrad tilts the level by 0.03 deg), while the
-        white noise of Q adds in quadrature; the variance added per interval is therefore ``sigma^2 theta_i
-        THETA_REF`` (``THETA_REF`` = 90 deg): over one turn of 90 deg it sums to ``(sigma * 90 deg)^2``, the turn's
-        coherent error, and over several turns it grows with the total angle, as errors of alternating turns do.
-        Body variances ``s^2 t_i + m^2 (t_j + t_k)`` (times ``THETA_REF``), rotated to n: ``C_b^n diag C_b^n^T``.
-        """
-        s2, m2 = self._rot_var_sf, self._rot_var_mis
-        tx, ty, tz = (abs(float(v)) for v in rot_b)
-        var_b = np.array([s2 * tx + m2 * (ty + tz), s2 * ty + m2 * (tx + tz), s2 * tz + m2 * (tx + ty)])
-        var_b *= _THETA_REF_RAD
-        cbn = q2mat_fast(nav.q).astype(np.float64)
-        qk_att = (cbn * var_b) @ cbn.T
+        """Q_k with the attitude noise of the gyros' scale factor and misalignment over the interval's turns
+        (:func:`rotation_attitude_noise`, D-5.14) added to the attitude block."""
+        qk_att = rotation_attitude_noise(self.cfg, q2mat_fast(nav.q), rot_b)
         qk = np.diag(qk_in.astype(np.float64)) if qk_in.ndim == 1 else qk_in.astype(np.float64, copy=True)
         qk[IDX_ATT, IDX_ATT] += qk_att
-        self.meter.charge("kf_rotation_noise", c674x.flops(45, 36) + c674x.CALL_OVERHEAD)
+        self.meter.charge("kf_rotation_noise", c674x.flops(*ROTATION_NOISE_FLOPS) + c674x.CALL_OVERHEAD)
         return qk.astype(self.dtype)
 
     # -- measurement updates --------------------------------------------------------------------
@@ -556,23 +697,10 @@ class BaseFilter(NavFilter):
         return False
 
     def _gnss_relock(self, t_fix: float) -> None:
-        """After a loss of lock (no position fix for more than ``gnss_relock_gap_s``) the receiver's correlated error is
-        a fresh draw (D-5.17): the GNSS error states restart from zero with their stationary variance and no
-        correlation with the navigation errors. Without this, the Gauss-Markov keeps ``exp(-gap / tau)`` of its
-        pre-outage estimate and correlation, and the filter puts the re-acquisition jump into position and vertical
-        velocity."""
-        gap, last = self.cfg.gnss_relock_gap_s, self._t_last_fix
-        self._t_last_fix = t_fix
-        if self.i_gnss is None or gap <= 0.0 or last is None or t_fix - last <= gap:
-            return
-        i = self.i_gnss
-        sc_h, sc_v = self._gnss_corr_sigmas()
-        self.x[i:i + 3] = 0.0
-        self.P[i:i + 3, :] = 0.0
-        self.P[:, i:i + 3] = 0.0
-        self.P[i:i + 3, i:i + 3] = np.diag([sc_h**2, sc_h**2, sc_v**2]).astype(self.dtype)
-        self.counters["gnss_relock_redraws"] = self.counters.get("gnss_relock_redraws", 0) + 1
-        self.meter.charge("gnss_relock", self.cost.flops(0, 6 * self.n))
+        """A loss of lock re-draws the GNSS error states (:meth:`GnssErrorStates.relock`, D-5.17): counted, charged."""
+        if self.gnss_states is not None and self.gnss_states.relock(self.x, self.P, t_fix):
+            self.counters["gnss_relock_redraws"] = self.counters.get("gnss_relock_redraws", 0) + 1
+            self.meter.charge("gnss_relock", self.cost.flops(0, 6 * self.n))
 
     def update_gnss(self, nav: NavState, meas: GnssMeasurement, p_ins: FloatArray, v_ins: FloatArray) -> UpdateReport:
         dt = self.dtype
@@ -582,15 +710,13 @@ class BaseFilter(NavFilter):
         innov = []
         h = np.zeros(self.n, dtype=dt)
         gated = 0
-        cfg = self.cfg
         for idx, hval, z, r in rows:
             h[:] = 0
             h[idx] = hval
             kind = "gnss_position" if idx in (D_LAT, D_LON, D_H) else "gnss_velocity"
-            if self.i_gnss is not None and kind == "gnss_position":
+            if self.gnss_states is not None and kind == "gnss_position":
                 # z = p_INS - p_GNSS = dp - b: the correlated error is a state, R only its white part
-                h[self.i_gnss + {D_LON: 0, D_LAT: 1, D_H: 2}[idx]] = -1.0
-                r = (cfg.gnss_pos_white_sigma_v_m if idx == D_H else cfg.gnss_pos_white_sigma_h_m) ** 2
+                r = self.gnss_states.position_row(h, idx)
             if self._gnss_row_gated(h, z, r):
                 gated += 1
                 continue
@@ -608,18 +734,14 @@ class BaseFilter(NavFilter):
         dt = self.dtype
         s_n = s_n.astype(dt)
         z, sign = solar_vector_residual(s_n, cbn_exp.astype(dt), obs.s_b.astype(dt))
-        if self._mu_sky2 > 0.0:
-            self._set_sun_axis(s_n)
+        sun = self.sun_states
+        if sun is not None and sun.shaped and sun.set_axis(s_n, self.P):
+            self.meter.charge("solar_bias_axis", self.cost.flops(4, 2) + self.cost.math("rsqrt"))
         H = solar_vector_rows(s_n, dt, self.n)
-        if self.i_sun is not None:
-            if self._mu_sky2 > 0.0:
-                # the bias in the local-level frame, where the sky's error stays in the solar meridian whatever the
-                # body does (D-5.16): S^n measured = (I + [mu x]) S^n, Z = -[S^n x] phi + [S^n x] mu
-                H[:, self.i_sun:self.i_sun + 3] = -H[:, IDX_ATT]
-            else:
-                # s_b measured = (I + [mu x]) s_b: Z = -[S^n x] phi + [S^n x] C_b^n mu
-                # (docs/decisions/filter-consistency.md)
-                H[:, self.i_sun:self.i_sun + 3] = -H[:, IDX_ATT] @ cbn_exp.astype(dt)
+        if sun is not None:
+            # the bias in the local-level frame, where the sky's error stays in the solar meridian whatever the body
+            # does (D-5.16): Z = -[S^n x] phi + [S^n x] mu; or in the body: Z = -[S^n x] phi + [S^n x] C_b^n mu
+            sun.rows(H, H[:, IDX_ATT], cbn_exp.astype(dt))
         r = solar_noise_variance(cfg, obs.quality, obs.n_used)
         self.meter.charge("solar_residual", self.cost.flops(18 + 9, 18 + 6))
         # innovation gate: |Z|^2 against its predicted variance tr(H P H^T) + 3 r (no 3x3 inverse)
@@ -636,21 +758,6 @@ class BaseFilter(NavFilter):
         self.meter.charge("kf_update", 3 * self._cyc_update)
         return UpdateReport("solar", True, 3, max(abs(v) for v in innov),
                             {"residual_deg": math.sqrt(z2) / DEG, "sign": sign})
-
-    def _set_sun_axis(self, s_n: FloatArray) -> None:
-        """Keep the n-frame axis across the solar meridian (D-5.16); at the first solar update, give the bias states
-        their prior in that shape (until then they are uncorrelated with every other state, so this is the P0 the
-        filter would have set knowing the sun)."""
-        e, nn = float(s_n[0]), float(s_n[1])
-        norm = math.hypot(e, nn)
-        if norm < 1e-3:  # sun at the zenith: no meridian
-            return
-        first = self._sun_axis_n is None
-        self._sun_axis_n = np.array([-nn / norm, e / norm, 0.0])
-        if first and self.i_sun is not None:
-            i = self.i_sun
-            self.P[i:i + 3, i:i + 3] = self._mu_cov().astype(self.dtype)
-        self.meter.charge("solar_bias_axis", self.cost.flops(4, 2) + self.cost.math("rsqrt"))
 
     # -- closed loop ----------------------------------------------------------------------------
     def feedback(self, nav: NavState) -> None:

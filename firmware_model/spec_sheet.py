@@ -23,7 +23,11 @@ package does no file I/O. :meth:`SensorSpecSheet.config_fields` derives the filt
 * PSNS: the solve's own noise from its eigenvalues (``noise_scale * lambda_min / lambda_mid / n_used``, see
   :func:`firmware_model.filters.solar_noise_variance`), a floor, and the systematic solar-vector error (camera
   mount residual of the calibration plus the sky's departure from the Rayleigh pattern) as three augmented states in
-  the local-level frame, the sky's part once more on the axis across the solar meridian (D-5.16).
+  the local-level frame, the sky's part once more on the axis across the solar meridian (D-5.16);
+* multi-unit compass: each unit's AOP noise (``aop_sigma_deg`` at ``aop_dop_ref``, growing as 1/DOP) and the
+  calibration's residual budget (E-vector angle residual per unit, installation residual per unit axis), from which
+  the sun-elevation variant's Sage-Husa filter takes its nominal R (D-5.19,
+  :func:`firmware_model.variants.sun_elevation.elevation_noise_variance`).
 
 Every figure is 1 sigma per axis unless its name says 95 %.
 """
@@ -36,7 +40,7 @@ from typing import Any
 
 from .errors import FirmwareError
 
-__all__ = ["AccelSpec", "GnssSpec", "GyroSpec", "PsnsSpec", "SensorSpecSheet", "SpecSheetError"]
+__all__ = ["AccelSpec", "CompassSpec", "GnssSpec", "GyroSpec", "PsnsSpec", "SensorSpecSheet", "SpecSheetError"]
 
 
 class SpecSheetError(FirmwareError):
@@ -99,6 +103,18 @@ class PsnsSpec:
 
 
 @dataclass(frozen=True)
+class CompassSpec:
+    """Multi-unit polarization compass (per unit, 1 sigma, deg): AOP noise at a DOP (grows as 1/DOP), the E-vector
+    angle residual left by the calibration (a constant per unit, e.g. Zhang et al.'s Table 2), and the installation
+    residual per unit axis (the calibration report of the unit mountings, docs/calibration.md)."""
+
+    aop_sigma_deg: float = 0.1
+    aop_dop_ref: float = 0.5
+    aop_residual_deg: float = 0.0
+    installation_residual_deg: float = 0.13
+
+
+@dataclass(frozen=True)
 class SensorSpecSheet:
     """The sensors as the team's spec sheet states them (see module docstring)."""
 
@@ -107,6 +123,7 @@ class SensorSpecSheet:
     accel: AccelSpec = field(default_factory=AccelSpec)
     gnss: GnssSpec = field(default_factory=GnssSpec)
     psns: PsnsSpec = field(default_factory=PsnsSpec)
+    compass: CompassSpec = field(default_factory=CompassSpec)
 
     @classmethod
     def from_dict(cls, data: Any, source: str = "<spec sheet>") -> SensorSpecSheet:
@@ -114,7 +131,8 @@ class SensorSpecSheet:
         :class:`SpecSheetError` naming ``source`` and the field."""
         if not isinstance(data, dict):
             raise SpecSheetError(f"{source}: a spec sheet is a mapping of sections")
-        sections = {"gyro": GyroSpec, "accel": AccelSpec, "gnss": GnssSpec, "psns": PsnsSpec}
+        sections = {"gyro": GyroSpec, "accel": AccelSpec, "gnss": GnssSpec, "psns": PsnsSpec,
+                    "compass": CompassSpec}
         extra = set(data) - set(sections) - {"name", "description"}
         if extra:
             raise SpecSheetError(f"{source}: unknown sections {sorted(extra)}")
@@ -137,6 +155,8 @@ class SensorSpecSheet:
                          ("gnss", parts["gnss"].corr_time_s), ("psns", parts["psns"].bias_corr_time_s)):
             if tau <= 0:
                 raise SpecSheetError(f"{source}: {key}: the correlation time must be > 0 s")
+        if parts["compass"].aop_dop_ref <= 0:
+            raise SpecSheetError(f"{source}: compass.aop_dop_ref: the DOP of the AOP figure must be > 0")
         return cls(name=str(data.get("name", "unnamed")), **parts)
 
     def to_dict(self) -> dict[str, Any]:
@@ -144,7 +164,7 @@ class SensorSpecSheet:
 
     def config_fields(self) -> dict[str, Any]:
         """The :class:`~firmware_model.config.FirmwareConfig` figures this sheet implies (module docstring)."""
-        g, a, n, p = self.gyro, self.accel, self.gnss, self.psns
+        g, a, n, p, c = self.gyro, self.accel, self.gnss, self.psns, self.compass
         sh = n.horizontal_95_m / 2.448  # 2DRMS 95 % of a circular Gaussian -> sigma per axis
         sv = n.vertical_95_m / 2.0
         gyro_p0 = math.sqrt(g.bias_repeatability_deg_h**2 + g.bias_instability_deg_h**2
@@ -176,4 +196,8 @@ class SensorSpecSheet:
             "psns_bias_corr_time_s": p.bias_corr_time_s,
             "gyro_scale_factor_ppm": g.scale_factor_ppm,
             "gyro_misalignment_mrad": g.misalignment_mrad,
+            "compass_aop_sigma_deg": max(c.aop_sigma_deg, 0.001),
+            "compass_aop_dop_ref": c.aop_dop_ref,
+            "compass_aop_residual_deg": c.aop_residual_deg,
+            "compass_installation_residual_deg": c.installation_residual_deg,
         }

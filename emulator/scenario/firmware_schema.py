@@ -125,12 +125,16 @@ class FederatedSpec(Model):
     motion_accel_tau_s: float = Field(5.0, gt=0)
     motion_accel_sigma_mps2: float = Field(0.05, gt=0)
     gravity_sigma_mps2: float = Field(0.02, gt=0)
-    sun_sigma: float = Field(0.01, gt=0, le=1, description="sun-vector noise per component (Ge et al.: 0.01)")
+    sun_sigma: float | None = Field(
+        None, gt=0, le=1, description="fixed sun-vector noise per component (Ge et al.'s simulation: 0.01); "
+        "null: from the solve's quality and the spec sheet, as the base filter")
     initial_attitude_sigma_deg: Vec3 | None = None
 
 
 class SunElevationSpec(Model):
-    elevation_sigma_deg: float = Field(0.2, gt=0, le=10)
+    elevation_sigma_deg: float | None = Field(
+        None, gt=0, le=10, description="fixed sigma of the measured sun elevation (Sage-Husa's R0), deg; null: from "
+        "the spec sheet's compass figures and the pair's geometry")
     forgetting: float = Field(0.95, gt=0, lt=1, description="Sage-Husa forgetting factor b")
     r_min_factor: float = Field(0.01, gt=0, le=1)
     r_max_factor: float = Field(100.0, ge=1)

@@ -42,6 +42,18 @@ test, GNSS is readmitted (event ``gnss_readmitted``) and fused again.
 
 ``subfilters`` picks what the master fuses, which gives the paper's three configurations on one stream:
 both (the three-way combination), ``pol_mimu`` (polarization/MIMU) and ``sins_gnss`` (SINS/GPS).
+
+**What the box knows of its sensors** (docs/decisions/filter-consistency.md D-5.18, D-5.19): the sub-filters are
+configured as the base filter is, by the same code (:mod:`firmware_model.filters`): Q and P0 of the common model
+from the spec sheet (:func:`~firmware_model.filters.spec_process_noise`,
+:func:`~firmware_model.filters.spec_initial_covariance`, the turns' rotation noise
+:func:`~firmware_model.filters.rotation_attitude_noise`); the SINS/GNSS sub-filter carries the three Gauss-Markov
+GNSS-error states (:class:`~firmware_model.filters.GnssErrorStates`: ``x1 = [15 | b_E b_N b_U]``) when
+``gnss_error_states``; the MIMU/polarization sub-filter takes the solar vector's noise from the solve's quality
+(:func:`~firmware_model.filters.solar_noise_variance`) unless ``sun_sigma`` fixes it, and carries the three
+solar-bias states (:class:`~firmware_model.filters.SolarBiasStates`: ``x2 = [phi | eps | a^b | mu]``) when
+``psns_bias_states``. The augmented states are local to their sub-filter: the master fuses ``[phi, eps]`` only, and
+they are never fed back.
 """
 
 from __future__ import annotations
@@ -55,16 +67,27 @@ from .. import c674x, earth
 from ..arrays import FloatArray, FloatDtype
 from ..attitude import q2mat_fast, qmul, qnormalize, rv2q
 from ..filters import (
+    ROTATION_NOISE_FLOPS,
+    GnssErrorStates,
     GnssMeasurement,
     NavFilter,
+    SolarBiasStates,
     SolarObservation,
     UpdateReport,
     feedback_cycles,
     gnss_measurement_rows,
     kf_predict_cycles,
+    kf_scalar_update_cycles,
     register_filter,
+    rotation_attitude_noise,
+    solar_noise_variance,
+    spec_initial_covariance,
+    spec_process_noise,
 )
 from ..kf import (
+    D_H,
+    D_LAT,
+    D_LON,
     IDX_ACC,
     IDX_ATT,
     IDX_GYRO,
@@ -76,18 +99,18 @@ from ..kf import (
     error_transition_matrix,
     kf_predict,
     kf_update_scalar,
-    process_noise_psd,
     solar_vector_residual,
     solar_vector_rows,
 )
 from ..nav_state import NavState
-from ..units import DEG, DPH, G_STD
+from ..units import DEG
 from .common import spd_inverse, spd_inverse_cycles, spd_solve, spd_solve_cycles
 from .mode_manager import ModeManager
 
-__all__ = ["FederatedFilter", "fuse_common_states", "scalar_update_cycles"]
+__all__ = ["FederatedFilter", "fuse_common_states", "pol_mimu_predict_cycles"]
 
-#: sub-filter 2's state layout ``x2 = [phi | eps | a^b]`` (sub-filter 1 has the base filter's, :mod:`..kf`)
+#: sub-filter 2's state layout ``x2 = [phi | eps | a^b]`` (+ the solar-bias states ``mu`` at ``N2`` when carried;
+#: sub-filter 1 has the base filter's, :mod:`..kf`, + the GNSS-error states at ``N_STATES``)
 N2 = 9
 X2_ATT, X2_GYRO, X2_MOTION = slice(0, 3), slice(3, 6), slice(6, 9)
 #: the master's common states ``c = [phi | eps]``
@@ -98,11 +121,12 @@ C2 = np.r_[X2_ATT, X2_GYRO]
 SUB_SINS_GNSS, SUB_POL_MIMU = "sins_gnss", "pol_mimu"
 
 
-def scalar_update_cycles(n: int, c: c674x.KernelCosts) -> int:
-    """One scalar Joseph update over ``n`` states (the base filter's 15-state figure generalised) [D]."""
-    n2 = n * n
-    return (2 * c.flops(n2, n2) + c.flops(n2, n2) + c.flops(2 * n2, 2 * n2) + c.flops(0, n * (n - 1) // 2)
-            + c.math("recip") + c.flops(2 * n, 2 * n))
+def pol_mimu_predict_cycles(c: c674x.KernelCosts, n: int) -> int:
+    """Time update of the MIMU/polarization sub-filter over ``n`` states [D]: ``Phi`` from F's attitude blocks
+    (DSPF_sp_w_vec, n^2), ``Phi P Phi^T`` (2 x DSPF_sp_mat_mul n x n x n), a transpose, Q on the diagonal,
+    symmetrise, and the motion model's ``exp(-T / tau)`` (one division, as the base charges it)."""
+    return (c.w_vec(n * n) + 2 * c.mat_mul(n, n, n) + c.mat_trans(n, n) + c.flops(0, n)
+            + c.flops(0, n * (n - 1) // 2) + c674x.mathlib("divdp"))
 
 
 def fuse_common_states(parts: list[tuple[FloatArray, FloatArray]]) -> tuple[FloatArray, FloatArray]:
@@ -133,30 +157,55 @@ class FederatedFilter(NavFilter):
                 raise ValueError(f"federated subfilters must be {SUB_SINS_GNSS!r} and/or {SUB_POL_MIMU!r}, got {s!r}")
         self.mm = ModeManager("federated", cfg.variants.mode_manager)
         self.counters = self.mm.counters
-        arw = cfg.gyro_arw_deg_rt_h * DEG / 60.0
-        vrw = cfg.accel_noise_ug_rt_hz * 1e-6 * G_STD
-        tau = cfg.bias_corr_time_s
-        self._qg = 2.0 * (cfg.gyro_bias_instability_deg_h * DPH) ** 2 / tau
-        qa = 2.0 * (cfg.accel_bias_instability_mg * 1e-3 * G_STD) ** 2 / tau
-        self.q1 = process_noise_psd(arw, vrw, self._qg, qa) / p.beta_sins_gnss
-        self._arw2 = arw * arw
-        self.x1 = np.zeros(N_STATES, dtype=dtype)
-        self.P1 = np.zeros((N_STATES, N_STATES), dtype=dtype)
-        self.x2 = np.zeros(N2, dtype=dtype)
-        self.P2 = np.zeros((N2, N2), dtype=dtype)
-        self._eye1 = np.eye(N_STATES, dtype=dtype)
-        self._eye2 = np.eye(N2, dtype=dtype)
+        # sub-filter 1: the base filter's 15 states (+ the GNSS-error states), its spec-sheet Q (D-5.18)
+        n1 = N_STATES
+        self.gnss_states: GnssErrorStates | None = None
+        if cfg.gnss_error_states:
+            self.gnss_states, n1 = GnssErrorStates(cfg, n1), n1 + 3
+        # sub-filter 2: [phi | eps | a^b] (+ the solar-bias states, D-5.18)
+        n2 = N2
+        self.sun_states: SolarBiasStates | None = None
+        if cfg.psns_bias_states and cfg.psns_enabled:
+            self.sun_states, n2 = SolarBiasStates(cfg, n2), n2 + 3
+        self.n1, self.n2 = n1, n2
+        q15 = spec_process_noise(cfg)
+        q1 = np.zeros(n1)
+        q1[:N_STATES] = q15
+        #: Gauss-Markov decay rates (1/s) of sub-filter 1's and sub-filter 2's augmented states (F's diagonal)
+        self._rate1 = np.zeros(n1)
+        self._rate2 = np.zeros(n2)
+        if self.gnss_states is not None:
+            g = self.gnss_states
+            q1[g.i:g.i + 3] = g.psd
+            self._rate1[g.i:g.i + 3] = g.rate
+        self.q1 = q1 / p.beta_sins_gnss
+        #: sub-filter 2's white PSDs of the common states: the base model's attitude (ARW^2 + the gyro flicker's
+        #: white equivalent) and gyro-bias rows
+        self._q2_att = q15[IDX_ATT]
+        self._q2_gyro = q15[IDX_GYRO]
+        self._q2_sun: FloatArray | None = None
+        if self.sun_states is not None:
+            sn = self.sun_states
+            self._q2_sun = sn.psd
+            self._rate2[sn.i:sn.i + 3] = sn.rate
+        self._rot_var = (cfg.gyro_scale_factor_ppm * 1e-6) ** 2 + (cfg.gyro_misalignment_mrad * 1e-3) ** 2
+        self.x1 = np.zeros(n1, dtype=dtype)
+        self.P1 = np.zeros((n1, n1), dtype=dtype)
+        self.x2 = np.zeros(n2, dtype=dtype)
+        self.P2 = np.zeros((n2, n2), dtype=dtype)
+        self.P = np.zeros((n1, n1), dtype=dtype)
+        self._eye1 = np.eye(n1, dtype=dtype)
+        self._eye2 = np.eye(n2, dtype=dtype)
         self.isolated = False
         self._passes = 0
         self._isolated_t: float | None = None
         self.gnss_seen = False
         self.fused_mask = 0
         c = self.cost
-        self._cyc_predict1 = kf_predict_cycles(c)
-        self._cyc_predict2 = (c.w_vec(N2 * N2) + 2 * c.mat_mul(N2, N2, N2) + c.mat_trans(N2, N2) + c.flops(0, N2)
-                              + c.flops(0, N2 * (N2 - 1) // 2) + c674x.mathlib("divdp"))
-        self._cyc_up1 = scalar_update_cycles(N_STATES, c)
-        self._cyc_up2 = scalar_update_cycles(N2, c)
+        self._cyc_predict1 = kf_predict_cycles(c, n1)
+        self._cyc_predict2 = pol_mimu_predict_cycles(c, n2)
+        self._cyc_up1 = kf_scalar_update_cycles(c, n1)
+        self._cyc_up2 = kf_scalar_update_cycles(c, n2)
         self._cyc_fuse = 3 * spd_inverse_cycles(6, c) + c.flops(3 * 36, 3 * 36) + feedback_cycles(c)
 
     # -- introspection ------------------------------------------------------------------------------------
@@ -187,30 +236,39 @@ class FederatedFilter(NavFilter):
 
     # -- initialisation -----------------------------------------------------------------------------------
     def initialise(self, nav: NavState, heading_sigma_rad: float) -> None:
+        """P0 of both sub-filters from the base filter's spec-sheet P0 (:func:`spec_initial_covariance`): sub-filter 1
+        takes it whole (+ the GNSS-error states' prior correlated with the first fix), sub-filter 2 its attitude and
+        gyro blocks, the motion acceleration's stationary variance plus the accelerometer bias (which ``a^b``
+        carries), and the level's correlation with that bias (D-5.14's ``cov(phi, nabla)``, now ``cov(phi, a^b)``);
+        ``initial_attitude_sigma_deg`` (a study's imposed misalignment) replaces the attitude block. Then the no-reset
+        sharing, once: ``P_i(0) = P_0 / beta_i``."""
         cfg, p, dt = self.cfg, self.p, self.dtype
-        lat, h = float(nav.pos[0]), float(nav.pos[2])
-        rm, rn = earth.radii(lat)
-        lvl = cfg.accel_bias_sigma_mg * 1e-3
-        att = [lvl**2, lvl**2, heading_sigma_rad**2]
+        p15 = spec_initial_covariance(cfg, nav, heading_sigma_rad)
         if p.initial_attitude_sigma_deg is not None:
-            att = [(v * DEG) ** 2 for v in p.initial_attitude_sigma_deg]
-        gyro = [(cfg.gyro_bias_sigma_deg_h * DPH) ** 2] * 3
-        p01 = np.zeros(N_STATES)
-        p01[IDX_ATT] = att
-        p01[IDX_VEL] = 0.1**2
-        p01[IDX_POS] = ((cfg.gnss_pos_sigma_h_m / (rm + h)) ** 2,
-                        (cfg.gnss_pos_sigma_h_m / ((rn + h) * math.cos(lat))) ** 2, cfg.gnss_pos_sigma_v_m**2)
-        p01[IDX_GYRO] = gyro
-        p01[IDX_ACC] = (cfg.accel_bias_sigma_mg * 1e-3 * G_STD) ** 2
-        p02 = np.zeros(N2)
-        p02[X2_ATT] = att
-        p02[X2_GYRO] = gyro
-        p02[X2_MOTION] = p.motion_accel_sigma_mps2**2 + (cfg.accel_bias_sigma_mg * 1e-3 * G_STD) ** 2
+            p15[IDX_ATT, :] = 0.0
+            p15[:, IDX_ATT] = 0.0
+            p15[IDX_ATT, IDX_ATT] = np.diag([(v * DEG) ** 2 for v in p.initial_attitude_sigma_deg])
+        P1 = np.zeros((self.n1, self.n1))
+        P1[:N_STATES, :N_STATES] = p15
+        if self.gnss_states is not None:
+            lat, h = float(nav.pos[0]), float(nav.pos[2])
+            rm, rn = earth.radii(lat)
+            self.gnss_states.set_prior(P1, rm + h, (rn + h) * math.cos(lat))
+            self.gnss_states.t_last_fix = None
+        P2 = np.zeros((self.n2, self.n2))
+        P2[np.ix_(C2, C2)] = p15[np.ix_(C1, C1)]
+        P2[X2_MOTION, X2_MOTION] = p15[IDX_ACC, IDX_ACC] + np.eye(3) * p.motion_accel_sigma_mps2**2
+        P2[X2_ATT, X2_MOTION] = p15[IDX_ATT, IDX_ACC]
+        P2[X2_MOTION, X2_ATT] = p15[IDX_ACC, IDX_ATT]
+        if self.sun_states is not None:
+            i = self.sun_states.i
+            P2[i:i + 3, i:i + 3] = np.diag(np.full(3, self.sun_states.sigma2))
+            self.sun_states.axis_n = None
         # no-reset information sharing, once: P_i(0) = P0 / beta_i
-        self.P1 = np.diag(p01 / p.beta_sins_gnss).astype(dt)
-        self.P2 = np.diag(p02 / p.beta_pol_mimu).astype(dt)
-        self.x1 = np.zeros(N_STATES, dtype=dt)
-        self.x2 = np.zeros(N2, dtype=dt)
+        self.P1 = (P1 / p.beta_sins_gnss).astype(dt)
+        self.P2 = (P2 / p.beta_pol_mimu).astype(dt)
+        self.x1 = np.zeros(self.n1, dtype=dt)
+        self.x2 = np.zeros(self.n2, dtype=dt)
         self.P = self.P1.copy()
         self.isolated = False
         self._passes = 0
@@ -222,19 +280,46 @@ class FederatedFilter(NavFilter):
         dt, p = self.dtype, self.p
         cbn = q2mat_fast(nav.q).astype(dt)
         F = error_transition_matrix(cbn, nav.v, nav.pos, f_n, dtype=dt)
-        Phi1 = self._eye1 + F * dt(Tk)
-        self.x1, self.P1 = kf_predict(self.x1, self.P1, Phi1, (self.q1 * Tk).astype(dt))
+        n1, n2 = self.n1, self.n2
+        if n1 > N_STATES:  # the GNSS-error states: first-order Gauss-Markov, no coupling (as the base filter's)
+            F1 = np.zeros((n1, n1), dtype=dt)
+            F1[:N_STATES, :N_STATES] = F
+            F1[np.diag_indices(n1)] -= self._rate1.astype(dt)
+        else:
+            F1 = F
+        Phi1 = self._eye1 + F1 * dt(Tk)
+        q1: FloatArray = self.q1 * Tk
+        # the turns' attitude noise of gyro scale factor and misalignment (D-5.14), shared by both sub-filters
+        rot = self.rotation_b_rad
+        q_rot = None
+        if self._rot_var > 0.0 and any(rot):
+            q_rot = rotation_attitude_noise(self.cfg, cbn, rot)
+            self.meter.charge("kf_rotation_noise", c674x.flops(*ROTATION_NOISE_FLOPS) + c674x.CALL_OVERHEAD)
+            q1 = np.diag(q1)
+            q1[IDX_ATT, IDX_ATT] += q_rot / p.beta_sins_gnss
+        self.x1, self.P1 = kf_predict(self.x1, self.P1, Phi1, q1.astype(dt))
         self.meter.charge("fed_predict_sins_gnss", self._cyc_predict1)
-        # sub-filter 2: attitude block and -C_b^n of F, first-order motion acceleration
+        # sub-filter 2: attitude block and -C_b^n of F, first-order motion acceleration, Gauss-Markov solar bias
         ca = math.exp(-Tk / p.motion_accel_tau_s)
         Phi2 = self._eye2.copy()
         Phi2[X2_ATT, X2_ATT] += F[IDX_ATT, IDX_ATT] * dt(Tk)
         Phi2[X2_ATT, X2_GYRO] = F[IDX_ATT, IDX_GYRO] * dt(Tk)
         Phi2[X2_MOTION, X2_MOTION] = self._eye2[X2_MOTION, X2_MOTION] * dt(ca)
-        q2 = np.zeros(N2)
-        q2[X2_ATT] = self._arw2 * Tk
-        q2[X2_GYRO] = self._qg * Tk
-        q2[X2_MOTION] = p.motion_accel_sigma_mps2**2 * (1.0 - ca * ca)
+        Phi2[np.diag_indices(n2)] -= (self._rate2 * Tk).astype(dt)
+        q2 = np.zeros((n2, n2))
+        q2[X2_ATT, X2_ATT] = np.diag(self._q2_att * Tk)
+        if q_rot is not None:
+            q2[X2_ATT, X2_ATT] += q_rot
+        q2[X2_GYRO, X2_GYRO] = np.diag(self._q2_gyro * Tk)
+        q2[X2_MOTION, X2_MOTION] = np.eye(3) * (p.motion_accel_sigma_mps2**2 * (1.0 - ca * ca))
+        sun = self.sun_states
+        if sun is not None and self._q2_sun is not None:
+            i = sun.i
+            if sun.shaped and sun.axis_n is not None:  # the sky's error across the solar meridian (D-5.16)
+                q2[i:i + 3, i:i + 3] = sun.noise_block(Tk)
+                self.meter.charge("kf_sun_bias_noise", c674x.flops(9, 6) + c674x.CALL_OVERHEAD)
+            else:
+                q2[i:i + 3, i:i + 3] = np.diag(self._q2_sun * Tk)
         q2 = q2 / p.beta_pol_mimu
         self.x2, self.P2 = kf_predict(self.x2, self.P2, Phi2, q2.astype(dt))
         self.meter.charge("fed_predict_pol_mimu", self._cyc_predict2)
@@ -246,7 +331,7 @@ class FederatedFilter(NavFilter):
         dt = self.dtype
         g = earth.gravity(float(nav.pos[0]), float(nav.pos[2]))
         z = np.array([f_n[0], f_n[1], f_n[2] - g], dtype=dt)
-        H = np.zeros((3, N2), dtype=dt)
+        H = np.zeros((3, self.n2), dtype=dt)
         H[0, PHI_N] = -g  # phi occupies the same indices in x2 as in the base layout
         H[1, PHI_E] = g
         H[:, X2_MOTION] = cbn
@@ -270,14 +355,25 @@ class FederatedFilter(NavFilter):
         t = self.host.now_s() if self.host is not None else meas.t_fpga_s
         if m == 0:
             return UpdateReport("gnss", False, 0, 0.0, {"reason": "empty"})
-        idx = np.array([r[0] for r in rows])
-        d = np.array([r[1] for r in rows])
+        gs = self.gnss_states
+        if meas.pos is not None and gs is not None and gs.relock(self.x1, self.P1, meas.t_fpga_s):
+            # a loss of lock: the receiver's correlated error is a fresh draw (D-5.17, as the base filter)
+            self.counters["gnss_relock_redraws"] = self.counters.get("gnss_relock_redraws", 0) + 1
+            self.meter.charge("gnss_relock", self.cost.flops(0, 6 * self.n1))
+        # the rows as H (m, n1): position rows z = dp - b with R the white part when the GNSS error is a state
+        H = np.zeros((m, self.n1))
         z = np.array([r[2] for r in rows])
         rr = np.array([r[3] for r in rows])
-        eps = (z - d * self.x1[idx].astype(np.float64)).astype(dt)
-        A = (self.P1[np.ix_(idx, idx)] * np.outer(d, d) + np.diag(rr)).astype(dt)
+        for k, (i, hv, _zz, _r) in enumerate(rows):
+            H[k, i] = hv
+            if gs is not None and i in (D_LAT, D_LON, D_H):
+                rr[k] = gs.position_row(H[k], i)
+        nnz = 2 if gs is not None else 1  # non-zeros per position row
+        eps = (z - H @ self.x1.astype(np.float64)).astype(dt)
+        A = (H @ self.P1.astype(np.float64) @ H.T + np.diag(rr)).astype(dt)
         lam = float(eps @ spd_solve(A, eps))
-        self.meter.charge("fed_chi2", spd_solve_cycles(m, 1, self.cost) + self.cost.flops(2 * m * m, m * m))
+        self.meter.charge("fed_chi2", spd_solve_cycles(m, 1, self.cost)
+                          + self.cost.flops(nnz * nnz * m * m + nnz * m, nnz * nnz * m * m))
         passed = self.mm.gate(t, "gnss", lam, m, t_meas_s=meas.t_fpga_s)
         self.gnss_seen = True
         if not passed:
@@ -298,13 +394,12 @@ class FederatedFilter(NavFilter):
             self.mm.event(t, "gnss_readmitted", "chi2_pass", nis=lam, threshold=self.mm.chi2_threshold(m), dof=m,
                           isolated_s=iso_s, t_meas_s=meas.t_fpga_s)
         self._report_mode(t, "gnss_admitted")
-        h = np.zeros(N_STATES, dtype=dt)
         innov = []
-        for (i, hv, zz, r) in rows:
-            h[:] = 0
-            h[i] = hv
-            self.x1, self.P1, nu, s = kf_update_scalar(self.x1, self.P1, h, zz, r)
+        for k in range(m):
+            self.x1, self.P1, nu, s = kf_update_scalar(self.x1, self.P1, H[k].astype(dt), float(z[k]), float(rr[k]))
             innov.append(nu / math.sqrt(s))
+            self._count_nis("gnss_position" if rows[k][0] in (D_LAT, D_LON, D_H) else "gnss_velocity",
+                            innov[-1])
         self.meter.charge("kf_update", m * self._cyc_up1)
         return UpdateReport("gnss", True, m, max(abs(v) for v in innov), {"nis": lam})
 
@@ -314,14 +409,24 @@ class FederatedFilter(NavFilter):
         s_n = s_n.astype(dt)
         z, sign = solar_vector_residual(s_n, cbn_exp.astype(dt), obs.s_b.astype(dt))
         Hs = solar_vector_rows(s_n, dt)[:, IDX_ATT]
-        H = np.zeros((3, N2), dtype=dt)
+        H = np.zeros((3, self.n2), dtype=dt)
         H[:, X2_ATT] = Hs
-        r = self.p.sun_sigma**2
-        A = Hs @ self.P2[X2_ATT, X2_ATT] @ Hs.T + np.eye(3, dtype=dt) * dt(r)
+        sun = self.sun_states
+        if sun is not None:
+            # the solar-vector bias, as the base filter models it (D-5.13, D-5.16)
+            # (its prior in the meridian's shape shared as every P0 of this sub-filter: / beta_2)
+            if sun.shaped and sun.set_axis(s_n, self.P2, 1.0 / self.p.beta_pol_mimu):
+                self.meter.charge("solar_bias_axis", self.cost.flops(4, 2) + self.cost.math("rsqrt"))
+            sun.rows(H, Hs, cbn_exp.astype(dt))
+        # the solve's own noise (D-5.13), or the study's fixed figure
+        sig = self.p.sun_sigma
+        r = sig * sig if sig is not None else solar_noise_variance(self.cfg, obs.quality, obs.n_used)
+        A = H @ self.P2 @ H.T + np.eye(3, dtype=dt) * dt(r)
         innov = z - H @ self.x2
         lam = float(innov @ spd_solve(A, innov))
         self.meter.charge("solar_residual", self.cost.flops(18 + 9, 18 + 6))
-        self.meter.charge("fed_solar_gate", self.cost.flops(54, 45) + spd_solve_cycles(3, 1, self.cost))
+        k = 2 if sun is not None else 1  # H's non-zero 3x3 blocks
+        self.meter.charge("fed_solar_gate", self.cost.flops(54 * k * k, 45 * k * k) + spd_solve_cycles(3, 1, self.cost))
         t = self.host.now_s() if self.host is not None else obs.t_exposure_s
         resid = math.degrees(math.sqrt(float(z @ z)))
         if not self.mm.gate(t, "solar", lam, 3, residual_deg=resid):
@@ -330,6 +435,7 @@ class FederatedFilter(NavFilter):
         for i in range(3):
             self.x2, self.P2, nu, s = kf_update_scalar(self.x2, self.P2, H[i], float(z[i]), r)
             out.append(nu / math.sqrt(s))
+            self._count_nis("solar_vector", out[-1])
         self.meter.charge("kf_update", 3 * self._cyc_up2)
         return UpdateReport("solar", True, 3, max(abs(v) for v in out), {"residual_deg": resid, "sign": sign})
 

@@ -99,8 +99,10 @@ class FederatedParams:
     motion_accel_sigma_mps2: float = 0.05
     #: accelerometer gravity measurement noise (1 sigma over one KF interval), m/s^2
     gravity_sigma_mps2: float = 0.02
-    #: sun-vector noise per component of the MIMU/polarization sub-filter (Ge et al.: 0.01)
-    sun_sigma: float = 0.01
+    #: sun-vector noise per component of the MIMU/polarization sub-filter, fixed (Ge et al.'s simulation: 0.01);
+    #: None: the solve's own quality and the spec sheet's floor, as the base filter (filters.solar_noise_variance,
+    #: docs/decisions/filter-consistency.md D-5.18)
+    sun_sigma: float | None = None
     #: initial attitude sigma (E, N, U), deg; None: the base filter's (levelling from the accelerometer bias,
     #: heading from the alignment source). A study that imposes an initial misalignment sets it.
     initial_attitude_sigma_deg: tuple[float, float, float] | None = None
@@ -110,8 +112,9 @@ class FederatedParams:
 class SunElevationParams:
     """Sun-elevation positioning with the 9-unit compass and a Sage-Husa adaptive R (Zhang et al. 2021)."""
 
-    #: sigma of the sun elevation in the body frame from the two E-vectors (R0), deg
-    elevation_sigma_deg: float = 0.2
+    #: sigma of the sun elevation from the two E-vectors (Sage-Husa's R0), deg, fixed; None: from the spec sheet's
+    #: compass figures and the pair's geometry, per measurement (sun_elevation.elevation_noise_variance, D-5.19)
+    elevation_sigma_deg: float | None = None
     #: Sage-Husa forgetting factor b (docs/reference/algorithms.md 5.1: 0.95-0.99); d_k = (1-b)/(1-b^(k+1))
     forgetting: float = 0.95
     #: adaptive R clamped to [r_min_factor, r_max_factor] x R0 (PSINS kfupdate)

@@ -28,7 +28,10 @@ Per COMPASS frame (9 units, the geometry of the conventions,
 5. **Sage-Husa adaptive R** (docs/reference/algorithms.md 5.1, PSINS ``kfupdate`` adaptive form): with the innovation
    ``r_k`` and ``ry = r_k^2 - H P H^T`` clamped to ``[R_min, R_max]``, ``R <- (1 - d) R + d ry``,
    ``d <- d / (d + b)`` (``d_k = (1-b)/(1-b^{k+1})``, b the forgetting factor); the measurement then updates
-   with the adapted R. Before that, the mode manager's chi-square gate (1 dof) with the current R.
+   with the adapted R. Before that, the mode manager's chi-square gate (1 dof) with the current R. The nominal R0
+   Sage-Husa starts from (and its clamps scale with) is, per measurement, the variance of ``sin H_n`` that the
+   spec sheet's compass figures give through the chosen pair's geometry (:func:`elevation_noise_variance`,
+   docs/decisions/filter-consistency.md D-5.19); ``elevation_sigma_deg`` fixes it instead (``(cos H_c sigma)^2``).
 
 6. **Attitude aiding** (``attitude_aiding``, off by default; not in the paper's model): the same frame's
    E-vectors of all valid units give ``+-S^b`` by the base paper's eigen-solution (Eq. 14), used as the base
@@ -58,6 +61,7 @@ from protocols.psns import CompassFrame, PsnsStatus
 from .. import c674x, psns, sun
 from ..arrays import FloatArray, FloatDtype
 from ..attitude import q2mat_fast
+from ..config import FirmwareConfig
 from ..filters import BaseFilter, SolarObservation, UpdateReport, register_filter
 from ..kf import D_LAT, D_LON, N_STATES, PHI_E, PHI_N
 from ..nav_state import NavState
@@ -67,7 +71,8 @@ from .common import cross
 from .dual_vector import unit_evectors
 from .mode_manager import ModeManager
 
-__all__ = ["SageHusaR", "SunElevationFilter", "sun_elevation_partials", "sun_vector_from_two_evectors"]
+__all__ = ["SageHusaR", "SunElevationFilter", "elevation_noise_cycles", "elevation_noise_variance",
+           "sun_elevation_partials", "sun_vector_from_two_evectors"]
 
 
 def sun_elevation_partials(lat: float, sin_dec: float, cos_dec: float, lha: float) -> tuple[float, float, float]:
@@ -91,6 +96,44 @@ def sun_vector_from_two_evectors(e_i: FloatArray, e_j: FloatArray) -> tuple[Floa
     c = cross(e_i, e_j)
     n = math.sqrt(float(c @ c))
     return (c / max(n, 1e-12)).astype(e_i.dtype), n
+
+
+def elevation_noise_variance(cfg: FirmwareConfig, e_i: FloatArray, e_j: FloatArray, s_b: FloatArray,
+                             ray_i: FloatArray, ray_j: FloatArray, dop_i: float, dop_j: float,
+                             up_b: FloatArray) -> float:
+    """Variance of the measured ``sin H_n = up^b . S^b`` (sine units) from the two units' errors as the spec sheet
+    states them (docs/decisions/filter-consistency.md D-5.19); body frame, unit vectors.
+
+    ``S`` satisfies ``S . E_i = S . E_j = 0``. A unit's E-vector error is a rotation about its ray by its AOP error
+    ``a_i`` (noise ``aop_sigma * dop_ref / DOP_i``, and the calibration's E-vector residual), ``dE_i = -a_i r_i x E_i``,
+    plus its installation residual, a rotation ``w_i`` (per axis), ``dE_i = -w_i x E_i``. The constraint
+    ``S . dE_i + dS . E_i = 0`` makes ``dS . E_i = c_i`` with ``c_i = a_i S.(r_i x E_i) + w_i.(E_i x S)``, of
+    variance ``v_i = sigma_a,i^2 sin^2 gamma_i + sigma_w^2`` (``|S.(r_i x E_i)| = sin gamma_i``, gamma the
+    scattering angle, since E_i is along ``r_i x S``; ``|E_i x S| = 1``). With E_i, E_j in the plane normal to S,
+    ``dS = (c_i E_j x S + c_j S x E_i) / D``, ``D = S . (E_i x E_j)``, so
+
+        var(d sin H_n) = [v_i (up . E_j x S)^2 + v_j (up . S x E_i)^2] / D^2.
+
+    ``up_b`` is the local vertical in the body frame (``C_b^n`` third row). Independent of the sign of ``S``. Cost:
+    :func:`elevation_noise_cycles`."""
+    aop_ref = cfg.compass_aop_sigma_deg * DEG * cfg.compass_aop_dop_ref
+    res2 = (cfg.compass_aop_residual_deg * DEG) ** 2
+    w2 = (cfg.compass_installation_residual_deg * DEG) ** 2
+    a_j = cross(e_j, s_b)  # E_j x S
+    b_i = cross(s_b, e_i)  # S x E_i
+    d = float(s_b @ cross(e_i, e_j))
+    out = 0.0
+    for e, ray, dop, g in ((e_i, ray_i, dop_i, a_j), (e_j, ray_j, dop_j, b_i)):
+        sin_g = float(s_b @ cross(ray, e))
+        sig_a2 = (aop_ref / max(dop, 1e-3)) ** 2 + res2
+        out += (sig_a2 * sin_g * sin_g + w2) * float(up_b @ g) ** 2
+    return out / max(d * d, 1e-12)
+
+
+def elevation_noise_cycles(c: c674x.KernelCosts) -> int:
+    """:func:`elevation_noise_variance`: five cross products (30 MUL, 15 ADD), five dot products (15, 10), per unit
+    six MUL / three ADD, two divisions (the DOPs) and one for ``/ D^2`` [D]."""
+    return c.flops(57, 31) + 3 * c.math("div")
 
 
 class SageHusaR:
@@ -144,7 +187,9 @@ class SunElevationFilter(BaseFilter):
         m = cfg.compass_mountings if cfg.compass_mountings is not None else compass_unit_mountings()
         self.mountings = np.asarray(m, dtype=np.float64)
         self.n_units = len(self.mountings)
-        sig = self.p.elevation_sigma_deg * DEG
+        # the nominal R until the first measurement sets it from the pair (only the adapted ratio carries over)
+        fixed = self.p.elevation_sigma_deg
+        sig = (fixed if fixed is not None else cfg.compass_aop_sigma_deg) * DEG
         self.adaptive = SageHusaR(sig * sig, self.p.forgetting, self.p.r_min_factor, self.p.r_max_factor)
         self.state = 0
         self.pair_mask = 0
@@ -184,7 +229,7 @@ class SunElevationFilter(BaseFilter):
             return UpdateReport("sun_elevation", False, 0, 0.0, {"reason": "low_dop"})
         aop = np.array([u[2] for u in good[:4]], dtype=dt) * dt(0.01 * DEG)
         e = unit_evectors(aop, self.mountings[[u[1] for u in good[:4]]], dt)
-        pair = None
+        pair: tuple[int, int] | None = None
         for a, b in ((0, 1), (0, 2), (1, 2), (0, 3), (1, 3), (2, 3)):
             if b >= len(e):
                 continue
@@ -226,7 +271,16 @@ class SunElevationFilter(BaseFilter):
         if p.attitude_coupling:
             h[PHI_E] = float(s_n_meas[1])
             h[PHI_N] = -float(s_n_meas[0])
-        self.adaptive.rescale((cos_hc * p.elevation_sigma_deg * DEG) ** 2)
+        if p.elevation_sigma_deg is not None:
+            r0 = (cos_hc * p.elevation_sigma_deg * DEG) ** 2
+        else:  # from the spec sheet's compass figures through this pair's geometry (D-5.19)
+            mi, mj = self.mountings[ui], self.mountings[uj]
+            r0 = elevation_noise_variance(self.cfg, e[pair[0]].astype(np.float64), e[pair[1]].astype(np.float64),
+                                          s_b.astype(np.float64), mi[:, 2], mj[:, 2],
+                                          good[pair[0]][0] * (1.0 / 65535.0), good[pair[1]][0] * (1.0 / 65535.0),
+                                          cbn[2, :].astype(np.float64))
+            self.meter.charge("se_elevation_noise", elevation_noise_cycles(cost))
+        self.adaptive.rescale(r0)
         ph = self.P @ h
         hph = float(h @ ph)
         innov = z - float(h @ self.x)

@@ -16,6 +16,9 @@ from firmware_model.filters import (
     BaseFilter,
     GnssMeasurement,
     SolarObservation,
+    flicker_b_accel,
+    flicker_match_s,
+    gnss_corr_sigmas,
     kf_predict_cycles,
     kf_scalar_update_cycles,
     solar_noise_variance,
@@ -49,6 +52,11 @@ def test_config_fields_by_closed_form():
     assert f["gnss_pos_sigma_h_m"] == pytest.approx(10.0) and f["gnss_pos_sigma_v_m"] == pytest.approx(5.0)
     assert f["gnss_pos_white_sigma_h_m"] == pytest.approx(10.0)  # the white part never exceeds the total
     assert f["psns_bias_sigma_deg"] == pytest.approx(0.5)
+    # the compass section (D-5.19): defaults and the sheet's figures carried through
+    assert (f["compass_aop_sigma_deg"], f["compass_aop_dop_ref"], f["compass_aop_residual_deg"],
+            f["compass_installation_residual_deg"]) == (0.1, 0.5, 0.0, 0.13)
+    g = SensorSpecSheet.from_dict({"compass": {"aop_sigma_deg": 0.2, "aop_residual_deg": 0.18}}).config_fields()
+    assert (g["compass_aop_sigma_deg"], g["compass_aop_residual_deg"]) == (0.2, 0.18)
 
 
 @pytest.mark.parametrize("data, needle", [
@@ -57,6 +65,8 @@ def test_config_fields_by_closed_form():
     ({"gnss": {"corr_time_s": 0}}, "gnss: the correlation time"),
     ({"imu": {}}, "unknown sections ['imu']"),
     ({"psns": {"noise_scale": "big"}}, "psns.noise_scale"),
+    ({"compass": {"aop_dop_ref": 0.0}}, "compass.aop_dop_ref"),
+    ({"compass": {"aop": 0.1}}, "compass: unknown fields ['aop']"),
 ])
 def test_bad_sheets_are_refused_naming_the_field(data, needle):
     with pytest.raises(SpecSheetError) as ei:
@@ -205,7 +215,7 @@ def test_flicker_white_equivalent_by_closed_form():
     floor_a = 0.664 * 1.333e-3 * G_STD  # the paper accelerometers' B = 1.333 mg
     t_m = ((0.13 / 2.448) ** 2 / floor_a**2) ** (1.0 / 3.0)
     assert t_m == pytest.approx(3.34, abs=0.01)  # the figure D-5.15 quotes
-    assert flt._t_flicker == pytest.approx(t_m, rel=1e-3)
+    assert flicker_match_s(cfg) == pytest.approx(t_m, rel=1e-3)
     vrw2 = (100e-6 * G_STD) ** 2
     np.testing.assert_allclose(flt.q[IDX_VEL], vrw2 + floor_a**2 * t_m, rtol=1e-3)
     arw2 = (0.15 * DEG / 60.0) ** 2
@@ -237,10 +247,10 @@ def test_solar_bias_prior_across_the_solar_meridian():
     assert rep.accepted
     P = flt.P
     # the prior was set before the update: the update only shrinks it along the observed axes
-    assert flt._sun_axis_n is not None
-    np.testing.assert_allclose(flt._mu_cov(), want, rtol=1e-12, atol=1e-20)
+    assert flt.sun_states is not None and flt.sun_states.axis_n is not None
+    np.testing.assert_allclose(flt.sun_states.cov(), want, rtol=1e-12, atol=1e-20)
     assert np.all(np.linalg.eigvalsh(want - P[i:i + 3, i:i + 3]) > -1e-18)
-    qk = flt._sun_bias_noise(nav, flt._qk, 0.1)
+    qk = flt._sun_bias_noise(flt._qk, 0.1)
     np.testing.assert_allclose(qk[i:i + 3, i:i + 3], 2.0 * 0.1 / flt.cfg.psns_bias_corr_time_s * want, rtol=1e-9)
 
 
@@ -250,7 +260,7 @@ def test_gnss_relock_redraws_the_correlated_error_states():
     flt, nav, _ = _filter(gnss_relock_gap_s=5.0)
     i = flt.i_gnss
     assert i is not None
-    sc_h, sc_v = flt._gnss_corr_sigmas()
+    sc_h, sc_v = gnss_corr_sigmas(flt.cfg)
     p_ins = nav.pos.copy()
     fix = GnssMeasurement(t_fpga_s=3.0, pos=(float(p_ins[0]), float(p_ins[1]), float(p_ins[2]) + 4.0))
     flt.update_gnss(nav, fix, p_ins, np.zeros(3))
@@ -275,9 +285,9 @@ def test_flicker_instability_read_as_at_most_the_total_bias():
     from firmware_model.units import G_STD
 
     flt, _, _ = _filter(accel_bias_sigma_mg=0.05, accel_noise_ug_rt_hz=25.0)
-    assert flt._flicker_b_accel() == pytest.approx(0.05e-3 * G_STD)
+    assert flicker_b_accel(flt.cfg) == pytest.approx(0.05e-3 * G_STD)
     floor = math.sqrt(2.0 * math.log(2.0) / math.pi) * 0.05e-3 * G_STD
-    np.testing.assert_allclose(flt.q[IDX_VEL], (25e-6 * G_STD) ** 2 + floor**2 * flt._t_flicker, rtol=1e-9)
+    np.testing.assert_allclose(flt.q[IDX_VEL], (25e-6 * G_STD) ** 2 + floor**2 * flicker_match_s(flt.cfg), rtol=1e-9)
     for name in ("default", "field"):
         sheet = SensorSpecSheet.from_dict(yaml.safe_load(
             (Path(__file__).parents[2] / f"firmware_model/spec_sheets/{name}.yaml").read_text()))

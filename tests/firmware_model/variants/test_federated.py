@@ -44,7 +44,11 @@ def _config(subfilters=("sins_gnss", "pol_mimu")) -> FirmwareConfig:
                           initial_heading_deg=30.0, gyro_arw_deg_rt_h=20.0 / 60.0, gyro_bias_sigma_deg_h=25.0,
                           accel_noise_ug_rt_hz=600.0,
                           accel_bias_sigma_mg=0.8, gnss_pos_sigma_h_m=2.5, gnss_pos_sigma_v_m=2.5,
-                          gnss_vel_sigma_h_mps=0.1, gnss_vel_sigma_v_mps=0.1)
+                          # the stream's receiver error is white (streams.GnssSpec): the sheet says all of it is
+                          gnss_pos_white_sigma_h_m=2.5, gnss_pos_white_sigma_v_m=2.5,
+                          gnss_vel_sigma_h_mps=0.1, gnss_vel_sigma_v_mps=0.1,
+                          # the sun sensor's figure on the team's sheet: 0.01 rad per component (the world's noise)
+                          psns_sigma_deg=0.01 / DEG)
 
 
 def _spec(t_static: float, t_turn: float, glitch_at: float | None) -> StreamSpec:
@@ -115,3 +119,145 @@ def test_three_way_beats_polarization_mimu_beats_sins_gps_in_heading_paper_traje
     with capsys.disabled():
         print(f"\nheading RMS after 10 s (deg): {h}")
     assert h["three_way"] < h["pol_mimu"] < h["sins_gnss"], h
+
+
+# -- the sub-filters configured as the base filter is (docs/decisions/filter-consistency.md D-5.18) -----------------
+def _field_cfg(**kw) -> FirmwareConfig:
+    """The ``field`` spec sheet's figures (correlated GNSS error, sky figure, flicker, scale factor)."""
+    from pathlib import Path
+
+    import yaml
+
+    from firmware_model.spec_sheet import SensorSpecSheet
+
+    sheet = Path(__file__).resolve().parents[3] / "firmware_model" / "spec_sheets" / "field.yaml"
+    fields = SensorSpecSheet.from_dict(yaml.safe_load(sheet.read_text())).config_fields()
+    return FirmwareConfig(precision="float64", **{**fields, **kw})
+
+
+def _pair(beta: float = 0.5, fed_kw=None, **cfg_kw):
+    """A base filter and a federated filter on the same configuration and navigation state, both initialised."""
+    from firmware_model import c674x
+    from firmware_model.attitude import a2mat, mat2q, yaw_from_heading
+    from firmware_model.filters import BaseFilter
+    from firmware_model.nav_state import NavState
+    from firmware_model.variants.federated import FederatedFilter
+
+    cfg = _field_cfg(**cfg_kw)
+    vp = VariantParams(federated=FederatedParams(beta_sins_gnss=beta, **(fed_kw or {})))
+    fcfg = _field_cfg(filter="federated", variants=vp, **cfg_kw)
+    cbn = a2mat(0.02, -0.01, yaw_from_heading(30 * DEG))
+    nav = NavState(q=mat2q(cbn), v=np.zeros(3), pos=np.array([39.979 * DEG, 116.339 * DEG, 50.0]))
+    base = BaseFilter(cfg, c674x.CycleMeter(cfg.clock_hz, cfg.imu_rate_hz), np.float64)
+    fed = FederatedFilter(fcfg, c674x.CycleMeter(cfg.clock_hz, cfg.imu_rate_hz), np.float64)
+    base.initialise(nav, 0.5 * DEG)
+    fed.initialise(nav, 0.5 * DEG)
+    return base, fed, nav, cbn
+
+
+def test_subfilters_take_the_base_filters_spec_sheet_q_p0_and_augmented_states():
+    """Sub-filter 1 = the base filter's 15 states + its GNSS-error states, with the base's Q and P0 (GNSS block and
+    the first fix's correlation included) times 1 / beta; sub-filter 2's attitude / gyro blocks and solar-bias states
+    are the base's too, its motion state carries the accelerometer bias and the level's correlation with it; the
+    cycle meter charges the added states."""
+    from firmware_model.filters import kf_predict_cycles, kf_scalar_update_cycles
+    from firmware_model.kf import IDX_ACC, IDX_ATT, IDX_GYRO
+    from firmware_model.variants.federated import N2, X2_ATT, X2_GYRO, X2_MOTION, pol_mimu_predict_cycles
+
+    base, fed, _, _ = _pair(beta=0.5)
+    b = 0.5
+    assert base.i_gnss == 15 and fed.n1 == 18 and fed.gnss_states is not None and fed.gnss_states.i == 15
+    assert fed.n2 == N2 + 3 and fed.sun_states is not None and fed.sun_states.i == N2
+    g = base.i_gnss
+    # Q: the same PSDs, shared by 1 / beta
+    np.testing.assert_allclose(fed.q1 * b, base.q[:18], rtol=1e-15)
+    np.testing.assert_allclose(fed._q2_att, base.q[IDX_ATT], rtol=1e-15)
+    np.testing.assert_allclose(fed._q2_sun, base.q[base.i_sun:base.i_sun + 3], rtol=1e-15)
+    assert fed.q1[g] * b == pytest.approx(2.0 * (fed.cfg.gnss_pos_sigma_h_m**2 - fed.cfg.gnss_pos_white_sigma_h_m**2)
+                                          / fed.cfg.gnss_pos_corr_time_s, rel=1e-12)
+    # P0
+    np.testing.assert_allclose(fed.P1 * b, base.P[:18, :18], rtol=1e-12, atol=1e-30)
+    P2 = fed.P2 * 0.5  # beta_pol_mimu
+    np.testing.assert_allclose(P2[X2_ATT, X2_ATT], base.P[IDX_ATT, IDX_ATT], rtol=1e-12)
+    np.testing.assert_allclose(P2[X2_GYRO, X2_GYRO], base.P[IDX_GYRO, IDX_GYRO], rtol=1e-12)
+    np.testing.assert_allclose(P2[X2_ATT, X2_MOTION], base.P[IDX_ATT, IDX_ACC], rtol=1e-12, atol=1e-30)
+    np.testing.assert_allclose(np.diag(P2[X2_MOTION, X2_MOTION]),
+                               np.diag(base.P[IDX_ACC, IDX_ACC]) + fed.p.motion_accel_sigma_mps2**2, rtol=1e-12)
+    i = base.i_sun
+    np.testing.assert_allclose(P2[N2:, N2:], base.P[i:i + 3, i:i + 3], rtol=1e-12)
+    np.linalg.cholesky(fed.P1)
+    np.linalg.cholesky(fed.P2)
+    c = fed.cost
+    assert fed._cyc_predict1 == kf_predict_cycles(c, 18) > kf_predict_cycles(c, 15)
+    assert fed._cyc_up1 == kf_scalar_update_cycles(c, 18) and fed._cyc_up2 == kf_scalar_update_cycles(c, 12)
+    assert fed._cyc_predict2 == pol_mimu_predict_cycles(c, 12) > pol_mimu_predict_cycles(c, 9)
+
+
+def test_sins_gnss_subfilter_predicts_and_updates_gnss_as_the_base_filter():
+    """With beta = 1 and no solar-bias states the SINS/GNSS sub-filter is the base filter's 18-state model: the same
+    predict (GNSS-error Gauss-Markov, turns' rotation noise) and the same GNSS update (position rows ``dp - b`` with
+    the white R) give the same covariance and estimate."""
+    from firmware_model.filters import GnssMeasurement
+
+    # the master fuses SINS/GNSS only, and not before its first fix: nothing of sub-filter 2 reaches the reference
+    base, fed, nav, _ = _pair(beta=1.0, fed_kw={"subfilters": ("sins_gnss",)}, psns_bias_states=False)
+    assert base.n == fed.n1 == 18
+    f_n = np.array([0.01, -0.02, 9.80])
+    for flt in (base, fed):
+        flt.rotation_b_rad = (0.001, 0.002, 0.05)
+        for _ in range(10):
+            flt.predict(nav, f_n, 0.1)
+    np.testing.assert_allclose(fed.P1, base.P, rtol=1e-9, atol=1e-30)
+    p = nav.pos.copy()
+    meas = GnssMeasurement(t_fpga_s=1.0, pos=(p[0] + 2e-7, p[1] - 3e-7, p[2] + 1.5), vel=np.array([0.02, -0.01, 0.0]),
+                           vel_up=True)
+    rb = base.update_gnss(nav, meas, p, np.zeros(3))
+    fed.gnss_seen = True
+    rf = fed.update_gnss(nav, meas, p, np.zeros(3))
+    assert rb.accepted and rf.accepted and rb.n_rows == rf.n_rows == 6
+    np.testing.assert_allclose(fed.P1, base.P, rtol=1e-9, atol=1e-30)
+    np.testing.assert_allclose(fed.x1, base.x, rtol=1e-9, atol=1e-15)
+    assert fed.x1[fed.gnss_states.i + 2] != 0.0  # the vertical receiver error is estimated
+    assert fed.innovation_stats["gnss_position"]["rows"] == 3
+
+
+@pytest.mark.parametrize("sun_sigma", [None, 0.01])
+def test_pol_mimu_solar_update_uses_the_solve_quality_noise_and_the_bias_states(sun_sigma):
+    """The MIMU/polarization sub-filter's sun-vector update by closed form: ``P+ = P - P H^T (H P H^T + r I)^-1 H P``
+    with ``H = [-[S^n x] | 0 | 0 | [S^n x] C_b^n]`` (body-frame solar bias, no sky figure) and ``r`` from the solve
+    (:func:`solar_noise_variance`) or, when the study fixes it, ``sun_sigma^2``."""
+    from firmware_model.filters import SolarObservation, solar_noise_variance
+    from firmware_model.variants.federated import N2, X2_ATT
+
+    _, fed, nav, cbn = _pair(fed_kw={"sun_sigma": sun_sigma}, psns_sky_bias_deg=0.0)
+    assert fed.sun_states is not None and not fed.sun_states.shaped
+    el, az = 35 * DEG, 220 * DEG
+    s_n = np.array([math.cos(el) * math.sin(az), math.cos(el) * math.cos(az), math.sin(el)])
+    obs = SolarObservation(t_exposure_s=2.0, s_b=cbn.T @ s_n, quality=0.004, n_used=150, source="camera")
+    r = sun_sigma**2 if sun_sigma is not None else solar_noise_variance(fed.cfg, 0.004, 150)
+    assert sun_sigma is not None or r == pytest.approx(fed.cfg.psns_noise_scale * 0.004 / 150)
+    sx = np.array([[0.0, -s_n[2], s_n[1]], [s_n[2], 0.0, -s_n[0]], [-s_n[1], s_n[0], 0.0]])
+    H = np.zeros((3, fed.n2))
+    H[:, X2_ATT] = -sx
+    H[:, N2:] = sx @ cbn
+    P = fed.P2.copy()
+    want = P - P @ H.T @ np.linalg.solve(H @ P @ H.T + r * np.eye(3), H @ P)
+    rep = fed.update_solar(nav, obs, s_n, cbn)
+    assert rep.accepted
+    np.testing.assert_allclose(fed.P2, want, rtol=1e-6, atol=1e-16)
+    assert fed.innovation_stats["solar_vector"]["rows"] == 3
+
+
+def test_pol_mimu_solar_bias_prior_across_the_meridian_is_shared_by_beta():
+    """With a sky figure the solar-bias states take the base filter's meridian-shaped prior at the first sun, divided
+    by beta_2 like every P0 of the sub-filter (no-reset sharing)."""
+    _, fed, nav, _ = _pair()
+    sun = fed.sun_states
+    assert sun is not None and sun.shaped
+    el, az = 35 * DEG, 220 * DEG
+    s_n = np.array([math.cos(el) * math.sin(az), math.cos(el) * math.cos(az), math.sin(el)])
+    P = fed.P2.copy()
+    assert sun.set_axis(s_n, P, 1.0 / fed.p.beta_pol_mimu)
+    u = np.array([-math.cos(az), math.sin(az), 0.0])
+    want = (sun.iso2 + sun.sky2) * np.eye(3) + sun.sky2 * np.outer(u, u)
+    np.testing.assert_allclose(P[sun.i:, sun.i:], want / fed.p.beta_pol_mimu, rtol=1e-12)

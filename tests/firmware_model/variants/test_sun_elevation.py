@@ -155,3 +155,140 @@ def test_elevation_update_off_is_the_same_filter_navigating_as_pure_sins():
     along = {on: abs(s[-1].pos_err_m[1] * math.sin(az) + s[-1].pos_err_m[0] * math.cos(az))
              for on, (_fw, s, _e) in out.items()}
     assert along[False] > 10.0 * along[True]  # 2.2 km against 18 m (seed 3)
+
+
+# -- Sage-Husa's R0 from the spec sheet's compass figures (docs/decisions/filter-consistency.md D-5.19) --------------
+def _rayleigh_units(s_b: np.ndarray, mountings: np.ndarray, p_max: float = 0.7):
+    """AOP (rad, unit frame) and DOP of each unit under a Rayleigh sky with the sun at ``s_b`` (body)."""
+    aops, dops = [], []
+    for m in mountings:
+        ray = m[:, 2]
+        e = np.cross(ray, s_b)
+        e_u = m.T @ e  # (sin A, cos A, 0) up to scale
+        aops.append(math.atan2(e_u[0], e_u[1]))
+        cg = float(ray @ s_b)
+        dops.append(p_max * (1 - cg * cg) / (1 + cg * cg))
+    return np.array(aops), np.array(dops)
+
+
+def _rot(w: np.ndarray) -> np.ndarray:
+    """Rotation matrix of the rotation vector ``w`` (Rodrigues)."""
+    th = float(np.linalg.norm(w))
+    if th == 0.0:
+        return np.eye(3)
+    k = w / th
+    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + math.sin(th) * kx + (1 - math.cos(th)) * kx @ kx
+
+
+def test_elevation_noise_variance_matches_finite_differences_of_the_two_unit_solve():
+    """The closed form against a numerical Jacobian of the firmware's own path (E-vectors -> Eq. 6 -> up . S) with
+    respect to both units' AOP errors and installation rotations: var = sum_k J_k^2 sigma_k^2."""
+    from firmware_model.variants.dual_vector import unit_evectors
+    from firmware_model.variants.sun_elevation import elevation_noise_variance, sun_vector_from_two_evectors
+
+    cfg = FirmwareConfig(compass_aop_sigma_deg=0.1, compass_aop_dop_ref=0.5, compass_aop_residual_deg=0.18,
+                         compass_installation_residual_deg=0.13)
+    mnt = compass_unit_mountings()
+    el, az = 25 * DEG, 250 * DEG
+    s_n = np.array([math.cos(el) * math.sin(az), math.cos(el) * math.cos(az), math.sin(el)])
+    cbn = _rot(np.array([0.02, -0.035, 0.0])) @ _rot(np.array([0.0, 0.0, -0.5]))
+    s_b = cbn.T @ s_n
+    aop, dop = _rayleigh_units(s_b, mnt)
+    i, j = (int(k) for k in np.argsort(-dop)[:2])
+    up_b = cbn[2, :]
+
+    def sin_h(x: np.ndarray) -> float:
+        a = np.array([aop[i] + x[0], aop[j] + x[1]])
+        e = unit_evectors(a, mnt[[i, j]], np.float64)
+        ei, ej = _rot(-x[2:5]) @ e[0], _rot(-x[5:8]) @ e[1]
+        s, _ = sun_vector_from_two_evectors(ei, ej)
+        return float(up_b @ (s if s @ s_b > 0 else -s))
+
+    h = 1e-7
+    jac = np.array([(sin_h(h * np.eye(8)[k]) - sin_h(-h * np.eye(8)[k])) / (2 * h) for k in range(8)])
+    sig_a = [math.hypot(0.1 * 0.5 / dop[i], 0.18) * DEG, math.hypot(0.1 * 0.5 / dop[j], 0.18) * DEG]
+    sig = np.array(sig_a + [0.13 * DEG] * 6)
+    want = float(np.sum((jac * sig) ** 2))
+    e = unit_evectors(aop[[i, j]], mnt[[i, j]], np.float64)
+    s, _ = sun_vector_from_two_evectors(e[0], e[1])
+    got = elevation_noise_variance(cfg, e[0], e[1], s, mnt[i][:, 2], mnt[j][:, 2], dop[i], dop[j], up_b)
+    assert got == pytest.approx(want, rel=1e-5)
+    assert got == pytest.approx(elevation_noise_variance(cfg, e[0], e[1], -s, mnt[i][:, 2], mnt[j][:, 2], dop[i],
+                                                         dop[j], up_b), rel=1e-12)  # sign-free
+    # a perfectly calibrated, noise-free compass measures the elevation exactly
+    zero = FirmwareConfig(compass_aop_sigma_deg=0.001, compass_aop_residual_deg=0.0,
+                          compass_installation_residual_deg=0.0)
+    assert elevation_noise_variance(zero, e[0], e[1], s, mnt[i][:, 2], mnt[j][:, 2], dop[i], dop[j], up_b) < 1e-3 * got
+
+
+class _Host:
+    """The main loop's services (firmware_model.filters.FilterHost) for one static epoch."""
+
+    def __init__(self, days: float, nav) -> None:
+        self.days, self.nav = days, nav
+
+    def utc_days(self, t_fpga_s: float) -> float:
+        return self.days
+
+    def ins_at(self, t_meas: float):
+        return self.nav.pos.copy(), self.nav.v.copy(), self.nav.q.copy()
+
+    def mag_mean_nt(self, t_center_s: float, half_window_s: float = 0.025):
+        return None
+
+    def now_s(self) -> float:
+        return 10.0
+
+
+@pytest.mark.parametrize("fixed_deg", [None, 0.2])
+def test_sage_husa_starts_from_the_spec_derived_r0(fixed_deg):
+    """One compass frame through SunElevationFilter.update_compass: the nominal R the Sage-Husa filter adapts from is
+    elevation_noise_variance of the two highest-DOP units (the spec sheet's compass figures), or (cos H_c sigma)^2
+    when the scenario fixes ``elevation_sigma_deg``."""
+    from firmware_model import c674x, sun
+    from firmware_model.attitude import a2mat, mat2q, yaw_from_heading
+    from firmware_model.nav_state import NavState
+    from firmware_model.variants.dual_vector import unit_evectors
+    from firmware_model.variants.params import SunElevationParams, VariantParams
+    from firmware_model.variants.sun_elevation import (
+        SunElevationFilter,
+        elevation_noise_cycles,
+        elevation_noise_variance,
+        sun_vector_from_two_evectors,
+    )
+    from protocols.psns import CompassFrame, CompassUnit, PsnsHeader
+
+    cfg = FirmwareConfig(filter="sun_elevation", precision="float64", compass_aop_residual_deg=0.18,
+                         variants=VariantParams(sun_elevation=SunElevationParams(elevation_sigma_deg=fixed_deg)))
+    flt = SunElevationFilter(cfg, c674x.CycleMeter(cfg.clock_hz, cfg.imu_rate_hz), np.float64)
+    cbn = a2mat(0.01, -0.02, yaw_from_heading(30 * DEG))
+    nav = NavState(q=mat2q(cbn), v=np.zeros(3), pos=np.array([39.979 * DEG, 116.339 * DEG, 50.0]))
+    flt.initialise(nav, 1.0 * DEG)
+    days = sun.grena_days_from_datetime(dt.datetime(2019, 9, 18, 8, 14, tzinfo=dt.UTC))
+    flt.attach(_Host(days, nav))
+    s_n = sun.sun_vector_enu(days, float(nav.pos[0]), float(nav.pos[1]), dtype=np.float64)
+    s_b = cbn.T @ s_n
+    mnt = compass_unit_mountings()
+    aop, dop = _rayleigh_units(s_b, mnt)
+    units = tuple(CompassUnit(k, round(math.degrees(aop[k]) * 100) % 36000, round(dop[k] * 65535))
+                  for k in range(len(mnt)))
+    frame = CompassFrame(PsnsHeader(1, 1000, 0, 0, len(units)), units)
+    flt.meter.begin("psns")
+    rep = flt.update_compass(nav, frame, 9.5)
+    flt.meter.end()
+    assert rep is not None and rep.accepted
+    # the pair the filter chose (the two highest-DOP units, well conditioned here) on the wire's quantisation
+    i, j = sorted(range(len(mnt)), key=lambda k: -units[k].dop)[:2]
+    assert flt.pair_mask == (1 << i) | (1 << j)
+    if fixed_deg is None:
+        a = np.array([units[i].aop_cdeg, units[j].aop_cdeg]) * 0.01 * DEG
+        e = unit_evectors(a, mnt[[i, j]], np.float64)
+        s, _ = sun_vector_from_two_evectors(e[0], e[1])
+        want = elevation_noise_variance(cfg, e[0], e[1], s, mnt[i][:, 2], mnt[j][:, 2], units[i].dop / 65535.0,
+                                        units[j].dop / 65535.0, cbn[2, :])
+        assert flt.adaptive.r0 == pytest.approx(want, rel=1e-9)
+        assert flt.meter.tasks["psns"].kernels["se_elevation_noise"] == elevation_noise_cycles(flt.cost)
+    else:
+        cos_hc = math.sqrt(1.0 - flt.last["sin_hc"] ** 2)
+        assert flt.adaptive.r0 == pytest.approx((cos_hc * 0.2 * DEG) ** 2, rel=1e-12)

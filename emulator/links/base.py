@@ -23,6 +23,11 @@ Three ways to transmit:
 * transports with a real peer (pty, serial) slice long chunks so that bytes trickle out at the
   line's pace (``slice_s`` of wire time per write) instead of arriving in one burst.
 
+Transports with a real peer write through :meth:`Link._hand_over`: at once, or, when the realtime
+loop runs ahead of the wall clock (:meth:`emulator.clock.EmulatorLoop.set_lead`), from the loop's
+:class:`~emulator.clock.PacedWriter` at the wall instant of the bytes' scenario time. Fault hooks,
+listeners (captures) and statistics stay in the loop, at the bytes' scenario time, either way.
+
 Baud mismatch: when the receiving end's settings differ from the transmitter's beyond the UART
 tolerance (:func:`emulator.links.framing.uart_compatible`), the receiver gets what a 16550 would
 sample from the transmitter's waveform (:class:`emulator.links.framing.UartReceiver`), with
@@ -128,6 +133,9 @@ class Link:
     paces_input: ClassVar[bool] = True
     #: Wire time per write for transports with a real peer (0 = whole chunks).
     slice_s: ClassVar[float] = 0.0
+    #: True when the transport writes through :meth:`_hand_over` (:meth:`_write_out` safe to call from the
+    #: paced writer's thread), so the realtime loop may run ahead of the wall clock with it open.
+    deferred_write: ClassVar[bool] = False
 
     def __init__(self, name: str, url: str, line: LineConfig, loop: asyncio.AbstractEventLoop) -> None:
         self.name = name
@@ -352,6 +360,35 @@ class Link:
     # -- transport hooks --------------------------------------------------------------
     def _write_raw(self, data: bytes) -> None:
         raise NotImplementedError
+
+    def _hand_over(self, data: bytes) -> None:
+        """Write ``data`` (just emitted, at scenario time ``loop.time()``) to the real peer: at once, or, when the
+        loop runs ahead (its ``writer`` set), from the writer's thread at the wall instant of that scenario time.
+        Failures come back to :meth:`_after_write` in the loop's thread either way."""
+        w = getattr(self.loop, "writer", None)
+        if w is None:
+            self._after_write(len(data), *self._write_out(data))
+            return
+        w.put(self.loop.wall_at(self.loop.time()), self._write_deferred, data, self)  # type: ignore[attr-defined]
+
+    def _write_deferred(self, data: bytes) -> None:
+        """The writer thread's call: write, and pass a failure or a short write back to the loop's thread."""
+        n, err = self._write_out(data)
+        if n < len(data) or err is not None:
+            self.loop.call_soon_threadsafe(self._after_write, len(data), n, err)
+
+    def _write_out(self, data: bytes) -> tuple[int, int | None]:
+        """Write to the peer (any thread, no shared state touched): (bytes written, errno or None)."""
+        raise NotImplementedError
+
+    def _after_write(self, size: int, written: int, err: int | None) -> None:
+        """The outcome of a write of ``size`` bytes (the loop's thread): count a loss, react to an error."""
+
+    def _drain_writes(self) -> None:
+        """Before closing the transport: let the paced writer write what it holds for this link."""
+        w = getattr(self.loop, "writer", None)
+        if w is not None:
+            w.drain(self)
 
     async def open(self) -> None:
         """Acquire the transport (create the pty, open the device...)."""

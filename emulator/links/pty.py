@@ -56,6 +56,7 @@ class PtyLink(Link):
     scheme = "pty"
     paces_input = True
     slice_s = 0.001
+    deferred_write = True
 
     def __init__(
         self,
@@ -239,22 +240,36 @@ class PtyLink(Link):
             self.stats.parity_errors = fr.parity_errors
             if not data:
                 return
+        self._hand_over(data)
+
+    def _write_out(self, data: bytes) -> tuple[int, int | None]:
+        fd = self.master_fd
+        if fd is None:
+            return 0, errno.EBADF
+        if not self.attached:  # the peer left after these bytes were handed over (paced writer): nobody hears them,
+            return 0, errno.EIO  # and written now they would wait in the pty for the next peer
         try:
-            n = os.write(self.master_fd, data)
+            return os.write(fd, data), None
         except BlockingIOError:
-            n = 0
+            return 0, None
         except OSError as exc:
-            if exc.errno == errno.EIO:
+            return 0, exc.errno or errno.EIO
+
+    def _after_write(self, size: int, written: int, err: int | None) -> None:
+        if err == errno.EIO or (err == errno.EBADF and self.master_fd is None):
+            if self.attached:
                 self._detach()
-                self.stats.no_peer_out += len(data)
-                return
-            self.error = f"writing {self.slave_path} failed: {exc}"
-            self.stats.dropped_out += len(data)
+            self.stats.no_peer_out += size
             return
-        if n < len(data):
-            self.stats.dropped_out += len(data) - n
+        if err is not None:
+            self.error = f"writing {self.slave_path} failed: {os.strerror(err)}"
+            self.stats.dropped_out += size
+            return
+        if written < size:
+            self.stats.dropped_out += size - written
 
     async def close(self) -> None:
+        self._drain_writes()
         await super().close()
         if self._poll_handle is not None:
             self._poll_handle.cancel()

@@ -126,8 +126,10 @@ class PacedWriter:
     #: the interpreter's switch interval while the writer runs (s; CPython's default is 5 ms)
     SWITCH_INTERVAL_S = 2e-4
     #: the real-time priority (``SCHED_FIFO``) the thread asks for, so that a CPU busy with other work does not
-    #: delay its wake-ups; where that is not allowed (no root, no ``RLIMIT_RTPRIO``, another OS) it keeps the
-    #: normal policy. None: do not ask. The thread sleeps between writes, so it cannot starve the machine.
+    #: delay its wake-ups: this, or one above the loop's thread when that runs with a real-time priority itself
+    #: (``chrt``: the writer must still preempt it). Where that is not allowed (no root, no ``RLIMIT_RTPRIO``,
+    #: another OS) it keeps the normal policy. None: do not ask. The thread sleeps between writes, so it cannot
+    #: starve the machine.
     RT_PRIORITY: int | None = 1
     def __init__(self) -> None:
         self._items: deque[tuple[float, Callable[[bytes], object], bytes, Hashable]] = deque()
@@ -136,6 +138,7 @@ class PacedWriter:
         self._thread: threading.Thread | None = None
         self._stop = False
         self._switch0: float | None = None
+        self._loop_priority = 0
         #: the scheduling policy the thread runs with (``SCHED_FIFO 1``, or ``SCHED_OTHER`` and why), once started
         self.policy: str | None = None
         #: writes that raised (the transport's write is expected to catch its own errors), and the last one
@@ -178,6 +181,10 @@ class PacedWriter:
             self._switch0 = None
 
     def _start(self) -> None:
+        try:  # the putting thread's (the loop's) real-time priority, 0 when it has none
+            self._loop_priority = os.sched_getparam(0).sched_priority
+        except (AttributeError, OSError):
+            self._loop_priority = 0
         self._stop = False
         self._switch0 = sys.getswitchinterval()
         sys.setswitchinterval(min(self._switch0, self.SWITCH_INTERVAL_S))
@@ -212,6 +219,7 @@ class PacedWriter:
         prio = self.RT_PRIORITY
         if prio is None or not hasattr(os, "sched_setscheduler"):
             return "SCHED_OTHER"
+        prio = max(prio, self._loop_priority + 1)
         try:
             os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(prio))  # 0: the calling thread (Linux)
         except (OSError, ValueError) as exc:

@@ -132,7 +132,7 @@ class PacedWriter:
     #: starve the machine.
     RT_PRIORITY: int | None = 1
     def __init__(self) -> None:
-        self._items: deque[tuple[float, Callable[[bytes], object], bytes, Hashable]] = deque()
+        self._items: deque[tuple[float, Callable[[Any], object], Any, Hashable]] = deque()
         self._cv = threading.Condition()
         self._pending: dict[Hashable, int] = {}
         self._thread: threading.Thread | None = None
@@ -146,7 +146,7 @@ class PacedWriter:
         self.last_error: str | None = None
         self.writes = 0
 
-    def put(self, at: float, write: Callable[[bytes], object], data: bytes, owner: Hashable) -> None:
+    def put(self, at: float, write: Callable[[Any], object], data: Any, owner: Hashable) -> None:
         """Call ``write(data)`` in the writer's thread at ``CLOCK_MONOTONIC`` instant ``at`` (s), at once if past."""
         with self._cv:
             if self._thread is None:
@@ -226,7 +226,7 @@ class PacedWriter:
             return f"SCHED_OTHER ({exc.strerror if isinstance(exc, OSError) else exc})"
         return f"SCHED_FIFO {prio}"
 
-    def _write(self, at: float, write: Callable[[bytes], object], data: bytes) -> None:
+    def _write(self, at: float, write: Callable[[Any], object], data: Any) -> None:
         """One write, due at ``at`` (the benchmark wraps this to time it)."""
         try:
             write(data)

@@ -467,11 +467,12 @@ REALTIME_LEAD_S = 0.02
 
 
 def realtime_lead_s(links: Sequence[Link]) -> float:
-    """The lead for a realtime run with ``links``: :data:`REALTIME_LEAD_S` when every link is in-process (``mem``)
-    or writes through the paced writer (``Link.deferred_write``: pty, serial), else 0 (zenoh and CAN publish at
-    once, so their peers would get the bytes early)."""
-    ok = all(link.scheme == "mem" or link.deferred_write for link in links)
-    return REALTIME_LEAD_S if ok else 0.0
+    """The lead for a realtime run with ``links``: :data:`REALTIME_LEAD_S` when there is a port with a real peer and
+    every such port writes through the paced writer (``Link.deferred_write``: pty, serial); else 0: zenoh and CAN
+    publish at once (their peers would get the bytes early), and a run of in-process (``mem``) links only has no
+    one outside to be on time for."""
+    real = [link for link in links if link.scheme != "mem"]
+    return REALTIME_LEAD_S if real and all(link.deferred_write for link in real) else 0.0
 
 
 def _pps_stats(link: Link) -> dict[str, Any]:

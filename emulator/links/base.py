@@ -152,6 +152,9 @@ class Link:
         self.closed = False
         #: why the transport stopped working (a device that went away), None while it works
         self.error: str | None = None
+        #: counts the peers that went away (a pty's detach): bytes handed to the paced writer for an earlier
+        #: peer are not written (:meth:`_hand_over`)
+        self.peer_epoch = 0
         #: spacing of the bytes of the last chunk that arrived (s), for cut-through forwarding
         self.last_rx_pitch = line.byte_time
         self._tx_start = 0.0
@@ -364,18 +367,31 @@ class Link:
     def _hand_over(self, data: bytes) -> None:
         """Write ``data`` (just emitted, at scenario time ``loop.time()``) to the real peer: at once, or, when the
         loop runs ahead (its ``writer`` set), from the writer's thread at the wall instant of that scenario time.
-        Failures come back to :meth:`_after_write` in the loop's thread either way."""
+        Failures come back to :meth:`_after_write` in the loop's thread either way. Bytes handed over for a peer
+        that has gone by the time they are due (:attr:`peer_epoch` moved on) are not written, only counted as
+        unheard (``no_peer_out``): written, they would reach the next peer after a gap."""
         w = getattr(self.loop, "writer", None)
         if w is None:
             self._after_write(len(data), *self._write_out(data))
             return
-        w.put(self.loop.wall_at(self.loop.time()), self._write_deferred, data, self)  # type: ignore[attr-defined]
+        w.put(self.loop.wall_at(self.loop.time()), self._write_deferred,  # type: ignore[attr-defined]
+              (self.peer_epoch, data), self)
 
-    def _write_deferred(self, data: bytes) -> None:
+    def _write_deferred(self, item: tuple[int, bytes]) -> None:
         """The writer thread's call: write, and pass a failure or a short write back to the loop's thread."""
+        epoch, data = item
+        if epoch != self.peer_epoch:
+            self.loop.call_soon_threadsafe(self._after_deferred_write, epoch, len(data), 0, None)
+            return
         n, err = self._write_out(data)
         if n < len(data) or err is not None:
-            self.loop.call_soon_threadsafe(self._after_write, len(data), n, err)
+            self.loop.call_soon_threadsafe(self._after_deferred_write, epoch, len(data), n, err)
+
+    def _after_deferred_write(self, epoch: int, size: int, written: int, err: int | None) -> None:
+        if epoch != self.peer_epoch:  # for a peer that has gone: unheard, whatever the write said
+            self.stats.no_peer_out += size - written
+            return
+        self._after_write(size, written, err)
 
     def _write_out(self, data: bytes) -> tuple[int, int | None]:
         """Write to the peer (any thread, no shared state touched): (bytes written, errno or None)."""

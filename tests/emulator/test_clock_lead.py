@@ -139,6 +139,7 @@ def test_the_lead_is_taken_only_when_every_real_port_writes_through_the_writer()
     assert realtime_lead_s([_L("mem", False), _L("pty", True), _L("serial", True)]) == REALTIME_LEAD_S > 0
     assert realtime_lead_s([_L("mem", False), _L("pty", True), _L("zenoh", False)]) == 0.0
     assert realtime_lead_s([_L("can", False)]) == 0.0
+    assert realtime_lead_s([_L("mem", False), _L("mem", False)]) == 0.0  # nobody outside to be on time for
 
 
 @pytest.mark.realtime

@@ -135,3 +135,46 @@ def test_without_the_lead_the_same_hold_ups_delay_the_slices(tmp_path):
     assert got == b"".join(_frame(k) for k in range(N_FRAMES))
     # the slices due while the loop was held leave when it lets go: the hold-up shows (what the lead removes)
     assert sum(x > 3.0 for x in late) > 0.1 * len(late), late
+
+
+def test_bytes_handed_over_for_a_peer_that_left_are_not_written_to_the_next():
+    import asyncio
+
+    from emulator.links.base import Link
+
+    class _Rec(Link):
+        scheme = "rec"
+        deferred_write = True
+
+        def __init__(self, *a) -> None:
+            super().__init__(*a)
+            self.out: list[bytes] = []
+
+        def _write_raw(self, data: bytes) -> None:
+            self._hand_over(data)
+
+        def _write_out(self, data: bytes) -> tuple[int, int | None]:
+            self.out.append(data)
+            return len(data), None
+
+    loop = EmulatorLoop("realtime")
+    loop.set_lead(0.02)
+    link = _Rec("r", "rec://r", LineConfig(baud=BAUD), loop)
+
+    def peer_leaves() -> None:  # what PtyLink._detach does, between the hand-over and the bytes' instant
+        link.peer_epoch += 1
+
+    async def main() -> None:
+        link.send(b"old")
+        end = link.busy_until()
+        loop.call_at(end + 0.001, peer_leaves)  # 1 ms after the hand-over: 19 ms before the bytes are due
+        await asyncio.sleep(end + 0.002 - loop.time())
+        link.send(b"new")
+        await asyncio.sleep(0.03 + 0.02)
+
+    try:
+        loop.run_until_complete(main())
+    finally:
+        loop.close()
+    assert link.out == [b"new"]
+    assert link.stats.no_peer_out == 3 and link.stats.bytes_out == 6 and link.stats.dropped_out == 0

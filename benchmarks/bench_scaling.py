@@ -15,6 +15,7 @@ at every duration) and flat memory (peak RSS at 60 min within 10 % of that at 10
 
 from __future__ import annotations
 
+import copy
 import json
 import math
 import subprocess
@@ -58,7 +59,7 @@ def scenario_for(duration_s: float) -> dict[str, Any]:
     sides = max(1, math.ceil((duration_s - 20.0) / 30.0))
     motion = [{"static": {"duration_s": 15}}, {"accelerate": {"duration_s": 5, "to_speed_mps": 10}}]
     for _ in range(sides):
-        motion += [dict(x) for x in LAP]
+        motion += copy.deepcopy(LAP)  # own copies: shared dicts would be dumped as YAML aliases, which the loader refuses
     data.update(name=f"bench_scaling_{int(duration_s)}s", duration_s=float(duration_s), motion=motion,
                 tags=[], description=f"scaling: {duration_s:g} s of square loops")
     # the reference's expectations hold at any length >= 60 s; shorter runs keep only the link ones

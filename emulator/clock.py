@@ -18,6 +18,14 @@ scenario clock in seconds since scenario start.
     spacing and the loop catches up: asyncio alone would run every overdue timer in one batch,
     and a sensor datagram scheduled during the batch would land after the FPGA's timeout for it.
 
+    **Compute ahead** (:meth:`EmulatorLoop.set_lead`, docs/decisions/performance.md D-10.E6): the
+    clock may run ``lead_s`` (wall seconds) ahead of the outside world. Everything inside the loop
+    happens that much early; what leaves for a real peer is handed to a :class:`PacedWriter`, a
+    thread that performs each write at the wall instant its scenario time stands for
+    (:meth:`EmulatorLoop.wall_at`). A callback that holds the loop for a few ms then no longer
+    delays the bytes; what the outside sends is stamped on arrival with the loop's (early) clock,
+    so it takes effect up to ``lead_s`` later than without the lead.
+
 Fast path. In fast mode with no file descriptor of its own, the loop runs batches of iterations
 (:meth:`EmulatorLoop._run_fast`) instead of asyncio's ``BaseEventLoop._run_once``, and ``call_at``
 builds lighter timer handles: both re-implement asyncio steps on CPython's private fields
@@ -35,16 +43,21 @@ that repeated relative sleeps accumulate.
 from __future__ import annotations
 
 import asyncio
+import ctypes
 import heapq
+import os
 import selectors
 import sys
+import threading
 import time as _time
 from asyncio import events as _events
 from collections import deque
 from contextvars import copy_context as _copy_context
+from collections.abc import Callable, Hashable
 from typing import TYPE_CHECKING, Any
 
-__all__ = ["FAST_PATH_VERSIONS", "EmulatorLoop", "fast_path_supported", "new_loop", "sleep_until"]
+__all__ = ["FAST_PATH_VERSIONS", "TIMER_SLACK_NS", "EmulatorLoop", "PacedWriter", "fast_path_supported", "new_loop",
+           "set_timer_slack", "sleep_until"]
 
 #: CPython versions whose asyncio internals the fast path was checked against (the steps of
 #: ``BaseEventLoop._run_once``, the fields of ``TimerHandle``); 3.11 is the version the project is tested on.
@@ -68,6 +81,159 @@ def fast_path_supported(loop: asyncio.AbstractEventLoop) -> bool:
     return (callable(getattr(asyncio.BaseEventLoop, "_run_once", None))
             and all(f in slots for f in _HANDLE_FIELDS)
             and all(hasattr(loop, f) for f in _LOOP_FIELDS))
+
+
+#: realtime: the kernel's timer slack asked for (ns) for the loop's thread and the writer's; Linux's default of
+#: 50 us lets every precise sleep and epoll wake-up overshoot by up to that much
+TIMER_SLACK_NS = 1000
+_PR_SET_TIMERSLACK = 29  # linux/prctl.h
+_PR_GET_TIMERSLACK = 30
+
+
+def set_timer_slack(ns: int = TIMER_SLACK_NS) -> int | None:
+    """Set the calling thread's timer slack to ``ns`` nanoseconds (``prctl(PR_SET_TIMERSLACK)``, Linux only;
+    threads it starts afterwards inherit it). Returns the slack in force afterwards (``PR_GET_TIMERSLACK``), or
+    None where there is no such call (another OS, no libc): harmless there, nothing changes."""
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        prctl = ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):
+        return None
+    prctl.restype = ctypes.c_int
+    prctl.argtypes = [ctypes.c_int, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong]
+    if prctl(_PR_SET_TIMERSLACK, max(1, int(ns)), 0, 0, 0) != 0:
+        return None
+    got = prctl(_PR_GET_TIMERSLACK, 0, 0, 0, 0)
+    return int(got) if got >= 0 else None
+
+
+class PacedWriter:
+    """A thread that performs writes at given ``CLOCK_MONOTONIC`` instants, in the order they were put.
+
+    The realtime loop running ahead (:meth:`EmulatorLoop.set_lead`) puts each chunk for a real peer here
+    with the wall instant its scenario time stands for; this thread sleeps until then (timer slack
+    :data:`TIMER_SLACK_NS`) and calls the transport's write. While it waits for a deadline it holds no
+    lock and not the GIL; to get the GIL back promptly from a loop busy in Python code, the interpreter's
+    switch interval is lowered to :attr:`SWITCH_INTERVAL_S` while the thread runs (restored by
+    :meth:`close`). Items are written in the order put; the loop puts them in scenario-time order, so
+    that is deadline order.
+
+    ``owner`` groups items (a link): :meth:`drain` waits until an owner's items are written, before the
+    owner closes its file descriptor.
+    """
+
+    #: the interpreter's switch interval while the writer runs (s; CPython's default is 5 ms)
+    SWITCH_INTERVAL_S = 2e-4
+    #: the real-time priority (``SCHED_FIFO``) the thread asks for, so that a CPU busy with other work does not
+    #: delay its wake-ups: this, or one above the loop's thread when that runs with a real-time priority itself
+    #: (``chrt``: the writer must still preempt it). Where that is not allowed (no root, no ``RLIMIT_RTPRIO``,
+    #: another OS) it keeps the normal policy. None: do not ask. The thread sleeps between writes, so it cannot
+    #: starve the machine.
+    RT_PRIORITY: int | None = 1
+    def __init__(self) -> None:
+        self._items: deque[tuple[float, Callable[[Any], object], Any, Hashable]] = deque()
+        self._cv = threading.Condition()
+        self._pending: dict[Hashable, int] = {}
+        self._thread: threading.Thread | None = None
+        self._stop = False
+        self._switch0: float | None = None
+        self._loop_priority = 0
+        #: the scheduling policy the thread runs with (``SCHED_FIFO 1``, or ``SCHED_OTHER`` and why), once started
+        self.policy: str | None = None
+        #: writes that raised (the transport's write is expected to catch its own errors), and the last one
+        self.failures = 0
+        self.last_error: str | None = None
+        self.writes = 0
+
+    def put(self, at: float, write: Callable[[Any], object], data: Any, owner: Hashable) -> None:
+        """Call ``write(data)`` in the writer's thread at ``CLOCK_MONOTONIC`` instant ``at`` (s), at once if past."""
+        with self._cv:
+            if self._thread is None:
+                self._start()
+            self._items.append((at, write, data, owner))
+            self._pending[owner] = self._pending.get(owner, 0) + 1
+            self._cv.notify_all()
+
+    def drain(self, owner: Hashable, timeout: float = 5.0) -> bool:
+        """Wait until every item of ``owner`` put so far is written; False on timeout (wall s)."""
+        with self._cv:
+            return self._cv.wait_for(lambda: not self._pending.get(owner) or self._thread is None, timeout)
+
+    def pending(self, owner: Hashable | None = None) -> int:
+        """Items not written yet (of ``owner``, or all)."""
+        with self._cv:
+            return len(self._items) if owner is None else self._pending.get(owner, 0)
+
+    def close(self, timeout: float = 5.0) -> None:
+        """Write what is queued (each at its instant), stop the thread, restore the switch interval."""
+        with self._cv:
+            th = self._thread
+            self._stop = True
+            self._cv.notify_all()
+        if th is not None:
+            th.join(timeout)
+        with self._cv:
+            self._thread = None
+            self._cv.notify_all()
+        if self._switch0 is not None:
+            sys.setswitchinterval(self._switch0)
+            self._switch0 = None
+
+    def _start(self) -> None:
+        try:  # the putting thread's (the loop's) real-time priority, 0 when it has none
+            self._loop_priority = os.sched_getparam(0).sched_priority
+        except (AttributeError, OSError):
+            self._loop_priority = 0
+        self._stop = False
+        self._switch0 = sys.getswitchinterval()
+        sys.setswitchinterval(min(self._switch0, self.SWITCH_INTERVAL_S))
+        self._thread = threading.Thread(target=self._run, name="psns-paced-writer", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        set_timer_slack()
+        self.policy = self._ask_priority()
+        items, cv, mono, sleep = self._items, self._cv, _time.monotonic, _time.sleep
+        while True:
+            with cv:
+                while not items and not self._stop:
+                    cv.wait()
+                if not items:
+                    return
+                at, write, data, owner = items[0]
+            delay = at - mono()
+            if delay > 0:
+                sleep(delay)  # later items are due later: nothing to wake up for
+            self._write(at, write, data)
+            with cv:
+                items.popleft()
+                left = self._pending[owner] - 1
+                if left:
+                    self._pending[owner] = left
+                else:
+                    del self._pending[owner]
+                    cv.notify_all()
+
+    def _ask_priority(self) -> str:
+        prio = self.RT_PRIORITY
+        if prio is None or not hasattr(os, "sched_setscheduler"):
+            return "SCHED_OTHER"
+        prio = max(prio, self._loop_priority + 1)
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(prio))  # 0: the calling thread (Linux)
+        except (OSError, ValueError) as exc:
+            return f"SCHED_OTHER ({exc.strerror if isinstance(exc, OSError) else exc})"
+        return f"SCHED_FIFO {prio}"
+
+    def _write(self, at: float, write: Callable[[Any], object], data: Any) -> None:
+        """One write, due at ``at`` (the benchmark wraps this to time it)."""
+        try:
+            write(data)
+        except Exception as exc:  # the transport catches its own errors; keep the thread alive regardless
+            self.failures += 1
+            self.last_error = repr(exc)
+        self.writes += 1
 
 
 class _ClockSelector(selectors.BaseSelector):
@@ -210,6 +376,12 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
         self._now = 0.0
         self._wall0 = _time.monotonic()
         self._cap: float | None = None  # realtime: the overdue instant this iteration runs
+        #: realtime: how far (wall s) the clock runs ahead of the outside world (:meth:`set_lead`)
+        self.lead_s = 0.0
+        #: realtime with a lead: the thread that writes to real peers at their instants, else None
+        self.writer: PacedWriter | None = None
+        #: realtime: the timer slack in force for the loop's thread (ns; None where it cannot be set)
+        self.timer_slack_ns = set_timer_slack() if mode == "realtime" else None
         self.fast_path = False  # decided below, once asyncio has set up its fields
         super().__init__(selector=_ClockSelector(self))
         self._clock_resolution = 1e-9
@@ -222,7 +394,34 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
         cap = self._cap
         if cap is not None:
             return cap
-        return (_time.monotonic() - self._wall0) * self.speed
+        return (_time.monotonic() - self._wall0 + self.lead_s) * self.speed
+
+    def set_lead(self, lead_s: float) -> None:
+        """Realtime: run the clock ``lead_s`` wall seconds ahead of the outside world (module docstring;
+        docs/decisions/performance.md D-10.E6). Transports with a real peer then hand their writes to
+        :attr:`writer`, which performs each at :meth:`wall_at` of its scenario time. 0 turns it off (the
+        writer, if any, is closed after writing what it holds)."""
+        if self.mode != "realtime":
+            raise ValueError("a lead applies to the realtime mode only")
+        if lead_s < 0:
+            raise ValueError(f"lead_s must be >= 0, got {lead_s}")
+        if lead_s > 0 and self.writer is None:
+            self.writer = PacedWriter()
+        elif lead_s == 0 and self.writer is not None:
+            self.writer.close()
+            self.writer = None
+        self.lead_s = float(lead_s)
+
+    def wall_at(self, t: float) -> float:
+        """The ``CLOCK_MONOTONIC`` instant (s) that scenario time ``t`` stands for in the outside world
+        (realtime; the clock itself runs :attr:`lead_s` ahead of it)."""
+        return self._wall0 + t / self.speed
+
+    def close(self) -> None:
+        if self.writer is not None:
+            self.writer.close()
+            self.writer = None
+        super().close()
 
     def _run_once(self) -> None:
         self._cap = None
@@ -307,7 +506,7 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
         self._now = 0.0
 
     def wall_elapsed(self) -> float:
-        """Wall-clock seconds since the clock was (re)started."""
+        """Wall-clock seconds since the clock was (re)started (the outside world's clock: without the lead)."""
         return _time.monotonic() - self._wall0
 
 

@@ -219,6 +219,10 @@ class Emulator:
             # the collector's generations, so a full collection no longer walks it (tens of ms, a late frame)
             gc.collect()
             gc.freeze()
+        if self.mode == "realtime" and isinstance(loop, EmulatorLoop):
+            lead = realtime_lead_s(self._all_links())
+            if lead:
+                loop.set_lead(lead)
         loop.restart_clock()
         self._wall0 = loop.wall_elapsed()
         if self.faults is not None:
@@ -453,6 +457,22 @@ class Emulator:
         if isinstance(self.dsp, ExternalDsp):
             return self.dsp.sections(self.loop.time() if self.loop is not None else None)
         return dsp_sections(self.dsp)
+
+
+#: realtime: how far (wall s) the loop computes ahead of the outside world when every real port can be written at
+#: its instant by the paced writer (docs/decisions/performance.md D-10.E6): the bound on the extra latency with
+#: which bytes from outside (host commands) take effect, and the longest hold-up of the loop that leaves the
+#: bytes to real peers on time
+REALTIME_LEAD_S = 0.02
+
+
+def realtime_lead_s(links: Sequence[Link]) -> float:
+    """The lead for a realtime run with ``links``: :data:`REALTIME_LEAD_S` when there is a port with a real peer and
+    every such port writes through the paced writer (``Link.deferred_write``: pty, serial); else 0: zenoh and CAN
+    publish at once (their peers would get the bytes early), and a run of in-process (``mem``) links only has no
+    one outside to be on time for."""
+    real = [link for link in links if link.scheme != "mem"]
+    return REALTIME_LEAD_S if real and all(link.deferred_write for link in real) else 0.0
 
 
 def _pps_stats(link: Link) -> dict[str, Any]:

@@ -23,6 +23,11 @@ Three ways to transmit:
 * transports with a real peer (pty, serial) slice long chunks so that bytes trickle out at the
   line's pace (``slice_s`` of wire time per write) instead of arriving in one burst.
 
+Transports with a real peer write through :meth:`Link._hand_over`: at once, or, when the realtime
+loop runs ahead of the wall clock (:meth:`emulator.clock.EmulatorLoop.set_lead`), from the loop's
+:class:`~emulator.clock.PacedWriter` at the wall instant of the bytes' scenario time. Fault hooks,
+listeners (captures) and statistics stay in the loop, at the bytes' scenario time, either way.
+
 Baud mismatch: when the receiving end's settings differ from the transmitter's beyond the UART
 tolerance (:func:`emulator.links.framing.uart_compatible`), the receiver gets what a 16550 would
 sample from the transmitter's waveform (:class:`emulator.links.framing.UartReceiver`), with
@@ -128,6 +133,9 @@ class Link:
     paces_input: ClassVar[bool] = True
     #: Wire time per write for transports with a real peer (0 = whole chunks).
     slice_s: ClassVar[float] = 0.0
+    #: True when the transport writes through :meth:`_hand_over` (:meth:`_write_out` safe to call from the
+    #: paced writer's thread), so the realtime loop may run ahead of the wall clock with it open.
+    deferred_write: ClassVar[bool] = False
 
     def __init__(self, name: str, url: str, line: LineConfig, loop: asyncio.AbstractEventLoop) -> None:
         self.name = name
@@ -144,6 +152,9 @@ class Link:
         self.closed = False
         #: why the transport stopped working (a device that went away), None while it works
         self.error: str | None = None
+        #: counts the peers that went away (a pty's detach): bytes handed to the paced writer for an earlier
+        #: peer are not written (:meth:`_hand_over`)
+        self.peer_epoch = 0
         #: spacing of the bytes of the last chunk that arrived (s), for cut-through forwarding
         self.last_rx_pitch = line.byte_time
         self._tx_start = 0.0
@@ -352,6 +363,48 @@ class Link:
     # -- transport hooks --------------------------------------------------------------
     def _write_raw(self, data: bytes) -> None:
         raise NotImplementedError
+
+    def _hand_over(self, data: bytes) -> None:
+        """Write ``data`` (just emitted, at scenario time ``loop.time()``) to the real peer: at once, or, when the
+        loop runs ahead (its ``writer`` set), from the writer's thread at the wall instant of that scenario time.
+        Failures come back to :meth:`_after_write` in the loop's thread either way. Bytes handed over for a peer
+        that has gone by the time they are due (:attr:`peer_epoch` moved on) are not written, only counted as
+        unheard (``no_peer_out``): written, they would reach the next peer after a gap."""
+        w = getattr(self.loop, "writer", None)
+        if w is None:
+            self._after_write(len(data), *self._write_out(data))
+            return
+        w.put(self.loop.wall_at(self.loop.time()), self._write_deferred,  # type: ignore[attr-defined]
+              (self.peer_epoch, data), self)
+
+    def _write_deferred(self, item: tuple[int, bytes]) -> None:
+        """The writer thread's call: write, and pass a failure or a short write back to the loop's thread."""
+        epoch, data = item
+        if epoch != self.peer_epoch:
+            self.loop.call_soon_threadsafe(self._after_deferred_write, epoch, len(data), 0, None)
+            return
+        n, err = self._write_out(data)
+        if n < len(data) or err is not None:
+            self.loop.call_soon_threadsafe(self._after_deferred_write, epoch, len(data), n, err)
+
+    def _after_deferred_write(self, epoch: int, size: int, written: int, err: int | None) -> None:
+        if epoch != self.peer_epoch:  # for a peer that has gone: unheard, whatever the write said
+            self.stats.no_peer_out += size - written
+            return
+        self._after_write(size, written, err)
+
+    def _write_out(self, data: bytes) -> tuple[int, int | None]:
+        """Write to the peer (any thread, no shared state touched): (bytes written, errno or None)."""
+        raise NotImplementedError
+
+    def _after_write(self, size: int, written: int, err: int | None) -> None:
+        """The outcome of a write of ``size`` bytes (the loop's thread): count a loss, react to an error."""
+
+    def _drain_writes(self) -> None:
+        """Before closing the transport: let the paced writer write what it holds for this link."""
+        w = getattr(self.loop, "writer", None)
+        if w is not None:
+            w.drain(self)
 
     async def open(self) -> None:
         """Acquire the transport (create the pty, open the device...)."""

@@ -56,6 +56,7 @@ class PtyLink(Link):
     scheme = "pty"
     paces_input = True
     slice_s = 0.001
+    deferred_write = True
 
     def __init__(
         self,
@@ -180,6 +181,7 @@ class PtyLink(Link):
 
     def _detach(self) -> None:
         self.attached = False
+        self.peer_epoch += 1  # what the paced writer holds for this peer is not written
         self.detach_count += 1
         self._stop_reading()
         self._flush_slave()
@@ -239,22 +241,34 @@ class PtyLink(Link):
             self.stats.parity_errors = fr.parity_errors
             if not data:
                 return
+        self._hand_over(data)
+
+    def _write_out(self, data: bytes) -> tuple[int, int | None]:
+        fd = self.master_fd
+        if fd is None:
+            return 0, errno.EBADF
         try:
-            n = os.write(self.master_fd, data)
+            return os.write(fd, data), None
         except BlockingIOError:
-            n = 0
+            return 0, None
         except OSError as exc:
-            if exc.errno == errno.EIO:
+            return 0, exc.errno or errno.EIO
+
+    def _after_write(self, size: int, written: int, err: int | None) -> None:
+        if err == errno.EIO or (err == errno.EBADF and self.master_fd is None):
+            if self.attached:
                 self._detach()
-                self.stats.no_peer_out += len(data)
-                return
-            self.error = f"writing {self.slave_path} failed: {exc}"
-            self.stats.dropped_out += len(data)
+            self.stats.no_peer_out += size
             return
-        if n < len(data):
-            self.stats.dropped_out += len(data) - n
+        if err is not None:
+            self.error = f"writing {self.slave_path} failed: {os.strerror(err)}"
+            self.stats.dropped_out += size
+            return
+        if written < size:
+            self.stats.dropped_out += size - written
 
     async def close(self) -> None:
+        self._drain_writes()
         await super().close()
         if self._poll_handle is not None:
             self._poll_handle.cancel()

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import errno
 import fcntl
 import os
 import struct
@@ -113,6 +114,7 @@ class SerialLink(Link):
     scheme = "serial"
     paces_input = True
     slice_s = 0.001
+    deferred_write = True
 
     def __init__(self, name: str, url: str, line: LineConfig, loop: asyncio.AbstractEventLoop,
                  target: str = "", **kw: Any) -> None:
@@ -186,19 +188,27 @@ class SerialLink(Link):
         if self._ser is None:
             self.stats.dropped_out += len(data)
             return
+        self._hand_over(data)
+
+    def _write_out(self, data: bytes) -> tuple[int, int | None]:
         # os.write on pyserial's non-blocking fd: pyserial's own write() spins on EAGAIN when
         # write_timeout is 0, and blocks the event loop otherwise. A full driver buffer is
         # overflow, counted like every other.
+        ser = self._ser
+        if ser is None:
+            return 0, errno.EBADF
         try:
-            n = os.write(self._ser.fd, data)
+            return os.write(ser.fd, data), None
         except BlockingIOError:
-            n = 0
+            return 0, None
         except OSError as exc:
-            if self.error is None:
-                self._broken(f"writing {self.device} failed: {exc}")
-            n = 0
-        if n < len(data):
-            self.stats.dropped_out += len(data) - n
+            return 0, exc.errno or errno.EIO
+
+    def _after_write(self, size: int, written: int, err: int | None) -> None:
+        if err is not None and self.error is None and self._ser is not None:
+            self._broken(f"writing {self.device} failed: {os.strerror(err)}")
+        if written < size:
+            self.stats.dropped_out += size - written
 
     def describe(self) -> str:
         if self.pps_line is None:
@@ -208,6 +218,7 @@ class SerialLink(Link):
     async def close(self) -> None:
         if self._pps is not None:
             self._pps.stop()
+        self._drain_writes()
         await super().close()
         if self._ser is not None:
             with contextlib.suppress(ValueError, OSError):

@@ -12,10 +12,16 @@ Two measurements.
    successive frames' arrivals minus the nominal period (|jitter| p50 / p99 / max), and dropped
    frames (gaps in the frames' sequence numbers after the first one read). The emulator process's
    CPU (``/proc/PID/stat`` utime + stime over the measured wall time, start-up excluded) against the
-   target of 30 % of one core. ``PSNS_BENCH_RT_S`` sets the duration (wall s; default 600, the
-   issue's 10 min; ``make bench-quick``: 30); the note says what was run.
+   target of 30 % of one core. The emulator's own part: how late each tap's chunk was written to its
+   pty against the instant its scenario time stands for (the paced writer of D-10.E6, or without a
+   lead the loop's callback), and how late the loop ran against its own schedule (what the lead
+   absorbs). ``PSNS_BENCH_RT_S`` sets the duration (wall s; default 600, the issue's 10 min;
+   ``make bench-quick``: 30); ``PSNS_BENCH_RT_LEAD_S`` the lead (``0``: none);
+   ``PSNS_BENCH_RT_EMU_CPUS`` / ``PSNS_BENCH_RT_READER_CPUS`` pin the two processes (``1`` / ``0``);
+   the note says what was run.
 2. **One pty link alone** (the floor): a :class:`~emulator.links.pty.PtyLink` at 460 800 baud (8N1)
-   on a realtime :class:`~emulator.clock.EmulatorLoop` sends a 109-byte host frame every 10 ms,
+   on a realtime :class:`~emulator.clock.EmulatorLoop` with the session's lead (its bytes written by
+   the paced writer) sends a 109-byte host frame every 10 ms,
    each paced by the line model (2.37 ms on the wire, written in 1 ms slices). A pyserial reader
    time-stamps every read. For each frame the *lateness* is the arrival of its last byte minus the
    instant the line model says its last stop bit ends: median, p99 and max over 300 frames,
@@ -68,12 +74,16 @@ while idle < 5:
 def _measure() -> list[float]:
     import sys
 
+    from emulator.assembly.session import REALTIME_LEAD_S
     from emulator.clock import EmulatorLoop
     from emulator.links import LineConfig
     from emulator.links.pty import PtyLink
     from protocols.host import build_host_frame
 
     loop = EmulatorLoop("realtime")
+    lead = float(os.environ.get("PSNS_BENCH_RT_LEAD_S") or REALTIME_LEAD_S)
+    if lead > 0:
+        loop.set_lead(lead)
     asyncio.set_event_loop(loop)
     expected: dict[int, float] = {}  # seq -> CLOCK_MONOTONIC time its last stop bit ends
     out: list[str] = []
@@ -93,7 +103,7 @@ def _measure() -> list[float]:
             for k in range(N_FRAMES):
                 await asyncio.sleep(max(0.0, t0 + k * PERIOD_S - loop.time()))
                 link.send(build_host_frame(0x7F, k.to_bytes(4, "little") + bytes(98)))
-                expected[k] = loop._wall0 + link.busy_until() / loop.speed
+                expected[k] = loop.wall_at(link.busy_until())
             await asyncio.sleep(0.05)
             await link.close()
             text, _ = await proc.communicate()
@@ -181,14 +191,19 @@ with open(out_path, "w") as f:
 """
 
 _EMULATOR = r"""
-import asyncio, json, sys, time
+import asyncio, json, os, sys, time
 from pathlib import Path
+from emulator.clock import PacedWriter
 from emulator.links.base import Link
 from emulator.assembly.runner import run_scenario
 from emulator.scenario import load_scenario
-# emulator-side lateness: when the callback that hands a tap's chunk to its pty (host) or to the
-# monitor line (uart1) really ran, against the instant it was scheduled for
+TAPS = {"host": "uart0", "monitor": "uart1"}  # the ptys the reader reads
+# emulator-side lateness: when each tap's chunk really went out (os.write on its pty) against the instant its
+# scenario time stands for. With the loop computing ahead (the paced writer) that is the writer's write; without
+# it, the loop's callback handing the chunk on. Loop-side: when that callback ran against its own schedule
+# (earlier by the lead when there is one): what the lead has to absorb.
 late = {"uart0": [], "uart1": []}
+loop_late = {"uart0": [], "uart1": []}
 _orig = asyncio.TimerHandle._run
 def _run(self, _orig=_orig, _emit=Link._emit, mono=time.monotonic):
     cb = self._callback
@@ -197,12 +212,28 @@ def _run(self, _orig=_orig, _emit=Link._emit, mono=time.monotonic):
         tap = "uart0" if name == "host" else "uart1" if name == "uart1" else None
         if tap is not None:
             loop = self._loop
-            late[tap].append(mono() - (loop._wall0 + self._when / loop.speed))
+            t = mono() - (loop._wall0 + self._when / loop.speed)
+            loop_late[tap].append(t + loop.lead_s)
+            if loop.writer is None:
+                late[tap].append(t)
     return _orig(self)
 asyncio.TimerHandle._run = _run
+if os.environ.get("PSNS_BENCH_RT_LEAD_S"):  # the lead of the realtime loop (wall s; 0: none, the loop writes)
+    import emulator.assembly.session as _session
+    _session.REALTIME_LEAD_S = float(os.environ["PSNS_BENCH_RT_LEAD_S"])
+if os.environ.get("PSNS_BENCH_RT_WRITER_PRIO"):  # the writer thread's SCHED_FIFO priority ("none": normal policy)
+    _p = os.environ["PSNS_BENCH_RT_WRITER_PRIO"]
+    PacedWriter.RT_PRIORITY = None if _p == "none" else int(_p)
+_wr = PacedWriter._write
+def _write(self, at, write, data, _wr=_wr, mono=time.monotonic):
+    _wr(self, at, write, data)
+    tap = TAPS.get(getattr(getattr(write, "__self__", None), "name", ""))
+    if tap is not None:
+        late[tap].append(mono() - at)
+PacedWriter._write = _write
 s = run_scenario(load_scenario(sys.argv[1]), Path(sys.argv[2]), mode="realtime")
 Path(sys.argv[3]).write_text(json.dumps({"passed": s["passed"], "deadline_misses": s["dsp"]["deadline_misses"],
-                                         "nav_frames": s["nav_frames"], "late": late}))
+                                         "nav_frames": s["nav_frames"], "late": late, "loop_late": loop_late}))
 """
 
 
@@ -221,6 +252,11 @@ def _rt_scenario(duration_s: float) -> dict:
                             if "dsp" in e or ("nav_error" in e and duration_s >= 60)
                             or ("link" in e and e["link"]["name"] in ("gyro", "gnss", "psns", "uart1", "uart2"))]
     return yaml.safe_load(yaml.safe_dump(data))
+
+
+def _cpus(var: str) -> set[int]:
+    """CPU numbers from the environment variable ``var`` (``"1"``, ``"0,1"``; unset or empty: no pinning)."""
+    return {int(x) for x in os.environ.get(var, "").split(",") if x.strip()}
 
 
 def _cpu_s(pid: int) -> float | None:
@@ -271,8 +307,17 @@ def _measure_emulator(duration_s: float) -> tuple[dict, dict, float, str]:
                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         rdr = subprocess.Popen([sys.executable, "-c", _TAP_READER, str(run_dir / "ports" / "host"),
                                 str(run_dir / "ports" / "monitor"), str(out), str(duration_s + 120)])
+        fifo = set(os.environ.get("PSNS_BENCH_RT_FIFO", "").replace("+", ",").split(","))
+        for proc, var, who in ((emu, "PSNS_BENCH_RT_EMU_CPUS", "emu"), (rdr, "PSNS_BENCH_RT_READER_CPUS", "reader")):
+            cpus = _cpus(var)
+            if cpus:
+                os.sched_setaffinity(proc.pid, cpus)  # before the interpreter starts its threads: they inherit it
+            if who in fifo:  # the stand-in for a core of its own: no ordinary process can take the CPU from it
+                os.sched_setscheduler(proc.pid, os.SCHED_FIFO, os.sched_param(1))
         while not (run_dir / "ports" / "monitor").exists() and emu.poll() is None:
             time.sleep(0.01)
+        if emu.poll() is not None:
+            rdr.kill()  # the emulator failed at start-up: the reader would wait for its ports in vain
         time.sleep(0.5)  # start-up done, the reader attached
         c0, w0 = _cpu_s(emu.pid), time.monotonic()
         c1, w1 = c0, w0
@@ -295,15 +340,27 @@ def _measure_emulator(duration_s: float) -> tuple[dict, dict, float, str]:
         lt = sorted(x * 1e6 for x in late[tap][20:])  # the first chunks: the reader attaching
         st.update(emu_late_p50=_quantile(lt, 0.5), emu_late_p99=_quantile(lt, 0.99),
                   emu_late_max=lt[-1] if lt else float("nan"))
+        ll = sorted(x * 1e6 for x in res["loop_late"][tap][20:])
+        st.update(loop_late_p50=_quantile(ll, 0.5), loop_late_p99=_quantile(ll, 0.99),
+                  loop_late_max=ll[-1] if ll else float("nan"))
         stats[tap] = st
+    res.pop("loop_late")
     return stats["uart0"], stats["uart1"], cpu_pct, ", ".join(f"{k} {v}" for k, v in res.items())
 
 
 def _emulator_rows() -> list[dict]:
     from benchmarks.common import load_avg, number
+    from emulator.assembly.session import REALTIME_LEAD_S
 
     dur = number("PSNS_BENCH_RT_S")
     u0, u1, cpu, result = _measure_emulator(dur)
+    lead = os.environ.get("PSNS_BENCH_RT_LEAD_S") or str(REALTIME_LEAD_S)
+    how = (f"the paced writer, the loop {float(lead) * 1e3:g} ms ahead" if float(lead) > 0
+           else "no lead: the loop's callback writes")
+    pins = ", ".join(f"{v} {os.environ[v]}" for v in ("PSNS_BENCH_RT_EMU_CPUS", "PSNS_BENCH_RT_READER_CPUS")
+                     if os.environ.get(v))
+    if pins:
+        how += f"; pinned: {pins}"
     rows = []
     for tap, st in (("uart0", u0), ("uart1", u1)):
         period_ms = TAP_PERIOD_S[tap] * 1e3
@@ -315,9 +372,11 @@ def _emulator_rows() -> list[dict]:
                      **{f"{k}": v for k, v in st.items()}})
         rows.append({"name": f"realtime {tap} emulator-side lateness, p99", "value": st["emu_late_p99"], "unit": "us",
                      "baseline": RT_TARGET_P99_US, "ratio": st["emu_late_p99"] / RT_TARGET_P99_US,
-                     "note": f"the emulator's own part: the callback handing each {tap} chunk on ran this late "
-                             f"(p50 {st['emu_late_p50']:.0f} us, max {st['emu_late_max']:.0f} us); the rest of the "
-                             f"jitter above is the reader's wake-up on a shared 2-core machine"})
+                     "note": f"the emulator's own part: each {tap} chunk was written to its pty this late against "
+                             f"its instant (p50 {st['emu_late_p50']:.0f} us, max {st['emu_late_max']:.0f} us; {how}); "
+                             f"the loop ran {st['loop_late_p99']:.0f} us late at p99 "
+                             f"(max {st['loop_late_max']:.0f} us) against its own schedule; the rest of the jitter "
+                             f"above is the kernel's pty hand-over and the reader's wake-up on a shared machine"})
         rows.append({"name": f"realtime {tap} dropped frames", "value": float(st["dropped"]), "unit": "frames",
                      "baseline": 0.0, "ratio": None,
                      "note": f"sequence gaps after the first frame read, {dur:g} s; target 0"})

@@ -59,7 +59,7 @@ def scenario_for(duration_s: float) -> dict[str, Any]:
     sides = max(1, math.ceil((duration_s - 20.0) / 30.0))
     motion = [{"static": {"duration_s": 15}}, {"accelerate": {"duration_s": 5, "to_speed_mps": 10}}]
     for _ in range(sides):
-        motion += copy.deepcopy(LAP)  # own copies: shared dicts would be dumped as YAML aliases, which the loader refuses
+        motion += copy.deepcopy(LAP)  # own copies: shared dicts would be dumped as YAML aliases (refused)
     data.update(name=f"bench_scaling_{int(duration_s)}s", duration_s=float(duration_s), motion=motion,
                 tags=[], description=f"scaling: {duration_s:g} s of square loops")
     # the reference's expectations hold at any length >= 60 s; shorter runs keep only the link ones

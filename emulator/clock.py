@@ -52,8 +52,8 @@ import threading
 import time as _time
 from asyncio import events as _events
 from collections import deque
-from contextvars import copy_context as _copy_context
 from collections.abc import Callable, Hashable
+from contextvars import copy_context as _copy_context
 from typing import TYPE_CHECKING, Any
 
 __all__ = ["FAST_PATH_VERSIONS", "TIMER_SLACK_NS", "EmulatorLoop", "PacedWriter", "fast_path_supported", "new_loop",

@@ -22,7 +22,8 @@ def _slack_ns() -> int:
     return int(_SLACK.read_text())
 
 
-@pytest.mark.skipif(not LINUX or not _SLACK.exists(), reason="PR_SET_TIMERSLACK and /proc/PID/timerslack_ns are Linux's")
+@pytest.mark.skipif(not LINUX or not _SLACK.exists(),
+                    reason="PR_SET_TIMERSLACK and /proc/PID/timerslack_ns are Linux's")
 def test_realtime_loop_lowers_the_timer_slack_and_fast_mode_leaves_it():
     before = set_timer_slack(50_000)  # the kernel's default, whatever an earlier test set
     assert before == 50_000 == _slack_ns()

@@ -119,7 +119,7 @@ def _lateness(tmp_path, lead_s: float) -> tuple[list[float], EmulatorLoop, _Time
 
 
 def test_slices_leave_at_their_instants_while_the_loop_is_held_up(tmp_path):
-    late, loop, link, got = _lateness(tmp_path / "lead", 0.02)
+    late, _loop, link, got = _lateness(tmp_path / "lead", 0.02)
     assert got == b"".join(_frame(k) for k in range(N_FRAMES))  # whole, in order, nothing stale or lost
     assert link.stats.bytes_out == N_FRAMES * FRAME and link.stats.dropped_out == 0
     # never early: each slice is written once its last stop bit has ended (the scenario clock runs 20 ms ahead)

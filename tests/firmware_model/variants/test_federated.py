@@ -251,7 +251,7 @@ def test_pol_mimu_solar_update_uses_the_solve_quality_noise_and_the_bias_states(
 def test_pol_mimu_solar_bias_prior_across_the_meridian_is_shared_by_beta():
     """With a sky figure the solar-bias states take the base filter's meridian-shaped prior at the first sun, divided
     by beta_2 like every P0 of the sub-filter (no-reset sharing)."""
-    _, fed, nav, _ = _pair()
+    _, fed, _, _ = _pair()
     sun = fed.sun_states
     assert sun is not None and sun.shaped
     el, az = 35 * DEG, 220 * DEG

@@ -69,7 +69,7 @@ def test_federated_scenario_isolates_the_glitch_within_two_epochs(tmp_path):
 @pytest.mark.slow
 @pytest.mark.xfail(strict=True, reason="known (issue 15, docs/variants.md 6.4): in this scenario the sun-elevation "
                    "filter no longer beats the same filter without its update: max along-sun error 2.81 km against "
-                   "pure SINS's 0.58 km, horizontal MAE 1.887 km for both (2026-12-02); the paper's 12 km drift of pure "
+                   "pure SINS's 0.58 km, horizontal MAE 1.887 km for both (2026-12-02); the 12 km drift of pure "
                    "SINS is not what the base filter shows on this stream")
 def test_sun_elevation_scenario_against_pure_sins(tmp_path, capsys):
     """The 20-minute GNSS-free scenario and the same stream navigated by the base filter (pure SINS), the firmware

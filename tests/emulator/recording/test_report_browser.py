@@ -14,7 +14,7 @@ CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser") or shuti
 
 EXPECTED = ["Trajectory map", "Attitude and heading against truth", "Attitude error", "Velocity error",
             "Position error", "Filter consistency (NEES)", "Mode timeline", "Error CDF", "GNSS", "PSNS and sky",
-            "DSP load over time", "DSP load per task"]
+            "Solar vector against truth", "DSP load over time", "DSP load per task"]
 
 # on load, each figure is drawn onto a canvas and its non-white pixels counted; the result goes into the DOM
 PROBE = """<script>

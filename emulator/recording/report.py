@@ -38,9 +38,10 @@ _MODE_BITS = [(0x0001, "aligning"), (0x0002, "navigating"), (0x0004, "GNSS-aided
               (0x0010, "degraded")]
 
 
-def load_nav_csv(path: Path) -> dict[str, list[float]]:
-    """Columns of ``nav.csv`` as float lists (empty cells become NaN)."""
-    cols: dict[str, list[float]] = {}
+def load_nav_csv(path: Path, text_columns: tuple[str, ...] = ()) -> dict[str, list[Any]]:
+    """Columns of ``nav.csv`` (or another of the run's CSV files) as float lists (empty cells become NaN); the
+    ``text_columns`` stay strings."""
+    cols: dict[str, list[Any]] = {}
     with open(path, newline="", encoding="utf-8") as f:
         r = csv.reader(f)
         header = next(r, None)
@@ -50,6 +51,9 @@ def load_nav_csv(path: Path) -> dict[str, list[float]]:
             cols[h] = []
         for row in r:
             for h, v in zip(header, row):
+                if h in text_columns:
+                    cols[h].append(v)
+                    continue
                 try:
                     cols[h].append(float(v) if v != "" else math.nan)
                 except ValueError:
@@ -537,25 +541,7 @@ def _psns_figure(nav: dict[str, list[float]], events: list[dict[str, Any]],
 def load_psns_csv(path: Path) -> dict[str, list[Any]]:
     """``psns.csv`` (the recorder's solved solar vectors against truth, emulator/recording/psns_error.py) as
     columns: numbers as floats (an empty cell NaN), ``source`` and ``use`` as text; {} without the file."""
-    if not path.exists():
-        return {}
-    from .psns_error import PSNS_COLUMNS
-
-    text_cols = {"source", "use"}
-    cols: dict[str, list[Any]] = {h: [] for h in PSNS_COLUMNS}
-    with open(path, newline="", encoding="utf-8") as f:
-        r = csv.DictReader(f)
-        for row in r:
-            for h in PSNS_COLUMNS:
-                v = row.get(h) or ""
-                if h in text_cols:
-                    cols[h].append(v)
-                    continue
-                try:
-                    cols[h].append(float(v) if v != "" else math.nan)
-                except ValueError:
-                    cols[h].append(math.nan)
-    return cols
+    return load_nav_csv(path, text_columns=("source", "use")) if path.exists() else {}
 
 
 def _solar_error_figure(psns: dict[str, list[Any]]) -> list[tuple[str, str]]:

@@ -107,6 +107,13 @@ class PolarizationCameraModel:
         c_nc = c_cb.T @ st.c_bn.T
         return c_nc, c_nc @ s_n, math.asin(max(-1.0, min(1.0, float(s_n[2]))))
 
+    def _point_glare(self, s_c: np.ndarray) -> np.ndarray:
+        """(P,) bool: the observation points whose window reaches into the sun's glare disc (``s_c`` the sun in the
+        camera frame): the window's angular half-size around the point ray widens the glare radius."""
+        cfg = self.cfg
+        half = (cfg.bin_superpixels + 1) * cfg.pixel_m / cfg.focal_m
+        return np.asarray(self.geo.pt_v @ s_c > math.cos(cfg.sun_glare + half))
+
     # -- exposure ------------------------------------------------------------------------------
     def _frame_signal_e(self, radiance: np.ndarray, dop: np.ndarray, metered: np.ndarray | None) -> float:
         """Electrons per unit radiance of this frame (``signal_e`` behind an ideal polarizer, module docstring).
@@ -147,8 +154,7 @@ class PolarizationCameraModel:
         if cfg.auto_exposure_target is not None:  # metered at the observation points, as in the binned fidelity
             v = self.geo.pt_v
             pf = self.sky.evaluate(t, s_c, v[:, 0], v[:, 1], v[:, 2], c_nc)
-            half = (cfg.bin_superpixels + 1) * cfg.pixel_m / cfg.focal_m
-            signal_e = self._frame_signal_e(pf.radiance, pf.dop, (v @ s_c) <= math.cos(cfg.sun_glare + half))
+            signal_e = self._frame_signal_e(pf.radiance, pf.dop, ~self._point_glare(s_c))
         radiance = (f32(signal_e) * fld.radiance).astype(f32)
         means = self._channel_means(radiance, fld.dop.astype(f32), ex, ey, self.geo.sp_cos_cra, self._maps)
         glare = None
@@ -263,10 +269,7 @@ class PolarizationCameraModel:
         v = self.geo.pt_v
         fld = self.sky.evaluate(t, s_c, v[:, 0], v[:, 1], v[:, 2], c_nc)
         ex, ey = sensor_plane_field(v[:, 0], v[:, 1], v[:, 2], fld.ex, fld.ey, fld.ez, self.geo.pt_cos_cra)
-        # the window's angular half-size around the point ray decides glare
-        half = (cfg.bin_superpixels + 1) * cfg.pixel_m / cfg.focal_m
-        cos_sun = v @ s_c
-        glare = cos_sun > math.cos(cfg.sun_glare + half)
+        glare = self._point_glare(s_c)
         signal_e = self._frame_signal_e(fld.radiance, fld.dop, ~glare)
         means = self._channel_means(signal_e * fld.radiance, fld.dop, ex, ey, self.geo.pt_cos_cra, self._pt_maps)
         g = cfg.gain_dn_per_e

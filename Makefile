@@ -8,7 +8,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 SCENARIO ?= scenarios/quickstart.yaml
 
-.PHONY: install run examples test test-realtime test-all fuzz lint bench bench-quick golden clean distclean check-python
+.PHONY: install run examples test test-realtime test-all fuzz lint bench bench-quick golden compiled clean distclean check-python
 
 check-python:
 	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "psns-hil needs Python >= 3.11, found " + sys.version.split()[0])'
@@ -63,7 +63,15 @@ bench-quick: install
 golden: install
 	$(PY) -m emulator golden --update
 
+# Opt-in compiled path (docs/performance.md section 5.5, D-10.F3): mypyc compiles the modules listed in
+# pyproject.toml [tool.psns-hil.compiled] from their one Python source (gcc, Python headers) and places the
+# extensions beside the sources, where the same imports pick them up. `make clean` goes back to pure Python,
+# the default and what CI tests; `tools/build_compiled.py --files` says which path a tree is on.
+compiled: install
+	$(PY) tools/build_compiled.py
+
 clean:
+	$(PYTHON) tools/build_compiled.py --clean
 	rm -rf runs .pytest_cache .hypothesis
 	find . -name __pycache__ -type d -prune -exec rm -rf {} +
 

@@ -25,7 +25,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, Final
 
 import numpy as np
 
@@ -200,9 +200,16 @@ def strapdown_step_fast(s: NavState, phi_m: Sequence[float], dv_m: Sequence[floa
 _F64, _F32 = np.float64, np.float32
 
 
-_A, _E2, _1_E2 = earth.A_WGS84, earth.E2_WGS84, 1.0 - earth.E2_WGS84
-_W_IE, _G0, _G_B1, _G_B2, _G_H = earth.OMEGA_IE, earth.G0, earth._G_B1, earth._G_B2, earth._G_H
-_sin, _cos, _sqrt = math.sin, math.cos, math.sqrt
+# Final: the compiled path (tools/build_compiled.py) keeps these as C doubles and calls math.sin/cos/sqrt
+# directly (C libm, as CPython's math module does), instead of looking module globals up on every use.
+_A: Final[float] = earth.A_WGS84
+_E2: Final[float] = earth.E2_WGS84
+_1_E2: Final[float] = 1.0 - earth.E2_WGS84
+_W_IE: Final[float] = earth.OMEGA_IE
+_G0: Final[float] = earth.G0
+_G_B1: Final[float] = earth._G_B1
+_G_B2: Final[float] = earth._G_B2
+_G_H: Final[float] = earth._G_H
 _array = np.array
 
 
@@ -219,15 +226,15 @@ def _step_f64(s: NavState, phi_m: Sequence[float], dv_m: Sequence[float], T: flo
     T2 = T / 2.0
     # 3. mid-interval extrapolation: v_half = v + a_prev T/2, latitude and height at T/2
     ve, vn, vu = ve0 + ax * T2, vn0 + ay * T2, vu0 + az * T2
-    d = 1.0 - _E2 * _sin(lat) ** 2  # earth.radii(lat)
-    rn = _A / _sqrt(d)
+    d = 1.0 - _E2 * math.sin(lat) ** 2  # earth.radii(lat)
+    rn = _A / math.sqrt(d)
     rm = rn * _1_E2 / d
     lat_h = lat + vn / (rm + h) * T2
     h_h = h + vu * T2
-    sl, cl = _sin(lat_h), _cos(lat_h)
+    sl, cl = math.sin(lat_h), math.cos(lat_h)
     s2 = sl**2  # earth.radii(lat_h) and earth.gravity(lat_h, h_h) share sin^2
     d = 1.0 - _E2 * s2
-    rn = _A / _sqrt(d)
+    rn = _A / math.sqrt(d)
     rm = rn * _1_E2 / d
     rmh, rnh = rm + h_h, rn + h_h
     wie_n, wie_u = _W_IE * cl, _W_IE * sl
@@ -274,7 +281,7 @@ def _step_f64(s: NavState, phi_m: Sequence[float], dv_m: Sequence[float], T: flo
     n1 = a0 * r1 + a1 * r0 + a2 * r3 - a3 * r2
     n2 = a0 * r2 - a1 * r3 + a2 * r0 + a3 * r1
     n3 = a0 * r3 + a1 * r2 - a2 * r1 + a3 * r0
-    nrm = _sqrt(n0 * n0 + n1 * n1 + n2 * n2 + n3 * n3)  # qnormalize
+    nrm = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2 + n3 * n3)  # qnormalize
     s._set_floats((n0 / nrm, n1 / nrm, n2 / nrm, n3 / nrm, ve1, vn1, vu1, lat1, lon1, h1, ae, an, au, fe, fn, fu))
     s.t += T
     return s
@@ -287,9 +294,9 @@ def _rv2q(x: float, y: float, z: float) -> tuple[float, float, float, float]:
         c = 1.0 - n2 / 8.0
         k = 0.5 - n2 / 48.0
     else:
-        n = _sqrt(n2)
-        c = _cos(n / 2.0)
-        k = _sin(n / 2.0) / n
+        n = math.sqrt(n2)
+        c = math.cos(n / 2.0)
+        k = math.sin(n / 2.0) / n
     return c, k * x, k * y, k * z
 
 
@@ -324,9 +331,9 @@ def _rv2q_f32(x: float, y: float, z: float) -> tuple[float, ...]:
         c = 1.0 - n2 / 8.0
         k = 0.5 - n2 / 48.0
     else:
-        n = _sqrt(n2)
-        c = _cos(n / 2.0)
-        k = _sin(n / 2.0) / n
+        n = math.sqrt(n2)
+        c = math.cos(n / 2.0)
+        k = math.sin(n / 2.0) / n
     (k,) = _R1.unpack(_R1.pack(k))  # float32(k) * phi (NumPy's rule for a Python float times float32)
     return _R4.unpack(_R4.pack(c, k * x, k * y, k * z))
 
@@ -356,15 +363,15 @@ def _step_f32(s: NavState, phi_m: Sequence[float], dv_m: Sequence[float], T: flo
     ax, ay, az = x[A_PREV]
     t = R3u(R3p(ax * T2w, ay * T2w, az * T2w))
     ve, vn, vu = R3u(R3p(ve0 + t[0], vn0 + t[1], vu0 + t[2]))
-    d = 1.0 - _E2 * _sin(lat) ** 2  # earth.radii(lat)
-    rn = _A / _sqrt(d)
+    d = 1.0 - _E2 * math.sin(lat) ** 2  # earth.radii(lat)
+    rn = _A / math.sqrt(d)
     rm = rn * _1_E2 / d
     lat_h = lat + vn / (rm + h) * (T / 2.0)
     h_h = h + vu * (T / 2.0)
-    sl, cl = _sin(lat_h), _cos(lat_h)
+    sl, cl = math.sin(lat_h), math.cos(lat_h)
     s2 = sl**2
     d = 1.0 - _E2 * s2
-    rn = _A / _sqrt(d)
+    rn = _A / math.sqrt(d)
     rm = rn * _1_E2 / d
     rmh, rnh = rm + h_h, rn + h_h
     wie_n, wie_u = _W_IE * cl, _W_IE * sl
@@ -402,7 +409,7 @@ def _step_f32(s: NavState, phi_m: Sequence[float], dv_m: Sequence[float], T: flo
     qn = _qmul_f32(_rv2q_f32(-wt[0], -wt[1], -wt[2]), _qmul_f32(q, _rv2q_f32(px, py, pz)))
     qa = _array(qn, dtype=_f32)
     # qnormalize in float32: |q|^2 by numpy's dot, sqrt and the divisions rounded to float32
-    (nrm,) = _R1.unpack(_R1.pack(_sqrt(float(np.dot(qa, qa)))))
+    (nrm,) = _R1.unpack(_R1.pack(math.sqrt(float(np.dot(qa, qa)))))
     q0n, q1n, q2n, q3n = _R4.unpack(_R4.pack(qn[0] / nrm, qn[1] / nrm, qn[2] / nrm, qn[3] / nrm))
     s._set_floats((q0n, q1n, q2n, q3n, ve1, vn1, vu1, lat1, lon1, h1, ae, an, au, fe, fn, fu), _f32)
     s.t += T

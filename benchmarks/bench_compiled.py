@@ -6,9 +6,16 @@ modules (whatever ``tools/build_compiled.py`` built), one with them imported fro
 is shared) and, with ``--profile``, adds the per-component breakdown of :mod:`benchmarks.profile_breakdown`
 (scaled to its own unprofiled CPU time). The parent prints each run, the medians and the CPU-time ratio.
 
+With ``--firmware`` the children time the firmware alone instead: :mod:`benchmarks.bench_firmware`'s
+receive + service per tick (CPU time, median of its ``REPEAT`` runs of its synthetic static stream), navigation
+state in float64 and in float32; ``duration_s`` is then the stream's length.
+
+With ``--kernels`` the children time the compiled modules' per-tick kernels alone (``timeit``, CPU time, best of
+5 x 20 000 calls; ``duration_s`` unused).
+
 Usage (after ``make compiled``; docs/performance.md section 5.5)::
 
-    .venv/bin/python -m benchmarks.bench_compiled [duration_s] [pairs] [--profile]
+    .venv/bin/python -m benchmarks.bench_compiled [duration_s] [pairs] [--profile | --firmware | --kernels]
 """
 
 from __future__ import annotations
@@ -49,26 +56,92 @@ def _child(duration_s: float, profile: bool) -> dict[str, Any]:
     return out
 
 
-def _spawn(pure: bool, duration_s: float, profile: bool) -> dict[str, Any]:
+def _child_firmware(seconds: float) -> dict[str, Any]:
+    """Firmware receive + service per tick, us of CPU time (median), float64 and float32 navigation state."""
+    from benchmarks.bench_firmware import ERR, REPEAT, _total_us_per_tick
+    from firmware_model import FirmwareConfig
+    from tests.firmware_model.synth import StaticTruth, StreamConfig, static_stream
+    from tools.build_compiled import modules
+
+    events = list(static_stream(StaticTruth(), ERR, StreamConfig(psns="polarization_obs"), seconds))
+    out: dict[str, Any] = {"files": [Path(sys.modules[m].__file__ or "").name for m in modules()]}
+    for prec in ("float64", "float32"):
+        cfg = FirmwareConfig(initial_heading_deg=30.5, nav_state_precision=prec)
+        out[prec] = median(_total_us_per_tick(cfg, events) for _ in range(REPEAT))
+    return out
+
+
+def _child_kernels() -> dict[str, Any]:
+    """CPU us per call of the compiled modules' per-tick kernels, best of 5 x 20 000."""
+    import timeit
+
+    import numpy as np
+
+    from firmware_model import c674x, strapdown
+    from firmware_model.nav_state import NavState
+    from protocols import crc
+    from tools.build_compiled import modules
+
+    def best(f: Any) -> float:
+        return min(timeit.repeat(f, number=20000, repeat=5, timer=time.process_time)) / 20000 * 1e6
+
+    out: dict[str, Any] = {"files": [Path(sys.modules[m].__file__ or "").name for m in modules()]}
+    for dt in (np.float64, np.float32):
+        s = NavState(np.array([1.0, 0, 0, 0], dt), np.array([1.0, 2.0, 0.1], dt), np.array([0.7, 2.0, 50.0]),
+                     a_prev=np.zeros(3, dt), f_n=np.zeros(3, dt))
+        phi, dv = np.array([1e-4, 2e-4, -1e-4], dt).tolist(), np.array([0.01, 0.02, 0.049], dt).tolist()
+        out[f"coning_sculling_fast {dt.__name__}"] = best(
+            lambda phi=phi, dv=dv, dt=dt: strapdown.coning_sculling_fast(phi, dv, dt))
+        out[f"strapdown_step_fast {dt.__name__}"] = best(
+            lambda s=s, phi=phi, dv=dv, dt=dt: strapdown.strapdown_step_fast(s, phi, dv, 0.005, dt))
+    m = c674x.CycleMeter(300e6, 200.0)
+
+    def tick() -> None:
+        m.begin("imu_tick", 0.005)
+        m.begin("imu", 0.005)
+        m.charge("a", 10)
+        m.charge("b", 20)
+        m.end()
+        m.end()
+
+    out["CycleMeter 2 begin + 2 charge + 2 end"] = best(tick)
+    b20, b48 = bytes(range(20)), bytes(48)
+    out["crc8_stim 20 B"] = best(lambda: crc.crc8_stim(b20))
+    out["crc32_mpeg2 48 B"] = best(lambda: crc.crc32_mpeg2(b48))
+    return out
+
+
+def _spawn(pure: bool, duration_s: float, flag: str) -> dict[str, Any]:
     head = [sys.executable, str(ROOT / "tools" / "build_compiled.py"), "--pure"] if pure else [sys.executable]
-    cmd = [*head, "-m", "benchmarks.bench_compiled", "--child", str(duration_s)] + (["--profile"] if profile else [])
+    cmd = [*head, "-m", "benchmarks.bench_compiled", "--child", str(duration_s)] + ([flag] if flag else [])
     res = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, check=True)
     return dict(json.loads(res.stdout.strip().splitlines()[-1]))
 
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
-    profile = "--profile" in argv
+    profile, firmware, kernels = "--profile" in argv, "--firmware" in argv, "--kernels" in argv
+    flag = "--profile" if profile else "--firmware" if firmware else ""
     args = [a for a in argv if not a.startswith("--")]
     if "--child" in argv:
-        print(json.dumps(_child(float(args[0]), profile)))
+        child = _child_kernels() if kernels else _child_firmware(float(args[0])) if firmware else \
+            _child(float(args[0]), profile)
+        print(json.dumps(child))
+        return 0
+    if kernels:
+        for i in range(int(args[1]) if len(args) > 1 else 2):
+            for kind in ("pure", "compiled") if i % 2 == 0 else ("compiled", "pure"):
+                r = _spawn(kind == "pure", 0.0, "--kernels")
+                print(f"{kind:8s} " + ", ".join(f"{k} {v:.2f} us" for k, v in r.items() if k != "files"), flush=True)
         return 0
     duration_s = float(args[0]) if args else 60.0
     pairs = int(args[1]) if len(args) > 1 else 3
+    if firmware:
+        return _firmware_pairs(duration_s, pairs)
     runs: dict[str, list[dict[str, Any]]] = {"pure": [], "compiled": []}
     for i in range(pairs):
         for kind in ("pure", "compiled") if i % 2 == 0 else ("compiled", "pure"):
-            r = _spawn(kind == "pure", duration_s, profile)
+            r = _spawn(kind == "pure", duration_s, flag)
             runs[kind].append(r)
             print(f"pair {i + 1} {kind:8s} CPU {r['cpu_s']:6.2f} s  RTF(CPU) {r['sim_s'] / r['cpu_s']:5.1f}  "
                   f"{r['us_per_tick']:6.1f} us/tick  passed {r['passed']}  {' '.join(r['files'])}", flush=True)
@@ -84,6 +157,21 @@ def main(argv: list[str] | None = None) -> int:
             p = median(r["breakdown"].get(c, 0.0) for r in runs["pure"])
             q = median(r["breakdown"].get(c, 0.0) for r in runs["compiled"])
             print(f"  {c:56s} {p:7.1f} {q:9.1f}")
+    return 0
+
+
+def _firmware_pairs(seconds: float, pairs: int) -> int:
+    runs: dict[str, list[dict[str, Any]]] = {"pure": [], "compiled": []}
+    for i in range(pairs):
+        for kind in ("pure", "compiled") if i % 2 == 0 else ("compiled", "pure"):
+            r = _spawn(kind == "pure", seconds, "--firmware")
+            runs[kind].append(r)
+            print(f"pair {i + 1} {kind:8s} firmware per tick: float64 {r['float64']:6.2f} us, float32 "
+                  f"{r['float32']:6.2f} us  {' '.join(r['files'])}", flush=True)
+    for prec in ("float64", "float32"):
+        p = median(r[prec] for r in runs["pure"])
+        c = median(r[prec] for r in runs["compiled"])
+        print(f"{prec}: median pure {p:.2f} us, compiled {c:.2f} us per tick, saved {p - c:.2f} us ({p / c:.3f}x)")
     return 0
 
 

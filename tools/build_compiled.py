@@ -115,8 +115,8 @@ def build() -> None:
     # A bare Distribution: setup() would parse pyproject.toml, which older setuptools reject (PEP 639 license).
     dist = Distribution({"name": "psns-hil-compiled", "ext_modules": exts})
     cmd = dist.get_command_obj("build_ext")
-    cmd.inplace = True  # type: ignore[attr-defined]
-    cmd.build_temp = str(BUILD_DIR / "temp")  # type: ignore[attr-defined]
+    cmd.inplace = True
+    cmd.build_temp = str(BUILD_DIR / "temp")
     dist.run_command("build_ext")
     missing = [m for m in modules() if not extension_of(m).exists()]
     if missing:

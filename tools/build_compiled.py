@@ -80,6 +80,8 @@ def clean() -> None:
         p.unlink()
         print(f"removed {p.relative_to(ROOT)}")
     shutil.rmtree(BUILD_DIR, ignore_errors=True)
+    if BUILD_DIR.parent.is_dir() and not any(BUILD_DIR.parent.iterdir()):
+        BUILD_DIR.parent.rmdir()  # build/ was made for mypyc alone
 
 
 class _PureFinder(importlib.abc.MetaPathFinder):
@@ -117,6 +119,7 @@ def build() -> None:
     cmd = dist.get_command_obj("build_ext")
     cmd.inplace = True
     cmd.build_temp = str(BUILD_DIR / "temp")
+    cmd.build_lib = str(BUILD_DIR / "lib")
     dist.run_command("build_ext")
     missing = [m for m in modules() if not extension_of(m).exists()]
     if missing:

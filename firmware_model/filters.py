@@ -577,6 +577,9 @@ class BaseFilter(NavFilter):
     #: augmented states this variant carries when the configuration asks for them (docs/decisions/
     #: filter-consistency.md): 3 GNSS position errors (E, N, U m, Gauss-Markov) and 3 solar-vector biases (body rad)
     augmentable = True
+    #: whether the solar-vector bias states are among them (a variant whose PSNS measurement is not the base
+    #: filter's solar vector, e.g. the dual-vector compass update, carries the GNSS states only)
+    solar_bias_augmentable = True
 
     def __init__(self, cfg: FirmwareConfig, meter: c674x.CycleMeter, dtype: FloatDtype) -> None:
         super().__init__(cfg, meter, dtype)
@@ -587,7 +590,7 @@ class BaseFilter(NavFilter):
         self.i_sun: int | None = None
         if self.augmentable and cfg.gnss_error_states:
             self.i_gnss, n = n, n + 3
-        if self.augmentable and cfg.psns_bias_states and cfg.psns_enabled:
+        if self.augmentable and self.solar_bias_augmentable and cfg.psns_bias_states and cfg.psns_enabled:
             self.i_sun, n = n, n + 3
         self.n = n
         self.x = np.zeros(n, dtype=dtype)

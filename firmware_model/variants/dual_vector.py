@@ -56,7 +56,7 @@ from .. import c674x, sun
 from ..arrays import FloatArray, FloatDtype
 from ..attitude import q2mat_fast
 from ..filters import BaseFilter, UpdateReport, register_filter
-from ..kf import IDX_ATT, N_STATES
+from ..kf import IDX_ATT
 from ..nav_state import NavState
 from ..psns_geometry import compass_unit_mountings
 from ..units import DEG
@@ -77,6 +77,18 @@ __all__ = [
 PSNS_MODE_NONE, PSNS_MODE_POLARIZATION, PSNS_MODE_SUN = 0, 1, 2
 MODE_NAMES = {PSNS_MODE_NONE: "none", PSNS_MODE_POLARIZATION: "polarization_error_vector",
               PSNS_MODE_SUN: "sun_error_vector"}
+
+
+def unit_error_figures(cfg: Any) -> tuple[float, float, float]:
+    """The compass units' error figures the firmware's spec sheet states, as the dual-vector update uses them
+    (D-5.20): ``aop_sigma * dop_ref`` (rad; the AOP noise is that over the unit's DOP), the calibration's E-vector
+    residual variance and the installation residual variance per axis (rad^2). ``firmware.variants.dual_vector``'s
+    ``aop_sigma_deg`` / ``dop_ref``, when a scenario sets them, replace the sheet's AOP noise figures."""
+    p = cfg.variants.dual_vector
+    sigma = p.aop_sigma_deg if p.aop_sigma_deg is not None else cfg.compass_aop_sigma_deg
+    dop_ref = p.dop_ref if p.dop_ref is not None else cfg.compass_aop_dop_ref
+    return (sigma * DEG * dop_ref, (cfg.compass_aop_residual_deg * DEG) ** 2,
+            (cfg.compass_installation_residual_deg * DEG) ** 2)
 
 
 def unit_evectors(aop: FloatArray, mountings: FloatArray, dtype: FloatDtype = np.float32) -> FloatArray:
@@ -142,11 +154,12 @@ def discrimination_cycles(n: int, c: c674x.KernelCosts) -> int:
 
 @register_filter("dual_vector")
 class DualVectorFilter(BaseFilter):
-    """Base 15-state filter + the patent's switching polarization measurements (module docstring)."""
+    """Base filter + the patent's switching polarization measurements (module docstring)."""
 
-    #: 15 states only: this variant's own updates build 15-wide rows (the augmented GNSS / solar-bias states are
-    #: the base filter's; docs/variants.md "Consistency")
-    augmentable = False
+    #: the GNSS position-error states of the base filter (its GNSS updates are the base filter's; D-5.20); no
+    #: solar-vector bias states (the compass update is not the base filter's solar vector)
+    augmentable = True
+    solar_bias_augmentable = False
 
     def __init__(self, cfg: Any, meter: c674x.CycleMeter, dtype: FloatDtype) -> None:
         super().__init__(cfg, meter, dtype)
@@ -160,7 +173,7 @@ class DualVectorFilter(BaseFilter):
         self.mode = PSNS_MODE_NONE
         self.q_flags = np.zeros(self.n_units, dtype=bool)
         self.lam: FloatArray = np.ones(self.n_units)
-        self._r_unit = (self.p.aop_sigma_deg * DEG) ** 2
+        self._aop_ref_rad, self._aop_residual_var, self._install_var = unit_error_figures(cfg)
 
     # -- reporting -------------------------------------------------------------------------------
     def drain_events(self) -> list[dict[str, Any]]:
@@ -240,13 +253,17 @@ class DualVectorFilter(BaseFilter):
         if mode == PSNS_MODE_SUN:
             return self._sun_update(t, cbn, s_n, p_meas, q, sig)
         i = int(np.nonzero(q)[0][0])
-        return self._polarization_update(t, cbn, s_n, p_meas[i], self.rays_b[i], float(sig[i]), i)
+        sig_aop = float(self._unit_sigmas(dop[i:i + 1], installation=False)[0])
+        return self._polarization_update(t, cbn, s_n, p_meas[i], self.rays_b[i], sig_aop, i)
 
-    def _unit_sigmas(self, dop: FloatArray) -> FloatArray:
-        """AOP noise (rad) per unit: ``sigma_ref * dop_ref / DOP`` (the compass's model), with a floor."""
-        p = self.p
-        s = (p.aop_sigma_deg * DEG) * p.dop_ref / np.maximum(dop, 1e-3)
-        sigmas: FloatArray = np.maximum(s, p.sigma_floor_deg * DEG)
+    def _unit_sigmas(self, dop: FloatArray, installation: bool = True) -> FloatArray:
+        """E-vector angle error (rad, 1 sigma) per unit from the spec sheet (D-5.20): the AOP noise
+        ``sigma_ref * dop_ref / DOP``, the calibration's E-vector residual and (``installation``) the unit's
+        installation residual about its ray, in quadrature, with the floor ``sigma_floor_deg``."""
+        s2 = (self._aop_ref_rad / np.maximum(dop, 1e-3)) ** 2 + self._aop_residual_var
+        if installation:
+            s2 = s2 + self._install_var
+        sigmas: FloatArray = np.maximum(np.sqrt(s2), self.p.sigma_floor_deg * DEG)
         return sigmas
 
     def _sun_update(self, t: float, cbn: FloatArray, s_n: FloatArray, p_meas: FloatArray, q: FloatArray,
@@ -286,7 +303,7 @@ class DualVectorFilter(BaseFilter):
         if not self.mm.gate(t, "sun_vector", nis, 2, pair=[i, j], residual_deg=resid):
             return UpdateReport("compass", False, 0, math.sqrt(nis), {"reason": "chi2_fail", "mode": "sun",
                                                                         "residual_deg": resid})
-        h = np.zeros(N_STATES, dtype=dt)
+        h = np.zeros(self.n, dtype=dt)
         innov = []
         for hk, zk in rows:
             h[:] = 0
@@ -303,16 +320,18 @@ class DualVectorFilter(BaseFilter):
         z, hrow = polarization_error(cbn, p_b, s_n)
         p_n = cbn @ p_b
         r_n = cbn @ r_b.astype(dt)
-        # AOP error dA turns p~ about the ray: dz = dA s.(r x p)
-        sz = sig_aop * abs(float(s_n @ cross(r_n, p_n)))
-        r = max(sz, 0.1 * self.p.sigma_floor_deg * DEG) ** 2
+        # AOP error dA turns p~ about the ray: dz = dA s.(r x p); the unit's installation residual w (per axis)
+        # turns it about every axis: dz = -s.(w x p) = w.(s x p), variance sigma_w^2 |s x p|^2 (D-5.20)
+        sp = cross(s_n, p_n)
+        var_z = (sig_aop * float(s_n @ cross(r_n, p_n))) ** 2 + self._install_var * float(sp @ sp)
+        r = max(math.sqrt(var_z), 0.1 * self.p.sigma_floor_deg * DEG) ** 2
         Pa = self.P[IDX_ATT, IDX_ATT]
         var = float(hrow @ Pa @ hrow) + r
         nis = z * z / var
         self.meter.charge("dv_pol_residual", self.cost.flops(36, 24) + self.cost.flops(12, 9))
         if not self.mm.gate(t, "polarization_vector", nis, 1, unit=unit, residual=z):
             return UpdateReport("compass", False, 0, math.sqrt(nis), {"reason": "chi2_fail", "mode": "polarization"})
-        h = np.zeros(N_STATES, dtype=dt)
+        h = np.zeros(self.n, dtype=dt)
         h[IDX_ATT] = hrow
         nu = self._scalar(h, z, r)
         self.meter.charge("kf_update", self._cyc_update)

@@ -9,13 +9,16 @@ import pytest
 
 from firmware_model import Firmware, FirmwareConfig
 from firmware_model.attitude import a2mat, q2mat, rv2q, yaw_from_heading
+from firmware_model.kf import N_STATES
 from firmware_model.variants.common import compass_mountings, cross
 from firmware_model.variants.dual_vector import (
     discrimination_factors,
     polarization_error,
     sun_error_vector,
+    unit_error_figures,
     unit_evectors,
 )
+from firmware_model.variants.params import DualVectorParams, VariantParams
 from protocols.host import HostFormat, NavSolution
 from protocols.stream import StreamDecoder
 
@@ -114,3 +117,27 @@ def test_blocking_two_of_three_switches_within_one_update_and_attitude_stays_bel
     # no polarization update while all are blocked
     assert fw.counters["compass_unit0_rejected"] >= 49
     assert fw.counters["polarization_vector_admitted"] >= 140 and fw.counters["sun_vector_admitted"] >= 350
+
+
+def test_unit_sigmas_are_the_spec_sheets_compass_figures_and_the_filter_carries_the_gnss_states():
+    """D-5.20: AOP noise at the reference DOP growing as 1/DOP, the calibration's E-vector residual and the
+    installation residual in quadrature, from the configuration (the spec sheet), unless the scenario sets them."""
+    cfg = FirmwareConfig(filter="dual_vector", compass_mountings=THREE, compass_aop_sigma_deg=0.2,
+                         compass_aop_dop_ref=0.4, compass_aop_residual_deg=0.18, compass_installation_residual_deg=0.13)
+    aop_ref, res2, w2 = unit_error_figures(cfg)
+    assert aop_ref == pytest.approx(0.2 * 0.4 * DEG, rel=1e-12)
+    assert (res2, w2) == (pytest.approx((0.18 * DEG) ** 2), pytest.approx((0.13 * DEG) ** 2))
+    fw = Firmware(cfg)
+    flt = fw.filter
+    dop = np.array([0.4, 0.2, 0.02])
+    expected = np.sqrt((0.08 * DEG / dop) ** 2 + (0.18 * DEG) ** 2 + (0.13 * DEG) ** 2)
+    np.testing.assert_allclose(flt._unit_sigmas(dop), expected, rtol=1e-12)
+    # without the installation part (the polarization mode adds it with its own geometry)
+    np.testing.assert_allclose(flt._unit_sigmas(dop[:1], installation=False),
+                               [math.hypot(0.2 * DEG, 0.18 * DEG)], rtol=1e-12)
+    # the base filter's three GNSS position-error states, no solar-bias states
+    assert (flt.n, flt.i_gnss, flt.i_sun) == (N_STATES + 3, N_STATES, None)
+    # a scenario's own AOP figures replace the sheet's
+    own = FirmwareConfig(filter="dual_vector", compass_mountings=THREE, compass_aop_sigma_deg=0.2,
+                         variants=VariantParams(dual_vector=DualVectorParams(aop_sigma_deg=0.05, dop_ref=0.5)))
+    assert unit_error_figures(own)[0] == pytest.approx(0.025 * DEG, rel=1e-12)

@@ -53,7 +53,7 @@ import numpy as np
 from protocols.psns import CompassFrame, PsnsStatus
 
 from .. import c674x, sun
-from ..arrays import FloatArray, FloatDtype
+from ..arrays import F64Array, FloatArray, FloatDtype
 from ..attitude import q2mat_fast
 from ..filters import BaseFilter, UpdateReport, register_filter
 from ..kf import IDX_ATT
@@ -146,6 +146,33 @@ def polarization_error(cbn: FloatArray, p_meas_b: FloatArray, s_n: FloatArray) -
     return float(s_n @ p_n), cross(s_n, p_n)
 
 
+def pair_bias_covariance(s_b: FloatArray, e_i: FloatArray, e_j: FloatArray, ray_i: FloatArray, ray_j: FloatArray,
+                         residual_var: float, installation_var: float) -> F64Array:
+    """Covariance (3, 3, rad^2, body frame) of the bias ``mu`` of the sun vector a pair of units measures,
+    ``s~ = (I + [mu x]) s`` (D-5.20): the calibration's constants of the two units, an E-vector residual ``a_i``
+    (about the unit's ray, variance ``residual_var``) and an installation rotation ``w_i`` (per axis,
+    ``installation_var``). As in D-5.19, ``dS . E_i = c_i`` with ``c_i = a_i S.(r_i x E_i) + w_i.(E_i x S)``, of
+    variance ``v_i = residual_var sin^2 gamma_i + installation_var``, and ``dS = (c_i E_j x S + c_j S x E_i) / D``,
+    ``D = S.(E_i x E_j)``; ``mu = S x dS`` (the part of the rotation that moves ``S``). Unit vectors in."""
+    s = np.asarray(s_b, dtype=np.float64)
+    ei, ej = np.asarray(e_i, dtype=np.float64), np.asarray(e_j, dtype=np.float64)
+    a = np.cross(ej, s)
+    b = np.cross(s, ei)
+    d = float(s @ np.cross(ei, ej))
+    v = [residual_var * float(s @ np.cross(np.asarray(r, dtype=np.float64), e)) ** 2 + installation_var
+         for r, e in ((ray_i, ei), (ray_j, ej))]
+    cov_s = (v[0] * np.outer(a, a) + v[1] * np.outer(b, b)) / max(d * d, 1e-12)
+    k = np.array([[0.0, -s[2], s[1]], [s[2], 0.0, -s[0]], [-s[1], s[0], 0.0]])
+    out: F64Array = k @ cov_s @ k.T
+    return out
+
+
+def pair_bias_cycles(c: c674x.KernelCosts) -> int:
+    """:func:`pair_bias_covariance` and the reset of three rows and columns of P: four cross products, two outer
+    products and two 3x3 products (about 110 MUL, 80 ADD), one division [D]."""
+    return c.flops(110, 80) + c.math("div")
+
+
 def discrimination_cycles(n: int, c: c674x.KernelCosts) -> int:
     """Steps 1-3 for ``n`` units: E-vector (sinsp, cossp, 6 MAC), ``s x r`` and ``p~ x p`` (12 MPY, 6 ADD),
     normalisation and length (rsqrt, sqrt), the threshold compare [S MATHLIB / D section 6]."""
@@ -157,9 +184,11 @@ class DualVectorFilter(BaseFilter):
     """Base filter + the patent's switching polarization measurements (module docstring)."""
 
     #: the GNSS position-error states of the base filter (its GNSS updates are the base filter's; D-5.20); no
-    #: solar-vector bias states (the compass update is not the base filter's solar vector)
+    #: solar-vector bias states (the compass update is not the base filter's solar vector) but three of its own:
+    #: the sun-error-vector pair's bias ``mu`` (body rad, :func:`pair_bias_covariance`)
     augmentable = True
     solar_bias_augmentable = False
+    own_states = 3
 
     def __init__(self, cfg: Any, meter: c674x.CycleMeter, dtype: FloatDtype) -> None:
         super().__init__(cfg, meter, dtype)
@@ -174,6 +203,15 @@ class DualVectorFilter(BaseFilter):
         self.q_flags = np.zeros(self.n_units, dtype=bool)
         self.lam: FloatArray = np.ones(self.n_units)
         self._aop_ref_rad, self._aop_residual_var, self._install_var = unit_error_figures(cfg)
+        #: the pair whose bias the own states hold (None: no sun-error-vector update yet since initialise)
+        self.pair: tuple[int, int] | None = None
+        assert self.i_own is not None
+        self._bias_tau_s = cfg.psns_bias_corr_time_s
+        self._aug_rate[self.i_own:self.i_own + 3] = 1.0 / self._bias_tau_s
+
+    def initialise(self, nav: NavState, heading_sigma_rad: float) -> None:
+        super().initialise(nav, heading_sigma_rad)
+        self.pair = None
 
     # -- reporting -------------------------------------------------------------------------------
     def drain_events(self) -> list[dict[str, Any]]:
@@ -253,18 +291,34 @@ class DualVectorFilter(BaseFilter):
         if mode == PSNS_MODE_SUN:
             return self._sun_update(t, cbn, s_n, p_meas, q, sig)
         i = int(np.nonzero(q)[0][0])
-        sig_aop = float(self._unit_sigmas(dop[i:i + 1], installation=False)[0])
+        # the calibration's E-vector residual of the unit turns it about its ray like the AOP noise
+        sig_aop = math.sqrt(float(sig[i]) ** 2 + self._aop_residual_var)
         return self._polarization_update(t, cbn, s_n, p_meas[i], self.rays_b[i], sig_aop, i)
 
-    def _unit_sigmas(self, dop: FloatArray, installation: bool = True) -> FloatArray:
-        """E-vector angle error (rad, 1 sigma) per unit from the spec sheet (D-5.20): the AOP noise
-        ``sigma_ref * dop_ref / DOP``, the calibration's E-vector residual and (``installation``) the unit's
-        installation residual about its ray, in quadrature, with the floor ``sigma_floor_deg``."""
-        s2 = (self._aop_ref_rad / np.maximum(dop, 1e-3)) ** 2 + self._aop_residual_var
-        if installation:
-            s2 = s2 + self._install_var
-        sigmas: FloatArray = np.maximum(np.sqrt(s2), self.p.sigma_floor_deg * DEG)
+    def _unit_sigmas(self, dop: FloatArray) -> FloatArray:
+        """AOP noise (rad, 1 sigma) per unit from the spec sheet: ``sigma_ref * dop_ref / DOP`` (D-5.20), at least
+        ``sigma_floor_deg``. The calibration's residuals are constants, not in here: the pair's bias states carry
+        them in the sun-error-vector mode, the polarization mode adds them to its R."""
+        sigmas: FloatArray = np.maximum(self._aop_ref_rad / np.maximum(dop, 1e-3), self.p.sigma_floor_deg * DEG)
         return sigmas
+
+    def _pair_prior(self, pair: tuple[int, int], s_b: FloatArray, e_i: FloatArray, e_j: FloatArray) -> None:
+        """A new pair: its bias states restart from zero with :func:`pair_bias_covariance` as their prior, uncorrelated
+        with the rest, and their process noise that of a Gauss-Markov of ``psns_bias_corr_time_s`` with it."""
+        k = self.i_own
+        assert k is not None
+        cov = pair_bias_covariance(s_b, e_i, e_j, self.rays_b[pair[0]], self.rays_b[pair[1]],
+                                   self._aop_residual_var, self._install_var)
+        P = self.P
+        P[k:k + 3, :] = 0.0
+        P[:, k:k + 3] = 0.0
+        P[k:k + 3, k:k + 3] = cov.astype(P.dtype)
+        self.x[k:k + 3] = 0.0
+        q = self.q.copy()
+        q[k:k + 3] = 2.0 * float(np.trace(cov)) / 3.0 / self._bias_tau_s
+        self.q, self._qk_interval = q, math.nan
+        self.pair = pair
+        self.meter.charge("dv_pair_bias_prior", pair_bias_cycles(self.cost))
 
     def _sun_update(self, t: float, cbn: FloatArray, s_n: FloatArray, p_meas: FloatArray, q: FloatArray,
                     sig: FloatArray) -> UpdateReport:
@@ -290,24 +344,33 @@ class DualVectorFilter(BaseFilter):
                            min_sine=self.p.min_pair_sine)
             return UpdateReport("compass", False, 0, 0.0, {"reason": "ill_conditioned_pair", "mode": "sun"})
         s_meas_b = (c / dt(sin_ij)).astype(dt)
+        if (i, j) != self.pair:
+            self._pair_prior((i, j), s_meas_b, p_meas[i], p_meas[j])
         z_vec, (u1, u2) = sun_error_vector(cbn, s_meas_b, s_n)
         self.meter.charge("dv_sun_residual", self.cost.flops(40, 30) + self.cost.math("rsqrt", 2))
         # noise of s~ from the two AOP errors through the cross product (perpendicular to s)
         sigma = math.sqrt(float(sig[i]) ** 2 + float(sig[j]) ** 2) / sin_ij
         r = max(sigma, self.p.sigma_floor_deg * DEG) ** 2
         rows = [(u1, float(u1 @ z_vec)), (u2, float(u2 @ z_vec))]
-        Pa = self.P[IDX_ATT, IDX_ATT]
-        nis = sum(zk * zk / (float(h @ Pa @ h) + r) for h, zk in rows)
+        k = self.i_own
+        assert k is not None
+        full = [np.concatenate([hk, -(hk @ cbn)]) for hk, _ in rows]
+        idx = np.r_[0:3, k:k + 3]
+        Pa = self.P[np.ix_(idx, idx)]
+        nis = sum(zk * zk / (float(h @ Pa @ h) + r) for h, (_, zk) in zip(full, rows, strict=True))
         self.meter.charge("dv_gate", self.cost.flops(30, 24))
         resid = math.degrees(math.sqrt(float(z_vec @ z_vec)))
         if not self.mm.gate(t, "sun_vector", nis, 2, pair=[i, j], residual_deg=resid):
             return UpdateReport("compass", False, 0, math.sqrt(nis), {"reason": "chi2_fail", "mode": "sun",
                                                                         "residual_deg": resid})
         h = np.zeros(self.n, dtype=dt)
+        k = self.i_own
+        assert k is not None
         innov = []
         for hk, zk in rows:
             h[:] = 0
             h[IDX_ATT] = hk
+            h[k:k + 3] = -(hk @ cbn)  # Z = (I - s s^T)(phi - C_b^n mu)
             innov.append(self._scalar(h, zk, r))
         self.meter.charge("kf_update", 2 * self._cyc_update)
         return UpdateReport("compass", True, 2, max(abs(v) for v in innov),

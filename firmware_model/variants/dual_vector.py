@@ -81,7 +81,7 @@ MODE_NAMES = {PSNS_MODE_NONE: "none", PSNS_MODE_POLARIZATION: "polarization_erro
 
 def unit_error_figures(cfg: Any) -> tuple[float, float, float]:
     """The compass units' error figures the firmware's spec sheet states, as the dual-vector update uses them
-    (D-5.20): ``aop_sigma * dop_ref`` (rad; the AOP noise is that over the unit's DOP), the calibration's E-vector
+    (D-5.22): ``aop_sigma * dop_ref`` (rad; the AOP noise is that over the unit's DOP), the calibration's E-vector
     residual variance and the installation residual variance per axis (rad^2). ``firmware.variants.dual_vector``'s
     ``aop_sigma_deg`` / ``dop_ref``, when a scenario sets them, replace the sheet's AOP noise figures."""
     p = cfg.variants.dual_vector
@@ -149,7 +149,7 @@ def polarization_error(cbn: FloatArray, p_meas_b: FloatArray, s_n: FloatArray) -
 def pair_bias_covariance(s_b: FloatArray, e_i: FloatArray, e_j: FloatArray, ray_i: FloatArray, ray_j: FloatArray,
                          residual_var: float, installation_var: float) -> F64Array:
     """Covariance (3, 3, rad^2, body frame) of the bias ``mu`` of the sun vector a pair of units measures,
-    ``s~ = (I + [mu x]) s`` (D-5.20): the calibration's constants of the two units, an E-vector residual ``a_i``
+    ``s~ = (I + [mu x]) s`` (D-5.22): the calibration's constants of the two units, an E-vector residual ``a_i``
     (about the unit's ray, variance ``residual_var``) and an installation rotation ``w_i`` (per axis,
     ``installation_var``). As in D-5.19, ``dS . E_i = c_i`` with ``c_i = a_i S.(r_i x E_i) + w_i.(E_i x S)``, of
     variance ``v_i = residual_var sin^2 gamma_i + installation_var``, and ``dS = (c_i E_j x S + c_j S x E_i) / D``,
@@ -183,7 +183,7 @@ def discrimination_cycles(n: int, c: c674x.KernelCosts) -> int:
 class DualVectorFilter(BaseFilter):
     """Base filter + the patent's switching polarization measurements (module docstring)."""
 
-    #: the GNSS position-error states of the base filter (its GNSS updates are the base filter's; D-5.20); no
+    #: the GNSS position-error states of the base filter (its GNSS updates are the base filter's; D-5.22); no
     #: solar-vector bias states (the compass update is not the base filter's solar vector) but three of its own:
     #: the sun-error-vector pair's bias ``mu`` (body rad, :func:`pair_bias_covariance`)
     augmentable = True
@@ -296,7 +296,7 @@ class DualVectorFilter(BaseFilter):
         return self._polarization_update(t, cbn, s_n, p_meas[i], self.rays_b[i], sig_aop, i)
 
     def _unit_sigmas(self, dop: FloatArray) -> FloatArray:
-        """AOP noise (rad, 1 sigma) per unit from the spec sheet: ``sigma_ref * dop_ref / DOP`` (D-5.20), at least
+        """AOP noise (rad, 1 sigma) per unit from the spec sheet: ``sigma_ref * dop_ref / DOP`` (D-5.22), at least
         ``sigma_floor_deg``. The calibration's residuals are constants, not in here: the pair's bias states carry
         them in the sun-error-vector mode, the polarization mode adds them to its R."""
         sigmas: FloatArray = np.maximum(self._aop_ref_rad / np.maximum(dop, 1e-3), self.p.sigma_floor_deg * DEG)
@@ -384,7 +384,7 @@ class DualVectorFilter(BaseFilter):
         p_n = cbn @ p_b
         r_n = cbn @ r_b.astype(dt)
         # AOP error dA turns p~ about the ray: dz = dA s.(r x p); the unit's installation residual w (per axis)
-        # turns it about every axis: dz = -s.(w x p) = w.(s x p), variance sigma_w^2 |s x p|^2 (D-5.20)
+        # turns it about every axis: dz = -s.(w x p) = w.(s x p), variance sigma_w^2 |s x p|^2 (D-5.22)
         sp = cross(s_n, p_n)
         var_z = (sig_aop * float(s_n @ cross(r_n, p_n))) ** 2 + self._install_var * float(sp @ sp)
         r = max(math.sqrt(var_z), 0.1 * self.p.sigma_floor_deg * DEG) ** 2

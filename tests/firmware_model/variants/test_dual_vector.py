@@ -121,7 +121,7 @@ def test_blocking_two_of_three_switches_within_one_update_and_attitude_stays_bel
 
 
 def test_unit_sigmas_are_the_spec_sheets_compass_figures_and_the_filter_carries_its_states():
-    """D-5.20: AOP noise at the reference DOP growing as 1/DOP from the configuration (the spec sheet), unless the
+    """D-5.22: AOP noise at the reference DOP growing as 1/DOP from the configuration (the spec sheet), unless the
     scenario sets it; the calibration's residuals as the pair's bias states, after the base's GNSS states."""
     cfg = FirmwareConfig(filter="dual_vector", compass_mountings=THREE, compass_aop_sigma_deg=0.2,
                          compass_aop_dop_ref=0.4, compass_aop_residual_deg=0.18, compass_installation_residual_deg=0.13)

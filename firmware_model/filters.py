@@ -577,6 +577,12 @@ class BaseFilter(NavFilter):
     #: augmented states this variant carries when the configuration asks for them (docs/decisions/
     #: filter-consistency.md): 3 GNSS position errors (E, N, U m, Gauss-Markov) and 3 solar-vector biases (body rad)
     augmentable = True
+    #: whether the solar-vector bias states are among them (a variant whose PSNS measurement is not the base
+    #: filter's solar vector, e.g. the dual-vector compass update, carries the GNSS states only)
+    solar_bias_augmentable = True
+    #: further states a variant declares for its own measurements, after the augmented ones (index ``i_own``;
+    #: the variant gives them their prior and process noise; zero rows of F: random constants unless it sets a rate)
+    own_states = 0
 
     def __init__(self, cfg: FirmwareConfig, meter: c674x.CycleMeter, dtype: FloatDtype) -> None:
         super().__init__(cfg, meter, dtype)
@@ -587,8 +593,11 @@ class BaseFilter(NavFilter):
         self.i_sun: int | None = None
         if self.augmentable and cfg.gnss_error_states:
             self.i_gnss, n = n, n + 3
-        if self.augmentable and cfg.psns_bias_states and cfg.psns_enabled:
+        if self.augmentable and self.solar_bias_augmentable and cfg.psns_bias_states and cfg.psns_enabled:
             self.i_sun, n = n, n + 3
+        self.i_own: int | None = None
+        if self.own_states:
+            self.i_own, n = n, n + self.own_states
         self.n = n
         self.x = np.zeros(n, dtype=dtype)
         self.P = np.zeros((n, n), dtype=dtype)

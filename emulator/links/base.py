@@ -256,19 +256,13 @@ class Link:
         if self.closed:
             self.stats.dropped_out += len(data)
             return
-        if self.faults_out:
-            t = self.loop.time()
-            for f in self.faults_out:
-                data = f.apply(self, "out", t, data)
+        if self.faults_out or self.listeners:
+            data = self._through("out", self.faults_out, data)
             if not data:
                 return
-        st = self.stats
-        st.bytes_out += len(data)
-        st.chunks_out += 1
-        if self.listeners:
-            t = self.loop.time()
-            for lst in self.listeners:
-                lst.on_link_bytes(self, "out", t, data)
+        else:
+            self.stats.bytes_out += len(data)
+            self.stats.chunks_out += 1
         self._tx_start = start
         self._tx_pitch = pitch
         self._write_raw(data)
@@ -323,20 +317,38 @@ class Link:
         if tx_model.free_at <= known_end + 1e-12:
             self._framed(fr, tx_model, self.loop.time())
 
-    def _deliver(self, data: bytes) -> None:
-        if self.faults_in:
+    def _through(self, direction: str, faults: list[ByteFault], data: bytes) -> bytes:
+        """``data`` through the faults of ``direction`` ("out" or "in"), counted, shown to the listeners.
+
+        Returns what is left (empty when a fault swallowed it all: then nothing is counted or shown).
+        """
+        if faults:
             t = self.loop.time()
-            for f in self.faults_in:
-                data = f.apply(self, "in", t, data)
+            for f in faults:
+                data = f.apply(self, direction, t, data)
             if not data:
-                return
+                return data
         st = self.stats
-        st.bytes_in += len(data)
-        st.chunks_in += 1
+        if direction == "out":
+            st.bytes_out += len(data)
+            st.chunks_out += 1
+        else:
+            st.bytes_in += len(data)
+            st.chunks_in += 1
         if self.listeners:
             t = self.loop.time()
             for lst in self.listeners:
-                lst.on_link_bytes(self, "in", t, data)
+                lst.on_link_bytes(self, direction, t, data)
+        return data
+
+    def _deliver(self, data: bytes) -> None:
+        if self.faults_in or self.listeners:
+            data = self._through("in", self.faults_in, data)
+            if not data:
+                return
+        else:
+            self.stats.bytes_in += len(data)
+            self.stats.chunks_in += 1
         cb = self.on_receive
         if cb is not None:
             cb(data)

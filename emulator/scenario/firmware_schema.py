@@ -87,8 +87,11 @@ class ModeManagerSpec(Model):
 
 class DualVectorSpec(Model):
     tp: float = Field(0.05, gt=0, le=1, description="information-discrimination threshold T_p on |p~ x p|")
-    aop_sigma_deg: float = Field(0.1, gt=0, le=10, description="unit AOP noise at dop_ref (grows as dop_ref/DOP)")
-    dop_ref: float = Field(0.5, gt=0, le=1)
+    aop_sigma_deg: float | None = Field(
+        None, gt=0, le=10,
+        description="unit AOP noise at dop_ref (grows as dop_ref/DOP), deg; default: the spec sheet's compass section")
+    dop_ref: float | None = Field(None, gt=0, le=1,
+                                  description="DOP of aop_sigma_deg; default: the spec sheet's compass section")
     sigma_floor_deg: float = Field(0.05, ge=0, le=10)
     min_scattering_deg: float = Field(10.0, ge=0, le=90)
     min_pair_sine: float = Field(0.15, gt=0, le=1)

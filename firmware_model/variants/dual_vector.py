@@ -53,10 +53,10 @@ import numpy as np
 from protocols.psns import CompassFrame, PsnsStatus
 
 from .. import c674x, sun
-from ..arrays import FloatArray, FloatDtype
+from ..arrays import F64Array, FloatArray, FloatDtype
 from ..attitude import q2mat_fast
 from ..filters import BaseFilter, UpdateReport, register_filter
-from ..kf import IDX_ATT, N_STATES
+from ..kf import IDX_ATT
 from ..nav_state import NavState
 from ..psns_geometry import compass_unit_mountings
 from ..units import DEG
@@ -77,6 +77,18 @@ __all__ = [
 PSNS_MODE_NONE, PSNS_MODE_POLARIZATION, PSNS_MODE_SUN = 0, 1, 2
 MODE_NAMES = {PSNS_MODE_NONE: "none", PSNS_MODE_POLARIZATION: "polarization_error_vector",
               PSNS_MODE_SUN: "sun_error_vector"}
+
+
+def unit_error_figures(cfg: Any) -> tuple[float, float, float]:
+    """The compass units' error figures the firmware's spec sheet states, as the dual-vector update uses them
+    (D-5.22): ``aop_sigma * dop_ref`` (rad; the AOP noise is that over the unit's DOP), the calibration's E-vector
+    residual variance and the installation residual variance per axis (rad^2). ``firmware.variants.dual_vector``'s
+    ``aop_sigma_deg`` / ``dop_ref``, when a scenario sets them, replace the sheet's AOP noise figures."""
+    p = cfg.variants.dual_vector
+    sigma = p.aop_sigma_deg if p.aop_sigma_deg is not None else cfg.compass_aop_sigma_deg
+    dop_ref = p.dop_ref if p.dop_ref is not None else cfg.compass_aop_dop_ref
+    return (sigma * DEG * dop_ref, (cfg.compass_aop_residual_deg * DEG) ** 2,
+            (cfg.compass_installation_residual_deg * DEG) ** 2)
 
 
 def unit_evectors(aop: FloatArray, mountings: FloatArray, dtype: FloatDtype = np.float32) -> FloatArray:
@@ -134,6 +146,33 @@ def polarization_error(cbn: FloatArray, p_meas_b: FloatArray, s_n: FloatArray) -
     return float(s_n @ p_n), cross(s_n, p_n)
 
 
+def pair_bias_covariance(s_b: FloatArray, e_i: FloatArray, e_j: FloatArray, ray_i: FloatArray, ray_j: FloatArray,
+                         residual_var: float, installation_var: float) -> F64Array:
+    """Covariance (3, 3, rad^2, body frame) of the bias ``mu`` of the sun vector a pair of units measures,
+    ``s~ = (I + [mu x]) s`` (D-5.22): the calibration's constants of the two units, an E-vector residual ``a_i``
+    (about the unit's ray, variance ``residual_var``) and an installation rotation ``w_i`` (per axis,
+    ``installation_var``). As in D-5.19, ``dS . E_i = c_i`` with ``c_i = a_i S.(r_i x E_i) + w_i.(E_i x S)``, of
+    variance ``v_i = residual_var sin^2 gamma_i + installation_var``, and ``dS = (c_i E_j x S + c_j S x E_i) / D``,
+    ``D = S.(E_i x E_j)``; ``mu = S x dS`` (the part of the rotation that moves ``S``). Unit vectors in."""
+    s = np.asarray(s_b, dtype=np.float64)
+    ei, ej = np.asarray(e_i, dtype=np.float64), np.asarray(e_j, dtype=np.float64)
+    a = np.cross(ej, s)
+    b = np.cross(s, ei)
+    d = float(s @ np.cross(ei, ej))
+    v = [residual_var * float(s @ np.cross(np.asarray(r, dtype=np.float64), e)) ** 2 + installation_var
+         for r, e in ((ray_i, ei), (ray_j, ej))]
+    cov_s = (v[0] * np.outer(a, a) + v[1] * np.outer(b, b)) / max(d * d, 1e-12)
+    k = np.array([[0.0, -s[2], s[1]], [s[2], 0.0, -s[0]], [-s[1], s[0], 0.0]])
+    out: F64Array = k @ cov_s @ k.T
+    return out
+
+
+def pair_bias_cycles(c: c674x.KernelCosts) -> int:
+    """:func:`pair_bias_covariance` and the reset of three rows and columns of P: four cross products, two outer
+    products and two 3x3 products (about 110 MUL, 80 ADD), one division [D]."""
+    return c.flops(110, 80) + c.math("div")
+
+
 def discrimination_cycles(n: int, c: c674x.KernelCosts) -> int:
     """Steps 1-3 for ``n`` units: E-vector (sinsp, cossp, 6 MAC), ``s x r`` and ``p~ x p`` (12 MPY, 6 ADD),
     normalisation and length (rsqrt, sqrt), the threshold compare [S MATHLIB / D section 6]."""
@@ -142,11 +181,14 @@ def discrimination_cycles(n: int, c: c674x.KernelCosts) -> int:
 
 @register_filter("dual_vector")
 class DualVectorFilter(BaseFilter):
-    """Base 15-state filter + the patent's switching polarization measurements (module docstring)."""
+    """Base filter + the patent's switching polarization measurements (module docstring)."""
 
-    #: 15 states only: this variant's own updates build 15-wide rows (the augmented GNSS / solar-bias states are
-    #: the base filter's; docs/variants.md "Consistency")
-    augmentable = False
+    #: the GNSS position-error states of the base filter (its GNSS updates are the base filter's; D-5.22); no
+    #: solar-vector bias states (the compass update is not the base filter's solar vector) but three of its own:
+    #: the sun-error-vector pair's bias ``mu`` (body rad, :func:`pair_bias_covariance`)
+    augmentable = True
+    solar_bias_augmentable = False
+    own_states = 3
 
     def __init__(self, cfg: Any, meter: c674x.CycleMeter, dtype: FloatDtype) -> None:
         super().__init__(cfg, meter, dtype)
@@ -160,7 +202,16 @@ class DualVectorFilter(BaseFilter):
         self.mode = PSNS_MODE_NONE
         self.q_flags = np.zeros(self.n_units, dtype=bool)
         self.lam: FloatArray = np.ones(self.n_units)
-        self._r_unit = (self.p.aop_sigma_deg * DEG) ** 2
+        self._aop_ref_rad, self._aop_residual_var, self._install_var = unit_error_figures(cfg)
+        #: the pair whose bias the own states hold (None: no sun-error-vector update yet since initialise)
+        self.pair: tuple[int, int] | None = None
+        assert self.i_own is not None
+        self._bias_tau_s = cfg.psns_bias_corr_time_s
+        self._aug_rate[self.i_own:self.i_own + 3] = 1.0 / self._bias_tau_s
+
+    def initialise(self, nav: NavState, heading_sigma_rad: float) -> None:
+        super().initialise(nav, heading_sigma_rad)
+        self.pair = None
 
     # -- reporting -------------------------------------------------------------------------------
     def drain_events(self) -> list[dict[str, Any]]:
@@ -240,14 +291,34 @@ class DualVectorFilter(BaseFilter):
         if mode == PSNS_MODE_SUN:
             return self._sun_update(t, cbn, s_n, p_meas, q, sig)
         i = int(np.nonzero(q)[0][0])
-        return self._polarization_update(t, cbn, s_n, p_meas[i], self.rays_b[i], float(sig[i]), i)
+        # the calibration's E-vector residual of the unit turns it about its ray like the AOP noise
+        sig_aop = math.sqrt(float(sig[i]) ** 2 + self._aop_residual_var)
+        return self._polarization_update(t, cbn, s_n, p_meas[i], self.rays_b[i], sig_aop, i)
 
     def _unit_sigmas(self, dop: FloatArray) -> FloatArray:
-        """AOP noise (rad) per unit: ``sigma_ref * dop_ref / DOP`` (the compass's model), with a floor."""
-        p = self.p
-        s = (p.aop_sigma_deg * DEG) * p.dop_ref / np.maximum(dop, 1e-3)
-        sigmas: FloatArray = np.maximum(s, p.sigma_floor_deg * DEG)
+        """AOP noise (rad, 1 sigma) per unit from the spec sheet: ``sigma_ref * dop_ref / DOP`` (D-5.22), at least
+        ``sigma_floor_deg``. The calibration's residuals are constants, not in here: the pair's bias states carry
+        them in the sun-error-vector mode, the polarization mode adds them to its R."""
+        sigmas: FloatArray = np.maximum(self._aop_ref_rad / np.maximum(dop, 1e-3), self.p.sigma_floor_deg * DEG)
         return sigmas
+
+    def _pair_prior(self, pair: tuple[int, int], s_b: FloatArray, e_i: FloatArray, e_j: FloatArray) -> None:
+        """A new pair: its bias states restart from zero with :func:`pair_bias_covariance` as their prior, uncorrelated
+        with the rest, and their process noise that of a Gauss-Markov of ``psns_bias_corr_time_s`` with it."""
+        k = self.i_own
+        assert k is not None
+        cov = pair_bias_covariance(s_b, e_i, e_j, self.rays_b[pair[0]], self.rays_b[pair[1]],
+                                   self._aop_residual_var, self._install_var)
+        P = self.P
+        P[k:k + 3, :] = 0.0
+        P[:, k:k + 3] = 0.0
+        P[k:k + 3, k:k + 3] = cov.astype(P.dtype)
+        self.x[k:k + 3] = 0.0
+        q = self.q.copy()
+        q[k:k + 3] = 2.0 * float(np.trace(cov)) / 3.0 / self._bias_tau_s
+        self.q, self._qk_interval = q, math.nan
+        self.pair = pair
+        self.meter.charge("dv_pair_bias_prior", pair_bias_cycles(self.cost))
 
     def _sun_update(self, t: float, cbn: FloatArray, s_n: FloatArray, p_meas: FloatArray, q: FloatArray,
                     sig: FloatArray) -> UpdateReport:
@@ -273,24 +344,33 @@ class DualVectorFilter(BaseFilter):
                            min_sine=self.p.min_pair_sine)
             return UpdateReport("compass", False, 0, 0.0, {"reason": "ill_conditioned_pair", "mode": "sun"})
         s_meas_b = (c / dt(sin_ij)).astype(dt)
+        if (i, j) != self.pair:
+            self._pair_prior((i, j), s_meas_b, p_meas[i], p_meas[j])
         z_vec, (u1, u2) = sun_error_vector(cbn, s_meas_b, s_n)
         self.meter.charge("dv_sun_residual", self.cost.flops(40, 30) + self.cost.math("rsqrt", 2))
         # noise of s~ from the two AOP errors through the cross product (perpendicular to s)
         sigma = math.sqrt(float(sig[i]) ** 2 + float(sig[j]) ** 2) / sin_ij
         r = max(sigma, self.p.sigma_floor_deg * DEG) ** 2
         rows = [(u1, float(u1 @ z_vec)), (u2, float(u2 @ z_vec))]
-        Pa = self.P[IDX_ATT, IDX_ATT]
-        nis = sum(zk * zk / (float(h @ Pa @ h) + r) for h, zk in rows)
+        k = self.i_own
+        assert k is not None
+        full = [np.concatenate([hk, -(hk @ cbn)]) for hk, _ in rows]
+        idx = np.r_[0:3, k:k + 3]
+        Pa = self.P[np.ix_(idx, idx)]
+        nis = sum(zk * zk / (float(h @ Pa @ h) + r) for h, (_, zk) in zip(full, rows, strict=True))
         self.meter.charge("dv_gate", self.cost.flops(30, 24))
         resid = math.degrees(math.sqrt(float(z_vec @ z_vec)))
         if not self.mm.gate(t, "sun_vector", nis, 2, pair=[i, j], residual_deg=resid):
             return UpdateReport("compass", False, 0, math.sqrt(nis), {"reason": "chi2_fail", "mode": "sun",
                                                                         "residual_deg": resid})
-        h = np.zeros(N_STATES, dtype=dt)
+        h = np.zeros(self.n, dtype=dt)
+        k = self.i_own
+        assert k is not None
         innov = []
         for hk, zk in rows:
             h[:] = 0
             h[IDX_ATT] = hk
+            h[k:k + 3] = -(hk @ cbn)  # Z = (I - s s^T)(phi - C_b^n mu)
             innov.append(self._scalar(h, zk, r))
         self.meter.charge("kf_update", 2 * self._cyc_update)
         return UpdateReport("compass", True, 2, max(abs(v) for v in innov),
@@ -303,16 +383,18 @@ class DualVectorFilter(BaseFilter):
         z, hrow = polarization_error(cbn, p_b, s_n)
         p_n = cbn @ p_b
         r_n = cbn @ r_b.astype(dt)
-        # AOP error dA turns p~ about the ray: dz = dA s.(r x p)
-        sz = sig_aop * abs(float(s_n @ cross(r_n, p_n)))
-        r = max(sz, 0.1 * self.p.sigma_floor_deg * DEG) ** 2
+        # AOP error dA turns p~ about the ray: dz = dA s.(r x p); the unit's installation residual w (per axis)
+        # turns it about every axis: dz = -s.(w x p) = w.(s x p), variance sigma_w^2 |s x p|^2 (D-5.22)
+        sp = cross(s_n, p_n)
+        var_z = (sig_aop * float(s_n @ cross(r_n, p_n))) ** 2 + self._install_var * float(sp @ sp)
+        r = max(math.sqrt(var_z), 0.1 * self.p.sigma_floor_deg * DEG) ** 2
         Pa = self.P[IDX_ATT, IDX_ATT]
         var = float(hrow @ Pa @ hrow) + r
         nis = z * z / var
         self.meter.charge("dv_pol_residual", self.cost.flops(36, 24) + self.cost.flops(12, 9))
         if not self.mm.gate(t, "polarization_vector", nis, 1, unit=unit, residual=z):
             return UpdateReport("compass", False, 0, math.sqrt(nis), {"reason": "chi2_fail", "mode": "polarization"})
-        h = np.zeros(N_STATES, dtype=dt)
+        h = np.zeros(self.n, dtype=dt)
         h[IDX_ATT] = hrow
         nu = self._scalar(h, z, r)
         self.meter.charge("kf_update", self._cyc_update)

@@ -51,7 +51,7 @@ from .. import c674x, psns, sun
 from ..arrays import BoolArray, FloatArray, FloatDtype, IntArray
 from ..attitude import a2mat, heading_from_yaw, m2att, q2mat_fast
 from ..filters import BaseFilter, UpdateReport, register_filter
-from ..kf import IDX_ATT, N_STATES, PHI_E
+from ..kf import IDX_ATT, PHI_E
 from ..nav_state import NavState
 from ..psns_geometry import CameraGeometry
 from ..units import DEG
@@ -352,11 +352,12 @@ def kmeans_attitude(finding: SunFinding, c_c_b: FloatArray, s_n: FloatArray, m_b
 
 @register_filter("kmeans_3d")
 class Kmeans3dFilter(BaseFilter):
-    """Base 15-state filter fed with the K-means/sun/magnetometer attitude fix (module docstring)."""
+    """Base filter fed with the K-means/sun/magnetometer attitude fix (module docstring)."""
 
-    #: 15 states only: this variant's own updates build 15-wide rows (the augmented GNSS / solar-bias states are
-    #: the base filter's; docs/variants.md "Consistency")
-    augmentable = False
+    #: the base filter's GNSS position-error states (its GNSS updates are the base filter's); no solar-vector bias
+    #: states (its camera update is an attitude fix, not the base filter's solar vector; docs/variants.md section 8)
+    augmentable = True
+    solar_bias_augmentable = False
 
     raw_polarization_obs = True
 
@@ -462,7 +463,7 @@ class Kmeans3dFilter(BaseFilter):
         if not mm.gate(t, "attitude_fix", nis, 3, residual_deg=[round(float(v) / DEG, 4) for v in z]):
             return UpdateReport("kmeans", False, 0, math.sqrt(nis), {"reason": "chi2_fail"})
         mm.decide(t, "camera", True, "attitude_fix", heading_source=fix.heading_source)
-        hrow = np.zeros(N_STATES, dtype=dt)
+        hrow = np.zeros(self.n, dtype=dt)
         innov = []
         for i in range(3 if fix.heading_source == "magnetometer" else 2):
             hrow[:] = 0

@@ -41,9 +41,10 @@ class DualVectorParams:
     #: information-discrimination threshold ``T_p`` on ``lambda_i = |p~_i x p_i|`` (sine of the angle
     #: between measured and predicted polarization vectors); q_i = 1 when lambda_i < T_p
     tp: float = 0.05
-    #: AOP noise of a unit (1 sigma) at ``dop_ref``; grows as dop_ref / DOP (the compass's own error model)
-    aop_sigma_deg: float = 0.1
-    dop_ref: float = 0.5
+    #: AOP noise of a unit (1 sigma, deg) at ``dop_ref``; grows as dop_ref / DOP (the compass's own error model).
+    #: None (the default): the spec sheet's compass figures (``compass_aop_sigma_deg`` at ``compass_aop_dop_ref``)
+    aop_sigma_deg: float | None = None
+    dop_ref: float | None = None
     #: floor of the measurement sigma (model errors of the Rayleigh sky)
     sigma_floor_deg: float = 0.05
     #: a unit whose predicted E-vector is ill-defined (sun within this angle of its view ray) is not used

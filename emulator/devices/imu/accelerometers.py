@@ -10,13 +10,13 @@ import numpy as np
 from protocols.imu_frame import ADC_CODE_MAX, ADC_VOLTS_PER_LSB
 
 from .error_model import G_STD, AccelErrors, ImuTemperature, accel_error_model
-from .injected import InjectedFaults
+from .injected import FaultableTriad, InjectedFaults
 from .lookahead import Ahead, ImuTruthTap, measure_ahead, sensor_input
 
 __all__ = ["AnalogAccelerometers"]
 
 
-class AnalogAccelerometers:
+class AnalogAccelerometers(FaultableTriad):
     """Three analog accelerometers behind the FPGA's 24-bit oversampling ADC.
 
     ``source`` (recorded data): ``f(t0, t1) -> mean specific force (3,) m/s^2`` replaces truth and errors.
@@ -43,23 +43,6 @@ class AnalogAccelerometers:
         self._period = 1.0 / trigger_rate_hz
         self._look_ahead = source is None
         self._ahead: Ahead | None = None
-
-    @property
-    def turn_on_bias(self) -> np.ndarray:
-        return self.model.bias0
-
-    # -- injected faults (emulator.faults) ----------------------------------------------------------
-    def set_bias_step(self, key: object, delta_mps2: np.ndarray | None) -> None:
-        """Step the bias by ``delta_mps2`` (3,) m/s^2, body axes; ``None`` removes the step ``key``."""
-        self.faults.set_bias(key, delta_mps2)
-
-    def set_stuck_axis(self, axis: int, stuck: bool) -> None:
-        """Freeze axis ``axis`` (0..2) at its last output, or release it."""
-        self.faults.set_stuck(axis, stuck, float(self.last_measured[axis]))
-
-    def set_range_limit(self, limit_mps2: float | None) -> None:
-        """Clip every axis at ``limit_mps2`` (None restores the parts' ranges)."""
-        self.faults.set_range_limit(limit_mps2)
 
     def sample(self, t: float, t_prev: float) -> tuple[int, int, int]:
         """ADC codes of the mean specific force over ``[t_prev, t]``."""

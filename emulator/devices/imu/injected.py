@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
-__all__ = ["InjectedFaults"]
+__all__ = ["FaultableTriad", "InjectedFaults"]
 
 
 class InjectedFaults:
@@ -74,3 +76,33 @@ class InjectedFaults:
                 self.clipped += 1
             lim = np.minimum(lim, self.range_limit)
         return x, lim
+
+
+class FaultableTriad:
+    """The fault controls ``emulator.faults`` calls on a sensor triad (the gyro, the accelerometers).
+
+    The device sets ``faults`` (:class:`InjectedFaults`), ``last_measured`` ((3,) its last output, SI,
+    body axes) and ``model`` (its error model, whose ``bias0`` is the turn-on bias drawn for this run).
+    Values are in the triad's SI unit: rad/s for a gyro, m/s^2 for accelerometers.
+    """
+
+    faults: InjectedFaults
+    last_measured: np.ndarray
+    model: Any
+
+    @property
+    def turn_on_bias(self) -> np.ndarray:
+        """The turn-on bias drawn for this run, (3,) SI, body axes."""
+        return self.model.bias0
+
+    def set_bias_step(self, key: object, delta: np.ndarray | None) -> None:
+        """Step the bias by ``delta`` (3,) SI, body axes; ``None`` removes the step ``key``."""
+        self.faults.set_bias(key, delta)
+
+    def set_stuck_axis(self, axis: int, stuck: bool) -> None:
+        """Freeze axis ``axis`` (0..2) at its last output, or release it."""
+        self.faults.set_stuck(axis, stuck, float(self.last_measured[axis]))
+
+    def set_range_limit(self, limit: float | None) -> None:
+        """Clip every axis at ``limit`` (SI; a gain fault; None restores the parts' full range)."""
+        self.faults.set_range_limit(limit)

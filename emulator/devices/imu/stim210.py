@@ -19,7 +19,7 @@ from protocols.stim import (
 
 from ...links.base import Link
 from .error_model import DEG, GyroErrors, ImuTemperature, gyro_error_model
-from .injected import InjectedFaults
+from .injected import FaultableTriad, InjectedFaults
 from .lookahead import Ahead, ImuTruthTap, delayed_interval, measure_ahead, sensor_input
 
 __all__ = ["LP_FILTER_SETTINGS_HZ", "Stim210Gyro", "group_delay_s"]
@@ -33,7 +33,7 @@ def group_delay_s(f_c_hz: float) -> float:
     return 0.0 if f_c_hz <= 0 else math.sqrt(2.0) / (2.0 * math.pi * f_c_hz)
 
 
-class Stim210Gyro:
+class Stim210Gyro(FaultableTriad):
     """A STIM210 in external-trigger mode on an RS422 link.
 
     Parameters
@@ -88,23 +88,6 @@ class Stim210Gyro:
         self._period = 1.0 / trigger_rate_hz
         self._look_ahead = source is None
         self._ahead: Ahead | None = None
-
-    @property
-    def turn_on_bias(self) -> np.ndarray:
-        return self.model.bias0
-
-    # -- injected faults (emulator.faults) ----------------------------------------------------------
-    def set_bias_step(self, key: object, delta_rad_s: np.ndarray | None) -> None:
-        """Step the rate bias by ``delta_rad_s`` (3,) rad/s, body axes; ``None`` removes the step ``key``."""
-        self.faults.set_bias(key, delta_rad_s)
-
-    def set_stuck_axis(self, axis: int, stuck: bool) -> None:
-        """Freeze axis ``axis`` (0..2) at its last output, or release it."""
-        self.faults.set_stuck(axis, stuck, float(self.last_measured[axis]))
-
-    def set_range_limit(self, limit_rad_s: float | None) -> None:
-        """Clip every axis at ``limit_rad_s`` (a gain fault; None restores the full range)."""
-        self.faults.set_range_limit(limit_rad_s)
 
     def set_datagram_drop(self, probability: float, rng: np.random.Generator | None = None) -> None:
         """Skip each datagram with ``probability`` (0 turns it off); the counter still advances."""

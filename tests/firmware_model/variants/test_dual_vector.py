@@ -9,13 +9,17 @@ import pytest
 
 from firmware_model import Firmware, FirmwareConfig
 from firmware_model.attitude import a2mat, q2mat, rv2q, yaw_from_heading
+from firmware_model.kf import N_STATES
 from firmware_model.variants.common import compass_mountings, cross
 from firmware_model.variants.dual_vector import (
     discrimination_factors,
+    pair_bias_covariance,
     polarization_error,
     sun_error_vector,
+    unit_error_figures,
     unit_evectors,
 )
+from firmware_model.variants.params import DualVectorParams, VariantParams
 from protocols.host import HostFormat, NavSolution
 from protocols.stream import StreamDecoder
 
@@ -114,3 +118,50 @@ def test_blocking_two_of_three_switches_within_one_update_and_attitude_stays_bel
     # no polarization update while all are blocked
     assert fw.counters["compass_unit0_rejected"] >= 49
     assert fw.counters["polarization_vector_admitted"] >= 140 and fw.counters["sun_vector_admitted"] >= 350
+
+
+def test_unit_sigmas_are_the_spec_sheets_compass_figures_and_the_filter_carries_its_states():
+    """D-5.22: AOP noise at the reference DOP growing as 1/DOP from the configuration (the spec sheet), unless the
+    scenario sets it; the calibration's residuals as the pair's bias states, after the base's GNSS states."""
+    cfg = FirmwareConfig(filter="dual_vector", compass_mountings=THREE, compass_aop_sigma_deg=0.2,
+                         compass_aop_dop_ref=0.4, compass_aop_residual_deg=0.18, compass_installation_residual_deg=0.13)
+    aop_ref, res2, w2 = unit_error_figures(cfg)
+    assert aop_ref == pytest.approx(0.2 * 0.4 * DEG, rel=1e-12)
+    assert (res2, w2) == (pytest.approx((0.18 * DEG) ** 2), pytest.approx((0.13 * DEG) ** 2))
+    flt = Firmware(cfg).filter
+    dop = np.array([0.4, 0.2, 0.002])
+    np.testing.assert_allclose(flt._unit_sigmas(dop), [0.2 * DEG, 0.4 * DEG, 40.0 * DEG], rtol=1e-6)
+    np.testing.assert_allclose(flt._unit_sigmas(np.array([0.9])), [0.08 / 0.9 * DEG], rtol=1e-6)
+    # the base filter's three GNSS position-error states, no solar-bias states, the pair's three bias states
+    assert (flt.n, flt.i_gnss, flt.i_sun, flt.i_own) == (N_STATES + 6, N_STATES, None, N_STATES + 3)
+    # a scenario's own AOP figures replace the sheet's
+    own = FirmwareConfig(filter="dual_vector", compass_mountings=THREE, compass_aop_sigma_deg=0.2,
+                         variants=VariantParams(dual_vector=DualVectorParams(aop_sigma_deg=0.05, dop_ref=0.5)))
+    assert unit_error_figures(own)[0] == pytest.approx(0.025 * DEG, rel=1e-12)
+
+
+def test_pair_bias_covariance_matches_the_sample_of_turned_units():
+    """pair_bias_covariance against Monte Carlo: turn the two units by random installation rotations and E-vector
+    residuals, measure the pair's sun vector through the wire, and compare the bias rotations' covariance."""
+    cbn = q2mat(rv2q(np.array([0.03, -0.05, 0.5])))  # a tilted, turned box
+    s_b = cbn.T @ S_N
+    rays = THREE[:, :, 2]
+    _, e_b = rayleigh(s_b, rays, 0.7)
+    sw, sr = 0.13 * DEG, 0.18 * DEG
+    cov = pair_bias_covariance(s_b, e_b[1], e_b[2], rays[1], rays[2], sr * sr, sw * sw)
+    rng = np.random.default_rng(5)
+    mus = []
+    for _ in range(4000):
+        e = []
+        for u in (1, 2):
+            w = rng.normal(0.0, sw, 3)
+            a = rng.normal(0.0, sr)
+            eu = e_b[u] - np.cross(w, e_b[u])  # the unit's installation rotation
+            eu = eu - a * np.cross(rays[u], eu)  # its E-vector residual about the ray
+            e.append(eu / np.linalg.norm(eu))
+        sm = np.cross(e[0], e[1])
+        sm = sm / np.linalg.norm(sm) * np.sign(sm @ s_b)
+        mus.append(np.cross(s_b, sm))  # mu = S x dS
+    sample = np.cov(np.array(mus).T)
+    np.testing.assert_allclose(cov, sample, atol=0.06 * np.abs(cov).max())
+    assert np.abs(cov @ s_b).max() < 1e-12 * np.abs(cov).max() + 1e-20  # no rotation about S

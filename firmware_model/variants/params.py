@@ -123,9 +123,10 @@ class SunElevationParams:
     #: smallest |E_i x E_j| accepted for the two-E-vector sun vector
     min_pair_sine: float = 0.2
     #: the tilt columns of H (phi_E, phi_N): H_n is computed with the INS attitude, so its tilt error is in z and
-    #: the measurement observes the psi-angle, not position alone (D-5.20); False: the paper's H (no attitude
-    #: columns), which turns the INS tilt into position error along the Sun's azimuth
-    attitude_coupling: bool = True
+    #: the measurement observes the psi-angle, not position alone. False (default): the paper's H, which takes the
+    #: INS tilt for position along the Sun's azimuth; True holds that direction within its sigma on
+    #: sun_elevation_gnss_free but doubles the like-for-like MAE (docs/decisions/filter-consistency.md D-5.20)
+    attitude_coupling: bool = False
     #: use one compass frame in this many (the paper's compass outputs 1 Hz)
     update_every: int = 1
     #: also the attitude update from the same frame: the eigen-solution of all units' E-vectors (base paper

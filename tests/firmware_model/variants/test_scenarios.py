@@ -66,17 +66,15 @@ def test_federated_scenario_isolates_the_glitch_within_two_epochs(tmp_path):
     assert max(pos) < 15.0
 
 
-@pytest.mark.slow
-def test_sun_elevation_scenario_against_pure_sins(tmp_path, capsys, monkeypatch):
-    """The 20-minute GNSS-free scenario (its seed, the firmware knowing its compass units exactly) navigated three
-    ways: the sun-elevation variant (tilt columns in H, D-5.20), the paper's H (no tilt columns) and the base filter
-    (pure SINS). The elevation measured in the INS's own level frame observes the psi-angle along the Sun's azimuth
-    (tilt and position together), so over 20 static minutes the filter itself claims the along-azimuth position to
-    about 1.2 km only; on this draw pure SINS drifted 0.6 km along it, and "0.6 x pure SINS" asked more than the
-    measurement carries (the firmware-level tests of test_sun_elevation.py, whose gyro drives the drift along the
-    azimuth, check that it is held). What holds here and can fail: the update does not make the error along the
-    direction it observes worse than pure SINS by more than its own along-azimuth sigma, and that error stays inside
-    3 sigma; the paper's H, which takes the INS tilt for position, breaks it (2.8 km against 0.6 + 1.0 km)."""
+_SE_RUNS: dict[str, dict] = {}
+
+
+def _along_azimuth(label: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, **over) -> dict:
+    """``sun_elevation_gnss_free`` (its seed, the firmware knowing its compass units exactly): the largest error along
+    the Sun's azimuth (km), the filter's own along-azimuth sigma at the end (km, from P before each elevation update)
+    and the largest ratio of the two; cached per configuration for this module's tests."""
+    if label in _SE_RUNS:
+        return _SE_RUNS[label]
     import datetime as dt
 
     import numpy as np
@@ -85,7 +83,7 @@ def test_sun_elevation_scenario_against_pure_sins(tmp_path, capsys, monkeypatch)
     from firmware_model.kf import D_LAT, D_LON
     from firmware_model.variants import sun_elevation as se
 
-    sig: dict[float, float] = {}  # exposure time -> the filter's along-azimuth position sigma (m) before the update
+    sig: dict[int, float] = {}  # exposure second -> along-azimuth position sigma (m) before the update
     orig = se.SunElevationFilter.update_compass
 
     def recorded(self, nav, frame, t_exp):
@@ -97,31 +95,60 @@ def test_sun_elevation_scenario_against_pure_sins(tmp_path, capsys, monkeypatch)
             sig[round(t_exp)] = 6.371e6 * math.sqrt(float(h @ p_before @ h))
         return rep
 
-    monkeypatch.setattr(se.SunElevationFilter, "update_compass", recorded)
-    sun = SunModel(dt.datetime(2019, 9, 18, 8, 12, tzinfo=dt.UTC), 69.0)
-    res = {}
-    for label, over in (("coupled", {}), ("paper_h", {"firmware.variants.sun_elevation.attitude_coupling": False}),
-                        ("sins", {"firmware.filter": "base"})):
-        sig.clear()
+    with monkeypatch.context() as m:
+        m.setattr(se.SunElevationFilter, "update_compass", recorded)
         _summary, _ev, nav = _run("sun_elevation_gnss_free", tmp_path / label,
                                   **{"expectations": [], "firmware.calibration.source": "perfect", **over})
-        along, norm = [], []
-        for r in nav[::100]:
-            if not r["err_pos_n_m"] or float(r["time_s"]) < 60.0:
-                continue
-            t = float(r["time_s"])
-            az, _ = sun.az_el(t, 39.979 * DEG, 116.339 * DEG, 50.0)
-            a = float(r["err_pos_e_m"]) * math.sin(az) + float(r["err_pos_n_m"]) * math.cos(az)
-            along.append(abs(a))
-            if sig.get(round(t), 0.0) > 0.0:
-                norm.append(abs(a) / sig[round(t)])
-        res[label] = {"max_along_km": max(along) / 1e3,
-                      "final_sigma_along_km": sig[max(sig)] / 1e3 if sig else None,
-                      "max_along_over_sigma": max(norm) if norm else None}
+    sun = SunModel(dt.datetime(2019, 9, 18, 8, 12, tzinfo=dt.UTC), 69.0)
+    along, norm = [], []
+    for r in nav[::100]:
+        if not r["err_pos_n_m"] or float(r["time_s"]) < 60.0:
+            continue
+        t = float(r["time_s"])
+        az, _ = sun.az_el(t, 39.979 * DEG, 116.339 * DEG, 50.0)
+        a = abs(float(r["err_pos_e_m"]) * math.sin(az) + float(r["err_pos_n_m"]) * math.cos(az))
+        along.append(a)
+        if sig.get(round(t), 0.0) > 0.0:
+            norm.append(a / sig[round(t)])
+    _SE_RUNS[label] = {"max_along_km": max(along) / 1e3, "final_sigma_along_km": sig[max(sig)] / 1e3 if sig else 0.0,
+                       "max_along_over_sigma": max(norm) if norm else 0.0}
+    return _SE_RUNS[label]
+
+
+def _check_observed_direction(r: dict, sins: dict) -> None:
+    """The elevation measured in the INS's own level frame observes the psi-angle along the Sun's azimuth
+    (tilt and position together): over 20 static minutes the filter resolves the position along the azimuth to about
+    1.0-1.2 km only (its own sigma), and on this draw pure SINS drifted 0.58 km along it, so the former "below 0.6 x
+    pure SINS" asked more than the measurement carries (the firmware-level tests of test_sun_elevation.py, whose gyro
+    drives the drift along the azimuth, check that the update holds it). What holds and can fail: the error along the
+    observed direction stays within 3 of the filter's own sigmas and is not worse than pure SINS's by more than that
+    sigma (docs/decisions/filter-consistency.md D-5.20)."""
+    assert r["max_along_over_sigma"] < 3.0
+    assert r["max_along_km"] < sins["max_along_km"] + r["final_sigma_along_km"]
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(1200)  # two 21-minute runs (about 70 s each, several minutes on a loaded machine)
+def test_sun_elevation_tilt_columns_hold_the_observed_direction(tmp_path, capsys, monkeypatch):
+    """The tilt columns in H (attitude_coupling) against pure SINS: :func:`_check_observed_direction`."""
+    c = _along_azimuth("coupled", tmp_path, monkeypatch, **{"firmware.variants.sun_elevation.attitude_coupling": True})
+    s = _along_azimuth("sins", tmp_path, monkeypatch, **{"firmware.filter": "base"})
     with capsys.disabled():
-        print(f"\nscenario sun_elevation_gnss_free: {res}")
-    c, p, s = res["coupled"], res["paper_h"], res["sins"]
-    assert c["max_along_over_sigma"] < 3.0
-    assert c["max_along_km"] < s["max_along_km"] + c["final_sigma_along_km"]
-    # the check is able to fail: the paper's H drags the position along the azimuth by the INS tilt
-    assert p["max_along_km"] > s["max_along_km"] + p["final_sigma_along_km"]
+        print(f"\nsun_elevation_gnss_free, tilt columns: {c}\npure SINS: {s}")
+    _check_observed_direction(c, s)  # 2026-12-02: 0.70 km at most 0.9 sigma (1.19 km), pure SINS 0.58 km
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(1200)
+@pytest.mark.xfail(strict=True, raises=AssertionError,
+                   reason="known (issue 15, D-5.20): the paper's H (the default, attitude_coupling off) takes the "
+                   "INS tilt (0.1-0.18 deg after 20 static minutes) for position along the Sun's azimuth: "
+                   "2.80 km against pure SINS's 0.58 km + its own sigma 1.03 km (2026-12-02); the tilt columns pass "
+                   "(test above) but double the like-for-like MAE, so they are not the default")
+def test_sun_elevation_scenario_against_pure_sins(tmp_path, capsys, monkeypatch):
+    """The default filter (the paper's H) against pure SINS: :func:`_check_observed_direction`."""
+    p = _along_azimuth("paper_h", tmp_path, monkeypatch)
+    s = _along_azimuth("sins", tmp_path, monkeypatch, **{"firmware.filter": "base"})
+    with capsys.disabled():
+        print(f"\nsun_elevation_gnss_free, the paper's H: {p}\npure SINS: {s}")
+    _check_observed_direction(p, s)

@@ -125,7 +125,7 @@ class SunElevationParams:
     #: the tilt columns of H (phi_E, phi_N): H_n is computed with the INS attitude, so its tilt error is in z and
     #: the measurement observes the psi-angle, not position alone. False (default): the paper's H, which takes the
     #: INS tilt for position along the Sun's azimuth; True holds that direction within its sigma on
-    #: sun_elevation_gnss_free but doubles the like-for-like MAE (docs/decisions/filter-consistency.md D-5.20)
+    #: sun_elevation_gnss_free but doubles the like-for-like MAE (docs/decisions/filter-consistency.md D-5.21)
     attitude_coupling: bool = False
     #: use one compass frame in this many (the paper's compass outputs 1 Hz)
     update_every: int = 1

@@ -122,7 +122,7 @@ def _check_observed_direction(r: dict, sins: dict) -> None:
     pure SINS" asked more than the measurement carries (the firmware-level tests of test_sun_elevation.py, whose gyro
     drives the drift along the azimuth, check that the update holds it). What holds and can fail: the error along the
     observed direction stays within 3 of the filter's own sigmas and is not worse than pure SINS's by more than that
-    sigma (docs/decisions/filter-consistency.md D-5.20)."""
+    sigma (docs/decisions/filter-consistency.md D-5.21)."""
     assert r["max_along_over_sigma"] < 3.0
     assert r["max_along_km"] < sins["max_along_km"] + r["final_sigma_along_km"]
 
@@ -141,7 +141,7 @@ def test_sun_elevation_tilt_columns_hold_the_observed_direction(tmp_path, capsys
 @pytest.mark.slow
 @pytest.mark.timeout(1200)
 @pytest.mark.xfail(strict=True, raises=AssertionError,
-                   reason="known (issue 15, D-5.20): the paper's H (the default, attitude_coupling off) takes the "
+                   reason="known (issue 15, D-5.21): the paper's H (the default, attitude_coupling off) takes the "
                    "INS tilt (0.1-0.18 deg after 20 static minutes) for position along the Sun's azimuth: "
                    "2.80 km against pure SINS's 0.58 km + its own sigma 1.03 km (2026-12-02); the tilt columns pass "
                    "(test above) but double the like-for-like MAE, so they are not the default")

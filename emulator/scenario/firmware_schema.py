@@ -142,7 +142,7 @@ class SunElevationSpec(Model):
     r_min_factor: float = Field(0.01, gt=0, le=1)
     r_max_factor: float = Field(100.0, ge=1)
     min_pair_sine: float = Field(0.2, gt=0, le=1)
-    attitude_coupling: bool = Field(False, description="tilt columns in H (the paper's H has none)")
+    attitude_coupling: bool = Field(False, description="tilt columns in H (the paper's H has none; D-5.21)")
     update_every: int = Field(1, ge=1, le=100)
     attitude_aiding: bool = Field(False,
                                   description="also the compass's solar-vector attitude update (not in the paper)")

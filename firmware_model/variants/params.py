@@ -123,8 +123,10 @@ class SunElevationParams:
     r_max_factor: float = 100.0
     #: smallest |E_i x E_j| accepted for the two-E-vector sun vector
     min_pair_sine: float = 0.2
-    #: also model the tilt coupling of the measured elevation (phi_E, phi_N columns of H); the paper's H has
-    #: none (the default reproduces it). H_n is computed with the INS attitude, so its tilt error is in z
+    #: the tilt columns of H (phi_E, phi_N): H_n is computed with the INS attitude, so its tilt error is in z and
+    #: the measurement observes the psi-angle, not position alone. False (default): the paper's H, which takes the
+    #: INS tilt for position along the Sun's azimuth; True holds that direction within its sigma on
+    #: sun_elevation_gnss_free but doubles the like-for-like MAE (docs/decisions/filter-consistency.md D-5.21)
     attitude_coupling: bool = False
     #: use one compass frame in this many (the paper's compass outputs 1 Hz)
     update_every: int = 1

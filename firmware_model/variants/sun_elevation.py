@@ -23,8 +23,14 @@ Per COMPASS frame (9 units, the geometry of the conventions,
    paper's printed coefficients of ``d(sin h)``. States ``dL, dlambda`` in rad, "computed minus true".
    The paper's H has no attitude columns. But ``H_n`` is computed with the INS attitude, so
    ``sin H_n = sin H - phi_E S_N + phi_N S_E`` to first order (``C_b^{n'} S^b = S^n - phi x S^n``), and
-   ``attitude_coupling`` puts those terms in H: ``H[phi_E] = S_N``, ``H[phi_N] = -S_E``. The defaults
-   (``attitude_coupling`` and ``attitude_aiding`` off) are the paper's filter exactly.
+   ``attitude_coupling`` (docs/decisions/filter-consistency.md D-5.21) puts those terms in H:
+   ``H[phi_E] = S_N``, ``H[phi_N] = -S_E``. Since ``cos(h) alpha = S_N`` and ``cos(h) beta = S_E cos L``, the
+   row is ``z = S_N (dL + phi_E) + S_E (cos L dlambda - phi_N)``: the tilt of the INS level against the vertical
+   of its computed position (the psi-angle) along the Sun, not the position alone. Without the tilt columns (the
+   paper's H, ``attitude_coupling: false``) the INS tilt (0.1 deg in 20 static minutes is 11 km) is taken for
+   position along the azimuth; with them, the filter doubles its latitude / longitude MAE in the paper's like-for-like
+   set-up (1 deg of tilt, no fine alignment; D-5.21). The defaults (``attitude_coupling`` and ``attitude_aiding``
+   off) are the paper's filter exactly.
 5. **Sage-Husa adaptive R** (docs/reference/algorithms.md 5.1, PSINS ``kfupdate`` adaptive form): with the innovation
    ``r_k`` and ``ry = r_k^2 - H P H^T`` clamped to ``[R_min, R_max]``, ``R <- (1 - d) R + d ry``,
    ``d <- d / (d + b)`` (``d_k = (1-b)/(1-b^{k+1})``, b the forgetting factor); the measurement then updates

@@ -66,36 +66,89 @@ def test_federated_scenario_isolates_the_glitch_within_two_epochs(tmp_path):
     assert max(pos) < 15.0
 
 
-@pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="known (issue 15, docs/variants.md 6.4): in this scenario the sun-elevation "
-                   "filter no longer beats the same filter without its update: max along-sun error 2.81 km against "
-                   "pure SINS's 0.58 km, horizontal MAE 1.887 km for both (2026-12-02); the 12 km drift of pure "
-                   "SINS is not what the base filter shows on this stream")
-def test_sun_elevation_scenario_against_pure_sins(tmp_path, capsys):
-    """The 20-minute GNSS-free scenario and the same stream navigated by the base filter (pure SINS), the firmware
-    knowing its compass units exactly (the algorithm's check: max along-sun error 2.2 km against pure SINS's 11.9
-    km). With a calibrated unit's residuals it is 7.7 km (0.1 deg per unit axis) to 12.2 km (0.18 deg):
-    docs/calibration.md."""
+_SE_RUNS: dict[str, dict] = {}
+
+
+def _along_azimuth(label: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, **over) -> dict:
+    """``sun_elevation_gnss_free`` (its seed, the firmware knowing its compass units exactly): the largest error along
+    the Sun's azimuth (km), the filter's own along-azimuth sigma at the end (km, from P before each elevation update)
+    and the largest ratio of the two; cached per configuration for this module's tests."""
+    if label in _SE_RUNS:
+        return _SE_RUNS[label]
     import datetime as dt
 
-    from emulator.world.sun import SunModel
+    import numpy as np
 
-    res = {}
-    for flt in ("sun_elevation", "base"):
-        _summary, _ev, nav = _run("sun_elevation_gnss_free", tmp_path / flt,
-                                  **{"firmware.filter": flt, "expectations": [],
-                                     "firmware.calibration.source": "perfect"})
-        sun = SunModel(dt.datetime(2019, 9, 18, 8, 12, tzinfo=dt.UTC), 69.0)
-        along, hor = [], []
-        for r in nav[::100]:
-            if not r["err_pos_n_m"] or float(r["time_s"]) < 60.0:
-                continue
-            az, _ = sun.az_el(float(r["time_s"]), 39.979 * DEG, 116.339 * DEG, 50.0)
-            n, e = float(r["err_pos_n_m"]), float(r["err_pos_e_m"])
-            along.append(abs(e * math.sin(az) + n * math.cos(az)))
-            hor.append(math.hypot(n, e))
-        res[flt] = {"max_along_km": max(along) / 1e3, "mae_hor_km": sum(hor) / len(hor) / 1e3}
+    from emulator.world.sun import SunModel
+    from firmware_model.kf import D_LAT, D_LON
+    from firmware_model.variants import sun_elevation as se
+
+    sig: dict[int, float] = {}  # exposure second -> along-azimuth position sigma (m) before the update
+    orig = se.SunElevationFilter.update_compass
+
+    def recorded(self, nav, frame, t_exp):
+        p_before = self.P.copy()
+        rep = orig(self, nav, frame, t_exp)
+        if self.last.get("t") == t_exp:
+            h = np.zeros(p_before.shape[0])
+            h[D_LAT], h[D_LON] = self.last["alpha"], self.last["beta"]  # dh/dL = cos Az, dh/dlambda = cos L sin Az
+            sig[round(t_exp)] = 6.371e6 * math.sqrt(float(h @ p_before @ h))
+        return rep
+
+    with monkeypatch.context() as m:
+        m.setattr(se.SunElevationFilter, "update_compass", recorded)
+        _summary, _ev, nav = _run("sun_elevation_gnss_free", tmp_path / label,
+                                  **{"expectations": [], "firmware.calibration.source": "perfect", **over})
+    sun = SunModel(dt.datetime(2019, 9, 18, 8, 12, tzinfo=dt.UTC), 69.0)
+    along, norm = [], []
+    for r in nav[::100]:
+        if not r["err_pos_n_m"] or float(r["time_s"]) < 60.0:
+            continue
+        t = float(r["time_s"])
+        az, _ = sun.az_el(t, 39.979 * DEG, 116.339 * DEG, 50.0)
+        a = abs(float(r["err_pos_e_m"]) * math.sin(az) + float(r["err_pos_n_m"]) * math.cos(az))
+        along.append(a)
+        if sig.get(round(t), 0.0) > 0.0:
+            norm.append(a / sig[round(t)])
+    _SE_RUNS[label] = {"max_along_km": max(along) / 1e3, "final_sigma_along_km": sig[max(sig)] / 1e3 if sig else 0.0,
+                       "max_along_over_sigma": max(norm) if norm else 0.0}
+    return _SE_RUNS[label]
+
+
+def _check_observed_direction(r: dict, sins: dict) -> None:
+    """The elevation measured in the INS's own level frame observes the psi-angle along the Sun's azimuth
+    (tilt and position together): over 20 static minutes the filter resolves the position along the azimuth to about
+    1.0-1.2 km only (its own sigma), and on this draw pure SINS drifted 0.58 km along it, so the former "below 0.6 x
+    pure SINS" asked more than the measurement carries (the firmware-level tests of test_sun_elevation.py, whose gyro
+    drives the drift along the azimuth, check that the update holds it). What holds and can fail: the error along the
+    observed direction stays within 3 of the filter's own sigmas and is not worse than pure SINS's by more than that
+    sigma (docs/decisions/filter-consistency.md D-5.21)."""
+    assert r["max_along_over_sigma"] < 3.0
+    assert r["max_along_km"] < sins["max_along_km"] + r["final_sigma_along_km"]
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(1200)  # two 21-minute runs (about 70 s each, several minutes on a loaded machine)
+def test_sun_elevation_tilt_columns_hold_the_observed_direction(tmp_path, capsys, monkeypatch):
+    """The tilt columns in H (attitude_coupling) against pure SINS: :func:`_check_observed_direction`."""
+    c = _along_azimuth("coupled", tmp_path, monkeypatch, **{"firmware.variants.sun_elevation.attitude_coupling": True})
+    s = _along_azimuth("sins", tmp_path, monkeypatch, **{"firmware.filter": "base"})
     with capsys.disabled():
-        print(f"\nscenario sun_elevation_gnss_free: {res}")
-    assert res["sun_elevation"]["max_along_km"] < 0.6 * res["base"]["max_along_km"]
-    assert res["sun_elevation"]["mae_hor_km"] < res["base"]["mae_hor_km"]
+        print(f"\nsun_elevation_gnss_free, tilt columns: {c}\npure SINS: {s}")
+    _check_observed_direction(c, s)  # 2026-12-02: 0.70 km at most 0.9 sigma (1.19 km), pure SINS 0.58 km
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(1200)
+@pytest.mark.xfail(strict=True, raises=AssertionError,
+                   reason="known (issue 15, D-5.21): the paper's H (the default, attitude_coupling off) takes the "
+                   "INS tilt (0.1-0.18 deg after 20 static minutes) for position along the Sun's azimuth: "
+                   "2.80 km against pure SINS's 0.58 km + its own sigma 1.03 km (2026-12-02); the tilt columns pass "
+                   "(test above) but double the like-for-like MAE, so they are not the default")
+def test_sun_elevation_scenario_against_pure_sins(tmp_path, capsys, monkeypatch):
+    """The default filter (the paper's H) against pure SINS: :func:`_check_observed_direction`."""
+    p = _along_azimuth("paper_h", tmp_path, monkeypatch)
+    s = _along_azimuth("sins", tmp_path, monkeypatch, **{"firmware.filter": "base"})
+    with capsys.disabled():
+        print(f"\nsun_elevation_gnss_free, the paper's H: {p}\npure SINS: {s}")
+    _check_observed_direction(p, s)

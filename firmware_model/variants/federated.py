@@ -8,16 +8,16 @@ Sub-filter 1, **SINS/GNSS** (the base paper's 15-state error model, docs/referen
 
     x1 = [phi | dv | dL dlambda dh | eps | nabla],   z = GNSS position and velocity (Eqs. 23-30 of the base paper)
 
-Sub-filter 2, **MIMU/polarization** (the paper's second sub-filter, 9 states)::
+Sub-filter 2, **MIMU/polarization** (the paper's second sub-filter, 9 states, + the accelerometer bias, 12)::
 
-    x2 = [phi (3) | eps (3) | a^b (3)]
+    x2 = [phi (3) | eps (3) | a^b (3) | nabla (3)]
     phi_dot = -[w_in x] phi - C_b^n eps,   eps_dot = 0,   a_k = c_a a_{k-1} + w_a  (first-order
     motion-acceleration model, the paper's Eq. 4: the next value stays in the neighbourhood of the
-    current one, c_a = exp(-T / tau) sets the cut-off)
+    current one, c_a = exp(-T / tau) sets the cut-off),   nabla_dot = w_nabla (the base model's bias rows)
 
 with the paper's two measurements: the **accelerometer gravity measurement**
-``z_a = f^n - g_up^n = [g_up x] phi + C_b^n a^b`` (``f^n = C_b^{n'} f^b`` the SINS's specific force over
-the KF interval; at rest ``f^b = C_n^b g_up`` + interference; first order in phi) and the **sun-vector
+``z_a = f^n - g_up^n = [g_up x] phi + C_b^n (a^b + nabla)`` (``f^n = C_b^{n'} f^b`` the SINS's specific force
+over the KF interval; at rest ``f^b = C_n^b g_up`` + interference; first order in phi) and the **sun-vector
 measurement** ``z_s = S^n - C_b^{n'} (+-S^b) = -[S^n x] phi`` (sign by the smaller residual, base paper).
 
 **No-reset information sharing** (docs/reference/algorithms.md 5.3): ``P_i(0) = P_0 / beta_i``, ``Q_i = Q / beta_i``
@@ -51,9 +51,11 @@ from the spec sheet (:func:`~firmware_model.filters.spec_process_noise`,
 GNSS-error states (:class:`~firmware_model.filters.GnssErrorStates`: ``x1 = [15 | b_E b_N b_U]``) when
 ``gnss_error_states``; the MIMU/polarization sub-filter takes the solar vector's noise from the solve's quality
 (:func:`~firmware_model.filters.solar_noise_variance`) unless ``sun_sigma`` fixes it, and carries the three
-solar-bias states (:class:`~firmware_model.filters.SolarBiasStates`: ``x2 = [phi | eps | a^b | mu]``) when
+solar-bias states (:class:`~firmware_model.filters.SolarBiasStates`: ``x2 = [phi | eps | a^b | nabla | mu]``) when
 ``psns_bias_states``. The augmented states are local to their sub-filter: the master fuses ``[phi, eps]`` only, and
-they are never fed back.
+they are never fed back. Sub-filter 2's accelerometer bias ``nabla`` is the base model's bias state (spec-sheet P0 with
+the level's correlation, random-walk Q), apart from the 5 s motion acceleration, which would forget a turn-on bias
+within seconds and let the averaged gravity measurement claim a level the accelerometers cannot give (D-5.20).
 """
 
 from __future__ import annotations
@@ -109,15 +111,18 @@ from .mode_manager import ModeManager
 
 __all__ = ["FederatedFilter", "fuse_common_states", "pol_mimu_predict_cycles"]
 
-#: sub-filter 2's state layout ``x2 = [phi | eps | a^b]`` (+ the solar-bias states ``mu`` at ``N2`` when carried;
-#: sub-filter 1 has the base filter's, :mod:`..kf`, + the GNSS-error states at ``N_STATES``)
-N2 = 9
-X2_ATT, X2_GYRO, X2_MOTION = slice(0, 3), slice(3, 6), slice(6, 9)
+#: sub-filter 2's state layout ``x2 = [phi | eps | a^b | nabla]`` (+ the solar-bias states ``mu`` at ``N2`` when
+#: carried; sub-filter 1 has the base filter's, :mod:`..kf`, + the GNSS-error states at ``N_STATES``)
+N2 = 12
+X2_ATT, X2_GYRO, X2_MOTION, X2_ACC = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12)
 #: the master's common states ``c = [phi | eps]``
 G_ATT, G_GYRO = slice(0, 3), slice(3, 6)
 #: where the common states sit in sub-filter 1 and in sub-filter 2
 C1 = np.r_[IDX_ATT, IDX_GYRO]
 C2 = np.r_[X2_ATT, X2_GYRO]
+#: the base model's states that sub-filter 2 shares (P0 block, D-5.20): attitude, gyro bias, accelerometer bias
+B2 = np.r_[IDX_ATT, IDX_GYRO, IDX_ACC]
+S2 = np.r_[X2_ATT, X2_GYRO, X2_ACC]
 SUB_SINS_GNSS, SUB_POL_MIMU = "sins_gnss", "pol_mimu"
 
 
@@ -162,7 +167,7 @@ class FederatedFilter(NavFilter):
         self.gnss_states: GnssErrorStates | None = None
         if cfg.gnss_error_states:
             self.gnss_states, n1 = GnssErrorStates(cfg, n1), n1 + 3
-        # sub-filter 2: [phi | eps | a^b] (+ the solar-bias states, D-5.18)
+        # sub-filter 2: [phi | eps | a^b | nabla] (+ the solar-bias states, D-5.18, D-5.20)
         n2 = N2
         self.sun_states: SolarBiasStates | None = None
         if cfg.psns_bias_states and cfg.psns_enabled:
@@ -179,10 +184,11 @@ class FederatedFilter(NavFilter):
             q1[g.i:g.i + 3] = g.psd
             self._rate1[g.i:g.i + 3] = g.rate
         self.q1 = q1 / p.beta_sins_gnss
-        #: sub-filter 2's white PSDs of the common states: the base model's attitude (ARW^2 + the gyro flicker's
-        #: white equivalent) and gyro-bias rows
+        #: sub-filter 2's white PSDs of the shared states: the base model's attitude (ARW^2 + the gyro flicker's
+        #: white equivalent), gyro-bias and accelerometer-bias rows
         self._q2_att = q15[IDX_ATT]
         self._q2_gyro = q15[IDX_GYRO]
+        self._q2_acc = q15[IDX_ACC]
         self._q2_sun: FloatArray | None = None
         if self.sun_states is not None:
             sn = self.sun_states
@@ -237,9 +243,9 @@ class FederatedFilter(NavFilter):
     # -- initialisation -----------------------------------------------------------------------------------
     def initialise(self, nav: NavState, heading_sigma_rad: float) -> None:
         """P0 of both sub-filters from the base filter's spec-sheet P0 (:func:`spec_initial_covariance`): sub-filter 1
-        takes it whole (+ the GNSS-error states' prior correlated with the first fix), sub-filter 2 its attitude and
-        gyro blocks, the motion acceleration's stationary variance plus the accelerometer bias (which ``a^b``
-        carries), and the level's correlation with that bias (D-5.14's ``cov(phi, nabla)``, now ``cov(phi, a^b)``);
+        takes it whole (+ the GNSS-error states' prior correlated with the first fix), sub-filter 2 its attitude, gyro-
+        and accelerometer-bias blocks with the level's correlation with that bias (D-5.14's ``cov(phi, nabla)``, D-5.20)
+        and the motion acceleration's stationary variance;
         ``initial_attitude_sigma_deg`` (a study's imposed misalignment) replaces the attitude block. Then the no-reset
         sharing, once: ``P_i(0) = P_0 / beta_i``."""
         cfg, p, dt = self.cfg, self.p, self.dtype
@@ -256,10 +262,8 @@ class FederatedFilter(NavFilter):
             self.gnss_states.set_prior(P1, rm + h, (rn + h) * math.cos(lat))
             self.gnss_states.t_last_fix = None
         P2 = np.zeros((self.n2, self.n2))
-        P2[np.ix_(C2, C2)] = p15[np.ix_(C1, C1)]
-        P2[X2_MOTION, X2_MOTION] = p15[IDX_ACC, IDX_ACC] + np.eye(3) * p.motion_accel_sigma_mps2**2
-        P2[X2_ATT, X2_MOTION] = p15[IDX_ATT, IDX_ACC]
-        P2[X2_MOTION, X2_ATT] = p15[IDX_ACC, IDX_ATT]
+        P2[np.ix_(S2, S2)] = p15[np.ix_(B2, B2)]
+        P2[X2_MOTION, X2_MOTION] = np.eye(3) * p.motion_accel_sigma_mps2**2
         if self.sun_states is not None:
             i = self.sun_states.i
             P2[i:i + 3, i:i + 3] = np.diag(np.full(3, self.sun_states.sigma2))
@@ -299,7 +303,8 @@ class FederatedFilter(NavFilter):
             q1[IDX_ATT, IDX_ATT] += q_rot / p.beta_sins_gnss
         self.x1, self.P1 = kf_predict(self.x1, self.P1, Phi1, q1.astype(dt))
         self.meter.charge("fed_predict_sins_gnss", self._cyc_predict1)
-        # sub-filter 2: attitude block and -C_b^n of F, first-order motion acceleration, Gauss-Markov solar bias
+        # sub-filter 2: attitude block and -C_b^n of F, first-order motion acceleration, the accelerometer bias's
+        # random walk (identity in Phi), Gauss-Markov solar bias
         ca = math.exp(-Tk / p.motion_accel_tau_s)
         Phi2 = self._eye2.copy()
         Phi2[X2_ATT, X2_ATT] += F[IDX_ATT, IDX_ATT] * dt(Tk)
@@ -312,6 +317,7 @@ class FederatedFilter(NavFilter):
             q2[X2_ATT, X2_ATT] += q_rot
         q2[X2_GYRO, X2_GYRO] = np.diag(self._q2_gyro * Tk)
         q2[X2_MOTION, X2_MOTION] = np.eye(3) * (p.motion_accel_sigma_mps2**2 * (1.0 - ca * ca))
+        q2[X2_ACC, X2_ACC] = np.diag(self._q2_acc * Tk)
         sun = self.sun_states
         if sun is not None and self._q2_sun is not None:
             i = sun.i
@@ -327,7 +333,7 @@ class FederatedFilter(NavFilter):
         self.feedback(nav)
 
     def _gravity_update(self, nav: NavState, cbn: FloatArray, f_n: FloatArray) -> None:
-        """``z_a = f^n - [0, 0, g] = [g x] phi + C_b^n a^b`` (3 rows, sub-filter 2)."""
+        """``z_a = f^n - [0, 0, g] = [g x] phi + C_b^n (a^b + nabla)`` (3 rows, sub-filter 2)."""
         dt = self.dtype
         g = earth.gravity(float(nav.pos[0]), float(nav.pos[2]))
         z = np.array([f_n[0], f_n[1], f_n[2] - g], dtype=dt)
@@ -335,11 +341,15 @@ class FederatedFilter(NavFilter):
         H[0, PHI_N] = -g  # phi occupies the same indices in x2 as in the base layout
         H[1, PHI_E] = g
         H[:, X2_MOTION] = cbn
+        H[:, X2_ACC] = cbn
         r = self.p.gravity_sigma_mps2**2
         A = H @ self.P2 @ H.T + np.eye(3, dtype=dt) * dt(r)
         innov = z - H @ self.x2
         nis = float(innov @ spd_solve(A, innov))
-        self.meter.charge("fed_gravity_gate", self.cost.flops(27 * 9 + 27, 27 * 9) + spd_solve_cycles(3, 1, self.cost))
+        # H P H^T over H's 8 non-zeros per row (2 level, 3 + 3 of C_b^n): 3 x 8 x n2 then 3 x 3 x 8
+        n2 = self.n2
+        self.meter.charge("fed_gravity_gate", self.cost.flops(24 * n2 + 72 + 3, 24 * n2 + 72)
+                          + spd_solve_cycles(3, 1, self.cost))
         t = self.host.now_s() if self.host is not None else 0.0
         if not self.mm.gate(t, "gravity", nis, 3):
             return
@@ -465,7 +475,7 @@ class FederatedFilter(NavFilter):
             nav.v = (nav.v - x1[IDX_VEL]).astype(nav.v.dtype)
             nav.pos = nav.pos - x1[IDX_POS].astype(np.float64)
             self.accel_bias = (self.accel_bias + x1[IDX_ACC]).astype(dt)
-            self.x2[X2_MOTION] -= x1[IDX_ACC]
+            self.x2[X2_ACC] -= x1[IDX_ACC]
             x1[IDX_VEL] = 0
             x1[IDX_POS] = 0
             x1[IDX_ACC] = 0

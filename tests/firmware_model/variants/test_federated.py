@@ -158,11 +158,18 @@ def _pair(beta: float = 0.5, fed_kw=None, **cfg_kw):
 def test_subfilters_take_the_base_filters_spec_sheet_q_p0_and_augmented_states():
     """Sub-filter 1 = the base filter's 15 states + its GNSS-error states, with the base's Q and P0 (GNSS block and
     the first fix's correlation included) times 1 / beta; sub-filter 2's attitude / gyro blocks and solar-bias states
-    are the base's too, its motion state carries the accelerometer bias and the level's correlation with it; the
-    cycle meter charges the added states."""
+    are the base's too, and so is its accelerometer bias with the level's correlation with it (D-5.20), apart from
+    the motion acceleration's stationary variance; the cycle meter charges the added states."""
     from firmware_model.filters import kf_predict_cycles, kf_scalar_update_cycles
     from firmware_model.kf import IDX_ACC, IDX_ATT, IDX_GYRO
-    from firmware_model.variants.federated import N2, X2_ATT, X2_GYRO, X2_MOTION, pol_mimu_predict_cycles
+    from firmware_model.variants.federated import (
+        N2,
+        X2_ACC,
+        X2_ATT,
+        X2_GYRO,
+        X2_MOTION,
+        pol_mimu_predict_cycles,
+    )
 
     base, fed, _, _ = _pair(beta=0.5)
     b = 0.5
@@ -172,6 +179,7 @@ def test_subfilters_take_the_base_filters_spec_sheet_q_p0_and_augmented_states()
     # Q: the same PSDs, shared by 1 / beta
     np.testing.assert_allclose(fed.q1 * b, base.q[:18], rtol=1e-15)
     np.testing.assert_allclose(fed._q2_att, base.q[IDX_ATT], rtol=1e-15)
+    np.testing.assert_allclose(fed._q2_acc, base.q[IDX_ACC], rtol=1e-15)
     np.testing.assert_allclose(fed._q2_sun, base.q[base.i_sun:base.i_sun + 3], rtol=1e-15)
     assert fed.q1[g] * b == pytest.approx(2.0 * (fed.cfg.gnss_pos_sigma_h_m**2 - fed.cfg.gnss_pos_white_sigma_h_m**2)
                                           / fed.cfg.gnss_pos_corr_time_s, rel=1e-12)
@@ -180,17 +188,19 @@ def test_subfilters_take_the_base_filters_spec_sheet_q_p0_and_augmented_states()
     P2 = fed.P2 * 0.5  # beta_pol_mimu
     np.testing.assert_allclose(P2[X2_ATT, X2_ATT], base.P[IDX_ATT, IDX_ATT], rtol=1e-12)
     np.testing.assert_allclose(P2[X2_GYRO, X2_GYRO], base.P[IDX_GYRO, IDX_GYRO], rtol=1e-12)
-    np.testing.assert_allclose(P2[X2_ATT, X2_MOTION], base.P[IDX_ATT, IDX_ACC], rtol=1e-12, atol=1e-30)
-    np.testing.assert_allclose(np.diag(P2[X2_MOTION, X2_MOTION]),
-                               np.diag(base.P[IDX_ACC, IDX_ACC]) + fed.p.motion_accel_sigma_mps2**2, rtol=1e-12)
+    np.testing.assert_allclose(P2[X2_ACC, X2_ACC], base.P[IDX_ACC, IDX_ACC], rtol=1e-12)
+    np.testing.assert_allclose(P2[X2_ATT, X2_ACC], base.P[IDX_ATT, IDX_ACC], rtol=1e-12, atol=1e-30)
+    assert np.any(P2[X2_ATT, X2_ACC] != 0.0)  # the level's correlation with the bias is there
+    np.testing.assert_allclose(P2[X2_MOTION, X2_MOTION], np.eye(3) * fed.p.motion_accel_sigma_mps2**2, rtol=1e-12)
+    assert not np.any(P2[X2_MOTION, :6]) and not np.any(P2[X2_MOTION, X2_ACC])
     i = base.i_sun
     np.testing.assert_allclose(P2[N2:, N2:], base.P[i:i + 3, i:i + 3], rtol=1e-12)
     np.linalg.cholesky(fed.P1)
     np.linalg.cholesky(fed.P2)
     c = fed.cost
     assert fed._cyc_predict1 == kf_predict_cycles(c, 18) > kf_predict_cycles(c, 15)
-    assert fed._cyc_up1 == kf_scalar_update_cycles(c, 18) and fed._cyc_up2 == kf_scalar_update_cycles(c, 12)
-    assert fed._cyc_predict2 == pol_mimu_predict_cycles(c, 12) > pol_mimu_predict_cycles(c, 9)
+    assert fed._cyc_up1 == kf_scalar_update_cycles(c, 18) and fed._cyc_up2 == kf_scalar_update_cycles(c, 15)
+    assert fed._cyc_predict2 == pol_mimu_predict_cycles(c, 15) > pol_mimu_predict_cycles(c, 12)
 
 
 def test_sins_gnss_subfilter_predicts_and_updates_gnss_as_the_base_filter():
@@ -261,3 +271,29 @@ def test_pol_mimu_solar_bias_prior_across_the_meridian_is_shared_by_beta():
     u = np.array([-math.cos(az), math.sin(az), 0.0])
     want = (sun.iso2 + sun.sky2) * np.eye(3) + sun.sky2 * np.outer(u, u)
     np.testing.assert_allclose(P[sun.i:, sun.i:], want / fed.p.beta_pol_mimu, rtol=1e-12)
+
+
+def test_pol_mimu_static_gravity_keeps_the_accelerometer_bias_in_the_level():
+    """At rest the gravity measurement sees the level and the accelerometer bias only as ``[g x] phi + C_b^n nabla``:
+    however long it is averaged, the bias's horizontal components keep their prior (``sigma_nabla^2 / beta_2``) and the
+    level keeps at least the part of its prior that the bias explains, ``A P_nabla A^T`` (``sigma_nabla / g`` per
+    axis, shared by ``1 / beta_2``; D-5.14, D-5.20). A bias folded into the 5 s motion acceleration was forgotten:
+    300 s of gravity shrank the level sigma to about half of that (0.127 deg against 0.286, field sheet)."""
+    from firmware_model import earth
+    from firmware_model.kf import PHI_E, PHI_N
+    from firmware_model.units import G_STD
+    from firmware_model.variants.federated import X2_ACC
+
+    _, fed, nav, cbn = _pair(fed_kw={"subfilters": ("pol_mimu",)})
+    g = earth.gravity(float(nav.pos[0]), float(nav.pos[2]))
+    f_n = np.array([0.0, 0.0, g])
+    for _ in range(3000):  # 300 s at the 10 Hz KF rate
+        fed.predict(nav, f_n, 0.1)
+    assert fed.mm.counters.get("gravity_admitted") == 3000 and "gravity_rejected" not in fed.mm.counters
+    b2 = fed.p.beta_pol_mimu
+    sig_nabla = fed.cfg.accel_bias_sigma_mg * 1e-3 * G_STD
+    p_nabla_n = cbn @ fed.P2[X2_ACC, X2_ACC] @ cbn.T
+    np.testing.assert_allclose(np.sqrt(np.diag(p_nabla_n)[:2]), sig_nabla / math.sqrt(b2), rtol=0.01)
+    floor = sig_nabla / g / math.sqrt(b2)
+    for i in (PHI_E, PHI_N):
+        assert floor <= math.sqrt(fed.P2[i, i]) < 1.15 * floor

@@ -54,7 +54,7 @@ from protocols.psns import CompassFrame, PsnsStatus
 
 from .. import c674x, sun
 from ..arrays import F64Array, FloatArray, FloatDtype
-from ..attitude import q2mat_fast
+from ..attitude import q2mat_fast, skew
 from ..filters import BaseFilter, UpdateReport, register_filter
 from ..kf import IDX_ATT
 from ..nav_state import NavState
@@ -156,13 +156,13 @@ def pair_bias_covariance(s_b: FloatArray, e_i: FloatArray, e_j: FloatArray, ray_
     ``D = S.(E_i x E_j)``; ``mu = S x dS`` (the part of the rotation that moves ``S``). Unit vectors in."""
     s = np.asarray(s_b, dtype=np.float64)
     ei, ej = np.asarray(e_i, dtype=np.float64), np.asarray(e_j, dtype=np.float64)
-    a = np.cross(ej, s)
-    b = np.cross(s, ei)
-    d = float(s @ np.cross(ei, ej))
-    v = [residual_var * float(s @ np.cross(np.asarray(r, dtype=np.float64), e)) ** 2 + installation_var
+    a = cross(ej, s)
+    b = cross(s, ei)
+    d = float(s @ cross(ei, ej))
+    v = [residual_var * float(s @ cross(np.asarray(r, dtype=np.float64), e)) ** 2 + installation_var
          for r, e in ((ray_i, ei), (ray_j, ej))]
     cov_s = (v[0] * np.outer(a, a) + v[1] * np.outer(b, b)) / max(d * d, 1e-12)
-    k = np.array([[0.0, -s[2], s[1]], [s[2], 0.0, -s[0]], [-s[1], s[0], 0.0]])
+    k = skew(s)
     out: F64Array = k @ cov_s @ k.T
     return out
 
@@ -351,27 +351,22 @@ class DualVectorFilter(BaseFilter):
         # noise of s~ from the two AOP errors through the cross product (perpendicular to s)
         sigma = math.sqrt(float(sig[i]) ** 2 + float(sig[j]) ** 2) / sin_ij
         r = max(sigma, self.p.sigma_floor_deg * DEG) ** 2
-        rows = [(u1, float(u1 @ z_vec)), (u2, float(u2 @ z_vec))]
+        # Z = (I - s s^T)(phi - C_b^n mu) on u1, u2: the attitude and the pair's bias columns, the rest zero
         k = self.i_own
         assert k is not None
-        full = [np.concatenate([hk, -(hk @ cbn)]) for hk, _ in rows]
-        idx = np.r_[0:3, k:k + 3]
-        Pa = self.P[np.ix_(idx, idx)]
-        nis = sum(zk * zk / (float(h @ Pa @ h) + r) for h, (_, zk) in zip(full, rows, strict=True))
+        rows = []
+        for u in (u1, u2):
+            h = np.zeros(self.n, dtype=dt)
+            h[IDX_ATT] = u
+            h[k:k + 3] = -(u @ cbn)
+            rows.append((h, float(u @ z_vec)))
+        nis = sum(zk * zk / (float(h @ self.P @ h) + r) for h, zk in rows)
         self.meter.charge("dv_gate", self.cost.flops(30, 24))
         resid = math.degrees(math.sqrt(float(z_vec @ z_vec)))
         if not self.mm.gate(t, "sun_vector", nis, 2, pair=[i, j], residual_deg=resid):
             return UpdateReport("compass", False, 0, math.sqrt(nis), {"reason": "chi2_fail", "mode": "sun",
                                                                         "residual_deg": resid})
-        h = np.zeros(self.n, dtype=dt)
-        k = self.i_own
-        assert k is not None
-        innov = []
-        for hk, zk in rows:
-            h[:] = 0
-            h[IDX_ATT] = hk
-            h[k:k + 3] = -(hk @ cbn)  # Z = (I - s s^T)(phi - C_b^n mu)
-            innov.append(self._scalar(h, zk, r))
+        innov = [self._scalar(h, zk, r) for h, zk in rows]
         self.meter.charge("kf_update", 2 * self._cyc_update)
         return UpdateReport("compass", True, 2, max(abs(v) for v in innov),
                             {"mode": "sun", "pair": [i, j], "residual_deg": resid})

@@ -360,7 +360,8 @@ class DualVectorFilter(BaseFilter):
             h[IDX_ATT] = u
             h[k:k + 3] = -(u @ cbn)
             rows.append((h, float(u @ z_vec)))
-        nis = sum(zk * zk / (float(h @ self.P @ h) + r) for h, zk in rows)
+        # the innovation, as the update forms it: the pair's bias states carry their estimate between updates
+        nis = sum((zk - float(h @ self.x)) ** 2 / (float(h @ self.P @ h) + r) for h, zk in rows)
         self.meter.charge("dv_gate", self.cost.flops(30, 24))
         resid = math.degrees(math.sqrt(float(z_vec @ z_vec)))
         if not self.mm.gate(t, "sun_vector", nis, 2, pair=[i, j], residual_deg=resid):

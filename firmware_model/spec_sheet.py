@@ -22,7 +22,8 @@ package does no file I/O. :meth:`SensorSpecSheet.config_fields` derives the filt
   they restart as a fresh draw (D-5.17);
 * PSNS: the solve's own noise from its eigenvalues (``noise_scale * lambda_min / lambda_mid / n_used``, see
   :func:`firmware_model.filters.solar_noise_variance`), a floor, and the systematic solar-vector error (camera
-  mount residual of the calibration plus the sky's departure from the Rayleigh pattern) as three augmented states in
+  mount residual and lens-model residual of the calibration plus the sky's departure from the Rayleigh pattern, in
+  quadrature) as three augmented states in
   the local-level frame, the sky's part once more on the axis across the solar meridian (D-5.16);
 * multi-unit compass: each unit's AOP noise (``aop_sigma_deg`` at ``aop_dop_ref``, growing as 1/DOP) and the
   calibration's residual budget (E-vector angle residual per unit, installation residual per unit axis), from which
@@ -93,11 +94,14 @@ class GnssSpec:
 
 @dataclass(frozen=True)
 class PsnsSpec:
-    """Polarization sensor: solve-noise scale (1), noise floor and systematic solar-vector error (deg per axis)."""
+    """Polarization sensor: solve-noise scale (1), noise floor and systematic solar-vector error (deg per axis): the
+    camera-to-body mount residual, the lens model's residual on the solved sun (focal length, principal point,
+    distortion, polarizer angles as calibrated; 0: not stated) and the sky's departure from the Rayleigh pattern."""
 
     noise_scale: float = 1.0
     noise_floor_deg: float = 0.05
     mount_residual_deg: float = 0.05
+    lens_residual_deg: float = 0.0
     sky_bias_deg: float = 0.2
     bias_corr_time_s: float = 600.0
 
@@ -191,7 +195,7 @@ class SensorSpecSheet:
             "gnss_relock_gap_s": n.relock_gap_s,
             "psns_noise_scale": p.noise_scale,
             "psns_sigma_deg": max(p.noise_floor_deg, 0.001),
-            "psns_bias_sigma_deg": math.hypot(p.mount_residual_deg, p.sky_bias_deg),
+            "psns_bias_sigma_deg": math.hypot(p.mount_residual_deg, p.lens_residual_deg, p.sky_bias_deg),
             "psns_sky_bias_deg": p.sky_bias_deg,
             "psns_bias_corr_time_s": p.bias_corr_time_s,
             "gyro_scale_factor_ppm": g.scale_factor_ppm,

@@ -110,8 +110,10 @@ class KmeansSpec(Model):
     mag_inclination_deg: float = Field(59.215, ge=-90, le=90, description="down positive")
     mag_half_window_s: float = Field(0.025, gt=0, le=1)
     attitude_iterations: int = Field(3, ge=1, le=20)
-    tilt_sigma_deg: float = Field(0.05, gt=0, le=10)
-    heading_sigma_deg: float = Field(0.3, gt=0, le=30)
+    heading_sigma_deg: float = Field(0.3, gt=0, le=30,
+                                     description="constant part of the magnetometer heading error (bias state), deg")
+    heading_noise_deg: float = Field(0.03, gt=0, le=30,
+                                     description="white part of the magnetometer heading's error, deg")
 
 
 #: The federated filter's sub-filters.

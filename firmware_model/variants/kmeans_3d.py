@@ -48,10 +48,10 @@ import numpy as np
 from protocols.psns import PolarizationObs, PsnsStatus
 
 from .. import c674x, psns, sun
-from ..arrays import BoolArray, FloatArray, FloatDtype, IntArray
+from ..arrays import BoolArray, F64Array, FloatArray, FloatDtype, IntArray
 from ..attitude import a2mat, heading_from_yaw, m2att, q2mat_fast
-from ..filters import BaseFilter, UpdateReport, register_filter
-from ..kf import IDX_ATT, PHI_E
+from ..filters import BaseFilter, UpdateReport, register_filter, solar_noise_variance
+from ..kf import IDX_ATT
 from ..nav_state import NavState
 from ..psns_geometry import CameraGeometry
 from ..units import DEG
@@ -133,6 +133,47 @@ def pitch_roll_from_sun(s_b: FloatArray, s_n: FloatArray, yaw: float, pitch_prio
     return theta, gamma
 
 
+def fix_measurement(s_n: FloatArray, pitch: float, yaw: float, sun_var: float, heading_var: float | None, n: int,
+                    i_sun: int | None, cbn: FloatArray | None, i_heading: int | None = None
+                    ) -> tuple[F64Array, F64Array]:
+    """Rows ``H`` (3, n) and noise ``R`` (3, 3) of the attitude fix ``Z = phi - phi_fix`` (D-5.23), ENU, rad.
+
+    The fix turns the measured sun onto the ephemeris ``s`` with its yaw given. Its error ``phi_fix``
+    (``C_fix = (I - [phi_fix x]) C_b^n``) moves the sun as the sun's error does, ``phi_fix = mu + eps + lambda s``,
+    and its yaw as the heading's error does: a misalignment ``phi`` turns the PSINS yaw by ``-c . phi``,
+    ``c = (tan(pitch) sin(yaw), -tan(pitch) cos(yaw), 1)``, so ``c . phi_fix = dpsi`` (the heading error as a
+    rotation about up, ``-dyaw``). Hence ``phi_fix = G (mu + eps) + s dpsi / (c . s)``, ``G = I - s c^T / (c . s)``
+    (``G s = 0``, ``c^T G = 0``), with ``eps`` the solve's noise (``sun_var`` per axis, :func:`solar_noise_variance`),
+    ``mu`` the solar-vector bias states (local-level; body with ``cbn`` given, ``mu^n = C_b^n mu``) and ``dpsi`` the
+    magnetometer's (``heading_var``): ``H = [I3, 0 .., -G (C_b^n)]``,
+    ``R = sun_var G G^T + heading_var s s^T / (c . s)^2``. Without a heading (None) the fix keeps the INS's yaw
+    (``dpsi = c . phi``): ``Z = G phi - G mu - G eps``, ``H = [G, 0 .., -G (C_b^n)]``, ``R = sun_var G G^T``, of
+    which the first two rows are used (rank 2). ``i_heading``: a state holding the heading's constant error ``b``
+    (``dpsi = b + w``, ``heading_var`` then the white part's): its column ``-s / (c . s)``."""
+    s = np.asarray(s_n, dtype=np.float64)
+    tp = math.tan(pitch)
+    c = np.array([tp * math.sin(yaw), -tp * math.cos(yaw), 1.0])
+    cs = float(c @ s)
+    cs = math.copysign(max(abs(cs), 1e-3), cs)
+    g = np.eye(3) - np.outer(s, c) / cs
+    H = np.zeros((3, n))
+    H[:, IDX_ATT] = np.eye(3) if heading_var is not None else g
+    if i_sun is not None:
+        H[:, i_sun:i_sun + 3] = -g if cbn is None else -g @ np.asarray(cbn, dtype=np.float64)
+    if i_heading is not None:
+        H[:, i_heading] = -s / cs
+    R = sun_var * (g @ g.T)
+    if heading_var is not None:
+        R += heading_var * np.outer(s, s) / (cs * cs)
+    return H, R
+
+
+def fix_measurement_cycles(c: c674x.KernelCosts) -> int:
+    """:func:`fix_measurement`, the 3x3 innovation covariance, its solve and the whitening (Cholesky of R, two
+    triangular solves on z and on H's nonzero columns): about 200 MUL, 170 ADD, 3 square roots and 6 divisions [D]."""
+    return c.flops(200, 170) + 3 * c.math("sqrt") + 6 * c.math("div")
+
+
 def heading_from_mag(m_b: FloatArray, pitch: float, roll: float, declination: float) -> float:
     """PSINS yaw (rad, counter-clockwise from North) from a magnetometer vector in b and the tilt (step 5)."""
     cr, sr = math.cos(roll), math.sin(roll)
@@ -165,6 +206,7 @@ class SunFinding:
         "disagreement",
         "fov_theta",
         "n_points",
+        "n_used",
         "ok",
         "quality",
         "reason",
@@ -182,6 +224,8 @@ class SunFinding:
     fov_theta: float | None
     disagreement: float | None
     n_points: int | None
+    #: points in the eigen solve (above the DOP threshold, in the sky)
+    n_used: int | None
 
     def __init__(self, ok: bool, reason: str, **kw: Any) -> None:
         self.ok = ok
@@ -250,7 +294,7 @@ def find_sun(x_px: FloatArray, y_px: FloatArray, aop: FloatArray, dop: FloatArra
     dis = math.acos(max(-1.0, min(1.0, float(s @ coarse))))
     sun_theta = math.acos(max(-1.0, min(1.0, float(s[2]))))
     common = dict(cluster_n=nlow, centres=centres, quality=sol.quality, coarse_c=coarse, sun_theta=sun_theta,
-                  fov_theta=fov, disagreement=dis, n_points=n)
+                  fov_theta=fov, disagreement=dis, n_points=n, n_used=sol.n_used)
     if sun_theta > fov - params.fov_margin_deg * DEG or not _inside_image(s, cam, x_px, y_px):
         return SunFinding(False, "sun_outside_fov", s_c=s, **common)
     if gap > params.max_gap_deg * DEG:
@@ -354,16 +398,22 @@ def kmeans_attitude(finding: SunFinding, c_c_b: FloatArray, s_n: FloatArray, m_b
 class Kmeans3dFilter(BaseFilter):
     """Base filter fed with the K-means/sun/magnetometer attitude fix (module docstring)."""
 
-    #: the base filter's GNSS position-error states (its GNSS updates are the base filter's); no solar-vector bias
-    #: states (its camera update is an attitude fix, not the base filter's solar vector; docs/variants.md section 8)
+    #: the base filter's GNSS position-error states (its GNSS updates are the base filter's) and its solar-vector
+    #: bias states (the fix's sun carries the same sky and mount error as the base filter's solve), and one of its
+    #: own: the magnetometer heading's constant error (rad, about up; D-5.23)
     augmentable = True
-    solar_bias_augmentable = False
+    own_states = 1
 
     raw_polarization_obs = True
 
     def __init__(self, cfg: Any, meter: c674x.CycleMeter, dtype: FloatDtype) -> None:
         super().__init__(cfg, meter, dtype)
         self.p = cfg.variants.kmeans_3d
+        # the heading bias: a Gauss-Markov of psns_bias_corr_time_s (hard/soft-iron residuals turn with the attitude)
+        assert self.i_own is not None
+        self._heading_bias_var = (self.p.heading_sigma_deg * DEG) ** 2
+        self._aug_rate[self.i_own] = 1.0 / cfg.psns_bias_corr_time_s
+        self.q[self.i_own] = 2.0 * self._heading_bias_var / cfg.psns_bias_corr_time_s
         self.mm = ModeManager("kmeans_3d", cfg.variants.mode_manager)
         self.counters = self.mm.counters
         self.state = 0  # VARIANT mode: 0 none yet, 1 fix used, 2 refused
@@ -374,6 +424,12 @@ class Kmeans3dFilter(BaseFilter):
         from ..alignment import triad_cycles
 
         self._cyc_triad = triad_cycles(self.cost)
+
+    def initialise(self, nav: NavState, heading_sigma_rad: float) -> None:
+        super().initialise(nav, heading_sigma_rad)
+        i = self.i_own
+        assert i is not None
+        self.P[i, i] = self._heading_bias_var
 
     def drain_events(self) -> list[dict[str, Any]]:
         return self.mm.drain() if self.mm.events else []
@@ -447,27 +503,36 @@ class Kmeans3dFilter(BaseFilter):
             self._set_state(t, False, "degenerate_sun_geometry")
             return UpdateReport("kmeans", False, 0, 0.0, {"reason": "degenerate_sun_geometry"})
         self.last_fix, self.last_fix_t = fix, t_exposure_s
-        # the fix as a measurement: Z = phi, H = [I3 0]
+        # the fix as a measurement: Z = phi - phi_fix, H = [I3 0 .. -G on the solar-bias states] (D-5.23)
         cbn_fix = a2mat(fix.pitch, fix.roll, fix.yaw)
-        z = misalignment_between(cbn, cbn_fix).astype(dt)
-        sig = np.array([self.p.tilt_sigma_deg, self.p.tilt_sigma_deg,
-                        self.p.heading_sigma_deg if fix.heading_source == "magnetometer" else 180.0]) * DEG
-        r = (sig * sig).astype(dt)
-        Pa = self.P[IDX_ATT, IDX_ATT]
-        nis = float(sum(float(z[i]) ** 2 / (float(Pa[i, i]) + float(r[i])) for i in range(3)))
-        self.meter.charge("km_residual", cost.flops(45, 36))
+        z = misalignment_between(cbn, cbn_fix).astype(np.float64)
+        with_heading = fix.heading_source == "magnetometer"
+        sol_var = solar_noise_variance(self.cfg, float(finding.quality if finding.quality is not None else math.nan),
+                                       int(finding.n_used or 0))
+        sun_st = self.sun_states
+        if sun_st is not None and sun_st.shaped and sun_st.set_axis(s_n64, self.P):
+            self.meter.charge("solar_bias_axis", cost.flops(4, 2) + cost.math("rsqrt"))
+        H, R = fix_measurement(s_n64, fix.pitch, fix.yaw, sol_var,
+                               (self.p.heading_noise_deg * DEG) ** 2 if with_heading else None,
+                               self.n, None if sun_st is None else sun_st.i,
+                               cbn if sun_st is not None and not sun_st.shaped else None,
+                               self.i_own if with_heading else None)
+        m = 3 if with_heading else 2  # without a heading Z has rank 2: its first two rows
+        nu = (z - H @ self.x.astype(np.float64))[:m]
+        S = H[:m] @ self.P.astype(np.float64) @ H[:m].T + R[:m, :m]
+        nis = float(nu @ np.linalg.solve(S, nu))
+        self.meter.charge("km_residual", cost.flops(45, 36) + fix_measurement_cycles(cost))
         fields = dict(pitch_deg=fix.pitch / DEG, roll_deg=fix.roll / DEG,
                       heading_deg=heading_from_yaw(fix.yaw) / DEG, heading_source=fix.heading_source,
                       **finding.fields())
         self._set_state(t, True, "sun_in_fov", **fields)
-        if not mm.gate(t, "attitude_fix", nis, 3, residual_deg=[round(float(v) / DEG, 4) for v in z]):
+        if not mm.gate(t, "attitude_fix", nis, m, residual_deg=[round(float(v) / DEG, 4) for v in z]):
             return UpdateReport("kmeans", False, 0, math.sqrt(nis), {"reason": "chi2_fail"})
         mm.decide(t, "camera", True, "attitude_fix", heading_source=fix.heading_source)
-        hrow = np.zeros(self.n, dtype=dt)
-        innov = []
-        for i in range(3 if fix.heading_source == "magnetometer" else 2):
-            hrow[:] = 0
-            hrow[PHI_E + i] = 1  # Z = phi: rows phi_E, phi_N (and phi_U with a magnetometer heading)
-            innov.append(self._scalar(hrow, float(z[i]), float(r[i])))
+        # R is full: whitened by its Cholesky factor, the rows are three (two without a heading) scalar updates
+        L = np.linalg.cholesky(R[:m, :m])
+        zw = np.linalg.solve(L, z[:m])
+        Hw = np.linalg.solve(L, H[:m])
+        innov = [self._scalar(Hw[i].astype(dt), float(zw[i]), 1.0) for i in range(m)]
         self.meter.charge("kf_update", len(innov) * self._cyc_update)
         return UpdateReport("kmeans", True, len(innov), max(abs(v) for v in innov), {"mode": "attitude_fix"})

@@ -79,9 +79,11 @@ class KmeansParams:
     mag_inclination_deg: float = 59.215
     #: Newton steps of the self-consistent heading/tilt solve (heading needs the tilt, the tilt the heading)
     attitude_iterations: int = 3
-    #: measurement sigmas of the attitude fix fed to the KF (1 sigma)
-    tilt_sigma_deg: float = 0.05
+    #: the magnetometer heading's error (1 sigma, deg): its constant part (calibration residual of the hard and soft
+    #: iron, declination model), a bias state of the filter, and its white part (15 nT per axis over the 29.5 uT
+    #: horizontal field, 0.03 deg). The tilt's noise comes from the solve's own quality (D-5.23).
     heading_sigma_deg: float = 0.3
+    heading_noise_deg: float = 0.03
 
 
 @dataclass

@@ -52,6 +52,10 @@ def test_config_fields_by_closed_form():
     assert f["gnss_pos_sigma_h_m"] == pytest.approx(10.0) and f["gnss_pos_sigma_v_m"] == pytest.approx(5.0)
     assert f["gnss_pos_white_sigma_h_m"] == pytest.approx(10.0)  # the white part never exceeds the total
     assert f["psns_bias_sigma_deg"] == pytest.approx(0.5)
+    # the lens model's residual on the solved sun adds in quadrature to the mount's (the sky's part stays apart)
+    lens = SensorSpecSheet.from_dict({"psns": {"mount_residual_deg": 0.3, "lens_residual_deg": 1.2,
+                                               "sky_bias_deg": 0.4}}).config_fields()
+    assert (lens["psns_bias_sigma_deg"], lens["psns_sky_bias_deg"]) == (pytest.approx(1.3), 0.4)
     # the compass section (D-5.19): defaults and the sheet's figures carried through
     assert (f["compass_aop_sigma_deg"], f["compass_aop_dop_ref"], f["compass_aop_residual_deg"],
             f["compass_installation_residual_deg"]) == (0.1, 0.5, 0.0, 0.13)

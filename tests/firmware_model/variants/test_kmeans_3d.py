@@ -149,3 +149,44 @@ def test_firmware_tilt_series_fixes_within_a_tenth_of_a_degree_and_refuses_outsi
     assert fw.filter.variant_status()[0] == 2  # VARIANT mode: refused
     # budget: the worst tick (K-means over ~400 points, eigen solve, attitude) stays far inside 200 Hz
     assert fw.meter.tasks["imu_tick"].cycles_max < 0.2 * fw.meter.tick_budget
+
+
+def test_fix_measurement_is_the_first_order_error_of_the_fix():
+    """D-5.23: the fix built from a sun turned by ``mu`` (ENU) and a yaw off by ``dyaw`` errs by
+    ``phi_fix = G mu + s dpsi / (c . s)``, ``G = I - s c^T / (c . s)``, against the pitch/roll construction itself;
+    ``c`` against a numerical derivative of the PSINS yaw; R and H are that map's covariance and columns."""
+    from firmware_model.attitude import a2mat, m2att
+    from firmware_model.variants.common import misalignment_between
+    from firmware_model.variants.kmeans_3d import fix_measurement, pitch_roll_from_sun
+
+    deg = math.pi / 180.0
+    s_n = np.array([-0.876416, -0.282797, 0.389770])
+    s_n = s_n / np.linalg.norm(s_n)
+    pitch, roll, yaw = 12.0 * deg, -7.0 * deg, 40.0 * deg
+    c_true = a2mat(pitch, roll, yaw)
+    H, R = fix_measurement(s_n, pitch, yaw, 1e-6, 4e-6, 21, 18, None)
+    g = -H[:, 18:21]
+    c = np.array([math.tan(pitch) * math.sin(yaw), -math.tan(pitch) * math.cos(yaw), 1.0])
+    for i in range(3):  # a misalignment phi turns the yaw by -c . phi
+        e = np.zeros(3)
+        e[i] = 1e-7
+        turned = (np.eye(3) - np.array([[0, -e[2], e[1]], [e[2], 0, -e[0]], [-e[1], e[0], 0]])) @ c_true
+        assert (m2att(turned)[2] - yaw) / 1e-7 == pytest.approx(-c[i], abs=1e-6)
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        mu = rng.normal(0.0, 1e-4, 3)
+        dyaw = float(rng.normal(0.0, 1e-4))
+        s_meas_b = c_true.T @ (s_n + np.cross(mu, s_n))
+        s_meas_b /= np.linalg.norm(s_meas_b)
+        pr = pitch_roll_from_sun(s_meas_b, s_n, yaw + dyaw, pitch)
+        assert pr is not None
+        phi_fix = misalignment_between(a2mat(pr[0], pr[1], yaw + dyaw), c_true)
+        np.testing.assert_allclose(phi_fix, g @ mu + s_n * (-dyaw) / (c @ s_n), atol=1e-6)  # ~1e-3 of it
+    np.testing.assert_allclose(H[:, :3], np.eye(3))
+    np.testing.assert_allclose(g @ s_n, 0.0, atol=1e-15)
+    np.testing.assert_allclose(c @ g, 0.0, atol=1e-15)
+    np.testing.assert_allclose(R, 1e-6 * g @ g.T + 4e-6 * np.outer(s_n, s_n) / (c @ s_n) ** 2, rtol=1e-12)
+    # without a heading the INS's yaw stands: the attitude columns are G (rank 2, its left null vector c)
+    H0, R0 = fix_measurement(s_n, pitch, yaw, 1e-6, None, 15, None, None)
+    np.testing.assert_allclose(H0[:, :3], g, atol=1e-15)
+    np.testing.assert_allclose(R0, 1e-6 * g @ g.T, rtol=1e-12)

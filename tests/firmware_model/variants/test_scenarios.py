@@ -43,16 +43,22 @@ def test_dual_vector_scenario_switches_modes_with_its_sensor_blocks(tmp_path):
 
 
 def test_kmeans_scenario_refuses_when_the_sun_leaves_the_field(tmp_path):
-    # the algorithm's accuracy, with the truth as calibration (seed 7: max 0.036 deg); the residuals of a calibrated
-    # unit (polarizer angles, magnetometer iron) make it 0.18 deg, within the scenario's own expectations
+    # with the truth as calibration (seed 7) the fixes themselves are within 0.01-0.06 deg of the truth, but the
+    # filter weighs them by its spec sheet, which states the fisheye's calibration check (mount and lens residual,
+    # 0.07 deg per axis together, D-5.24): the level it keeps is the sheet's, not the algorithm's best (pitch/roll
+    # max 0.165 deg, inside the filter's 3 sigma; it was 0.036 deg when the filter took the fix as exact)
     _summary, ev, nav = _run("kmeans_tilt_series", tmp_path, duration_s=105.0,
                              **{"firmware.calibration.source": "perfect"})
     refused = [e for e in ev if e["event"] == "kmeans_refused"]
     assert refused and refused[0]["reason"] == "sun_outside_fov" and refused[0]["t_fpga_s"] > 90.0
     assert next(e for e in ev if e["event"] == "kmeans_solved")["t_fpga_s"] < 5.0
-    # pitch and roll of the navigation output against truth while the Sun is in the field
+    # pitch and roll of the navigation output against truth while the Sun is in the field: under 0.2 deg, and at
+    # every frame inside 3 times the filter's own level sigma (the larger of its east and north tilt sigmas)
     rows = [r for r in nav if r["err_pitch_deg"] and 5.0 <= float(r["time_s"]) <= 90.0]
-    assert max(max(abs(float(r["err_pitch_deg"])), abs(float(r["err_roll_deg"]))) for r in rows) < 0.1
+    err = [max(abs(float(r["err_pitch_deg"])), abs(float(r["err_roll_deg"]))) for r in rows]
+    sig = [max(float(r["sig_att_e_deg"]), float(r["sig_att_n_deg"])) for r in rows]
+    assert max(err) < 0.2
+    assert all(e < 3.0 * s for e, s in zip(err, sig, strict=True))
 
 
 def test_federated_scenario_isolates_the_glitch_within_two_epochs(tmp_path):

@@ -60,14 +60,29 @@ class PolarizationCamera:
     def start(self) -> None:
         self._schedule()
 
+    #: frames whose truth is evaluated in one trajectory call (:meth:`PolarizationCameraModel.truth_ahead`)
+    TRUTH_AHEAD = 25
+
+    def _t_start(self, k: int) -> float:
+        """Exposure start of frame ``k`` (s)."""
+        return self.phase_s + k / self.rate_hz
+
+    def _t_mid(self, t_start: float) -> float:
+        """Mid-exposure instant (s) of the frame whose exposure starts at ``t_start``: what the frame sees."""
+        return t_start + 0.5 * self.exposure_s
+
     def _schedule(self) -> None:
-        t0 = self.phase_s + self._k / self.rate_hz
+        t0 = self._t_start(self._k)
         self.link.loop.call_at(t0 + self.exposure_s + self.processing_s, self._capture, t0)
 
     def _capture(self, t_start: float) -> None:
         self._k += 1
         self._schedule()
-        t_mid = t_start + 0.5 * self.exposure_s
+        t_mid = self._t_mid(t_start)
+        if not self.model.has_truth(t_mid):  # this frame's and the next frames' truth, in one evaluation
+            k = self._k - 1
+            ahead = [self._t_mid(self._t_start(j)) for j in range(k + 1, k + self.TRUTH_AHEAD)]
+            self.model.truth_ahead([t_mid, *ahead])
         mosaic = None
         if self.mosaic_source is not None:
             mosaic = self.mosaic_source(t_mid)

@@ -6,7 +6,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from protocols.psns import PolarizationPoint, PsnsHeader, PsnsStatus, encode_polarization_obs, max_points
+from protocols.psns import PsnsHeader, PsnsStatus, encode_polarization_obs_columns, max_points
 
 from ...links.base import Link
 from .geometry import PointObservations, wire_aop_cdeg
@@ -107,12 +107,11 @@ class PolarizationCamera:
         aop = wire_aop_cdeg(obs.aop)
         dop = np.clip(np.round(obs.dop * 65535.0), 0, 65535).astype(np.int64)
         s0 = np.clip(np.round(obs.s0_dn), 0, 65535).astype(np.int64)
-        pts = [PolarizationPoint(x, y, a, d, i)  # plain ints (tolist), as int() of each element gave
-               for x, y, a, d, i in zip(np.asarray(obs.x_px).astype(np.int64).tolist(),
-                                        np.asarray(obs.y_px).astype(np.int64).tolist(),
-                                        aop.tolist(), dop.tolist(), s0.tolist())]
+        # the points' columns as plain ints (tolist), as int() of each element gave; packed without point objects
+        cols = (np.asarray(obs.x_px).astype(np.int64).tolist(), np.asarray(obs.y_px).astype(np.int64).tolist(),
+                aop.tolist(), dop.tolist(), s0.tolist())
         # the exposure this frame had (auto exposure: the model's scale of the configured one; the capture's timing
         # keeps the configured exposure, which moves the mid-exposure instant by at most half of it)
         hdr = PsnsHeader(self.seq, round(self.exposure_s * self.model.exposure_scale * 1e6), latency_us, obs.status,
-                         len(pts))
-        return encode_polarization_obs(hdr, pts)
+                         len(cols[0]))
+        return encode_polarization_obs_columns(hdr, *cols)

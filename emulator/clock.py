@@ -383,6 +383,9 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
         #: realtime: the timer slack in force for the loop's thread (ns; None where it cannot be set)
         self.timer_slack_ns = set_timer_slack() if mode == "realtime" else None
         self.fast_path = False  # decided below, once asyncio has set up its fields
+        #: inside :meth:`_run_fast`, where :meth:`call_next` may keep a callback to run after the current one
+        self._inline_ok = False
+        self._next: tuple[Callable[..., object], tuple[Any, ...]] | None = None
         super().__init__(selector=_ClockSelector(self))
         self._clock_resolution = 1e-9
         #: the fast path (batched iterations, light timer handles) is used: see :func:`fast_path_supported`
@@ -442,6 +445,17 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
         the per-iteration selector call, timeout arithmetic and method lookups. Every
         ``SELF_PIPE_POLL_EVERY``-th iteration, and any iteration with nothing scheduled (which
         must block in the real selector), goes through the ordinary path, which polls the self-pipe."""
+        self._inline_ok = True
+        try:
+            self._run_fast_batch(sel)
+        finally:
+            self._inline_ok = False
+            if self._next is not None:  # a callback of asyncio's own iteration (below) kept one: queue it
+                callback, args = self._next
+                self._next = None
+                self._ready.appendleft(_events.Handle(callback, args, self))
+
+    def _run_fast_batch(self, sel: _ClockSelector) -> None:
         ready = self._ready
         heappop = heapq.heappop
         res = self._clock_resolution
@@ -476,9 +490,56 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
                 if h._cancelled:
                     continue
                 h._run()
+                while self._next is not None:  # (the kept callback may keep another)
+                    self._run_next(res)
             h = None
             if self._stopping:
                 return
+
+    def call_next(self, callback: Callable[..., object], *args: Any) -> None:
+        """``call_soon(callback, *args)``, for a callback that uses no context variables; on the fast path it is
+        run right after the current callback instead, without a handle and a loop iteration, where that is the
+        same thing.
+
+        ``call_soon`` makes a handle that runs in a later iteration; when nothing was ready when it was called,
+        it is that iteration's first callback. Where that iteration would run nothing else before it -- nothing
+        else made ready since, no timer due within the clock resolution (they would come after it, and the clock
+        does not move while something is ready), the loop not stopping -- the callback runs at once after the
+        current one (:meth:`_run_next`), at the same ``time()``, and what it schedules is scheduled in the same
+        order; otherwise the handle is put where ``call_soon`` would have put it (first). Exceptions reach the
+        exception handler as from a handle. Outside the fast path (realtime, debug, outside the loop, something
+        already ready, a second call within one callback): ``call_soon``. The DSP's tick after each IMU frame
+        (one per 5 ms tick) is the user; ``tests/emulator/test_clock_fast_path.py`` compares the traces.
+        """
+        if self._inline_ok and self._next is None and not self._ready:
+            self._next = (callback, args)
+        else:
+            self.call_soon(callback, *args)
+
+    def _run_next(self, res: float) -> None:
+        """Run (or queue first) the callback :meth:`call_next` kept during the callback that just ended."""
+        callback, args = self._next  # type: ignore[misc]
+        self._next = None
+        sched = self._scheduled
+        n_sched = len(sched)
+        if not (self._ready or self._stopping or self._selector._nfds > 1
+                or (n_sched > 100 and self._timer_cancelled_count / n_sched > 0.5)):
+            # the next iteration's first steps, in its order (the heap's order of equal deadlines depends on the
+            # sequence of its operations): drop the cancelled timers at the head; then a due timer would run after
+            # the callback, so the callback waits for the iteration
+            while sched and sched[0]._cancelled:
+                self._timer_cancelled_count -= 1
+                heapq.heappop(sched)._scheduled = False
+            if not (sched and sched[0]._when < self._now + res):
+                try:
+                    callback(*args)
+                except (SystemExit, KeyboardInterrupt):
+                    raise
+                except BaseException as exc:  # as asyncio.Handle._run reports it
+                    self.call_exception_handler({"message": f"Exception in callback {callback!r}{args!r}",
+                                                 "exception": exc})
+                return
+        self._ready.appendleft(_events.Handle(callback, args, self))  # where call_soon put it
 
     def call_at(self, when: float, callback: Any, *args: Any, context: Any = None) -> asyncio.TimerHandle:  # type: ignore[override]
         """:meth:`asyncio.BaseEventLoop.call_at` without its debug-mode checks (when debug is off, on the fast

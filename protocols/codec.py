@@ -445,6 +445,33 @@ class StructCodec:
         unpack: Callable[[bytes | bytearray | memoryview, int], tuple[Any, ...]] = self.struct.unpack_from
         return unpack
 
+    def columns_packer(self, cls: type) -> Callable[..., bytes]:
+        """``encode_columns(*columns) -> bytes``: records packed back to back from one sequence per value field (in
+        the spec's order: ``encode_columns(xs, ys, ...)``), the bytes of :meth:`encoder` ``(cls, many=True)`` on
+        the objects ``cls(x, y, ...)`` without building them (a sender that holds its values as columns).
+
+        Only for a dataclass whose fields *are* the spec's value fields, by name and in order, scalars only (as
+        :meth:`unpacker`; ``TypeError`` otherwise); the objects' encoder is registered as well, so the equivalence
+        test covers the dataclass. Columns of different lengths, and values the layout cannot hold, raise
+        ``ValueError``.
+        """
+        self.encoder(cls, many=True)
+        if any(it.kind != "scalar" for it in self._items) or self._consts \
+                or [f.name for f in fields(cls) if f.init] != list(self.names):
+            raise TypeError(f"{self.name}: the fields of {cls.__name__} are not the spec's fields in order")
+        pack, name = self.struct.pack, self.name
+
+        def encode_columns(*columns: Sequence[Any]) -> bytes:
+            if len(columns) != len(self.names) or len({len(c) for c in columns}) > 1:
+                raise ValueError(f"{name}: {len(self.names)} columns of one length expected")
+            try:
+                return b"".join(map(pack, *columns))
+            except (struct.error, TypeError, OverflowError) as exc:
+                raise ValueError(f"{name}: {exc}") from exc
+
+        encode_columns.__qualname__ = f"{name}.encode_columns"
+        return encode_columns
+
     def encoder(self, cls: type, *, rename: Mapping[str, str] | None = None,
                 convert: Mapping[str, Callable[[Any], Any]] | None = None, fixed: Mapping[str, Any] | None = None,
                 from_args: bool = False, many: bool = False) -> Callable[..., bytes]:

@@ -44,6 +44,7 @@ Each layout is declared once, by the ``construct`` specs below; the ``struct`` c
 from __future__ import annotations
 
 import enum
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -74,6 +75,7 @@ __all__ = [
     "SolarVectorFrame",
     "encode_compass",
     "encode_polarization_obs",
+    "encode_polarization_obs_columns",
     "encode_psns",
     "encode_solar_vector",
     "frame_bytes_obs",
@@ -204,6 +206,7 @@ _decode_points = _PT.decoder(PolarizationPoint, many=True)
 _decode_units = _UNIT.decoder(CompassUnit, many=True)
 _decode_solar_vector = _SV.decoder(SolarVectorFrame)
 _encode_points = _PT.encoder(PolarizationPoint, many=True)
+_encode_point_columns = _PT.columns_packer(PolarizationPoint)
 _encode_units = _UNIT.encoder(CompassUnit, many=True)
 _pack_header = _HDR.packer
 _pack_solar_vector = _SV.packer
@@ -224,6 +227,14 @@ def _hdr(h: PsnsHeader, count: int) -> bytes:
 def encode_polarization_obs(h: PsnsHeader, points: tuple[PolarizationPoint, ...] | list[PolarizationPoint]) -> bytes:
     """Whole POLARIZATION_OBS frame (``h.count`` is replaced by ``len(points)``)."""
     return _frame(MSG_POLARIZATION_OBS, _hdr(h, len(points)) + _encode_points(points))
+
+
+def encode_polarization_obs_columns(h: PsnsHeader, x_px: Sequence[int], y_px: Sequence[int], aop_cdeg: Sequence[int],
+                                    dop: Sequence[int], intensity: Sequence[int]) -> bytes:
+    """:func:`encode_polarization_obs` of the points ``PolarizationPoint(x_px[i], y_px[i], ...)`` (Python ints),
+    the same bytes, from the columns (a camera's arrays as lists) without building the point objects."""
+    return _frame(MSG_POLARIZATION_OBS, _hdr(h, len(x_px)) + _encode_point_columns(x_px, y_px, aop_cdeg, dop,
+                                                                                   intensity))
 
 
 def encode_compass(h: PsnsHeader, units: tuple[CompassUnit, ...] | list[CompassUnit]) -> bytes:

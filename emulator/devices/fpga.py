@@ -42,6 +42,14 @@ from .imu import AnalogAccelerometers, Stim210Gyro
 
 __all__ = ["DEFAULT_ROUTING", "MONITOR_DIRECTIONS", "FpgaConfig", "VirtualFpga"]
 
+# the IMU frame's status bits as plain ints: the per-frame flag arithmetic stays in int (an ``int | IntFlag`` builds
+# an enum member through the enum machinery, ~1 us per frame); the frame carries ``int(flags)`` either way
+_GYRO_MISSING = int(FpgaStatus.GYRO_MISSING)
+_GYRO_CRC_ERROR = int(FpgaStatus.GYRO_CRC_ERROR)
+_GYRO_COUNTER_JUMP = int(FpgaStatus.GYRO_COUNTER_JUMP)
+_ADC_OVERRANGE = int(FpgaStatus.ADC_OVERRANGE)
+_PPS_VALID = int(FpgaStatus.PPS_VALID)
+
 #: external port -> DSP UART (docs/architecture.md: PSNS = RS232 -> UART2, GNSS = RS422 -> UART3)
 DEFAULT_ROUTING = {"host": "uart0", "psns": "uart2", "gnss": "uart3"}
 
@@ -231,16 +239,16 @@ class VirtualFpga:
             gyro = d.gyro  # type: ignore[attr-defined]
             if (self._last_counter is not None and d.counter is not None  # type: ignore[attr-defined]
                     and (d.counter - self._last_counter) % 256 != self.cfg.gyro_counter_step):  # type: ignore[attr-defined]
-                flags |= FpgaStatus.GYRO_COUNTER_JUMP
+                flags |= _GYRO_COUNTER_JUMP
             if d.counter is not None:  # type: ignore[attr-defined]
                 self._last_counter = d.counter  # type: ignore[attr-defined]
             status = d.status if hasattr(d, "status") else d.gyro_status  # type: ignore[attr-defined]  # STIM300
             self._last_gyro = (gyro, status, d.counter or 0, d.latency_us or 0)  # type: ignore[attr-defined]
         else:
-            flags |= FpgaStatus.GYRO_MISSING
+            flags |= _GYRO_MISSING
             self.gyro_missing += 1
         if self._gyro_dec is not None and self._gyro_dec.stats.crc_errors != self._crc_seen:
-            flags |= FpgaStatus.GYRO_CRC_ERROR
+            flags |= _GYRO_CRC_ERROR
             self._crc_seen = self._gyro_dec.stats.crc_errors
         if self._pending is None:
             t_trig, seq, codes = self.counter_us(self.loop.time()), self.seq, (0, 0, 0)
@@ -248,10 +256,10 @@ class VirtualFpga:
             t_trig, seq, codes, handle = self._pending
             handle.cancel()
             self._pending = None
-        if any(abs(c) >= ADC_CODE_MAX for c in codes):
-            flags |= FpgaStatus.ADC_OVERRANGE
+        if codes and max(map(abs, codes)) >= ADC_CODE_MAX:
+            flags |= _ADC_OVERRANGE
         if self.loop.time() - self._t_pps < 1.5:
-            flags |= FpgaStatus.PPS_VALID
+            flags |= _PPS_VALID
         g, status, counter, latency = self._last_gyro
         frame = ImuFrame(
             seq=seq & 0xFFFF,

@@ -242,6 +242,9 @@ class VirtualDsp:
             self.rx[n] = UartRxModel(n, cfg)
             link.on_receive = self._make_rx(n, link)
         self._rx_models = tuple(self.rx.values())
+        #: how the tick after an IMU frame is scheduled: the loop's next callback (``call_soon``), on the emulator's
+        #: loop without a handle where that is the same thing (:meth:`emulator.clock.EmulatorLoop.call_next`)
+        self._soon: Callable[[Callable[[], None]], object] = getattr(loop, "call_next", loop.call_soon)
 
     def _account(self, start: float, end: float) -> None:
         """Add the busy interval to per-second bins (for the 1 s CPU-load figure)."""
@@ -277,7 +280,7 @@ class VirtualDsp:
             if is_imu and not self._scheduled:
                 self._scheduled = True
                 self._arrival = now
-                loop.call_soon(self._run)
+                self._soon(self._run)
 
         return rx
 

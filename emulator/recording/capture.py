@@ -66,12 +66,10 @@ class CaptureWriter:
     def write(self, index: int, inbound: bool, t: float, data: bytes, pitch: float | None = None) -> None:
         """One record: link ``index``, direction ``in`` (``inbound``) or ``out``, time ``t`` (s), the bytes, and
         their spacing on the wire when it is not the link's byte time."""
-        f = self.file
-        if pitch is None:
-            f.write(_REC.pack(t, index, 1 if inbound else 0, 0, len(data)))
+        if pitch is None:  # one buffered write per record (the header and the bytes joined)
+            self.file.write(_REC.pack(t, index, 1 if inbound else 0, 0, len(data)) + data)
         else:
-            f.write(_REC.pack(t, index, 1 if inbound else 0, FLAG_PITCH, len(data)) + _PITCH.pack(pitch))
-        f.write(data)
+            self.file.write(_REC.pack(t, index, 1 if inbound else 0, FLAG_PITCH, len(data)) + _PITCH.pack(pitch) + data)
 
     def flush(self) -> None:
         if not self.file.closed:

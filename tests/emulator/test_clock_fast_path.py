@@ -33,8 +33,10 @@ class _ReferenceLoop(EmulatorLoop):
         return asyncio.SelectorEventLoop.call_at(self, when, callback, *args, context=context)
 
 
-def _trace(loop_cls: type, seed: int) -> list[tuple[float, int]]:
+def _trace(loop_cls: type, seed: int, call_next: bool = False) -> list[tuple[float, int]]:
+    """The workload's trace; ``call_next``: its ``call_soon`` chains go through ``EmulatorLoop.call_next``."""
     loop = loop_cls("fast")
+    soon = loop.call_next if call_next else loop.call_soon
     rng = np.random.default_rng(seed)
     trace: list[tuple[float, int]] = []
     handles: list[asyncio.TimerHandle] = []
@@ -49,7 +51,7 @@ def _trace(loop_cls: type, seed: int) -> list[tuple[float, int]]:
                 if k == 0:  # same instant (a tie)
                     handles.append(loop.call_at(loop.time(), cb, counter[0], depth + 1))
                 elif k == 1:
-                    loop.call_soon(cb, counter[0], depth + 1)
+                    soon(cb, counter[0], depth + 1)
                 else:  # on a coarse grid: many ties between unrelated timers
                     handles.append(loop.call_at(loop.time() + float(rng.integers(1, 20)) * 0.001, cb, counter[0],
                                                 depth + 1))
@@ -79,6 +81,67 @@ def test_fast_path_runs_callbacks_in_asyncio_order(seed: int) -> None:
     got = _trace(EmulatorLoop, seed)
     assert len(ref) > 500
     assert got == ref
+
+
+class _CountingLoop(EmulatorLoop):
+    """Counts the callbacks ``call_next`` ran after the current one and the ones it queued (as ``call_soon``)."""
+
+    inline = 0
+    queued = 0
+
+    def call_exception_handler(self, context):  # type: ignore[override]
+        raise AssertionError(context)
+
+    def _run_next(self, res):  # type: ignore[override]
+        kept = self._next
+        super()._run_next(res)
+        r = self._ready
+        if r and (r[0]._callback, r[0]._args) == kept:
+            type(self).queued += 1
+        else:
+            type(self).inline += 1
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3, 4, 5])
+def test_call_next_runs_callbacks_in_call_soon_order(seed: int) -> None:
+    """``call_next`` on the fast path (the callback run right after the current one where nothing would come
+    between, else queued first) gives the trace of ``call_soon`` on asyncio's own iteration, with ties at one
+    instant, cancellations and several ``call_soon`` calls in one callback, in any position."""
+    ref = _trace(_ReferenceLoop, seed)
+    assert _trace(_ReferenceLoop, seed, call_next=True) == ref  # asyncio's own iteration: call_soon
+    _CountingLoop.inline = _CountingLoop.queued = 0
+    assert _trace(_CountingLoop, seed, call_next=True) == ref
+    if EmulatorLoop("fast").fast_path:  # both ways really taken
+        assert _CountingLoop.inline > 5 and _CountingLoop.queued > 5, (_CountingLoop.inline, _CountingLoop.queued)
+
+
+def test_call_next_queues_outside_the_loop_and_in_realtime() -> None:
+    for mode in ("fast", "realtime"):
+        loop = EmulatorLoop(mode)
+        ran: list[int] = []
+        try:
+            loop.call_next(ran.append, 1)  # the loop is not running: a handle, as call_soon
+            assert ran == [] and len(loop._ready) == 1
+            loop.run_until_complete(asyncio.sleep(0))
+            assert ran == [1]
+        finally:
+            loop.close()
+
+
+def test_call_next_reports_an_exception_as_a_handle_does() -> None:
+    loop = EmulatorLoop("fast")
+    seen: list[BaseException] = []
+    loop.set_exception_handler(lambda _loop, ctx: seen.append(ctx["exception"]))
+
+    def boom() -> None:
+        raise ValueError("boom")
+
+    try:
+        loop.call_at(0.1, loop.call_next, boom)
+        loop.run_until_complete(asyncio.sleep(0.2))
+    finally:
+        loop.close()
+    assert len(seen) == 1 and isinstance(seen[0], ValueError)
 
 
 def test_fast_path_is_taken() -> None:

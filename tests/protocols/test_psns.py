@@ -12,6 +12,7 @@ from protocols.psns import (
     PsnsHeader,
     encode_compass,
     encode_polarization_obs,
+    encode_polarization_obs_columns,
     encode_solar_vector,
     max_points,
 )
@@ -82,3 +83,48 @@ def test_max_points_table_of_the_icd(rate_hz, expected):
     n = max_points(115200, rate_hz)
     assert n == expected
     assert frame_bytes_obs(n) * 10 * rate_hz <= 115200 < frame_bytes_obs(n + 1) * 10 * rate_hz
+
+
+def test_obs_from_columns_is_the_obs_from_points():
+    """``encode_polarization_obs_columns`` (the camera's path: no point objects) gives the bytes of
+    ``encode_polarization_obs`` on the same points, full range of every field included, and refuses what the
+    layout cannot hold or columns of different lengths."""
+    import numpy as np
+
+    rng = np.random.default_rng(5)
+    n = 228
+    cols = (rng.integers(1, 2449, n).tolist(), rng.integers(1, 2049, n).tolist(),
+            rng.integers(-32768, 32768, n).tolist(), rng.integers(0, 65536, n).tolist(),
+            rng.integers(0, 65536, n).tolist())
+    for c in cols:
+        c[:2] = [min(c), max(c)]
+    pts = [PolarizationPoint(*p) for p in zip(*cols)]
+    assert encode_polarization_obs_columns(H, *cols) == encode_polarization_obs(H, pts)
+    assert parse_one(PsnsFormat(), encode_polarization_obs_columns(H, *cols)).points == tuple(pts)
+    assert encode_polarization_obs_columns(H, [], [], [], [], []) == encode_polarization_obs(H, [])
+    with pytest.raises(ValueError):
+        encode_polarization_obs_columns(H, [1], [1], [40000], [0], [0])  # aop_cdeg is s16
+    with pytest.raises(ValueError):
+        encode_polarization_obs(H, [PolarizationPoint(1, 1, 40000, 0, 0)])  # the same refusal from objects
+    with pytest.raises(ValueError, match="one length"):
+        encode_polarization_obs_columns(H, [1, 2], [1], [0], [0], [0])
+
+
+def test_columns_packer_is_refused_for_a_class_that_is_not_the_layout():
+    from dataclasses import dataclass
+
+    from protocols.codec import CODECS, StructCodec
+    from protocols.psns import POINT_SPEC
+
+    @dataclass(frozen=True)
+    class Swapped:
+        y_px: int
+        x_px: int
+        aop_cdeg: int
+        dop: int
+        intensity: int
+
+    codec = StructCodec(POINT_SPEC, "PSNS_POINT_TEST")
+    CODECS.remove(codec)  # a test's codec: not one of the registry's
+    with pytest.raises(TypeError, match="not the spec's fields in order"):
+        codec.columns_packer(Swapped)

@@ -6,7 +6,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from protocols.psns import PolarizationPoint, PsnsHeader, PsnsStatus, encode_polarization_obs, max_points
+from protocols.psns import PsnsHeader, PsnsStatus, encode_polarization_obs_columns, max_points
 
 from ...links.base import Link
 from .geometry import PointObservations, wire_aop_cdeg
@@ -60,14 +60,29 @@ class PolarizationCamera:
     def start(self) -> None:
         self._schedule()
 
+    #: frames whose truth is evaluated in one trajectory call (:meth:`PolarizationCameraModel.truth_ahead`)
+    TRUTH_AHEAD = 25
+
+    def _t_start(self, k: int) -> float:
+        """Exposure start of frame ``k`` (s)."""
+        return self.phase_s + k / self.rate_hz
+
+    def _t_mid(self, t_start: float) -> float:
+        """Mid-exposure instant (s) of the frame whose exposure starts at ``t_start``: what the frame sees."""
+        return t_start + 0.5 * self.exposure_s
+
     def _schedule(self) -> None:
-        t0 = self.phase_s + self._k / self.rate_hz
+        t0 = self._t_start(self._k)
         self.link.loop.call_at(t0 + self.exposure_s + self.processing_s, self._capture, t0)
 
     def _capture(self, t_start: float) -> None:
         self._k += 1
         self._schedule()
-        t_mid = t_start + 0.5 * self.exposure_s
+        t_mid = self._t_mid(t_start)
+        if not self.model.has_truth(t_mid):  # this frame's and the next frames' truth, in one evaluation
+            k = self._k - 1
+            ahead = [self._t_mid(self._t_start(j)) for j in range(k + 1, k + self.TRUTH_AHEAD)]
+            self.model.truth_ahead([t_mid, *ahead])
         mosaic = None
         if self.mosaic_source is not None:
             mosaic = self.mosaic_source(t_mid)
@@ -92,12 +107,11 @@ class PolarizationCamera:
         aop = wire_aop_cdeg(obs.aop)
         dop = np.clip(np.round(obs.dop * 65535.0), 0, 65535).astype(np.int64)
         s0 = np.clip(np.round(obs.s0_dn), 0, 65535).astype(np.int64)
-        pts = [PolarizationPoint(x, y, a, d, i)  # plain ints (tolist), as int() of each element gave
-               for x, y, a, d, i in zip(np.asarray(obs.x_px).astype(np.int64).tolist(),
-                                        np.asarray(obs.y_px).astype(np.int64).tolist(),
-                                        aop.tolist(), dop.tolist(), s0.tolist())]
+        # the points' columns as plain ints (tolist), as int() of each element gave; packed without point objects
+        cols = (np.asarray(obs.x_px).astype(np.int64).tolist(), np.asarray(obs.y_px).astype(np.int64).tolist(),
+                aop.tolist(), dop.tolist(), s0.tolist())
         # the exposure this frame had (auto exposure: the model's scale of the configured one; the capture's timing
         # keeps the configured exposure, which moves the mid-exposure instant by at most half of it)
         hdr = PsnsHeader(self.seq, round(self.exposure_s * self.model.exposure_scale * 1e6), latency_us, obs.status,
-                         len(pts))
-        return encode_polarization_obs(hdr, pts)
+                         len(cols[0]))
+        return encode_polarization_obs_columns(hdr, *cols)

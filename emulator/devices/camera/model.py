@@ -12,7 +12,7 @@ from protocols.psns import PsnsStatus
 
 from ...world.sky import SkyModel
 from ...world.sun import SunModel
-from ...world.trajectory import Trajectory
+from ...world.trajectory import Trajectory, TruthState
 from .geometry import CHANNEL_OFFSETS, CameraConfig, CameraGeometry, PointObservations, rotation_vector_matrix
 from .optics import SensorDefects, defect_maps, sensor_plane_field
 
@@ -58,6 +58,8 @@ class PolarizationCameraModel:
         #: this frame's exposure over the configured one (1.0 without auto exposure); the frame header reports it
         self.exposure_scale = 1.0
         self._att_key: tuple[float, bool, int] | None = None
+        #: truth at instants the device will observe (:meth:`truth_ahead`), taken by :meth:`_camera_attitude`
+        self._truth: dict[float, TruthState] = {}
         self._att: tuple[np.ndarray, np.ndarray, float] | None = None
         # the sensor's fixed pattern: per-super-pixel maps (full) and their window means (binned), one draw per
         # physical sensor (defect_seed), the same in both fidelities
@@ -99,8 +101,21 @@ class PolarizationCameraModel:
         c_nc, s_c, el = self._att
         return c_nc.copy(), s_c.copy(), el
 
+    def truth_ahead(self, ts: list[float]) -> None:
+        """Evaluate the truth at the instants ``ts`` (s) that frames will be observed at, in one vectorised
+        trajectory call (``Trajectory.states``: bit for bit :meth:`Trajectory.state` at each instant), instead of
+        one ~0.1 ms evaluation per frame. Replaces what was kept; an instant asked for that is not here is
+        evaluated on its own."""
+        self._truth = dict(zip(ts, self.traj.states(ts)))
+
+    def has_truth(self, t: float) -> bool:
+        """True when the truth at ``t`` is kept (:meth:`truth_ahead`)."""
+        return t in self._truth
+
     def _camera_attitude(self, t: float) -> tuple[np.ndarray, np.ndarray, float]:
-        st = self.traj.state(t)
+        st = self._truth.pop(t, None)
+        if st is None:
+            st = self.traj.state(t)
         lat, lon, h = float(st.pos[0]), float(st.pos[1]), float(st.pos[2])
         s_n = self.sun.sun_enu(t, lat, lon, h)
         c_cb = self.cfg.mounting_c_b if self.mounting_error is None else self.cfg.mounting_c_b @ self.mounting_error

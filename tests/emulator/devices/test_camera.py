@@ -303,3 +303,76 @@ def test_camera_frame_header_reports_the_auto_exposure():
     loop.close()
     assert len(frames) == 2
     assert frames[-1].header.exposure_us == round(2e-3 * m.exposure_scale * 1e6) != 2000
+
+
+def _camera_bytes(traj, seconds: float) -> bytes:
+    """Every byte a binned camera on ``traj`` sends in ``seconds`` (mem link, fast loop)."""
+    loop = EmulatorLoop("fast")
+    a, b = MemHub().pair("psns", LineConfig(baud=115200), loop)
+    got = bytearray()
+    b.on_receive = got.extend
+    cfg = CameraConfig(fidelity="binned")
+    m = PolarizationCameraModel(cfg, SkyModel(), SunModel(EPOCH, 69.0), traj, np.random.default_rng(3))
+    cam = PolarizationCamera(a, m, rate_hz=5.0, exposure_s=1e-3, processing_s=0.02)
+
+    async def main():
+        cam.start()
+        await asyncio.sleep(seconds)
+
+    loop.run_until_complete(main())
+    loop.close()
+    assert cam.frames_sent == round(seconds * 5.0)
+    return bytes(got)
+
+
+def test_truth_ahead_gives_the_frames_of_the_per_frame_truth(monkeypatch):
+    """The camera's truth evaluated for 25 frames in one vectorised call (``PolarizationCameraModel.truth_ahead``,
+    performance) gives every byte of the frames that one ``Trajectory.state`` per frame gives, on the reference
+    scenario's moving trajectory (static, acceleration, cruise and the first 90 deg turn in 55 s)."""
+    from emulator.scenario import load_scenario
+    from emulator.world.build import build_trajectory
+    from tests.conftest import SCENARIOS
+
+    traj = build_trajectory(load_scenario(SCENARIOS / "bench_vehicle_loop_10min.yaml"))
+    calls = {"state": 0, "states": 0}
+
+    class Counting:
+        def state(self, t):
+            calls["state"] += 1
+            return traj.state(t)
+
+        def states(self, ts):
+            calls["states"] += 1
+            return traj.states(ts)
+
+    ahead = _camera_bytes(Counting(), 55.0)
+    assert calls == {"state": 0, "states": 11}  # 275 frames, 25 per evaluation
+    monkeypatch.setattr(PolarizationCameraModel, "truth_ahead", lambda self, ts: None)  # one state() per frame
+    calls.update(state=0, states=0)
+    one_by_one = _camera_bytes(Counting(), 55.0)
+    assert calls == {"state": 275, "states": 0}
+    assert len(ahead) > 275 * 2000
+    assert ahead == one_by_one
+
+
+def test_truth_ahead_states_are_bit_for_bit_the_single_states():
+    """What the look-ahead keeps is exactly what ``state`` gives at each of the camera's instants, to the last bit
+    (the frame bytes above cannot resolve that), over the whole reference trajectory: every phase, every turn."""
+    from emulator.scenario import load_scenario
+    from emulator.world.build import build_trajectory
+    from tests.conftest import SCENARIOS
+
+    traj = build_trajectory(load_scenario(SCENARIOS / "bench_vehicle_loop_10min.yaml"))
+    m = PolarizationCameraModel(CameraConfig(fidelity="binned"), SkyModel(), SunModel(EPOCH, 69.0), traj,
+                                np.random.default_rng(3))
+    cam = PolarizationCamera(MemHub().pair("psns", LineConfig(baud=115200), EmulatorLoop("fast"))[0], m)
+    ts = [cam._t_mid(cam._t_start(k)) for k in range(3000)]  # 600 s at 5 Hz
+    for i in range(0, len(ts), PolarizationCamera.TRUTH_AHEAD):
+        chunk = ts[i:i + PolarizationCamera.TRUTH_AHEAD]
+        m.truth_ahead(chunk)
+        for t in chunk:
+            assert m.has_truth(t)
+            a, b = m._truth[t], traj.state(t)
+            assert (a.t, a.pitch, a.roll, a.heading) == (b.t, b.pitch, b.roll, b.heading)
+            for x, y in ((a.pos, b.pos), (a.v_enu, b.v_enu), (a.c_bn, b.c_bn)):
+                assert x.tobytes() == y.tobytes()

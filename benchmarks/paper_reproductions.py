@@ -116,8 +116,11 @@ ZHANG_PAPER_SE_MAX_DEG = (-0.035, -0.111)
 #: the like-for-like scenario's start (its epoch) and the paper's test start, 16:14 Beijing time
 ZHANG_EPOCH = "2019-09-18T08:13:50+00:00"
 #: "paper-like" pure-SINS drift: its end point's line within this angle of the paper's (13 deg to the left of the
-#: Sun's azimuth line, :func:`zhang_paper_drift`); a drift and its opposite are equally likely draws of the same errors
-ZHANG_PAPER_LIKE_DEG = 30.0
+#: Sun's azimuth line, :func:`zhang_paper_drift`; a drift and its opposite are equally likely draws of the same
+#: errors). About the paper's own angle off the azimuth line: the subset's drift is as much along the azimuth as the
+#: paper's, with its across part on the same side, so that, as in the paper, the along and across parts of the
+#: latitude error add (on the other side they cancel and pure SINS's latitude error is small; docs/variants.md 6.4)
+ZHANG_PAPER_LIKE_DEG = 15.0
 
 
 def sun_azimuth_rad(t_s: float, lat_deg: float = 39.979, lon_deg: float = 116.339) -> float:

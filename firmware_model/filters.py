@@ -134,21 +134,25 @@ def flicker_b_accel(cfg: FirmwareConfig) -> float:
     return min(cfg.accel_bias_instability_mg, cfg.accel_bias_sigma_mg) * 1e-3 * G_STD
 
 
-def flicker_match_s(cfg: FirmwareConfig) -> float:
+def flicker_match_s(cfg: FirmwareConfig, vertical: bool = False) -> float:
     """The time (s) over which the filter's velocity estimate averages the GNSS velocity when its process noise
     is the flicker's white equivalent matched at that same time: a random walk of PSD ``q`` seen through
     measurements of variance ``r`` every ``D`` s is averaged over ``T = sqrt(r D / q)``; with
-    ``q = (0.664 B_a)^2 T`` this gives ``T = (r D / (0.664 B_a)^2)^(1/3)`` (paper accelerometers: 3.3 s; field:
-    32 s), bounded to [D, accelerometer correlation time]. D-5.15."""
+    ``q = (0.664 B_a)^2 T`` this gives ``T = (r D / (0.664 B_a)^2)^(1/3)`` (paper accelerometers: 3.3 s horizontal,
+    5.1 s vertical; field: 32 s), bounded to [D, accelerometer correlation time]. D-5.15; per velocity row with that
+    row's GNSS velocity figure, ``r`` horizontal or (``vertical``) vertical, D-5.25: the vertical velocity, aided by a
+    velocity twice as noisy, averages longer and sees more of the flicker."""
     floor = _ALLAN_FLOOR * max(flicker_b_accel(cfg), 1e-8)
-    t = (cfg.gnss_vel_sigma_h_mps**2 * _VEL_AID_INTERVAL_S / floor**2) ** (1.0 / 3.0)
+    sig = cfg.gnss_vel_sigma_v_mps if vertical else cfg.gnss_vel_sigma_h_mps
+    t = (sig**2 * _VEL_AID_INTERVAL_S / floor**2) ** (1.0 / 3.0)
     return float(min(max(t, _VEL_AID_INTERVAL_S), cfg.accel_bias_corr_time_s))
 
 
-def flicker_white_psd(cfg: FirmwareConfig, b: float) -> float:
+def flicker_white_psd(cfg: FirmwareConfig, b: float, vertical: bool = False) -> float:
     """White-noise PSD (unit^2 s) whose Allan variance ``N^2 / T`` equals the flicker floor ``(0.664 B)^2`` at
-    the matching time ``T`` (:func:`flicker_match_s`): ``N^2 = (0.664 B)^2 T`` (B in rad/s or m/s^2)."""
-    return (_ALLAN_FLOOR * b) ** 2 * flicker_match_s(cfg)
+    the matching time ``T`` (:func:`flicker_match_s`, the horizontal or the ``vertical`` velocity row's):
+    ``N^2 = (0.664 B)^2 T`` (B in rad/s or m/s^2)."""
+    return (_ALLAN_FLOOR * b) ** 2 * flicker_match_s(cfg, vertical)
 
 
 def spec_process_noise(cfg: FirmwareConfig) -> F64Array:
@@ -166,7 +170,11 @@ def spec_process_noise(cfg: FirmwareConfig) -> F64Array:
     # (matched at tau) does not; its white-noise equivalent whose Allan deviation touches the floor at the
     # velocity-aiding time constant (sigma_A^2 = N^2 / T) is added to the attitude and velocity rows (D-5.15)
     q[IDX_ATT] += flicker_white_psd(cfg, flicker_b_gyro(cfg))
-    q[IDX_VEL] += flicker_white_psd(cfg, flicker_b_accel(cfg))
+    # (per velocity row: the vertical velocity averages its noisier GNSS velocity over a longer time, D-5.25)
+    b_a = flicker_b_accel(cfg)
+    q[DV_E] += flicker_white_psd(cfg, b_a)
+    q[DV_N] += flicker_white_psd(cfg, b_a)
+    q[DV_U] += flicker_white_psd(cfg, b_a, vertical=True)
     return q
 
 

@@ -44,7 +44,7 @@ from firmware_model.variants.params import (
 )
 
 from ..devices.base import device_rng
-from ..devices.compass import default_mountings, mountings_from_directions
+from ..devices.compass import default_mountings, mountings_from_directions, turned_about_view_rays
 from ..devices.sensors import camera_config, compass_config, mag_config
 from ..errors import ScenarioError
 from ..plugins import PLUGIN_ERRORS, plugin, plugin_names
@@ -126,12 +126,17 @@ def _camera_calibration(scn: Scenario, seed: int) -> CameraCalibration:
 def _compass_calibration(scn: Scenario, seed: int) -> CompassCalibration:
     """Per-unit installation angles: the rotation (about the unit's own axes) from the nominal unit to the installed
     one, ``R_u = C_u,nominal^T C_u,true`` (truth), plus a residual per axis; empty for ``nominal`` (the layout
-    drawing) and when no compass is fitted."""
+    drawing) and when no compass is fitted. The scenario's ``aop_offset_deg`` is the E-vector error the calibration
+    *left* (Zhang et al.'s Table 2, "after calibration"): it is not in what the calibration measured, so the units'
+    turn about their view rays by it is taken out of the truth first (D-5.26; before, the calibration file handed the
+    firmware the very residuals it was meant to keep)."""
     spec = scn.firmware.calibration
     c = scn.sensors.compass
     if c is None or not c.enabled or spec.source == "nominal":
         return CompassCalibration()
     true = compass_config(scn, device_rng(seed, "compass_mount")).mountings
+    if c.aop_offset_deg is not None:
+        true = turned_about_view_rays(true, -np.asarray(c.aop_offset_deg, dtype=np.float64) * DEG)
     nominal = (mountings_from_directions([(u.zenith_deg, u.azimuth_deg) for u in c.units]) if c.units is not None
                else default_mountings())
     rv = np.stack([Rotation.from_matrix(n.T @ t).as_rotvec(degrees=True) for n, t in zip(nominal, true, strict=True)])

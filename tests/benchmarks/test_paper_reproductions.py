@@ -34,11 +34,55 @@ def test_tables_report_the_paper_next_to_the_mean_and_range():
     md = pr.zhang_table([{"se": se, "sins": ins, "lat_change": -0.5, "lon_change": -0.975}])
     assert "| latitude change against pure SINS | -50 (-50 .. -50) % | -59.4 % |" in md
     assert "| seeds where both MAE fall | 1 of 1 | |" in md
+    assert "| change of the mean MAE over the seeds, latitude / longitude | -50% / -98% | |" in md
     row = {c: {"heading_rms_deg": v, "heading_max_deg": 2 * v} for c, v in
            (("fused", 0.1), ("pol_mimu", 0.2), ("sins_gnss", 1.0))}
     md = pr.ge_table([{**row, "ordered": True}])
     assert "| RMS | 0.100 (0.100 .. 0.100) | 0.200 (0.200 .. 0.200) | 1.000 (1.000 .. 1.000) |" in md
     assert "1 of 1 | 1 of 1 | 1 of 1 |" in md
+
+
+def test_along_across_the_suns_azimuth_by_closed_forms():
+    """An error along the azimuth is all "along"; a quarter turn to the right of it all "across"; the angle off the
+    azimuth line ignores the signs."""
+    az = math.radians(252.0)
+    a, c = pr.along_across(math.sin(az) * 10.0, math.cos(az) * 10.0, az)
+    assert math.isclose(a, 10.0) and abs(c) < 1e-12
+    a, c = pr.along_across(math.cos(az) * 4.0, -math.sin(az) * 4.0, az)
+    assert abs(a) < 1e-12 and math.isclose(c, 4.0)
+    assert math.isclose(pr.drift_off_azimuth_deg(-3.0, 3.0), 45.0)
+    assert math.isclose(pr.drift_off_azimuth_deg(-5.0, 0.0), 0.0)
+
+
+def test_zhang_paper_drift_lies_along_the_suns_azimuth():
+    """The paper's pure SINS ended (-1.436 deg, -0.568 deg) in (longitude, latitude): 134 km along the Sun's azimuth
+    (252-256 deg over the test) and 31 km across it, 13 deg off the azimuth line; its sun-elevation filter's largest
+    excursions (-0.035, -0.111 deg) are mostly across (docs/variants.md 6.4)."""
+    assert 251.5 < math.degrees(pr.sun_azimuth_rad(0.0)) < 252.5
+    assert 255.0 < math.degrees(pr.sun_azimuth_rad(1200.0)) < 256.5
+    d = pr.zhang_paper_drift()
+    assert 130.0 < d["sins_along_km"] < 138.0 and -34.0 < d["sins_across_km"] < -28.0
+    assert 11.0 < d["sins_off_azimuth_deg"] < 15.0
+    assert abs(d["se_across_km"]) > abs(d["se_along_km"])
+
+
+def test_zhang_table_splits_along_and_across_and_picks_the_paper_like_draws():
+    def member(seed: int, along: float, across: float, lat_change: float) -> dict:
+        se = {"lat_mae_deg": 0.05, "lon_mae_deg": 0.01, "along_mae_km": 1.0, "across_mae_km": 5.0}
+        ins = {"lat_mae_deg": 0.10, "lon_mae_deg": 0.40, "along_mae_km": 30.0, "across_mae_km": 6.0,
+               "end_along_km": along, "end_across_km": across,
+               "end_off_azimuth_deg": pr.drift_off_azimuth_deg(along, across)}
+        return {"seed": seed, "se": se, "sins": ins, "lat_change": lat_change, "lon_change": -0.9}
+
+    # seed 1 ends opposite to the paper's drift (the same line), seed 2 as far to the right of the azimuth line as
+    # the paper's is to its left (26 deg from it: its across part lies on the other side), seed 3 across the azimuth
+    rows = [member(1, -40.0, 9.0, -0.6), member(2, 40.0, 9.0, 1.0), member(3, 1.0, 40.0, 0.5)]
+    assert [pr.zhang_paper_like(r) for r in rows] == [True, False, False]
+    assert pr.line_separation_deg(pr.drift_line_deg(40.0, 9.0), pr.drift_line_deg(40.0, -9.0)) == \
+        pytest.approx(2 * math.degrees(math.atan2(9.0, 40.0)))
+    md = pr.zhang_table(rows)
+    assert "| pure SINS at 20 min, angle off the Sun's azimuth line (deg) | 38 (13 .. 89) | 13 |" in md
+    assert "(1): latitude / longitude change | -60 (-60 .. -60) % / -90 (-90 .. -90) % | -59.4 % / -98.1 % |" in md
 
 
 @pytest.mark.slow

@@ -220,8 +220,12 @@ def test_flicker_white_equivalent_by_closed_form():
     t_m = ((0.13 / 2.448) ** 2 / floor_a**2) ** (1.0 / 3.0)
     assert t_m == pytest.approx(3.34, abs=0.01)  # the figure D-5.15 quotes
     assert flicker_match_s(cfg) == pytest.approx(t_m, rel=1e-3)
+    # D-5.25: the vertical row's own GNSS velocity figure (0.2 m/s 95 % -> 0.1 m/s) gives the vertical its own time
+    t_v = (0.1**2 / floor_a**2) ** (1.0 / 3.0)
+    assert t_v == pytest.approx(5.10, abs=0.01)
+    assert flicker_match_s(cfg, vertical=True) == pytest.approx(t_v, rel=1e-3)
     vrw2 = (100e-6 * G_STD) ** 2
-    np.testing.assert_allclose(flt.q[IDX_VEL], vrw2 + floor_a**2 * t_m, rtol=1e-3)
+    np.testing.assert_allclose(flt.q[IDX_VEL], vrw2 + floor_a**2 * np.array([t_m, t_m, t_v]), rtol=1e-3)
     arw2 = (0.15 * DEG / 60.0) ** 2
     floor_g = 0.664 * 6.667 * DPH
     np.testing.assert_allclose(flt.q[IDX_ATT], arw2 + floor_g**2 * t_m, rtol=1e-3)
@@ -291,7 +295,8 @@ def test_flicker_instability_read_as_at_most_the_total_bias():
     flt, _, _ = _filter(accel_bias_sigma_mg=0.05, accel_noise_ug_rt_hz=25.0)
     assert flicker_b_accel(flt.cfg) == pytest.approx(0.05e-3 * G_STD)
     floor = math.sqrt(2.0 * math.log(2.0) / math.pi) * 0.05e-3 * G_STD
-    np.testing.assert_allclose(flt.q[IDX_VEL], (25e-6 * G_STD) ** 2 + floor**2 * flicker_match_s(flt.cfg), rtol=1e-9)
+    t_m = np.array([flicker_match_s(flt.cfg)] * 2 + [flicker_match_s(flt.cfg, vertical=True)])
+    np.testing.assert_allclose(flt.q[IDX_VEL], (25e-6 * G_STD) ** 2 + floor**2 * t_m, rtol=1e-9)
     for name in ("default", "field"):
         sheet = SensorSpecSheet.from_dict(yaml.safe_load(
             (Path(__file__).parents[2] / f"firmware_model/spec_sheets/{name}.yaml").read_text()))

@@ -247,6 +247,32 @@ def test_compass_installation_angles_reach_the_firmware(tmp_path):
     assert errs["perfect"] < 1e-4 and errs["nominal"] > 0.3 and errs["perfect"] < errs["residuals"] < errs["nominal"]
 
 
+def test_compass_aop_offsets_are_what_the_calibration_left(tmp_path):
+    """``aop_offset_deg`` is the E-vector error left *after* calibration (Zhang et al. Table 2): even a perfect
+    calibration file gives the firmware the installed units without it, so the firmware's unit i differs from the
+    world's by exactly the turn of its offset about its view ray (D-5.26; before, the calibration measured the offset
+    too and the firmware corrected it away)."""
+    from emulator.devices.base import device_rng
+    from emulator.devices.compass import turned_about_view_rays
+    from emulator.devices.sensors import compass_config
+
+    offsets = [-0.1, 0.1, 0.3, 0.2, 0.2, 0.2, -0.2, -0.1, -0.1]
+    p = tmp_path / "c.yaml"
+    p.write_text(COMPASS_SCN.replace("installation_error_sigma_deg: 1.0}",
+                                     f"installation_error_sigma_deg: 1.0, aop_offset_deg: {offsets}}}"))
+    scn = load_scenario(p)
+    true = compass_config(scn, device_rng(scn.seed, "compass_mount")).mountings
+    perfect = scn.model_copy(update={"firmware": scn.firmware.model_copy(update={
+        "calibration": scn.firmware.calibration.model_copy(update={"source": "perfect"})})})
+    m = firmware_config(perfect, calibration_for(perfect)).compass_mountings
+    assert m is not None
+    assert np.allclose(turned_about_view_rays(m, np.radians(offsets)), true, atol=1e-12)
+    for mi, ti, d in zip(m, true, offsets, strict=True):
+        assert np.allclose(mi[:, 2], ti[:, 2], atol=1e-12)  # the same view ray
+        turn = math.degrees(math.atan2(float(mi[:, 1] @ ti[:, 0]), float(mi[:, 0] @ ti[:, 0])))  # t = m R_z(d)
+        assert turn == pytest.approx(d, abs=1e-9)
+
+
 def test_magnetometer_iron_reaches_the_firmware(tmp_path):
     """The firmware's magnetometer consumer returns ``W^-1 (m - h)``: with the truth in the calibration file the
     field preset's 350 nT hard iron and 3 % soft iron leave only the MAG frame's 0.1 nT quantisation; with the

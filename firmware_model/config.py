@@ -78,6 +78,12 @@ class FirmwareConfig:
     #: (filters.BaseFilter.predict, "rotation-dependent noise")
     gyro_scale_factor_ppm: float = 0.0
     gyro_misalignment_mrad: float = 0.0
+    #: the gyro bias the box's temperature gradient drives (deg/h, 1 sigma, in P0 with the turn-on bias) and the box's
+    #: warm-up time constant (s) over which that gradient, and the bias with it, decays after power-on: > 0 adds
+    #: the bias's in-run change to the gyro-bias rows of Q (filters.warmup_gyro_bias_variance, D-5.27); 0: a
+    #: constant gradient, the bias a turn-on constant (P0 only)
+    gyro_temp_gradient_deg_h: float = 0.0
+    gyro_temp_gradient_time_s: float = 0.0
     accel_noise_ug_rt_hz: float = 100.0
     accel_bias_sigma_mg: float = 7.0 / 3.0
     accel_bias_instability_mg: float = 4.0 / 3.0

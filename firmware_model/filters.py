@@ -88,6 +88,7 @@ __all__ = [
     "kf_predict_cycles",
     "kf_scalar_update_cycles",
     "register_filter",
+    "warmup_gyro_bias_variance",
 ]
 
 
@@ -235,6 +236,28 @@ def rotation_attitude_noise(cfg: FirmwareConfig, cbn: FloatArray, rot_b: tuple[f
     var_b *= _THETA_REF_RAD
     c = np.asarray(cbn, dtype=np.float64)
     return np.asarray((c * var_b) @ c.T, dtype=np.float64)
+
+
+def warmup_gyro_bias_variance(cfg: FirmwareConfig, t0_s: float, tk_s: float) -> float:
+    """Variance ((rad/s)^2 per body axis) by which the gyro bias changes over the KF interval ``[t0, t0 + T_k]`` (s
+    since power-on) as the box warms up (D-5.27): the bias the temperature gradient drives, ``b_T`` (sigma
+    ``gyro_temp_gradient_deg_h``, in P0 as a turn-on bias), follows the gradient, which after power-on decays with
+    the box's warm-up time constant ``tau`` (``gyro_temp_gradient_time_s``): ``b_T(t) = b_T(0) exp(-t / tau)``.
+    Over the interval it moves by ``b_T(0) d`` with ``d = exp(-t0 / tau) - exp(-(t0 + T_k) / tau)``. The change is
+    coherent (one unknown ``b_T(0)``), so as for the turns' noise (D-5.14) the variance added per interval is
+    ``sigma^2 d`` (not ``sigma^2 d^2``): summed over the warm-up it is ``sigma^2``, the whole change's variance. Zero
+    without a warm-up figure. Cost: one ``expdp`` and four flops per KF interval (charged by the caller as
+    ``kf_warmup_noise``: ``exp(-t0 / tau)`` is the previous interval's end value)."""
+    tau = cfg.gyro_temp_gradient_time_s
+    sig = cfg.gyro_temp_gradient_deg_h * DPH
+    if tau <= 0.0 or sig <= 0.0 or tk_s <= 0.0:
+        return 0.0
+    d = math.exp(-max(t0_s, 0.0) / tau) * -math.expm1(-tk_s / tau)
+    return sig * sig * d
+
+
+#: cycles of :func:`warmup_gyro_bias_variance` per KF interval
+WARMUP_NOISE_CYCLES = c674x.mathlib("expdp") + c674x.flops(3, 1) + c674x.CALL_OVERHEAD
 
 
 #: multiplies and adds of :func:`rotation_attitude_noise` (6 + 9 x 3 for C diag C^T, the 12 body variances)
@@ -669,6 +692,12 @@ class BaseFilter(NavFilter):
         sun = self.sun_states
         if sun is not None and sun.shaped and sun.axis_n is not None:
             qk = self._sun_bias_noise(qk, Tk)
+        qw = warmup_gyro_bias_variance(self.cfg, float(nav.t) - Tk, Tk)
+        if qw > 0.0:  # the temperature-gradient bias's in-run change while the box warms up (D-5.27)
+            qk = (np.diag(qk.astype(np.float64)) if qk.ndim == 1 else qk.astype(np.float64, copy=True))
+            qk[IDX_GYRO, IDX_GYRO] += np.eye(3) * qw
+            qk = qk.astype(dt)
+            self.meter.charge("kf_warmup_noise", WARMUP_NOISE_CYCLES)
         self.x, self.P = kf_predict(self.x, self.P, Phi, qk)
         self.meter.charge("kf_predict", self._cyc_predict)
 

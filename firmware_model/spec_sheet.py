@@ -12,7 +12,9 @@ package does no file I/O. :meth:`SensorSpecSheet.config_fields` derives the filt
   (the Allan floor read as the flicker's stationary level), modelled in the filter as a random walk of the same
   short-term growth (``q = 2 sigma^2 / tau``); its stationary part enters ``P0`` with the turn-on repeatability and
   the environmental terms the datasheet gives (g-sensitivity at 1 g, temperature-gradient bias, scale factor at
-  1 g for the accelerometers), all added in quadrature; the flicker's short-term motion (Allan floor 0.664 B at
+  1 g for the accelerometers), all added in quadrature; the temperature-gradient bias changes in-run as the box
+  warms up (``temp_gradient_time_s``, its warm-up time constant): that change as gyro-bias process noise (D-5.27,
+  :func:`firmware_model.filters.warmup_gyro_bias_variance`); the flicker's short-term motion (Allan floor 0.664 B at
   every averaging time) as a white-noise equivalent on the attitude and velocity rows, matched at the
   velocity-aiding time constant (docs/decisions/filter-consistency.md D-5.15);
 * GNSS: the receiver's 95 % figures (horizontal 2DRMS -> sigma per axis = X / 2.448, vertical X / 2) split into a
@@ -58,6 +60,9 @@ class GyroSpec:
     bias_corr_time_s: float = 600.0
     g_sensitivity_deg_h_per_g: float = 0.0
     bias_temp_gradient_deg_h: float = 0.0
+    #: the box's warm-up time constant (s): after power-on the temperature gradient, and the bias it drives, decays
+    #: as ``exp(-t / tau)``; 0 = a constant gradient (the bias a turn-on constant, P0 only). D-5.27
+    temp_gradient_time_s: float = 0.0
     #: scale-factor error (ppm) and axis misalignment (mrad), 1 sigma: attitude error that grows with the rotation
     scale_factor_ppm: float = 0.0
     misalignment_mrad: float = 0.0
@@ -200,6 +205,8 @@ class SensorSpecSheet:
             "psns_bias_corr_time_s": p.bias_corr_time_s,
             "gyro_scale_factor_ppm": g.scale_factor_ppm,
             "gyro_misalignment_mrad": g.misalignment_mrad,
+            "gyro_temp_gradient_deg_h": g.bias_temp_gradient_deg_h,
+            "gyro_temp_gradient_time_s": g.temp_gradient_time_s,
             "compass_aop_sigma_deg": max(c.aop_sigma_deg, 0.001),
             "compass_aop_dop_ref": c.aop_dop_ref,
             "compass_aop_residual_deg": c.aop_residual_deg,

@@ -70,6 +70,7 @@ from ..arrays import FloatArray, FloatDtype
 from ..attitude import q2mat_fast, qmul, qnormalize, rv2q
 from ..filters import (
     ROTATION_NOISE_FLOPS,
+    WARMUP_NOISE_CYCLES,
     GnssErrorStates,
     GnssMeasurement,
     NavFilter,
@@ -85,6 +86,7 @@ from ..filters import (
     solar_noise_variance,
     spec_initial_covariance,
     spec_process_noise,
+    warmup_gyro_bias_variance,
 )
 from ..kf import (
     D_H,
@@ -301,6 +303,13 @@ class FederatedFilter(NavFilter):
             self.meter.charge("kf_rotation_noise", c674x.flops(*ROTATION_NOISE_FLOPS) + c674x.CALL_OVERHEAD)
             q1 = np.diag(q1)
             q1[IDX_ATT, IDX_ATT] += q_rot / p.beta_sins_gnss
+        # the temperature-gradient gyro bias's in-run change while the box warms up (D-5.27), shared as Q is
+        qw = warmup_gyro_bias_variance(self.cfg, float(nav.t) - Tk, Tk)
+        if qw > 0.0:
+            self.meter.charge("kf_warmup_noise", WARMUP_NOISE_CYCLES)
+            if q1.ndim == 1:
+                q1 = np.diag(q1)
+            q1[IDX_GYRO, IDX_GYRO] += np.eye(3) * (qw / p.beta_sins_gnss)
         self.x1, self.P1 = kf_predict(self.x1, self.P1, Phi1, q1.astype(dt))
         self.meter.charge("fed_predict_sins_gnss", self._cyc_predict1)
         # sub-filter 2: attitude block and -C_b^n of F, first-order motion acceleration, the accelerometer bias's
@@ -315,7 +324,7 @@ class FederatedFilter(NavFilter):
         q2[X2_ATT, X2_ATT] = np.diag(self._q2_att * Tk)
         if q_rot is not None:
             q2[X2_ATT, X2_ATT] += q_rot
-        q2[X2_GYRO, X2_GYRO] = np.diag(self._q2_gyro * Tk)
+        q2[X2_GYRO, X2_GYRO] = np.diag(self._q2_gyro * Tk) + np.eye(3) * qw
         q2[X2_MOTION, X2_MOTION] = np.eye(3) * (p.motion_accel_sigma_mps2**2 * (1.0 - ca * ca))
         q2[X2_ACC, X2_ACC] = np.diag(self._q2_acc * Tk)
         sun = self.sun_states

@@ -3,6 +3,7 @@ figures by closed form, bad sheets refused by field, the augmented GNSS-error an
 
 from __future__ import annotations
 
+import itertools
 import math
 from pathlib import Path
 
@@ -13,6 +14,7 @@ import yaml
 from firmware_model import FirmwareConfig, c674x
 from firmware_model.attitude import a2mat, mat2q, yaw_from_heading
 from firmware_model.filters import (
+    WARMUP_NOISE_CYCLES,
     BaseFilter,
     GnssMeasurement,
     SolarObservation,
@@ -22,6 +24,7 @@ from firmware_model.filters import (
     kf_predict_cycles,
     kf_scalar_update_cycles,
     solar_noise_variance,
+    warmup_gyro_bias_variance,
 )
 from firmware_model.kf import D_H, D_LON, N_STATES
 from firmware_model.nav_state import NavState
@@ -203,6 +206,46 @@ def test_rotation_noise_by_closed_form():
     flt.rotation_b_rad = (0.0, 0.0, quarter)
     flt.predict(nav, np.array([0.0, 0.0, 9.8]), 0.1)
     np.testing.assert_allclose(flt.P[:3, :3] - still[:3, :3], cbn @ want_b @ cbn.T, rtol=1e-6, atol=1e-15)
+
+
+def test_warmup_gyro_bias_noise_by_closed_form():
+    """D-5.27: the temperature-gradient bias b_T(0) exp(-t / tau) moves by b_T(0) (exp(-t0/tau) - exp(-t1/tau)) over
+    an interval; the variance added per interval is sigma^2 times that fraction, so over any split of [t0, t1] the
+    added variances sum to sigma^2 (exp(-t0/tau) - exp(-t1/tau)) (the coherent change's variance over the whole
+    warm-up: sigma^2); none without the sheet's warm-up figure; the base filter adds it to the gyro-bias rows only."""
+    from firmware_model.kf import IDX_GYRO
+    from firmware_model.units import DPH
+
+    f = SensorSpecSheet.from_dict({"gyro": {"bias_temp_gradient_deg_h": 10.0, "temp_gradient_time_s": 600.0}}
+                                  ).config_fields()
+    assert (f["gyro_temp_gradient_deg_h"], f["gyro_temp_gradient_time_s"]) == (10.0, 600.0)
+    cfg = FirmwareConfig(**f)
+    sig2 = (10.0 * DPH) ** 2
+    for t0, t1 in ((0.0, 700.0), (2.0, 400.0), (400.0, 1e5)):
+        want = sig2 * (math.exp(-t0 / 600.0) - math.exp(-t1 / 600.0))
+        for n in (1, 7, 700):
+            edges = np.linspace(t0, t1, n + 1)
+            got = sum(warmup_gyro_bias_variance(cfg, a, b - a) for a, b in itertools.pairwise(edges))
+            assert got == pytest.approx(want, rel=1e-9)
+    assert sum(warmup_gyro_bias_variance(cfg, 100.0 * k, 100.0) for k in range(1000)) == pytest.approx(sig2)
+    # a constant gradient (no warm-up figure, or no gradient figure): no in-run change
+    assert warmup_gyro_bias_variance(FirmwareConfig(gyro_temp_gradient_deg_h=10.0), 0.0, 1.0) == 0.0
+    assert warmup_gyro_bias_variance(FirmwareConfig(gyro_temp_gradient_time_s=600.0), 0.0, 1.0) == 0.0
+    # in the base filter's predict: on the gyro-bias diagonal, nothing else, the box's time since power-on = nav.t
+    flt, nav, _ = _filter(gyro_temp_gradient_deg_h=10.0, gyro_temp_gradient_time_s=600.0)
+    ref, _, _ = _filter()
+    nav.t = 50.0
+    f_n = np.array([0.0, 0.0, 9.8])
+    flt.meter.begin("kf_predict")
+    flt.predict(nav, f_n, 0.1)
+    flt.meter.end()
+    ref.predict(nav, f_n, 0.1)
+    assert flt.meter.tasks["kf_predict"].kernels["kf_warmup_noise"] == WARMUP_NOISE_CYCLES
+    d = flt.P - ref.P
+    np.testing.assert_allclose(d[IDX_GYRO, IDX_GYRO], np.eye(3) * warmup_gyro_bias_variance(flt.cfg, 49.9, 0.1),
+                               rtol=1e-9)
+    d[IDX_GYRO, IDX_GYRO] = 0.0
+    assert np.abs(d).max() == 0.0
 
 
 def test_flicker_white_equivalent_by_closed_form():

@@ -207,6 +207,31 @@ def test_subfilters_take_the_base_filters_spec_sheet_q_p0_and_augmented_states()
     assert fed._cyc_predict2 == pol_mimu_predict_cycles(c, 15) > pol_mimu_predict_cycles(c, 12)
 
 
+def test_subfilters_share_the_warmup_gyro_bias_noise_by_beta():
+    """D-5.27: the temperature-gradient bias's in-run change while the box warms up enters both sub-filters' gyro-bias
+    rows as Q does, times 1 / beta_i; the ``field`` sheet carries the warm-up figure."""
+    from firmware_model.filters import warmup_gyro_bias_variance
+    from firmware_model.kf import IDX_GYRO
+    from firmware_model.variants.federated import X2_GYRO
+
+    _, fed, nav, _ = _pair(beta=0.5)
+    _, ref, _, _ = _pair(beta=0.5, gyro_temp_gradient_time_s=0.0)
+    assert fed.cfg.gyro_temp_gradient_time_s == 600.0 and fed.cfg.gyro_temp_gradient_deg_h == 10.0
+    nav.t = 30.0
+    f_n = np.array([0.0, 0.0, 9.80])
+    fed.predict(nav, f_n, 0.1)
+    ref.predict(nav, f_n, 0.1)
+    qw = warmup_gyro_bias_variance(fed.cfg, 29.9, 0.1)
+    assert qw > 0.0
+    d1 = fed.P1 - ref.P1
+    np.testing.assert_allclose(d1[IDX_GYRO, IDX_GYRO], np.eye(3) * qw / 0.5, rtol=1e-9, atol=1e-24)
+    d1[IDX_GYRO, IDX_GYRO] = 0.0
+    assert np.abs(d1).max() == 0.0
+    # sub-filter 2 (beta_pol_mimu 0.5); its gravity update follows the predict and barely touches the gyro rows
+    d2 = np.diag(fed.P2 - ref.P2)[X2_GYRO]
+    np.testing.assert_allclose(d2, qw / fed.p.beta_pol_mimu, rtol=1e-3)
+
+
 def test_sins_gnss_subfilter_predicts_and_updates_gnss_as_the_base_filter():
     """With beta = 1 and no solar-bias states the SINS/GNSS sub-filter is the base filter's 18-state model: the same
     predict (GNSS-error Gauss-Markov, turns' rotation noise) and the same GNSS update (position rows ``dp - b`` with

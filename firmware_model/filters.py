@@ -260,6 +260,12 @@ def warmup_gyro_bias_variance(cfg: FirmwareConfig, t0_s: float, tk_s: float) -> 
 WARMUP_NOISE_CYCLES = c674x.mathlib("expdp") + c674x.flops(3, 1) + c674x.CALL_OVERHEAD
 
 
+def _full_q(qk: FloatArray) -> F64Array:
+    """``Q_k`` as a full float64 matrix that may be modified in place: the diagonal (n,) expanded, a full (n, n)
+    copied (the predict's extra noise terms add blocks to it)."""
+    return np.diag(qk.astype(np.float64)) if qk.ndim == 1 else qk.astype(np.float64, copy=True)
+
+
 #: multiplies and adds of :func:`rotation_attitude_noise` (6 + 9 x 3 for C diag C^T, the 12 body variances)
 ROTATION_NOISE_FLOPS = (45, 36)
 
@@ -694,7 +700,7 @@ class BaseFilter(NavFilter):
             qk = self._sun_bias_noise(qk, Tk)
         qw = warmup_gyro_bias_variance(self.cfg, float(nav.t) - Tk, Tk)
         if qw > 0.0:  # the temperature-gradient bias's in-run change while the box warms up (D-5.27)
-            qk = (np.diag(qk.astype(np.float64)) if qk.ndim == 1 else qk.astype(np.float64, copy=True))
+            qk = _full_q(qk)
             qk[IDX_GYRO, IDX_GYRO] += np.eye(3) * qw
             qk = qk.astype(dt)
             self.meter.charge("kf_warmup_noise", WARMUP_NOISE_CYCLES)
@@ -707,7 +713,7 @@ class BaseFilter(NavFilter):
         sun = self.sun_states
         assert sun is not None
         i = sun.i
-        q = np.diag(qk.astype(np.float64)) if qk.ndim == 1 else qk.astype(np.float64, copy=True)
+        q = _full_q(qk)
         q[i:i + 3, i:i + 3] = sun.noise_block(Tk)
         self.meter.charge("kf_sun_bias_noise", c674x.flops(9, 6) + c674x.CALL_OVERHEAD)
         return q.astype(self.dtype)
@@ -716,7 +722,7 @@ class BaseFilter(NavFilter):
         """Q_k with the attitude noise of the gyros' scale factor and misalignment over the interval's turns
         (:func:`rotation_attitude_noise`, D-5.14) added to the attitude block."""
         qk_att = rotation_attitude_noise(self.cfg, q2mat_fast(nav.q), rot_b)
-        qk = np.diag(qk_in.astype(np.float64)) if qk_in.ndim == 1 else qk_in.astype(np.float64, copy=True)
+        qk = _full_q(qk_in)
         qk[IDX_ATT, IDX_ATT] += qk_att
         self.meter.charge("kf_rotation_noise", c674x.flops(*ROTATION_NOISE_FLOPS) + c674x.CALL_OVERHEAD)
         return qk.astype(self.dtype)

@@ -82,6 +82,7 @@ __all__ = [
     "MagStatus",
     "accel_code_to_g",
     "adc_code_to_volts",
+    "build_imu_frame",
     "encode_mag_frame",
 ]
 
@@ -193,10 +194,21 @@ if _IMU.size != IMU_FRAME_LEN:  # pragma: no cover
 _IMU_PAYLOAD = StructCodec(subspec(IMU_FRAME_SPEC, "seq", "fpga_status"), "IMU_FRAME_PAYLOAD")
 _decode_imu_payload = _IMU_PAYLOAD.decoder(ImuFrame)
 
+#: The body from the frame's fields as arguments (ImuFrame's order): the FPGA has the values, not an object.
 _encode_imu_body = _IMU_BODY.encoder(ImuFrame, convert={
     "seq": (0xFFFF).__and__, "t_trigger_us": (0xFFFFFFFF).__and__, "t_pps_us": (0xFFFFFFFF).__and__,
     "pps_count": (0xFF).__and__, "gyro_status": (0xFF).__and__, "gyro_counter": (0xFF).__and__,
-    "gyro_latency_us": (0xFFFF).__and__, "fpga_status": (0xFF).__and__})
+    "gyro_latency_us": (0xFFFF).__and__, "fpga_status": (0xFF).__and__}, from_args=True)
+
+
+def build_imu_frame(seq: int, t_trigger_us: int, t_pps_us: int, pps_count: int, gyro: tuple[int, int, int],
+                    gyro_status: int, gyro_counter: int, gyro_latency_us: int, accel: tuple[int, int, int],
+                    fpga_status: int) -> bytes:
+    """The frame of ``ImuFrame(seq, t_trigger_us, ...)`` (:meth:`ImuFrameFormat.build`) from its fields, without the
+    object (the FPGA's sender, once per trigger)."""
+    body: bytes = _encode_imu_body(seq, t_trigger_us, t_pps_us, pps_count, gyro, gyro_status, gyro_counter,
+                                   gyro_latency_us, accel, fpga_status)
+    return IMU_SYNC + body + crc16_ccitt(body).to_bytes(2, "little")
 
 
 class ImuFrameFormat:
@@ -221,8 +233,8 @@ class ImuFrameFormat:
 
     def build(self, f: ImuFrame) -> bytes:
         """Encode ``f`` (counters wrap to their width; a gyro or accel word outside s24 raises ``ValueError``)."""
-        body = _encode_imu_body(f)
-        return IMU_SYNC + body + crc16_ccitt(body).to_bytes(2, "little")
+        return build_imu_frame(f.seq, f.t_trigger_us, f.t_pps_us, f.pps_count, f.gyro, f.gyro_status, f.gyro_counter,
+                               f.gyro_latency_us, f.accel, f.fpga_status)
 
     encode = build
 

@@ -44,6 +44,8 @@ from __future__ import annotations
 import enum
 from collections.abc import Callable
 from dataclasses import dataclass
+from dataclasses import fields as dataclass_fields
+from operator import itemgetter
 from typing import Any
 
 from construct import Array, Bytes, Const, Int8ub, Int16sb, Int16ub, Int24sb, Struct
@@ -185,7 +187,8 @@ def stim210_spec(fmt: str) -> Struct:
 
 
 def _stim210_codecs(fmt: str) -> tuple[StructCodec, Callable[..., Any], Callable[..., bytes]]:
-    """The derived codec of one format, its decoder and its body encoder (ident .. last data byte)."""
+    """The derived codec of one format, its decoder and its body encoder (ident .. last data byte) from the
+    datagram's fields as arguments."""
     spec = stim210_spec(fmt)
     codec = StructCodec(spec, f"STIM210_{fmt}")
     last = [sc.name for sc in spec.subcons][-2]
@@ -195,13 +198,17 @@ def _stim210_codecs(fmt: str) -> tuple[StructCodec, Callable[..., Any], Callable
         "counter": lambda v: (v or 0) & 0xFF, "latency_us": lambda v: v or 0,
         "temperature": lambda v: v or (0, 0, 0), "reserved": lambda v: b"\x00\x00\x00" if v is None else v,
     }
+    # from the datagram's fields as arguments (those the format carries, in StimDatagram's order): a sender that
+    # has the values needs no datagram object (Stim210Format.build_values)
     encode = body.encoder(StimDatagram, convert={
-        "status": (0xFF).__and__, **{k: f for k, f in absent_as_zero.items() if k in body.names}})
+        "status": (0xFF).__and__, **{k: f for k, f in absent_as_zero.items() if k in body.names}}, from_args=True)
     return codec, codec.decoder(StimDatagram, ignore=("crc",)), encode
 
 
 #: format letter -> (codec, decoder, body encoder), built once at import
 _STIM210_CODECS = {fmt: _stim210_codecs(fmt) for fmt in STIM210_FORMATS}
+#: the fields of :class:`StimDatagram`, in order (the parameters of :meth:`Stim210Format.build_values` after ident)
+_BUILD_FIELDS = tuple(f.name for f in dataclass_fields(StimDatagram))
 
 
 class Stim210Format:
@@ -224,6 +231,10 @@ class Stim210Format:
         self.name = f"stim210-{fmt}"
         self.sync = bytes([self.ident])
         codec, self._decode, self._encode_body = _STIM210_CODECS[fmt]
+        # the fields of build_values' arguments that this format carries: the body encoder's parameters (in
+        # StimDatagram's order; ident is the format's constant)
+        args = _BUILD_FIELDS[1:]
+        self._pick = itemgetter(*(i for i, n in enumerate(args) if n in codec.names))
         self.spec = codec.spec
         self.body_len = codec.size - 1  # ident .. last data byte: what the CRC-8 covers
         self.length = codec.size + (2 if crlf else 0)
@@ -248,7 +259,14 @@ class Stim210Format:
 
         Absent optional fields encode as zeros; a gyro word outside s24 raises ``ValueError``.
         """
-        body: bytes = self._encode_body(d)
+        return self.build_values(d.gyro, d.status, d.counter, d.latency_us, d.temperature, d.reserved)
+
+    def build_values(self, gyro: tuple[int, int, int], status: int, counter: int | None = None,
+                     latency_us: int | None = None, temperature: tuple[int, int, int] | None = None,
+                     reserved: bytes | None = None) -> bytes:
+        """:meth:`build` of ``StimDatagram(self.ident, gyro, status, ...)`` from the fields, without the object
+        (the gyro model's sender, once per datagram); fields this format does not carry are ignored."""
+        body: bytes = self._encode_body(*self._pick((gyro, status, counter, latency_us, temperature, reserved)))
         return body + bytes((crc8_stim(body),)) + (b"\r\n" if self.crlf else b"")
 
     encode = build

@@ -31,7 +31,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from protocols.imu_frame import ADC_CODE_MAX, FpgaStatus, ImuFrame, ImuFrameFormat, MagFrame, encode_mag_frame
+from protocols.imu_frame import ADC_CODE_MAX, FpgaStatus, MagFrame, build_imu_frame, encode_mag_frame
 from protocols.monitor import MONITOR_CHANNELS, MONITOR_MAX_DATA, MonitorRecord, encode_monitor
 from protocols.stim import gyro_port_format
 from protocols.stream import StreamDecoder
@@ -109,7 +109,6 @@ class VirtualFpga:
         self.accel = accel
         self.events = events or NullEvents()
         self.period = 1.0 / cfg.imu_rate_hz
-        self._imu_fmt = ImuFrameFormat()
         self._k = 0
         self._pending: tuple[int, int, tuple[int, int, int], asyncio.TimerHandle] | None = None
         self._last_gyro: tuple[tuple[int, int, int], int, int, int] = ((0, 0, 0), 0, 0, 0)
@@ -261,18 +260,6 @@ class VirtualFpga:
         if self.loop.time() - self._t_pps < 1.5:
             flags |= _PPS_VALID
         g, status, counter, latency = self._last_gyro
-        frame = ImuFrame(
-            seq=seq & 0xFFFF,
-            t_trigger_us=t_trig,
-            t_pps_us=self.t_pps_us,
-            pps_count=self.pps_count,
-            gyro=g,
-            gyro_status=status,
-            gyro_counter=counter,
-            gyro_latency_us=latency,
-            accel=codes,
-            fpga_status=int(flags),
-        )
         self.seq += 1
         self.imu_frames += 1
         uart1 = self.uarts.get("uart1")
@@ -280,7 +267,9 @@ class VirtualFpga:
             self._stall("uart1", 1)
             self._mag_pending = None
         elif uart1 is not None:
-            uart1.send(self._imu_fmt.build(frame))
+            # the bytes of ImuFrame(seq, t_trig, ...), built from the fields (no frame object)
+            uart1.send(build_imu_frame(seq & 0xFFFF, t_trig, self.t_pps_us, self.pps_count, g, status, counter, latency,
+                                       codes, flags))
             if self._mag_pending is not None:  # the trigger's MAG frame follows its IMU frame
                 mag_frame = self._mag_pending
                 self._mag_pending = None

@@ -1,5 +1,7 @@
 """STIM210 datagrams: a hand-derived vector, round trips and the streaming decoder."""
 
+import random
+
 import pytest
 
 from protocols.crc import crc8_stim
@@ -72,3 +74,27 @@ def test_stream_decoder_resyncs_after_corruption():
     assert got == [i for i in range(50) if i != 10]
     assert dec.stats.crc_errors >= 1
     assert dec.stats.frames == 49
+
+
+@pytest.mark.parametrize("letter", sorted(STIM210_FORMATS))
+@pytest.mark.parametrize("crlf", [False, True])
+def test_build_values_is_construct_s_bytes_of_the_datagram(letter, crlf):
+    """``build_values`` (the gyro model's sender: no datagram object) gives ``construct``'s bytes of the datagram
+    with those fields, absent optional fields as zeros and STATUS/counter wrapped to their byte, for every
+    format; and ``build`` of the object is the same bytes (performance.md 5.7, D-10.E8)."""
+    fmt = Stim210Format(letter, crlf=crlf)
+    rng = random.Random(f"{letter}{crlf}")
+    for _ in range(200):
+        gyro = tuple(rng.randint(-2**23, 2**23 - 1) for _ in range(3))
+        status = rng.randint(0, 0x1FF)
+        counter = rng.choice([None, rng.randint(0, 0x1FF)])
+        latency = rng.choice([None, rng.randint(0, 0xFFFF)])
+        temp = rng.choice([None, tuple(rng.randint(-2**15, 2**15 - 1) for _ in range(3))])
+        reserved = rng.choice([None, bytes(rng.randrange(256) for _ in range(3))])
+        raw = fmt.build_values(gyro, status, counter, latency, temp, reserved)
+        values = {"gyro": list(gyro), "status": status & 0xFF, "counter": (counter or 0) & 0xFF,
+                  "latency_us": latency or 0, "temperature": list(temp or (0, 0, 0)),
+                  "reserved": b"\x00\x00\x00" if reserved is None else reserved}
+        body = fmt.spec.build({**values, "crc": 0})[:fmt.body_len]
+        assert raw == body + bytes((crc8_stim(body),)) + (b"\r\n" if crlf else b"")
+        assert fmt.build(StimDatagram(fmt.ident, gyro, status, counter, latency, temp, reserved)) == raw

@@ -14,7 +14,6 @@ from protocols.stim import (
     STIM_COUNTER_HZ,
     TEMP_LSB_DEGC,
     Stim210Format,
-    StimDatagram,
 )
 
 from ...links.base import Link
@@ -154,15 +153,8 @@ class Stim210Gyro(FaultableTriad):
     def _transmit(self, t: float, t_c: float, gyro_words: tuple[int, int, int]) -> None:
         self.counter = (self.counter + self.counter_step) & 0xFF
         tw = round(t_c / TEMP_LSB_DEGC)
-        d = StimDatagram(
-            ident=self.format.ident,
-            gyro=gyro_words,
-            status=0,
-            counter=self.counter,
-            latency_us=self.latency_us,
-            temperature=(tw, tw, tw),
-        )
-        self._send(t, self.format.build(d))
+        # the bytes of StimDatagram(ident, gyro_words, 0, counter, latency, (tw, tw, tw)) without the object
+        self._send(t, self.format.build_values(gyro_words, 0, self.counter, self.latency_us, (tw, tw, tw)))
 
     def _send(self, t: float, frame: bytes) -> None:
         """Put one datagram on the line ``response_delay_s`` after the trigger at ``t`` (or drop it, counted)."""

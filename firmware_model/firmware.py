@@ -57,6 +57,7 @@ from .config import UART_GNSS, UART_HOST, UART_IMU, UART_PSNS, FirmwareConfig
 from .kf import N_STATES
 from .precision import rounder
 from .registry import FirmwareSnapshot, register_firmware
+from .strapdown import strapdown_kernel
 from .tasks.gnss import GnssTask
 from .tasks.host import HostTask
 from .tasks.psns import psns_frame_len
@@ -119,6 +120,7 @@ class Firmware(HostTask, GnssTask):
         self.dtype = np.float32 if cfg.precision == "float32" else np.float64
         #: dtype of the strapdown state (q, v); position is always float64
         self.nav_dtype = np.float64 if cfg.nav_state_precision == "float64" else self.dtype
+        self._strapdown = strapdown_kernel(self.nav_dtype)
         self.meter = c674x.CycleMeter(cfg.clock_hz, cfg.imu_rate_hz)
         self.cost = c674x.KernelCosts(cfg.precision)
         self._cyc = tick_kernel_cycles(self.cost, nav_dp=self.nav_dtype is np.float64)

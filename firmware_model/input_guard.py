@@ -130,12 +130,12 @@ def check_nav_pvt(p: Any) -> str | None:
 
 def check_imu_words(gyro: tuple[int, int, int], accel: tuple[int, int, int]) -> str | None:
     """Reason the inertial words of an IMU frame are refused (a word at a 24-bit rail: saturated), or None."""
-    for w in gyro:
-        if w >= S24_MAX or w <= S24_MIN:
-            return "gyro_saturated"
-    for w in accel:
-        if w >= S24_MAX or w <= S24_MIN:
-            return "accel_saturated"
+    g0, g1, g2 = gyro
+    if not (S24_MIN < g0 < S24_MAX and S24_MIN < g1 < S24_MAX and S24_MIN < g2 < S24_MAX):
+        return "gyro_saturated"
+    a0, a1, a2 = accel
+    if not (S24_MIN < a0 < S24_MAX and S24_MIN < a1 < S24_MAX and S24_MIN < a2 < S24_MAX):
+        return "accel_saturated"
     return None
 
 

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any, Final
 
 import numpy as np
@@ -35,8 +35,8 @@ from .attitude import cross3, q2mat, qmul
 from .nav_state import A_PREV, POS, NavState, Q, V
 from .precision import rounder
 
-__all__ = ["STRAPDOWN_FLOPS", "NavState", "coning_sculling", "coning_sculling_fast", "strapdown_step",
-           "strapdown_step_fast"]
+__all__ = ["STRAPDOWN_FLOPS", "NavState", "coning_sculling", "coning_sculling_fast", "strapdown_kernel",
+           "strapdown_step", "strapdown_step_fast"]
 
 #: Rough floating-point operation count of one :func:`strapdown_step` (for the cycle model).
 STRAPDOWN_FLOPS = 260
@@ -190,11 +190,18 @@ def strapdown_step_fast(s: NavState, phi_m: Sequence[float], dv_m: Sequence[floa
     The state stays in its float form (:meth:`NavState.as_floats`): a step creates no arrays. Other
     precisions go to the reference.
     """
+    step: Callable[[NavState, Sequence[float], Sequence[float], float], NavState] = strapdown_kernel(dtype)
+    return step(s, phi_m, dv_m, T)
+
+
+def strapdown_kernel(dtype: FloatDtype) -> Callable[[NavState, Sequence[float], Sequence[float], float], NavState]:
+    """The step that :func:`strapdown_step_fast` runs for a state held in ``dtype``, ``step(s, phi_m, dv_m, T)``:
+    for a caller that steps every tick in one precision and picks it once (the firmware's 200 Hz loop)."""
     if dtype is _F64:
-        return _step_f64(s, phi_m, dv_m, T)
+        return _step_f64
     if dtype is _F32:
-        return _step_f32(s, phi_m, dv_m, T)
-    return strapdown_step(s, phi_m, dv_m, T, dtype)
+        return _step_f32
+    return functools.partial(strapdown_step, dtype=dtype)
 
 
 _F64, _F32 = np.float64, np.float32

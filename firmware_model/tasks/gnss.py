@@ -414,7 +414,8 @@ class GnssTask(TimeKeeping):
 
     def _gnss_poll(self, t: float) -> None:
         """Loop side, once per tick: close an epoch held too long; hand the oldest closed one to the update."""
-        self._gnss_hold(t)
+        if self._gnss_epoch is not None:  # (the usual tick holds none: no call)
+            self._gnss_hold(t)
         if self._gnss_pending is None and self._gnss_ready:
             self._gnss_pending = self._gnss_ready.popleft()[0]
 

@@ -15,7 +15,7 @@ from ..arrays import F64Array, FloatArray
 from ..config import FILTER_VARIANTS
 from ..filters import NavFilter
 from ..nav_state import FE, FN, FU, POS, Q, V
-from ..strapdown import coning_sculling, coning_sculling_fast, strapdown_step_fast
+from ..strapdown import coning_sculling, coning_sculling_fast
 from .timekeeping import TimeKeeping
 
 __all__ = ["Navigation"]
@@ -72,7 +72,7 @@ class Navigation(TimeKeeping):
             phi_m = (phi - flt.gyro_bias * dt(Tm)).astype(dt).tolist()
             dv_m = (dvm - flt.accel_bias * dt(Tm)).astype(dt).tolist()
             m.charge("coning_sculling", self._cyc["coning2"])
-        strapdown_step_fast(s, phi_m, dv_m, Tm, self.nav_dtype)
+        self._strapdown(s, phi_m, dv_m, Tm)  # strapdown_step_fast in nav_dtype (the kernel picked once)
         s.t = t
         m.charge("strapdown", self._cyc_strapdown)
         # specific force in n of the step, averaged for the KF's F (Eq. 17)

@@ -9,7 +9,7 @@ from __future__ import annotations
 import datetime as _dt
 import struct
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -78,6 +78,8 @@ class LoopState:
     #: working precision of the filters and kernels; ``nav_dtype``: of the strapdown state (q, v)
     dtype: FloatDtype
     nav_dtype: FloatDtype
+    #: the strapdown step in nav_dtype (strapdown.strapdown_kernel): step(state, phi_m, dv_m, T)
+    _strapdown: Callable[[NavState, Sequence[float], Sequence[float], float], NavState]
     meter: c674x.CycleMeter
     cost: c674x.KernelCosts
     counters: dict[str, int]

@@ -87,3 +87,17 @@ def test_strict_mode_fails_loudly(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(fw, "_on_nmea", _boom)
     with pytest.raises(_Boom):
         fw.receive(3, _RMC)
+
+
+def test_imu_words_refused_exactly_at_the_24_bit_rails():
+    """``check_imu_words``: a word at either rail (2^23 - 1, -2^23) is saturated, one inside is not, on every axis;
+    the gyro's reason first (the chained comparisons of performance.md 5.7 keep the loop's rule)."""
+    from firmware_model.input_guard import S24_MAX, S24_MIN, check_imu_words
+
+    ok = (0, 0, 0)
+    for axis in range(3):
+        for w, bad in ((S24_MAX, True), (S24_MIN, True), (S24_MAX - 1, False), (S24_MIN + 1, False)):
+            v = tuple(w if i == axis else 0 for i in range(3))
+            assert check_imu_words(v, ok) == ("gyro_saturated" if bad else None)
+            assert check_imu_words(ok, v) == ("accel_saturated" if bad else None)
+            assert check_imu_words(v, v) == ("gyro_saturated" if bad else None)

@@ -131,3 +131,25 @@ def test_navstate_float_form_builds_read_only_arrays_and_assignment_returns_to_a
     f = NavState(s.q.astype(np.float32), s.v.astype(np.float32), s.pos.copy(), 0.0, np.zeros(3, np.float32))
     strapdown_step(f, np.zeros(3, np.float32), np.array([0, 0, 0.049], np.float32), 0.005, dtype=np.float32)
     assert f.q.dtype == f.v.dtype == f.a_prev.dtype == f.f_n.dtype == np.float32 and f.pos.dtype == np.float64
+
+
+@pytest.mark.parametrize("nav", ["float64", "float32"])
+def test_firmware_steps_with_the_kernel_of_strapdown_step_fast(nav):
+    """The 200 Hz loop picks the step of ``strapdown_step_fast`` for its nav precision once
+    (``strapdown_kernel``, performance.md 5.7): the same kernel, hence the same bits, as the dispatching call."""
+    from firmware_model import Firmware, FirmwareConfig
+    from firmware_model.strapdown import strapdown_kernel
+
+    fw = Firmware(FirmwareConfig(nav_state_precision=nav))
+    dt = np.float64 if nav == "float64" else np.float32
+    assert fw._strapdown is strapdown_kernel(dt)
+    rng = np.random.default_rng(3)
+    q = mat2q(a2mat(0.01, -0.02, 0.7))
+    a = NavState(q.astype(dt), np.array([3.0, -1.0, 0.1], dtype=dt), np.array([0.7, 2.0, 50.0]), 0.0)
+    b = NavState(q.astype(dt), np.array([3.0, -1.0, 0.1], dtype=dt), np.array([0.7, 2.0, 50.0]), 0.0)
+    for _ in range(50):
+        phi = rng.normal(0, 1e-3, 3).astype(dt).tolist()
+        dv = rng.normal(0, 5e-2, 3).astype(dt).tolist()
+        fw._strapdown(a, phi, dv, 0.005)
+        strapdown_step_fast(b, phi, dv, 0.005, dt)
+    assert a.as_floats() == b.as_floats()

@@ -25,13 +25,14 @@ Everything runs in the firmware's working precision (float32 by default).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
 
 from . import c674x
-from .arrays import FloatArray, FloatDtype
+from .arrays import F64Array, FloatArray, FloatDtype
 from .calibration import NOMINAL_POLARIZER_DEG
 from .psns_geometry import CameraGeometry
 from .units import HALF_PI
@@ -334,6 +335,14 @@ def sym3_eigen_smallest(K: FloatArray) -> tuple[FloatArray, tuple[float, float, 
     if best_n <= 0.0:
         return np.array([0.0, 0.0, 1.0], dtype=K.dtype), (float(l_min), float(l_mid), float(l_max))
     return (best / dt(math.sqrt(best_n))).astype(K.dtype), (float(l_min), float(l_mid), float(l_max))
+
+
+def obs_points_array(rows: Sequence[Sequence[int]]) -> F64Array:
+    """The observation points of a POLARIZATION_OBS frame as the ``(n, 4)`` float64 array ``x_px, y_px, aop_cdeg,
+    dop`` (C order), from its rows ``(x_px, y_px, aop_cdeg, dop, intensity)`` (``frame.rows``:
+    :class:`protocols.psns.PolarizationObsRows` as the loop's decoder gives it, or :class:`PolarizationObs`)."""
+    pts: F64Array = np.array(rows, dtype=np.float64)[:, :4].copy()
+    return pts
 
 
 def solve_solar_vector(e: FloatArray, dop: FloatArray, dop_min: float = 0.05, min_points: int = 3,

@@ -46,6 +46,7 @@ from __future__ import annotations
 import enum
 from collections.abc import Sequence
 from dataclasses import dataclass
+from itertools import starmap
 from typing import Any
 
 from construct import Array, Bytes, Const, Float32l, Int8ul, Int16sl, Int16ul, Int32ul, Struct, this
@@ -68,6 +69,7 @@ __all__ = [
     "CompassFrame",
     "CompassUnit",
     "PolarizationObs",
+    "PolarizationObsRows",
     "PolarizationPoint",
     "PsnsFormat",
     "PsnsHeader",
@@ -168,6 +170,29 @@ class PolarizationObs:
     header: PsnsHeader
     points: tuple[PolarizationPoint, ...]
 
+    @property
+    def rows(self) -> tuple[tuple[int, int, int, int, int], ...]:
+        """The points as rows ``(x_px, y_px, aop_cdeg, dop, intensity)`` (as :class:`PolarizationObsRows` holds
+        them)."""
+        return tuple((p.x_px, p.y_px, p.aop_cdeg, p.dop, p.intensity) for p in self.points)
+
+
+@fast_frozen_init
+@dataclass(frozen=True, slots=True)
+class PolarizationObsRows:
+    """A POLARIZATION_OBS frame as ``PsnsFormat(point_rows=True)`` decodes it: each point a row of its values
+    ``(x_px, y_px, aop_cdeg, dop, intensity)`` (the fields of :class:`PolarizationPoint`, in order) instead of a
+    point object, for a receiver that takes the points as an array (the firmware: 225 points per frame at 5 Hz).
+    ``points`` gives them as :class:`PolarizationPoint` objects, the frame's :class:`PolarizationObs` content."""
+
+    header: PsnsHeader
+    rows: tuple[tuple[int, int, int, int, int], ...]
+
+    @property
+    def points(self) -> tuple[PolarizationPoint, ...]:
+        """The rows as :class:`PolarizationPoint` objects."""
+        return tuple(starmap(PolarizationPoint, self.rows))
+
 
 @fast_frozen_init
 @dataclass(frozen=True, slots=True)
@@ -203,6 +228,7 @@ if (_HDR.size, _PT.size, _UNIT.size, HEADER_LEN + _SV.size) != (HEADER_LEN, POIN
     raise AssertionError("PSNS lengths disagree with the specs")
 _decode_header = _HDR.decoder(PsnsHeader)
 _decode_points = _PT.decoder(PolarizationPoint, many=True)
+_decode_point_rows = _PT.rows_unpacker(PolarizationPoint)
 _decode_units = _UNIT.decoder(CompassUnit, many=True)
 _decode_solar_vector = _SV.decoder(SolarVectorFrame)
 _encode_points = _PT.encoder(PolarizationPoint, many=True)
@@ -247,9 +273,9 @@ def encode_solar_vector(h: PsnsHeader, s: tuple[float, float, float], quality: f
     return _frame(MSG_SOLAR_VECTOR, _hdr(h, h.count) + _pack_solar_vector(s=s, quality=quality))
 
 
-def encode_psns(obj: PolarizationObs | CompassFrame | SolarVectorFrame) -> bytes:
+def encode_psns(obj: PolarizationObs | PolarizationObsRows | CompassFrame | SolarVectorFrame) -> bytes:
     """Encode any object :class:`PsnsFormat` decodes (the inverse of its ``parse``)."""
-    if isinstance(obj, PolarizationObs):
+    if isinstance(obj, PolarizationObs | PolarizationObsRows):
         return encode_polarization_obs(obj.header, obj.points)
     if isinstance(obj, CompassFrame):
         return encode_compass(obj.header, obj.units)
@@ -272,10 +298,17 @@ def max_points(baud: int, rate_hz: float, bits_per_byte: int = 10) -> int:
 
 
 class PsnsFormat:
-    """:class:`~protocols.stream.FrameFormat` of PSNS frames (all three messages)."""
+    """:class:`~protocols.stream.FrameFormat` of PSNS frames (all three messages).
+
+    ``point_rows``: POLARIZATION_OBS parses to :class:`PolarizationObsRows` (each point a tuple of its values)
+    instead of :class:`PolarizationObs` (each point an object); the same frames, checked the same way.
+    """
 
     name = "psns"
     sync = PSNS_SYNC
+
+    def __init__(self, point_rows: bool = False) -> None:
+        self.point_rows = point_rows
 
     @staticmethod
     def encode(obj: Any) -> bytes:
@@ -309,7 +342,7 @@ class PsnsFormat:
     def check(self, frame: bytes) -> bool:
         return crc16_ccitt(frame[2:-2]) == (frame[-2] | (frame[-1] << 8))
 
-    def parse(self, frame: bytes) -> PolarizationObs | CompassFrame | SolarVectorFrame:
+    def parse(self, frame: bytes) -> PolarizationObs | PolarizationObsRows | CompassFrame | SolarVectorFrame:
         msg_id = frame[2]
         payload = frame[5:-2]
         h: PsnsHeader = _decode_header(payload)
@@ -318,6 +351,8 @@ class PsnsFormat:
             if len(body) != h.count * POINT_LEN:
                 raise ValueError(f"POLARIZATION_OBS: {h.count} points need {h.count * POINT_LEN} bytes, "
                                  f"got {len(body)}")
+            if self.point_rows:
+                return PolarizationObsRows(h, _decode_point_rows(body))
             return PolarizationObs(h, _decode_points(body))
         if msg_id == MSG_COMPASS:
             if len(body) != h.count * UNIT_LEN:

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from protocols.psns import CompassFrame, PolarizationObs, PsnsStatus, SolarVectorFrame
+from protocols.psns import CompassFrame, PolarizationObs, PolarizationObsRows, PsnsStatus, SolarVectorFrame
 
 from .. import c674x, psns, sun
 from ..attitude import q2mat_fast
@@ -23,10 +23,15 @@ from .state import SolarSolve
 __all__ = ["PsnsTask", "psns_frame_len"]
 
 
+#: the decoded POLARIZATION_OBS frames: points as objects, or as rows (the loop's own decoder,
+#: ``PsnsFormat(point_rows=True)``: no point objects per frame)
+_OBS_FRAMES = (PolarizationObs, PolarizationObsRows)
+
+
 def psns_frame_len(f: Any) -> int:
     """Wire length of a decoded PSNS frame (sync, id, length, header, body, CRC)."""
-    if isinstance(f, PolarizationObs):
-        return 7 + 13 + 10 * len(f.points)
+    if isinstance(f, _OBS_FRAMES):
+        return 7 + 13 + 10 * len(f.rows if isinstance(f, PolarizationObsRows) else f.points)
     if isinstance(f, CompassFrame):
         return 7 + 13 + 5 * len(f.units)
     return 7 + 13 + 16
@@ -59,12 +64,13 @@ class PsnsTask(Navigation):
             self.counters["psns_invalid"] += 1
             return None
         cam = cfg.camera
-        if isinstance(f, PolarizationObs):
-            n = len(f.points)
+        if isinstance(f, _OBS_FRAMES):
+            rows = f.rows  # (x_px, y_px, aop_cdeg, dop, intensity) per point
+            n = len(rows)
             if n < 3:
                 self.counters["psns_invalid"] += 1
                 return None
-            pts = np.array([(p.x_px, p.y_px, p.aop_cdeg, p.dop) for p in f.points], dtype=np.float64)
+            pts = psns.obs_points_array(rows)
             aop = (pts[:, 2] * (0.01 * DEG)).astype(dt)
             dop = (pts[:, 3] * (1.0 / 65535.0)).astype(dt)
             aop, dop = psns.correct_polarizer(aop, dop, cam, dtype=dt)
@@ -103,7 +109,7 @@ class PsnsTask(Navigation):
         if isinstance(f, CompassFrame):
             t_exp = self._psns_frame_in(t_rx, f)
             return self.filter.update_compass(nav, f, t_exp) if cfg.psns_enabled else None
-        if self.filter.raw_polarization_obs and isinstance(f, PolarizationObs):
+        if self.filter.raw_polarization_obs and isinstance(f, _OBS_FRAMES):
             t_exp = self._psns_frame_in(t_rx, f)
             if not cfg.psns_enabled or t - t_exp > cfg.psns_max_age_s:
                 return None

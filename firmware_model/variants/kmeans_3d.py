@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from protocols.psns import PolarizationObs, PsnsStatus
+from protocols.psns import PolarizationObs, PolarizationObsRows, PsnsStatus
 
 from .. import c674x, psns, sun
 from ..arrays import BoolArray, F64Array, FloatArray, FloatDtype, IntArray
@@ -444,8 +444,8 @@ class Kmeans3dFilter(BaseFilter):
             self._state_key = key
             self.mm.event(t, "kmeans_solved" if ok else "kmeans_refused", reason, **fields)
 
-    def update_polarization_obs(self, nav: NavState, frame: PolarizationObs, t_exposure_s: float
-                                ) -> UpdateReport | None:
+    def update_polarization_obs(self, nav: NavState, frame: PolarizationObs | PolarizationObsRows,
+                                t_exposure_s: float) -> UpdateReport | None:
         host = self.host
         assert host is not None
         mm, pm, cost = self.mm, self.mm.params, self.cost
@@ -459,11 +459,12 @@ class Kmeans3dFilter(BaseFilter):
         if days is None:
             mm.decide(t, "camera", False, "no_utc")
             return None
-        n = len(frame.points)
+        rows = frame.rows  # (x_px, y_px, aop_cdeg, dop, intensity) per point
+        n = len(rows)
         if n < 3:
             mm.decide(t, "camera", False, "too_few_points", points=n)
             return UpdateReport("kmeans", False, 0, 0.0, {"reason": "too_few_points"})
-        pts = np.array([(p.x_px, p.y_px, p.aop_cdeg, p.dop) for p in frame.points], dtype=np.float64)
+        pts = psns.obs_points_array(rows)
         aop = (pts[:, 2] * (0.01 * DEG)).astype(dt)
         dop = (pts[:, 3] * (1.0 / 65535.0)).astype(dt)
         cam = self.cfg.camera

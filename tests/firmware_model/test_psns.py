@@ -282,3 +282,20 @@ def test_calibrated_evectors_per_point_terms_cached_per_camera_and_point_set():
     assert np.abs(e_a - e_b).max() > 1e-3  # not the other camera's terms
     e_sub = psns.evectors_camera(x[:20], y[:20], aop[:20], cam_a, dtype=np.float64)
     assert np.array_equal(e_sub, e_a[:20])
+
+
+def test_obs_points_array_is_the_array_of_the_point_objects():
+    """``obs_points_array`` (from a frame's rows) is, byte for byte and in layout, the ``(n, 4)`` float64 array the
+    loop built from the point objects, ``np.array([(p.x_px, p.y_px, p.aop_cdeg, p.dop) for p in points])``
+    (performance.md 5.7, D-10.E9)."""
+    from protocols.psns import PolarizationObs, PolarizationPoint, PsnsHeader
+
+    rng = np.random.default_rng(4)
+    for n in (1, 3, 225):
+        pts = tuple(PolarizationPoint(int(rng.integers(1, 2449)), int(rng.integers(1, 2049)),
+                                      int(rng.integers(-32768, 32768)), int(rng.integers(0, 65536)),
+                                      int(rng.integers(0, 65536))) for _ in range(n))
+        ref = np.array([(p.x_px, p.y_px, p.aop_cdeg, p.dop) for p in pts], dtype=np.float64)
+        got = psns.obs_points_array(PolarizationObs(PsnsHeader(0, 0, 0, 1, n), pts).rows)
+        assert got.dtype == ref.dtype and got.shape == ref.shape == (n, 4)
+        assert got.flags.c_contiguous and got.strides == ref.strides and got.tobytes() == ref.tobytes()

@@ -128,3 +128,34 @@ def test_columns_packer_is_refused_for_a_class_that_is_not_the_layout():
     CODECS.remove(codec)  # a test's codec: not one of the registry's
     with pytest.raises(TypeError, match="not the spec's fields in order"):
         codec.columns_packer(Swapped)
+
+
+def test_point_rows_are_the_points_of_the_objects_frame():
+    """``PsnsFormat(point_rows=True)`` (the firmware's decoder, no point objects) decodes the same frames to
+    ``PolarizationObsRows`` whose rows are the point objects' values in field order, ``.points`` the very objects
+    and ``.rows`` of the objects' frame the same rows; the other messages and the refusals are unchanged, and
+    ``encode_psns`` gives the frame back (performance.md 5.7, D-10.E9)."""
+    import numpy as np
+
+    from protocols.psns import PolarizationObs, PolarizationObsRows, encode_psns
+
+    rng = np.random.default_rng(11)
+    for n in (0, 1, 3, 225, 228):
+        cols = (rng.integers(1, 2449, n).tolist(), rng.integers(1, 2049, n).tolist(),
+                rng.integers(-32768, 32768, n).tolist(), rng.integers(0, 65536, n).tolist(),
+                rng.integers(0, 65536, n).tolist())
+        raw = encode_polarization_obs_columns(H, *cols)
+        objs = parse_one(PsnsFormat(), raw)
+        rows = parse_one(PsnsFormat(point_rows=True), raw)
+        assert type(objs) is PolarizationObs and type(rows) is PolarizationObsRows
+        assert rows.header == objs.header
+        assert rows.rows == tuple(zip(*cols)) == objs.rows
+        assert rows.points == objs.points
+        assert encode_psns(rows) == encode_psns(objs) == raw
+    for raw in (encode_compass(H, [CompassUnit(1, -3, 9)]), encode_solar_vector(H, (0.0, 0.6, 0.8), 1.5)):
+        assert parse_one(PsnsFormat(point_rows=True), raw) == parse_one(PsnsFormat(), raw)
+    bad = bytearray(encode_polarization_obs_columns(H, [1, 2], [1, 2], [0, 0], [0, 0], [0, 0]))
+    bad[-3] ^= 0xFF  # a CRC error: refused by both
+    for fmt in (PsnsFormat(), PsnsFormat(point_rows=True)):
+        d = StreamDecoder([fmt])
+        assert d.feed(bytes(bad)) == [] and d.stats.crc_errors == 1

@@ -116,3 +116,41 @@ def test_worst_tick_per_variant_stays_inside_the_200_hz_budget(variant, capsys):
         print(f"\n{variant}: worst tick {tick.cycles_max} cycles ({pct:.2f} % of {fw.meter.tick_budget}), "
               f"average {tick.cycles_avg:.0f}")
     assert pct < 20.0
+
+
+def _ticks(fw: Firmware, events: list[tuple[float, int, bytes]]) -> list[tuple[object, ...]]:
+    out = []
+    for t_rx, uart, data in events:
+        fw.receive(uart, data, t_rx)
+        if uart == 1:
+            out.extend((r.t_fpga_s, r.cycles, r.outputs, r.events, [vars(s) for s in r.solar_solves])
+                       for r in fw.service())
+    return out
+
+
+@pytest.mark.parametrize("variant", ["base", "kmeans_3d"])
+def test_points_as_rows_give_the_ticks_of_point_objects(variant):
+    """The loop's PSNS decoder hands POLARIZATION_OBS points over as rows (``PsnsFormat(point_rows=True)``, no
+    object per point: performance.md 5.7, D-10.E9); with the plain decoder (point objects) every tick is the
+    same: time, cycles, output bytes, events, solar solves (the firmware's solve and the K-means variant's raw
+    frames)."""
+    from protocols.psns import PsnsFormat
+
+    from ..synth import SensorErrors, StaticTruth, StreamConfig, static_stream
+
+    if variant == "base":
+        cfg = FirmwareConfig(initial_heading_deg=30.5)
+        err = SensorErrors(gyro_bias_dph=(5, -3, 4), gyro_arw_deg_rt_h=0.15, accel_bias_mg=(1, -1, 0.5),
+                           accel_noise_ug_rt_hz=100, gnss_pos_sigma_m=3, gnss_vel_sigma_mps=0.03,
+                           psns_sigma_deg=0.03)
+        events = list(static_stream(StaticTruth(), err, StreamConfig(psns="polarization_obs"), 12.0))
+    else:
+        cfg, spec = _setup(variant, 12.0)
+        events = list(stream(spec))
+    rows_fw, objs_fw = Firmware(cfg), Firmware(cfg)
+    objs_fw._dec_psns = StreamDecoder([PsnsFormat()])  # the plain path: a PolarizationPoint per point
+    rows, objs = _ticks(rows_fw, events), _ticks(objs_fw, events)
+    assert rows == objs
+    assert rows_fw.counters == objs_fw.counters and rows_fw.counters["psns_frames"] >= 20
+    solved = sum(len(t[4]) for t in rows) if variant == "base" else rows_fw.counters.get("psns_updates", 0)
+    assert solved > 0

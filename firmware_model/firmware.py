@@ -147,7 +147,7 @@ class Firmware(HostTask, GnssTask):
         self._dec_host = StreamDecoder([HostFormat()])
         self._pending_cmd = deque(maxlen=16)
         self.last_mag = None
-        self._dec_psns = StreamDecoder([PsnsFormat(point_rows=True)])  # points as rows: no object per point
+        self._dec_psns = StreamDecoder([PsnsFormat(packed_points=True)])  # the points' bytes: no object per point
         self._pending_imu = deque()
         self._pending_psns = deque(maxlen=8)
         self._rx_other = {}

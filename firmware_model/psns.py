@@ -25,11 +25,13 @@ Everything runs in the firmware's working precision (float32 by default).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+import struct
 from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
+
+from protocols.psns import POINT_FIELDS, POINT_STRUCT_FORMAT
 
 from . import c674x
 from .arrays import F64Array, FloatArray, FloatDtype
@@ -337,11 +339,23 @@ def sym3_eigen_smallest(K: FloatArray) -> tuple[FloatArray, tuple[float, float, 
     return (best / dt(math.sqrt(best_n))).astype(K.dtype), (float(l_min), float(l_mid), float(l_max))
 
 
-def obs_points_array(rows: Sequence[Sequence[int]]) -> F64Array:
+#: one POLARIZATION_OBS point record as a numpy dtype, from its ``struct`` layout (protocols.psns.POINT_SPEC)
+_POINT_DTYPE = np.dtype([(name, POINT_STRUCT_FORMAT[0] + ch) for name, ch in zip(POINT_FIELDS, POINT_STRUCT_FORMAT[1:],
+                                                                                    strict=True)])
+if _POINT_DTYPE.itemsize != struct.calcsize(POINT_STRUCT_FORMAT):  # pragma: no cover - a field that is not one item
+    raise AssertionError("POINT_STRUCT_FORMAT does not map one item per point field")
+
+
+def obs_points_array(point_bytes: bytes) -> F64Array:
     """The observation points of a POLARIZATION_OBS frame as the ``(n, 4)`` float64 array ``x_px, y_px, aop_cdeg,
-    dop`` (C order), from its rows ``(x_px, y_px, aop_cdeg, dop, intensity)`` (``frame.rows``:
-    :class:`protocols.psns.PolarizationObsRows` as the loop's decoder gives it, or :class:`PolarizationObs`)."""
-    pts: F64Array = np.array(rows, dtype=np.float64)[:, :4].copy()
+    dop`` (C order), from their wire bytes (``frame.point_bytes``: :class:`protocols.psns.PolarizationObsPacked` as
+    the loop's decoder gives it, or :class:`protocols.psns.PolarizationObs`)."""
+    rec = np.frombuffer(point_bytes, dtype=_POINT_DTYPE)
+    pts: F64Array = np.empty((len(rec), 4), dtype=np.float64)
+    pts[:, 0] = rec["x_px"]
+    pts[:, 1] = rec["y_px"]
+    pts[:, 2] = rec["aop_cdeg"]
+    pts[:, 3] = rec["dop"]
     return pts
 
 

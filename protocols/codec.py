@@ -445,27 +445,6 @@ class StructCodec:
         unpack: Callable[[bytes | bytearray | memoryview, int], tuple[Any, ...]] = self.struct.unpack_from
         return unpack
 
-    def rows_unpacker(self, cls: type) -> Callable[[bytes | bytearray | memoryview], tuple[tuple[Any, ...], ...]]:
-        """``decode_rows(buf) -> tuple of tuples``: back-to-back records as the tuples of their values, each the
-        argument list of ``cls`` (the items of :meth:`decoder` ``(cls, many=True)`` without building them: a
-        receiver that takes the records as an array). ``cls`` as in :meth:`unpacker` (``TypeError`` otherwise);
-        the objects' decoder is registered as well, so the equivalence test covers the dataclass. A buffer that is
-        not a whole number of records raises ``ValueError``."""
-        self.decoder(cls, many=True)
-        if any(it.kind not in ("scalar", "bytes") for it in self._items) or self._consts \
-                or [f.name for f in fields(cls) if f.init] != list(self.names):
-            raise TypeError(f"{self.name}: the fields of {cls.__name__} are not the spec's fields in order")
-        iter_unpack, name = self.struct.iter_unpack, self.name
-
-        def decode_rows(buf: bytes | bytearray | memoryview) -> tuple[tuple[Any, ...], ...]:
-            try:
-                return tuple(iter_unpack(buf))
-            except struct.error as exc:
-                raise ValueError(f"{name}: {exc}") from exc
-
-        decode_rows.__qualname__ = f"{name}.decode_rows"
-        return decode_rows
-
     def columns_packer(self, cls: type) -> Callable[..., bytes]:
         """``encode_columns(*columns) -> bytes``: records packed back to back from one sequence per value field (in
         the spec's order: ``encode_columns(xs, ys, ...)``), the bytes of :meth:`encoder` ``(cls, many=True)`` on

@@ -46,7 +46,6 @@ from __future__ import annotations
 import enum
 from collections.abc import Sequence
 from dataclasses import dataclass
-from itertools import starmap
 from typing import Any
 
 from construct import Array, Bytes, Const, Float32l, Int8ul, Int16sl, Int16ul, Int32ul, Struct, this
@@ -61,6 +60,8 @@ __all__ = [
     "MSG_COMPASS",
     "MSG_POLARIZATION_OBS",
     "MSG_SOLAR_VECTOR",
+    "POINT_FIELDS",
+    "POINT_STRUCT_FORMAT",
     "POLARIZATION_OBS_SPEC",
     "PSNS_FRAME_SPEC",
     "PSNS_MAX_PAYLOAD",
@@ -69,7 +70,7 @@ __all__ = [
     "CompassFrame",
     "CompassUnit",
     "PolarizationObs",
-    "PolarizationObsRows",
+    "PolarizationObsPacked",
     "PolarizationPoint",
     "PsnsFormat",
     "PsnsHeader",
@@ -171,27 +172,36 @@ class PolarizationObs:
     points: tuple[PolarizationPoint, ...]
 
     @property
-    def rows(self) -> tuple[tuple[int, int, int, int, int], ...]:
-        """The points as rows ``(x_px, y_px, aop_cdeg, dop, intensity)`` (as :class:`PolarizationObsRows` holds
-        them)."""
-        return tuple((p.x_px, p.y_px, p.aop_cdeg, p.dop, p.intensity) for p in self.points)
+    def n_points(self) -> int:
+        return len(self.points)
+
+    @property
+    def point_bytes(self) -> bytes:
+        """The points as on the wire (``n_points`` records of :data:`POINT_SPEC`, as
+        :class:`PolarizationObsPacked` holds them)."""
+        return _encode_points(self.points)
 
 
 @fast_frozen_init
 @dataclass(frozen=True, slots=True)
-class PolarizationObsRows:
-    """A POLARIZATION_OBS frame as ``PsnsFormat(point_rows=True)`` decodes it: each point a row of its values
-    ``(x_px, y_px, aop_cdeg, dop, intensity)`` (the fields of :class:`PolarizationPoint`, in order) instead of a
-    point object, for a receiver that takes the points as an array (the firmware: 225 points per frame at 5 Hz).
-    ``points`` gives them as :class:`PolarizationPoint` objects, the frame's :class:`PolarizationObs` content."""
+class PolarizationObsPacked:
+    """A POLARIZATION_OBS frame as ``PsnsFormat(packed_points=True)`` decodes it: the points kept as their wire bytes
+    (``point_bytes``: records of :data:`POINT_SPEC` back to back, layout :data:`POINT_STRUCT_FORMAT`) instead of a
+    :class:`PolarizationPoint` object each, for a receiver that maps them onto an array (the firmware: 225 points
+    per frame at 5 Hz). ``points`` gives the objects, the frame's :class:`PolarizationObs` content."""
 
     header: PsnsHeader
-    rows: tuple[tuple[int, int, int, int, int], ...]
+    point_bytes: bytes
+
+    @property
+    def n_points(self) -> int:
+        return len(self.point_bytes) // POINT_LEN
 
     @property
     def points(self) -> tuple[PolarizationPoint, ...]:
-        """The rows as :class:`PolarizationPoint` objects."""
-        return tuple(starmap(PolarizationPoint, self.rows))
+        """The points as :class:`PolarizationPoint` objects."""
+        pts: tuple[PolarizationPoint, ...] = _decode_points(self.point_bytes)
+        return pts
 
 
 @fast_frozen_init
@@ -228,7 +238,10 @@ if (_HDR.size, _PT.size, _UNIT.size, HEADER_LEN + _SV.size) != (HEADER_LEN, POIN
     raise AssertionError("PSNS lengths disagree with the specs")
 _decode_header = _HDR.decoder(PsnsHeader)
 _decode_points = _PT.decoder(PolarizationPoint, many=True)
-_decode_point_rows = _PT.rows_unpacker(PolarizationPoint)
+#: the ``struct`` format of one point record and its fields in order, derived from :data:`POINT_SPEC` (a receiver
+#: that maps ``PolarizationObsPacked.point_bytes`` onto an array)
+POINT_STRUCT_FORMAT: str = _PT.struct.format
+POINT_FIELDS: tuple[str, ...] = _PT.names
 _decode_units = _UNIT.decoder(CompassUnit, many=True)
 _decode_solar_vector = _SV.decoder(SolarVectorFrame)
 _encode_points = _PT.encoder(PolarizationPoint, many=True)
@@ -273,10 +286,12 @@ def encode_solar_vector(h: PsnsHeader, s: tuple[float, float, float], quality: f
     return _frame(MSG_SOLAR_VECTOR, _hdr(h, h.count) + _pack_solar_vector(s=s, quality=quality))
 
 
-def encode_psns(obj: PolarizationObs | PolarizationObsRows | CompassFrame | SolarVectorFrame) -> bytes:
+def encode_psns(obj: PolarizationObs | PolarizationObsPacked | CompassFrame | SolarVectorFrame) -> bytes:
     """Encode any object :class:`PsnsFormat` decodes (the inverse of its ``parse``)."""
-    if isinstance(obj, PolarizationObs | PolarizationObsRows):
+    if isinstance(obj, PolarizationObs):
         return encode_polarization_obs(obj.header, obj.points)
+    if isinstance(obj, PolarizationObsPacked):
+        return _frame(MSG_POLARIZATION_OBS, _hdr(obj.header, obj.n_points) + obj.point_bytes)
     if isinstance(obj, CompassFrame):
         return encode_compass(obj.header, obj.units)
     return encode_solar_vector(obj.header, obj.s, obj.quality)
@@ -300,15 +315,15 @@ def max_points(baud: int, rate_hz: float, bits_per_byte: int = 10) -> int:
 class PsnsFormat:
     """:class:`~protocols.stream.FrameFormat` of PSNS frames (all three messages).
 
-    ``point_rows``: POLARIZATION_OBS parses to :class:`PolarizationObsRows` (each point a tuple of its values)
+    ``packed_points``: POLARIZATION_OBS parses to :class:`PolarizationObsPacked` (the points' bytes as they came)
     instead of :class:`PolarizationObs` (each point an object); the same frames, checked the same way.
     """
 
     name = "psns"
     sync = PSNS_SYNC
 
-    def __init__(self, point_rows: bool = False) -> None:
-        self.point_rows = point_rows
+    def __init__(self, packed_points: bool = False) -> None:
+        self.packed_points = packed_points
 
     @staticmethod
     def encode(obj: Any) -> bytes:
@@ -342,7 +357,7 @@ class PsnsFormat:
     def check(self, frame: bytes) -> bool:
         return crc16_ccitt(frame[2:-2]) == (frame[-2] | (frame[-1] << 8))
 
-    def parse(self, frame: bytes) -> PolarizationObs | PolarizationObsRows | CompassFrame | SolarVectorFrame:
+    def parse(self, frame: bytes) -> PolarizationObs | PolarizationObsPacked | CompassFrame | SolarVectorFrame:
         msg_id = frame[2]
         payload = frame[5:-2]
         h: PsnsHeader = _decode_header(payload)
@@ -351,8 +366,8 @@ class PsnsFormat:
             if len(body) != h.count * POINT_LEN:
                 raise ValueError(f"POLARIZATION_OBS: {h.count} points need {h.count * POINT_LEN} bytes, "
                                  f"got {len(body)}")
-            if self.point_rows:
-                return PolarizationObsRows(h, _decode_point_rows(body))
+            if self.packed_points:
+                return PolarizationObsPacked(h, body)
             return PolarizationObs(h, _decode_points(body))
         if msg_id == MSG_COMPASS:
             if len(body) != h.count * UNIT_LEN:

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from protocols.psns import CompassFrame, PolarizationObs, PolarizationObsRows, PsnsStatus, SolarVectorFrame
+from protocols.psns import CompassFrame, PolarizationObs, PolarizationObsPacked, PsnsStatus, SolarVectorFrame
 
 from .. import c674x, psns, sun
 from ..attitude import q2mat_fast
@@ -23,15 +23,15 @@ from .state import SolarSolve
 __all__ = ["PsnsTask", "psns_frame_len"]
 
 
-#: the decoded POLARIZATION_OBS frames: points as objects, or as rows (the loop's own decoder,
-#: ``PsnsFormat(point_rows=True)``: no point objects per frame)
-_OBS_FRAMES = (PolarizationObs, PolarizationObsRows)
+#: the decoded POLARIZATION_OBS frames: points as objects, or as their wire bytes (the loop's own decoder,
+#: ``PsnsFormat(packed_points=True)``: no point objects per frame)
+_OBS_FRAMES = (PolarizationObs, PolarizationObsPacked)
 
 
 def psns_frame_len(f: Any) -> int:
     """Wire length of a decoded PSNS frame (sync, id, length, header, body, CRC)."""
     if isinstance(f, _OBS_FRAMES):
-        return 7 + 13 + 10 * len(f.rows if isinstance(f, PolarizationObsRows) else f.points)
+        return 7 + 13 + 10 * f.n_points
     if isinstance(f, CompassFrame):
         return 7 + 13 + 5 * len(f.units)
     return 7 + 13 + 16
@@ -65,12 +65,11 @@ class PsnsTask(Navigation):
             return None
         cam = cfg.camera
         if isinstance(f, _OBS_FRAMES):
-            rows = f.rows  # (x_px, y_px, aop_cdeg, dop, intensity) per point
-            n = len(rows)
+            n = f.n_points
             if n < 3:
                 self.counters["psns_invalid"] += 1
                 return None
-            pts = psns.obs_points_array(rows)
+            pts = psns.obs_points_array(f.point_bytes)
             aop = (pts[:, 2] * (0.01 * DEG)).astype(dt)
             dop = (pts[:, 3] * (1.0 / 65535.0)).astype(dt)
             aop, dop = psns.correct_polarizer(aop, dop, cam, dtype=dt)

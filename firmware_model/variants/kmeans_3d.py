@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from protocols.psns import PolarizationObs, PolarizationObsRows, PsnsStatus
+from protocols.psns import PolarizationObs, PolarizationObsPacked, PsnsStatus
 
 from .. import c674x, psns, sun
 from ..arrays import BoolArray, F64Array, FloatArray, FloatDtype, IntArray
@@ -444,7 +444,7 @@ class Kmeans3dFilter(BaseFilter):
             self._state_key = key
             self.mm.event(t, "kmeans_solved" if ok else "kmeans_refused", reason, **fields)
 
-    def update_polarization_obs(self, nav: NavState, frame: PolarizationObs | PolarizationObsRows,
+    def update_polarization_obs(self, nav: NavState, frame: PolarizationObs | PolarizationObsPacked,
                                 t_exposure_s: float) -> UpdateReport | None:
         host = self.host
         assert host is not None
@@ -459,12 +459,11 @@ class Kmeans3dFilter(BaseFilter):
         if days is None:
             mm.decide(t, "camera", False, "no_utc")
             return None
-        rows = frame.rows  # (x_px, y_px, aop_cdeg, dop, intensity) per point
-        n = len(rows)
+        n = frame.n_points
         if n < 3:
             mm.decide(t, "camera", False, "too_few_points", points=n)
             return UpdateReport("kmeans", False, 0, 0.0, {"reason": "too_few_points"})
-        pts = psns.obs_points_array(rows)
+        pts = psns.obs_points_array(frame.point_bytes)
         aop = (pts[:, 2] * (0.01 * DEG)).astype(dt)
         dop = (pts[:, 3] * (1.0 / 65535.0)).astype(dt)
         cam = self.cfg.camera

@@ -285,17 +285,20 @@ def test_calibrated_evectors_per_point_terms_cached_per_camera_and_point_set():
 
 
 def test_obs_points_array_is_the_array_of_the_point_objects():
-    """``obs_points_array`` (from a frame's rows) is, byte for byte and in layout, the ``(n, 4)`` float64 array the
-    loop built from the point objects, ``np.array([(p.x_px, p.y_px, p.aop_cdeg, p.dop) for p in points])``
-    (performance.md 5.7, D-10.E9)."""
+    """``obs_points_array`` (from a frame's point bytes) is, byte for byte and in layout, the ``(n, 4)`` float64 array
+    the loop built from the point objects, ``np.array([(p.x_px, p.y_px, p.aop_cdeg, p.dop) for p in points])``,
+    every field over its whole range (performance.md 5.7, D-10.E9)."""
     from protocols.psns import PolarizationObs, PolarizationPoint, PsnsHeader
 
     rng = np.random.default_rng(4)
     for n in (1, 3, 225):
-        pts = tuple(PolarizationPoint(int(rng.integers(1, 2449)), int(rng.integers(1, 2049)),
+        pts = tuple(PolarizationPoint(int(rng.integers(0, 65536)), int(rng.integers(0, 65536)),
                                       int(rng.integers(-32768, 32768)), int(rng.integers(0, 65536)),
                                       int(rng.integers(0, 65536))) for _ in range(n))
+        if n == 225:
+            pts = (PolarizationPoint(0, 65535, -32768, 65535, 0), PolarizationPoint(65535, 0, 32767, 0, 65535),
+                   *pts[2:])
         ref = np.array([(p.x_px, p.y_px, p.aop_cdeg, p.dop) for p in pts], dtype=np.float64)
-        got = psns.obs_points_array(PolarizationObs(PsnsHeader(0, 0, 0, 1, n), pts).rows)
+        got = psns.obs_points_array(PolarizationObs(PsnsHeader(0, 0, 0, 1, n), pts).point_bytes)
         assert got.dtype == ref.dtype and got.shape == ref.shape == (n, 4)
         assert got.flags.c_contiguous and got.strides == ref.strides and got.tobytes() == ref.tobytes()

@@ -1,5 +1,7 @@
 """PSNS frames: round trips, declarative specs, and the RS232 point budget."""
 
+from dataclasses import fields
+
 import pytest
 
 from protocols.psns import (
@@ -130,15 +132,18 @@ def test_columns_packer_is_refused_for_a_class_that_is_not_the_layout():
         codec.columns_packer(Swapped)
 
 
-def test_point_rows_are_the_points_of_the_objects_frame():
-    """``PsnsFormat(point_rows=True)`` (the firmware's decoder, no point objects) decodes the same frames to
-    ``PolarizationObsRows`` whose rows are the point objects' values in field order, ``.points`` the very objects
-    and ``.rows`` of the objects' frame the same rows; the other messages and the refusals are unchanged, and
-    ``encode_psns`` gives the frame back (performance.md 5.7, D-10.E9)."""
+def test_packed_points_are_the_points_of_the_objects_frame():
+    """``PsnsFormat(packed_points=True)`` (the firmware's decoder, no point objects) decodes the same frames to
+    ``PolarizationObsPacked``: its ``point_bytes`` are the frame's point records, ``.points`` the objects the
+    plain decoder gives, ``point_bytes`` of the objects' frame the same bytes; the other messages and the
+    refusals are unchanged, and ``encode_psns`` gives the frame back (performance.md 5.7, D-10.E9)."""
+    import struct
+
     import numpy as np
 
-    from protocols.psns import PolarizationObs, PolarizationObsRows, encode_psns
+    from protocols.psns import POINT_FIELDS, POINT_STRUCT_FORMAT, PolarizationObs, PolarizationObsPacked, encode_psns
 
+    assert tuple(f.name for f in fields(PolarizationPoint)) == POINT_FIELDS
     rng = np.random.default_rng(11)
     for n in (0, 1, 3, 225, 228):
         cols = (rng.integers(1, 2449, n).tolist(), rng.integers(1, 2049, n).tolist(),
@@ -146,16 +151,17 @@ def test_point_rows_are_the_points_of_the_objects_frame():
                 rng.integers(0, 65536, n).tolist())
         raw = encode_polarization_obs_columns(H, *cols)
         objs = parse_one(PsnsFormat(), raw)
-        rows = parse_one(PsnsFormat(point_rows=True), raw)
-        assert type(objs) is PolarizationObs and type(rows) is PolarizationObsRows
-        assert rows.header == objs.header
-        assert rows.rows == tuple(zip(*cols)) == objs.rows
-        assert rows.points == objs.points
-        assert encode_psns(rows) == encode_psns(objs) == raw
+        packed = parse_one(PsnsFormat(packed_points=True), raw)
+        assert type(objs) is PolarizationObs and type(packed) is PolarizationObsPacked
+        assert packed.header == objs.header and packed.n_points == objs.n_points == n
+        assert packed.point_bytes == raw[5 + 13:-2] == objs.point_bytes
+        assert tuple(struct.iter_unpack(POINT_STRUCT_FORMAT, packed.point_bytes)) == tuple(zip(*cols))
+        assert packed.points == objs.points
+        assert encode_psns(packed) == encode_psns(objs) == raw
     for raw in (encode_compass(H, [CompassUnit(1, -3, 9)]), encode_solar_vector(H, (0.0, 0.6, 0.8), 1.5)):
-        assert parse_one(PsnsFormat(point_rows=True), raw) == parse_one(PsnsFormat(), raw)
+        assert parse_one(PsnsFormat(packed_points=True), raw) == parse_one(PsnsFormat(), raw)
     bad = bytearray(encode_polarization_obs_columns(H, [1, 2], [1, 2], [0, 0], [0, 0], [0, 0]))
     bad[-3] ^= 0xFF  # a CRC error: refused by both
-    for fmt in (PsnsFormat(), PsnsFormat(point_rows=True)):
+    for fmt in (PsnsFormat(), PsnsFormat(packed_points=True)):
         d = StreamDecoder([fmt])
         assert d.feed(bytes(bad)) == [] and d.stats.crc_errors == 1

@@ -129,9 +129,9 @@ def _ticks(fw: Firmware, events: list[tuple[float, int, bytes]]) -> list[tuple[o
 
 
 @pytest.mark.parametrize("variant", ["base", "kmeans_3d"])
-def test_points_as_rows_give_the_ticks_of_point_objects(variant):
-    """The loop's PSNS decoder hands POLARIZATION_OBS points over as rows (``PsnsFormat(point_rows=True)``, no
-    object per point: performance.md 5.7, D-10.E9); with the plain decoder (point objects) every tick is the
+def test_packed_points_give_the_ticks_of_point_objects(variant):
+    """The loop's PSNS decoder hands POLARIZATION_OBS points over as their bytes (``PsnsFormat(packed_points=True)``,
+    no object per point: performance.md 5.7, D-10.E9); with the plain decoder (point objects) every tick is the
     same: time, cycles, output bytes, events, solar solves (the firmware's solve and the K-means variant's raw
     frames)."""
     from protocols.psns import PsnsFormat

@@ -51,6 +51,7 @@ import sys
 import threading
 import time as _time
 from asyncio import events as _events
+from asyncio.format_helpers import _format_callback_source
 from collections import deque
 from collections.abc import Callable, Hashable
 from contextvars import copy_context as _copy_context
@@ -344,6 +345,22 @@ class _Timer(_events.TimerHandle):
     def __lt__(self, other: _Timer) -> bool:  # type: ignore[override]  # the heap holds timer handles only
         return self._when < other._when
 
+    def cancel(self) -> None:
+        """:meth:`asyncio.TimerHandle.cancel` in one frame when the loop is not in debug mode (the fast path's
+        handles: made only then): the loop's count of cancelled scheduled timers (``_timer_handle_cancelled``),
+        the flag, the callback and its arguments released; in debug mode asyncio's own (it keeps a repr)."""
+        if self._cancelled:
+            return
+        loop = self._loop
+        if loop._debug:
+            super().cancel()
+            return
+        if self._scheduled:
+            loop._timer_cancelled_count += 1
+        self._cancelled = True
+        self._callback = None
+        self._args = None
+
 
 class EmulatorLoop(asyncio.SelectorEventLoop):
     """Selector event loop whose clock is the scenario clock (s since scenario start).
@@ -489,12 +506,26 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
                 h = ready.popleft()
                 if h._cancelled:
                     continue
-                h._run()
+                try:  # asyncio.Handle._run, without its frame
+                    h._context.run(h._callback, *h._args)
+                except (SystemExit, KeyboardInterrupt):
+                    raise
+                except BaseException as exc:
+                    self._handle_failed(h, exc)
                 while self._next is not None:  # (the kept callback may keep another)
                     self._run_next(res)
             h = None
             if self._stopping:
                 return
+
+    def _handle_failed(self, h: Any, exc: BaseException) -> None:
+        """A handle's callback raised ``exc`` (the fast path runs handles inline): reported as
+        :meth:`asyncio.Handle._run` reports it (the same message and context)."""
+        cb = _format_callback_source(h._callback, h._args)
+        context: dict[str, Any] = {"message": f"Exception in callback {cb}", "exception": exc, "handle": h}
+        if h._source_traceback:
+            context["source_traceback"] = h._source_traceback
+        self.call_exception_handler(context)
 
     def call_next(self, callback: Callable[..., object], *args: Any) -> None:
         """``call_soon(callback, *args)``, for a callback that uses no context variables; on the fast path it is

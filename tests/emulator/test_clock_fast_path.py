@@ -224,3 +224,52 @@ def test_fallback_gives_the_same_run_output(tmp_path, monkeypatch: pytest.Monkey
     wall = {"wall_s", "realtime_factor", "run_dir"}
     assert {k: v for k, v in s_fast.items() if k not in wall} == {k: v for k, v in s_stock.items() if k not in wall}
     assert s_fast["nav_frames"] > 400
+
+
+def test_fast_path_reports_a_callback_exception_as_asyncio_does() -> None:
+    """The fast path runs handles inline (no ``Handle._run`` frame: performance.md 5.7, D-10.E10); a callback that
+    raises reaches the exception handler with asyncio's message and context (the handle included), and the loop
+    goes on."""
+    def boom(x: int) -> None:
+        raise ValueError(f"boom {x}")
+
+    contexts = {}
+    for cls in (_ReferenceLoop, EmulatorLoop):
+        loop = cls("fast")
+        seen: list[dict] = []
+        loop.set_exception_handler(lambda _loop, ctx, seen=seen: seen.append(ctx))
+        after: list[float] = []
+        try:
+            h = loop.call_at(0.1, boom, 7)
+            loop.call_at(0.15, lambda after=after, loop=loop: after.append(loop.time()))
+            loop.run_until_complete(asyncio.sleep(0.2))
+        finally:
+            loop.close()
+        assert len(seen) == 1 and seen[0]["handle"] is h and after == [0.15]
+        contexts[cls] = {k: (str(v) if k == "exception" else v) for k, v in seen[0].items() if k != "handle"}
+    assert contexts[EmulatorLoop] == contexts[_ReferenceLoop]
+    assert contexts[EmulatorLoop]["message"].startswith("Exception in callback ")
+
+
+def test_timer_cancel_is_asyncios_cancel() -> None:
+    """``_Timer.cancel`` (one frame instead of asyncio's three: D-10.E10) leaves the handle and the loop's count of
+    cancelled scheduled timers as asyncio's ``TimerHandle.cancel`` does: once per scheduled timer, not for one
+    already out of the heap, not twice; in debug mode asyncio's own (the repr kept)."""
+    for cls in (_ReferenceLoop, EmulatorLoop):
+        loop = cls("fast")
+        try:
+            a, b = loop.call_at(1.0, print, 1), loop.call_at(2.0, print, 2)
+            b._scheduled = False  # as when the loop has popped it
+            for h in (a, a, b):
+                h.cancel()
+            assert loop._timer_cancelled_count == 1
+            assert a.cancelled() and b.cancelled() and a._callback is None and a._args is None
+            c = loop.call_at(3.0, print, 3)  # made outside debug mode (a fast-path handle), cancelled in it
+            loop.set_debug(True)
+            c.cancel()
+            assert c._repr is not None and loop._timer_cancelled_count == 2
+            if cls is EmulatorLoop and loop.fast_path:
+                assert type(c).cancel is not asyncio.TimerHandle.cancel  # the one-frame cancel was tested
+        finally:
+            loop.set_debug(False)
+            loop.close()

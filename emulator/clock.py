@@ -359,7 +359,7 @@ class _Timer(_events.TimerHandle):
             loop._timer_cancelled_count += 1
         self._cancelled = True
         self._callback = None
-        self._args = None
+        self._args = None  # type: ignore[assignment]  # as asyncio.Handle.cancel does
 
 
 class EmulatorLoop(asyncio.SelectorEventLoop):

@@ -133,7 +133,9 @@ class FederatedSpec(Model):
     sun_sigma: float | None = Field(
         None, gt=0, le=1, description="fixed sun-vector noise per component (Ge et al.'s simulation: 0.01); "
         "null: from the solve's quality and the spec sheet, as the base filter")
-    initial_attitude_sigma_deg: Vec3 | None = None
+    initial_attitude_sigma_deg: Vec3 | None = Field(
+        None, description="sigma (E, N, U) of the study's imposed initial misalignment (alignment.misalignment_deg), "
+        "deg: its variance is added to the spec sheet's attitude P0 of both sub-filters; null: none")
 
 
 class SunElevationSpec(Model):

@@ -248,14 +248,15 @@ class FederatedFilter(NavFilter):
         takes it whole (+ the GNSS-error states' prior correlated with the first fix), sub-filter 2 its attitude, gyro-
         and accelerometer-bias blocks with the level's correlation with that bias (D-5.14's ``cov(phi, nabla)``, D-5.20)
         and the motion acceleration's stationary variance;
-        ``initial_attitude_sigma_deg`` (a study's imposed misalignment) replaces the attitude block. Then the no-reset
-        sharing, once: ``P_i(0) = P_0 / beta_i``."""
+        ``initial_attitude_sigma_deg`` (the sigma of a study's imposed misalignment, which the alignment task applies on
+        top of the coarse alignment's frame: ``C_b^{n'} = rv2m(-phi_m) C_b^n``, D-6.8) adds its variance to the
+        attitude block, ``P_phi = P_phi,align + diag(sigma_m^2)``: the two errors add, and the imposed one is
+        independent of the sensors, so the level's correlation with the accelerometer bias stays ``A P_nabla``
+        (D-5.28f). Then the no-reset sharing, once: ``P_i(0) = P_0 / beta_i``."""
         cfg, p, dt = self.cfg, self.p, self.dtype
         p15 = spec_initial_covariance(cfg, nav, heading_sigma_rad)
         if p.initial_attitude_sigma_deg is not None:
-            p15[IDX_ATT, :] = 0.0
-            p15[:, IDX_ATT] = 0.0
-            p15[IDX_ATT, IDX_ATT] = np.diag([(v * DEG) ** 2 for v in p.initial_attitude_sigma_deg])
+            p15[IDX_ATT, IDX_ATT] += np.diag([(v * DEG) ** 2 for v in p.initial_attitude_sigma_deg])
         P1 = np.zeros((self.n1, self.n1))
         P1[:N_STATES, :N_STATES] = p15
         if self.gnss_states is not None:

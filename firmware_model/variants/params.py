@@ -106,8 +106,9 @@ class FederatedParams:
     #: None: the solve's own quality and the spec sheet's floor, as the base filter (filters.solar_noise_variance,
     #: docs/decisions/filter-consistency.md D-5.18)
     sun_sigma: float | None = None
-    #: initial attitude sigma (E, N, U), deg; None: the base filter's (levelling from the accelerometer bias,
-    #: heading from the alignment source). A study that imposes an initial misalignment sets it.
+    #: sigma (E, N, U), deg, of an initial misalignment a study imposes after the coarse alignment
+    #: (``alignment.misalignment_deg``, D-6.8); its variance is added to the base filter's attitude P0 (levelling
+    #: from the accelerometer bias, with its correlation; heading from the alignment source), D-5.28f. None: none.
     initial_attitude_sigma_deg: tuple[float, float, float] | None = None
 
 

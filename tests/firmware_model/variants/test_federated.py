@@ -207,6 +207,48 @@ def test_subfilters_take_the_base_filters_spec_sheet_q_p0_and_augmented_states()
     assert fed._cyc_predict2 == pol_mimu_predict_cycles(c, 15) > pol_mimu_predict_cycles(c, 12)
 
 
+def test_imposed_misalignment_sigma_adds_to_the_attitude_prior_and_keeps_the_level_bias_correlation():
+    """D-5.28f: a study's imposed misalignment (``initial_attitude_sigma_deg``, applied on top of the coarse
+    alignment's frame) adds its variance to the attitude block of the spec-sheet P0 in both sub-filters; the level's
+    correlation with the accelerometer bias (D-5.14) stays. Closed form at rest with ``P_nabla = s^2 I``:
+    ``A P_nabla A^T = (s / g)^2 diag(1, 1, 0)`` (``A = [[0, -1, 0], [1, 0, 0], 0] C_b^n / g``, C_b^n orthonormal), so
+    ``P_phi = diag((s/g)^2 + w^2 + m_E^2, (s/g)^2 + w^2 + m_N^2, h^2 + m_U^2)`` with ``w`` the levelling's averaged
+    white noise, ``h`` the alignment's heading sigma, and ``cov(phi, nabla) = s^2 / g [[-C_21, -C_22, -C_23],
+    [C_11, C_12, C_13], 0]``, all times ``1 / beta_i``."""
+    from firmware_model.kf import IDX_ACC, IDX_ATT
+    from firmware_model.units import G_STD
+    from firmware_model.variants.federated import X2_ACC, X2_ATT
+
+    sig_m = (1.0, 0.6, 0.8)  # deg, E N U
+    _, ref, _, _ = _pair(beta=0.5)
+    _, fed, _, cbn = _pair(beta=0.5, fed_kw={"initial_attitude_sigma_deg": sig_m})
+    b1, b2 = fed.p.beta_sins_gnss, fed.p.beta_pol_mimu
+    add = np.diag([(v * DEG) ** 2 for v in sig_m])
+    # the difference is the imposed variance on the attitude diagonal, nothing else, in both sub-filters
+    d1 = (fed.P1 - ref.P1) * b1
+    np.testing.assert_allclose(d1[IDX_ATT, IDX_ATT], add, rtol=1e-12)
+    d1[IDX_ATT, IDX_ATT] = 0.0
+    assert np.abs(d1).max() == 0.0
+    d2 = (fed.P2 - ref.P2) * b2
+    np.testing.assert_allclose(d2[X2_ATT, X2_ATT], add, rtol=1e-12)
+    d2[X2_ATT, X2_ATT] = 0.0
+    assert np.abs(d2).max() == 0.0
+    # closed form of the attitude block and the level-bias cross-covariance
+    s = fed.cfg.accel_bias_sigma_mg * 1e-3 * G_STD
+    w = ref.P1[0, 0] * b1 - (s / G_STD) ** 2  # the white part, read from the reference P0 ...
+    assert 0.0 < w < 0.01 * (s / G_STD) ** 2  # ... which is small against the bias's part
+    h2 = (0.5 * DEG) ** 2  # the heading sigma _pair aligns with
+    want_att = np.diag([(s / G_STD) ** 2 + w + add[0, 0], (s / G_STD) ** 2 + w + add[1, 1], h2 + add[2, 2]])
+    want_cross = s**2 / G_STD * np.array([-cbn[1], cbn[0], np.zeros(3)])
+    for P, b, att, acc in ((fed.P1, b1, IDX_ATT, IDX_ACC), (fed.P2, b2, X2_ATT, X2_ACC)):
+        np.testing.assert_allclose(P[att, att] * b, want_att, rtol=1e-9, atol=1e-18)
+        np.testing.assert_allclose(P[att, acc] * b, want_cross, rtol=1e-12, atol=1e-20)
+        np.linalg.cholesky(P)
+    # the correlation is kept: the level's correlation with the bias is |rho| = (s/g) / sqrt((s/g)^2 + w + m^2)
+    rho = fed.P1[0, IDX_ACC] @ cbn[1] * -1 / math.sqrt(fed.P1[0, 0] * s**2 / b1)
+    assert rho == pytest.approx((s / G_STD) / math.sqrt((s / G_STD) ** 2 + w + add[0, 0]), rel=1e-9)
+
+
 def test_subfilters_share_the_warmup_gyro_bias_noise_by_beta():
     """D-5.27: the temperature-gradient bias's in-run change while the box warms up enters both sub-filters' gyro-bias
     rows as Q does, times 1 / beta_i; the ``field`` sheet carries the warm-up figure."""

@@ -147,7 +147,8 @@ def _pair(beta: float = 0.5, fed_kw=None, **cfg_kw):
     from firmware_model.nav_state import NavState
     from firmware_model.variants.federated import FederatedFilter
 
-    cfg = _field_cfg(**cfg_kw)
+    # the base filter without the gyro flicker's middle-band states, which the sub-filters do not carry (D-5.28)
+    cfg = _field_cfg(gyro_flicker_states=False, **cfg_kw)
     vp = VariantParams(federated=FederatedParams(beta_sins_gnss=beta, **(fed_kw or {})))
     fcfg = _field_cfg(filter="federated", variants=vp, **cfg_kw)
     cbn = a2mat(0.02, -0.01, yaw_from_heading(30 * DEG))

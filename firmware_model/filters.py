@@ -75,9 +75,9 @@ _ALLAN_FLOOR = math.sqrt(2.0 * math.log(2.0) / math.pi)
 #: interval of the GNSS velocity aiding (s): 1 Hz fixes (for the flicker's matching time, BaseFilter._flicker_match_s)
 _VEL_AID_INTERVAL_S = 1.0
 #: a first-order Gauss-Markov of sigma s and correlation time c has the Allan variance
-#: ``s^2 (c / T)^2 (2 x - 3 + 4 exp(-x) - exp(-2 x))``, ``x = T / c`` (IEEE Std 952, C.7); its Allan deviation peaks at
-#: ``T = GM_ALLAN_PEAK_X c`` with the value ``GM_ALLAN_PEAK s`` (the root of its derivative, to 5 digits;
-#: tests/firmware_model/test_filters.py checks both against the formula)
+#: ``s^2 (c / T)^2 (2 x - 3 + 4 exp(-x) - exp(-2 x))``, ``x = T / c`` (from its autocorrelation ``s^2 exp(-|t| / c)``);
+#: its Allan deviation peaks at ``T = GM_ALLAN_PEAK_X c`` with the value ``GM_ALLAN_PEAK s`` (the root of its
+#: derivative, to 5 digits; tests/firmware_model/test_spec_sheet.py checks both against the formula)
 GM_ALLAN_PEAK_X = 1.8928
 GM_ALLAN_PEAK = 0.61736
 

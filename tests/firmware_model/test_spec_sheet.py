@@ -353,8 +353,9 @@ def test_flicker_instability_read_as_at_most_the_total_bias():
 
 
 def _gm_avar(s2, c, T):
-    """Allan variance of a first-order Gauss-Markov of variance ``s2`` and correlation time ``c`` (IEEE Std 952,
-    C.7), written here from the standard, not taken from the firmware."""
+    """Allan variance of a first-order Gauss-Markov of variance ``s2`` and correlation time ``c``, written here from
+    its autocorrelation ``s2 exp(-|t| / c)`` (the double integral of the Allan variance's definition), not taken from
+    the firmware."""
     x = np.asarray(T, dtype=np.float64) / c
     return s2 * (c / np.asarray(T)) ** 2 * (2 * x - 3 + 4 * np.exp(-x) - np.exp(-2 * x))
 

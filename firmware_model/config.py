@@ -84,6 +84,10 @@ class FirmwareConfig:
     #: constant gradient, the bias a turn-on constant (P0 only)
     gyro_temp_gradient_deg_h: float = 0.0
     gyro_temp_gradient_time_s: float = 0.0
+    #: the gyro bias's flicker between the white equivalent's matching time and the random walk's correlation time as
+    #: three augmented Gauss-Markov states (time constant and sigma from the bias instability and its correlation
+    #: time, filters.gyro_flicker_band, docs/decisions/filter-consistency.md D-5.28)
+    gyro_flicker_states: bool = True
     accel_noise_ug_rt_hz: float = 100.0
     accel_bias_sigma_mg: float = 7.0 / 3.0
     accel_bias_instability_mg: float = 4.0 / 3.0

@@ -74,17 +74,25 @@ _THETA_REF_RAD = math.pi / 2.0
 _ALLAN_FLOOR = math.sqrt(2.0 * math.log(2.0) / math.pi)
 #: interval of the GNSS velocity aiding (s): 1 Hz fixes (for the flicker's matching time, BaseFilter._flicker_match_s)
 _VEL_AID_INTERVAL_S = 1.0
+#: a first-order Gauss-Markov of sigma s and correlation time c has the Allan variance
+#: ``s^2 (c / T)^2 (2 x - 3 + 4 exp(-x) - exp(-2 x))``, ``x = T / c`` (from its autocorrelation ``s^2 exp(-|t| / c)``);
+#: its Allan deviation peaks at ``T = GM_ALLAN_PEAK_X c`` with the value ``GM_ALLAN_PEAK s`` (the root of its
+#: derivative, to 5 digits; tests/firmware_model/test_spec_sheet.py checks both against the formula)
+GM_ALLAN_PEAK_X = 1.8928
+GM_ALLAN_PEAK = 0.61736
 
 __all__ = [
     "FILTER_VARIANTS",
     "BaseFilter",
     "FilterHost",
     "GnssMeasurement",
+    "GyroFlickerStates",
     "NavFilter",
     "SolarObservation",
     "UpdateReport",
     "feedback_cycles",
     "gnss_measurement_rows",
+    "gyro_flicker_band",
     "kf_predict_cycles",
     "kf_scalar_update_cycles",
     "register_filter",
@@ -154,6 +162,31 @@ def flicker_white_psd(cfg: FirmwareConfig, b: float, vertical: bool = False) -> 
     the matching time ``T`` (:func:`flicker_match_s`, the horizontal or the ``vertical`` velocity row's):
     ``N^2 = (0.664 B)^2 T`` (B in rad/s or m/s^2)."""
     return (_ALLAN_FLOOR * b) ** 2 * flicker_match_s(cfg, vertical)
+
+
+def gyro_flicker_band(cfg: FirmwareConfig) -> tuple[float, float]:
+    """Correlation time (s) and sigma (rad/s) of the Gauss-Markov that carries the gyro flicker's middle band (D-5.28),
+    from the spec sheet's bias instability B, its correlation time tau and the white equivalent's matching time
+    ``T_w`` (:func:`flicker_match_s`) alone.
+
+    The flicker's Allan deviation is flat at ``0.664 B`` from ``T_w`` to ``tau``. The 15-state model covers the two
+    ends: the bias random walk ``q = 2 B^2 / tau`` (Allan variance ``q T / 3``, D-5.11) near ``tau`` and the white
+    equivalent ``N^2 = (0.664 B)^2 T_w`` (Allan variance ``N^2 / T``, D-5.15) at ``T_w``. Their sum is lowest at
+    ``T* = sqrt(3 N^2 / q) = 0.664 sqrt(1.5 T_w tau)`` with the value ``2 q T* / 3`` (default sheet: T* = 36 s, 0.43
+    of the floor in deviation). A Gauss-Markov of correlation time ``c = T* / 1.8928`` peaks there; its sigma fills
+    the gap to the floor at ``T*``: ``s^2 = ((0.664 B)^2 - 2 q T* / 3) / 0.61736^2``. Returns ``(c, 0)`` when the sum
+    already reaches the floor (no gap: ``T_w`` near ``tau``). Default sheet: c = 19 s, s = 0.97 B; field: 146 s,
+    0.94 B."""
+    b = flicker_b_gyro(cfg)
+    tau = cfg.bias_corr_time_s
+    floor2 = (_ALLAN_FLOOR * b) ** 2
+    q = 2.0 * (cfg.gyro_bias_instability_deg_h * DPH) ** 2 / tau
+    n2 = floor2 * flicker_match_s(cfg)
+    if q <= 0.0 or n2 <= 0.0:
+        return tau, 0.0
+    t_star = math.sqrt(3.0 * n2 / q)
+    gap = floor2 - 2.0 * q * t_star / 3.0
+    return t_star / GM_ALLAN_PEAK_X, math.sqrt(max(gap, 0.0)) / GM_ALLAN_PEAK
 
 
 def spec_process_noise(cfg: FirmwareConfig) -> F64Array:
@@ -337,6 +370,28 @@ class GnssErrorStates:
         P[:, i:i + 3] = 0.0
         P[i:i + 3, i:i + 3] = np.diag(self.var).astype(P.dtype)
         return True
+
+
+class GyroFlickerStates:
+    """The three augmented states of the gyro bias's flicker middle band ``f`` (rad/s, body axes) at state index ``i``
+    (docs/decisions/filter-consistency.md D-5.28), declared once for every filter that carries them.
+
+    ``df/dt = -f / c + w``, ``q = 2 s^2 / c`` with ``(c, s)`` from :func:`gyro_flicker_band`; they drive the attitude
+    as the bias state does, ``dphi/dt = ... - C_b^n (eps + f)`` (F's attitude rows take F's gyro-bias columns), and
+    start at their stationary variance ``s^2``. Not fed back: the strapdown compensates the bias state ``eps`` only;
+    the estimate of ``f`` stays in the state and decays with it."""
+
+    def __init__(self, cfg: FirmwareConfig, i: int) -> None:
+        self.i = i
+        self.tau, sigma = gyro_flicker_band(cfg)
+        #: stationary variance ((rad/s)^2 per axis) and decay rate (1/s)
+        self.var = sigma * sigma
+        self.rate = 1.0 / self.tau
+
+    @property
+    def psd(self) -> F64Array:
+        """Process-noise PSD ((rad/s)^2/s) of the three states: ``2 s^2 / c``."""
+        return np.full(3, 2.0 * self.var / self.tau)
 
 
 class SolarBiasStates:
@@ -632,6 +687,10 @@ class BaseFilter(NavFilter):
             self.i_gnss, n = n, n + 3
         if self.augmentable and self.solar_bias_augmentable and cfg.psns_bias_states and cfg.psns_enabled:
             self.i_sun, n = n, n + 3
+        #: first index of the gyro flicker's middle-band states (body x, y, z, rad/s; D-5.28), or None
+        self.i_flicker: int | None = None
+        if self.augmentable and cfg.gyro_flicker_states and gyro_flicker_band(cfg)[1] > 0.0:
+            self.i_flicker, n = n, n + 3
         self.i_own: int | None = None
         if self.own_states:
             self.i_own, n = n, n + self.own_states
@@ -641,11 +700,12 @@ class BaseFilter(NavFilter):
         #: the augmented states' models (shared with the federated sub-filters: one declaration)
         self.gnss_states = GnssErrorStates(cfg, self.i_gnss) if self.i_gnss is not None else None
         self.sun_states = SolarBiasStates(cfg, self.i_sun) if self.i_sun is not None else None
+        self.flicker_states = GyroFlickerStates(cfg, self.i_flicker) if self.i_flicker is not None else None
         q = np.zeros(n)
         q[:N_STATES] = spec_process_noise(cfg)
         #: Gauss-Markov decay rates (1/s) of the augmented states, on F's diagonal
         self._aug_rate = np.zeros(n)
-        for st in (self.gnss_states, self.sun_states):
+        for st in (self.gnss_states, self.sun_states, self.flicker_states):
             if st is not None:
                 q[st.i:st.i + 3] = st.psd
                 self._aug_rate[st.i:st.i + 3] = st.rate
@@ -675,6 +735,9 @@ class BaseFilter(NavFilter):
             i = self.sun_states.i
             P[i:i + 3, i:i + 3] = np.diag(np.full(3, self.sun_states.sigma2))
             self.sun_states.axis_n = None
+        if self.flicker_states is not None:
+            i = self.flicker_states.i
+            P[i:i + 3, i:i + 3] = np.eye(3) * self.flicker_states.var
         self.P = P.astype(self.dtype)
         self.x = np.zeros(n, dtype=self.dtype)
 
@@ -686,6 +749,9 @@ class BaseFilter(NavFilter):
             F = np.zeros((self.n, self.n), dtype=dt)
             F[:N_STATES, :N_STATES] = F15
             F[np.diag_indices(self.n)] -= self._aug_rate.astype(dt)
+            if self.flicker_states is not None:  # the flicker drives the attitude as the bias does (D-5.28)
+                i = self.flicker_states.i
+                F[IDX_ATT, i:i + 3] = F15[IDX_ATT, IDX_GYRO]
         else:
             F = F15
         Phi = self._eye + F * dt(Tk)

@@ -252,7 +252,7 @@ class FederatedFilter(NavFilter):
         top of the coarse alignment's frame: ``C_b^{n'} = rv2m(-phi_m) C_b^n``, D-6.8) adds its variance to the
         attitude block, ``P_phi = P_phi,align + diag(sigma_m^2)``: the two errors add, and the imposed one is
         independent of the sensors, so the level's correlation with the accelerometer bias stays ``A P_nabla``
-        (D-5.28f). Then the no-reset sharing, once: ``P_i(0) = P_0 / beta_i``."""
+        (D-5.29). Then the no-reset sharing, once: ``P_i(0) = P_0 / beta_i``."""
         cfg, p, dt = self.cfg, self.p, self.dtype
         p15 = spec_initial_covariance(cfg, nav, heading_sigma_rad)
         if p.initial_attitude_sigma_deg is not None:

@@ -108,7 +108,7 @@ class FederatedParams:
     sun_sigma: float | None = None
     #: sigma (E, N, U), deg, of an initial misalignment a study imposes after the coarse alignment
     #: (``alignment.misalignment_deg``, D-6.8); its variance is added to the base filter's attitude P0 (levelling
-    #: from the accelerometer bias, with its correlation; heading from the alignment source), D-5.28f. None: none.
+    #: from the accelerometer bias, with its correlation; heading from the alignment source), D-5.29. None: none.
     initial_attitude_sigma_deg: tuple[float, float, float] | None = None
 
 

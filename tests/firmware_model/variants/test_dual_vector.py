@@ -132,8 +132,10 @@ def test_unit_sigmas_are_the_spec_sheets_compass_figures_and_the_filter_carries_
     dop = np.array([0.4, 0.2, 0.002])
     np.testing.assert_allclose(flt._unit_sigmas(dop), [0.2 * DEG, 0.4 * DEG, 40.0 * DEG], rtol=1e-6)
     np.testing.assert_allclose(flt._unit_sigmas(np.array([0.9])), [0.08 / 0.9 * DEG], rtol=1e-6)
-    # the base filter's three GNSS position-error states, no solar-bias states, the pair's three bias states
-    assert (flt.n, flt.i_gnss, flt.i_sun, flt.i_own) == (N_STATES + 6, N_STATES, None, N_STATES + 3)
+    # the base filter's three GNSS position-error states, no solar-bias states, the gyro flicker's three (D-5.28),
+    # the pair's three bias states
+    assert (flt.n, flt.i_gnss, flt.i_sun, flt.i_flicker, flt.i_own) == (N_STATES + 9, N_STATES, None, N_STATES + 3,
+                                                                        N_STATES + 6)
     # a scenario's own AOP figures replace the sheet's
     own = FirmwareConfig(filter="dual_vector", compass_mountings=THREE, compass_aop_sigma_deg=0.2,
                          variants=VariantParams(dual_vector=DualVectorParams(aop_sigma_deg=0.05, dop_ref=0.5)))

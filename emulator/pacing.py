@@ -40,6 +40,7 @@ import errno
 import logging
 import os
 import select
+import signal
 import socket
 import struct
 import subprocess
@@ -126,6 +127,9 @@ SEND_TIMEOUT_S = 2.0
 def child_main(sock_fd: int, rt_priority: int | None, above: int) -> int:
     """The writer process's loop (module docstring): read records from the socket ``sock_fd``, write each payload
     to its slot's descriptor at its deadline, report. Returns the exit status (0: end of file on the input)."""
+    # Ctrl-C reaches the whole process group: the parent ends the run and closes the socket (EOF), and the child
+    # writes what it holds and exits then, instead of dying mid-queue with a traceback
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     set_timer_slack()
     cpus = {int(c) for c in os.environ.get(CPUS_ENV, "").split(",") if c.strip()}
     if cpus and hasattr(os, "sched_setaffinity"):  # a core of its own (docs/performance.md 5.8)

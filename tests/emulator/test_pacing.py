@@ -241,6 +241,21 @@ def test_a_killed_child_is_an_error_and_the_thread_takes_over(pipe):
         pw.close()
 
 
+def test_ctrl_c_leaves_the_child_to_the_parent(pipe):
+    r, w = pipe
+    wp = WriterProcess()
+    try:
+        os.kill(wp.pid, signal.SIGINT)  # what a terminal's Ctrl-C sends the whole process group
+        time.sleep(0.2)
+        assert wp.proc.poll() is None and wp.alive
+        peer = _Peer(w)
+        wp.put(time.monotonic(), peer, b"still here", w)
+        assert wp.drain(peer) and _read_all(r) == b"still here"
+    finally:
+        wp.close()
+    assert wp.proc.returncode == 0
+
+
 def test_end_of_file_on_its_input_makes_the_child_write_what_it_holds_and_exit(pipe):
     r, w = pipe
     wp = WriterProcess()

@@ -115,6 +115,9 @@ MAX_PAYLOAD = 32768
 REPORT_EVERY_S = 0.05
 #: ... or when this many are waiting
 REPORT_BATCH = 128
+#: ... and wait for the parent to take them when this many are waiting (one message: 96 KiB, within the socket's
+#: buffer)
+REPORT_MAX = 4096
 #: the environment variable with the CPUs the writer process is pinned to (``"1"``, ``"2,3"``; unset: those of the
 #: emulator, which it inherits)
 CPUS_ENV = "PSNS_PACED_WRITER_CPUS"
@@ -153,6 +156,8 @@ def child_main(sock_fd: int, rt_priority: int | None, above: int) -> int:
         nonlocal reports
         if not reports:
             return True
+        if len(reports) >= REPORT_MAX:  # one message must fit the socket's buffer: wait for the parent
+            block = True
         try:
             sock.send(b"".join(reports), 0 if block else socket.MSG_DONTWAIT)
         except BlockingIOError:

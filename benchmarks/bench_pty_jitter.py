@@ -16,7 +16,9 @@ Two measurements.
    pty against the instant its scenario time stands for (the paced writer of D-10.E6, or without a
    lead the loop's callback), and how late the loop ran against its own schedule (what the lead
    absorbs). ``PSNS_BENCH_RT_S`` sets the duration (wall s; default 600, the issue's 10 min;
-   ``make bench-quick``: 30); ``PSNS_BENCH_RT_LEAD_S`` the lead (``0``: none);
+   ``make bench-quick``: 30); ``PSNS_BENCH_RT_LEAD_S`` the lead (``0``: none); ``PSNS_PACED_WRITER``
+   (``process`` | ``thread``) the paced writer's backend (D-10.E11; the emulator's CPU includes its writer
+   process's), ``PSNS_PACED_WRITER_CPUS`` pins that process;
    ``PSNS_BENCH_RT_EMU_CPUS`` / ``PSNS_BENCH_RT_READER_CPUS`` pin the two processes (``1`` / ``0``);
    the note says what was run.
 2. **One pty link alone** (the floor): a :class:`~emulator.links.pty.PtyLink` at 460 800 baud (8N1)
@@ -224,13 +226,11 @@ if os.environ.get("PSNS_BENCH_RT_LEAD_S"):  # the lead of the realtime loop (wal
 if os.environ.get("PSNS_BENCH_RT_WRITER_PRIO"):  # the writer thread's SCHED_FIFO priority ("none": normal policy)
     _p = os.environ["PSNS_BENCH_RT_WRITER_PRIO"]
     PacedWriter.RT_PRIORITY = None if _p == "none" else int(_p)
-_wr = PacedWriter._write
-def _write(self, at, write, data, _wr=_wr, mono=time.monotonic):
-    _wr(self, at, write, data)
-    tap = TAPS.get(getattr(getattr(write, "__self__", None), "name", ""))
+def _on_late(owner, late_s):  # either backend: the thread's write, or the writer process's (reported back)
+    tap = TAPS.get(getattr(owner, "name", ""))
     if tap is not None:
-        late[tap].append(mono() - at)
-PacedWriter._write = _write
+        late[tap].append(late_s)
+PacedWriter.on_late = staticmethod(_on_late)
 s = run_scenario(load_scenario(sys.argv[1]), Path(sys.argv[2]), mode="realtime")
 Path(sys.argv[3]).write_text(json.dumps({"passed": s["passed"], "deadline_misses": s["dsp"]["deadline_misses"],
                                          "nav_frames": s["nav_frames"], "late": late, "loop_late": loop_late}))
@@ -266,6 +266,29 @@ def _cpu_s(pid: int) -> float | None:
     except OSError:
         return None
     return (int(parts[11]) + int(parts[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def _children(pid: int) -> list[int]:
+    """The child processes of ``pid`` (``/proc/PID/task/*/children``, Linux), recursively."""
+    kids: list[int] = []
+    try:
+        tasks = os.listdir(f"/proc/{pid}/task")
+    except OSError:
+        return kids
+    for t in tasks:
+        try:
+            with open(f"/proc/{pid}/task/{t}/children") as f:
+                kids.extend(int(x) for x in f.read().split())
+        except OSError:
+            pass
+    return kids + [g for k in kids for g in _children(k)]
+
+
+def _tree_cpu_s(pid: int) -> tuple[float | None, float]:
+    """CPU seconds of ``pid`` and its live children (the paced writer's process), and the children's part."""
+    own = _cpu_s(pid)
+    kids = sum(c for c in (_cpu_s(k) for k in _children(pid)) if c is not None)
+    return (None if own is None else own + kids), kids
 
 
 def _quantile(ordered: list[float], q: float) -> float:
@@ -319,13 +342,13 @@ def _measure_emulator(duration_s: float) -> tuple[dict, dict, float, str]:
         if emu.poll() is not None:
             rdr.kill()  # the emulator failed at start-up: the reader would wait for its ports in vain
         time.sleep(0.5)  # start-up done, the reader attached
-        c0, w0 = _cpu_s(emu.pid), time.monotonic()
-        c1, w1 = c0, w0
+        (c0, k0), w0 = _tree_cpu_s(emu.pid), time.monotonic()
+        c1, k1, w1 = c0, k0, w0
         while emu.poll() is None:
             time.sleep(0.5)
-            c, w = _cpu_s(emu.pid), time.monotonic()
+            (c, k), w = _tree_cpu_s(emu.pid), time.monotonic()
             if c is not None and emu.poll() is None:
-                c1, w1 = c, w
+                c1, k1, w1 = c, k, w
         _so, se = emu.communicate()
         rdr.wait(timeout=60)
         if emu.returncode != 0:
@@ -333,6 +356,7 @@ def _measure_emulator(duration_s: float) -> tuple[dict, dict, float, str]:
         seen = json.loads(out.read_text())
         res = json.loads(emu_out.read_text())
     cpu_pct = 100.0 * (c1 - c0) / (w1 - w0) if c0 is not None and c1 is not None and w1 > w0 else float("nan")
+    res["writer_process_cpu_pct"] = round(100.0 * (k1 - k0) / (w1 - w0), 1) if w1 > w0 else float("nan")
     late = res.pop("late")
     stats = {}
     for tap in ("uart0", "uart1"):
@@ -355,8 +379,10 @@ def _emulator_rows() -> list[dict]:
     dur = number("PSNS_BENCH_RT_S")
     u0, u1, cpu, result = _measure_emulator(dur)
     lead = os.environ.get("PSNS_BENCH_RT_LEAD_S") or str(REALTIME_LEAD_S)
-    how = (f"the paced writer, the loop {float(lead) * 1e3:g} ms ahead" if float(lead) > 0
-           else "no lead: the loop's callback writes")
+    from emulator.clock import default_writer_backend
+
+    how = (f"the paced writer ({default_writer_backend()} backend), the loop {float(lead) * 1e3:g} ms ahead"
+           if float(lead) > 0 else "no lead: the loop's callback writes")
     pins = ", ".join(f"{v} {os.environ[v]}" for v in ("PSNS_BENCH_RT_EMU_CPUS", "PSNS_BENCH_RT_READER_CPUS")
                      if os.environ.get(v))
     if pins:
@@ -382,7 +408,8 @@ def _emulator_rows() -> list[dict]:
                      "note": f"sequence gaps after the first frame read, {dur:g} s; target 0"})
     rows.append({"name": "realtime emulator CPU", "value": cpu, "unit": "% of one core",
                  "baseline": RT_TARGET_CPU_PCT, "ratio": cpu / RT_TARGET_CPU_PCT,
-                 "note": f"reference scenario on ptys, {dur:g} s, start-up excluded; load avg {load_avg()}; "
+                 "note": f"reference scenario on ptys, {dur:g} s, start-up excluded, the paced writer's process "
+                         f"(if any) included; {how}; load avg {load_avg()}; "
                          f"emulator: {result}"})
     return rows
 

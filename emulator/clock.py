@@ -20,9 +20,10 @@ scenario clock in seconds since scenario start.
 
     **Compute ahead** (:meth:`EmulatorLoop.set_lead`, docs/decisions/performance.md D-10.E6): the
     clock may run ``lead_s`` (wall seconds) ahead of the outside world. Everything inside the loop
-    happens that much early; what leaves for a real peer is handed to a :class:`PacedWriter`, a
-    thread that performs each write at the wall instant its scenario time stands for
-    (:meth:`EmulatorLoop.wall_at`). A callback that holds the loop for a few ms then no longer
+    happens that much early; what leaves for a real peer is handed to a :class:`PacedWriter`, which
+    performs each write at the wall instant its scenario time stands for (:meth:`EmulatorLoop.wall_at`):
+    from a writer process (:mod:`emulator.pacing`, D-10.E11) for ptys and serial devices on Linux, else
+    from a thread. A callback that holds the loop for a few ms then no longer
     delays the bytes; what the outside sends is stamped on arrival with the loop's (early) clock,
     so it takes effect up to ``lead_s`` later than without the lead.
 
@@ -43,7 +44,7 @@ that repeated relative sleeps accumulate.
 from __future__ import annotations
 
 import asyncio
-import ctypes
+import contextlib
 import heapq
 import os
 import selectors
@@ -57,8 +58,11 @@ from collections.abc import Callable, Hashable
 from contextvars import copy_context as _copy_context
 from typing import TYPE_CHECKING, Any
 
-__all__ = ["FAST_PATH_VERSIONS", "TIMER_SLACK_NS", "EmulatorLoop", "PacedWriter", "fast_path_supported", "new_loop",
-           "set_timer_slack", "sleep_until"]
+from .errors import WriterProcessError
+from .pacing import TIMER_SLACK_NS, PacedPeer, WriterProcess, ask_rt_priority, set_timer_slack
+
+__all__ = ["FAST_PATH_VERSIONS", "TIMER_SLACK_NS", "WRITER_BACKENDS", "EmulatorLoop", "PacedWriter",
+           "default_writer_backend", "fast_path_supported", "new_loop", "set_timer_slack", "sleep_until"]
 
 #: CPython versions whose asyncio internals the fast path was checked against (the steps of
 #: ``BaseEventLoop._run_once``, the fields of ``TimerHandle``); 3.11 is the version the project is tested on.
@@ -84,68 +88,92 @@ def fast_path_supported(loop: asyncio.AbstractEventLoop) -> bool:
             and all(hasattr(loop, f) for f in _LOOP_FIELDS))
 
 
-#: realtime: the kernel's timer slack asked for (ns) for the loop's thread and the writer's; Linux's default of
-#: 50 us lets every precise sleep and epoll wake-up overshoot by up to that much
-TIMER_SLACK_NS = 1000
-_PR_SET_TIMERSLACK = 29  # linux/prctl.h
-_PR_GET_TIMERSLACK = 30
+#: the paced writer's backends: ``process`` (a writer process, :mod:`emulator.pacing`) for links whose peer is a file
+#: descriptor on Linux, the ``thread`` for the rest; ``thread`` only: the thread for every link
+WRITER_BACKENDS = ("process", "thread")
+#: the environment variable that chooses the backend (``process`` | ``thread``; unset: :func:`default_writer_backend`)
+WRITER_ENV = "PSNS_PACED_WRITER"
 
 
-def set_timer_slack(ns: int = TIMER_SLACK_NS) -> int | None:
-    """Set the calling thread's timer slack to ``ns`` nanoseconds (``prctl(PR_SET_TIMERSLACK)``, Linux only;
-    threads it starts afterwards inherit it). Returns the slack in force afterwards (``PR_GET_TIMERSLACK``), or
-    None where there is no such call (another OS, no libc): harmless there, nothing changes."""
-    if not sys.platform.startswith("linux"):
-        return None
-    try:
-        prctl = ctypes.CDLL(None, use_errno=True).prctl
-    except (OSError, AttributeError):
-        return None
-    prctl.restype = ctypes.c_int
-    prctl.argtypes = [ctypes.c_int, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong]
-    if prctl(_PR_SET_TIMERSLACK, max(1, int(ns)), 0, 0, 0) != 0:
-        return None
-    got = prctl(_PR_GET_TIMERSLACK, 0, 0, 0, 0)
-    return int(got) if got >= 0 else None
+def default_writer_backend() -> str:
+    """The backend a :class:`PacedWriter` takes when none is given: :data:`WRITER_ENV` if set, else ``process`` on
+    Linux and ``thread`` elsewhere (docs/decisions/performance.md D-10.E11)."""
+    env = os.environ.get(WRITER_ENV, "").strip().lower()
+    if env:
+        if env not in WRITER_BACKENDS:
+            raise ValueError(f"{WRITER_ENV}={env!r}: expected one of {', '.join(WRITER_BACKENDS)}")
+        return env
+    return "process" if sys.platform.startswith("linux") else "thread"
 
 
 class PacedWriter:
-    """A thread that performs writes at given ``CLOCK_MONOTONIC`` instants, in the order they were put.
+    """Performs writes at given ``CLOCK_MONOTONIC`` instants, in the order they were put.
 
     The realtime loop running ahead (:meth:`EmulatorLoop.set_lead`) puts each chunk for a real peer here
-    with the wall instant its scenario time stands for; this thread sleeps until then (timer slack
-    :data:`TIMER_SLACK_NS`) and calls the transport's write. While it waits for a deadline it holds no
-    lock and not the GIL; to get the GIL back promptly from a loop busy in Python code, the interpreter's
-    switch interval is lowered to :attr:`SWITCH_INTERVAL_S` while the thread runs (restored by
-    :meth:`close`). Items are written in the order put; the loop puts them in scenario-time order, so
-    that is deadline order.
+    (:meth:`put_bytes`) with the wall instant its scenario time stands for. Two backends behind one API
+    (docs/decisions/performance.md D-10.E11):
 
+    ``process``
+        A writer process (:class:`emulator.pacing.WriterProcess`) writes the chunks of links whose peer is a
+        file descriptor (``Link.peer_fd``: a pty master, a serial device): its own interpreter, so a loop busy in
+        Python cannot hold its writes up. Started with the writer; when it dies, :attr:`error` holds the
+        :class:`~emulator.errors.WriterProcessError`, what it held is counted as lost, and the thread takes over.
+    ``thread``
+        A thread that sleeps until each instant (timer slack :data:`TIMER_SLACK_NS`) and calls the transport's
+        write (:meth:`put`: any callable). While it waits for a deadline it holds no lock and not the GIL; to get
+        the GIL back promptly from a loop busy in Python code, the interpreter's switch interval is lowered to
+        :attr:`SWITCH_INTERVAL_S` while the thread runs (restored by :meth:`close`). Always there: for callables,
+        links without a descriptor, other OSes, and after the process died.
+
+    Items are written in the order put; the loop puts them in scenario-time order, so that is deadline order.
     ``owner`` groups items (a link): :meth:`drain` waits until an owner's items are written, before the
-    owner closes its file descriptor.
+    owner closes its file descriptor. :attr:`on_late` (class or instance attribute) gets each write's lateness
+    against its instant, from either backend (the benchmark's emulator-side lateness).
     """
 
-    #: the interpreter's switch interval while the writer runs (s; CPython's default is 5 ms)
+    #: the interpreter's switch interval while the writer's thread runs (s; CPython's default is 5 ms)
     SWITCH_INTERVAL_S = 2e-4
-    #: the real-time priority (``SCHED_FIFO``) the thread asks for, so that a CPU busy with other work does not
-    #: delay its wake-ups: this, or one above the loop's thread when that runs with a real-time priority itself
-    #: (``chrt``: the writer must still preempt it). Where that is not allowed (no root, no ``RLIMIT_RTPRIO``,
-    #: another OS) it keeps the normal policy. None: do not ask. The thread sleeps between writes, so it cannot
-    #: starve the machine.
+    #: the real-time priority (``SCHED_FIFO``) the thread and the process ask for, so that a CPU busy with other work
+    #: does not delay their wake-ups: this, or one above the loop's thread when that runs with a real-time priority
+    #: itself (``chrt``: the writer must still preempt it). Where that is not allowed (no root, no ``RLIMIT_RTPRIO``,
+    #: another OS) they keep the normal policy. None: do not ask. Both sleep between writes: no starving the machine.
     RT_PRIORITY: int | None = 1
-    def __init__(self) -> None:
+    #: ``on_late(owner, late_s)``: each write's lateness against its instant (s), called in the writer's thread or
+    #: the process backend's report thread; None: not measured
+    on_late: Callable[[Hashable, float], None] | None = None
+
+    def __init__(self, backend: str | None = None) -> None:
         self._items: deque[tuple[float, Callable[[Any], object], Any, Hashable]] = deque()
         self._cv = threading.Condition()
         self._pending: dict[Hashable, int] = {}
         self._thread: threading.Thread | None = None
         self._stop = False
         self._switch0: float | None = None
-        self._loop_priority = 0
+        self._loop_priority = _own_priority()
+        self.backend = backend or default_writer_backend()
+        if self.backend not in WRITER_BACKENDS:
+            raise ValueError(f"backend must be one of {', '.join(WRITER_BACKENDS)}, got {backend!r}")
         #: the scheduling policy the thread runs with (``SCHED_FIFO 1``, or ``SCHED_OTHER`` and why), once started
         self.policy: str | None = None
         #: writes that raised (the transport's write is expected to catch its own errors), and the last one
         self.failures = 0
         self.last_error: str | None = None
         self.writes = 0
+        #: why the process backend stopped (it died, or could not start), None while it works or was not asked for
+        self.error: WriterProcessError | None = None
+        self._proc: WriterProcess | None = None
+        if self.backend == "process":
+            try:
+                self._proc = WriterProcess(self.RT_PRIORITY, self._loop_priority, on_late=self._late,
+                                           on_death=self._proc_died)
+            except WriterProcessError as exc:
+                self._proc_died(exc)
+
+    @property
+    def process(self) -> WriterProcess | None:
+        """The writer process while it works (None: the thread writes everything)."""
+        p = self._proc
+        return p if p is not None and p.alive else None
 
     def put(self, at: float, write: Callable[[Any], object], data: Any, owner: Hashable) -> None:
         """Call ``write(data)`` in the writer's thread at ``CLOCK_MONOTONIC`` instant ``at`` (s), at once if past."""
@@ -156,18 +184,54 @@ class PacedWriter:
             self._pending[owner] = self._pending.get(owner, 0) + 1
             self._cv.notify_all()
 
+    def put_bytes(self, at: float, peer: PacedPeer, data: bytes) -> None:
+        """Write ``data`` to ``peer`` (a link) at ``CLOCK_MONOTONIC`` instant ``at`` (s), unless its peer has gone
+        by then (``peer_epoch``); the outcome of a failed or short write reaches ``peer._after_deferred_write`` in the
+        loop's thread. The process writes it when it works and the link has a descriptor, else the thread."""
+        p = self.process
+        if p is not None:
+            fd = peer.peer_fd()
+            if fd is not None:
+                try:
+                    p.put(at, peer, data, fd)
+                    return
+                except WriterProcessError:
+                    pass  # died (on_death has run): the thread takes this one
+        self.put(at, peer._write_deferred, (peer.peer_epoch, data), peer)
+
+    def peer_gone(self, peer: PacedPeer) -> None:
+        """``peer``'s peer went away (its ``peer_epoch`` has just moved on): what is queued for it is not written
+        (the thread checks the epoch at each write; the process is told, in order with the data)."""
+        p = self.process
+        if p is not None:
+            with contextlib.suppress(WriterProcessError):
+                p.flush(peer)
+
     def drain(self, owner: Hashable, timeout: float = 5.0) -> bool:
-        """Wait until every item of ``owner`` put so far is written; False on timeout (wall s)."""
+        """Wait until every item of ``owner`` put so far is written (and the process let go of its descriptor);
+        False on timeout (wall s)."""
+        t_end = _time.monotonic() + timeout
+        p = self._proc
+        ok = p.drain(owner, timeout) if p is not None else True
         with self._cv:
-            return self._cv.wait_for(lambda: not self._pending.get(owner) or self._thread is None, timeout)
+            return self._cv.wait_for(lambda: not self._pending.get(owner) or self._thread is None,
+                                     max(0.0, t_end - _time.monotonic())) and ok
 
     def pending(self, owner: Hashable | None = None) -> int:
         """Items not written yet (of ``owner``, or all)."""
+        p = self._proc
+        n = p.pending(owner) if p is not None else 0
         with self._cv:
-            return len(self._items) if owner is None else self._pending.get(owner, 0)
+            return n + (len(self._items) if owner is None else self._pending.get(owner, 0))
 
     def close(self, timeout: float = 5.0) -> None:
-        """Write what is queued (each at its instant), stop the thread, restore the switch interval."""
+        """Write what is queued (each at its instant), stop the process and the thread, restore the switch
+        interval."""
+        p, self._proc = self._proc, None
+        if p is not None:
+            p.close(timeout)
+            self.writes += p.writes
+            self.failures += p.failures
         with self._cv:
             th = self._thread
             self._stop = True
@@ -181,11 +245,19 @@ class PacedWriter:
             sys.setswitchinterval(self._switch0)
             self._switch0 = None
 
+    def _late(self, owner: Hashable, late_s: float) -> None:
+        hook = self.on_late
+        if hook is not None:
+            hook(owner, late_s)
+
+    def _proc_died(self, exc: WriterProcessError) -> None:
+        if self.error is exc:
+            return
+        self.error = exc
+        self.failures += 1
+        self.last_error = str(exc)
+
     def _start(self) -> None:
-        try:  # the putting thread's (the loop's) real-time priority, 0 when it has none
-            self._loop_priority = os.sched_getparam(0).sched_priority
-        except (AttributeError, OSError):
-            self._loop_priority = 0
         self._stop = False
         self._switch0 = sys.getswitchinterval()
         sys.setswitchinterval(min(self._switch0, self.SWITCH_INTERVAL_S))
@@ -194,7 +266,7 @@ class PacedWriter:
 
     def _run(self) -> None:
         set_timer_slack()
-        self.policy = self._ask_priority()
+        self.policy = ask_rt_priority(self.RT_PRIORITY, self._loop_priority)[1]
         items, cv, mono, sleep = self._items, self._cv, _time.monotonic, _time.sleep
         while True:
             with cv:
@@ -207,6 +279,9 @@ class PacedWriter:
             if delay > 0:
                 sleep(delay)  # later items are due later: nothing to wake up for
             self._write(at, write, data)
+            hook = self.on_late
+            if hook is not None:
+                hook(owner, mono() - at)
             with cv:
                 items.popleft()
                 left = self._pending[owner] - 1
@@ -216,25 +291,22 @@ class PacedWriter:
                     del self._pending[owner]
                     cv.notify_all()
 
-    def _ask_priority(self) -> str:
-        prio = self.RT_PRIORITY
-        if prio is None or not hasattr(os, "sched_setscheduler"):
-            return "SCHED_OTHER"
-        prio = max(prio, self._loop_priority + 1)
-        try:
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(prio))  # 0: the calling thread (Linux)
-        except (OSError, ValueError) as exc:
-            return f"SCHED_OTHER ({exc.strerror if isinstance(exc, OSError) else exc})"
-        return f"SCHED_FIFO {prio}"
-
     def _write(self, at: float, write: Callable[[Any], object], data: Any) -> None:
-        """One write, due at ``at`` (the benchmark wraps this to time it)."""
+        """One write, due at ``at``."""
         try:
             write(data)
         except Exception as exc:  # the transport catches its own errors; keep the thread alive regardless
             self.failures += 1
             self.last_error = repr(exc)
         self.writes += 1
+
+
+def _own_priority() -> int:
+    """The calling thread's (the loop's) real-time priority, 0 when it has none."""
+    try:
+        return int(os.sched_getparam(0).sched_priority)
+    except (AttributeError, OSError):
+        return 0
 
 
 class _ClockSelector(selectors.BaseSelector):
@@ -416,21 +488,35 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
             return cap
         return (_time.monotonic() - self._wall0 + self.lead_s) * self.speed
 
-    def set_lead(self, lead_s: float) -> None:
+    def set_lead(self, lead_s: float, writer_backend: str | None = None) -> None:
         """Realtime: run the clock ``lead_s`` wall seconds ahead of the outside world (module docstring;
         docs/decisions/performance.md D-10.E6). Transports with a real peer then hand their writes to
         :attr:`writer`, which performs each at :meth:`wall_at` of its scenario time. 0 turns it off (the
-        writer, if any, is closed after writing what it holds)."""
+        writer, if any, is closed after writing what it holds). ``writer_backend``: the writer's backend
+        (:data:`WRITER_BACKENDS`; None: :func:`default_writer_backend`)."""
         if self.mode != "realtime":
             raise ValueError("a lead applies to the realtime mode only")
         if lead_s < 0:
             raise ValueError(f"lead_s must be >= 0, got {lead_s}")
         if lead_s > 0 and self.writer is None:
-            self.writer = PacedWriter()
+            self.writer = PacedWriter(writer_backend)
         elif lead_s == 0 and self.writer is not None:
             self.writer.close()
             self.writer = None
         self.lead_s = float(lead_s)
+
+    def writer_summary(self) -> dict[str, Any] | None:
+        """The paced writer's state for a run's summary (None without one): the backend asked for, the one that
+        writes (``process`` until it died), the scheduling policy, writes, failures and the error, if any."""
+        w = self.writer
+        if w is None:
+            return None
+        p = w.process
+        return {"backend": w.backend, "writing": "process" if p is not None else "thread",
+                "policy": p.policy if p is not None else w.policy,
+                "writes": w.writes + (p.writes if p is not None else 0),
+                "failures": w.failures + (p.failures if p is not None else 0),
+                "error": None if w.error is None else str(w.error)}
 
     def wall_at(self, t: float) -> float:
         """The ``CLOCK_MONOTONIC`` instant (s) that scenario time ``t`` stands for in the outside world

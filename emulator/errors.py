@@ -14,6 +14,7 @@ __all__ = [
     "RecordingError",
     "ScenarioError",
     "ScenarioIssue",
+    "WriterProcessError",
 ]
 
 
@@ -80,3 +81,8 @@ class LinkTimeoutError(LinkError, TimeoutError):
 
 class RecordingError(EmulatorError):
     """A capture or recorded-data file is malformed (names file, line and column)."""
+
+
+class WriterProcessError(EmulatorError):
+    """The paced writer's process (:mod:`emulator.pacing`) could not be started or died: what it held is lost
+    (counted as dropped) and the paced writer writes from its thread instead."""

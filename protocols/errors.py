@@ -19,6 +19,7 @@ subclasses in its own ``errors`` module and maps foreign exceptions at its bound
         |   +-- LinkBrokenError               the peer or the hardware went away
         |   +-- LinkTimeoutError(TimeoutError)
         +-- RecordingError                    bad capture / recorded-data file (names file, line, column)
+        +-- WriterProcessError                the paced writer's process could not start or died
 
 Streaming decoders never raise on bad bytes: they count and resynchronise. Only the strict
 one-frame helpers (``parse_frame``) raise :class:`ProtocolError`.

@@ -431,6 +431,8 @@ class Emulator:
             "sim_duration_s": sim_t,
             "wall_s": wall,
             "realtime_factor": sim_t / wall if wall > 0 else None,
+            # realtime with a lead: who wrote to the real ports, and whether the writer process died (D-10.E11)
+            "paced_writer": self.loop.writer_summary() if isinstance(self.loop, EmulatorLoop) else None,
             "interrupted": interrupted,
             "replay": {"source": self.replay_source, "records": self.replayed_records} if self.replay is not None
             else None,

@@ -38,6 +38,7 @@ unchanged.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import ClassVar, Protocol
@@ -386,18 +387,35 @@ class Link:
         if w is None:
             self._after_write(len(data), *self._write_out(data))
             return
-        w.put(self.loop.wall_at(self.loop.time()), self._write_deferred,  # type: ignore[attr-defined]
-              (self.peer_epoch, data), self)
+        w.put_bytes(self.loop.wall_at(self.loop.time()), self, data)  # type: ignore[attr-defined]
 
     def _write_deferred(self, item: tuple[int, bytes]) -> None:
         """The writer thread's call: write, and pass a failure or a short write back to the loop's thread."""
         epoch, data = item
         if epoch != self.peer_epoch:
-            self.loop.call_soon_threadsafe(self._after_deferred_write, epoch, len(data), 0, None)
+            self._report_deferred(epoch, len(data), 0, None)
             return
         n, err = self._write_out(data)
         if n < len(data) or err is not None:
-            self.loop.call_soon_threadsafe(self._after_deferred_write, epoch, len(data), n, err)
+            self._report_deferred(epoch, len(data), n, err)
+
+    def _report_deferred(self, epoch: int, size: int, written: int, err: int | None) -> None:
+        """Any thread (the paced writer's, its process backend's reports): the outcome of a deferred write of
+        ``size`` bytes for the peer of ``epoch``, passed to :meth:`_after_deferred_write` in the loop's thread."""
+        with contextlib.suppress(RuntimeError):  # RuntimeError: the loop is closed, nobody left to count it
+            self.loop.call_soon_threadsafe(self._after_deferred_write, epoch, size, written, err)
+
+    def peer_fd(self) -> int | None:
+        """The file descriptor the transport writes its peer through (a pty master, a serial device), for the
+        paced writer's process backend; None: none (written by :meth:`_write_out` in the writer's thread)."""
+        return None
+
+    def _peer_gone(self) -> None:
+        """The peer went away: bytes handed over for it and not yet written are not written (:attr:`peer_epoch`)."""
+        self.peer_epoch += 1
+        w = getattr(self.loop, "writer", None)
+        if w is not None:
+            w.peer_gone(self)
 
     def _after_deferred_write(self, epoch: int, size: int, written: int, err: int | None) -> None:
         if epoch != self.peer_epoch:  # for a peer that has gone: unheard, whatever the write said

@@ -181,7 +181,7 @@ class PtyLink(Link):
 
     def _detach(self) -> None:
         self.attached = False
-        self.peer_epoch += 1  # what the paced writer holds for this peer is not written
+        self._peer_gone()  # what the paced writer holds for this peer is not written
         self.detach_count += 1
         self._stop_reading()
         self._flush_slave()
@@ -242,6 +242,9 @@ class PtyLink(Link):
             if not data:
                 return
         self._hand_over(data)
+
+    def peer_fd(self) -> int | None:
+        return self.master_fd
 
     def _write_out(self, data: bytes) -> tuple[int, int | None]:
         fd = self.master_fd

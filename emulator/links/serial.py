@@ -190,6 +190,10 @@ class SerialLink(Link):
             return
         self._hand_over(data)
 
+    def peer_fd(self) -> int | None:
+        ser = self._ser
+        return None if ser is None else int(ser.fd)
+
     def _write_out(self, data: bytes) -> tuple[int, int | None]:
         # os.write on pyserial's non-blocking fd: pyserial's own write() spins on EAGAIN when
         # write_timeout is 0, and blocks the event loop otherwise. A full driver buffer is

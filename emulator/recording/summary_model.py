@@ -140,6 +140,10 @@ class RunSummary(_Open):
     sim_duration_s: float | None = Field(None, description="simulated time the run covered, s")
     wall_s: float | None = None
     realtime_factor: float | None = None
+    paced_writer: dict[str, Any] | None = Field(
+        None, description="realtime with a lead: the paced writer's backend asked for and the one writing (process "
+                          "or thread), its scheduling policy, writes, failures and the error if its process died "
+                          "(docs/decisions/performance.md D-10.E11); null otherwise")
     interrupted: bool = False
     started: bool | None = Field(None, description="false when the run was interrupted while starting")
     replay: ReplayInfo | None = None

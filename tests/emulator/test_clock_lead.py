@@ -47,7 +47,7 @@ def test_timer_slack_is_a_no_op_off_linux(monkeypatch):
 
 def _writer_run(n: int, step_s: float, hold_s: float = 0.0) -> tuple[list[float], list[int]]:
     """Put ``n`` writes ``step_s`` apart; return their lateness (ms) and the order they were written in."""
-    w = PacedWriter()
+    w = PacedWriter("thread")
     late: list[float] = []
     order: list[int] = []
     t0 = time.monotonic() + 0.02
@@ -85,7 +85,7 @@ def test_writer_gets_the_gil_from_a_busy_thread():
 
 
 def test_writer_drain_pending_and_a_failing_write():
-    w = PacedWriter()
+    w = PacedWriter("thread")
     got: list[bytes] = []
 
     def bad(_data: bytes) -> None:

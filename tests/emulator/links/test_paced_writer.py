@@ -54,11 +54,15 @@ class _TimedPty(PtyLink):
         return n, err
 
 
-def _lateness(tmp_path, lead_s: float) -> tuple[list[float], EmulatorLoop, _TimedPty, bytes]:
-    """Lateness (ms, scenario time) of each slice's write against the end of its last stop bit; what a reader got."""
+def _lateness(tmp_path, lead_s: float, backend: str = "thread") -> tuple[list[float], EmulatorLoop, _TimedPty, bytes]:
+    """Lateness (ms, scenario time) of each slice's write against the end of its last stop bit; what a reader got.
+    With the writer process (``backend="process"``) the child times its writes (``PacedWriter.on_late``)."""
     loop = EmulatorLoop("realtime")
+    hooked: list[float] = []
     if lead_s:
-        loop.set_lead(lead_s)
+        loop.set_lead(lead_s, backend)
+        assert loop.writer is not None
+        loop.writer.on_late = lambda _owner, late_s: hooked.append(late_s * loop.speed * 1e3)
     link = _TimedPty("host", "pty://host", LineConfig(baud=BAUD), loop, target="host", run_dir=tmp_path / "ports")
     got = bytearray()
     stop = threading.Event()
@@ -113,13 +117,17 @@ def _lateness(tmp_path, lead_s: float) -> tuple[list[float], EmulatorLoop, _Time
         loop.run_until_complete(main())
     finally:
         loop.close()
+    if lead_s and backend == "process":
+        assert not link.writes and len(hooked) == len(ends)  # one write per slice, all by the child
+        return hooked, loop, link, bytes(got)
     assert [total for _t, total in link.writes] == [total for _e, total in ends]  # one write per slice
     late = [((t - loop._wall0) * loop.speed - end) * 1e3 for (t, _n), (end, _m) in zip(link.writes, ends)]
     return late, loop, link, bytes(got)
 
 
-def test_slices_leave_at_their_instants_while_the_loop_is_held_up(tmp_path):
-    late, _loop, link, got = _lateness(tmp_path / "lead", 0.02)
+@pytest.mark.parametrize("backend", ["thread", "process"])
+def test_slices_leave_at_their_instants_while_the_loop_is_held_up(tmp_path, backend):
+    late, _loop, link, got = _lateness(tmp_path / "lead", 0.02, backend)
     assert got == b"".join(_frame(k) for k in range(N_FRAMES))  # whole, in order, nothing stale or lost
     assert link.stats.bytes_out == N_FRAMES * FRAME and link.stats.dropped_out == 0
     # never early: each slice is written once its last stop bit has ended (the scenario clock runs 20 ms ahead)

@@ -67,6 +67,7 @@ __all__ = [
     "kmeans_1d",
     "kmeans_attitude",
     "kmeans_cycles",
+    "mag_heading_axis",
     "pitch_roll_from_sun",
 ]
 
@@ -133,9 +134,32 @@ def pitch_roll_from_sun(s_b: FloatArray, s_n: FloatArray, yaw: float, pitch_prio
     return theta, gamma
 
 
+def mag_heading_axis(declination: float, inclination: float) -> F64Array:
+    """The magnetometer fix's heading axis ``c_m = (tan I sin D, tan I cos D, 1)`` (ENU, rad; D-5.31).
+
+    A fix whose yaw is the tilt-compensated magnetometer heading computed with the fix's own pitch and roll errs by
+    ``c_m . phi_fix = dpsi`` (``dpsi`` the magnetometer's own heading error, about up), not by ``c . phi_fix``
+    (:func:`fix_measurement`): the compensation turns the fix's level error into heading. Derivation (PSINS
+    ``C_b^n = R_Z(yaw) R_X(pitch) R_Y(roll)``, ``C' = (I - [phi x]) C``): the Euler errors of a misalignment are
+    ``dpitch = -(cos y, sin y, 0) . phi``, ``droll = (sin y, -cos y, 0) . phi / cos p``, ``dyaw = -c . phi`` with
+    ``c = (tan p sin y, -tan p cos y, 1)``. The compensation (:func:`heading_from_mag`,
+    ``h = R_X(p)^T R_Y(r)^T m^b``, ``yaw = atan2(h_x, h_y) - D``) has the partials ``d yaw / d p = h_x h_z / h_H^2``
+    and ``d yaw / d r = -sin p + cos p h_y h_z / h_H^2``; at the solution ``h = B (cos I sin(y + D),
+    cos I cos(y + D), -sin I)``, so ``d yaw / d p = -tan I sin(y + D)``, ``d yaw / d r = -sin p - cos p tan I
+    cos(y + D)``. The fix's yaw error is the magnetometer's ``w`` plus the partials times the fix's own level error:
+    ``-c . phi_fix = (d yaw / d p) dpitch + (d yaw / d r) droll + w``, i.e.
+    ``(c + (d yaw / d p) (-(cos y, sin y, 0)) + (d yaw / d r) (sin y, -cos y, 0) / cos p) . phi_fix = -w = dpsi``;
+    the pitch-dependent parts cancel and the sum is ``c_m``, whatever the attitude. ``c_m`` is normal to the field
+    ``b = (cos I sin D, cos I cos D, -sin I)`` and to the horizontal across it: only a rotation that moves the field's
+    azimuth moves the heading. ``declination`` east positive, ``inclination`` down positive (the sheet's field
+    model, not the measured vector)."""
+    ti = math.tan(inclination)
+    return np.array([ti * math.sin(declination), ti * math.cos(declination), 1.0])
+
+
 def fix_measurement(s_n: FloatArray, pitch: float, yaw: float, sun_var: float, heading_var: float | None, n: int,
-                    i_sun: int | None, cbn: FloatArray | None, i_heading: int | None = None
-                    ) -> tuple[F64Array, F64Array]:
+                    i_sun: int | None, cbn: FloatArray | None, i_heading: int | None = None,
+                    heading_axis: FloatArray | None = None) -> tuple[F64Array, F64Array]:
     """Rows ``H`` (3, n) and noise ``R`` (3, 3) of the attitude fix ``Z = phi - phi_fix`` (D-5.23), ENU, rad.
 
     The fix turns the measured sun onto the ephemeris ``s`` with its yaw given. Its error ``phi_fix``
@@ -149,10 +173,20 @@ def fix_measurement(s_n: FloatArray, pitch: float, yaw: float, sun_var: float, h
     ``R = sun_var G G^T + heading_var s s^T / (c . s)^2``. Without a heading (None) the fix keeps the INS's yaw
     (``dpsi = c . phi``): ``Z = G phi - G mu - G eps``, ``H = [G, 0 .., -G (C_b^n)]``, ``R = sun_var G G^T``, of
     which the first two rows are used (rank 2). ``i_heading``: a state holding the heading's constant error ``b``
-    (``dpsi = b + w``, ``heading_var`` then the white part's): its column ``-s / (c . s)``."""
+    (``dpsi = b + w``, ``heading_var`` then the white part's): its column ``-s / (c . s)``.
+
+    ``heading_axis``: the heading's constraint when the yaw is not an independent measurement of the yaw but the
+    tilt-compensated magnetometer's, computed with the fix's own tilt: ``c_m . phi_fix = dpsi``
+    (:func:`mag_heading_axis`, D-5.31); ``c`` is replaced by it in ``G``, ``R`` and the columns, so every sun error
+    ``e`` also turns the fix about ``s`` by ``-(c_m . e) / (c_m . s)`` through the compensation: ``sun_var G G^T``
+    carries that share of the heading and its cross terms with the level.
+    Without a heading (``heading_var`` None) it is ignored: the INS yaw carries no tilt compensation."""
     s = np.asarray(s_n, dtype=np.float64)
-    tp = math.tan(pitch)
-    c = np.array([tp * math.sin(yaw), -tp * math.cos(yaw), 1.0])
+    if heading_axis is not None and heading_var is not None:
+        c = np.asarray(heading_axis, dtype=np.float64)
+    else:
+        tp = math.tan(pitch)
+        c = np.array([tp * math.sin(yaw), -tp * math.cos(yaw), 1.0])
     cs = float(c @ s)
     cs = math.copysign(max(abs(cs), 1e-3), cs)
     g = np.eye(3) - np.outer(s, c) / cs
@@ -424,6 +458,8 @@ class Kmeans3dFilter(BaseFilter):
         from ..alignment import triad_cycles
 
         self._cyc_triad = triad_cycles(self.cost)
+        # the magnetometer fix's heading axis (D-5.31): a constant of the sheet's field model, computed once here
+        self._mag_axis = mag_heading_axis(self.p.mag_declination_deg * DEG, self.p.mag_inclination_deg * DEG)
 
     def initialise(self, nav: NavState, heading_sigma_rad: float) -> None:
         super().initialise(nav, heading_sigma_rad)
@@ -516,7 +552,7 @@ class Kmeans3dFilter(BaseFilter):
                                (self.p.heading_noise_deg * DEG) ** 2 if with_heading else None,
                                self.n, None if sun_st is None else sun_st.i,
                                cbn if sun_st is not None and not sun_st.shaped else None,
-                               self.i_own if with_heading else None)
+                               self.i_own if with_heading else None, self._mag_axis)
         m = 3 if with_heading else 2  # without a heading Z has rank 2: its first two rows
         nu = (z - H @ self.x.astype(np.float64))[:m]
         S = H[:m] @ self.P.astype(np.float64) @ H[:m].T + R[:m, :m]

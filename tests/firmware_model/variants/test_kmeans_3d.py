@@ -190,3 +190,77 @@ def test_fix_measurement_is_the_first_order_error_of_the_fix():
     H0, R0 = fix_measurement(s_n, pitch, yaw, 1e-6, None, 15, None, None)
     np.testing.assert_allclose(H0[:, :3], g, atol=1e-15)
     np.testing.assert_allclose(R0, 1e-6 * g @ g.T, rtol=1e-12)
+
+
+@pytest.mark.parametrize(("pitch", "roll", "yaw"), [(12.0, -7.0, 40.0), (-20.0, 5.0, -145.0), (15.0, -35.0, 100.0)])
+def test_mag_fix_heading_axis_is_the_tilt_compensations_jacobian(pitch, roll, yaw):
+    """D-5.31: the tilt-compensated heading's partials on pitch and roll (finite differences of
+    :func:`heading_from_mag` with the field the box sees) times the Euler errors of a misalignment (finite
+    differences of ``m2att``), added to the INS yaw's ``c``, give ``c_m = (tan I sin D, tan I cos D, 1)`` at any
+    attitude; the closed-form partials of the docstring match the differences."""
+    from firmware_model.attitude import m2att
+    from firmware_model.variants.kmeans_3d import mag_heading_axis
+
+    p, r, y = pitch * DEG, roll * DEG, yaw * DEG
+    dec, inc = MAG.declination_deg * DEG, MAG.inclination_deg * DEG
+    c_true = a2mat(p, r, y)
+    m_b = c_true.T @ field_enu(MAG)
+    assert heading_from_mag(m_b, p, r, dec) == pytest.approx(y, abs=1e-9)
+    h = 1e-6
+    j_p = (heading_from_mag(m_b, p + h, r, dec) - heading_from_mag(m_b, p - h, r, dec)) / (2 * h)
+    j_r = (heading_from_mag(m_b, p, r + h, dec) - heading_from_mag(m_b, p, r - h, dec)) / (2 * h)
+    ti = math.tan(inc)
+    assert j_p == pytest.approx(-ti * math.sin(y + dec), abs=1e-7)
+    assert j_r == pytest.approx(-math.sin(p) - math.cos(p) * ti * math.cos(y + dec), abs=1e-7)
+    euler = np.zeros((3, 3))  # d(pitch, roll, yaw) / d phi, numerically
+    for i in range(3):
+        e = np.zeros(3)
+        e[i] = h
+        turned = (np.eye(3) - np.array([[0, -e[2], e[1]], [e[2], 0, -e[0]], [-e[1], e[0], 0]])) @ c_true
+        euler[:, i] = (np.array(m2att(turned)) - np.array([p, r, y])) / h
+    c_m = -euler[2] + j_p * euler[0] + j_r * euler[1]  # -dyaw_fix + dyaw_mag(tilt) = c_m . phi
+    np.testing.assert_allclose(c_m, mag_heading_axis(dec, inc), atol=1e-5)
+    np.testing.assert_allclose(mag_heading_axis(dec, inc) @ field_enu(MAG), 0.0, atol=1e-12)
+
+
+def test_mag_fix_measurement_is_the_first_order_error_of_the_self_consistent_fix():
+    """D-5.31: the fix solved by :func:`kmeans_attitude` (heading from the magnetometer compensated with the fix's
+    own tilt, iterated to self-consistency) from a sun turned by ``mu`` and a magnetometer heading off by ``w``
+    errs by ``phi_fix = G_m mu + s (-w) / (c_m . s)``, ``G_m = I - s c_m^T / (c_m . s)``; the old axis ``c`` (the
+    heading independent of the level) misses the sun's share of the heading by far more than the first order."""
+    from firmware_model.attitude import m2att
+    from firmware_model.variants.common import misalignment_between
+    from firmware_model.variants.kmeans_3d import SunFinding, fix_measurement, mag_heading_axis
+
+    s_n = _sun_n()
+    dec, inc = MAG.declination_deg * DEG, MAG.inclination_deg * DEG
+    pitch, roll, yaw = -20.0 * DEG, 5.0 * DEG, yaw_from_heading(144.9 * DEG)
+    c_true = a2mat(pitch, roll, yaw)
+    m_b = c_true.T @ field_enu(MAG)
+    c_m = mag_heading_axis(dec, inc)
+    H, R = fix_measurement(s_n, pitch, yaw, 1e-6, 4e-6, 22, 18, None, 21, c_m)
+    g_m = -H[:, 18:21]
+    cs = float(c_m @ s_n)
+    np.testing.assert_allclose(g_m, np.eye(3) - np.outer(s_n, c_m) / cs, atol=1e-15)
+    np.testing.assert_allclose(H[:, 21], -s_n / cs, atol=1e-15)
+    np.testing.assert_allclose(R, 1e-6 * g_m @ g_m.T + 4e-6 * np.outer(s_n, s_n) / cs ** 2, rtol=1e-12)
+    tp = math.tan(pitch)
+    c = np.array([tp * math.sin(yaw), -tp * math.cos(yaw), 1.0])
+    g_old = np.eye(3) - np.outer(s_n, c) / float(c @ s_n)
+    rng = np.random.default_rng(5)
+    worst_new = worst_old = 0.0
+    for _ in range(10):
+        mu = rng.normal(0.0, 1e-3, 3)
+        w = float(rng.normal(0.0, 1e-3))
+        s_meas_b = c_true.T @ (s_n + np.cross(mu, s_n))
+        finding = SunFinding(True, "sun_in_fov", s_c=s_meas_b / np.linalg.norm(s_meas_b))
+        fix = kmeans_attitude(finding, np.eye(3), s_n, m_b, dec - w, (pitch, roll, yaw), 4, inc)
+        assert fix is not None and fix.heading_source == "magnetometer"
+        assert heading_from_mag(m_b, fix.pitch, fix.roll, dec - w) == pytest.approx(fix.yaw, abs=1e-12)
+        phi_fix = misalignment_between(a2mat(fix.pitch, fix.roll, fix.yaw), c_true)
+        size = float(np.linalg.norm(phi_fix))
+        worst_new = max(worst_new, float(np.linalg.norm(phi_fix - (g_m @ mu - s_n * w / cs))) / size)
+        worst_old = max(worst_old, float(np.linalg.norm(phi_fix - (g_old @ mu - s_n * w / float(c @ s_n)))) / size)
+        assert m2att(a2mat(fix.pitch, fix.roll, fix.yaw))[0] == pytest.approx(fix.pitch, abs=1e-12)
+    assert worst_new < 0.01  # second order: a few 1e-3 of the error at 1e-3 rad
+    assert worst_old > 0.3

@@ -46,7 +46,9 @@ def test_kmeans_scenario_refuses_when_the_sun_leaves_the_field(tmp_path):
     # with the truth as calibration (seed 7) the fixes themselves are within 0.01-0.06 deg of the truth, but the
     # filter weighs them by its spec sheet, which states the fisheye's calibration check (mount and lens residual,
     # 0.07 deg per axis together, D-5.24): the level it keeps is the sheet's, not the algorithm's best (pitch/roll
-    # max 0.165 deg, inside the filter's 3 sigma; it was 0.036 deg when the filter took the fix as exact)
+    # max 0.242 deg at 45-50 s, at most 2.0 of the filter's sigma; it was 0.158 deg before D-5.31 routed the sun's
+    # error into the fix's heading through the magnetometer's tilt compensation, and 0.036 deg when the filter took
+    # the fix as exact). With the calibrated unit (the scenario as written) the level improves: D-5.31.
     _summary, ev, nav = _run("kmeans_tilt_series", tmp_path, duration_s=105.0,
                              **{"firmware.calibration.source": "perfect"})
     refused = [e for e in ev if e["event"] == "kmeans_refused"]
@@ -57,7 +59,7 @@ def test_kmeans_scenario_refuses_when_the_sun_leaves_the_field(tmp_path):
     rows = [r for r in nav if r["err_pitch_deg"] and 5.0 <= float(r["time_s"]) <= 90.0]
     err = [max(abs(float(r["err_pitch_deg"])), abs(float(r["err_roll_deg"]))) for r in rows]
     sig = [max(float(r["sig_att_e_deg"]), float(r["sig_att_n_deg"])) for r in rows]
-    assert max(err) < 0.2
+    assert max(err) < 0.3
     assert all(e < 3.0 * s for e, s in zip(err, sig, strict=True))
 
 

@@ -89,6 +89,14 @@ def pipe():
             os.close(fd)
 
 
+@pytest.fixture
+def wp():
+    """A writer process, closed after the test."""
+    writer = WriterProcess()
+    yield writer
+    writer.close()
+
+
 def test_the_record_layout_round_trips():
     assert RECORD.size == 24
     cases = [
@@ -129,92 +137,72 @@ def test_the_child_writes_the_bytes_in_order_at_their_instants(pipe):
     assert wp.proc.returncode == 0
 
 
-def test_a_long_chunk_goes_as_several_records(pipe):
+def test_a_long_chunk_goes_as_several_records(pipe, wp):
     r, w = pipe
-    wp = WriterProcess()
-    try:
-        peer = _Peer(w)
-        data = bytes(range(256)) * 200  # 51 200 B > MAX_PAYLOAD; fits the pipe's 64 KiB
-        wp.put(time.monotonic(), peer, data, w)
-        assert wp.drain(peer)
-        assert _read_all(r) == data and not peer.reports
-    finally:
-        wp.close()
+    peer = _Peer(w)
+    data = bytes(range(256)) * 200  # 51 200 B > MAX_PAYLOAD; fits the pipe's 64 KiB
+    wp.put(time.monotonic(), peer, data, w)
+    assert wp.drain(peer)
+    assert _read_all(r) == data and not peer.reports
 
 
-def test_a_flush_drops_what_is_queued_for_the_peer_that_left(pipe):
+def test_a_flush_drops_what_is_queued_for_the_peer_that_left(pipe, wp):
     r, w = pipe
-    wp = WriterProcess()
-    try:
-        peer = _Peer(w)
-        t0 = time.monotonic() + 0.3
-        for k in range(5):
-            wp.put(t0 + k * 0.001, peer, b"old%d" % k, w)
-        peer.peer_epoch += 1  # the peer went away (a pty's detach) ...
-        wp.flush(peer)  # ... the link tells the writer, in order with the data
-        wp.put(t0 + 0.01, peer, b"new", w)
-        assert wp.drain(peer)
-        assert _read_all(r) == b"new"
-        assert peer.reports == [(0, 20, 0, None)]  # the old epoch's 5 items, 20 bytes: unheard (no_peer_out)
-        assert wp.pending() == 0
-    finally:
-        wp.close()
+    peer = _Peer(w)
+    t0 = time.monotonic() + 0.3
+    for k in range(5):
+        wp.put(t0 + k * 0.001, peer, b"old%d" % k, w)
+    peer.peer_epoch += 1  # the peer went away (a pty's detach) ...
+    wp.flush(peer)  # ... the link tells the writer, in order with the data
+    wp.put(t0 + 0.01, peer, b"new", w)
+    assert wp.drain(peer)
+    assert _read_all(r) == b"new"
+    assert peer.reports == [(0, 20, 0, None)]  # the old epoch's 5 items, 20 bytes: unheard (no_peer_out)
+    assert wp.pending() == 0
 
 
-def test_drain_waits_for_the_writes_and_lets_go_of_the_descriptor(pipe):
+def test_drain_waits_for_the_writes_and_lets_go_of_the_descriptor(pipe, wp):
     r, w = pipe
-    wp = WriterProcess()
-    try:
-        peer = _Peer(w)
-        t0 = time.monotonic()
-        wp.put(t0 + 0.15, peer, b"abc", w)
-        assert wp.pending(peer) == 1
-        assert wp.drain(peer, timeout=5.0)
-        assert time.monotonic() - t0 >= 0.15  # not before the item's instant
-        assert os.read(r, 10) == b"abc"
-        os.close(w)  # the link closes its descriptor: the child's copy is closed already, so the reader sees EOF
-        assert select.select([r], [], [], 2.0)[0] and os.read(r, 10) == b""
-        # a later put sends the descriptor again (a link that writes after a drain)
-        r2, w2 = os.pipe()
-        peer.fd = w2
-        wp.put(time.monotonic(), peer, b"again", w2)
-        assert wp.drain(peer) and os.read(r2, 10) == b"again"
-        os.close(r2)
-        os.close(w2)
-    finally:
-        wp.close()
+    peer = _Peer(w)
+    t0 = time.monotonic()
+    wp.put(t0 + 0.15, peer, b"abc", w)
+    assert wp.pending(peer) == 1
+    assert wp.drain(peer, timeout=5.0)
+    assert time.monotonic() - t0 >= 0.15  # not before the item's instant
+    assert os.read(r, 10) == b"abc"
+    os.close(w)  # the link closes its descriptor: the child's copy is closed already, so the reader sees EOF
+    assert select.select([r], [], [], 2.0)[0] and os.read(r, 10) == b""
+    # a later put sends the descriptor again (a link that writes after a drain)
+    r2, w2 = os.pipe()
+    peer.fd = w2
+    wp.put(time.monotonic(), peer, b"again", w2)
+    assert wp.drain(peer) and os.read(r2, 10) == b"again"
+    os.close(r2)
+    os.close(w2)
 
 
-def test_a_write_that_fails_is_reported_with_its_errno(pipe):
+def test_a_write_that_fails_is_reported_with_its_errno(pipe, wp):
     r, w = pipe
-    wp = WriterProcess()
-    try:
-        peer = _Peer(w)
-        os.close(r)  # no reader: EPIPE
-        wp.put(time.monotonic(), peer, b"xyz", w)
-        assert wp.drain(peer)
-        assert _wait(lambda: len(peer.reports) == 1)
-        assert peer.reports == [(0, 3, 0, 32)]  # errno 32: EPIPE (the child ignores SIGPIPE as Python does)
-        assert wp.failures == 1
-    finally:
-        wp.close()
+    peer = _Peer(w)
+    os.close(r)  # no reader: EPIPE
+    wp.put(time.monotonic(), peer, b"xyz", w)
+    assert wp.drain(peer)
+    assert _wait(lambda: len(peer.reports) == 1)
+    assert peer.reports == [(0, 3, 0, 32)]  # errno 32: EPIPE (the child ignores SIGPIPE as Python does)
+    assert wp.failures == 1
 
 
-def test_a_full_peer_buffer_is_a_short_write_not_an_error(pipe):
+def test_a_full_peer_buffer_is_a_short_write_not_an_error(pipe, wp):
     r, w = pipe
-    wp = WriterProcess()
-    try:
-        peer = _Peer(w)
-        big = b"z" * (1 << 20)  # more than the pipe holds: the non-blocking write takes what fits
-        wp.put(time.monotonic(), peer, big, w)
-        assert wp.drain(peer)
-        assert _wait(lambda: bool(peer.reports))
-        written = len(_read_all(r, 0.05))
-        assert 0 < written < len(big)
-        lost = sum(size - wr for _e, size, wr, _err in peer.reports)
-        assert written + lost == len(big) and all(err is None for *_x, err in peer.reports)
-    finally:
-        wp.close()
+    peer = _Peer(w)
+    big = b"z" * (1 << 20)  # more than the pipe holds: the non-blocking write takes what fits
+    wp.put(time.monotonic(), peer, big, w)
+    assert wp.drain(peer)
+    assert _wait(lambda: bool(peer.reports))
+    written = len(_read_all(r, 0.05))
+    assert 0 < written < len(big)
+    lost = sum(size - wr for _e, size, wr, _err in peer.reports)
+    assert written + lost == len(big) and all(err is None for *_x, err in peer.reports)
 
 
 def test_a_killed_child_is_an_error_and_the_thread_takes_over(pipe):

@@ -58,7 +58,7 @@ from collections.abc import Callable, Hashable
 from contextvars import copy_context as _copy_context
 from typing import TYPE_CHECKING, Any
 
-from .errors import WriterProcessError
+from .errors import LinkConfigError, WriterProcessError
 from .pacing import TIMER_SLACK_NS, PacedPeer, WriterProcess, ask_rt_priority, set_timer_slack
 
 __all__ = ["FAST_PATH_VERSIONS", "TIMER_SLACK_NS", "WRITER_BACKENDS", "EmulatorLoop", "PacedWriter",
@@ -101,7 +101,7 @@ def default_writer_backend() -> str:
     env = os.environ.get(WRITER_ENV, "").strip().lower()
     if env:
         if env not in WRITER_BACKENDS:
-            raise ValueError(f"{WRITER_ENV}={env!r}: expected one of {', '.join(WRITER_BACKENDS)}")
+            raise LinkConfigError(f"{WRITER_ENV}={env!r}: expected one of {', '.join(WRITER_BACKENDS)}")
         return env
     return "process" if sys.platform.startswith("linux") else "thread"
 

@@ -20,7 +20,7 @@ import time
 import pytest
 
 from emulator.clock import WRITER_ENV, EmulatorLoop, PacedWriter, default_writer_backend
-from emulator.errors import EmulatorError, WriterProcessError
+from emulator.errors import EmulatorError, LinkConfigError, WriterProcessError
 from emulator.links import LineConfig
 from emulator.links.base import Link
 from emulator.pacing import (
@@ -263,7 +263,7 @@ def test_the_backend_is_chosen_by_argument_environment_or_platform(monkeypatch):
     monkeypatch.setenv(WRITER_ENV, "thread")
     assert default_writer_backend() == "thread"
     monkeypatch.setenv(WRITER_ENV, "bogus")
-    with pytest.raises(ValueError, match=WRITER_ENV):
+    with pytest.raises(LinkConfigError, match=WRITER_ENV):  # a ValueError too
         default_writer_backend()
     with pytest.raises(ValueError):
         PacedWriter("fork")

@@ -92,6 +92,7 @@ __all__ = [
     "UpdateReport",
     "feedback_cycles",
     "gnss_measurement_rows",
+    "gyro_bias_walk_psd",
     "gyro_flicker_band",
     "kf_predict_cycles",
     "kf_scalar_update_cycles",
@@ -164,6 +165,12 @@ def flicker_white_psd(cfg: FirmwareConfig, b: float, vertical: bool = False) -> 
     return (_ALLAN_FLOOR * b) ** 2 * flicker_match_s(cfg, vertical)
 
 
+def gyro_bias_walk_psd(cfg: FirmwareConfig) -> float:
+    """PSD ((rad/s)^2/s) of the gyro bias's random walk matched to the in-run Gauss-Markov of the sheet's bias
+    instability B and correlation time tau: ``q = 2 B^2 / tau`` (D-5.11)."""
+    return 2.0 * (cfg.gyro_bias_instability_deg_h * DPH) ** 2 / cfg.bias_corr_time_s
+
+
 def gyro_flicker_band(cfg: FirmwareConfig) -> tuple[float, float]:
     """Correlation time (s) and sigma (rad/s) of the Gauss-Markov that carries the gyro flicker's middle band (D-5.28),
     from the spec sheet's bias instability B, its correlation time tau and the white equivalent's matching time
@@ -180,8 +187,8 @@ def gyro_flicker_band(cfg: FirmwareConfig) -> tuple[float, float]:
     b = flicker_b_gyro(cfg)
     tau = cfg.bias_corr_time_s
     floor2 = (_ALLAN_FLOOR * b) ** 2
-    q = 2.0 * (cfg.gyro_bias_instability_deg_h * DPH) ** 2 / tau
-    n2 = floor2 * flicker_match_s(cfg)
+    q = gyro_bias_walk_psd(cfg)
+    n2 = flicker_white_psd(cfg, b)
     if q <= 0.0 or n2 <= 0.0:
         return tau, 0.0
     t_star = math.sqrt(3.0 * n2 / q)
@@ -196,7 +203,7 @@ def spec_process_noise(cfg: FirmwareConfig) -> F64Array:
     filter, the federated sub-filters)."""
     arw = cfg.gyro_arw_deg_rt_h * DEG / 60.0
     vrw = cfg.accel_noise_ug_rt_hz * 1e-6 * G_STD
-    qg = 2.0 * (cfg.gyro_bias_instability_deg_h * DPH) ** 2 / cfg.bias_corr_time_s
+    qg = gyro_bias_walk_psd(cfg)
     qa = 2.0 * (cfg.accel_bias_instability_mg * 1e-3 * G_STD) ** 2 / cfg.accel_bias_corr_time_s
     q = np.asarray(process_noise_psd(arw, vrw, qg, qa), dtype=np.float64)
     # the bias instability is flicker noise (Allan floor 0.664 B from ~1 s up to the correlation time): over the

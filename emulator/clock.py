@@ -12,11 +12,14 @@ scenario clock in seconds since scenario start.
     virtual time races ahead, so runs with ``pty``/``serial`` endpoints use ``realtime``.
 ``realtime``
     The clock follows the wall clock, scaled by ``speed`` (2.0 runs twice as fast as real
-    time). Select timeouts are divided by ``speed``. When the host is busy and timers are
-    overdue, each loop iteration runs only the earliest overdue instant, and ``time()`` reads
-    that instant while its callbacks run (logical time). So late events keep their order and
-    spacing and the loop catches up: asyncio alone would run every overdue timer in one batch,
-    and a sensor datagram scheduled during the batch would land after the FPGA's timeout for it.
+    time). Select timeouts are divided by ``speed``. Each loop iteration runs at one instant, read
+    once when the selector returns: when timers are due, only the earliest due instant runs, and
+    ``time()`` reads that instant while its callbacks run (logical time); otherwise ``time()``
+    reads the moment the selector returned, for the whole iteration. So late events keep their
+    order and spacing and the loop catches up (asyncio alone would run every overdue timer in one
+    batch, and a sensor datagram scheduled during the batch would land after the FPGA's timeout
+    for it), and a timer's callback always sees its own instant, however long the callbacks
+    before it took (D-7.7, D-10.E12).
 
     **Compute ahead** (:meth:`EmulatorLoop.set_lead`, docs/decisions/performance.md D-10.E6): the
     clock may run ``lead_s`` (wall seconds) ahead of the outside world. Everything inside the loop
@@ -383,11 +386,14 @@ class _ClockSelector(selectors.BaseSelector):
                     events = self._real.select(0)
         else:
             events = self._real.select(timeout)
+        # One reading of the clock decides the iteration's instant (D-7.7, D-10.E12): the earliest timer's own when it
+        # is due, else this moment; time() reads it until the iteration ends, so asyncio's test of which timers are
+        # due (time() + resolution) agrees with this one, and every timer's callback sees exactly its own instant.
+        # (Read twice, a timer falling due between the two readings ran at the second one, behind the callbacks
+        # already ready -- a DSP tick of 0.3-0.7 ms -- and what it sent took that late instant as its own.)
+        now = loop.time()
         sched = loop._scheduled
-        if sched:
-            when = sched[0]._when
-            if when < loop.time():
-                loop._cap = when
+        loop._cap = sched[0]._when if sched and sched[0]._when <= now else now
         return events
 
 
@@ -464,7 +470,7 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
         self.speed = float(speed)
         self._now = 0.0
         self._wall0 = _time.monotonic()
-        self._cap: float | None = None  # realtime: the overdue instant this iteration runs
+        self._cap: float | None = None  # realtime: the instant this iteration runs (set when the selector returns)
         #: realtime: how far (wall s) the clock runs ahead of the outside world (:meth:`set_lead`)
         self.lead_s = 0.0
         #: realtime with a lead: the thread that writes to real peers at their instants, else None

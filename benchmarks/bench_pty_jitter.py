@@ -18,8 +18,7 @@ Two measurements.
    absorbs). ``PSNS_BENCH_RT_S`` sets the duration (wall s; default 600, the issue's 10 min;
    ``make bench-quick``: 30); ``PSNS_BENCH_RT_LEAD_S`` the lead (``0``: none); ``PSNS_PACED_WRITER``
    (``process`` | ``thread``) the paced writer's backend (D-10.E11; the emulator's CPU includes its writer
-   process's), ``PSNS_PACED_WRITER_CPUS`` pins that process; ``PSNS_BENCH_RT_QUIET_US`` the loop's quiet window
-   around each write (``before,after`` in us; ``0``: none; default ``PacedWriter.QUIET_S``, D-10.E12);
+   process's), ``PSNS_PACED_WRITER_CPUS`` pins that process;
    ``PSNS_BENCH_RT_EMU_CPUS`` / ``PSNS_BENCH_RT_READER_CPUS`` pin the two processes (``1`` / ``0``);
    the note says what was run.
 2. **One pty link alone** (the floor): a :class:`~emulator.links.pty.PtyLink` at 460 800 baud (8N1)
@@ -227,19 +226,14 @@ if os.environ.get("PSNS_BENCH_RT_LEAD_S"):  # the lead of the realtime loop (wal
 if os.environ.get("PSNS_BENCH_RT_WRITER_PRIO"):  # the writer thread's SCHED_FIFO priority ("none": normal policy)
     _p = os.environ["PSNS_BENCH_RT_WRITER_PRIO"]
     PacedWriter.RT_PRIORITY = None if _p == "none" else int(_p)
-if os.environ.get("PSNS_BENCH_RT_QUIET_US"):  # the loop's quiet window around each write, us before,after ("0": none)
-    _q = [float(x) * 1e-6 for x in os.environ["PSNS_BENCH_RT_QUIET_US"].split(",")]
-    PacedWriter.QUIET_S = (_q[0], _q[-1]) if any(_q) else (0.0, 0.0)
 def _on_late(owner, late_s):  # either backend: the thread's write, or the writer process's (reported back)
     tap = TAPS.get(getattr(owner, "name", ""))
     if tap is not None:
         late[tap].append(late_s)
 PacedWriter.on_late = staticmethod(_on_late)
 s = run_scenario(load_scenario(sys.argv[1]), Path(sys.argv[2]), mode="realtime")
-pw = s.get("paced_writer") or {}
 Path(sys.argv[3]).write_text(json.dumps({"passed": s["passed"], "deadline_misses": s["dsp"]["deadline_misses"],
-                                         "nav_frames": s["nav_frames"], "quiet_windows": pw.get("quiet_windows"),
-                                         "quiet_s": pw.get("quiet_s"), "late": late, "loop_late": loop_late}))
+                                         "nav_frames": s["nav_frames"], "late": late, "loop_late": loop_late}))
 """
 
 
@@ -393,8 +387,6 @@ def _emulator_rows() -> list[dict]:
                      if os.environ.get(v))
     if pins:
         how += f"; pinned: {pins}"
-    if os.environ.get("PSNS_BENCH_RT_QUIET_US"):
-        how += f"; quiet window {os.environ['PSNS_BENCH_RT_QUIET_US']} us"
     rows = []
     for tap, st in (("uart0", u0), ("uart1", u1)):
         period_ms = TAP_PERIOD_S[tap] * 1e3

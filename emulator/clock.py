@@ -144,11 +144,6 @@ class PacedWriter:
     #: ``on_late(owner, late_s)``: each write's lateness against its instant (s), called in the writer's thread or
     #: the process backend's report thread; None: not measured
     on_late: Callable[[Hashable, float], None] | None = None
-    #: the loop's quiet window around each write to a real peer (s before, s after its instant; D-10.E12): the loop
-    #: starts no callback in it (:meth:`EmulatorLoop.keep_quiet`), so that the kernel's pty work and the peer's
-    #: reader, woken by the write, find the CPU free instead of waiting behind the loop's compute-ahead on a shared
-    #: machine; (0, 0): none
-    QUIET_S: tuple[float, float] = (1e-4, 3e-4)
 
     def __init__(self, backend: str | None = None) -> None:
         self._items: deque[tuple[float, Callable[[Any], object], Any, Hashable]] = deque()
@@ -158,12 +153,6 @@ class PacedWriter:
         self._stop = False
         self._switch0: float | None = None
         self._loop_priority = _own_priority()
-        #: the ``CLOCK_MONOTONIC`` instants (s) of the writes put for real peers whose quiet window has not passed
-        #: (the loop's thread only: :meth:`put_bytes` appends, :meth:`EmulatorLoop.keep_quiet` takes them off)
-        self.instants: deque[float] = deque()
-        #: wall seconds the loop spent in quiet windows, and how many it kept
-        self.quiet_s = 0.0
-        self.quiet_windows = 0
         self.backend = backend or default_writer_backend()
         if self.backend not in WRITER_BACKENDS:
             raise ValueError(f"backend must be one of {', '.join(WRITER_BACKENDS)}, got {backend!r}")
@@ -202,8 +191,6 @@ class PacedWriter:
         """Write ``data`` to ``peer`` (a link) at ``CLOCK_MONOTONIC`` instant ``at`` (s), unless its peer has gone
         by then (``peer_epoch``); the outcome of a failed or short write reaches ``peer._after_deferred_write`` in the
         loop's thread. The process writes it when it works and the link has a descriptor, else the thread."""
-        if self.QUIET_S[1] > 0:
-            self.instants.append(at)
         p = self.process
         if p is not None:
             fd = peer.peer_fd()
@@ -404,9 +391,6 @@ class _ClockSelector(selectors.BaseSelector):
         # due (time() + resolution) agrees with this one, and every timer's callback sees exactly its own instant.
         # (Read twice, a timer falling due between the two readings ran at the second one, behind the callbacks
         # already ready -- a DSP tick of 0.3-0.7 ms -- and what it sent took that late instant as its own.)
-        w = loop.writer
-        if w is not None and w.instants:
-            loop.keep_quiet(w)
         now = loop.time()
         sched = loop._scheduled
         loop._cap = sched[0]._when if sched and sched[0]._when <= now else now
@@ -529,8 +513,7 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
 
     def writer_summary(self) -> dict[str, Any] | None:
         """The paced writer's state for a run's summary (None without one): the backend asked for, the one that
-        writes (``process`` until it died), the scheduling policy, writes, failures, the error, if any, and the loop's
-        quiet windows around the writes (:meth:`keep_quiet`: how many, wall s in all)."""
+        writes (``process`` until it died), the scheduling policy, writes, failures and the error, if any."""
         w = self.writer
         if w is None:
             return None
@@ -539,36 +522,7 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
                 "policy": p.policy if p is not None else w.policy,
                 "writes": w.writes + (p.writes if p is not None else 0),
                 "failures": w.failures + (p.failures if p is not None else 0),
-                "error": None if w.error is None else str(w.error),
-                "quiet_windows": w.quiet_windows, "quiet_s": round(w.quiet_s, 3)}
-
-    def keep_quiet(self, w: PacedWriter) -> None:
-        """Realtime with a lead, before an iteration runs its callbacks: when a write of ``w`` to a real peer is due
-        within :attr:`PacedWriter.QUIET_S` ``[0]`` or was due less than ``[1]`` ago, sleep until that window has
-        passed (docs/decisions/performance.md D-10.E12). The loop computes ahead, so it can afford to keep off the
-        CPU while the kernel hands the bytes on and the peer's reader wakes up; otherwise its bursts, which fall on
-        the writes' instants (a DSP tick follows each IMU frame), make both wait for the CPU. Not while the loop is
-        behind its own schedule by more than half its lead: then it needs the CPU more."""
-        q = w.instants
-        before, after = w.QUIET_S
-        mono = _time.monotonic
-        now = mono()
-        while q:
-            at = q[0]
-            if at + after <= now:
-                q.popleft()
-                continue
-            if at - before > now:
-                return
-            sched = self._scheduled
-            if sched and self._wall0 + sched[0]._when / self.speed - self.lead_s < now - 0.5 * self.lead_s:
-                return  # behind: the lead needs the CPU
-            _time.sleep(at + after - now)
-            q.popleft()
-            t = mono()
-            w.quiet_s += t - now
-            w.quiet_windows += 1
-            now = t
+                "error": None if w.error is None else str(w.error)}
 
     def wall_at(self, t: float) -> float:
         """The ``CLOCK_MONOTONIC`` instant (s) that scenario time ``t`` stands for in the outside world

@@ -13,7 +13,8 @@ It prints, per tap, the frame-period jitter |period - nominal| (p50 / p99 / p99.
 deadlines alone, of arrival - deadline, and (MONITOR) of arrival - deadline - the writer's lateness: what the
 emulator's model puts into the cadence, against what happens after the write.
 
-``--ftrace`` (Linux, root, tracefs mounted at ``/sys/kernel/tracing``) also records the scheduler and the
+``--ftrace`` (Linux, root, tracefs mounted at ``/sys/kernel/tracing``: ``mount -t tracefs nodev
+/sys/kernel/tracing`` where it is not) also records the scheduler and the
 workqueue events of the run (``sched_switch``, ``sched_wakeup``, ``workqueue_queue_work``,
 ``workqueue_execute_start``; ``trace_clock`` ``mono``) and splits each MONITOR write's path into: the writer's
 write (its ``queue_work`` of the pty's ``flush_to_ldisc``) -> the kernel worker starting it -> the reader woken ->

@@ -470,10 +470,10 @@ class SolarBiasStates:
         """True when the sky's error is modelled across the solar meridian (local-level states, a sky figure)."""
         return self.sky2 > 0.0
 
-    def set_axis(self, s_n: FloatArray, P: FloatArray) -> bool:
+    def set_axis(self, s_n: FloatArray, P: FloatArray, scale: float = 1.0) -> bool:
         """Keep the n-frame axis across the solar meridian; at the first solar update give the states their prior in
-        that shape in ``P`` (until then the states are uncorrelated with every other state, so this is the P0 the
-        filter would have set knowing the sun; a federated sub-filter does not share it by ``1 / beta``, D-5.32). False
+        that shape in ``P``, times ``scale`` (a federated sub-filter's ``1 / beta``; until then the states are
+        uncorrelated with every other state, so this is the P0 the filter would have set knowing the sun). False
         (nothing done) with the sun at the zenith. Cost: 4 multiplies, 2 adds, a reciprocal square root
         (``solar_bias_axis``)."""
         e, nn = float(s_n[0]), float(s_n[1])
@@ -484,7 +484,7 @@ class SolarBiasStates:
         self.axis_n = np.array([-nn / norm, e / norm, 0.0])
         if first:
             i = self.i
-            P[i:i + 3, i:i + 3] = self.cov().astype(P.dtype)
+            P[i:i + 3, i:i + 3] = (scale * self.cov()).astype(P.dtype)
         return True
 
     def rows(self, H: FloatArray, h_att: FloatArray, cbn: FloatArray) -> None:

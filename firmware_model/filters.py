@@ -33,7 +33,7 @@ updates they change; the loop stays as it is.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar, Protocol, TypeVar
 
@@ -83,6 +83,7 @@ GM_ALLAN_PEAK = 0.61736
 
 __all__ = [
     "FILTER_VARIANTS",
+    "SOLAR_VECTOR_DOF",
     "BaseFilter",
     "FilterHost",
     "GnssMeasurement",
@@ -97,6 +98,7 @@ __all__ = [
     "kf_predict_cycles",
     "kf_scalar_update_cycles",
     "register_filter",
+    "solar_fix_nis",
     "warmup_gyro_bias_variance",
 ]
 
@@ -131,6 +133,28 @@ def solar_noise_variance(cfg: FirmwareConfig, quality: float, n_used: int) -> fl
     if n_used <= 0 or not math.isfinite(quality):
         return floor
     return max(floor, cfg.psns_noise_scale * max(quality, 0.0) / n_used)
+
+
+#: degrees of freedom of one solar-vector fix: the residual of two unit vectors ``Z = S^n - C_b^{n'} S^b`` has no
+#: first-order part along ``S^n`` (``(S^n)^T [S^n x] = 0``), so its three rows carry two (D-5.32)
+SOLAR_VECTOR_DOF = 2
+
+
+def solar_fix_nis(norm_innovs: Sequence[float], z_along_sun: float, r: float) -> float:
+    """NIS of one solar-vector fix in the plane across the sun (``SOLAR_VECTOR_DOF`` = 2 dof; D-5.32) from its three
+    sequential scalar rows of noise ``r`` (rad^2 each, ``R = r I``).
+
+    The rows' normalised innovations ``nu_i / sqrt(s_i)`` sum in squares to ``nu^T S^-1 nu`` with
+    ``S = H P H^T + r I`` (sequential scalar updates with a diagonal R). Every row of ``H`` is orthogonal to ``S^n``
+    (the attitude columns ``-[S^n x]``, the solar-bias columns ``[S^n x]`` or ``[S^n x] C_b^n``), so ``S S^n = r S^n``
+    and the NIS splits into the part along the sun, ``(nu . S^n)^2 / r = (Z . S^n)^2 / r``, and the part across it,
+    chi-square with 2 dof for a consistent filter. The part along the sun is no noise: for unit vectors
+    ``Z . S^n = 1 - cos(err)`` is second order in the angle ``err`` between them (1 deg between the two vectors gives
+    a NIS of 3 along the sun at ``r`` = (0.005 deg)^2, the ``field`` sheet's floor), and it changes no state
+    (``H^T S^n = 0``). Returns ``sum (nu_i^2 / s_i) - (Z . S^n)^2 / r`` (>= 0)."""
+    total = math.fsum(v * v for v in norm_innovs)
+    along = z_along_sun * z_along_sun / r if r > 0.0 else 0.0
+    return max(total - along, 0.0)
 
 
 def flicker_b_gyro(cfg: FirmwareConfig) -> float:
@@ -614,6 +638,15 @@ class NavFilter:
         st["rows"] += 1
         st["nis_sum"] += norm_innov * norm_innov
 
+    def _count_solar_nis(self, norm_innovs: Sequence[float], z: FloatArray, s_n: FloatArray, r: float) -> None:
+        """Count one accepted solar-vector fix in :attr:`innovation_stats` as ``SOLAR_VECTOR_DOF`` rows with its NIS
+        across the sun (:func:`solar_fix_nis`; ``z`` the residual, ``s_n`` the unit sun in the local-level frame)."""
+        st = self.innovation_stats.get("solar_vector")
+        if st is None:
+            st = self.innovation_stats["solar_vector"] = {"rows": 0, "nis_sum": 0.0}
+        st["rows"] += SOLAR_VECTOR_DOF
+        st["nis_sum"] += solar_fix_nis(norm_innovs, float(np.dot(z.astype(np.float64), s_n.astype(np.float64))), r)
+
     def attach(self, host: FilterHost) -> None:
         """Called by the main loop once the filter exists (and again after a variant switch)."""
         self.host = host
@@ -878,8 +911,7 @@ class BaseFilter(NavFilter):
         if nis > cfg.psns_gate_chi2:
             return UpdateReport("solar", False, 0, math.sqrt(nis), {"residual_deg": math.sqrt(z2) / DEG, "sign": sign})
         innov = [self._scalar(H[i], float(z[i]), r) for i in range(3)]
-        for nu in innov:
-            self._count_nis("solar_vector", nu)
+        self._count_solar_nis(innov, z, s_n, r)
         self.meter.charge("kf_update", 3 * self._cyc_update)
         return UpdateReport("solar", True, 3, max(abs(v) for v in innov),
                             {"residual_deg": math.sqrt(z2) / DEG, "sign": sign})

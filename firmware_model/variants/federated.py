@@ -455,7 +455,7 @@ class FederatedFilter(NavFilter):
         for i in range(3):
             self.x2, self.P2, nu, s = kf_update_scalar(self.x2, self.P2, H[i], float(z[i]), r)
             out.append(nu / math.sqrt(s))
-            self._count_nis("solar_vector", out[-1])
+        self._count_solar_nis(out, z, s_n, r)
         self.meter.charge("kf_update", 3 * self._cyc_up2)
         return UpdateReport("solar", True, 3, max(abs(v) for v in out), {"residual_deg": resid, "sign": sign})
 

@@ -16,6 +16,7 @@ from firmware_model.attitude import a2mat, mat2q, yaw_from_heading
 from firmware_model.filters import (
     GM_ALLAN_PEAK,
     GM_ALLAN_PEAK_X,
+    SOLAR_VECTOR_DOF,
     WARMUP_NOISE_CYCLES,
     BaseFilter,
     GnssMeasurement,
@@ -26,6 +27,7 @@ from firmware_model.filters import (
     gyro_flicker_band,
     kf_predict_cycles,
     kf_scalar_update_cycles,
+    solar_fix_nis,
     solar_noise_variance,
     warmup_gyro_bias_variance,
 )
@@ -144,6 +146,73 @@ def test_solar_noise_from_the_solve_quality():
     assert solar_noise_variance(cfg, 0.02, 100) == pytest.approx(0.5 * 0.02 / 100)
     assert solar_noise_variance(cfg, 1e-9, 100) == pytest.approx((0.01 * DEG) ** 2)  # the floor
     assert solar_noise_variance(cfg, 0.02, 0) == pytest.approx((0.01 * DEG) ** 2)
+
+
+def _across_sun(s_n):
+    """Two unit vectors spanning the plane across the unit vector ``s_n``."""
+    u = np.cross([0.0, 0.0, 1.0], s_n)
+    u /= np.linalg.norm(u)
+    return np.stack([u, np.cross(s_n, u)])
+
+
+def test_a_solar_fix_counts_two_dof_with_the_nis_across_the_sun():
+    """D-5.32 by closed form: one fix adds SOLAR_VECTOR_DOF = 2 rows and ``nu_p^T (B S B^T)^-1 nu_p`` with
+    ``S = H P H^T + r I``, ``B`` the plane across the sun, ``nu_p = B Z``; the three scalar rows' NIS exceeds it by
+    the second-order part along the sun ``(Z . S^n)^2 / r``, which is not counted (here a 3 deg residual: about 2.4)."""
+    from scipy.spatial.transform import Rotation
+
+    flt, nav, cbn = _filter(psns_bias_states=False, psns_gate_chi2=1e6)  # a 3 deg residual passes the gate
+    s_n = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
+    B = _across_sun(s_n)
+    s_meas_n = Rotation.from_rotvec(3.0 * DEG * (0.6 * B[0] + 0.8 * B[1])).apply(s_n)
+    obs = SolarObservation(0.0, cbn.T @ s_meas_n, 1e-9, 200, "sensor")
+    r = solar_noise_variance(flt.cfg, 1e-9, 200)
+    H = np.zeros((3, flt.n))
+    sx = np.array([[0.0, -s_n[2], s_n[1]], [s_n[2], 0.0, -s_n[0]], [-s_n[1], s_n[0], 0.0]])
+    H[:, 0:3] = -sx
+    S = H @ flt.P @ H.T + r * np.eye(3)
+    z = s_n - s_meas_n
+    nu_p = B @ z
+    want = float(nu_p @ np.linalg.solve(B @ S @ B.T, nu_p))
+    along = float(z @ s_n) ** 2 / r
+    assert along > 1.0  # the part the count leaves out is not negligible here
+    assert float(z @ np.linalg.solve(S, z)) == pytest.approx(want + along, rel=1e-9)
+    assert flt.update_solar(nav, obs, s_n, cbn).accepted
+    st = flt.innovation_stats["solar_vector"]
+    assert st["rows"] == SOLAR_VECTOR_DOF == 2
+    assert st["nis_sum"] == pytest.approx(want, rel=1e-6)
+    assert solar_fix_nis([1.0, 2.0, 0.5], 0.0, r) == pytest.approx(5.25)
+    assert solar_fix_nis([0.1, 0.0, 0.0], 1.0, r) == 0.0  # never negative
+
+
+def test_the_solar_nis_of_a_consistent_filter_averages_one_per_counted_row():
+    """Monte Carlo (seeded): attitude errors drawn from the filter's own P0 and solve noise of variance r per axis
+    across the sun; the solar NIS per counted row averages 1 (two-sided 99 % chi-square bounds for 2 dof x 400 fixes),
+    where the three-row count of before D-5.32 gave 2/3."""
+    from scipy.spatial.transform import Rotation
+    from scipy.stats import chi2
+
+    rng = np.random.default_rng(7)
+    s_n = np.array([-0.4, 0.5, 0.7]) / np.linalg.norm([-0.4, 0.5, 0.7])
+    B = _across_sun(s_n)
+    fixes, three_rows = 400, 0.0
+    total = 0.0
+    for _ in range(fixes):
+        flt, nav, cbn = _filter(psns_bias_states=False)
+        r = solar_noise_variance(flt.cfg, 1e-9, 200)
+        phi = rng.multivariate_normal(np.zeros(3), flt.P[0:3, 0:3])
+        cbn_true = Rotation.from_rotvec(phi).as_matrix() @ cbn  # C_b^n = (I + [phi x]) C_b^n' to first order
+        noise = Rotation.from_rotvec(B.T @ (rng.standard_normal(2) * math.sqrt(r)))
+        s_b = cbn_true.T @ noise.apply(s_n)
+        rows: list[float] = []
+        orig = flt._scalar
+        flt._scalar = lambda h, zz, rr, _o=orig, _rows=rows: _rows.append(_o(h, zz, rr)) or _rows[-1]  # type: ignore
+        assert flt.update_solar(nav, SolarObservation(0.0, s_b, 1e-9, 200, "sensor"), s_n, cbn).accepted
+        total += flt.innovation_stats["solar_vector"]["nis_sum"]
+        three_rows += sum(v * v for v in rows)
+    dof = SOLAR_VECTOR_DOF * fixes
+    assert chi2.ppf(0.005, dof) / dof < total / dof < chi2.ppf(0.995, dof) / dof
+    assert three_rows / (3 * fixes) == pytest.approx(2.0 / 3.0, abs=0.1)
 
 
 def test_solar_bias_rows_are_the_sun_cross_body_to_nav():

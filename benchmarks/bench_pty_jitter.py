@@ -20,6 +20,9 @@ Two measurements.
    (``process`` | ``thread``) the paced writer's backend (D-10.E11; the emulator's CPU includes its writer
    process's), ``PSNS_PACED_WRITER_CPUS`` pins that process;
    ``PSNS_BENCH_RT_EMU_CPUS`` / ``PSNS_BENCH_RT_READER_CPUS`` pin the two processes (``1`` / ``0``);
+   ``PSNS_BENCH_RT_FIFO`` / ``PSNS_BENCH_RT_IDLE`` (``emu``, ``reader``, ``emu+reader``) start those processes at
+   ``SCHED_FIFO`` 1 / ``SCHED_IDLE``; ``PSNS_BENCH_RT_SESSION`` (``own`` | ``shared``) starts each in a
+   session of its own or both in the benchmark's (D-10.E13);
    the note says what was run.
 2. **One pty link alone** (the floor): a :class:`~emulator.links.pty.PtyLink` at 460 800 baud (8N1)
    on a realtime :class:`~emulator.clock.EmulatorLoop` with the session's lead (its bytes written by
@@ -311,6 +314,18 @@ def _tap_stats(samples: list, period: float) -> dict:
             "max": jit[-1] if jit else float("nan")}
 
 
+def _own_sessions() -> bool:
+    """Whether the emulator and the reader each run in a session of their own (``PSNS_BENCH_RT_SESSION``: ``own``,
+    the default, as when a user starts ``psns-hil run`` in one terminal and the serial tool in another;
+    ``shared``: both in the benchmark's session, as before D-10.E13). With ``kernel.sched_autogroup_enabled`` a
+    session is a scheduling group, so this decides whether the woken reader competes with the emulator's loop
+    inside one group or as a group of its own."""
+    mode = os.environ.get("PSNS_BENCH_RT_SESSION", "own")
+    if mode not in ("own", "shared"):
+        raise ValueError(f"PSNS_BENCH_RT_SESSION must be 'own' or 'shared', not {mode!r}")
+    return mode == "own"
+
+
 def _measure_emulator(duration_s: float) -> tuple[dict, dict, float, str]:
     import json
     import subprocess
@@ -326,31 +341,43 @@ def _measure_emulator(duration_s: float) -> tuple[dict, dict, float, str]:
         run_dir = dp / "run"
         out = dp / "taps.json"
         emu_out = dp / "emulator.json"
+        own = _own_sessions()
         emu = subprocess.Popen([sys.executable, "-c", _EMULATOR, str(scn), str(run_dir), str(emu_out)],
-                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=own)
         rdr = subprocess.Popen([sys.executable, "-c", _TAP_READER, str(run_dir / "ports" / "host"),
-                                str(run_dir / "ports" / "monitor"), str(out), str(duration_s + 120)])
-        fifo = set(os.environ.get("PSNS_BENCH_RT_FIFO", "").replace("+", ",").split(","))
-        for proc, var, who in ((emu, "PSNS_BENCH_RT_EMU_CPUS", "emu"), (rdr, "PSNS_BENCH_RT_READER_CPUS", "reader")):
-            cpus = _cpus(var)
-            if cpus:
-                os.sched_setaffinity(proc.pid, cpus)  # before the interpreter starts its threads: they inherit it
-            if who in fifo:  # the stand-in for a core of its own: no ordinary process can take the CPU from it
-                os.sched_setscheduler(proc.pid, os.SCHED_FIFO, os.sched_param(1))
-        while not (run_dir / "ports" / "monitor").exists() and emu.poll() is None:
-            time.sleep(0.01)
-        if emu.poll() is not None:
-            rdr.kill()  # the emulator failed at start-up: the reader would wait for its ports in vain
-        time.sleep(0.5)  # start-up done, the reader attached
-        (c0, k0), w0 = _tree_cpu_s(emu.pid), time.monotonic()
-        c1, k1, w1 = c0, k0, w0
-        while emu.poll() is None:
-            time.sleep(0.5)
-            (c, k), w = _tree_cpu_s(emu.pid), time.monotonic()
-            if c is not None and emu.poll() is None:
-                c1, k1, w1 = c, k, w
-        _so, se = emu.communicate()
-        rdr.wait(timeout=60)
+                                str(run_dir / "ports" / "monitor"), str(out), str(duration_s + 120)],
+                               start_new_session=own)
+        try:
+            fifo = set(os.environ.get("PSNS_BENCH_RT_FIFO", "").replace("+", ",").split(","))
+            idle = set(os.environ.get("PSNS_BENCH_RT_IDLE", "").replace("+", ",").split(","))
+            for proc, var, who in ((emu, "PSNS_BENCH_RT_EMU_CPUS", "emu"),
+                                   (rdr, "PSNS_BENCH_RT_READER_CPUS", "reader")):
+                cpus = _cpus(var)
+                if cpus:
+                    os.sched_setaffinity(proc.pid, cpus)  # before the interpreter starts its threads: they inherit it
+                if who in fifo:  # the stand-in for a core of its own: no ordinary process can take the CPU from it
+                    os.sched_setscheduler(proc.pid, os.SCHED_FIFO, os.sched_param(1))
+                elif who in idle:  # any woken task preempts it at once (its writer process raises itself to FIFO)
+                    os.sched_setscheduler(proc.pid, os.SCHED_IDLE, os.sched_param(0))
+            while not (run_dir / "ports" / "monitor").exists() and emu.poll() is None:
+                time.sleep(0.01)
+            if emu.poll() is not None:
+                rdr.kill()  # the emulator failed at start-up: the reader would wait for its ports in vain
+            time.sleep(0.5)  # start-up done, the reader attached
+            (c0, k0), w0 = _tree_cpu_s(emu.pid), time.monotonic()
+            c1, k1, w1 = c0, k0, w0
+            while emu.poll() is None:
+                time.sleep(0.5)
+                (c, k), w = _tree_cpu_s(emu.pid), time.monotonic()
+                if c is not None and emu.poll() is None:
+                    c1, k1, w1 = c, k, w
+            _so, se = emu.communicate()
+            rdr.wait(timeout=60)
+        except BaseException:  # interrupted: in sessions of their own, no terminal signal reaches them
+            for proc in (emu, rdr):
+                if proc.poll() is None:
+                    proc.kill()
+            raise
         if emu.returncode != 0:
             raise RuntimeError(f"realtime emulator run failed:\n{se[-3000:]}")
         seen = json.loads(out.read_text())
@@ -387,6 +414,11 @@ def _emulator_rows() -> list[dict]:
                      if os.environ.get(v))
     if pins:
         how += f"; pinned: {pins}"
+    how += ("; emulator and reader each in a session of its own" if _own_sessions()
+            else "; emulator and reader in the benchmark's session")
+    for var, policy in (("PSNS_BENCH_RT_FIFO", "SCHED_FIFO"), ("PSNS_BENCH_RT_IDLE", "SCHED_IDLE")):
+        if os.environ.get(var):
+            how += f"; {policy}: {os.environ[var]}"
     rows = []
     for tap, st in (("uart0", u0), ("uart1", u1)):
         period_ms = TAP_PERIOD_S[tap] * 1e3

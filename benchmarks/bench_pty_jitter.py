@@ -40,6 +40,8 @@ import asyncio
 import itertools
 import os
 import statistics
+import subprocess
+import sys
 import tempfile
 from pathlib import Path
 
@@ -77,8 +79,6 @@ while idle < 5:
 
 
 def _measure() -> list[float]:
-    import sys
-
     from emulator.assembly.session import REALTIME_LEAD_S
     from emulator.clock import EmulatorLoop
     from emulator.links import LineConfig
@@ -326,10 +326,34 @@ def _own_sessions() -> bool:
     return mode == "own"
 
 
+def start_emulator_and_reader(emulator_script: str, scn: Path, run_dir: Path, emu_out: Path, taps_out: Path,
+                              duration_s: float) -> tuple[subprocess.Popen[str], subprocess.Popen[bytes]]:
+    """Start the realtime emulator (``python -c emulator_script SCENARIO RUN_DIR EMU_OUT``) and the tap reader
+    (:data:`_TAP_READER`, writing ``taps_out``) as the environment asks: each in a session of its own or both in
+    this one (:func:`_own_sessions`, D-10.E13), pinned (``PSNS_BENCH_RT_EMU_CPUS`` / ``PSNS_BENCH_RT_READER_CPUS``)
+    and at ``SCHED_FIFO`` 1 / ``SCHED_IDLE`` (``PSNS_BENCH_RT_FIFO`` / ``PSNS_BENCH_RT_IDLE``: ``emu``, ``reader``,
+    ``emu+reader``). One place for the benchmark and :mod:`benchmarks.trace_pty_path`."""
+    own = _own_sessions()
+    emu = subprocess.Popen([sys.executable, "-c", emulator_script, str(scn), str(run_dir), str(emu_out)],
+                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=own)
+    rdr = subprocess.Popen([sys.executable, "-c", _TAP_READER, str(run_dir / "ports" / "host"),
+                            str(run_dir / "ports" / "monitor"), str(taps_out), str(duration_s + 120)],
+                           start_new_session=own)
+    fifo, idle = (set(os.environ.get(v, "").replace("+", ",").split(",")) for v in ("PSNS_BENCH_RT_FIFO",
+                                                                                     "PSNS_BENCH_RT_IDLE"))
+    for proc, var, who in ((emu, "PSNS_BENCH_RT_EMU_CPUS", "emu"), (rdr, "PSNS_BENCH_RT_READER_CPUS", "reader")):
+        cpus = _cpus(var)
+        if cpus:
+            os.sched_setaffinity(proc.pid, cpus)  # before the interpreter starts its threads: they inherit it
+        if who in fifo:  # the stand-in for a core of its own: no ordinary process can take the CPU from it
+            os.sched_setscheduler(proc.pid, os.SCHED_FIFO, os.sched_param(1))
+        elif who in idle:  # any woken task preempts it at once (its writer process raises itself to FIFO)
+            os.sched_setscheduler(proc.pid, os.SCHED_IDLE, os.sched_param(0))
+    return emu, rdr
+
+
 def _measure_emulator(duration_s: float) -> tuple[dict, dict, float, str]:
     import json
-    import subprocess
-    import sys
     import time
 
     import yaml
@@ -341,24 +365,8 @@ def _measure_emulator(duration_s: float) -> tuple[dict, dict, float, str]:
         run_dir = dp / "run"
         out = dp / "taps.json"
         emu_out = dp / "emulator.json"
-        own = _own_sessions()
-        emu = subprocess.Popen([sys.executable, "-c", _EMULATOR, str(scn), str(run_dir), str(emu_out)],
-                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=own)
-        rdr = subprocess.Popen([sys.executable, "-c", _TAP_READER, str(run_dir / "ports" / "host"),
-                                str(run_dir / "ports" / "monitor"), str(out), str(duration_s + 120)],
-                               start_new_session=own)
+        emu, rdr = start_emulator_and_reader(_EMULATOR, scn, run_dir, emu_out, out, duration_s)
         try:
-            fifo = set(os.environ.get("PSNS_BENCH_RT_FIFO", "").replace("+", ",").split(","))
-            idle = set(os.environ.get("PSNS_BENCH_RT_IDLE", "").replace("+", ",").split(","))
-            for proc, var, who in ((emu, "PSNS_BENCH_RT_EMU_CPUS", "emu"),
-                                   (rdr, "PSNS_BENCH_RT_READER_CPUS", "reader")):
-                cpus = _cpus(var)
-                if cpus:
-                    os.sched_setaffinity(proc.pid, cpus)  # before the interpreter starts its threads: they inherit it
-                if who in fifo:  # the stand-in for a core of its own: no ordinary process can take the CPU from it
-                    os.sched_setscheduler(proc.pid, os.SCHED_FIFO, os.sched_param(1))
-                elif who in idle:  # any woken task preempts it at once (its writer process raises itself to FIFO)
-                    os.sched_setscheduler(proc.pid, os.SCHED_IDLE, os.sched_param(0))
             while not (run_dir / "ports" / "monitor").exists() and emu.poll() is None:
                 time.sleep(0.01)
             if emu.poll() is not None:

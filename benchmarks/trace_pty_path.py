@@ -23,8 +23,8 @@ the reader running -> its ``os.read`` returned; for the writes whose kernel work
 The tracing settings are restored afterwards.
 
 Usage: ``python -m benchmarks.trace_pty_path SECONDS [--ftrace] [--out FILE.json]``; the environment of
-:mod:`benchmarks.bench_pty_jitter` applies (``PSNS_BENCH_RT_FIFO=reader``, ``PSNS_BENCH_RT_LEAD_S``,
-``PSNS_PACED_WRITER``).
+:mod:`benchmarks.bench_pty_jitter` applies (the sessions, pinning and ``PSNS_BENCH_RT_FIFO`` / ``PSNS_BENCH_RT_IDLE``
+of its :func:`~benchmarks.bench_pty_jitter.start_emulator_and_reader`; ``PSNS_BENCH_RT_LEAD_S``, ``PSNS_PACED_WRITER``).
 """
 
 from __future__ import annotations
@@ -35,7 +35,6 @@ import itertools
 import json
 import os
 import re
-import subprocess
 import sys
 import tempfile
 import time
@@ -43,7 +42,7 @@ from pathlib import Path
 
 import yaml
 
-from benchmarks.bench_pty_jitter import _TAP_READER, TAP_PERIOD_S, _children, _quantile, _rt_scenario
+from benchmarks.bench_pty_jitter import TAP_PERIOD_S, _children, _quantile, _rt_scenario, start_emulator_and_reader
 
 TRACEFS = Path("/sys/kernel/tracing")
 _EVENTS = ("sched/sched_switch", "sched/sched_wakeup", "workqueue/workqueue_queue_work",
@@ -114,12 +113,7 @@ def record(duration_s: float, ftrace: bool) -> dict:
                             **{f"events/{e}/enable": "1" for e in _EVENTS}})
             (TRACEFS / "tracing_on").write_text("1")
         try:
-            emu = subprocess.Popen([sys.executable, "-c", _EMULATOR, str(scn), str(run_dir), str(emu_out)],
-                                   stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-            rdr = subprocess.Popen([sys.executable, "-c", _TAP_READER, str(run_dir / "ports" / "host"),
-                                    str(run_dir / "ports" / "monitor"), str(taps), str(duration_s + 120)])
-            if "reader" in os.environ.get("PSNS_BENCH_RT_FIFO", "").replace("+", ",").split(","):
-                os.sched_setscheduler(rdr.pid, os.SCHED_FIFO, os.sched_param(1))
+            emu, rdr = start_emulator_and_reader(_EMULATOR, scn, run_dir, emu_out, taps, duration_s)
             while not (run_dir / "ports" / "monitor").exists() and emu.poll() is None:
                 time.sleep(0.01)
             time.sleep(0.5)

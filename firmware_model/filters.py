@@ -630,22 +630,23 @@ class NavFilter:
         #: row processed (accepted), for the consistency check (emulator/distributed/campaign/consistency.py)
         self.innovation_stats: dict[str, dict[str, float]] = {}
 
-    def _count_nis(self, kind: str, norm_innov: float) -> None:
-        """Add one scalar row's normalised innovation ``nu / sqrt(s)`` to :attr:`innovation_stats`."""
+    def _count_rows(self, kind: str, dof: int, nis: float) -> None:
+        """Add ``dof`` degrees of freedom carrying the NIS ``nis`` to :attr:`innovation_stats` under ``kind``."""
         st = self.innovation_stats.get(kind)
         if st is None:
             st = self.innovation_stats[kind] = {"rows": 0, "nis_sum": 0.0}
-        st["rows"] += 1
-        st["nis_sum"] += norm_innov * norm_innov
+        st["rows"] += dof
+        st["nis_sum"] += nis
+
+    def _count_nis(self, kind: str, norm_innov: float) -> None:
+        """Add one scalar row's normalised innovation ``nu / sqrt(s)`` to :attr:`innovation_stats`."""
+        self._count_rows(kind, 1, norm_innov * norm_innov)
 
     def _count_solar_nis(self, norm_innovs: Sequence[float], z: FloatArray, s_n: FloatArray, r: float) -> None:
         """Count one accepted solar-vector fix in :attr:`innovation_stats` as ``SOLAR_VECTOR_DOF`` rows with its NIS
         across the sun (:func:`solar_fix_nis`; ``z`` the residual, ``s_n`` the unit sun in the local-level frame)."""
-        st = self.innovation_stats.get("solar_vector")
-        if st is None:
-            st = self.innovation_stats["solar_vector"] = {"rows": 0, "nis_sum": 0.0}
-        st["rows"] += SOLAR_VECTOR_DOF
-        st["nis_sum"] += solar_fix_nis(norm_innovs, float(np.dot(z.astype(np.float64), s_n.astype(np.float64))), r)
+        along = float(np.dot(z.astype(np.float64), s_n.astype(np.float64)))
+        self._count_rows("solar_vector", SOLAR_VECTOR_DOF, solar_fix_nis(norm_innovs, along, r))
 
     def attach(self, host: FilterHost) -> None:
         """Called by the main loop once the filter exists (and again after a variant switch)."""

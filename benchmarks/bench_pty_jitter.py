@@ -22,8 +22,9 @@ Two measurements.
    ``PSNS_BENCH_RT_EMU_CPUS`` / ``PSNS_BENCH_RT_READER_CPUS`` pin the two processes (``1`` / ``0``);
    ``PSNS_BENCH_RT_FIFO`` / ``PSNS_BENCH_RT_IDLE`` (``emu``, ``reader``, ``emu+reader``) start those processes at
    ``SCHED_FIFO`` 1 / ``SCHED_IDLE``; ``PSNS_BENCH_RT_SESSION`` (``own`` | ``shared``) starts each in a
-   session of its own or both in the benchmark's (D-10.E13);
-   the note says what was run.
+   session of its own or both in the benchmark's (D-10.E13); ``PSNS_BENCH_RT_WQ_CPUS`` (root) confines the
+   kernel's unbound workqueues, where a pty's flip-buffer work runs, to these CPUs for the run
+   (:func:`unbound_workqueue_cpus`, D-10.E14); the note says what was run.
 2. **One pty link alone** (the floor): a :class:`~emulator.links.pty.PtyLink` at 460 800 baud (8N1)
    on a realtime :class:`~emulator.clock.EmulatorLoop` with the session's lead (its bytes written by
    the paced writer) sends a 109-byte host frame every 10 ms,
@@ -37,12 +38,14 @@ Two measurements.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import itertools
 import os
 import statistics
 import subprocess
 import sys
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 
 N_FRAMES = 300
@@ -314,6 +317,29 @@ def _tap_stats(samples: list, period: float) -> dict:
             "max": jit[-1] if jit else float("nan")}
 
 
+WORKQUEUE_CPUMASK = Path("/sys/devices/virtual/workqueue/cpumask")
+
+
+@contextlib.contextmanager
+def unbound_workqueue_cpus() -> Iterator[str]:
+    """Confine the kernel's unbound workqueues to the CPUs of ``PSNS_BENCH_RT_WQ_CPUS`` (``"1"``, ``"0,1"``) while
+    the block runs, and put the previous mask back after it, also when it raises. A pty write queues its
+    flip-buffer work (``flush_to_ldisc``, which hands the bytes to the reader's line discipline and wakes it) on
+    ``system_unbound_wq`` (Linux ``drivers/tty/tty_buffer.c``), so this decides which CPU the hand-over runs on:
+    the reader's, or the one the emulator's loop computes on (D-10.E14). Needs root (the sysfs file); unset or
+    empty: nothing changes. Yields the description for the benchmark's note (``""`` when unset)."""
+    cpus = _cpus("PSNS_BENCH_RT_WQ_CPUS")
+    if not cpus:
+        yield ""
+        return
+    before = WORKQUEUE_CPUMASK.read_text().strip()
+    WORKQUEUE_CPUMASK.write_text(format(sum(1 << c for c in cpus), "x"))
+    try:
+        yield f"unbound workqueues on CPU {','.join(map(str, sorted(cpus)))} (mask {before} before)"
+    finally:
+        WORKQUEUE_CPUMASK.write_text(before)
+
+
 def _own_sessions() -> bool:
     """Whether the emulator and the reader each run in a session of their own (``PSNS_BENCH_RT_SESSION``: ``own``,
     the default, as when a user starts ``psns-hil run`` in one terminal and the serial tool in another;
@@ -358,7 +384,7 @@ def _measure_emulator(duration_s: float) -> tuple[dict, dict, float, str]:
 
     import yaml
 
-    with tempfile.TemporaryDirectory() as d:
+    with tempfile.TemporaryDirectory() as d, unbound_workqueue_cpus() as wq:
         dp = Path(d)
         scn = dp / "rt.yaml"
         scn.write_text(yaml.safe_dump(_rt_scenario(duration_s), sort_keys=False))
@@ -404,6 +430,8 @@ def _measure_emulator(duration_s: float) -> tuple[dict, dict, float, str]:
                   loop_late_max=ll[-1] if ll else float("nan"))
         stats[tap] = st
     res.pop("loop_late")
+    if wq:
+        res["kernel"] = wq
     return stats["uart0"], stats["uart1"], cpu_pct, ", ".join(f"{k} {v}" for k, v in res.items())
 
 
@@ -418,7 +446,8 @@ def _emulator_rows() -> list[dict]:
 
     how = (f"the paced writer ({default_writer_backend()} backend), the loop {float(lead) * 1e3:g} ms ahead"
            if float(lead) > 0 else "no lead: the loop's callback writes")
-    pins = ", ".join(f"{v} {os.environ[v]}" for v in ("PSNS_BENCH_RT_EMU_CPUS", "PSNS_BENCH_RT_READER_CPUS")
+    pins = ", ".join(f"{v} {os.environ[v]}" for v in ("PSNS_BENCH_RT_EMU_CPUS", "PSNS_BENCH_RT_READER_CPUS",
+                                                      "PSNS_PACED_WRITER_CPUS", "PSNS_BENCH_RT_WQ_CPUS")
                      if os.environ.get(v))
     if pins:
         how += f"; pinned: {pins}"

@@ -24,7 +24,8 @@ The tracing settings are restored afterwards.
 
 Usage: ``python -m benchmarks.trace_pty_path SECONDS [--ftrace] [--out FILE.json]``; the environment of
 :mod:`benchmarks.bench_pty_jitter` applies (the sessions, pinning and ``PSNS_BENCH_RT_FIFO`` / ``PSNS_BENCH_RT_IDLE``
-of its :func:`~benchmarks.bench_pty_jitter.start_emulator_and_reader`; ``PSNS_BENCH_RT_LEAD_S``, ``PSNS_PACED_WRITER``).
+of its :func:`~benchmarks.bench_pty_jitter.start_emulator_and_reader`, ``PSNS_BENCH_RT_WQ_CPUS``;
+``PSNS_BENCH_RT_LEAD_S``, ``PSNS_PACED_WRITER``).
 """
 
 from __future__ import annotations
@@ -42,7 +43,14 @@ from pathlib import Path
 
 import yaml
 
-from benchmarks.bench_pty_jitter import TAP_PERIOD_S, _children, _quantile, _rt_scenario, start_emulator_and_reader
+from benchmarks.bench_pty_jitter import (
+    TAP_PERIOD_S,
+    _children,
+    _quantile,
+    _rt_scenario,
+    start_emulator_and_reader,
+    unbound_workqueue_cpus,
+)
 
 TRACEFS = Path("/sys/kernel/tracing")
 _EVENTS = ("sched/sched_switch", "sched/sched_wakeup", "workqueue/workqueue_queue_work",
@@ -113,13 +121,14 @@ def record(duration_s: float, ftrace: bool) -> dict:
                             **{f"events/{e}/enable": "1" for e in _EVENTS}})
             (TRACEFS / "tracing_on").write_text("1")
         try:
-            emu, rdr = start_emulator_and_reader(_EMULATOR, scn, run_dir, emu_out, taps, duration_s)
-            while not (run_dir / "ports" / "monitor").exists() and emu.poll() is None:
-                time.sleep(0.01)
-            time.sleep(0.5)
-            kids = _children(emu.pid)
-            _so, se = emu.communicate()
-            rdr.wait(timeout=60)
+            with unbound_workqueue_cpus():
+                emu, rdr = start_emulator_and_reader(_EMULATOR, scn, run_dir, emu_out, taps, duration_s)
+                while not (run_dir / "ports" / "monitor").exists() and emu.poll() is None:
+                    time.sleep(0.01)
+                time.sleep(0.5)
+                kids = _children(emu.pid)
+                _so, se = emu.communicate()
+                rdr.wait(timeout=60)
         finally:
             if ftrace:
                 (TRACEFS / "tracing_on").write_text("0")

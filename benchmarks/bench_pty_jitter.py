@@ -23,8 +23,9 @@ Two measurements.
    ``PSNS_BENCH_RT_FIFO`` / ``PSNS_BENCH_RT_IDLE`` (``emu``, ``reader``, ``emu+reader``) start those processes at
    ``SCHED_FIFO`` 1 / ``SCHED_IDLE``; ``PSNS_BENCH_RT_SESSION`` (``own`` | ``shared``) starts each in a
    session of its own or both in the benchmark's (D-10.E13); ``PSNS_BENCH_RT_WQ_CPUS`` (root) confines the
-   kernel's unbound workqueues, where a pty's flip-buffer work runs, to these CPUs for the run
-   (:func:`unbound_workqueue_cpus`, D-10.E14); the note says what was run.
+   kernel's unbound workqueues, where a pty's flip-buffer work runs, to these CPUs for the run, and
+   ``PSNS_BENCH_RT_POLL_CPUS`` (root) makes these CPUs poll instead of halting when idle (:func:`host_tuning`,
+   D-10.E14); the note says what was run.
 2. **One pty link alone** (the floor): a :class:`~emulator.links.pty.PtyLink` at 460 800 baud (8N1)
    on a realtime :class:`~emulator.clock.EmulatorLoop` with the session's lead (its bytes written by
    the paced writer) sends a 109-byte host frame every 10 ms,
@@ -318,26 +319,42 @@ def _tap_stats(samples: list, period: float) -> dict:
 
 
 WORKQUEUE_CPUMASK = Path("/sys/devices/virtual/workqueue/cpumask")
+CPU_SYSFS = Path("/sys/devices/system/cpu")
 
 
 @contextlib.contextmanager
-def unbound_workqueue_cpus() -> Iterator[str]:
-    """Confine the kernel's unbound workqueues to the CPUs of ``PSNS_BENCH_RT_WQ_CPUS`` (``"1"``, ``"0,1"``) while
-    the block runs, and put the previous mask back after it, also when it raises. A pty write queues its
-    flip-buffer work (``flush_to_ldisc``, which hands the bytes to the reader's line discipline and wakes it) on
-    ``system_unbound_wq`` (Linux ``drivers/tty/tty_buffer.c``), so this decides which CPU the hand-over runs on:
-    the reader's, or the one the emulator's loop computes on (D-10.E14). Needs root (the sysfs file); unset or
-    empty: nothing changes. Yields the description for the benchmark's note (``""`` when unset)."""
-    cpus = _cpus("PSNS_BENCH_RT_WQ_CPUS")
-    if not cpus:
-        yield ""
-        return
-    before = WORKQUEUE_CPUMASK.read_text().strip()
-    WORKQUEUE_CPUMASK.write_text(format(sum(1 << c for c in cpus), "x"))
+def host_tuning() -> Iterator[str]:
+    """Set the host for the realtime run as the environment asks, and put every setting back after the block, also
+    when it raises (root: sysfs files; unset or empty variables change nothing). Yields the description for the
+    benchmark's note (``""`` when nothing was set). D-10.E14.
+
+    * ``PSNS_BENCH_RT_WQ_CPUS`` (``"1"``, ``"0,1"``): the kernel's unbound workqueues run on these CPUs only. A pty
+      write queues its flip-buffer work (``flush_to_ldisc``, which hands the bytes to the reader's line discipline
+      and wakes it) on ``system_unbound_wq`` (Linux ``drivers/tty/tty_buffer.c``), so this decides whether the
+      hand-over runs on the reader's CPU or on the one the emulator's loop computes on.
+    * ``PSNS_BENCH_RT_POLL_CPUS``: these CPUs poll instead of halting when idle (their PM QoS resume latency
+      ``n/a``, i.e. 0 us: ``/sys/devices/system/cpu/cpuN/power/pm_qos_resume_latency_us``; the per-CPU form of
+      what ``cyclictest`` does with ``/dev/cpu_dma_latency``). In a VM a halted vCPU leaves the guest, and a task
+      woken on it waits until the host runs the vCPU again (up to 6.5 ms seen here, D-10.E14); a polling vCPU runs
+      it at once, at the price of a busy core.
+    """
+    writes: list[tuple[Path, str, str]] = []
+    wq = _cpus("PSNS_BENCH_RT_WQ_CPUS")
+    if wq:
+        writes.append((WORKQUEUE_CPUMASK, format(sum(1 << c for c in wq), "x"),
+                       f"unbound workqueues on CPU {','.join(map(str, sorted(wq)))}"))
+    for c in sorted(_cpus("PSNS_BENCH_RT_POLL_CPUS")):
+        writes.append((CPU_SYSFS / f"cpu{c}" / "power" / "pm_qos_resume_latency_us", "n/a", f"CPU {c} polls when idle"))
+    done: list[tuple[Path, str]] = []
     try:
-        yield f"unbound workqueues on CPU {','.join(map(str, sorted(cpus)))} (mask {before} before)"
+        for path, value, _what in writes:
+            before = path.read_text().strip()
+            path.write_text(value)
+            done.append((path, before))
+        yield "; ".join(what for _p, _v, what in writes)
     finally:
-        WORKQUEUE_CPUMASK.write_text(before)
+        for path, before in reversed(done):
+            path.write_text(before)
 
 
 def _own_sessions() -> bool:
@@ -384,7 +401,7 @@ def _measure_emulator(duration_s: float) -> tuple[dict, dict, float, str]:
 
     import yaml
 
-    with tempfile.TemporaryDirectory() as d, unbound_workqueue_cpus() as wq:
+    with tempfile.TemporaryDirectory() as d, host_tuning() as tuned:
         dp = Path(d)
         scn = dp / "rt.yaml"
         scn.write_text(yaml.safe_dump(_rt_scenario(duration_s), sort_keys=False))
@@ -430,8 +447,8 @@ def _measure_emulator(duration_s: float) -> tuple[dict, dict, float, str]:
                   loop_late_max=ll[-1] if ll else float("nan"))
         stats[tap] = st
     res.pop("loop_late")
-    if wq:
-        res["kernel"] = wq
+    if tuned:
+        res["host"] = tuned
     return stats["uart0"], stats["uart1"], cpu_pct, ", ".join(f"{k} {v}" for k, v in res.items())
 
 
@@ -447,7 +464,8 @@ def _emulator_rows() -> list[dict]:
     how = (f"the paced writer ({default_writer_backend()} backend), the loop {float(lead) * 1e3:g} ms ahead"
            if float(lead) > 0 else "no lead: the loop's callback writes")
     pins = ", ".join(f"{v} {os.environ[v]}" for v in ("PSNS_BENCH_RT_EMU_CPUS", "PSNS_BENCH_RT_READER_CPUS",
-                                                      "PSNS_PACED_WRITER_CPUS", "PSNS_BENCH_RT_WQ_CPUS")
+                                                      "PSNS_PACED_WRITER_CPUS", "PSNS_BENCH_RT_WQ_CPUS",
+                                                      "PSNS_BENCH_RT_POLL_CPUS")
                      if os.environ.get(v))
     if pins:
         how += f"; pinned: {pins}"

@@ -24,8 +24,8 @@ The tracing settings are restored afterwards.
 
 Usage: ``python -m benchmarks.trace_pty_path SECONDS [--ftrace] [--out FILE.json]``; the environment of
 :mod:`benchmarks.bench_pty_jitter` applies (the sessions, pinning and ``PSNS_BENCH_RT_FIFO`` / ``PSNS_BENCH_RT_IDLE``
-of its :func:`~benchmarks.bench_pty_jitter.start_emulator_and_reader`, ``PSNS_BENCH_RT_WQ_CPUS``;
-``PSNS_BENCH_RT_LEAD_S``, ``PSNS_PACED_WRITER``).
+of its :func:`~benchmarks.bench_pty_jitter.start_emulator_and_reader`, the host settings of its
+:func:`~benchmarks.bench_pty_jitter.host_tuning`; ``PSNS_BENCH_RT_LEAD_S``, ``PSNS_PACED_WRITER``).
 """
 
 from __future__ import annotations
@@ -48,8 +48,8 @@ from benchmarks.bench_pty_jitter import (
     _children,
     _quantile,
     _rt_scenario,
+    host_tuning,
     start_emulator_and_reader,
-    unbound_workqueue_cpus,
 )
 
 TRACEFS = Path("/sys/kernel/tracing")
@@ -121,7 +121,7 @@ def record(duration_s: float, ftrace: bool) -> dict:
                             **{f"events/{e}/enable": "1" for e in _EVENTS}})
             (TRACEFS / "tracing_on").write_text("1")
         try:
-            with unbound_workqueue_cpus():
+            with host_tuning():
                 emu, rdr = start_emulator_and_reader(_EMULATOR, scn, run_dir, emu_out, taps, duration_s)
                 while not (run_dir / "ports" / "monitor").exists() and emu.poll() is None:
                     time.sleep(0.01)

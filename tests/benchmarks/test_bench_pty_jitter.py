@@ -1,4 +1,4 @@
-"""benchmarks.bench_pty_jitter: the unbound-workqueue confinement writes the mask and always puts the old one back."""
+"""benchmarks.bench_pty_jitter: the host settings of the realtime run are written as asked and always put back."""
 
 from __future__ import annotations
 
@@ -7,27 +7,54 @@ import pytest
 from benchmarks import bench_pty_jitter
 
 
-def test_workqueue_mask_is_the_cpus_hex_mask_during_the_block_and_the_old_one_after(tmp_path, monkeypatch):
+@pytest.fixture
+def sysfs(tmp_path, monkeypatch):
+    """A stand-in for the two sysfs places the settings write (the workqueue mask "3", CPU 0-1's QoS "0")."""
     mask = tmp_path / "cpumask"
     mask.write_text("3\n")
     monkeypatch.setattr(bench_pty_jitter, "WORKQUEUE_CPUMASK", mask)
+    for c in (0, 1):
+        (tmp_path / f"cpu{c}" / "power").mkdir(parents=True)
+        (tmp_path / f"cpu{c}" / "power" / "pm_qos_resume_latency_us").write_text("0\n")
+    monkeypatch.setattr(bench_pty_jitter, "CPU_SYSFS", tmp_path)
+    for var in ("PSNS_BENCH_RT_WQ_CPUS", "PSNS_BENCH_RT_POLL_CPUS"):
+        monkeypatch.delenv(var, raising=False)
+    return tmp_path
+
+
+def _qos(root, cpu):
+    return (root / f"cpu{cpu}" / "power" / "pm_qos_resume_latency_us").read_text()
+
+
+def test_settings_hold_during_the_block_and_the_old_values_come_back(sysfs, monkeypatch):
     monkeypatch.setenv("PSNS_BENCH_RT_WQ_CPUS", "1")
-    with bench_pty_jitter.unbound_workqueue_cpus() as note:
-        assert mask.read_text() == "2"  # CPU 1 alone: bit 1
-        assert note == "unbound workqueues on CPU 1 (mask 3 before)"
-    assert mask.read_text() == "3"
+    monkeypatch.setenv("PSNS_BENCH_RT_POLL_CPUS", "1")
+    with bench_pty_jitter.host_tuning() as note:
+        assert (sysfs / "cpumask").read_text() == "2"  # CPU 1 alone: bit 1
+        assert _qos(sysfs, 1) == "n/a" and _qos(sysfs, 0) == "0\n"  # only the CPU asked for polls
+        assert note == "unbound workqueues on CPU 1; CPU 1 polls when idle"
+    assert (sysfs / "cpumask").read_text() == "3" and _qos(sysfs, 1) == "0"
+
+
+def test_settings_come_back_when_the_run_raises(sysfs, monkeypatch):
     monkeypatch.setenv("PSNS_BENCH_RT_WQ_CPUS", "0,3")
-    with pytest.raises(RuntimeError), bench_pty_jitter.unbound_workqueue_cpus():
-        assert mask.read_text() == "9"
+    monkeypatch.setenv("PSNS_BENCH_RT_POLL_CPUS", "0,1")
+    with pytest.raises(RuntimeError), bench_pty_jitter.host_tuning():
+        assert (sysfs / "cpumask").read_text() == "9"
+        assert _qos(sysfs, 0) == _qos(sysfs, 1) == "n/a"
         raise RuntimeError("the run failed")
-    assert mask.read_text() == "3"  # restored when the run raises too
+    assert (sysfs / "cpumask").read_text() == "3" and _qos(sysfs, 0) == _qos(sysfs, 1) == "0"
 
 
-def test_workqueue_mask_is_left_alone_when_unset(tmp_path, monkeypatch):
-    mask = tmp_path / "cpumask"
-    mask.write_text("3\n")
-    monkeypatch.setattr(bench_pty_jitter, "WORKQUEUE_CPUMASK", mask)
-    monkeypatch.delenv("PSNS_BENCH_RT_WQ_CPUS", raising=False)
-    with bench_pty_jitter.unbound_workqueue_cpus() as note:
+def test_a_setting_that_cannot_be_written_undoes_the_ones_before_it(sysfs, monkeypatch):
+    monkeypatch.setenv("PSNS_BENCH_RT_WQ_CPUS", "1")
+    monkeypatch.setenv("PSNS_BENCH_RT_POLL_CPUS", "7")  # no such CPU: its file is missing
+    with pytest.raises(FileNotFoundError), bench_pty_jitter.host_tuning():
+        pass
+    assert (sysfs / "cpumask").read_text() == "3"
+
+
+def test_nothing_is_written_when_unset(sysfs):
+    with bench_pty_jitter.host_tuning() as note:
         assert note == ""
-    assert mask.read_text() == "3\n"  # not even rewritten
+    assert (sysfs / "cpumask").read_text() == "3\n" and _qos(sysfs, 1) == "0\n"  # not even rewritten

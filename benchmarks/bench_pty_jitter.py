@@ -25,7 +25,8 @@ Two measurements.
    session of its own or both in the benchmark's (D-10.E13); ``PSNS_BENCH_RT_WQ_CPUS`` (root) confines the
    kernel's unbound workqueues, where a pty's flip-buffer work runs, to these CPUs for the run, and
    ``PSNS_BENCH_RT_POLL_CPUS`` (root) makes these CPUs poll instead of halting when idle (:func:`host_tuning`,
-   D-10.E14); the note says what was run.
+   D-10.E14); the note says what was run. As root on two or more CPUs the rows are measured once more with
+   the reader on a core of its own (:data:`DEDICATED_CORE_ENV`; ``PSNS_BENCH_RT_CORE=0`` skips them).
 2. **One pty link alone** (the floor): a :class:`~emulator.links.pty.PtyLink` at 460 800 baud (8N1)
    on a realtime :class:`~emulator.clock.EmulatorLoop` with the session's lead (its bytes written by
    the paced writer) sends a 109-byte host frame every 10 ms,
@@ -468,7 +469,7 @@ def _emulator_rows() -> list[dict]:
                                                       "PSNS_BENCH_RT_POLL_CPUS")
                      if os.environ.get(v))
     if pins:
-        how += f"; pinned: {pins}"
+        how += f"; set: {pins}"
     how += ("; emulator and reader each in a session of its own" if _own_sessions()
             else "; emulator and reader in the benchmark's session")
     for var, policy in (("PSNS_BENCH_RT_FIFO", "SCHED_FIFO"), ("PSNS_BENCH_RT_IDLE", "SCHED_IDLE")):
@@ -502,8 +503,43 @@ def _emulator_rows() -> list[dict]:
 
 
 
+#: the host set-up of the rows "..., reader on a core of its own" (D-10.E14): the emulator on CPU 0 at ``SCHED_FIFO``
+#: 1; the reader (``SCHED_FIFO`` 1), the paced writer's process (``SCHED_FIFO`` 2 by itself) and the unbound
+#: workqueue that runs the ptys' ``flush_to_ldisc`` on CPU 1, which polls instead of halting when idle
+DEDICATED_CORE_ENV = {
+    "PSNS_BENCH_RT_EMU_CPUS": "0", "PSNS_BENCH_RT_READER_CPUS": "1", "PSNS_PACED_WRITER_CPUS": "1",
+    "PSNS_BENCH_RT_FIFO": "emu+reader", "PSNS_BENCH_RT_WQ_CPUS": "1", "PSNS_BENCH_RT_POLL_CPUS": "1",
+}
+DEDICATED_CORE_SUFFIX = ", reader on a core of its own"
+
+
+def _dedicated_core_rows() -> list[dict]:
+    """The realtime rows once more with :data:`DEDICATED_CORE_ENV` (what a core of its own gives the reader; issue 20
+    asks for it beside the shared machine's figure). Needs root (``SCHED_FIFO``, the sysfs settings) and two CPUs;
+    ``PSNS_BENCH_RT_CORE=0`` skips them."""
+    if os.environ.get("PSNS_BENCH_RT_CORE", "1") == "0":
+        return []
+    if not (hasattr(os, "geteuid") and os.geteuid() == 0 and (os.cpu_count() or 1) >= 2):
+        print("bench_pty_jitter: the rows with a core of its own for the reader need root and two CPUs: skipped",
+              file=sys.stderr)
+        return []
+    saved = {k: os.environ.get(k) for k in DEDICATED_CORE_ENV}
+    os.environ.update(DEDICATED_CORE_ENV)
+    try:
+        rows = _emulator_rows()
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+    for row in rows:
+        row["name"] += DEDICATED_CORE_SUFFIX
+    return rows
+
+
 def run() -> list[dict]:
-    return _emulator_rows() + _link_rows()
+    return _emulator_rows() + _dedicated_core_rows() + _link_rows()
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import pytest
 
 from benchmarks import bench_pty_jitter
@@ -58,3 +60,27 @@ def test_nothing_is_written_when_unset(sysfs):
     with bench_pty_jitter.host_tuning() as note:
         assert note == ""
     assert (sysfs / "cpumask").read_text() == "3\n" and _qos(sysfs, 1) == "0\n"  # not even rewritten
+
+
+def test_dedicated_core_rows_run_under_their_set_up_and_leave_the_environment_as_it_was(monkeypatch):
+    seen = {}
+
+    def rows():
+        seen.update({k: os.environ.get(k) for k in bench_pty_jitter.DEDICATED_CORE_ENV})
+        return [{"name": "realtime uart0 frame-period jitter, p99", "value": 1.0}]
+
+    monkeypatch.setattr(bench_pty_jitter, "_emulator_rows", rows)
+    monkeypatch.setattr(bench_pty_jitter.os, "geteuid", lambda: 0)
+    monkeypatch.setattr(bench_pty_jitter.os, "cpu_count", lambda: 2)
+    monkeypatch.setenv("PSNS_BENCH_RT_FIFO", "reader")  # the user's own set-up for the first rows
+    monkeypatch.delenv("PSNS_BENCH_RT_POLL_CPUS", raising=False)
+    monkeypatch.delenv("PSNS_BENCH_RT_CORE", raising=False)
+    out = bench_pty_jitter._dedicated_core_rows()
+    assert seen == bench_pty_jitter.DEDICATED_CORE_ENV
+    assert out == [{"name": "realtime uart0 frame-period jitter, p99, reader on a core of its own", "value": 1.0}]
+    assert os.environ["PSNS_BENCH_RT_FIFO"] == "reader" and "PSNS_BENCH_RT_POLL_CPUS" not in os.environ
+    monkeypatch.setenv("PSNS_BENCH_RT_CORE", "0")
+    assert bench_pty_jitter._dedicated_core_rows() == []
+    monkeypatch.delenv("PSNS_BENCH_RT_CORE")
+    monkeypatch.setattr(bench_pty_jitter.os, "geteuid", lambda: 1000)  # not root: skipped, said on stderr
+    assert bench_pty_jitter._dedicated_core_rows() == []

@@ -51,7 +51,7 @@ lint: install
 	$(VENV)/bin/mypy
 	$(VENV)/bin/lint-imports
 
-# The full table (10 min realtime pty run, 1/10/60 min scaling): about 25 minutes.
+# The full table (10 min realtime pty run, twice as root: 5.10; 1/10/60 min scaling): about 35 minutes.
 bench: install
 	$(PY) -m benchmarks
 

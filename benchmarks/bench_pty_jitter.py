@@ -504,11 +504,12 @@ def _emulator_rows() -> list[dict]:
 
 
 #: the host set-up of the rows "..., reader on a core of its own" (D-10.E14): the emulator on CPU 0 at ``SCHED_FIFO``
-#: 1; the reader (``SCHED_FIFO`` 1) and the paced writer's process (``SCHED_FIFO`` 2 by itself) on CPU 1, which
-#: polls instead of halting when idle. The ptys' workqueue is left unconfined: on CPU 1 it measured no better.
+#: 1; the reader (``SCHED_FIFO`` 1), the paced writer's process (``SCHED_FIFO`` 2 by itself) and the unbound
+#: workqueue that runs the ptys' ``flush_to_ldisc`` on CPU 1, which polls instead of halting when idle (unconfined,
+#: the pty worker lands on the emulator's CPU, which halts between its bursts on a quiet VM)
 DEDICATED_CORE_ENV = {
     "PSNS_BENCH_RT_EMU_CPUS": "0", "PSNS_BENCH_RT_READER_CPUS": "1", "PSNS_PACED_WRITER_CPUS": "1",
-    "PSNS_BENCH_RT_FIFO": "emu+reader", "PSNS_BENCH_RT_POLL_CPUS": "1",
+    "PSNS_BENCH_RT_FIFO": "emu+reader", "PSNS_BENCH_RT_WQ_CPUS": "1", "PSNS_BENCH_RT_POLL_CPUS": "1",
 }
 DEDICATED_CORE_SUFFIX = ", reader on a core of its own"
 

@@ -49,6 +49,7 @@ import sys
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
+from unittest import mock
 
 N_FRAMES = 300
 PERIOD_S = 0.01
@@ -465,11 +466,10 @@ def _emulator_rows() -> list[dict]:
     how = (f"the paced writer ({default_writer_backend()} backend), the loop {float(lead) * 1e3:g} ms ahead"
            if float(lead) > 0 else "no lead: the loop's callback writes")
     pins = ", ".join(f"{v} {os.environ[v]}" for v in ("PSNS_BENCH_RT_EMU_CPUS", "PSNS_BENCH_RT_READER_CPUS",
-                                                      "PSNS_PACED_WRITER_CPUS", "PSNS_BENCH_RT_WQ_CPUS",
-                                                      "PSNS_BENCH_RT_POLL_CPUS")
+                                                      "PSNS_PACED_WRITER_CPUS")
                      if os.environ.get(v))
-    if pins:
-        how += f"; set: {pins}"
+    if pins:  # the host settings (workqueue, polling) are named by host_tuning in the emulator's result
+        how += f"; pinned: {pins}"
     how += ("; emulator and reader each in a session of its own" if _own_sessions()
             else "; emulator and reader in the benchmark's session")
     for var, policy in (("PSNS_BENCH_RT_FIFO", "SCHED_FIFO"), ("PSNS_BENCH_RT_IDLE", "SCHED_IDLE")):
@@ -524,16 +524,8 @@ def _dedicated_core_rows() -> list[dict]:
         print("bench_pty_jitter: the rows with a core of its own for the reader need root and two CPUs: skipped",
               file=sys.stderr)
         return []
-    saved = {k: os.environ.get(k) for k in DEDICATED_CORE_ENV}
-    os.environ.update(DEDICATED_CORE_ENV)
-    try:
+    with mock.patch.dict(os.environ, DEDICATED_CORE_ENV):  # the environment as it was afterwards
         rows = _emulator_rows()
-    finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
     for row in rows:
         row["name"] += DEDICATED_CORE_SUFFIX
     return rows

@@ -47,7 +47,7 @@ def _slots_twin(cls: type) -> type | None:
     if cls.__bases__ != (object,):
         return None
     twin = type(f"{cls.__name__}Builder", (), {"__slots__": cls.__dict__["__slots__"], "__module__": cls.__module__})
-    probe = object.__new__(twin)
+    probe: object = object.__new__(twin)
     try:
         probe.__class__ = cls
     except TypeError:  # pragma: no cover - a layout CPython will not swap

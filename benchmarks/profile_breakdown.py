@@ -18,6 +18,7 @@ Usage::
 
 from __future__ import annotations
 
+import argparse
 import cProfile
 import pstats
 import sys
@@ -26,6 +27,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+RECORDER = "recorder (captures, nav vs truth)"
 #: (path fragment, component), first match wins; paths use "/" separators
 HOMES: tuple[tuple[str, str], ...] = (
     ("/firmware_model/", "firmware (firmware_model)"),
@@ -40,7 +42,14 @@ HOMES: tuple[tuple[str, str], ...] = (
     ("/emulator/dsp/host.py", "DSP host (UART RX, tick timing)"),
     ("/emulator/devices/", "devices: other (sensors, recorded)"),
     ("/emulator/links/", "links (line model, mem transport)"),
-    ("/emulator/recording/recorder.py", "recorder (captures, nav vs truth)"),
+    # the recorder's per-run-time work: the listener, the capture file, nav vs truth, solar vectors vs truth, the
+    # counting decoders and the CSV cells; the rest of recording/ (summary, report, golden, replay) is the runner's
+    ("/emulator/recording/recorder.py", RECORDER),
+    ("/emulator/recording/capture.py", RECORDER),
+    ("/emulator/recording/nav_error.py", RECORDER),
+    ("/emulator/recording/psns_error.py", RECORDER),
+    ("/emulator/recording/counting.py", RECORDER),
+    ("/emulator/recording/formatting.py", RECORDER),
     ("/emulator/clock.py", "asyncio loop (incl. emulator.clock)"),
     ("/asyncio/", "asyncio loop (incl. emulator.clock)"),
     ("/selectors.py", "asyncio loop (incl. emulator.clock)"),
@@ -136,10 +145,16 @@ def main(argv: list[str] | None = None) -> int:
     from emulator.assembly.runner import run_scenario
     from emulator.scenario import load_scenario
 
-    argv = sys.argv[1:] if argv is None else argv
-    scn = load_scenario(argv[0])
-    if len(argv) > 1:
-        scn = scn.model_copy(update={"duration_s": float(argv[1])})
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.profile_breakdown",
+                                 description="Per-component cost of a fast-mode run: an unprofiled run for the wall "
+                                             "time, then a cProfile of the same run, each function charged to its "
+                                             "component (HOMES), in us per 200 Hz tick.")
+    ap.add_argument("scenario", help="scenario file (e.g. scenarios/bench_vehicle_loop_10min.yaml)")
+    ap.add_argument("duration_s", nargs="?", type=float, help="simulated seconds (default: the scenario's)")
+    args = ap.parse_args(sys.argv[1:] if argv is None else argv)
+    scn = load_scenario(args.scenario)
+    if args.duration_s is not None:
+        scn = scn.model_copy(update={"duration_s": args.duration_s})
     with tempfile.TemporaryDirectory() as d:
         t0 = time.perf_counter()
         s = run_scenario(scn, Path(d) / "run", mode="fast")

@@ -48,6 +48,8 @@ from typing import Any
 
 from construct import Array, Bytes, BytesInteger, Const, Construct, FormatField, Padded, Pass, Renamed, Struct
 
+from ._fastinit import fast_new
+
 __all__ = ["CODECS", "Binding", "StructCodec", "subspec"]
 
 #: Every derived codec, in import order (the equivalence test walks it).
@@ -376,7 +378,7 @@ class StructCodec:
         by_cls, cls_fields = self._map(cls, rename, ignore, convert)
         targets, expr = self._unpack_targets()
         ns = self._namespace()
-        ns["_cls"] = cls
+        ns["_cls"] = fast_new(cls)  # cls itself, or its faster equal (protocols._fastinit)
         params, args = [], []
         mapping: dict[str, tuple[str, Callable[[Any], Any] | None]] = {}
         for f in cls_fields:

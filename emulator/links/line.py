@@ -10,6 +10,7 @@ delivered to the far end when its last stop bit has been sent.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -52,9 +53,10 @@ class LineConfig:
         """Bits on the wire per byte: start + data + parity + stop."""
         return 1 + self.data_bits + (0 if self.parity == "N" else 1) + self.stop_bits
 
-    @property
+    @functools.cached_property
     def byte_time(self) -> float:
-        """Seconds per byte on the wire."""
+        """Seconds per byte on the wire (kept after the first use: the recorder compares every inbound chunk's
+        byte pitch with it)."""
         return self.bits_per_byte / self.baud
 
     @property

@@ -15,7 +15,10 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["NON_FINITE_KEY", "csv_cell", "csv_row", "csv_row_fast", "finite_json", "json_default", "strict_json"]
+__all__ = [
+    "NON_FINITE_KEY", "csv_cell", "csv_row", "csv_row_fast", "finite_json", "json_default", "reprs_are_cells",
+    "strict_json",
+]
 
 #: the key under which :func:`finite_json` lists the paths of the values it turned into ``null``
 NON_FINITE_KEY = "non_finite"
@@ -34,14 +37,22 @@ def csv_row(values: Sequence[Any]) -> str:
     return ",".join([repr(x) if x.__class__ is float and x - x == 0.0 else csv_cell(x) for x in values]) + "\r\n"
 
 
+def reprs_are_cells(line: str) -> bool:
+    """True when ``line``, the ``","``-joined ``repr`` s of some values, is also their :func:`csv_row` cells.
+
+    ``repr`` is already the cell of a finite Python float, an int or a bool; anything else (NaN, inf, numpy
+    scalars, strings, enums) shows one of these characters in its ``repr``, and then the row takes the reference
+    path.
+    """
+    return not ("n" in line or "i" in line or "'" in line or "(" in line or "<" in line or " " in line)
+
+
 def csv_row_fast(values: Sequence[Any]) -> str:
     """:func:`csv_row`, faster for rows of finite Python floats, ints and bools (the recorder's rows)."""
     line = ",".join(map(repr, values))
-    # repr is already right for finite Python floats, ints and bools; anything else (NaN, inf, numpy
-    # scalars, strings, enums) shows one of these characters in its repr and takes the reference path
-    if "n" in line or "i" in line or "'" in line or "(" in line or "<" in line or " " in line:
-        return csv_row(values)
-    return line + "\r\n"
+    if reprs_are_cells(line):
+        return line + "\r\n"
+    return csv_row(values)
 
 
 def json_default(o: Any) -> Any:

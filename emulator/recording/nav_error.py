@@ -4,6 +4,11 @@
 their times of validity in one vectorised call (bit for bit the per-frame values), and keeps the rows of
 ``nav.csv`` (the frame, decoded, and its errors) and ``truth.csv``, the running RMS / max of each error metric
 (:class:`ErrorStats`) and the error and mode series that expectations and reports read.
+
+The rows are written by :meth:`NavVsTruth._write_rows_fast`, which keeps the sigma cells of the previous frame;
+:meth:`NavVsTruth._write_rows` is its reference (``NavVsTruth(..., fast_paths=False)``), and
+:func:`nav_vs_truth_rows` / :func:`nav_vs_truth_rows_fast` the pair that ``tests/emulator/fast_path_cases.py``
+compares.
 """
 
 from __future__ import annotations
@@ -11,15 +16,19 @@ from __future__ import annotations
 import math
 from array import array
 from dataclasses import dataclass
+from operator import mul as _mul
 from typing import Any
 
 from firmware_model import earth
 from protocols.host import NavMode, NavSolution
 
 from ..world.trajectory import Trajectory
-from .formatting import csv_row_fast
+from .formatting import csv_row, csv_row_fast, reprs_are_cells
 
-__all__ = ["ERROR_METRICS", "NAV_COLUMNS", "TRUTH_COLUMNS", "ErrorStats", "NavVsTruth"]
+__all__ = [
+    "ERROR_METRICS", "NAV_COLUMNS", "TRUTH_COLUMNS", "ErrorStats", "NavVsTruth", "nav_vs_truth_rows",
+    "nav_vs_truth_rows_fast",
+]
 
 DEG = math.pi / 180.0
 
@@ -81,7 +90,7 @@ class NavVsTruth:
     ``nav_rows`` and ``truth_rows`` start with their header line; the owner writes them out and clears them.
     """
 
-    def __init__(self, trajectory: Trajectory) -> None:
+    def __init__(self, trajectory: Trajectory, fast_paths: bool = True) -> None:
         self.traj = trajectory
         self.nav_rows: list[str] = [",".join(NAV_COLUMNS) + "\r\n"]
         self.truth_rows: list[str] = [",".join(TRUTH_COLUMNS) + "\r\n"]
@@ -92,6 +101,13 @@ class NavVsTruth:
         self.error_series: array[float] = array("d")
         #: flat rows of (time of validity, mode bits) of every frame, 16 bytes per frame
         self.mode_series: array[float] = array("d")
+        #: how the rows are written: :meth:`_write_rows_fast`, or the reference :meth:`_write_rows`
+        #: (``fast_paths=False``; the same text, ``tests/emulator/fast_path_cases.py``)
+        self._write = self._write_rows_fast if fast_paths else self._write_rows
+        #: the last sigma cells written (:meth:`_write_rows_fast`): the floats and their text
+        self._sigma: tuple[float, ...] | None = None
+        self._sigma_types: tuple[type, ...] = ()
+        self._sigma_text = ""
 
     def add(self, frames: list[tuple[float, NavSolution]]) -> None:
         """Compare ``frames`` ((arrival time, frame) pairs) with truth: one vectorised trajectory evaluation."""
@@ -99,16 +115,20 @@ class NavVsTruth:
             self._compare(t_arrival, n, st)
 
     def _compare(self, t_arrival: float, n: NavSolution, st: Any) -> None:
-        lat, lon, h = (float(x) for x in st.pos)
-        ve, vn, vu = (float(x) for x in st.v_enu)
-        self.truth_rows.append(csv_row_fast((n.time_s, lat / DEG, lon / DEG, h, ve, vn, vu,
-                                             st.roll / DEG, st.pitch / DEG, st.heading / DEG)))
+        """One frame against its truth ``st``: the error statistics and series, and its rows (:attr:`_write`).
+
+        The rows' cells, in ``NAV_COLUMNS`` / ``TRUTH_COLUMNS`` order: the truth's; the frame's, as three runs
+        (up to the heading, the sigmas, from the mode to the arrival time); the errors (None: not navigating).
+        """
+        lat, lon, h = st.pos.tolist()
+        ve, vn, vu = st.v_enu.tolist()
+        truth = (n.time_s, lat / DEG, lon / DEG, h, ve, vn, vu, st.roll / DEG, st.pitch / DEG, st.heading / DEG)
         self.mode_series.extend((n.time_s, n.mode))
-        navigating = bool(n.mode & _NAVIGATING)
-        if navigating:
+        errs: tuple[float, ...] | None = None
+        if n.mode & _NAVIGATING:
             c_nav = _c_bn(n.pitch_deg * DEG, n.roll_deg * DEG, -n.heading_deg * DEG)
             # trace(C_nav C_true^T) = sum of the element-wise product
-            tr = sum(a * b for a, b in zip(c_nav, st.c_bn.ravel().tolist()))
+            tr = sum(map(_mul, c_nav, st.c_bn.ravel().tolist()))
             att = math.degrees(math.acos(max(-1.0, min(1.0, (tr - 1.0) / 2.0))))
             e_roll = _wrap180(n.roll_deg - st.roll / DEG)
             e_pitch = n.pitch_deg - st.pitch / DEG
@@ -127,14 +147,46 @@ class NavVsTruth:
             err["position_m"].add(e_pos)
             err["velocity_mps"].add(e_vel)
             self.error_series.extend((n.time_s, att, e_hdg, e_pos, e_vel))
-            errs = csv_row_fast((att, e_roll, e_pitch, e_hdg, e_e, e_n, e_u, e_pos, *ev, e_vel))
-        else:
-            errs = _NO_ERRORS
-        row = (
-            n.time_s, n.lat_deg, n.lon_deg, n.height_m, *n.vel_enu_mps, n.roll_deg, n.pitch_deg, n.heading_deg,
-            *n.sigma, n.mode, n.gnss_status, n.psns_status, n.cpu_load_pct, n.deadline_misses, t_arrival,
+            errs = (att, e_roll, e_pitch, e_hdg, e_e, e_n, e_u, e_pos, *ev, e_vel)
+        self._write(
+            truth,
+            (n.time_s, n.lat_deg, n.lon_deg, n.height_m, *n.vel_enu_mps, n.roll_deg, n.pitch_deg, n.heading_deg),
+            n.sigma,
+            (n.mode, n.gnss_status, n.psns_status, n.cpu_load_pct, n.deadline_misses, t_arrival),
+            errs,
         )
-        self.nav_rows.append(csv_row_fast(row)[:-2] + "," + errs)
+
+    def _write_rows(self, truth: tuple[Any, ...], head: tuple[Any, ...], sigma: tuple[Any, ...],
+                    tail: tuple[Any, ...], errs: tuple[Any, ...] | None) -> None:
+        """The reference: each row by :func:`csv_row_fast`, the nav row's frame cells and error cells apart."""
+        self.truth_rows.append(csv_row_fast(truth))
+        self.nav_rows.append(_nav_row(head, sigma, tail, errs))
+
+    def _write_rows_fast(self, truth: tuple[Any, ...], head: tuple[Any, ...], sigma: tuple[Any, ...],
+                         tail: tuple[Any, ...], errs: tuple[Any, ...] | None) -> None:
+        """:meth:`_write_rows`' text with fewer joins, and the sigma cells of the previous frame kept.
+
+        The sigmas change at the filter's covariance steps, not every frame (about 4 frames in 5 at 100 Hz repeat
+        them). Their text is reused when they equal the previous frame's (``==``) with the same types and no zero
+        among them: equal values of one type have the same ``repr``, but for the sign of a float zero (NaN equals
+        nothing). A line whose ``repr`` s are not its cells (NaN, infinities, types other than float, int and bool:
+        :func:`reprs_are_cells`) is written by the reference.
+        """
+        line = ",".join(map(repr, truth))
+        self.truth_rows.append(line + "\r\n" if reprs_are_cells(line) else csv_row(truth))
+        types = tuple(map(type, sigma))
+        if sigma == self._sigma and types == self._sigma_types:
+            sigma_text = self._sigma_text
+        else:
+            sigma_text = ",".join(map(repr, sigma))
+            if 0.0 not in sigma:
+                self._sigma, self._sigma_types, self._sigma_text = sigma, types, sigma_text
+        line = ",".join(map(repr, head)) + "," + sigma_text + "," + ",".join(map(repr, tail if errs is None
+                                                                                 else (*tail, *errs)))
+        if not reprs_are_cells(line):
+            self.nav_rows.append(_nav_row(head, sigma, tail, errs))
+        else:
+            self.nav_rows.append(line + "," + _NO_ERRORS if errs is None else line + "\r\n")
 
     @property
     def errors(self) -> dict[str, ErrorStats]:
@@ -152,6 +204,29 @@ class NavVsTruth:
             if t >= after_s and (until_s is None or t <= until_s):
                 es.add(ser[k + idx])
         return es
+
+
+def nav_vs_truth_rows(trajectory: Trajectory, frames: list[tuple[float, NavSolution]]) -> tuple[list[str], list[str]]:
+    """The ``nav.csv`` and ``truth.csv`` rows (headers first) of ``frames`` ((arrival time, frame) pairs) against
+    ``trajectory``, by the reference writer (``NavVsTruth(fast_paths=False)``)."""
+    cmp = NavVsTruth(trajectory, fast_paths=False)
+    cmp.add(frames)
+    return cmp.nav_rows, cmp.truth_rows
+
+
+def nav_vs_truth_rows_fast(trajectory: Trajectory,
+                           frames: list[tuple[float, NavSolution]]) -> tuple[list[str], list[str]]:
+    """:func:`nav_vs_truth_rows` by the recorder's writer (:meth:`NavVsTruth._write_rows_fast`)."""
+    cmp = NavVsTruth(trajectory)
+    cmp.add(frames)
+    return cmp.nav_rows, cmp.truth_rows
+
+
+def _nav_row(head: tuple[Any, ...], sigma: tuple[Any, ...], tail: tuple[Any, ...],
+             errs: tuple[Any, ...] | None) -> str:
+    """The reference nav row: the frame's cells and the error cells (empty when ``errs`` is None) by
+    :func:`csv_row_fast` apart."""
+    return csv_row_fast((*head, *sigma, *tail))[:-2] + "," + (_NO_ERRORS if errs is None else csv_row_fast(errs))
 
 
 def _wrap180(x: float) -> float:

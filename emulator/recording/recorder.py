@@ -41,6 +41,7 @@ first, so readers always see every frame received so far.
 from __future__ import annotations
 
 import asyncio
+import functools
 import json
 import time as _time
 from array import array
@@ -149,15 +150,15 @@ class Recorder:
     # -- listener callbacks -------------------------------------------------------------------
     def on_bytes(self, name: str, direction: str, t: float, data: bytes) -> None:
         tap = self._taps[name]
-        self._record(self._link_index[name], tap, direction, t, data)
+        self._record(self._link_index[name], tap, tap.link, direction, t, data)
 
-    def _record(self, index: int, tap: _Tap, direction: str, t: float, data: bytes) -> None:
+    def _record(self, index: int, tap: _Tap, link: Link, direction: str, t: float, data: bytes) -> None:
+        """One chunk on tapped ``link`` (``tap``, capture index ``index``): captured, counted or decoded."""
         cap = self._cap
         if cap is not None:
             if direction == "out":
                 cap.write(index, False, t, data)
             else:
-                link = tap.link
                 pitch = link.last_rx_pitch
                 cap.write(index, True, t, data, pitch if pitch != link.line.byte_time else None)
         buf = tap.pending.get(direction)
@@ -366,13 +367,15 @@ class Recorder:
 
 
 class _TapListener:
-    __slots__ = ("index", "name", "rec", "tap")
+    """The recorder's :class:`~emulator.links.base.LinkListener` on one tapped link: ``on_link_bytes(link,
+    direction, t, data)`` is :meth:`Recorder._record` with the tap's index and state bound (a ``functools.partial``,
+    so a chunk costs no Python frame of its own here)."""
+
+    __slots__ = ("index", "name", "on_link_bytes", "rec", "tap")
 
     def __init__(self, rec: Recorder, name: str, index: int, tap: _Tap) -> None:
         self.rec = rec
         self.name = name
         self.index = index
         self.tap = tap
-
-    def on_link_bytes(self, link: Link, direction: str, t: float, data: bytes) -> None:
-        self.rec._record(self.index, self.tap, direction, t, data)
+        self.on_link_bytes: Callable[[Link, str, float, bytes], None] = functools.partial(rec._record, index, tap)

@@ -21,8 +21,8 @@ over the KF interval; at rest ``f^b = C_n^b g_up`` + interference; first order i
 measurement** ``z_s = S^n - C_b^{n'} (+-S^b) = -[S^n x] phi`` (sign by the smaller residual, base paper).
 
 **No-reset information sharing** (docs/reference/algorithms.md 5.3): ``P_i(0) = P_0 / beta_i``, ``Q_i = Q / beta_i``
-once, over the states whose errors both sub-filters see (the base model's; the sensor-error states that only one
-sub-filter's measurements see keep their own P0 and Q, D-5.32),
+once, over every state of sub-filter 1 and the base model's states of sub-filter 2 (its solar-bias states, which
+only its sun vectors see, keep their own P0 and Q, D-5.32; sub-filter 1's GNSS-error states stay shared, D-5.34),
 ``beta_1 = beta_2 = 0.5`` (the paper's choice), master share ``beta_m = 0``. The master fuses the common
 states ``c = [phi, eps]``::
 
@@ -186,9 +186,8 @@ class FederatedFilter(NavFilter):
             g = self.gnss_states
             q1[g.i:g.i + 3] = g.psd
             self._rate1[g.i:g.i + 3] = g.rate
-        # no-reset sharing over the shared states only: the GNSS-error states are local (D-5.32, :meth:`initialise`)
-        q1[:N_STATES] /= p.beta_sins_gnss
-        self.q1 = q1
+        # no-reset sharing, the GNSS-error states included (D-5.34, :meth:`initialise`)
+        self.q1 = q1 / p.beta_sins_gnss
         #: sub-filter 2's white PSDs of the shared states: the base model's attitude (ARW^2 + the gyro flicker's
         #: white equivalent), gyro-bias and accelerometer-bias rows
         self._q2_att = q15[IDX_ATT]
@@ -255,12 +254,14 @@ class FederatedFilter(NavFilter):
         top of the coarse alignment's frame: ``C_b^{n'} = rv2m(-phi_m) C_b^n``, D-6.8) adds its variance to the
         attitude block, ``P_phi = P_phi,align + diag(sigma_m^2)``: the two errors add, and the imposed one is
         independent of the sensors, so the level's correlation with the accelerometer bias stays ``A P_nabla``
-        (D-5.29). Then the no-reset sharing, once: ``P_i(0) = P_0 / beta_i`` over the states whose errors both
-        sub-filters see; the sensor-error states that only one sub-filter's measurements see (the receiver's correlated
-        error in sub-filter 1, the solar vector's systematic error in sub-filter 2) keep the sheet's P0, and their Q
-        (:meth:`predict`) stays undivided (D-5.32). Their errors and driving noise reach no estimate of the other
-        sub-filter, so the joint covariance of the two local errors has no common part there and the upper bound
-        ``diag(P_1 / beta_1, P_2 / beta_2)`` holds without inflating them (Carlson's bound is for the common part)."""
+        (D-5.29). Then the no-reset sharing, once: ``P_i(0) = P_0 / beta_i``, except sub-filter 2's solar-bias states:
+        the solar vector's systematic error, which only sub-filter 2's measurements see, keeps the sheet's P0, and its
+        Q (:meth:`predict`) stays undivided (D-5.32). Its error and driving noise reach no estimate of sub-filter 1, so
+        the joint covariance of the two local errors has no common part there and the upper bound
+        ``diag(P_1 / beta_1, P_2 / beta_2)`` holds without inflating it (Carlson's bound is for the common part).
+        Sub-filter 1's GNSS-error states could be left out on the same ground, but they stay shared (D-5.34): the
+        chi-square isolation test's ``S = H P_1 H^T + R`` takes them, and at the paper's figures the doubled
+        receiver-error prior is part of the margin the test was set with."""
         cfg, p, dt = self.cfg, self.p, self.dtype
         p15 = spec_initial_covariance(cfg, nav, heading_sigma_rad)
         if p.initial_attitude_sigma_deg is not None:
@@ -280,8 +281,8 @@ class FederatedFilter(NavFilter):
             P2[i:i + 3, i:i + 3] = np.diag(np.full(3, self.sun_states.sigma2))
             self.sun_states.axis_n = None
             self.sun_states.heading = None
-        # no-reset information sharing, once: P_i(0) = P0 / beta_i over the shared states (D-5.32)
-        P1[:N_STATES, :N_STATES] /= p.beta_sins_gnss
+        # no-reset information sharing, once: P_i(0) = P0 / beta_i, all but the solar-bias states (D-5.32, D-5.34)
+        P1 /= p.beta_sins_gnss
         P2[:N2, :N2] /= p.beta_pol_mimu
         self.P1 = P1.astype(dt)
         self.P2 = P2.astype(dt)

@@ -162,8 +162,7 @@ def _pair(beta: float = 0.5, fed_kw=None, **cfg_kw):
 
 def test_subfilters_take_the_base_filters_spec_sheet_q_p0_and_augmented_states():
     """Sub-filter 1 = the base filter's 15 states + its GNSS-error states, with the base's Q and P0 (GNSS block and
-    the first fix's correlation included), the 15 shared states' times 1 / beta, the GNSS-error states' not (local to
-    the sub-filter, D-5.32); sub-filter 2's attitude / gyro blocks are the base's times 1 / beta, and so is its
+    the first fix's correlation included), all times 1 / beta (the GNSS-error states too, D-5.34); sub-filter 2's attitude / gyro blocks are the base's times 1 / beta, and so is its
     accelerometer bias with the level's correlation with it (D-5.20), apart from the motion acceleration's stationary
     variance; its solar-bias states are the base's, unshared; the cycle meter charges the added states."""
     from firmware_model.filters import kf_predict_cycles, kf_scalar_update_cycles
@@ -182,17 +181,16 @@ def test_subfilters_take_the_base_filters_spec_sheet_q_p0_and_augmented_states()
     assert base.i_gnss == 15 and fed.n1 == 18 and fed.gnss_states is not None and fed.gnss_states.i == 15
     assert fed.n2 == N2 + 3 and fed.sun_states is not None and fed.sun_states.i == N2
     g = base.i_gnss
-    # Q: the same PSDs, the shared states' by 1 / beta, the receiver's local error states' whole (D-5.32)
-    np.testing.assert_allclose(fed.q1[:15] * b, base.q[:15], rtol=1e-15)
-    np.testing.assert_allclose(fed.q1[15:18], base.q[15:18], rtol=1e-15)
+    # Q: the same PSDs, sub-filter 1's all by 1 / beta, the receiver's error states' too (D-5.34)
+    np.testing.assert_allclose(fed.q1 * b, base.q[:18], rtol=1e-15)
     np.testing.assert_allclose(fed._q2_att, base.q[IDX_ATT], rtol=1e-15)
     np.testing.assert_allclose(fed._q2_acc, base.q[IDX_ACC], rtol=1e-15)
     np.testing.assert_allclose(fed._q2_sun, base.q[base.i_sun:base.i_sun + 3], rtol=1e-15)
-    assert fed.q1[g] == pytest.approx(2.0 * (fed.cfg.gnss_pos_sigma_h_m**2 - fed.cfg.gnss_pos_white_sigma_h_m**2)
+    assert fed.q1[g] * b == pytest.approx(2.0 * (fed.cfg.gnss_pos_sigma_h_m**2 - fed.cfg.gnss_pos_white_sigma_h_m**2)
                                           / fed.cfg.gnss_pos_corr_time_s, rel=1e-12)
-    # P0: the shared block by 1 / beta; the GNSS-error block and its correlation with the first fix's position whole
-    np.testing.assert_allclose(fed.P1[:15, :15] * b, base.P[:15, :15], rtol=1e-12, atol=1e-30)
-    np.testing.assert_allclose(fed.P1[15:18, :], base.P[15:18, :18], rtol=1e-12, atol=1e-30)
+    # P0: sub-filter 1's whole by 1 / beta, the GNSS-error block and its correlation with the first fix's position
+    # included (D-5.34: unshared, they shrank the chi-square test's S)
+    np.testing.assert_allclose(fed.P1 * b, base.P[:18, :18], rtol=1e-12, atol=1e-30)
     assert np.any(fed.P1[15:18, :15] != 0.0)
     P2 = fed.P2 * 0.5  # beta_pol_mimu
     np.testing.assert_allclose(P2[X2_ATT, X2_ATT], base.P[IDX_ATT, IDX_ATT], rtol=1e-12)

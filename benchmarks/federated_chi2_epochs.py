@@ -31,9 +31,10 @@ THRESHOLD = 22.4577
 SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "federated_gnss_glitch.yaml"
 
 
-def epochs(t0: float, t1: float, duration_s: float = 75.0,
-           seed: int | None = None) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
-    """(per-epoch records in ``[t0, t1]``, the run's isolation / readmission events); ``seed`` None: the file's."""
+def epochs(t0: float, t1: float, duration_s: float = 75.0, seed: int | None = None,
+           run_dir: Path | None = None) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """(per-epoch records in ``[t0, t1]``, the run's isolation / readmission events); ``seed`` None: the file's;
+    ``run_dir``: where the run's recording (events.jsonl, nav.csv) is kept (None: a temporary directory)."""
     seen: dict[str, Any] = {}
     out: list[dict[str, Any]] = []
     orig_solve, orig_update = getattr(fed, "spd_solve"), fed.FederatedFilter.update_gnss  # noqa: B009
@@ -60,9 +61,13 @@ def epochs(t0: float, t1: float, duration_s: float = 75.0,
         if seed is not None:
             over["seed"] = seed
         scn = load_test_scenario(SCENARIO, over)
-        with tempfile.TemporaryDirectory(prefix="chi2-") as tmp:
-            run_scenario(scn, Path(tmp) / "run", mode="fast")
-            lines = (Path(tmp) / "run" / "events.jsonl").read_text().splitlines()
+        if run_dir is not None:
+            run_scenario(scn, run_dir, mode="fast")
+            lines = (run_dir / "events.jsonl").read_text().splitlines()
+        else:
+            with tempfile.TemporaryDirectory(prefix="chi2-") as tmp:
+                run_scenario(scn, Path(tmp) / "run", mode="fast")
+                lines = (Path(tmp) / "run" / "events.jsonl").read_text().splitlines()
     finally:
         setattr(fed, "spd_solve", orig_solve)  # noqa: B010
         setattr(fed.FederatedFilter, "update_gnss", orig_update)  # noqa: B010

@@ -141,6 +141,18 @@ class FirmwareConfig:
     #: the sky is symmetric about the solar meridian, so the filter puts its variance of both axes across the sun into
     #: the elevation axis (filters.BaseFilter, docs/decisions/filter-consistency.md D-5.16); 0 = isotropic
     psns_sky_bias_deg: float = 0.0
+    #: the sky's error along the solar meridian (the solved sun's elevation), 1 sigma, in place of the
+    #: ``psns_sky_bias_deg`` of that axis (D-5.33); 0 = ``sqrt(2) psns_sky_bias_deg`` (D-5.16's shape)
+    psns_sky_bias_el_deg: float = 0.0
+    #: correlation time (s) of the local-level solar-bias states (the sky's error follows the sun, D-5.33); 0 =
+    #: ``psns_bias_corr_time_s``, which the body-frame states keep
+    psns_sky_corr_time_s: float = 0.0
+    #: the heading turn (deg) over which the sky's local-level error across the solar meridian decorrelates (the
+    #: camera sees another part of the sky), a Gauss-Markov in the angle turned next to the one in time (D-5.33);
+    #: 0 = none
+    psns_sky_turn_corr_deg: float = 0.0
+    #: the same along the solar meridian (the elevation axis); 0 = ``psns_sky_turn_corr_deg``
+    psns_sky_turn_corr_el_deg: float = 0.0
     psns_bias_corr_time_s: float = 600.0
     psns_bias_states: bool = True
     psns_dop_min: float = 0.05

@@ -432,9 +432,10 @@ class SolarBiasStates:
 
     With a sky figure (``psns_sky_bias_deg`` > 0) ``mu`` is the solved sun's rotation in the local-level frame,
     ``S^n measured = (I + [mu x]) S^n``, ``Z = -[S^n x] phi + [S^n x] mu``, of stationary covariance
-    ``(m^2 + s^2) I + s^2 u u^T`` with ``u = z x S^n / |z x S^n|`` across the solar meridian (set at the first solar
-    update, :meth:`set_axis`); without, a body-frame rotation ``s_b measured = (I + [mu x]) s_b``,
-    ``Z = -[S^n x] phi + [S^n x] C_b^n mu``, isotropic. First-order Gauss-Markov of ``psns_bias_corr_time_s``."""
+    ``(m^2 + s^2) I + (s_el^2 - s^2) u u^T`` with ``u = z x S^n / |z x S^n|`` across the solar meridian (set at the
+    first solar update, :meth:`set_axis`); without, a body-frame rotation ``s_b measured = (I + [mu x]) s_b``,
+    ``Z = -[S^n x] phi + [S^n x] C_b^n mu``, isotropic. First-order Gauss-Markov of ``psns_bias_corr_time_s``
+    (local-level: ``psns_sky_corr_time_s`` when stated, and in the heading turned, D-5.33)."""
 
     def __init__(self, cfg: FirmwareConfig, i: int) -> None:
         self.cfg = cfg
@@ -443,9 +444,20 @@ class SolarBiasStates:
         sky2 = (cfg.psns_sky_bias_deg * DEG) ** 2
         #: the sky's variance (rad^2 per axis across the sun) and the isotropic rest (camera mount)
         self.sky2 = sky2
+        #: the sky's variance along the solar meridian (rad^2): the elevation figure, or D-5.16's ``2 s^2``
+        self.sky_el2 = (cfg.psns_sky_bias_el_deg * DEG) ** 2 if cfg.psns_sky_bias_el_deg > 0 else 2.0 * sky2
         self.iso2 = max(self.sigma2 - sky2, 0.0)
-        self.tau = cfg.psns_bias_corr_time_s
+        #: correlation time (s): the local-level sky figure when the states are shaped and it is stated (D-5.33)
+        self.tau = (cfg.psns_sky_corr_time_s if sky2 > 0.0 and cfg.psns_sky_corr_time_s > 0.0
+                    else cfg.psns_bias_corr_time_s)
         self.rate = 1.0 / self.tau
+        #: the local-level states' decorrelation per radian of heading turned (1/rad; 0: none), across the solar
+        #: meridian and along it (the elevation): a turn shows the camera another part of the sky (D-5.33)
+        self.turn_rate = 1.0 / (cfg.psns_sky_turn_corr_deg * DEG) if cfg.psns_sky_turn_corr_deg > 0 else 0.0
+        el_deg = cfg.psns_sky_turn_corr_el_deg or cfg.psns_sky_turn_corr_deg
+        self.turn_rate_el = 1.0 / (el_deg * DEG) if el_deg > 0 else 0.0
+        #: the body x axis's azimuth at the last :meth:`turn` (rad; None until the first)
+        self.heading: float | None = None
         #: horizontal n-frame axis across the solar meridian (z x s_n, from the last solar update; None until the first)
         self.axis_n: F64Array | None = None
 
@@ -455,25 +467,57 @@ class SolarBiasStates:
         return np.full(3, 2.0 * self.sigma2 / self.tau)
 
     def cov(self) -> F64Array:
-        """Stationary covariance (rad^2, local-level frame): ``(m^2 + s^2) I + s^2 u u^T`` (D-5.16)."""
+        """Stationary covariance (rad^2, local-level frame): ``(m^2 + s^2) I + (s_el^2 - s^2) u u^T`` (D-5.16,
+        D-5.33; ``s_el^2 = 2 s^2`` when the sheet states no elevation figure)."""
         u = self.axis_n
         assert u is not None
-        return (self.iso2 + self.sky2) * np.eye(3) + self.sky2 * np.outer(u, u)
+        return (self.iso2 + self.sky2) * np.eye(3) + (self.sky_el2 - self.sky2) * np.outer(u, u)
 
-    def noise_block(self, Tk: float) -> F64Array:
-        """Q_k block (3, 3) over ``Tk`` s once the sun is known: ``2 T_k / tau`` times :meth:`cov`. Cost:
-        9 multiplies and 6 adds (``kf_sun_bias_noise``)."""
-        return (2.0 * Tk / self.tau) * self.cov()
+    def noise_block(self, Tk: float, turn_rad: float = 0.0) -> F64Array:
+        """Q_k block (3, 3) over ``Tk`` s and a heading turn of ``turn_rad`` once the sun is known: ``2 T_k / tau``
+        times :meth:`cov`, plus, for a turn, ``2 |d psi| / psi_c`` times the covariance's part across the meridian
+        and ``2 |d psi| / psi_c,el`` times its part along ``u`` (a Gauss-Markov in time and in the angle turned,
+        each axis with its own turn figure, D-5.33; :meth:`decay_block` is its ``Phi``). Cost: 9 multiplies and
+        6 adds (``kf_sun_bias_noise``), 15 and 12 with a turn."""
+        q = (2.0 * Tk / self.tau) * self.cov()
+        if turn_rad > 0.0:
+            u = self.axis_n
+            assert u is not None
+            uu = np.outer(u, u)
+            q += 2.0 * turn_rad * (self.turn_rate * (self.iso2 + self.sky2) * (np.eye(3) - uu)
+                                   + self.turn_rate_el * (self.iso2 + self.sky_el2) * uu)
+        return q
+
+    def decay_block(self, turn_rad: float) -> F64Array:
+        """The decay over a heading turn of ``turn_rad`` (3, 3), subtracted from the states' diagonal block of
+        ``Phi``: ``|d psi| (I / psi_c + (1 / psi_c,el - 1 / psi_c) u u^T)`` (``u`` unknown before the first solar
+        update: isotropic)."""
+        d = turn_rad * self.turn_rate * np.eye(3)
+        if self.axis_n is not None:
+            d += turn_rad * (self.turn_rate_el - self.turn_rate) * np.outer(self.axis_n, self.axis_n)
+        return d
+
+    def turn(self, cbn: FloatArray) -> float:
+        """The heading turned (rad, >= 0) since the last call: the change of the body x axis's azimuth in the
+        local-level frame, ``atan2(C_b^n[0, 0], C_b^n[1, 0])``, wrapped (0 at the first call, and always without a
+        turn figure). Its decay (:meth:`decay_block`) joins ``T_k / tau`` on the states' diagonal of ``Phi``."""
+        if self.turn_rate == 0.0:
+            return 0.0
+        h = math.atan2(float(cbn[0, 0]), float(cbn[1, 0]))
+        last, self.heading = self.heading, h
+        if last is None:
+            return 0.0
+        return abs((h - last + math.pi) % (2.0 * math.pi) - math.pi)
 
     @property
     def shaped(self) -> bool:
         """True when the sky's error is modelled across the solar meridian (local-level states, a sky figure)."""
         return self.sky2 > 0.0
 
-    def set_axis(self, s_n: FloatArray, P: FloatArray, scale: float = 1.0) -> bool:
+    def set_axis(self, s_n: FloatArray, P: FloatArray) -> bool:
         """Keep the n-frame axis across the solar meridian; at the first solar update give the states their prior in
-        that shape in ``P``, times ``scale`` (a federated sub-filter's ``1 / beta``; until then the states are
-        uncorrelated with every other state, so this is the P0 the filter would have set knowing the sun). False
+        that shape in ``P`` (until then the states are uncorrelated with every other state, so this is the P0 the
+        filter would have set knowing the sun; a federated sub-filter does not share it by ``1 / beta``, D-5.32). False
         (nothing done) with the sun at the zenith. Cost: 4 multiplies, 2 adds, a reciprocal square root
         (``solar_bias_axis``)."""
         e, nn = float(s_n[0]), float(s_n[1])
@@ -484,7 +528,7 @@ class SolarBiasStates:
         self.axis_n = np.array([-nn / norm, e / norm, 0.0])
         if first:
             i = self.i
-            P[i:i + 3, i:i + 3] = (scale * self.cov()).astype(P.dtype)
+            P[i:i + 3, i:i + 3] = self.cov().astype(P.dtype)
         return True
 
     def rows(self, H: FloatArray, h_att: FloatArray, cbn: FloatArray) -> None:
@@ -776,6 +820,7 @@ class BaseFilter(NavFilter):
             i = self.sun_states.i
             P[i:i + 3, i:i + 3] = np.diag(np.full(3, self.sun_states.sigma2))
             self.sun_states.axis_n = None
+            self.sun_states.heading = None
         if self.flicker_states is not None:
             i = self.flicker_states.i
             P[i:i + 3, i:i + 3] = np.eye(3) * self.flicker_states.var
@@ -785,7 +830,8 @@ class BaseFilter(NavFilter):
     # -- time update --------------------------------------------------------------------------
     def predict(self, nav: NavState, f_n: FloatArray, Tk: float) -> None:
         dt = self.dtype
-        F15 = error_transition_matrix(q2mat_fast(nav.q), nav.v, nav.pos, f_n, dtype=dt)
+        cbn = q2mat_fast(nav.q)
+        F15 = error_transition_matrix(cbn, nav.v, nav.pos, f_n, dtype=dt)
         if self.n > N_STATES:  # augmented states: first-order Gauss-Markov, no coupling into the navigation errors
             F = np.zeros((self.n, self.n), dtype=dt)
             F[:N_STATES, :N_STATES] = F15
@@ -796,15 +842,22 @@ class BaseFilter(NavFilter):
         else:
             F = F15
         Phi = self._eye + F * dt(Tk)
+        sun = self.sun_states
+        turn = 0.0
+        if sun is not None and sun.shaped and sun.turn_rate > 0.0:
+            # the sky's error decorrelates over the heading turned (D-5.33)
+            turn = sun.turn(cbn)
+            i = sun.i
+            Phi[i:i + 3, i:i + 3] -= sun.decay_block(turn).astype(dt)
+            self.meter.charge("solar_bias_turn", self.cost.math("atan2") + c674x.flops(12, 12))
         if Tk != self._qk_interval:  # Q_k = q T_k: the same every interval but the first after alignment
             self._qk_interval, self._qk = Tk, (self.q * Tk).astype(dt)
         rot_b = self.rotation_b_rad
         qk: FloatArray = self._qk
         if self._rot_var > 0.0 and any(rot_b):
             qk = self._rotation_noise(nav, rot_b, qk)
-        sun = self.sun_states
         if sun is not None and sun.shaped and sun.axis_n is not None:
-            qk = self._sun_bias_noise(qk, Tk)
+            qk = self._sun_bias_noise(qk, Tk, turn)
         qw = warmup_gyro_bias_variance(self.cfg, float(nav.t) - Tk, Tk)
         if qw > 0.0:  # the temperature-gradient bias's in-run change while the box warms up (D-5.27)
             qk = _full_q(qk)
@@ -814,14 +867,14 @@ class BaseFilter(NavFilter):
         self.x, self.P = kf_predict(self.x, self.P, Phi, qk)
         self.meter.charge("kf_predict", self._cyc_predict)
 
-    def _sun_bias_noise(self, qk: FloatArray, Tk: float) -> FloatArray:
+    def _sun_bias_noise(self, qk: FloatArray, Tk: float, turn_rad: float = 0.0) -> FloatArray:
         """Q_k with the solar-vector bias block :meth:`SolarBiasStates.noise_block` (the Gauss-Markov's stationary
         covariance, its direction following the sun) in place of the isotropic diagonal."""
         sun = self.sun_states
         assert sun is not None
         i = sun.i
         q = _full_q(qk)
-        q[i:i + 3, i:i + 3] = sun.noise_block(Tk)
+        q[i:i + 3, i:i + 3] = sun.noise_block(Tk, turn_rad)
         self.meter.charge("kf_sun_bias_noise", c674x.flops(9, 6) + c674x.CALL_OVERHEAD)
         return q.astype(self.dtype)
 

@@ -101,14 +101,24 @@ class GnssSpec:
 class PsnsSpec:
     """Polarization sensor: solve-noise scale (1), noise floor and systematic solar-vector error (deg per axis): the
     camera-to-body mount residual, the lens model's residual on the solved sun (focal length, principal point,
-    distortion, polarizer angles as calibrated; 0: not stated) and the sky's departure from the Rayleigh pattern."""
+    distortion, polarizer angles as calibrated; 0: not stated) and the sky's departure from the Rayleigh pattern:
+    ``sky_bias_deg`` on every local-level axis, ``sky_bias_elevation_deg`` its total along the solar meridian (the
+    solved sun's elevation error; 0: not stated, then ``sqrt(2) sky_bias_deg``, the sky's variance of both axes
+    across the sun put on the elevation axis, docs/decisions/filter-consistency.md D-5.16, D-5.33), correlation time
+    ``bias_corr_time_s`` (of body-frame states; of the local-level ones too unless ``sky_corr_time_s`` is stated, a
+    sky test's figure in that frame, D-5.33) and ``sky_turn_corr_deg`` / ``sky_turn_corr_elevation_deg`` the heading
+    turn over which the local-level states decorrelate across / along the meridian (0: none / the same)."""
 
     noise_scale: float = 1.0
     noise_floor_deg: float = 0.05
     mount_residual_deg: float = 0.05
     lens_residual_deg: float = 0.0
     sky_bias_deg: float = 0.2
+    sky_bias_elevation_deg: float = 0.0
     bias_corr_time_s: float = 600.0
+    sky_corr_time_s: float = 0.0
+    sky_turn_corr_deg: float = 0.0
+    sky_turn_corr_elevation_deg: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -202,6 +212,10 @@ class SensorSpecSheet:
             "psns_sigma_deg": max(p.noise_floor_deg, 0.001),
             "psns_bias_sigma_deg": math.hypot(p.mount_residual_deg, p.lens_residual_deg, p.sky_bias_deg),
             "psns_sky_bias_deg": p.sky_bias_deg,
+            "psns_sky_bias_el_deg": p.sky_bias_elevation_deg,
+            "psns_sky_corr_time_s": p.sky_corr_time_s,
+            "psns_sky_turn_corr_deg": p.sky_turn_corr_deg,
+            "psns_sky_turn_corr_el_deg": p.sky_turn_corr_elevation_deg,
             "psns_bias_corr_time_s": p.bias_corr_time_s,
             "gyro_scale_factor_ppm": g.scale_factor_ppm,
             "gyro_misalignment_mrad": g.misalignment_mrad,

@@ -21,7 +21,8 @@ over the KF interval; at rest ``f^b = C_n^b g_up`` + interference; first order i
 measurement** ``z_s = S^n - C_b^{n'} (+-S^b) = -[S^n x] phi`` (sign by the smaller residual, base paper).
 
 **No-reset information sharing** (docs/reference/algorithms.md 5.3): ``P_i(0) = P_0 / beta_i``, ``Q_i = Q / beta_i``
-once,
+once, over the states whose errors both sub-filters see (the base model's; the sensor-error states that only one
+sub-filter's measurements see keep their own P0 and Q, D-5.32),
 ``beta_1 = beta_2 = 0.5`` (the paper's choice), master share ``beta_m = 0``. The master fuses the common
 states ``c = [phi, eps]``::
 
@@ -185,7 +186,9 @@ class FederatedFilter(NavFilter):
             g = self.gnss_states
             q1[g.i:g.i + 3] = g.psd
             self._rate1[g.i:g.i + 3] = g.rate
-        self.q1 = q1 / p.beta_sins_gnss
+        # no-reset sharing over the shared states only: the GNSS-error states are local (D-5.32, :meth:`initialise`)
+        q1[:N_STATES] /= p.beta_sins_gnss
+        self.q1 = q1
         #: sub-filter 2's white PSDs of the shared states: the base model's attitude (ARW^2 + the gyro flicker's
         #: white equivalent), gyro-bias and accelerometer-bias rows
         self._q2_att = q15[IDX_ATT]
@@ -252,7 +255,12 @@ class FederatedFilter(NavFilter):
         top of the coarse alignment's frame: ``C_b^{n'} = rv2m(-phi_m) C_b^n``, D-6.8) adds its variance to the
         attitude block, ``P_phi = P_phi,align + diag(sigma_m^2)``: the two errors add, and the imposed one is
         independent of the sensors, so the level's correlation with the accelerometer bias stays ``A P_nabla``
-        (D-5.29). Then the no-reset sharing, once: ``P_i(0) = P_0 / beta_i``."""
+        (D-5.29). Then the no-reset sharing, once: ``P_i(0) = P_0 / beta_i`` over the states whose errors both
+        sub-filters see; the sensor-error states that only one sub-filter's measurements see (the receiver's correlated
+        error in sub-filter 1, the solar vector's systematic error in sub-filter 2) keep the sheet's P0, and their Q
+        (:meth:`predict`) stays undivided (D-5.32). Their errors and driving noise reach no estimate of the other
+        sub-filter, so the joint covariance of the two local errors has no common part there and the upper bound
+        ``diag(P_1 / beta_1, P_2 / beta_2)`` holds without inflating them (Carlson's bound is for the common part)."""
         cfg, p, dt = self.cfg, self.p, self.dtype
         p15 = spec_initial_covariance(cfg, nav, heading_sigma_rad)
         if p.initial_attitude_sigma_deg is not None:
@@ -271,9 +279,12 @@ class FederatedFilter(NavFilter):
             i = self.sun_states.i
             P2[i:i + 3, i:i + 3] = np.diag(np.full(3, self.sun_states.sigma2))
             self.sun_states.axis_n = None
-        # no-reset information sharing, once: P_i(0) = P0 / beta_i
-        self.P1 = (P1 / p.beta_sins_gnss).astype(dt)
-        self.P2 = (P2 / p.beta_pol_mimu).astype(dt)
+            self.sun_states.heading = None
+        # no-reset information sharing, once: P_i(0) = P0 / beta_i over the shared states (D-5.32)
+        P1[:N_STATES, :N_STATES] /= p.beta_sins_gnss
+        P2[:N2, :N2] /= p.beta_pol_mimu
+        self.P1 = P1.astype(dt)
+        self.P2 = P2.astype(dt)
         self.x1 = np.zeros(self.n1, dtype=dt)
         self.x2 = np.zeros(self.n2, dtype=dt)
         self.P = self.P1.copy()
@@ -321,6 +332,14 @@ class FederatedFilter(NavFilter):
         Phi2[X2_ATT, X2_GYRO] = F[IDX_ATT, IDX_GYRO] * dt(Tk)
         Phi2[X2_MOTION, X2_MOTION] = self._eye2[X2_MOTION, X2_MOTION] * dt(ca)
         Phi2[np.diag_indices(n2)] -= (self._rate2 * Tk).astype(dt)
+        sun = self.sun_states
+        turn = 0.0
+        if sun is not None and sun.shaped and sun.turn_rate > 0.0:
+            # the sky's error decorrelates over the heading turned (D-5.33)
+            turn = sun.turn(cbn)
+            i = sun.i
+            Phi2[i:i + 3, i:i + 3] -= sun.decay_block(turn).astype(dt)
+            self.meter.charge("solar_bias_turn", self.cost.math("atan2") + c674x.flops(12, 12))
         q2 = np.zeros((n2, n2))
         q2[X2_ATT, X2_ATT] = np.diag(self._q2_att * Tk)
         if q_rot is not None:
@@ -328,15 +347,14 @@ class FederatedFilter(NavFilter):
         q2[X2_GYRO, X2_GYRO] = np.diag(self._q2_gyro * Tk) + np.eye(3) * qw
         q2[X2_MOTION, X2_MOTION] = np.eye(3) * (p.motion_accel_sigma_mps2**2 * (1.0 - ca * ca))
         q2[X2_ACC, X2_ACC] = np.diag(self._q2_acc * Tk)
-        sun = self.sun_states
         if sun is not None and self._q2_sun is not None:
             i = sun.i
             if sun.shaped and sun.axis_n is not None:  # the sky's error across the solar meridian (D-5.16)
-                q2[i:i + 3, i:i + 3] = sun.noise_block(Tk)
+                q2[i:i + 3, i:i + 3] = sun.noise_block(Tk, turn)
                 self.meter.charge("kf_sun_bias_noise", c674x.flops(9, 6) + c674x.CALL_OVERHEAD)
             else:
                 q2[i:i + 3, i:i + 3] = np.diag(self._q2_sun * Tk)
-        q2 = q2 / p.beta_pol_mimu
+        q2[:N2, :N2] /= p.beta_pol_mimu  # the solar-bias states' Q is local, not shared (D-5.32)
         self.x2, self.P2 = kf_predict(self.x2, self.P2, Phi2, q2.astype(dt))
         self.meter.charge("fed_predict_pol_mimu", self._cyc_predict2)
         self._gravity_update(nav, cbn, f_n)
@@ -434,8 +452,8 @@ class FederatedFilter(NavFilter):
         sun = self.sun_states
         if sun is not None:
             # the solar-vector bias, as the base filter models it (D-5.13, D-5.16)
-            # (its prior in the meridian's shape shared as every P0 of this sub-filter: / beta_2)
-            if sun.shaped and sun.set_axis(s_n, self.P2, 1.0 / self.p.beta_pol_mimu):
+            # (its prior in the meridian's shape: local to this sub-filter, not shared by beta_2, D-5.32)
+            if sun.shaped and sun.set_axis(s_n, self.P2):
                 self.meter.charge("solar_bias_axis", self.cost.flops(4, 2) + self.cost.math("rsqrt"))
             sun.rows(H, Hs, cbn_exp.astype(dt))
         # the solve's own noise (D-5.13), or the study's fixed figure

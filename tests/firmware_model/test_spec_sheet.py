@@ -64,6 +64,10 @@ def test_config_fields_by_closed_form():
     lens = SensorSpecSheet.from_dict({"psns": {"mount_residual_deg": 0.3, "lens_residual_deg": 1.2,
                                                "sky_bias_deg": 0.4}}).config_fields()
     assert (lens["psns_bias_sigma_deg"], lens["psns_sky_bias_deg"]) == (pytest.approx(1.3), 0.4)
+    # the sky's elevation figure (D-5.33) is carried as stated; unstated (0) leaves D-5.16's shape to the filter
+    assert lens["psns_sky_bias_el_deg"] == 0.0
+    el = SensorSpecSheet.from_dict({"psns": {"sky_bias_deg": 0.09, "sky_bias_elevation_deg": 0.85}}).config_fields()
+    assert (el["psns_sky_bias_deg"], el["psns_sky_bias_el_deg"]) == (0.09, 0.85)
     # the compass section (D-5.19): defaults and the sheet's figures carried through
     assert (f["compass_aop_sigma_deg"], f["compass_aop_dop_ref"], f["compass_aop_residual_deg"],
             f["compass_installation_residual_deg"]) == (0.1, 0.5, 0.0, 0.13)
@@ -376,6 +380,91 @@ def test_solar_bias_prior_across_the_solar_meridian():
     assert np.all(np.linalg.eigvalsh(want - P[i:i + 3, i:i + 3]) > -1e-18)
     qk = flt._sun_bias_noise(flt._qk, 0.1)
     np.testing.assert_allclose(qk[i:i + 3, i:i + 3], 2.0 * 0.1 / flt.cfg.psns_bias_corr_time_s * want, rtol=1e-9)
+
+
+def test_solar_bias_prior_with_an_elevation_figure():
+    """D-5.33: with the sheet's own figure for the sky's error along the solar meridian (``s_el``) the stationary
+    covariance is ``(m^2 + s^2) I + (s_el^2 - s^2) u u^T``: the sun's elevation (a rotation about ``u``) gets
+    ``m^2 + s_el^2``, its move across the meridian (a rotation about ``S^n x u``) ``m^2 + s^2``; Q_k is
+    ``2 T_k / tau`` times it."""
+    m, s, s_el = 0.05, 0.09, 0.85
+    flt, nav, cbn = _filter(psns_bias_sigma_deg=math.hypot(m, s), psns_sky_bias_deg=s, psns_sky_bias_el_deg=s_el,
+                            psns_bias_corr_time_s=6000.0)
+    i = flt.i_sun
+    assert i is not None
+    el, az = 44 * DEG, 230 * DEG
+    s_n = np.array([math.cos(el) * math.sin(az), math.cos(el) * math.cos(az), math.sin(el)])
+    u = np.array([-math.cos(az), math.sin(az), 0.0])
+    w = np.cross(s_n, u)
+    obs = SolarObservation(t_exposure_s=3.0, s_b=cbn.T @ s_n, quality=0.0, n_used=100, source="camera")
+    assert flt.update_solar(nav, obs, s_n, cbn).accepted
+    assert flt.sun_states is not None
+    c = flt.sun_states.cov()
+    assert float(u @ c @ u) == pytest.approx(((m * DEG) ** 2 + (s_el * DEG) ** 2), rel=1e-12)
+    assert float(w @ c @ w) == pytest.approx(((m * DEG) ** 2 + (s * DEG) ** 2), rel=1e-12)
+    assert float(u @ c @ w) == pytest.approx(0.0, abs=1e-14 * float(u @ c @ u))
+    assert float(s_n @ c @ s_n) == pytest.approx(((m * DEG) ** 2 + (s * DEG) ** 2), rel=1e-12)
+    qk = flt._sun_bias_noise(flt._qk, 0.2)
+    np.testing.assert_allclose(qk[i:i + 3, i:i + 3], 2.0 * 0.2 / 6000.0 * c, rtol=1e-9)
+    # without the figure the shape is D-5.16's: s_el^2 = 2 s^2
+    flt2, nav2, cbn2 = _filter(psns_bias_sigma_deg=math.hypot(m, s), psns_sky_bias_deg=s)
+    assert flt2.update_solar(nav2, SolarObservation(t_exposure_s=3.0, s_b=cbn2.T @ s_n, quality=0.0, n_used=100,
+                                                    source="camera"), s_n, cbn2).accepted
+    assert flt2.sun_states is not None
+    assert float(u @ flt2.sun_states.cov() @ u) == pytest.approx((m * DEG) ** 2 + 2 * (s * DEG) ** 2, rel=1e-12)
+
+
+def test_solar_bias_turn_decorrelation_keeps_the_prior_stationary():
+    """D-5.33: a heading turn decorrelates the local-level solar-bias states with its own angle per axis (60 deg across
+    the solar meridian, 450 deg along it): Phi's block
+    ``I - T/tau - |d psi| (I / psi_c + (1/psi_c,el - 1/psi_c) u u^T)``
+    and Q's ``2 T/tau cov + 2 |d psi| (cov_w / psi_c + cov_u / psi_c,el)`` keep the stationary covariance to first
+    order; the turn is the body x axis's change of azimuth, wrapped; the predict applies both."""
+    m, s, s_el = 0.05, 0.09, 0.85
+    kw = dict(psns_bias_sigma_deg=math.hypot(m, s), psns_sky_bias_deg=s, psns_sky_bias_el_deg=s_el,
+              psns_bias_corr_time_s=6000.0, psns_sky_turn_corr_deg=60.0, psns_sky_turn_corr_el_deg=450.0)
+    flt, nav, cbn = _filter(**kw)
+    sun = flt.sun_states
+    assert sun is not None and sun.turn_rate == pytest.approx(1 / (60 * DEG))
+    assert sun.turn_rate_el == pytest.approx(1 / (450 * DEG))
+    el, az = 44 * DEG, 230 * DEG
+    s_n = np.array([math.cos(el) * math.sin(az), math.cos(el) * math.cos(az), math.sin(el)])
+    obs = SolarObservation(t_exposure_s=3.0, s_b=cbn.T @ s_n, quality=0.0, n_used=100, source="camera")
+    assert flt.update_solar(nav, obs, s_n, cbn).accepted
+    c = sun.cov()
+    u = np.array([-math.cos(az), math.sin(az), 0.0])
+    w = np.cross(s_n, u)
+    for Tk, turn in ((0.1, 0.0), (0.1, 1e-3), (0.0, 1e-3)):
+        phi = np.eye(3) - Tk / 6000.0 * np.eye(3) - sun.decay_block(turn)
+        q = sun.noise_block(Tk, turn)
+        drift = phi @ c @ phi.T + q - c
+        assert np.max(np.abs(drift)) < 1e-5 * np.max(np.abs(c))  # second order: (1e-3 / 1.05)^2
+    q = sun.noise_block(0.0, 0.01)
+    assert float(u @ q @ u) == pytest.approx(2 * 0.01 / (450 * DEG) * ((m * DEG) ** 2 + (s_el * DEG) ** 2), rel=1e-12)
+    assert float(w @ q @ w) == pytest.approx(2 * 0.01 / (60 * DEG) * ((m * DEG) ** 2 + (s * DEG) ** 2), rel=1e-12)
+    # the turn: heading 30 -> 350 deg through north is 40 deg turned
+    sun.heading = None
+    assert sun.turn(a2mat(0.0, 0.0, yaw_from_heading(30 * DEG))) == 0.0
+    assert sun.turn(a2mat(0.0, 0.0, yaw_from_heading(350 * DEG))) == pytest.approx(40 * DEG, abs=1e-12)
+    # through the predict: a 5 deg turn adds the turn's Q to the block (the states sit in a P of their prior)
+    i = flt.i_sun
+    assert i is not None
+    for deg, key in ((0.0, "still"), (5.0, "turn")):
+        f2, nav2, cbn2 = _filter(**kw)
+        assert f2.update_solar(nav2, SolarObservation(t_exposure_s=3.0, s_b=cbn2.T @ s_n, quality=0.0, n_used=100,
+                                                      source="camera"), s_n, cbn2).accepted
+        f2.predict(nav2, np.array([0.0, 0.0, 9.8]), 0.1)  # sets the heading
+        before = f2.P[i:i + 3, i:i + 3].copy()
+        nav2.q = mat2q(a2mat(0.0, 0.0, yaw_from_heading((30 + deg) * DEG)))
+        f2.predict(nav2, np.array([0.0, 0.0, 9.8]), 0.1)
+        grown = float(u @ (f2.P[i:i + 3, i:i + 3] - before) @ u)
+        if key == "still":
+            still = grown
+        else:
+            # the turn's share along u: 2 |d psi| / psi_c,el (m^2 + s_el^2) less the decay of what the update left
+            p_uu = float(u @ before @ u)
+            want = 2 * 5 * DEG / (450 * DEG) * ((m * DEG) ** 2 + (s_el * DEG) ** 2 - p_uu)
+            assert grown - still == pytest.approx(want, rel=0.05)
 
 
 def test_gnss_relock_redraws_the_correlated_error_states():

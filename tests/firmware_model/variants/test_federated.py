@@ -162,9 +162,10 @@ def _pair(beta: float = 0.5, fed_kw=None, **cfg_kw):
 
 def test_subfilters_take_the_base_filters_spec_sheet_q_p0_and_augmented_states():
     """Sub-filter 1 = the base filter's 15 states + its GNSS-error states, with the base's Q and P0 (GNSS block and
-    the first fix's correlation included) times 1 / beta; sub-filter 2's attitude / gyro blocks and solar-bias states
-    are the base's too, and so is its accelerometer bias with the level's correlation with it (D-5.20), apart from
-    the motion acceleration's stationary variance; the cycle meter charges the added states."""
+    the first fix's correlation included), the 15 shared states' times 1 / beta, the GNSS-error states' not (local to
+    the sub-filter, D-5.32); sub-filter 2's attitude / gyro blocks are the base's times 1 / beta, and so is its
+    accelerometer bias with the level's correlation with it (D-5.20), apart from the motion acceleration's stationary
+    variance; its solar-bias states are the base's, unshared; the cycle meter charges the added states."""
     from firmware_model.filters import kf_predict_cycles, kf_scalar_update_cycles
     from firmware_model.kf import IDX_ACC, IDX_ATT, IDX_GYRO
     from firmware_model.variants.federated import (
@@ -181,15 +182,18 @@ def test_subfilters_take_the_base_filters_spec_sheet_q_p0_and_augmented_states()
     assert base.i_gnss == 15 and fed.n1 == 18 and fed.gnss_states is not None and fed.gnss_states.i == 15
     assert fed.n2 == N2 + 3 and fed.sun_states is not None and fed.sun_states.i == N2
     g = base.i_gnss
-    # Q: the same PSDs, shared by 1 / beta
-    np.testing.assert_allclose(fed.q1 * b, base.q[:18], rtol=1e-15)
+    # Q: the same PSDs, the shared states' by 1 / beta, the receiver's local error states' whole (D-5.32)
+    np.testing.assert_allclose(fed.q1[:15] * b, base.q[:15], rtol=1e-15)
+    np.testing.assert_allclose(fed.q1[15:18], base.q[15:18], rtol=1e-15)
     np.testing.assert_allclose(fed._q2_att, base.q[IDX_ATT], rtol=1e-15)
     np.testing.assert_allclose(fed._q2_acc, base.q[IDX_ACC], rtol=1e-15)
     np.testing.assert_allclose(fed._q2_sun, base.q[base.i_sun:base.i_sun + 3], rtol=1e-15)
-    assert fed.q1[g] * b == pytest.approx(2.0 * (fed.cfg.gnss_pos_sigma_h_m**2 - fed.cfg.gnss_pos_white_sigma_h_m**2)
+    assert fed.q1[g] == pytest.approx(2.0 * (fed.cfg.gnss_pos_sigma_h_m**2 - fed.cfg.gnss_pos_white_sigma_h_m**2)
                                           / fed.cfg.gnss_pos_corr_time_s, rel=1e-12)
-    # P0
-    np.testing.assert_allclose(fed.P1 * b, base.P[:18, :18], rtol=1e-12, atol=1e-30)
+    # P0: the shared block by 1 / beta; the GNSS-error block and its correlation with the first fix's position whole
+    np.testing.assert_allclose(fed.P1[:15, :15] * b, base.P[:15, :15], rtol=1e-12, atol=1e-30)
+    np.testing.assert_allclose(fed.P1[15:18, :], base.P[15:18, :18], rtol=1e-12, atol=1e-30)
+    assert np.any(fed.P1[15:18, :15] != 0.0)
     P2 = fed.P2 * 0.5  # beta_pol_mimu
     np.testing.assert_allclose(P2[X2_ATT, X2_ATT], base.P[IDX_ATT, IDX_ATT], rtol=1e-12)
     np.testing.assert_allclose(P2[X2_GYRO, X2_GYRO], base.P[IDX_GYRO, IDX_GYRO], rtol=1e-12)
@@ -199,7 +203,7 @@ def test_subfilters_take_the_base_filters_spec_sheet_q_p0_and_augmented_states()
     np.testing.assert_allclose(P2[X2_MOTION, X2_MOTION], np.eye(3) * fed.p.motion_accel_sigma_mps2**2, rtol=1e-12)
     assert not np.any(P2[X2_MOTION, :6]) and not np.any(P2[X2_MOTION, X2_ACC])
     i = base.i_sun
-    np.testing.assert_allclose(P2[N2:, N2:], base.P[i:i + 3, i:i + 3], rtol=1e-12)
+    np.testing.assert_allclose(fed.P2[N2:, N2:], base.P[i:i + 3, i:i + 3], rtol=1e-12)  # local: unshared
     np.linalg.cholesky(fed.P1)
     np.linalg.cholesky(fed.P2)
     c = fed.cost
@@ -332,19 +336,39 @@ def test_pol_mimu_solar_update_uses_the_solve_quality_noise_and_the_bias_states(
     assert fed.innovation_stats["solar_vector"]["nis_sum"] == pytest.approx(0.0, abs=1e-9)
 
 
-def test_pol_mimu_solar_bias_prior_across_the_meridian_is_shared_by_beta():
-    """With a sky figure the solar-bias states take the base filter's meridian-shaped prior at the first sun, divided
-    by beta_2 like every P0 of the sub-filter (no-reset sharing)."""
-    _, fed, _, _ = _pair()
+def test_pol_mimu_solar_bias_states_are_local_not_shared_by_beta():
+    """D-5.32: the solar-bias states model the solar sensor's (and the sky's) error, which only sub-filter 2's
+    measurements see: at the first sun they take the base filter's meridian-shaped prior whole (not / beta_2), and
+    their Q stays the Gauss-Markov's own, so a stationary prior stays stationary through a predict:
+    ``P_mu' = (1 - T / tau)^2 P_mu + (2 T / tau) P_mu`` (with the old ``/ beta_2`` on both it grew by ``1 / beta_2``
+    at the first sun and its Q was twice the sheet's)."""
+    from firmware_model.filters import SolarObservation
+
+    _, fed, nav, cbn = _pair()
     sun = fed.sun_states
     assert sun is not None and sun.shaped
     el, az = 35 * DEG, 220 * DEG
     s_n = np.array([math.cos(el) * math.sin(az), math.cos(el) * math.cos(az), math.sin(el)])
-    P = fed.P2.copy()
-    assert sun.set_axis(s_n, P, 1.0 / fed.p.beta_pol_mimu)
     u = np.array([-math.cos(az), math.sin(az), 0.0])
-    want = (sun.iso2 + sun.sky2) * np.eye(3) + sun.sky2 * np.outer(u, u)
-    np.testing.assert_allclose(P[sun.i:, sun.i:], want / fed.p.beta_pol_mimu, rtol=1e-12)
+    want = (sun.iso2 + sun.sky2) * np.eye(3) + (sun.sky_el2 - sun.sky2) * np.outer(u, u)
+    P = fed.P2.copy()
+    assert sun.set_axis(s_n, P)
+    np.testing.assert_allclose(P[sun.i:, sun.i:], want, rtol=1e-12)
+    # through the filter: the first sun's update (a perfect solve) leaves the prior's shape, then one predict
+    obs = SolarObservation(t_exposure_s=1.0, s_b=cbn.T @ s_n, quality=0.004, n_used=150, source="camera")
+    fed2 = _pair()[1]
+    P0 = fed2.P2.copy()
+    sun2 = fed2.sun_states
+    assert sun2 is not None
+    sun2.set_axis(s_n, P0)
+    fed2.P2 = P0
+    fed2.x2[:] = 0.0
+    Tk = 0.1
+    pm = P0[sun2.i:, sun2.i:].copy()
+    fed2.predict(nav, np.array([0.0, 0.0, 9.80]), Tk)
+    a = 1.0 - Tk / sun2.tau
+    np.testing.assert_allclose(fed2.P2[sun2.i:, sun2.i:], a * a * pm + (2.0 * Tk / sun2.tau) * want, rtol=1e-9)
+    assert fed.update_solar(nav, obs, s_n, cbn).accepted
 
 
 def test_pol_mimu_static_gravity_keeps_the_accelerometer_bias_in_the_level():

@@ -64,14 +64,39 @@ def test_kmeans_scenario_refuses_when_the_sun_leaves_the_field(tmp_path):
 
 
 def test_federated_scenario_isolates_the_glitch_within_two_epochs(tmp_path):
-    _summary, ev, nav = _run("federated_gnss_glitch", tmp_path, duration_s=75.0,
-                            motion=[{"static": {"duration_s": 75.0}}], expectations=[])
-    iso = [e for e in ev if e["event"] == "gnss_isolated"]
-    back = [e for e in ev if e["event"] == "gnss_readmitted"]
-    assert iso and 60.0 <= iso[0]["t_meas_s"] <= 61.0  # the glitch starts at 60 s: isolated at epoch 1 (<= 2)
-    assert back and back[0]["t_meas_s"] >= 65.0
-    pos = [float(r["err_pos_m"]) for r in nav if r["err_pos_m"] and 58.0 <= float(r["time_s"]) <= 70.0]
-    assert max(pos) < 15.0
+    # What the detector's design guarantees (docs/variants.md 4 "Chi-square isolation", D-5.35): the glitch (60 s to
+    # 65 s, 1 Hz fixes, 6 rows each) is isolated at its first or second epoch, GNSS is readmitted only after it ends
+    # and the position stays bounded through it. Before it, a calibrated test at alpha = 0.001 false-alarms on a
+    # clean epoch with probability 0.001: over the 59 clean epochs at most one (P(>= 2) = 0.0017), readmitted at the
+    # next epoch (readmit_after = 1) and leaving the position undisturbed. The FIRST isolation is not guaranteed to be
+    # the glitch's: this run (seed 11) has one false alarm at 45 s (lambda 23.24 against 22.458, D-5.34).
+    from scipy.stats import chi2
+
+    from benchmarks.federated_chi2_epochs import epochs
+
+    recs, ev = epochs(0.0, 75.0, duration_s=75.0, run_dir=tmp_path / "run")
+    with open(tmp_path / "run" / "nav.csv", newline="") as f:
+        nav = [(float(r["time_s"]), float(r["err_pos_m"])) for r in csv.DictReader(f) if r["err_pos_m"]]
+    iso = [e["t_meas_s"] for e in ev if e["event"] == "gnss_isolated"]
+    back = [e["t_meas_s"] for e in ev if e["event"] == "gnss_readmitted"]
+    glitch_iso, glitch_back = [t for t in iso if t >= 60.0], [t for t in back if t >= 60.0]
+    assert glitch_iso and 60.0 <= glitch_iso[0] <= 61.0  # the glitch starts at 60 s: isolated at epoch 1 or 2
+    assert glitch_back and glitch_back[0] >= 65.0  # readmitted only once the fixes are clean again
+    assert max(e for t, e in nav if 58.0 <= t <= 70.0) < 15.0
+    false_alarms = [t for t in iso if t < 60.0]
+    assert len(false_alarms) <= 1  # binomial(59, 0.001): P(>= 2) = 0.0017
+    for t_fa in false_alarms:
+        assert [t for t in back if t_fa < t < 60.0] == [t_fa + 1.0]  # readmitted at the next epoch
+        # one epoch without GNSS does not move the position: its error within the 10 s before, plus 0.5 m
+        before = max(e for t, e in nav if t_fa - 10.0 <= t < t_fa)
+        assert max(e for t, e in nav if t_fa <= t <= t_fa + 3.0) < before + 0.5
+    # the test's calibration: over the clean epochs, lambda (m = 6 rows) has mean m; the mean over n epochs lies
+    # within chi2(n m) / n's two-sided 99 % bounds (n = 59: 4.90 .. 7.23; this run 6.22, D-5.35)
+    clean = [r for r in recs if r["t_s"] < 60.0]
+    n, m = len(clean), len(clean[0]["norm_eps"])
+    mean_lam = sum(r["lambda"] for r in clean) / n
+    assert n == 59 and m == 6
+    assert chi2.ppf(0.005, n * m) / n < mean_lam < chi2.ppf(0.995, n * m) / n, mean_lam
 
 
 _SE_RUNS: dict[str, dict] = {}

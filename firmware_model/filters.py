@@ -509,6 +509,20 @@ class SolarBiasStates:
             return 0.0
         return abs((h - last + math.pi) % (2.0 * math.pi) - math.pi)
 
+    def decay_over_turn(self, Phi: FloatArray, cbn: FloatArray, meter: c674x.CycleMeter,
+                        cost: c674x.KernelCosts) -> float:
+        """Subtract the decay over the heading turned since the last call (:meth:`turn`, :meth:`decay_block`) from
+        the states' diagonal block of ``Phi`` in place, when the sky's error is shaped and has a turn figure (D-5.33);
+        return the turn (rad; 0 otherwise), which the states' Q (:meth:`noise_block`) takes too. Cost: an ``atan2``
+        and 12 multiplies, 12 adds (``solar_bias_turn``)."""
+        if not (self.shaped and self.turn_rate > 0.0):
+            return 0.0
+        turn = self.turn(cbn)
+        i = self.i
+        Phi[i:i + 3, i:i + 3] -= self.decay_block(turn).astype(Phi.dtype)
+        meter.charge("solar_bias_turn", cost.math("atan2") + c674x.flops(12, 12))
+        return turn
+
     @property
     def shaped(self) -> bool:
         """True when the sky's error is modelled across the solar meridian (local-level states, a sky figure)."""
@@ -843,13 +857,8 @@ class BaseFilter(NavFilter):
             F = F15
         Phi = self._eye + F * dt(Tk)
         sun = self.sun_states
-        turn = 0.0
-        if sun is not None and sun.shaped and sun.turn_rate > 0.0:
-            # the sky's error decorrelates over the heading turned (D-5.33)
-            turn = sun.turn(cbn)
-            i = sun.i
-            Phi[i:i + 3, i:i + 3] -= sun.decay_block(turn).astype(dt)
-            self.meter.charge("solar_bias_turn", self.cost.math("atan2") + c674x.flops(12, 12))
+        # the sky's error decorrelates over the heading turned (D-5.33)
+        turn = 0.0 if sun is None else sun.decay_over_turn(Phi, cbn, self.meter, self.cost)
         if Tk != self._qk_interval:  # Q_k = q T_k: the same every interval but the first after alignment
             self._qk_interval, self._qk = Tk, (self.q * Tk).astype(dt)
         rot_b = self.rotation_b_rad

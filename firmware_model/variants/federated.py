@@ -333,13 +333,8 @@ class FederatedFilter(NavFilter):
         Phi2[X2_MOTION, X2_MOTION] = self._eye2[X2_MOTION, X2_MOTION] * dt(ca)
         Phi2[np.diag_indices(n2)] -= (self._rate2 * Tk).astype(dt)
         sun = self.sun_states
-        turn = 0.0
-        if sun is not None and sun.shaped and sun.turn_rate > 0.0:
-            # the sky's error decorrelates over the heading turned (D-5.33)
-            turn = sun.turn(cbn)
-            i = sun.i
-            Phi2[i:i + 3, i:i + 3] -= sun.decay_block(turn).astype(dt)
-            self.meter.charge("solar_bias_turn", self.cost.math("atan2") + c674x.flops(12, 12))
+        # the sky's error decorrelates over the heading turned (D-5.33)
+        turn = 0.0 if sun is None else sun.decay_over_turn(Phi2, cbn, self.meter, self.cost)
         q2 = np.zeros((n2, n2))
         q2[X2_ATT, X2_ATT] = np.diag(self._q2_att * Tk)
         if q_rot is not None:

@@ -113,10 +113,6 @@ def test_three_way_beats_polarization_mimu_beats_sins_gps_in_heading_fast():
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, raises=AssertionError,
-                   reason="known (issue 15): on the firmware stream with the paper's figures the three-way filter's "
-                          "heading RMS is 0.078 deg against pol/MIMU's 0.074 (0.080 / 0.078 before D-5.20); the "
-                          "ordering holds on 8 of 10 seeds of the field comparison (docs/variants.md section 6.3)")
 def test_three_way_beats_polarization_mimu_beats_sins_gps_in_heading_paper_trajectory(capsys):
     """Done-when: 400 s static + 300 s half circle, the paper's sensor figures and initial misalignment."""
     h = _compare(400.0, 300.0)

@@ -473,6 +473,15 @@ class SolarBiasStates:
         assert u is not None
         return (self.iso2 + self.sky2) * np.eye(3) + (self.sky_el2 - self.sky2) * np.outer(u, u)
 
+    def reset(self, P: FloatArray) -> None:
+        """The states before the first solar update, set at every (re)initialisation of the filter that carries
+        them: the isotropic prior ``sigma^2 I`` in ``P``'s block, no solar-meridian axis yet (:meth:`set_axis`), no
+        heading for :meth:`turn`."""
+        i = self.i
+        P[i:i + 3, i:i + 3] = np.diag(np.full(3, self.sigma2))
+        self.axis_n = None
+        self.heading = None
+
     def noise_block(self, Tk: float, turn_rad: float = 0.0) -> F64Array:
         """Q_k block (3, 3) over ``Tk`` s and a heading turn of ``turn_rad`` once the sun is known: ``2 T_k / tau``
         times :meth:`cov`, plus, for a turn, ``2 |d psi| / psi_c`` times the covariance's part across the meridian
@@ -831,10 +840,7 @@ class BaseFilter(NavFilter):
             self.gnss_states.set_prior(P, rm + h, (rn + h) * math.cos(lat))
             self.gnss_states.t_last_fix = None
         if self.sun_states is not None:
-            i = self.sun_states.i
-            P[i:i + 3, i:i + 3] = np.diag(np.full(3, self.sun_states.sigma2))
-            self.sun_states.axis_n = None
-            self.sun_states.heading = None
+            self.sun_states.reset(P)
         if self.flicker_states is not None:
             i = self.flicker_states.i
             P[i:i + 3, i:i + 3] = np.eye(3) * self.flicker_states.var

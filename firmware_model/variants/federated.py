@@ -276,10 +276,7 @@ class FederatedFilter(NavFilter):
         P2[np.ix_(S2, S2)] = p15[np.ix_(B2, B2)]
         P2[X2_MOTION, X2_MOTION] = np.eye(3) * p.motion_accel_sigma_mps2**2
         if self.sun_states is not None:
-            i = self.sun_states.i
-            P2[i:i + 3, i:i + 3] = np.diag(np.full(3, self.sun_states.sigma2))
-            self.sun_states.axis_n = None
-            self.sun_states.heading = None
+            self.sun_states.reset(P2)
         # no-reset information sharing, once: P_i(0) = P0 / beta_i over the shared states (D-5.32)
         P1[:N_STATES, :N_STATES] /= p.beta_sins_gnss
         P2[:N2, :N2] /= p.beta_pol_mimu

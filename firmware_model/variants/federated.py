@@ -279,7 +279,7 @@ class FederatedFilter(NavFilter):
             self.sun_states.reset(P2)
         # no-reset information sharing, once: P_i(0) = P0 / beta_i over the shared states (D-5.32)
         P1[:N_STATES, :N_STATES] /= p.beta_sins_gnss
-        P2[np.ix_(S2, S2)] /= p.beta_pol_mimu
+        P2[:N2, :N2] /= p.beta_pol_mimu
         self.P1 = P1.astype(dt)
         self.P2 = P2.astype(dt)
         self.x1 = np.zeros(self.n1, dtype=dt)
@@ -346,7 +346,7 @@ class FederatedFilter(NavFilter):
                 self.meter.charge("kf_sun_bias_noise", c674x.flops(9, 6) + c674x.CALL_OVERHEAD)
             else:
                 q2[i:i + 3, i:i + 3] = np.diag(self._q2_sun * Tk)
-        q2[np.ix_(S2, S2)] /= p.beta_pol_mimu  # the motion acceleration's and the solar-bias states' Q are local
+        q2[:N2, :N2] /= p.beta_pol_mimu  # the solar-bias states' Q is local, not shared (D-5.32)
         self.x2, self.P2 = kf_predict(self.x2, self.P2, Phi2, q2.astype(dt))
         self.meter.charge("fed_predict_pol_mimu", self._cyc_predict2)
         self._gravity_update(nav, cbn, f_n)

@@ -19,8 +19,10 @@ error), which only this diagnostic reads. Per window (``ge_phases``'s), in deg:
   truth cancels in ``x_1 - x_2``), split by the component of ``x_1 - x_2`` it comes through;
 * the solar-bias states along ``u`` and ``a``.
 
-``python -m benchmarks.ge_fusion_trace --seeds 1-10`` traces the fused member of each seed and prints one line per seed
-and phase (rest 20-200 and 200-400 s, motion 400-705 s): :func:`seed_table`. D-5.36 quotes both.
+``--set KEY=JSON`` overrides a dotted scenario key (attribution runs, e.g. D-5.36's
+``firmware.alignment.misalignment_deg=[-0.9,0.6,-0.7]``). ``python -m benchmarks.ge_fusion_trace --seeds 1-10`` traces
+the fused member of each seed and prints one line per seed and phase (rest 20-200 and 200-400 s, motion 400-705 s):
+:func:`seed_table`. D-5.36 quotes both.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from __future__ import annotations
 import argparse
 import bisect
 import csv
+import json
 import math
 import statistics
 import sys
@@ -143,6 +146,17 @@ def _frame(r: dict[str, Any]) -> tuple[Any, Any]:
     return u, np.cross([0.0, 0.0, 1.0], u)
 
 
+def heading_split(r: dict[str, Any]) -> Any:
+    """The fused heading less sub-filter 2's (deg, the heading's sign: heading = -yaw, so ``-(x_g - x_2)_U``) as six
+    parts that add up to it: ``x_g - x_2 = W_1 (x_1 - x_2)``, ``W_1 = P_g P_1^-1`` (the truth cancels in
+    ``x_1 - x_2``), with ``x_1 - x_2`` expressed in (tilt about ``u``, tilt about ``a``, heading, gyro bias x, y, z)."""
+    u, a = _frame(r)
+    T = np.eye(6)
+    T[0, :3], T[1, :3] = u, a
+    M = r["Pg"] @ np.linalg.inv(r["P1"]) @ np.linalg.inv(T)
+    return -M[PHI_U, :] * (T @ (r["x1"] - r["x2"])) * RAD
+
+
 def summarise(recs: list[dict[str, Any]]) -> list[str]:
     """The per-window table of the module docstring."""
     lines = []
@@ -171,15 +185,7 @@ def summarise(recs: list[dict[str, Any]]) -> list[str]:
         lines.append("              tilt error (states' sign) and sigma  " + "  ".join(cells))
         both = [r for r in w if len(r["active"]) == 2]
         if both:
-            parts = np.zeros(6)
-            for r in both:
-                u, a = _frame(r)
-                T = np.eye(6)
-                T[0, :3], T[1, :3] = u, a
-                # x_g - x_2 = W_1 (x_1 - x_2), the difference expressed in (u, a, U, eps): W_1 T^-1 (T d)
-                M = r["Pg"] @ np.linalg.inv(r["P1"]) @ np.linalg.inv(T)
-                parts += -M[PHI_U, :] * (T @ (r["x1"] - r["x2"])) * RAD  # heading = -yaw: -d(phi_U)
-            parts /= len(both)
+            parts = np.mean([heading_split(r) for r in both], axis=0)
             lines.append("              fused - sub-filter 2 heading through x1 - x2 in  "
                          + " ".join(f"{n} {v:+.4f}" for n, v in zip(("tilt-u", "tilt-a", "hdg", "epsx", "epsy",
                                                                      "epsz"), parts))
@@ -246,17 +252,20 @@ def main() -> None:
     ap.add_argument("--config", default="fused", choices=sorted(GE_CONFIGS))
     ap.add_argument("--step", type=float, default=1.0, help="seconds between records (default 1)")
     ap.add_argument("--csv", default=None, help="one seed: also write every record to this file")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=JSON",
+                    help="a dotted scenario override (attribution runs), value as JSON")
     a = ap.parse_args()
+    over = {k: json.loads(v) for k, v in (x.split("=", 1) for x in a.set)}
     if a.seeds:
         runs = {}
         for seed in parse_seeds(a.seeds):
-            runs[seed] = trace(seed, "fused", a.step)
+            runs[seed] = trace(seed, "fused", a.step, over)
             print(f"seed {seed} traced", file=sys.stderr, flush=True)
         print("\n".join(seed_table(runs)))
         return
     if a.seed is None:
         ap.error("a seed or --seeds")
-    recs = trace(a.seed, a.config, a.step)
+    recs = trace(a.seed, a.config, a.step, over)
     print("\n".join(summarise(recs)))
     if a.csv:
         write_csv(recs, a.csv)

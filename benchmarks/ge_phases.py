@@ -1,15 +1,19 @@
 """Where the fused filter gains or loses against polarization/MIMU alone, per phase (Ge et al. under the field presets).
 
-``python -m benchmarks.ge_phases SEED``: runs ``benchmarks.paper_reproductions``'s ``ge`` members ``fused`` and
-``pol_mimu`` on the seed's stream and prints, per window of the 705 s run (20-100, ..., 600-705 s; the motion
-starts at 400 s), each member's heading error RMS and mean (deg) and the window's share of the difference of the
-mean squares after 20 s (deg^2; the shares add up to ``fused^2 - pol^2`` of the benchmark's RMS). D-5.34 quotes it.
+``python -m benchmarks.ge_phases SEED [--set KEY=JSON ...]``: runs ``benchmarks.paper_reproductions``'s ``ge`` members
+``fused`` and ``pol_mimu`` on the seed's stream and prints each member's heading RMS after 20 s (the benchmark's) and,
+per window of the 705 s run (20-100, ..., 600-705 s; the motion starts at 400 s), each member's heading error RMS and
+mean (deg) and the window's share of the difference of the mean squares after 20 s (deg^2; the shares add up to
+``fused^2 - pol^2`` of the benchmark's RMS). ``--set`` overrides a dotted scenario key for both members (attribution
+runs, e.g. D-5.36's ``firmware.alignment.misalignment_deg=[-0.9,0.6,-0.7]``). D-5.34 and D-5.36 quote it.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import math
+from typing import Any
 
 from benchmarks.paper_reproductions import GE_CONFIGS, GE_FIELD, _f, run_nav
 
@@ -17,9 +21,9 @@ WINDOWS = ((20.0, 100.0), (100.0, 200.0), (200.0, 300.0), (300.0, 400.0), (400.0
            (600.0, 705.1))
 
 
-def heading_errors(seed: int, config: str) -> list[tuple[float, float]]:
-    """(time s, heading error deg) of one member's navigation output."""
-    over = {**GE_FIELD, "firmware.variants.federated.subfilters": GE_CONFIGS[config]}
+def heading_errors(seed: int, config: str, overrides: dict[str, Any] | None = None) -> list[tuple[float, float]]:
+    """(time s, heading error deg) of one member's navigation output (``overrides``: dotted scenario keys)."""
+    over = {**GE_FIELD, "firmware.variants.federated.subfilters": GE_CONFIGS[config], **(overrides or {})}
     _s, nav, _ev = run_nav("federated_paper_comparison", seed, over)
     return [(float(r["time_s"]), h) for r in nav if (h := _f(r, "err_heading_deg")) is not None]
 
@@ -27,9 +31,15 @@ def heading_errors(seed: int, config: str) -> list[tuple[float, float]]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("seed", type=int)
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=JSON",
+                    help="a dotted scenario override for both members, value as JSON")
     a = ap.parse_args()
-    runs = {c: heading_errors(a.seed, c) for c in ("fused", "pol_mimu")}
+    over = {k: json.loads(v) for k, v in (x.split("=", 1) for x in a.set)}
+    runs = {c: heading_errors(a.seed, c, over) for c in ("fused", "pol_mimu")}
     n_all = sum(1 for t, _h in runs["fused"] if t >= WINDOWS[0][0])
+    for c in ("fused", "pol_mimu"):
+        h = [x for t, x in runs[c] if t >= WINDOWS[0][0]]
+        print(f"{c}: heading RMS after {WINDOWS[0][0]:.0f} s {math.sqrt(sum(x * x for x in h) / len(h)):.4f} deg")
     for lo, hi in WINDOWS:
         cells, sq = [], []
         for c in ("fused", "pol_mimu"):

@@ -274,46 +274,37 @@ class CycleMeter:
         self.tick_budget = round(clock_hz / tick_hz)
         self.tasks: dict[str, TaskMeter] = {}
         self._stack: list[tuple[TaskMeter, int]] = []
-        #: cycles charged since the outermost open task began (the TSC read at an output); 0 when none is open.
-        #: Read it, never write it (an attribute, not a property: the firmware reads it at every output)
-        self.elapsed = 0
+        self._acc = 0
         #: kernel breakdown of the innermost open task (None: no task open); saves a stack lookup per charge
         self._kernels: dict[str, int] | None = None
 
-    def begin(self, task: str, period_s: float = 0.0, kernel: str | None = None, cycles: int = 0) -> None:
-        """Open ``task`` (nested in the open ones); with ``kernel``, then :meth:`charge` ``cycles`` to it (one call
-        where the firmware charges a task's first kernel as it opens it)."""
+    @property
+    def elapsed(self) -> int:
+        """Cycles charged since the outermost open task began."""
+        return self._acc
+
+    def begin(self, task: str, period_s: float = 0.0) -> None:
         t = self.tasks.get(task)
         if t is None:
             t = self.tasks[task] = TaskMeter(task, self.tick_budget, period_s)
         stack = self._stack
         if not stack:
-            self.elapsed = 0
-        stack.append((t, self.elapsed))
-        k = self._kernels = t.kernels
-        if kernel is not None:
-            self.elapsed += cycles
-            k[kernel] = k.get(kernel, 0) + cycles
+            self._acc = 0
+        stack.append((t, self._acc))
+        self._kernels = t.kernels
 
     def charge(self, kernel: str, cycles: int) -> None:
-        self.elapsed += cycles
+        self._acc += cycles
         k = self._kernels
         if k is not None:
             k[kernel] = k.get(kernel, 0) + cycles
 
-    def end(self, kernel: str | None = None, cycles: int = 0) -> int:
-        """Close the innermost task and return its cycles; with ``kernel``, :meth:`charge` ``cycles`` to it first
-        (one call where the firmware charges a task's last kernel as it closes it)."""
+    def end(self) -> int:
         stack = self._stack
-        if kernel is not None:
-            self.elapsed += cycles
-            k = self._kernels
-            if k is not None:
-                k[kernel] = k.get(kernel, 0) + cycles
         if not stack:
             return 0
         t, start = stack.pop()
-        n = self.elapsed - start
+        n = self._acc - start
         calls = t.calls = t.calls + 1
         t.cycles_last = n
         t.cycles_total += n
@@ -326,7 +317,7 @@ class CycleMeter:
         if stack:
             self._kernels = stack[-1][0].kernels
         else:
-            self.elapsed = 0
+            self._acc = 0
             self._kernels = None
         return n
 

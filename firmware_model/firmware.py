@@ -343,7 +343,8 @@ class Firmware(HostTask, GnssTask):
         cfg = self.cfg
         m = self.meter
         m.begin("imu_tick", self.T)
-        m.begin("imu", self.T, "imu_decode", self._cyc_decode)
+        m.begin("imu", self.T)
+        m.charge("imu_decode", self._cyc_decode)
         t_us = self._unwrap_us(fr.t_trigger_us)
         t = t_us / 1e6
         res = TickResult(t, 0)
@@ -401,7 +402,8 @@ class Firmware(HostTask, GnssTask):
         if self._out_every and self._tick % self._out_every == 0:
             m.begin("output", self._out_every * self.T)
             frame = self._nav_output(t)
-            m.end("nav_output", self._cyc["nav_output"])
+            m.charge("nav_output", self._cyc["nav_output"])
+            m.end()
             res.outputs.append((UART_HOST, frame, m.elapsed))
         if self._nmea_every or self._nmea_att_every:
             nmea_pos = bool(self._nmea_every) and self._tick % self._nmea_every == 0

@@ -40,7 +40,7 @@ from __future__ import annotations
 import asyncio
 import math
 from collections import deque
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -176,17 +176,11 @@ class UartRxModel:
 
     def tick(self, t: float) -> None:
         """The main loop ran at ``t``: it empties the ring (and, when polling, the FIFO)."""
-        UartRxModel.tick_all((self,), t)
-
-    @staticmethod
-    def tick_all(models: Iterable[UartRxModel], t: float) -> None:
-        """:meth:`tick` of every model of ``models`` (the DSP's tick: one call for its UARTs, not one each)."""
-        for m in models:
-            m.ring_fill = 0
-            if m.cfg.service == "poll":
-                polls = m.polls
-                if not (polls and polls[-1] > t):
-                    polls.append(t)
+        self.ring_fill = 0
+        if self.cfg.service == "poll":
+            if self.polls and self.polls[-1] > t:
+                return
+            self.polls.append(t)
 
     def as_dict(self) -> dict[str, Any]:
         c = self.cfg
@@ -298,7 +292,8 @@ class VirtualDsp:
         wd_limit = wd.overrun_multiple * self.period if wd.enabled else math.inf
         for r in self.fw.service():
             start = now if now > self.busy_until else self.busy_until
-            UartRxModel.tick_all(self._rx_models, start)
+            for m in self._rx_models:
+                m.tick(start)
             extra = self.extra_cycles_per_tick
             cycles = r.cycles
             if extra:

@@ -154,7 +154,7 @@ def test_compiled_kernels_equal_their_sources_bit_for_bit() -> None:
                   "ubx_fletcher"):
             assert getattr(crc, f)(data) == getattr(cr, f)(data), f
     meters = [c674x.CycleMeter(300e6, 200.0), cm.CycleMeter(300e6, 200.0)]
-    script = [(int(k), int(c)) for k, c in zip(rng.integers(0, 6, 2000), rng.integers(0, 5000, 2000))]
+    script = [(int(k), int(c)) for k, c in zip(rng.integers(0, 4, 2000), rng.integers(0, 5000, 2000))]
     ends = []
     for meter in meters:
         e = []
@@ -163,10 +163,6 @@ def test_compiled_kernels_equal_their_sources_bit_for_bit() -> None:
                 meter.begin(f"task{cycles % 3}", 0.005)
             elif op == 3:
                 e.append(meter.end())
-            elif op == 4:  # the one-call forms
-                meter.begin(f"task{cycles % 3}", 0.005, f"k{op}", cycles)
-            elif op == 5:
-                e.append(meter.end(f"k{op}", cycles))
             else:
                 meter.charge(f"k{op}", cycles)
                 e.append(meter.elapsed)

@@ -9,7 +9,6 @@ Format (little-endian): the 9-byte magic ``PSNSCAP1\\n``, one JSON header line
 
 from __future__ import annotations
 
-import contextlib
 import json
 import struct
 from collections.abc import Iterator
@@ -53,14 +52,8 @@ class CaptureWriter:
     """Writes a capture file: the magic and the header line at once, then one record per :meth:`write`.
 
     ``header`` is any JSON-able dict (the run's description); ``version`` and ``links`` (the link names, whose
-    positions are the records' link indices) are set here. Records are joined in memory and handed to the file
-    by :attr:`PENDING_BYTES` at a time (a ``bytearray`` append costs a fifth of a buffered file's ``write``, which
-    takes its lock per call): :meth:`flush` and :meth:`close` write what is pending, so the file is the same
-    bytes; at most :attr:`PENDING_BYTES` plus the file's buffer are in memory (the recorder flushes every second).
+    positions are the records' link indices) are set here.
     """
-
-    #: records held before they go to the file (bytes)
-    PENDING_BYTES = 65536
 
     def __init__(self, path: Path, header: dict[str, Any], links: list[str]) -> None:
         self.file: IO[bytes] = open_no_follow(path, "wb")  # open for the run, closed by close()
@@ -69,41 +62,22 @@ class CaptureWriter:
         hdr["links"] = list(links)
         self.file.write(CAPTURE_MAGIC + json.dumps(hdr, sort_keys=True, default=json_default).encode() + b"\n")
         self.file.flush()
-        #: records not yet handed to the file
-        self._pending = bytearray()
 
     def write(self, index: int, inbound: bool, t: float, data: bytes, pitch: float | None = None) -> None:
         """One record: link ``index``, direction ``in`` (``inbound``) or ``out``, time ``t`` (s), the bytes, and
         their spacing on the wire when it is not the link's byte time."""
-        buf = self._pending
-        if pitch is None:
-            buf += _REC.pack(t, index, 1 if inbound else 0, 0, len(data))
+        if pitch is None:  # one buffered write per record (the header and the bytes joined)
+            self.file.write(_REC.pack(t, index, 1 if inbound else 0, 0, len(data)) + data)
         else:
-            buf += _REC.pack(t, index, 1 if inbound else 0, FLAG_PITCH, len(data))
-            buf += _PITCH.pack(pitch)
-        buf += data
-        if len(buf) >= self.PENDING_BYTES:
-            self._write_pending()
-
-    def _write_pending(self) -> None:
-        if self._pending and not self.file.closed:
-            self.file.write(self._pending)
-            self._pending.clear()
+            self.file.write(_REC.pack(t, index, 1 if inbound else 0, FLAG_PITCH, len(data)) + _PITCH.pack(pitch) + data)
 
     def flush(self) -> None:
         if not self.file.closed:
-            self._write_pending()
             self.file.flush()
 
     def close(self) -> None:
         if not self.file.closed:
-            self._write_pending()
             self.file.close()
-
-    def __del__(self) -> None:
-        # an owner that never closed it (a crash): the pending records reach the file, as a buffered file's would
-        with contextlib.suppress(Exception):
-            self._write_pending()
 
 
 def _read_header(f: IO[bytes], path: str | Path) -> dict[str, Any]:

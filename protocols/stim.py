@@ -52,7 +52,7 @@ from construct import Array, Bytes, Const, Int8ub, Int16sb, Int16ub, Int24sb, St
 
 from ._fastinit import fast_frozen_init
 from .codec import StructCodec, subspec
-from .crc import crc8_stim
+from .crc import crc8_stim, crc8_stim_fast
 from .stim300 import (
     INCL_DV_LSB_MPS,
     INCL_LSB_G,
@@ -245,7 +245,7 @@ class Stim210Format:
 
     def check(self, frame: bytes) -> bool:
         n = self.body_len
-        if crc8_stim(frame[:n]) != frame[n]:
+        if crc8_stim_fast(frame[:n]) != frame[n]:
             return False
         return not self.crlf or frame[n + 1 : n + 3] == b"\r\n"
 
@@ -267,7 +267,7 @@ class Stim210Format:
         """:meth:`build` of ``StimDatagram(self.ident, gyro, status, ...)`` from the fields, without the object
         (the gyro model's sender, once per datagram); fields this format does not carry are ignored."""
         body: bytes = self._encode_body(*self._pick((gyro, status, counter, latency_us, temperature, reserved)))
-        return body + bytes((crc8_stim(body),)) + (b"\r\n" if self.crlf else b"")
+        return body + bytes((crc8_stim_fast(body),)) + (b"\r\n" if self.crlf else b"")
 
     encode = build
 

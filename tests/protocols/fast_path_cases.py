@@ -5,7 +5,8 @@ module): the derived ``struct`` codecs beside ``construct`` (:meth:`StructCodec.
 :meth:`StructCodec.decode`, :meth:`StructCodec.encode_fast` / :meth:`StructCodec.encode`, and every generated
 dataclass decoder or encoder, :attr:`Binding.call_fast` / :meth:`Binding.call`), the StreamDecoder's one-format
 scanner and one-frame shortcut beside its reference scanner (``StreamDecoder._scan_fast`` / ``_scan``, switched
-by ``fast_paths``), ``crc32_mpeg2_fast`` / ``crc32_mpeg2`` and ``sentence_ok_fast`` / ``sentence_ok``.
+by ``fast_paths``), ``crc32_mpeg2_fast`` / ``crc32_mpeg2``, ``crc8_stim_fast`` / ``crc8_stim`` (remembered) and
+``sentence_ok_fast`` / ``sentence_ok``.
 
 :data:`CASES` is a list of ``pytest.param(reference, fast, inputs, id=...)``: ``reference(*args) == fast(*args)``
 must hold for every argument tuple in ``inputs``.
@@ -23,7 +24,7 @@ from typing import Any
 import pytest
 
 from protocols.codec import CODECS, Binding, StructCodec
-from protocols.crc import crc16_ccitt, crc32_mpeg2, crc32_mpeg2_fast
+from protocols.crc import CRC8_MEMO_GENERATION, crc8_stim, crc8_stim_fast, crc16_ccitt, crc32_mpeg2, crc32_mpeg2_fast
 from protocols.gnss import GnssFix, GnssOutputSet, build_epoch
 from protocols.host import HostFormat, NavSolution, encode_nav_solution
 from protocols.imu_frame import FpgaFrameFormat, ImuFrame, ImuFrameFormat, MagFrame, encode_mag_frame
@@ -191,6 +192,28 @@ def _crc_inputs() -> list[tuple[Any, ...]]:
     return [(d,) for d in data] + [(d, 0x12345678) for d in data[::5]]
 
 
+def _crc8_inputs() -> list[tuple[Any, ...]]:
+    """Datagram-sized byte strings as the gyro, the FPGA and the recorder check them: each new one, then again
+    (a new object of the same bytes), the one before, one from more than a memo generation ago (the older
+    generation or computed anew), the same bytes as ``bytearray`` and ``memoryview`` and with other ``init``
+    values (both computed); the catalogue check and lengths 0-40 first."""
+    rng = random.Random(8)
+    out: list[tuple[Any, ...]] = [(b"123456789",), (b"123456789",), (b"123456789", 0x00)]
+    out += [(bytes(rng.randrange(256) for _ in range(n)),) for n in range(41)]
+    seen: list[bytes] = []
+    for i in range(3 * CRC8_MEMO_GENERATION):
+        d = bytes(rng.randrange(256) for _ in range(rng.choice((15, 16, 21))))
+        seen.append(d)
+        out += [(d,), (bytes(bytearray(d)),)]
+        if i:
+            out.append((seen[i - 1],))
+        if i > 300:
+            out.append((seen[i - 300],))
+        if i % 50 == 0:
+            out += [(bytearray(d),), (memoryview(d),), (d, 0x00), (d, 0xA5), (d[:-1] + bytes((d[-1] ^ 1,)),)]
+    return out
+
+
 def _sentence_inputs() -> list[tuple[bytes]]:
     fix = GnssFix(utc=dt.datetime(2019, 9, 18, 8, 14, 3, tzinfo=dt.UTC), lat_deg=39.979, lon_deg=116.339,
                   height_m=50.0)
@@ -209,6 +232,7 @@ def _sentence_inputs() -> list[tuple[bytes]]:
 CASES = [
     pytest.param(_run_stream(False), _run_stream(True), _stream_inputs(), id="StreamDecoder-scan"),
     pytest.param(crc32_mpeg2, crc32_mpeg2_fast, _crc_inputs(), id="crc32_mpeg2"),
+    pytest.param(crc8_stim, crc8_stim_fast, _crc8_inputs(), id="crc8_stim"),
     pytest.param(sentence_ok, sentence_ok_fast, _sentence_inputs(), id="nmea-sentence_ok"),
     *_codec_cases(),
 ]

@@ -391,3 +391,82 @@ def test_pol_mimu_static_gravity_keeps_the_accelerometer_bias_in_the_level():
     floor = sig_nabla / g / math.sqrt(b2)
     for i in (PHI_E, PHI_N):
         assert floor <= math.sqrt(fed.P2[i, i]) < 1.15 * floor
+
+
+def test_gravity_noise_is_the_sheets_accelerometer_noise_over_the_kf_interval():
+    """D-5.37: ``r = VRW^2 / Tk + (0.664 B_a)^2`` from the sheet (``field``: 102 ug/sqrt(Hz), 45 ug in-run), not the
+    variant's fixed 0.02 m/s^2; a fixed ``gravity_sigma_mps2`` still overrides it."""
+    from firmware_model.units import G_STD
+    from firmware_model.variants.federated import gravity_noise_variance
+
+    cfg = _field_cfg()
+    expected = (102e-6 * G_STD) ** 2 / 0.1 + (math.sqrt(2 * math.log(2) / math.pi) * 45e-6 * G_STD) ** 2
+    assert gravity_noise_variance(cfg, 0.1) == pytest.approx(expected, rel=1e-12)
+    assert math.sqrt(gravity_noise_variance(cfg, 0.1)) == pytest.approx(0.003177, abs=1e-6)
+    # a longer interval averages the white part down, the flicker floor stays
+    assert gravity_noise_variance(cfg, 0.4) == pytest.approx((102e-6 * G_STD) ** 2 / 0.4
+                                                            + expected - (102e-6 * G_STD) ** 2 / 0.1, rel=1e-12)
+
+
+def test_rest_test_reads_the_gyro_rate_and_the_specific_force_magnitude_against_the_sheet():
+    """D-5.37: at rest when ``|w| <= OMEGA_IE + 5 sqrt(3) sigma_w`` and ``||f| - g| <= 5 sqrt(3) sigma_f`` (the sheet's
+    noise over the interval and turn-on bias; ``field`` over 0.1 s: 0.087 deg/s, 0.307 m/s^2)."""
+    from firmware_model import earth
+    from firmware_model.variants.federated import box_at_rest
+
+    cfg = _field_cfg()
+    g = 9.80
+    f_rest = np.array([0.01, -0.02, g + 0.03])  # a tilted, biased box standing still
+    assert box_at_rest(cfg, f_rest, (0.0, 0.0, earth.OMEGA_IE * 0.1), 0.1, g)
+    assert box_at_rest(cfg, f_rest, (0.0, 0.0, 0.08 * DEG * 0.1), 0.1, g)
+    assert not box_at_rest(cfg, f_rest, (0.0, 0.0, 0.10 * DEG * 0.1), 0.1, g)
+    assert not box_at_rest(cfg, f_rest, (0.0, 0.0, 0.6 * DEG * 0.1), 0.1, g)  # Ge's turn rate
+    assert box_at_rest(cfg, np.array([0.0, 0.0, g + 0.30]), (0.0, 0.0, 0.0), 0.1, g)
+    assert not box_at_rest(cfg, np.array([0.0, 0.0, g + 0.32]), (0.0, 0.0, 0.0), 0.1, g)
+    assert not box_at_rest(cfg, np.array([0.0, 0.0, g - 0.32]), (0.0, 0.0, 0.0), 0.1, g)
+
+
+@pytest.mark.parametrize("detect", [True, False])
+def test_motion_acceleration_gets_no_driving_noise_at_rest_and_the_models_in_a_turn(detect):
+    """D-5.37: at rest (the box's own rest test) the motion acceleration ``a^b`` decays with ``exp(-T / tau)`` and no
+    Q, so 60 s of rest leave it near zero; in a turn its Q is the paper's model again (what the gravity rows leave of
+    it is the sheet noise's order). Without the rest test the model holds at rest too."""
+    from firmware_model import earth
+    from firmware_model.variants.federated import X2_MOTION
+
+    _, fed, nav, _cbn = _pair(fed_kw={"subfilters": ("pol_mimu",), "gravity_rest_detection": detect})
+    g = earth.gravity(float(nav.pos[0]), float(nav.pos[2]))
+    f_n = np.array([0.0, 0.0, g])
+    fed.rotation_b_rad = (0.0, 0.0, 0.0)
+    for _ in range(600):
+        fed.predict(nav, f_n, 0.1)
+    sig_rest = np.sqrt(np.diag(fed.P2[X2_MOTION, X2_MOTION]))
+    assert fed.at_rest is detect
+    if detect:
+        assert np.all(sig_rest < 1e-4)
+    else:
+        assert np.all(sig_rest > 0.01)
+    fed.rotation_b_rad = (0.0, 0.0, 0.6 * DEG * 0.1)  # a turn at 0.6 deg/s: motion
+    for _ in range(100):
+        fed.predict(nav, f_n, 0.1)
+    assert fed.at_rest is False
+    # after the gravity rows (sheet noise 0.0032 m/s^2): 0.0045 / 0.0031 m/s^2 (horizontal / vertical)
+    assert np.all(np.sqrt(np.diag(fed.P2[X2_MOTION, X2_MOTION])) > 0.003)
+
+
+def test_gravity_can_be_skipped_in_motion():
+    """``gravity_in_motion: skip``: no gravity rows while the box is not at rest (the admitted count stops)."""
+    from firmware_model import earth
+
+    _, fed, nav, _cbn = _pair(fed_kw={"subfilters": ("pol_mimu",), "gravity_rest_detection": True,
+                                      "gravity_in_motion": "skip"})
+    g = earth.gravity(float(nav.pos[0]), float(nav.pos[2]))
+    f_n = np.array([0.0, 0.0, g])
+    fed.rotation_b_rad = (0.0, 0.0, 0.0)
+    for _ in range(50):
+        fed.predict(nav, f_n, 0.1)
+    assert fed.mm.counters.get("gravity_admitted") == 50
+    fed.rotation_b_rad = (0.0, 0.0, 0.6 * DEG * 0.1)
+    for _ in range(50):
+        fed.predict(nav, f_n, 0.1)
+    assert fed.mm.counters.get("gravity_admitted") == 50

@@ -129,13 +129,7 @@ class FederatedSpec(Model):
     readmit_after: int = Field(1, ge=1, le=100, description="consecutive passing epochs before GNSS is readmitted")
     motion_accel_tau_s: float = Field(5.0, gt=0)
     motion_accel_sigma_mps2: float = Field(0.05, gt=0)
-    gravity_sigma_mps2: float | None = Field(
-        None, gt=0, description="fixed gravity-measurement noise per KF interval, m/s^2; null: from the spec sheet's "
-        "accelerometer figures (D-5.37)")
-    gravity_rest_detection: bool = Field(
-        False, description="at rest (gyro rate and |f| vs g, from the sheet's figures) no motion-acceleration noise")
-    gravity_in_motion: Literal["model", "skip"] = Field(
-        "model", description="in motion: the motion-acceleration model, or no gravity update")
+    gravity_sigma_mps2: float = Field(0.02, gt=0)
     sun_sigma: float | None = Field(
         None, gt=0, le=1, description="fixed sun-vector noise per component (Ge et al.'s simulation: 0.01); "
         "null: from the solve's quality and the spec sheet, as the base filter")

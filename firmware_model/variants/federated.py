@@ -19,11 +19,6 @@ with the paper's two measurements: the **accelerometer gravity measurement**
 ``z_a = f^n - g_up^n = [g_up x] phi + C_b^n (a^b + nabla)`` (``f^n = C_b^{n'} f^b`` the SINS's specific force
 over the KF interval; at rest ``f^b = C_n^b g_up`` + interference; first order in phi) and the **sun-vector
 measurement** ``z_s = S^n - C_b^{n'} (+-S^b) = -[S^n x] phi`` (sign by the smaller residual, base paper).
-The gravity measurement's noise is the spec sheet's accelerometer noise over the KF interval (``VRW^2 / Tk`` plus the
-in-run bias's flicker floor, :func:`gravity_noise_variance`, D-5.37) unless ``gravity_sigma_mps2`` fixes it. An optional
-rest test from what the box sees (:func:`box_at_rest`: gyro rate and ``|f|`` against the sheet's figures) takes the
-motion acceleration's driving noise away at rest (``gravity_rest_detection``, off: D-5.37 measured it lock the level
-onto a start-up transient).
 
 **No-reset information sharing** (docs/reference/algorithms.md 5.3): ``P_i(0) = P_0 / beta_i``, ``Q_i = Q / beta_i``
 once, over the states whose errors both sub-filters see (the base model's; the sensor-error states that only one
@@ -75,7 +70,6 @@ from .. import c674x, earth
 from ..arrays import FloatArray, FloatDtype
 from ..attitude import q2mat_fast, qmul, qnormalize, rv2q
 from ..filters import (
-    _ALLAN_FLOOR,
     ROTATION_NOISE_FLOPS,
     WARMUP_NOISE_CYCLES,
     GnssErrorStates,
@@ -85,7 +79,6 @@ from ..filters import (
     SolarObservation,
     UpdateReport,
     feedback_cycles,
-    flicker_b_accel,
     gnss_measurement_rows,
     kf_predict_cycles,
     kf_scalar_update_cycles,
@@ -115,11 +108,11 @@ from ..kf import (
     solar_vector_rows,
 )
 from ..nav_state import NavState
-from ..units import DEG, DPH, G_STD
+from ..units import DEG
 from .common import spd_inverse, spd_inverse_cycles, spd_solve, spd_solve_cycles
 from .mode_manager import ModeManager
 
-__all__ = ["FederatedFilter", "box_at_rest", "fuse_common_states", "gravity_noise_variance", "pol_mimu_predict_cycles"]
+__all__ = ["FederatedFilter", "fuse_common_states", "pol_mimu_predict_cycles"]
 
 #: sub-filter 2's state layout ``x2 = [phi | eps | a^b | nabla]`` (+ the solar-bias states ``mu`` at ``N2`` when
 #: carried; sub-filter 1 has the base filter's, :mod:`..kf`, + the GNSS-error states at ``N_STATES``)
@@ -158,44 +151,6 @@ def fuse_common_states(parts: list[tuple[FloatArray, FloatArray]]) -> tuple[Floa
     assert info is not None and vec is not None
     Pg = spd_inverse(info)
     return (Pg @ vec).astype(parts[0][0].dtype), Pg
-
-
-#: the rest test's width in sigma of the per-axis figures (a norm over three axes of k sigma each)
-REST_TEST_SIGMAS = 5.0
-
-
-def gravity_noise_variance(cfg: Any, Tk: float) -> float:
-    """Variance (m/s^2)^2 per axis of the gravity measurement's sensor noise ``f^n - g`` over one KF interval ``Tk``
-    (s), from the spec sheet's accelerometer figures (D-5.37): the white noise averaged over the interval,
-    ``VRW^2 / Tk`` (``VRW = accel_noise_ug_rt_hz x 1e-6 x g``, m/s/sqrt(s): the sheet's ug/sqrt(Hz) is the white
-    PSD's square root), plus the in-run bias's flicker floor over the interval, ``(0.664 B_a)^2`` (``B_a`` the bias
-    instability, m/s^2; the Allan deviation of flicker noise is flat at 0.664 B). The bias's turn-on part and its
-    slow in-run wander are the state ``nabla`` (P0 and its random walk), not noise. ``field`` sheet (102 ug/sqrt(Hz),
-    45 ug) over 0.1 s: sqrt = 0.0032 m/s^2 (0.0032 white, 0.0003 flicker); the default sheet (100, 1.33 mg): 0.0094."""
-    vrw = cfg.accel_noise_ug_rt_hz * 1e-6 * G_STD
-    b_a = flicker_b_accel(cfg)
-    return float(vrw * vrw / max(Tk, 1e-3) + (_ALLAN_FLOOR * b_a) ** 2)
-
-
-def box_at_rest(cfg: Any, f_n: FloatArray, rot_b: tuple[float, float, float], Tk: float, g: float) -> bool:
-    """Whether the box is at rest over the KF interval ``Tk`` (s), from what it sees (D-5.37; never from truth): the
-    gyros' rotation over the interval ``rot_b`` (rad, body; its rate ``|rot_b| / Tk``) and the specific force's
-    magnitude ``|f^n|`` (m/s^2, the interval's mean; independent of the attitude) against the local gravity ``g``.
-    At rest the rate is the earth's plus the gyro noise and bias, per axis
-    ``sigma_w^2 = ARW^2 / Tk + sigma_bias^2`` (ARW rad/sqrt(s), the sheet's turn-on bias sigma rad/s), and
-    ``|f| - g`` is the accelerometers' noise and bias, ``sigma_f^2 = VRW^2 / Tk + sigma_nabla^2``. At rest when
-    ``|w| <= OMEGA_IE + k sqrt(3) sigma_w`` and ``||f| - g| <= k sqrt(3) sigma_f`` (k = :data:`REST_TEST_SIGMAS`).
-    ``field`` sheet over 0.1 s: 0.079 deg/s and 0.31 m/s^2. A turn at 0.6 deg/s is motion; a straight acceleration
-    below the specific-force limit is not seen here (``|f|`` grows only by ``a^2 / 2 g``), but the gravity
-    measurement's chi-square gate rejects it (its noise at rest is the sensor's)."""
-    arw = cfg.gyro_arw_deg_rt_h * DEG / 60.0
-    sig_w = math.sqrt(arw * arw / max(Tk, 1e-3) + (cfg.gyro_bias_sigma_deg_h * DPH) ** 2)
-    vrw = cfg.accel_noise_ug_rt_hz * 1e-6 * G_STD
-    sig_f = math.sqrt(vrw * vrw / max(Tk, 1e-3) + (cfg.accel_bias_sigma_mg * 1e-3 * G_STD) ** 2)
-    k = REST_TEST_SIGMAS * math.sqrt(3.0)
-    rate = math.sqrt(rot_b[0] ** 2 + rot_b[1] ** 2 + rot_b[2] ** 2) / max(Tk, 1e-3)
-    fmag = math.sqrt(float(f_n[0]) ** 2 + float(f_n[1]) ** 2 + float(f_n[2]) ** 2)
-    return rate <= earth.OMEGA_IE + k * sig_w and abs(fmag - g) <= k * sig_f
 
 
 @register_filter("federated")
@@ -254,8 +209,6 @@ class FederatedFilter(NavFilter):
         self._eye2 = np.eye(n2, dtype=dtype)
         self.isolated = False
         self._passes = 0
-        #: the last KF interval's rest test (:func:`box_at_rest`)
-        self.at_rest = False
         self._isolated_t: float | None = None
         self.gnss_seen = False
         self.fused_mask = 0
@@ -384,14 +337,7 @@ class FederatedFilter(NavFilter):
         if q_rot is not None:
             q2[X2_ATT, X2_ATT] += q_rot
         q2[X2_GYRO, X2_GYRO] = np.diag(self._q2_gyro * Tk) + np.eye(3) * qw
-        rest = False
-        if p.gravity_rest_detection:
-            g = earth.gravity(float(nav.pos[0]), float(nav.pos[2]))
-            rest = box_at_rest(self.cfg, f_n, rot, Tk, g)
-            self.meter.charge("fed_rest_test", self.cost.flops(8, 10) + 2 * c674x.mathlib("sqrtdp"))
-        self.at_rest = rest
-        if not rest:  # motion (or no rest test): the paper's motion-acceleration model; at rest no driving noise
-            q2[X2_MOTION, X2_MOTION] = np.eye(3) * (p.motion_accel_sigma_mps2**2 * (1.0 - ca * ca))
+        q2[X2_MOTION, X2_MOTION] = np.eye(3) * (p.motion_accel_sigma_mps2**2 * (1.0 - ca * ca))
         q2[X2_ACC, X2_ACC] = np.diag(self._q2_acc * Tk)
         if sun is not None and self._q2_sun is not None:
             i = sun.i
@@ -403,14 +349,11 @@ class FederatedFilter(NavFilter):
         q2[:N2, :N2] /= p.beta_pol_mimu  # the solar-bias states' Q is local, not shared (D-5.32)
         self.x2, self.P2 = kf_predict(self.x2, self.P2, Phi2, q2.astype(dt))
         self.meter.charge("fed_predict_pol_mimu", self._cyc_predict2)
-        if rest or not p.gravity_rest_detection or p.gravity_in_motion != "skip":
-            self._gravity_update(nav, cbn, f_n, Tk)
+        self._gravity_update(nav, cbn, f_n)
         self.feedback(nav)
 
-    def _gravity_update(self, nav: NavState, cbn: FloatArray, f_n: FloatArray, Tk: float) -> None:
-        """``z_a = f^n - [0, 0, g] = [g x] phi + C_b^n (a^b + nabla)`` (3 rows, sub-filter 2), noise ``r I`` with ``r``
-        the sheet's accelerometer noise over the KF interval (:func:`gravity_noise_variance`) unless
-        ``gravity_sigma_mps2`` fixes it (D-5.37)."""
+    def _gravity_update(self, nav: NavState, cbn: FloatArray, f_n: FloatArray) -> None:
+        """``z_a = f^n - [0, 0, g] = [g x] phi + C_b^n (a^b + nabla)`` (3 rows, sub-filter 2)."""
         dt = self.dtype
         g = earth.gravity(float(nav.pos[0]), float(nav.pos[2]))
         z = np.array([f_n[0], f_n[1], f_n[2] - g], dtype=dt)
@@ -419,8 +362,7 @@ class FederatedFilter(NavFilter):
         H[1, PHI_E] = g
         H[:, X2_MOTION] = cbn
         H[:, X2_ACC] = cbn
-        sg = self.p.gravity_sigma_mps2
-        r = sg * sg if sg is not None else gravity_noise_variance(self.cfg, Tk)
+        r = self.p.gravity_sigma_mps2**2
         A = H @ self.P2 @ H.T + np.eye(3, dtype=dt) * dt(r)
         innov = z - H @ self.x2
         nis = float(innov @ spd_solve(A, innov))

@@ -100,16 +100,8 @@ class FederatedParams:
     motion_accel_tau_s: float = 5.0
     #: steady-state sigma of the motion acceleration (accelerometer "interference"), m/s^2
     motion_accel_sigma_mps2: float = 0.05
-    #: accelerometer gravity measurement noise (1 sigma over one KF interval), m/s^2, fixed; None (the default): from
-    #: the spec sheet's accelerometer figures over the KF interval (federated.gravity_noise_variance, D-5.37)
-    gravity_sigma_mps2: float | None = None
-    #: rest/motion distinction of the gravity measurement from what the box sees (federated.box_at_rest, D-5.37):
-    #: at rest the motion acceleration a^b gets no driving noise (the vehicle does not accelerate), in motion the
-    #: motion model above; False: the motion model always (the paper's)
-    gravity_rest_detection: bool = False
-    #: what the gravity measurement does in motion: "model" (the motion-acceleration model above) or "skip"
-    #: (no gravity update while the box is not at rest)
-    gravity_in_motion: str = "model"
+    #: accelerometer gravity measurement noise (1 sigma over one KF interval), m/s^2
+    gravity_sigma_mps2: float = 0.02
     #: sun-vector noise per component of the MIMU/polarization sub-filter, fixed (Ge et al.'s simulation: 0.01);
     #: None: the solve's own quality and the spec sheet's floor, as the base filter (filters.solar_noise_variance,
     #: docs/decisions/filter-consistency.md D-5.18)

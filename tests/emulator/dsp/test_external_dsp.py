@@ -28,6 +28,7 @@ from scipy.spatial.transform import Rotation
 from emulator.assembly.runner import Emulator, run_emulator
 from emulator.recording.summary_model import load_summary
 from emulator.scenario import load_scenario
+from protocols.host import MSG_NAV_SOLUTION, NAV_SOLUTION_LEN, build_host_frame
 from protocols.monitor import MONITOR_CHANNELS, MonitorFormat
 from protocols.stream import StreamDecoder
 
@@ -123,7 +124,12 @@ def test_c_firmware_navigates_in_the_loop_over_ptys(gyro_nav, tmp_path):
     recs = StreamDecoder([MonitorFormat()]).feed(bytes(monitor))
     by = {(c, d): sum(len(r.data) for r in recs if (r.channel, r.direction) == (c, d)) for c in (4, 5) for d in (0, 1)}
     assert by[(MONITOR_CHANNELS["uart1"], 0)] == ext["uarts"]["uart1"]["bytes_to_dsp"] > 0
-    assert by[(MONITOR_CHANNELS["uart0"], 1)] == ext["uarts"]["uart0"]["bytes_from_dsp"] > 0
+    # from the DSP: byte for byte but for the tail the run's end cut off. The FPGA mirrors a UART0 chunk after the
+    # emulator has read it from the board's pty, so a frame read in the run's last instant can miss its MONITOR
+    # record (one 109-byte frame in one CI run of 2026-12-03: 217019 mirrored of 217128)
+    from_dsp = ext["uarts"]["uart0"]["bytes_from_dsp"]
+    nav_frame_bytes = len(build_host_frame(MSG_NAV_SOLUTION, bytes(NAV_SOLUTION_LEN)))
+    assert from_dsp > 0 and 0 <= from_dsp - by[(MONITOR_CHANNELS["uart0"], 1)] <= nav_frame_bytes
     typed = load_summary(run_dir)  # summary.json reads through the typed model
     assert typed.external_dsp is not None and typed.external_dsp.nav_frames == ext["nav_frames"]
     assert typed.dsp is not None and typed.dsp.deadline_misses is None  # the board's own: not observed

@@ -30,7 +30,6 @@ from __future__ import annotations
 import argparse
 import bisect
 import csv
-import json
 import math
 import statistics
 import sys
@@ -39,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from benchmarks.ge_phases import WINDOWS
-from benchmarks.paper_reproductions import GE_CONFIGS, GE_FIELD, _f, parse_seeds, run_nav
+from benchmarks.paper_reproductions import GE_CONFIGS, _f, ge_overrides, parse_overrides, parse_seeds, run_nav
 from firmware_model.attitude import a2mat, q2att, q2mat, qmul, qnormalize, rv2q, yaw_from_heading
 from firmware_model.kf import IDX_ATT, PHI_U
 from firmware_model.variants import federated as fed
@@ -94,7 +93,7 @@ def trace(seed: int, config: str = "fused", step_s: float = 1.0,
 
     fed.FederatedFilter.feedback = feedback  # type: ignore[method-assign]
     try:
-        over = {**GE_FIELD, "firmware.variants.federated.subfilters": GE_CONFIGS[config], **(overrides or {})}
+        over = ge_overrides(GE_CONFIGS[config], overrides)
         _s, nav_rows, _ev = run_nav("federated_paper_comparison", seed, over)
     finally:
         fed.FederatedFilter.feedback = orig  # type: ignore[method-assign]
@@ -255,7 +254,7 @@ def main() -> None:
     ap.add_argument("--set", action="append", default=[], metavar="KEY=JSON",
                     help="a dotted scenario override (attribution runs), value as JSON")
     a = ap.parse_args()
-    over = {k: json.loads(v) for k, v in (x.split("=", 1) for x in a.set)}
+    over = parse_overrides(a.set)
     if a.seeds:
         runs = {}
         for seed in parse_seeds(a.seeds):

@@ -11,11 +11,10 @@ runs, e.g. D-5.36's ``firmware.alignment.misalignment_deg=[-0.9,0.6,-0.7]``). D-
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from typing import Any
 
-from benchmarks.paper_reproductions import GE_CONFIGS, GE_FIELD, _f, run_nav
+from benchmarks.paper_reproductions import GE_CONFIGS, _f, ge_overrides, parse_overrides, run_nav
 
 WINDOWS = ((20.0, 100.0), (100.0, 200.0), (200.0, 300.0), (300.0, 400.0), (400.0, 500.0), (500.0, 600.0),
            (600.0, 705.1))
@@ -23,7 +22,7 @@ WINDOWS = ((20.0, 100.0), (100.0, 200.0), (200.0, 300.0), (300.0, 400.0), (400.0
 
 def heading_errors(seed: int, config: str, overrides: dict[str, Any] | None = None) -> list[tuple[float, float]]:
     """(time s, heading error deg) of one member's navigation output (``overrides``: dotted scenario keys)."""
-    over = {**GE_FIELD, "firmware.variants.federated.subfilters": GE_CONFIGS[config], **(overrides or {})}
+    over = ge_overrides(GE_CONFIGS[config], overrides)
     _s, nav, _ev = run_nav("federated_paper_comparison", seed, over)
     return [(float(r["time_s"]), h) for r in nav if (h := _f(r, "err_heading_deg")) is not None]
 
@@ -34,7 +33,7 @@ def main() -> None:
     ap.add_argument("--set", action="append", default=[], metavar="KEY=JSON",
                     help="a dotted scenario override for both members, value as JSON")
     a = ap.parse_args()
-    over = {k: json.loads(v) for k, v in (x.split("=", 1) for x in a.set)}
+    over = parse_overrides(a.set)
     runs = {c: heading_errors(a.seed, c, over) for c in ("fused", "pol_mimu")}
     n_all = sum(1 for t, _h in runs["fused"] if t >= WINDOWS[0][0])
     for c in ("fused", "pol_mimu"):

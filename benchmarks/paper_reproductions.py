@@ -73,6 +73,11 @@ def parse_seeds(text: str) -> list[int]:
     return out
 
 
+def parse_overrides(items: list[str]) -> dict[str, Any]:
+    """``--set KEY=JSON`` items -> dotted scenario overrides (values parsed as JSON)."""
+    return {k: json.loads(v) for k, v in (x.split("=", 1) for x in items)}
+
+
 def run_nav(name: str, seed: int, overrides: dict[str, Any]) -> tuple[dict, list[dict], list[dict]]:
     """Run ``scenarios/<name>.yaml`` with ``seed`` and dotted ``overrides``: (summary, nav rows, firmware events)."""
     scn = load_test_scenario(SCENARIOS / f"{name}.yaml", {"seed": seed, "expectations": [], **overrides})
@@ -293,9 +298,14 @@ GE_FIELD: dict[str, Any] = {
 GE_CONFIGS = {"fused": ["sins_gnss", "pol_mimu"], "pol_mimu": ["pol_mimu"], "sins_gnss": ["sins_gnss"]}
 
 
+def ge_overrides(subfilters: list[str], overrides: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The scenario overrides of one Ge member: the field presets, its sub-filters, then ``overrides`` (dotted keys)."""
+    return {**GE_FIELD, "firmware.variants.federated.subfilters": subfilters, **(overrides or {})}
+
+
 def ge_member(seed: int, subfilters: list[str], after_s: float = 20.0) -> dict[str, float]:
     """One member of ``federated_paper_comparison`` under the field presets: heading RMS / max after ``after_s``."""
-    over = {**GE_FIELD, "firmware.variants.federated.subfilters": subfilters}
+    over = ge_overrides(subfilters)
     _s, nav, _ev = run_nav("federated_paper_comparison", seed, over)
     h = [v for r in nav if float(r["time_s"]) >= after_s and (v := _f(r, "err_heading_deg")) is not None]
     return {"heading_rms_deg": _rms(h), "heading_max_deg": max(abs(x) for x in h), "samples": len(h)}
@@ -401,7 +411,7 @@ def main(argv: list[str] | None = None) -> int:
     CHECKPOINT = Path(a.json) if a.json else None
     log = lambda s: print(s, file=sys.stderr, flush=True)  # noqa: E731
     seeds = parse_seeds(a.seeds)
-    overrides = {k: json.loads(v) for k, v in (x.split("=", 1) for x in a.set)}
+    overrides = parse_overrides(a.set)
     if a.paper == "yang":
         res = yang(seeds, log=log, sky=a.sky)
     elif a.paper == "zhang":

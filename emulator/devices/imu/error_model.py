@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 from scipy.signal import lfilter
@@ -126,7 +127,7 @@ class FlickerBank:
     tau_max : longest correlation time, s. ``tau_min`` shortest.
     """
 
-    FLOOR = math.sqrt(2.0 * math.log(2.0) / math.pi)  # 0.664
+    FLOOR: ClassVar[float] = math.sqrt(2.0 * math.log(2.0) / math.pi)  # 0.664
 
     def __init__(self, b: np.ndarray, tau_max: float, tau_min: float = 0.3, per_decade: int = 2) -> None:
         k = np.arange(0, 100)

@@ -8,13 +8,25 @@ and :class:`Ahead` hands the rows out while nothing else drew from the noise blo
 
 from __future__ import annotations
 
+from typing import Protocol
+
 import numpy as np
 
 from ...world.trajectory import Trajectory
 from ...world.vibration import VibrationModel
 from .error_model import BLOCK, ImuTemperature, InertialErrorModel
 
-__all__ = ["Ahead", "ImuTruthTap", "delayed_interval", "measure_ahead", "sensor_input"]
+__all__ = ["Ahead", "ImuTruthTap", "TruthTap", "delayed_interval", "measure_ahead", "sensor_input"]
+
+
+class TruthTap(Protocol):
+    """What a sensor reads of the truth (:class:`ImuTruthTap`, or a test's stand-in): the exact increments of a
+    trigger interval and the vibration at its end. A protocol, so the compiled path (docs/performance.md 5.5)
+    checks no class at the call."""
+
+    def increments(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]: ...
+
+    def vibration_at(self, t: float) -> np.ndarray | None: ...
 
 
 class ImuTruthTap:
@@ -44,7 +56,7 @@ def delayed_interval(t: float, t_prev: float, delay: float) -> tuple[float, floa
     return max(t - delay, 1e-9), max(t_prev - delay, 0.0)
 
 
-def sensor_input(tap: ImuTruthTap, t: float, dt: float, dth: np.ndarray, dv: np.ndarray, gyro: bool,
+def sensor_input(tap: TruthTap, t: float, dt: float, dth: np.ndarray, dv: np.ndarray, gyro: bool,
                  vre: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
     """What one triad measures over the interval ``(t - dt, t)``: ``(x, f_b)``.
 

@@ -8,7 +8,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 SCENARIO ?= scenarios/quickstart.yaml
 
-.PHONY: install run examples test test-realtime test-all fuzz lint bench bench-quick golden compiled clean distclean check-python
+.PHONY: install run examples test test-realtime test-all fuzz lint bench bench-quick golden compiled test-compiled clean distclean check-python
 
 check-python:
 	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "psns-hil needs Python >= 3.11, found " + sys.version.split()[0])'
@@ -69,6 +69,19 @@ golden: install
 # the default and what CI tests; `tools/build_compiled.py --files` says which path a tree is on.
 compiled: install
 	$(PY) tools/build_compiled.py
+
+# The compiled path as CI checks it (its last step, D-10.F4): build it, run the tests that compare it with the
+# pure-Python sources and the tests of the compiled modules against it, then remove it whatever the outcome, so
+# the tree is pure Python again. A few minutes.
+COMPILED_TESTS := tests/tools/test_build_compiled.py tests/test_fast_paths.py tests/emulator/test_numeric_baseline.py \
+	tests/firmware_model/test_strapdown.py tests/firmware_model/test_hostile_input.py tests/protocols/test_crc.py \
+	tests/emulator/recording/test_nav_error.py tests/emulator/recording/test_golden.py \
+	tests/emulator/links/test_links_mem.py tests/emulator/links/test_framing.py \
+	tests/emulator/devices/test_imu.py tests/emulator/devices/test_imu_lookahead.py \
+	tests/emulator/devices/test_imu_temperature.py tests/emulator/devices/test_field_models.py
+test-compiled: install
+	$(PY) tools/build_compiled.py
+	$(PY) -m pytest -p no:cacheprovider $(COMPILED_TESTS); rc=$$?; $(PY) tools/build_compiled.py --clean; exit $$rc
 
 clean:
 	$(PYTHON) tools/build_compiled.py --clean

@@ -79,8 +79,7 @@ COMPILED_TESTS := tests/tools/test_build_compiled.py tests/test_fast_paths.py te
 	tests/emulator/links/test_links_mem.py tests/emulator/links/test_framing.py \
 	tests/emulator/devices/test_imu.py tests/emulator/devices/test_imu_lookahead.py \
 	tests/emulator/devices/test_imu_temperature.py tests/emulator/devices/test_field_models.py
-test-compiled: install
-	$(PY) tools/build_compiled.py
+test-compiled: compiled
 	$(PY) -m pytest -p no:cacheprovider $(COMPILED_TESTS); rc=$$?; $(PY) tools/build_compiled.py --clean; exit $$rc
 
 clean:

@@ -18,6 +18,15 @@ section 2 says why this approximates the world before that work) against the ref
 off / on, each run's CPU time (``time.process_time``: the machine is shared, and CPU time is what the other
 processes disturb least). The row is the ratio of the real-time factors, on / off (target >= 0.85).
 
+What the world alone costs is measured in the same table: the reference with the DSP taken out by scenario
+override (:data:`WORLD_ONLY`: ``dsp.external`` with UART0 bound to a pty that nobody opens and UART1-3 unbound, so
+no firmware runs, the DSP side decodes nothing and the recorder has no nav row to compare with truth), the same
+timed repeats as the reference. Everything else runs as in the reference: the trajectory, the sky and sun, the
+IMU, GNSS and camera models, the virtual FPGA building every frame, the byte-exact baud-timed links and the
+captures. Its real-time factor is the most the reference could reach with a firmware that cost nothing
+(docs/performance.md section 5.14); the row gives it against the 100x target and, in its note, against the
+reference measured above.
+
 Environment (see :mod:`benchmarks.common`): ``PSNS_BENCH_REF_S`` simulated seconds of the
 reference run (default 600, the whole scenario), ``PSNS_BENCH_PROFILE_S`` of the profiled run,
 ``PSNS_BENCH_REPEAT`` timed repeats (the median is reported), ``PSNS_BENCH_FIDELITY_S`` simulated seconds of
@@ -52,6 +61,9 @@ FIDELITY_OFF = (
     "sensors.camera.defects.crosstalk=0",
     "sensors.camera.defects.vignetting=false",
 )
+
+#: scenario override that takes the DSP out of the reference (the world-only row): no firmware, no nav output
+WORLD_ONLY = ('dsp.external={"uarts": {"uart0": "pty://bench-no-dsp"}, "silence_s": 3600}',)
 
 
 def _timed(scn: Any, repeat: int) -> tuple[float, list[float], dict[str, Any]]:
@@ -140,6 +152,17 @@ def run() -> list[dict]:
                          f"{', '.join(f'{r:.1f}' for r in fid['rtf_on'])} x, expectations passed: {fid['passed']}, "
                          f"load avg {load_avg()}; target >= {TARGET_FIDELITY_RATIO} (docs/performance.md 2)",
                  "ratios": fid["ratios"], "rtf_off": fid["rtf_off"], "rtf_on": fid["rtf_on"]})
+    world = _cut(load_scenario(REFERENCE, WORLD_ONLY), number("PSNS_BENCH_REF_S"))
+    wwall, wwalls, ws = _timed(world, repeat)
+    wrtf = ws["sim_duration_s"] / wwall
+    rows.append({"name": "reference real-time factor, the world without the DSP (ceiling)", "value": wrtf,
+                 "unit": "sim s / wall s", "baseline": TARGET_RTF, "ratio": wrtf / TARGET_RTF,
+                 "note": f"the reference with no firmware (dsp.external, docs/performance.md 5.14): trajectory, sky, "
+                         f"sensors, FPGA, byte-exact links and captures only; {ws['sim_duration_s']:.0f} s simulated, "
+                         f"median of {repeat} ({', '.join(f'{w:.1f}' for w in wwalls)} s wall); {wrtf / rtf:.2f} x "
+                         f"the reference's {rtf:.1f}x above; nav frames {ws.get('nav_frames') or 0}, load avg "
+                         f"{load_avg()}; the most a firmware of zero cost would give; target >= 100x",
+                 "walls_s": wwalls, "sim_s": ws["sim_duration_s"], "vs_reference": wrtf / rtf})
     q = load_scenario(ROOT / "scenarios" / "quickstart.yaml")
     qwall, qwalls, qs = _timed(q, repeat)
     qrtf = qs["sim_duration_s"] / qwall

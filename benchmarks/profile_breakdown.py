@@ -13,7 +13,8 @@ scenario (:func:`breakdown` ``wall_s``) to give microseconds per 200 Hz tick.
 
 Usage::
 
-    .venv/bin/python -m benchmarks.profile_breakdown scenarios/bench_vehicle_loop_10min.yaml [duration_s]
+    .venv/bin/python -m benchmarks.profile_breakdown scenarios/bench_vehicle_loop_10min.yaml [duration_s] \
+        [--set KEY=VALUE ...]
 """
 
 from __future__ import annotations
@@ -151,8 +152,11 @@ def main(argv: list[str] | None = None) -> int:
                                              "component (HOMES), in us per 200 Hz tick.")
     ap.add_argument("scenario", help="scenario file (e.g. scenarios/bench_vehicle_loop_10min.yaml)")
     ap.add_argument("duration_s", nargs="?", type=float, help="simulated seconds (default: the scenario's)")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="scenario override, as psns-hil run --set (repeatable); e.g. the world-only row's "
+                         "dsp.external=... of benchmarks.bench_realtime_factor.WORLD_ONLY")
     args = ap.parse_args(sys.argv[1:] if argv is None else argv)
-    scn = load_scenario(args.scenario)
+    scn = load_scenario(args.scenario, tuple(args.set))
     if args.duration_s is not None:
         scn = scn.model_copy(update={"duration_s": args.duration_s})
     with tempfile.TemporaryDirectory() as d:

@@ -62,3 +62,16 @@ def test_help_names_the_arguments(capsys):
     assert exc.value.code == 0
     out = capsys.readouterr().out
     assert "scenario" in out and "duration_s" in out
+
+
+def test_set_overrides_the_scenario_before_the_profile(capsys):
+    """``--set`` reaches the profiled run: with the world-only override no firmware function is charged."""
+    from benchmarks.bench_realtime_factor import REFERENCE, WORLD_ONLY
+
+    assert main([str(REFERENCE), "0.5"]) == 0
+    with_dsp = capsys.readouterr().out
+    assert main([str(REFERENCE), "0.5", "--set", WORLD_ONLY[0]]) == 0
+    world_only = capsys.readouterr().out
+    assert "firmware (firmware_model)" in with_dsp and "DSP host" in with_dsp
+    assert "firmware (firmware_model)" not in world_only and "DSP host" not in world_only
+    assert "device: IMU" in world_only and "FPGA" in world_only

@@ -198,6 +198,23 @@ def _cmd_validate(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _check_firmware_allowed(scn: Any, allow: bool) -> None:
+    """A scenario naming a lockstep firmware (docs/icd.md section 10) runs only with ``--allow-firmware``, which
+    lets this process (and nothing else) load or start it."""
+    from ..dsp.lockstep import ALLOW_FIRMWARE_ENV, FirmwareNotAllowed
+
+    ext = scn.dsp.external
+    lock = ext.lockstep if ext is not None else None
+    if lock is None:
+        return
+    if not allow:
+        what = f"library {lock.library}" if lock.library is not None else f"program {lock.command[0]}"
+        raise FirmwareNotAllowed(f"{scn.source_file}: dsp.external.lockstep names a foreign firmware ({what}); "
+                                 "running it loads native code or starts a process: pass --allow-firmware to run "
+                                 "it (only for a firmware you trust)")
+    os.environ[ALLOW_FIRMWARE_ENV] = "1"
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
@@ -209,6 +226,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if getattr(args, "allow_hooks", False):  # the run (and a --split DSP process) may import the scenario's hooks
         os.environ[ALLOW_HOOKS_ENV] = "1"
     scn = load_scenario(args.scenario, args.set or ())
+    _check_firmware_allowed(scn, getattr(args, "allow_firmware", False))
     mode = resolve_mode(scn, "realtime" if args.realtime else "fast" if args.fast else None)
     real = real_time_ports(scn)
     if mode == "fast" and real and not args.fast and not getattr(args, "split", False):
@@ -276,6 +294,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
             console.print(f"report: {report}")
     if summary.get("interrupted"):
         console.print("[yellow]run interrupted; captures and summary were kept[/]")
+        return EXIT_FAILED
+    lock = summary.get("lockstep")
+    if lock is not None and lock.get("failed"):
+        console.print(escape_markup(f"lockstep firmware failed at t = {lock['failed_at_s']:.3f} s: {lock['failure']} "
+                                    f"(the DSP was silent from then on; run directory {run_dir} written)"),
+                      style="bold red")
         return EXIT_FAILED
     return EXIT_OK if summary.get("passed", True) else EXIT_FAILED
 
@@ -381,6 +405,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--allow-hooks", action="store_true",
                    help="import and run the scenario's Python expectation hooks (expectations[].python): only for "
                         "a scenario you trust, they run any code (docs/hostile-input.md)")
+    r.add_argument("--allow-firmware", action="store_true",
+                   help="load the scenario's lockstep firmware library or start its firmware process "
+                        "(dsp.external.lockstep, docs/icd.md section 10): only for a firmware you trust")
     r.set_defaults(func=_cmd_run)
 
     rep = sub.add_parser("report", help="write report.html (plots of errors, modes, faults, links, DSP load) "

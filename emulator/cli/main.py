@@ -451,10 +451,11 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--json", action="store_true", help="print the summary as JSON")
     rp.set_defaults(func=_cmd_replay)
 
-    from . import campaign, golden
+    from . import campaign, diff_firmware, golden
 
     campaign.add_parser(sub).set_defaults(func=campaign.run)
     golden.add_parser(sub).set_defaults(func=golden.run)
+    diff_firmware.add_parser(sub).set_defaults(func=diff_firmware.run)
     return p
 
 

@@ -559,9 +559,12 @@ def open_lockstep(scn: Any, run_dir: Path, events: EventSink | None = None) -> L
             prog = confine(scn.base_dir, spec.command[0], "lockstep firmware")
             if not prog.is_file():
                 raise LockstepError(f"dsp.external.lockstep.command[0]: no such file: {prog}")
-            transport = ProcessTransport([str(prog), *spec.command[1:]], run_dir / "lockstep_stderr.log",
+            # started by the name given (a virtual environment's python is a symbolic link that must stay one)
+            given = Path(spec.command[0]).expanduser()
+            exe = given if given.is_absolute() else Path(scn.base_dir or ".") / given
+            transport = ProcessTransport([str(exe), *spec.command[1:]], run_dir / "lockstep_stderr.log",
                                          spec.step_timeout_s)
-            name = " ".join([str(prog), *spec.command[1:]])
+            name = " ".join([str(exe), *spec.command[1:]])
     except PathNotAllowed as exc:
         raise LockstepError(str(exc)) from exc
     return LockstepFirmware(transport, cfg, events, name)

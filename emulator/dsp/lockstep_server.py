@@ -1,7 +1,7 @@
 """The built-in firmware (:class:`firmware_model.Firmware`) as an out-of-process lockstep firmware: a server of
 docs/icd.md section 10.3 on stdin/stdout.
 
-    python -m emulator.dsp.lockstep_server SCENARIO [--seed N] [--perturb FIELD:AFTER:DELTA]
+    python -m emulator.dsp.lockstep_server SCENARIO [--seed N] [--set KEY=VALUE] [--perturb FIELD:AFTER:DELTA]
 
 It builds the firmware exactly as the virtual DSP does for ``SCENARIO`` (the calibration made from the same seeded
 world, written and read back through a file), then answers ``R`` with ``Firmware.receive`` and ``S`` with
@@ -78,14 +78,15 @@ def _read_exact(f: BinaryIO, n: int) -> bytes | None:
     return bytes(buf)
 
 
-def serve(scenario: str, seed: int | None, stdin: BinaryIO, stdout: BinaryIO, perturb: str | None = None) -> int:
+def serve(scenario: str, seed: int | None, stdin: BinaryIO, stdout: BinaryIO, perturb: str | None = None,
+          overrides: list[str] | None = None) -> int:
     """Answer lockstep requests until ``Q`` or the end of ``stdin``; the exit status."""
     from firmware_model.calibration import load_calibration, save_calibration
 
     from ..scenario import load_scenario
     from .firmware_setup import build_firmware, calibration_for
 
-    scn = load_scenario(scenario)
+    scn = load_scenario(scenario, overrides or ())
     seed = scn.seed if seed is None else seed
     with tempfile.TemporaryDirectory(prefix="psns-lockstep-") as tmp:
         path = Path(tmp) / "calibration.json"
@@ -132,8 +133,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=None)
     p.add_argument("--perturb", metavar="FIELD:AFTER:DELTA", default=None,
                    help=f"add DELTA to FIELD of each NAV_SOLUTION after the AFTER-th ({', '.join(NAV_FIELDS)})")
+    p.add_argument("--set", action="append", metavar="KEY=VALUE", help="override one scenario value, as for run")
     args = p.parse_args(argv)
-    return serve(args.scenario, args.seed, sys.stdin.buffer, sys.stdout.buffer, args.perturb)
+    return serve(args.scenario, args.seed, sys.stdin.buffer, sys.stdout.buffer, args.perturb, args.set)
 
 
 if __name__ == "__main__":

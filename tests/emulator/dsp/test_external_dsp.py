@@ -6,8 +6,9 @@ estimate that compensates the Earth's rotation, so on a static box its attitude 
 form, ``C_b^n(t) = exp(-[w_ie^n x] (t - t0)) C_b^n(t0) exp([w x] (t - t0))`` with ``w = C_n^b w_ie^n + b`` the
 gyro's reading: the Earth's rotation seen in the body plus the turn-on bias the world drew (the other gyro errors
 are set to zero in the scenario, so the reading is exactly that, up to the 2^-14 deg/s quantum; the transport rate
-of its small velocity error is below 1e-7 rad/s). The attitude error is then the bias alone, rotated. The expected error is computed here from truth (scipy's Rotation, the WGS-84 Earth rate)
-and the drawn bias, never from the C program's own output.
+of its small velocity error is below 1e-7 rad/s). The attitude error is then the bias alone, rotated. The expected
+error is computed here from truth (scipy's Rotation, the WGS-84 Earth rate) and the drawn bias, never from the C
+program's own output.
 """
 
 from __future__ import annotations

@@ -151,7 +151,7 @@ def test_lockstep_runs_are_deterministic_and_both_transports_agree(c_firmware, t
     shutil.copy2(tmp_path / prog, proc_dir / prog)
     scn_p = write_scenario(proc_dir, {"command": [prog]}, duration_s=5.0)
     _, sa = run(scn_a, a / "run")
-    _, sb = run(scn_b, b / "run")
+    run(scn_b, b / "run")
     _, sp = run(scn_p, proc_dir / "run")
     assert sa["nav_frames"] == 1000
     for name in ("nav.csv", "capture.psnscap"):

@@ -1,4 +1,4 @@
-"""The lockstep firmware interface (docs/icd.md section 10): the example C firmware (examples/c_firmware, psns_nav)
+"""The lockstep firmware interface (docs/icd-lockstep.md): the example C firmware (examples/c_firmware, psns_nav)
 in the virtual DSP's place in virtual time, in-process (shared library) and out-of-process (a child on a pipe).
 
 **The closed-form bound of a static run.** psns_nav is a free-inertial strapdown started at the true attitude,

@@ -1,6 +1,6 @@
 """The federated filter's chi-square statistic at each GNSS epoch of ``federated_gnss_glitch`` (D-5.34).
 
-``python -m benchmarks.federated_chi2_epochs [--from 42] [--to 48] [--duration 75] [--seeds A-B]``: runs the library
+``python -m studies.scripts.federated_chi2_epochs [--from 42] [--to 48] [--duration 75] [--seeds A-B]``: runs the library
 scenario as ``tests/firmware_model/variants/test_scenarios.py``'s glitch test does (static for ``--duration`` s, no
 expectations, seed 11) and prints, for every GNSS epoch in the window, ``lambda = eps^T A^-1 eps`` with
 ``A = H P_1 H^T + R`` (what :meth:`FederatedFilter.update_gnss` tests against ``chi2_{0.999}(6)`` = 22.458), each
@@ -28,7 +28,7 @@ from firmware_model.variants import federated as fed
 
 #: chi2_{0.999}(6): the mode manager's threshold for a UBX fix's six rows
 THRESHOLD = 22.4577
-SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "federated_gnss_glitch.yaml"
+SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "federated_gnss_glitch.yaml"
 
 
 def epochs(t0: float, t1: float, duration_s: float = 75.0, seed: int | None = None,

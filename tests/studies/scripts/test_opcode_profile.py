@@ -1,8 +1,8 @@
-"""``benchmarks.opcode_profile``: bytecodes per function over a window of scenario time."""
+"""``studies.scripts.opcode_profile``: bytecodes per function over a window of scenario time."""
 
 from __future__ import annotations
 
-from benchmarks.opcode_profile import REFERENCE, count, main
+from studies.scripts.opcode_profile import REFERENCE, count, main
 
 
 def test_counts_the_window_only():

@@ -1,11 +1,11 @@
-"""``benchmarks.compare_trees``: two run directories are the same run unless a byte (or a non-wall summary field)
+"""``studies.scripts.compare_trees``: two run directories are the same run unless a byte (or a non-wall summary field)
 differs."""
 
 from __future__ import annotations
 
 import json
 
-from benchmarks.compare_trees import compare_run_dirs
+from studies.scripts.compare_trees import compare_run_dirs
 
 
 def _run_dir(path, nav=b"t,x\r\n0.0,1.5\r\n", **summary):

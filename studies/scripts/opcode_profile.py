@@ -5,14 +5,14 @@ loop schedules at those instants turn the tracer on and off; frames already runn
 counted); each executed bytecode is counted for the function it belongs to. The simulation's own work gives the
 same counts on any machine and load; the recorder drains its nav rows and counted taps on a wall-clock schedule (its
 flush), so their share of a short window varies between runs (use windows of several seconds), and module-level
-caches warm up on a process's first run. Unlike :mod:`benchmarks.sample_profile` the counts are not biased towards
+caches warm up on a process's first run. Unlike :mod:`studies.scripts.sample_profile` the counts are not biased towards
 small functions entered often (a ``SIGPROF`` sample is taken at the next function entry or backward jump). What
 they do not see: the work of C code (numpy, ``repr`` of floats, CRCs in C, allocation), for which
 ``valgrind --tool=cachegrind`` and ``cg_diff`` of two run lengths give the C functions (docs/performance.md 5.12).
 
 Usage (docs/performance.md section 5.12)::
 
-    .venv/bin/python -m benchmarks.opcode_profile [scenario.yaml] [t0_s] [t1_s] [--top N]   # default 30 31
+    .venv/bin/python -m studies.scripts.opcode_profile [scenario.yaml] [t0_s] [t1_s] [--top N]   # default 30 31
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 REFERENCE = ROOT / "scenarios" / "bench_vehicle_loop_10min.yaml"
 
 

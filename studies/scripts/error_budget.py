@@ -1,7 +1,7 @@
 """Error budget of a scenario: solar-vector and heading error (and position, where the scenario has the windows)
 with each error source alone, all of them, and none.
 
-    python benchmarks/error_budget.py [scenario.yaml] [--seeds 21 22 23] [--configs ideal field ...]
+    python -m studies.scripts.error_budget [scenario.yaml] [--seeds 21 22 23] [--configs ideal field ...]
                                       [--after-s 15] [--jobs 2] [--expectations]
 
 Every row names every sensor's preset itself (``sensors.preset`` and ``sensors.imu.preset``,
@@ -34,7 +34,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 from emulator.assembly.runner import run_scenario  # noqa: E402

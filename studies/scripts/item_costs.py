@@ -24,7 +24,7 @@ and those of 5.11:
 Each item uses the API its tree has (the other tree may predate 5.7: objects built and encoded, points decoded to
 objects). Usage::
 
-    .venv/bin/python -m benchmarks.item_costs OTHER_TREE [runs]
+    .venv/bin/python -m studies.scripts.item_costs OTHER_TREE [runs]
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ import sys
 from pathlib import Path
 from statistics import median
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 ITEMS = ("stim_build", "imu_build", "psns_points", "loop_timer", "firmware_tick", "nav_rows", "imu_parse",
          "stim_parse", "nav_parse", "tap_chunk")
 

@@ -1,6 +1,6 @@
 """The federated master's fusion traced against truth (Ge et al. under the field presets; D-5.36).
 
-``python -m benchmarks.ge_fusion_trace SEED [--config fused] [--csv out.csv]`` runs
+``python -m studies.scripts.ge_fusion_trace SEED [--config fused] [--csv out.csv]`` runs
 ``benchmarks.paper_reproductions``'s ``ge`` member on the seed's stream with :meth:`FederatedFilter.feedback` wrapped
 (the firmware is not changed). At every fusion (one record per ``--step`` s), before the feedback, it records each
 sub-filter's common states ``x_i = [phi, eps]`` and their covariance block ``P_i``, the fused ``x_g``, ``P_g``, the
@@ -20,7 +20,7 @@ error), which only this diagnostic reads. Per window (``ge_phases``'s), in deg:
 * the solar-bias states along ``u`` and ``a``.
 
 ``--set KEY=JSON`` overrides a dotted scenario key (attribution runs, e.g. D-5.36's
-``firmware.alignment.misalignment_deg=[-0.9,0.6,-0.7]``). ``python -m benchmarks.ge_fusion_trace --seeds 1-10`` traces
+``firmware.alignment.misalignment_deg=[-0.9,0.6,-0.7]``). ``python -m studies.scripts.ge_fusion_trace --seeds 1-10`` traces
 the fused member of each seed and prints one line per seed and phase (rest 20-200 and 200-400 s, motion 400-705 s):
 :func:`seed_table`. D-5.36 quotes both.
 """
@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from benchmarks.ge_phases import WINDOWS
+from studies.scripts.ge_phases import WINDOWS
 from benchmarks.paper_reproductions import GE_CONFIGS, _f, ge_overrides, parse_overrides, parse_seeds, run_nav
 from firmware_model.attitude import a2mat, q2att, q2mat, qmul, qnormalize, rv2q, yaw_from_heading
 from firmware_model.kf import IDX_ATT, PHI_U

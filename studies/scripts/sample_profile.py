@@ -11,7 +11,7 @@ the CSV rows and the enum operators, the per-object costs that hide behind a gen
 
 Usage (docs/performance.md section 5.6)::
 
-    .venv/bin/python -m benchmarks.sample_profile [scenario.yaml] [duration_s] [--top N]
+    .venv/bin/python -m studies.scripts.sample_profile [scenario.yaml] [duration_s] [--top N]
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ import time
 from pathlib import Path
 from types import FrameType
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 REFERENCE = ROOT / "scenarios" / "bench_vehicle_loop_10min.yaml"
 #: functions whose callers are listed (generic names behind which per-object costs hide)
 WATCH = ("__init__", "csv_row_fast", "__or__", "__and__", "__call__")

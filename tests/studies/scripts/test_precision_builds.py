@@ -1,4 +1,4 @@
-"""benchmarks/precision_builds.py: the stretched motion covers the duration, and the frame-by-frame differences
+"""studies/scripts/precision_builds.py: the stretched motion covers the duration, and the frame-by-frame differences
 against closed forms (a known rotation, a known offset in latitude)."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from benchmarks import precision_builds as pb
+from studies.scripts import precision_builds as pb
 
 
 def _seconds(seg: list[dict]) -> float:

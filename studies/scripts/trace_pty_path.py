@@ -22,7 +22,7 @@ the reader running -> its ``os.read`` returned; for the writes whose kernel work
 0.3 ms, it lists what ran on that CPU meanwhile (the emulator's loop thread, its writer process, other processes).
 The tracing settings are restored afterwards.
 
-Usage: ``python -m benchmarks.trace_pty_path SECONDS [--ftrace] [--out FILE.json]``; the environment of
+Usage: ``python -m studies.scripts.trace_pty_path SECONDS [--ftrace] [--out FILE.json]``; the environment of
 :mod:`benchmarks.bench_pty_jitter` applies (the sessions, pinning and ``PSNS_BENCH_RT_FIFO`` / ``PSNS_BENCH_RT_IDLE``
 of its :func:`~benchmarks.bench_pty_jitter.start_emulator_and_reader`, the host settings of its
 :func:`~benchmarks.bench_pty_jitter.host_tuning`; ``PSNS_BENCH_RT_LEAD_S``, ``PSNS_PACED_WRITER``).

@@ -11,7 +11,7 @@ byte, ``summary.json`` without its wall-clock fields (``wall_s``, ``realtime_fac
 The other tree is any checkout, e.g. ``git worktree add --detach /tmp/base 800dabd`` or
 ``git archive 800dabd | tar -x -C /tmp/base``. Usage (docs/performance.md section 5.6)::
 
-    .venv/bin/python -m benchmarks.compare_trees OTHER_TREE [duration_s] [pairs] [--nice N] [--cmp]
+    .venv/bin/python -m studies.scripts.compare_trees OTHER_TREE [duration_s] [pairs] [--nice N] [--cmp]
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from pathlib import Path
 from statistics import median
 from typing import Any
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 #: summary fields that differ between any two runs (wall clock, where the run was written)
 WALL_FIELDS = ("wall_s", "realtime_factor", "run_dir")
 

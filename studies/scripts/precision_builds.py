@@ -1,6 +1,6 @@
 """The firmware's arithmetic precision: the C6747 build against an all-double and an all-single build.
 
-    python benchmarks/precision_builds.py [--duration 3600] [--seed 10] [--markdown]
+    python -m studies.scripts.precision_builds [--duration 3600] [--seed 10] [--markdown]
 
 Three builds of the same firmware run on the same world (same scenario, same seed, so every sensor byte is the
 same; only the firmware's arithmetic differs):
@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 from emulator.assembly.runner import run_scenario  # noqa: E402

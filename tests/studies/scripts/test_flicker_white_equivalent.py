@@ -1,10 +1,10 @@
-"""benchmarks.flicker_white_equivalent: the one-channel check D-5.25 quotes."""
+"""studies.scripts.flicker_white_equivalent: the one-channel check D-5.25 quotes."""
 
 from __future__ import annotations
 
 import math
 
-from benchmarks.flicker_white_equivalent import FLOOR, channel_nees
+from studies.scripts.flicker_white_equivalent import FLOOR, channel_nees
 
 
 def test_white_equivalent_at_the_matching_time_underbounds_and_twice_it_does_not():

@@ -1,8 +1,8 @@
-"""benchmarks.trace_pty_path: the cadence split and the kernel-path split on records whose answers are known."""
+"""studies.scripts.trace_pty_path: the cadence split and the kernel-path split on records whose answers are known."""
 
 from __future__ import annotations
 
-from benchmarks.trace_pty_path import cadence, kernel_path
+from studies.scripts.trace_pty_path import cadence, kernel_path
 
 
 def _res(n: int = 400) -> dict:

@@ -1,6 +1,7 @@
 """The federated filter's chi-square statistic at each GNSS epoch of ``federated_gnss_glitch`` (D-5.34).
 
-``python -m studies.scripts.federated_chi2_epochs [--from 42] [--to 48] [--duration 75] [--seeds A-B]``: runs the library
+``python -m studies.scripts.federated_chi2_epochs [--from 42] [--to 48] [--duration 75] [--seeds A-B]``:
+runs the library
 scenario as ``tests/firmware_model/variants/test_scenarios.py``'s glitch test does (static for ``--duration`` s, no
 expectations, seed 11) and prints, for every GNSS epoch in the window, ``lambda = eps^T A^-1 eps`` with
 ``A = H P_1 H^T + R`` (what :meth:`FederatedFilter.update_gnss` tests against ``chi2_{0.999}(6)`` = 22.458), each

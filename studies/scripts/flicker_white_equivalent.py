@@ -1,6 +1,7 @@
 """How well the flicker bias's white-noise equivalent (D-5.15, D-5.25) bounds a flicker bias, in one velocity channel.
 
-``python -m studies.scripts.flicker_white_equivalent [--runs 40] [--factors 1,2,3]``: a single velocity channel aided by a
+``python -m studies.scripts.flicker_white_equivalent [--runs 40] [--factors 1,2,3]``: a single velocity channel
+aided by a
 velocity measurement of sigma ``r`` at 1 Hz (the GNSS velocity), the accelerometer error the world's model draws
 (a turn-on bias, the flicker bank of ``emulator.devices.imu.FlickerBank`` with the paper accelerometer's B = 1.333 mg
 and 600 s, white noise of 100 ug/sqrt(Hz)), and the filter's model of it (``[dv, nabla]``: velocity white PSD

@@ -20,7 +20,8 @@ error), which only this diagnostic reads. Per window (``ge_phases``'s), in deg:
 * the solar-bias states along ``u`` and ``a``.
 
 ``--set KEY=JSON`` overrides a dotted scenario key (attribution runs, e.g. D-5.36's
-``firmware.alignment.misalignment_deg=[-0.9,0.6,-0.7]``). ``python -m studies.scripts.ge_fusion_trace --seeds 1-10`` traces
+``firmware.alignment.misalignment_deg=[-0.9,0.6,-0.7]``).
+``python -m studies.scripts.ge_fusion_trace --seeds 1-10`` traces
 the fused member of each seed and prints one line per seed and phase (rest 20-200 and 200-400 s, motion 400-705 s):
 :func:`seed_table`. D-5.36 quotes both.
 """
@@ -37,11 +38,11 @@ from typing import Any
 
 import numpy as np
 
-from studies.scripts.ge_phases import WINDOWS
 from benchmarks.paper_reproductions import GE_CONFIGS, _f, ge_overrides, parse_overrides, parse_seeds, run_nav
 from firmware_model.attitude import a2mat, q2att, q2mat, qmul, qnormalize, rv2q, yaw_from_heading
 from firmware_model.kf import IDX_ATT, PHI_U
 from firmware_model.variants import federated as fed
+from studies.scripts.ge_phases import WINDOWS
 
 RAD = 180.0 / math.pi
 #: names of the common states ``[phi_E, phi_N, phi_U, eps_x, eps_y, eps_z]``

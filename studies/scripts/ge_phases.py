@@ -1,6 +1,7 @@
 """Where the fused filter gains or loses against polarization/MIMU alone, per phase (Ge et al. under the field presets).
 
-``python -m studies.scripts.ge_phases SEED [--set KEY=JSON ...]``: runs ``benchmarks.paper_reproductions``'s ``ge`` members
+``python -m studies.scripts.ge_phases SEED [--set KEY=JSON ...]``: runs
+``benchmarks.paper_reproductions``'s ``ge`` members
 ``fused`` and ``pol_mimu`` on the seed's stream and prints each member's heading RMS after 20 s (the benchmark's) and,
 per window of the 705 s run (20-100, ..., 600-705 s; the motion starts at 400 s), each member's heading error RMS and
 mean (deg) and the window's share of the difference of the mean squares after 20 s (deg^2; the shares add up to

@@ -1,4 +1,5 @@
-"""``studies.scripts.ge_fusion_trace``'s split of the fused heading against the MIMU/polarization sub-filter's (D-5.36)."""
+"""``studies.scripts.ge_fusion_trace``'s split of the fused heading against the MIMU/polarization
+sub-filter's (D-5.36)."""
 
 from __future__ import annotations
 
@@ -7,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from studies.scripts.ge_fusion_trace import heading_split
 from firmware_model.variants.federated import fuse_common_states
+from studies.scripts.ge_fusion_trace import heading_split
 
 
 def _spd(rng: np.random.Generator, scale: np.ndarray) -> np.ndarray:

@@ -245,15 +245,15 @@ def kernel_path(res: dict) -> list[str]:
         out.append(f"  {what}: {_quantile(v, 0.5):.3f} / {_quantile(v, 0.99):.3f} / {v[-1]:.2f}")
     tags = {pids["emulator"]: "the emulator's loop thread", writer: "the writer process", reader: "the reader"}
     steps = (("worker", ("t_queued", "t_started", "worker_cpu")), ("run", ("t_woken", "t_run", "run_cpu")))
-    for key, (a, b, c) in steps:
+    for key, (t0_key, t1_key, cpu_key) in steps:
         slow = [r for r in rows if r[key] > SLOW_S]
         busy: collections.Counter[tuple[str, int, int]] = collections.Counter()
         for r in slow:
-            sw = switches[r[c]]
+            sw = switches[r[cpu_key]]
             ts = [s[0] for s in sw]
-            x = max(0, bisect.bisect_right(ts, r[a]) - 1)
-            while x < len(sw) and sw[x][0] < r[b]:
-                lo, hi = max(sw[x][0], r[a]), min(sw[x + 1][0] if x + 1 < len(sw) else r[b], r[b])
+            x = max(0, bisect.bisect_right(ts, r[t0_key]) - 1)
+            while x < len(sw) and sw[x][0] < r[t1_key]:
+                lo, hi = max(sw[x][0], r[t0_key]), min(sw[x + 1][0] if x + 1 < len(sw) else r[t1_key], r[t1_key])
                 if hi > lo:
                     busy[(sw[x][1], sw[x][2], sw[x][3])] += hi - lo
                 x += 1

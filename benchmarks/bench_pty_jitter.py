@@ -377,7 +377,7 @@ def start_emulator_and_reader(emulator_script: str, scn: Path, run_dir: Path, em
     (:data:`_TAP_READER`, writing ``taps_out``) as the environment asks: each in a session of its own or both in
     this one (:func:`_own_sessions`, D-10.E13), pinned (``PSNS_BENCH_RT_EMU_CPUS`` / ``PSNS_BENCH_RT_READER_CPUS``)
     and at ``SCHED_FIFO`` 1 / ``SCHED_IDLE`` (``PSNS_BENCH_RT_FIFO`` / ``PSNS_BENCH_RT_IDLE``: ``emu``, ``reader``,
-    ``emu+reader``). One place for the benchmark and :mod:`benchmarks.trace_pty_path`."""
+    ``emu+reader``). One place for the benchmark and :mod:`studies.scripts.trace_pty_path`."""
     own = _own_sessions()
     emu = subprocess.Popen([sys.executable, "-c", emulator_script, str(scn), str(run_dir), str(emu_out)],
                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=own)

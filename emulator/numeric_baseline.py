@@ -5,7 +5,7 @@ kernel is chosen at start-up by the CPU: on an AVX-512 Intel machine ``SkylakeX`
 ``Haswell``, and each kernel sums in its own order. The roundings differ in the last bit, and a closed-loop filter
 carries such differences on in its weakly observable states: between the two kernels the library's golden state
 histories differ by up to 1.5e-3 relative in the covariance and 5e-3 in a gyro-bias estimate near zero
-(docs/decisions/scenarios.md D-4.12), while the captured sensor bytes stay identical. numpy's own loops also
+(docs/decisions/scenarios.md D-8.8), while the captured sensor bytes stay identical. numpy's own loops also
 dispatch by CPU (x86-64-v3 or v4 kernels).
 
 :data:`BASELINE_ENV` pins both to what every x86-64-v3 machine (AVX2 + FMA, Intel Haswell / AMD Zen and newer)

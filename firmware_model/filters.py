@@ -655,7 +655,7 @@ class FilterHost(Protocol):
     def ins_at(self, t_meas: float) -> tuple[F64Array, FloatArray, FloatArray]:
         """INS position (lat, lon rad, h m; float64), ENU velocity and attitude quaternion ``q_b^n`` at ``t_meas``.
 
-        Fresh arrays built from the INS history (docs/decisions.md D-10.F2)."""
+        Fresh arrays built from the INS history (docs/decisions/performance.md D-10.F2)."""
 
     def mag_mean_nt(self, t_center_s: float, half_window_s: float = 0.025) -> tuple[FloatArray, int] | None:
         """Mean magnetometer field (nT, body axes) of the MAG frames sampled within ``t_center_s +- half_window_s``."""

@@ -79,7 +79,7 @@ def tick_kernel_cycles(c: c674x.KernelCosts, nav_dp: bool = True) -> dict[str, i
       variable: sindp, cosdp, sqrtdp, 3 divdp and DP position update [S, R2]), two rv2q (sqrt, sin,
       cos, div), quaternion normalisation (rsqrt) and ~260 FLOPs (docs/reference/c674x-cycles.md section 4) [S/D];
       with ``nav_dp`` (the attitude quaternion and velocity accumulators in double precision,
-      docs/decisions.md D-L.1) the rv2q, normalisation and FLOPs are charged at DP prices.
+      docs/decisions/firmware.md D-L.1) the rv2q, normalisation and FLOPs are charged at DP prices.
     * ``nav_output``: m2att (asin, 2 atan2), 9 sqrt for the sigmas, pack 102 bytes, CRC-16 over 109 [S/E].
     * ``level``, ``triad``: :mod:`firmware_model.alignment`.
     """

@@ -28,7 +28,7 @@ long runs; this form kept P positive definite over a 1 h float32 run
 
 Solar-vector measurement (Eqs. 31-42): ``Z = S^n - C_b^{n'} (+-S^b)`` with the sign that gives the
 smaller ``|Z|`` (Eq. 38 remark), and ``H_s = [-[S^n x], 0_{3x12}]``. Derivation (the printed Eq. 41
-has typos; docs/decisions.md D-5.1): ``C_b^{n'} = (I - [phi x]) C_b^n`` and ``S^n = C_b^n S^b``, so
+has typos; docs/decisions/firmware.md D-5.1): ``C_b^{n'} = (I - [phi x]) C_b^n`` and ``S^n = C_b^n S^b``, so
 ``C_b^{n'} S^b = S^n - phi x S^n`` and ``Z = phi x S^n = -[S^n x] phi``.
 """
 

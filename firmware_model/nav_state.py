@@ -88,8 +88,8 @@ class NavState:
     a_prev : (3,) previous ENU acceleration used for mid-interval extrapolation, m/s^2.
     f_n : (3,) specific force in n of the last step, m/s^2 (for the KF's F matrix).
 
-    Storage: writers assign new arrays, never write into them (docs/decisions.md D-10.F2). The strapdown fast
-    path (:func:`firmware_model.strapdown.strapdown_step_fast`) keeps the state as 16 Python floats
+    Storage: writers assign new arrays, never write into them (docs/decisions/performance.md D-10.F2). The strapdown
+    fast path (:func:`firmware_model.strapdown.strapdown_step_fast`) keeps the state as 16 Python floats
     (:meth:`as_floats`, layout in the module docstring) and builds an attribute's array, read-only, when it is
     first read (the filters read them a few times per second, the 200 Hz loop not at all): a step then creates
     no arrays. Assigning an attribute turns the state back into arrays.

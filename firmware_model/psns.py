@@ -10,7 +10,7 @@ Base paper (Liang & Bai), section II.A, with the camera/AOP convention of docs/a
 1a. Calibrated polarizer angles (:func:`correct_polarizer`, docs/calibration.md): the camera computes Stokes
    with the nominal angles 0/45/90/135; the firmware undoes that with the calibrated angles before step 2.
 2. E-vector (Eq. 5-8 with the sign that makes E perpendicular to the view ray; the paper's Eq. 8 as
-   printed has the opposite sign, see docs/decisions.md D-5.1):
+   printed has the opposite sign, see docs/decisions/firmware.md D-5.1):
    pinhole ``E^c = (sin AOP, cos AOP, -(X sin AOP + Y cos AOP)/f)``; equidistant fisheye
    ``E_z = -(V_x sin AOP + V_y cos AOP)/V_z``. Each E is normalised, so each point counts by its weight.
 3. ``K = sum w_i E_i E_i^T`` (Eq. 14) with ``w_i = DOP_i`` for points above the DOP threshold.

@@ -2,10 +2,10 @@
 
 Source: ``docs/reference/algorithms.md`` section 1.2 (PSINS toolbox, Yan Gongmin). Latitude, longitude and
 height are carried in float64 (as a C6747 firmware must, at the DP cycle price); attitude and velocity in the
-firmware's ``nav_state_precision`` (float64 by default, docs/decisions.md D-L.1; float32 is the C674x native
+firmware's ``nav_state_precision`` (float64 by default, docs/decisions/firmware.md D-L.1; float32 is the C674x native
 type). State: :class:`~firmware_model.nav_state.NavState`.
 
-One reference and one fast path (docs/decisions.md D-10.F1):
+One reference and one fast path (docs/decisions/performance.md D-10.F1):
 
 * :func:`strapdown_step` is the reference: the equations on numpy arrays and scalars of ``dtype``, any mix
   of state and arithmetic precision;
@@ -109,7 +109,7 @@ def strapdown_step(
     trapezoidal position update, attitude update ``q_k = rv2q(-w_in^n T) (x) q_{k-1} (x) rv2q(phi_m)``.
     Numpy arrays and scalars of ``dtype``; Earth quantities and position in float64 (latitude is a DP
     variable). The state's arrays are replaced, never written in place (:class:`NavState`,
-    docs/decisions.md D-10.F2). :func:`strapdown_step_fast` is the same step, faster.
+    docs/decisions/performance.md D-10.F2). :func:`strapdown_step_fast` is the same step, faster.
     """
     dt = dtype
     phi = np.asarray(phi_m).astype(dt)

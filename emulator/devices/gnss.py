@@ -8,7 +8,7 @@ the first epoch with a fix; without a fix the accuracies are reported unknown (:
 9600 baud a GGA + RMC pair takes ~0.15 s on the wire.
 
 Errors (:class:`GnssErrorModel`; base paper figures, docs/architecture.md, read as 95 % bounds,
-docs/decisions.md D1): horizontal position < 10 m (95 % radial: 4.08 m per axis), vertical
+docs/decisions/world-and-sensors.md D1): horizontal position < 10 m (95 % radial: 4.08 m per axis), vertical
 < 15 m (95 %: 7.5 m), each axis the sum of a first-order Gauss-Markov process
 (``pos_corr_time_s``) and a white part (``pos_white_fraction`` of the sigma), with the total
 variance equal to the configured sigma squared; horizontal velocity 0.1 m/s (95 % radial:

@@ -288,7 +288,7 @@ class FirmwareSpec(Model):
                                         "YAML file relative to the scenario's directory")
     precision: Literal["float32", "float64"] = "float32"
     nav_state_precision: Literal["float32", "float64"] = Field(
-        "float64", description="strapdown quaternion/velocity accumulators (docs/decisions.md D-L.1)")
+        "float64", description="strapdown quaternion/velocity accumulators (docs/decisions/firmware.md D-L.1)")
     output_rate_hz: float = Field(100.0, gt=0, le=200)
     nmea: NmeaOutputSpec = NmeaOutputSpec()
     kf_predict_every: int = Field(20, ge=1, le=200)

@@ -1,5 +1,5 @@
 """The host port's task: commands (RESET_FILTER, SELECT_VARIANT, SET_OUTPUT_RATE, REQUEST_STATUS), one ACK each,
-and STATUS at 1 Hz (protocols/host.py, docs/decisions.md D-3.2)."""
+and STATUS at 1 Hz (protocols/host.py, docs/decisions/protocols.md D-3.2)."""
 
 from __future__ import annotations
 

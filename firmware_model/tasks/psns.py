@@ -1,7 +1,7 @@
 """PSNS staging and update: exposure time of a frame, solve (POLARIZATION_OBS), body frame, solar-vector update.
 
 A frame's mid-exposure time comes from the reception time of its last byte, its length on the wire and the
-sensor's declared latency (docs/architecture.md, section "Conventions"; docs/decisions.md D-5.8).
+sensor's declared latency (docs/architecture.md, section "Conventions"; docs/decisions/firmware.md D-5.8).
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ class PsnsTask(Navigation):
 
     def _psns_frame_in(self, t_rx: float, f: Any) -> float:
         """Count and charge a decoded PSNS frame; return its mid-exposure time (docs/architecture.md "Conventions",
-        docs/decisions.md D-5.8)."""
+        docs/decisions/firmware.md D-5.8)."""
         cfg = self.cfg
         self.counters["psns_frames"] += 1
         if isinstance(f, CompassFrame):

@@ -3,7 +3,7 @@
 Both sample the same truth (:class:`ImuTruthTap`) over the FPGA's trigger interval
 ``[t_prev, t]``: the STIM210 in *average angular rate* output (the mean rate over the
 interval, TS1524 section 7.5.2.2) and the accelerometers through the FPGA's oversampling ADC,
-whose boxcar average over the same interval is the mean specific force (docs/decisions.md D4).
+whose boxcar average over the same interval is the mean specific force (docs/decisions/world-and-sensors.md D4).
 
 Error model (:class:`InertialErrorModel`, one per sensor triad; figures in the YAML presets of
 ``emulator/presets/imu.yaml``, sources in ``docs/sensors.md``). For the true mean input ``x``
@@ -31,7 +31,7 @@ through the 24-bit ADC). The stochastic part is generated vectorised in blocks o
 (:meth:`InertialErrorModel.noise`), which is the same code that the Allan-deviation test runs
 over a two-hour record.
 
-The paper's "< X" limits are 3 sigma (docs/decisions.md D1): the presets hold ``X / 3``.
+The paper's "< X" limits are 3 sigma (docs/decisions/world-and-sensors.md D1): the presets hold ``X / 3``.
 """
 
 from .accelerometers import AnalogAccelerometers

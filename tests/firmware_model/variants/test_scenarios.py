@@ -72,7 +72,7 @@ def test_federated_scenario_isolates_the_glitch_within_two_epochs(tmp_path):
     # the glitch's: this run (seed 11) has one false alarm at 45 s (lambda 23.24 against 22.458, D-5.34).
     from scipy.stats import chi2
 
-    from benchmarks.federated_chi2_epochs import epochs
+    from studies.scripts.federated_chi2_epochs import epochs
 
     recs, ev = epochs(0.0, 75.0, duration_s=75.0, run_dir=tmp_path / "run")
     with open(tmp_path / "run" / "nav.csv", newline="") as f:

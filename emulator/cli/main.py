@@ -148,6 +148,13 @@ def print_summary(s: dict[str, Any]) -> None:
                 cyc.add_row(f"  {k}", "", "", f"{v / max(t['calls'], 1):.0f}", "", "")
         c.print(cyc)
         c.print(f"CPU load (worst 1 s): {d['cpu_load_pct_max']:.3f} %   deadline misses: {d['deadline_misses']}")
+        lock = s.get("lockstep")
+        if lock is not None:  # a foreign firmware in lockstep (docs/icd-lockstep.md): what it did and sent
+            c.print(escape_markup(
+                f"lockstep firmware ({lock['transport']}): {lock['steps']} steps, {lock['idle_steps']} idle, "
+                f"host frames {lock['host_frames']}, garbage bytes {lock['garbage_bytes']}, CRC errors "
+                f"{lock['crc_errors']}" + (f"; FAILED at {lock['failed_at_s']:.3f} s: {lock['failure']}"
+                                           if lock["failed"] else "")))
     ps = s.get("psns")
     if ps and ps["solar_vector_error_deg"]["median"] is not None:
         e = ps["solar_vector_error_deg"]

@@ -207,3 +207,23 @@ def test_lockstep_paths_are_validated(tmp_path, case):
             "neither": "exactly one of library", "absolute": "outside the scenario's directory"}[case]
     with pytest.raises(ScenarioError, match=want):
         load_scenario(write_scenario(tmp_path, lock, duration_s=1.0))
+
+
+@pytest.mark.realtime
+def test_lockstep_in_realtime_mode_is_paced_by_the_wall_clock(c_firmware, tmp_path, allow_firmware):
+    """The same interface in realtime mode: the emulator's loop follows the wall clock, the firmware is stepped
+    at each IMU frame's instant (the output is the fast mode's, frame for frame)."""
+    import time
+
+    lib = in_dir(c_firmware, tmp_path, "libpsns_nav.so")
+    path = write_scenario(tmp_path, {"library": lib}, duration_s=2.0)
+    emu = Emulator(load_scenario(path), tmp_path / "rt", mode="realtime")
+    t0 = time.monotonic()
+    s_rt = run_emulator(emu)
+    wall = time.monotonic() - t0
+    assert wall >= 1.9 and s_rt["nav_frames"] == 400 and s_rt["lockstep"]["failed"] is False
+    _, s_fast = run(path, tmp_path / "fast")
+    cols = slice(0, 24)  # the NAV_SOLUTION fields (time_s .. deadline_misses), not the arrival times
+    fast_rows = [r.split(",")[cols] for r in (tmp_path / "fast" / "nav.csv").read_text().splitlines()]
+    rt_rows = [r.split(",")[cols] for r in (tmp_path / "rt" / "nav.csv").read_text().splitlines()]
+    assert rt_rows == fast_rows

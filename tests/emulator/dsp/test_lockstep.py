@@ -227,3 +227,30 @@ def test_lockstep_in_realtime_mode_is_paced_by_the_wall_clock(c_firmware, tmp_pa
     fast_rows = [r.split(",")[cols] for r in (tmp_path / "fast" / "nav.csv").read_text().splitlines()]
     rt_rows = [r.split(",")[cols] for r in (tmp_path / "rt" / "nav.csv").read_text().splitlines()]
     assert rt_rows == fast_rows
+
+
+def test_the_header_and_the_emulator_agree_on_the_config_layout(tmp_path):
+    """psns_fw_config as the C compiler lays it out (offsetof, sizeof) is the emulator's CONFIG_STRUCT, field for
+    field (docs/icd-lockstep.md section 10.2), and the header's own version is the emulator's."""
+    from emulator.dsp.lockstep import ABI_VERSION, CONFIG_STRUCT, LockstepConfig
+
+    cc = os.environ.get("CC", "gcc")
+    if shutil.which(cc) is None:
+        pytest.skip("no C compiler (gcc) on this machine")
+    names = ["abi_version", "clock_hz", "imu_rate_hz", "flags", "lat_deg", "lon_deg", "height_m", "heading_deg",
+             "pitch_deg", "roll_deg"]
+    src = tmp_path / "layout.c"
+    src.write_text('#include <stddef.h>\n#include <stdio.h>\n#include "psns_fw.h"\nint main(void) {\n'
+                   '  printf("%u %zu", PSNS_FW_ABI_VERSION, sizeof(psns_fw_config));\n'
+                   + "".join(f'  printf(" %zu", offsetof(psns_fw_config, {n}));\n' for n in names)
+                   + "  return 0;\n}\n")
+    exe = tmp_path / "layout"
+    subprocess.run([cc, "-std=c99", "-Wall", "-Werror", "-I", str(ROOT / "firmware_abi"), "-o", str(exe), str(src)],
+                   check=True, timeout=60)
+    version, size, *offsets = (int(x) for x in subprocess.run([str(exe)], capture_output=True, check=True,
+                                                               timeout=10).stdout.split())
+    assert version == ABI_VERSION and size == CONFIG_STRUCT.size == 64
+    assert offsets == [0, 4, 8, 12, 16, 24, 32, 40, 48, 56]
+    packed = LockstepConfig(300e6, 200, 39.9, 116.3, 50.0, 30.0, 2.0, -1.5, flags=1).pack()
+    assert packed[4:8] == (300_000_000).to_bytes(4, "little") and packed[12:16] == (1).to_bytes(4, "little")
+    assert LockstepConfig.unpack(packed).pack() == packed

@@ -12,6 +12,7 @@ PSNS_BENCH_REPEAT        timed repeats (median)          3         1
 PSNS_BENCH_RT_S          realtime pty run, wall s        600       30
 PSNS_BENCH_SCALING_S     scaling durations, simulated s  60,600,3600  30,60,180
 PSNS_BENCH_FIDELITY_S    fidelity on/off runs, sim. s    300       60
+PSNS_BENCH_LOCKSTEP_S    lockstep C firmware runs, sim.  120       30
 ======================== ============================== ========= ========================
 """
 
@@ -26,7 +27,8 @@ REFERENCE = ROOT / "scenarios" / "bench_vehicle_loop_10min.yaml"
 
 _DEFAULTS = {"PSNS_BENCH_REF_S": ("600", "120"), "PSNS_BENCH_PROFILE_S": ("600", "60"),
              "PSNS_BENCH_REPEAT": ("3", "1"), "PSNS_BENCH_RT_S": ("600", "30"),
-             "PSNS_BENCH_SCALING_S": ("60,600,3600", "30,60,180"), "PSNS_BENCH_FIDELITY_S": ("300", "60")}
+             "PSNS_BENCH_SCALING_S": ("60,600,3600", "30,60,180"), "PSNS_BENCH_FIDELITY_S": ("300", "60"),
+             "PSNS_BENCH_LOCKSTEP_S": ("120", "30")}
 
 
 def quick() -> bool:

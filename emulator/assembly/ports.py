@@ -138,7 +138,7 @@ def resolve_mode(scn: Scenario, requested: str | None = None) -> str:
     for spec in port_specs(scn).values():
         if parse_link_url(spec.url).scheme != "mem":
             return "realtime"
-    if scn.dsp.external is not None:  # the DSP outside is a real peer
+    if scn.dsp.external is not None and scn.dsp.external.uarts:  # the DSP outside on ports is a real peer
         return "realtime"
     return "fast"
 

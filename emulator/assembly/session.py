@@ -37,7 +37,8 @@ from ..devices.imu import Stim210Gyro
 from ..devices.sensors import build_sensors, build_sun
 from ..dsp.external import DirectionSwap, ExternalDsp, cut_dsp_uarts
 from ..dsp.firmware_setup import calibration_for
-from ..dsp.host import UartRxConfig, VirtualDsp
+from ..dsp.host import UartRxConfig, VirtualDsp, WatchdogConfig
+from ..dsp.lockstep import LockstepFirmware, open_lockstep
 from ..errors import EmulatorError
 from ..faults import FaultScheduler, FaultTargets
 from ..links import Link, MemHub, open_link, parse_link_url
@@ -158,7 +159,8 @@ class Emulator:
                 ext[port] = open_link(spec.url, port, loop, default_line=line, hub=hub, run_dir=port_dir)
             self.links[port] = ext[port]
         uart_fpga, uart_dsp, rx_cfg = self._build_uarts(hub, loop, ext)
-        if scn.dsp.external is not None and self.replay is None:  # the DSP outside (docs/runtime.md, DSP out)
+        if scn.dsp.external is not None and scn.dsp.external.uarts and self.replay is None:  # the DSP outside
+            # on ports (docs/runtime.md, DSP out); a lockstep firmware keeps the DSP-side UARTs (docs/icd.md 10)
             if type(self)._build_uarts is not Emulator._build_uarts:
                 raise EmulatorError("dsp.external puts the DSP outside; a split run also cuts its UARTs: "
                                     "run it without --split")
@@ -255,6 +257,8 @@ class Emulator:
         process, :mod:`emulator.distributed.split`)."""
         assert self.loop is not None
         ext = self.scn.dsp.external
+        if ext is not None and ext.lockstep is not None and self.replay is None:
+            return self._build_lockstep_dsp(uart_dsp, rx_cfg, events)
         if ext is not None and self.replay is None:  # the DSP is outside: nothing of the firmware model runs
             return ExternalDsp(self.loop, self.external_uarts, ext.silence_s, events)  # type: ignore[return-value]
         # the calibration file: made from the world's truth plus residuals (or handed in), written into the run
@@ -265,6 +269,28 @@ class Emulator:
         dsp = build_dsp(self.scn, self.loop, uart_dsp, rx_cfg, events, calibration=load_calibration(path))
         self._fw0 = dsp.fw
         return dsp
+
+    def _build_lockstep_dsp(self, uart_dsp: dict[int, Link], rx_cfg: dict[int, UartRxConfig], events: Any
+                            ) -> VirtualDsp:
+        """The virtual DSP hosting a foreign firmware in lockstep (docs/icd-lockstep.md): the same UARTs, timing
+        and deadline model as for the built-in firmware; the watchdog only flags (a foreign firmware is not
+        restarted)."""
+        assert self.loop is not None
+        scn = self.scn
+        self.run_dir.mkdir(parents=True, exist_ok=True)
+        fw = open_lockstep(scn, self.run_dir, events)
+        wd = scn.dsp.watchdog
+        dsp = VirtualDsp(self.loop, fw, uart_dsp, scn.dsp.clock_hz, events,
+                         tick_period_s=1.0 / scn.sensors.imu.rate_hz, rx=rx_cfg,
+                         watchdog=WatchdogConfig(wd.enabled, wd.overrun_multiple, "flag", wd.reset_time_s))
+        fw.dsp = dsp
+        self._fw0 = fw
+        return dsp
+
+    def lockstep(self) -> LockstepFirmware | None:
+        """The lockstep firmware of this run (None: the built-in one or a DSP on ports)."""
+        fw = self.fw
+        return fw if isinstance(fw, LockstepFirmware) else None
 
     def _pps(self, t: float) -> None:
         assert self.fpga is not None
@@ -377,6 +403,9 @@ class Emulator:
     async def _abort(self) -> None:
         """Start failed: release what was opened (ptys, files); no summary."""
         self._stopped = True
+        lock = self.lockstep()
+        if lock is not None:
+            lock.close()
         for link in self._all_links():
             with contextlib.suppress(Exception):
                 await link.close()
@@ -399,6 +428,9 @@ class Emulator:
         sim_t = min(loop.time(), self.scn.duration_s) if not interrupted else loop.time()
         if sim_t > self._last_sample_t + 1e-9:
             self._sample(sim_t, final=True)  # the end of the run
+        lock = self.lockstep()
+        if lock is not None:  # the foreign firmware ends with the run (psns_fw_close / quit)
+            lock.close()
         for link in self._all_links():
             with contextlib.suppress(Exception):
                 await link.close()
@@ -412,6 +444,9 @@ class Emulator:
                                             base_dir=self.scn.base_dir)
             s["expectations"] = [r.as_dict() for r in results]
             s["passed"] = all(r.passed for r in results) and not interrupted and s["valid"]
+            if lock is not None:
+                s["lockstep"] = lock.section()
+                s["passed"] = s["passed"] and lock.failed is None
             rec.write_summary(s)
         finally:
             rec.close()

@@ -148,6 +148,13 @@ def print_summary(s: dict[str, Any]) -> None:
                 cyc.add_row(f"  {k}", "", "", f"{v / max(t['calls'], 1):.0f}", "", "")
         c.print(cyc)
         c.print(f"CPU load (worst 1 s): {d['cpu_load_pct_max']:.3f} %   deadline misses: {d['deadline_misses']}")
+        lock = s.get("lockstep")
+        if lock is not None:  # a foreign firmware in lockstep (docs/icd-lockstep.md): what it did and sent
+            c.print(escape_markup(
+                f"lockstep firmware ({lock['transport']}): {lock['steps']} steps, {lock['idle_steps']} idle, "
+                f"host frames {lock['host_frames']}, garbage bytes {lock['garbage_bytes']}, CRC errors "
+                f"{lock['crc_errors']}" + (f"; FAILED at {lock['failed_at_s']:.3f} s: {lock['failure']}"
+                                           if lock["failed"] else "")))
     ps = s.get("psns")
     if ps and ps["solar_vector_error_deg"]["median"] is not None:
         e = ps["solar_vector_error_deg"]
@@ -198,6 +205,23 @@ def _cmd_validate(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _check_firmware_allowed(scn: Any, allow: bool) -> None:
+    """A scenario naming a lockstep firmware (docs/icd-lockstep.md) runs only with ``--allow-firmware``, which
+    lets this process (and nothing else) load or start it."""
+    from ..dsp.lockstep import ALLOW_FIRMWARE_ENV, FirmwareNotAllowed
+
+    ext = scn.dsp.external
+    lock = ext.lockstep if ext is not None else None
+    if lock is None:
+        return
+    if not allow:
+        what = f"library {lock.library}" if lock.library is not None else f"program {lock.command[0]}"
+        raise FirmwareNotAllowed(f"{scn.source_file}: dsp.external.lockstep names a foreign firmware ({what}); "
+                                 "running it loads native code or starts a process: pass --allow-firmware to run "
+                                 "it (only for a firmware you trust)")
+    os.environ[ALLOW_FIRMWARE_ENV] = "1"
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
@@ -209,6 +233,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if getattr(args, "allow_hooks", False):  # the run (and a --split DSP process) may import the scenario's hooks
         os.environ[ALLOW_HOOKS_ENV] = "1"
     scn = load_scenario(args.scenario, args.set or ())
+    _check_firmware_allowed(scn, getattr(args, "allow_firmware", False))
     mode = resolve_mode(scn, "realtime" if args.realtime else "fast" if args.fast else None)
     real = real_time_ports(scn)
     if mode == "fast" and real and not args.fast and not getattr(args, "split", False):
@@ -276,6 +301,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
             console.print(f"report: {report}")
     if summary.get("interrupted"):
         console.print("[yellow]run interrupted; captures and summary were kept[/]")
+        return EXIT_FAILED
+    lock = summary.get("lockstep")
+    if lock is not None and lock.get("failed"):
+        console.print(escape_markup(f"lockstep firmware failed at t = {lock['failed_at_s']:.3f} s: {lock['failure']} "
+                                    f"(the DSP was silent from then on; run directory {run_dir} written)"),
+                      style="bold red")
         return EXIT_FAILED
     return EXIT_OK if summary.get("passed", True) else EXIT_FAILED
 
@@ -381,6 +412,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--allow-hooks", action="store_true",
                    help="import and run the scenario's Python expectation hooks (expectations[].python): only for "
                         "a scenario you trust, they run any code (docs/hostile-input.md)")
+    r.add_argument("--allow-firmware", action="store_true",
+                   help="load the scenario's lockstep firmware library or start its firmware process "
+                        "(dsp.external.lockstep, docs/icd-lockstep.md section 10): only for a firmware you trust")
     r.set_defaults(func=_cmd_run)
 
     rep = sub.add_parser("report", help="write report.html (plots of errors, modes, faults, links, DSP load) "
@@ -424,10 +458,11 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--json", action="store_true", help="print the summary as JSON")
     rp.set_defaults(func=_cmd_replay)
 
-    from . import campaign, golden
+    from . import campaign, diff_firmware, golden
 
     campaign.add_parser(sub).set_defaults(func=campaign.run)
     golden.add_parser(sub).set_defaults(func=golden.run)
+    diff_firmware.add_parser(sub).set_defaults(func=diff_firmware.run)
     return p
 
 

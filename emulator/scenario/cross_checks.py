@@ -270,12 +270,20 @@ def _confined_files(scn: Scenario) -> list[tuple[tuple[Any, ...], str]]:
     if cam is not None and cam.recorded is not None:
         named.append((("sensors", "camera", "recorded", "index"), cam.recorded.index))
         named.append((("sensors", "camera", "recorded", "files"), cam.recorded.files))
+    ext = scn.dsp.external
+    lock = ext.lockstep if ext is not None else None
+    if lock is not None:  # a foreign firmware's library or program (docs/icd-lockstep.md section 10): never loaded here
+        if lock.library is not None:
+            named.append((("dsp", "external", "lockstep", "library"), lock.library))
+        if lock.command is not None:
+            named.append((("dsp", "external", "lockstep", "command", 0), lock.command[0]))
     out = []
     for loc, name in named:
         if name is None:
             continue
+        what = "lockstep firmware" if loc[:3] == ("dsp", "external", "lockstep") else "recorded file"
         try:
-            confine(scn.base_dir, name, "recorded file")
+            confine(scn.base_dir, name, what)
         except PathNotAllowed as exc:
             out.append((loc, str(exc)))
     return out

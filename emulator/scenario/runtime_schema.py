@@ -19,6 +19,7 @@ __all__ = [
     "FpgaSpec",
     "LinkSpec",
     "Links",
+    "LockstepSpec",
     "UartSpec",
     "WatchdogSpec",
 ]
@@ -185,17 +186,47 @@ class WatchdogSpec(Model):
     reset_time_s: float = Field(0.05, ge=0, le=10, description="DSP busy rebooting after a watchdog reset")
 
 
+class LockstepSpec(Model):
+    """A foreign firmware stepped in lockstep with the emulator's clock (``dsp.external.lockstep``; ICD section 10,
+    docs/icd-lockstep.md): in-process (``library``, a shared library with the psns_fw.h ABI) or out-of-process
+    (``command``, a program speaking the framing of section 10.3 on its stdin/stdout). Paths are relative to the
+    scenario's directory and must stay inside it; nothing is loaded or started unless the run is given
+    ``--allow-firmware``."""
+
+    library: str | None = Field(
+        None, min_length=1, max_length=4096, description="shared library (.so) exporting psns_fw_abi_version, "
+        "psns_fw_init, psns_fw_rx, psns_fw_step, psns_fw_close; loaded into the emulator's process")
+    command: list[str] | None = Field(
+        None, min_length=1, max_length=64, description="program and arguments of a lockstep firmware process: "
+        "the program is a path inside the scenario's directory, the arguments are passed as they are")
+    step_timeout_s: float = Field(
+        10.0, gt=0, le=3600, description="out-of-process: wall-clock seconds the emulator waits for one reply "
+        "before it counts the firmware as hung and stops it")
+
+    @model_validator(mode="after")
+    def _one_transport(self) -> LockstepSpec:
+        if (self.library is None) == (self.command is None):
+            raise ValueError("give exactly one of library (in-process) or command (out-of-process)")
+        for a in [self.library or "", *(self.command or [])]:
+            if "\x00" in a:
+                raise ValueError("a NUL character in a path or argument")
+        return self
+
+
 class ExternalDspSpec(Model):
     """The DSP outside the emulator (``dsp.external``): the virtual FPGA's DSP-side UARTs are bound to ports, and a
     real C6747 board (over USB-serial adapters) or a firmware process in any language takes the virtual DSP's
-    place. FPGA timing, routing and monitor are unchanged; the recorder still decodes the host stream."""
+    place (``uarts``); or a foreign firmware is stepped in lockstep behind the DSP's UARTs (``lockstep``). FPGA
+    timing, routing and monitor are unchanged; the recorder still decodes the host stream."""
 
     uarts: dict[UartName, str] = Field(
-        min_length=1, description="DSP UART -> port URL (pty://NAME, serial:///dev/ttyXXX, zenoh://RUN/PORT); the "
-        "line is the FPGA side's (fpga.uarts); an unlisted UART's bytes go nowhere")
+        default_factory=dict, description="DSP UART -> port URL (pty://NAME, serial:///dev/ttyXXX, "
+        "zenoh://RUN/PORT); the line is the FPGA side's (fpga.uarts); an unlisted UART's bytes go nowhere")
     silence_s: float = Field(
         2.0, gt=0, le=3600, description="no byte from the external DSP for this long (s, after the first IMU frame "
         "it was sent) is counted as a silence in summary.json's external_dsp section")
+    lockstep: LockstepSpec | None = Field(
+        None, description="a foreign firmware in lockstep, in the virtual DSP's place (docs/icd-lockstep.md)")
 
     @field_validator("uarts")
     @classmethod
@@ -213,6 +244,13 @@ class ExternalDspSpec(Model):
                 raise ValueError(f"{uname}: {url!r}: an external DSP needs a byte port (pty://, serial://, "
                                  f"zenoh://), not {scheme}://")
         return v
+
+    @model_validator(mode="after")
+    def _uarts_or_lockstep(self) -> ExternalDspSpec:
+        if bool(self.uarts) == (self.lockstep is not None):
+            raise ValueError("give either uarts (the DSP on ports) or lockstep (a foreign firmware stepped "
+                             "in virtual time), not both and not neither")
+        return self
 
 
 class DspSpec(Model):

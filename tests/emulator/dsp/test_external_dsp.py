@@ -1,12 +1,14 @@
 """The DSP out (``dsp.external``): the example C firmware (examples/c_firmware) in the virtual DSP's place over
 ptys, and an outside DSP that sends garbage or nothing.
 
-The C firmware integrates the gyro only (no Earth-rate correction, no bias estimate), so on a static box its
-attitude after ``t - t0`` s is, in closed form, ``C_b^n(t) = C_b^n(t0) exp([w x] (t - t0))`` with
-``w = C_n^b w_ie^n + b`` the gyro's reading: the Earth's rotation seen in the body plus the turn-on bias the
-world drew (the other gyro errors are set to zero in the scenario, so the reading is exactly that, up to the
-2^-14 deg/s quantum). The expected error is computed here from truth (scipy's Rotation, the WGS-84 Earth rate)
-and the drawn bias, never from the C program's own output.
+The C firmware (psns_nav, built as the pty program psns_nav_pty) is a free-inertial strapdown with no bias
+estimate that compensates the Earth's rotation, so on a static box its attitude after ``t - t0`` s is, in closed
+form, ``C_b^n(t) = exp(-[w_ie^n x] (t - t0)) C_b^n(t0) exp([w x] (t - t0))`` with ``w = C_n^b w_ie^n + b`` the
+gyro's reading: the Earth's rotation seen in the body plus the turn-on bias the world drew (the other gyro errors
+are set to zero in the scenario, so the reading is exactly that, up to the 2^-14 deg/s quantum; the transport rate
+of its small velocity error is below 1e-7 rad/s). The attitude error is then the bias alone, rotated. The expected
+error is computed here from truth (scipy's Rotation, the WGS-84 Earth rate) and the drawn bias, never from the C
+program's own output.
 """
 
 from __future__ import annotations
@@ -60,27 +62,27 @@ def _scenario(path: Path, uarts: dict[str, str], duration_s: float = DURATION_S,
 
 
 @pytest.fixture(scope="module")
-def gyro_nav(tmp_path_factory) -> Path:
-    """The example firmware, built by its Makefile into a temporary directory."""
+def psns_nav_pty(tmp_path_factory) -> Path:
+    """The example firmware's pty program, built by its Makefile into a temporary directory."""
     if shutil.which(os.environ.get("CC", "gcc")) is None:
         pytest.skip("no C compiler (gcc) on this machine: the example C firmware cannot be built")
     build = tmp_path_factory.mktemp("c_firmware")
     subprocess.run(["make", "-s", "-C", str(ROOT / "examples" / "c_firmware"), f"BUILD={build}"], check=True,
                    timeout=120)
-    return build / "gyro_nav"
+    return build / "psns_nav_pty"
 
 
-def _expected_angles(c_bn0: Rotation, w_b: np.ndarray, dt: np.ndarray) -> np.ndarray:
-    """(roll, pitch, heading) deg of ``C_b^n(t0) exp([w x] dt)`` per ``dt``: the intrinsic ZXY Euler angles
-    (C_b^n = R_z(yaw) R_x(pitch) R_y(roll), heading = -yaw)."""
-    r = c_bn0 * Rotation.from_rotvec(np.outer(dt, w_b))
+def _expected_angles(c_bn0: Rotation, w_b: np.ndarray, w_n: np.ndarray, dt: np.ndarray) -> np.ndarray:
+    """(roll, pitch, heading) deg of ``exp(-[w_n x] dt) C_b^n(t0) exp([w_b x] dt)`` per ``dt``: the intrinsic ZXY
+    Euler angles (C_b^n = R_z(yaw) R_x(pitch) R_y(roll), heading = -yaw)."""
+    r = Rotation.from_rotvec(-np.outer(dt, w_n)) * c_bn0 * Rotation.from_rotvec(np.outer(dt, w_b))
     yaw, pitch, roll = r.as_euler("ZXY").T
     return np.column_stack([np.degrees(roll), np.degrees(pitch), np.degrees(-yaw) % 360.0])
 
 
 @pytest.mark.realtime
 @pytest.mark.pty
-def test_c_firmware_navigates_in_the_loop_over_ptys(gyro_nav, tmp_path):
+def test_c_firmware_navigates_in_the_loop_over_ptys(psns_nav_pty, tmp_path):
     scn = load_scenario(_scenario(tmp_path / "dsp_out.yaml", {"uart0": "pty://dsp_uart0", "uart1": "pty://dsp_uart1"},
                                   monitor=True))
     run_dir = tmp_path / "run"
@@ -97,7 +99,7 @@ def test_c_firmware_navigates_in_the_loop_over_ptys(gyro_nav, tmp_path):
     def on_started(emu: Emulator) -> None:  # the ports exist: the foreign firmware attaches to them
         emu.links["monitor"].listeners.append(_Monitor())
         ports = run_dir / "ports"
-        procs.append(subprocess.Popen([str(gyro_nav), "--imu", str(ports / "dsp_uart1"), "--host",
+        procs.append(subprocess.Popen([str(psns_nav_pty), "--imu", str(ports / "dsp_uart1"), "--host",
                                        str(ports / "dsp_uart0"), "--attitude", att, "--position", pos],
                                       stderr=subprocess.PIPE))
 
@@ -134,7 +136,7 @@ def test_c_firmware_navigates_in_the_loop_over_ptys(gyro_nav, tmp_path):
     assert typed.external_dsp is not None and typed.external_dsp.nav_frames == ext["nav_frames"]
     assert typed.dsp is not None and typed.dsp.deadline_misses is None  # the board's own: not observed
 
-    # the closed form: the drift of a gyro-only integration
+    # the closed form: the attitude drift of a free-inertial strapdown (Earth rate compensated, bias not)
     assert emu.sensors is not None
     bias = np.asarray(emu.sensors.gyro.turn_on_bias, dtype=float)
     assert np.linalg.norm(bias) > 50 * math.pi / 180 / 3600  # the drift is mostly the drawn bias
@@ -147,9 +149,9 @@ def test_c_firmware_navigates_in_the_loop_over_ptys(gyro_nav, tmp_path):
     got_err = np.array([[float(r["err_roll_deg"]), float(r["err_pitch_deg"]), float(r["err_heading_deg"])]
                         for r in rows])
     truth = np.array([ATTITUDE["roll_deg"], ATTITUDE["pitch_deg"], ATTITUDE["heading_deg"]])
-    want = _expected_angles(c_bn0, w_b, t - t[0]) - truth
+    want = _expected_angles(c_bn0, w_b, w_ie_n, t - t[0]) - truth
     want[:, 2] = (want[:, 2] + 180.0) % 360.0 - 180.0
-    drift_deg = math.degrees(np.linalg.norm(w_b)) * (t[-1] - t[0])
+    drift_deg = math.degrees(np.linalg.norm(bias)) * (t[-1] - t[0])
     assert drift_deg > 0.3  # the check below could not pass by a firmware that does not integrate
     # float32 angles on the wire (~1e-5 deg) and the gyro word's 2^-14 deg/s quantum over 10 s (~1e-3 deg);
     # measured 2.5e-4 deg

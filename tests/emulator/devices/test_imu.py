@@ -245,3 +245,14 @@ def test_first_datagrams_after_the_filter_delay_integrate_a_whole_interval(lp_fi
     assert np.all(np.abs(err[:3]) < 5.0 * sigma), err[:3]  # the first datagrams: no 1 ns interval
     assert np.std(err) == pytest.approx(sigma, rel=0.3)
     assert all(d.status == 0 for d in got)
+
+
+def test_a_fixed_turn_on_bias_replaces_the_draw_and_leaves_the_rest_of_the_unit():
+    """The envelope draws a unit's turn-on bias itself (up to 7 mg, 40 deg/h): the figure replaces the draw from
+    the repeatability, and every other constant of the unit stays what that seed drew."""
+    drawn = accel_error_model(AccelErrors(), np.random.default_rng(3))
+    fixed = accel_error_model(AccelErrors(turn_on_bias_mg=(7.0, -6.5, 0.25)), np.random.default_rng(3))
+    np.testing.assert_allclose(fixed.bias0 / (1e-3 * G), [7.0, -6.5, 0.25])
+    np.testing.assert_array_equal(fixed.m, drawn.m)
+    g = gyro_error_model(GyroErrors(turn_on_bias_deg_h=(40.0, 0.0, -12.0)), np.random.default_rng(3))
+    np.testing.assert_allclose(g.bias0 / DPH, [40.0, 0.0, -12.0])

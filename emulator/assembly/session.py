@@ -94,6 +94,7 @@ class Emulator:
         self.seed = scn.seed if seed is None else seed
         # the envelope (docs/sensors.md "The envelope"): this seed's draw of the world (and of how the unit was
         # calibrated), written into the scenario before anything is built from it; the firmware's sheet is untouched
+        self.envelope = scn.envelope
         self.envelope_pinned = pinned_keys(scn)
         scn, self.envelope_draws = envelope_scenario(scn, self.seed)
         self.scn = scn
@@ -455,9 +456,9 @@ class Emulator:
             "ports": [dict(p) for p in self.ports],
             "events": dict(rec.event_counts),
             "psns": rec.psns_summary(),
-            "envelope": {"preset": self.scn.envelope.preset, "groups": self.scn.envelope.groups,
+            "envelope": {"preset": self.envelope.preset, "groups": self.envelope.groups,
                          "draws": self.envelope_draws, "pinned": self.envelope_pinned}
-            if self.scn.envelope.preset is not None else None,
+            if self.envelope.preset is not None else None,
         }
 
 

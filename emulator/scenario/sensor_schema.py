@@ -256,13 +256,14 @@ class CameraOpticsSpec(Model):
     image coordinates, pinhole lenses only) and the lens's radial diattenuation are beyond the firmware's lens family:
     a calibration in that family cannot represent them."""
 
-    principal_point_offset_px: tuple[float, float] | None = None
-    distortion_k1: float | None = Field(None, ge=-0.5, le=0.5)
-    distortion_k2: float | None = Field(None, ge=-0.5, le=0.5)
-    distortion_k3: float = Field(0.0, ge=-0.2, le=0.2)
-    tangential_p1: float = Field(0.0, ge=-0.01, le=0.01)
-    tangential_p2: float = Field(0.0, ge=-0.01, le=0.01)
-    exit_pupil_mm: float | None = Field(None, gt=0, le=1000)
+    principal_point_offset_px: tuple[float, float] | None = Field(
+        None, description="principal point from the sensor centre, px (x, y); default from the preset")
+    distortion_k1: float | None = Field(None, ge=-0.5, le=0.5, description="radial k1 (on tan theta for pinhole)")
+    distortion_k2: float | None = Field(None, ge=-0.5, le=0.5, description="radial k2 (on tan theta for pinhole)")
+    distortion_k3: float = Field(0.0, ge=-0.2, le=0.2, description="pinhole: radial k3 (outside the firmware's family)")
+    tangential_p1: float = Field(0.0, ge=-0.01, le=0.01, description="pinhole: decentering p1 (Brown-Conrady)")
+    tangential_p2: float = Field(0.0, ge=-0.01, le=0.01, description="pinhole: decentering p2 (Brown-Conrady)")
+    exit_pupil_mm: float | None = Field(None, gt=0, le=1000, description="exit pupil to image plane, mm")
     radial_diattenuation_edge: float = Field(
         0.0, ge=0.0, le=0.05, description="the lens's diattenuation (Tp - Ts)/(Tp + Ts) at the sensor's corner, "
                                           "growing as sin^2 of the field angle; p (radial) transmitted better")

@@ -154,7 +154,7 @@ def _given(data: dict[str, Any], key: str) -> bool:
 def envelope_scenario(scn: Any, seed: int) -> tuple[Any, dict[str, Any]]:
     """``scn`` (a validated :class:`~emulator.scenario.schema.Scenario`) with its envelope's draws for ``seed``
     written in, validated again, and the draws applied (the keys the scenario sets itself are pinned: module
-    docstring); ``(scn, {})`` when the scenario asks for no envelope."""
+    docstring); ``(scn, {})`` when the scenario asks for no envelope. The returned scenario has no envelope."""
     from pathlib import Path
 
     from ..scenario.loader import validate_scenario_data
@@ -166,6 +166,7 @@ def envelope_scenario(scn: Any, seed: int) -> tuple[Any, dict[str, Any]]:
     given = scn.model_dump(exclude_unset=True)
     draws = {k: v for k, v in draws.items() if k == "sky.clouds" or not _given(given, k)}
     data = apply_envelope(given, draws)
+    data["envelope"] = {}  # the drawn world is a plain scenario: drawing again (a split run's DSP process) is a no-op
     base = Path(scn.base_dir) if scn.base_dir is not None else None
     out = validate_scenario_data(data, {}, f"{scn.source_file} (envelope {spec.preset}, seed {seed})", base,
                                  check_environment=False)

@@ -90,6 +90,7 @@ def test_the_scenario_carries_the_draws_and_no_envelope_leaves_it_alone():
     assert drawn.firmware.calibration.source == "lab"
     assert drawn.firmware.spec_sheet == scn.firmware.spec_sheet  # the firmware's sheet is never drawn
     assert drawn.source_file == env.source_file
+    assert drawn.envelope.preset is None and envelope_scenario(drawn, 6) == (drawn, {})  # drawing twice: a no-op
     with pytest.raises(Exception, match="unknown envelope preset"):
         load_scenario(QUICKSTART, overrides=["envelope.preset=nowhere"])
 

@@ -7,6 +7,7 @@ datasheet limits, the GNSS antenna's surroundings, the sky, the lens and the pol
 calibration) and writes the drawn values into the scenario before the world is built. The firmware never sees the
 draws; they are recorded in the run's ``summary.json`` (``envelope``) and a campaign's ``runs.csv``.
 
+The draws of a sensor the scenario does not fit (no camera section) or replays from a recording are dropped.
 A key the scenario itself sets (in its file, by ``--set`` or by a campaign's ``--vary``) is **pinned**: the
 scenario's value wins and the draw is dropped (the run's summary lists it under ``pinned``), so a sweep can vary
 one dimension over the envelope of all the others. The envelope's thin cloud joins a scenario's own clouds.
@@ -151,6 +152,16 @@ def _given(data: dict[str, Any], key: str) -> bool:
     return True
 
 
+def _fitted(scn: Any, key: str) -> bool:
+    """False for a draw of a sensor the scenario does not fit (the envelope never adds a camera) or whose model it
+    replaces by a recording."""
+    parts = key.split(".")
+    if parts[0] != "sensors":
+        return True
+    sensor = getattr(scn.sensors, parts[1], None)
+    return sensor is not None and getattr(sensor, "enabled", True) and getattr(sensor, "recorded", None) is None
+
+
 def envelope_scenario(scn: Any, seed: int) -> tuple[Any, dict[str, Any]]:
     """``scn`` (a validated :class:`~emulator.scenario.schema.Scenario`) with its envelope's draws for ``seed``
     written in, validated again, and the draws applied (the keys the scenario sets itself are pinned: module
@@ -164,7 +175,7 @@ def envelope_scenario(scn: Any, seed: int) -> tuple[Any, dict[str, Any]]:
         return scn, {}
     draws = draw_envelope(spec.preset, seed, list(spec.groups) if spec.groups is not None else None)
     given = scn.model_dump(exclude_unset=True)
-    draws = {k: v for k, v in draws.items() if k == "sky.clouds" or not _given(given, k)}
+    draws = {k: v for k, v in draws.items() if (k == "sky.clouds" or not _given(given, k)) and _fitted(scn, k)}
     data = apply_envelope(given, draws)
     data["envelope"] = {}  # the drawn world is a plain scenario: drawing again (a split run's DSP process) is a no-op
     base = Path(scn.base_dir) if scn.base_dir is not None else None

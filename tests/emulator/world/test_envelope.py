@@ -142,3 +142,11 @@ def test_a_key_the_scenario_sets_is_pinned():
     from emulator.world.envelope import pinned_keys
 
     assert set(pinned_keys(env)) == {"sky.neutral_point_sep_deg", "sensors.gnss.environment"}
+
+
+def test_the_envelope_never_adds_a_sensor():
+    scn = load_scenario(ROOT / "scenarios" / "sun_elevation_gnss_free.yaml", overrides=["envelope.preset=published"])
+    assert scn.sensors.camera is None
+    drawn, draws = envelope_scenario(scn, 2)
+    assert drawn.sensors.camera is None and not any(k.startswith("sensors.camera") for k in draws)
+    assert "sky.neutral_point_sep_deg" in draws

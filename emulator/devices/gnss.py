@@ -35,6 +35,7 @@ import datetime as _dt
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 import pymap3d
@@ -155,6 +156,8 @@ class GnssConfig:
     outages: tuple[GnssOutage, ...] = ()
     glitches: tuple[GnssGlitch, ...] = ()
     errors: GnssErrors = field(default_factory=GnssErrors)
+    #: the antenna's surroundings (a :class:`.gnss_environment.GnssEnvironmentProcess`; None: none modelled)
+    environment: Any = None
 
 
 class GnssErrorModel:
@@ -498,6 +501,8 @@ class GnssReceiver:
             if g.covers(t):
                 err += np.asarray(g.offset_enu_m)
                 self.glitched_fixes += 1
+        if cfg.environment is not None:  # NLOS bias and outliers (emulator/devices/gnss_environment.py)
+            err = err + cfg.environment.position_offset(t, dt)
         self.last_error_enu = err
         self.last_vel_error_enu = vel_err
         st = self.traj.state(t)

@@ -193,10 +193,20 @@ class Zda:
 
 
 def _parse_time_uncached(s: str) -> _dt.time:
-    hh, mm = int(s[0:2]), int(s[2:4])
-    sec = float(s[4:])
-    whole = int(sec)
-    return _dt.time(hh, mm, whole, round((sec - whole) * 1e6) if sec != whole else 0)
+    """``hhmmss[.s...]`` (UTC) as a time, refused (``ValueError``) unless it is six ASCII digits, optionally a point
+    and digits, with hh < 24, mm < 60 and ss < 61. Second 60 (a leap second, NMEA allows it) is held at
+    hh:mm:59.999999, as the firmware boundary holds NAV-PVT's (docs/hostile-input.md); fractions beyond the
+    microsecond are cut. No number of the field goes through float, so no token can overflow."""
+    frac = s[7:]
+    if not (len(s) >= 6 and s.isascii() and s[:6].isdigit() and (len(s) == 6 or s[6] == ".")
+            and (not frac or frac.isdigit())):
+        raise ValueError(f"bad NMEA time {s!r}")
+    hh, mm, ss = int(s[0:2]), int(s[2:4]), int(s[4:6])
+    if hh > 23 or mm > 59 or ss > 60:
+        raise ValueError(f"NMEA time {s!r} out of range")
+    if ss == 60:
+        return _dt.time(hh, mm, 59, 999_999)
+    return _dt.time(hh, mm, ss, int(frac[:6].ljust(6, "0")) if frac else 0)
 
 
 # A receiver repeats one epoch's time and date in several sentences (RMC, GGA, ZDA): small
@@ -269,10 +279,14 @@ def _opt_f(v: float | None, fmt: str) -> str:
 
 
 def _date_ddmmyy(d: str) -> _dt.date | None:
+    """RMC's ``ddmmyy`` as 20yy-mm-dd; refused (``ValueError``) unless six ASCII digits of a real date. Which
+    century and whether the date is believed is the firmware's business (a week rollover, an RTC date)."""
     if not d:
         return None
     v = _DATE_CACHE.get(d)
     if v is None:
+        if not (len(d) == 6 and d.isascii() and d.isdigit()):
+            raise ValueError(f"bad NMEA date {d!r}")
         v = _dt.date(2000 + int(d[4:6]), int(d[2:4]), int(d[0:2]))
         if len(_DATE_CACHE) >= _CACHE_MAX:
             _DATE_CACHE.clear()
@@ -411,20 +425,40 @@ _SAT_IDS: dict[str, int | None] = {"": None, **{str(i): i for i in range(1000)},
                                    **{f"{i:03d}": i for i in range(1000)}}
 
 
+def _small_int(s: str, lo: int, hi: int, what: str) -> int:
+    """A short signed decimal integer field within [lo, hi], else ``ValueError`` (no huge or non-ASCII number)."""
+    body = s[1:] if s[:1] in ("-", "+") else s
+    if not (0 < len(body) <= 4 and body.isascii() and body.isdigit()):
+        raise ValueError(f"bad {what} {s!r}")
+    v = int(s)
+    if not lo <= v <= hi:
+        raise ValueError(f"{what} {s!r} out of range")
+    return v
+
+
 def _zda(talker: str, f: list[str]) -> Zda:
-    if len(f) < 7:
-        raise ValueError("ZDA needs 6 fields")
+    """ZDA: time, day 01-31, month 01-12, four-digit year (a real date), local zone hours -13..13 and minutes
+    00-59; a field out of range is refused (``ValueError``)."""
+    if len(f) < 5:
+        raise ValueError("ZDA needs its time and date fields")
+    f = f + [""] * (7 - len(f))  # the zone fields may be omitted
     date = None
     if f[2] and f[3] and f[4]:
-        key = f[2] + f[3] + f[4]
+        key = f[2] + "/" + f[3] + "/" + f[4]
         date = _DATE_CACHE.get(key)
         if date is None:
-            date = _dt.date(int(f[4]), int(f[3]), int(f[2]))
+            if len(f[4]) != 4 or not f[4].isdigit():
+                raise ValueError(f"bad ZDA year {f[4]!r}")
+            date = _dt.date(_small_int(f[4], 1, 9999, "ZDA year"), _small_int(f[3], 1, 12, "ZDA month"),
+                            _small_int(f[2], 1, 31, "ZDA day"))
             if len(_DATE_CACHE) >= _CACHE_MAX:
                 _DATE_CACHE.clear()
             _DATE_CACHE[key] = date
-    return Zda(talker, _TIME_CACHE.get(f[1]) or _parse_time(f[1]), date, int(f[5]) if f[5] else None,
-               int(f[6]) if f[6] else None)
+    elif f[2] or f[3] or f[4]:
+        raise ValueError("ZDA date with an empty field")
+    return Zda(talker, _TIME_CACHE.get(f[1]) or _parse_time(f[1]), date,
+               _small_int(f[5], -13, 13, "ZDA zone hours") if f[5] else None,
+               _small_int(f[6], 0, 59, "ZDA zone minutes") if f[6] else None)
 
 
 #: The two checksum characters -> value (upper case per NMEA 0183; lower case accepted).

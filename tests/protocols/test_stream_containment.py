@@ -11,6 +11,7 @@ from __future__ import annotations
 import pytest
 
 from protocols.crc import crc16_ccitt
+from protocols.nmea import NmeaFormat
 from protocols.stream import NEED_MORE, StreamDecoder
 
 
@@ -92,3 +93,18 @@ def test_every_step_of_a_format_is_contained(exc: type[Exception], how: str, chu
     # an exception of frame_length or check is always a fault; of parse, a fault unless it is a refusal (ValueError)
     assert st.format_faults == (6 if exc is ValueError else 9), st
 
+
+def test_a_time_field_that_overflowed_is_a_parse_error() -> None:
+    """The case of issue 41: ``hhmminf`` raised OverflowError out of feed() and the decoder stayed on it."""
+    from protocols.crc import nmea_checksum
+
+    def s(body: str) -> bytes:
+        return f"${body}*{nmea_checksum(body.encode()):02X}\r\n".encode()
+
+    bad = s("GPGGA,1235inf,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,")
+    good = s("GPGGA,123519.00,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,")
+    dec = StreamDecoder([NmeaFormat()])
+    for _ in range(1000):
+        assert len(dec.feed(bad + good)) == 1
+    assert dec.pending() == 0
+    assert dec.stats.parse_errors == 1000 and dec.stats.frames == 1000 and dec.stats.format_faults == 0

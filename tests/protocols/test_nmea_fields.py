@@ -1,0 +1,74 @@
+"""The NMEA field rules of :mod:`protocols.nmea`: what a field may hold, what is refused (a parse error), what is
+read as absent (docs/icd.md, "NMEA sentences: parsed, used, counted")."""
+
+from __future__ import annotations
+
+import datetime as dt
+
+import pytest
+
+from protocols.crc import nmea_checksum
+from protocols.nmea import NMEA_RX_MAX_LEN, Gga, NmeaFormat, Zda
+from protocols.stream import StreamDecoder
+
+
+def s(body: str) -> bytes:
+    return f"${body}*{nmea_checksum(body.encode()):02X}\r\n".encode()
+
+
+def decode(frame: bytes) -> tuple[list[object], StreamDecoder]:
+    dec = StreamDecoder([NmeaFormat(NMEA_RX_MAX_LEN)])
+    return dec.feed(frame), dec
+
+
+def gga_time(t: str) -> bytes:
+    return s(f"GPGGA,{t},4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,")
+
+
+@pytest.mark.parametrize(("field", "want"), [
+    ("123519", dt.time(12, 35, 19)), ("123519.00", dt.time(12, 35, 19)), ("000000.5", dt.time(0, 0, 0, 500000)),
+    ("235959.999", dt.time(23, 59, 59, 999000)), ("081401.1234567", dt.time(8, 14, 1, 123456)),
+    ("123519.", dt.time(12, 35, 19)),
+    ("235960", dt.time(23, 59, 59, 999999)), ("235960.50", dt.time(23, 59, 59, 999999)),  # leap second, held
+])
+def test_time_field_accepted(field: str, want: dt.time) -> None:
+    out, dec = decode(gga_time(field))
+    assert len(out) == 1 and isinstance(out[0], Gga) and out[0].time_utc == want
+    assert dec.stats.parse_errors == 0
+
+
+@pytest.mark.parametrize("field", [
+    "240000", "126019", "123561", "1235inf", "1235nan", "12351e300", "1235" + "9" * 40, "9" * 40, "-12351",
+    "+12351", "1235 9", "12351", "123519.5e3", "123519.-5", "123519..5", "0x1234", "1_2351",
+])
+def test_time_field_refused(field: str) -> None:
+    out, dec = decode(gga_time(field))
+    assert out == [] and dec.stats.parse_errors == 1 and dec.stats.format_faults == 0
+
+
+@pytest.mark.parametrize(("fields", "want"), [
+    ("04,07,2002,00,00", (dt.date(2002, 7, 4), 0, 0)), ("29,02,2024,-05,30", (dt.date(2024, 2, 29), -5, 30)),
+    ("31,12,1999,,", (dt.date(1999, 12, 31), None, None)), (",,,,", (None, None, None)),
+    ("04,07,2002", (dt.date(2002, 7, 4), None, None)),  # the zone fields omitted
+])
+def test_zda_accepted(fields: str, want: tuple[object, ...]) -> None:
+    out, dec = decode(s(f"GPZDA,201530.00,{fields}"))
+    assert len(out) == 1 and isinstance(out[0], Zda), dec.stats
+    assert (out[0].date, out[0].zone_hours, out[0].zone_minutes) == want
+
+
+@pytest.mark.parametrize("fields", [
+    "04,07," + "9" * 40 + ",00,00", "04,07,2147483648,00,00", "9" * 40 + ",07,2002,00,00", "04,13,2002,00,00",
+    "00,07,2002,00,00", "30,02,2024,00,00", "04,07,0000,00,00", "04,07,02,00,00", "04,07,20021,00,00",
+    "04,07,2002,14,00", "04,07,2002,00,60", "04,07,2002,99999,00", "04,,2002,00,00", "4e1,07,2002,00,00",
+    "04,07,+200,00,00",
+])
+def test_zda_refused(fields: str) -> None:
+    out, dec = decode(s(f"GPZDA,201530.00,{fields}"))
+    assert out == [] and dec.stats.parse_errors == 1 and dec.stats.format_faults == 0
+
+
+@pytest.mark.parametrize("date", ["32d394", "230394x", "2303", "-10394", "310294"])
+def test_rmc_date_refused(date: str) -> None:
+    out, dec = decode(s(f"GPRMC,123519.00,A,4807.038,N,01131.000,E,022.4,084.4,{date},003.1,W,A"))
+    assert out == [] and dec.stats.parse_errors == 1

@@ -27,7 +27,8 @@ status | yes | - |
 | GSA | `Gsa`: mode, fix type, 12 satellite slots, PDOP/HDOP/VDOP, 4.10 system id | fix type | - |
 | VTG, GSV, ZDA | `Vtg`, `Gsv`, `Zda` | no | `gnss_nmea_other` |
 | any other `$ttsss` (GLL, TXT, GST ...) | `NmeaSentence` (talker, kind, raw fields) | no | `gnss_nmea_other` |
-| proprietary `$P` + maker (`$PUBX`, `$PMTKCHN` 204 characters, `$PSRFTXTVersion GSW3.2.2 ...` with spaces and \
+| proprietary `$P` + maker, whatever the length (`$PGRME`, `$PUBX`, `$PMTKCHN` 204 characters, \
+`$PSRFTXTVersion GSW3.2.2 ...` with spaces and \
 no comma) | `NmeaSentence`, talker `P` + maker code, kind the rest of the address as sent | no | `gnss_nmea_other` |
 | another upper-case address of 3..10 characters (`$LOG108` of the RGM-3800) | `NmeaSentence`, talker `""`, \
 kind the address | no | `gnss_nmea_other` |

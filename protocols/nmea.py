@@ -620,17 +620,19 @@ _HEADS: dict[str, tuple[str, str, _Parser | None]] = {}
 def _classify_head(head: str) -> tuple[str, str, _Parser | None]:
     """Split an address field into (talker, kind, typed parser or None); cache the good ones.
 
+    * ``P`` + anything printable: proprietary (NMEA 0183 reserves ``P`` for them; no talker starts with it), talker
+      ``P`` + the three-letter maker code, kind the rest as sent (``$PGRME``: kind ``E``; ``$PSRFTXTVersion
+      GSW3.2.2...``: SiRF banners with spaces and no comma; ``$PUBX``: kind empty);
     * ``ttsss`` (five upper-case letters or digits): talker and sentence type, typed when the type is known;
-    * ``P`` + anything printable: proprietary, talker ``P`` + the three-letter maker code, kind the rest as sent
-      (``$PSRFTXTVersion GSW3.2.2...``: SiRF banners with spaces and no comma; ``$PUBX``: kind empty);
     * another upper-case alphanumeric address of 3 to 10 characters (``$LOG108``, RGM-3800 replies): an untyped
       sentence with talker ``""`` and the whole address as its kind.
     """
-    if len(head) == 5 and head.isalnum() and head.isupper():
-        talker, kind = head[:2], head[2:]
-        r: tuple[str, str, _Parser | None] = (talker, kind, _PARSERS.get(kind))
-    elif len(head) >= 4 and head[0] == "P" and head.isprintable() and head[:4].isalnum() and head[:4].isupper():
+    r: tuple[str, str, _Parser | None]
+    if len(head) >= 4 and head[0] == "P" and head.isprintable() and head[:4].isalnum() and head[:4].isupper():
         r = (head[:4], head[4:], None)  # proprietary: 'P' + maker code, then the type (may be empty)
+    elif len(head) == 5 and head.isalnum() and head.isupper():
+        talker, kind = head[:2], head[2:]
+        r = (talker, kind, _PARSERS.get(kind))
     elif 3 <= len(head) <= 10 and head.isalnum() and head.isupper():
         r = ("", head, None)
     else:

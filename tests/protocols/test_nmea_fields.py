@@ -72,3 +72,24 @@ def test_zda_refused(fields: str) -> None:
 def test_rmc_date_refused(date: str) -> None:
     out, dec = decode(s(f"GPRMC,123519.00,A,4807.038,N,01131.000,E,022.4,084.4,{date},003.1,W,A"))
     assert out == [] and dec.stats.parse_errors == 1
+
+
+@pytest.mark.parametrize(("body", "talker", "kind"), [
+    ("PGRME,15.0,M,45.0,M,25.0,M", "PGRM", "E"),  # five characters, still proprietary (not talker PG)
+    ("PUBX,00,081350.00", "PUBX", ""), ("PSRFTXTVersion GSW3.2.2 ", "PSRF", "TXTVersion GSW3.2.2 "),
+    ("LOG108,4,-1", "", "LOG108"), ("GPTXT,01,01,02,ANTSTATUS=OK", "GP", "TXT"),
+])
+def test_addresses(body: str, talker: str, kind: str) -> None:
+    from protocols.nmea import NmeaSentence
+
+    out, dec = decode(s(body))
+    assert len(out) == 1 and isinstance(out[0], NmeaSentence), dec.stats
+    assert (out[0].talker, out[0].kind) == (talker, kind)
+
+
+@pytest.mark.parametrize("body", ["gpgga,1", "GP,1,2,3", "GPGGAXXXXXXX,1", "P\u00e9X,1", "XY Z,1"])
+def test_bad_addresses_refused(body: str) -> None:
+    dec = StreamDecoder([NmeaFormat(NMEA_RX_MAX_LEN)])
+    raw = body.encode("utf-8")
+    assert dec.feed(b"$" + raw + f"*{nmea_checksum(raw):02X}\r\n".encode()) == []
+    assert dec.stats.parse_errors == 1

@@ -33,6 +33,9 @@ no comma) | `NmeaSentence`, talker `P` + maker code, kind the rest of the addres
 | another upper-case address of 3..10 characters (`$LOG108` of the RGM-3800) | `NmeaSentence`, talker `""`, \
 kind the address | no | `gnss_nmea_other` |
 | an address of other characters, non-ASCII bytes | refused | - | `parse_errors` |
+| a line of more than 128 characters with a byte that is not printable ASCII (or a `$`) | refused at its 128th \
+byte, as when 128 was the limit: a stray `$` before binary UBX does not hold the UBX frames back | - | \
+`length_errors` |
 
 Field rules (every typed sentence):
 

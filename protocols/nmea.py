@@ -23,6 +23,7 @@ builders ``encode_nmea(parse(b)) == b`` holds byte for byte (the golden vectors 
 from __future__ import annotations
 
 import datetime as _dt
+import re
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -573,13 +574,19 @@ class NmeaFormat:
         return encode_nmea(obj)
 
     def frame_length(self, buf: bytes | bytearray, start: int) -> int:
+        """Length up to and including the LF. A candidate longer than :data:`_LONG_LINE` must be printable ASCII
+        to be waited for or taken: a stray ``$`` before binary bytes (UBX on the same port) is refused at 128
+        bytes, as before the long lines of real receivers were accepted, not held for up to ``max_len``."""
         end = buf.find(b"\n", start + 1, start + self.max_len)
         if end < 0:
-            if len(buf) - start >= self.max_len:
+            n = len(buf) - start
+            if n >= self.max_len or (n >= _LONG_LINE and _NOT_IN_LONG_LINE.search(buf, start + 1) is not None):
                 return BAD_LENGTH
             return NEED_MORE
         # A new '$' before the line end means this candidate was cut short.
         if buf.find(b"$", start + 1, end) >= 0:
+            return BAD_LENGTH
+        if end - start >= _LONG_LINE and _NOT_IN_LONG_LINE.search(buf, start + 1, end) is not None:
             return BAD_LENGTH
         return end + 1 - start
 
@@ -611,6 +618,12 @@ class NmeaFormat:
             return p(talker, parts)
         return NmeaSentence(talker, kind, tuple(parts[1:]))
 
+
+#: Lines longer than this (the receiving limit before long proprietary sentences were accepted) are taken only when
+#: every byte between ``$`` and LF is printable ASCII or CR (:meth:`NmeaFormat.frame_length`); shorter candidates are
+#: framed as they always were, so their counters do not change.
+_LONG_LINE = 128
+_NOT_IN_LONG_LINE = re.compile(rb"[^\x20-\x23\x25-\x7e\r]")
 
 #: A typed sentence parser: (talker, the split sentence) -> the sentence object.
 _Parser = Callable[[str, list[str]], Gga | Gns | Gsv | Rmc | Vtg | Gsa | Zda]

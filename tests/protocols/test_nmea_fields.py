@@ -93,3 +93,29 @@ def test_bad_addresses_refused(body: str) -> None:
     raw = body.encode("utf-8")
     assert dec.feed(b"$" + raw + f"*{nmea_checksum(raw):02X}\r\n".encode()) == []
     assert dec.stats.parse_errors == 1
+
+
+def test_a_stray_dollar_does_not_hold_ubx_back() -> None:
+    """Lines up to NMEA_RX_MAX_LEN are accepted only when printable beyond 128 bytes: a stray '$' before binary UBX
+    (NAV-PVT frames without a 0x0A byte) is refused at 128 bytes, as with the old limit, not held for 1024."""
+    from protocols.ubx import UbxFormat
+    from tests.fuzz.fuzz_inputs import seed_frames
+
+    pvt = next(d for d in seed_frames(2.0)[3] if d.startswith(b"\xb5b") and b"\n" not in d)
+    data = b"$" + pvt * 10
+    dec = StreamDecoder([NmeaFormat(NMEA_RX_MAX_LEN), UbxFormat()])
+    first = next(i + 16 for i in range(0, len(data), 16) if dec.feed(data[i : i + 16]))
+    assert first <= 128 + 16  # without the rule: no UBX frame out of these 10 (1 001 bytes)
+    dec.feed(data[first:])
+    assert dec.stats.length_errors == 1 and dec.stats.per_format["ubx"] == 10
+    # a long printable line is still waited for and taken ($PUBX,03 of 424 characters: the receiver corpus)
+    line = s("PUBX,03,23," + ",".join(["014,U,067,31,42,010"] * 23))
+    assert len(line) > 400
+    dec = StreamDecoder([NmeaFormat(NMEA_RX_MAX_LEN)])
+    assert len([o for i in range(0, len(line), 16) for o in dec.feed(line[i : i + 16])]) == 1
+    # a long line with a binary byte in it is a length error, whatever the chunking
+    bad = s("PUBX,03,23," + ",".join(["014,U,067,31,42,010"] * 10) + "\x01" + ",".join(["014,U,067,31,42,010"] * 10))
+    for chunk in (1, 16, len(bad)):
+        dec = StreamDecoder([NmeaFormat(NMEA_RX_MAX_LEN)])
+        assert [o for i in range(0, len(bad), chunk) for o in dec.feed(bad[i : i + chunk])] == []
+        assert dec.stats.length_errors == 1 and dec.stats.crc_errors == 0

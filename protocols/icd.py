@@ -20,6 +20,7 @@ from construct import Array, BytesInteger, Const, FormatField, Renamed, Struct
 from construct import Bytes as _Bytes
 
 from . import can_nav, crc, gnss, host, imu_frame, monitor, nmea, psns, stim, ubx, ubx_cfg
+from .icd_nmea import NMEA_PARSE_TEXT
 
 __all__ = ["LINK_BAUD", "budget_rows", "generate", "spec_rows"]
 
@@ -437,6 +438,7 @@ def generate() -> str:
         w(_table([(str(i + 1), n, f, m) for i, (n, f, m) in enumerate(fields)], ("field", "name", "format", "meaning"))
           + "\n")
     w(GNSS_INPUT_TEXT)
+    w(NMEA_PARSE_TEXT)
     w("### 5.2 UBX frame\n")
     w(_spec_table(ubx.UBX_FRAME_SPEC) + "\n")
     w(f"UBX-NAV-PVT payload (class 0x01, id 0x07, {ubx.NAV_PVT_LEN} bytes, frame {ubx.NAV_PVT_LEN + 8} bytes; "

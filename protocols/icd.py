@@ -300,7 +300,9 @@ UTC. A date outside the firmware's GPS week era (GPS week `gnss_era_start_week` 
 later: a receiver that rolled over, such as the 2019 RMC `...,220899`, or an RTC date years back) is refused, as
 gpsd reads a week before its build week as a rollover; so is a date and time more than `gnss_date_jump_tol_s`
 (1 day) from the firmware's running UTC clock (`gnss_date_refused`). A smaller clock step is followed once the time
-base re-based on it.
+base re-based on it. gpsd (its generated `BUILD_WEEK` / `BUILD_ROLLOVERS`) and NTP's `gpsweekadj` add 1024 weeks to a
+week before their build week; the firmware refuses the date instead, since an NMEA date cannot tell a rollover from
+an RTC date.
 
 Fix quality. What each receiver indication does:
 

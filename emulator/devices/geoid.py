@@ -1,7 +1,8 @@
 """The geoid separation a receiver reports: EGM96 from proj-data's 15-arc-minute grid (``egm96_15.gtx``).
 
 Source: the EGM96 geopotential model (Lemoine et al. 1998, NASA/TP-1998-206861) as gridded by NGA and shipped by
-PROJ (Debian package ``proj-data``, ``/usr/share/proj/egm96_15.gtx``; docs/sensors.md "Geoid"). GTX layout (NOAA
+PROJ (Debian package ``proj-data``, ``/usr/share/proj/egm96_15.gtx``; docs/sensors.md "GNSS receiver: geoid and message
+sets"). GTX layout (NOAA
 VDatum): a 40-byte big-endian header -- lower-left latitude and longitude, latitude and longitude spacing (float64,
 degrees), rows and columns (int32) -- then ``rows * cols`` float32 big-endian heights of the geoid above the WGS-84
 ellipsoid (m), row by row from the south, west to east. The value at a point is the bilinear interpolation of the

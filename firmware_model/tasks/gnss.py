@@ -83,6 +83,8 @@ _LEAP_DEFAULT_S = 18
 #: epoch kinds of the UBX messages before NAV-PVT, and of the messages that carry their own fix indication
 _LEGACY_KINDS = frozenset({"POSLLH", "VELNED", "SOL", "STATUS"})
 _FIX_KINDS = frozenset({"GGA", "GNS", "RMC", "PVT"})
+#: refusals whose epoch's time and date are not the receiver's real clock either (simulator, manual input)
+_NOT_REAL = frozenset({"gnss_sim_refused", "gnss_manual_refused"})
 #: UBX fix types that are fixes (2 2-D, 3 3-D, 4 GNSS + DR); 0 none, 1 DR, 5 time only, 6+ reserved
 _UBX_FIX = (2, 3, 4)
 #: GNS mode characters with a GNSS fix (NMEA 4.10: A autonomous, D differential, P precise, R RTK fixed,
@@ -147,6 +149,7 @@ class _Epoch:
     pos_ecef: Any = None             # NAV-SOL position (m), used when no NAV-POSLLH came
     vel_ecef: Any = None             # NAV-SOL velocity (m/s), used when no NAV-VELNED came
     ubx_fix: int | None = None       # NAV-SOL / NAV-STATUS fix type (with gpsFixOK)
+    gsa_best: int = 0                # best GSA fix type of the epoch (0: no GSA; 1 no fix, 2 2-D, 3 3-D)
 
 
 class GnssTask(TimeKeeping):
@@ -275,10 +278,8 @@ class GnssTask(TimeKeeping):
                 e.vel_up = False
         elif isinstance(s, Gsa):
             e = self._gnss_epoch_for("GSA", None)
-            if e is not None and s.fix_type == 2:
-                e.fix2d = True
-            elif e is not None and s.fix_type == 1:
-                e.no_fix = True
+            if e is not None:
+                e.gsa_best = max(e.gsa_best, s.fix_type)  # one GSA per system (NMEA 4.10): the best one counts
         elif isinstance(s, Zda):
             e = self._gnss_epoch_for("ZDA", *self._nmea_key(s.time_utc))
             if e is not None and s.date is not None and s.time_utc is not None:
@@ -624,10 +625,12 @@ class GnssTask(TimeKeeping):
         if self._now_s() - t_meas > self.cfg.gnss_max_age_s:
             self.counters["gnss_tag_stale"] += 1
             return
-        if e.date is not None and self._gnss_date_ok(e.date):
+        simulated = e.refused in _NOT_REAL  # a simulator's or a manual fix: neither its place nor its time
+        if e.date is not None and not simulated and self._gnss_date_ok(e.date):
             self._date = e.date
         date = self._date
-        if date is not None and e.tod is not None and (e.date is not None or e.pos3 is not None or e.pos2 is not None):
+        if date is not None and e.tod is not None and not simulated and (
+                e.date is not None or e.pos3 is not None or e.pos2 is not None):
             h, rem = divmod(e.tod % 86400.0, 3600.0)
             mi, sec = divmod(rem, 60.0)
             whole = min(int(sec), 59)
@@ -645,6 +648,10 @@ class GnssTask(TimeKeeping):
         if e.vel is None and e.vel_ecef is not None and e.ubx_fix is not None and e.pos3 is not None:
             e.vel = _ecef_to_enu(e.vel_ecef, e.pos3[0], e.pos3[1])
             e.vel_up = True
+        if e.gsa_best == 1:
+            e.no_fix = True
+        elif e.gsa_best == 2:
+            e.fix2d = True
         if e.ubx_fix is None and e.kinds & _LEGACY_KINDS and not e.kinds & _FIX_KINDS:
             # NAV-POSLLH / VELNED carry no fix type: without NAV-SOL or NAV-STATUS saying "fix" they are not used
             e.no_fix = True

@@ -457,3 +457,25 @@ def _legacy_epoch_utc_shift(k: int, leap: int) -> bytes:
         else:
             out += _legacy_epoch(k, (m,))
     return out
+
+
+def test_one_gsa_per_system_the_best_fix_type_counts() -> None:
+    """NMEA 4.10: one GSA per system; a system without satellites used says 1 while the solution is 3-D: used."""
+    fw = Firmware(FirmwareConfig(gnss_baud=BAUD, gnss_latency_s=0.05))
+    _feed_lines(fw, [(k + 0.2, _gga_fields(k, 1, "10") + build_gsa(3, (2, 5, 6, 12), 1.4, 0.8, 1.2, talker="GN",
+                                                                   system_id=1)
+                      + build_gsa(1, (), None, None, None, talker="GN", system_id=3)) for k in range(1, 6)])
+    assert fw.counters["gnss_fixes"] >= 4 and fw.counters["gnss_no_fix_epochs"] == 0
+
+
+def test_a_simulator_fix_sets_no_utc() -> None:
+    """GGA quality 8 with RMC mode S (Garmin demo mode): neither the position nor the time and date are used."""
+    fw = Firmware(FirmwareConfig(gnss_baud=BAUD, gnss_latency_s=0.05))
+    lines = []
+    for k in range(1, 6):
+        u = _utc(k)
+        lines.append((k + 0.2, _gga_fields(k, 8, "10") + build_rmc(u.time(), u.date(), TRUTH.lat_deg, TRUTH.lon_deg,
+                                                                    0.0, 0.0, valid=True, mode="S")))
+    _feed_lines(fw, lines)
+    assert fw.counters["gnss_fixes"] == 0 and fw.counters["gnss_sim_refused"] >= 4
+    assert fw.utc_days(4.0) is None and fw._date is None

@@ -109,7 +109,7 @@ class FirmwareConfig:
     gnss_latency_s: float = 0.05
     #: an epoch whose composition is not complete is closed this long (s) after its first byte
     gnss_epoch_hold_s: float = 0.5
-    #: a receiver clock step (docs/icd.md "Receiver quirks: clock steps"): an epoch whose first-byte-minus-time
+    #: a receiver clock step (docs/icd.md 5.1.2, D-5.39): an epoch whose first-byte-minus-time
     #: offset is this far (s) from the time base is refused until ``gnss_clock_rebase_epochs`` consecutive epochs
     #: agree on the new offset (within the same tolerance); the last of them re-bases. Above the write jitter and a
     #: 9600-baud burst's bound (a few hundred ms), below the 1 s of a leap second.

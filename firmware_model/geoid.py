@@ -1,13 +1,15 @@
-"""The firmware's own geoid: EGM96 on a 5-degree grid, whole metres, to fill an empty geoid-separation field.
+"""The firmware's own geoid: EGM96 on a 5-degree grid, whole metres, to fill an empty geoid-separation field (D-5.40).
 
-Receivers carry a coarse geoid table of their own to report the separation (u-blox and SiRF document a 10-degree
-table for the NMEA separation field; docs/icd.md "Receiver quirks: heights"); a receiver that leaves the GGA/GNS
-separation field empty reports only the height above MSL, and the firmware then needs ``N`` to get the ellipsoidal
-height ``h = H_msl + N``. This table is EGM96 (Lemoine et al. 1998, NASA/TP-1998-206861; NGA's geoid undulations)
-sampled at the 5-degree nodes of its 15-arc-minute grid (PROJ's ``egm96_15.gtx``) and rounded to whole metres, one
-signed byte per node: 37 rows of latitude (-90 .. +90 deg, south first) by 72 columns of longitude (-180 .. +175 deg,
-east from -180). Bilinear interpolation between the nodes gives the separation within 1.4 m on average (2.3 m rms)
-where ``|N| >= 30 m`` and 1.9 m rms over the globe (measured against the full grid, docs/icd.md); 2.6 KiB.
+Receivers carry a coarse geoid table of their own to report the separation, and so does gpsd to fill the field
+(``geoid.c``, ``wgs84_separation``: 19 x 37 whole metres at 10 degrees, bilinear; docs/icd.md 5.1.2). A receiver
+that leaves the GGA/GNS separation field empty reports only the height above MSL, and the firmware then needs ``N``
+to get the ellipsoidal height ``h = H_msl + N``.
+
+This table is EGM96 (Lemoine et al. 1998, NASA/TP-1998-206861; NGA's geoid undulations) sampled at the 5-degree
+nodes of its 15-arc-minute grid (PROJ's ``egm96_15.gtx``) and rounded to whole metres, one signed byte per node:
+37 rows of latitude (-90 .. +90 deg, south first) by 72 columns of longitude (-180 .. +175 deg, east from -180).
+Bilinear interpolation between the nodes gives the separation within 1.4 m on average (2.3 m rms) where
+``|N| >= 30 m`` and 1.9 m rms over the globe (``tools/make_geoid_table.py --check`` against the full grid); 2.6 KiB.
 The table was generated once by ``tools/make_geoid_table.py`` and is data of the firmware, not read from the world's
 model at run time.
 """

@@ -21,7 +21,7 @@ Time of validity (FPGA time base, docs/icd.md "GNSS time tags"):
   write jitter) and ``latency`` is ``cfg.gnss_latency_s``, the receiver's configured output latency (epoch
   to first byte). Never the parse tick.
 
-The time base follows the receiver (docs/icd.md "Receiver quirks: clock steps"): every epoch gives a sample of the
+The time base follows the receiver (docs/icd.md 5.1.2, D-5.39): every epoch gives a sample of the
 offset, whatever message opens it (ZDA, GST and the UBX time messages open an epoch like GGA; a sample is tight
 when the opening message is the first of its chunk, else bounded by the chunk's arrival). A sample more than
 ``cfg.gnss_clock_step_tol_s`` from the current offset is a step of the receiver's clock: the epoch is refused
@@ -32,7 +32,7 @@ used. One epoch never moves UTC. UBX epochs are placed on GPS time (UTC + the re
 than the arrival of its own bytes (``gnss_tag_future``) or older than ``cfg.gnss_max_age_s`` at the close
 (``gnss_tag_stale``) is refused.
 
-Fix quality as receivers mean it (docs/icd.md "Receiver quirks: fix quality"): GGA quality 6 / mode E
+Fix quality as receivers mean it (docs/icd.md 5.1.2): GGA quality 6 / mode E
 (dead reckoning), 7 / M (manual input) and 8 / S (simulator) are not fixes (``gnss_dr_refused``,
 ``gnss_manual_refused``, ``gnss_sim_refused``); fewer than 4 satellites is no 3-D fix (3: horizontal only,
 fewer: none, ``gnss_few_sats``); GSA fix type 1 is no fix; UBX fix types above 5 are reserved, not fixes

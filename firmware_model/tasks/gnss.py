@@ -336,7 +336,7 @@ class GnssTask(TimeKeeping):
                 date = dt[0]
         if tod is not None and p.valid & 0x04:
             self._learn_leap(p.iTOW, tod)
-        e = self._ubx_epoch("PVT", p.iTOW)
+        e = self._ubx_epoch("PVT", p.iTOW, bool(p.valid & 0x02))
         if e is None:
             return
         if date is not None:
@@ -377,7 +377,7 @@ class GnssTask(TimeKeeping):
         if isinstance(m, NavTimeGps):
             if m.valid & 0x04 and 0 <= m.leapS <= 60:
                 self._set_leap(int(m.leapS))
-            self._ubx_epoch("TIMEGPS", m.iTOW)
+            self._ubx_epoch("TIMEGPS", m.iTOW, bool(m.valid & 0x01))
             return
         if isinstance(m, NavTimeUtc):
             date = tod = None
@@ -389,17 +389,17 @@ class GnssTask(TimeKeeping):
                 date = dt[0]
                 tod = m.hour * 3600.0 + m.min * 60.0 + m.sec + (m.nano * 1e-9 if abs(m.nano) < 1_000_000_000 else 0.0)
                 self._learn_leap(m.iTOW, tod)
-            e = self._ubx_epoch("TIMEUTC", m.iTOW)
+            e = self._ubx_epoch("TIMEUTC", m.iTOW, bool(m.valid & 0x01))
             if e is not None and date is not None:
                 e.date, e.tod = date, tod
             return
         if isinstance(m, NavStatus):
-            e = self._ubx_epoch("STATUS", m.iTOW)
+            e = self._ubx_epoch("STATUS", m.iTOW, bool(m.flags & 0x08))
             if e is not None:
                 self._ubx_fix_type(e, m.gpsFix, m.flags)
             return
         if isinstance(m, NavSol):
-            e = self._ubx_epoch("SOL", m.iTOW)
+            e = self._ubx_epoch("SOL", m.iTOW, bool(m.flags & 0x08))
             if e is None:
                 return
             self._ubx_fix_type(e, m.gpsFix, m.flags)
@@ -467,9 +467,13 @@ class GnssTask(TimeKeeping):
         if abs(d - leap) < 0.01 and 0 <= leap <= 60:
             self._set_leap(leap)
 
-    def _ubx_epoch(self, kind: str, itow_ms: int) -> _Epoch | None:
+    def _ubx_epoch(self, kind: str, itow_ms: int, tow_valid: bool = True) -> _Epoch | None:
         """The epoch of a UBX message at GPS time of week ``itow_ms``: placed on the UTC time of day with the
-        receiver's leap seconds, on the GPS time scale (:meth:`_gnss_epoch_for`)."""
+        receiver's leap seconds, on the GPS time scale (:meth:`_gnss_epoch_for`). ``tow_valid`` False (the
+        message's own flag: NAV-PVT validTime, NAV-SOL / NAV-STATUS towSet, NAV-TIMEGPS towValid, NAV-TIMEUTC
+        validTOW): the message belongs to the open epoch, or opens one without a time."""
+        if not tow_valid:
+            return self._gnss_epoch_for(kind, None)
         ref = self._gnss_leap_ref if self._gnss_leap_ref is not None else _LEAP_DEFAULT_S
         leap = self._gnss_leap if self._gnss_leap is not None else _LEAP_DEFAULT_S
         if not 0 <= itow_ms < 604_800_000:

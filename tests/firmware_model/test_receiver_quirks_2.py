@@ -479,3 +479,16 @@ def test_a_simulator_fix_sets_no_utc() -> None:
     _feed_lines(fw, lines)
     assert fw.counters["gnss_fixes"] == 0 and fw.counters["gnss_sim_refused"] >= 4
     assert fw.utc_days(4.0) is None and fw._date is None
+
+
+def test_ubx_without_a_valid_time_gives_no_time_base_sample() -> None:
+    """NAV-PVT with validTime clear (a receiver before its first fix: iTOW from its free-running clock): the epoch
+    has no time, so it neither samples the time base nor sets UTC."""
+    fw = Firmware(FirmwareConfig(gnss_baud=BAUD, gnss_latency_s=0.05))
+    for k in range(1, 5):
+        b = UBXMessage("NAV", "NAV-PVT", GET, iTOW=k * 1000, year=2000, month=1, day=1, validDate=0, validTime=0,
+                       fixType=0, numSV=0).serialize()
+        fw.receive(UART_GNSS, b, k + 0.3)
+        fw._gnss_poll(k + 0.3 + 1.0)  # the hold closes each epoch (no time to tell them apart)
+    assert not fw._gnss_offsets and fw.utc_days(3.0) is None
+    assert fw.counters["gnss_no_utc"] >= 3 and fw.counters["gnss_no_fix_epochs"] >= 3

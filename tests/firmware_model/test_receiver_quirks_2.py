@@ -309,26 +309,44 @@ def test_ubx_reserved_fix_type_is_not_a_fix() -> None:
 #: the Alps, Japan
 SITES = ((6.0, 77.0), (5.0, 80.5), (-6.0, 145.0), (-8.0, 147.0), (55.0, -20.0), (62.0, -17.0),
          (-15.0, -70.0), (45.0, 5.0), (40.0, 140.0))
+NEW_GUINEA = ((-6.0, 145.0), (-8.0, 147.0))
+
+
+def _filled_height_errors(sites: list[tuple[float, float]]) -> np.ndarray:
+    """The firmware's ellipsoidal height minus the truth for one GGA per site with an empty separation field (MSL
+    height from EGM96's full grid), one epoch a second."""
+    fw = Firmware(FirmwareConfig(gnss_baud=BAUD, gnss_latency_s=0.05))
+    errs = []
+    h_true = 120.0
+    for k, (lat, lon) in enumerate(sites, start=1):
+        u = _utc(k)
+        g = build_gga(u.time(), lat, lon, h_true - egm96_separation_m(lat, lon), None, 1, 10, 0.9)
+        assert b",M,,," in g  # the separation and its unit empty
+        fw.receive(UART_GNSS, g, k + 0.2)
+        assert fw._last_fix is not None and fw._last_fix[0] == pytest.approx(lat * DEG, abs=1e-7)
+        errs.append(fw._last_fix[2] - h_true)
+    assert fw.counters["gnss_geoid_filled"] == len(sites)
+    return np.array(errs)
 
 
 def test_an_empty_geoid_separation_is_filled_from_the_firmware_table() -> None:
-    """GGA with an empty separation field at sites with |N| >= 30 m: the firmware's ellipsoidal height is within
-    3 m of the truth on average (MSL taken as ellipsoidal would be 30-102 m off)."""
-    errs = []
-    for lat, lon in SITES:
-        n = egm96_separation_m(lat, lon)
-        assert abs(n) >= 30.0, (lat, lon, n)
-        h_true = 120.0
-        fw = Firmware(FirmwareConfig(gnss_baud=BAUD, gnss_latency_s=0.05))
-        u = _utc(1)
-        g = build_gga(u.time(), lat, lon, h_true - n, None, 1, 10, 0.9)
-        assert b",M,,," in g  # the separation and its unit empty
-        fw.receive(UART_GNSS, g, 1.2)
-        assert fw._last_fix is not None
-        assert fw._last_fix[0] == pytest.approx(lat * DEG, abs=1e-7)
-        errs.append(fw._last_fix[2] - h_true)
-        assert fw.counters["gnss_geoid_filled"] == 1
-    assert float(np.mean(np.abs(errs))) < 3.0, errs
+    """GGA with an empty separation field at 300 seeded random sites with |N| >= 30 m: the firmware's ellipsoidal
+    height is within 3 m of the truth on average (measured 1.4 m; MSL taken as ellipsoidal would be 30-107 m off),
+    and within 3 m at each named site but New Guinea's, where EGM96 changes ~10 m per degree and a 5-degree table
+    is 10 m off (docs/icd.md 5.1.2)."""
+    rng = np.random.default_rng(37)
+    sites: list[tuple[float, float]] = []
+    while len(sites) < 300:
+        lat, lon = float(rng.uniform(-80.0, 80.0)), float(rng.uniform(-180.0, 180.0))
+        if abs(egm96_separation_m(lat, lon)) >= 30.0:
+            sites.append((lat, lon))
+    err = _filled_height_errors(sites)
+    assert float(np.mean(np.abs(err))) < 3.0, np.mean(np.abs(err))
+    assert float(np.mean(np.abs(err))) < 2.0  # the table's own figure (1.43 m over 6239 points), with margin
+    named = _filled_height_errors(list(SITES))
+    for (lat, lon), e in zip(SITES, named, strict=True):
+        assert abs(egm96_separation_m(lat, lon)) >= 30.0
+        assert abs(e) < (12.0 if (lat, lon) in NEW_GUINEA else 3.0), (lat, lon, e)
 
 
 def test_a_reported_geoid_separation_is_used_as_sent() -> None:

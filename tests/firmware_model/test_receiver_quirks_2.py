@@ -510,3 +510,38 @@ def test_ubx_without_a_valid_time_gives_no_time_base_sample() -> None:
         fw._gnss_poll(k + 0.3 + 1.0)  # the hold closes each epoch (no time to tell them apart)
     assert not fw._gnss_offsets and fw.utc_days(3.0) is None
     assert fw.counters["gnss_no_utc"] >= 3 and fw.counters["gnss_no_fix_epochs"] >= 3
+
+
+def test_gst_first_bursts_are_timed_too() -> None:
+    """An Ashtech / Septentrio style burst opening with GST (time only): the epoch opens at GST's first byte, so the
+    tags settle to the epochs' true times; a clock step is followed as with ZDA."""
+    latency, duration = 0.08, 30.0
+    cfg = FirmwareConfig(gnss_baud=BAUD, gnss_latency_s=latency, align_time_s=2.0)
+    epochs = []
+    for k in range(1, int(duration) - 1):
+        u = _utc(k, 150.0 if k >= 15 else 0.0)
+        t = f"{u.hour:02d}{u.minute:02d}{u.second:02d}.00"
+        gst = build_sentence("GP", "GST", [t, "1.2", "2.1", "1.4", "35.0", "1.6", "1.8", "2.9"])
+        epochs.append((k, gst + _zda_first_epoch(k, 150.0 if k >= 15 else 0.0)[len(build_zda(u.time(), u.date(), 0,
+                                                                                                  0)):]))
+    fw, events = _run(cfg, _chunks(epochs, latency, 0.004, seed=9), duration)
+    t = np.array([e["t_meas_s"] for e in events if e["event"] == "gnss_update"])
+    assert np.abs(t - np.round(t))[5:].max() < 2e-3
+    assert fw.counters["gnss_clock_steps"] == 1 and fw.counters["gnss_nmea_other"] == 0
+
+
+def test_nav_pvt_date_only_when_fully_resolved_and_confirmed() -> None:
+    """NAV-PVT's date and time set UTC only with validDate, validTime, fullyResolved and, where the receiver reports
+    confirmedAvai, confirmedDate and confirmedTime."""
+    for resolved, flags2, want in ((0, 0x00, False), (1, 0x20, False), (1, 0xE0, True), (1, 0x00, True)):
+        fw = Firmware(FirmwareConfig(gnss_baud=BAUD, gnss_latency_s=0.05))
+        for k in range(1, 5):
+            u = _utc(k)
+            b = UBXMessage("NAV", "NAV-PVT", GET, iTOW=_itow(u), year=u.year, month=u.month, day=u.day, hour=u.hour,
+                           min=u.minute, second=u.second, validDate=1, validTime=1, fullyResolved=resolved,
+                           confirmedAvai=(flags2 >> 5) & 1, confirmedDate=(flags2 >> 6) & 1,
+                           confirmedTime=(flags2 >> 7) & 1, fixType=3, gnssFixOk=1, numSV=10, lon=TRUTH.lon_deg,
+                           lat=TRUTH.lat_deg, height=50000, hMSL=58000, hAcc=2000, vAcc=3000).serialize()
+            fw.receive(UART_GNSS, b, k + 0.3)
+        assert (fw._date is not None) is want, (resolved, flags2)
+        assert fw.counters["gnss_fixes"] >= 3  # the fix is used either way

@@ -25,8 +25,10 @@ its refusals: 0 unless a parser meets a case nobody foresaw). Tests: `tests/prot
 status | yes | - |
 | RMC | `Rmc`: time, status, position, speed, course, date, mode, 4.10 status | yes | - |
 | GSA | `Gsa`: mode, fix type, 12 satellite slots, PDOP/HDOP/VDOP, 4.10 system id | fix type | - |
-| VTG, GSV, ZDA | `Vtg`, `Gsv`, `Zda` | no | `gnss_nmea_other` |
-| any other `$ttsss` (GLL, TXT, GST ...) | `NmeaSentence` (talker, kind, raw fields) | no | `gnss_nmea_other` |
+| ZDA | `Zda`: time, day, month, year, zone | date and time (5.1.3) | - |
+| VTG, GSV | `Vtg`, `Gsv` | no | `gnss_nmea_other` |
+| GST, GBS, GRS, GLL | `NmeaSentence` (talker, kind, raw fields) | time only: they open an epoch (5.1.3) | - |
+| any other `$ttsss` (TXT ...) | `NmeaSentence` (talker, kind, raw fields) | no | `gnss_nmea_other` |
 | proprietary `$P` + maker, whatever the length (`$PGRME`, `$PUBX`, `$PMTKCHN` 204 characters, \
 `$PSRFTXTVersion GSW3.2.2 ...` with spaces and \
 no comma) | `NmeaSentence`, talker `P` + maker code, kind the rest of the address as sent | no | `gnss_nmea_other` |

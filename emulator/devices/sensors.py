@@ -191,7 +191,7 @@ def gnss_config(scn: Scenario, seed: int | None = None) -> GnssConfig:
     return GnssConfig(
         rate_hz=g.rate_hz, latency_s=g.latency_s if g.latency_s is not None else float(p.get("latency_s", 0.05)),
         sentences=tuple(g.sentences), ubx=tuple(g.ubx), talker=g.talker, nmea_version=g.nmea_version,
-        geoid_sep_m=g.geoid_sep_m,
+        geoid_sep_m=g.geoid_sep_m, geoid_sep_field=g.geoid_sep_field,
         fix_quality=g.fix_quality if g.fix_quality is not None else int(p.get("fix_quality", 1)),
         reacquisition_s=g.reacquisition_s if g.reacquisition_s is not None else float(p.get("reacquisition_s", 0.8)),
         num_sats=num_sats, hdop=hdop,

@@ -170,6 +170,8 @@ class RecordedGnssSpec(Model):
 #: NMEA sentences the modelled receiver can emit.
 NmeaSentenceName = Literal["GGA", "RMC", "VTG", "GSA", "GSV", "ZDA"]
 DEFAULT_NMEA_SENTENCES: tuple[NmeaSentenceName, ...] = ("GGA", "RMC")
+#: UBX messages the modelled receiver can emit (NAV-PVT, or the set of u-blox 5/6/7).
+UbxMessageName = Literal["NAV-PVT", "NAV-STATUS", "NAV-SOL", "NAV-POSLLH", "NAV-VELNED", "NAV-TIMEUTC", "NAV-TIMEGPS"]
 
 
 class GnssSpec(Model):
@@ -179,11 +181,13 @@ class GnssSpec(Model):
     latency_s: float | None = Field(None, ge=0, lt=1, description="epoch to first byte, s; default from the preset")
     sentences: list[NmeaSentenceName] = Field(
         default_factory=lambda: list(DEFAULT_NMEA_SENTENCES), description="NMEA sentences per epoch, in this order")
-    ubx: list[Literal["NAV-PVT", "NAV-STATUS"]] = Field(
-        default_factory=list, description="UBX messages per epoch, after the NMEA sentences")
+    ubx: list[UbxMessageName] = Field(
+        default_factory=list, description="UBX messages per epoch, after the NMEA sentences (NAV-PVT, or the set of "
+        "u-blox 5/6/7: NAV-SOL, NAV-POSLLH, NAV-VELNED, NAV-TIMEUTC, NAV-TIMEGPS, NAV-STATUS)")
     talker: Literal["GP", "GN", "GL", "GA", "GB", "BD"] = "GP"
     nmea_version: Literal["2.3", "4.10"] = "2.3"
-    geoid_sep_m: float = 0.0
+    geoid_sep_m: float | None = None
+    geoid_sep_field: Literal["reported", "empty"] = "reported"
     fix_quality: Literal[1, 2, 4, 5] | None = None
     reacquisition_s: float | None = Field(None, ge=0, lt=1.0, description="paper: < 1 s")
     num_sats: int = Field(12, ge=4, le=99)

@@ -251,39 +251,83 @@ def _bit_spans(t: list[float], flags: list[float], bit: int, want: bool) -> list
     return spans
 
 
+#: how many sigma ellipses the trajectory map draws along the estimate
+MAP_ELLIPSES = 12
+#: the ellipses' scale: 3 sigma of the filter's own East/North position sigma
+MAP_ELLIPSE_SIGMAS = 3.0
+
+
 def _trajectory_figure(nav: dict[str, list[float]], truth: dict[str, list[float]],
                        events: list[dict[str, Any]]) -> list[tuple[str, str]]:
-    """Truth and estimate on a local East/North map; GNSS outages (not GNSS-aided) and fault windows marked."""
-    t, lat, lon = nav.get("time_s", []), nav.get("lat_deg", []), nav.get("lon_deg", [])
-    tl, tlat, tlon = truth.get("time_s", []), truth.get("lat_deg", []), truth.get("lon_deg", [])
-    if not tlat or not lat:
+    """Truth and estimate of the navigating frames (NAVIGATING bit set: not the frames sent before the coarse
+    alignment ends, which carry lat = lon = 0) on a local map, East/North metres of the ENU frame about the true
+    position at the first navigating frame (WGS-84, pymap3d). Periods without GNSS aiding (>= 2 s) and fault
+    windows are drawn over the estimate, and the filter's 3 sigma East/North position ellipse at
+    :data:`MAP_ELLIPSES` instants."""
+    import numpy as np
+    import pymap3d
+
+    t = np.asarray(nav.get("time_s", []), dtype=float)
+    lat, lon = np.asarray(nav.get("lat_deg", []), dtype=float), np.asarray(nav.get("lon_deg", []), dtype=float)
+    h = np.asarray(nav.get("height_m", [0.0] * len(t)), dtype=float)
+    modes = np.asarray(nav.get("mode", []), dtype=float)
+    tl = np.asarray(truth.get("time_s", []), dtype=float)
+    if not t.size or not tl.size or modes.size != t.size:
         return []
+    bits = np.where(np.isfinite(modes), modes, 0).astype(np.int64)
+    on = ((bits & 0x0002) != 0) & np.isfinite(lat) & np.isfinite(lon)
+    if not on.any():
+        return []
+    t, lat, lon, h, bits = t[on], lat[on], lon[on], h[on], bits[on]
+    t0, t1 = float(t[0]), float(t[-1])
+    tsel = (tl >= t0 - 1e-9) & (tl <= t1 + 1e-9)
+    if not tsel.any():
+        tsel = np.abs(tl - t0) == np.abs(tl - t0).min()
+    tlat = np.asarray(truth["lat_deg"], dtype=float)[tsel]
+    tlon = np.asarray(truth["lon_deg"], dtype=float)[tsel]
+    th = np.asarray(truth.get("height_m", [0.0] * tl.size), dtype=float)[tsel]
+    lat0, lon0, h0 = float(tlat[0]), float(tlon[0]), float(th[0])
+    te, tn, _ = pymap3d.geodetic2enu(tlat, tlon, th, lat0, lon0, h0)
+    ee, en, _ = pymap3d.geodetic2enu(lat, lon, h, lat0, lon0, h0)
+    te, tn, ee, en = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (te, tn, ee, en))
     plt = _plt()
-    lat0, lon0 = tlat[0], tlon[0]
-    te, tn = _en_m(tlat, tlon, lat0, lon0)
-    ee, en = _en_m(lat, lon, lat0, lon0)
-    fig, ax = plt.subplots(figsize=(7.5, 6.5))
-    ax.plot(te, tn, "k-", lw=1.4, label="truth")
-    ax.plot(ee, en, "-", color="tab:blue", lw=0.8, alpha=0.8, label="estimate")
-    ax.plot(te[:1], tn[:1], "go", label="start")
-    modes = nav.get("mode", [])
+    from matplotlib.patches import Ellipse
 
-    def mark(spans: list[tuple[float, float]], color: str, label: str) -> None:
-        for k, (a, b) in enumerate(spans):
-            idx = [i for i, x in enumerate(t) if a <= x <= b]
-            if idx:
-                ax.plot([ee[i] for i in idx], [en[i] for i in idx], ".", ms=2, color=color,
-                        label=label if k == 0 else None)
+    fig, ax = plt.subplots(figsize=(8.5, 7.0))
+    ax.plot(te, tn, "k-", lw=1.6, label="truth")
+    ax.plot(ee, en, "-", color="tab:blue", lw=0.9, alpha=0.85, label="estimate")
+    ax.plot(te[:1], tn[:1], "o", color="tab:green", ms=7, label=f"start of navigation (t = {t0:.1f} s)")
+    ax.plot(te[-1:], tn[-1:], "s", color="k", ms=6, label=f"end (t = {t1:.1f} s)")
 
-    mark([s for s in _bit_spans(t, modes, 0x0004, False) if s[1] - s[0] >= 2.0 and s[0] > (t[0] if t else 0)],
-         "tab:orange", "no GNSS aiding (>= 2 s)")
-    mark([(a, b) for a, b, _ in fault_spans(events)], "tab:red", "fault active")
+    def mark(spans: list[tuple[float, float]], label: str, **style: Any) -> None:
+        first = True
+        for a, b in spans:
+            sel = (t >= a) & (t <= b)
+            if sel.any():
+                ax.plot(ee[sel], en[sel], label=label if first else None, **style)
+                first = False
+
+    outages = [s for s in _bit_spans(t.tolist(), bits.astype(float).tolist(), 0x0004, False) if s[1] - s[0] >= 2.0]
+    mark(outages, "no GNSS aiding (>= 2 s)", color="tab:orange", lw=5.0, alpha=0.5, solid_capstyle="round")
+    mark([(a, b) for a, b, _ in fault_spans(events)], "fault active", color="tab:red", lw=1.6, ls=(0, (2, 2)))
+    se = np.asarray(nav.get("sig_pos_e_m", []), dtype=float)
+    sn = np.asarray(nav.get("sig_pos_n_m", []), dtype=float)
+    if se.size == on.size and sn.size == on.size:
+        se, sn = se[on], sn[on]
+        first = True
+        for k in np.unique(np.linspace(0, t.size - 1, MAP_ELLIPSES).astype(int)):
+            if np.isfinite(se[k]) and np.isfinite(sn[k]) and se[k] > 0 and sn[k] > 0:
+                ax.add_patch(Ellipse((ee[k], en[k]), 2 * MAP_ELLIPSE_SIGMAS * se[k], 2 * MAP_ELLIPSE_SIGMAS * sn[k],
+                                     fill=False, ec="tab:purple", lw=0.9, alpha=0.8,
+                                     label=f"filter {MAP_ELLIPSE_SIGMAS:g} sigma (E, N)" if first else None))
+                first = False
     ax.set_xlabel("East (m)")
     ax.set_ylabel("North (m)")
     ax.set_aspect("equal", adjustable="datalim")
+    ax.autoscale_view()
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7, loc="best")
-    ax.set_title(f"trajectory: truth vs estimate (origin {lat0:.5f} N, {lon0:.5f} E; {len(tl)} truth rows)")
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+    ax.set_title(f"navigating track, ENU metres about {lat0:.5f} N, {lon0:.5f} E ({t.size} frames)", fontsize=10)
     return [("Trajectory map", _png(fig))]
 
 

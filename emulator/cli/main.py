@@ -176,10 +176,17 @@ def print_summary(s: dict[str, Any]) -> None:
             ex.add_column(col)
         for r in s["expectations"]:
             na = r.get("applicable") is False
+            not_run = r.get("status") == "not_run"
             note = f" ({r['message']})" if r.get("message") and (na or not r["passed"]) else ""
             ex.add_row(str(r["index"]), escape_markup(r["description"] + note), escape_markup(_fmt(r["value"])),
-                       "[dim]n/a[/]" if na else "[green]pass[/]" if r["passed"] else "[bold red]FAIL[/]")
+                       "[yellow]not run[/]" if not_run else "[dim]n/a[/]" if na else
+                       "[green]pass[/]" if r["passed"] else "[bold red]FAIL[/]")
         c.print(ex)
+        skipped = [r for r in s["expectations"] if r.get("status") == "not_run"]
+        if skipped:
+            c.print(f"[yellow]{len(skipped)} python hook expectation(s) not run[/] (neither passed nor failed; "
+                    "psns-hil run --allow-hooks runs them): "
+                    + ", ".join(f"#{r['index']}" for r in skipped))
     if s.get("valid") is False:
         for f in s.get("faults", []):
             if f.get("fired") is False:

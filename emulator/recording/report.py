@@ -745,7 +745,7 @@ def expectation_status(e: dict[str, Any]) -> str:
     """The result column of an expectation (summary.json's ``expectations[i]``): ``pass`` / ``FAIL``, ``not run``
     (a Python hook without ``--allow-hooks``: neither passed nor failed) or ``not applied`` (a campaign-level
     check in one run, a sensor check in a replay)."""
-    if e.get("status") == "not_run":
+    if e.get("status") == "not_run" or (e.get("kind") == "python" and e.get("applicable") is False):
         return "not run"
     if e.get("applicable") is False:
         return "not applied"

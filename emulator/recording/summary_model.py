@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
@@ -115,8 +115,11 @@ class ExpectationRecord(_Open):
     value: float | int | str | None = None
     passed: bool
     message: str = ""
-    applicable: bool = Field(True, description="false when the expectation cannot apply (a replay); it then "
-                                               "does not fail")
+    applicable: bool = Field(True, description="false when the expectation cannot apply (a replay) or was not "
+                                               "run (a Python hook without --allow-hooks); it then does not fail")
+    status: Literal["pass", "fail", "not_applicable", "not_run"] | None = Field(
+        None, description="pass, fail, not_applicable (a campaign-level check in one run, a sensor check in a "
+                          "replay) or not_run (a Python hook without --allow-hooks: neither passed nor failed)")
 
 
 class ReplayInfo(_Open):

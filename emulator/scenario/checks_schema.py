@@ -38,7 +38,9 @@ from .expectations_schema import (
     HookError,
     LinkCounterBound,
     NavErrorBound,
+    NavGapExpectation,
     NavModeExpectation,
+    NavRateExpectation,
     PsnsErrorBound,
     PythonHook,
     SummaryValueBound,
@@ -78,7 +80,7 @@ __all__ = [
     "FpgaChannelStallFault", "GnssDegradedFault", "GnssGlitchFault", "GnssOutageFault", "HookError",
     "ImuBiasStepFault", "ImuDroppedDatagramsFault", "ImuSaturationFault", "ImuStuckAxisFault",
     "LinkBaudMismatchFault", "LinkBitErrorsFault", "LinkByteDropsFault", "LinkCounterBound", "LinkDisconnectFault",
-    "LinkNoiseBurstFault", "LinkStallFault", "NavErrorBound", "NavModeExpectation", "PsnsCloudCoverFault",
+    "LinkNoiseBurstFault", "LinkStallFault", "NavErrorBound", "NavGapExpectation", "NavModeExpectation", "NavRateExpectation", "PsnsCloudCoverFault",
     "PsnsErrorBound", "PsnsInstallationErrorFault", "PsnsSunOccludedFault", "PsnsUnitBlockedFault", "PythonHook",
     "SummaryValueBound", "TimeWindow", "check_hook_path", "load_hook",
 ]

@@ -408,6 +408,7 @@ class Emulator:
             s["faults"] = fault_records
             s["valid"] = self.faults.valid if self.faults is not None else True
             rec.flush()
+            s["warnings"] = self._warnings(s)
             results = evaluate_expectations(self.scn.expectations, rec, s, run_dir=self.run_dir,
                                             base_dir=self.scn.base_dir)
             s["expectations"] = [r.as_dict() for r in results]
@@ -416,6 +417,17 @@ class Emulator:
         finally:
             rec.close()
         return s
+
+    def _warnings(self, s: dict[str, Any]) -> list[dict[str, Any]]:
+        """The fallbacks of this run: the scenario's (:func:`.fallbacks.scenario_warnings`) and the ones its
+        events show it took (:func:`.fallbacks.run_fallbacks`)."""
+        from .fallbacks import run_fallbacks, scenario_warnings
+
+        rec = self.recorder
+        assert rec is not None
+        it = getattr(rec, "iter_events", None)
+        events = it() if it is not None else rec.events
+        return [f.as_dict() for f in (*scenario_warnings(self.scn), *run_fallbacks(self.scn, events, s.get("psns")))]
 
     def _summary(self, sim_t: float, wall: float, interrupted: bool) -> dict[str, Any]:
         rec = self.recorder

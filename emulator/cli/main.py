@@ -187,6 +187,9 @@ def print_summary(s: dict[str, Any]) -> None:
             c.print(f"[yellow]{len(skipped)} python hook expectation(s) not run[/] (neither passed nor failed; "
                     "psns-hil run --allow-hooks runs them): "
                     + ", ".join(f"#{r['index']}" for r in skipped))
+    taken = [w for w in s.get("warnings") or [] if w.get("source") == "run"]
+    for w in taken:
+        c.print(f"[yellow]fallback taken:[/] {escape_markup(w['message'])}", soft_wrap=True)
     if s.get("valid") is False:
         for f in s.get("faults", []):
             if f.get("fired") is False:
@@ -202,7 +205,18 @@ def _cmd_validate(args: argparse.Namespace) -> int:
         print(scn.model_dump_json(indent=2, exclude_none=True))
     else:
         _console().print(f"{args.scenario}: ok ({scn.name}, {scn.duration_s:g} s, mode {scn.mode})")
+    _print_scenario_warnings(scn)
     return EXIT_OK
+
+
+def _print_scenario_warnings(scn: Any) -> None:
+    """The scenario's fallbacks (emulator/assembly/fallbacks.py), one ``warning: file:line:col: path: message``
+    line each, on stderr (the exit code stays 0: a warning is not an error)."""
+    from ..assembly.fallbacks import scenario_warnings
+
+    err = _console(stderr=True)
+    for w in scenario_warnings(scn):
+        err.print(f"[yellow]warning:[/] {escape_markup(str(w))}", soft_wrap=True)
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -228,6 +242,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         mode = "realtime"
     run_dir = Path(args.out) if args.out else default_run_dir(scn.name)
     console = _console(stderr=args.json)  # --json: stdout carries the one JSON document, nothing else
+    _print_scenario_warnings(scn)
     speed = args.speed if args.speed is not None else scn.speed
     console.print(f"psns-hil {__version__}: running {args.scenario} ({scn.duration_s:g} s, {mode}"
                   + (f" x{speed:g}" if mode == "realtime" else "") + f") -> {run_dir}")

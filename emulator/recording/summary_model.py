@@ -122,6 +122,18 @@ class ExpectationRecord(_Open):
                           "replay) or not_run (a Python hook without --allow-hooks: neither passed nor failed)")
 
 
+class WarningRecord(_Open):
+    kind: str = Field(description="heading_source_without_sensor, alignment_heading_not_given, "
+                                  "sun_below_psns_minimum (before the run); alignment_heading_fallback, "
+                                  "alignment_heading_default, psns_sun_low (taken by the run)")
+    source: str = Field(description="scenario: seen in the file before the run; run: taken by the run")
+    message: str
+    path: str = Field("", description="the scenario field it concerns (dotted)")
+    line: int | None = Field(None, description="line of that field in the scenario file")
+    column: int | None = None
+    t_s: float | None = Field(None, description="when, scenario seconds")
+
+
 class ReplayInfo(_Open):
     source: str | None = Field(None, description="the capture replayed")
     records: int = Field(0, description="captured DSP UART records replayed")
@@ -175,6 +187,9 @@ class RunSummary(_Open):
     faults: list[FaultRecord] = Field(default_factory=list)
     valid: bool = Field(True, description="false when a scheduled fault never took effect")
     expectations: list[ExpectationRecord] = Field(default_factory=list)
+    warnings: list[WarningRecord] = Field(default_factory=list, description="every fallback of the run: what the "
+                                          "scenario leaves to a default (validate warns too) and what the run took "
+                                          "(emulator/assembly/fallbacks.py)")
     passed: bool = False
     non_finite: list[str] = Field(default_factory=list, description="paths of values that were NaN or infinite, "
                                                                     "written as null")

@@ -80,7 +80,8 @@ __all__ = [
     "FpgaChannelStallFault", "GnssDegradedFault", "GnssGlitchFault", "GnssOutageFault", "HookError",
     "ImuBiasStepFault", "ImuDroppedDatagramsFault", "ImuSaturationFault", "ImuStuckAxisFault",
     "LinkBaudMismatchFault", "LinkBitErrorsFault", "LinkByteDropsFault", "LinkCounterBound", "LinkDisconnectFault",
-    "LinkNoiseBurstFault", "LinkStallFault", "NavErrorBound", "NavGapExpectation", "NavModeExpectation", "NavRateExpectation", "PsnsCloudCoverFault",
+    "LinkNoiseBurstFault", "LinkStallFault", "NavErrorBound", "NavGapExpectation", "NavModeExpectation",
+    "NavRateExpectation", "PsnsCloudCoverFault",
     "PsnsErrorBound", "PsnsInstallationErrorFault", "PsnsSunOccludedFault", "PsnsUnitBlockedFault", "PythonHook",
     "SummaryValueBound", "TimeWindow", "check_hook_path", "load_hook",
 ]

@@ -9,6 +9,7 @@ exception's message; it never stops the evaluation of the other checks.
 from __future__ import annotations
 
 import copy
+import itertools
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -128,7 +129,7 @@ def largest_gap(times: list[float], after_s: float, until_s: float | None) -> tu
     inside = [t for t in times if after_s <= t <= end]
     edges = [after_s, *inside, end]
     best, at = 0.0, after_s
-    for a, b in zip(edges, edges[1:]):
+    for a, b in itertools.pairwise(edges):
         if b - a > best:
             best, at = b - a, a
     return best, at

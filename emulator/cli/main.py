@@ -16,6 +16,7 @@ clear message per problem, no traceback.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 from collections.abc import Sequence
@@ -65,11 +66,13 @@ def strict_json(obj: Any) -> str:
 
 
 def _fmt(v: Any, digits: int = 3) -> str:
-    if v is None:
-        return "-"
-    if isinstance(v, float):
+    """A value on the console: the report's format (emulator/recording/formatting.py ``readable_number``) for
+    numbers, ``digits`` decimals for a float given a precision (fault times)."""
+    from ..recording.formatting import readable_number
+
+    if isinstance(v, float) and digits != 3 and math.isfinite(v):
         return f"{v:.{digits}f}"
-    return str(v)
+    return readable_number(v)
 
 
 def print_port_map(ports: list[dict[str, Any]], out: Any = None) -> None:
@@ -111,14 +114,22 @@ def print_summary(s: dict[str, Any]) -> None:
         head.add_row("interrupted", "yes")
     c.print(head)
 
-    err = Table(title="navigation error against truth (while navigating)", title_justify="left")
-    phases = s.get("nav_error_by_phase") or {}
-    cols = ["quantity", "rms", "max"] + [f"{ph.replace('_', ' ')} rms" for ph in phases]
-    for col in cols:
+    c.print("navigation error against truth, over every frame with NAVIGATING set (fine alignment included; "
+            "docs/runtime.md 5)", soft_wrap=True)
+    err = Table()
+    for col in ("quantity", "rms", "max"):
         err.add_column(col, justify="right" if col != "quantity" else "left")
     for k, v in s["nav_error"].items():
-        err.add_row(k, _fmt(v["rms"]), _fmt(v["max"]), *(_fmt(phases[ph].get(k, {}).get("rms")) for ph in phases))
+        err.add_row(k, _fmt(v["rms"]), _fmt(v["max"]))
     c.print(err)
+    phases = s.get("nav_error_by_phase") or {}
+    fine, nav = (phases.get(ph, {}).get("position_m", {}).get("rms") for ph in ("fine_alignment", "navigating"))
+    if fine is not None or nav is not None:
+        def part(v: Any) -> str:
+            return "no frame" if v is None else f"{_fmt(v)} m"
+
+        c.print(f"  the position rms split by phase: {part(fine)} during fine alignment (ALIGNING set too: the "
+                f"filter still settling), {part(nav)} after it (summary.json nav_error_by_phase)", soft_wrap=True)
 
     links = Table(title="links", title_justify="left")
     for col in ("link", "bytes", "frames", "crc_errors", "dropped"):

@@ -252,6 +252,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
             raise EmulatorError("--split runs the DSP in another process on the wall clock: it cannot be --fast")
         mode = "realtime"
     run_dir = Path(args.out) if args.out else default_run_dir(scn.name)
+    from ..recording.rundir import preflight_run_dir
+
+    preflight_run_dir(run_dir, force=bool(getattr(args, "force", False)))  # refused --out: no "running ..." first
     console = _console(stderr=args.json)  # --json: stdout carries the one JSON document, nothing else
     _print_scenario_warnings(scn)
     speed = args.speed if args.speed is not None else scn.speed
@@ -318,6 +321,10 @@ def _cmd_report(args: argparse.Namespace) -> int:
     from ..recording.summary_model import load_summary
 
     run_dir = Path(args.run_dir)
+    if not run_dir.exists():
+        from ..errors import RecordingError
+
+        raise RecordingError(f"{run_dir}: no such run directory")
     load_summary(run_dir)  # a run directory with a valid summary, or exit 2 saying what is wrong
     out = write_report(run_dir)
     _console().print(f"report: {out}")
@@ -475,6 +482,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error("--speed must be > 0")
     try:
         return int(args.func(args))
+    except BrokenPipeError:
+        # the reader went away (``psns-hil validate --json | head``): what it wanted it has; no traceback. Point
+        # stdout at /dev/null so that the interpreter's final flush does not raise again.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return EXIT_OK
     except PsnsHilError as exc:
         _print_error(exc)
         return EXIT_USAGE

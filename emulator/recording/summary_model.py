@@ -203,7 +203,9 @@ def load_summary(path: str | Path) -> RunSummary:
     try:
         data = json.loads(p.read_text(encoding="utf-8"))
     except FileNotFoundError:
-        raise RecordingError(f"{p.parent}: not a run directory (no summary.json)") from None
+        given = Path(path)
+        what = "not a run directory (no summary.json)" if given.is_dir() else "no such run directory or summary.json"
+        raise RecordingError(f"{given}: {what}") from None
     except (OSError, ValueError) as exc:
         raise RecordingError(f"{p}: cannot read the run summary: {exc}") from None
     try:

@@ -386,10 +386,11 @@ def _error_cdf_figure(nav: dict[str, list[float]]) -> list[tuple[str, str]]:
     for ax, (label, v) in zip(axes[0], data):
         n = len(v)
         ax.step(v, [(i + 1) / n for i in range(n)], where="post", lw=1.0)
-        for q in (0.5, 0.95):
+        for q, ls in ((0.5, ":"), (0.95, "--")):
             x = v[min(n - 1, int(q * n))]
-            ax.axvline(x, color="grey", ls=":", lw=0.8)
-            ax.text(x, q, f" {int(q * 100)} %: {_fmt(x)}", fontsize=7, va="bottom")
+            # the quantile in the legend, not as text beside the line: a label at the axis' right edge is clipped
+            ax.axvline(x, color="grey", ls=ls, lw=0.8, label=f"{int(q * 100)} %: {_fmt(x)}")
+        ax.legend(loc="lower right", fontsize=7)
         ax.set_xlabel(f"|error| {label}")
         ax.set_ylim(0, 1.02)
         ax.grid(True, alpha=0.3)
@@ -654,10 +655,13 @@ def _timeline_figures(path: Path) -> list[tuple[str, str]]:
         ax.set_ylabel("% of 1 s")
         ax.set_title("DSP CPU load and deadline misses")
         ax.grid(True, alpha=0.3)
-        if "deadline_misses" in cols and any(v for v in cols["deadline_misses"] if not math.isnan(v)):
+        if "deadline_misses" in cols:  # drawn also when it stays 0: a flat trace says none, no trace says nothing
+            misses = cols["deadline_misses"]
+            total = max([v for v in misses if not math.isnan(v)] + [0.0])
             ax2 = ax.twinx()
-            ax2.plot(t, cols["deadline_misses"], "r-", lw=0.8, label="deadline misses (cumulative)")
+            ax2.plot(t, misses, "r-", lw=1.0, label=f"deadline misses (cumulative): {_fmt(int(total))}")
             ax2.set_ylabel("deadline misses")
+            ax2.set_ylim(-0.05 * max(total, 1.0), 1.1 * max(total, 1.0))
             ax2.legend(loc="upper left", fontsize=7)
         ax.legend(loc="upper right", fontsize=7)
         out.append(("DSP load over time", _png(fig)))

@@ -213,7 +213,12 @@ class Emulator:
         rec.start({"scenario": scn.name, "seed": self.seed, "epoch": scn.epoch.isoformat(),
                    "mode": self.mode, "link_baud": {k: v.line.baud for k, v in self.links.items()},
                    "psns_hil_version": VERSION, "replay": self.replay is not None,
-                   "scenario_spec": scn.model_dump(mode="json")})
+                   # the fields the file set, not every default: a re-validated full dump would take each
+                   # sensor's default preset for one the file chose (a suite preset is chosen where a sensor
+                   # names none), and the run would not be the one replayed (issue 38)
+                   "scenario_spec": scn.model_dump(mode="json", exclude_unset=True),
+                   # where the scenario's relative files are (a spec sheet, recorded data): a replay reads them there
+                   "scenario_base_dir": str(Path(scn.base_dir).resolve()) if scn.base_dir is not None else None})
         if self.mode == "realtime":
             # everything built so far (modules, scenario, models) lives for the whole run: move it out of
             # the collector's generations, so a full collection no longer walks it (tens of ms, a late frame)

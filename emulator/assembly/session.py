@@ -47,7 +47,7 @@ from ..recording.rundir import claim_run_dir
 from ..scenario.schema import Scenario
 from ..verification.expectations import evaluate_expectations
 from ..world.build import build_trajectory
-from .build import build_dsp, build_uarts, fpga_config, port_map
+from .build import build_dsp, build_uarts, effective_routing, fpga_config, port_map
 from .ports import (
     PORT_BAUD,
     UART_NUM,
@@ -190,9 +190,11 @@ class Emulator:
         if scn.faults and self.replay is None:  # bound now: a fault on a missing device fails before the run
             self.faults = FaultScheduler(self.fault_targets(), scn.faults, self.seed, rec)
         # recorder taps
+        nmea_route = effective_routing(scn).get("host_nmea")  # None: NMEA (if any) on the host port with NAV
         for name, link in self.links.items():
+            nmea_here = (name == "host" and nmea_route is None) or (name == "uart0" and nmea_route in (None, "uart0"))
             fm: dict[str, Sequence[Any]] = dict(port_formats(name, nmea_out=bool(scn.firmware.nmea.sentences)
-                                                                       and scn.links.host_nmea is None))
+                                                             and nmea_here))
             if name == "gyro":
                 fm = {"in": [gyro_port_format(scn.sensors.imu.device, scn.sensors.imu.format,
                                               int(scn.sensors.imu.stim300_datagram, 16))]}

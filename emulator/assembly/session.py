@@ -193,8 +193,8 @@ class Emulator:
         nmea_route = effective_routing(scn).get("host_nmea")  # None: NMEA (if any) on the host port with NAV
         for name, link in self.links.items():
             nmea_here = (name == "host" and nmea_route is None) or (name == "uart0" and nmea_route in (None, "uart0"))
-            fm: dict[str, Sequence[Any]] = dict(port_formats(name, nmea_out=bool(scn.firmware.nmea.sentences)
-                                                             and nmea_here))
+            nmea_on = bool(scn.firmware.nmea.sentences) or bool(scn.firmware.text_rate_hz)
+            fm: dict[str, Sequence[Any]] = dict(port_formats(name, nmea_out=nmea_on and nmea_here))
             if name == "gyro":
                 fm = {"in": [gyro_port_format(scn.sensors.imu.device, scn.sensors.imu.format,
                                               int(scn.sensors.imu.stim300_datagram, 16))]}

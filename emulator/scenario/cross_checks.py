@@ -154,9 +154,17 @@ def _nmea_rates(scn: Scenario) -> list[tuple[tuple[Any, ...], str]]:
     sentences to carry (its UART: its own route in fpga.routing, or UART0 shared with the host port)."""
     issues: list[tuple[tuple[Any, ...], str]] = []
     # without a route of its own links.host_nmea shares UART0 with the host port: the FPGA demultiplexes it
-    if scn.links.host_nmea is not None and not scn.firmware.nmea.sentences:
+    if scn.links.host_nmea is not None and not scn.firmware.nmea.sentences and not scn.firmware.text_rate_hz:
         issues.append((("links", "host_nmea"), "links.host_nmea carries the firmware's NMEA output, but "
-                                               "firmware.nmea.sentences is empty: nothing would be sent"))
+                                               "firmware.nmea.sentences is empty and firmware.text_rate_hz 0: "
+                                               "nothing would be sent"))
+    text = scn.firmware.text_rate_hz
+    if text:
+        r = scn.firmware.output_rate_hz / text
+        if r < 1 or abs(r - round(r)) > 1e-9:
+            issues.append((("firmware", "text_rate_hz"), f"must divide output_rate_hz "
+                                                         f"({scn.firmware.output_rate_hz:g} Hz): the text is written "
+                                                         "with a NAV_SOLUTION frame"))
     imu = scn.sensors.imu.rate_hz
     for name in ("rate_hz", "attitude_rate_hz"):
         r = imu / getattr(scn.firmware.nmea, name)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import datetime as dt
 import itertools
 import math
+import os
 
 import pynmea2
 import pytest
@@ -225,3 +226,79 @@ def test_host_demux_splits_interleaved_frames_in_any_chunking():
     bad = bytearray(want["host_nmea"][0])
     bad[10] ^= 0x01
     assert HostDemux().feed(bytes(bad) + want["host"][0]) == [("host", want["host"][0])]
+
+
+def test_psns_text_output_switched_on_from_the_scenario(tmp_path):
+    """``firmware.text_rate_hz: 10`` with ``links.host_nmea``: the $PSNS text (docs/icd.md 7) of every tenth
+    NAV_SOLUTION goes out on the NMEA port, text only, and says what the binary frame says to its printed digits."""
+    from emulator.assembly.runner import run_scenario
+    from emulator.recording.capture import read_capture
+    from emulator.testing import load_test_scenario
+    from protocols.host import HostFormat, NavSolution
+    from protocols.host_text import HostTextFormat, NavText
+
+    scn = load_test_scenario(QS, {"duration_s": 4.0, "motion": [{"static": {"duration_s": 4.0}}], "expectations": [],
+                                  "links.host_nmea": {"url": "mem://nmea", "baud": 115200},
+                                  "firmware.text_rate_hz": 10.0})
+    s = run_scenario(scn, tmp_path)
+    assert s["links"]["host_nmea"]["garbage_bytes"] == 0 and s["links"]["host"]["garbage_bytes"] == 0
+    _h, recs = read_capture(tmp_path / "capture.psnscap")
+    text = b"".join(r.data for r in recs if r.link == "host_nmea" and r.direction == "out")
+    assert text.startswith(b"$PSNSPOS,") and all(32 <= c < 127 or c in (13, 10) for c in text)  # printable text
+    dec = StreamDecoder([HostTextFormat()])
+    sentences = [f for f in dec.feed(text) if isinstance(f, NavText)]
+    # POS VEL ATT STA at 10 Hz for 4 s; the last group may still be on the line when the run ends
+    assert dec.stats.crc_errors == 0 and len(sentences) % 4 == 0 and 4 * 39 <= len(sentences) <= 4 * 40
+    navs = {round(f.time_s, 3): f for f in StreamDecoder([HostFormat()]).feed(
+        b"".join(r.data for r in recs if r.link == "host" and r.direction == "out")) if isinstance(f, NavSolution)}
+    for t in (x for x in sentences if x.kind == "POS"):
+        n = navs[round(t.time_s, 3)]
+        lat, lon, h, mode = t.values[:4]
+        assert abs(lat - n.lat_deg) <= 5e-8 and abs(lon - n.lon_deg) <= 5e-8 and abs(h - n.height_m) <= 0.005
+        assert mode == n.mode
+
+
+def test_text_rate_must_divide_the_output_rate():
+    from emulator.errors import ScenarioError
+    from emulator.testing import load_test_scenario
+
+    with pytest.raises(ScenarioError, match=r"firmware\.text_rate_hz: must divide output_rate_hz"):
+        load_test_scenario(QS, {"firmware.text_rate_hz": 30.0})
+
+
+@pytest.mark.pty
+@pytest.mark.realtime
+@pytest.mark.psns_emulator(mode="realtime")
+async def test_psns_text_can_be_read_on_the_pty(tmp_path):
+    """What the README's terminal recipe shows: the quickstart (camera on) with ``links.host_nmea`` on a pty and
+    ``firmware.text_rate_hz: 10``; a terminal reader on ports/nmea gets printable $PSNS lines, checksums valid."""
+    import contextlib
+    import termios
+    import tty
+
+    from emulator.testing import start_emulator
+    from protocols.host_text import HostTextFormat, NavText
+
+    ov = {"duration_s": 8.0, "motion": [{"static": {"duration_s": 8.0}}], "expectations": [],
+          "links.host_nmea": {"url": "pty://nmea", "baud": 115200}, "firmware.text_rate_hz": 10.0}
+    got = bytearray()
+    async with start_emulator(QS, run_dir=tmp_path, overrides=ov) as emu:
+        fd = os.open(tmp_path / "ports" / "nmea", os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
+        try:
+            tty.setraw(fd, termios.TCSANOW)
+
+            def lines() -> int:
+                with contextlib.suppress(BlockingIOError):
+                    while chunk := os.read(fd, 4096):
+                        got.extend(chunk)
+                return got.count(b"\r\n")
+
+            await emu.wait_until(lambda: lines() >= 20, timeout=7.0, what="20 text lines on the pty")
+        finally:
+            os.close(fd)
+    text = bytes(got[got.index(b"$"):got.rindex(b"\r\n") + 2])  # from the first whole sentence on
+    assert all(32 <= c < 127 or c in (13, 10) for c in text), text[:200]
+    dec = StreamDecoder([HostTextFormat()])
+    kinds = [f.kind for f in dec.feed(text) if isinstance(f, NavText)]
+    assert dec.stats.crc_errors == 0 and dec.stats.garbage_bytes == 0
+    assert {"POS", "VEL", "ATT", "STA"} <= set(kinds) and len(kinds) >= 19

@@ -187,8 +187,11 @@ class Emulator:
         self.dsp = self.build_dsp(uart_dsp, rx_cfg, rec)
         if isinstance(self.dsp, VirtualDsp):  # the solar vectors it solves against truth (psns.csv)
             self.dsp.solar_listeners.append(rec.on_solar_solves)
-        if scn.faults and self.replay is None:  # bound now: a fault on a missing device fails before the run
-            self.faults = FaultScheduler(self.fault_targets(), scn.faults, self.seed, rec)
+        if scn.faults:  # bound now: a fault on a missing device fails before the run
+            # a replay applies again the faults that act after the captured DSP input (host link, DSP load), with
+            # the original's indices and random streams
+            self.faults = FaultScheduler(self.fault_targets(), scn.faults, self.seed, rec,
+                                         replay=self.replay is not None)
         # recorder taps
         nmea_route = effective_routing(scn).get("host_nmea")  # None: NMEA (if any) on the host port with NAV
         for name, link in self.links.items():

@@ -159,6 +159,13 @@ def print_summary(s: dict[str, Any]) -> None:
                 cyc.add_row(f"  {k}", "", "", f"{v / max(t['calls'], 1):.0f}", "", "")
         c.print(cyc)
         c.print(f"CPU load (worst 1 s): {d['cpu_load_pct_max']:.3f} %   deadline misses: {d['deadline_misses']}")
+        if s.get("split") and d.get("deadline_misses"):
+            over = d.get("over_budget_ticks")
+            c.print("  --split: the DSP process follows the wall clock, so a tick that started late because the "
+                    "host scheduled the process late counts as a miss too; "
+                    + (f"{over} of the {d['deadline_misses']} were ticks over the cycle budget by themselves "
+                       "(dsp.over_budget_ticks), the rest host scheduling jitter or its backlog"
+                       if over is not None else "dsp.over_budget_ticks is not known for this DSP"), soft_wrap=True)
     ps = s.get("psns")
     if ps and ps["solar_vector_error_deg"]["median"] is not None:
         e = ps["solar_vector_error_deg"]

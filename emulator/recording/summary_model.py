@@ -57,6 +57,9 @@ class DspSection(_Open):
     tick_budget_cycles: int | None = None
     deadline_misses: int | None = Field(0, description="ticks that ended late (null: not observed, the DSP is "
                                            "outside)")
+    over_budget_ticks: int | None = Field(None, description="ticks whose own modelled duration exceeded the IMU "
+                                          "period (cycles over the budget); unlike deadline_misses it does not "
+                                          "count a late start (in a --split run: host scheduling jitter)")
     cost_model: str | None = None
     tasks: list[DspTask] = Field(default_factory=list)
 

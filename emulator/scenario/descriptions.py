@@ -273,7 +273,8 @@ DESCRIPTIONS: dict[str, str] = {
     "LinkCounterBound.counter": "which counter of the summary's links table",
     "LinkCounterBound.min": "lowest allowed value",
     "LinkCounterBound.max": "highest allowed value",
-    "DspBound.field": "which DSP figure of the summary",
+    "DspBound.field": "which DSP figure of the summary (over_budget_ticks: ticks over the cycle budget by themselves, "
+                      "without the late starts a --split run counts as deadline misses)",
     "DspBound.min": "lowest allowed value",
     "DspBound.max": "highest allowed value",
     "SummaryValueBound.path": "dotted path of a number in summary.json (e.g. firmware.counters.psns_rejected)",

@@ -133,7 +133,8 @@ class LinkCounterBound(Model):
 class DspBound(Model):
     """A DSP figure of the summary between ``min`` and ``max``."""
 
-    field: Literal["cpu_load_pct_max", "deadline_misses", "tick_utilization_max_pct", "watchdog_trips", "resets"]
+    field: Literal["cpu_load_pct_max", "deadline_misses", "over_budget_ticks", "tick_utilization_max_pct",
+                   "watchdog_trips", "resets"]
     min: float | None = Field(None, ge=0)
     max: float | None = Field(None, ge=0)
 

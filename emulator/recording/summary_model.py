@@ -207,7 +207,7 @@ def load_summary(path: str | Path) -> RunSummary:
         data = json.loads(p.read_text(encoding="utf-8"))
     except FileNotFoundError:
         given = Path(path)
-        what = "not a run directory (no summary.json)" if given.is_dir() else "no such run directory or summary.json"
+        what = "not a run directory (no summary.json)" if given.is_dir() else "no such run directory (no summary.json)"
         raise RecordingError(f"{given}: {what}") from None
     except (OSError, ValueError) as exc:
         raise RecordingError(f"{p}: cannot read the run summary: {exc}") from None

@@ -57,6 +57,10 @@ class FirmwareConfig:
     nmea_talker: str = "GN"
     #: the UART the NMEA sentences leave on: the host UART (next to NAV_SOLUTION) or a second host port's
     nmea_uart: int = UART_HOST
+    #: the ``$PSNS`` text output (docs/icd.md 7: $PSNSPOS, VEL, ATT, STA of the tick's NAV_SOLUTION) for terminal
+    #: users, sentences groups per second on the NMEA UART (``nmea_uart``); 0: off. Divides the IMU rate; written
+    #: on ticks that also send a NAV_SOLUTION
+    text_rate_hz: float = 0.0
     align_time_s: float = 2.0
     alignment_heading: str = "auto"  # "auto", "psns" or "config"
     psns_align_timeout_s: float = 10.0
@@ -223,6 +227,10 @@ class FirmwareConfig:
             r = self.imu_rate_hz / getattr(self, name)
             if r < 1 or abs(r - round(r)) > 1e-9:
                 raise FirmwareError(f"{name} must divide imu_rate_hz ({self.imu_rate_hz:g} Hz)")
+        if self.text_rate_hz:
+            r = self.imu_rate_hz / self.text_rate_hz
+            if self.text_rate_hz < 0 or r < 1 or abs(r - round(r)) > 1e-9:
+                raise FirmwareError(f"text_rate_hz must divide imu_rate_hz ({self.imu_rate_hz:g} Hz)")
         if self.nmea_uart not in (UART_HOST, UART_PSNS, UART_GNSS):
             raise FirmwareError(f"nmea_uart must be a UART the firmware transmits on (0, 2 or 3), got {self.nmea_uart}")
         if len(self.nmea_talker) != 2 or not self.nmea_talker.isalpha() or not self.nmea_talker.isupper():

@@ -142,6 +142,7 @@ class Firmware(HostTask, GnssTask):
         att = any(n in ("HDT", "THS", "PASHR") for n in cfg.nmea_sentences)
         self._nmea_every = round(cfg.imu_rate_hz / cfg.nmea_rate_hz) if pos else 0
         self._nmea_att_every = round(cfg.imu_rate_hz / cfg.nmea_attitude_rate_hz) if att else 0
+        self._text_every = round(cfg.imu_rate_hz / cfg.text_rate_hz) if cfg.text_rate_hz else 0
         self._dec_imu = StreamDecoder([FpgaFrameFormat()])
         self._dec_gnss = StreamDecoder([NmeaFormat(NMEA_RX_MAX_LEN), UbxFormat()])
         self._dec_host = StreamDecoder([HostFormat()])
@@ -405,6 +406,11 @@ class Firmware(HostTask, GnssTask):
             m.charge("nav_output", self._cyc["nav_output"])
             m.end()
             res.outputs.append((UART_HOST, frame, m.elapsed))
+            if self._text_every and self._tick % self._text_every == 0:  # $PSNS text of the same solution
+                m.begin("text_output", self._text_every * self.T)
+                text = self._text_output(frame)
+                m.end()
+                res.outputs.append((cfg.nmea_uart, text, m.elapsed))
         if self._nmea_every or self._nmea_att_every:
             nmea_pos = bool(self._nmea_every) and self._tick % self._nmea_every == 0
             nmea_att = bool(self._nmea_att_every) and self._tick % self._nmea_att_every == 0

@@ -24,7 +24,25 @@ from .ports import (
     port_specs,
 )
 
-__all__ = ["build_dsp", "build_uarts", "fpga_config", "port_map"]
+__all__ = ["build_dsp", "build_uarts", "effective_routing", "fpga_config", "port_map"]
+
+
+def effective_routing(scn: Scenario) -> dict[str, str]:
+    """``fpga.routing`` as the FPGA applies it: ``links.host_nmea`` without a route of its own shares UART0 with
+    the host port (the FPGA demultiplexes the firmware's NMEA sentences from its binary frames; docs/runtime.md 3)."""
+    routing = {str(k): str(v) for k, v in scn.fpga.routing.items()}
+    if scn.links.host_nmea is not None and "host_nmea" not in routing:
+        routing["host_nmea"] = routing.get("host", "uart0")
+    return routing
+
+
+def _routed_from(scn: Scenario) -> dict[str, str]:
+    """DSP UART -> the port routed to it (the host port where host_nmea shares its UART)."""
+    out: dict[str, str] = {}
+    for p, u in effective_routing(scn).items():
+        if p != "host_nmea" or u not in out:
+            out[u] = p
+    return out
 
 
 def fpga_config(scn: Scenario) -> FpgaConfig:
@@ -33,7 +51,7 @@ def fpga_config(scn: Scenario) -> FpgaConfig:
                       gyro_format=scn.sensors.imu.format, gyro_device=scn.sensors.imu.device,
                       stim300_ident=int(scn.sensors.imu.stim300_datagram, 16),
                       gyro_counter_step=round(2000 / scn.sensors.imu.rate_hz),
-                      routing={str(k): str(v) for k, v in scn.fpga.routing.items()},
+                      routing=effective_routing(scn),
                       monitor_channels=tuple(scn.fpga.monitor_channels) if scn.fpga.monitor_channels else None,
                       mag_rate_hz=scn.fpga.mag_rate_hz)
 
@@ -49,7 +67,7 @@ def build_uarts(scn: Scenario, hub: MemHub, loop: Any
     dsp_ends: dict[str, Link] = {}
     uart_dsp: dict[int, Link] = {}
     rx_cfg: dict[int, UartRxConfig] = {}
-    routed_from: dict[str, str] = {u: p for p, u in scn.fpga.routing.items()}
+    routed_from = _routed_from(scn)
     for uname, uspec in scn.fpga.uarts.items():
         dspec = scn.dsp.uarts[uname]
         bits, parity, stop = parse_mode(uspec.mode)
@@ -109,7 +127,7 @@ def port_map(scn: Scenario, links: dict[str, Link], uart_fpga: dict[str, Link],
         ports.append(PortInfo(name=port, role=PORT_ROLES.get(port, port), url=shown.url,
                               baud=link.line.baud, mode=link.line.mode, path=shown.describe(),
                               direction=port_direction(port, specs.get(port))))
-    routed_from: dict[str, str] = {u: p for p, u in scn.fpga.routing.items()}
+    routed_from = _routed_from(scn)
     uarts = cast("dict[str, Any]", scn.fpga.uarts)
     for uname, f_end in uart_fpga.items():
         d_end = links[uname]

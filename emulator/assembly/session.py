@@ -49,7 +49,7 @@ from ..scenario.schema import Scenario
 from ..verification.expectations import evaluate_expectations
 from ..world.build import build_trajectory
 from ..world.envelope import envelope_scenario, pinned_keys
-from .build import build_dsp, build_uarts, fpga_config, port_map
+from .build import build_dsp, build_uarts, effective_routing, fpga_config, port_map
 from .ports import (
     PORT_BAUD,
     UART_NUM,
@@ -195,12 +195,17 @@ class Emulator:
         self.dsp = self.build_dsp(uart_dsp, rx_cfg, rec)
         if isinstance(self.dsp, VirtualDsp):  # the solar vectors it solves against truth (psns.csv)
             self.dsp.solar_listeners.append(rec.on_solar_solves)
-        if scn.faults and self.replay is None:  # bound now: a fault on a missing device fails before the run
-            self.faults = FaultScheduler(self.fault_targets(), scn.faults, self.seed, rec)
+        if scn.faults:  # bound now: a fault on a missing device fails before the run
+            # a replay applies again the faults that act after the captured DSP input (host link, DSP load), with
+            # the original's indices and random streams
+            self.faults = FaultScheduler(self.fault_targets(), scn.faults, self.seed, rec,
+                                         replay=self.replay is not None)
         # recorder taps
+        nmea_route = effective_routing(scn).get("host_nmea")  # None: NMEA (if any) on the host port with NAV
         for name, link in self.links.items():
-            fm: dict[str, Sequence[Any]] = dict(port_formats(name, nmea_out=bool(scn.firmware.nmea.sentences)
-                                                                       and scn.links.host_nmea is None))
+            nmea_here = (name == "host" and nmea_route is None) or (name == "uart0" and nmea_route in (None, "uart0"))
+            nmea_on = bool(scn.firmware.nmea.sentences) or bool(scn.firmware.text_rate_hz)
+            fm: dict[str, Sequence[Any]] = dict(port_formats(name, nmea_out=nmea_on and nmea_here))
             if name == "gyro":
                 fm = {"in": [gyro_port_format(scn.sensors.imu.device, scn.sensors.imu.format,
                                               int(scn.sensors.imu.stim300_datagram, 16))]}
@@ -221,7 +226,12 @@ class Emulator:
         rec.start({"scenario": scn.name, "seed": self.seed, "epoch": scn.epoch.isoformat(),
                    "mode": self.mode, "link_baud": {k: v.line.baud for k, v in self.links.items()},
                    "psns_hil_version": VERSION, "replay": self.replay is not None,
-                   "scenario_spec": scn.model_dump(mode="json")})
+                   # the fields the file set, not every default: a re-validated full dump would take each
+                   # sensor's default preset for one the file chose (a suite preset is chosen where a sensor
+                   # names none), and the run would not be the one replayed (issue 38)
+                   "scenario_spec": scn.model_dump(mode="json", exclude_unset=True),
+                   # where the scenario's relative files are (a spec sheet, recorded data): a replay reads them there
+                   "scenario_base_dir": str(Path(scn.base_dir).resolve()) if scn.base_dir is not None else None})
         if self.mode == "realtime":
             # everything built so far (modules, scenario, models) lives for the whole run: move it out of
             # the collector's generations, so a full collection no longer walks it (tens of ms, a late frame)
@@ -446,6 +456,7 @@ class Emulator:
             s["faults"] = fault_records
             s["valid"] = self.faults.valid if self.faults is not None else True
             rec.flush()
+            s["warnings"] = self._warnings(s)
             results = evaluate_expectations(self.scn.expectations, rec, s, run_dir=self.run_dir,
                                             base_dir=self.scn.base_dir)
             s["expectations"] = [r.as_dict() for r in results]
@@ -457,6 +468,17 @@ class Emulator:
         finally:
             rec.close()
         return s
+
+    def _warnings(self, s: dict[str, Any]) -> list[dict[str, Any]]:
+        """The fallbacks of this run: the scenario's (:func:`.fallbacks.scenario_warnings`) and the ones its
+        events show it took (:func:`.fallbacks.run_fallbacks`)."""
+        from .fallbacks import run_fallbacks, scenario_warnings
+
+        rec = self.recorder
+        assert rec is not None
+        it = getattr(rec, "iter_events", None)
+        events = it() if it is not None else rec.events
+        return [f.as_dict() for f in (*scenario_warnings(self.scn), *run_fallbacks(self.scn, events, s.get("psns")))]
 
     def _summary(self, sim_t: float, wall: float, interrupted: bool) -> dict[str, Any]:
         rec = self.recorder

@@ -58,6 +58,7 @@ def dsp_sections(dsp: VirtualDsp) -> dict[str, Any]:
             "tick_utilization_max_pct": 100.0 * dsp.max_tick_cycles / budget if budget else None,
             "tick_budget_cycles": budget,
             "deadline_misses": dsp.deadline_misses,
+            "over_budget_ticks": dsp.over_budget_ticks,
             "ticks": dsp.ticks,
             "cost_model": COST_MODEL_VERSION,
             "tasks": snap.cycles if snap.cycles is not None else [],

@@ -16,6 +16,7 @@ clear message per problem, no traceback.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 from collections.abc import Sequence
@@ -65,11 +66,13 @@ def strict_json(obj: Any) -> str:
 
 
 def _fmt(v: Any, digits: int = 3) -> str:
-    if v is None:
-        return "-"
-    if isinstance(v, float):
+    """A value on the console: the report's format (emulator/recording/formatting.py ``readable_number``) for
+    numbers, ``digits`` decimals for a float given a precision (fault times)."""
+    from ..recording.formatting import readable_number
+
+    if isinstance(v, float) and digits != 3 and math.isfinite(v):
         return f"{v:.{digits}f}"
-    return str(v)
+    return readable_number(v)
 
 
 def print_port_map(ports: list[dict[str, Any]], out: Any = None) -> None:
@@ -111,14 +114,22 @@ def print_summary(s: dict[str, Any]) -> None:
         head.add_row("interrupted", "yes")
     c.print(head)
 
-    err = Table(title="navigation error against truth (while navigating)", title_justify="left")
-    phases = s.get("nav_error_by_phase") or {}
-    cols = ["quantity", "rms", "max"] + [f"{ph.replace('_', ' ')} rms" for ph in phases]
-    for col in cols:
+    c.print("navigation error against truth, over every frame with NAVIGATING set (fine alignment included; "
+            "docs/runtime.md 5)", soft_wrap=True)
+    err = Table()
+    for col in ("quantity", "rms", "max"):
         err.add_column(col, justify="right" if col != "quantity" else "left")
     for k, v in s["nav_error"].items():
-        err.add_row(k, _fmt(v["rms"]), _fmt(v["max"]), *(_fmt(phases[ph].get(k, {}).get("rms")) for ph in phases))
+        err.add_row(k, _fmt(v["rms"]), _fmt(v["max"]))
     c.print(err)
+    phases = s.get("nav_error_by_phase") or {}
+    fine, nav = (phases.get(ph, {}).get("position_m", {}).get("rms") for ph in ("fine_alignment", "navigating"))
+    if fine is not None or nav is not None:
+        def part(v: Any) -> str:
+            return "no frame" if v is None else f"{_fmt(v)} m"
+
+        c.print(f"  the position rms split by phase: {part(fine)} during fine alignment (ALIGNING set too: the "
+                f"filter still settling), {part(nav)} after it (summary.json nav_error_by_phase)", soft_wrap=True)
 
     links = Table(title="links", title_justify="left")
     for col in ("link", "bytes", "frames", "crc_errors", "dropped"):
@@ -155,6 +166,13 @@ def print_summary(s: dict[str, Any]) -> None:
                 f"host frames {lock['host_frames']}, garbage bytes {lock['garbage_bytes']}, CRC errors "
                 f"{lock['crc_errors']}" + (f"; FAILED at {lock['failed_at_s']:.3f} s: {lock['failure']}"
                                            if lock["failed"] else "")))
+        if s.get("split") and d.get("deadline_misses"):
+            over = d.get("over_budget_ticks")
+            c.print("  --split: the DSP process follows the wall clock, so a tick that started late because the "
+                    "host scheduled the process late counts as a miss too; "
+                    + (f"{over} of the {d['deadline_misses']} were ticks over the cycle budget by themselves "
+                       "(dsp.over_budget_ticks), the rest host scheduling jitter or its backlog"
+                       if over is not None else "dsp.over_budget_ticks is not known for this DSP"), soft_wrap=True)
     ps = s.get("psns")
     if ps and ps["solar_vector_error_deg"]["median"] is not None:
         e = ps["solar_vector_error_deg"]
@@ -183,10 +201,20 @@ def print_summary(s: dict[str, Any]) -> None:
             ex.add_column(col)
         for r in s["expectations"]:
             na = r.get("applicable") is False
+            not_run = r.get("status") == "not_run"
             note = f" ({r['message']})" if r.get("message") and (na or not r["passed"]) else ""
             ex.add_row(str(r["index"]), escape_markup(r["description"] + note), escape_markup(_fmt(r["value"])),
-                       "[dim]n/a[/]" if na else "[green]pass[/]" if r["passed"] else "[bold red]FAIL[/]")
+                       "[yellow]not run[/]" if not_run else "[dim]n/a[/]" if na else
+                       "[green]pass[/]" if r["passed"] else "[bold red]FAIL[/]")
         c.print(ex)
+        skipped = [r for r in s["expectations"] if r.get("status") == "not_run"]
+        if skipped:
+            c.print(f"[yellow]{len(skipped)} python hook expectation(s) not run[/] (neither passed nor failed; "
+                    "psns-hil run --allow-hooks runs them): "
+                    + ", ".join(f"#{r['index']}" for r in skipped))
+    taken = [w for w in s.get("warnings") or [] if w.get("source") == "run"]
+    for w in taken:
+        c.print(f"[yellow]fallback taken:[/] {escape_markup(w['message'])}", soft_wrap=True)
     if s.get("valid") is False:
         for f in s.get("faults", []):
             if f.get("fired") is False:
@@ -202,6 +230,7 @@ def _cmd_validate(args: argparse.Namespace) -> int:
         print(scn.model_dump_json(indent=2, exclude_none=True))
     else:
         _console().print(f"{args.scenario}: ok ({scn.name}, {scn.duration_s:g} s, mode {scn.mode})")
+    _print_scenario_warnings(scn)
     return EXIT_OK
 
 
@@ -220,6 +249,16 @@ def _check_firmware_allowed(scn: Any, allow: bool) -> None:
                                  "running it loads native code or starts a process: pass --allow-firmware to run "
                                  "it (only for a firmware you trust)")
     os.environ[ALLOW_FIRMWARE_ENV] = "1"
+
+
+def _print_scenario_warnings(scn: Any) -> None:
+    """The scenario's fallbacks (emulator/assembly/fallbacks.py), one ``warning: file:line:col: path: message``
+    line each, on stderr (the exit code stays 0: a warning is not an error)."""
+    from ..assembly.fallbacks import scenario_warnings
+
+    err = _console(stderr=True)
+    for w in scenario_warnings(scn):
+        err.print(f"[yellow]warning:[/] {escape_markup(str(w))}", soft_wrap=True)
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -245,7 +284,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
             raise EmulatorError("--split runs the DSP in another process on the wall clock: it cannot be --fast")
         mode = "realtime"
     run_dir = Path(args.out) if args.out else default_run_dir(scn.name)
+    from ..recording.rundir import preflight_run_dir
+
+    preflight_run_dir(run_dir, force=bool(getattr(args, "force", False)))  # refused --out: no "running ..." first
     console = _console(stderr=args.json)  # --json: stdout carries the one JSON document, nothing else
+    _print_scenario_warnings(scn)
     speed = args.speed if args.speed is not None else scn.speed
     console.print(f"psns-hil {__version__}: running {args.scenario} ({scn.duration_s:g} s, {mode}"
                   + (f" x{speed:g}" if mode == "realtime" else "") + f") -> {run_dir}")
@@ -316,6 +359,10 @@ def _cmd_report(args: argparse.Namespace) -> int:
     from ..recording.summary_model import load_summary
 
     run_dir = Path(args.run_dir)
+    if not run_dir.exists():
+        from ..errors import RecordingError
+
+        raise RecordingError(f"{run_dir}: no such run directory")
     load_summary(run_dir)  # a run directory with a valid summary, or exit 2 saying what is wrong
     out = write_report(run_dir)
     _console().print(f"report: {out}")
@@ -480,6 +527,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error("--speed must be > 0")
     try:
         return int(args.func(args))
+    except BrokenPipeError:
+        # the reader went away (``psns-hil validate --json | head``): what it wanted it has; no traceback. Point
+        # stdout at /dev/null so that the interpreter's final flush does not raise again.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return EXIT_OK
     except PsnsHilError as exc:
         _print_error(exc)
         return EXIT_USAGE

@@ -22,6 +22,13 @@
   direction 0 = towards the DSP / 1 = away from it, FPGA time stamp in us, the bytes),
   COBS-framed by :func:`protocols.monitor.encode_monitor` (docs/icd.md). A monitor line slower
   than the traffic overflows and counts, like any other.
+* Two host ports on one UART (``fpga.routing`` ``host: uart0`` and ``host_nmea: uart0``, the default when
+  ``links.host_nmea`` is given without a route): the firmware writes its binary frames and its NMEA sentences on
+  UART0, and the FPGA demultiplexes them, frame by frame, store and forward (:class:`HostDemux`): binary host
+  frames (NAV_SOLUTION, STATUS, ACK) to ``host``, NMEA sentences to ``host_nmea``. The full box (camera on UART2,
+  GNSS on UART3) has no free UART for a second one, and gpsd reads only NMEA. Bytes that are neither (a corrupted
+  frame) are dropped and counted (``host_demux_garbage``). ``host_nmea`` is output only; the host's commands go
+  to UART0 as before.
 """
 
 from __future__ import annotations
@@ -31,8 +38,10 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from protocols.host import HostFormat
 from protocols.imu_frame import ADC_CODE_MAX, FpgaStatus, MagFrame, build_imu_frame, encode_mag_frame
 from protocols.monitor import MONITOR_CHANNELS, MONITOR_MAX_DATA, MonitorRecord, encode_monitor
+from protocols.nmea import NmeaFormat
 from protocols.stim import gyro_port_format
 from protocols.stream import StreamDecoder
 
@@ -40,7 +49,7 @@ from ..links.base import Link
 from .base import EventSink, NullEvents
 from .imu import AnalogAccelerometers, Stim210Gyro
 
-__all__ = ["DEFAULT_ROUTING", "MONITOR_DIRECTIONS", "FpgaConfig", "VirtualFpga"]
+__all__ = ["DEFAULT_ROUTING", "MONITOR_DIRECTIONS", "FpgaConfig", "HostDemux", "VirtualFpga"]
 
 # the IMU frame's status bits as plain ints: the per-frame flag arithmetic stays in int (an ``int | IntFlag`` builds
 # an enum member through the enum machinery, ~1 us per frame); the frame carries ``int(flags)`` either way
@@ -87,6 +96,40 @@ class _MonitorTap:
     def on_link_bytes(self, link: Link, direction: str, t: float, data: bytes) -> None:
         self.fpga._mirror(self.channel, self.dirs[direction], t, data)
 
+class _Tagged:
+    """A frame format whose parse gives ``(port, raw frame bytes)``: the demultiplexer forwards the bytes as they
+    came, checked by the format's own CRC / checksum."""
+
+    def __init__(self, fmt: Any, port: str) -> None:
+        self.fmt, self.port = fmt, port
+        self.name, self.sync = f"{port}:{fmt.name}", fmt.sync
+
+    def frame_length(self, buf: bytes | bytearray, start: int) -> int:
+        return int(self.fmt.frame_length(buf, start))
+
+    def check(self, frame: bytes) -> bool:
+        return bool(self.fmt.check(frame))
+
+    def parse(self, frame: bytes) -> tuple[str, bytes]:
+        return self.port, frame
+
+
+class HostDemux:
+    """UART0's TX stream split into the two host ports (module docstring): ``feed(bytes)`` -> ``[(port, frame)]``
+    with ``port`` ``"host"`` (binary host frames, protocols/host.py) or ``"host_nmea"`` (NMEA 0183 sentences)."""
+
+    def __init__(self) -> None:
+        self.decoder = StreamDecoder([_Tagged(HostFormat(), "host"), _Tagged(NmeaFormat(), "host_nmea")],
+                                     fast_paths=False)
+
+    def feed(self, data: bytes) -> list[tuple[str, bytes]]:
+        return list(self.decoder.feed(data))
+
+    @property
+    def garbage_bytes(self) -> int:
+        return int(self.decoder.stats.garbage_bytes)
+
+
 class VirtualFpga:
     """See module docstring.
 
@@ -131,10 +174,20 @@ class VirtualFpga:
         if "gyro" in ports:
             self._gyro_dec = StreamDecoder([gyro_port_format(cfg.gyro_device, cfg.gyro_format, cfg.stim300_ident)])
             ports["gyro"].on_receive = self._on_gyro_bytes
+        #: the demultiplexer of UART0's output when host and host_nmea share it, else None
+        self.host_demux: HostDemux | None = None
+        shared = (cfg.routing.get("host_nmea") is not None and cfg.routing.get("host_nmea") == cfg.routing.get("host")
+                  and "host" in ports and "host_nmea" in ports)
         for port, uart in cfg.routing.items():
+            if shared and port == "host_nmea":
+                continue
             if port in ports and uart in uarts:
                 self._route(ports[port], uarts[uart], port)
                 self.routes[port] = uart
+        if shared:
+            uart = cfg.routing["host"]
+            self._route_demux(ports["host"], ports["host_nmea"], uarts[uart])
+            self.routes["host_nmea"] = uart
         self.mag = mag
         self.mag_frames = 0
         self._mag_seq = 0
@@ -295,6 +348,23 @@ class VirtualFpga:
             port.forward(data, uart)
 
         port.on_receive = to_dsp
+        uart.on_receive = from_dsp
+
+    def _route_demux(self, host: Link, nmea: Link, uart: Link) -> None:
+        """UART -> ``host`` / ``host_nmea`` frame by frame (:class:`HostDemux`); ``host`` -> UART as
+        :meth:`_route`."""
+        stalled = self.stalled
+        demux = self.host_demux = HostDemux()
+        out = {"host": host, "host_nmea": nmea}
+
+        def from_dsp(data: bytes) -> None:
+            if stalled and "host" in stalled:
+                self._stall("host", len(data))
+                return
+            for port, frame in demux.feed(data):
+                out[port].forward(frame, uart)
+
+        self._route(host, uart, "host")
         uart.on_receive = from_dsp
 
     # -- monitor port -------------------------------------------------------------------------

@@ -368,6 +368,8 @@ def firmware_config(scn: Scenario, calibration: Calibration | None = None) -> Fi
         nmea_rate_hz=fw.nmea.rate_hz,
         nmea_attitude_rate_hz=fw.nmea.attitude_rate_hz,
         nmea_talker=fw.nmea.talker,
+        text_rate_hz=fw.text_rate_hz,
+        # links.host_nmea without a route of its own shares UART0 (the FPGA demultiplexes it: emulator.devices.fpga)
         nmea_uart=int(scn.fpga.routing.get("host_nmea", "uart0")[-1]) if scn.links.host_nmea is not None else 0,
         align_time_s=fw.alignment.time_s,
         alignment_heading=fw.alignment.heading_source,

@@ -217,6 +217,10 @@ class VirtualDsp:
         self.firmware_factory = firmware_factory
         self.busy_until = 0.0
         self.deadline_misses = 0
+        #: ticks whose own modelled duration exceeded the IMU period (cycles over the tick budget): the misses the
+        #: firmware's cost causes by itself, apart from a late start (a backlog, or in a --split run the DSP
+        #: process waking late on the wall clock)
+        self.over_budget_ticks = 0
         self.ticks = 0
         self.busy_time = 0.0
         self.max_tick_cycles = 0
@@ -311,6 +315,8 @@ class VirtualDsp:
             self.busy_until = end
             self.busy_time += dur
             self._account(start, end)
+            if dur > self.period:
+                self.over_budget_ticks += 1
             if end > arrival + self.period:
                 self.deadline_misses += 1
                 self.fw.note_deadline_miss()

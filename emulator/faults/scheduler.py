@@ -15,7 +15,7 @@ from .link import LinkBaudMismatch, LinkBitErrors, LinkByteDrops, LinkDisconnect
 from .psns import PsnsCloudCover, PsnsInstallationError, PsnsSunOccluded, PsnsUnitBlocked
 from .targets import FaultTargets
 
-__all__ = ["FIRMWARE_COUNTERS", "INJECTORS", "FaultScheduler"]
+__all__ = ["FIRMWARE_COUNTERS", "INJECTORS", "FaultScheduler", "acts_after_the_capture"]
 
 #: firmware counters whose change over a fault's window is reported in ``fault_end``
 FIRMWARE_COUNTERS = ("gnss_fixes", "gnss_updates", "psns_frames", "psns_updates", "psns_rejected", "psns_invalid",
@@ -33,6 +33,13 @@ INJECTORS: dict[str, type[Injector]] = {
 }
 
 
+def acts_after_the_capture(f: Fault) -> bool:
+    """True for a fault a replay must apply again: what it does is not in the DSP UARTs' captured input (the host
+    link's faults act between the FPGA and the host, ``dsp_extra_load`` on the DSP's cycles); every other fault
+    acted upstream, and its effect is in the bytes the DSP received."""
+    return f.kind == "dsp_extra_load" or getattr(f.spec, "link", None) == "host"
+
+
 class FaultScheduler:
     """The scenario's faults on the emulator's clock (see module docstring).
 
@@ -44,13 +51,16 @@ class FaultScheduler:
     events : where ``fault_start`` / ``fault_end`` go (the recorder).
     """
 
-    def __init__(self, targets: FaultTargets, faults: list[Fault], seed: int, events: EventSink) -> None:
+    def __init__(self, targets: FaultTargets, faults: list[Fault], seed: int, events: EventSink,
+                 replay: bool = False) -> None:
         self.targets = targets
         self.events = events
         self.injectors: list[Injector] = []
         self._fw0: dict[int, dict[str, int]] = {}
         self._fw_delta: dict[int, dict[str, int]] = {}
         for i, f in enumerate(faults):
+            if replay and not acts_after_the_capture(f):  # its effect is in the captured bytes already
+                continue
             kind = f.kind
             cls = INJECTORS[kind]
             try:

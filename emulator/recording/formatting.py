@@ -1,4 +1,5 @@
-"""How values are written into the run directory's files: CSV rows and JSON values.
+"""How values are written into the run directory's files (CSV rows, JSON values) and shown to a person
+(:func:`readable_number`: report.html and the console).
 
 :func:`csv_row` is the reference (every value by the rule: finite floats by ``repr``, non-finite ones empty,
 anything else by ``str``); :func:`csv_row_fast` gives the same text by joining ``repr`` s and falling back to
@@ -9,6 +10,7 @@ anything else by ``str``); :func:`csv_row_fast` gives the same text by joining `
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -16,9 +18,16 @@ from typing import Any
 import numpy as np
 
 __all__ = [
-    "NON_FINITE_KEY", "csv_cell", "csv_row", "csv_row_fast", "finite_json", "json_default", "reprs_are_cells",
-    "strict_json",
+    "NON_FINITE_KEY", "READABLE_SIGNIFICANT_DIGITS", "csv_cell", "csv_row", "csv_row_fast", "finite_json",
+    "json_default", "readable_number", "reprs_are_cells", "strict_json",
 ]
+
+#: significant digits :func:`readable_number` keeps for a float below 1000 in magnitude
+READABLE_SIGNIFICANT_DIGITS = 4
+
+#: the thin space that groups thousands (``22 710``): not a comma, which reads as a decimal point in half the world
+THOUSANDS_SEPARATOR = "\u2009"
+
 
 #: the key under which :func:`finite_json` lists the paths of the values it turned into ``null``
 NON_FINITE_KEY = "non_finite"
@@ -97,3 +106,37 @@ def strict_json(obj: Any, indent: int | None = 2) -> str:
     if isinstance(clean, dict) and (paths or NON_FINITE_KEY in clean):
         clean[NON_FINITE_KEY] = sorted(set(paths) | set(clean.get(NON_FINITE_KEY) or []))
     return json.dumps(clean, indent=indent, default=json_default, allow_nan=False)
+
+
+def readable_number(x: Any) -> str:
+    """A value as a person reads it, the one rule of report.html and the console.
+
+    * ``None`` and non-finite floats (NaN, +-inf: ``null`` in summary.json) -> ``"-"``;
+    * ``bool`` -> ``"True"`` / ``"False"`` (never a number);
+    * ``int`` -> every digit, thousands grouped with a thin space (``22 710``);
+    * ``float`` with ``|x| >= 1000`` -> rounded to an integer, grouped (``1 000 000``);
+      ``0.01 <= |x| < 1000`` -> :data:`READABLE_SIGNIFICANT_DIGITS` significant digits, trailing zeros of the
+      fraction dropped and never those of the integer part (``120``, ``0.5``, ``123.5``, ``-0.0123``);
+      ``0 < |x| < 0.01`` -> scientific with 3 significant digits (``1.23e-05``); zero -> ``"0"``;
+    * anything else -> ``str``.
+    """
+    if x is None:
+        return "-"
+    if isinstance(x, bool):
+        return str(x)
+    if isinstance(x, (int, np.integer)):
+        return f"{int(x):,}".replace(",", THOUSANDS_SEPARATOR)
+    if isinstance(x, (float, np.floating)):
+        x = float(x)
+        if not math.isfinite(x):
+            return "-"
+        a = abs(x)
+        if a == 0.0:
+            return "0"
+        if a >= 999.95:  # what would round to 1000 in 4 digits takes the integer form too
+            return f"{x:,.0f}".replace(",", THOUSANDS_SEPARATOR)
+        if a >= 0.01:
+            # the "g" format keeps the integer part whole below 10**digits and drops only fractional zeros
+            return f"{x:.{READABLE_SIGNIFICANT_DIGITS}g}"
+        return f"{x:.2e}"
+    return str(x)

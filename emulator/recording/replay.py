@@ -37,8 +37,13 @@ def load_replay(capture: str | Path) -> tuple[Any, list[Any], dict[str, Any]]:
     if not isinstance(spec, dict):
         raise RecordingError(f"{capture}: the capture carries no scenario (recorded by an older psns-hil); "
                              "replay needs the scenario_spec header field")
+    base = header.get("scenario_base_dir")
+    # the scenario's relative files (a spec sheet...) are where the run found them, when that directory is still
+    # there; else next to the capture
+    base_dir = Path(base) if isinstance(base, str) and Path(base).is_dir() else Path(capture).resolve().parent
     try:
-        scn: Scenario = validate_scenario_data(spec, {}, f"{capture}#scenario_spec", check_environment=False)
+        scn: Scenario = validate_scenario_data(spec, {}, f"{capture}#scenario_spec", base_dir=base_dir,
+                                               check_environment=False)
     except Exception as exc:  # ScenarioError lists the issues
         raise RecordingError(f"{capture}: its scenario does not validate in this version: {exc}") from exc
     return scn, records, header

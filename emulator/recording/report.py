@@ -32,6 +32,8 @@ import math
 from pathlib import Path
 from typing import Any
 
+from .formatting import readable_number
+
 __all__ = ["fault_spans", "load_nav_csv", "load_psns_csv", "write_report"]
 
 _MODE_BITS = [(0x0001, "aligning"), (0x0002, "navigating"), (0x0004, "GNSS-aided"), (0x0008, "PSNS-aided"),
@@ -249,39 +251,83 @@ def _bit_spans(t: list[float], flags: list[float], bit: int, want: bool) -> list
     return spans
 
 
+#: how many sigma ellipses the trajectory map draws along the estimate
+MAP_ELLIPSES = 12
+#: the ellipses' scale: 3 sigma of the filter's own East/North position sigma
+MAP_ELLIPSE_SIGMAS = 3.0
+
+
 def _trajectory_figure(nav: dict[str, list[float]], truth: dict[str, list[float]],
                        events: list[dict[str, Any]]) -> list[tuple[str, str]]:
-    """Truth and estimate on a local East/North map; GNSS outages (not GNSS-aided) and fault windows marked."""
-    t, lat, lon = nav.get("time_s", []), nav.get("lat_deg", []), nav.get("lon_deg", [])
-    tl, tlat, tlon = truth.get("time_s", []), truth.get("lat_deg", []), truth.get("lon_deg", [])
-    if not tlat or not lat:
+    """Truth and estimate of the navigating frames (NAVIGATING bit set: not the frames sent before the coarse
+    alignment ends, which carry lat = lon = 0) on a local map, East/North metres of the ENU frame about the true
+    position at the first navigating frame (WGS-84, pymap3d). Periods without GNSS aiding (>= 2 s) and fault
+    windows are drawn over the estimate, and the filter's 3 sigma East/North position ellipse at
+    :data:`MAP_ELLIPSES` instants."""
+    import numpy as np
+    import pymap3d
+
+    t = np.asarray(nav.get("time_s", []), dtype=float)
+    lat, lon = np.asarray(nav.get("lat_deg", []), dtype=float), np.asarray(nav.get("lon_deg", []), dtype=float)
+    h = np.asarray(nav.get("height_m", [0.0] * len(t)), dtype=float)
+    modes = np.asarray(nav.get("mode", []), dtype=float)
+    tl = np.asarray(truth.get("time_s", []), dtype=float)
+    if not t.size or not tl.size or modes.size != t.size:
         return []
+    bits = np.where(np.isfinite(modes), modes, 0).astype(np.int64)
+    on = ((bits & 0x0002) != 0) & np.isfinite(lat) & np.isfinite(lon)
+    if not on.any():
+        return []
+    t, lat, lon, h, bits = t[on], lat[on], lon[on], h[on], bits[on]
+    t0, t1 = float(t[0]), float(t[-1])
+    tsel = (tl >= t0 - 1e-9) & (tl <= t1 + 1e-9)
+    if not tsel.any():
+        tsel = np.abs(tl - t0) == np.abs(tl - t0).min()
+    tlat = np.asarray(truth["lat_deg"], dtype=float)[tsel]
+    tlon = np.asarray(truth["lon_deg"], dtype=float)[tsel]
+    th = np.asarray(truth.get("height_m", [0.0] * tl.size), dtype=float)[tsel]
+    lat0, lon0, h0 = float(tlat[0]), float(tlon[0]), float(th[0])
+    te, tn, _ = pymap3d.geodetic2enu(tlat, tlon, th, lat0, lon0, h0)
+    ee, en, _ = pymap3d.geodetic2enu(lat, lon, h, lat0, lon0, h0)
+    te, tn, ee, en = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (te, tn, ee, en))
     plt = _plt()
-    lat0, lon0 = tlat[0], tlon[0]
-    te, tn = _en_m(tlat, tlon, lat0, lon0)
-    ee, en = _en_m(lat, lon, lat0, lon0)
-    fig, ax = plt.subplots(figsize=(7.5, 6.5))
-    ax.plot(te, tn, "k-", lw=1.4, label="truth")
-    ax.plot(ee, en, "-", color="tab:blue", lw=0.8, alpha=0.8, label="estimate")
-    ax.plot(te[:1], tn[:1], "go", label="start")
-    modes = nav.get("mode", [])
+    from matplotlib.patches import Ellipse
 
-    def mark(spans: list[tuple[float, float]], color: str, label: str) -> None:
-        for k, (a, b) in enumerate(spans):
-            idx = [i for i, x in enumerate(t) if a <= x <= b]
-            if idx:
-                ax.plot([ee[i] for i in idx], [en[i] for i in idx], ".", ms=2, color=color,
-                        label=label if k == 0 else None)
+    fig, ax = plt.subplots(figsize=(8.5, 7.0))
+    ax.plot(te, tn, "k-", lw=1.6, label="truth")
+    ax.plot(ee, en, "-", color="tab:blue", lw=0.9, alpha=0.85, label="estimate")
+    ax.plot(te[:1], tn[:1], "o", color="tab:green", ms=7, label=f"start of navigation (t = {t0:.1f} s)")
+    ax.plot(te[-1:], tn[-1:], "s", color="k", ms=6, label=f"end (t = {t1:.1f} s)")
 
-    mark([s for s in _bit_spans(t, modes, 0x0004, False) if s[1] - s[0] >= 2.0 and s[0] > (t[0] if t else 0)],
-         "tab:orange", "no GNSS aiding (>= 2 s)")
-    mark([(a, b) for a, b, _ in fault_spans(events)], "tab:red", "fault active")
+    def mark(spans: list[tuple[float, float]], label: str, **style: Any) -> None:
+        first = True
+        for a, b in spans:
+            sel = (t >= a) & (t <= b)
+            if sel.any():
+                ax.plot(ee[sel], en[sel], label=label if first else None, **style)
+                first = False
+
+    outages = [s for s in _bit_spans(t.tolist(), bits.astype(float).tolist(), 0x0004, False) if s[1] - s[0] >= 2.0]
+    mark(outages, "no GNSS aiding (>= 2 s)", color="tab:orange", lw=5.0, alpha=0.5, solid_capstyle="round")
+    mark([(a, b) for a, b, _ in fault_spans(events)], "fault active", color="tab:red", lw=1.6, ls=(0, (2, 2)))
+    se = np.asarray(nav.get("sig_pos_e_m", []), dtype=float)
+    sn = np.asarray(nav.get("sig_pos_n_m", []), dtype=float)
+    if se.size == on.size and sn.size == on.size:
+        se, sn = se[on], sn[on]
+        first = True
+        for k in np.unique(np.linspace(0, t.size - 1, MAP_ELLIPSES).astype(int)):
+            if np.isfinite(se[k]) and np.isfinite(sn[k]) and se[k] > 0 and sn[k] > 0:
+                ax.add_patch(Ellipse((ee[k], en[k]), 2 * MAP_ELLIPSE_SIGMAS * se[k], 2 * MAP_ELLIPSE_SIGMAS * sn[k],
+                                     fill=False, ec="tab:purple", lw=0.9, alpha=0.8,
+                                     label=f"filter {MAP_ELLIPSE_SIGMAS:g} sigma (E, N)" if first else None))
+                first = False
     ax.set_xlabel("East (m)")
     ax.set_ylabel("North (m)")
     ax.set_aspect("equal", adjustable="datalim")
+    ax.autoscale_view()
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7, loc="best")
-    ax.set_title(f"trajectory: truth vs estimate (origin {lat0:.5f} N, {lon0:.5f} E; {len(tl)} truth rows)")
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+    ax.set_title(f"navigating track, ENU metres about {lat0:.5f} N, {lon0:.5f} E ({t.size} frames)", fontsize=10)
     return [("Trajectory map", _png(fig))]
 
 
@@ -340,10 +386,11 @@ def _error_cdf_figure(nav: dict[str, list[float]]) -> list[tuple[str, str]]:
     for ax, (label, v) in zip(axes[0], data):
         n = len(v)
         ax.step(v, [(i + 1) / n for i in range(n)], where="post", lw=1.0)
-        for q in (0.5, 0.95):
+        for q, ls in ((0.5, ":"), (0.95, "--")):
             x = v[min(n - 1, int(q * n))]
-            ax.axvline(x, color="grey", ls=":", lw=0.8)
-            ax.text(x, q, f" {int(q * 100)} %: {_fmt(x)}", fontsize=7, va="bottom")
+            # the quantile in the legend, not as text beside the line: a label at the axis' right edge is clipped
+            ax.axvline(x, color="grey", ls=ls, lw=0.8, label=f"{int(q * 100)} %: {_fmt(x)}")
+        ax.legend(loc="lower right", fontsize=7)
         ax.set_xlabel(f"|error| {label}")
         ax.set_ylim(0, 1.02)
         ax.grid(True, alpha=0.3)
@@ -608,10 +655,13 @@ def _timeline_figures(path: Path) -> list[tuple[str, str]]:
         ax.set_ylabel("% of 1 s")
         ax.set_title("DSP CPU load and deadline misses")
         ax.grid(True, alpha=0.3)
-        if "deadline_misses" in cols and any(v for v in cols["deadline_misses"] if not math.isnan(v)):
+        if "deadline_misses" in cols:  # drawn also when it stays 0: a flat trace says none, no trace says nothing
+            misses = cols["deadline_misses"]
+            total = max([v for v in misses if not math.isnan(v)] + [0.0])
             ax2 = ax.twinx()
-            ax2.plot(t, cols["deadline_misses"], "r-", lw=0.8, label="deadline misses (cumulative)")
+            ax2.plot(t, misses, "r-", lw=1.0, label=f"deadline misses (cumulative): {_fmt(int(total))}")
             ax2.set_ylabel("deadline misses")
+            ax2.set_ylim(-0.05 * max(total, 1.0), 1.1 * max(total, 1.0))
             ax2.legend(loc="upper left", fontsize=7)
         ax.legend(loc="upper right", fontsize=7)
         out.append(("DSP load over time", _png(fig)))
@@ -651,32 +701,67 @@ def _task_figure(summary: dict[str, Any]) -> list[tuple[str, str]]:
     return [("DSP load per task", _png(fig))]
 
 
+class _At:
+    """A value of summary.json shown in the page, with its dotted path (``nav_error.heading_deg.rms``, ``faults[0]
+    .active_from_s``: the :func:`emulator.recording.formatting.finite_json` convention): the cell carries the path
+    as ``data-path`` so that every number on the page can be traced to the file (tests/emulator/recording/
+    test_report_numbers.py)."""
+
+    __slots__ = ("path", "value")
+
+    def __init__(self, summary: dict[str, Any], path: str) -> None:
+        self.path = path
+        self.value = _lookup(summary, path)
+
+
+def _lookup(summary: dict[str, Any], path: str) -> Any:
+    """The value at a dotted path with ``[i]`` list indices; None when it is not there."""
+    cur: Any = summary
+    for part in path.replace("[", ".[").split("."):
+        if part.startswith("["):
+            i = int(part[1:-1])
+            cur = cur[i] if isinstance(cur, list) and i < len(cur) else None
+        else:
+            cur = cur.get(part) if isinstance(cur, dict) else None
+        if cur is None:
+            return None
+    return cur
+
+
+def _cell(x: Any, tag: str = "td") -> str:
+    """One table cell (or ``span``): a summary value with its ``data-path``, or text."""
+    if isinstance(x, _At):
+        return f"<{tag} data-path='{html.escape(x.path)}'>{html.escape(_fmt(x.value))}</{tag}>"
+    return f"<{tag}>{html.escape(_fmt(x))}</{tag}>"
+
+
 def _table(rows: list[list[Any]], header: list[str]) -> str:
     h = "".join(f"<th>{html.escape(str(x))}</th>" for x in header)
-    body = "".join("<tr>" + "".join(f"<td>{html.escape(_fmt(x))}</td>" for x in r) + "</tr>" for r in rows)
+    body = "".join("<tr>" + "".join(_cell(x) for x in r) + "</tr>" for r in rows)
     return f"<table><tr>{h}</tr>{body}</table>"
 
 
-def _fmt(x: Any) -> str:
-    """Readable numbers: ``22 710`` not ``2.271e+04``, ``0.0123``, thousands grouped with thin spaces."""
-    if x is None:
-        return "-"
-    if isinstance(x, bool):
-        return str(x)
-    if isinstance(x, int):
-        return f"{x:,}".replace(",", "\u2009")
-    if isinstance(x, float):
-        if not math.isfinite(x):
-            return "-"
-        a = abs(x)
-        if a == 0.0:
-            return "0"
-        if a >= 1000:
-            return f"{x:,.0f}".replace(",", "\u2009")
-        if a >= 0.01:
-            return f"{x:.4g}" if a < 1 else f"{x:.{max(0, 3 - len(str(int(a))))}f}".rstrip("0").rstrip(".")
-        return f"{x:.2e}"
-    return str(x)
+#: the page's one number format (emulator/recording/formatting.py)
+_fmt = readable_number
+
+
+def expectation_status(e: dict[str, Any]) -> str:
+    """The result column of an expectation (summary.json's ``expectations[i]``): ``pass`` / ``FAIL``, ``not run``
+    (a Python hook without ``--allow-hooks``: neither passed nor failed) or ``not applied`` (a campaign-level
+    check in one run, a sensor check in a replay)."""
+    if e.get("status") == "not_run" or (e.get("kind") == "python" and e.get("applicable") is False):
+        return "not run"
+    if e.get("applicable") is False:
+        return "not applied"
+    return "pass" if e.get("passed") else "FAIL"
+
+
+def _nav_error_note(summary: dict[str, Any]) -> str:
+    """What the navigation error table's rms and max are over (docs/runtime.md "Position rms")."""
+    return ("<p>rms and max over every navigation frame that carries the NAVIGATING bit: fine alignment (the filter "
+            "still settling, ALIGNING set too) and navigating proper (ALIGNING clear). Frames before the coarse "
+            "alignment ends carry no solution and are not counted. <code>nav_error_by_phase</code> in summary.json "
+            "holds each phase apart.</p>")
 
 
 def _hz(x: Any) -> str:
@@ -717,55 +802,71 @@ def write_report(run_dir: str | Path) -> Path:
                "passed" if passed else "interrupted" if summary.get("interrupted") else "FAILED")
     color = "#2a2" if passed and valid is not False else "#c22"
     parts.append(f"<p style='font-size:1.3em;color:{color}'><b>{html.escape(verdict)}</b></p>")
-    rtf = summary.get("realtime_factor")
+    def at(path: str) -> _At:
+        return _At(summary, path)
+
     parts.append(_table([
-        ["scenario file", summary.get("scenario_file")],
-        ["seed", summary.get("seed")], ["mode", summary.get("mode")],
-        ["simulated (s)", summary.get("sim_duration_s")], ["wall (s)", summary.get("wall_s")],
-        ["real-time factor", rtf], ["interrupted", summary.get("interrupted")],
-        ["valid (every fault took effect)", valid], ["passed", passed],
+        ["scenario file", at("scenario_file")], ["seed", at("seed")], ["mode", at("mode")],
+        ["simulated (s)", at("sim_duration_s")], ["wall (s)", at("wall_s")],
+        ["real-time factor", at("realtime_factor")], ["interrupted", at("interrupted")],
+        ["valid (every fault took effect)", at("valid")], ["passed", at("passed")],
     ], ["item", "value"]))
+    if summary.get("warnings"):
+        parts.append("<h2>Warnings (fallbacks the run took)</h2><ul>" + "".join(
+            f"<li>{_cell(at(f'warnings[{i}].message'), 'span')}</li>" for i in range(len(summary["warnings"])))
+                     + "</ul>")
     if summary.get("faults"):
         parts.append("<h2>Faults</h2>")
-        parts.append(_table([[f["index"], f["kind"], f["target"], f.get("active_from_s"), f.get("active_until_s"),
-                              ", ".join(f"{k} {v}" for k, v in f.get("evidence", {}).items()),
-                              ", ".join(f"{k} {v:+d}" for k, v in f.get("firmware", {}).items()),
-                              "-" if f.get("fired") is None else "yes" if f["fired"] else "NO"]
-                             for f in summary["faults"]],
-                            ["#", "fault", "target", "from (s)", "until (s)", "evidence while active",
-                             "firmware counters", "took effect"]))
+
+        def pairs(i: int, key: str, signed: bool) -> str:
+            items = (summary["faults"][i].get(key) or {})
+            return ", ".join(f"{html.escape(str(k))} " + ("+" if signed and isinstance(v, (int, float)) and v > 0
+                                                         else "") + _cell(at(f"faults[{i}].{key}.{k}"), "span")
+                             for k, v in items.items())
+
+        rows = []
+        for i, f in enumerate(summary["faults"]):
+            took = "-" if f.get("fired") is None else "yes" if f["fired"] else "NO"
+            rows.append("<tr>" + "".join(_cell(at(f"faults[{i}].{k}")) for k in (
+                "index", "kind", "target", "active_from_s", "active_until_s"))
+                        + f"<td>{pairs(i, 'evidence', False)}</td><td>{pairs(i, 'firmware', True)}</td>"
+                        + f"<td>{took}</td></tr>")
+        head = "".join(f"<th>{h}</th>" for h in ("#", "fault", "target", "from (s)", "until (s)",
+                                                   "evidence while active", "firmware counters", "took effect"))
+        parts.append(f"<table><tr>{head}</tr>{''.join(rows)}</table>")
     parts.append("<h2>Navigation error against truth</h2>")
-    parts.append(_table([[k, v.get("rms"), v.get("max")] for k, v in summary.get("nav_error", {}).items()],
-                        ["quantity", "rms", "max"]))
+    parts.append(_nav_error_note(summary))
+    parts.append(_table([[k, at(f"nav_error.{k}.rms"), at(f"nav_error.{k}.max")]
+                         for k in summary.get("nav_error", {})], ["quantity", "rms", "max"]))
     psns = summary.get("psns") or {}
     if psns.get("solves"):
-        parts.append(f"<h2>Solved solar vector against truth ({_fmt(psns['solves'])} solves: "
-                     + html.escape(", ".join(f"{k} {_fmt(v)}" for k, v in (psns.get("uses") or {}).items()))
+        parts.append("<h2>Solved solar vector against truth (" + _cell(at("psns.solves"), "span") + " solves: "
+                     + ", ".join(f"{html.escape(str(k))} " + _cell(at(f"psns.uses.{k}"), "span")
+                                 for k in (psns.get("uses") or {}))
                      + ")</h2>")
-        parts.append(_table([[label, (psns.get(key) or {}).get("median"), (psns.get(key) or {}).get("p95"),
-                              (psns.get(key) or {}).get("max")]
+        parts.append(_table([[label, at(f"psns.{key}.median"), at(f"psns.{key}.p95"), at(f"psns.{key}.max")]
                              for key, label in (("solar_vector_error_deg", "angle (deg)"),
                                                 ("azimuth_error_deg", "|azimuth| (deg)"),
                                                 ("elevation_error_deg", "|elevation| (deg)"))],
                             ["quantity", "median", "p95", "max"]))
     if summary.get("expectations"):
         parts.append("<h2>Expectations</h2>")
-        parts.append(_table([[e["index"], e["description"], e["value"], e.get("message", ""),
-                              "pass" if e["passed"] else "FAIL"]
-                             for e in summary["expectations"]], ["#", "check", "value", "note", "result"]))
+        parts.append(_table([[at(f"expectations[{i}].index"), at(f"expectations[{i}].description"),
+                              at(f"expectations[{i}].value"), at(f"expectations[{i}].message"), expectation_status(e)]
+                             for i, e in enumerate(summary["expectations"])],
+                            ["#", "check", "value", "note", "result"]))
     parts.append("<h2>Links</h2>")
-    parts.append(_table([[k, v.get("bytes"), v.get("frames"), v.get("crc_errors"), v.get("dropped"),
-                          v.get("garbage_bytes"), v.get("framing_errors")]
-                         for k, v in summary.get("links", {}).items()],
-                        ["link", "bytes", "frames", "crc_errors", "dropped", "garbage_bytes", "framing_errors"]))
+    counters = ["bytes", "frames", "crc_errors", "dropped", "garbage_bytes", "framing_errors"]
+    parts.append(_table([[k, *(at(f"links.{k}.{c}") for c in counters)] for k in summary.get("links", {})],
+                        ["link", *counters]))
     dsp = summary.get("dsp", {})
-    parts.append(f"<h2>DSP load ({_hz(dsp.get('clock_hz'))}, tick budget "
-                 f"{_fmt(dsp.get('tick_budget_cycles'))} cycles)</h2>")
-    parts.append(_table([[t["task"], t["calls"], t["cycles_min"], t["cycles_avg"], t["cycles_max"],
-                          t["utilization_max_pct"]] for t in dsp.get("tasks", [])],
+    parts.append(f"<h2>DSP load (<span data-path='dsp.clock_hz' data-format='MHz'>{_hz(dsp.get('clock_hz'))}</span>"
+                 f", tick budget {_cell(at('dsp.tick_budget_cycles'), 'span')} cycles)</h2>")
+    task_keys = ["task", "calls", "cycles_min", "cycles_avg", "cycles_max", "utilization_max_pct"]
+    parts.append(_table([[at(f"dsp.tasks[{i}].{k}") for k in task_keys] for i in range(len(dsp.get("tasks", [])))],
                         ["task", "calls", "min", "avg", "max", "max % budget"]))
-    parts.append(f"<p>worst 1 s CPU load {_fmt(dsp.get('cpu_load_pct_max'))} %, deadline misses "
-                 f"{_fmt(dsp.get('deadline_misses'))}</p>")
+    parts.append(f"<p>worst 1 s CPU load {_cell(at('dsp.cpu_load_pct_max'), 'span')} %, deadline misses "
+                 f"{_cell(at('dsp.deadline_misses'), 'span')}</p>")
     for title, b64 in figs:
         parts.append(f"<h2>{html.escape(title)}</h2><img alt='{html.escape(title)}' "
                      f"src='data:image/png;base64,{b64}'/>")

@@ -61,6 +61,25 @@ def open_no_follow(path: Path, mode: str = "w", newline: str | None = None) -> I
     return open(fd, mode, encoding="utf-8", newline=newline)
 
 
+def preflight_run_dir(run_dir: Path, force: bool = False) -> None:
+    """The checks of :func:`claim_run_dir` that need no lock and change nothing (a file, a dangling link, a
+    directory that holds something else or a run without ``force``): the CLI calls it before it announces a run,
+    so a refused ``--out`` is the only line the user sees."""
+    run_dir = Path(run_dir)
+    if run_dir.is_symlink() and not run_dir.is_dir():
+        raise RunDirError(f"{run_dir}: a dangling link, not a directory")
+    if run_dir.exists() and not run_dir.is_dir():
+        raise RunDirError(f"{run_dir}: exists and is not a directory (--out takes a run directory)")
+    if run_dir.is_dir():
+        entries = {e.name for e in run_dir.iterdir() if e.name != LOCK_NAME}
+        if entries and not entries & set(RUN_FILES):
+            raise RunDirError(f"{run_dir}: not empty and not a run directory; psns-hil writes only into a new "
+                              "or empty directory, or replaces a finished run with --force")
+        if entries and not force:
+            raise RunDirError(f"{run_dir}: already holds a run ({', '.join(sorted(entries & set(RUN_FILES)))}); "
+                              "pass --force to replace it (its contents are removed first) or choose another --out")
+
+
 @contextlib.contextmanager
 def claim_run_dir(run_dir: Path, force: bool = False) -> Iterator[Path]:
     """Hold ``run_dir`` for one run (see module docstring)."""

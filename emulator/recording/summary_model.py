@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
@@ -57,6 +57,9 @@ class DspSection(_Open):
     tick_budget_cycles: int | None = None
     deadline_misses: int | None = Field(0, description="ticks that ended late (null: not observed, the DSP is "
                                            "outside)")
+    over_budget_ticks: int | None = Field(None, description="ticks whose own modelled duration exceeded the IMU "
+                                          "period (cycles over the budget); unlike deadline_misses it does not "
+                                          "count a late start (in a --split run: host scheduling jitter)")
     cost_model: str | None = None
     tasks: list[DspTask] = Field(default_factory=list)
 
@@ -115,8 +118,23 @@ class ExpectationRecord(_Open):
     value: float | int | str | None = None
     passed: bool
     message: str = ""
-    applicable: bool = Field(True, description="false when the expectation cannot apply (a replay); it then "
-                                               "does not fail")
+    applicable: bool = Field(True, description="false when the expectation cannot apply (a replay) or was not "
+                                               "run (a Python hook without --allow-hooks); it then does not fail")
+    status: Literal["pass", "fail", "not_applicable", "not_run"] | None = Field(
+        None, description="pass, fail, not_applicable (a campaign-level check in one run, a sensor check in a "
+                          "replay) or not_run (a Python hook without --allow-hooks: neither passed nor failed)")
+
+
+class WarningRecord(_Open):
+    kind: str = Field(description="heading_source_without_sensor, alignment_heading_not_given, "
+                                  "sun_below_psns_minimum (before the run); alignment_heading_fallback, "
+                                  "alignment_heading_default, psns_sun_low (taken by the run)")
+    source: str = Field(description="scenario: seen in the file before the run; run: taken by the run")
+    message: str
+    path: str = Field("", description="the scenario field it concerns (dotted)")
+    line: int | None = Field(None, description="line of that field in the scenario file")
+    column: int | None = None
+    t_s: float | None = Field(None, description="when, scenario seconds")
 
 
 class ReplayInfo(_Open):
@@ -182,6 +200,9 @@ class RunSummary(_Open):
     faults: list[FaultRecord] = Field(default_factory=list)
     valid: bool = Field(True, description="false when a scheduled fault never took effect")
     expectations: list[ExpectationRecord] = Field(default_factory=list)
+    warnings: list[WarningRecord] = Field(default_factory=list, description="every fallback of the run: what the "
+                                          "scenario leaves to a default (validate warns too) and what the run took "
+                                          "(emulator/assembly/fallbacks.py)")
     passed: bool = False
     non_finite: list[str] = Field(default_factory=list, description="paths of values that were NaN or infinite, "
                                                                     "written as null")
@@ -195,7 +216,9 @@ def load_summary(path: str | Path) -> RunSummary:
     try:
         data = json.loads(p.read_text(encoding="utf-8"))
     except FileNotFoundError:
-        raise RecordingError(f"{p.parent}: not a run directory (no summary.json)") from None
+        given = Path(path)
+        what = "not a run directory (no summary.json)" if given.is_dir() else "no such run directory (no summary.json)"
+        raise RecordingError(f"{given}: {what}") from None
     except (OSError, ValueError) as exc:
         raise RecordingError(f"{p}: cannot read the run summary: {exc}") from None
     try:

@@ -150,16 +150,21 @@ def _devices_and_links(scn: Scenario) -> list[tuple[tuple[Any, ...], str]]:
 
 
 def _nmea_rates(scn: Scenario) -> list[tuple[tuple[Any, ...], str]]:
-    """The firmware writes NMEA on IMU ticks: each NMEA rate must divide the IMU rate; ``links.host_nmea`` needs a
-    DSP UART (fpga.routing) and sentences to carry."""
+    """The firmware writes NMEA on IMU ticks: each NMEA rate must divide the IMU rate; ``links.host_nmea`` needs
+    sentences to carry (its UART: its own route in fpga.routing, or UART0 shared with the host port)."""
     issues: list[tuple[tuple[Any, ...], str]] = []
-    if scn.links.host_nmea is not None:
-        if "host_nmea" not in scn.fpga.routing:
-            issues.append((("links", "host_nmea"), "links.host_nmea needs a DSP UART: route it in fpga.routing "
-                                                   "(e.g. host_nmea: uart2, when there is no PSNS port)"))
-        if not scn.firmware.nmea.sentences:
-            issues.append((("links", "host_nmea"), "links.host_nmea carries the firmware's NMEA output, but "
-                                                   "firmware.nmea.sentences is empty: nothing would be sent"))
+    # without a route of its own links.host_nmea shares UART0 with the host port: the FPGA demultiplexes it
+    if scn.links.host_nmea is not None and not scn.firmware.nmea.sentences and not scn.firmware.text_rate_hz:
+        issues.append((("links", "host_nmea"), "links.host_nmea carries the firmware's NMEA output, but "
+                                               "firmware.nmea.sentences is empty and firmware.text_rate_hz 0: "
+                                               "nothing would be sent"))
+    text = scn.firmware.text_rate_hz
+    if text:
+        r = scn.firmware.output_rate_hz / text
+        if r < 1 or abs(r - round(r)) > 1e-9:
+            issues.append((("firmware", "text_rate_hz"), f"must divide output_rate_hz "
+                                                         f"({scn.firmware.output_rate_hz:g} Hz): the text is written "
+                                                         "with a NAV_SOLUTION frame"))
     imu = scn.sensors.imu.rate_hz
     for name in ("rate_hz", "attitude_rate_hz"):
         r = imu / getattr(scn.firmware.nmea, name)

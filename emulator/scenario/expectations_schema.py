@@ -24,7 +24,9 @@ __all__ = [
     "HookError",
     "LinkCounterBound",
     "NavErrorBound",
+    "NavGapExpectation",
     "NavModeExpectation",
+    "NavRateExpectation",
     "PsnsErrorBound",
     "PythonHook",
     "SummaryValueBound",
@@ -131,7 +133,8 @@ class LinkCounterBound(Model):
 class DspBound(Model):
     """A DSP figure of the summary between ``min`` and ``max``."""
 
-    field: Literal["cpu_load_pct_max", "deadline_misses", "tick_utilization_max_pct", "watchdog_trips", "resets"]
+    field: Literal["cpu_load_pct_max", "deadline_misses", "over_budget_ticks", "tick_utilization_max_pct",
+                   "watchdog_trips", "resets"]
     min: float | None = Field(None, ge=0)
     max: float | None = Field(None, ge=0)
 
@@ -159,6 +162,31 @@ class NavModeExpectation(TimeWindow):
         if self.min_fraction is None and self.max_fraction is None:
             raise ValueError("a nav_mode expectation needs min_fraction, max_fraction or both")
         return self
+
+
+class NavGapExpectation(TimeWindow):
+    """The largest gap between consecutive navigation frames at the host (their arrival times, ``nav.csv``
+    ``arrival_s``) inside a window: at least ``min_gap_s`` (a cable pulled: nothing arrives) and/or at most
+    ``max_gap_s`` (the output never stalls longer). A gap is measured inside the window only (clipped to it)."""
+
+    min_gap_s: float | None = Field(None, gt=0.0)
+    max_gap_s: float | None = Field(None, gt=0.0)
+
+    @model_validator(mode="after")
+    def _some(self) -> NavGapExpectation:
+        if self.min_gap_s is None and self.max_gap_s is None:
+            raise ValueError("a nav_gap expectation needs min_gap_s, max_gap_s or both")
+        if self.min_gap_s is not None and self.max_gap_s is not None and self.max_gap_s < self.min_gap_s:
+            raise ValueError(f"max_gap_s {self.max_gap_s:g} is below min_gap_s {self.min_gap_s:g}")
+        return self
+
+
+class NavRateExpectation(TimeWindow):
+    """The mean rate of navigation frames at the host inside a window (``(frames - 1) / (last - first arrival)``)
+    within ``tolerance`` (relative) of ``rate_hz``."""
+
+    rate_hz: float = Field(gt=0.0)
+    tolerance: float = Field(0.01, gt=0.0, lt=1.0)
 
 
 class SummaryValueBound(Model):
@@ -197,6 +225,8 @@ class Expectation(OneKindModel):
     link: LinkCounterBound | None = None
     dsp: DspBound | None = None
     nav_mode: NavModeExpectation | None = None
+    nav_gap: NavGapExpectation | None = None
+    nav_rate: NavRateExpectation | None = None
     psns: PsnsErrorBound | None = None
     summary: SummaryValueBound | None = None
     python: PythonHook | None = None

@@ -293,6 +293,10 @@ class FirmwareSpec(Model):
         "float64", description="strapdown quaternion/velocity accumulators (docs/decisions/firmware.md D-L.1)")
     output_rate_hz: float = Field(100.0, gt=0, le=200)
     nmea: NmeaOutputSpec = NmeaOutputSpec()
+    text_rate_hz: float = Field(0.0, ge=0, le=200, description="the $PSNS text output (docs/icd.md 7: $PSNSPOS, "
+                                "VEL, ATT, STA) for terminal users, groups per second (0: off); on links.host_nmea "
+                                "when given (text only there: the README's miniterm recipe), else on the host port "
+                                "with NAV_SOLUTION; divides output_rate_hz")
     kf_predict_every: int = Field(20, ge=1, le=200)
     coning_samples: Literal[0, 1, 2] = Field(0, description="0: two-sample with angle increments, else one")
     alignment: AlignmentSpec = AlignmentSpec()

@@ -165,6 +165,7 @@ def validate_scenario_data(data: Any, marks: dict[Loc, tuple[int, int]], file: s
         raise ScenarioError(issues) from None
     scn._source_file = file
     scn._base_dir = str(base_dir) if base_dir is not None else None
+    scn._marks = marks
     problems = cross_check(scn, environment=check_environment)
     if problems:
         issues = []

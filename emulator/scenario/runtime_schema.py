@@ -66,8 +66,9 @@ class Links(Model):
     psns: LinkSpec | None = None
     host: LinkSpec = LinkSpec(url="mem://host", baud=460800)
     host_nmea: LinkSpec | None = Field(
-        None, description="a second host port carrying only the firmware's NMEA output (firmware.nmea), routed to a "
-                          "free DSP UART in fpga.routing (e.g. uart2 without a PSNS port)")
+        None, description="a second host port carrying only the firmware's NMEA output (firmware.nmea): on UART0 "
+                          "with the host port, demultiplexed by the FPGA (the default), or on a free DSP UART of "
+                          "its own in fpga.routing (e.g. uart2 without a PSNS port)")
     monitor: LinkSpec | None = Field(None, description="FPGA MONITOR port: every channel, tagged and time-stamped")
 
 

@@ -23,7 +23,7 @@ module of the subsystem that owns it (``world_schema``, ``sensor_schema``, ``run
 from __future__ import annotations
 
 import datetime as _dt
-from typing import Literal
+from typing import Any, Literal
 
 from pydantic import Field, PrivateAttr, field_validator, model_validator
 
@@ -106,6 +106,8 @@ class Scenario(Model):
 
     _source_file: str = PrivateAttr(default="<scenario>")
     _base_dir: str | None = PrivateAttr(default=None)
+    #: where each key of the file is (field path -> (line, column)), for warnings after validation
+    _marks: dict[tuple[Any, ...], tuple[int, int]] = PrivateAttr(default_factory=dict)
 
     @property
     def source_file(self) -> str:

@@ -9,6 +9,7 @@ exception's message; it never stops the evaluation of the other checks.
 from __future__ import annotations
 
 import copy
+import itertools
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -34,10 +35,22 @@ class ExpectationResult:
     message: str = ""
     #: False when the expectation cannot apply to this run (a replay has no sensor links): it does not fail
     applicable: bool = True
+    #: True for a Python hook that was not run (no ``--allow-hooks``): neither passed nor failed
+    not_run: bool = False
+
+    @property
+    def status(self) -> str:
+        """``pass``, ``fail``, ``not_applicable`` or ``not_run`` (summary.json's ``expectations[i].status``)."""
+        if self.not_run:
+            return "not_run"
+        if not self.applicable:
+            return "not_applicable"
+        return "pass" if self.passed else "fail"
 
     def as_dict(self) -> dict[str, Any]:
         return {"index": self.index, "kind": self.kind, "description": self.description,
-                "value": self.value, "passed": self.passed, "message": self.message, "applicable": self.applicable}
+                "value": self.value, "passed": self.passed, "message": self.message, "applicable": self.applicable,
+                "status": self.status}
 
 
 def _bounds(lo: float | None, hi: float | None) -> str:
@@ -91,6 +104,35 @@ def _lookup(summary: dict[str, Any], path: str) -> Any:
         else:
             raise KeyError(part)
     return cur
+
+
+def _arrival_times(run_dir: str | Path | None) -> list[float] | None:
+    """The host's arrival times of the navigation frames (``nav.csv`` ``arrival_s``), s; None without the file."""
+    import csv
+
+    if run_dir is None or not (Path(run_dir) / "nav.csv").exists():
+        return None
+    out = []
+    with open(Path(run_dir) / "nav.csv", newline="", encoding="utf-8") as f:
+        for row in csv.DictReader(f):
+            try:
+                out.append(float(row["arrival_s"]))
+            except (KeyError, TypeError, ValueError):
+                continue
+    return out
+
+
+def largest_gap(times: list[float], after_s: float, until_s: float | None) -> tuple[float, float]:
+    """The largest interval without a frame inside ``[after_s, until_s]`` (gaps clipped to the window; the window's
+    edges count when no frame falls on them) and where it starts, s."""
+    end = until_s if until_s is not None else (times[-1] if times else after_s)
+    inside = [t for t in times if after_s <= t <= end]
+    edges = [after_s, *inside, end]
+    best, at = 0.0, after_s
+    for a, b in itertools.pairwise(edges):
+        if b - a > best:
+            best, at = b - a, a
+    return best, at
 
 
 def _hook_result(res: Any) -> tuple[bool, Any, str]:
@@ -206,6 +248,41 @@ def evaluate_expectations(expectations: list[Expectation], recorder: Any, summar
             ok = frac is not None and _within(frac, nm.min_fraction, nm.max_fraction)
             out.append(ExpectationResult(i, kind, desc, frac, ok,
                                          f"{hit} of {total} frames" if total else empty(nm)))
+        elif kind in ("nav_gap", "nav_rate"):
+            w = e.nav_gap if kind == "nav_gap" else e.nav_rate
+            assert w is not None
+            times = _arrival_times(run_dir)
+            if kind == "nav_gap":
+                gb = e.nav_gap
+                assert gb is not None
+                desc = (f"largest gap between nav frames at the host in {gb.describe_window()} "
+                        f"{_bounds(gb.min_gap_s, gb.max_gap_s)} s")
+            else:
+                rb = e.nav_rate
+                assert rb is not None
+                desc = (f"nav frames at the host at {rb.rate_hz:g} Hz +- {rb.tolerance:.1%} in "
+                        f"{rb.describe_window()}")
+            if times is None:
+                out.append(ExpectationResult(i, kind, desc, None, False, "no nav.csv in the run directory"))
+                continue
+            inside = [t for t in times if w.covers(t)]
+            if kind == "nav_gap":
+                assert gb is not None
+                if w.after_s >= t_end:
+                    out.append(ExpectationResult(i, kind, desc, None, False, empty(w)))
+                    continue
+                gap, at = largest_gap(times, w.after_s, min(w.until_s, t_end) if w.until_s is not None else t_end)
+                out.append(ExpectationResult(i, kind, desc, round(gap, 6), _within(gap, gb.min_gap_s, gb.max_gap_s),
+                                             f"from t = {at:.3f} s; {len(inside)} frames in the window"))
+            else:
+                assert rb is not None
+                if len(inside) < 2 or inside[-1] <= inside[0]:
+                    out.append(ExpectationResult(i, kind, desc, None, False,
+                                                 f"{len(inside)} frame(s) in the window: no rate to measure"))
+                    continue
+                rate = (len(inside) - 1) / (inside[-1] - inside[0])
+                out.append(ExpectationResult(i, kind, desc, rate, abs(rate / rb.rate_hz - 1.0) <= rb.tolerance,
+                                             f"{len(inside)} frames"))
         elif kind == "summary":
             sb = e.summary
             assert sb is not None
@@ -237,6 +314,13 @@ def evaluate_expectations(expectations: list[Expectation], recorder: Any, summar
             h = e.python
             assert h is not None
             desc = h.description or f"{h.file}:{h.function}({', '.join(f'{k}={v!r}' for k, v in h.args.items())})"
+            from ..scenario.paths import hooks_allowed
+
+            if not hooks_allowed():
+                out.append(ExpectationResult(i, kind, desc, None, True, "not run: python hooks run only with "
+                                             "psns-hil run --allow-hooks (a scenario could run any code)",
+                                             applicable=False, not_run=True))
+                continue
             try:
                 fn = load_hook(base_dir, h.file, h.function)
                 ok, v, msg = _hook_result(fn(copy.deepcopy(summary), Path(run_dir) if run_dir is not None else None,

@@ -8,7 +8,8 @@ import datetime as _dt
 import math
 from collections.abc import Sequence
 
-from protocols.host import NavMode, nav_solution_frame
+from protocols.host import HostFormat, NavMode, NavSolution, nav_solution_frame
+from protocols.host_text import nav_text_sentences
 from protocols.nmea_build import build_gga, build_rmc, build_vtg, build_zda
 from protocols.nmea_nav import build_hdt, build_pashr, build_ths
 
@@ -28,6 +29,10 @@ _POSITION_SENTENCES = ("GGA", "RMC", "VTG", "ZDA")
 #: characters and DP-scaled values per sentence, for the cycle charge (c674x.nmea_sentence) [D]
 _NMEA_SIZE = {"GGA": (72, 4), "RMC": (70, 4), "VTG": (40, 2), "ZDA": (36, 1), "HDT": (18, 1), "THS": (18, 1),
               "PASHR": (70, 7)}
+
+#: characters and DP-scaled values of the four $PSNS text sentences (POS, VEL, ATT, STA), for the cycle charge [D]
+_TEXT_SIZE = ((58, 3), (38, 3), (36, 3), (30, 1))
+_HOST_FORMAT = HostFormat()
 
 _GNSS_AIDED, _PSNS_AIDED, _DEGRADED = int(NavMode.GNSS_AIDED), int(NavMode.PSNS_AIDED), int(NavMode.DEGRADED)
 _sqrt = math.sqrt
@@ -131,6 +136,16 @@ class NavOutput(TimeKeeping):
         for n in names:
             self.meter.charge("nmea_format", c674x.nmea_sentence(*_NMEA_SIZE[n]))
         return b"".join(out)
+
+    def _text_output(self, frame: bytes) -> bytes:
+        """The ``$PSNS`` text sentences (docs/icd.md 7: POS, VEL, ATT, STA) of the NAV_SOLUTION ``frame`` this tick
+        sent, charged to ``text_output`` as four formatted sentences."""
+        nav = _HOST_FORMAT.parse(frame)
+        if not isinstance(nav, NavSolution):
+            return b""
+        for n_chars, n_scaled in _TEXT_SIZE:
+            self.meter.charge("text_format", c674x.nmea_sentence(n_chars, n_scaled))
+        return nav_text_sentences(nav, self.filter.variant_id & 0xF)
 
     def _nav_output(self, t: float) -> bytes:
         s = self.nav

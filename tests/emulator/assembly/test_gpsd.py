@@ -233,3 +233,44 @@ async def test_gpsd_reads_the_firmware_nmea_output_and_matches_the_nav_frames(tm
     assert len(paired) >= 2, gpsd.reports
     for a, n in paired:
         assert abs((a["heading"] - n.heading_deg + 180.0) % 360.0 - 180.0) < 0.006, (a, n)  # HDT: 0.01 deg
+
+
+@pytest.mark.psns_emulator(mode="realtime")
+async def test_gpsd_reads_the_full_box_nmea_output_with_the_camera_on(tmp_path):
+    """The quickstart as it is (camera on UART2, GNSS on UART3: no free DSP UART) with ``links.host_nmea`` and no
+    route of its own: the firmware writes NMEA and NAV_SOLUTION on UART0, the FPGA demultiplexes them (issue 38).
+    gpsd on the NMEA pty reports fixes at the NAV_SOLUTION frames' positions; the host port carries no NMEA, the
+    NMEA port nothing else."""
+    from emulator.testing import start_emulator
+
+    ov = {"duration_s": 14.0, "motion": [{"static": {"duration_s": 14.0}}], "expectations": [],
+          "links.host_nmea": {"url": "pty://nmea", "baud": 115200},
+          "firmware.nmea": {"sentences": ["GGA", "RMC", "ZDA", "HDT"], "rate_hz": 1.0, "attitude_rate_hz": 1.0}}
+    gpsd = Gpsd(tmp_path / "ports" / "nmea", tmp_path)
+
+    def fixes() -> list[dict]:
+        return [t for t in gpsd.of("TPV", lat=1, lon=1, time=1) if t.get("mode", 0) >= 2]
+
+    async with start_emulator(QS, run_dir=tmp_path, overrides=ov) as emu:
+        assert emu.emulator.scn.sensors.camera is not None and emu.emulator.scn.links.psns is not None
+        assert emu.emulator.fpga.host_demux is not None  # UART0 carries both
+        try:
+            await gpsd.start(emu, timeout=10.0)
+            await emu.wait_until(lambda: len(fixes()) >= 3, timeout=13.0, what="three gpsd TPV fixes")
+        finally:
+            await gpsd.stop()
+    host = _host_stream(tmp_path, "host", "out")
+    navs = [f for f in host if isinstance(f, NavSolution)]
+    assert navs and all(isinstance(f, NavSolution) or type(f).__name__ in ("Status", "Ack", "HostStatus")
+                        for f in host), {type(f).__name__ for f in host}
+    nmea = _host_stream(tmp_path, "host_nmea", "out")
+    assert {_kind(f) for f in nmea} >= {"Gga", "Rmc"}
+    epoch = emu.emulator.scn.epoch.replace(tzinfo=None)
+    for tpv in fixes():
+        t_utc = _utc(tpv)
+        near = [n for n in navs if abs((epoch + dt.timedelta(seconds=n.time_s) - t_utc).total_seconds()) <= 0.0051]
+        assert near, tpv
+        n = near[0]
+        de = (tpv["lon"] - n.lon_deg) * 60.0 * M_PER_ARCMIN * math.cos(math.radians(n.lat_deg))
+        dn = (tpv["lat"] - n.lat_deg) * 60.0 * M_PER_ARCMIN
+        assert abs(de) < 0.0095 and abs(dn) < 0.0095, (tpv, n)

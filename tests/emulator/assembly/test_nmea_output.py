@@ -11,6 +11,7 @@ from __future__ import annotations
 import datetime as dt
 import itertools
 import math
+import os
 
 import pynmea2
 import pytest
@@ -140,13 +141,164 @@ def test_nmea_on_a_second_host_port_leaves_the_host_port_binary(tmp_path):
     assert dec.stats.crc_errors == 0
 
 
-def test_host_nmea_without_a_uart_or_sentences_is_a_validation_error():
+def test_host_nmea_without_sentences_is_a_validation_error_and_without_a_route_shares_uart0():
+    from emulator.assembly.build import effective_routing
     from emulator.errors import ScenarioError
     from emulator.testing import load_test_scenario
 
-    with pytest.raises(ScenarioError, match=r"route it in fpga\.routing"):
-        load_test_scenario(QS, {"links.host_nmea": {"url": "mem://nmea"}, "firmware.nmea.sentences": ["GGA"]})
+    scn = load_test_scenario(QS, {"links.host_nmea": {"url": "mem://nmea"}, "firmware.nmea.sentences": ["GGA"]})
+    assert effective_routing(scn) == {"host": "uart0", "psns": "uart2", "gnss": "uart3", "host_nmea": "uart0"}
     with pytest.raises(ScenarioError, match=r"firmware\.nmea\.sentences is empty"):
         load_test_scenario(QS, {"links.host_nmea": {"url": "mem://nmea"}, "links.psns": None, "sensors.camera": None,
                                 "firmware.alignment.heading_source": "config",
                                 "fpga.routing": {"host": "uart0", "gnss": "uart3", "host_nmea": "uart2"}})
+
+
+def test_the_full_box_carries_nmea_on_uart0_and_the_fpga_splits_it(tmp_path):
+    """Camera on UART2, GNSS on UART3, ``links.host_nmea`` without a route (issue 38): the firmware writes NMEA and
+    NAV_SOLUTION on UART0, the FPGA sends the binary frames to the host port and the sentences to host_nmea; nothing
+    is lost or misrouted, and the host's NAV_SOLUTION frames are those of a run without NMEA, bit for bit."""
+    from emulator.assembly.runner import run_scenario
+    from emulator.recording.capture import read_capture
+    from emulator.testing import load_test_scenario
+
+    base = {"duration_s": 6.0, "motion": [{"static": {"duration_s": 6.0}}], "expectations": []}
+    scn = load_test_scenario(QS, {**base, "links.host_nmea": {"url": "mem://nmea", "baud": 115200},
+                                  "firmware.nmea": {"sentences": ["GGA", "RMC", "ZDA", "HDT"], "rate_hz": 1.0,
+                                                    "attitude_rate_hz": 1.0}})
+    assert scn.links.psns is not None
+    s = run_scenario(scn, tmp_path / "mux")
+    plain = run_scenario(load_test_scenario(QS, base), tmp_path / "plain")
+    for link in ("host", "host_nmea", "uart0"):
+        assert s["links"][link]["garbage_bytes"] == 0 and s["links"][link]["crc_errors"] == 0, link
+    assert s["links"]["uart0"]["frames"] == s["links"]["host"]["frames"] + s["links"]["host_nmea"]["frames"]
+    assert s["links"]["host_nmea"]["frames"] >= 4 * 4
+    _h, recs = read_capture(tmp_path / "mux" / "capture.psnscap")
+    host = b"".join(r.data for r in recs if r.link == "host" and r.direction == "out")
+    nmea = b"".join(r.data for r in recs if r.link == "host_nmea" and r.direction == "out")
+    assert b"$GN" not in host and nmea.startswith(b"$GN") and nmea.endswith(b"\r\n")
+    dec = StreamDecoder([NmeaFormat()])
+    dec.feed(nmea)
+    assert dec.stats.garbage_bytes == 0 and dec.stats.frames == s["links"]["host_nmea"]["frames"]
+    assert (tmp_path / "mux" / "nav.csv").read_text().splitlines()[1:] != []
+    mux_rows = [r.split(",")[:22] for r in (tmp_path / "mux" / "nav.csv").read_text().splitlines()]
+    plain_rows = [r.split(",")[:22] for r in (tmp_path / "plain" / "nav.csv").read_text().splitlines()]
+    # the solution is unchanged (not the CPU load, nor the arrival times: NMEA shares the line)
+    assert mux_rows == plain_rows
+    assert plain["nav_frames"] == s["nav_frames"]
+
+
+def test_host_demux_splits_interleaved_frames_in_any_chunking():
+    """Binary frames whose payload holds '$' and CR LF bytes, NMEA sentences between them, fed in random chunks:
+    each goes to its port whole and in order; a corrupted sentence is dropped and counted."""
+    import datetime as dt
+    import random
+
+    from emulator.devices.fpga import HostDemux
+    from protocols.host import HostFormat, NavSolution
+    from protocols.nmea_build import build_gga
+
+    frames, want = [], {"host": [], "host_nmea": []}
+    for k in range(40):
+        nav = NavSolution(seq=k, time_s=0.01 * k, lat_deg=36.0, lon_deg=36.0, height_m=13.0 + 0.0001 * k,
+                          vel_enu_mps=(0.0, 0.0, 0.0), roll_deg=0.0, pitch_deg=0.0, heading_deg=36.0,
+                          sigma=(0.1,) * 9, mode=0x24, gnss_status=0x0D, psns_status=0x0A, cpu_load_pct=36.0,
+                          deadline_misses=0)
+        b = HostFormat().encode(nav)
+        frames.append(b)
+        want["host"].append(b)
+        if k % 7 == 0:
+            g = build_gga(dt.time(8, 14, k % 60), 39.979, 116.339, 50.0, 0.0, quality=1)
+            frames.append(g)
+            want["host_nmea"].append(g)
+    stream = b"".join(frames)
+    assert b"$" in b"".join(want["host"])  # the binary frames carry '$' bytes
+    rng = random.Random(7)
+    demux = HostDemux()
+    got = {"host": [], "host_nmea": []}
+    i = 0
+    while i < len(stream):
+        n = rng.randint(1, 50)
+        for port, frame in demux.feed(stream[i:i + n]):
+            got[port].append(frame)
+        i += n
+    assert got == want and demux.garbage_bytes == 0
+    bad = bytearray(want["host_nmea"][0])
+    bad[10] ^= 0x01
+    assert HostDemux().feed(bytes(bad) + want["host"][0]) == [("host", want["host"][0])]
+
+
+def test_psns_text_output_switched_on_from_the_scenario(tmp_path):
+    """``firmware.text_rate_hz: 10`` with ``links.host_nmea``: the $PSNS text (docs/icd.md 7) of every tenth
+    NAV_SOLUTION goes out on the NMEA port, text only, and says what the binary frame says to its printed digits."""
+    from emulator.assembly.runner import run_scenario
+    from emulator.recording.capture import read_capture
+    from emulator.testing import load_test_scenario
+    from protocols.host import HostFormat, NavSolution
+    from protocols.host_text import HostTextFormat, NavText
+
+    scn = load_test_scenario(QS, {"duration_s": 4.0, "motion": [{"static": {"duration_s": 4.0}}], "expectations": [],
+                                  "links.host_nmea": {"url": "mem://nmea", "baud": 115200},
+                                  "firmware.text_rate_hz": 10.0})
+    s = run_scenario(scn, tmp_path)
+    assert s["links"]["host_nmea"]["garbage_bytes"] == 0 and s["links"]["host"]["garbage_bytes"] == 0
+    _h, recs = read_capture(tmp_path / "capture.psnscap")
+    text = b"".join(r.data for r in recs if r.link == "host_nmea" and r.direction == "out")
+    assert text.startswith(b"$PSNSPOS,") and all(32 <= c < 127 or c in (13, 10) for c in text)  # printable text
+    dec = StreamDecoder([HostTextFormat()])
+    sentences = [f for f in dec.feed(text) if isinstance(f, NavText)]
+    # POS VEL ATT STA at 10 Hz for 4 s; the last group may still be on the line when the run ends
+    assert dec.stats.crc_errors == 0 and len(sentences) % 4 == 0 and 4 * 39 <= len(sentences) <= 4 * 40
+    navs = {round(f.time_s, 3): f for f in StreamDecoder([HostFormat()]).feed(
+        b"".join(r.data for r in recs if r.link == "host" and r.direction == "out")) if isinstance(f, NavSolution)}
+    for t in (x for x in sentences if x.kind == "POS"):
+        n = navs[round(t.time_s, 3)]
+        lat, lon, h, mode = t.values[:4]
+        assert abs(lat - n.lat_deg) <= 5e-8 and abs(lon - n.lon_deg) <= 5e-8 and abs(h - n.height_m) <= 0.005
+        assert mode == n.mode
+
+
+def test_text_rate_must_divide_the_output_rate():
+    from emulator.errors import ScenarioError
+    from emulator.testing import load_test_scenario
+
+    with pytest.raises(ScenarioError, match=r"firmware\.text_rate_hz: must divide output_rate_hz"):
+        load_test_scenario(QS, {"firmware.text_rate_hz": 30.0})
+
+
+@pytest.mark.pty
+@pytest.mark.realtime
+@pytest.mark.psns_emulator(mode="realtime")
+async def test_psns_text_can_be_read_on_the_pty(tmp_path):
+    """What the README's terminal recipe shows: the quickstart (camera on) with ``links.host_nmea`` on a pty and
+    ``firmware.text_rate_hz: 10``; a terminal reader on ports/nmea gets printable $PSNS lines, checksums valid."""
+    import contextlib
+    import termios
+    import tty
+
+    from emulator.testing import start_emulator
+    from protocols.host_text import HostTextFormat, NavText
+
+    ov = {"duration_s": 8.0, "motion": [{"static": {"duration_s": 8.0}}], "expectations": [],
+          "links.host_nmea": {"url": "pty://nmea", "baud": 115200}, "firmware.text_rate_hz": 10.0}
+    got = bytearray()
+    async with start_emulator(QS, run_dir=tmp_path, overrides=ov) as emu:
+        fd = os.open(tmp_path / "ports" / "nmea", os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
+        try:
+            tty.setraw(fd, termios.TCSANOW)
+
+            def lines() -> int:
+                with contextlib.suppress(BlockingIOError):
+                    while chunk := os.read(fd, 4096):
+                        got.extend(chunk)
+                return got.count(b"\r\n")
+
+            await emu.wait_until(lambda: lines() >= 20, timeout=7.0, what="20 text lines on the pty")
+        finally:
+            os.close(fd)
+    text = bytes(got[got.index(b"$"):got.rindex(b"\r\n") + 2])  # from the first whole sentence on
+    assert all(32 <= c < 127 or c in (13, 10) for c in text), text[:200]
+    dec = StreamDecoder([HostTextFormat()])
+    kinds = [f.kind for f in dec.feed(text) if isinstance(f, NavText)]
+    assert dec.stats.crc_errors == 0 and dec.stats.garbage_bytes == 0
+    assert {"POS", "VEL", "ATT", "STA"} <= set(kinds) and len(kinds) >= 19

@@ -248,3 +248,40 @@ def test_run_set_overrides_are_validated_like_the_file(tmp_path):
     r = psns_hil("run", _scenario(tmp_path), "--set", "duration_s=2", "--out", str(tmp_path / "r"), "--quiet",
                  "--no-report")
     assert r.returncode == 0 and json.loads((tmp_path / "r" / "summary.json").read_text())["sim_duration_s"] == 2.0
+
+
+def test_a_refused_out_is_the_only_line_no_running_first(tmp_path):
+    """Issue 38: ``run --out README.md`` printed "running ..." before its error."""
+    f = tmp_path / "README.md"
+    f.write_text("x")
+    r = psns_hil("run", _scenario(tmp_path), "--out", str(f))
+    assert r.returncode == 2 and "running" not in r.stdout + r.stderr
+    assert r.stderr.strip().splitlines() == [f"error: {f}: exists and is not a directory (--out takes a run "
+                                             "directory)"]
+
+
+def test_report_of_a_missing_directory_names_it(tmp_path):
+    missing = tmp_path / "runs" / "nonexist"
+    r = psns_hil("report", str(missing))
+    assert r.returncode == 2 and r.stderr.strip() == f"error: {missing}: no such run directory"
+
+
+def test_validate_json_into_a_closed_pipe_has_no_traceback(tmp_path):
+    """``psns-hil validate --json SCENARIO | head -1``: the reader is gone before the JSON is written (the read end
+    of the pipe is closed before the process starts, so every write fails: deterministic); exit 0, no
+    BrokenPipeError traceback."""
+    import subprocess
+    import sys
+
+    from tests.conftest import ROOT
+
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        r = subprocess.run([sys.executable, "-m", "emulator", "validate", "--json",
+                            str(ROOT / "scenarios" / "quickstart.yaml")], stdout=write_end, stderr=subprocess.PIPE,
+                           cwd=ROOT, timeout=120)
+    finally:
+        os.close(write_end)
+    err = r.stderr.decode()
+    assert r.returncode == 0 and "Traceback" not in err and "BrokenPipeError" not in err, err

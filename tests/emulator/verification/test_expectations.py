@@ -275,3 +275,110 @@ def test_nan_in_a_metric_fails_its_expectation_with_the_reason():
               rec=rec, summary={"sim_duration_s": 20.0, "dsp": {"cpu_load_pct_max": nan}})
     assert [x.passed for x in r] == [False, False]
     assert all("not a finite number" in x.message for x in r)
+
+
+def _nav_csv(tmp_path, arrivals):
+    (tmp_path / "nav.csv").write_text("time_s,arrival_s\r\n" + "".join(f"{t - 0.003!r},{t!r}\r\n" for t in arrivals))
+    return tmp_path
+
+
+def test_nav_gap_and_nav_rate_measure_the_arrival_times(tmp_path):
+    """100 Hz frames with a 5 s hole from 40 s (a cable pulled): the largest gap inside the window is the hole,
+    clipped to the window; the rate of a window without the hole is 100 Hz; the hook these kinds replace
+    (scenarios/checks.py nav_gap / nav_rate) gives the same numbers."""
+    import importlib.util
+
+    arrivals = [0.01 * k + 0.004 for k in range(6000) if not 40.0 <= 0.01 * k + 0.004 < 45.0]
+    run_dir = _nav_csv(tmp_path, arrivals)
+    r = _eval([
+        {"nav_gap": {"between_s": [39, 46], "min_gap_s": 4.9}},
+        {"nav_gap": {"between_s": [39, 46], "min_gap_s": 5.1}},
+        {"nav_gap": {"between_s": [3, 39], "max_gap_s": 0.1}},
+        {"nav_gap": {"between_s": [42, 44], "min_gap_s": 1.9}},  # inside the hole: the window itself is the gap
+        {"nav_rate": {"rate_hz": 100.0, "until_s": 39.0}},
+        {"nav_rate": {"rate_hz": 100.0, "after_s": 46.0}},
+        {"nav_rate": {"rate_hz": 100.0, "tolerance": 0.01}},  # the whole run: the hole pulls the rate down
+        {"nav_rate": {"rate_hz": 50.0, "until_s": 39.0}},
+    ], summary={"sim_duration_s": 60.0}, run_dir=run_dir)
+    assert [x.passed for x in r] == [True, False, True, True, True, True, False, False]
+    assert r[0].value == pytest.approx(5.01, abs=1e-9) and "from t = 39.994 s" in r[0].message
+    assert r[3].value == pytest.approx(2.0)
+    assert r[4].value == pytest.approx(100.0) and r[6].value == pytest.approx(5500 / 59.99 * (5499 / 5500), rel=1e-3)
+    spec = importlib.util.spec_from_file_location("library_checks", SCENARIOS / "checks.py")
+    checks = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(checks)
+    assert checks.nav_gap({}, run_dir, 39, 46, 4.9)[1] == pytest.approx(r[0].value, abs=1e-4)
+    assert checks.nav_rate({}, run_dir, 100.0)[1] == pytest.approx(r[6].value, abs=1e-3)
+
+
+def test_nav_gap_and_rate_fail_with_the_reason_when_nothing_is_measured(tmp_path):
+    r = _eval([{"nav_gap": {"after_s": 70, "min_gap_s": 1}}, {"nav_rate": {"rate_hz": 100.0}}],
+              summary={"sim_duration_s": 60.0}, run_dir=tmp_path)
+    assert [x.passed for x in r] == [False, False]
+    assert all(x.message == "no nav.csv in the run directory" for x in r)
+    r = _eval([{"nav_gap": {"after_s": 70, "min_gap_s": 1}}, {"nav_rate": {"rate_hz": 100.0, "after_s": 59.995}}],
+              summary={"sim_duration_s": 60.0}, run_dir=_nav_csv(tmp_path, [0.01 * k for k in range(6000)]))
+    assert [x.passed for x in r] == [False, False]
+    assert "after the run ended" in r[0].message and "no rate to measure" in r[1].message
+
+
+def test_nav_gap_needs_a_bound():
+    from pydantic import ValidationError
+
+    with pytest.raises(ValidationError, match="min_gap_s, max_gap_s or both"):
+        Expectation.model_validate({"nav_gap": {"after_s": 1}})
+    with pytest.raises(ValidationError, match="below min_gap_s"):
+        Expectation.model_validate({"nav_gap": {"min_gap_s": 2, "max_gap_s": 1}})
+
+
+def test_a_hook_without_allow_hooks_is_not_run_neither_pass_nor_fail(tmp_path, monkeypatch):
+    from emulator.scenario.paths import ALLOW_HOOKS_ENV
+
+    monkeypatch.delenv(ALLOW_HOOKS_ENV, raising=False)
+    marker = tmp_path / "ran"
+    (tmp_path / "hooks.py").write_text(f"open({str(marker)!r}, 'w').write('x')\n" + HOOKS)
+    r = _eval([{"python": {"file": "hooks.py", "function": "ok"}}, {"python": {"file": "hooks.py",
+                                                                                "function": "as_dict"}}],
+              summary={"sim_duration_s": 1.0, "x": 0.5}, run_dir=tmp_path, base_dir=tmp_path)
+    assert [x.status for x in r] == ["not_run", "not_run"] and not marker.exists()
+    assert all(x.passed and not x.applicable and "--allow-hooks" in x.message for x in r)
+    assert r[0].as_dict()["status"] == "not_run"
+    monkeypatch.setenv(ALLOW_HOOKS_ENV, "1")
+    r = _eval([{"python": {"file": "hooks.py", "function": "ok"}}, {"python": {"file": "hooks.py",
+                                                                                "function": "as_dict"}}],
+              summary={"sim_duration_s": 1.0, "x": 0.5}, run_dir=tmp_path, base_dir=tmp_path)
+    assert [x.status for x in r] == ["pass", "fail"] and marker.exists()
+
+
+HOOKED = WRONG.replace("""  # a 10 m GNSS cannot give a millimetre: this expectation is wrong on purpose
+  - nav_error: {metric: position_m, stat: max, max: 0.001, after_s: 2.5}
+""", """  - python: {file: hooks.py, function: plain}
+""")
+
+
+def test_plain_run_of_a_scenario_with_a_hook_exits_0_and_says_not_run(tmp_path):
+    """The CLI without --allow-hooks: exit 0 (nothing failed), a line that says the hook was not run, the report and
+    summary.json say "not run"; with --allow-hooks it runs and passes."""
+    import os
+    import subprocess
+    import sys
+
+    from emulator.scenario.paths import ALLOW_HOOKS_ENV
+
+    assert HOOKED != WRONG
+    (tmp_path / "s.yaml").write_text(HOOKED)
+    (tmp_path / "hooks.py").write_text(HOOKS)
+    env = {k: v for k, v in os.environ.items() if k != ALLOW_HOOKS_ENV}
+    r = subprocess.run([sys.executable, "-m", "emulator", "run", str(tmp_path / "s.yaml"), "--out",
+                        str(tmp_path / "run")], capture_output=True, text=True, env=env, cwd=ROOT, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "1 python hook expectation(s) not run" in r.stdout
+    s = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert [e["status"] for e in s["expectations"]] == ["pass", "not_run"] and s["passed"] is True
+    assert "<td>not run</td>" in (tmp_path / "run" / "report.html").read_text()
+    r = subprocess.run([sys.executable, "-m", "emulator", "run", str(tmp_path / "s.yaml"), "--out",
+                        str(tmp_path / "run2"), "--allow-hooks"], capture_output=True, text=True, env=env, cwd=ROOT,
+                       timeout=300)
+    assert r.returncode == 0 and "not run" not in r.stdout, r.stdout + r.stderr
+    s = json.loads((tmp_path / "run2" / "summary.json").read_text())
+    assert [e["status"] for e in s["expectations"]] == ["pass", "pass"]

@@ -288,6 +288,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
                                    progress=on_progress, on_started=on_started, force=args.force)
     if realtime and tty and not args.quiet:
         err.write("\n")
+    from . import export  # the viewer outputs: raw sensor tables, run.mcap (issue 39)
+
+    export.after_run(args, run_dir)
     report = None
     if not args.no_report and (run_dir / "summary.json").exists():
         from ..recording.report import write_report
@@ -407,6 +410,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="print the summary as one strict JSON document on stdout (everything else on stderr)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.add_argument("--no-report", action="store_true", help="do not write report.html at the end")
+    from . import export
+
+    export.add_run_arguments(r)
     r.add_argument("--split", action="store_true",
                    help="run the virtual DSP in its own process, joined to the FPGA over zenoh (realtime)")
     r.add_argument("--allow-hooks", action="store_true",
@@ -458,11 +464,12 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--json", action="store_true", help="print the summary as JSON")
     rp.set_defaults(func=_cmd_replay)
 
-    from . import campaign, diff_firmware, golden
+    from . import campaign, diff_firmware, export, golden
 
     campaign.add_parser(sub).set_defaults(func=campaign.run)
     golden.add_parser(sub).set_defaults(func=golden.run)
     diff_firmware.add_parser(sub).set_defaults(func=diff_firmware.run)
+    export.add_parser(sub).set_defaults(func=export.run)
     return p
 
 

@@ -233,7 +233,7 @@ def write_gpx(tr: Tracks, path: Path) -> Path:
             p = tr.truth_at(t) if t is not None else None
             if p is None:
                 continue
-            w = pt(root, "wpt", p)
+            w = pt(root, "wpt", (t, p[1], p[2], p[3]))  # at the fault's time, where truth was then
             _sub(w, "name", f"{f.kind} {which}")
             _sub(w, "desc", _fault_text(f))
             _sub(w, "type", "fault")

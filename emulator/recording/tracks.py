@@ -231,7 +231,7 @@ def write_gpx(tr: Tracks, path: Path) -> Path:
     for f in tr.faults:
         for which, t in (("start", f.start_s), ("end", f.end_s)):
             p = tr.truth_at(t) if t is not None else None
-            if p is None:
+            if p is None or t is None:
                 continue
             w = pt(root, "wpt", (t, p[1], p[2], p[3]))  # at the fault's time, where truth was then
             _sub(w, "name", f"{f.kind} {which}")

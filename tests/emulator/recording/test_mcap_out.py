@@ -23,7 +23,7 @@ from protocols.imu_frame import ImuFrame
 from protocols.nmea import Gga
 from protocols.psns import PolarizationObs
 from protocols.stream import StreamDecoder
-from tests.conftest import SCENARIOS
+from tests.conftest import ROOT, SCENARIOS
 
 
 @pytest.fixture(scope="module")
@@ -184,3 +184,44 @@ def test_sensor_tables_rows_equal_the_frames_in_the_capture(run_dir):
     assert sum(float(r[13]) for r in rows[100:]) / len(rows[100:]) == pytest.approx(1.0, abs=0.01)
     cols, rows = _csv(run_dir / "gnss.csv")
     assert [float(r[cols.index("lat_deg")]) for r in rows] == [g.lat_deg for g in gga]
+
+
+LAYOUT = ROOT / "docs" / "foxglove" / "psns-hil.layout.json"
+#: the schema each panel kind expects of the topics it names
+PANEL_SCHEMA = {"Map": "foxglove.LocationFix", "3D": "foxglove.PoseInFrame", "RosOut": "foxglove.Log"}
+
+
+def _panels(node):
+    if isinstance(node, str):
+        return [node]
+    return _panels(node["first"]) + _panels(node["second"])
+
+
+def test_the_shipped_foxglove_layout_names_only_what_the_mcap_has(mcap_read):
+    """Every panel of docs/foxglove/psns-hil.layout.json is placed in the layout tree, and every topic, field and
+    frame it names exists in a library run's MCAP with the schema its panel expects (the app is not at hand)."""
+    summary, msgs = mcap_read
+    layout = json.loads(LAYOUT.read_text(encoding="utf-8"))
+    configs = layout["configById"]
+    assert sorted(_panels(layout["layout"])) == sorted(configs)
+    schema_of = {ch.topic: summary.schemas[ch.schema_id].name for ch in summary.channels.values()}
+    first = {}
+    for topic, _, _, _, m in msgs:
+        first.setdefault(topic, m)
+    frames = {m["child_frame_id"] for t, _, _, _, m in msgs if t == "/tf"}
+    checked = 0
+    for panel_id, cfg in configs.items():
+        kind = panel_id.split("!")[0]
+        topics = list(cfg.get("topicColors", {})) + list(cfg.get("topics", {}))
+        topics += [cfg[k] for k in ("topicToRender", "topicPath") if k in cfg]
+        for topic in topics:
+            assert schema_of.get(topic) == PANEL_SCHEMA.get(kind, schema_of.get(topic)), (panel_id, topic)
+            assert topic in schema_of, (panel_id, topic)
+            checked += 1
+        for path in cfg.get("paths", []):
+            topic, fld = path["value"].split(".", 1)
+            assert topic in schema_of and fld in first[topic], (panel_id, path["value"])
+            checked += 1
+        if "followTf" in cfg:
+            assert cfg["followTf"] in frames
+    assert checked >= 20

@@ -4,7 +4,8 @@
 ``--mcap`` writes ``run.mcap`` (:mod:`emulator.recording.mcap_out`), ``--kml`` / ``--gpx`` the truth and estimated
 tracks with faults and outages (:mod:`emulator.recording.tracks`), ``--tables`` the raw sensor tables
 (:mod:`emulator.recording.sensor_tables`). ``psns-hil run`` writes the sensor tables at the end of every run
-(``--no-tables``: not) and ``run.mcap`` with ``--mcap`` (its cost is a third of the run: docs/decisions/
+(``--no-tables``: not), ``run.mcap`` with ``--mcap``, and serves the run live with ``--foxglove``
+(:mod:`emulator.recording.live`) (its cost is a third of the run: docs/decisions/
 emulator-runtime.md D-7.15).
 """
 
@@ -25,10 +26,52 @@ def add_run_arguments(r: argparse.ArgumentParser) -> None:
                    help="also write run.mcap (Foxglove / any MCAP reader) at the end of the run")
     r.add_argument("--no-tables", action="store_true",
                    help="do not write the raw sensor tables (imu.csv, gnss.csv, psns_frames.csv) at the end")
+    r.add_argument("--foxglove", nargs="?", const="127.0.0.1:8765", default=None, metavar="HOST:PORT", type=_host_port,
+                   help="serve the run live over the Foxglove WebSocket protocol, read-only (default 127.0.0.1:8765; "
+                        "port 0: any free port)")
+
+
+def _host_port(text: str) -> str:
+    from ..recording.live import parse_host_port
+
+    try:
+        parse_host_port(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"{text}: {exc} (HOST:PORT, HOST or :PORT)") from None
+    return text
+
+
+def on_started(args: argparse.Namespace, emu: Any) -> None:
+    """Start the live Foxglove view (``--foxglove``) once the run's links and recorder exist."""
+    spec = getattr(args, "foxglove", None)
+    if spec is None or emu.recorder is None:
+        return
+    import sys
+
+    from ..recording.live import LiveServer, attach, parse_host_port
+
+    host, port = parse_host_port(spec)
+    server = LiveServer(host, port)
+    for name in emu.links:
+        for direction in ("in", "out"):
+            server.add_raw_channel(name, direction)
+    attach(server, emu)
+    try:
+        port = server.start()
+    except OSError as exc:  # the run is under way: it goes on, without the live view
+        sys.stderr.write(f"foxglove: cannot listen on {host}:{port} ({exc.strerror}); the run goes on without the "
+                         "live view\n")
+        return
+    args.live_server = server
+    sys.stderr.write(f"foxglove: ws://{host}:{port} (Foxglove WebSocket, read-only)\n")
+    sys.stderr.flush()
 
 
 def after_run(args: argparse.Namespace, run_dir: Path) -> list[Path]:
     """The viewer outputs ``psns-hil run`` writes once the run directory is complete; returns the files written."""
+    live = getattr(args, "live_server", None)
+    if live is not None:
+        live.close()
     if not (run_dir / "capture.psnscap").exists():
         return []
     written: list[Path] = []

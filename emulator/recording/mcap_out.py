@@ -21,7 +21,9 @@ Topics (:data:`TOPICS`; README, "Run directory"):
 * ``/truth/state``, ``/truth/location``, ``/truth/pose``; ``/tf`` (FrameTransform ``enu`` -> ``body`` and
   ``enu`` -> ``body_truth``);
 * ``/imu``, ``/gnss/epoch``, ``/gnss/fix`` (LocationFix), ``/psns/frames``: the decoded sensor streams
-  (:mod:`emulator.recording.sensor_tables`); ``/psns/solar_vector``: the solved solar vector against the true one;
+  (:mod:`emulator.recording.sensor_tables`); ``/psns/aop_image`` (foxglove.RawImage, 1 Hz): the angle of
+  polarization the camera reported at its observation points, on the sensor (:func:`aop_image`);
+  ``/psns/solar_vector``: the solved solar vector against the true one;
 * ``/links/counters`` (timeline.csv: link counters and DSP load), ``/dsp/filter_state`` (mode, covariance
   diagonal, biases), ``/events`` (foxglove.Log: modes, faults, rejections), ``/expectations``;
 * ``/raw/<link>/<in|out>``: every capture chunk, base64 in JSON, so the MCAP alone can be decoded again.
@@ -36,13 +38,17 @@ import math
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from itertools import pairwise
 from pathlib import Path
 from typing import IO, Any
 
 from mcap.writer import Writer
 
 from protocols import __version__ as VERSION
+from protocols.host import NavMode, describe_nav_mode
+from protocols.psns import PolarizationObs, PolarizationObsPacked
 
+from ..devices.camera.geometry import IMX250MZR_NX, IMX250MZR_NY
 from ..world.geodesy import radii
 from .capture import iter_capture
 from .nav_error import _c_bn
@@ -87,6 +93,13 @@ FOXGLOVE_SCHEMAS: dict[str, dict[str, Any]] = {
         "properties": {"timestamp": _TIME, "parent_frame_id": {"type": "string"},
                        "child_frame_id": {"type": "string"}, "translation": _VEC3, "rotation": _QUAT},
         "required": ["timestamp", "parent_frame_id", "child_frame_id", "translation", "rotation"]},
+    "foxglove.RawImage": {
+        "title": "foxglove.RawImage", "type": "object",
+        "properties": {"timestamp": _TIME, "frame_id": {"type": "string"}, "width": {"type": "integer", "minimum": 0},
+                       "height": {"type": "integer", "minimum": 0}, "encoding": {"type": "string"},
+                       "step": {"type": "integer", "minimum": 0},
+                       "data": {"type": "string", "contentEncoding": "base64"}},
+        "required": ["timestamp", "frame_id", "width", "height", "encoding", "step", "data"]},
     "foxglove.Log": {
         "title": "foxglove.Log", "type": "object",
         "properties": {"timestamp": _TIME,
@@ -101,11 +114,12 @@ FOXGLOVE_SCHEMAS: dict[str, dict[str, Any]] = {
 #: topic -> schema name (``foxglove.*`` above, or a ``psns_hil.*`` schema made from the source's columns)
 TOPICS: dict[str, str] = {
     "/nav/solution": "psns_hil.NavSolution", "/nav/location": "foxglove.LocationFix",
-    "/nav/pose": "foxglove.PoseInFrame", "/nav/error": "psns_hil.NavError",
+    "/nav/pose": "foxglove.PoseInFrame", "/nav/error": "psns_hil.NavError", "/nav/mode": "foxglove.Log",
     "/truth/state": "psns_hil.Truth", "/truth/location": "foxglove.LocationFix",
     "/truth/pose": "foxglove.PoseInFrame", "/tf": "foxglove.FrameTransform",
     "/imu": "psns_hil.ImuFrame", "/gnss/epoch": "psns_hil.GnssEpoch", "/gnss/fix": "foxglove.LocationFix",
-    "/psns/frames": "psns_hil.PsnsFrame", "/psns/solar_vector": "psns_hil.SolarVector",
+    "/psns/frames": "psns_hil.PsnsFrame", "/psns/aop_image": "foxglove.RawImage",
+    "/psns/solar_vector": "psns_hil.SolarVector",
     "/links/counters": "psns_hil.Timeline", "/dsp/filter_state": "psns_hil.FilterState",
     "/events": "foxglove.Log", "/expectations": "psns_hil.Expectation",
 }
@@ -124,6 +138,7 @@ NAV_ERROR_PAIRS = (("err_pos_e_m", "sig_pos_e_m"), ("err_pos_n_m", "sig_pos_n_m"
                    ("err_vel_e_mps", "sig_vel_e_mps"), ("err_vel_n_mps", "sig_vel_n_mps"),
                    ("err_vel_u_mps", "sig_vel_u_mps"), ("err_pitch_deg", "sig_att_e_deg"),
                    ("err_roll_deg", "sig_att_n_deg"), ("err_heading_deg", "sig_att_u_deg"))
+_DEGRADED = int(NavMode.DEGRADED)
 _LOG_LEVEL = {"fault": 3, "error": 4, "reject": 3, "watchdog": 4, "deadline": 3, "timeout": 3}
 
 
@@ -296,13 +311,20 @@ def _gather_nav(out: _Out, run_dir: Path, enu: _Enu | None) -> None:
         "title": "psns_hil.NavError", "type": "object", "properties": err_props,
         "description": "The error against truth per component beside the filter's 1-sigma of that component "
                        "(plot err inside +-3 sig); null errors: the frame is not navigating"}
-    for cells in rows:
+    last_mode: int | None = None
+    for line, cells in enumerate(rows, start=2):
         r: dict[str, Any] = {c: _num(v) for c, v in zip(cols, cells)}
         t, arr = r["time_s"], r.get("arrival_s")
         if not isinstance(t, float | int):
             continue
         pub = arr if isinstance(arr, float | int) else None
         out.add("/nav/solution", "psns_hil.NavSolution", t, r, pub)
+        mode = r.get("mode")
+        if isinstance(mode, int) and mode != last_mode:  # each change of the mode bits, as a log line
+            out.add("/nav/mode", "foxglove.Log", t, {"timestamp": _stamp(t), "level": 3 if mode & _DEGRADED else 2,
+                                                    "message": describe_nav_mode(mode), "name": "firmware",
+                                                    "file": "nav.csv", "line": line})
+            last_mode = mode
         sig = (r["sig_pos_e_m"], r["sig_pos_n_m"], r["sig_pos_u_m"])
         ok = all(isinstance(v, float | int) and math.isfinite(v) for v in sig)
         out.add("/nav/location", "foxglove.LocationFix", t,
@@ -347,18 +369,53 @@ def _gather_capture(out: _Out, run_dir: Path) -> dict[str, Any]:
                      "data": base64.b64encode(r.data).decode("ascii")})
             yield r
 
+    next_image = 0.0
     for fr in decode_sensor_frames(tee(), gyro_is_rate(header)):
         topic, schema, text = descr[fr.table]
         if schema not in out.schemas:
             out.schemas[schema] = _columns_schema(schema, list(fr.row), text)
         row = {k: _finite(v) for k, v in fr.row.items()}
         out.add(topic, schema, fr.t_rx_s, row)
+        if isinstance(fr.frame, PolarizationObs | PolarizationObsPacked) and fr.t_rx_s >= next_image:
+            w, h, img = aop_image(fr.frame.points)
+            out.add("/psns/aop_image", "foxglove.RawImage", fr.t_rx_s,
+                    {"timestamp": _stamp(fr.t_rx_s), "frame_id": "camera", "width": w, "height": h,
+                     "encoding": "mono8", "step": w, "data": base64.b64encode(img).decode("ascii")})
+            next_image = (fr.t_rx_s // AOP_IMAGE_EVERY_S + 1) * AOP_IMAGE_EVERY_S
         if fr.table == "gnss.csv" and isinstance(row.get("lat_deg"), float) and isinstance(row.get("lon_deg"),
                                                                                           float):
             out.add("/gnss/fix", "foxglove.LocationFix", fr.t_rx_s,
                     _location(fr.t_rx_s, row["lat_deg"], row["lon_deg"], row.get("height_msl_m") or 0.0, None,
                               "gnss"))
     return header
+
+
+#: the AoP image: camera pixels per image pixel, and the camera frames per image (1 Hz at the usual 5 Hz)
+AOP_IMAGE_BIN = 16
+AOP_IMAGE_EVERY_S = 1.0
+
+
+def aop_image(points: Any, nx: int = IMX250MZR_NX, ny: int = IMX250MZR_NY, binning: int = AOP_IMAGE_BIN
+              ) -> tuple[int, int, bytes]:
+    """A ``mono8`` image (width, height, bytes) of a POLARIZATION_OBS frame's points on the sensor (``nx`` x ``ny``
+    pixels, binned by ``binning``): each point's cell of the observation grid (half the grid's pitch in x and
+    in y) painted with its angle of polarization, -90..90 deg -> 1..255; 0 where nothing was observed."""
+    w, h = -(-nx // binning), -(-ny // binning)
+    img = bytearray(w * h)
+    pts = [(p.x_px, p.y_px, p.aop_cdeg) for p in points]
+
+    def half_pitch(values: set[int]) -> int:
+        gaps = [b - a for a, b in pairwise(sorted(values))]
+        return max(1, min(gaps) // 2) if gaps else binning
+
+    hx, hy = half_pitch({x for x, _, _ in pts}), half_pitch({y for _, y, _ in pts})
+    for x, y, aop in pts:
+        v = 1 + round((max(-9000, min(9000, aop)) + 9000) / 18000 * 254)
+        x0, x1 = max(0, (x - hx) // binning), min(w, (x + hx) // binning + 1)
+        y0, y1 = max(0, (y - hy) // binning), min(h, (y + hy) // binning + 1)
+        for row in range(y0, y1):
+            img[row * w + x0: row * w + x1] = bytes([v]) * (x1 - x0)
+    return w, h, bytes(img)
 
 
 def _gather_events(out: _Out, run_dir: Path) -> None:

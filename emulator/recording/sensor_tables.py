@@ -63,6 +63,8 @@ class SensorFrame:
     table: str
     t_rx_s: float
     row: dict[str, Any] = field(default_factory=dict)
+    #: the decoded frame object (``protocols``)
+    frame: Any = None
 
 
 def _formats(link: str) -> list[Any]:
@@ -135,7 +137,7 @@ def decode_sensor_frames(records: Iterable[CaptureRecord], gyro_rate: bool = Tru
             else:
                 row = _psns_row(r.t_s, fr)
             if row is not None:
-                yield SensorFrame(table, r.t_s, row)
+                yield SensorFrame(table, r.t_s, row, fr)
 
 
 def gyro_is_rate(header: dict[str, Any]) -> bool:

@@ -9,6 +9,7 @@ import csv
 import json
 import math
 from collections import Counter, defaultdict
+from itertools import pairwise
 
 import pytest
 from mcap.reader import make_reader
@@ -16,7 +17,14 @@ from mcap.reader import make_reader
 from emulator.assembly.ports import port_formats
 from emulator.assembly.runner import run_scenario
 from emulator.recording.capture import read_capture
-from emulator.recording.mcap_out import FOXGLOVE_SCHEMAS, RAW_SCHEMA, TOPICS, attitude_quaternion, write_run_mcap
+from emulator.recording.mcap_out import (
+    FOXGLOVE_SCHEMAS,
+    RAW_SCHEMA,
+    TOPICS,
+    aop_image,
+    attitude_quaternion,
+    write_run_mcap,
+)
 from emulator.recording.sensor_tables import write_sensor_tables
 from emulator.scenario import load_scenario
 from protocols.imu_frame import ImuFrame
@@ -83,11 +91,13 @@ def test_messages_are_time_ordered_on_the_scenario_clock(mcap_read, run_dir):
 def test_counts_equal_nav_csv_and_the_capture(mcap_read, run_dir):
     _, msgs = mcap_read
     n = Counter(m[0] for m in msgs)
-    _, nav = _csv(run_dir / "nav.csv")
+    cols, nav = _csv(run_dir / "nav.csv")
     _, truth = _csv(run_dir / "truth.csv")
     assert len(nav) > 500
     for topic in ("/nav/solution", "/nav/location", "/nav/pose", "/nav/error"):
         assert n[topic] == len(nav)
+    modes = [int(r[cols.index("mode")]) for r in nav]
+    assert n["/nav/mode"] == 1 + sum(a != b for a, b in pairwise(modes)) >= 2  # aligning, then navigating
     assert n["/truth/state"] == n["/truth/location"] == len(truth)
     assert n["/tf"] == len(nav) + len(truth)
     _, recs = read_capture(run_dir / "capture.psnscap")
@@ -188,7 +198,8 @@ def test_sensor_tables_rows_equal_the_frames_in_the_capture(run_dir):
 
 LAYOUT = ROOT / "docs" / "foxglove" / "psns-hil.layout.json"
 #: the schema each panel kind expects of the topics it names
-PANEL_SCHEMA = {"Map": "foxglove.LocationFix", "3D": "foxglove.PoseInFrame", "RosOut": "foxglove.Log"}
+PANEL_SCHEMA = {"Map": "foxglove.LocationFix", "3D": "foxglove.PoseInFrame", "RosOut": "foxglove.Log",
+                "Image": "foxglove.RawImage"}
 
 
 def _panels(node):
@@ -214,6 +225,7 @@ def test_the_shipped_foxglove_layout_names_only_what_the_mcap_has(mcap_read):
         kind = panel_id.split("!")[0]
         topics = list(cfg.get("topicColors", {})) + list(cfg.get("topics", {}))
         topics += [cfg[k] for k in ("topicToRender", "topicPath") if k in cfg]
+        topics += [cfg["imageMode"]["imageTopic"]] if "imageMode" in cfg else []
         for topic in topics:
             assert schema_of.get(topic) == PANEL_SCHEMA.get(kind, schema_of.get(topic)), (panel_id, topic)
             assert topic in schema_of, (panel_id, topic)
@@ -225,3 +237,23 @@ def test_the_shipped_foxglove_layout_names_only_what_the_mcap_has(mcap_read):
         if "followTf" in cfg:
             assert cfg["followTf"] in frames
     assert checked >= 20
+
+
+def test_the_aop_image_paints_each_point_with_its_angle(mcap_read):
+    """aop_image: a point's own pixel carries its AoP (-90..90 deg -> 1..255), nothing observed stays 0; in the run's
+    MCAP one image a second, the size of the IMX250MZR (2448 x 2048) binned by 16."""
+    from protocols.psns import PolarizationPoint
+
+    pts = [PolarizationPoint(x, y, aop, 30000, 5000) for x, y, aop in
+           ((100, 100, -9000), (300, 100, 0), (100, 300, 9000), (300, 300, 4500))]
+    w, h, img = aop_image(pts)
+    assert (w, h) == (153, 128) and len(img) == w * h
+    px = {(x, y): img[(y // 16) * w + x // 16] for x, y, _ in [(p.x_px, p.y_px, 0) for p in pts]}
+    assert px == {(100, 100): 1, (300, 100): 128, (100, 300): 255, (300, 300): 191}  # 1 + round(190.5), half even
+    assert img[(1000 // 16) * w + 1000 // 16] == 0
+    _, msgs = mcap_read
+    images = [(t, m) for topic, _, t, _, m in msgs if topic == "/psns/aop_image"]
+    assert len(images) == 6
+    assert all(m["width"] == 153 and m["height"] == 128 and m["encoding"] == "mono8" for _, m in images)
+    assert all(len(base64.b64decode(m["data"])) == 153 * 128 for _, m in images)
+    assert sum(base64.b64decode(images[0][1]["data"])) > 0

@@ -8,7 +8,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 SCENARIO ?= scenarios/quickstart.yaml
 
-.PHONY: install run examples test test-realtime test-all fuzz lint bench bench-quick golden compiled test-compiled clean distclean check-python
+.PHONY: install geoid-grid run examples test test-realtime test-all fuzz lint bench bench-quick golden compiled test-compiled clean distclean check-python
 
 check-python:
 	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "psns-hil needs Python >= 3.11, found " + sys.version.split()[0])'
@@ -19,7 +19,20 @@ $(STAMP): pyproject.toml | check-python
 	$(PY) -m pip install --quiet -e '.[test,dev]'
 	@touch $(STAMP)
 
-install: $(STAMP)
+install: $(STAMP) geoid-grid
+
+# The emulated GNSS receiver reports EGM96's geoid separation from PROJ's 15' grid (Debian proj-data,
+# docs/sensors.md): installed here when missing and we are root with apt-get, otherwise a one-line notice
+# (a scenario that needs it then stops with a ScenarioError naming the package).
+EGM96_GTX := /usr/share/proj/egm96_15.gtx
+geoid-grid:
+	@if [ ! -f $(EGM96_GTX) ] && [ ! -f /usr/local/share/proj/egm96_15.gtx ]; then \
+	  if [ "$$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1; then \
+	    echo "install: proj-data (EGM96 geoid grid) from Debian"; \
+	    apt-get install -y -qq proj-data >/dev/null 2>&1 || (apt-get update -qq >/dev/null 2>&1 && apt-get install -y -qq proj-data >/dev/null 2>&1) \
+	      || echo "install: proj-data could not be installed: set sensors.gnss.geoid_sep_m in scenarios or install it"; \
+	  else echo "install: $(EGM96_GTX) missing: 'sudo apt-get install proj-data' (or set sensors.gnss.geoid_sep_m)"; fi; \
+	fi
 
 run: install
 	$(VENV)/bin/psns-hil run $(SCENARIO)
@@ -39,11 +52,12 @@ test-realtime: install examples
 test-all: install
 	$(PY) -m pytest -m ''
 
-# Long seeded fuzz of every decoder and of the firmware's input path (>= 10^6 cases; not in `make test`):
-# prints the case counts, exits 1 on any exception or non-finite state (docs/hostile-input.md).
+# Long seeded fuzz of every decoder (byte mutations and hostile field tokens) and of the firmware's input path,
+# over three seeds (>= 3.3 x 10^6 cases; not in `make test`, whose tests/fuzz runs a short version):
+# prints the case counts, exits 1 on any exception, stuck decoder or non-finite state (docs/hostile-input.md).
 FUZZ_ARGS ?=
 fuzz: install
-	$(PY) -m tests.fuzz.fuzz_inputs $(FUZZ_ARGS)
+	$(PY) -m tests.fuzz.fuzz_inputs --seeds 3 $(FUZZ_ARGS)
 
 # The linters .ci/run runs before the tests: style and errors, types, layers.
 lint: install

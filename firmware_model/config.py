@@ -109,6 +109,18 @@ class FirmwareConfig:
     gnss_latency_s: float = 0.05
     #: an epoch whose composition is not complete is closed this long (s) after its first byte
     gnss_epoch_hold_s: float = 0.5
+    #: a receiver clock step (docs/icd.md 5.1.3, D-5.39): an epoch whose first-byte-minus-time
+    #: offset is this far (s) from the time base is refused until ``gnss_clock_rebase_epochs`` consecutive epochs
+    #: agree on the new offset (within the same tolerance); the last of them re-bases. Above the write jitter and a
+    #: 9600-baud burst's bound (a few hundred ms), below the 1 s of a leap second.
+    gnss_clock_step_tol_s: float = 0.75
+    gnss_clock_rebase_epochs: int = 5
+    #: the firmware's GPS week era (as gpsd's build week): a receiver date before this GPS week, or 1024 weeks after
+    #: it, is a week-rollover or RTC date and refused; week 2048 (2019-04-07, the last rollover) starts this one
+    gnss_era_start_week: int = 2048
+    #: a receiver date and time more than this (s) from the firmware's running UTC clock is refused (a rollover
+    #: jumps by 1024 weeks, an RTC date by years); a clock step smaller than this is followed once re-based
+    gnss_date_jump_tol_s: float = 86400.0
     #: the time-correlated part of the GNSS position error: white receiver noise per axis (the rest of
     #: ``gnss_pos_sigma_*`` is a first-order Gauss-Markov of ``gnss_pos_corr_time_s``, estimated as three augmented
     #: states when ``gnss_error_states``; docs/decisions/filter-consistency.md)

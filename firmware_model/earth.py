@@ -23,6 +23,7 @@ __all__ = [
     "F_WGS84",
     "G0",
     "OMEGA_IE",
+    "ecef_to_geodetic",
     "geodetic_to_ecef",
     "gravity",
     "gravity_n",
@@ -92,3 +93,20 @@ def geodetic_to_ecef(lat: float, lon: float, h: float) -> FloatArray:
     return np.array(
         [(rn + h) * cl * math.cos(lon), (rn + h) * cl * math.sin(lon), (rn * (1.0 - E2_WGS84) + h) * sl]
     )
+
+
+def ecef_to_geodetic(x: float, y: float, z: float) -> tuple[float, float, float]:
+    """ECEF (m) to WGS-84 geodetic (rad, rad, m): the fixed-point iteration of latitude and height (Heiskanen &
+    Moritz 1967, Physical Geodesy, eq. 5-27); five iterations reach 1e-12 rad for terrestrial heights."""
+    p = math.hypot(x, y)
+    lon = math.atan2(y, x)
+    lat = math.atan2(z, p * (1.0 - E2_WGS84))
+    h = 0.0
+    for _ in range(5):
+        rn = A_WGS84 / math.sqrt(1.0 - E2_WGS84 * math.sin(lat) ** 2)
+        if abs(lat) < math.radians(89.0):
+            h = p / math.cos(lat) - rn
+        else:  # near a pole: from z (cos lat -> 0)
+            h = abs(z) / abs(math.sin(lat)) - rn * (1.0 - E2_WGS84)
+        lat = math.atan2(z, p * (1.0 - E2_WGS84 * rn / (rn + h)))
+    return lat, lon, h

@@ -445,7 +445,9 @@ class Firmware(HostTask, GnssTask):
         g = self._gnss_pending
         if g is not None and (g.pos is not None or g.vel is not None) and self._hist:
             self._gnss_pending = None
-            if t - g.t_fpga_s <= cfg.gnss_max_age_s:
+            if t - g.t_fpga_s > cfg.gnss_max_age_s:
+                self.counters["gnss_tag_stale"] += 1  # grew too old waiting for the loop (docs/icd.md 5.1.3)
+            else:
                 m.begin("gnss_update", 1.0)
                 p_ins, v_ins, _ = self._ins_at(g.t_fpga_s)
                 rep = self.filter.update_gnss(nav, g, p_ins, v_ins)

@@ -15,9 +15,21 @@ import datetime as _dt
 import math
 from dataclasses import dataclass
 
+from .constants import A_WGS84, F_WGS84
 from .nmea import build_gga, build_gsa, build_gsv, build_rmc, build_vtg, build_zda
 from .nmea_build import NMEA_SYSTEM_ID
-from .ubx import NavPvt, NavStatus, encode_nav_pvt, encode_nav_status
+from .ubx import (
+    NavPosllh,
+    NavPvt,
+    NavSol,
+    NavStatus,
+    NavTimeGps,
+    NavTimeUtc,
+    NavVelned,
+    encode_nav_pvt,
+    encode_nav_status,
+    encode_ubx,
+)
 
 __all__ = [
     "FAA_MODE",
@@ -30,8 +42,11 @@ __all__ = [
     "GnssFix",
     "GnssOutputSet",
     "build_epoch",
+    "geodetic_ecef",
     "gps_time_of_week_ms",
     "gps_utc_offset_s",
+    "gps_week",
+    "legacy_nav_from_fix",
     "nav_pvt_from_fix",
     "nav_status_from_fix",
 ]
@@ -64,7 +79,9 @@ NMEA_SENTENCES = ("RMC", "VTG", "GGA", "GSA", "GSV", "ZDA")
 NMEA_VERSIONS = ("2.3", "4.10")
 #: NMEA 2.3 mode indicator (RMC/VTG) for each GGA fix quality.
 FAA_MODE = {1: "A", 2: "D", 4: "R", 5: "F", 6: "E"}
-UBX_MESSAGES = ("NAV-PVT", "NAV-STATUS")
+#: UBX output messages: NAV-PVT (protocol 14+) and the set of the generations before it (u-blox 5/6/7, and M8/F9
+#: configured so): NAV-SOL, NAV-POSLLH, NAV-VELNED, NAV-TIMEUTC, NAV-TIMEGPS with NAV-STATUS
+UBX_MESSAGES = ("NAV-PVT", "NAV-STATUS", "NAV-SOL", "NAV-POSLLH", "NAV-VELNED", "NAV-TIMEUTC", "NAV-TIMEGPS")
 
 
 @dataclass(frozen=True, slots=True)
@@ -81,6 +98,8 @@ class GnssFix:
     lon_deg: float
     height_m: float
     geoid_sep_m: float = 0.0
+    #: False: GGA leaves the geoid-separation field empty (MSL height only), as several receiver families do
+    geoid_sep_in_gga: bool = True
     vel_enu_mps: tuple[float, float, float] = (0.0, 0.0, 0.0)
     fix_type: int = 3
     quality: int = 1
@@ -163,6 +182,61 @@ def nav_status_from_fix(fix: GnssFix) -> NavStatus:
                      fixStat=0, flags2=0, ttff=fix.ttff_ms, msss=fix.msss_ms)
 
 
+def gps_week(utc: _dt.datetime) -> int:
+    """GPS week number (continuous, not modulo 1024) of a UTC instant."""
+    dt = utc - GPS_EPOCH + _dt.timedelta(seconds=gps_utc_offset_s(utc))
+    return dt.days // 7
+
+
+def legacy_nav_from_fix(fix: GnssFix, name: str) -> NavSol | NavPosllh | NavVelned | NavTimeUtc | NavTimeGps:
+    """The content of one legacy NAV message (``name`` of :data:`UBX_MESSAGES` other than NAV-PVT/STATUS) for
+    ``fix``, rounded to the message's integer units (NAV-SOL's ECEF position and velocity from the WGS-84
+    geodetic fix, the same closed forms as :func:`geodetic_ecef`)."""
+    t = fix.utc
+    itow = gps_time_of_week_ms(t)
+    ok = fix.fix_type >= 2
+    if name == "NAV-POSLLH":
+        return NavPosllh(iTOW=itow, lon=round(fix.lon_deg * 1e7), lat=round(fix.lat_deg * 1e7),
+                         height=round(fix.height_m * 1e3), hMSL=round((fix.height_m - fix.geoid_sep_m) * 1e3),
+                         hAcc=round(fix.h_acc_m * 1e3), vAcc=round(fix.v_acc_m * 1e3))
+    ve, vn, vu = fix.vel_enu_mps
+    if name == "NAV-VELNED":
+        course, speed = _course_speed(fix.vel_enu_mps)
+        return NavVelned(iTOW=itow, velN=round(vn * 100), velE=round(ve * 100), velD=round(-vu * 100),
+                         speed=round(math.sqrt(ve * ve + vn * vn + vu * vu) * 100), gSpeed=round(speed * 100),
+                         heading=round(course * 1e5), sAcc=min(round(fix.s_acc_mps * 100), 0xFFFFFFFF),
+                         cAcc=round(fix.head_acc_deg * 1e5))
+    frac_ns = t.microsecond * 1000 - (itow % 1000) * 1_000_000
+    if name == "NAV-SOL":
+        lat, lon = math.radians(fix.lat_deg), math.radians(fix.lon_deg)
+        x, y, z = geodetic_ecef(lat, lon, fix.height_m)
+        sl, cl, so, co = math.sin(lat), math.cos(lat), math.sin(lon), math.cos(lon)
+        vx = -so * ve - sl * co * vn + cl * co * vu
+        vy = co * ve - sl * so * vn + cl * so * vu
+        vz = cl * vn + sl * vu
+        return NavSol(iTOW=itow, fTOW=frac_ns, week=gps_week(t), gpsFix=fix.fix_type,
+                      flags=(0x01 if ok else 0) | 0x0C, ecefX=round(x * 100), ecefY=round(y * 100),
+                      ecefZ=round(z * 100), pAcc=min(round(math.hypot(fix.h_acc_m, fix.v_acc_m) * 100), 0xFFFFFFFF),
+                      ecefVX=round(vx * 100), ecefVY=round(vy * 100), ecefVZ=round(vz * 100),
+                      sAcc=min(round(fix.s_acc_mps * 100), 0xFFFFFFFF), pDOP=round(fix.pdop * 100), reserved1=0,
+                      numSV=len(fix.sat_ids), reserved2=0)
+    if name == "NAV-TIMEGPS":
+        return NavTimeGps(iTOW=itow, fTOW=frac_ns, week=gps_week(t), leapS=gps_utc_offset_s(t), valid=0x07,
+                          tAcc=fix.t_acc_ns)
+    if name == "NAV-TIMEUTC":
+        return NavTimeUtc(iTOW=itow, tAcc=fix.t_acc_ns, nano=t.microsecond * 1000, year=t.year, month=t.month,
+                          day=t.day, hour=t.hour, min=t.minute, sec=t.second, valid=0x07 | (3 << 4))  # USNO (GPS)
+    raise ValueError(f"not a legacy NAV message: {name!r}")
+
+
+def geodetic_ecef(lat: float, lon: float, h: float) -> tuple[float, float, float]:
+    """WGS-84 geodetic (rad, rad, m) to ECEF (m): the prime-vertical radius N = a / sqrt(1 - e^2 sin^2 lat)."""
+    e2 = F_WGS84 * (2.0 - F_WGS84)
+    sl = math.sin(lat)
+    n = A_WGS84 / math.sqrt(1.0 - e2 * sl * sl)
+    return ((n + h) * math.cos(lat) * math.cos(lon), (n + h) * math.cos(lat) * math.sin(lon), (n * (1.0 - e2) + h) * sl)
+
+
 def build_epoch(fix: GnssFix, output: GnssOutputSet = GnssOutputSet()) -> bytes:
     """The bytes the receiver sends for one epoch: ``output.nmea`` sentences, then ``output.ubx``."""
     t = fix.utc.timetz().replace(tzinfo=None)
@@ -180,7 +254,8 @@ def build_epoch(fix: GnssFix, output: GnssOutputSet = GnssOutputSet()) -> bytes:
             out += (build_vtg(course, speed, FAA_MODE.get(fix.quality, "A"), talker=tk) if ok
                     else build_vtg(None, None, "N", talker=tk))
         elif s == "GGA":
-            out += build_gga(t, fix.lat_deg, fix.lon_deg, fix.height_m - fix.geoid_sep_m, fix.geoid_sep_m,
+            out += build_gga(t, fix.lat_deg, fix.lon_deg, fix.height_m - fix.geoid_sep_m,
+                             fix.geoid_sep_m if fix.geoid_sep_in_gga else None,
                              quality=fix.quality if ok else 0, num_sats=len(fix.sat_ids), hdop=fix.hdop, talker=tk)
         elif s == "GSA":
             if v410 and tk == "GN" and fix.sky:
@@ -203,5 +278,10 @@ def build_epoch(fix: GnssFix, output: GnssOutputSet = GnssOutputSet()) -> bytes:
         else:  # ZDA
             out += build_zda(t, d, 0, 0, talker=tk)
     for m in output.ubx:
-        out += encode_nav_pvt(nav_pvt_from_fix(fix)) if m == "NAV-PVT" else encode_nav_status(nav_status_from_fix(fix))
+        if m == "NAV-PVT":
+            out += encode_nav_pvt(nav_pvt_from_fix(fix))
+        elif m == "NAV-STATUS":
+            out += encode_nav_status(nav_status_from_fix(fix))
+        else:
+            out += encode_ubx(legacy_nav_from_fix(fix, m))
     return bytes(out)

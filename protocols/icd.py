@@ -20,6 +20,7 @@ from construct import Array, BytesInteger, Const, FormatField, Renamed, Struct
 from construct import Bytes as _Bytes
 
 from . import can_nav, crc, gnss, host, imu_frame, monitor, nmea, psns, stim, ubx, ubx_cfg
+from .icd_nmea import NMEA_PARSE_TEXT
 
 __all__ = ["LINK_BAUD", "budget_rows", "generate", "spec_rows"]
 
@@ -134,7 +135,7 @@ def frame_sizes() -> dict[str, int]:
         "imu": imu_frame.IMU_FRAME_LEN,
         "mag": imu_frame.MAG_FRAME_LEN,
         "nmea_epoch": len(gnss.build_epoch(fix)),
-        "ubx_epoch": len(gnss.build_epoch(fix, gnss.GnssOutputSet(nmea=(), ubx=gnss.UBX_MESSAGES))),
+        "ubx_epoch": len(gnss.build_epoch(fix, gnss.GnssOutputSet(nmea=(), ubx=("NAV-PVT", "NAV-STATUS")))),
         "psns_obs": psns.frame_bytes_obs(PSNS_EXAMPLE_POINTS),
         "psns_compass": len(psns.encode_compass(h, [psns.CompassUnit(i, 0, 0) for i in range(9)])),
         "psns_solar": len(psns.encode_solar_vector(h, (0.0, 0.0, 1.0), 0.0)),
@@ -237,7 +238,8 @@ What the firmware (`firmware_model/tasks/gnss.py`) takes from real receivers, an
 | `uart3.frames`; a longer line: `uart3.length_errors` |
 | bad checksum | dropped | `uart3.crc_errors` |
 | GGA, GNS (NMEA 4.10 mode per constellation) | 3-D position | `gnss_fixes` |
-| RMC | horizontal velocity (speed, course), date; its position when the epoch has no GGA/GNS | - |
+| RMC | horizontal velocity (speed, course), date (status A only, 5.1.3); its position when the epoch has no GGA/GNS \
+| - |
 | RMC alone, GGA without altitude, GSA fix type 2, NAV-PVT fixType 2 | 2-D fix: horizontal position only \
 (no height row) | `gnss_2d_fixes` |
 | GGA quality 6, GNS mode E, RMC mode E, NAV-PVT fixType 1 (dead reckoning) | never a measurement | `gnss_dr_refused` |
@@ -245,8 +247,11 @@ What the firmware (`firmware_model/tasks/gnss.py`) takes from real receivers, an
 | NAV-PVT with gnssFixOK clear | no fix | `gnss_pvt_ignored_flags` |
 | NAV-PVT 84 (u-blox 7), 92 (M8, F9), > 92 bytes | position, 3-D velocity, UTC | `gnss_pvt` |
 | NAV-PVT of another length, unknown UBX class | refused at the header | `uart3.length_errors` |
-| other UBX (NAV-STATUS, ACK, MON ...) | not used | `gnss_ubx_other` |
-| other NMEA (VTG, ZDA, GSV, TXT, proprietary) | not used | `gnss_nmea_other` |
+| NAV-POSLLH, NAV-SOL, NAV-VELNED, NAV-TIMEUTC, NAV-TIMEGPS, NAV-STATUS (u-blox 5/6/7) | one epoch per iTOW (5.1.3) \
+| `gnss_legacy_ubx` |
+| ZDA (date, time); GST, GBS, GRS, GLL (time) | open the epoch, UTC (5.1.3) | - |
+| other UBX (ACK, MON ...) | not used | `gnss_ubx_other` |
+| other NMEA (VTG, GSV, TXT, proprietary) | not used | `gnss_nmea_other` |
 | out-of-range field (latitude, height, speed, date ...) | refused | `input_rejected_<reason>` |
 
 Epochs. Messages with the same UTC are one epoch and give one measurement, however many writes they arrive in
@@ -260,9 +265,78 @@ plus f: the latest PPS edge + f + whole seconds at or before the arrival of its 
 Without PPS the tag comes from the epoch's own UTC: the UTC-to-FPGA offset is the
 smallest (first-byte time - UTC) over the last 32 epochs (the first byte's time is the UART's time stamp of the
 chunk minus its bytes at the line rate), and the tag is UTC + offset - `gnss_latency_s`, the receiver's configured
-latency from epoch to first byte (scenario `sensors.gnss.latency_s`) (`gnss_tag_utc`); an offset step of more
-than 1 s restarts the estimate (`gnss_utc_offset_resets`). A fix without UTC is tagged at its first byte minus
+latency from epoch to first byte (scenario `sensors.gnss.latency_s`) (`gnss_tag_utc`); a step of the receiver's
+clock is followed as 5.1.3 says (`gnss_utc_offset_resets`). A fix without UTC is tagged at its first byte minus
 the latency (`gnss_no_utc`). Never the tick that parsed it.
+
+"""
+
+#: What the firmware makes of what real receivers send: clock steps, dates, fix quality, heights, u-blox generations
+#: (docs/icd.md 5.1.3; issue 37 items 1-5).
+GNSS_RECEIVER_TEXT = """#### 5.1.3 Receiver quirks: clock steps, dates, fix quality, heights, u-blox generations
+
+Clock steps. Every epoch gives a sample of (first-byte time - epoch time), whatever message opens it: ZDA, GST, GBS,
+GRS and GLL open an epoch as GGA does (SiRF, Ashtech, GlobalSat and Septentrio bursts open with ZDA or GST). The
+sample is tight when the opening message is the first of its chunk and bounded from above by the chunk's arrival
+otherwise, so the minimum over the window stays a lower envelope. A sample more than `gnss_clock_step_tol_s`
+(0.75 s: above a 9600-baud burst and the write jitter, below a leap second) from the time base is a step of the
+receiver's clock, either sign, any size: the epoch is refused, neither its fix nor its time used
+(`gnss_clock_step_refused`), until `gnss_clock_rebase_epochs` (N = 5) consecutive epochs agree on the new offset
+(within the same tolerance); the N-th re-bases the offset and is used (`gnss_clock_steps`). One epoch never
+moves the time base or UTC. An epoch whose tag is later than the arrival of its own bytes is refused
+(`gnss_tag_future`), one older than `gnss_max_age_s` (1.5 s) at its close too (`gnss_tag_stale`); UTC set from an
+epoch that old is counted `utc_stale_pps` with a PPS tag and `utc_stale_tag` without.
+
+Leap seconds. UBX epochs are placed by their GPS time of week (iTOW) on the UTC time of day with the receiver's
+own GPS - UTC: NAV-TIMEGPS `leapS` when `leapSValid`, or a NAV-PVT / NAV-TIMEUTC UTC (valid, fully resolved)
+against its iTOW; 18 s (IERS Bulletin C, since 2017) until the receiver says. Once the receiver has reported it,
+the offset's time scale is GPS time (UTC + leap seconds), which does not step at a leap second
+(`gnss_leap_changes` counts the changes). An NMEA-only stream sees a leap second as a 1 s clock step, refused for
+N epochs and re-based.
+
+Dates. UTC (for the sun ephemeris) comes from ZDA (date and time), RMC with status A (a void RMC carries the
+receiver's RTC date, or nothing), NAV-PVT with validDate, validTime and fullyResolved (and, where the receiver
+reports confirmedAvai, confirmedDate and confirmedTime), and NAV-TIMEUTC with validUTC; a GGA + ZDA stream gives
+UTC. A date outside the firmware's GPS week era (GPS week `gnss_era_start_week` = 2048, 2019-04-07, to 1024 weeks
+later: a receiver that rolled over, such as the 2019 RMC `...,220899`, or an RTC date years back) is refused, as
+gpsd reads a week before its build week as a rollover; so is a date and time more than `gnss_date_jump_tol_s`
+(1 day) from the firmware's running UTC clock (`gnss_date_refused`). A smaller clock step is followed once the time
+base re-based on it. gpsd (its generated `BUILD_WEEK` / `BUILD_ROLLOVERS`) and NTP's `gpsweekadj` add 1024 weeks to a
+week before their build week; the firmware refuses the date instead, since an NMEA date cannot tell a rollover from
+an RTC date.
+
+Fix quality. What each receiver indication does:
+
+| indication | meaning | outcome | counted in |
+|---|---|---|---|
+| GGA quality 1, 2, 3, 4, 5; GNS mode A, D, P, R, F | GNSS fix | used | `gnss_fixes` |
+| GGA quality 6; GNS/RMC mode E; UBX fixType 1 | dead reckoning | not used | `gnss_dr_refused` |
+| GGA quality 7; GNS/RMC mode M | manual input | not used | `gnss_manual_refused` |
+| GGA quality 8; GNS/RMC mode S (Garmin demo mode) | simulator | not used | `gnss_sim_refused` |
+| GGA quality above 8; UBX fixType 6, 7 (reserved) | unknown | not used | `gnss_fix_type_unknown` |
+| GGA/GNS with 3 satellites | no 3-D solution | horizontal position only | `gnss_few_sats`, `gnss_2d_fixes` |
+| GGA/GNS with 0-2 satellites | no solution | not used | `gnss_few_sats` |
+| NAV-SOL with fewer than 4 (3-D) or 3 (2-D) satellites | no solution | not used | `gnss_few_sats` |
+| GGA quality 0; RMC status V or mode N; GNS mode N; GSA fix type 1; UBX fixType 0, 5; NAV-SOL/STATUS without \
+gpsFixOK | no fix (any message of the epoch) | not used | `gnss_no_fix_epochs` |
+| GSA fix type 2; UBX fixType 2 | 2-D fix | horizontal position only | `gnss_2d_fixes` |
+
+Heights. GGA and GNS carry the height above MSL and the geoid separation N (h = H + N). An empty separation field
+(seven receiver families leave it empty) is filled from the firmware's own geoid table (`firmware_model/geoid.py`:
+EGM96 at 5-degree nodes, whole metres, bilinear; against the 15' grid 1.4 m mean error where |N| >= 30 m, 95 % within
+4.8 m, 1.9 m rms over the globe, but up to 10-20 m where the geoid changes ~10 m per degree, as over New Guinea;
+`tools/make_geoid_table.py --check`), counted in `gnss_geoid_filled`; MSL is never taken as the ellipsoidal height.
+The filled height keeps the receiver's vertical sigma (`gnss_pos_sigma_v_m`, 7.5 m), which covers the table's error
+at 95 % of sites. The emulated
+receiver reports EGM96 from proj-data's 15' grid (`egm96_15.gtx`) unless the scenario fixes
+`sensors.gnss.geoid_sep_m`; `sensors.gnss.geoid_sep_field: empty` leaves the field empty.
+
+u-blox generations. Without NAV-PVT (u-blox 5/6/7, or an M8/F9 configured so) the NAV messages of one iTOW form
+one epoch (`gnss_legacy_ubx`): NAV-POSLLH the position (ellipsoidal height), NAV-VELNED the 3-D velocity, NAV-SOL
+the fix type (gpsFix with gpsFixOK), satellites, and the ECEF position and velocity when NAV-POSLLH / NAV-VELNED
+are absent, NAV-STATUS the fix type, NAV-TIMEUTC the UTC date and time, NAV-TIMEGPS the leap seconds. NAV-POSLLH /
+NAV-VELNED without a NAV-SOL or NAV-STATUS saying "fix" are not used. The emulated u-blox sends this set with
+`sensors.gnss.ubx: [NAV-SOL, NAV-POSLLH, NAV-VELNED, NAV-TIMEUTC, NAV-TIMEGPS, NAV-STATUS]`.
 
 """
 
@@ -437,6 +511,8 @@ def generate() -> str:
         w(_table([(str(i + 1), n, f, m) for i, (n, f, m) in enumerate(fields)], ("field", "name", "format", "meaning"))
           + "\n")
     w(GNSS_INPUT_TEXT)
+    w(NMEA_PARSE_TEXT)
+    w(GNSS_RECEIVER_TEXT)
     w("### 5.2 UBX frame\n")
     w(_spec_table(ubx.UBX_FRAME_SPEC) + "\n")
     w(f"UBX-NAV-PVT payload (class 0x01, id 0x07, {ubx.NAV_PVT_LEN} bytes, frame {ubx.NAV_PVT_LEN + 8} bytes; "
@@ -447,6 +523,14 @@ def generate() -> str:
     w(_spec_table(ubx.NAV_PVT_SPEC) + "\n")
     w(f"UBX-NAV-STATUS payload (class 0x01, id 0x03, {ubx.NAV_STATUS_LEN} bytes):\n")
     w(_spec_table(ubx.NAV_STATUS_SPEC) + "\n")
+    for title, mid, spec in (("NAV-POSLLH", ubx.ID_NAV_POSLLH, ubx.NAV_POSLLH_SPEC),
+                             ("NAV-SOL", ubx.ID_NAV_SOL, ubx.NAV_SOL_SPEC),
+                             ("NAV-VELNED", ubx.ID_NAV_VELNED, ubx.NAV_VELNED_SPEC),
+                             ("NAV-TIMEGPS", ubx.ID_NAV_TIMEGPS, ubx.NAV_TIMEGPS_SPEC),
+                             ("NAV-TIMEUTC", ubx.ID_NAV_TIMEUTC, ubx.NAV_TIMEUTC_SPEC)):
+        w(f"UBX-{title} payload (class 0x01, id 0x{mid:02X}, {spec.sizeof()} bytes; u-blox 5/6/7, and M8/F9 "
+          "configured so: 5.1.3):\n")
+        w(_spec_table(spec) + "\n")
     w("### 5.3 UBX from the host to the receiver (`protocols/ubx_cfg.py`)\n")
     w("The modelled u-blox answers on its own link as a real one does: a poll (the message with an empty payload; "
       "CFG-PRT with a 1-byte portID, CFG-MSG with class and id) is answered with the message, and every CFG "

@@ -7,11 +7,13 @@ pynmea2). A sentence is ``$`` + talker (2 letters) + type (3 letters) + ``,``-se
 start ``$P`` + a three-letter maker code (``$PSNSPOS``: maker ``SNS``); they are framed and
 checked the same way and come out as :class:`NmeaSentence` with ``talker="PSNS"``.
 
-What real receivers send beyond the standard (docs/icd.md "GNSS input"): a line ended by LF alone (the
-checksum then sits at ``[-4:-2]``) is accepted and counted in :attr:`NmeaFormat.lf_only`; a receiving
-decoder built with ``max_len=NMEA_RX_MAX_LEN`` accepts the long sentences of real receivers (u-blox
-``$PUBX,00`` is 108-110 characters, its high-precision GGA 84). GNS (NMEA 3.0/4.10: one mode character
-per constellation) is typed as :class:`Gns`.
+What real receivers send beyond the standard (docs/icd.md "GNSS input" and "NMEA sentences: parsed, used,
+counted"): a line ended by LF alone (the checksum then sits at ``[-4:-2]``) is accepted and counted in
+:attr:`NmeaFormat.lf_only`; a receiving decoder built with ``max_len=NMEA_RX_MAX_LEN`` accepts the long sentences
+of real receivers (u-blox ``$PUBX,00`` is 108-110 characters, ``$PUBX,03`` hundreds, MediaTek ``$PMTKCHN`` 204);
+trailing fields may be omitted, GSV blocks may be empty, proprietary addresses may hold spaces, and a no-fix
+sentence's placeholder position is read as absent. Time and date fields are range-checked (a parse error).
+GNS (NMEA 3.0/4.10: one mode character per constellation) is typed as :class:`Gns`.
 
 The builders and their number formats are in :mod:`protocols.nmea_build` (re-exported here). Every typed
 sentence re-encodes with :func:`encode_nmea`; for sentences written by these
@@ -21,6 +23,7 @@ builders ``encode_nmea(parse(b)) == b`` holds byte for byte (the golden vectors 
 from __future__ import annotations
 
 import datetime as _dt
+import re
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -43,9 +46,10 @@ from .nmea_build import (
 from .stream import BAD_LENGTH, NEED_MORE
 
 #: Longest line a receiving decoder accepts: the 82 of the standard plus the proprietary and
-#: high-precision sentences of real receivers (u-blox ``$PUBX,00`` with its 108-110 characters is the
-#: longest of the quirks corpus, tests/protocols/quirks/); 128 leaves room for a wider field.
-NMEA_RX_MAX_LEN = 128
+#: high-precision sentences of real receivers. In the receiver corpus (tests/protocols/corpus/receivers/):
+#: MediaTek ``$PMTKCHN`` 204 characters, u-blox ``$PUBX,03`` 424 with 23 satellites (about 18 more per
+#: satellite tracked); 1024, the most :func:`sentence_ok_fast` folds, holds ``$PUBX,03`` with 50 satellites.
+NMEA_RX_MAX_LEN = 1024
 
 __all__ = [
     "KNOT_MPS",
@@ -193,10 +197,20 @@ class Zda:
 
 
 def _parse_time_uncached(s: str) -> _dt.time:
-    hh, mm = int(s[0:2]), int(s[2:4])
-    sec = float(s[4:])
-    whole = int(sec)
-    return _dt.time(hh, mm, whole, round((sec - whole) * 1e6) if sec != whole else 0)
+    """``hhmmss[.s...]`` (UTC) as a time, refused (``ValueError``) unless it is six ASCII digits, optionally a point
+    and digits, with hh < 24, mm < 60 and ss < 61. Second 60 (a leap second, NMEA allows it) is held at
+    hh:mm:59.999999, as the firmware boundary holds NAV-PVT's (docs/hostile-input.md); fractions beyond the
+    microsecond are cut. No number of the field goes through float, so no token can overflow."""
+    frac = s[7:]
+    if not (len(s) >= 6 and s.isascii() and s[:6].isdigit() and (len(s) == 6 or s[6] == ".")
+            and (not frac or frac.isdigit())):
+        raise ValueError(f"bad NMEA time {s!r}")
+    hh, mm, ss = int(s[0:2]), int(s[2:4]), int(s[4:6])
+    if hh > 23 or mm > 59 or ss > 60:
+        raise ValueError(f"NMEA time {s!r} out of range")
+    if ss == 60:
+        return _dt.time(hh, mm, 59, 999_999)
+    return _dt.time(hh, mm, ss, int(frac[:6].ljust(6, "0")) if frac else 0)
 
 
 # A receiver repeats one epoch's time and date in several sentences (RMC, GGA, ZDA): small
@@ -269,10 +283,14 @@ def _opt_f(v: float | None, fmt: str) -> str:
 
 
 def _date_ddmmyy(d: str) -> _dt.date | None:
+    """RMC's ``ddmmyy`` as 20yy-mm-dd; refused (``ValueError``) unless six ASCII digits of a real date. Which
+    century and whether the date is believed is the firmware's business (a week rollover, an RTC date)."""
     if not d:
         return None
     v = _DATE_CACHE.get(d)
     if v is None:
+        if not (len(d) == 6 and d.isascii() and d.isdigit()):
+            raise ValueError(f"bad NMEA date {d!r}")
         v = _dt.date(2000 + int(d[4:6]), int(d[2:4]), int(d[0:2]))
         if len(_DATE_CACHE) >= _CACHE_MAX:
             _DATE_CACHE.clear()
@@ -315,15 +333,40 @@ def _lon(v: str, hemi: str) -> float | None:
     raise ValueError(f"bad hemisphere {hemi!r}")
 
 
+def _pad(f: list[str], n: int) -> list[str]:
+    """``f`` with omitted trailing fields as empty ones, up to ``n`` entries (address included)."""
+    return f if len(f) >= n else f + [""] * (n - len(f))
+
+
+def _position(f: list[str], i: int, fix: bool) -> tuple[float | None, float | None]:
+    """Latitude and longitude from ``f[i:i + 4]``. With a fix a malformed value is refused (``ValueError``) and an
+    out-of-range one is passed on for the firmware to refuse and count; without one (GGA quality 0, RMC ``V``, GNS
+    mode all ``N``) the fields are a receiver's placeholder (``36000.0000,N,72000.0000,E``, ``8960.0000,N``, zeros)
+    or a stale position: a malformed or out-of-range one is read as absent (None), not as an error."""
+    if fix:
+        return _lat(f[i], f[i + 1]), _lon(f[i + 2], f[i + 3])
+    try:
+        lat, lon = _lat(f[i], f[i + 1]), _lon(f[i + 2], f[i + 3])
+    except ValueError:
+        return None, None
+    if lat is None or lon is None or not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+        return None, None
+    return lat, lon
+
+
 def _gga(talker: str, f: list[str]) -> Gga:
-    if len(f) < 15:
-        raise ValueError("GGA needs 14 fields")
+    """GGA; trailing fields may be omitted (a 13-field GGA of real receivers: they are None)."""
+    if len(f) < 2:
+        raise ValueError("GGA needs at least its time field")
+    f = _pad(f, 15)
+    quality = int(f[6] or 0)
+    lat, lon = _position(f, 2, quality != 0)
     return Gga(
         talker,
         _TIME_CACHE.get(f[1]) or _parse_time(f[1]),
-        _lat(f[2], f[3]),
-        _lon(f[4], f[5]),
-        int(f[6] or 0),
+        lat,
+        lon,
+        quality,
         int(f[7]) if f[7] else None,
         float(f[8]) if f[8] else None,
         float(f[9]) if f[9] else None,
@@ -332,13 +375,16 @@ def _gga(talker: str, f: list[str]) -> Gga:
 
 
 def _gns(talker: str, f: list[str]) -> Gns:
-    if len(f) < 13:
-        raise ValueError("GNS needs at least 12 fields")
+    """GNS; trailing fields may be omitted. A mode of N only (or empty) is no fix (the position may be absent)."""
+    if len(f) < 2:
+        raise ValueError("GNS needs at least its time field")
+    f = _pad(f, 13)
+    lat, lon = _position(f, 2, f[6].strip("N") != "")
     return Gns(
         talker,
         _TIME_CACHE.get(f[1]) or _parse_time(f[1]),
-        _lat(f[2], f[3]),
-        _lon(f[4], f[5]),
+        lat,
+        lon,
         f[6],
         int(f[7]) if f[7] else None,
         float(f[8]) if f[8] else None,
@@ -349,15 +395,19 @@ def _gns(talker: str, f: list[str]) -> Gns:
 
 
 def _rmc(talker: str, f: list[str]) -> Rmc:
-    if len(f) < 12:
-        raise ValueError("RMC needs at least 11 fields")
+    """RMC; trailing fields may be omitted (status ``V`` or absent: no fix, the position may be absent)."""
+    if len(f) < 2:
+        raise ValueError("RMC needs at least its time field")
+    f = _pad(f, 12)
     speed = f[7]
+    valid = f[2] == "A"
+    lat, lon = _position(f, 3, valid)
     return Rmc(
         talker,
         _TIME_CACHE.get(f[1]) or _parse_time(f[1]),
-        f[2] == "A",
-        _lat(f[3], f[4]),
-        _lon(f[5], f[6]),
+        valid,
+        lat,
+        lon,
         float(speed) * KNOT_MPS if speed else None,
         float(f[8]) if f[8] else None,
         _DATE_CACHE.get(f[9]) or _date_ddmmyy(f[9]),
@@ -367,8 +417,8 @@ def _rmc(talker: str, f: list[str]) -> Rmc:
 
 
 def _vtg(talker: str, f: list[str]) -> Vtg:
-    if len(f) < 9:
-        raise ValueError("VTG needs at least 8 fields")
+    """VTG; trailing fields may be omitted."""
+    f = _pad(f, 9)
     if f[5]:
         speed: float | None = float(f[5]) * KNOT_MPS
     elif f[7]:
@@ -380,17 +430,23 @@ def _vtg(talker: str, f: list[str]) -> Vtg:
 
 
 def _gsa(talker: str, f: list[str]) -> Gsa:
-    if len(f) < 18:
-        raise ValueError("GSA needs at least 17 fields")
+    """GSA; trailing fields may be omitted (``$GPGSA,A,1,,,,``: they are None). The 18th field is NMEA 4.10's system
+    id only when it is one hex digit 1-F; anything else there (a receiver's extra DOP, ``3.3``) is not read."""
+    f = _pad(f, 18)
     try:
         ids = tuple(map(_SAT_IDS.__getitem__, f[3:15]))
     except KeyError:
         ids = tuple(int(s) if s else None for s in f[3:15])
+    sys_id = f[18] if len(f) > 18 else ""
     return Gsa(talker, f[1], int(f[2] or 1), ids, float(f[15]) if f[15] else None, float(f[16]) if f[16] else None,
-               float(f[17]) if f[17] else None, int(f[18], 16) if len(f) > 18 and f[18] else None)
+               float(f[17]) if f[17] else None,
+               int(sys_id, 16) if len(sys_id) == 1 and sys_id in "123456789ABCDEFabcdef" else None)
 
 
 def _gsv(talker: str, f: list[str]) -> Gsv:
+    """GSV: blocks of (PRN, elevation, azimuth, C/N0). A block with an empty PRN (``$GPGSV,3,1,00,,,,,...``: a
+    receiver's empty slots) is skipped; a last block cut short has its omitted fields None; one field beyond whole
+    blocks is NMEA 4.10's signal id."""
     if len(f) < 4:
         raise ValueError("GSV needs at least 3 fields")
     n_sat_fields = len(f) - 4
@@ -398,11 +454,12 @@ def _gsv(talker: str, f: list[str]) -> Gsv:
     if n_sat_fields % 4 == 1:  # NMEA 4.10: a trailing signal id
         signal_id = int(f[-1], 16) if f[-1] else None
         n_sat_fields -= 1
-    if n_sat_fields % 4:
-        raise ValueError("GSV satellite blocks are 4 fields each")
+    elif n_sat_fields % 4:  # the last block cut short
+        f = _pad(f, len(f) + 4 - n_sat_fields % 4)
+        n_sat_fields += 4 - n_sat_fields % 4
     sats = tuple((int(f[4 + 4 * i]), int(f[5 + 4 * i]) if f[5 + 4 * i] else None,
                   int(f[6 + 4 * i]) if f[6 + 4 * i] else None, int(f[7 + 4 * i]) if f[7 + 4 * i] else None)
-                 for i in range(n_sat_fields // 4))
+                 for i in range(n_sat_fields // 4) if f[4 + 4 * i])
     return Gsv(talker, int(f[1]), int(f[2]), int(f[3]), sats, signal_id)
 
 
@@ -411,20 +468,40 @@ _SAT_IDS: dict[str, int | None] = {"": None, **{str(i): i for i in range(1000)},
                                    **{f"{i:03d}": i for i in range(1000)}}
 
 
+def _small_int(s: str, lo: int, hi: int, what: str) -> int:
+    """A short signed decimal integer field within [lo, hi], else ``ValueError`` (no huge or non-ASCII number)."""
+    body = s[1:] if s[:1] in ("-", "+") else s
+    if not (0 < len(body) <= 4 and body.isascii() and body.isdigit()):
+        raise ValueError(f"bad {what} {s!r}")
+    v = int(s)
+    if not lo <= v <= hi:
+        raise ValueError(f"{what} {s!r} out of range")
+    return v
+
+
 def _zda(talker: str, f: list[str]) -> Zda:
-    if len(f) < 7:
-        raise ValueError("ZDA needs 6 fields")
+    """ZDA: time, day 01-31, month 01-12, four-digit year (a real date), local zone hours -13..13 and minutes
+    00-59; a field out of range is refused (``ValueError``)."""
+    if len(f) < 5:
+        raise ValueError("ZDA needs its time and date fields")
+    f = f + [""] * (7 - len(f))  # the zone fields may be omitted
     date = None
     if f[2] and f[3] and f[4]:
-        key = f[2] + f[3] + f[4]
+        key = f[2] + "/" + f[3] + "/" + f[4]
         date = _DATE_CACHE.get(key)
         if date is None:
-            date = _dt.date(int(f[4]), int(f[3]), int(f[2]))
+            if len(f[4]) != 4 or not f[4].isdigit():
+                raise ValueError(f"bad ZDA year {f[4]!r}")
+            date = _dt.date(_small_int(f[4], 1, 9999, "ZDA year"), _small_int(f[3], 1, 12, "ZDA month"),
+                            _small_int(f[2], 1, 31, "ZDA day"))
             if len(_DATE_CACHE) >= _CACHE_MAX:
                 _DATE_CACHE.clear()
             _DATE_CACHE[key] = date
-    return Zda(talker, _TIME_CACHE.get(f[1]) or _parse_time(f[1]), date, int(f[5]) if f[5] else None,
-               int(f[6]) if f[6] else None)
+    elif f[2] or f[3] or f[4]:
+        raise ValueError("ZDA date with an empty field")
+    return Zda(talker, _TIME_CACHE.get(f[1]) or _parse_time(f[1]), date,
+               _small_int(f[5], -13, 13, "ZDA zone hours") if f[5] else None,
+               _small_int(f[6], 0, 59, "ZDA zone minutes") if f[6] else None)
 
 
 #: The two checksum characters -> value (upper case per NMEA 0183; lower case accepted).
@@ -497,13 +574,19 @@ class NmeaFormat:
         return encode_nmea(obj)
 
     def frame_length(self, buf: bytes | bytearray, start: int) -> int:
+        """Length up to and including the LF. A candidate longer than :data:`_LONG_LINE` must be printable ASCII
+        to be waited for or taken: a stray ``$`` before binary bytes (UBX on the same port) is refused at 128
+        bytes, as before the long lines of real receivers were accepted, not held for up to ``max_len``."""
         end = buf.find(b"\n", start + 1, start + self.max_len)
         if end < 0:
-            if len(buf) - start >= self.max_len:
+            n = len(buf) - start
+            if n >= self.max_len or (n >= _LONG_LINE and _NOT_IN_LONG_LINE.search(buf, start + 1) is not None):
                 return BAD_LENGTH
             return NEED_MORE
         # A new '$' before the line end means this candidate was cut short.
         if buf.find(b"$", start + 1, end) >= 0:
+            return BAD_LENGTH
+        if end - start >= _LONG_LINE and _NOT_IN_LONG_LINE.search(buf, start + 1, end) is not None:
             return BAD_LENGTH
         return end + 1 - start
 
@@ -536,18 +619,35 @@ class NmeaFormat:
         return NmeaSentence(talker, kind, tuple(parts[1:]))
 
 
+#: Lines longer than this (the receiving limit before long proprietary sentences were accepted) are taken only when
+#: every byte between ``$`` and LF is printable ASCII or CR (:meth:`NmeaFormat.frame_length`); shorter candidates are
+#: framed as they always were, so their counters do not change.
+_LONG_LINE = 128
+_NOT_IN_LONG_LINE = re.compile(rb"[^\x20-\x23\x25-\x7e\r]")
+
 #: A typed sentence parser: (talker, the split sentence) -> the sentence object.
 _Parser = Callable[[str, list[str]], Gga | Gns | Gsv | Rmc | Vtg | Gsa | Zda]
 _HEADS: dict[str, tuple[str, str, _Parser | None]] = {}
 
 
 def _classify_head(head: str) -> tuple[str, str, _Parser | None]:
-    """Split an address field into (talker, kind, typed parser or None); cache the good ones."""
-    if len(head) == 5 and head.isalnum() and head.isupper():
-        talker, kind = head[:2], head[2:]
-        r: tuple[str, str, _Parser | None] = (talker, kind, _PARSERS.get(kind))
-    elif len(head) >= 4 and head[0] == "P" and head.isalnum() and head.isupper():
+    """Split an address field into (talker, kind, typed parser or None); cache the good ones.
+
+    * ``P`` + anything printable: proprietary (NMEA 0183 reserves ``P`` for them; no talker starts with it), talker
+      ``P`` + the three-letter maker code, kind the rest as sent (``$PGRME``: kind ``E``; ``$PSRFTXTVersion
+      GSW3.2.2...``: SiRF banners with spaces and no comma; ``$PUBX``: kind empty);
+    * ``ttsss`` (five upper-case letters or digits): talker and sentence type, typed when the type is known;
+    * another upper-case alphanumeric address of 3 to 10 characters (``$LOG108``, RGM-3800 replies): an untyped
+      sentence with talker ``""`` and the whole address as its kind.
+    """
+    r: tuple[str, str, _Parser | None]
+    if len(head) >= 4 and head[0] == "P" and head.isprintable() and head[:4].isalnum() and head[:4].isupper():
         r = (head[:4], head[4:], None)  # proprietary: 'P' + maker code, then the type (may be empty)
+    elif len(head) == 5 and head.isalnum() and head.isupper():
+        talker, kind = head[:2], head[2:]
+        r = (talker, kind, _PARSERS.get(kind))
+    elif 3 <= len(head) <= 10 and head.isalnum() and head.isupper():
+        r = ("", head, None)
     else:
         raise ValueError(f"bad NMEA address field {head!r}")
     if len(_HEADS) < 256:

@@ -101,13 +101,14 @@ def build_gga(
     lat_deg: float,
     lon_deg: float,
     altitude_msl_m: float,
-    geoid_sep_m: float,
+    geoid_sep_m: float | None,
     quality: int = 1,
     num_sats: int = 12,
     hdop: float = 0.8,
     talker: str = "GP",
 ) -> bytes:
-    """GGA sentence. ``quality`` 0 invalid, 1 GPS, 2 DGPS, 4 RTK fixed, 5 RTK float, 6 DR."""
+    """GGA sentence. ``quality`` 0 invalid, 1 GPS, 2 DGPS, 4 RTK fixed, 5 RTK float, 6 DR. ``geoid_sep_m`` None:
+    the separation field and its unit left empty (MSL height only, as several receiver families send it)."""
     lat, ns = format_lat(lat_deg)
     lon, ew = format_lon(lon_deg)
     if quality == 0:
@@ -127,8 +128,8 @@ def build_gga(
             f"{hdop:.2f}",
             f"{altitude_msl_m:.3f}",
             "M",
-            f"{geoid_sep_m:.3f}",
-            "M",
+            "" if geoid_sep_m is None else f"{geoid_sep_m:.3f}",
+            "" if geoid_sep_m is None else "M",
             "",
             "",
         ],

@@ -1,4 +1,5 @@
-"""u-blox UBX binary protocol: framing, Fletcher checksum, NAV-PVT and NAV-STATUS.
+"""u-blox UBX binary protocol: framing, Fletcher checksum, NAV-PVT, NAV-STATUS and the NAV messages of the
+generations before NAV-PVT (NAV-POSLLH, NAV-SOL, NAV-VELNED, NAV-TIMEUTC, NAV-TIMEGPS).
 
 Source: ``docs/reference/wire-formats.md`` sections 2.1-2.2 (u-blox interface descriptions,
 e.g. F10 SPG 6.00 UBX-23002975; checked against pyubx2 1.4.0). Every UBX frame::
@@ -29,6 +30,25 @@ UBX-NAV-STATUS payload (16 bytes)::
     0 U4 iTOW ms   4 U1 gpsFix (as fixType)   5 X1 flags (b0 gpsFixOk, b1 diffSoln, b2 wknSet,
     b3 towSet)   6 X1 fixStat   7 X1 flags2   8 U4 ttff ms   12 U4 msss ms (since start-up)
 
+The navigation messages of u-blox 5/6/7 (no NAV-PVT before protocol 14) that later generations still send when
+configured (u-blox 6 Receiver Description GPS.G6-SW-10018, sections 35.5-35.13; u-blox M8 Receiver Description
+UBX-13003221, 32.17; the same layouts in pyubx2's ``ubxtypes_get``), all little-endian::
+
+    NAV-POSLLH  0x01 0x02  28 bytes  0 U4 iTOW ms  4 I4 lon 1e-7 deg  8 I4 lat 1e-7 deg  12 I4 height mm
+                                     (ellipsoid)  16 I4 hMSL mm  20 U4 hAcc mm  24 U4 vAcc mm
+    NAV-SOL     0x01 0x06  52 bytes  0 U4 iTOW ms  4 I4 fTOW ns  8 I2 week  10 U1 gpsFix  11 X1 flags (b0
+                                     gpsFixOK, b1 diffSoln, b2 wknSet, b3 towSet)  12/16/20 I4 ecefX/Y/Z cm
+                                     24 U4 pAcc cm  28/32/36 I4 ecefVX/VY/VZ cm/s  40 U4 sAcc cm/s
+                                     44 U2 pDOP 0.01  46 U1 reserved1  47 U1 numSV  48 U4 reserved2
+    NAV-VELNED  0x01 0x12  36 bytes  0 U4 iTOW ms  4/8/12 I4 velN/velE/velD cm/s  16 U4 speed cm/s (3-D)
+                                     20 U4 gSpeed cm/s  24 I4 heading 1e-5 deg  28 U4 sAcc cm/s
+                                     32 U4 cAcc 1e-5 deg
+    NAV-TIMEGPS 0x01 0x20  16 bytes  0 U4 iTOW ms  4 I4 fTOW ns  8 I2 week  10 I1 leapS s  11 X1 valid (b0
+                                     towValid, b1 weekValid, b2 leapSValid)  12 U4 tAcc ns
+    NAV-TIMEUTC 0x01 0x21  20 bytes  0 U4 iTOW ms  4 U4 tAcc ns  8 I4 nano ns  12 U2 year  14..18 U1 month,
+                                     day, hour, min, sec  19 X1 valid (b0 validTOW, b1 validWKN, b2 validUTC,
+                                     b4-7 utcStandard)
+
 :class:`UbxFormat` decodes NAV-PVT and NAV-STATUS into :class:`NavPvt` / :class:`NavStatus` and
 every other checked frame into :class:`UbxFrame`. NAV-PVT is parsed by its known prefix, as the u-blox
 descriptions ask of a reader ("the payload may be extended in later versions"): the 84-byte payload of
@@ -46,7 +66,7 @@ import itertools
 from dataclasses import dataclass
 from typing import Any
 
-from construct import Bytes, Const, Int8ul, Int16sl, Int16ul, Int32sl, Int32ul, Struct
+from construct import Bytes, Const, Int8sl, Int8ul, Int16sl, Int16ul, Int32sl, Int32ul, Struct
 
 from ._fastinit import fast_frozen_init
 from .codec import StructCodec
@@ -54,26 +74,43 @@ from .stream import BAD_LENGTH, NEED_MORE
 
 __all__ = [
     "CLS_NAV",
+    "ID_NAV_POSLLH",
     "ID_NAV_PVT",
+    "ID_NAV_SOL",
     "ID_NAV_STATUS",
+    "ID_NAV_TIMEGPS",
+    "ID_NAV_TIMEUTC",
+    "ID_NAV_VELNED",
+    "LEGACY_NAV",
+    "NAV_POSLLH_SPEC",
     "NAV_PVT_LEN",
     "NAV_PVT_LEN_V14",
     "NAV_PVT_PREFIX_V14",
     "NAV_PVT_SPEC",
+    "NAV_SOL_SPEC",
     "NAV_STATUS_LEN",
     "NAV_STATUS_SPEC",
+    "NAV_TIMEGPS_SPEC",
+    "NAV_TIMEUTC_SPEC",
+    "NAV_VELNED_SPEC",
     "UBX_CLASSES",
     "UBX_FRAME_SPEC",
     "UBX_MAX_PAYLOAD",
     "UBX_SYNC",
+    "NavPosllh",
     "NavPvt",
+    "NavSol",
     "NavStatus",
+    "NavTimeGps",
+    "NavTimeUtc",
+    "NavVelned",
     "UbxFormat",
     "UbxFrame",
     "build_ubx_frame",
     "encode_nav_pvt",
     "encode_nav_status",
     "encode_ubx",
+    "legacy_nav_codec",
 ]
 
 UBX_SYNC = b"\xb5\x62"
@@ -86,11 +123,18 @@ NAV_PVT_LEN = 92
 #: NAV-PVT payload of protocol 14 (u-blox 7)
 NAV_PVT_LEN_V14 = 84
 NAV_STATUS_LEN = 16
+ID_NAV_POSLLH = 0x02
+ID_NAV_SOL = 0x06
+ID_NAV_VELNED = 0x12
+ID_NAV_TIMEGPS = 0x20
+ID_NAV_TIMEUTC = 0x21
 #: Message classes of the u-blox protocol (NAV, RXM, INF, ACK, CFG, UPD, MON, AID, TIM, ESF,
 #: MGA, LOG, SEC, HNR, NAV2); a header naming any other class is refused at once.
 UBX_CLASSES = frozenset({0x01, 0x02, 0x04, 0x05, 0x06, 0x09, 0x0A, 0x0B, 0x0D, 0x10, 0x13, 0x21, 0x27, 0x28, 0x29})
 #: Fixed payload lengths of the messages decoded here; others only need the class check.
-_FIXED_LEN = {(CLS_NAV, ID_NAV_STATUS): (NAV_STATUS_LEN,)}
+_FIXED_LEN = {(CLS_NAV, ID_NAV_STATUS): (NAV_STATUS_LEN,), (CLS_NAV, ID_NAV_POSLLH): (28,),
+              (CLS_NAV, ID_NAV_SOL): (52,), (CLS_NAV, ID_NAV_VELNED): (36,), (CLS_NAV, ID_NAV_TIMEGPS): (16,),
+              (CLS_NAV, ID_NAV_TIMEUTC): (20,)}
 
 
 @fast_frozen_init
@@ -149,6 +193,90 @@ class NavStatus:
 
 @fast_frozen_init
 @dataclass(frozen=True, slots=True)
+class NavPosllh:
+    """UBX-NAV-POSLLH (u-blox names, raw units: 1e-7 deg, mm)."""
+
+    iTOW: int
+    lon: int
+    lat: int
+    height: int
+    hMSL: int
+    hAcc: int
+    vAcc: int
+
+
+@fast_frozen_init
+@dataclass(frozen=True, slots=True)
+class NavSol:
+    """UBX-NAV-SOL (u-blox names, raw units: ms, ns, cm, cm/s, 0.01)."""
+
+    iTOW: int
+    fTOW: int
+    week: int
+    gpsFix: int
+    flags: int
+    ecefX: int
+    ecefY: int
+    ecefZ: int
+    pAcc: int
+    ecefVX: int
+    ecefVY: int
+    ecefVZ: int
+    sAcc: int
+    pDOP: int
+    reserved1: int
+    numSV: int
+    reserved2: int
+
+
+@fast_frozen_init
+@dataclass(frozen=True, slots=True)
+class NavVelned:
+    """UBX-NAV-VELNED (u-blox names, raw units: cm/s, 1e-5 deg)."""
+
+    iTOW: int
+    velN: int
+    velE: int
+    velD: int
+    speed: int
+    gSpeed: int
+    heading: int
+    sAcc: int
+    cAcc: int
+
+
+@fast_frozen_init
+@dataclass(frozen=True, slots=True)
+class NavTimeGps:
+    """UBX-NAV-TIMEGPS (u-blox names: ms, ns, weeks, leap seconds s)."""
+
+    iTOW: int
+    fTOW: int
+    week: int
+    leapS: int
+    valid: int
+    tAcc: int
+
+
+@fast_frozen_init
+@dataclass(frozen=True, slots=True)
+class NavTimeUtc:
+    """UBX-NAV-TIMEUTC (u-blox names, UTC calendar fields)."""
+
+    iTOW: int
+    tAcc: int
+    nano: int
+    year: int
+    month: int
+    day: int
+    hour: int
+    min: int
+    sec: int
+    valid: int
+
+
+@fast_frozen_init
+@dataclass(frozen=True, slots=True)
 class UbxFrame:
     """A checked UBX frame without a typed decoder here."""
 
@@ -202,6 +330,65 @@ NAV_STATUS_SPEC = Struct(
     "ttff" / Int32ul * "1 | ms | time to first fix",
     "msss" / Int32ul * "1 | ms | since start-up or reset",
 )
+NAV_POSLLH_SPEC = Struct(
+    "iTOW" / Int32ul * "1 | ms | GPS time of week",
+    "lon" / Int32sl * "1e-7 | deg | longitude",
+    "lat" / Int32sl * "1e-7 | deg | latitude",
+    "height" / Int32sl * "1 | mm | height above the ellipsoid",
+    "hMSL" / Int32sl * "1 | mm | height above mean sea level",
+    "hAcc" / Int32ul * "1 | mm | horizontal accuracy",
+    "vAcc" / Int32ul * "1 | mm | vertical accuracy",
+)
+NAV_SOL_SPEC = Struct(
+    "iTOW" / Int32ul * "1 | ms | GPS time of week",
+    "fTOW" / Int32sl * "1 | ns | fraction of iTOW, -500000..500000",
+    "week" / Int16sl * "1 | weeks | GPS week",
+    "gpsFix" / Int8ul * " |  | 0 none, 1 DR, 2 2D, 3 3D, 4 GPS+DR, 5 time only",
+    "flags" / Int8ul * " |  | b0 gpsFixOK, b1 diffSoln, b2 wknSet, b3 towSet",
+    "ecefX" / Int32sl * "1 | cm | ECEF X",
+    "ecefY" / Int32sl * "1 | cm | ECEF Y",
+    "ecefZ" / Int32sl * "1 | cm | ECEF Z",
+    "pAcc" / Int32ul * "1 | cm | 3-D position accuracy",
+    "ecefVX" / Int32sl * "1 | cm/s | ECEF X velocity",
+    "ecefVY" / Int32sl * "1 | cm/s | ECEF Y velocity",
+    "ecefVZ" / Int32sl * "1 | cm/s | ECEF Z velocity",
+    "sAcc" / Int32ul * "1 | cm/s | speed accuracy",
+    "pDOP" / Int16ul * "0.01 |  | position DOP",
+    "reserved1" / Int8ul * " |  | reserved",
+    "numSV" / Int8ul * "1 |  | satellites used",
+    "reserved2" / Int32ul * " |  | reserved",
+)
+NAV_VELNED_SPEC = Struct(
+    "iTOW" / Int32ul * "1 | ms | GPS time of week",
+    "velN" / Int32sl * "1 | cm/s | north velocity",
+    "velE" / Int32sl * "1 | cm/s | east velocity",
+    "velD" / Int32sl * "1 | cm/s | down velocity",
+    "speed" / Int32ul * "1 | cm/s | 3-D speed",
+    "gSpeed" / Int32ul * "1 | cm/s | ground speed",
+    "heading" / Int32sl * "1e-5 | deg | heading of motion",
+    "sAcc" / Int32ul * "1 | cm/s | speed accuracy",
+    "cAcc" / Int32ul * "1e-5 | deg | heading accuracy",
+)
+NAV_TIMEGPS_SPEC = Struct(
+    "iTOW" / Int32ul * "1 | ms | GPS time of week",
+    "fTOW" / Int32sl * "1 | ns | fraction of iTOW",
+    "week" / Int16sl * "1 | weeks | GPS week",
+    "leapS" / Int8sl * "1 | s | GPS - UTC leap seconds",
+    "valid" / Int8ul * " |  | b0 towValid, b1 weekValid, b2 leapSValid",
+    "tAcc" / Int32ul * "1 | ns | time accuracy",
+)
+NAV_TIMEUTC_SPEC = Struct(
+    "iTOW" / Int32ul * "1 | ms | GPS time of week",
+    "tAcc" / Int32ul * "1 | ns | time accuracy",
+    "nano" / Int32sl * "1 | ns | fraction of the second, -1e9..1e9",
+    "year" / Int16ul * "1 |  | UTC year",
+    "month" / Int8ul * "1 |  | UTC month 1..12",
+    "day" / Int8ul * "1 |  | UTC day 1..31",
+    "hour" / Int8ul * "1 | h | UTC hour",
+    "min" / Int8ul * "1 | min | UTC minute",
+    "sec" / Int8ul * "1 | s | UTC second 0..60",
+    "valid" / Int8ul * " |  | b0 validTOW, b1 validWKN, b2 validUTC, b4-7 utcStandard",
+)
 #: The whole-frame layout (header + payload + checksum) for documentation and tools.
 UBX_FRAME_SPEC = Struct(
     "sync" / Const(UBX_SYNC) * " |  | 0xB5 0x62",
@@ -227,6 +414,20 @@ _unpack_pvt = _PVT.unpacker(NavPvt)
 _unpack_status = _STATUS.unpacker(NavStatus)
 _encode_pvt = _PVT.encoder(NavPvt)
 _encode_status = _STATUS.encoder(NavStatus)
+#: the legacy NAV messages: id -> (codec, dataclass, unpack, encode), derived from the specs like NAV-PVT's
+_LEGACY: dict[int, tuple[StructCodec, type, Any, Any]] = {}
+for _mid, _spec, _name, _cls in ((ID_NAV_POSLLH, NAV_POSLLH_SPEC, "UBX_NAV_POSLLH", NavPosllh),
+                                 (ID_NAV_SOL, NAV_SOL_SPEC, "UBX_NAV_SOL", NavSol),
+                                 (ID_NAV_VELNED, NAV_VELNED_SPEC, "UBX_NAV_VELNED", NavVelned),
+                                 (ID_NAV_TIMEGPS, NAV_TIMEGPS_SPEC, "UBX_NAV_TIMEGPS", NavTimeGps),
+                                 (ID_NAV_TIMEUTC, NAV_TIMEUTC_SPEC, "UBX_NAV_TIMEUTC", NavTimeUtc)):
+    _c = StructCodec(_spec, _name)
+    if (CLS_NAV, _mid) not in _FIXED_LEN or _FIXED_LEN[(CLS_NAV, _mid)] != (_c.size,):  # pragma: no cover
+        raise AssertionError(f"{_name}: payload length disagrees with the spec")
+    _LEGACY[_mid] = (_c, _cls, _c.unpacker(_cls), _c.encoder(_cls))
+#: the typed legacy NAV classes by message id (NAV-POSLLH, NAV-SOL, NAV-VELNED, NAV-TIMEGPS, NAV-TIMEUTC)
+LEGACY_NAV: dict[int, type] = {mid: v[1] for mid, v in _LEGACY.items()}
+_LEGACY_ID = {v[1]: mid for mid, v in _LEGACY.items()}
 
 _accumulate = itertools.accumulate
 
@@ -249,17 +450,26 @@ def encode_nav_status(s: NavStatus) -> bytes:
     return build_ubx_frame(CLS_NAV, ID_NAV_STATUS, _encode_status(s))
 
 
-def encode_ubx(obj: NavPvt | NavStatus | UbxFrame) -> bytes:
-    """Encode any object :class:`UbxFormat` decodes."""
+def legacy_nav_codec(msg_id: int) -> StructCodec:
+    """The codec of a legacy NAV message (an id of :data:`LEGACY_NAV`)."""
+    return _LEGACY[msg_id][0]
+
+
+def encode_ubx(obj: Any) -> bytes:
+    """Encode any object :class:`UbxFormat` decodes (a legacy NAV message included)."""
     if isinstance(obj, NavPvt):
         return encode_nav_pvt(obj)
     if isinstance(obj, NavStatus):
         return encode_nav_status(obj)
+    mid = _LEGACY_ID.get(type(obj))
+    if mid is not None:
+        return build_ubx_frame(CLS_NAV, mid, _LEGACY[mid][3](obj))
     return build_ubx_frame(obj.cls, obj.id, obj.payload)
 
 
 class UbxFormat:
-    """:class:`~protocols.stream.FrameFormat` of UBX frames (NAV-PVT, NAV-STATUS typed)."""
+    """:class:`~protocols.stream.FrameFormat` of UBX frames (NAV-PVT, NAV-STATUS and the legacy NAV messages
+    typed)."""
 
     name = "ubx"
     sync = UBX_SYNC
@@ -288,7 +498,7 @@ class UbxFormat:
         body = frame[2:-2]
         return frame[-2] == (sum(body) & 0xFF) and frame[-1] == (sum(_accumulate(body)) & 0xFF)
 
-    def parse(self, frame: bytes) -> NavPvt | NavStatus | UbxFrame:
+    def parse(self, frame: bytes) -> Any:
         cls, mid = frame[2], frame[3]
         n = len(frame) - 8
         if cls == CLS_NAV:
@@ -299,4 +509,7 @@ class UbxFormat:
                     return NavPvt(*_unpack_pvt(bytes(frame[6 : 6 + NAV_PVT_PREFIX_V14]) + _PVT_TAIL_ZERO, 0))
             if mid == ID_NAV_STATUS and n == NAV_STATUS_LEN:
                 return NavStatus(*_unpack_status(frame, 6))
+            leg = _LEGACY.get(mid)
+            if leg is not None:  # length checked at the header (_FIXED_LEN)
+                return leg[1](*leg[2](frame, 6))
         return UbxFrame(cls, mid, bytes(frame[6:-2]))

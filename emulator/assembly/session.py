@@ -48,6 +48,7 @@ from ..recording.rundir import claim_run_dir
 from ..scenario.schema import Scenario
 from ..verification.expectations import evaluate_expectations
 from ..world.build import build_trajectory
+from ..world.envelope import envelope_scenario, pinned_keys
 from .build import build_dsp, build_uarts, fpga_config, port_map
 from .ports import (
     PORT_BAUD,
@@ -91,10 +92,15 @@ class Emulator:
     def __init__(self, scn: Scenario, run_dir: Path, mode: str | None = None, seed: int | None = None,
                  progress: Callable[[float, float], None] | None = None,
                  replay: list[CaptureRecord] | None = None) -> None:
+        self.seed = scn.seed if seed is None else seed
+        # the envelope (docs/sensors.md "The envelope"): this seed's draw of the world (and of how the unit was
+        # calibrated), written into the scenario before anything is built from it; the firmware's sheet is untouched
+        self.envelope = scn.envelope
+        self.envelope_pinned = pinned_keys(scn)
+        scn, self.envelope_draws = envelope_scenario(scn, self.seed)
         self.scn = scn
         self.run_dir = Path(run_dir)
         self.mode = resolve_mode(scn, mode)
-        self.seed = scn.seed if seed is None else seed
         self.progress = progress
         self.replay = replay
         self.loop: EmulatorLoop | None = None
@@ -485,6 +491,9 @@ class Emulator:
             "ports": [dict(p) for p in self.ports],
             "events": dict(rec.event_counts),
             "psns": rec.psns_summary(),
+            "envelope": {"preset": self.envelope.preset, "groups": self.envelope.groups,
+                         "draws": self.envelope_draws, "pinned": self.envelope_pinned}
+            if self.envelope.preset is not None else None,
         }
 
 

@@ -28,6 +28,11 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
                    help="explicit run seeds of the members (e.g. 1-10), instead of seeds derived from --seed")
     c.add_argument("--vary", action="append", default=[], metavar="KEY=DISTRIBUTION",
                    help="e.g. sensors.imu.gyro.arw_deg_rt_h=normal(0.15,0.02); uniform(a,b); choice(a,b,c)")
+    c.add_argument("--envelope", default=None, metavar="PRESET",
+                   help="draw each member's world from this envelope with the member's seed (e.g. published; "
+                        "docs/sensors.md \"The envelope\"); the draws are in runs.csv (envelope:KEY columns)")
+    c.add_argument("--envelope-groups", default=None, metavar="G1,G2",
+                   help="only these groups of the envelope (imu, gnss, sky, camera, mounting, calibration)")
     c.add_argument("--seed", type=int, default=None, help="campaign seed (default: the scenario's seed)")
     c.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
                    help="a running Dask scheduler (default: a LocalCluster on 127.0.0.1)")
@@ -67,7 +72,8 @@ def run(args: argparse.Namespace) -> int:
                          variations=[parse_vary(v) for v in args.vary], seed=args.seed, scheduler=args.scheduler,
                          workers=args.workers, out_dir=Path(args.out) if args.out else None,
                          keep_all=args.keep_all, plots=not args.no_plots, dashboard=args.dashboard,
-                         consistency=args.consistency, consistency_after_s=args.after_s)
+                         consistency=args.consistency, consistency_after_s=args.after_s, envelope=args.envelope,
+                         envelope_groups=args.envelope_groups.split(",") if args.envelope_groups else None)
     if args.allow_hooks:  # before the cluster exists: its worker processes inherit the setting
         import os
 

@@ -336,7 +336,8 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
         err.print(f"{stats['frames']} frames")
         for key, st in stats["decoders"].items():
             err.print(f"  {key}: frames {st['frames']}, crc errors {st['crc_errors']}, "
-                      f"garbage bytes {st['garbage_bytes']}, resyncs {st['resyncs']}")
+                      f"garbage bytes {st['garbage_bytes']}, resyncs {st['resyncs']}, "
+                      f"frames with non-finite values {st['nonfinite_frames']}")
     return EXIT_OK
 
 
@@ -434,14 +435,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help="print the validated scenario with defaults (keys left unset, null, are omitted)")
     v.set_defaults(func=_cmd_validate)
 
-    mo = sub.add_parser("monitor", help="decode a port live (pty, serial device, zenoh key) or a capture file "
-                                        "into frames")
-    mo.add_argument("endpoint", help="capture file (.psnscap), pty/serial device path, serial:///dev/ttyXXX, or "
-                                     "zenoh://RUN/PORT[?connect=tcp/HOST:PORT] (default connect tcp/127.0.0.1:7447)")
+    mo = sub.add_parser("monitor", help="decode a port live (pty, serial device, zenoh key), a capture file or a "
+                                        "byte dump into frames")
+    mo.add_argument("endpoint", help="capture file (.psnscap), a plain file of a port's bytes, pty/serial device "
+                                     "path, serial:///dev/ttyXXX, or zenoh://RUN/PORT[?connect=tcp/HOST:PORT] "
+                                     "(default connect tcp/127.0.0.1:7447)")
     mo.add_argument("--protocol", default="auto",
                     help="decoders: auto (by port name) or a comma list of host, imu, stim210[:FMT], nmea, psns, "
                          "ubx, monitor")
-    mo.add_argument("--baud", type=int, default=460800, help="baud for a serial device (ptys ignore it)")
+    mo.add_argument("--baud", type=int, default=460800, help="baud for a serial device (ptys ignore it); a byte "
+                                                              "dump's time base")
     mo.add_argument("--port", help="port name for auto decoding when the path's name does not tell it")
     mo.add_argument("--link", action="append", help="capture files: only this link (repeatable)")
     mo.add_argument("--count", type=int, help="stop after N frames")

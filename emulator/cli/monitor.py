@@ -6,7 +6,9 @@ Endpoints:
   recorded time and direction;
 * a serial device or a pseudo-terminal path (``/dev/ttyUSB0``, ``runs/x/ports/uart0``,
   ``serial:///dev/ttyUSB0``): opened with pyserial at ``--baud`` and decoded as bytes arrive --
-  the same tool works on the real box's connectors;
+  the same tool works on the real box's connectors; ``t_s`` counts from when the monitor opened it;
+* a plain file of bytes (a dump of a port, ``cat /dev/ttyUSB0 > dump.bin``): decoded from start to end, ``t_s``
+  the time of each chunk's first byte at ``--baud`` (10 bits a byte) from the file's start;
 * ``zenoh://RUN/PORT`` (:mod:`emulator.links.zenoh`): what is published on ``psns/RUN/PORT/tx`` (bytes the
   port's owner transmits, shown as ``out``) and ``psns/RUN/PORT/rx`` (bytes it receives, ``in``), decoded as
   they arrive. The zenoh session connects to ``tcp/127.0.0.1:7447`` (where an emulator's zenoh port listens
@@ -16,11 +18,15 @@ Endpoints:
 Decoders: ``--protocol`` names the frame families (``host``, ``imu``, ``stim210`` or
 ``stim210:FMT``, ``nmea``, ``psns``, ``ubx``, ``monitor``); ``auto`` (default) picks them from the port
 name (the file name of a pty symlink such as ``uart0``, the capture's link name, or the PORT of a
-zenoh key). On the MONITOR port every record is unpacked and its
+zenoh key); a pty of a run (``runs/x/ports/NAME``) is looked up in the run's ``ports.json``, so a port named
+freely in its URL (``pty://nmea`` for ``links.host_nmea``) is still told. On the MONITOR port every record is
+unpacked and its
 bytes are decoded with its channel's decoders, so one stream shows every channel.
 
 Everything goes through :class:`protocols.stream.StreamDecoder`: bad bytes are counted, never
-fatal. The decoder statistics are printed at the end (Ctrl-C ends a live session cleanly).
+fatal. A frame holding a non-finite value (NaN, +-inf: an outside DSP may send them) is shown as it is (``nan``,
+``inf`` in the table, ``null`` in JSON) and counted in its decoder's ``nonfinite_frames``. Lines are never cut.
+The decoder statistics are printed at the end (Ctrl-C ends a live session cleanly).
 """
 
 from __future__ import annotations
@@ -74,7 +80,9 @@ PROTOCOLS = ("host", "imu", "stim210", "nmea", "psns", "ubx", "monitor")
 _AUTO = {
     "host": ("host",), "uart0": ("host",), "gyro": ("stim210",), "uart1": ("imu",),
     "gnss": ("nmea", "ubx"), "uart3": ("nmea", "ubx"), "psns": ("psns",), "uart2": ("psns",),
-    "monitor": ("monitor",),
+    "monitor": ("monitor",), "host_nmea": ("nmea",), "nmea": ("nmea",), "ubx": ("ubx",),
+    # the ports of an external DSP (docs/runtime.md: the firmware is started on <run_dir>/ports/dsp_uartN)
+    "dsp_uart0": ("host",), "dsp_uart1": ("imu",), "dsp_uart2": ("psns",), "dsp_uart3": ("nmea", "ubx"),
 }
 
 
@@ -133,11 +141,12 @@ class FrameRow:
     direction: str
     frame: Any
 
-    def text(self, width: int = 160) -> str:
+    def text(self, width: int | None = None) -> str:
+        """The table line, whole (a NAV_SOLUTION's mode and counters are at its end), or cut at ``width``."""
         kind, fields = describe_frame(self.frame)
         body = " ".join(f"{k}={_short(v)}" for k, v in fields.items())
         line = f"{self.t_s:12.6f}  {self.port:<8} {self.direction:<3}  {kind:<18} {body}"
-        return line if len(line) <= width else line[: width - 3] + "..."
+        return line if width is None or len(line) <= width else line[: width - 3] + "..."
 
     def as_json(self) -> str:
         kind, fields = describe_frame(self.frame)
@@ -168,6 +177,8 @@ class Monitor:
         self.protocol = protocol
         self.decoders: dict[tuple[str, str], StreamDecoder] = {}
         self._channel_names: dict[int, str] | None = None
+        #: frames holding a non-finite float, per decoder key (shown, counted, never raised)
+        self.nonfinite: dict[tuple[str, str], int] = {}
 
     def _decoder(self, port: str, direction: str) -> StreamDecoder:
         key = (port, direction)
@@ -182,8 +193,13 @@ class Monitor:
             if type(fr).__name__ == "MonitorRecord" and self.protocol in ("auto", "monitor"):
                 rows += self._demux(fr)
             else:
+                self._count_nonfinite((port, direction), fr)
                 rows.append(FrameRow(t, port, direction, fr))
         return rows
+
+    def _count_nonfinite(self, key: tuple[str, str], fr: Any) -> None:
+        if _has_nonfinite(fr):
+            self.nonfinite[key] = self.nonfinite.get(key, 0) + 1
 
     def _demux(self, rec: Any) -> list[FrameRow]:
         if self._channel_names is None:
@@ -199,7 +215,10 @@ class Monitor:
             except EmulatorError:
                 return [FrameRow(t, ch, d, rec)]
             dec = self.decoders[key] = StreamDecoder(fm)
-        return [FrameRow(t, ch, d, fr) for fr in dec.feed(rec.data)]
+        rows = [FrameRow(t, ch, d, fr) for fr in dec.feed(rec.data)]
+        for r in rows:
+            self._count_nonfinite(key, r.frame)
+        return rows
 
     def stats(self) -> dict[str, dict[str, Any]]:
         # NMEA lines accepted with an LF-only end are counted apart (never as CRC errors)
@@ -209,8 +228,23 @@ class Monitor:
             nmea = [f for f in dec.formats if isinstance(f, NmeaFormat)]
             if nmea:
                 st["lf_only"] = sum(f.lf_only for f in nmea)
+            st["nonfinite_frames"] = self.nonfinite.get((p, d), 0)
             out[f"{p}/{d}"] = st
         return out
+
+
+def _has_nonfinite(fr: Any) -> bool:
+    """True when a decoded frame holds a NaN or an infinity in a float field (or a tuple of floats)."""
+    if not (dataclasses.is_dataclass(fr) and not isinstance(fr, type)):
+        return False
+    for f in dataclasses.fields(fr):
+        v = getattr(fr, f.name)
+        if isinstance(v, float):
+            if v - v != 0.0:
+                return True
+        elif isinstance(v, tuple) and any(isinstance(x, float) and x - x != 0.0 for x in v):
+            return True
+    return False
 
 
 def _capture_rows(path: Path, mon: Monitor, links: set[str] | None) -> Iterator[FrameRow]:
@@ -248,6 +282,63 @@ def _is_capture(endpoint: str) -> bool:
             return f.read(len(CAPTURE_MAGIC)) == CAPTURE_MAGIC
     except OSError:
         return False
+
+
+#: bytes read at a time from a byte dump
+_DUMP_CHUNK = 4096
+
+
+def _is_byte_dump(endpoint: str) -> bool:
+    """A regular file (not a device, a fifo or a pty): a dump of a port's bytes, read from start to end."""
+    try:
+        return Path(endpoint).is_file()
+    except OSError:
+        return False
+
+
+def _dump_rows(path: str, port: str, mon: Monitor, baud: int) -> Iterator[FrameRow]:
+    """The frames of a byte dump; ``t_s`` is the time of each chunk's first byte at ``baud`` (10 bits a byte)."""
+    try:
+        f = open(path, "rb")  # noqa: SIM115 (closed in the generator's finally)
+    except OSError as exc:
+        raise EmulatorError(f"cannot read {path}: {exc.strerror or exc}") from exc
+    try:
+        offset = 0
+        while chunk := f.read(_DUMP_CHUNK):
+            yield from mon.feed(offset * 10.0 / baud, port, "in", chunk)
+            offset += len(chunk)
+    except OSError as exc:
+        raise EmulatorError(f"{path}: {exc.strerror or exc}") from exc
+    finally:
+        f.close()
+
+
+#: largest ports.json read to name a run's pty (a run writes a few KB)
+_PORTS_JSON_MAX = 1 << 20
+
+
+def port_of_run_pty(endpoint: str) -> str | None:
+    """The port name of a run's pty ``<run_dir>/ports/NAME`` from ``<run_dir>/ports.json`` (the link whose URL is
+    ``pty://NAME``), or None when it is not one; a malformed or oversized ports.json is ignored."""
+    p = Path(endpoint)
+    pj = p.parent.parent / "ports.json"
+    if p.parent.name != "ports" or not pj.is_file():
+        return None
+    try:
+        with open(pj, "rb") as f:
+            raw = f.read(_PORTS_JSON_MAX + 1)
+        if len(raw) > _PORTS_JSON_MAX:
+            return None
+        entries = json.loads(raw)
+    except (OSError, ValueError, RecursionError):
+        return None
+    if not isinstance(entries, list):
+        return None
+    for e in entries:
+        if isinstance(e, dict) and isinstance(e.get("url"), str) and isinstance(e.get("name"), str) \
+                and e["url"].split("?", 1)[0] == f"pty://{p.name}":
+            return str(e["name"])
+    return None
 
 
 def _live_rows(device: str, port: str, mon: Monitor, baud: int, stop: Callable[[], bool]) -> Iterator[FrameRow]:
@@ -356,8 +447,13 @@ def run_monitor(endpoint: str, protocol: str = "auto", baud: int = 460800, links
         rows = _zenoh_rows(cfg, name, prefix, mon, stop)
     elif _is_capture(endpoint):
         rows = _capture_rows(Path(endpoint), mon, set(links) if links else None)
+    elif _is_byte_dump(endpoint):
+        name = port_name or Path(endpoint).stem
+        if protocol == "auto":
+            formats_for(name, "auto")  # fail early with the hint
+        rows = _dump_rows(endpoint, name, mon, baud)
     elif os.path.exists(endpoint):
-        name = port_name or Path(endpoint).name
+        name = port_name or port_of_run_pty(endpoint) or Path(endpoint).name
         if protocol == "auto":
             formats_for(name, "auto")  # fail early with the hint
         rows = _live_rows(endpoint, name, mon, baud, stop)

@@ -26,7 +26,12 @@ first-order Gauss-Markov process per axis added to the position; both correlated
 fresh draw at re-acquisition, so the solution jumps when the fixes return. ``latency_s`` is the receiver's
 output latency (epoch to first byte).
 
-Height in GGA is above MSL: ``h_msl = h - geoid_sep_m``.
+Height in GGA is above MSL: ``h_msl = h - N``, the receiver's geoid separation ``N`` EGM96 at the reported position
+(:mod:`.geoid`, proj-data's 15' grid) unless the scenario fixes ``geoid_sep_m``; ``geoid_sep_field = "empty"`` leaves
+GGA's separation field empty (MSL height only), as several receiver families do.
+
+Message sets: NMEA sentences, then UBX: NAV-PVT (u-blox 7 and later) or the set of the generations before it
+(NAV-SOL, NAV-POSLLH, NAV-VELNED, NAV-TIMEUTC, NAV-TIMEGPS, NAV-STATUS: u-blox 5/6, or an M8/F9 configured so).
 """
 
 from __future__ import annotations
@@ -35,6 +40,7 @@ import datetime as _dt
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 import pymap3d
@@ -48,6 +54,7 @@ from protocols.ubx import UbxFormat, UbxFrame
 
 from ..links.base import Link
 from ..world.trajectory import Trajectory
+from .geoid import egm96_separation_m
 
 __all__ = ["NO_FIX_ACC_M", "RADIAL_95", "GnssConfig", "GnssErrorModel", "GnssErrors", "GnssGlitch", "GnssOutage",
            "GnssReceiver", "constellation"]
@@ -92,7 +99,8 @@ WGS84 = pymap3d.Ellipsoid(A_WGS84, A_WGS84 * (1.0 - F_WGS84), "WGS-84 (protocols
 #: (class, id) of every message the receiver can output (NMEA standard messages are UBX class 0xF0)
 MESSAGE_IDS: dict[str, tuple[int, int]] = {
     "GGA": (0xF0, 0x00), "GSA": (0xF0, 0x02), "GSV": (0xF0, 0x03), "RMC": (0xF0, 0x04), "VTG": (0xF0, 0x05),
-    "ZDA": (0xF0, 0x08), "NAV-STATUS": (0x01, 0x03), "NAV-PVT": (0x01, 0x07)}
+    "ZDA": (0xF0, 0x08), "NAV-STATUS": (0x01, 0x03), "NAV-PVT": (0x01, 0x07), "NAV-POSLLH": (0x01, 0x02),
+    "NAV-SOL": (0x01, 0x06), "NAV-VELNED": (0x01, 0x12), "NAV-TIMEGPS": (0x01, 0x20), "NAV-TIMEUTC": (0x01, 0x21)}
 #: the receiver's port number (UBX-CFG-PRT portID): the link is its UART1
 UART1 = 1
 #: what MON-VER reports (a u-blox M8 with protocol 18, as a NEO-M8N of SPG 3.01 firmware reports itself)
@@ -149,12 +157,17 @@ class GnssConfig:
     nmea_version: str = "2.3"
     num_sats: int = 12
     hdop: float = 0.8
-    geoid_sep_m: float = 0.0
+    #: geoid separation reported (m); None: EGM96 at the reported position (:func:`.geoid.egm96_separation_m`)
+    geoid_sep_m: float | None = None
+    #: "reported" (GGA carries the separation) or "empty" (MSL height only, the separation field left empty)
+    geoid_sep_field: str = "reported"
     fix_quality: int = 1
     reacquisition_s: float = 0.8
     outages: tuple[GnssOutage, ...] = ()
     glitches: tuple[GnssGlitch, ...] = ()
     errors: GnssErrors = field(default_factory=GnssErrors)
+    #: the antenna's surroundings (a :class:`.gnss_environment.GnssEnvironmentProcess`; None: none modelled)
+    environment: Any = None
 
 
 class GnssErrorModel:
@@ -450,11 +463,13 @@ class GnssReceiver:
         t = (utc - self.epoch).total_seconds()
         msss = max(0, round(t * 1000.0))  # ms since start-up (power-on at t = 0)
         ttff = 0 if self._first_fix_t is None else round(self._first_fix_t * 1000.0)
+        sep = cfg.geoid_sep_m if cfg.geoid_sep_m is not None else egm96_separation_m(lat_deg, lon_deg)
+        in_gga = cfg.geoid_sep_field != "empty"
         if not fix_type:
             # no fix: the receiver reports its accuracies as unknown (U4 / U2 at their largest valid values; the
             # DOPs at 99.99 as NMEA receivers print them in GGA/GSA without a fix)
             return GnssFix(
-                utc=utc, lat_deg=lat_deg, lon_deg=lon_deg, height_m=h_m, geoid_sep_m=cfg.geoid_sep_m,
+                utc=utc, lat_deg=lat_deg, lon_deg=lon_deg, height_m=h_m, geoid_sep_m=sep, geoid_sep_in_gga=in_gga,
                 vel_enu_mps=vel_enu, fix_type=0, quality=0, sat_ids=(), hdop=99.99, vdop=99.99, pdop=99.99,
                 sky=tuple((e[0], e[1], e[2], e[3], None) for e in constellation(cfg.talker, cfg.num_sats)),
                 h_acc_m=NO_FIX_ACC_M, v_acc_m=NO_FIX_ACC_M, s_acc_mps=NO_FIX_SACC_MPS, head_acc_deg=180.0,
@@ -462,7 +477,8 @@ class GnssReceiver:
             )
         sky = constellation(cfg.talker, num_sats)
         return GnssFix(
-            utc=utc, lat_deg=lat_deg, lon_deg=lon_deg, height_m=h_m, geoid_sep_m=cfg.geoid_sep_m, vel_enu_mps=vel_enu,
+            utc=utc, lat_deg=lat_deg, lon_deg=lon_deg, height_m=h_m, geoid_sep_m=sep, geoid_sep_in_gga=in_gga,
+            vel_enu_mps=vel_enu,
             fix_type=fix_type, quality=fq if quality is None else quality,
             sat_ids=tuple(e[1] for e in sky), sky=sky, hdop=hdop,
             h_acc_m=e.pos_sigma_h_m * math.sqrt(2.0), v_acc_m=e.pos_sigma_v_m,
@@ -498,6 +514,8 @@ class GnssReceiver:
             if g.covers(t):
                 err += np.asarray(g.offset_enu_m)
                 self.glitched_fixes += 1
+        if cfg.environment is not None:  # NLOS bias and outliers (emulator/devices/gnss_environment.py)
+            err = err + cfg.environment.position_offset(t, dt)
         self.last_error_enu = err
         self.last_vel_error_enu = vel_err
         st = self.traj.state(t)

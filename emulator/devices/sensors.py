@@ -47,6 +47,7 @@ from .compass import (
     turned_about_view_rays,
 )
 from .gnss import GnssConfig, GnssErrors, GnssGlitch, GnssOutage, GnssReceiver
+from .gnss_environment import ENVIRONMENTS, GnssEnvironmentProcess, environment_errors
 from .imu import AccelErrors, AnalogAccelerometers, GyroErrors, ImuTemperature, ImuTruthTap, Stim210Gyro
 from .imu.stim300 import Stim300Imu
 from .magnetometer import MagConfig, Magnetometer, soft_iron_matrix
@@ -175,20 +176,28 @@ def build_vibration(scn: Scenario, seed: int) -> VibrationModel | None:
     return VibrationModel(prof["psd"], prof["axes"], scn.sensors.imu.rate_hz, device_rng(seed, "vibration"))
 
 
-def gnss_config(scn: Scenario) -> GnssConfig:
+def gnss_config(scn: Scenario, seed: int | None = None) -> GnssConfig:
+    """The receiver of ``scn``; ``seed`` (default the scenario's) draws its environment's run (``environment``)."""
     g = scn.sensors.gnss
     p = preset("gnss", preset_of(scn.sensors, "gnss", g))
     err = _dataclass_from(GnssErrors, merged(p["errors"], g.errors.model_dump()))
+    env_process = None
+    num_sats, hdop = g.num_sats, g.hdop
+    if g.environment is not None:
+        env = ENVIRONMENTS[g.environment]
+        err = environment_errors(env, err)
+        env_process = GnssEnvironmentProcess(env, device_rng(scn.seed if seed is None else seed, "gnss_environment"))
+        num_sats, hdop = env_process.num_sats, env_process.hdop
     return GnssConfig(
         rate_hz=g.rate_hz, latency_s=g.latency_s if g.latency_s is not None else float(p.get("latency_s", 0.05)),
         sentences=tuple(g.sentences), ubx=tuple(g.ubx), talker=g.talker, nmea_version=g.nmea_version,
-        geoid_sep_m=g.geoid_sep_m,
+        geoid_sep_m=g.geoid_sep_m, geoid_sep_field=g.geoid_sep_field,
         fix_quality=g.fix_quality if g.fix_quality is not None else int(p.get("fix_quality", 1)),
         reacquisition_s=g.reacquisition_s if g.reacquisition_s is not None else float(p.get("reacquisition_s", 0.8)),
-        num_sats=g.num_sats, hdop=g.hdop,
+        num_sats=num_sats, hdop=hdop,
         outages=tuple(GnssOutage(o.start_s, o.duration_s) for o in g.outages),
         glitches=tuple(GnssGlitch(x.start_s, x.duration_s, _enu3(x.offset_enu_m)) for x in g.glitches),
-        errors=err,
+        errors=err, environment=env_process,
     )
 
 
@@ -216,6 +225,9 @@ def camera_config(scn: Scenario, seed: int | None = None) -> CameraConfig:
     if c.focal_length_mm is not None:
         p["focal_length_mm"] = c.focal_length_mm
     m = c.mounting
+    o = c.optics  # the lens over the preset's (the envelope's lenses)
+    p = merged(p, {k: getattr(o, k) for k in ("principal_point_offset_px", "distortion_k1", "distortion_k2",
+                                               "exit_pupil_mm")})
     pp = p.get("principal_point_offset_px", (0.0, 0.0))
     return CameraConfig(
         lens=p["lens"], focal_m=p["focal_length_mm"] * 1e-3, fisheye_max_theta=c.fisheye_max_theta_deg * DEG,
@@ -230,6 +242,7 @@ def camera_config(scn: Scenario, seed: int | None = None) -> CameraConfig:
         cy_px=(IMX250MZR_NY + 1) / 2.0 + pp[1] if pp[1] else None,
         k1=float(p.get("distortion_k1", 0.0)), k2=float(p.get("distortion_k2", 0.0)),
         exit_pupil_m=p["exit_pupil_mm"] * 1e-3 if p.get("exit_pupil_mm") is not None else None,
+        k3=o.distortion_k3, p1=o.tangential_p1, p2=o.tangential_p2, lens_diattenuation_edge=o.radial_diattenuation_edge,
         defects=SensorDefects(**_defect_args({**p.get("defects", {}), **c.defects.model_dump(exclude_none=True)})),
         defect_seed=scn.seed if seed is None else seed,
     )
@@ -317,7 +330,8 @@ def build_sensors(scn: Scenario, seed: int, traj: Trajectory, internal: dict[str
                                           scn.epoch, gnss_config(scn), s.gnss.recorded.time_offset_s, pps=pps,
                                           rng=device_rng(seed, "gnss"))
         else:
-            gnss = GnssReceiver(internal["gnss"], traj, scn.epoch, device_rng(seed, "gnss"), gnss_config(scn), pps=pps)
+            gnss = GnssReceiver(internal["gnss"], traj, scn.epoch, device_rng(seed, "gnss"), gnss_config(scn, seed),
+                                pps=pps)
     sky = sun = None
     camera = compass = None
     want_camera = s.camera is not None and s.camera.enabled

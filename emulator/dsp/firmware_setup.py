@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -112,6 +113,15 @@ def _camera_calibration(scn: Scenario, seed: int) -> CameraCalibration:
     err = Rotation.from_rotvec(np.radians(r.boresight_deg * rng.standard_normal(3)))
     c_b = cc.mounting_c_b @ err.as_matrix()
     pp = r.principal_point_px * rng.standard_normal(2)
+    if spec.source == "lab":  # the lens as a bench fit in the firmware's family; the rest as "residuals"
+        focal_m, cx, cy, k1, k2 = lab_lens_fit(cc, device_rng(seed, "calibration_lab"))
+        return replace(
+            truth, focal_m=focal_m, cx_px=cx, cy_px=cy, k1=k1, k2=k2,
+            exit_pupil_m=None if truth.exit_pupil_m is None
+            else truth.exit_pupil_m * (1.0 + r.exit_pupil_rel * float(rng.standard_normal())),
+            boresight_rotvec_deg=_rotvec_deg(c_b),
+            polarizer_deg=tuple(a + r.polarizer_deg * float(rng.standard_normal())  # type: ignore[arg-type]
+                                for a in truth.polarizer_deg))
     return replace(
         truth, focal_m=truth.focal_m * (1.0 + r.focal_rel * float(rng.standard_normal())),
         cx_px=float(cc.lens_model.cx + pp[0]), cy_px=float(cc.lens_model.cy + pp[1]),
@@ -121,6 +131,46 @@ def _camera_calibration(scn: Scenario, seed: int) -> CameraCalibration:
         boresight_rotvec_deg=_rotvec_deg(c_b),
         polarizer_deg=tuple(a + r.polarizer_deg * float(rng.standard_normal())  # type: ignore[arg-type]
                             for a in truth.polarizer_deg))
+
+
+#: the lab calibration's bench: a collimated point source on a two-axis stage imaged at LAB_GRID x LAB_GRID places
+#: across the sensor (the stage's angles known), centroids with LAB_CENTROID_PX rms noise (design values [D])
+LAB_GRID = 25
+LAB_CENTROID_PX = 0.05
+
+
+def lab_lens_fit(cc: Any, rng: np.random.Generator) -> tuple[float, float, float, float, float]:
+    """A lab calibration of the camera ``cc`` (the world's :class:`CameraConfig`, the true lens) in the firmware's
+    lens family: ``(focal_m, cx_px, cy_px, k1, k2)`` that best map the bench's known directions onto their observed
+    centroids (least squares, scipy). The family is the calibration file's documented one (docs/calibration.md:
+    principal point, focal length, radial ``k1``, ``k2`` on ``tan(theta)`` for pinhole, on ``theta`` for fisheye),
+    written here from that format, not borrowed from the firmware's code. A true lens outside the family
+    (``k3``, decentering) leaves a model-form residual the firmware cannot know (docs/sensors.md, "The envelope")."""
+    from scipy.optimize import least_squares
+
+    lens = cc.lens_model
+    m = 40.0
+    gx = np.linspace(m, cc.nx - m, LAB_GRID)
+    gy = np.linspace(m, cc.ny - m, LAB_GRID)
+    X, Y = np.meshgrid(gx, gy)
+    v, th, _, _ = lens.rays(X.ravel(), Y.ravel())
+    ok = np.isfinite(th)
+    v = v[:, ok]
+    u_obs = X.ravel()[ok] + LAB_CENTROID_PX * rng.standard_normal(int(ok.sum()))
+    w_obs = Y.ravel()[ok] + LAB_CENTROID_PX * rng.standard_normal(int(ok.sum()))
+    theta = np.arccos(np.clip(v[2], -1.0, 1.0))
+    alpha = np.arctan2(v[1], v[0])
+    base = np.tan(theta) if cc.lens == "pinhole" else theta
+
+    def residual(p: np.ndarray) -> np.ndarray:
+        f_px, cx, cy, k1, k2 = p
+        rho = base * (1.0 + k1 * base ** 2 + k2 * base ** 4)
+        return np.concatenate([cx + f_px * rho * np.cos(alpha) - u_obs, cy + f_px * rho * np.sin(alpha) - w_obs])
+
+    p0 = np.array([cc.focal_m / cc.pixel_m, (cc.nx + 1) / 2.0, (cc.ny + 1) / 2.0, 0.0, 0.0])
+    sol = least_squares(residual, p0, x_scale=np.array([10.0, 1.0, 1.0, 1e-3, 1e-3]), method="lm")
+    f_px, cx, cy, k1, k2 = (float(x) for x in sol.x)
+    return f_px * cc.pixel_m, cx, cy, k1, k2
 
 
 def _compass_calibration(scn: Scenario, seed: int) -> CompassCalibration:

@@ -108,10 +108,32 @@ class NavVsTruth:
         self._sigma: tuple[float, ...] | None = None
         self._sigma_types: tuple[type, ...] = ()
         self._sigma_text = ""
+        #: frames with a non-finite value (time, position, velocity or attitude: an outside DSP may send +-inf or
+        #: NaN) or a time the trajectory cannot be evaluated at: counted here, never raised, and left out of the
+        #: error statistics; their rows are written (with empty cells for the non-finite values) when their time is
+        #: finite and the truth there could be evaluated, otherwise not at all
+        self.nonfinite_frames = 0
 
     def add(self, frames: list[tuple[float, NavSolution]]) -> None:
         """Compare ``frames`` ((arrival time, frame) pairs) with truth: one vectorised trajectory evaluation."""
-        for (t_arrival, n), st in zip(frames, self.traj.states([n.time_s for _t, n in frames])):
+        times = [n.time_s for _t, n in frames]
+        if not all(map(math.isfinite, times)):
+            kept = [(t, n) for t, n in frames if math.isfinite(n.time_s)]
+            self.nonfinite_frames += len(frames) - len(kept)
+            frames = kept
+            times = [n.time_s for _t, n in frames]
+        try:
+            states = self.traj.states(times)
+        except (ArithmeticError, ValueError):  # a finite time the trajectory cannot be evaluated at (1e300 s)
+            for t_arrival, n in frames:
+                try:
+                    (st,) = self.traj.states([n.time_s])
+                except (ArithmeticError, ValueError):
+                    self.nonfinite_frames += 1
+                    continue
+                self._compare(t_arrival, n, st)
+            return
+        for (t_arrival, n), st in zip(frames, states):
             self._compare(t_arrival, n, st)
 
     def _compare(self, t_arrival: float, n: NavSolution, st: Any) -> None:
@@ -125,7 +147,9 @@ class NavVsTruth:
         truth = (n.time_s, lat / DEG, lon / DEG, h, ve, vn, vu, st.roll / DEG, st.pitch / DEG, st.heading / DEG)
         self.mode_series.extend((n.time_s, n.mode))
         errs: tuple[float, ...] | None = None
-        if n.mode & _NAVIGATING:
+        if n.mode & _NAVIGATING and not _frame_finite(n):
+            self.nonfinite_frames += 1  # no error of a non-finite value: counted, the row shows the frame
+        elif n.mode & _NAVIGATING:
             c_nav = _c_bn(n.pitch_deg * DEG, n.roll_deg * DEG, -n.heading_deg * DEG)
             # trace(C_nav C_true^T) = sum of the element-wise product
             tr = sum(map(_mul, c_nav, st.c_bn.ravel().tolist()))
@@ -227,6 +251,13 @@ def _nav_row(head: tuple[Any, ...], sigma: tuple[Any, ...], tail: tuple[Any, ...
     """The reference nav row: the frame's cells and the error cells (empty when ``errs`` is None) by
     :func:`csv_row_fast` apart."""
     return csv_row_fast((*head, *sigma, *tail))[:-2] + "," + (_NO_ERRORS if errs is None else csv_row_fast(errs))
+
+
+def _frame_finite(n: NavSolution) -> bool:
+    """True when every compared value of ``n`` (position, velocity, attitude) is finite."""
+    v = n.vel_enu_mps
+    return math.isfinite(n.lat_deg + n.lon_deg + n.height_m + v[0] + v[1] + v[2] + n.roll_deg + n.pitch_deg
+                         + n.heading_deg)
 
 
 def _wrap180(x: float) -> float:

@@ -126,6 +126,8 @@ class Recorder:
         self._last_flush = _time.monotonic()
         self._chunks = 0
         self.last_nav: NavSolution | None = None
+        #: navigation frames with non-finite values already reported by a ``nav_nonfinite`` event
+        self._nonfinite_reported = 0
 
     # -- wiring ---------------------------------------------------------------------------
     def tap(self, name: str, link: Link, formats: dict[str, Sequence[FrameFormat]]) -> None:
@@ -281,6 +283,16 @@ class Recorder:
             return
         self._nav_pending = []
         self._compare.add(pend)
+        nf = self._compare.nonfinite_frames
+        if nf != self._nonfinite_reported:  # counted and shown (events, summary event_counts), never raised
+            self.emit(pend[-1][0], "recorder", "nav_nonfinite", frames=nf - self._nonfinite_reported, total=nf)
+            self._nonfinite_reported = nf
+
+    @property
+    def nav_nonfinite_frames(self) -> int:
+        """Navigation frames with a non-finite time, position, velocity or attitude (left out of the errors)."""
+        self._drain_nav()
+        return self._compare.nonfinite_frames
 
     # -- results -----------------------------------------------------------------------------
     def link_summary(self) -> dict[str, dict[str, int]]:

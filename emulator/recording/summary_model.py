@@ -18,8 +18,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from ..errors import RecordingError
 
-__all__ = ["ErrorStat", "ExpectationRecord", "LinkCounters", "PsnsSection", "RunSummary", "load_summary",
-           "summary_json_schema"]
+__all__ = ["EnvelopeRecord", "ErrorStat", "ExpectationRecord", "LinkCounters", "PsnsSection", "RunSummary",
+           "load_summary", "summary_json_schema"]
 
 
 class _Open(BaseModel):
@@ -127,6 +127,13 @@ class ReplayInfo(_Open):
     scenario_duration_s: float | None = None
 
 
+class EnvelopeRecord(_Open):
+    preset: str = Field(description="the envelope preset (emulator/presets/envelope.yaml)")
+    groups: list[str] | None = Field(None, description="the groups drawn (null: every group of the preset)")
+    draws: dict[str, Any] = Field(description="scenario key -> the value this run's seed drew (the key's units)")
+    pinned: list[str] = Field(default_factory=list, description="keys the scenario set itself: not drawn")
+
+
 class RunSummary(_Open):
     """``summary.json`` of one run (see module docstring)."""
 
@@ -147,6 +154,9 @@ class RunSummary(_Open):
     interrupted: bool = False
     started: bool | None = Field(None, description="false when the run was interrupted while starting")
     replay: ReplayInfo | None = None
+    envelope: EnvelopeRecord | None = Field(
+        None, description="the world this seed drew from an envelope (docs/sensors.md \"The envelope\"); null: the "
+                          "scenario's world as written")
     run_dir: str
     nav_error: dict[str, ErrorStat] = Field(
         default_factory=dict, description="error against truth while navigating (fine alignment included), per metric")

@@ -61,7 +61,10 @@ DESCRIPTIONS: dict[str, str] = {
                           "latency for time tags without PPS",
     "GnssSpec.talker": "NMEA talker id (GP, GN, ...); satellite numbers follow NMEA 4.10 (GLONASS 65-96)",
     "GnssSpec.nmea_version": "NMEA layout: 2.3, or 4.10 (RMC navStatus, GSA systemId, GSV signalId)",
-    "GnssSpec.geoid_sep_m": "geoid separation reported in GGA, m",
+    "GnssSpec.geoid_sep_m": "geoid separation the receiver reports (GGA, NAV-PVT hMSL), m; default (null): EGM96 at "
+                            "the position (proj-data's egm96_15.gtx)",
+    "GnssSpec.geoid_sep_field": "GGA geoid-separation field: reported, or empty (MSL height only, as several "
+                                "receiver families send it)",
     "GnssSpec.fix_quality": "GGA fix quality to report (default: from the fix)",
     "GnssSpec.num_sats": "satellites in use reported in GGA",
     "GnssSpec.hdop": "horizontal dilution of precision reported in GGA",

@@ -182,10 +182,12 @@ class CalibrationSpec(Model):
 
     ``residuals``: the world's truth plus the residuals below (the default: a calibrated unit); ``perfect``: the
     truth itself (for debugging); ``nominal``: the design values, no calibration (an installation error or a lens
-    defect is unknown to the DSP); ``file``: the user's own file (``file``, relative to the scenario's directory).
+    defect is unknown to the DSP); ``file``: the user's own file (``file``, relative to the scenario's directory);
+    ``lab``: the lens fitted in the firmware's lens family to simulated bench observations of the true camera (which
+    may be outside that family), the rest as ``residuals`` (docs/calibration.md, "Lab calibration").
     """
 
-    source: Literal["residuals", "perfect", "nominal", "file"] = "residuals"
+    source: Literal["residuals", "perfect", "nominal", "file", "lab"] = "residuals"
     residuals: CalibrationResidualsSpec = CalibrationResidualsSpec()
     file: str | None = Field(None, description="calibration JSON, relative to the scenario file's directory")
 

@@ -43,7 +43,7 @@ from .checks_schema import (
 from .firmware_schema import AlignmentSpec, FirmwareSpec
 from .runtime_schema import DspSpec, FpgaSpec, Links, LinkSpec, UartSpec
 from .sensor_schema import AccelSpec, GnssErrorSpec, GnssSpec, GyroSpec, ImuSpec, Sensors
-from .world_schema import Attitude, MotionSegment, Origin, SkySpec, StaticParams
+from .world_schema import Attitude, EnvelopeSpec, MotionSegment, Origin, SkySpec, StaticParams
 
 __all__ = [
     "AccelSpec",
@@ -94,6 +94,8 @@ class Scenario(Model):
     attitude: Attitude = Attitude()
     motion: list[MotionSegment] = Field(default_factory=list)
     sky: SkySpec = SkySpec()
+    envelope: EnvelopeSpec = Field(EnvelopeSpec(), description="the world drawn per seed from published ranges "
+                                                              "(docs/sensors.md \"The envelope\")")
     sensors: Sensors = Sensors()
     links: Links = Links()
     fpga: FpgaSpec = FpgaSpec()

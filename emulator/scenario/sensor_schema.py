@@ -70,6 +70,8 @@ class GyroSpec(Model):
     bias_temp_gradient_deg_h: float | None = Field(None, ge=0)
     g_sensitivity_deg_h_per_g: float | None = Field(None, ge=0)
     range_dps: float | None = Field(None, gt=0)
+    turn_on_bias_deg_h: Vec3 | None = Field(
+        None, description="the unit's turn-on bias per axis, deg/h (instead of a draw from bias_repeatability_deg_h)")
 
 
 class AccelSpec(Model):
@@ -84,6 +86,8 @@ class AccelSpec(Model):
     bias_temp_coeff_mg_per_c: float | None = Field(None, ge=0)
     range_g: Vec3 | None = None
     vre_ug_per_g2: tuple[VreCoeff, VreCoeff, VreCoeff] | None = None
+    turn_on_bias_mg: Vec3 | None = Field(
+        None, description="the unit's turn-on bias per axis, mg (instead of a draw from bias_repeatability_mg)")
 
 
 class ImuTemperatureSpec(Model):
@@ -166,6 +170,8 @@ class RecordedGnssSpec(Model):
 #: NMEA sentences the modelled receiver can emit.
 NmeaSentenceName = Literal["GGA", "RMC", "VTG", "GSA", "GSV", "ZDA"]
 DEFAULT_NMEA_SENTENCES: tuple[NmeaSentenceName, ...] = ("GGA", "RMC")
+#: UBX messages the modelled receiver can emit (NAV-PVT, or the set of u-blox 5/6/7).
+UbxMessageName = Literal["NAV-PVT", "NAV-STATUS", "NAV-SOL", "NAV-POSLLH", "NAV-VELNED", "NAV-TIMEUTC", "NAV-TIMEGPS"]
 
 
 class GnssSpec(Model):
@@ -175,15 +181,21 @@ class GnssSpec(Model):
     latency_s: float | None = Field(None, ge=0, lt=1, description="epoch to first byte, s; default from the preset")
     sentences: list[NmeaSentenceName] = Field(
         default_factory=lambda: list(DEFAULT_NMEA_SENTENCES), description="NMEA sentences per epoch, in this order")
-    ubx: list[Literal["NAV-PVT", "NAV-STATUS"]] = Field(
-        default_factory=list, description="UBX messages per epoch, after the NMEA sentences")
+    ubx: list[UbxMessageName] = Field(
+        default_factory=list, description="UBX messages per epoch, after the NMEA sentences (NAV-PVT, or the set of "
+        "u-blox 5/6/7: NAV-SOL, NAV-POSLLH, NAV-VELNED, NAV-TIMEUTC, NAV-TIMEGPS, NAV-STATUS)")
     talker: Literal["GP", "GN", "GL", "GA", "GB", "BD"] = "GP"
     nmea_version: Literal["2.3", "4.10"] = "2.3"
-    geoid_sep_m: float = 0.0
+    geoid_sep_m: float | None = None
+    geoid_sep_field: Literal["reported", "empty"] = "reported"
     fix_quality: Literal[1, 2, 4, 5] | None = None
     reacquisition_s: float | None = Field(None, ge=0, lt=1.0, description="paper: < 1 s")
     num_sats: int = Field(12, ge=4, le=99)
     hdop: float = Field(0.8, gt=0, le=99)
+    environment: Literal["open_sky", "suburban", "urban_canyon"] | None = Field(
+        None, description="the antenna's surroundings (emulator/devices/gnss_environment.py, docs/sensors.md "
+                          "\"The envelope\"): multipath, NLOS outliers, fewer satellites, worse DOP; None: the "
+                          "preset's receiver as it is")
     errors: GnssErrorSpec = GnssErrorSpec()
     outages: list[GnssOutageSpec] = Field(default_factory=list)
     glitches: list[GnssGlitchSpec] = Field(default_factory=list)
@@ -242,6 +254,25 @@ class CameraDefectsSpec(Model):
         return v
 
 
+class CameraOpticsSpec(Model):
+    """The lens over the preset's (docs/sensors.md "Polarization camera" and "The envelope"); None: the preset's.
+    ``distortion_k3`` and the tangential (decentering) ``tangential_p1``/``p2`` (Brown-Conrady on the normalised
+    image coordinates, pinhole lenses only) and the lens's radial diattenuation are beyond the firmware's lens family:
+    a calibration in that family cannot represent them."""
+
+    principal_point_offset_px: tuple[float, float] | None = Field(
+        None, description="principal point from the sensor centre, px (x, y); default from the preset")
+    distortion_k1: float | None = Field(None, ge=-0.5, le=0.5, description="radial k1 (on tan theta for pinhole)")
+    distortion_k2: float | None = Field(None, ge=-0.5, le=0.5, description="radial k2 (on tan theta for pinhole)")
+    distortion_k3: float = Field(0.0, ge=-0.2, le=0.2, description="pinhole: radial k3 (outside the firmware's family)")
+    tangential_p1: float = Field(0.0, ge=-0.01, le=0.01, description="pinhole: decentering p1 (Brown-Conrady)")
+    tangential_p2: float = Field(0.0, ge=-0.01, le=0.01, description="pinhole: decentering p2 (Brown-Conrady)")
+    exit_pupil_mm: float | None = Field(None, gt=0, le=1000, description="exit pupil to image plane, mm")
+    radial_diattenuation_edge: float = Field(
+        0.0, ge=0.0, le=0.05, description="the lens's diattenuation (Tp - Ts)/(Tp + Ts) at the sensor's corner, "
+                                          "growing as sin^2 of the field angle; p (radial) transmitted better")
+
+
 class CameraSpec(Model):
     enabled: bool = True
     preset: str = "reference"
@@ -269,6 +300,7 @@ class CameraSpec(Model):
     min_points: int = Field(10, ge=1)
     recorded: RecordedImagesSpec | None = None
     defects: CameraDefectsSpec = CameraDefectsSpec()
+    optics: CameraOpticsSpec = CameraOpticsSpec()
 
     @field_validator("preset")
     @classmethod

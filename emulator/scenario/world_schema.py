@@ -26,7 +26,7 @@ path and turning changes the course (``emulator.world.trajectory``):
 from __future__ import annotations
 
 import math
-from typing import ClassVar
+from typing import ClassVar, Literal
 
 from pydantic import Field, model_validator
 
@@ -38,6 +38,7 @@ __all__ = [
     "ClimbParams",
     "CloudSpec",
     "CruiseParams",
+    "EnvelopeSpec",
     "MotionSegment",
     "OccluderSpec",
     "Origin",
@@ -212,12 +213,40 @@ class OccluderSpec(Model):
     intensity_scale: float = Field(0.3, ge=0.0, le=10.0, description="radiance relative to the sky")
 
 
+ENVELOPE_GROUPS = ("imu", "gnss", "sky", "camera", "mounting", "calibration")
+
+
+class EnvelopeSpec(Model):
+    """The world as a distribution (``emulator.world.envelope``; docs/sensors.md "The envelope"): each run's seed draws
+    every parameter of the preset's groups from its published range, on top of the scenario. ``preset`` None: the
+    scenario's world as written (the default)."""
+
+    preset: str | None = Field(None, description="an envelope of emulator/presets/envelope.yaml, e.g. published")
+    groups: list[Literal["imu", "gnss", "sky", "camera", "mounting", "calibration"]] | None = Field(
+        None, description="draw only these groups (default: every group of the preset)")
+
+    @model_validator(mode="after")
+    def _known(self) -> EnvelopeSpec:
+        if self.preset is not None:
+            from .presets import preset_names
+
+            names = preset_names("envelope")
+            if self.preset not in names:
+                raise ValueError(f"unknown envelope preset {self.preset!r}; available: {', '.join(names)}")
+        return self
+
+
 class SkySpec(Model):
     """Sky polarization model (``emulator.world.sky``)."""
 
-    model: str = Field("realistic", pattern="^(realistic|rayleigh|berry)$",
+    model: str = Field("realistic", pattern="^(realistic|rayleigh|berry|queen)$",
                        description="realistic (turbid sky, neutral points, aerosol aureole, CIE radiance; docs/"
-                                   "sensors.md), rayleigh (clear single scattering) or berry (neutral points)")
+                                   "sensors.md), rayleigh (clear single scattering), berry (neutral points) or queen "
+                                   "(Berry's quartic with Pan et al. 2023's neutral-point placement, pyskylumos' "
+                                   "QuEEN)")
+    neutral_points: Literal["symmetric", "pan2023"] = Field(
+        "symmetric", description="realistic/berry: the neutral points symmetric about the sun and the antisun "
+                                 "(neutral_point_sep_deg) or placed from the solar elevation after Pan et al. 2023")
     p_max: float = Field(0.7, gt=0.0, le=1.0, description="rayleigh/berry: maximum degree of polarization")
     neutral_point_sep_deg: float | None = Field(
         None, ge=0.0, le=60.0, description="berry/realistic: Babinet-Brewster separation (2 delta), deg; default 20 "

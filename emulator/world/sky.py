@@ -35,6 +35,20 @@ goes to ~0 there). The radiance is ``(p_R + (T - 1) p_HG)`` times the CIE standa
 ``phi(Z) = 1 + a exp(b / cos Z)`` (a = -1, b = -0.32; CIE S 011/E:2003, sky type 12), normalised to 1 at 90 deg
 from the sun at the zenith. A sun at the zenith is handled (the Babinet point goes through the zenith).
 
+**QUEEN placement** (``model: queen``, or ``neutral_points: pan2023`` on the realistic and berry skies): the
+Babinet and Brewster points are not symmetric about the sun; their distances from it follow the solar elevation
+``e`` (deg) as fitted by Pan et al. (2023, "High-similarity analytical model of skylight polarization pattern based
+on position variations of neutral points", Opt. Express 31(9) 15189), Eqs. (25) and (26)::
+
+    delta_Brewster = 37.34 + 0.49 e  (e <= 27),   56.84 - 0.25 e  (e > 27)      below the sun
+    delta_Babinet  = 42.53 - 0.56 e                                              above the sun
+
+(measured at Hefei over e = 0-64 deg), the antisolar pair at their antipodes, in Berry's quartic with the
+``P_max |w| / (2 - |w|)`` DOP. ``model: queen`` is that sky alone, the QuEEN model of pyskylumos (0.1.3) term for
+term (a test compares it with vectors that pyskylumos generated, tests/vectors/sky/); on the realistic sky the same
+placement takes the aerosol's dilution and the CIE radiance. Above ``e`` = 75.95 deg Eq. (26) turns negative: the
+queen sky extrapolates as printed (as pyskylumos does), the realistic sky closes the Babinet point in on the sun.
+
 Clouds are circular sky regions (ENU azimuth/elevation, optional azimuth drift and a time
 window): inside, DOP is multiplied by ``dop_scale``, the radiance by ``intensity_scale`` and the
 E-vector is rotated about the view ray by a smooth pseudo-random texture with standard
@@ -76,11 +90,23 @@ GROUND_RADIANCE = 0.3
 P_MOLECULAR = (1.0 - 0.0279) / (1.0 + 0.0279)
 #: CIE standard clear sky (type 12) gradation coefficients a, b (CIE S 011/E:2003).
 CIE_CLEAR_A, CIE_CLEAR_B = -1.0, -0.32
-SKY_MODELS = ("realistic", "rayleigh", "berry")
+SKY_MODELS = ("realistic", "rayleigh", "berry", "queen")
+#: Placements of the neutral points: ``symmetric`` (``delta`` = half ``neutral_point_sep``, above and below the sun),
+#: ``pan2023`` (Pan et al. 2023, Eqs. 25 and 26, from the solar elevation; module docstring)
+NEUTRAL_POINT_PLACEMENTS = ("symmetric", "pan2023")
 #: Default Babinet-Brewster separation ``2 delta`` per model, deg: the realistic sky puts each neutral point ~20 deg
 #: from the sun and the antisun (the typical clear-sky distances, Coulson 1988; Horvath et al. 2002); Berry's model
 #: keeps the 20 deg of its paper's figures; Rayleigh has no neutral points off the sun (the value is unused).
-NEUTRAL_POINT_SEP_DEG = {"realistic": 40.0, "berry": 20.0, "rayleigh": 20.0}
+NEUTRAL_POINT_SEP_DEG = {"realistic": 40.0, "berry": 20.0, "rayleigh": 20.0, "queen": 20.0}
+
+
+def pan2023_offsets_deg(sun_elevation_deg: float) -> tuple[float, float]:
+    """Sun-to-Brewster (below the sun) and sun-to-Babinet (above) distances, deg, for a solar elevation (deg):
+    Pan et al. (2023) Eqs. (25) and (26), the linear fits as printed (the Brewster fit takes its lower branch at
+    27 deg; outside the measured 0-64 deg they are extrapolated)."""
+    e = float(sun_elevation_deg)
+    brewster = 37.34 + 0.49 * e if e <= 27.0 else 56.84 - 0.25 * e
+    return brewster, 42.53 - 0.56 * e
 
 
 def _rayleigh_phase(cos_gamma: np.ndarray) -> np.ndarray:
@@ -179,23 +205,29 @@ class SkyModel:
 
     Parameters
     ----------
-    model : ``"realistic"``, ``"rayleigh"`` or ``"berry"``.
+    model : ``"realistic"``, ``"rayleigh"``, ``"berry"`` or ``"queen"`` (Berry's quartic with Pan et al.'s placement).
     p_max : maximum DOP (0..1) of the rayleigh and berry models (the realistic sky derives it from ``turbidity``).
     neutral_point_sep : Berry's Babinet-Brewster separation ``2 delta``, rad; None: the model's default
         (:data:`NEUTRAL_POINT_SEP_DEG`).
     turbidity : realistic sky: Preetham's turbidity ``T`` (1 = molecules only, 2 very clear, 3 clear, 6+ hazy).
     aerosol_g : realistic sky: Henyey-Greenstein asymmetry of the aerosol.
     clouds, occluders : regions.
+    neutral_points : ``"symmetric"`` or ``"pan2023"`` (:data:`NEUTRAL_POINT_PLACEMENTS`; ``queen`` is always
+        ``pan2023``).
     """
 
     def __init__(self, model: str = "rayleigh", p_max: float = 0.7, neutral_point_sep: float | None = None,
                  clouds: list[Cloud] | None = None, occluders: list[Occluder] | None = None,
-                 turbidity: float = 3.0, aerosol_g: float = 0.7) -> None:
+                 turbidity: float = 3.0, aerosol_g: float = 0.7, neutral_points: str = "symmetric") -> None:
         if model not in SKY_MODELS:
             raise ValueError(f"sky model must be one of {', '.join(SKY_MODELS)}, got {model!r}")
         if not 1.0 <= turbidity <= 20.0 or not 0.0 <= aerosol_g < 1.0:
             raise ValueError(f"turbidity must be in [1, 20] and aerosol_g in [0, 1), got {turbidity}, {aerosol_g}")
+        if neutral_points not in NEUTRAL_POINT_PLACEMENTS:
+            raise ValueError(f"neutral_points must be one of {', '.join(NEUTRAL_POINT_PLACEMENTS)}, "
+                             f"got {neutral_points!r}")
         self.model = model
+        self.neutral_points = "pan2023" if model == "queen" else neutral_points
         self.p_max = float(p_max) if model != "realistic" else P_MOLECULAR
         self.turbidity = float(turbidity)
         self.aerosol_g = float(aerosol_g)
@@ -321,13 +353,18 @@ class SkyModel:
         th_s = 2.0 * math.atan(abs(zs))  # sun zenith angle
         phi_s = math.atan2(zs.imag, zs.real)
         ph = complex(math.cos(phi_s), math.sin(phi_s))
-        delta = self.delta
-        if self.model == "realistic" and th_s < delta:
+        if self.neutral_points == "pan2023":
+            d_below, d_above = (d * DEG for d in pan2023_offsets_deg(90.0 - th_s / DEG))
+        else:
+            d_below = d_above = self.delta
+        if self.model == "realistic" and (th_s < d_above or d_above < 0.0):
             # sun near the zenith: the sun's vertical loses its meaning and, by symmetry, the Babinet and Brewster
             # points close in on the sun (and Arago on the antisun): the pattern tends to the symmetric one
-            delta = 0.5 * th_s
-        zB = ph * math.tan((th_s + delta) / 2.0)  # Brewster: below the sun
-        zb = ph * math.tan((th_s - delta) / 2.0)  # Babinet: above the sun
+            d_above = 0.5 * th_s
+            if self.neutral_points == "symmetric":
+                d_below = d_above
+        zB = ph * math.tan((th_s + d_below) / 2.0)  # Brewster: below the sun
+        zb = ph * math.tan((th_s - d_above) / 2.0)  # Babinet: above the sun
         aB = -1.0 / np.conj(zB)
         ab = -1.0 / np.conj(zb) if zb != 0 else complex(1e300, 0.0)
         w = (-4.0 * (zeta - zB) * (zeta - zb) * (zeta - aB) * (zeta - ab)
@@ -406,4 +443,5 @@ def sky_from_spec(spec: object | None, rng: np.random.Generator | None = None) -
            for o in spec.occluders]  # type: ignore[attr-defined]
     sep = spec.neutral_point_sep_deg  # type: ignore[attr-defined]
     return SkyModel(spec.model, spec.p_max, None if sep is None else sep * DEG, clouds, occ,  # type: ignore[attr-defined]
-                    turbidity=spec.turbidity, aerosol_g=spec.aerosol_g)  # type: ignore[attr-defined]
+                    turbidity=spec.turbidity, aerosol_g=spec.aerosol_g,  # type: ignore[attr-defined]
+                    neutral_points=getattr(spec, "neutral_points", "symmetric"))

@@ -21,6 +21,24 @@ Time of validity (FPGA time base, docs/icd.md "GNSS time tags"):
   write jitter) and ``latency`` is ``cfg.gnss_latency_s``, the receiver's configured output latency (epoch
   to first byte). Never the parse tick.
 
+The time base follows the receiver (docs/icd.md 5.1.3, D-5.39): every epoch gives a sample of the
+offset, whatever message opens it (ZDA, GST and the UBX time messages open an epoch like GGA; a sample is tight
+when the opening message is the first of its chunk, else bounded by the chunk's arrival). A sample more than
+``cfg.gnss_clock_step_tol_s`` from the current offset is a step of the receiver's clock: the epoch is refused
+(``gnss_clock_step_refused``: neither its fix nor its time is used) until ``cfg.gnss_clock_rebase_epochs``
+consecutive epochs agree on the new offset; the last of them re-bases the offset (``gnss_clock_steps``) and is
+used. One epoch never moves UTC. UBX epochs are placed on GPS time (UTC + the receiver's leap seconds, NAV-TIMEGPS
+``leapS`` or UTC against iTOW), so a leap second is no step; an NMEA-only stream sees it as a 1 s step. A tag later
+than the arrival of its own bytes (``gnss_tag_future``) or older than ``cfg.gnss_max_age_s`` at the close
+(``gnss_tag_stale``) is refused.
+
+Fix quality as receivers mean it (docs/icd.md 5.1.3): GGA quality 6 / mode E
+(dead reckoning), 7 / M (manual input) and 8 / S (simulator) are not fixes (``gnss_dr_refused``,
+``gnss_manual_refused``, ``gnss_sim_refused``); fewer than 4 satellites is no 3-D fix (3: horizontal only,
+fewer: none, ``gnss_few_sats``); GSA fix type 1 is no fix; UBX fix types above 5 are reserved, not fixes
+(``gnss_fix_type_unknown``). An empty geoid-separation field is filled from the firmware's own EGM96 table
+(:mod:`firmware_model.geoid`, ``gnss_geoid_filled``), never MSL taken as ellipsoidal height.
+
 Refused and ignored input is counted under the cause (``gnss_*`` counters, docs/icd.md): dead-reckoning
 fixes (GGA quality 6, GNS mode E, RMC mode E, NAV-PVT fixType 1) are never fed back as measurements, epochs
 without a fix are counted, NAV-PVT of an unknown payload length never reaches here (the framer refuses it).
@@ -39,11 +57,13 @@ from typing import Any
 
 import numpy as np
 
-from protocols.nmea import Gga, Gns, Gsa, Rmc
-from protocols.ubx import NavPvt, UbxFrame
+from protocols.nmea import Gga, Gns, Gsa, NmeaSentence, Rmc, Zda
+from protocols.ubx import NavPosllh, NavPvt, NavSol, NavStatus, NavTimeGps, NavTimeUtc, NavVelned, UbxFrame
 
 from .. import input_guard
+from ..earth import ecef_to_geodetic
 from ..filters import GnssMeasurement
+from ..geoid import geoid_separation_m
 from ..units import DEG
 from .timekeeping import TimeKeeping
 
@@ -51,10 +71,22 @@ __all__ = ["GNSS_COUNTERS", "GnssTask"]
 
 #: epochs whose first-byte offset feeds the no-PPS UTC-to-FPGA offset (minimum over the window)
 _OFFSET_WINDOW = 32
-#: a first-byte offset this far (s) from the current minimum is a new time base (receiver restart, UTC step)
-_OFFSET_JUMP_S = 1.0
-#: message kinds that carry measurement content (the stream's composition is learned over these)
-_CONTENT_KINDS = frozenset({"GGA", "GNS", "RMC", "GSA", "PVT"})
+#: message kinds that carry measurement content or time (the stream's composition is learned over these)
+_CONTENT_KINDS = frozenset({"GGA", "GNS", "RMC", "GSA", "PVT", "ZDA", "TIME", "POSLLH", "SOL", "VELNED", "TIMEUTC",
+                            "TIMEGPS", "STATUS"})
+#: NMEA sentences carrying only a UTC time of day (field index): they open an epoch like GGA (Ashtech, Septentrio
+#: and SiRF bursts open with GST or ZDA)
+_TIME_ONLY = {"GST": 1, "GBS": 1, "GRS": 1, "GLL": 5}
+#: GPS - UTC (s) assumed for UBX messages that carry only GPS time until the receiver reports its own (NAV-TIMEGPS
+#: leapS, or NAV-PVT / NAV-TIMEUTC UTC against iTOW): IERS Bulletin C, since 2017-01-01
+_LEAP_DEFAULT_S = 18
+#: epoch kinds of the UBX messages before NAV-PVT, and of the messages that carry their own fix indication
+_LEGACY_KINDS = frozenset({"POSLLH", "VELNED", "SOL", "STATUS"})
+_FIX_KINDS = frozenset({"GGA", "GNS", "RMC", "PVT"})
+#: refusals whose epoch's time and date are not the receiver's real clock either (simulator, manual input)
+_NOT_REAL = frozenset({"gnss_sim_refused", "gnss_manual_refused"})
+#: UBX fix types that are fixes (2 2-D, 3 3-D, 4 GNSS + DR); 0 none, 1 DR, 5 time only, 6+ reserved
+_UBX_FIX = (2, 3, 4)
 #: GNS mode characters with a GNSS fix (NMEA 4.10: A autonomous, D differential, P precise, R RTK fixed,
 #: F RTK float); E is estimated (dead reckoning), N none, M manual, S simulator
 _GNS_FIX = frozenset("ADPRF")
@@ -72,10 +104,22 @@ GNSS_COUNTERS = (
     "gnss_no_utc",               # fixes without a UTC time (tagged at arrival minus latency)
     "gnss_tag_pps",              # epochs tagged from the PPS edge
     "gnss_tag_utc",              # epochs tagged from their UTC and the configured latency (no PPS)
-    "gnss_utc_offset_resets",    # UTC-to-FPGA offset restarted (a step of more than 1 s)
+    "gnss_utc_offset_resets",    # UTC-to-FPGA offset re-based after a clock step (same as gnss_clock_steps)
+    "gnss_clock_steps",          # receiver clock steps detected and re-based on (N consecutive agreeing epochs)
+    "gnss_clock_step_refused",   # epochs refused while their clock disagreed with the time base
+    "gnss_tag_future",           # epochs whose tag was later than the arrival of their bytes (refused)
+    "gnss_tag_stale",            # epochs whose tag was older than gnss_max_age_s (refused)
+    "gnss_date_refused",         # dates refused: outside the firmware's GPS week era, or a jump against its clock
+    "gnss_manual_refused",       # manual-input fixes (GGA 7, GNS/RMC M) not used
+    "gnss_sim_refused",          # simulator fixes (GGA 8, GNS/RMC S) not used
+    "gnss_few_sats",             # fixes with fewer satellites than their dimension needs (3-D: 4, 2-D: 3)
+    "gnss_fix_type_unknown",     # UBX fix types 6, 7 (reserved) and GGA qualities above 8
+    "gnss_geoid_filled",         # empty geoid separations filled from the firmware's own table
+    "gnss_legacy_ubx",           # NAV-POSLLH/SOL/VELNED/TIMEUTC/TIMEGPS/STATUS messages read (no NAV-PVT)
+    "gnss_leap_changes",         # the receiver's GPS - UTC leap seconds changed
     "gnss_pvt_ignored_flags",    # NAV-PVT with gnssFixOK clear
     "gnss_ubx_other",            # checked UBX frames not used (other classes/ids)
-    "gnss_nmea_other",           # checked NMEA sentences not used (GSV, VTG, ZDA, TXT, proprietary ...)
+    "gnss_nmea_other",           # checked NMEA sentences not used (GSV, VTG, TXT, proprietary ...)
 )
 
 
@@ -97,8 +141,15 @@ class _Epoch:
     fix2d: bool = False
     dr: bool = False
     no_fix: bool = False
+    refused: str | None = None       # counter of a refusal (manual, simulator, few satellites, reserved fix type)
     date: Any = None
     tod: Any = None
+    base_ok: bool = True             # the epoch's clock agrees with the time base
+    tag_pps: bool = False            # tagged from a PPS edge
+    pos_ecef: Any = None             # NAV-SOL position (m), used when no NAV-POSLLH came
+    vel_ecef: Any = None             # NAV-SOL velocity (m/s), used when no NAV-VELNED came
+    ubx_fix: int | None = None       # NAV-SOL / NAV-STATUS fix type (with gpsFixOK)
+    gsa_best: int = 0                # best GSA fix type of the epoch (0: no GSA; 1 no fix, 2 2-D, 3 3-D)
 
 
 class GnssTask(TimeKeeping):
@@ -113,6 +164,9 @@ class GnssTask(TimeKeeping):
         self._gnss_kinds_cur: set[str] = set()
         self._gnss_closed_utc: float | None = None
         self._gnss_offsets: deque[float] = deque(maxlen=_OFFSET_WINDOW)
+        self._gnss_step_cand: list[float] = []
+        self._gnss_leap: int | None = None  # the receiver's GPS - UTC (s), once it reported it
+        self._gnss_leap_ref: int | None = None  # the first it reported: the epochs' time scale is UTC + this
         self._gnss_day = 0
         self._gnss_last_tod: float | None = None
         self._gnss_chunk = 0
@@ -138,6 +192,8 @@ class GnssTask(TimeKeeping):
                     self._on_nav_pvt(s)
                 elif isinstance(s, UbxFrame):
                     self.counters["gnss_ubx_other"] += 1
+                elif isinstance(s, NavPosllh | NavSol | NavVelned | NavTimeUtc | NavTimeGps | NavStatus):
+                    self._on_ubx_legacy(s)
                 else:
                     self._on_nmea(s)
             except Exception as e:
@@ -153,14 +209,15 @@ class GnssTask(TimeKeeping):
 
     # -- messages --------------------------------------------------------------------------------------
     def _on_nmea(self, s: Any) -> None:
-        """GGA / GNS: position fix; RMC: horizontal velocity, date (and the position of RMC-only streams);
-        GSA: 2-D / 3-D fix type. Other sentences are counted and left alone."""
+        """GGA / GNS: position fix; RMC: horizontal velocity, date (status A only; and the position of RMC-only
+        streams); GSA: fix type; ZDA: date and time; GST/GBS/GRS/GLL: time (they open an epoch). Other sentences
+        are counted and left alone."""
         if isinstance(s, Gga):
             reason = input_guard.check_gga(s) if s.quality != 0 else None
             if reason is not None:
                 self._reject(reason)
                 return
-            e = self._gnss_epoch_for("GGA", _tod(s.time_utc))
+            e = self._gnss_epoch_for("GGA", *self._nmea_key(s.time_utc))
             if e is None:
                 return
             if s.quality == 0 or s.lat_deg is None or s.lon_deg is None:
@@ -169,51 +226,48 @@ class GnssTask(TimeKeeping):
             if s.quality == 6:
                 e.dr = True
                 return
-            if s.altitude_msl_m is None:
-                e.fix2d = True
-                e.pos2 = (s.lat_deg * DEG, s.lon_deg * DEG)
-            else:
-                e.pos3 = (s.lat_deg * DEG, s.lon_deg * DEG, s.altitude_msl_m + (s.geoid_sep_m or 0.0))
-                self._last_fix = (*e.pos3, s.quality)
-            e.quality = s.quality
+            if s.quality in (7, 8) or s.quality > 8:
+                e.refused = {7: "gnss_manual_refused", 8: "gnss_sim_refused"}.get(s.quality, "gnss_fix_type_unknown")
+                return
+            self._nmea_fix(e, s.lat_deg, s.lon_deg, s.altitude_msl_m, s.geoid_sep_m, s.num_sats, s.quality)
         elif isinstance(s, Gns):
             reason = input_guard.check_gns(s) if s.lat_deg is not None else None
             if reason is not None:
                 self._reject(reason)
                 return
-            e = self._gnss_epoch_for("GNS", _tod(s.time_utc))
+            e = self._gnss_epoch_for("GNS", *self._nmea_key(s.time_utc))
             if e is None:
                 return
             modes = set(s.mode or "N")
             if not modes & _GNS_FIX or s.lat_deg is None or s.lon_deg is None:
                 if "E" in modes:
                     e.dr = True
+                elif "S" in modes:
+                    e.refused = "gnss_sim_refused"
+                elif "M" in modes:
+                    e.refused = "gnss_manual_refused"
                 else:
                     e.no_fix = True
                 return
             best = max((_GNS_QUALITY[c] for c in modes & _GNS_FIX), key=lambda q: (q in (4, 5), q))
-            if s.altitude_msl_m is None:
-                e.fix2d = True
-                e.pos2 = (s.lat_deg * DEG, s.lon_deg * DEG)
-            else:
-                e.pos3 = (s.lat_deg * DEG, s.lon_deg * DEG, s.altitude_msl_m + (s.geoid_sep_m or 0.0))
-                self._last_fix = (*e.pos3, best)
-            e.quality = best
+            self._nmea_fix(e, s.lat_deg, s.lon_deg, s.altitude_msl_m, s.geoid_sep_m, s.num_sats, best)
         elif isinstance(s, Rmc):
             reason = input_guard.check_rmc(s)
             if reason is not None:
                 self._reject(reason)
                 return
-            e = self._gnss_epoch_for("RMC", _tod(s.time_utc))
+            e = self._gnss_epoch_for("RMC", *self._nmea_key(s.time_utc))
             if e is None:
                 return
-            if s.date is not None:
-                self._date = s.date
+            if s.date is not None and s.valid:  # a void RMC's date is the receiver's RTC (or nothing)
                 e.date = s.date
             if s.mode == "E":
                 e.dr = True
                 return
-            if not s.valid:
+            if s.mode in ("S", "M"):
+                e.refused = "gnss_sim_refused" if s.mode == "S" else "gnss_manual_refused"
+                return
+            if not s.valid or s.mode == "N":
                 e.no_fix = True
                 return
             if s.lat_deg is not None and s.lon_deg is not None:
@@ -224,14 +278,46 @@ class GnssTask(TimeKeeping):
                 e.vel_up = False
         elif isinstance(s, Gsa):
             e = self._gnss_epoch_for("GSA", None)
-            if e is not None and s.fix_type == 2:
-                e.fix2d = True
+            if e is not None:
+                e.gsa_best = max(e.gsa_best, s.fix_type)  # one GSA per system (NMEA 4.10): the best one counts
+        elif isinstance(s, Zda):
+            e = self._gnss_epoch_for("ZDA", *self._nmea_key(s.time_utc))
+            if e is not None and s.date is not None and s.time_utc is not None:
+                e.date = s.date
+        elif isinstance(s, NmeaSentence) and s.kind in _TIME_ONLY:
+            tod = _field_tod(s.fields, _TIME_ONLY[s.kind] - 1)
+            if tod is None:
+                self.counters["gnss_nmea_other"] += 1
+                return
+            self._gnss_epoch_for("TIME", tod + self._leap_shift(), tod)
         else:
             self.counters["gnss_nmea_other"] += 1
 
+    def _nmea_fix(self, e: _Epoch, lat_deg: float, lon_deg: float, alt_msl: float | None, sep: float | None,
+                  num_sats: int | None, quality: int) -> None:
+        """A GGA / GNS fix: 3-D with a height and 4+ satellites, 2-D with 3 (or no height), none with fewer; an
+        empty separation is filled from the firmware's geoid table."""
+        if num_sats is not None and num_sats < 3:
+            e.refused = "gnss_few_sats"
+            return
+        lat, lon = lat_deg * DEG, lon_deg * DEG
+        if alt_msl is None or (num_sats is not None and num_sats < 4):
+            if alt_msl is not None:
+                self.counters["gnss_few_sats"] += 1
+            e.fix2d = True
+            e.pos2 = (lat, lon)
+        else:
+            if sep is None:
+                sep = geoid_separation_m(lat, lon)
+                self.counters["gnss_geoid_filled"] += 1
+            e.pos3 = (lat, lon, alt_msl + sep)
+            self._last_fix = (*e.pos3, quality)
+        e.quality = quality
+
     def _on_nav_pvt(self, p: NavPvt) -> None:
         """UBX NAV-PVT (any protocol version: 84-byte protocol 14 and 92-byte 15+): position, 3-D velocity
-        (velD) and UTC (hour:min:sec + nano)."""
+        (velD) and UTC (hour:min:sec + nano). The epoch sits on GPS time (iTOW); the UTC and date are used when
+        valid, fully resolved (the leap seconds known) and, where the receiver says so, confirmed."""
         self.counters["gnss_pvt"] += 1
         tod: float | None = None
         if p.valid & 0x02:  # validTime
@@ -239,21 +325,30 @@ class GnssTask(TimeKeeping):
                 self._reject("date")
                 return
             tod = p.hour * 3600.0 + p.min * 60.0 + p.sec + (p.nano * 1e-9 if abs(p.nano) < 1_000_000_000 else 0.0)
+        date = None
         if p.valid & 0x03 == 0x03:  # validDate | validTime
             dt = input_guard.nav_pvt_datetime(p)  # a leap second (sec = 60) is legal; month 13 is not
             if dt is None:
                 self._reject("date")
                 return
-            self._date = dt[0]
-        e = self._gnss_epoch_for("PVT", tod)
+            confirmed = not p.flags2 & 0x20 or p.flags2 & 0xC0 == 0xC0  # confirmedAvai: date and time confirmed
+            if p.valid & 0x04 and confirmed:  # fullyResolved
+                date = dt[0]
+        if tod is not None and p.valid & 0x04:
+            self._learn_leap(p.iTOW, tod)
+        e = self._ubx_epoch("PVT", p.iTOW, bool(p.valid & 0x02))
         if e is None:
             return
-        if p.valid & 0x03 == 0x03:
-            e.date = self._date
+        if date is not None:
+            e.date = date
+            e.tod = tod
         if p.fixType == 1:
             e.dr = True
             return
-        if p.fixType in (0, 5):
+        if p.fixType > 5:
+            e.refused = "gnss_fix_type_unknown"
+            return
+        if p.fixType not in _UBX_FIX:
             e.no_fix = True
             return
         if not p.flags & 0x01:  # gnssFixOK clear: outside the receiver's accuracy masks
@@ -274,6 +369,130 @@ class GnssTask(TimeKeeping):
         e.vel = np.array([p.velE * 1e-3, p.velN * 1e-3, -p.velD * 1e-3])
         e.vel_up = p.fixType != 2
 
+    def _on_ubx_legacy(self, m: Any) -> None:
+        """The NAV messages of u-blox 5/6/7 (no NAV-PVT): NAV-POSLLH position, NAV-VELNED velocity, NAV-SOL fix
+        type, satellites (and ECEF position / velocity when the others are absent), NAV-STATUS fix type,
+        NAV-TIMEUTC UTC and date (validUTC), NAV-TIMEGPS the leap seconds (leapSValid). One epoch per iTOW."""
+        self.counters["gnss_legacy_ubx"] += 1
+        if isinstance(m, NavTimeGps):
+            if m.valid & 0x04 and 0 <= m.leapS <= 60:
+                self._set_leap(int(m.leapS))
+            self._ubx_epoch("TIMEGPS", m.iTOW, bool(m.valid & 0x01))
+            return
+        if isinstance(m, NavTimeUtc):
+            date = tod = None
+            if m.valid & 0x04:  # validUTC
+                dt = input_guard.nav_pvt_datetime(m)
+                if dt is None:
+                    self._reject("date")
+                    return
+                date = dt[0]
+                tod = m.hour * 3600.0 + m.min * 60.0 + m.sec + (m.nano * 1e-9 if abs(m.nano) < 1_000_000_000 else 0.0)
+                self._learn_leap(m.iTOW, tod)
+            e = self._ubx_epoch("TIMEUTC", m.iTOW, bool(m.valid & 0x01))
+            if e is not None and date is not None:
+                e.date, e.tod = date, tod
+            return
+        if isinstance(m, NavStatus):
+            e = self._ubx_epoch("STATUS", m.iTOW, bool(m.flags & 0x08))
+            if e is not None:
+                self._ubx_fix_type(e, m.gpsFix, m.flags)
+            return
+        if isinstance(m, NavSol):
+            e = self._ubx_epoch("SOL", m.iTOW, bool(m.flags & 0x08))
+            if e is None:
+                return
+            self._ubx_fix_type(e, m.gpsFix, m.flags)
+            if m.flags & 0x02:
+                e.quality = 2  # diffSoln
+            if (m.gpsFix == 3 and m.numSV < 4) or (m.gpsFix == 2 and m.numSV < 3):
+                e.refused = "gnss_few_sats"
+            e.pos_ecef = np.array([m.ecefX, m.ecefY, m.ecefZ], dtype=float) * 0.01
+            e.vel_ecef = np.array([m.ecefVX, m.ecefVY, m.ecefVZ], dtype=float) * 0.01
+            return
+        if isinstance(m, NavPosllh):
+            e = self._ubx_epoch("POSLLH", m.iTOW)
+            if e is None:
+                return
+            lat, lon, h = m.lat * 1e-7, m.lon * 1e-7, m.height * 1e-3
+            if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0 and input_guard.ALT_MIN_M <= h
+                    <= input_guard.ALT_MAX_M):
+                self._reject("position")
+                return
+            e.pos3 = (lat * DEG, lon * DEG, h)
+            return
+        e = self._ubx_epoch("VELNED", m.iTOW)  # NavVelned
+        if e is None:
+            return
+        vel = np.array([m.velE, m.velN, -m.velD], dtype=float) * 0.01
+        if float(np.linalg.norm(vel)) > input_guard.SPEED_MAX_MPS:
+            self._reject("speed")
+            return
+        e.vel = vel
+        e.vel_up = True
+
+    @staticmethod
+    def _ubx_fix_type(e: _Epoch, fix: int, flags: int) -> None:
+        """NAV-SOL / NAV-STATUS gpsFix with gpsFixOK (flags b0)."""
+        if fix == 1:
+            e.dr = True
+        elif fix > 5:
+            e.refused = "gnss_fix_type_unknown"
+        elif fix not in _UBX_FIX or not flags & 0x01:
+            e.no_fix = True
+        else:
+            e.ubx_fix = fix
+            if fix == 2:
+                e.fix2d = True
+
+    def _set_leap(self, leap: int) -> None:
+        """The receiver's GPS - UTC (s). The first report shifts the offset window from the assumed value; a later
+        change is a leap second (GPS time, the epochs' scale, does not step)."""
+        if self._gnss_leap is None:
+            self._gnss_leap_ref = leap
+            if leap and self._gnss_offsets:
+                # the offsets so far are against UTC; from now on against GPS time (UTC + leap)
+                shifted = [x - leap for x in self._gnss_offsets]
+                self._gnss_offsets.clear()
+                self._gnss_offsets.extend(shifted)
+                self._gnss_step_cand = [x - leap for x in self._gnss_step_cand]
+        elif leap != self._gnss_leap:
+            self.counters["gnss_leap_changes"] += 1
+        self._gnss_leap = leap
+
+    def _learn_leap(self, itow_ms: int, utc_tod: float) -> None:
+        """GPS - UTC from one message with both GPS time of week and a resolved UTC time of day."""
+        d = (itow_ms * 1e-3 - utc_tod) % 86400.0
+        leap = round(d)
+        if abs(d - leap) < 0.01 and 0 <= leap <= 60:
+            self._set_leap(leap)
+
+    def _ubx_epoch(self, kind: str, itow_ms: int, tow_valid: bool = True) -> _Epoch | None:
+        """The epoch of a UBX message at GPS time of week ``itow_ms``: placed on the UTC time of day with the
+        receiver's leap seconds, on the GPS time scale (:meth:`_gnss_epoch_for`). ``tow_valid`` False (the
+        message's own flag: NAV-PVT validTime, NAV-SOL / NAV-STATUS towSet, NAV-TIMEGPS towValid, NAV-TIMEUTC
+        validTOW): the message belongs to the open epoch, or opens one without a time."""
+        if not tow_valid:
+            return self._gnss_epoch_for(kind, None)
+        ref = self._gnss_leap_ref if self._gnss_leap_ref is not None else _LEAP_DEFAULT_S
+        leap = self._gnss_leap if self._gnss_leap is not None else _LEAP_DEFAULT_S
+        if not 0 <= itow_ms < 604_800_000:
+            self._reject("date")
+            return None
+        return self._gnss_epoch_for(kind, (itow_ms * 1e-3 - ref) % 86400.0, (itow_ms * 1e-3 - leap) % 86400.0)
+
+    def _leap_shift(self) -> int:
+        """Seconds from the receiver's UTC to the epochs' scale (UTC at the first leap seconds it reported): 0 until a
+        leap second changed them, then the change (a UTC that repeated a second is placed one second on)."""
+        if self._gnss_leap is None or self._gnss_leap_ref is None:
+            return 0
+        return self._gnss_leap - self._gnss_leap_ref
+
+    def _nmea_key(self, t: Any) -> tuple[float | None, float | None]:
+        """(epoch key, UTC time of day) of an NMEA time field: the key on the epochs' scale (:meth:`_leap_shift`)."""
+        tod = _tod(t)
+        return (None, None) if tod is None else (tod + self._leap_shift(), tod)
+
     # -- epochs ----------------------------------------------------------------------------------------
     def _gnss_utc_s(self, tod: float) -> float:
         """Continuous UTC seconds from a time of day (a day is added when the time of day wraps)."""
@@ -285,9 +504,12 @@ class GnssTask(TimeKeeping):
         self._gnss_last_tod = tod
         return self._gnss_day * 86400.0 + tod
 
-    def _gnss_epoch_for(self, kind: str, tod: float | None) -> _Epoch | None:
-        """The open epoch a message of ``kind`` with time of day ``tod`` (s, None: no time) belongs to; a message
-        of a new time closes the open epoch first. None: the message belongs to an epoch already closed."""
+    def _gnss_epoch_for(self, kind: str, tod: float | None, utc_tod: float | None = None) -> _Epoch | None:
+        """The open epoch a message of ``kind`` with time of day ``tod`` (s, None: no time; on the epochs' scale,
+        ``utc_tod`` the receiver's UTC time of day when it differs) belongs to; a message of a new time closes the
+        open epoch first. None: the message belongs to an epoch already closed."""
+        if utc_tod is None:
+            utc_tod = tod
         utc = self._gnss_utc_s(tod) if tod is not None else None
         e = self._gnss_epoch
         if utc is not None and e is not None and e.utc_s is not None and abs(utc - e.utc_s) > 1e-4:
@@ -309,17 +531,17 @@ class GnssTask(TimeKeeping):
                 self._gnss_kinds_cur = set()
             t_first = self._gnss_chunk_start
             if math.isnan(t_first):
-                t_first = self._now_s() if self._t_last_us is not None else 0.0
-                first_ok = False
-            else:
-                first_ok = True
+                # not the first message of its chunk: its first byte arrived no later than the chunk's end (a
+                # bound from above, as every sample of the minimum must be)
+                t_first = self._gnss_chunk_t_rx if self._gnss_chunk else self._now_s()
             e = self._gnss_epoch = _Epoch(utc_s=utc, t_first=t_first, t_rx=self._gnss_chunk_t_rx)
-            e.tod = tod
-            if utc is not None and first_ok:
-                self._gnss_offset_sample(t_first - utc)
+            e.tod = utc_tod
+            if utc is not None:
+                e.base_ok = self._gnss_offset_sample(t_first - utc - self._gnss_scale_leap())
         elif e.utc_s is None and utc is not None:
             e.utc_s = utc
-            e.tod = tod
+            e.tod = utc_tod
+            e.base_ok = self._gnss_offset_sample(e.t_first - utc - self._gnss_scale_leap())
         e.kinds.add(kind)
         self._gnss_kinds_cur.add(kind)
         if e.last_chunk != self._gnss_chunk:
@@ -334,12 +556,34 @@ class GnssTask(TimeKeeping):
         if e is not None and want and want <= e.kinds:
             self._gnss_close(e)
 
-    def _gnss_offset_sample(self, x: float) -> None:
+    def _gnss_scale_leap(self) -> int:
+        """Seconds added to UTC for the offset's time scale: the receiver's GPS - UTC once it reported it (GPS
+        time does not step at a leap second), else 0 (UTC)."""
+        return self._gnss_leap_ref or 0
+
+    def _gnss_offset_sample(self, x: float) -> bool:
+        """One epoch's first-byte-minus-time sample ``x`` (s). True: the epoch's clock agrees with the time base
+        (the sample joins the minimum); False: a step of the receiver's clock not yet confirmed (the epoch is
+        refused). ``cfg.gnss_clock_rebase_epochs`` consecutive samples agreeing among themselves and away from
+        the base re-base it (module docstring)."""
         offs = self._gnss_offsets
-        if offs and abs(x - min(offs)) > _OFFSET_JUMP_S:
+        tol = self.cfg.gnss_clock_step_tol_s
+        if offs and abs(x - min(offs)) > tol:
+            cand = self._gnss_step_cand
+            if cand and abs(x - min(cand)) > tol:
+                cand.clear()  # disagrees with the candidates too: a new candidate run
+            cand.append(x)
+            if len(cand) < self.cfg.gnss_clock_rebase_epochs:
+                return False
             offs.clear()
+            offs.extend(cand)
+            cand.clear()
+            self.counters["gnss_clock_steps"] += 1
             self.counters["gnss_utc_offset_resets"] += 1
+            return True
+        self._gnss_step_cand.clear()
         offs.append(x)
+        return True
 
     def _gnss_time_of_validity(self, e: _Epoch) -> float:
         """FPGA time (s) at which the epoch's fix is valid (module docstring)."""
@@ -360,10 +604,12 @@ class GnssTask(TimeKeeping):
             while t > t_rx + 1e-6:
                 t -= 1.0
             self.counters["gnss_tag_pps"] += 1
+            e.tag_pps = True
             return t
         self.counters["gnss_tag_utc"] += 1
-        off = min(self._gnss_offsets) if self._gnss_offsets else t_ref - e.utc_s
-        return e.utc_s + off - self.cfg.gnss_latency_s
+        lp = self._gnss_scale_leap()
+        off = min(self._gnss_offsets) if self._gnss_offsets else t_ref - e.utc_s - lp
+        return e.utc_s + lp + off - self.cfg.gnss_latency_s
 
     def _gnss_close(self, e: _Epoch) -> None:
         """The epoch is complete: one measurement (or a counted reason for none)."""
@@ -372,19 +618,52 @@ class GnssTask(TimeKeeping):
         self.counters["gnss_epochs"] += 1
         if e.chunks > 1:
             self.counters["gnss_epochs_split"] += 1
+        if not e.base_ok:
+            self.counters["gnss_clock_step_refused"] += 1
+            return
         t_meas = self._gnss_time_of_validity(e)
-        date = e.date if e.date is not None else self._date
-        if date is not None and e.tod is not None and (e.date is not None or e.pos3 is not None or e.pos2 is not None):
+        if t_meas > max(e.t_rx, e.t_first) + 1e-3:
+            # valid after its own bytes arrived: a tag in the future (a clock the time base does not follow)
+            self.counters["gnss_tag_future"] += 1
+            return
+        if self._now_s() - t_meas > self.cfg.gnss_max_age_s:
+            self.counters["gnss_tag_stale"] += 1
+            return
+        simulated = e.refused in _NOT_REAL  # a simulator's or a manual fix: neither its place nor its time
+        if e.date is not None and not simulated and self._gnss_date_ok(e.date):
+            self._date = e.date
+        date = self._date
+        if date is not None and e.tod is not None and not simulated and (
+                e.date is not None or e.pos3 is not None or e.pos2 is not None):
             h, rem = divmod(e.tod % 86400.0, 3600.0)
             mi, sec = divmod(rem, 60.0)
             whole = min(int(sec), 59)
-            self._set_utc(t_meas, date, _dt.time(int(h), int(mi), whole, min(999_999, round((sec - whole) * 1e6))))
+            self._set_utc(t_meas, date, _dt.time(int(h), int(mi), whole, min(999_999, round((sec - whole) * 1e6))),
+                          pps=e.tag_pps)
         if e.dr:
             self.counters["gnss_dr_refused"] += 1
             return
-        if e.no_fix and e.pos3 is None and e.pos2 is None:
+        if e.refused is not None:
+            self.counters[e.refused] += 1
+            return
+        if e.pos3 is None and e.pos_ecef is not None and e.ubx_fix is not None:
+            # NAV-SOL without NAV-POSLLH: the ECEF solution
+            e.pos3 = ecef_to_geodetic(*(float(v) for v in e.pos_ecef))
+        if e.vel is None and e.vel_ecef is not None and e.ubx_fix is not None and e.pos3 is not None:
+            e.vel = _ecef_to_enu(e.vel_ecef, e.pos3[0], e.pos3[1])
+            e.vel_up = True
+        if e.gsa_best == 1:
+            e.no_fix = True
+        elif e.gsa_best == 2:
+            e.fix2d = True
+        if e.ubx_fix is None and e.kinds & _LEGACY_KINDS and not e.kinds & _FIX_KINDS:
+            # NAV-POSLLH / VELNED carry no fix type: without NAV-SOL or NAV-STATUS saying "fix" they are not used
+            e.no_fix = True
+        if e.no_fix:  # any message of the epoch saying "no fix" (GGA 0, RMC V/N, GSA 1, GNS N, UBX fix type 0/5)
             self.counters["gnss_no_fix_epochs"] += 1
             return
+        if e.pos3 is not None and e.ubx_fix == 3:
+            self._last_fix = (*e.pos3, e.quality)
         m = GnssMeasurement(t_fpga_s=t_meas)
         if e.pos3 is not None and not e.fix2d:
             m.pos = e.pos3
@@ -418,6 +697,30 @@ class GnssTask(TimeKeeping):
             self._gnss_hold(t)
         if self._gnss_pending is None and self._gnss_ready:
             self._gnss_pending = self._gnss_ready.popleft()[0]
+
+
+def _ecef_to_enu(v: Any, lat: float, lon: float) -> Any:
+    """An ECEF vector rotated into the local East, North, Up frame at (lat, lon) rad."""
+    sl, cl, so, co = math.sin(lat), math.cos(lat), math.sin(lon), math.cos(lon)
+    x, y, z = (float(c) for c in v)
+    return np.array([-so * x + co * y, -sl * co * x - sl * so * y + cl * z, cl * co * x + cl * so * y + sl * z])
+
+
+def _field_tod(fields: tuple[str, ...], i: int) -> float | None:
+    """Seconds of the day of an ``hhmmss.ss`` field of an untyped sentence (None: empty or not a time)."""
+    if i >= len(fields):
+        return None
+    f = fields[i]
+    if len(f) < 6 or not f[:6].isdigit():
+        return None
+    try:
+        sec = float(f[4:])
+    except ValueError:
+        return None
+    h, m = int(f[0:2]), int(f[2:4])
+    if h > 23 or m > 59 or not 0.0 <= sec < 61.0:
+        return None
+    return h * 3600.0 + m * 60.0 + sec
 
 
 def _tod(t: Any) -> float | None:

@@ -1,9 +1,15 @@
 """Long seeded fuzz of every decoder and of the firmware's input path (``make fuzz``; not part of the test run).
 
-``python -m tests.fuzz.fuzz_inputs [--decoder-cases N] [--firmware-cases M] [--seed S]``
+``python -m tests.fuzz.fuzz_inputs [--decoder-cases N] [--field-cases F] [--firmware-cases M] [--seed S] [--seeds K]``
+(``--seeds K`` runs the seeds S, S+1, ..., S+K-1 one after the other; ``make fuzz`` runs three).
 
 * Decoders: every frame format the firmware and the monitor tool use, alone and all together, fed mutated valid
   frames (bit flips, hostile bytes, truncation, duplication, splices, random chunking). A decoder must never raise.
+* Decoder fields: well-framed NMEA sentences of every type the parser knows (and proprietary ones) whose fields are
+  replaced by, or extended with, hostile tokens (``inf``, ``nan``, ``-0``, ``1e300``, 40 nines, empty, huge integers,
+  non-ASCII bytes, a time ``hhmm`` followed by any of them) with the checksum made valid, so that every case reaches
+  the parser; each is followed by a good sentence. A decoder must never raise, must advance past the hostile
+  sentence (the good one comes out) and must hold no bytes afterwards.
 * Firmware input path: a :class:`Firmware` (every filter variant in turn) navigating on a clean synthetic stream
   receives well-framed hostile messages on every UART: NMEA sentences whose fields are replaced by hostile tokens
   (``nan``, ``inf``, ``1e300``, out-of-range values) with a valid checksum, NAV-PVT with random field values,
@@ -29,9 +35,10 @@ from firmware_model import Firmware, FirmwareConfig
 from firmware_model.config import FILTER_VARIANTS
 from protocols.crc import nmea_checksum
 from protocols.host import HostFormat
+from protocols.host_text import HostTextFormat
 from protocols.imu_frame import FpgaFrameFormat, ImuFrame, ImuFrameFormat
 from protocols.monitor import MonitorFormat
-from protocols.nmea import NmeaFormat
+from protocols.nmea import NMEA_RX_MAX_LEN, NmeaFormat
 from protocols.psns import PsnsFormat
 from protocols.stim import Stim210Format
 from protocols.stream import StreamDecoder
@@ -41,7 +48,30 @@ from ..firmware_model.synth import SensorErrors, StaticTruth, StreamConfig, stat
 
 UART_HOST, UART_IMU, UART_PSNS, UART_GNSS = 0, 1, 2, 3
 HOSTILE_TOKENS = ["nan", "NaN", "inf", "-inf", "Infinity", "1e300", "-1e300", "1e-320", "", "-", ".", "9" * 40,
-                  "-0", "0x1A", "1_000", "+5", " 5", "99999.99999", "-99999", "361", "-1", "9100.0", "18100.0"]
+                  "-0", "0x1A", "1_000", "+5", " 5", "99999.99999", "-99999", "361", "-1", "9100.0", "18100.0",
+                  "-0.0", "1e30", "9" * 400, "1" + "0" * 30, "-" + "9" * 40, "2147483648", "18446744073709551616",
+                  "\u00e9", "\u00ff\u00fe", "\u00b5b", "0.", ".5", "1e", "e5", "--1", "0" * 40, "6o", "\u0661\u0662"]
+#: How a hostile token replaces a field: whole, after a kept prefix of the field (``hhmm`` + ``inf``), or before it.
+_TOKEN_PLACES = ("replace", "after_prefix", "before")
+
+#: Bodies of valid sentences of every type the NMEA parser knows, the quoted receiver forms of issue 37 and
+#: proprietary ones (checksums are computed when a case is built). Times, dates and positions are ordinary.
+NMEA_TEMPLATES = [
+    "GPGGA,123519.00,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,",
+    "GPGGA,130711,5012.790800,N,00806.879600,W,2,,,,,,,",
+    "GNGNS,123519.00,4807.038,N,01131.000,E,AAN,08,0.9,545.4,46.9,,,V",
+    "GPRMC,123519.00,A,4807.038,N,01131.000,E,022.4,084.4,230394,003.1,W,A",
+    "GNRMC,123519.00,A,4807.038,N,01131.000,E,022.4,084.4,230394,,,A,V",
+    "GPVTG,054.7,T,034.4,M,005.5,N,010.2,K,A",
+    "GPGSA,A,3,04,05,,09,12,,,24,,,,,2.5,1.3,2.1",
+    "GNGSA,A,3,04,05,,09,12,,,24,,,,,2.5,1.3,2.1,1",
+    "GPGSV,3,1,11,03,03,111,00,04,15,270,00,06,01,010,00,13,06,292,00",
+    "GPGSV,3,1,00,,,,,,,,,,,,,,,,",
+    "GPZDA,201530.00,04,07,2002,00,00",
+    "GPGLL,4807.038,N,01131.000,E,123519.00,A,A",
+    "PSNSPOS,12.345,48.1173000,11.5166667,545.40,0002,1,0",
+    "PUBX,00,081350.00,4717.113210,N,00833.915187,E,546.589,G3,2.1,2.0,0.007,77.52,0.007,,0.92,1.19,0.77,9,0,0",
+]
 EDGES = [0, 1, -1, 2**7 - 1, -(2**7), 2**15 - 1, -(2**15), 2**23 - 1, -(2**23), 2**31 - 1, -(2**31)]
 
 
@@ -83,16 +113,38 @@ def mutate(rng: random.Random, data: bytes) -> bytes:
 
 
 def hostile_nmea(rng: random.Random, sentence: bytes) -> bytes:
-    """A sentence whose fields are replaced by hostile tokens, re-checksummed so it reaches the parser."""
+    """A sentence whose fields are replaced by (or extended with) hostile tokens, re-checksummed so it reaches the
+    parser: the hostile-field-token mutator. Non-ASCII tokens go on the wire as UTF-8 bytes."""
     try:
         body = sentence[1 : sentence.index(b"*")].decode("ascii")
-    except ValueError:
+    except (ValueError, UnicodeDecodeError):
         return sentence
     f = body.split(",")
     for _ in range(rng.randint(1, 3)):
-        f[rng.randrange(1, len(f))] = rng.choice(HOSTILE_TOKENS) if rng.random() < 0.8 else str(rng.uniform(-1e6, 1e6))
-    body = ",".join(f)
-    return f"${body}*{nmea_checksum(body.encode()):02X}\r\n".encode()
+        i = rng.randrange(1, len(f)) if len(f) > 1 else 0
+        tok = rng.choice(HOSTILE_TOKENS) if rng.random() < 0.8 else repr(rng.uniform(-1e6, 1e6))
+        place = rng.choice(_TOKEN_PLACES)
+        if i == 0:  # the address field: a token after it (a six-letter or odd address)
+            f[0] = f[0] + tok.replace(",", "")
+        elif place == "replace":
+            f[i] = tok
+        elif place == "after_prefix":
+            f[i] = f[i][: rng.randint(0, len(f[i]))] + tok
+        else:
+            f[i] = tok + f[i]
+    if rng.random() < 0.1:  # fields cut short or added
+        f = f[: rng.randint(1, len(f))] if rng.random() < 0.5 else f + [rng.choice(HOSTILE_TOKENS)] * rng.randint(1, 8)
+    raw = ",".join(f).encode("utf-8")
+    return b"$" + raw + f"*{nmea_checksum(raw):02X}\r\n".encode()
+
+
+def nmea_field_seeds(seeds: list[bytes]) -> list[bytes]:
+    """One sentence per line: the templates and every NMEA sentence of the synthetic stream."""
+    out = [f"${b}*{nmea_checksum(b.encode()):02X}\r\n".encode() for b in NMEA_TEMPLATES]
+    for d in seeds:
+        if d.startswith(b"$"):
+            out += [x + b"\r\n" for x in d.split(b"\r\n") if x]
+    return out
 
 
 _PVT_FIELDS = [f.name for f in dataclasses.fields(NavPvt)]
@@ -133,6 +185,18 @@ DECODER_SETS: dict[str, Callable[[], list[object]]] = {
                     MonitorFormat()],
 }
 
+#: The decoders that read NMEA sentences: the firmware's and the monitor's GNSS port (long lines), NMEA alone (the
+#: single-format fast paths), the host port's text sentences, and every format together.
+NMEA_DECODER_SETS: dict[str, Callable[[], list[object]]] = {
+    "gnss_rx": lambda: [NmeaFormat(NMEA_RX_MAX_LEN), UbxFormat()], "nmea": lambda: [NmeaFormat(NMEA_RX_MAX_LEN)],
+    "nmea_82": lambda: [NmeaFormat()], "host_text": lambda: [HostTextFormat()],
+    "all": DECODER_SETS["all"],
+}
+
+#: The sets whose every format is NMEA-framed: after a hostile sentence and a good one nothing may stay buffered
+#: and the good one must come out (in the others a hostile byte may open another format's candidate).
+NMEA_ONLY = ("nmea", "nmea_82", "host_text")
+
 
 def fuzz_decoders(n: int, seed: int, seeds: list[bytes]) -> tuple[int, int]:
     rng = random.Random(seed)
@@ -155,6 +219,59 @@ def fuzz_decoders(n: int, seed: int, seeds: list[bytes]) -> tuple[int, int]:
             if errors <= 5:
                 traceback.print_exc()
             decs[k] = StreamDecoder(DECODER_SETS[k]())  # type: ignore[arg-type]
+        cases += 1
+    return cases, errors
+
+
+def field_case(rng: random.Random, sentences: list[bytes]) -> tuple[bytes, bytes]:
+    """One case of the field fuzz: (a hostile sentence, the good sentence that follows it)."""
+    return hostile_nmea(rng, rng.choice(sentences)), rng.choice(sentences)
+
+
+def feed_field_case(dec: StreamDecoder, hostile: bytes, good: bytes, rng: random.Random | None = None,
+                    nmea_only: bool = False) -> None:
+    """Feed ``hostile`` then ``good`` (in random chunks when ``rng`` is given); raise AssertionError when the decoder
+    did not advance past the hostile sentence (``nmea_only``: the good sentence must come out last, nothing held)."""
+    data = hostile + good
+    out: list[object] = []
+    if rng is None:
+        out = dec.feed(data)
+    else:
+        p = 0
+        while p < len(data):
+            q = p + rng.randint(1, 64)
+            out += dec.feed(data[p:q])
+            p = q
+    if dec.pending() > 1 << 16:
+        raise AssertionError(f"buffer grew to {dec.pending()}")
+    if nmea_only:
+        if dec.pending():
+            raise AssertionError(f"{dec.pending()} bytes held after {hostile!r} + {good!r}")
+        want = StreamDecoder(dec.formats).feed(good)  # type: ignore[arg-type]
+        if len(want) == 1 and (not out or out[-1] != want[0]):
+            raise AssertionError(f"the good sentence after {hostile!r} did not come out: {out!r}")
+
+
+def fuzz_fields(n: int, seed: int, seeds: list[bytes], failures: list[bytes] | None = None) -> tuple[int, int]:
+    """``n`` cases of the hostile-field-token mutator over every NMEA-reading decoder set; the hostile sentences of
+    failed cases are appended to ``failures`` (the regression corpus is built from them)."""
+    rng = random.Random(seed)
+    sentences = nmea_field_seeds(seeds)
+    names = list(NMEA_DECODER_SETS)
+    decs = {k: StreamDecoder(NMEA_DECODER_SETS[k]()) for k in names}  # type: ignore[arg-type]
+    cases = errors = 0
+    while cases < n:
+        k = names[cases % len(names)]
+        hostile, good = field_case(rng, sentences)
+        try:
+            feed_field_case(decs[k], hostile, good, rng if rng.random() < 0.5 else None, k in NMEA_ONLY)
+        except Exception:
+            errors += 1
+            if failures is not None:
+                failures.append(hostile)
+            if errors <= 5:
+                traceback.print_exc()
+            decs[k] = StreamDecoder(NMEA_DECODER_SETS[k]())  # type: ignore[arg-type]
         cases += 1
     return cases, errors
 
@@ -236,21 +353,31 @@ def fuzz_firmware(n: int, seed: int, seeds: dict[int, list[bytes]]) -> tuple[int
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m tests.fuzz.fuzz_inputs", description=__doc__.split("\n\n")[0])
     ap.add_argument("--decoder-cases", type=int, default=1_000_000)
+    ap.add_argument("--field-cases", type=int, default=100_000)
     ap.add_argument("--firmware-cases", type=int, default=100_000)
     ap.add_argument("--seed", type=int, default=20260118)
+    ap.add_argument("--seeds", type=int, default=1, help="run K seeds: S, S+1, ..., S+K-1")
     a = ap.parse_args(argv)
     seeds = seed_frames()
     flat = [d for v in seeds.values() for d in v]
-    t0 = time.time()
-    dc, de = fuzz_decoders(a.decoder_cases, a.seed, flat)
-    t1 = time.time()
-    print(f"decoders: {dc} cases, {de} exceptions ({t1 - t0:.0f} s, seed {a.seed})", flush=True)
-    fc, fe = fuzz_firmware(a.firmware_cases, a.seed + 1, seeds)
-    t2 = time.time()
-    print(f"firmware input path: {fc} cases over {len(FILTER_VARIANTS)} filter variants, {fe} exceptions or "
-          f"non-finite states ({t2 - t1:.0f} s)")
-    print(f"total: {dc + fc} cases, {de + fe} failures")
-    return 1 if de + fe else 0
+    total_cases = total_failures = 0
+    for seed in range(a.seed, a.seed + a.seeds):
+        t0 = time.time()
+        dc, de = fuzz_decoders(a.decoder_cases, seed, flat)
+        t1 = time.time()
+        print(f"decoders: {dc} cases, {de} exceptions ({t1 - t0:.0f} s, seed {seed})", flush=True)
+        nc, ne = fuzz_fields(a.field_cases, seed, flat)
+        t2 = time.time()
+        print(f"decoder fields (hostile tokens, valid checksums): {nc} cases, {ne} exceptions or stuck decoders "
+              f"({t2 - t1:.0f} s, seed {seed})", flush=True)
+        fc, fe = fuzz_firmware(a.firmware_cases, seed + 1, seeds)
+        t3 = time.time()
+        print(f"firmware input path: {fc} cases over {len(FILTER_VARIANTS)} filter variants, {fe} exceptions or "
+              f"non-finite states ({t3 - t2:.0f} s, seed {seed + 1})", flush=True)
+        total_cases += dc + nc + fc
+        total_failures += de + ne + fe
+    print(f"total: {total_cases} cases, {total_failures} failures")
+    return 1 if total_failures else 0
 
 
 if __name__ == "__main__":

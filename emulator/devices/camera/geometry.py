@@ -79,6 +79,12 @@ class CameraConfig:
     k1: float = 0.0
     k2: float = 0.0
     exit_pupil_m: float | None = None
+    #: pinhole lenses: sixth-order radial and decentering distortion (outside the firmware's lens family)
+    k3: float = 0.0
+    p1: float = 0.0
+    p2: float = 0.0
+    #: the lens's radial diattenuation at the sensor's corner (:func:`.optics.radial_diattenuation`); 0: none
+    lens_diattenuation_edge: float = 0.0
     defects: SensorDefects = field(default_factory=SensorDefects)
     #: seed of the sensor's fixed pattern (orientation, extinction, PRNU maps): one physical sensor per seed
     defect_seed: int = 0
@@ -86,7 +92,8 @@ class CameraConfig:
     @property
     def lens_model(self) -> LensModel:
         return LensModel(self.lens, self.focal_m, self.pixel_m, self.nx, self.ny, self.cx_px, self.cy_px, self.k1,
-                         self.k2, math.inf if self.exit_pupil_m is None else self.exit_pupil_m)
+                         self.k2, math.inf if self.exit_pupil_m is None else self.exit_pupil_m, self.k3, self.p1,
+                         self.p2)
 
     @property
     def diattenuation(self) -> float:
@@ -155,6 +162,8 @@ class CameraGeometry:
         self.y_px = y_px[keep]
         self.pt_v = np.stack([pvx[keep], pvy[keep], pvz[keep]], axis=1)
         self.pt_cos_cra = self.cos_cra(self.x_px.astype(np.float64), self.y_px.astype(np.float64))
+        self.pt_lens_dia = self.lens_diattenuation(self.x_px.astype(np.float64), self.y_px.astype(np.float64),
+                                                   self.pt_v[:, 2])
         self.win_cols = J0[keep, None] + np.arange(n + 1)[None, :]
         self.win_rows = I0[keep, None] + np.arange(n + 1)[None, :]
 
@@ -173,6 +182,37 @@ class CameraGeometry:
         # largest angle between a (valid) super-pixel ray and the optical axis, rad
         max_field_angle = float(np.arccos(np.clip(np.min(np.where(valid, vz, 1.0)), -1.0, 1.0))) + 2e-3
         return sp_v, valid, np.asarray(cos_cra, dtype=np.float64).astype(np.float32), max_field_angle
+
+    def lens_diattenuation(self, x: np.ndarray, y: np.ndarray, vz: np.ndarray
+                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """``(D, cos 2 phi, sin 2 phi)`` of the lens's radial diattenuation at pixels ``(x, y)`` whose rays have
+        ``cos(theta) = vz`` (phi the image-plane azimuth from the principal point); None without one."""
+        d_edge = self.cfg.lens_diattenuation_edge
+        if d_edge <= 0.0:
+            return None
+        cfg = self.cfg
+        corners_x = np.array([1.0, cfg.nx, 1.0, float(cfg.nx)])
+        corners_y = np.array([1.0, 1.0, float(cfg.ny), float(cfg.ny)])
+        _, _, cz, _ = self.rays(corners_x, corners_y)
+        s2_edge = float(np.max(1.0 - np.asarray(cz) ** 2))
+        X, Y, _ = self.lens.radial_m(x, y)
+        phi = np.arctan2(Y, X)
+        vz = np.asarray(vz, dtype=np.float64)
+        d = d_edge * np.clip((1.0 - vz * vz) / s2_edge, 0.0, 1.0)
+        return d, np.cos(2.0 * phi), np.sin(2.0 * phi)
+
+    @functools.cached_property
+    def sp_lens_dia(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """:meth:`lens_diattenuation` of every super-pixel (float32), None without one."""
+        if self.cfg.lens_diattenuation_edge <= 0.0:
+            return None
+        cfg = self.cfg
+        xc = 2.0 * np.arange(cfg.nx // 2) + 1.5
+        yc = 2.0 * np.arange(cfg.ny // 2) + 1.5
+        X, Y = np.meshgrid(xc, yc)
+        out = self.lens_diattenuation(X, Y, self.sp_v[2].astype(np.float64))
+        assert out is not None
+        return tuple(a.astype(np.float32) for a in out)  # type: ignore[return-value]
 
     @property
     def sp_v(self) -> np.ndarray:

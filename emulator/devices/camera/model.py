@@ -14,7 +14,7 @@ from ...world.sky import SkyModel
 from ...world.sun import SunModel
 from ...world.trajectory import Trajectory, TruthState
 from .geometry import CHANNEL_OFFSETS, CameraConfig, CameraGeometry, PointObservations, rotation_vector_matrix
-from .optics import SensorDefects, defect_maps, sensor_plane_field
+from .optics import SensorDefects, defect_maps, radial_diattenuation, sensor_plane_field
 
 __all__ = ["PolarizationCameraModel"]
 
@@ -171,7 +171,8 @@ class PolarizationCameraModel:
             pf = self.sky.evaluate(t, s_c, v[:, 0], v[:, 1], v[:, 2], c_nc)
             signal_e = self._frame_signal_e(pf.radiance, pf.dop, ~self._point_glare(s_c))
         radiance = (f32(signal_e) * fld.radiance).astype(f32)
-        means = self._channel_means(radiance, fld.dop.astype(f32), ex, ey, self.geo.sp_cos_cra, self._maps)
+        means = self._channel_means(radiance, fld.dop.astype(f32), ex, ey, self.geo.sp_cos_cra, self._maps,
+                                    self.geo.sp_lens_dia)
         glare = None
         if math.acos(max(-1.0, min(1.0, float(s_c[2])))) < self.geo.max_field_angle + cfg.sun_glare:
             cs = s_c.astype(np.float32)
@@ -224,11 +225,12 @@ class PolarizationCameraModel:
         return means[0], means[45], means[90], means[135], sat
 
     def _channel_means(self, radiance: np.ndarray, dop: np.ndarray, ex: np.ndarray, ey: np.ndarray,
-                       cos_cra: np.ndarray, maps: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] | None
-                       ) -> dict[int, np.ndarray]:
-        """Mean electrons of the four channels: Malus through a polarizer at ``theta + delta`` with
-        diattenuation D, PRNU gain, cos^4 vignetting of the chief-ray angle, dark signal, then the crosstalk of
-        the four edge neighbours (docs/sensors.md, "Polarization camera")."""
+                       cos_cra: np.ndarray, maps: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] | None,
+                       lens_dia: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> dict[int, np.ndarray]:
+        """Mean electrons of the four channels: the lens's radial diattenuation (``lens_dia``, if any), Malus
+        through a polarizer at ``theta + delta`` with diattenuation D, PRNU gain, cos^4 vignetting of the chief-ray
+        angle, dark signal, then the crosstalk of the four edge neighbours (docs/sensors.md, "Polarization
+        camera")."""
         cfg = self.cfg
         dfx = cfg.defects
         dt = ex.dtype
@@ -236,6 +238,8 @@ class PolarizationCameraModel:
         pr = dop * radiance / r2
         c2 = pr * (ex * ex - ey * ey)
         s2 = pr * dt.type(2.0) * ex * ey
+        if lens_dia is not None:
+            radiance, c2, s2 = radial_diattenuation(radiance, c2, s2, *lens_dia)
         if dfx.vignetting:
             c4 = cos_cra * cos_cra
             c4 = (c4 * c4).astype(dt, copy=False)
@@ -286,7 +290,8 @@ class PolarizationCameraModel:
         ex, ey = sensor_plane_field(v[:, 0], v[:, 1], v[:, 2], fld.ex, fld.ey, fld.ez, self.geo.pt_cos_cra)
         glare = self._point_glare(s_c)
         signal_e = self._frame_signal_e(fld.radiance, fld.dop, ~glare)
-        means = self._channel_means(signal_e * fld.radiance, fld.dop, ex, ey, self.geo.pt_cos_cra, self._pt_maps)
+        means = self._channel_means(signal_e * fld.radiance, fld.dop, ex, ey, self.geo.pt_cos_cra, self._pt_maps,
+                                    self.geo.pt_lens_dia)
         g = cfg.gain_dn_per_e
         out = []
         sat = glare.copy()

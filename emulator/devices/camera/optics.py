@@ -11,6 +11,16 @@ Lens
     ``r = f * rho(theta)`` from the principal point along ``phi``, with ``rho(theta) = tan(theta) (1 + k1 t^2 +
     k2 t^4)``, ``t = tan(theta)`` (Brown's radial distortion) for ``pinhole`` and ``rho = theta (1 + k1 theta^2 +
     k2 theta^4)`` for the equidistant ``fisheye`` (Kannala-Brandt). Pixel -> ray inverts ``rho`` by Newton steps.
+    A pinhole lens may also have a sixth-order radial term ``k3 t^6`` and Brown-Conrady decentering ``p1``, ``p2``
+    (Brown 1966, "Decentering distortion of lenses", Photogramm. Eng. 32(3) 444): on the normalised image
+    coordinates ``(x, y) = tan(theta) (cos phi, sin phi)``, ``r^2 = x^2 + y^2``::
+
+        x_d = x (1 + k1 r^2 + k2 r^4 + k3 r^6) + 2 p1 x y + p2 (r^2 + 2 x^2)
+        y_d = y (1 + k1 r^2 + k2 r^4 + k3 r^6) + p1 (r^2 + 2 y^2) + 2 p2 x y
+
+    (the OpenCV form), inverted by fixed-point iteration. These are outside the firmware's lens family (radial k1, k2
+    only: docs/calibration.md), so a calibration in that family leaves a model-form residual. The polarization
+    transfer below keeps the rotationally symmetric rule (the decentering moves the image by < 1e-3 rad).
 
 Polarization transfer (the meridional-plane rule)
     A non-polarizing rotationally symmetric lens keeps a ray in its meridional plane (the plane of the ray and
@@ -23,7 +33,12 @@ Polarization transfer (the meridional-plane rule)
     ``E_s e_phi + E_p cos(theta') e_rho``. The paper's model (an orthographic projection of the object-space
     E-vector) is the special case ``theta' = theta`` of a thin lens with its stop at the lens. Fresnel
     diattenuation and retardance of the lens surfaces (``t_s != t_p``, a few 0.1 % per coated surface at these
-    angles) and the obliquity dependence of the wire grid are neglected.
+    angles) are neglected unless the camera has a ``radial_diattenuation_edge`` (the envelope's lenses): then the
+    lens is a radial diattenuator, ``D(theta) = D_edge sin^2(theta) / sin^2(theta_edge)`` (theta_edge the field
+    angle of the sensor's corner; Fresnel diattenuation grows as the square of the angle of incidence), its p axis
+    (transmitted better) along the image radius: the Stokes vector at the sensor is that of a diattenuator's Mueller
+    matrix (Chipman, Lam & Young 2018, ch. 6, Eq. 6.46), :func:`radial_diattenuation`. The obliquity dependence of
+    the wire grid is neglected.
 """
 
 from __future__ import annotations
@@ -33,7 +48,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["LensModel", "SensorDefects", "defect_maps", "sensor_plane_field"]
+__all__ = ["LensModel", "SensorDefects", "defect_maps", "radial_diattenuation", "sensor_plane_field"]
 
 
 @dataclass(frozen=True)
@@ -51,6 +66,32 @@ class LensModel:
     k2: float = 0.0
     #: exit pupil to image plane, m; inf = image-space telecentric
     exit_pupil_m: float = math.inf
+    #: pinhole only: sixth-order radial and decentering distortion (module docstring; outside the firmware's family)
+    k3: float = 0.0
+    p1: float = 0.0
+    p2: float = 0.0
+
+    @property
+    def brown_conrady(self) -> bool:
+        """True when the lens has terms beyond the rotationally symmetric ``rho(theta)``."""
+        return self.projection == "pinhole" and (self.k3 != 0.0 or self.p1 != 0.0 or self.p2 != 0.0)
+
+    def _distort(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        r2 = x * x + y * y
+        rad = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3))
+        return (x * rad + 2.0 * self.p1 * x * y + self.p2 * (r2 + 2.0 * x * x),
+                y * rad + self.p1 * (r2 + 2.0 * y * y) + 2.0 * self.p2 * x * y)
+
+    def _undistort(self, xd: np.ndarray, yd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Normalised undistorted coordinates of distorted ones (fixed point, as OpenCV's undistortPoints)."""
+        x, y = xd.copy(), yd.copy()
+        for _ in range(40):
+            r2 = x * x + y * y
+            rad = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3))
+            dx = 2.0 * self.p1 * x * y + self.p2 * (r2 + 2.0 * x * x)
+            dy = self.p1 * (r2 + 2.0 * y * y) + 2.0 * self.p2 * x * y
+            x, y = (xd - dx) / rad, (yd - dy) / rad
+        return x, y
 
     @property
     def cx(self) -> float:
@@ -92,6 +133,12 @@ class LensModel:
     def rays(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Unit object-space rays (camera frame) of pixels and their field angles ``theta`` (rad)."""
         X, Y, r = self.radial_m(x, y)
+        if self.brown_conrady:
+            xu, yu = self._undistort(X / self.focal_m, Y / self.focal_m)
+            th = np.arctan(np.hypot(xu, yu))
+            al = np.arctan2(yu, xu)
+            st = np.sin(th)
+            return np.stack([st * np.cos(al), st * np.sin(al), np.cos(th)]), th, np.cos(self.chief_ray_angle(r)), al
         th = self._theta(r / self.focal_m)  # NaN outside the lens's image: reported as invalid by the caller
         al = np.arctan2(Y, X)
         tv = np.where(np.isnan(th), 0.0, th)
@@ -106,6 +153,9 @@ class LensModel:
 
     def project(self, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """1-based pixel coordinates of object-space rays ``v`` (3, N) (camera frame)."""
+        if self.brown_conrady:
+            xd, yd = self._distort(v[0] / v[2], v[1] / v[2])
+            return self.cx + self.focal_m * xd / self.pixel_m, self.cy + self.focal_m * yd / self.pixel_m
         th = np.arccos(np.clip(v[2] / np.linalg.norm(v, axis=0), -1.0, 1.0))
         al = np.arctan2(v[1], v[0])
         r = self.focal_m * self._rho(th)
@@ -127,6 +177,21 @@ def sensor_plane_field(vx: np.ndarray, vy: np.ndarray, vz: np.ndarray, ex: np.nd
     a_rho = e_p * cos_cra
     return (cphi * a_rho - sphi * e_s).astype(ex.dtype, copy=False), (sphi * a_rho + cphi * e_s).astype(
         ex.dtype, copy=False)
+
+
+def radial_diattenuation(radiance: np.ndarray, s1: np.ndarray, s2: np.ndarray, d: np.ndarray, c2phi: np.ndarray,
+                         s2phi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The Stokes vector ``(S0, S1, S2)`` (sensor-plane x axis) behind a diattenuator of diattenuation ``d`` whose
+    axis of higher transmission is at ``phi`` (``c2phi = cos 2 phi``, ``s2phi = sin 2 phi``), unit mean
+    transmission: the diattenuator's Mueller matrix (Chipman, Lam & Young 2018, Eq. 6.46) with
+    ``k = sqrt(1 - d^2)``."""
+    k = np.sqrt(1.0 - d * d)
+    cs = (1.0 - k) * c2phi * s2phi
+    s0n = radiance + d * (c2phi * s1 + s2phi * s2)
+    s1n = d * c2phi * radiance + (c2phi * c2phi + k * s2phi * s2phi) * s1 + cs * s2
+    s2n = d * s2phi * radiance + cs * s1 + (s2phi * s2phi + k * c2phi * c2phi) * s2
+    dt = radiance.dtype
+    return s0n.astype(dt, copy=False), s1n.astype(dt, copy=False), s2n.astype(dt, copy=False)
 
 
 @dataclass(frozen=True)

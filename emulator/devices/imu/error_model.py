@@ -55,6 +55,8 @@ class GyroErrors:
     bias_temp_gradient_deg_h: float = 10.0
     g_sensitivity_deg_h_per_g: float = 10.0
     range_dps: float = 400.0
+    #: the unit's turn-on bias per axis, deg/h (an envelope's draw); None: drawn from ``bias_repeatability_deg_h``
+    turn_on_bias_deg_h: tuple[float, float, float] | None = None
 
 
 @dataclass
@@ -74,6 +76,8 @@ class AccelErrors:
     #: vibration rectification error per axis, ug/g^2: a vibration of g_rms shifts the mean by vre g_rms^2
     vre_ug_per_g2: tuple[float, float, float] = (0.0, 0.0, 0.0)
     volts_per_g: tuple[float, float, float] = field(default_factory=lambda: ACCEL_VOLTS_PER_G)
+    #: the unit's turn-on bias per axis, mg (an envelope's draw); None: drawn from ``bias_repeatability_mg``
+    turn_on_bias_mg: tuple[float, float, float] | None = None
 
 
 @dataclass
@@ -298,6 +302,12 @@ def _misalignment(rng: np.random.Generator, sigma: float) -> np.ndarray:
     return m
 
 
+def _turn_on_bias(drawn: np.ndarray, given: tuple[float, float, float] | None) -> np.ndarray:
+    """The unit's turn-on bias (the figure's unit): ``given`` when the scenario fixes it, else the draw (taken from
+    the stream either way, so fixing it leaves every other constant of the unit as it was)."""
+    return drawn if given is None else np.asarray(given, dtype=np.float64)
+
+
 def gyro_error_model(e: GyroErrors, rng: np.random.Generator) -> InertialErrorModel:
     """Draw one STIM210 unit from the figures ``e`` (turn-on constants) and return its error model."""
     sf = rng.standard_normal(3) * e.scale_factor_ppm * 1e-6
@@ -310,7 +320,7 @@ def gyro_error_model(e: GyroErrors, rng: np.random.Generator) -> InertialErrorMo
         bias_instability=np.full(3, e.bias_instability_deg_h * DPH),
         bias_corr_time_s=e.bias_corr_time_s,
         rrw=np.full(3, e.rate_random_walk_deg_h_rt_h * DPH / 60.0),
-        bias0=rng.standard_normal(3) * e.bias_repeatability_deg_h * DPH,
+        bias0=_turn_on_bias(rng.standard_normal(3) * e.bias_repeatability_deg_h, e.turn_on_bias_deg_h) * DPH,
         m=m,
         asym=rng.standard_normal(3) * e.scale_asymmetry_ppm * 1e-6,
         nl=rng.standard_normal(3) * e.nonlinearity_ppm_fs * 1e-6 * fs,
@@ -333,7 +343,7 @@ def accel_error_model(e: AccelErrors, rng: np.random.Generator) -> InertialError
         bias_instability=np.array(e.bias_instability_mg) * g,
         bias_corr_time_s=e.bias_corr_time_s,
         rrw=np.full(3, e.bias_random_walk_mg_rt_h * g / 60.0),
-        bias0=rng.standard_normal(3) * np.array(e.bias_repeatability_mg) * g,
+        bias0=_turn_on_bias(rng.standard_normal(3) * np.array(e.bias_repeatability_mg), e.turn_on_bias_mg) * g,
         m=m,
         asym=np.zeros(3),
         nl=np.zeros(3),

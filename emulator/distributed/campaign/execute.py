@@ -56,6 +56,11 @@ def run_member(task: MemberTask) -> dict[str, Any]:
         scn = validate_scenario_data(task.data, {}, f"{task.source_file} (campaign member {task.index})", base)
         summary = run_scenario(scn, Path(task.run_dir), mode="fast", seed=task.seed)
         row.update(_flat_summary(summary))
+        env = summary.get("envelope")
+        if env:
+            from ...world.envelope import flat_draws
+
+            row["envelope"] = flat_draws(env.get("draws") or {})
         row["expectations"] = [{"index": e["index"], "description": e["description"], "value": e["value"],
                                 "passed": bool(e["passed"])} for e in summary.get("expectations", [])]
         row["passed"] = bool(summary.get("passed"))
@@ -178,6 +183,10 @@ def run_campaign(cfg: CampaignConfig, progress: Callable[[dict[str, Any], int, i
     if cfg.seeds is not None and len(cfg.seeds) != cfg.runs:
         raise CampaignError(f"--seeds gives {len(cfg.seeds)} seeds for {cfg.runs} runs")
     data, scn, source, base_dir = load_campaign_scenario(cfg.scenario)
+    if cfg.envelope is not None:  # every member draws its world from the envelope with its own seed
+        data = {**data, "envelope": {"preset": cfg.envelope,
+                                     **({"groups": list(cfg.envelope_groups)} if cfg.envelope_groups else {})}}
+        scn = _validated(data, source, base_dir)
     validate_variations(data, scn, cfg.variations, source, base_dir)
     seed = scn.seed if cfg.seed is None else int(cfg.seed)
     stamp = _dt.datetime.now(_dt.UTC).strftime("%Y%m%dT%H%M%SZ")
@@ -210,6 +219,7 @@ def run_campaign(cfg: CampaignConfig, progress: Callable[[dict[str, Any], int, i
         "scheduler": cfg.scheduler or f"LocalCluster({cfg.workers} processes, 127.0.0.1)",
         "workers": n_workers, "wall_s": wall, "runs_per_min": 60.0 * len(rows) / wall if wall > 0 else None,
         "started_utc": stamp,
+        "envelope": {"preset": cfg.envelope, "groups": cfg.envelope_groups} if cfg.envelope is not None else None,
     }
     result = CampaignResult(out, rows, stats, wall, info["runs_per_min"] or 0.0, info)
     if spec is not None:
@@ -221,6 +231,16 @@ def run_campaign(cfg: CampaignConfig, progress: Callable[[dict[str, Any], int, i
         (out / "consistency.json").write_text(json.dumps(result.consistency, indent=1) + "\n", encoding="utf-8")
     write_outputs(result, cfg.plots)
     return result
+
+
+def _validated(data: dict[str, Any], source: str, base_dir: str | None) -> Any:
+    from ...errors import ScenarioError
+    from ...scenario.loader import validate_scenario_data
+
+    try:
+        return validate_scenario_data(data, {}, source, Path(base_dir) if base_dir is not None else None)
+    except ScenarioError as exc:
+        raise CampaignError(f"--envelope: {exc}") from exc
 
 
 def consistency_spec(scn: Any) -> dict[str, Any]:

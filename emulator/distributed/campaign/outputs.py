@@ -52,7 +52,9 @@ def write_outputs(res: CampaignResult, plots: bool = True) -> None:
     out = res.out_dir
     rows = res.rows
     keys, metric_cols, exp_idx = _table_columns(rows)
-    header = (["index", "seed"] + [f"param:{k}" for k in keys] + ["ok", "passed"] + metric_cols
+    env_keys = list(dict.fromkeys(k for r in rows for k in (r.get("envelope") or {})))  # the envelope's draws
+    header = (["index", "seed"] + [f"param:{k}" for k in keys] + [f"envelope:{k}" for k in env_keys]
+              + ["ok", "passed"] + metric_cols
               + [f"exp{i}_value" for i in exp_idx] + [f"exp{i}_passed" for i in exp_idx]
               + ["deadline_misses", "cpu_load_pct_max", "nav_frames", "wall_s", "error", "run_dir"])
     with open(out / "runs.csv", "w", newline="", encoding="utf-8") as f:
@@ -61,6 +63,7 @@ def write_outputs(res: CampaignResult, plots: bool = True) -> None:
         for r in rows:
             ex = {e["index"]: e for e in r.get("expectations", [])}
             w.writerow([r["index"], r["seed"]] + [r["params"].get(k) for k in keys]
+                       + [_cell((r.get("envelope") or {}).get(k)) for k in env_keys]
                        + [int(bool(r.get("ok"))), "" if r.get("passed") is None else int(bool(r["passed"]))]
                        + [_cell(r.get(c)) for c in metric_cols]
                        + [_cell(ex[i]["value"]) if i in ex else "" for i in exp_idx]

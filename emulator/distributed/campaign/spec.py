@@ -231,6 +231,10 @@ class CampaignConfig:
     seeds: list[int] | None = None
     #: start of the consistency evaluation, s (None: the scenario's consistency: expectation, else 0)
     consistency_after_s: float | None = None
+    #: the world drawn per member from this envelope preset (``--envelope``; docs/sensors.md "The envelope"), only
+    #: ``envelope_groups`` of it when given
+    envelope: str | None = None
+    envelope_groups: list[str] | None = None
 
 
 def load_campaign_scenario(path: Path) -> tuple[dict[str, Any], Any, str, str]:

@@ -199,3 +199,60 @@ def test_inertial_model_blocks_are_continuous():
     jumps = np.abs(np.diff(seq, axis=0))
     assert jumps[199].max() < 10 * np.median(jumps)  # no discontinuity at the block boundary
     assert isinstance(m, InertialErrorModel)
+
+
+@pytest.mark.parametrize("lp_filter_hz", [262.0, 16.0])
+def test_first_datagrams_after_the_filter_delay_integrate_a_whole_interval(lp_filter_hz):
+    """Issue 36 item 6: with the low-pass group delay the first trigger's interval lies before t = 0; it used to be
+    clipped to 1 ns (80-140 deg/s of white noise with STATUS 0, a 0.7 deg step for a DSP integrating from frame 0).
+    Every datagram from the first on integrates a whole 5 ms interval: its rate is the truth within the white
+    noise of 5 ms at the STIM210's ARW (0.15 deg/sqrt(h): 0.035 deg/s rms), not within 1000 times that."""
+    import asyncio
+
+    from emulator.clock import EmulatorLoop
+    from emulator.devices.imu import ImuTruthTap, Stim210Gyro
+    from emulator.devices.imu.lookahead import delayed_interval
+    from emulator.links import LineConfig, MemHub
+    from emulator.world.trajectory import StaticTrajectory
+    from protocols.stim import GYRO_RATE_LSB_DPS, Stim210Format
+    from protocols.stream import StreamDecoder
+
+    period = 0.005
+    delay = math.sqrt(2.0) / (2.0 * math.pi * lp_filter_hz)
+    assert delayed_interval(0.0, -period, delay) == (period, 0.0)  # before the start: the first interval
+    t1, t0 = delayed_interval(10 * period, 9 * period, delay)
+    assert t1 - t0 == pytest.approx(period) and t0 == pytest.approx(9 * period - delay)
+    loop = EmulatorLoop("fast")
+    a, b = MemHub().pair("gyro", LineConfig(baud=460800), loop)
+    traj = StaticTrajectory(39.979, 116.339, 50.0, 30.0)
+    errs = GyroErrors(**{**preset("imu", "perfect")["gyro"], "arw_deg_rt_h": 0.15})
+    gyro = Stim210Gyro(a, ImuTruthTap(traj), np.random.default_rng(1), errs, lp_filter_hz=lp_filter_hz)
+    dec = StreamDecoder([Stim210Format("m")])
+    got = []
+    b.on_receive = lambda d: got.extend(dec.feed(d))
+
+    async def main():
+        for k in range(0, 40):  # the FPGA's first trigger is at t = 0 (its interval starts one period earlier)
+            gyro.trigger(k * period, (k - 1) * period)
+        await asyncio.sleep(0.3)
+
+    loop.run_until_complete(main())
+    loop.close()
+    assert len(got) == 40
+    truth = traj.angular_rate(0.0) / DEG
+    err = np.array([d.gyro for d in got]) * GYRO_RATE_LSB_DPS - truth  # deg/s
+    sigma = 0.15 / 60.0 / math.sqrt(period)  # ARW over one interval, deg/s
+    assert np.all(np.abs(err[:3]) < 5.0 * sigma), err[:3]  # the first datagrams: no 1 ns interval
+    assert np.std(err) == pytest.approx(sigma, rel=0.3)
+    assert all(d.status == 0 for d in got)
+
+
+def test_a_fixed_turn_on_bias_replaces_the_draw_and_leaves_the_rest_of_the_unit():
+    """The envelope draws a unit's turn-on bias itself (up to 7 mg, 40 deg/h): the figure replaces the draw from
+    the repeatability, and every other constant of the unit stays what that seed drew."""
+    drawn = accel_error_model(AccelErrors(), np.random.default_rng(3))
+    fixed = accel_error_model(AccelErrors(turn_on_bias_mg=(7.0, -6.5, 0.25)), np.random.default_rng(3))
+    np.testing.assert_allclose(fixed.bias0 / (1e-3 * G), [7.0, -6.5, 0.25])
+    np.testing.assert_array_equal(fixed.m, drawn.m)
+    g = gyro_error_model(GyroErrors(turn_on_bias_deg_h=(40.0, 0.0, -12.0)), np.random.default_rng(3))
+    np.testing.assert_allclose(g.bias0 / DPH, [40.0, 0.0, -12.0])

@@ -1,0 +1,107 @@
+"""The GNSS antenna's surroundings: open sky, suburbs, urban canyon (docs/sensors.md, "The envelope").
+
+A receiver's error budget depends less on the receiver than on where its antenna is. Each environment changes the
+``field`` receiver (:mod:`emulator.devices.gnss`) in four ways:
+
+- **multipath**: the Gauss-Markov multipath process (per axis, ENU) takes the environment's level and correlation
+  time (code multipath of decimetres in open sky, metres in suburbs, several metres in a street canyon);
+- **a NLOS bias**: in a canyon the signals that arrive only by reflection are all delayed, so the solution is pushed
+  away from the buildings by a bias that lasts as long as the geometry (Groves 2011, "Shadow matching", J. Navig.
+  64(3) 417: across-street errors of tens of metres): a constant horizontal offset per run, its size drawn from the
+  environment's range and its direction uniform;
+- **NLOS outliers**: episodes (Poisson in time, each 3-20 s long) during which a reflected-only satellite enters the
+  solution and the position jumps by a Gaussian offset of the environment's size (Hsu 2018, "Analysis and modeling
+  GPS NLOS effect in highly urbanized area", GPS Solut. 22:7: NLOS pseudorange errors of tens of metres);
+- **geometry**: fewer satellites and a worse HDOP (drawn once per run in the environment's range; Kaplan & Hegarty,
+  *Understanding GPS/GNSS*, 3rd ed. 2017, ch. 7, for DOP against visible satellites), and a noisier velocity.
+
+The figures are in :data:`ENVIRONMENTS` (ranges from the papers above, the exact values are design values [D]).
+The receiver calls :meth:`GnssEnvironmentProcess.position_offset` once per fix (a small hook in ``gnss.py``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .gnss import GnssErrors
+
+__all__ = ["ENVIRONMENTS", "GnssEnvironment", "GnssEnvironmentProcess", "environment_errors"]
+
+
+@dataclass(frozen=True)
+class GnssEnvironment:
+    """One kind of surroundings (see module docstring). Lengths m (1 sigma per axis unless a range), times s."""
+
+    name: str
+    multipath_sigma_h_m: float
+    multipath_sigma_v_m: float
+    multipath_corr_time_s: float
+    vel_scale: float
+    nlos_bias_h_m: tuple[float, float]
+    nlos_rate_hz: float
+    nlos_sigma_h_m: float
+    nlos_sigma_v_m: float
+    nlos_duration_s: tuple[float, float]
+    num_sats: tuple[int, int]
+    hdop: tuple[float, float]
+
+
+#: the environments of the envelope (module docstring; docs/sensors.md "The envelope" gives the sources)
+ENVIRONMENTS: dict[str, GnssEnvironment] = {
+    "open_sky": GnssEnvironment("open_sky", 0.5, 0.8, 15.0, 1.0, (0.0, 0.0), 0.0, 0.0, 0.0, (0.0, 0.0),
+                                (10, 14), (0.7, 1.0)),
+    "suburban": GnssEnvironment("suburban", 2.0, 3.5, 20.0, 2.0, (0.0, 3.0), 1.0 / 300.0, 8.0, 12.0, (3.0, 15.0),
+                                (7, 10), (1.2, 2.0)),
+    "urban_canyon": GnssEnvironment("urban_canyon", 5.0, 8.0, 30.0, 4.0, (3.0, 15.0), 1.0 / 60.0, 20.0, 30.0,
+                                    (3.0, 20.0), (4, 7), (2.0, 5.0)),
+}
+
+
+def environment_errors(env: GnssEnvironment, e: GnssErrors) -> GnssErrors:
+    """The receiver's figures in ``env``: its multipath process at the environment's level and correlation time,
+    its velocity noise scaled (the slow atmospheric part and the white part are the receiver's own)."""
+    return replace(e, multipath_sigma_h_m=env.multipath_sigma_h_m, multipath_sigma_v_m=env.multipath_sigma_v_m,
+                   multipath_corr_time_s=env.multipath_corr_time_s, vel_sigma_h_mps=e.vel_sigma_h_mps * env.vel_scale,
+                   vel_sigma_v_mps=e.vel_sigma_v_mps * env.vel_scale)
+
+
+class GnssEnvironmentProcess:
+    """One run in an environment: the NLOS bias, the geometry (drawn at construction) and the outlier episodes.
+
+    Parameters
+    ----------
+    env : the environment.
+    rng : its own random stream (the receiver's stream is not touched).
+    """
+
+    def __init__(self, env: GnssEnvironment, rng: np.random.Generator) -> None:
+        self.env = env
+        self.rng = rng
+        az = rng.uniform(0.0, 2.0 * math.pi)
+        size = rng.uniform(*env.nlos_bias_h_m)
+        #: the constant NLOS bias, ENU m
+        self.bias_enu = np.array([size * math.sin(az), size * math.cos(az), 0.0])
+        self.num_sats = int(rng.integers(env.num_sats[0], env.num_sats[1] + 1))
+        self.hdop = float(rng.uniform(*env.hdop))
+        self._episode_end = -math.inf
+        self._episode_offset = np.zeros(3)
+        #: outlier episodes started so far, and fixes they touched
+        self.episodes = 0
+        self.outlier_fixes = 0
+
+    def position_offset(self, t: float, dt: float) -> np.ndarray:
+        """What the surroundings add to the fix at ``t`` (s) after ``dt`` (s) since the last one: ENU m, (3,)."""
+        env = self.env
+        if (t >= self._episode_end and env.nlos_rate_hz > 0.0
+                and self.rng.uniform() < -math.expm1(-env.nlos_rate_hz * max(dt, 0.0))):
+                self.episodes += 1
+                self._episode_end = t + self.rng.uniform(*env.nlos_duration_s)
+                self._episode_offset = self.rng.standard_normal(3) * np.array(
+                    [env.nlos_sigma_h_m, env.nlos_sigma_h_m, env.nlos_sigma_v_m])
+        if t < self._episode_end:
+            self.outlier_fixes += 1
+            return self.bias_enu + self._episode_offset
+        return self.bias_enu.copy()

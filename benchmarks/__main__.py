@@ -18,7 +18,7 @@ from pathlib import Path
 
 MODULES = ["benchmarks.bench_realtime_factor", "benchmarks.bench_camera", "benchmarks.bench_decoders",
            "benchmarks.bench_pty_jitter", "benchmarks.bench_firmware", "benchmarks.bench_campaign",
-           "benchmarks.bench_scaling", "benchmarks.bench_lockstep"]
+           "benchmarks.bench_scaling", "benchmarks.bench_lockstep", "benchmarks.bench_viewers"]
 
 
 def markdown(path: Path) -> str:

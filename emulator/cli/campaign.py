@@ -38,7 +38,8 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
                    help="a running Dask scheduler (default: a LocalCluster on 127.0.0.1)")
     c.add_argument("--workers", type=int, default=2, help="LocalCluster worker processes (default 2)")
     c.add_argument("--out", default=None, help="output directory (default runs/campaign-<scenario>-<UTC time>)")
-    c.add_argument("--keep-all", action="store_true", help="keep every member's captures, nav.csv and truth.csv")
+    c.add_argument("--keep-all", action="store_true",
+                   help="keep every member's captures, nav.csv and truth.csv, and write its run.mcap")
     c.add_argument("--no-plots", action="store_true", help="skip campaign.png / sensitivity.png")
     c.add_argument("--json", action="store_true", help="print campaign.json's statistics as JSON")
     c.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -26,6 +26,8 @@ from typing import Any
 from protocols import __version__
 from protocols.errors import PsnsHilError
 
+from . import export
+
 __all__ = ["main"]
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
@@ -318,6 +320,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     def on_started(emu: Any) -> None:
         state["emu"] = emu
+        export.on_started(args, emu)  # the live Foxglove view (issue 39)
         print_port_map(emu.ports, sys.stderr if args.json else None)
 
     with progress:
@@ -331,6 +334,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
                                    progress=on_progress, on_started=on_started, force=args.force)
     if realtime and tty and not args.quiet:
         err.write("\n")
+    export.after_run(args, run_dir)  # the viewer outputs: raw sensor tables, run.mcap (issue 39)
     report = None
     if not args.no_report and (run_dir / "summary.json").exists():
         from ..recording.report import write_report
@@ -455,6 +459,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="print the summary as one strict JSON document on stdout (everything else on stderr)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.add_argument("--no-report", action="store_true", help="do not write report.html at the end")
+    export.add_run_arguments(r)
     r.add_argument("--split", action="store_true",
                    help="run the virtual DSP in its own process, joined to the FPGA over zenoh (realtime)")
     r.add_argument("--allow-hooks", action="store_true",
@@ -513,6 +518,7 @@ def build_parser() -> argparse.ArgumentParser:
     campaign.add_parser(sub).set_defaults(func=campaign.run)
     golden.add_parser(sub).set_defaults(func=golden.run)
     diff_firmware.add_parser(sub).set_defaults(func=diff_firmware.run)
+    export.add_parser(sub).set_defaults(func=export.run)
     return p
 
 

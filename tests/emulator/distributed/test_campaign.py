@@ -322,3 +322,25 @@ def test_a_member_with_a_camera_carries_the_solar_vector_error_into_the_table(tm
     # no camera: no solar-vector columns at all
     no_cam = {k: v for k, v in row.items() if not k.startswith(PSNS_METRICS)}
     assert not any(k.startswith(PSNS_METRICS) for k in campaign_statistics([no_cam])["metrics"])
+
+
+def test_a_kept_member_carries_its_mcap(tmp_path):
+    """--keep-all: a member's run directory keeps its files and gets run.mcap (issue 39); without it, neither."""
+    import yaml
+    from mcap.reader import make_reader
+
+    root = Path(__file__).resolve().parents[3]
+    data = yaml.safe_load((root / "scenarios" / "quickstart.yaml").read_text())
+    data["duration_s"] = 2.0
+    data["motion"] = [{"static": {"duration_s": 2.0}}]
+    data["expectations"] = []
+    scn_path = tmp_path / "keep.yaml"
+    scn_path.write_text(yaml.safe_dump(data, sort_keys=False))
+    data, _scn, source, base_dir = load_campaign_scenario(scn_path)
+    kept = plan_members(data, 1, 7, [], tmp_path / "k", source, base_dir, keep_all=True, seeds=[7])[0]
+    dropped = plan_members(data, 1, 7, [], tmp_path / "d", source, base_dir, seeds=[7])[0]
+    assert run_member(kept)["ok"] and run_member(dropped)["ok"]
+    with open(Path(kept.run_dir) / "run.mcap", "rb") as f:
+        n = sum(1 for _s, ch, _m in make_reader(f).iter_messages() if ch.topic == "/nav/solution")
+    assert n == len((Path(kept.run_dir) / "nav.csv").read_text().splitlines()) - 1 > 0
+    assert not (Path(dropped.run_dir) / "run.mcap").exists() and not (Path(dropped.run_dir) / "nav.csv").exists()

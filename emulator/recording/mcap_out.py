@@ -1,0 +1,502 @@
+"""``run.mcap``: a run directory as an MCAP file that Foxglove (and any MCAP reader) opens.
+
+Written with the ``mcap`` library (docs/decisions/recording.md D-REC.1) from what the recorder's taps wrote into the
+run directory: the capture (every chunk on every tapped link), nav.csv / truth.csv / psns.csv, timeline.csv,
+filter_state.csv, events.jsonl and summary.json. Nothing here reaches into a device: the recorder is a listener on
+the links and devices, and this module reads only its files, so a finished run and an old run directory
+(``psns-hil export RUN --mcap``) convert the same way.
+
+Messages are JSON (``message_encoding`` ``json``) with a JSON Schema each (``schema encoding`` ``jsonschema``):
+the Foxglove well-known schemas where one fits (``foxglove.LocationFix``, ``foxglove.PoseInFrame``,
+``foxglove.FrameTransform``, ``foxglove.Log``; field names and types of Foxglove's published definitions), a
+``psns_hil.*`` schema of the table's columns where none does. Log time is the scenario clock (ns since the run's
+start; the run's UTC epoch is in the ``psns-hil`` metadata record); a navigation frame is logged at its time of
+validity and published at its arrival on the host port.
+
+Topics (:data:`TOPICS`; README, "Run directory"):
+
+* ``/nav/solution`` every nav.csv row; ``/nav/location`` (LocationFix, ENU position covariance from the filter's
+  sigmas, diagonal known); ``/nav/pose`` (PoseInFrame, attitude as ``C_b^n``, ENU offset from the first truth
+  position); ``/nav/error`` the error against truth per component beside the filter's sigma of that component;
+* ``/truth/state``, ``/truth/location``, ``/truth/pose``; ``/tf`` (FrameTransform ``enu`` -> ``body`` and
+  ``enu`` -> ``body_truth``);
+* ``/imu``, ``/gnss/epoch``, ``/gnss/fix`` (LocationFix), ``/psns/frames``: the decoded sensor streams
+  (:mod:`emulator.recording.sensor_tables`); ``/psns/aop_image`` (foxglove.RawImage, 1 Hz): the angle of
+  polarization the camera reported at its observation points, on the sensor (:func:`aop_image`);
+  ``/psns/solar_vector``: the solved solar vector against the true one;
+* ``/links/counters`` (timeline.csv: link counters and DSP load), ``/dsp/filter_state`` (mode, covariance
+  diagonal, biases), ``/events`` (foxglove.Log: modes, faults, rejections), ``/expectations``;
+* ``/raw/<link>/<in|out>``: every capture chunk, base64 in JSON, so the MCAP alone can be decoded again.
+"""
+
+from __future__ import annotations
+
+import base64
+import csv
+import json
+import math
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from itertools import pairwise
+from pathlib import Path
+from typing import IO, Any
+
+from mcap.writer import Writer
+
+from protocols import __version__ as VERSION
+from protocols.host import NavMode, describe_nav_mode
+from protocols.psns import PolarizationObs, PolarizationObsPacked
+
+from ..devices.camera.geometry import IMX250MZR_NX, IMX250MZR_NY
+from ..world.geodesy import radii
+from .capture import iter_capture
+from .nav_error import _c_bn
+from .rundir import open_no_follow
+from .sensor_tables import decode_sensor_frames, gyro_is_rate
+
+__all__ = ["MCAP_NAME", "TOPICS", "McapStats", "attitude_quaternion", "write_run_mcap"]
+
+MCAP_NAME = "run.mcap"
+DEG = math.pi / 180.0
+
+_TIME = {"type": "object", "title": "time", "properties": {"sec": {"type": "integer", "minimum": 0},
+                                                           "nsec": {"type": "integer", "minimum": 0,
+                                                                    "maximum": 999999999}}}
+_VEC3 = {"type": "object", "title": "foxglove.Vector3",
+         "properties": {k: {"type": "number"} for k in "xyz"}, "required": list("xyz")}
+_QUAT = {"type": "object", "title": "foxglove.Quaternion",
+         "properties": {k: {"type": "number"} for k in "xyzw"}, "required": list("xyzw")}
+#: the Foxglove well-known schemas used here (their published JSON Schema definitions' fields)
+FOXGLOVE_SCHEMAS: dict[str, dict[str, Any]] = {
+    "foxglove.LocationFix": {
+        "title": "foxglove.LocationFix", "type": "object",
+        "properties": {"timestamp": _TIME, "frame_id": {"type": "string"}, "latitude": {"type": "number"},
+                       "longitude": {"type": "number"}, "altitude": {"type": "number"},
+                       "position_covariance": {"type": "array", "items": {"type": "number"}, "minItems": 9,
+                                               "maxItems": 9},
+                       "position_covariance_type": {"title": "foxglove.PositionCovarianceType",
+                                                    "oneOf": [{"title": t, "const": i} for i, t in enumerate(
+                                                        ("UNKNOWN", "APPROXIMATED", "DIAGONAL_KNOWN", "KNOWN"))]},
+                       "heading": {"type": "number"}, "velocity": _VEC3},
+        "required": ["timestamp", "frame_id", "latitude", "longitude", "altitude", "position_covariance",
+                     "position_covariance_type"]},
+    "foxglove.PoseInFrame": {
+        "title": "foxglove.PoseInFrame", "type": "object",
+        "properties": {"timestamp": _TIME, "frame_id": {"type": "string"},
+                       "pose": {"type": "object", "title": "foxglove.Pose",
+                                "properties": {"position": _VEC3, "orientation": _QUAT},
+                                "required": ["position", "orientation"]}},
+        "required": ["timestamp", "frame_id", "pose"]},
+    "foxglove.FrameTransform": {
+        "title": "foxglove.FrameTransform", "type": "object",
+        "properties": {"timestamp": _TIME, "parent_frame_id": {"type": "string"},
+                       "child_frame_id": {"type": "string"}, "translation": _VEC3, "rotation": _QUAT},
+        "required": ["timestamp", "parent_frame_id", "child_frame_id", "translation", "rotation"]},
+    "foxglove.RawImage": {
+        "title": "foxglove.RawImage", "type": "object",
+        "properties": {"timestamp": _TIME, "frame_id": {"type": "string"}, "width": {"type": "integer", "minimum": 0},
+                       "height": {"type": "integer", "minimum": 0}, "encoding": {"type": "string"},
+                       "step": {"type": "integer", "minimum": 0},
+                       "data": {"type": "string", "contentEncoding": "base64"}},
+        "required": ["timestamp", "frame_id", "width", "height", "encoding", "step", "data"]},
+    "foxglove.Log": {
+        "title": "foxglove.Log", "type": "object",
+        "properties": {"timestamp": _TIME,
+                       "level": {"title": "foxglove.LogLevel",
+                                 "oneOf": [{"title": t, "const": i} for i, t in enumerate(
+                                     ("UNKNOWN", "DEBUG", "INFO", "WARNING", "ERROR", "FATAL"))]},
+                       "message": {"type": "string"}, "name": {"type": "string"}, "file": {"type": "string"},
+                       "line": {"type": "integer", "minimum": 0}},
+        "required": ["timestamp", "level", "message", "name", "file", "line"]},
+}
+
+#: topic -> schema name (``foxglove.*`` above, or a ``psns_hil.*`` schema made from the source's columns)
+TOPICS: dict[str, str] = {
+    "/nav/solution": "psns_hil.NavSolution", "/nav/location": "foxglove.LocationFix",
+    "/nav/pose": "foxglove.PoseInFrame", "/nav/error": "psns_hil.NavError", "/nav/mode": "foxglove.Log",
+    "/truth/state": "psns_hil.Truth", "/truth/location": "foxglove.LocationFix",
+    "/truth/pose": "foxglove.PoseInFrame", "/tf": "foxglove.FrameTransform",
+    "/imu": "psns_hil.ImuFrame", "/gnss/epoch": "psns_hil.GnssEpoch", "/gnss/fix": "foxglove.LocationFix",
+    "/psns/frames": "psns_hil.PsnsFrame", "/psns/aop_image": "foxglove.RawImage",
+    "/psns/solar_vector": "psns_hil.SolarVector",
+    "/links/counters": "psns_hil.Timeline", "/dsp/filter_state": "psns_hil.FilterState",
+    "/events": "foxglove.Log", "/expectations": "psns_hil.Expectation",
+}
+#: the schema of the raw-bytes channels ``/raw/<link>/<direction>``
+RAW_SCHEMA = "psns_hil.RawBytes"
+_RAW_SCHEMA_DEF = {"title": RAW_SCHEMA, "type": "object",
+                   "description": "One chunk of bytes on a link, as the capture holds it (docs/capture-format.md)",
+                   "properties": {"link": {"type": "string"}, "direction": {"type": "string", "enum": ["in", "out"]},
+                                  "pitch_s": {"type": ["number", "null"],
+                                              "description": "byte spacing on the wire, s (null: the line's)"},
+                                  "data": {"type": "string", "contentEncoding": "base64"}},
+                   "required": ["link", "direction", "data"]}
+#: /nav/error: (error column, sigma column) per component (nav.csv); attitude errors are Euler-angle differences,
+#: the attitude sigmas the filter's misalignment sigmas about E, N, U
+NAV_ERROR_PAIRS = (("err_pos_e_m", "sig_pos_e_m"), ("err_pos_n_m", "sig_pos_n_m"), ("err_pos_u_m", "sig_pos_u_m"),
+                   ("err_vel_e_mps", "sig_vel_e_mps"), ("err_vel_n_mps", "sig_vel_n_mps"),
+                   ("err_vel_u_mps", "sig_vel_u_mps"), ("err_pitch_deg", "sig_att_e_deg"),
+                   ("err_roll_deg", "sig_att_n_deg"), ("err_heading_deg", "sig_att_u_deg"))
+_DEGRADED = int(NavMode.DEGRADED)
+_LOG_LEVEL = {"fault": 3, "error": 4, "reject": 3, "watchdog": 4, "deadline": 3, "timeout": 3}
+
+
+@dataclass
+class McapStats:
+    """What :func:`write_run_mcap` wrote: messages per topic, the file and the wall time it took (s)."""
+
+    path: Path
+    messages: dict[str, int] = field(default_factory=dict)
+    wall_s: float = 0.0
+
+
+def attitude_quaternion(roll_deg: float, pitch_deg: float, heading_deg: float) -> tuple[float, float, float, float]:
+    """``(x, y, z, w)`` of ``C_b^n`` (body x right, y forward, z up -> ENU; heading clockwise from North; the
+    recorder's convention, ``nav_error._c_bn`` with yaw = -heading), by Shepperd's method (w >= 0)."""
+    m = _c_bn(pitch_deg * DEG, roll_deg * DEG, -heading_deg * DEG)
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = m
+    tr = r00 + r11 + r22
+    if tr > 0.0:
+        s = 2.0 * math.sqrt(1.0 + tr)
+        w, x, y, z = 0.25 * s, (r21 - r12) / s, (r02 - r20) / s, (r10 - r01) / s
+    elif r00 > r11 and r00 > r22:
+        s = 2.0 * math.sqrt(1.0 + r00 - r11 - r22)
+        w, x, y, z = (r21 - r12) / s, 0.25 * s, (r01 + r10) / s, (r02 + r20) / s
+    elif r11 > r22:
+        s = 2.0 * math.sqrt(1.0 + r11 - r00 - r22)
+        w, x, y, z = (r02 - r20) / s, (r01 + r10) / s, 0.25 * s, (r12 + r21) / s
+    else:
+        s = 2.0 * math.sqrt(1.0 + r22 - r00 - r11)
+        w, x, y, z = (r10 - r01) / s, (r02 + r20) / s, (r12 + r21) / s, 0.25 * s
+    if w < 0.0:
+        w, x, y, z = -w, -x, -y, -z
+    return x, y, z, w
+
+
+def _ns(t_s: float) -> int:
+    return max(0, round(t_s * 1e9))
+
+
+def _stamp(t_s: float) -> dict[str, int]:
+    ns = _ns(t_s)
+    return {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
+
+
+def _num(cell: str) -> int | float | str | None:
+    """A CSV cell as the number it was written from (exact: Python writes floats by ``repr``), None when empty."""
+    if cell == "":
+        return None
+    try:
+        return int(cell)
+    except ValueError:
+        pass
+    try:
+        return float(cell)
+    except ValueError:
+        return cell
+
+
+def _read_csv(path: Path) -> tuple[list[str], Iterator[list[str]]]:
+    if not path.exists():
+        return [], iter(())
+    f = open(path, encoding="utf-8", newline="")  # noqa: SIM115 - closed by the generator
+    rd = csv.reader(f)
+    cols = next(rd, [])
+
+    def gen() -> Iterator[list[str]]:
+        with f:
+            yield from rd
+    return cols, gen()
+
+
+def _columns_schema(name: str, columns: list[str], description: str) -> dict[str, Any]:
+    return {"title": name, "type": "object", "description": description,
+            "properties": {c: {"type": ["number", "string", "null"]} for c in columns}}
+
+
+class _Enu:
+    """ENU offsets (m) from an origin, on the WGS-84 ellipsoid's local radii (good to ~1e-4 of the distance within
+    tens of km: the viewer's 3-D scene, not a measurement)."""
+
+    def __init__(self, lat_deg: float, lon_deg: float, h_m: float) -> None:
+        rm, rn = radii(lat_deg * DEG)
+        self.rm, self.rn = float(rm), float(rn)
+        self.lat0, self.lon0, self.h0 = lat_deg, lon_deg, h_m
+        self.coslat = math.cos(lat_deg * DEG)
+
+    def __call__(self, lat_deg: float, lon_deg: float, h_m: float) -> dict[str, float]:
+        return {"x": (lon_deg - self.lon0) * DEG * (self.rn + self.h0) * self.coslat,
+                "y": (lat_deg - self.lat0) * DEG * (self.rm + self.h0), "z": h_m - self.h0}
+
+
+class _Out:
+    """Messages gathered per topic, written time-ordered at the end."""
+
+    def __init__(self) -> None:
+        self.msgs: list[tuple[int, int, str, bytes, int]] = []
+        self.schemas: dict[str, dict[str, Any]] = dict(FOXGLOVE_SCHEMAS)
+        self.topic_schema: dict[str, str] = {}
+
+    def add(self, topic: str, schema: str, log_s: float, msg: dict[str, Any], publish_s: float | None = None
+            ) -> None:
+        self.topic_schema.setdefault(topic, schema)
+        log = _ns(log_s)
+        self.msgs.append((log, len(self.msgs), topic, json.dumps(msg, separators=(",", ":"), allow_nan=False)
+                          .encode(), _ns(publish_s) if publish_s is not None else log))
+
+
+def _finite(v: Any) -> Any:
+    return v if not isinstance(v, float) or math.isfinite(v) else None
+
+
+def _location(t: float, lat: float, lon: float, h: float, sig: tuple[float, float, float] | None,
+              frame: str, heading_deg: float | None = None, vel: tuple[Any, Any, Any] | None = None
+              ) -> dict[str, Any]:
+    cov = [0.0] * 9
+    if sig is not None:
+        cov[0], cov[4], cov[8] = sig[0] ** 2, sig[1] ** 2, sig[2] ** 2
+    msg: dict[str, Any] = {"timestamp": _stamp(t), "frame_id": frame, "latitude": lat, "longitude": lon,
+                           "altitude": h, "position_covariance": cov,
+                           "position_covariance_type": 2 if sig is not None else 0}
+    if heading_deg is not None:
+        msg["heading"] = heading_deg * DEG
+    if vel is not None and all(isinstance(v, float | int) for v in vel):
+        msg["velocity"] = {"x": vel[0], "y": vel[1], "z": vel[2]}
+    return msg
+
+
+def _pose_msgs(out: _Out, pose_topic: str, child: str, t: float, r: dict[str, Any], enu: _Enu | None,
+               publish: float | None = None) -> None:
+    if any(not isinstance(r.get(k), float | int) for k in ("roll_deg", "pitch_deg", "heading_deg", "lat_deg")):
+        return
+    x, y, z, w = attitude_quaternion(r["roll_deg"], r["pitch_deg"], r["heading_deg"])
+    pos = enu(r["lat_deg"], r["lon_deg"], r["height_m"]) if enu is not None else {"x": 0.0, "y": 0.0, "z": 0.0}
+    q = {"x": x, "y": y, "z": z, "w": w}
+    out.add(pose_topic, "foxglove.PoseInFrame", t, {"timestamp": _stamp(t), "frame_id": "enu",
+                                                    "pose": {"position": pos, "orientation": q}}, publish)
+    out.add("/tf", "foxglove.FrameTransform", t, {"timestamp": _stamp(t), "parent_frame_id": "enu",
+                                                  "child_frame_id": child, "translation": pos, "rotation": q}, publish)
+
+
+def _gather_truth(out: _Out, run_dir: Path) -> _Enu | None:
+    cols, rows = _read_csv(run_dir / "truth.csv")
+    out.schemas["psns_hil.Truth"] = _columns_schema("psns_hil.Truth", cols, "truth.csv: the trajectory at the nav "
+                                                    "frames' times of validity (deg, m, m/s)")
+    enu: _Enu | None = None
+    for cells in rows:
+        r: dict[str, Any] = {c: _num(v) for c, v in zip(cols, cells)}
+        t = r["time_s"]
+        if not isinstance(t, float | int):
+            continue
+        out.add("/truth/state", "psns_hil.Truth", t, r)
+        if enu is None:
+            enu = _Enu(r["lat_deg"], r["lon_deg"], r["height_m"])
+        out.add("/truth/location", "foxglove.LocationFix", t,
+                _location(t, r["lat_deg"], r["lon_deg"], r["height_m"], None, "body_truth", r["heading_deg"],
+                          (r["vel_e_mps"], r["vel_n_mps"], r["vel_u_mps"])))
+        _pose_msgs(out, "/truth/pose", "body_truth", t, r, enu)
+    return enu
+
+
+def _gather_nav(out: _Out, run_dir: Path, enu: _Enu | None) -> None:
+    cols, rows = _read_csv(run_dir / "nav.csv")
+    out.schemas["psns_hil.NavSolution"] = _columns_schema(
+        "psns_hil.NavSolution", cols, "nav.csv: one NAV_SOLUTION as the host received it, with its error against "
+        "truth (deg, m, m/s; sig_* the filter's 1-sigma; empty errors: not navigating)")
+    err_props: dict[str, Any] = {"timestamp": _TIME}
+    for e, s in NAV_ERROR_PAIRS:
+        err_props[e] = err_props[s] = {"type": ["number", "null"]}
+    out.schemas["psns_hil.NavError"] = {
+        "title": "psns_hil.NavError", "type": "object", "properties": err_props,
+        "description": "The error against truth per component beside the filter's 1-sigma of that component "
+                       "(plot err inside +-3 sig); null errors: the frame is not navigating"}
+    last_mode: int | None = None
+    for line, cells in enumerate(rows, start=2):
+        r: dict[str, Any] = {c: _num(v) for c, v in zip(cols, cells)}
+        t, arr = r["time_s"], r.get("arrival_s")
+        if not isinstance(t, float | int):
+            continue
+        pub = arr if isinstance(arr, float | int) else None
+        out.add("/nav/solution", "psns_hil.NavSolution", t, r, pub)
+        mode = r.get("mode")
+        if isinstance(mode, int) and mode != last_mode:  # each change of the mode bits, as a log line
+            out.add("/nav/mode", "foxglove.Log", t, {"timestamp": _stamp(t), "level": 3 if mode & _DEGRADED else 2,
+                                                    "message": describe_nav_mode(mode), "name": "firmware",
+                                                    "file": "nav.csv", "line": line})
+            last_mode = mode
+        sig = (r["sig_pos_e_m"], r["sig_pos_n_m"], r["sig_pos_u_m"])
+        ok = all(isinstance(v, float | int) and math.isfinite(v) for v in sig)
+        out.add("/nav/location", "foxglove.LocationFix", t,
+                _location(t, r["lat_deg"], r["lon_deg"], r["height_m"], sig if ok else None, "body",
+                          r["heading_deg"], (r["vel_e_mps"], r["vel_n_mps"], r["vel_u_mps"])), pub)
+        _pose_msgs(out, "/nav/pose", "body", t, r, enu, pub)
+        err: dict[str, Any] = {"timestamp": _stamp(t)}
+        for e, s in NAV_ERROR_PAIRS:
+            err[e], err[s] = r.get(e), r.get(s)
+        out.add("/nav/error", "psns_hil.NavError", t, err, pub)
+
+
+def _gather_table(out: _Out, path: Path, topic: str, schema: str, description: str) -> None:
+    cols, rows = _read_csv(path)
+    if not cols:
+        return
+    out.schemas[schema] = _columns_schema(schema, cols, description)
+    for cells in rows:
+        r: dict[str, Any] = {c: _num(v) for c, v in zip(cols, cells)}
+        t = r.get("time_s")
+        if isinstance(t, float | int):
+            out.add(topic, schema, t, r)
+
+
+def _gather_capture(out: _Out, run_dir: Path) -> dict[str, Any]:
+    path = run_dir / "capture.psnscap"
+    if not path.exists():
+        return {}
+    header, records = iter_capture(path)
+    out.schemas[RAW_SCHEMA] = _RAW_SCHEMA_DEF
+    descr = {"imu.csv": ("/imu", "psns_hil.ImuFrame", "One FPGA IMU frame (UART1): STIM210 gyro words scaled "
+                         "(deg/s or deg), accelerometer ADC codes at the nominal scale (g); t_rx_s scenario s"),
+             "gnss.csv": ("/gnss/epoch", "psns_hil.GnssEpoch", "One GNSS epoch (GGA/GNS or UBX-NAV-PVT) as "
+                          "received on the GNSS port (deg, m, m/s)"),
+             "psns_frames.csv": ("/psns/frames", "psns_hil.PsnsFrame", "One frame on the PSNS port: header and, "
+                                 "for a solar-vector frame, the vector and its quality")}
+
+    def tee() -> Iterator[Any]:
+        for r in records:
+            out.add(f"/raw/{r.link}/{r.direction}", RAW_SCHEMA, r.t_s,
+                    {"link": r.link, "direction": r.direction, "pitch_s": r.pitch_s,
+                     "data": base64.b64encode(r.data).decode("ascii")})
+            yield r
+
+    next_image = 0.0
+    for fr in decode_sensor_frames(tee(), gyro_is_rate(header)):
+        topic, schema, text = descr[fr.table]
+        if schema not in out.schemas:
+            out.schemas[schema] = _columns_schema(schema, list(fr.row), text)
+        row = {k: _finite(v) for k, v in fr.row.items()}
+        out.add(topic, schema, fr.t_rx_s, row)
+        if isinstance(fr.frame, PolarizationObs | PolarizationObsPacked) and fr.t_rx_s >= next_image:
+            w, h, img = aop_image(fr.frame.points)
+            out.add("/psns/aop_image", "foxglove.RawImage", fr.t_rx_s,
+                    {"timestamp": _stamp(fr.t_rx_s), "frame_id": "camera", "width": w, "height": h,
+                     "encoding": "mono8", "step": w, "data": base64.b64encode(img).decode("ascii")})
+            next_image = (fr.t_rx_s // AOP_IMAGE_EVERY_S + 1) * AOP_IMAGE_EVERY_S
+        if fr.table == "gnss.csv" and isinstance(row.get("lat_deg"), float) and isinstance(row.get("lon_deg"),
+                                                                                          float):
+            out.add("/gnss/fix", "foxglove.LocationFix", fr.t_rx_s,
+                    _location(fr.t_rx_s, row["lat_deg"], row["lon_deg"], row.get("height_msl_m") or 0.0, None,
+                              "gnss"))
+    return header
+
+
+#: the AoP image: camera pixels per image pixel, and the camera frames per image (1 Hz at the usual 5 Hz)
+AOP_IMAGE_BIN = 16
+AOP_IMAGE_EVERY_S = 1.0
+
+
+def aop_image(points: Any, nx: int = IMX250MZR_NX, ny: int = IMX250MZR_NY, binning: int = AOP_IMAGE_BIN
+              ) -> tuple[int, int, bytes]:
+    """A ``mono8`` image (width, height, bytes) of a POLARIZATION_OBS frame's points on the sensor (``nx`` x ``ny``
+    pixels, binned by ``binning``): each point's cell of the observation grid (half the grid's pitch in x and
+    in y) painted with its angle of polarization, -90..90 deg -> 1..255; 0 where nothing was observed."""
+    w, h = -(-nx // binning), -(-ny // binning)
+    img = bytearray(w * h)
+    pts = [(p.x_px, p.y_px, p.aop_cdeg) for p in points]
+
+    def half_pitch(values: set[int]) -> int:
+        gaps = [b - a for a, b in pairwise(sorted(values))]
+        return max(1, min(gaps) // 2) if gaps else binning
+
+    hx, hy = half_pitch({x for x, _, _ in pts}), half_pitch({y for _, y, _ in pts})
+    for x, y, aop in pts:
+        v = 1 + round((max(-9000, min(9000, aop)) + 9000) / 18000 * 254)
+        x0, x1 = max(0, (x - hx) // binning), min(w, (x + hx) // binning + 1)
+        y0, y1 = max(0, (y - hy) // binning), min(h, (y + hy) // binning + 1)
+        for row in range(y0, y1):
+            img[row * w + x0: row * w + x1] = bytes([v]) * (x1 - x0)
+    return w, h, bytes(img)
+
+
+def _gather_events(out: _Out, run_dir: Path) -> None:
+    path = run_dir / "events.jsonl"
+    if not path.exists():
+        return
+    with open(path, encoding="utf-8") as f:
+        for i, line in enumerate(f):
+            try:
+                ev = json.loads(line)
+            except json.JSONDecodeError:
+                continue
+            if not isinstance(ev, dict) or not isinstance(ev.get("t_s"), float | int):
+                continue
+            kind = str(ev.get("event", ""))
+            rest = {k: v for k, v in ev.items() if k not in ("t_s", "source", "event")}
+            level = next((lv for word, lv in _LOG_LEVEL.items() if word in kind), 2)
+            out.add("/events", "foxglove.Log", ev["t_s"],
+                    {"timestamp": _stamp(ev["t_s"]), "level": level,
+                     "message": f"{kind} {json.dumps(rest, sort_keys=True, default=str)}" if rest else kind,
+                     "name": str(ev.get("source", "")), "file": "events.jsonl", "line": i + 1})
+
+
+def _gather_summary(out: _Out, run_dir: Path) -> dict[str, Any]:
+    try:
+        summary = json.loads((run_dir / "summary.json").read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError):
+        return {}
+    t_end = summary.get("sim_duration_s") or 0.0
+    out.schemas["psns_hil.Expectation"] = {
+        "title": "psns_hil.Expectation", "type": "object",
+        "description": "One of the scenario's expectations as evaluated at the end of the run (summary.json)",
+        "properties": {"timestamp": _TIME, "index": {"type": "integer"}, "passed": {"type": "boolean"},
+                       "result": {"type": "object"}}}
+    for i, res in enumerate(summary.get("expectations") or []):
+        if isinstance(res, dict):
+            out.add("/expectations", "psns_hil.Expectation", t_end,
+                    {"timestamp": _stamp(t_end), "index": i, "passed": bool(res.get("passed")), "result": res})
+    return summary if isinstance(summary, dict) else {}
+
+
+def write_run_mcap(run_dir: Path, out_path: Path | None = None) -> McapStats:
+    """Write ``run.mcap`` (or ``out_path``) from the run directory ``run_dir`` (see module docstring)."""
+    wall0 = time.perf_counter()
+    run_dir = Path(run_dir)
+    path = Path(out_path) if out_path is not None else run_dir / MCAP_NAME
+    out = _Out()
+    enu = _gather_truth(out, run_dir)
+    _gather_nav(out, run_dir, enu)
+    _gather_table(out, run_dir / "psns.csv", "/psns/solar_vector", "psns_hil.SolarVector",
+                  "psns.csv: the solved solar vector (body, unit) against the true one, errors (deg)")
+    _gather_table(out, run_dir / "timeline.csv", "/links/counters", "psns_hil.Timeline",
+                  "timeline.csv: cumulative link counters, DSP CPU load (%) and deadline misses, 1 Hz")
+    _gather_table(out, run_dir / "filter_state.csv", "/dsp/filter_state", "psns_hil.FilterState",
+                  "filter_state.csv: firmware mode, covariance diagonal, bias estimates, 1 Hz")
+    header = _gather_capture(out, run_dir)
+    _gather_events(out, run_dir)
+    summary = _gather_summary(out, run_dir)
+    out.msgs.sort()
+    stats = McapStats(path)
+    f: IO[bytes] = open_no_follow(path, "wb")
+    with f:
+        w = Writer(f)
+        w.start(profile="", library=f"psns-hil {VERSION}")
+        schema_ids = {name: w.register_schema(name=name, encoding="jsonschema",
+                                              data=json.dumps(defn, sort_keys=True).encode())
+                      for name, defn in sorted(out.schemas.items()) if name in set(out.topic_schema.values())}
+        chan = {topic: w.register_channel(topic=topic, message_encoding="json", schema_id=schema_ids[schema])
+                for topic, schema in sorted(out.topic_schema.items())}
+        seq: dict[str, int] = {}
+        for log, _i, topic, data, pub in out.msgs:
+            n = seq.get(topic, 0)
+            seq[topic] = n + 1
+            w.add_message(chan[topic], log_time=log, data=data, publish_time=pub, sequence=n)
+        meta = {"scenario": str(summary.get("scenario", header.get("scenario", ""))),
+                "seed": str(summary.get("seed", header.get("seed", ""))),
+                "epoch_utc": str(summary.get("epoch", header.get("epoch", ""))),
+                "log_time": "scenario clock, ns since the run's start",
+                "psns_hil_version": VERSION}
+        w.add_metadata("psns-hil", meta)
+        w.finish()
+    stats.messages = seq
+    stats.wall_s = time.perf_counter() - wall0
+    return stats

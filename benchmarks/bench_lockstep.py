@@ -1,4 +1,4 @@
-"""Fast-mode real-time factor of a foreign firmware in lockstep (docs/icd-lockstep.md): the example C firmware
+"""Fast-mode real-time factor of a foreign firmware in lockstep (docs/icd.md section 10): the example C firmware
 (examples/c_firmware, psns_nav) behind the virtual DSP's UARTs, in-process (the shared library) and out-of-process
 (the lockstep program on a pipe), on its own scenario (examples/c_firmware/lockstep_lib.yaml: static, IMU and
 GNSS, 200 NAV_SOLUTION frames/s), against the same scenario with the built-in firmware in the virtual DSP.

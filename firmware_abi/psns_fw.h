@@ -1,5 +1,5 @@
 /*
- * psns_fw.h -- the lockstep firmware interface of psns-hil, version 1 (docs/icd-lockstep.md, ICD section 10).
+ * psns_fw.h -- the lockstep firmware interface of psns-hil, version 1 (docs/icd.md section 10).
  *
  * A foreign firmware (a team's C code for the C6747, built for the host) takes the virtual DSP's place behind the
  * DSP's four UARTs and its 1 MHz time base, stepped by the emulator's clock: in fast mode it runs as fast as it
@@ -8,7 +8,7 @@
  *   in-process      the firmware is a shared library exporting the functions below, loaded with ctypes
  *                   (`dsp: {external: {lockstep: {library: PATH}}}`);
  *   out-of-process  the firmware is a program in any language that reads requests on its stdin and writes replies
- *                   on its stdout, framed as in docs/icd-lockstep.md section 10.3
+ *                   on its stdout, framed as in docs/icd.md section 10.3
  *                   (`dsp: {external: {lockstep: {command: [PATH, ARGS...]}}}`).
  *
  * Order of calls: psns_fw_abi_version, psns_fw_init once, then any sequence of psns_fw_rx and psns_fw_step with

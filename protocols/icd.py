@@ -20,6 +20,7 @@ from construct import Array, BytesInteger, Const, FormatField, Renamed, Struct
 from construct import Bytes as _Bytes
 
 from . import can_nav, crc, gnss, host, imu_frame, monitor, nmea, psns, stim, ubx, ubx_cfg
+from .icd_lockstep import LOCKSTEP_TEXT
 from .icd_nmea import NMEA_PARSE_TEXT
 
 __all__ = ["LINK_BAUD", "budget_rows", "generate", "spec_rows"]
@@ -623,6 +624,9 @@ def generate() -> str:
       "next 0x00. Channels: " + ", ".join(f"{v} {k}" for k, v in monitor.MONITOR_CHANNELS.items())
       + "; direction 0 towards the DSP, 1 away from it. Record before COBS:\n")
     w(_spec_table(monitor.MONITOR_RECORD_SPEC) + "\n")
+
+    # -- Lockstep firmware interface -----------------------------------------------------------
+    w(LOCKSTEP_TEXT)
     return "\n".join(out)
 
 

@@ -288,7 +288,7 @@ class Emulator:
 
     def _build_lockstep_dsp(self, uart_dsp: dict[int, Link], rx_cfg: dict[int, UartRxConfig], events: Any
                             ) -> VirtualDsp:
-        """The virtual DSP hosting a foreign firmware in lockstep (docs/icd-lockstep.md): the same UARTs, timing
+        """The virtual DSP hosting a foreign firmware in lockstep (docs/icd.md section 10): the same UARTs, timing
         and deadline model as for the built-in firmware; the watchdog only flags (a foreign firmware is not
         restarted)."""
         assert self.loop is not None

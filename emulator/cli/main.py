@@ -162,7 +162,7 @@ def print_summary(s: dict[str, Any]) -> None:
         c.print(cyc)
         c.print(f"CPU load (worst 1 s): {d['cpu_load_pct_max']:.3f} %   deadline misses: {d['deadline_misses']}")
         lock = s.get("lockstep")
-        if lock is not None:  # a foreign firmware in lockstep (docs/icd-lockstep.md): what it did and sent
+        if lock is not None:  # a foreign firmware in lockstep (docs/icd.md section 10): what it did and sent
             c.print(escape_markup(
                 f"lockstep firmware ({lock['transport']}): {lock['steps']} steps, {lock['idle_steps']} idle, "
                 f"host frames {lock['host_frames']}, garbage bytes {lock['garbage_bytes']}, CRC errors "
@@ -237,7 +237,7 @@ def _cmd_validate(args: argparse.Namespace) -> int:
 
 
 def _check_firmware_allowed(scn: Any, allow: bool) -> None:
-    """A scenario naming a lockstep firmware (docs/icd-lockstep.md) runs only with ``--allow-firmware``, which
+    """A scenario naming a lockstep firmware (docs/icd.md section 10) runs only with ``--allow-firmware``, which
     lets this process (and nothing else) load or start it."""
     from ..dsp.lockstep import ALLOW_FIRMWARE_ENV, FirmwareNotAllowed
 
@@ -467,7 +467,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "a scenario you trust, they run any code (docs/hostile-input.md)")
     r.add_argument("--allow-firmware", action="store_true",
                    help="load the scenario's lockstep firmware library or start its firmware process "
-                        "(dsp.external.lockstep, docs/icd-lockstep.md section 10): only for a firmware you trust")
+                        "(dsp.external.lockstep, docs/icd.md section 10): only for a firmware you trust")
     r.set_defaults(func=_cmd_run)
 
     rep = sub.add_parser("report", help="write report.html (plots of errors, modes, faults, links, DSP load) "

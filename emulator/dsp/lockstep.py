@@ -1,5 +1,5 @@
 """A foreign firmware in the virtual DSP's place, stepped in lockstep with the emulator's clock
-(``dsp.external.lockstep``; the contract is docs/icd-lockstep.md, the C declaration ``firmware_abi/psns_fw.h``).
+(``dsp.external.lockstep``; the contract is docs/icd.md section 10, the C declaration ``firmware_abi/psns_fw.h``).
 
 :class:`LockstepFirmware` implements the firmware interface the virtual DSP hosts
 (:class:`firmware_model.registry.FirmwareProtocol`), so the DSP's UARTs, their FIFOs and rings, the cycles turned
@@ -58,7 +58,7 @@ __all__ = [
     "firmware_allowed",
 ]
 
-#: the interface version (docs/icd-lockstep.md section 10; ``PSNS_FW_ABI_VERSION`` in psns_fw.h)
+#: the interface version (docs/icd.md section 10; ``PSNS_FW_ABI_VERSION`` in psns_fw.h)
 ABI_VERSION = 1
 #: the four DSP UARTs
 UARTS = 4
@@ -98,7 +98,7 @@ def firmware_allowed() -> bool:
 
 
 class LockstepConfig:
-    """``psns_fw_config`` (docs/icd-lockstep.md section 10.2; units in the names)."""
+    """``psns_fw_config`` (docs/icd.md section 10.2; units in the names)."""
 
     __slots__ = ("clock_hz", "flags", "heading_deg", "height_m", "imu_rate_hz", "lat_deg", "lon_deg", "pitch_deg",
                  "roll_deg")
@@ -126,7 +126,7 @@ class LockstepConfig:
 
 
 class Transport(Protocol):
-    """What :class:`LockstepFirmware` needs of a transport (the calls of docs/icd-lockstep.md section 10.1)."""
+    """What :class:`LockstepFirmware` needs of a transport (the calls of docs/icd.md section 10.1)."""
 
     kind: str
 

@@ -1,5 +1,5 @@
 """The built-in firmware (:class:`firmware_model.Firmware`) as an out-of-process lockstep firmware: a server of
-docs/icd-lockstep.md section 10.3 on stdin/stdout.
+docs/icd.md section 10.3 on stdin/stdout.
 
     python -m emulator.dsp.lockstep_server SCENARIO [--seed N] [--set KEY=VALUE] [--perturb FIELD:AFTER:DELTA]
 

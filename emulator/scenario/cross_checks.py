@@ -277,7 +277,7 @@ def _confined_files(scn: Scenario) -> list[tuple[tuple[Any, ...], str]]:
         named.append((("sensors", "camera", "recorded", "files"), cam.recorded.files))
     ext = scn.dsp.external
     lock = ext.lockstep if ext is not None else None
-    if lock is not None:  # a foreign firmware's library or program (docs/icd-lockstep.md section 10): never loaded here
+    if lock is not None:  # a foreign firmware's library or program (docs/icd.md section 10): never loaded here
         if lock.library is not None:
             named.append((("dsp", "external", "lockstep", "library"), lock.library))
         if lock.command is not None:

@@ -189,7 +189,7 @@ class WatchdogSpec(Model):
 
 class LockstepSpec(Model):
     """A foreign firmware stepped in lockstep with the emulator's clock (``dsp.external.lockstep``; ICD section 10,
-    docs/icd-lockstep.md): in-process (``library``, a shared library with the psns_fw.h ABI) or out-of-process
+    docs/icd.md section 10): in-process (``library``, a shared library with the psns_fw.h ABI) or out-of-process
     (``command``, a program speaking the framing of section 10.3 on its stdin/stdout). Paths are relative to the
     scenario's directory and must stay inside it; nothing is loaded or started unless the run is given
     ``--allow-firmware``."""
@@ -227,7 +227,7 @@ class ExternalDspSpec(Model):
         2.0, gt=0, le=3600, description="no byte from the external DSP for this long (s, after the first IMU frame "
         "it was sent) is counted as a silence in summary.json's external_dsp section")
     lockstep: LockstepSpec | None = Field(
-        None, description="a foreign firmware in lockstep, in the virtual DSP's place (docs/icd-lockstep.md)")
+        None, description="a foreign firmware in lockstep, in the virtual DSP's place (docs/icd.md section 10)")
 
     @field_validator("uarts")
     @classmethod

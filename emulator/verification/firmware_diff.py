@@ -1,7 +1,7 @@
 """Differential testing of a foreign firmware against the reference (``psns-hil diff-firmware``).
 
 The same scenario runs twice on the same seeded world, in fast mode: once with the built-in firmware in the virtual
-DSP (the reference) and once with a foreign firmware in lockstep in its place (docs/icd-lockstep.md section 10). The two
+DSP (the reference) and once with a foreign firmware in lockstep in its place (docs/icd.md section 10). The two
 ``nav.csv`` files are compared frame by frame on what each NAV_SOLUTION says (every column from ``time_s`` up to
 ``arrival_s``: solution, sigmas, mode and status words; docs/icd.md section 7): the first differing frame with
 its fields, and per field the largest difference, the first frame it differs at and the largest difference per

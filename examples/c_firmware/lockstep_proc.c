@@ -1,6 +1,6 @@
 /*
  * psns_nav_lockstep: the example firmware (psns_nav.c) as an out-of-process lockstep firmware: the framing of
- * docs/icd-lockstep.md section 10.3 on stdin (requests) and stdout (replies); diagnostics on stderr only.
+ * docs/icd.md section 10.3 on stdin (requests) and stdout (replies); diagnostics on stderr only.
  *
  * Scenario: dsp: {external: {lockstep: {command: [build/psns_nav_lockstep]}}}, run with --allow-firmware.
  */

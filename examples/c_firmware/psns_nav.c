@@ -1,6 +1,6 @@
 /*
  * psns_nav: the example foreign firmware of psns-hil, a free-inertial strapdown navigator in C behind the lockstep
- * firmware interface (firmware_abi/psns_fw.h, docs/icd-lockstep.md section 10). One source set, three builds
+ * firmware interface (firmware_abi/psns_fw.h, docs/icd.md section 10). One source set, three builds
  * (Makefile): the lockstep shared library (libpsns_nav.so, in-process), the lockstep process (psns_nav_lockstep,
  * out-of-process, lockstep_proc.c) and the pty program (psns_nav_pty, pty_main.c: the DSP out over ptys in
  * realtime, docs/runtime.md "DSP out").
@@ -60,7 +60,7 @@
 #define SOMIGLIANA_K 0.00193185265241
 #define GEOD_M 0.00344978650684
 
-/* cycle estimate of the C674x (docs/icd-lockstep.md section 10.1): per byte through the frame decoder and CRC, per
+/* cycle estimate of the C674x (docs/icd.md section 10.1): per byte through the frame decoder and CRC, per
  * strapdown update in double precision (about 400 DP flops at ~6 cycles with the sin/cos/sqrt calls), per
  * NAV_SOLUTION encoded (fields, CRC), and the fixed cost of a step (the main loop, the UART driver) */
 #define PSNS_NAV_CYC_PER_BYTE 14u

@@ -1,5 +1,5 @@
 /*
- * faulty_firmware: a lockstep firmware process (docs/icd-lockstep.md section 10.3) that behaves for N steps and then
+ * faulty_firmware: a lockstep firmware process (docs/icd.md section 10.3) that behaves for N steps and then
  * misbehaves, for the containment tests of tests/emulator/dsp/test_lockstep_robustness.py.
  *
  * Usage: faulty_firmware MODE N

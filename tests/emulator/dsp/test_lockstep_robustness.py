@@ -1,5 +1,5 @@
 """A foreign firmware that crashes, hangs, answers garbage or floods, behind the out-of-process lockstep transport
-(docs/icd-lockstep.md section 10.1, docs/runtime.md "Lockstep"): contained, counted and reported; the run goes on with a
+(docs/icd.md section 10.1, docs/runtime.md "Lockstep"): contained, counted and reported; the run goes on with a
 silent DSP to its end and writes its run directory; ``psns-hil run`` exits 1 naming the reason.
 
 The misbehaving firmware is tests/emulator/dsp/faulty_firmware.c (built here with the C compiler): it behaves for

@@ -1,9 +1,13 @@
-# psns-hil interface control document, section 10: the lockstep firmware interface
+"""docs/icd.md section 10: the lockstep firmware interface v1 (issue 40), written by :func:`protocols.icd.generate`.
 
-This section of the interface control document ([icd.md](icd.md), sections 1-9: every frame byte by byte) is kept
-in its own file because icd.md is generated from the frame specs in `protocols/` (`python -m protocols.icd`); the
-section numbers continue icd.md's, and its references ("section 4.1", "section 7") are icd.md's sections.
+The contract between the emulator and a foreign firmware that takes the virtual DSP's place in virtual time; its
+C declaration is ``firmware_abi/psns_fw.h`` and its emulator side ``emulator/dsp/lockstep.py``.
+"""
 
+from __future__ import annotations
+
+#: docs/icd.md section 10 (the calls, the configuration block, the process framing).
+LOCKSTEP_TEXT = """\
 ## 10. Lockstep firmware interface v1 (a foreign firmware in the virtual DSP's place, in virtual time)
 
 The cut between the virtual FPGA and the virtual DSP -- the DSP's four UARTs and its 1 MHz time base -- can be
@@ -20,8 +24,10 @@ source for C; this section is its wire description). Interface version: **1** (`
 |---|---|---|---|
 | `psns_fw_abi_version()` | | u32: the version the firmware was built against | once, first; must equal 1 |
 | `psns_fw_init(config)` | `psns_fw_config` (10.2) | i32: 0 ok, < 0 fatal | once |
-| `psns_fw_rx(uart, data, n, t_us)` | u32 UART 0..3, n bytes, u64 us | i32: 0 ok, < 0 fatal | every chunk a UART's FIFO passes on, in arrival order |
-| `psns_fw_step(t_us, tx, tx_cap, tx_len[4], *cycles)` | u64 us; 4 x `tx_cap` output bytes | i32: 0 ran a tick, 1 idle, < 0 fatal | once after each IMU-frame chunk on UART1, at the instant the DSP is free |
+| `psns_fw_rx(uart, data, n, t_us)` | u32 UART 0..3, n bytes, u64 us | i32: 0 ok, < 0 fatal | every chunk a \
+UART's FIFO passes on, in arrival order |
+| `psns_fw_step(t_us, tx, tx_cap, tx_len[4], *cycles)` | u64 us; 4 x `tx_cap` output bytes | i32: 0 ran a tick, \
+1 idle, < 0 fatal | once after each IMU-frame chunk on UART1, at the instant the DSP is free |
 | `psns_fw_close()` | | | once, at the end |
 
 `t_us` is the DSP's 1 MHz time base: microseconds since the scenario's start, non-decreasing over the calls.
@@ -52,7 +58,8 @@ errors counted); a flood overflows the UART's line and TX ring and is counted th
 | 0 | 4 | u32 LE | abi_version | | 1 |
 | 4 | 4 | u32 LE | clock_hz | Hz | DSP CPU clock (`dsp.clock_hz`, 300 MHz) |
 | 8 | 4 | u32 LE | imu_rate_hz | Hz | IMU frame rate on UART1 |
-| 12 | 4 | u32 LE | flags | | bit 0: gyro words are incremental angles (2^-21 deg) rather than rates (2^-14 deg/s) |
+| 12 | 4 | u32 LE | flags | | bit 0: gyro words are incremental angles (2^-21 deg) rather than rates (2^-14 \
+deg/s) |
 | 16 | 8 | f64 LE | lat_deg | deg | initial WGS-84 latitude (scenario `origin`) |
 | 24 | 8 | f64 LE | lon_deg | deg | initial longitude |
 | 32 | 8 | f64 LE | height_m | m | initial ellipsoidal height |
@@ -68,7 +75,8 @@ Every message starts with an 8-byte header:
 
 | offset | size | type | field | meaning |
 |---|---|---|---|---|
-| 0 | 1 | u8 | type | request: `I` 0x49 init, `R` 0x52 rx, `S` 0x53 step, `Q` 0x51 quit; reply: the same letter in lower case |
+| 0 | 1 | u8 | type | request: `I` 0x49 init, `R` 0x52 rx, `S` 0x53 step, `Q` 0x51 quit; reply: the same letter \
+in lower case |
 | 1 | 1 | u8 = 0x01 | version | interface version |
 | 2 | 2 | u16 LE = 0 | reserved | |
 | 4 | 4 | u32 LE | length | payload bytes that follow (<= 1048576 in a reply) |
@@ -77,10 +85,12 @@ Every message starts with an 8-byte header:
 |---|---|---|
 | `I` init | the 64-byte config (10.2) | `i`: u32 abi_version, i32 status (8 bytes) |
 | `R` rx | u32 uart, u32 reserved 0, u64 t_us, the n bytes (16 + n) | none |
-| `S` step | u64 t_us, u32 tx_cap, u32 reserved 0 (16) | `s`: i32 status, u32 reserved 0, u64 cycles, u32 tx_len[4], then the tx_len[0] + .. + tx_len[3] bytes, UART 0 first (32 + sum) |
+| `S` step | u64 t_us, u32 tx_cap, u32 reserved 0 (16) | `s`: i32 status, u32 reserved 0, u64 cycles, u32 \
+tx_len[4], then the tx_len[0] + .. + tx_len[3] bytes, UART 0 first (32 + sum) |
 | `Q` quit | none | none: the process exits (status 0) |
 
 The emulator may write several `R` messages and one `S` in a single write; it waits for the `s` reply (no more
 than `step_timeout_s` of wall-clock time, default 10 s) before its clock goes on. Requests and replies are
 little-endian. A reply of the wrong type, version, length or size, an end of file on stdout, or a timeout is a
 failure (10.1).
+"""

@@ -360,9 +360,11 @@ def _nmea_nav_output(w: Any) -> None:
     tm, day = _dt.time(8, 14, 30), _dt.date(2019, 9, 18)
     w("### 7.1 NMEA navigation output\n")
     w("`firmware.nmea` makes the firmware write NMEA 0183 sentences of its navigation solution: on the host port "
-      "after the tick's NAV_SOLUTION frame, or alone on a second host port (`links.host_nmea`, routed to a DSP UART "
-      "with a free transmitter; a reader that sniffs binary protocols, such as gpsd, can take a NAV_SOLUTION frame "
-      "for a Trimble TSIP packet and stop reporting the NMEA fixes, so give it the second port). Position, "
+      "after the tick's NAV_SOLUTION frame, or alone on a second host port (`links.host_nmea`: routed to a DSP UART "
+      "with a free transmitter, or, without a route of its own, sharing UART0, where the FPGA splits UART0's output "
+      "frame by frame, each checked by its own CRC or checksum, binary frames to `host` and NMEA/`$PSNS` sentences to "
+      "`host_nmea`: docs/runtime.md; a reader that sniffs binary protocols, such as gpsd, can take a NAV_SOLUTION "
+      "frame for a Trimble TSIP packet and stop reporting the NMEA fixes, so give it the second port). Position, "
       "velocity and time (GGA, RMC, VTG, ZDA) at `rate_hz`, heading and attitude (HDT, THS, PASHR) at "
       "`attitude_rate_hz`, both on IMU ticks (the rates divide the IMU rate). In a tick with both, the heading "
       "group comes first: gpsd ends its reporting cycle at the last timed sentence of a burst. Nothing before GNSS "

@@ -178,7 +178,7 @@ def print_summary(s: dict[str, Any]) -> None:
             na = r.get("applicable") is False
             note = f" ({r['message']})" if r.get("message") and (na or not r["passed"]) else ""
             ex.add_row(str(r["index"]), escape_markup(r["description"] + note), escape_markup(_fmt(r["value"])),
-                       "[dim]n/a[/]" if na else "[green]pass[/]" if r["passed"] else "[bold red]FAIL[/]")
+                       "[dim]not applied[/]" if na else "[green]pass[/]" if r["passed"] else "[bold red]FAIL[/]")
         c.print(ex)
     if s.get("valid") is False:
         for f in s.get("faults", []):

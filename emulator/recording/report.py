@@ -751,7 +751,7 @@ def write_report(run_dir: str | Path) -> Path:
     if summary.get("expectations"):
         parts.append("<h2>Expectations</h2>")
         parts.append(_table([[e["index"], e["description"], e["value"], e.get("message", ""),
-                              "pass" if e["passed"] else "FAIL"]
+                              "not applied" if e.get("applicable") is False else "pass" if e["passed"] else "FAIL"]
                              for e in summary["expectations"]], ["#", "check", "value", "note", "result"]))
     parts.append("<h2>Links</h2>")
     parts.append(_table([[k, v.get("bytes"), v.get("frames"), v.get("crc_errors"), v.get("dropped"),

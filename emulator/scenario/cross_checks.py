@@ -28,6 +28,17 @@ def link_names(scn: Scenario) -> list[str]:
     return [*names, "uart0", "uart1", "uart2", "uart3"]
 
 
+def has_heading_source(scn: Scenario) -> bool:
+    """The scenario carries a heading source the firmware can keep heading from: a polarization camera or a
+    multi-unit compass on the ``psns`` link (the groups of a consistency check then include ``heading``)."""
+    sensors = scn.sensors
+    if "psns" not in link_names(scn):
+        return False
+    compass = sensors.compass is not None and sensors.compass.enabled
+    camera = (sensors.camera is not None and sensors.camera.enabled) or (sensors.camera is None and not compass)
+    return bool(camera or compass)
+
+
 def cross_check(scn: Scenario, environment: bool = True) -> list[tuple[tuple[Any, ...], str]]:
     """Problems that involve several sections; each ``(field path, message)``. Empty when all is well.
 

@@ -424,9 +424,10 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--json", action="store_true", help="print the summary as JSON")
     rp.set_defaults(func=_cmd_replay)
 
-    from . import campaign, golden
+    from . import campaign, golden, sweep
 
     campaign.add_parser(sub).set_defaults(func=campaign.run)
+    sweep.add_parser(sub).set_defaults(func=sweep.run)
     golden.add_parser(sub).set_defaults(func=golden.run)
     return p
 

@@ -199,12 +199,16 @@ def consistency_table(c: dict[str, Any]) -> Any:
             return "[bold red]not applied[/]" if d.get("asked") else "[dim]not applied[/]"
         if status == "FAIL":
             return "[bold red]FAIL[/]" if d.get("asked") else "[yellow]outside[/]"
+        if d.get("conservative"):  # under the lower bound, passed one-sided (upper_only)
+            return "[green]pass[/] (conservative)"
         return "[green]pass[/]" if d.get("asked") else "inside"
 
     for g, d in c.get("groups", {}).items():
         share = "-" if d.get("share_inside") is None else f"{100 * d['share_inside']:.0f} %"
-        t.add_row(f"NEES {g}", str(d["dof"]), num(d["mean_nees"]), num(d["lower"]), num(d["upper"]), share,
-                  "asked" if d.get("asked") else "[dim]informative[/]", result(d))
+        role = ("asked, upper bound only" if d.get("upper_only") else "asked") if d.get("asked") else \
+            "[dim]informative[/]"
+        t.add_row(f"NEES {g}", str(d["dof"]), num(d["mean_nees"]), num(d["lower"]), num(d["upper"]), share, role,
+                  result(d))
     for m, d in c.get("measurements", {}).items():
         t.add_row(f"NIS {m}", str(d["rows"]), num(d["mean_nis"]), num(d["lower"]), num(d["upper"]), "-",
                   "asked" if d.get("asked") else "[dim]informative[/]", result(d))

@@ -69,6 +69,10 @@ class ConsistencyExpectation(Model):
     measurements: list[str] = Field(
         default_factory=list, description="measurement types: gnss_position, gnss_velocity, solar_vector, compass")
     after_s: float = Field(0.0, ge=0, description="evaluate from this scenario time on, s")
+    upper_only: list[str] = Field(
+        default_factory=list,
+        description="state groups checked against the upper bound only (not overconfident): a sigma wide by design "
+                    "where the firmware cannot know its world (docs/spec-sheet.md); how conservative is reported")
     include_heading: bool = Field(
         True, description="add the 1-dof heading group when the scenario has a heading source (camera or compass); "
                           "false: only the groups listed")
@@ -79,6 +83,9 @@ class ConsistencyExpectation(Model):
         if bad:
             raise ValueError(f"unknown state group(s) {bad}: the filter's groups with truth are {list(STATE_GROUPS)} "
                              "(the biases have no truth to compare with)")
+        badu = [g for g in self.upper_only if g not in STATE_GROUPS]
+        if badu:
+            raise ValueError(f"upper_only: unknown state group(s) {badu}: known {list(STATE_GROUPS)}")
         badm = [m for m in self.measurements if m not in MEASUREMENT_TYPES]
         if badm:
             raise ValueError(f"unknown measurement type(s) {badm}: known {list(MEASUREMENT_TYPES)}")

@@ -130,14 +130,16 @@ def _status(passed: bool | None) -> str:
 
 
 def campaign_consistency(members: list[dict[str, Any]], confidence: float = 0.95,
-                         groups: list[str] | None = None, measurements: list[str] | None = None) -> dict[str, Any]:
+                         groups: list[str] | None = None, measurements: list[str] | None = None,
+                         upper_only: list[str] | None = None) -> dict[str, Any]:
     """Average NEES per group and NIS per measurement type over the members (``member_consistency`` results).
 
     Every state group and measurement type is evaluated and shown; only the *asked* ones (``groups``, default
     :data:`~emulator.scenario.consistency_schema.DEFAULT_GROUPS`; ``measurements``, default none) decide
     ``passed``: the others carry ``"asked": False`` and are informative (issue 38). Each entry's ``status`` is
     ``pass``, ``FAIL`` or ``not applied`` (no samples / no rows: never counted as a pass; an asked check that was
-    not applied fails the campaign, ``not_applied`` lists it).
+    not applied fails the campaign, ``not_applied`` lists it). A group in ``upper_only`` passes whenever its average
+    NEES is under the upper bound (not overconfident); below the lower bound it is marked ``conservative``.
 
     Sample times are aligned by their index (members of one scenario navigate on the same schedule); a group passes
     when its time-averaged NEES lies inside the two-sided bounds for the number of runs. Also reported: the share of
@@ -160,11 +162,13 @@ def campaign_consistency(members: list[dict[str, Any]], confidence: float = 0.95
         avg_t = arr.mean(axis=0)
         lo, hi = chi2_bounds(runs, dof, confidence)
         mean = float(avg_t.mean())
-        ok = bool(lo <= mean <= hi)
+        one_sided = g in (upper_only or [])
+        ok = bool(mean <= hi) if one_sided else bool(lo <= mean <= hi)
         out["groups"][g] = {
             "dof": dof, "mean_nees": mean, "lower": lo, "upper": hi,
             "share_inside": float(np.mean((avg_t >= lo) & (avg_t <= hi))),
-            "passed": ok, "status": _status(ok), "asked": g in asked_g,
+            "passed": ok, "status": _status(ok), "asked": g in asked_g, "upper_only": one_sided,
+            "conservative": bool(mean < lo),
             "series": [round(float(v), 4) for v in avg_t],
         }
     shares = [m["heading_in_3sigma"] for m in members if m.get("heading_in_3sigma") is not None]

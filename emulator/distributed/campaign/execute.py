@@ -214,7 +214,8 @@ def run_campaign(cfg: CampaignConfig, progress: Callable[[dict[str, Any], int, i
         from .consistency import campaign_consistency
 
         result.consistency = campaign_consistency([r.get("consistency") or {} for r in rows if r.get("ok")],
-                                                  spec["confidence"], spec["groups"], spec["measurements"])
+                                                  spec["confidence"], spec["groups"], spec["measurements"],
+                                                  spec["upper_only"])
         result.consistency["scenario"] = scn.name
         (out / "consistency.json").write_text(json.dumps(result.consistency, indent=1) + "\n", encoding="utf-8")
     write_outputs(result, cfg.plots)
@@ -237,6 +238,6 @@ def consistency_spec(scn: Any, groups: list[str] | None = None, measurements: li
         if c is not None:
             return {"groups": asked_groups(groups or c.groups, heading, c.include_heading),
                     "measurements": list(c.measurements if measurements is None else measurements),
-                    "confidence": c.confidence, "after_s": c.after_s}
+                    "confidence": c.confidence, "after_s": c.after_s, "upper_only": list(c.upper_only)}
     return {"groups": asked_groups(groups, heading), "measurements": list(measurements or []),
-            "confidence": 0.95, "after_s": 0.0}
+            "confidence": 0.95, "after_s": 0.0, "upper_only": []}

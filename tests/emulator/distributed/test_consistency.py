@@ -5,6 +5,7 @@ error twice the sigma comes out at four times it and fails."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -186,8 +187,6 @@ def test_a_campaign_level_expectation_is_not_applied_in_the_members(tmp_path):
 
 
 def test_heading_is_asked_by_default_wherever_the_scenario_has_a_heading_source():
-    from pathlib import Path
-
     from emulator.distributed.campaign.execute import consistency_spec
     from emulator.scenario import load_scenario
 
@@ -200,3 +199,25 @@ def test_heading_is_asked_by_default_wherever_the_scenario_has_a_heading_source(
     assert "heading" not in consistency_spec(no_cam)["groups"]
     off = load_scenario(root / "quickstart.yaml", ["expectations.3.consistency.include_heading=false"])
     assert consistency_spec(off)["groups"] == ["attitude", "velocity", "position"]
+
+
+def test_an_upper_only_group_passes_conservative_and_fails_overconfident(tmp_path):
+    # errors at half the sigmas: NEES 1/4 of the dof, under the lower bound
+    half = _members(tmp_path, 0.5)
+    two = campaign_consistency(half, groups=["heading"])
+    assert not two["passed"] and two["groups"]["heading"]["conservative"]
+    one = campaign_consistency(half, groups=["heading"], upper_only=["heading"])
+    d = one["groups"]["heading"]
+    assert one["passed"] and d["passed"] and d["conservative"] and d["upper_only"]
+    # twice the sigmas: overconfident, fails either way
+    over = campaign_consistency(_members(tmp_path / "o", 2.0), groups=["heading"], upper_only=["heading"])
+    assert not over["passed"] and not over["groups"]["heading"]["conservative"]
+
+
+def test_upper_only_names_known_groups(tmp_path):
+    from emulator.errors import ScenarioError
+    from emulator.scenario import load_scenario
+
+    root = Path(__file__).resolve().parents[3] / "scenarios"
+    with pytest.raises(ScenarioError, match="upper_only"):
+        load_scenario(root / "quickstart.yaml", ["expectations.3.consistency.upper_only=[bias]"])

@@ -23,6 +23,7 @@ import csv
 import datetime as _dt
 import json
 import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -41,7 +42,9 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     s.add_argument("scenario", help="scenario YAML file")
     s.add_argument("--param", required=True, metavar="KEY",
                    help="the scenario key to sweep (dotted, as psns-hil run --set), e.g. sky.neutral_point_sep_deg")
-    s.add_argument("--values", required=True, metavar="V,V,...", help="the values, in sweep order, e.g. 20,30,40,50,60")
+    s.add_argument("--values", required=True, metavar="V,V,...",
+                   help="the values, in sweep order, e.g. 20,30,40,50,60; separated by ';' when a value is a list, "
+                        "e.g. '[3.6,3.6,3.6];[7.2,7.2,7.2]'")
     s.add_argument("--seeds", default="301-310", metavar="A-B|A,B,...",
                    help="run seeds of every value's members (default 301-310, seeds the library never uses)")
     s.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
@@ -60,12 +63,15 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
 
 
 def parse_values(text: str) -> list[Any]:
-    """``"20,30,40"`` -> ``[20, 30, 40]`` (each read as YAML, as ``--set`` does); CampaignError when empty."""
+    """``"20,30,40"`` -> ``[20, 30, 40]`` (each read as YAML, as ``--set`` does); with a ``;`` anywhere the values
+    are split on ``;`` instead, so that a value may be a list (``"[3.6,3.6,3.6];[7.2,7.2,7.2]"``); CampaignError when
+    empty."""
     import yaml
 
     from ..distributed.campaign import CampaignError
 
-    vals = [yaml.safe_load(v.strip()) for v in text.split(",") if v.strip()]
+    sep = ";" if ";" in text else ","
+    vals = [yaml.safe_load(v.strip()) for v in text.split(sep) if v.strip()]
     if not vals:
         raise CampaignError("--values: give at least one value")
     return vals
@@ -118,8 +124,15 @@ def _plot(rows: list[dict[str, Any]], bnd: dict[str, Any], path: Path, title: st
     import matplotlib.pyplot as plt
 
     xs = list(range(len(rows)))
-    numeric = all(isinstance(r["value"], (int, float)) and not isinstance(r["value"], bool) for r in rows)
-    x = [float(r["value"]) for r in rows] if numeric else xs
+
+    def scalar(v: Any) -> float | None:
+        if isinstance(v, list) and v and all(isinstance(e, (int, float)) for e in v) and len(set(v)) == 1:
+            v = v[0]  # a vector of equal components (a per-axis figure): plot its value
+        return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else None
+
+    sx = [scalar(r["value"]) for r in rows]
+    numeric = all(v is not None for v in sx)
+    x = [float(v) for v in sx if v is not None] if numeric else [float(i) for i in xs]
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
     for m in ERROR_METRICS:
         ys = [r.get(m) for r in rows]
@@ -191,7 +204,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         for i, v in enumerate(values):
             cfg = CampaignConfig(scenario=Path(args.scenario), runs=len(seeds), seeds=seeds, scheduler=args.scheduler,
-                                 workers=args.workers, out_dir=out / f"{i:02d}-{v}", plots=False, consistency=True,
+                                 workers=args.workers, out_dir=out / f"{i:02d}-{re.sub(r'[^A-Za-z0-9._-]+', '_', str(v)).strip('_')}", plots=False, consistency=True,
                                  consistency_after_s=args.after_s, consistency_groups=groups,
                                  overrides=[*args.set, f"{args.param}={v}"])
             res = run_campaign(cfg, client=client)

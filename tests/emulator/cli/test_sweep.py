@@ -43,6 +43,7 @@ def test_the_boundary_is_the_first_value_above_the_upper_bound_of_an_asked_group
 
 def test_values_are_read_as_yaml():
     assert sweep.parse_values("20, 30.5,urban") == [20, 30.5, "urban"]
+    assert sweep.parse_values("[3.6,3.6,3.6];[7.2,7.2,7.2]") == [[3.6] * 3, [7.2] * 3]
     from emulator.distributed.campaign import CampaignError
 
     with pytest.raises(CampaignError):

@@ -169,6 +169,10 @@ def _plot(rows: list[dict[str, Any]], bnd: dict[str, Any], path: Path, title: st
     plt.close(fig)
 
 
+def _dir_name(v: Any) -> str:
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", str(v)).strip("_") or "value"
+
+
 def _num(v: Any) -> str:
     return "-" if v is None else f"{v:.3g}"
 
@@ -204,7 +208,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         for i, v in enumerate(values):
             cfg = CampaignConfig(scenario=Path(args.scenario), runs=len(seeds), seeds=seeds, scheduler=args.scheduler,
-                                 workers=args.workers, out_dir=out / f"{i:02d}-{re.sub(r'[^A-Za-z0-9._-]+', '_', str(v)).strip('_')}", plots=False, consistency=True,
+                                 workers=args.workers, out_dir=out / f"{i:02d}-{_dir_name(v)}", plots=False,
+                                 consistency=True,
                                  consistency_after_s=args.after_s, consistency_groups=groups,
                                  overrides=[*args.set, f"{args.param}={v}"])
             res = run_campaign(cfg, client=client)

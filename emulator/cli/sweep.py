@@ -155,7 +155,7 @@ def _plot(rows: list[dict[str, Any]], bnd: dict[str, Any], path: Path, title: st
         for ax in (ax1, ax2):
             ax.axvline(x[i], color="r", lw=1.5, alpha=0.7)
         ax2.annotate(f"sigma stops holding at {bnd['asked']}", (x[i], ax2.get_ylim()[1]), color="r",
-                     fontsize=9, ha="left", va="top")
+                     fontsize=9, ha="right", va="top")
     ax2.set_yscale("log")
     ax2.set_ylabel("average NEES per dof (dashed: upper bound)")
     ax2.grid(True, alpha=0.3, which="both")

@@ -32,7 +32,10 @@ package does no file I/O. :meth:`SensorSpecSheet.config_fields` derives the filt
   the sun-elevation variant's Sage-Husa filter takes its nominal R (D-5.19,
   :func:`firmware_model.variants.sun_elevation.elevation_noise_variance`).
 
-Every figure is 1 sigma per axis unless its name says 95 %.
+Every figure is 1 sigma per axis unless its name says 95 %. A sheet's ``sources`` mapping (``"section.key"`` -> the
+published source of that figure, starting with its kind: ``datasheet:``, ``paper:``, ``standard:``, ``textbook:``
+or ``assumed:``) says where each figure comes from; the bundled sheets carry one for every figure and none cites the
+emulator's own output (issue 36; tests/firmware_model/test_spec_sheet_sources.py, docs/spec-sheet.md).
 """
 
 from __future__ import annotations
@@ -143,6 +146,8 @@ class SensorSpecSheet:
     gnss: GnssSpec = field(default_factory=GnssSpec)
     psns: PsnsSpec = field(default_factory=PsnsSpec)
     compass: CompassSpec = field(default_factory=CompassSpec)
+    #: ``"section.key"`` -> where that figure comes from (module docstring); empty for a sheet that gives none
+    sources: dict[str, str] = field(default_factory=dict)
 
     @classmethod
     def from_dict(cls, data: Any, source: str = "<spec sheet>") -> SensorSpecSheet:
@@ -152,7 +157,7 @@ class SensorSpecSheet:
             raise SpecSheetError(f"{source}: a spec sheet is a mapping of sections")
         sections = {"gyro": GyroSpec, "accel": AccelSpec, "gnss": GnssSpec, "psns": PsnsSpec,
                     "compass": CompassSpec}
-        extra = set(data) - set(sections) - {"name", "description"}
+        extra = set(data) - set(sections) - {"name", "description", "sources"}
         if extra:
             raise SpecSheetError(f"{source}: unknown sections {sorted(extra)}")
         parts: dict[str, Any] = {}
@@ -176,7 +181,16 @@ class SensorSpecSheet:
                 raise SpecSheetError(f"{source}: {key}: the correlation time must be > 0 s")
         if parts["compass"].aop_dop_ref <= 0:
             raise SpecSheetError(f"{source}: compass.aop_dop_ref: the DOP of the AOP figure must be > 0")
-        return cls(name=str(data.get("name", "unnamed")), **parts)
+        sources = data.get("sources", {}) or {}
+        if not isinstance(sources, dict):
+            raise SpecSheetError(f"{source}: sources: a mapping of 'section.key' to the figure's source")
+        known_keys = {f"{sec}.{f.name}" for sec, typ in sections.items() for f in fields(typ)}
+        for k, v in sources.items():
+            if k not in known_keys:
+                raise SpecSheetError(f"{source}: sources: {k!r} is not a figure of the sheet")
+            if not isinstance(v, str) or not v.strip():
+                raise SpecSheetError(f"{source}: sources.{k}: a non-empty text")
+        return cls(name=str(data.get("name", "unnamed")), **parts, sources={str(k): str(v) for k, v in sources.items()})
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

@@ -220,9 +220,11 @@ class SeedsItem(_Item):
                 shutil.rmtree(base, ignore_errors=True)
         for c, mem in zip(demands, members, strict=True):
             from emulator.distributed.campaign.consistency import campaign_consistency
+            from emulator.distributed.campaign.execute import consistency_spec
 
-            res = campaign_consistency(mem, c.confidence, c.groups, c.measurements)
-            demanded = [("groups", g, "mean_nees") for g in c.groups]
+            spec = consistency_spec(scn)  # the asked groups: heading added wherever the scenario has a heading source
+            res = campaign_consistency(mem, c.confidence, spec["groups"], c.measurements, spec["upper_only"])
+            demanded = [("groups", g, "mean_nees") for g in spec["groups"]]
             demanded += [("measurements", m, "mean_nis") for m in c.measurements]
             for kind, name, key in demanded:
                 d = res[kind][name]

@@ -1,7 +1,13 @@
 """``psns-hil campaign``: a Monte-Carlo campaign of a scenario on a Dask cluster (:mod:`emulator.distributed.campaign`).
 
 Prints a progress bar, the error statistics over the completed members, the expectation pass rates and every
-failed member; exit code 0 when every member completed and passed, 1 otherwise, 2 for bad input.
+failed member; exit code 0 when every member completed and passed (and, with ``--consistency``, every state group and
+measurement type *asked for* lies inside its chi-square bounds), 1 otherwise, 2 for bad input. The consistency
+groups asked for are the command line's (``--groups`` / ``--measurements``), else the scenario's ``consistency:``
+expectation's, else attitude, velocity and position, with ``heading`` added wherever the scenario has a heading
+source; every other group and measurement type is shown, marked *informative*, and does not decide the exit code. A
+check that could not be applied (no samples, no rows, a campaign-level expectation inside one member) is shown as
+*not applied*, never as a pass.
 """
 
 from __future__ import annotations
@@ -12,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from ..distributed.campaign import CampaignConfig, CampaignError, parse_vary, run_campaign
+from ..scenario.consistency_schema import MEASUREMENT_TYPES, STATE_GROUPS
 
 __all__ = ["add_parser", "run"]
 
@@ -49,6 +56,16 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
                    help="filter consistency: average NEES per state group and NIS per measurement type against the "
                         "two-sided chi-square bounds for N runs; writes consistency.json (the scenario's consistency: "
                         "expectation chooses groups and confidence, default all at 95 %%)")
+    c.add_argument("--groups", default=None, metavar="G,G,...",
+                   help="state groups that decide the exit code (attitude, heading, velocity, position, "
+                        "horizontal_position); default: the scenario's consistency: expectation, else attitude, "
+                        "velocity, position (+ heading with a camera or compass)")
+    c.add_argument("--measurements", default=None, metavar="M,M,...",
+                   help="measurement types whose NIS decides the exit code (gnss_position, gnss_velocity, "
+                        "solar_vector, compass; 'none' for none); default: the expectation's, else none")
+    c.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scenario key in every member (as psns-hil run --set), e.g. "
+                        "sky.neutral_point_sep_deg=60")
     c.add_argument("--after-s", type=float, default=None, metavar="S",
                    help="consistency from this scenario time on (default: the consistency: expectation's, else 0)")
     c.add_argument("--allow-hooks", action="store_true",
@@ -64,6 +81,9 @@ def run(args: argparse.Namespace) -> int:
 
     if args.workers < 1:
         raise CampaignError("--workers must be >= 1")
+    groups = parse_names(args.groups, "--groups", STATE_GROUPS) if args.groups else None
+    measurements = parse_names(args.measurements, "--measurements", MEASUREMENT_TYPES) \
+        if args.measurements is not None else None
     seeds = parse_seeds(args.seeds) if args.seeds else None
     runs = args.runs if args.runs is not None else (len(seeds) if seeds else None)
     if runs is None:
@@ -73,7 +93,8 @@ def run(args: argparse.Namespace) -> int:
                          workers=args.workers, out_dir=Path(args.out) if args.out else None,
                          keep_all=args.keep_all, plots=not args.no_plots, dashboard=args.dashboard,
                          consistency=args.consistency, consistency_after_s=args.after_s, envelope=args.envelope,
-                         envelope_groups=args.envelope_groups.split(",") if args.envelope_groups else None)
+                         envelope_groups=args.envelope_groups.split(",") if args.envelope_groups else None,
+                         consistency_groups=groups, consistency_measurements=measurements, overrides=list(args.set))
     if args.allow_hooks:  # before the cluster exists: its worker processes inherit the setting
         import os
 
@@ -115,6 +136,12 @@ def run(args: argparse.Namespace) -> int:
             for col in ("#", "check", "passed", "pass rate"):
                 e.add_column(col)
             for d in st["expectations"]:
+                if not d["runs"]:  # applied in no member: a campaign-level check (consistency, below)
+                    verdict = "not applied in the members"
+                    if "consistency" in d["description"] and res.consistency is not None:
+                        verdict += " (campaign: " + ("pass" if res.consistency.get("passed") else "FAIL") + ")"
+                    e.add_row(str(d["index"]), d["description"], verdict, "-")
+                    continue
                 e.add_row(str(d["index"]), d["description"], f"{d['passed']}/{d['runs']}",
                           f"{100 * d['pass_rate']:.1f} %" if d["pass_rate"] is not None else "-")
             console.print(e)
@@ -126,6 +153,17 @@ def run(args: argparse.Namespace) -> int:
             console.print(consistency_table(res.consistency))
     consistent = res.consistency is None or bool(res.consistency.get("passed"))
     return 0 if res.all_passed and consistent else 1
+
+
+def parse_names(text: str, option: str, known: Any) -> list[str]:
+    """``"a,b"`` -> ``["a", "b"]``, each one of ``known``; ``"none"`` -> ``[]``; CampaignError otherwise."""
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    if names == ["none"]:
+        return []
+    bad = [n for n in names if n not in known]
+    if bad or not names:
+        raise CampaignError(f"{option}: unknown {bad or text!r}; known: {', '.join(known)}")
+    return names
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -149,25 +187,49 @@ def parse_seeds(text: str) -> list[int]:
 
 
 def consistency_table(c: dict[str, Any]) -> Any:
-    """The consistency check as a rich table: NEES per state group, NIS per measurement type, bounds, pass/fail."""
+    """The consistency check as a rich table: NEES per state group, NIS per measurement type, bounds, and whether
+    each row decides the result (asked for) or is informative; a row without samples reads *not applied*."""
     from rich.table import Table
 
-    t = Table(title=f"consistency over {c['runs']} runs ({100 * c['confidence']:.0f} % two-sided chi-square bounds)",
+    t = Table(title=f"consistency over {c['runs']} runs ({100 * c['confidence']:.0f} % two-sided chi-square bounds): "
+                    + ("pass" if c.get("passed") else "FAIL") + " (the asked rows decide)",
               title_justify="left")
-    for col in ("quantity", "dof / rows", "average", "lower", "upper", "inside (share of times)", "result"):
+    for col in ("quantity", "dof / rows", "average", "lower", "upper", "inside (share of times)", "role", "result"):
         t.add_column(col, justify="left" if col == "quantity" else "right", no_wrap=True)
+
+    def num(v: Any) -> str:
+        return "-" if v is None else f"{v:.3g}"
+
+    def result(d: dict[str, Any]) -> str:
+        status = d.get("status") or ("not applied" if d.get("passed") is None else "pass" if d["passed"] else "FAIL")
+        if status == "not applied":
+            return "[bold red]not applied[/]" if d.get("asked") else "[dim]not applied[/]"
+        if status == "FAIL":
+            return "[bold red]FAIL[/]" if d.get("asked") else "[yellow]outside[/]"
+        if d.get("conservative"):  # under the lower bound, passed one-sided (upper_only)
+            return "[green]pass[/] (conservative)"
+        return "[green]pass[/]" if d.get("asked") else "inside"
+
     for g, d in c.get("groups", {}).items():
-        share = "-" if d["share_inside"] is None else f"{100 * d['share_inside']:.0f} %"
-        t.add_row(f"NEES {g}", str(d["dof"]), f"{d['mean_nees']:.3g}", f"{d['lower']:.3g}", f"{d['upper']:.3g}",
-                  share, "pass" if d["passed"] else "FAIL")
+        share = "-" if d.get("share_inside") is None else f"{100 * d['share_inside']:.0f} %"
+        role = ("asked, upper bound only" if d.get("upper_only") else "asked") if d.get("asked") else \
+            "[dim]informative[/]"
+        t.add_row(f"NEES {g}", str(d["dof"]), num(d["mean_nees"]), num(d["lower"]), num(d["upper"]), share, role,
+                  result(d))
     for m, d in c.get("measurements", {}).items():
-        if d["passed"] is None:
-            t.add_row(f"NIS {m}", "0", "-", "-", "-", "-", "no rows")
-            continue
-        t.add_row(f"NIS {m}", str(d["rows"]), f"{d['mean_nis']:.3g}", f"{d['lower']:.3g}", f"{d['upper']:.3g}", "-",
-                  "pass" if d["passed"] else "FAIL")
+        t.add_row(f"NIS {m}", str(d["rows"]), num(d["mean_nis"]), num(d["lower"]), num(d["upper"]), "-",
+                  "asked" if d.get("asked") else "[dim]informative[/]", result(d))
+    cap = []
     h = c.get("heading_in_3sigma") or {}
     if h.get("mean") is not None:
-        t.caption = (f"heading error inside 3 sigma: {100 * h['mean']:.1f} % of navigating frames on average "
-                     f"(worst run {100 * h['min']:.1f} %)")
+        cap.append(f"heading error inside 3 sigma: {100 * h['mean']:.1f} % of navigating frames on average "
+                   f"(worst run {100 * h['min']:.1f} %)")
+    he = c.get("heading_error") or {}
+    if he.get("mean_deg") is not None:
+        cap.append(f"mean heading error {he['mean_deg']:+.3f} deg (positive in {he['positive_runs']}/{he['runs']} "
+                   f"runs) against a mean heading sigma of {he['sigma_mean_deg']:.3f} deg")
+    if c.get("not_applied"):
+        cap.append(f"asked but not applied (no samples or rows): {', '.join(c['not_applied'])}")
+    if cap:
+        t.caption = "; ".join(cap)
     return t

@@ -206,7 +206,7 @@ def print_summary(s: dict[str, Any]) -> None:
             not_run = r.get("status") == "not_run"
             note = f" ({r['message']})" if r.get("message") and (na or not r["passed"]) else ""
             ex.add_row(str(r["index"]), escape_markup(r["description"] + note), escape_markup(_fmt(r["value"])),
-                       "[yellow]not run[/]" if not_run else "[dim]n/a[/]" if na else
+                       "[yellow]not run[/]" if not_run else "[dim]not applied[/]" if na else
                        "[green]pass[/]" if r["passed"] else "[bold red]FAIL[/]")
         c.print(ex)
         skipped = [r for r in s["expectations"] if r.get("status") == "not_run"]
@@ -513,9 +513,10 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--json", action="store_true", help="print the summary as JSON")
     rp.set_defaults(func=_cmd_replay)
 
-    from . import campaign, diff_firmware, golden
+    from . import campaign, diff_firmware, golden, sweep
 
     campaign.add_parser(sub).set_defaults(func=campaign.run)
+    sweep.add_parser(sub).set_defaults(func=sweep.run)
     golden.add_parser(sub).set_defaults(func=golden.run)
     diff_firmware.add_parser(sub).set_defaults(func=diff_firmware.run)
     export.add_parser(sub).set_defaults(func=export.run)

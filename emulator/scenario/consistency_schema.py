@@ -16,12 +16,27 @@ from pydantic import Field, model_validator
 
 from .base import Model
 
-__all__ = ["MEASUREMENT_TYPES", "STATE_GROUPS", "ConsistencyExpectation", "chi2_bounds", "min_runs"]
+__all__ = ["DEFAULT_GROUPS", "MEASUREMENT_TYPES", "STATE_GROUPS", "ConsistencyExpectation", "asked_groups",
+           "chi2_bounds", "min_runs"]
 
 #: state group -> number of components (degrees of freedom of one sample); the groups with truth in truth.csv
 STATE_GROUPS: dict[str, int] = {"attitude": 3, "heading": 1, "velocity": 3, "position": 3, "horizontal_position": 2}
 #: measurement types whose innovation statistics the firmware reports (summary ``firmware.innovation``)
 MEASUREMENT_TYPES = ("gnss_position", "gnss_velocity", "solar_vector", "compass")
+#: the state groups a check asks for when neither the scenario nor the command line names any (``heading`` is added
+#: wherever the scenario has a heading source, :func:`asked_groups`)
+DEFAULT_GROUPS = ("attitude", "velocity", "position")
+
+
+def asked_groups(groups: list[str] | tuple[str, ...] | None, heading_source: bool, include_heading: bool = True
+                 ) -> list[str]:
+    """The state groups that decide a consistency check: ``groups`` (default :data:`DEFAULT_GROUPS`) plus the 1-dof
+    ``heading`` group when the scenario has a heading source (a polarization camera or compass) and
+    ``include_heading`` is not switched off (issue 36: a heading the filter keeps from the sky is certified too)."""
+    out = list(groups) if groups else list(DEFAULT_GROUPS)
+    if heading_source and include_heading and "heading" not in out:
+        out.append("heading")
+    return out
 
 
 def chi2_bounds(runs: int, dof: int, confidence: float = 0.95) -> tuple[float, float]:
@@ -54,6 +69,13 @@ class ConsistencyExpectation(Model):
     measurements: list[str] = Field(
         default_factory=list, description="measurement types: gnss_position, gnss_velocity, solar_vector, compass")
     after_s: float = Field(0.0, ge=0, description="evaluate from this scenario time on, s")
+    upper_only: list[str] = Field(
+        default_factory=list,
+        description="state groups checked against the upper bound only (not overconfident): a sigma wide by design "
+                    "where the firmware cannot know its world (docs/spec-sheet.md); how conservative is reported")
+    include_heading: bool = Field(
+        True, description="add the 1-dof heading group when the scenario has a heading source (camera or compass); "
+                          "false: only the groups listed")
 
     @model_validator(mode="after")
     def _check(self) -> ConsistencyExpectation:
@@ -61,6 +83,9 @@ class ConsistencyExpectation(Model):
         if bad:
             raise ValueError(f"unknown state group(s) {bad}: the filter's groups with truth are {list(STATE_GROUPS)} "
                              "(the biases have no truth to compare with)")
+        badu = [g for g in self.upper_only if g not in STATE_GROUPS]
+        if badu:
+            raise ValueError(f"upper_only: unknown state group(s) {badu}: known {list(STATE_GROUPS)}")
         badm = [m for m in self.measurements if m not in MEASUREMENT_TYPES]
         if badm:
             raise ValueError(f"unknown measurement type(s) {badm}: known {list(MEASUREMENT_TYPES)}")

@@ -28,6 +28,17 @@ def link_names(scn: Scenario) -> list[str]:
     return [*names, "uart0", "uart1", "uart2", "uart3"]
 
 
+def has_heading_source(scn: Scenario) -> bool:
+    """The scenario carries a heading source the firmware can keep heading from: a polarization camera or a
+    multi-unit compass on the ``psns`` link (the groups of a consistency check then include ``heading``)."""
+    sensors = scn.sensors
+    if "psns" not in link_names(scn):
+        return False
+    compass = sensors.compass is not None and sensors.compass.enabled
+    camera = (sensors.camera is not None and sensors.camera.enabled) or (sensors.camera is None and not compass)
+    return bool(camera or compass)
+
+
 def cross_check(scn: Scenario, environment: bool = True) -> list[tuple[tuple[Any, ...], str]]:
     """Problems that involve several sections; each ``(field path, message)``. Empty when all is well.
 
@@ -85,6 +96,17 @@ def cross_check(scn: Scenario, environment: bool = True) -> list[tuple[tuple[Any
         loc = ("expectations", i, kind)
         if kind == "link" and body.name not in links:
             issues.append(((*loc, "name"), _unknown_link(body.name, links)))
+        if kind == "consistency":
+            from .consistency_schema import STATE_GROUPS, asked_groups, min_runs
+
+            groups = asked_groups(body.groups, has_heading_source(scn), body.include_heading)
+            dof = 1 if body.measurements else min(STATE_GROUPS[g] for g in groups)
+            need = min_runs(body.confidence, dof)
+            if body.runs < need:
+                issues.append(((*loc, "runs"), f"{body.runs} runs are too few for {body.confidence:.0%} confidence "
+                               f"on the {dof}-dof group(s) asked ({', '.join(groups)}; heading is added wherever the "
+                               f"scenario has a camera or compass, include_heading: false to leave it out): need "
+                               f">= {need}"))
         if kind == "psns" and not has_camera:
             issues.append((loc, "a psns expectation measures the solar vectors the firmware solves from the "
                                 "polarization camera; the scenario has no camera (sensors.camera with links.psns)"))

@@ -62,7 +62,8 @@ def run_member(task: MemberTask) -> dict[str, Any]:
 
             row["envelope"] = flat_draws(env.get("draws") or {})
         row["expectations"] = [{"index": e["index"], "description": e["description"], "value": e["value"],
-                                "passed": bool(e["passed"])} for e in summary.get("expectations", [])]
+                                "passed": bool(e["passed"]), "applicable": e.get("applicable") is not False}
+                               for e in summary.get("expectations", [])]
         row["passed"] = bool(summary.get("passed"))
         if task.consistency:
             from .consistency import member_consistency
@@ -182,7 +183,7 @@ def run_campaign(cfg: CampaignConfig, progress: Callable[[dict[str, Any], int, i
         raise CampaignError("--runs must be >= 1")
     if cfg.seeds is not None and len(cfg.seeds) != cfg.runs:
         raise CampaignError(f"--seeds gives {len(cfg.seeds)} seeds for {cfg.runs} runs")
-    data, scn, source, base_dir = load_campaign_scenario(cfg.scenario)
+    data, scn, source, base_dir = load_campaign_scenario(cfg.scenario, cfg.overrides)
     if cfg.envelope is not None:  # every member draws its world from the envelope with its own seed
         data = {**data, "envelope": {"preset": cfg.envelope,
                                      **({"groups": list(cfg.envelope_groups)} if cfg.envelope_groups else {})}}
@@ -192,7 +193,7 @@ def run_campaign(cfg: CampaignConfig, progress: Callable[[dict[str, Any], int, i
     stamp = _dt.datetime.now(_dt.UTC).strftime("%Y%m%dT%H%M%SZ")
     out = Path(cfg.out_dir) if cfg.out_dir else Path("runs") / f"campaign-{scn.name}-{stamp}"
     out.mkdir(parents=True, exist_ok=True)
-    spec = consistency_spec(scn) if cfg.consistency else None
+    spec = consistency_spec(scn, cfg.consistency_groups, cfg.consistency_measurements) if cfg.consistency else None
     if spec is not None and cfg.consistency_after_s is not None:
         spec["after_s"] = cfg.consistency_after_s
     tasks = plan_members(data, cfg.runs, seed, cfg.variations, out, source, base_dir, cfg.keep_all,
@@ -216,6 +217,7 @@ def run_campaign(cfg: CampaignConfig, progress: Callable[[dict[str, Any], int, i
     info = {
         "scenario": scn.name, "scenario_file": source, "campaign_seed": seed, "runs": cfg.runs,
         "variations": [{"key": v.key, "distribution": str(v.dist)} for v in cfg.variations],
+        "overrides": list(cfg.overrides),
         "scheduler": cfg.scheduler or f"LocalCluster({cfg.workers} processes, 127.0.0.1)",
         "workers": n_workers, "wall_s": wall, "runs_per_min": 60.0 * len(rows) / wall if wall > 0 else None,
         "started_utc": stamp,
@@ -226,7 +228,8 @@ def run_campaign(cfg: CampaignConfig, progress: Callable[[dict[str, Any], int, i
         from .consistency import campaign_consistency
 
         result.consistency = campaign_consistency([r.get("consistency") or {} for r in rows if r.get("ok")],
-                                                  spec["confidence"], spec["groups"], spec["measurements"])
+                                                  spec["confidence"], spec["groups"], spec["measurements"],
+                                                  spec["upper_only"])
         result.consistency["scenario"] = scn.name
         (out / "consistency.json").write_text(json.dumps(result.consistency, indent=1) + "\n", encoding="utf-8")
     write_outputs(result, cfg.plots)
@@ -243,12 +246,22 @@ def _validated(data: dict[str, Any], source: str, base_dir: str | None) -> Any:
         raise CampaignError(f"--envelope: {exc}") from exc
 
 
-def consistency_spec(scn: Any) -> dict[str, Any]:
-    """What the consistency check evaluates: the scenario's ``consistency:`` expectation (groups, measurement
-    types, confidence, start time), or every group and measurement type at 95 % from the start."""
+def consistency_spec(scn: Any, groups: list[str] | None = None, measurements: list[str] | None = None
+                     ) -> dict[str, Any]:
+    """What the consistency check evaluates and which checks decide it: the groups and measurement types the command
+    line asks for (``groups`` / ``measurements``), else the scenario's ``consistency:`` expectation's, else the
+    default groups (attitude, velocity, position); ``heading`` is added wherever the scenario has a heading source
+    (:func:`emulator.scenario.consistency_schema.asked_groups`). Confidence and start time from the expectation (95 %,
+    0 s without one). Everything else is evaluated too and shown as informative."""
+    from ...scenario.consistency_schema import asked_groups
+    from ...scenario.cross_checks import has_heading_source
+
+    heading = has_heading_source(scn)
     for e in getattr(scn, "expectations", []) or []:
         c = getattr(e, "consistency", None)
         if c is not None:
-            return {"groups": list(c.groups), "measurements": list(c.measurements), "confidence": c.confidence,
-                    "after_s": c.after_s}
-    return {"groups": None, "measurements": None, "confidence": 0.95, "after_s": 0.0}
+            return {"groups": asked_groups(groups or c.groups, heading, c.include_heading),
+                    "measurements": list(c.measurements if measurements is None else measurements),
+                    "confidence": c.confidence, "after_s": c.after_s, "upper_only": list(c.upper_only)}
+    return {"groups": asked_groups(groups, heading), "measurements": list(measurements or []),
+            "confidence": 0.95, "after_s": 0.0, "upper_only": []}

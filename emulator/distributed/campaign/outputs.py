@@ -67,7 +67,8 @@ def write_outputs(res: CampaignResult, plots: bool = True) -> None:
                        + [int(bool(r.get("ok"))), "" if r.get("passed") is None else int(bool(r["passed"]))]
                        + [_cell(r.get(c)) for c in metric_cols]
                        + [_cell(ex[i]["value"]) if i in ex else "" for i in exp_idx]
-                       + [int(ex[i]["passed"]) if i in ex else "" for i in exp_idx]
+                       + [("not applied" if ex[i].get("applicable") is False else int(ex[i]["passed"]))
+                          if i in ex else "" for i in exp_idx]
                        + [_cell(r.get("deadline_misses")), _cell(r.get("cpu_load_pct_max")),
                           _cell(r.get("nav_frames")), _cell(r.get("wall_s")), r.get("error") or "",
                           r.get("run_dir") or ""])

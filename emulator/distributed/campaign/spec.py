@@ -235,14 +235,23 @@ class CampaignConfig:
     #: ``envelope_groups`` of it when given
     envelope: str | None = None
     envelope_groups: list[str] | None = None
+    #: the state groups / measurement types that decide the consistency check (None: the scenario's expectation,
+    #: else the defaults; the others are shown as informative)
+    consistency_groups: list[str] | None = None
+    consistency_measurements: list[str] | None = None
+    #: ``--set dotted.key=value`` overrides applied to every member before the ``--vary`` draws
+    overrides: list[str] = field(default_factory=list)
 
 
-def load_campaign_scenario(path: Path) -> tuple[dict[str, Any], Any, str, str]:
-    """``(data, validated scenario, source name, base directory)`` of a campaign's scenario file."""
-    from ...scenario.loader import load_scenario, load_yaml_with_marks
+def load_campaign_scenario(path: Path, overrides: Sequence[str] = ()) -> tuple[dict[str, Any], Any, str, str]:
+    """``(data, validated scenario, source name, base directory)`` of a campaign's scenario file, with the
+    ``--set dotted.key=value`` ``overrides`` applied to every member (the same rules as ``psns-hil run --set``)."""
+    from ...scenario.loader import apply_overrides, load_scenario, load_yaml_with_marks
 
-    scn = load_scenario(path)  # every problem of the file itself, with file:line:column
-    data, _marks = load_yaml_with_marks(Path(path).read_text(encoding="utf-8"), str(path))
+    scn = load_scenario(path, tuple(overrides))  # every problem of the file itself, with file:line:column
+    data, marks = load_yaml_with_marks(Path(path).read_text(encoding="utf-8"), str(path))
+    if overrides:
+        apply_overrides(data, tuple(overrides), marks)
     return data, scn, str(path), str(Path(path).resolve().parent)
 
 

@@ -57,11 +57,15 @@ def campaign_statistics(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
     for r in ok:
         for e in r.get("expectations", []):
             d = exp.setdefault(e["index"], {"index": e["index"], "description": e["description"], "runs": 0,
-                                            "passed": 0})
+                                            "passed": 0, "not_applied": 0})
+            if e.get("applicable") is False:  # a campaign-level check in a member: not applied, never a pass
+                d["not_applied"] += 1
+                continue
             d["runs"] += 1
             d["passed"] += int(bool(e["passed"]))
     for d in exp.values():
         d["pass_rate"] = d["passed"] / d["runs"] if d["runs"] else None
+        d["status"] = "not applied" if not d["runs"] else "pass" if d["passed"] == d["runs"] else "FAIL"
     n_pass = sum(1 for r in ok if r.get("passed"))
     return {
         "runs": len(rows),

@@ -33,6 +33,9 @@ autodoc_default_options = {"members": True, "show-inheritance": True, "ignore-mo
 autodoc_member_order = "bysource"
 autodoc_typehints = "signature"
 autoclass_content = "class"
+# The array aliases of firmware_model.arrays read as their names in signatures, not as expanded numpy generics.
+autodoc_type_aliases = {name: f"firmware_model.arrays.{name}"
+                        for name in ("FloatArray", "F64Array", "FloatDtype", "IntArray", "BoolArray")}
 # ``python -m emulator`` runs the CLI when imported: walked past, not imported.
 autodoc_mock_imports = ["emulator.__main__"]
 

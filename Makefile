@@ -32,8 +32,8 @@ examples:
 # The suite under coverage, started before anything imports the package (pytest loads the package's own plugin
 # before `--cov` could start it), child processes included ([tool.coverage.run] in pyproject.toml). The floor is the
 # measured figure of the pure-Python tree minus at most one point (README.md): raise it when the figure rises.
-# Interim: 47, the figure measured before coverage started early (47.9 %, which counted less) minus one point.
-COVERAGE_FLOOR := 47
+# Measured 2026-12-07 on the full suite: 88.0 % (statements and branches; README.md).
+COVERAGE_FLOOR := 87
 test: install examples
 	$(PY) -m coverage erase
 	$(PY) -m coverage run -m pytest

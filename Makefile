@@ -53,7 +53,7 @@ FUZZ_ARGS ?=
 fuzz: install
 	$(PY) -m tests.fuzz.fuzz_inputs $(FUZZ_ARGS)
 
-# The API reference from the docstrings (Sphinx: docs/conf.py, docs/api/; docs/decisions/emulator-runtime.md D-7.15):
+# The API reference from the docstrings (Sphinx: docs/conf.py, docs/api/; docs/decisions/emulator-runtime.md D-7.20):
 # HTML in build/docs (git-ignored; open build/docs/index.html). Every warning fails the build, here as in .ci/run.
 # The per-module pages are generated afresh each time (docs/api/generated, git-ignored), so a moved module leaves
 # no stale page behind.

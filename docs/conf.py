@@ -1,4 +1,4 @@
-"""Sphinx configuration of the API reference (``make docs``; the choice: docs/decisions/emulator-runtime.md, D-7.15).
+"""Sphinx configuration of the API reference (``make docs``; the choice: docs/decisions/emulator-runtime.md, D-7.20).
 
 The reference is built from the docstrings of the three packages: autodoc reads them (with the ``#:`` comments of
 attributes), napoleon reads their numpy-style ``Parameters`` sections, autosummary walks every module. The guide is

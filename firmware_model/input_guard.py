@@ -35,7 +35,7 @@ __all__ = [
 #: ceiling with margin: COCOM limits a receiver to 18 km anyway).
 ALT_MIN_M = -1000.0
 ALT_MAX_M = 60_000.0
-#: |geoid separation| accepted, m (EGM96 spans -107 .. +86 m).
+#: ``|geoid separation|`` accepted, m (EGM96 spans -107 .. +86 m).
 GEOID_MAX_M = 200.0
 #: Ground speed accepted, m/s (COCOM limit 515 m/s plus margin).
 SPEED_MAX_MPS = 600.0

@@ -88,6 +88,8 @@ class NavState:
     a_prev : (3,) previous ENU acceleration used for mid-interval extrapolation, m/s^2.
     f_n : (3,) specific force in n of the last step, m/s^2 (for the KF's F matrix).
 
+    Notes
+    -----
     Storage: writers assign new arrays, never write into them (docs/decisions/performance.md D-10.F2). The strapdown
     fast path (:func:`firmware_model.strapdown.strapdown_step_fast`) keeps the state as 16 Python floats
     (:meth:`as_floats`, layout in the module docstring) and builds an attribute's array, read-only, when it is

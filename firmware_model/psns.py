@@ -7,7 +7,8 @@ Base paper (Liang & Bai), section II.A, with the camera/AOP convention of docs/a
    DOP (Eq. 2) ``sqrt(S1^2+S2^2)/S0``; image angle ``psi = 1/2 atan2(S2, S1)`` from image +x towards +y.
    The AOP of the paper (Eq. 3/5) and of the wire is measured from image +y towards +x:
    ``AOP = 90 deg - psi`` wrapped to (-90, 90] deg.
-1a. Calibrated polarizer angles (:func:`correct_polarizer`, docs/calibration.md): the camera computes Stokes
+
+   1a. Calibrated polarizer angles (:func:`correct_polarizer`, docs/calibration.md): the camera computes Stokes
    with the nominal angles 0/45/90/135; the firmware undoes that with the calibrated angles before step 2.
 2. E-vector (Eq. 5-8 with the sign that makes E perpendicular to the view ray; the paper's Eq. 8 as
    printed has the opposite sign, see docs/decisions/firmware.md D-5.1):

@@ -109,7 +109,7 @@ class CameraGeometry:
 
     def field_angle(self, r_m: FloatArray) -> FloatArray:
         """Field angle (rad) of image radius ``r_m``: the distortion polynomial inverted by fixed-point steps
-        (``u = rho / (1 + k1 u^2 + k2 u^4)``, six iterations; converges for |k1| u^2 < 0.3)."""
+        (``u = rho / (1 + k1 u^2 + k2 u^4)``, six iterations; converges for ``|k1| u^2 < 0.3``)."""
         rho = np.asarray(r_m, dtype=np.float64) / self.focal_m
         u = rho
         if self.k1 != 0.0 or self.k2 != 0.0:

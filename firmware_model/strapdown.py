@@ -104,6 +104,8 @@ def strapdown_step(
     dv_m : (3,) compensated body velocity increment over the interval, m/s.
     dtype : precision of the attitude and velocity arithmetic (the firmware's ``nav_state_precision``).
 
+    Notes
+    -----
     Steps follow docs/reference/algorithms.md 1.2 (PSINS ``insupdate``): mid-interval extrapolation of
     velocity and position, velocity update with the rotation of the navigation frame over ``T/2``,
     trapezoidal position update, attitude update ``q_k = rv2q(-w_in^n T) (x) q_{k-1} (x) rv2q(phi_m)``.

@@ -8,7 +8,7 @@ paper's description; the coefficient values are the paper's.
 
 Time scale: ``t`` = days of Universal Time since 2060-01-01 00:00 UT (the paper's origin, the middle
 of its validity range); ``t_e = t + Delta_tau / 86400`` is Terrestrial Time, with the paper's linear
-Delta_tau extrapolation ``96.4 + 0.00158 t`` s. UTC is used for UT (|UT1 - UTC| < 0.9 s, i.e.
+Delta_tau extrapolation ``96.4 + 0.00158 t`` s. UTC is used for UT (``|UT1 - UTC| < 0.9 s``, i.e.
 < 0.004 deg of hour angle, the same assumption SPA users make when they pass UTC).
 
 Output: the topocentric unit sun vector in ENU, ``S^n = [sin Az cos el, cos Az cos el, sin el]``
@@ -17,7 +17,7 @@ vector the polarization pattern follows). It is formed directly from declination
 so no atan2/asin is needed for the vector.
 
 Precision as a C6747 firmware would write it (charged in :func:`ephemeris_cycles`): the time
-``t`` (|t| < 2e4 days) and every phase that grows with it (``1.72e-2 t``, ``6.3 t``: up to 1.3e5 rad)
+``t`` (``|t| < 2e4`` days) and every phase that grows with it (``1.72e-2 t``, ``6.3 t``: up to 1.3e5 rad)
 need double precision, since float32 would lose 0.008 rad at 1e5 rad. Each phase is reduced
 modulo 2 pi in double precision and the sines/cosines of the reduced angles, the small periodic
 terms and the final rotation to ENU are single precision.

@@ -1,14 +1,14 @@
 """Checksums used on the wire.
 
-=====================  ==================================================================  ==========
+====================== ==================================================================  ==========
 function               algorithm                                                           check(*)
-=====================  ==================================================================  ==========
+====================== ==================================================================  ==========
 ``crc8_stim[_fast]``   CRC-8, poly 0x07, init 0xFF, no reflection, no xor (STIM210/300)     0xFB
 ``crc16_ccitt``        CRC-16/CCITT-FALSE, poly 0x1021, init 0xFFFF, no refl., no xor       0x29B1
 ``crc32_mpeg2[_fast]`` CRC-32/MPEG-2, poly 0x04C11DB7, init 0xFFFFFFFF, no refl., no xor    0x0376E6E7
 ``nmea_checksum``      XOR of every byte between ``$`` and ``*``                            --
 ``ubx_fletcher``       8-bit Fletcher over class, id, length, payload (u-blox)              --
-=====================  ==================================================================  ==========
+====================== ==================================================================  ==========
 
 (*) ``check`` is the CRC of the ASCII bytes ``b"123456789"`` (the catalogue convention).
 Sources: ``docs/reference/wire-formats.md`` section 1.7 (STIM CRCs, from TS1524 r31 and the

@@ -6,15 +6,15 @@ the message with an empty payload (CFG-PRT: an empty payload or the 1-byte ``por
 ``msgClass``, ``msgID``); the receiver answers a poll with the message itself, and every CFG message (poll or set)
 with ACK-ACK, or ACK-NAK when it cannot apply it.
 
-====================  ======  =====  ===============================================================
+====================  ======  ====== ===============================================================
 message               class   id     payload
-====================  ======  =====  ===============================================================
+====================  ======  ====== ===============================================================
 ACK-NAK / ACK-ACK     0x05    0x00/1 :data:`ACK_SPEC` (2 bytes: the acknowledged class and id)
 CFG-PRT (UART)        0x06    0x00   :data:`CFG_PRT_SPEC` (20 bytes)
 CFG-MSG               0x06    0x01   :data:`CFG_MSG_SPEC` (8 bytes, a rate per port) or class, id, rate (3)
 CFG-RATE              0x06    0x08   :data:`CFG_RATE_SPEC` (6 bytes)
 MON-VER               0x0A    0x04   :data:`MON_VER_HEAD_SPEC` (40 bytes) + 30-byte extension strings
-====================  ======  =====  ===============================================================
+====================  ======  ====== ===============================================================
 """
 
 from __future__ import annotations

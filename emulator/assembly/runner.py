@@ -1,7 +1,7 @@
 """Build the emulated system from a scenario and run it: the assembly's public names in one place.
 
 The assembly is split by concern: :mod:`.ports` (the port table, time mode, stream formats),
-:mod:`.build` (scenario -> UARTs, FPGA configuration, virtual DSP, port map), :mod:`.session`
+:mod:`~emulator.assembly.build` (scenario -> UARTs, FPGA configuration, virtual DSP, port map), :mod:`.session`
 (:class:`Emulator`, the run and its signal handling) and :mod:`.summary` (1 Hz samples, summary sections).
 This module re-exports them for the callers that import ``emulator.assembly.runner``.
 """

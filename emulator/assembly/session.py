@@ -1,8 +1,8 @@
 """The run session: :class:`Emulator` owns one run, :func:`run_emulator` runs it on its own loop.
 
 :class:`Emulator` opens the links, wires sensors -> FPGA -> DSP -> host (the pieces come from
-:mod:`.build` and :mod:`.ports`), attaches the recorder, runs the clock to ``duration_s`` and writes the
-summary (:mod:`.summary`). It lives inside an :class:`~emulator.clock.EmulatorLoop`; :func:`run_scenario`
+:mod:`~emulator.assembly.build` and :mod:`.ports`), attaches the recorder, runs the clock to ``duration_s`` and
+writes the summary (:mod:`.summary`). It lives inside an :class:`~emulator.clock.EmulatorLoop`; :func:`run_scenario`
 creates that loop, installs the Ctrl-C / SIGTERM handlers (an interrupted run still writes its captures
 and a summary with ``"interrupted": true``) and returns the summary.
 

@@ -1,1 +1,2 @@
-"""Distributed runs: the split FPGA/DSP processes (:mod:`.split`) and Monte-Carlo campaigns (:mod:`.campaign`)."""
+"""Distributed runs: the split FPGA/DSP processes (:mod:`.split`) and Monte-Carlo campaigns
+(:mod:`~emulator.distributed.campaign`)."""

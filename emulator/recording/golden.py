@@ -55,7 +55,7 @@ LIBRARY_DIR = ROOT / "scenarios"
 #: nav.csv columns kept in the state history
 NAV_COLUMNS = ("lat_deg", "lon_deg", "height_m", "vel_e_mps", "vel_n_mps", "vel_u_mps", "roll_deg", "pitch_deg",
                "heading_deg", "mode")
-#: (absolute, relative) tolerance per column prefix; |a - b| <= atol + rtol * |b| passes.
+#: (absolute, relative) tolerance per column prefix; ``|a - b| <= atol + rtol * |b|`` passes.
 #: The firmware runs in float32 (24-bit mantissa, 6e-8 relative): the same inputs on another CPU, BLAS or
 #: numpy build may round a few operations differently, and a closed-loop filter keeps such differences at
 #: the rounding level of each state. The floors below are 1-3 orders above that level (lat/lon 1e-8 deg is

@@ -3,7 +3,7 @@
 Pipeline on each POLARIZATION_OBS frame of an all-sky (fisheye) camera:
 
 1. **View rays** of the observation points (camera model of docs/architecture.md "Conventions"), the sky mask: points
-whose ray is below
+   whose ray is below
    ``horizon_mask`` elevation according to the INS tilt are left out (the ground is unpolarized and would
    join the low-DOP cluster), as are points below ``dop_min`` for the E-vector solve.
 2. **K-means on the DOP values** (paper Eqs. 8-9; docs/reference/algorithms.md 2.4): ``k`` clusters (default 3) in 1-D,

@@ -49,7 +49,7 @@ class DualVectorParams:
     sigma_floor_deg: float = 0.05
     #: a unit whose predicted E-vector is ill-defined (sun within this angle of its view ray) is not used
     min_scattering_deg: float = 10.0
-    #: smallest |p_i x p_j| of the pair that forms the sun vector (sun-error-vector mode)
+    #: smallest ``|p_i x p_j|`` of the pair that forms the sun vector (sun-error-vector mode)
     min_pair_sine: float = 0.15
 
 
@@ -124,7 +124,7 @@ class SunElevationParams:
     #: adaptive R clamped to [r_min_factor, r_max_factor] x R0 (PSINS kfupdate)
     r_min_factor: float = 0.01
     r_max_factor: float = 100.0
-    #: smallest |E_i x E_j| accepted for the two-E-vector sun vector
+    #: smallest ``|E_i x E_j|`` accepted for the two-E-vector sun vector
     min_pair_sine: float = 0.2
     #: the tilt columns of H (phi_E, phi_N): H_n is computed with the INS attitude, so its tilt error is in z and
     #: the measurement observes the psi-angle, not position alone. False (default): the paper's H, which takes the

@@ -30,18 +30,18 @@ Failures. A member that raises (bad draw, firmware error, a worker that died) is
 ``ok = false`` and its error text; it is counted and listed, never dropped. Statistics are over
 the members that completed.
 
-Outputs in ``--out`` (default ``runs/campaign-<scenario>-<UTC time>``):
+Outputs in ``--out`` (default ``runs/campaign-<scenario>-<UTC time>``)::
 
-``runs.csv``        one row per member: index, seed, drawn parameters, ok, error, passed, the
-                    summary's nav errors (``<metric>_rms``, ``<metric>_max``), with a polarization sensor
-                    the solved solar vector against truth (``solar_vector_error_deg_median``, ``_p95``,
-                    ``_max``, and the same of ``azimuth_error_deg``, ``elevation_error_deg``), expectation results,
-                    DSP load and deadline misses, wall time
-``stats.csv``       per numeric column: n, mean, sigma (ddof 1), min, p5, p50, p95, max
-``campaign.json``   configuration, statistics, expectation pass rates, failures, throughput
-``campaign.png``    histograms of every error metric; ``sensitivity.png`` error vs each varied key
-``runs/NNNN/``      each member's run directory (summary.json, events.jsonl; ``--keep-all`` keeps
-                    the captures, nav.csv and truth.csv too)
+    ``runs.csv``        one row per member: index, seed, drawn parameters, ok, error, passed, the
+                        summary's nav errors (``<metric>_rms``, ``<metric>_max``), with a polarization sensor
+                        the solved solar vector against truth (``solar_vector_error_deg_median``, ``_p95``,
+                        ``_max``, and the same of ``azimuth_error_deg``, ``elevation_error_deg``), expectation results,
+                        DSP load and deadline misses, wall time
+    ``stats.csv``       per numeric column: n, mean, sigma (ddof 1), min, p5, p50, p95, max
+    ``campaign.json``   configuration, statistics, expectation pass rates, failures, throughput
+    ``campaign.png``    histograms of every error metric; ``sensitivity.png`` error vs each varied key
+    ``runs/NNNN/``      each member's run directory (summary.json, events.jsonl; ``--keep-all`` keeps
+                        the captures, nav.csv and truth.csv too)
 
 Modules: :mod:`.spec` (what to run: the configuration, its variations and their distributions, checked
 against the scenario), :mod:`.plan` (members: seeds and drawn parameters), :mod:`.execute` (running members,

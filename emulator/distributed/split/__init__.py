@@ -17,16 +17,16 @@ loopback: median 1.0 ms, p99 2 ms measured loop to loop; zenoh itself takes ~0.1
 ``docs/reference/wire-formats.md`` section 4). The byte spacing of each chunk (which the DSP's UART FIFO model
 uses) travels with it as the zenoh attachment. The run is realtime (the two processes share the wall clock).
 
-Control messages (JSON) on ``psns/<run>/ctl/<kind>``:
+Control messages (JSON) on ``psns/<run>/ctl/<kind>``::
 
-``ready``   DSP -> FPGA: links and subscribers are up.
-``start``   FPGA -> DSP: ``{"t0_monotonic", "speed"}``: scenario time 0 on the host's monotonic clock
-            (``CLOCK_MONOTONIC`` is one clock for all processes of a host), so both processes
-            share one scenario clock.
-``event``   DSP -> FPGA: a device event (deadline miss, firmware event), written by the recorder.
-``stop``    FPGA -> DSP: the run is over.
-``summary`` DSP -> FPGA: the ``dsp`` and ``firmware`` sections of the summary.
-``error``   DSP -> FPGA: the DSP process failed (message).
+    ``ready``   DSP -> FPGA: links and subscribers are up.
+    ``start``   FPGA -> DSP: ``{"t0_monotonic", "speed"}``: scenario time 0 on the host's monotonic clock
+                (``CLOCK_MONOTONIC`` is one clock for all processes of a host), so both processes
+                share one scenario clock.
+    ``event``   DSP -> FPGA: a device event (deadline miss, firmware event), written by the recorder.
+    ``stop``    FPGA -> DSP: the run is over.
+    ``summary`` DSP -> FPGA: the ``dsp`` and ``firmware`` sections of the summary.
+    ``error``   DSP -> FPGA: the DSP process failed (message).
 
 The FPGA's captures of UART0-3 are recorded with the DSP end's directions (``in`` = towards the
 DSP), so that a split run's capture reads like a single-process one (and replays the same way).

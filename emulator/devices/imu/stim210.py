@@ -48,7 +48,8 @@ class Stim210Gyro(FaultableTriad):
         The filtered output lags the motion by the filter's group delay, modelled as that of a 2nd-order
         Butterworth low-pass at DC, ``sqrt(2) / (2 pi f_c)`` (0.86 ms at 262 Hz, 14 ms at 16 Hz; docs/sensors.md):
         each datagram carries the mean rate over the trigger interval shifted back by that delay, and its
-        latency field reports the delay plus the response delay (sampling to start of transmission).
+        latency field reports the delay plus the response delay (sampling to start of transmission); without a
+        filter it reports the response delay alone.
     temperature : temperature profile (reported in formats with temperature words).
     source : recorded data (:mod:`emulator.devices.recorded`): ``f(t0, t1) -> mean rate (3,) rad/s``
         replaces truth and error model.
@@ -68,8 +69,10 @@ class Stim210Gyro(FaultableTriad):
         self.output = output
         self.response_delay_s = response_delay_s
         self.group_delay_s = group_delay_s(lp_filter_hz)
+        # TS1524: the field is the time from the sampling of the data to the start of the transmission, so even
+        # without a low-pass filter (group delay 0) it carries the response delay, never 0 (issue 37)
         self.latency_us = (latency_us if latency_us is not None
-                           else round((self.group_delay_s + response_delay_s) * 1e6) if lp_filter_hz > 0 else 0)
+                           else round((self.group_delay_s + response_delay_s) * 1e6))
         self.temperature = temperature or ImuTemperature()
         self.source = source
         self.counter = 0

@@ -146,3 +146,43 @@ def test_stim_filter_delays_the_rate_and_fills_the_latency_field():
         expect = 10.0 * ((k - 0.5) * 0.005 - tau) / GYRO_RATE_LSB_DPS
         assert d.gyro[2] == pytest.approx(expect, abs=1.0)
         assert d.latency_us == round((tau + 40e-6) * 1e6)
+
+
+@pytest.mark.parametrize(("response_delay_s", "expect_us"), [(40e-6, 40), (86e-6, 86)])
+def test_stim_latency_field_without_a_filter_is_the_response_delay(response_delay_s, expect_us):
+    """TS1524: the latency field is sampling to start of transmission; with no low-pass filter (group delay 0) the
+    datagram still reports the response delay, never 0 (issue 37, from the earlier round)."""
+    import asyncio
+
+    from emulator.clock import EmulatorLoop
+    from emulator.devices.imu import Stim210Gyro
+    from emulator.links import LineConfig, MemHub
+    from protocols.stim import Stim210Format
+    from protocols.stream import StreamDecoder
+
+    class Still:
+        def increments(self, t0, t1):
+            return np.zeros(3), np.zeros(3)
+
+        def specific_force(self, t):
+            return np.zeros(3)
+
+        def vibration_at(self, t):
+            return None
+
+    loop = EmulatorLoop("fast")
+    a, b = MemHub().pair("gyro", LineConfig(baud=460800), loop)
+    gyro = Stim210Gyro(a, Still(), np.random.default_rng(1), response_delay_s=response_delay_s)  # type: ignore[arg-type]
+    gyro._look_ahead = False
+    dec = StreamDecoder([Stim210Format("m")])
+    got = []
+    b.on_receive = lambda d: got.extend(dec.feed(d))
+
+    async def main():
+        for k in range(1, 4):
+            gyro.trigger(k * 0.005, (k - 1) * 0.005)
+        await asyncio.sleep(0.05)
+
+    loop.run_until_complete(main())
+    loop.close()
+    assert [d.latency_us for d in got] == [expect_us] * 3

@@ -27,8 +27,8 @@ fresh draw at re-acquisition, so the solution jumps when the fixes return. ``lat
 output latency (epoch to first byte).
 
 Height in GGA is above MSL: ``h_msl = h - N``, the receiver's geoid separation ``N`` EGM96 at the reported position
-(:mod:`.geoid`, proj-data's 15' grid) unless the scenario fixes ``geoid_sep_m``; ``geoid_sep_field = "empty"`` leaves
-GGA's separation field empty (MSL height only), as several receiver families do.
+(:mod:`emulator.devices.geoid`, proj-data's 15' grid) unless the scenario fixes ``geoid_sep_m``;
+``geoid_sep_field = "empty"`` leaves GGA's separation field empty (MSL height only), as several receiver families do.
 
 Message sets: NMEA sentences, then UBX: NAV-PVT (u-blox 7 and later) or the set of the generations before it
 (NAV-SOL, NAV-POSLLH, NAV-VELNED, NAV-TIMEUTC, NAV-TIMEGPS, NAV-STATUS: u-blox 5/6, or an M8/F9 configured so).
@@ -157,7 +157,8 @@ class GnssConfig:
     nmea_version: str = "2.3"
     num_sats: int = 12
     hdop: float = 0.8
-    #: geoid separation reported (m); None: EGM96 at the reported position (:func:`.geoid.egm96_separation_m`)
+    #: geoid separation reported (m); None: EGM96 at the reported position
+    #: (:func:`emulator.devices.geoid.egm96_separation_m`)
     geoid_sep_m: float | None = None
     #: "reported" (GGA carries the separation) or "empty" (MSL height only, the separation field left empty)
     geoid_sep_field: str = "reported"

@@ -1,4 +1,4 @@
-"""A live view of a run over the Foxglove WebSocket protocol (``psns-hil run ... --foxglove [HOST:PORT]``).
+"""A live view of a run over the Foxglove WebSocket protocol (``psns-hil run --foxglove [HOST:PORT]``).
 
 The server speaks the Foxglove WebSocket protocol v1 (subprotocol ``foxglove.websocket.v1``): on connection a
 ``serverInfo`` with no capabilities and an ``advertise`` of its channels (JSON messages, JSON Schema, the same

@@ -1,7 +1,7 @@
 """``run.mcap``: a run directory as an MCAP file that Foxglove (and any MCAP reader) opens.
 
-Written with the ``mcap`` library (docs/decisions/recording.md D-REC.1) from what the recorder's taps wrote into the
-run directory: the capture (every chunk on every tapped link), nav.csv / truth.csv / psns.csv, timeline.csv,
+Written with the ``mcap`` library (D-7.15, docs/decisions/emulator-runtime.md) from what the recorder's taps wrote
+into the run directory: the capture (every chunk on every tapped link), nav.csv / truth.csv / psns.csv, timeline.csv,
 filter_state.csv, events.jsonl and summary.json. Nothing here reaches into a device: the recorder is a listener on
 the links and devices, and this module reads only its files, so a finished run and an old run directory
 (``psns-hil export RUN --mcap``) convert the same way.
@@ -55,9 +55,12 @@ from .nav_error import _c_bn
 from .rundir import open_no_follow
 from .sensor_tables import decode_sensor_frames, gyro_is_rate
 
-__all__ = ["MCAP_NAME", "TOPICS", "McapStats", "attitude_quaternion", "write_run_mcap"]
+__all__ = ["CAMPAIGN_MCAP_NAME", "MCAP_NAME", "TOPICS", "McapStats", "attitude_quaternion", "write_campaign_mcap",
+           "write_run_mcap"]
 
 MCAP_NAME = "run.mcap"
+#: the campaign's summary series, beside its members' run directories (:func:`write_campaign_mcap`)
+CAMPAIGN_MCAP_NAME = "campaign.mcap"
 DEG = math.pi / 180.0
 
 _TIME = {"type": "object", "title": "time", "properties": {"sec": {"type": "integer", "minimum": 0},
@@ -474,9 +477,23 @@ def write_run_mcap(run_dir: Path, out_path: Path | None = None) -> McapStats:
     header = _gather_capture(out, run_dir)
     _gather_events(out, run_dir)
     summary = _gather_summary(out, run_dir)
-    out.msgs.sort()
+    meta = {"scenario": str(summary.get("scenario", header.get("scenario", ""))),
+            "seed": str(summary.get("seed", header.get("seed", ""))),
+            "epoch_utc": str(summary.get("epoch", header.get("epoch", ""))),
+            "log_time": "scenario clock, ns since the run's start",
+            "psns_hil_version": VERSION}
     stats = McapStats(path)
+    stats.messages = _write(out, path, meta)
+    stats.wall_s = time.perf_counter() - wall0
+    return stats
+
+
+def _write(out: _Out, path: Path, meta: dict[str, str]) -> dict[str, int]:
+    """Write the gathered messages time-ordered into ``path`` with their schemas, channels and the ``psns-hil``
+    metadata record; the number of messages per topic."""
+    out.msgs.sort()
     f: IO[bytes] = open_no_follow(path, "wb")
+    seq: dict[str, int] = {}
     with f:
         w = Writer(f)
         w.start(profile="", library=f"psns-hil {VERSION}")
@@ -485,18 +502,76 @@ def write_run_mcap(run_dir: Path, out_path: Path | None = None) -> McapStats:
                       for name, defn in sorted(out.schemas.items()) if name in set(out.topic_schema.values())}
         chan = {topic: w.register_channel(topic=topic, message_encoding="json", schema_id=schema_ids[schema])
                 for topic, schema in sorted(out.topic_schema.items())}
-        seq: dict[str, int] = {}
         for log, _i, topic, data, pub in out.msgs:
             n = seq.get(topic, 0)
             seq[topic] = n + 1
             w.add_message(chan[topic], log_time=log, data=data, publish_time=pub, sequence=n)
-        meta = {"scenario": str(summary.get("scenario", header.get("scenario", ""))),
-                "seed": str(summary.get("seed", header.get("seed", ""))),
-                "epoch_utc": str(summary.get("epoch", header.get("epoch", ""))),
-                "log_time": "scenario clock, ns since the run's start",
-                "psns_hil_version": VERSION}
         w.add_metadata("psns-hil", meta)
         w.finish()
-    stats.messages = seq
+    return seq
+
+
+def _json_safe(v: Any) -> Any:
+    """``v`` with every non-finite float as None (strict JSON), recursively."""
+    if isinstance(v, dict):
+        return {str(k): _json_safe(x) for k, x in v.items()}
+    if isinstance(v, list | tuple):
+        return [_json_safe(x) for x in v]
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    if isinstance(v, int | float | str | bool) or v is None:
+        return v
+    return str(v)
+
+
+def write_campaign_mcap(out_dir: Path, rows: list[dict[str, Any]], info: dict[str, Any],
+                        consistency: dict[str, Any] | None = None, metric_columns: list[str] | None = None
+                        ) -> McapStats:
+    """Write ``campaign.mcap`` into a campaign's directory: its summary series, to open beside the members'
+    ``run.mcap`` files (issue 39 item 5).
+
+    Log time is the member's index in seconds (member *i* at *i* s), so a viewer's plot of a field over time is that
+    field over the members. Topics: ``/campaign/members`` (``psns_hil.CampaignMember``: index, seed, completed and
+    passed, the varied parameters and the envelope's draws, the error metrics of runs.csv, and the member's mean NEES
+    per state group, dimensionless, with its mean signed heading error, deg) and, with a consistency check,
+    ``/campaign/consistency`` (``psns_hil.CampaignConsistency``, once, after the last member: consistency.json
+    without its per-sample series)."""
+    wall0 = time.perf_counter()
+    path = Path(out_dir) / CAMPAIGN_MCAP_NAME
+    out = _Out()
+    out.schemas["psns_hil.CampaignMember"] = {
+        "title": "psns_hil.CampaignMember", "type": "object",
+        "description": "One campaign member: runs.csv's row with the member's mean NEES per state group",
+        "properties": {"index": {"type": "integer"}, "seed": {"type": "integer"}, "ok": {"type": "boolean"},
+                       "passed": {"type": ["boolean", "null"]}, "params": {"type": "object"},
+                       "envelope": {"type": "object"}, "metrics": {"type": "object"},
+                       "nees_mean": {"type": "object"},
+                       "heading_err_mean_deg": {"type": ["number", "null"]}}}
+    out.schemas["psns_hil.CampaignConsistency"] = {
+        "title": "psns_hil.CampaignConsistency", "type": "object",
+        "description": "The campaign's consistency check (consistency.json without the per-sample series)",
+        "properties": {"consistency": {"type": "object"}}}
+    cols = list(metric_columns or [])
+    for r in rows:
+        c = r.get("consistency") or {}
+        nees = {g: (float(sum(v) / len(v)) if v else None) for g, v in (c.get("nees") or {}).items()}
+        msg = {"index": int(r["index"]), "seed": int(r["seed"]), "ok": bool(r.get("ok")),
+               "passed": None if r.get("passed") is None else bool(r["passed"]),
+               "params": r.get("params") or {}, "envelope": r.get("envelope") or {},
+               "metrics": {k: r.get(k) for k in cols}, "nees_mean": nees,
+               "heading_err_mean_deg": c.get("heading_err_mean_deg")}
+        out.add("/campaign/members", "psns_hil.CampaignMember", float(r["index"]), _json_safe(msg))
+    if consistency is not None:
+        brief = {k: v for k, v in consistency.items() if k != "t"}
+        for g in (brief.get("groups") or {}).values():
+            if isinstance(g, dict):
+                for key in [k for k, v in g.items() if isinstance(v, list) and len(v) > 32]:
+                    del g[key]  # per-sample series stay in consistency.json
+        t_end = float(max((int(r["index"]) for r in rows), default=0) + 1)
+        out.add("/campaign/consistency", "psns_hil.CampaignConsistency", t_end, {"consistency": _json_safe(brief)})
+    meta = {"scenario": str(info.get("scenario", "")), "campaign_seed": str(info.get("campaign_seed", "")),
+            "runs": str(len(rows)), "log_time": "member index, s (member i at i s)", "psns_hil_version": VERSION}
+    stats = McapStats(path)
+    stats.messages = _write(out, path, meta)
     stats.wall_s = time.perf_counter() - wall0
     return stats

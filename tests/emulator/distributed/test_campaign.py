@@ -179,6 +179,19 @@ def test_twenty_run_campaign_statistics_agree_with_the_members_summaries(tmp_pat
     assert (tmp_path / "out" / "campaign.png").stat().st_size > 10_000
     assert (tmp_path / "out" / "sensitivity.png").exists()
     assert not (tmp_path / "out" / "runs" / "0000" / "capture.psnscap").exists()  # big files dropped by default
+    # campaign.mcap (issue 39 item 5), read back with the mcap reader: one message per member at its index (s),
+    # the same numbers as the members' summaries
+    from mcap.reader import make_reader
+
+    with open(tmp_path / "out" / "campaign.mcap", "rb") as f:
+        msgs = [(ch.topic, m.log_time, json.loads(m.data)) for _s, ch, m in make_reader(f).iter_messages()]
+    assert [t for t, _lt, _d in msgs] == ["/campaign/members"] * 20
+    assert [lt for _t, lt, _d in msgs] == [i * 1_000_000_000 for i in range(20)]
+    assert [d["metrics"]["position_m_rms"] for _t, _lt, d in msgs] == \
+        [s["nav_error"]["position_m"]["rms"] for s in summaries]
+    assert [d["seed"] for _t, _lt, d in msgs] == [s["seed"] for s in summaries]
+    assert [d["params"]["sensors.imu.gyro.arw_deg_rt_h"] for _t, _lt, d in msgs] == \
+        [r["params"]["sensors.imu.gyro.arw_deg_rt_h"] for r in res.rows]
 
 
 def test_failed_members_are_reported_with_their_error_never_lost(tmp_path, dask_client):
@@ -344,3 +357,31 @@ def test_a_kept_member_carries_its_mcap(tmp_path):
         n = sum(1 for _s, ch, _m in make_reader(f).iter_messages() if ch.topic == "/nav/solution")
     assert n == len((Path(kept.run_dir) / "nav.csv").read_text().splitlines()) - 1 > 0
     assert not (Path(dropped.run_dir) / "run.mcap").exists() and not (Path(dropped.run_dir) / "nav.csv").exists()
+
+
+def test_campaign_mcap_carries_each_members_mean_nees_and_the_consistency_verdict(tmp_path):
+    """write_campaign_mcap: a member's mean NEES per group is the mean of its samples; non-finite values become
+    null (strict JSON); the consistency check is one message after the last member, without its series."""
+    from mcap.reader import make_reader
+
+    from emulator.recording.mcap_out import write_campaign_mcap
+
+    rows = [{"index": i, "seed": 10 + i, "ok": True, "passed": i != 1, "params": {}, "position_m_rms": 1.5 * i,
+             "consistency": {"nees": {"heading": [1.0, 3.0 + i], "attitude": []}, "heading_err_mean_deg": 0.1 * i}}
+            for i in range(3)]
+    rows[2]["position_m_rms"] = float("nan")
+    cons = {"runs": 3, "t": [0.0, 1.0], "passed": False,
+            "groups": {"heading": {"nees_mean": 2.5, "status": "pass", "series": list(range(40))}}}
+    write_campaign_mcap(tmp_path, rows, {"scenario": "x", "campaign_seed": 1}, cons, ["position_m_rms"])
+    with open(tmp_path / "campaign.mcap", "rb") as f:
+        reader = make_reader(f)
+        msgs = [(ch.topic, m.log_time, json.loads(m.data)) for _s, ch, m in reader.iter_messages()]
+    members = [d for t, _lt, d in msgs if t == "/campaign/members"]
+    assert [d["nees_mean"]["heading"] for d in members] == [2.0, 2.5, 3.0]
+    assert [d["nees_mean"]["attitude"] for d in members] == [None, None, None]
+    assert [d["passed"] for d in members] == [True, False, True]
+    assert [d["metrics"]["position_m_rms"] for d in members] == [0.0, 1.5, None]
+    (_topic, log_time, verdict), = [m for m in msgs if m[0] == "/campaign/consistency"]
+    assert log_time == 3_000_000_000 and verdict["consistency"]["passed"] is False
+    assert "t" not in verdict["consistency"] and "series" not in verdict["consistency"]["groups"]["heading"]
+    assert verdict["consistency"]["groups"]["heading"]["nees_mean"] == 2.5

@@ -36,7 +36,8 @@ def test_egm96_known_extremes() -> None:
     assert 83.0 < egm96_separation_m(-8.0, 147.0) < 86.0
 
 
-def _gga(cfg: GnssConfig, lat: float, lon: float, h: float) -> list[Gga]:
+def _receiver_bytes(cfg: GnssConfig, lat: float, lon: float, h: float) -> bytes:
+    """What the emulated receiver sends over 2.5 s of the emulator's clock, standing at (lat, lon, h)."""
     loop = EmulatorLoop("fast")
     a, b = MemHub().pair("gnss", LineConfig(baud=115200), loop)
     rx = GnssReceiver(a, StaticTrajectory(lat, lon, h), EPOCH, np.random.default_rng(1), cfg)
@@ -49,7 +50,11 @@ def _gga(cfg: GnssConfig, lat: float, lon: float, h: float) -> list[Gga]:
 
     loop.run_until_complete(main())
     loop.close()
-    return [f for f in StreamDecoder([NmeaFormat()]).feed(bytes(raw)) if isinstance(f, Gga)]
+    return bytes(raw)
+
+
+def _gga(cfg: GnssConfig, lat: float, lon: float, h: float) -> list[Gga]:
+    return [f for f in StreamDecoder([NmeaFormat()]).feed(_receiver_bytes(cfg, lat, lon, h)) if isinstance(f, Gga)]
 
 
 @pytest.mark.parametrize(("lat", "lon"), [(6.0, 77.0), (-8.0, 147.0), (55.0, -20.0)])
@@ -83,21 +88,9 @@ def test_the_legacy_ubx_set_decodes_in_ours_and_pyubx2() -> None:
     from protocols.ubx import NavPosllh, NavSol, UbxFormat
 
     legacy = ("NAV-SOL", "NAV-POSLLH", "NAV-VELNED", "NAV-TIMEUTC", "NAV-TIMEGPS", "NAV-STATUS")
-    loop = EmulatorLoop("fast")
-    a, b = MemHub().pair("gnss", LineConfig(baud=115200), loop)
-    rx = GnssReceiver(a, StaticTrajectory(39.979, 116.339, 50.0), EPOCH, np.random.default_rng(1),
-                      GnssConfig(sentences=(), ubx=legacy, errors=QUIET))
-    raw = bytearray()
-    b.on_receive = raw.extend
-
-    async def main() -> None:
-        rx.start()
-        await asyncio.sleep(2.5)
-
-    loop.run_until_complete(main())
-    loop.close()
+    raw = _receiver_bytes(GnssConfig(sentences=(), ubx=legacy, errors=QUIET), 39.979, 116.339, 50.0)
     dec = StreamDecoder([UbxFormat()])
-    ours = dec.feed(bytes(raw))
+    ours = dec.feed(raw)
     assert len(ours) == 3 * len(legacy) and dec.stats.crc_errors == 0 and dec.stats.garbage_bytes == 0
     peer = [m for _, m in UBXReader(io.BytesIO(bytes(raw)), protfilter=2)]
     assert [m.identity for m in peer[: len(legacy)]] == list(legacy)

@@ -63,7 +63,12 @@ def test_nmea_sentences_carry_the_nav_frame_of_their_tick(tmp_path):
             groups[-1][1].append(f)
     assert dec.stats.crc_errors == 0 and dec.stats.garbage_bytes == 0
     with_nmea = [(n, g) for n, g in groups if g]
-    kinds_of = [[getattr(f, "kind", type(f).__name__.upper()) for f in g] for _n, g in with_nmea]
+    def name(f: object) -> str:  # a proprietary sentence by its whole address ($PASHR: maker ASH, sentence R)
+        kind = getattr(f, "kind", type(f).__name__.upper())
+        talker = getattr(f, "talker", "")
+        return talker + kind if talker.startswith("P") else kind
+
+    kinds_of = [[name(f) for f in g] for _n, g in with_nmea]
     # 1 Hz position group from the first UTC (the first GNSS fix, t = 1.05 s): 1.995 .. 9.995 s; 2 Hz attitude,
     # every half second without a gap, from the first solution to the end
     assert sum("GGA" in k for k in kinds_of) == 9
@@ -72,7 +77,7 @@ def test_nmea_sentences_carry_the_nav_frame_of_their_tick(tmp_path):
     assert all(b - a == pytest.approx(0.5, abs=1e-6) for a, b in itertools.pairwise(t_att))
     # heading and attitude first (HDT, THS, PASHR), then the position group in its order; before the first
     # solution only what can say "no solution" (THS mode V, GGA quality 0, RMC V) and ZDA
-    att, pos, none_att, none_pos = ["HDT", "THS", "SHR"], ["GGA", "RMC", "VTG", "ZDA"], ["THS"], ["GGA", "RMC", "ZDA"]
+    att, pos, none_att, none_pos = ["HDT", "THS", "PASHR"], ["GGA", "RMC", "VTG", "ZDA"], ["THS"], ["GGA", "RMC", "ZDA"]
     for k in kinds_of:
         assert k in (att, pos, att + pos, none_att, none_pos, none_att + none_pos), k
     checked = 0

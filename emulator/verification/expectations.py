@@ -307,7 +307,10 @@ def evaluate_expectations(expectations: list[Expectation], recorder: Any, summar
         elif kind == "consistency":
             c = e.consistency
             assert c is not None
-            desc = (f"consistency of {', '.join(c.groups + c.measurements)} at {c.confidence:.0%} over {c.runs} runs")
+            what = ", ".join(c.groups + c.measurements)
+            if c.include_heading and "heading" not in c.groups:  # asked_groups adds it where there is a heading source
+                what += " (and heading, with a camera or compass)"
+            desc = f"consistency of {what} at {c.confidence:.0%} over {c.runs} runs"
             out.append(ExpectationResult(i, kind, desc, None, True, "a campaign-level check: run psns-hil campaign "
                                          f"SCENARIO --runs {c.runs} --consistency", applicable=False))
         elif kind == "python":

@@ -47,8 +47,9 @@ def test_every_documented_command_parses(doc):
         parser.parse_args(argv)  # SystemExit (a usage error) fails the test
 
 
-def _recipe(doc, verb):
-    return next(c for c in _commands(doc) if c[0] == verb)
+def _recipe(doc, verb, arg=None):
+    """The first documented ``psns-hil VERB`` command (with ``arg`` among its arguments, when given)."""
+    return next(c for c in _commands(doc) if c[0] == verb and (arg is None or arg in c))
 
 
 @pytest.mark.pty
@@ -62,7 +63,7 @@ def test_the_pty_recipe_runs_as_written(doc, tmp_path):
     data["motion"] = [{"static": {"duration_s": 4}}]
     data["expectations"] = []
     (tmp_path / "my.yaml").write_text(yaml.safe_dump(data))
-    run_argv = _recipe(doc, "run")
+    run_argv = _recipe(doc, "run", "my.yaml")  # the pty recipe (the docs show other runs before it)
     run = subprocess.Popen([sys.executable, "-m", "emulator", *run_argv], cwd=tmp_path, text=True,
                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=_env())
     try:

@@ -30,6 +30,10 @@ def render() -> str:
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
+    if argv and argv[0].startswith("-"):  # no options: an option is not a file name to write (e.g. --help)
+        sys.stderr.write("usage: python -m emulator.scenario.export [PATH]  (the scenario JSON Schema to PATH, "
+                         "or to stdout)\n")
+        return 0 if argv[0] in ("-h", "--help") else 2
     text = render()
     if argv:
         Path(argv[0]).write_text(text, encoding="utf-8")

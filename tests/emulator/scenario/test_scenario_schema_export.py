@@ -29,3 +29,13 @@ def test_section_properties_take_their_section_docstring_and_the_undescribed_onl
     assert "links.psns" in s["$defs"]["Sensors"]["properties"]["camera"]["description"]
     # a ratchet until every property has its own description (issue 19): lower it as descriptions are added
     assert len(_undescribed(s)) <= 57, _undescribed(s)
+
+
+def test_an_option_is_not_taken_for_a_file_name(tmp_path, monkeypatch):
+    """``export --help`` printed nothing and wrote the schema into a file named ``--help`` (committed once)."""
+    from emulator.scenario.export import main
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["--help"]) == 0
+    assert main(["--out"]) == 2
+    assert list(tmp_path.iterdir()) == []

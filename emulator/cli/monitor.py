@@ -12,8 +12,9 @@ Endpoints:
 * ``zenoh://RUN/PORT`` (:mod:`emulator.links.zenoh`): what is published on ``psns/RUN/PORT/tx`` (bytes the
   port's owner transmits, shown as ``out``) and ``psns/RUN/PORT/rx`` (bytes it receives, ``in``), decoded as
   they arrive. The zenoh session connects to ``tcp/127.0.0.1:7447`` (where an emulator's zenoh port listens
-  by default) unless the URL says ``connect=``, ``listen=``, ``session=`` or ``config=`` as for a link;
-  scouting is off.
+  by default) unless the URL says ``connect=``, ``listen=``, ``session=``, ``config=`` or ``auth=`` as for a
+  link; scouting is off. The emulator refuses sessions without its credentials: give the run's credentials
+  file with ``auth=FILE`` (its path is in the run's ``ports.json``) or ``PSNS_HIL_ZENOH_AUTH=FILE``.
 
 Decoders: ``--protocol`` names the frame families (``host``, ``imu``, ``stim210`` or
 ``stim210:FMT``, ``nmea``, ``psns``, ``ubx``, ``monitor``); ``auto`` (default) picks them from the port
@@ -369,7 +370,7 @@ def _live_rows(device: str, port: str, mon: Monitor, baud: int, stop: Callable[[
 
 
 #: URL options of ``zenoh://`` that choose the monitor's zenoh session (the other link options do not apply)
-_ZENOH_SESSION_OPTIONS = ("listen", "connect", "session", "config")
+_ZENOH_SESSION_OPTIONS = ("listen", "connect", "session", "config", "auth")
 
 
 def _zenoh_source(endpoint: str) -> tuple[ZenohEndpointConfig, str, str]:
@@ -388,7 +389,8 @@ def _zenoh_source(endpoint: str) -> tuple[ZenohEndpointConfig, str, str]:
     listen, connect, config = eps("listen"), eps("connect"), url.options.get("config")
     if not listen and not connect and config is None:
         connect = (DEFAULT_LISTEN,)  # where an emulator's zenoh port listens by default
-    return ZenohEndpointConfig(listen, connect, url.options.get("session", "peer"), config), port, prefix
+    return (ZenohEndpointConfig(listen, connect, url.options.get("session", "peer"), config, url.options.get("auth")),
+            port, prefix)
 
 
 def _zenoh_rows(cfg: ZenohEndpointConfig, port: str, prefix: str, mon: Monitor,

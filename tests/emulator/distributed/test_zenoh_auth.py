@@ -155,6 +155,7 @@ def test_a_split_run_refuses_an_uninvited_session_and_its_gnss_is_unaffected(tmp
     fpga_out = summary["link_stats"]["uart3"]["bytes_out"]
     dsp_in = summary["split"]["dsp_link_stats"]["uart3"]["bytes_in"]
     assert fpga_out > 0 and dsp_in == fpga_out
-    updates = [ev for ev in map(json.loads, open(tmp_path / "run" / "events.jsonl")) if ev["event"] == "gnss_update"]
+    events = (tmp_path / "run" / "events.jsonl").read_text().splitlines()
+    updates = [ev for ev in map(json.loads, events) if ev["event"] == "gnss_update"]
     assert len(updates) >= 1  # the DSP navigated with GNSS
     assert open_sessions() == 0

@@ -248,9 +248,13 @@ def _has_nonfinite(fr: Any) -> bool:
     return False
 
 
-def _capture_rows(path: Path, mon: Monitor, links: set[str] | None) -> Iterator[FrameRow]:
-    """The frames of a capture (``links``: only these; an unknown one is an error, raised here at once)."""
+def _capture_rows(path: Path, mon: Monitor, links: set[str] | None,
+                  info: dict[str, Any] | None = None) -> Iterator[FrameRow]:
+    """The frames of a capture (``links``: only these; an unknown one is an error, raised here at once).
+    ``info`` receives the capture's header dict, whose time-stamp counters fill as the records are read."""
     header, recs = iter_capture(path)
+    if info is not None:
+        info["header"] = header
     known = [str(x) for x in header.get("links", [])]
     unknown = sorted((links or set()) - set(known))
     if unknown:
@@ -441,6 +445,7 @@ def run_monitor(endpoint: str, protocol: str = "auto", baud: int = 460800, links
         return duration_s is not None and time.monotonic() - t_start >= duration_s
 
     rows: Iterator[FrameRow]
+    capture_info: dict[str, Any] = {}
     if endpoint.startswith("zenoh://"):
         cfg, key_port, prefix = _zenoh_source(endpoint)
         name = port_name or key_port
@@ -448,7 +453,7 @@ def run_monitor(endpoint: str, protocol: str = "auto", baud: int = 460800, links
             formats_for(name, "auto")  # fail early with the hint
         rows = _zenoh_rows(cfg, name, prefix, mon, stop)
     elif _is_capture(endpoint):
-        rows = _capture_rows(Path(endpoint), mon, set(links) if links else None)
+        rows = _capture_rows(Path(endpoint), mon, set(links) if links else None, capture_info)
     elif _is_byte_dump(endpoint):
         name = port_name or Path(endpoint).stem
         if protocol == "auto":
@@ -476,4 +481,9 @@ def run_monitor(endpoint: str, protocol: str = "auto", baud: int = 460800, links
         close = getattr(rows, "close", None)
         if close is not None:
             close()
-    return {"frames": n, "decoders": mon.stats()}
+    out_stats: dict[str, Any] = {"frames": n, "decoders": mon.stats()}
+    if "header" in capture_info:  # a capture: its damaged time stamps are reported, never silently used
+        h = capture_info["header"]
+        out_stats["capture"] = {k: h.get(k, 0) for k in ("bad_time_records", "backward_time_records")}
+        out_stats["capture"]["truncated_record"] = bool(h.get("truncated_record"))
+    return out_stats

@@ -9,18 +9,26 @@ replay reproduces the original ``nav.csv`` and host bytes bit for bit; change th
 the same recording shows what the change does.
 
 Every external link is replaced by ``mem://`` (nothing outside takes part in a replay).
+
+A capture may be hostile (docs/hostile-input.md): the reader validates its header
+(:mod:`emulator.recording.capture`); of the records replayed, one whose time is not finite or negative is dropped,
+one whose time goes back is delivered at the time of the record before it (the emulator's clock never goes back),
+and both are counted in the summary's ``replay`` section (``bad_time_records``, ``backward_time_records``,
+``records_in_capture``), so a replay never silently uses part of a capture.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from ..assembly.ports import UART_NUM
 from ..errors import RecordingError
-from .capture import read_capture
+from .capture import CaptureRecord, read_capture
 
-__all__ = ["NavComparison", "compare_nav", "load_replay", "run_replay", "same_file"]
+__all__ = ["NavComparison", "compare_nav", "load_replay", "replayable_records", "run_replay", "same_file"]
 
 #: a capture whose last record is this much before the scenario's end holds less than the run (IMU frames
 #: arrive every 5 ms, so a complete capture ends within a few ms of the end)
@@ -49,13 +57,39 @@ def load_replay(capture: str | Path) -> tuple[Any, list[Any], dict[str, Any]]:
     return scn, records, header
 
 
+def replayable_records(records: list[CaptureRecord]) -> tuple[list[CaptureRecord], dict[str, int]]:
+    """The DSP UARTs' inbound records as the replay delivers them, in file order, and what was done to them.
+
+    A time that is not finite or negative drops its record (``bad_time_records``); a time earlier than the record
+    before it is raised to that record's time (``backward_time_records``): delivery order is file order, and the
+    emulator's clock never goes back. ``records_in_capture`` counts the inbound UART records of the file.
+    """
+    kept: list[CaptureRecord] = []
+    bad = back = total = 0
+    t_prev = 0.0
+    for r in records:
+        if r.link not in UART_NUM or r.direction != "in":
+            continue
+        total += 1
+        if not (math.isfinite(r.t_s) and r.t_s >= 0.0):
+            bad += 1
+            continue
+        if r.t_s < t_prev:
+            back += 1
+            r = CaptureRecord(t_prev, r.link, r.direction, r.data, r.pitch_s)
+        t_prev = r.t_s
+        kept.append(r)
+    return kept, {"records_in_capture": total, "bad_time_records": bad, "backward_time_records": back}
+
+
 def run_replay(capture: str | Path, run_dir: str | Path, mode: str = "fast", speed: float = 1.0,
                on_started: Callable[[Any], None] | None = None,
                progress: Callable[[float, float], None] | None = None, force: bool = False) -> dict[str, Any]:
     """Replay ``capture`` into a fresh DSP/firmware; returns the run summary."""
     from ..assembly.runner import Emulator, run_emulator
 
-    scn, records, header = load_replay(capture)
+    scn, all_records, header = load_replay(capture)
+    records, times = replayable_records(all_records)
     held = max((r.t_s for r in records), default=0.0)
     full = scn.duration_s
     truncated = bool(header.get("truncated_record")) or held < full - TRUNCATION_SLACK_S
@@ -65,7 +99,7 @@ def run_replay(capture: str | Path, run_dir: str | Path, mode: str = "fast", spe
     emu.replay_source = str(capture)
     summary = run_emulator(emu, speed, on_started, force=force)
     if summary.get("replay") is not None:
-        summary["replay"].update(truncated=truncated, captured_s=held, scenario_duration_s=full)
+        summary["replay"].update(truncated=truncated, captured_s=held, scenario_duration_s=full, **times)
         (Path(run_dir) / "summary.json").write_text(_strict(summary) + "\n", encoding="utf-8")
     return summary
 

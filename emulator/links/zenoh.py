@@ -525,6 +525,9 @@ class ZenohLink(Link):
 
     def describe(self) -> str:
         eps = [f"listen {e}" for e in self.endpoint.listen] + [f"connect {e}" for e in self.endpoint.connect]
-        creds = self.endpoint.auth_file or (_run_credentials.file if _run_credentials is not None else "per run")
+        try:  # the file's path, never its content (the same pair the session uses; made now if not yet)
+            creds = self.endpoint.credentials().file
+        except LinkConfigError:
+            creds = self.endpoint.auth_file or "per run"
         return (f"zenoh {self.key_prefix}/{{tx,rx}} ({self.role}; {', '.join(eps) or 'config file'}; "
                 f"credentials {creds})")

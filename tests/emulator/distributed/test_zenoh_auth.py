@@ -97,8 +97,12 @@ def test_an_uninvited_zenoh_session_sees_no_key_and_publishes_into_nothing(zenoh
     assert bytes(inbound.data) == b"$GPGGA,witness\r\n"  # nothing of the intruders' reached the port
 
 
-def test_credentials_are_per_run_private_and_never_printed(tmp_path):
+def test_credentials_are_per_run_private_and_never_printed(tmp_path, rt_loop):
+    from emulator.links import open_link
+
     creds = run_credentials()
+    shown = open_link("zenoh://r/host?listen=tcp/127.0.0.1:1", "host", rt_loop).describe()
+    assert shown.endswith(f"credentials {creds.file})")  # the path (ports.json), never the password
     assert os.environ["PSNS_HIL_ZENOH_AUTH"] == creds.file  # what processes started by the run inherit
     assert os.stat(creds.file).st_mode & 0o777 == 0o600
     assert os.stat(os.path.dirname(creds.file)).st_mode & 0o777 == 0o700

@@ -226,7 +226,7 @@ def _files_and_ports(scn: Scenario, environment: bool) -> list[tuple[tuple[Any, 
 
     from ..errors import RecordingError
     from ..links import parse_link_url
-    from .paths import PathNotAllowed, confined_glob, read_frame_index
+    from .paths import PathNotAllowed, confine, confined_glob, read_frame_index
 
     issues: list[tuple[tuple[Any, ...], str]] = []
 
@@ -241,15 +241,25 @@ def _files_and_ports(scn: Scenario, environment: bool) -> list[tuple[tuple[Any, 
         (("sensors", "camera", "recorded", "index"),
          s.camera.recorded.index if s.camera is not None and s.camera.recorded is not None else None),
     ]
+    def confined(name: str) -> bool:  # a path outside is reported by _confined_files, and never looked at here
+        try:
+            confine(scn.base_dir, name)
+        except PathNotAllowed:
+            return False
+        return True
+
     for loc, name in files if environment else []:
-        if name is not None and not path(name).is_file():
+        if name is None or not confined(name):
+            continue
+        if not path(name).is_file():
             issues.append((loc, f"no such file: {path(name)}"))
-        elif name is not None and loc[1] == "camera":
+        elif loc[1] == "camera":
             try:  # every entry confined, as the camera will (no existence oracle: emulator.scenario.paths)
                 read_frame_index(path(name), scn.base_dir)
             except RecordingError as exc:
                 issues.append((loc, str(exc)))
-    if environment and s.camera is not None and s.camera.recorded is not None and s.camera.recorded.files is not None:
+    if environment and s.camera is not None and s.camera.recorded is not None and s.camera.recorded.files is not None \
+            and confined(s.camera.recorded.files):
         pattern = s.camera.recorded.files
         try:  # every match confined before anything behind it is looked at
             if not confined_glob(scn.base_dir, pattern, "camera frame"):

@@ -81,6 +81,25 @@ def test_an_index_entry_outside_is_refused_by_line_never_by_existence(tmp_path: 
     assert "secret" not in line.replace("TMP", "")  # the entry's text is not echoed
 
 
+@pytest.mark.parametrize("field", ["data/drive_imu.csv", "data/drive_gnss.nmea"])
+def test_a_recorded_file_outside_gives_the_same_answer_whether_it_exists_or_not(tmp_path: Path, field: str) -> None:
+    """Before, validate said "outside" for both and added "no such file" only when the outside file was missing."""
+    lib = (ROOT / "scenarios" / "recorded_replay.yaml").read_text()
+    outs = []
+    for exists in (True, False):
+        d = tmp_path / f"c{int(exists)}"
+        (d / "scen").mkdir(parents=True)
+        target = d / "secret.csv"
+        if exists:
+            target.write_text("time_s\n")
+        p = d / "scen" / "s.yaml"
+        p.write_text(lib.replace(field, str(target)))
+        r = _cli("validate", str(p))
+        assert r.returncode == 2 and "Traceback" not in r.stderr
+        outs.append(r.stderr.replace(str(d), "D"))
+    assert outs[0] == outs[1] and "outside the scenario's directory" in outs[0]
+
+
 def test_the_camera_itself_refuses_them_before_looking(tmp_path: Path) -> None:
     """The run's loader (not only validate) confines each entry and match, with the same message both ways."""
     msgs = []

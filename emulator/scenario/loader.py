@@ -19,8 +19,8 @@ from ..errors import ScenarioError, ScenarioIssue
 from .cross_checks import cross_check
 from .schema import Scenario
 
-__all__ = ["MAX_SCENARIO_BYTES", "MAX_YAML_DEPTH", "apply_overrides", "load_scenario", "load_yaml_with_marks",
-           "read_scenario_text", "validate_scenario_data"]
+__all__ = ["MAX_SCENARIO_BYTES", "MAX_YAML_DEPTH", "apply_overrides", "load_scenario", "load_yaml_file",
+           "load_yaml_with_marks", "read_scenario_text", "validate_scenario_data"]
 
 Loc = tuple[Any, ...]
 
@@ -290,6 +290,15 @@ def read_scenario_text(p: Path, file: str) -> str:
         return raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise ScenarioError(ScenarioIssue(file, None, None, "", f"not UTF-8 text ({exc.reason})")) from None
+
+
+def load_yaml_file(path: str | Path, file: str | None = None) -> Any:
+    """Plain data of a YAML file a scenario names (a spec sheet...), bounded as a scenario is: one read of at most
+    :data:`MAX_SCENARIO_BYTES`, nesting and aliases screened before anything is built, merge keys and unknown tags
+    refused; a :class:`~emulator.errors.ScenarioError` with file and line otherwise."""
+    file = file or str(path)
+    data, _marks = load_yaml_with_marks(read_scenario_text(Path(path), file), file)
+    return data
 
 
 def load_scenario(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Scenario:

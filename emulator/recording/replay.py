@@ -28,7 +28,8 @@ from ..assembly.ports import UART_NUM
 from ..errors import RecordingError
 from .capture import CaptureRecord, read_capture
 
-__all__ = ["NavComparison", "compare_nav", "load_replay", "replayable_records", "run_replay", "same_file"]
+__all__ = ["NavComparison", "compare_nav", "load_replay", "replay_base_dir", "replayable_records", "run_replay",
+           "same_file"]
 
 #: a capture whose last record is this much before the scenario's end holds less than the run (IMU frames
 #: arrive every 5 ms, so a complete capture ends within a few ms of the end)
@@ -45,10 +46,7 @@ def load_replay(capture: str | Path) -> tuple[Any, list[Any], dict[str, Any]]:
     if not isinstance(spec, dict):
         raise RecordingError(f"{capture}: the capture carries no scenario (recorded by an older psns-hil); "
                              "replay needs the scenario_spec header field")
-    base = header.get("scenario_base_dir")
-    # the scenario's relative files (a spec sheet...) are where the run found them, when that directory is still
-    # there; else next to the capture
-    base_dir = Path(base) if isinstance(base, str) and Path(base).is_dir() else Path(capture).resolve().parent
+    base_dir = replay_base_dir(capture, header.get("scenario_base_dir"))
     try:
         scn: Scenario = validate_scenario_data(spec, {}, f"{capture}#scenario_spec", base_dir=base_dir,
                                                check_environment=False)
@@ -80,6 +78,25 @@ def replayable_records(records: list[CaptureRecord]) -> tuple[list[CaptureRecord
         t_prev = r.t_s
         kept.append(r)
     return kept, {"records_in_capture": total, "bad_time_records": bad, "backward_time_records": back}
+
+
+def replay_base_dir(capture: str | Path, named: Any) -> Path:
+    """The directory a replayed scenario's relative files (a spec sheet, a calibration file) are confined to.
+
+    The capture's header names where the run found them (``scenario_base_dir``), but a capture may come from anyone:
+    that directory is taken only when it lies inside the working directory or a ``PSNS_HIL_ALLOW_PATHS`` root (the
+    user's trusted roots, :func:`emulator.scenario.paths.allowed_roots`) and still exists; else the capture's own
+    directory. A crafted header naming ``/`` therefore widens nothing.
+    """
+    from ..scenario.paths import allowed_roots
+
+    fallback = Path(capture).resolve().parent
+    if not isinstance(named, str) or "\x00" in named or not Path(named).is_absolute():
+        return fallback
+    base = Path(named).resolve()
+    if any(base == root or base.is_relative_to(root) for root in allowed_roots(Path.cwd())) and base.is_dir():
+        return base
+    return fallback
 
 
 def run_replay(capture: str | Path, run_dir: str | Path, mode: str = "fast", speed: float = 1.0,

@@ -166,3 +166,24 @@ def test_replay_reports_damaged_time_stamps_and_uses_every_other_record(tmp_path
     assert rep["bad_time_records"] == 1 and rep["backward_time_records"] == 1
     assert rep["records"] == len(uart_in) - 1  # every other record delivered (before: a NaN stopped the delivery)
     assert rep["truncated"] is False
+
+
+def test_the_header_cannot_widen_where_a_replay_reads_files(tmp_path: Path, monkeypatch) -> None:
+    """``scenario_base_dir`` (where the run found the scenario's relative files) is taken only inside the user's
+    trusted roots (the working directory, ``PSNS_HIL_ALLOW_PATHS``); a crafted ``/`` falls back to the capture's
+    directory, so ``firmware.spec_sheet: home/...`` cannot reach the whole file system."""
+    from emulator.recording.replay import replay_base_dir
+    from emulator.scenario.paths import ALLOW_PATHS_ENV
+
+    monkeypatch.chdir(ROOT)
+    monkeypatch.delenv(ALLOW_PATHS_ENV, raising=False)
+    cap = tmp_path / "run" / "capture.psnscap"
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    assert replay_base_dir(cap, "/") == cap.parent.resolve()
+    assert replay_base_dir(cap, str(elsewhere)) == cap.parent.resolve()
+    assert replay_base_dir(cap, str(ROOT / "scenarios")) == (ROOT / "scenarios").resolve()  # the usual case
+    assert replay_base_dir(cap, str(ROOT / "no-such-dir")) == cap.parent.resolve()
+    assert replay_base_dir(cap, 5) == cap.parent.resolve() and replay_base_dir(cap, "rel/dir") == cap.parent.resolve()
+    monkeypatch.setenv(ALLOW_PATHS_ENV, str(elsewhere))
+    assert replay_base_dir(cap, str(elsewhere)) == elsewhere.resolve()

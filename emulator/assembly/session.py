@@ -87,6 +87,8 @@ class Emulator:
 
     #: set by run_emulator's signal handler (or a signal before it existed): the run ends once started
     _interrupt_requested = False
+    #: set when stop() begins: a signal then no longer cancels the run (it is writing its files)
+    _stopping = False
     #: set when the run directory stopped taking data: (the error, whether summary.json was written)
     storage_error: tuple[OSError, bool] | None = None
 
@@ -431,6 +433,7 @@ class Emulator:
             self.recorder.close()
 
     async def stop(self, interrupted: bool = False) -> dict[str, Any]:
+        self._stopping = True  # a signal from now on does not cancel the stop (run_emulator's on_signal)
         loop = self.loop
         rec = self.recorder
         if loop is None or rec is None or self._stopped:
@@ -623,8 +626,13 @@ def _run_emulator(emu: Emulator, speed: float, on_started: Callable[[Emulator], 
         raise KeyboardInterrupt  # a second Ctrl-C: stop at once (emulator.cli.main says what that leaves)
 
     def on_signal() -> None:
-        emu._interrupt_requested = True  # read by Emulator.run after start-up
-        task.cancel()
+        if emu._stopping:  # the run has reached its end and is writing its files: do not cancel that (the
+            # cancellation would surface as a CancelledError traceback); the command learns of the signal
+            # through early_signals.PENDING, drops the report and exits 1 (emulator.cli.main._AfterRun)
+            early_signals.PENDING.append(int(signal.SIGINT))
+        else:
+            emu._interrupt_requested = True  # read by Emulator.run after start-up
+            task.cancel()
         # the next signal must act even while the run writes its summary without returning to the loop (a loop
         # handler would then never run): a plain handler that raises in the main thread wherever it is
         for sig in (signal.SIGINT, signal.SIGTERM):

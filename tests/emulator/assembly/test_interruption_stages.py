@@ -12,6 +12,7 @@ Before: "interrupted again" with the report dropped, rc -2, and a nav.csv 15-27 
 from __future__ import annotations
 
 import json
+import random
 import signal
 import subprocess
 import sys
@@ -102,3 +103,52 @@ def test_sigkill_in_fast_mode_leaves_nav_csv_at_most_one_batch_behind_the_captur
     behind = t_cap - t_nav
     bound = Recorder.NAV_BATCH / NAV_HZ + 0.5  # one batch, plus the time from validity to arrival
     assert behind <= bound, f"nav.csv ends {behind:.2f} s before the capture (t = {t_cap:.2f} s)"
+
+
+#: seeded interruption points: a capture size (bytes; the quickstart's capture ends at ~6.6 MB) or a file to wait for
+_RNG = random.Random(41)
+RANDOM_STAGES = [f"capture:{_RNG.randrange(50_000, 6_500_000)}" for _ in range(3)] + ["file:summary.json"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("stage", RANDOM_STAGES)
+def test_one_sigint_at_a_seeded_stage_never_gives_a_traceback_or_a_wrong_code(tmp_path, stage):
+    """Before (issue 41): one SIGINT at a random time printed a traceback and exited 0."""
+    out = tmp_path / "run"
+    proc = _start(out)
+    kind, arg = stage.split(":")
+    cap = out / "capture.psnscap"
+    cond = ((lambda: cap.exists() and cap.stat().st_size > int(arg)) if kind == "capture"
+            else (out / arg).exists)
+    sent = _wait_for(proc, cond, 300, stage)
+    if sent:
+        proc.send_signal(signal.SIGINT)
+    stdout, stderr = _finish(proc)
+    assert "Traceback" not in stderr and "interrupted again" not in stderr
+    assert proc.returncode in ((1,) if sent and kind == "capture" else (0, 1)), (proc.returncode, stderr)
+    s = json.loads((out / "summary.json").read_text())  # every stage leaves a summary
+    if sent and kind == "capture":
+        assert s["interrupted"] is True and "interrupted" in stdout
+
+
+@pytest.mark.realtime
+def test_sigkill_in_realtime_mode_leaves_nav_csv_at_most_one_realtime_batch_behind(tmp_path):
+    text = (ROOT / "scenarios" / "quickstart.yaml").read_text()
+    text = text.replace("duration_s: 120", "duration_s: 12").replace("- static: {duration_s: 120}",
+                                                                    "- static: {duration_s: 12}")
+    scn = tmp_path / "s.yaml"
+    scn.write_text(text[: text.index("expectations:")] + "expectations: []\n")
+    out = tmp_path / "run"
+    proc = subprocess.Popen([sys.executable, "-m", "emulator", "run", str(scn), "--realtime", "--quiet",
+                             "--no-report", "--out", str(out)], cwd=ROOT, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    cap = out / "capture.psnscap"
+    assert _wait_for(proc, lambda: cap.exists() and cap.stat().st_size > 350_000, 120, "capture data"), \
+        "the run ended before it could be killed"
+    proc.send_signal(signal.SIGKILL)
+    _finish(proc)
+    _header, records = read_capture(cap)
+    t_cap = max(r.t_s for r in records)
+    rows = [ln for ln in (out / "nav.csv").read_text().splitlines()[1:] if ln.count(",") > 10]
+    behind = t_cap - float(rows[-2].split(",")[0])
+    assert behind <= Recorder.NAV_BATCH_REALTIME / NAV_HZ + 0.5, f"nav.csv ends {behind:.2f} s before the capture"

@@ -618,10 +618,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         _print_error(StorageError(f"{where}cannot write: {exc.strerror or exc} (errno {exc.errno})"))
         return EXIT_USAGE
     except KeyboardInterrupt:
-        # the first Ctrl-C of a run is handled by the run (it stops and keeps its data); one that gets here is a
-        # second one, or one outside a run: say what happened
-        sys.stderr.write(f"\npsns-hil {args.command}: interrupted again: stopped at once without finishing; the "
-                         "run directory may lack its summary and report (captures written so far are kept)\n")
+        # the first Ctrl-C of a run is handled by the run (it stops and keeps its data; after the run, _AfterRun);
+        # one that gets here during `run` is a second one; in another command (report, monitor) the first
+        if args.command == "run":
+            sys.stderr.write("\npsns-hil run: interrupted again: stopped at once without finishing; the run "
+                             "directory may lack its summary and report (captures written so far are kept)\n")
+        else:
+            sys.stderr.write(f"\npsns-hil {args.command}: interrupted\n")
         return EXIT_FAILED
 
 

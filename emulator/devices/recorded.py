@@ -75,14 +75,36 @@ GNSS_COLUMNS = ("time_s", "lat_deg", "lon_deg", "height_m", "vel_e_mps", "vel_n_
 GNSS_OPTIONAL = ("fix_quality", "num_sats", "hdop")
 
 
+#: longest line of a recorded CSV (characters); a real row is < 200 (issue 41: a 50 MB line gave a traceback)
+RECORDED_LINE_MAX = 65536
+
+
+def _csv_cells(path: Path, i: int, ln: str) -> list[str]:
+    try:
+        return next(csv.reader([ln]))
+    except csv.Error as exc:  # never the cell's text (docs/hostile-input.md section 6)
+        raise RecordingError(f"{path}: line {i + 1}: not a CSV row ({type(exc).__name__})") from None
+
+
 def _read_csv(path: Path, required: tuple[str, ...], optional: tuple[str, ...] = ()) -> dict[str, np.ndarray]:
-    """Numeric columns of a CSV with a header; errors name file, line and column (1-based)."""
+    """Numeric columns of a CSV with a header; errors name file, line and column (1-based). The file must be UTF-8
+    with lines of at most :data:`RECORDED_LINE_MAX` characters."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        raw = path.read_bytes()
     except OSError as exc:
         raise RecordingError(f"{path}: cannot read: {exc.strerror or exc}") from exc
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw.count(b"\n", 0, exc.start) + 1
+        col = exc.start - (raw.rfind(b"\n", 0, exc.start) + 1) + 1
+        raise RecordingError(f"{path}: line {line}, column {col}: not UTF-8 text (byte offset {exc.start})") from None
     lines = text.splitlines()
+    for i, ln in enumerate(lines):
+        if len(ln) > RECORDED_LINE_MAX:
+            raise RecordingError(f"{path}: line {i + 1}, column {RECORDED_LINE_MAX + 1}: line longer than "
+                                 f"{RECORDED_LINE_MAX} characters ({len(ln)})")
     header_line = None
     for i, ln in enumerate(lines):
         if ln.strip() and not ln.lstrip().startswith("#"):
@@ -90,7 +112,7 @@ def _read_csv(path: Path, required: tuple[str, ...], optional: tuple[str, ...] =
             break
     if header_line is None:
         raise RecordingError(f"{path}: line 1, column 1: empty file (expected a header: {', '.join(required)})")
-    header = [h.strip() for h in next(csv.reader([lines[header_line]]))]
+    header = [h.strip() for h in _csv_cells(path, header_line, lines[header_line])]
     missing = [c for c in required if c not in header]
     if missing:
         raise RecordingError(f"{path}: line {header_line + 1}, column 1: missing column(s) {', '.join(missing)} "
@@ -102,7 +124,7 @@ def _read_csv(path: Path, required: tuple[str, ...], optional: tuple[str, ...] =
         ln = lines[i]
         if not ln.strip() or ln.lstrip().startswith("#"):
             continue
-        cells = next(csv.reader([ln]))
+        cells = _csv_cells(path, i, ln)
         starts = [0]
         for c in cells[:-1]:
             starts.append(starts[-1] + len(c) + 1)

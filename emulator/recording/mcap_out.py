@@ -4,7 +4,9 @@ Written with the ``mcap`` library (D-7.15, docs/decisions/emulator-runtime.md) f
 into the run directory: the capture (every chunk on every tapped link), nav.csv / truth.csv / psns.csv, timeline.csv,
 filter_state.csv, events.jsonl and summary.json. Nothing here reaches into a device: the recorder is a listener on
 the links and devices, and this module reads only its files, so a finished run and an old run directory
-(``psns-hil export RUN --mcap``) convert the same way.
+(``psns-hil export RUN --mcap``) convert the same way. The conversion, :class:`RunFeeds`, takes the files
+incrementally and is shared with the live view (:mod:`emulator.recording.live`, D-7.28), so both carry the channel
+set declared once in :data:`TOPICS`.
 
 Messages are JSON (``message_encoding`` ``json``) with a JSON Schema each (``schema encoding`` ``jsonschema``):
 the Foxglove well-known schemas where one fits (``foxglove.LocationFix``, ``foxglove.PoseInFrame``,

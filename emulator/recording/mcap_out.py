@@ -276,9 +276,12 @@ class _Out:
                           else log))
 
 
+_ENCODER = json.JSONEncoder(separators=(",", ":"), allow_nan=False)
+
+
 def encode_message(msg: dict[str, Any]) -> bytes:
     """A message as its channel carries it: compact, strict JSON (UTF-8)."""
-    return json.dumps(msg, separators=(",", ":"), allow_nan=False).encode()
+    return _ENCODER.encode(msg).encode()
 
 
 def _finite(v: Any) -> Any:
@@ -335,12 +338,18 @@ SENSOR_SOURCES: dict[str, tuple[str, str]] = {
     "psns_frames.csv": ("/psns/frames", "One frame on the PSNS port: header and, for a solar-vector frame, the "
                         "vector and its quality"),
 }
+def _sig3(sigma_column: str) -> str:
+    """The /nav/error field of a sigma column's 3-sigma bound: ``sig_pos_e_m`` -> ``sig3_pos_e_m``."""
+    return "sig3_" + sigma_column.removeprefix("sig_")
+
+
 EVENTS_FILE, CAPTURE_FILE, SUMMARY_FILE = "events.jsonl", "capture.psnscap", "summary.json"
 _NAV_ERROR_SCHEMA: dict[str, Any] = {
     "title": "psns_hil.NavError", "type": "object",
-    "properties": {"timestamp": _TIME, **{c: {"type": ["number", "null"]} for pair in NAV_ERROR_PAIRS for c in pair}},
-    "description": "The error against truth per component beside the filter's 1-sigma of that component (plot err "
-                   "inside +-3 sig); null errors: the frame is not navigating"}
+    "properties": {"timestamp": _TIME, **{c: {"type": ["number", "null"]} for pair in NAV_ERROR_PAIRS for c in pair},
+                   **{_sig3(s): {"type": ["number", "null"]} for _e, s in NAV_ERROR_PAIRS}},
+    "description": "The error against truth per component beside the filter's 1-sigma of that component and its "
+                   "3-sigma bound sig3_* (plot err inside +-sig3); null errors: the frame is not navigating"}
 _EXPECTATION_SCHEMA: dict[str, Any] = {
     "title": "psns_hil.Expectation", "type": "object",
     "description": "One of the scenario's expectations as evaluated at the end of the run (summary.json)",
@@ -423,7 +432,9 @@ class RunFeeds:
         _pose_msgs(out, "/nav/pose", "body", t, r, self.enu, pub)
         err: dict[str, Any] = {"timestamp": _stamp(t)}
         for e, s in NAV_ERROR_PAIRS:
-            err[e], err[s] = r.get(e), r.get(s)
+            one = r.get(s)
+            err[e], err[s] = r.get(e), one
+            err[_sig3(s)] = 3.0 * one if isinstance(one, float | int) and math.isfinite(one) else None
         out.add("/nav/error", t, err, pub)
 
     # -- the capture -------------------------------------------------------------------------------

@@ -199,7 +199,8 @@ class LiveServer:
         self.channels: dict[str, int] = {}
         self.schemas: dict[str, dict[str, Any]] = {}
         self._adverts: list[dict[str, Any]] = []
-        self._latest: dict[int, tuple[int, bytes]] = {}
+        #: each channel's latest message (log time ns, message: encoded once a client wants it)
+        self._latest: dict[int, tuple[int, dict[str, Any] | bytes]] = {}
         self._batch: list[tuple[int, int, int, bytes]] = []
         self._new: list[dict[str, Any]] = []
         self._clients: set[_Client] = set()
@@ -228,7 +229,11 @@ class LiveServer:
                       "schema": json.dumps(self.schemas[schema], sort_keys=True), "schemaEncoding": "jsonschema"}
             self._adverts.append(advert)
             self._new.append(advert)
-        self._batch.append((max(0, round(log_s * 1e9)), len(self._batch), cid, encode_message(msg)))
+        log_ns = max(0, round(log_s * 1e9))
+        if not any(cid in c.subs for c in self._clients):  # nobody watching: the latest message, not encoded
+            self._latest[cid] = (log_ns, msg)
+            return
+        self._batch.append((log_ns, len(self._batch), cid, encode_message(msg)))
 
     def _publish_batch(self) -> None:
         if self._new:
@@ -355,7 +360,10 @@ class LiveServer:
                     client.subs[cid] = s["id"]
                     latest = self._latest.get(cid)
                     if latest is not None:  # the channel's latest message, at once
-                        client.queue.append(struct.pack("<BIQ", _OP_MESSAGE_DATA, s["id"], latest[0]) + latest[1])
+                        log_ns, m = latest
+                        payload = m if isinstance(m, bytes) else encode_message(m)
+                        self._latest[cid] = (log_ns, payload)
+                        client.queue.append(struct.pack("<BIQ", _OP_MESSAGE_DATA, s["id"], log_ns) + payload)
                         client.wake.set()
         elif op == "unsubscribe":
             ids = set(msg.get("subscriptionIds", []))

@@ -42,7 +42,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from itertools import pairwise
 from pathlib import Path
-from typing import IO, Any, Protocol
+from typing import IO, Any, Protocol, TypeGuard
 
 from mcap.writer import Writer
 
@@ -51,6 +51,7 @@ from protocols.host import NavMode, describe_nav_mode
 from protocols.psns import PolarizationObs, PolarizationObsPacked
 
 from ..devices.camera.geometry import IMX250MZR_NX, IMX250MZR_NY
+from ..errors import RecordingError
 from ..world.geodesy import radii
 from .capture import CaptureRecord, iter_capture
 from .nav_error import _c_bn
@@ -297,7 +298,7 @@ def _location(t: float, lat: float, lon: float, h: float, sig: tuple[float, floa
     msg: dict[str, Any] = {"timestamp": _stamp(t), "frame_id": frame, "latitude": lat, "longitude": lon,
                            "altitude": h, "position_covariance": cov,
                            "position_covariance_type": 2 if sig is not None else 0}
-    if heading_deg is not None:
+    if isinstance(heading_deg, float | int):
         msg["heading"] = heading_deg * DEG
     if vel is not None and all(isinstance(v, float | int) for v in vel):
         msg["velocity"] = {"x": vel[0], "y": vel[1], "z": vel[2]}
@@ -338,6 +339,26 @@ SENSOR_SOURCES: dict[str, tuple[str, str]] = {
     "psns_frames.csv": ("/psns/frames", "One frame on the PSNS port: header and, for a solar-vector frame, the "
                         "vector and its quality"),
 }
+#: the columns the conversion needs in a CSV file (the rest are carried as they are); others: ``time_s``
+_REQUIRED_COLUMNS = {name: ("time_s", "lat_deg", "lon_deg", "height_m") for name in ("truth.csv", "nav.csv")}
+
+
+#: log times past this (s, about 31 years; MCAP's u64 ns end near 585 years) are not a run's: left out
+_MAX_LOG_S = 1e9
+
+
+def _time_ok(t: Any) -> TypeGuard[float]:
+    """Whether ``t`` is a scenario time a message can be logged at (a finite number, |t| < :data:`_MAX_LOG_S`)."""
+    return isinstance(t, float | int) and not isinstance(t, bool) and abs(t) < _MAX_LOG_S
+
+
+def _has_position(r: dict[str, Any]) -> bool:
+    """Whether row ``r`` has a position (finite numbers, latitude and longitude in range) to place on a map."""
+    lat, lon, h = r.get("lat_deg"), r.get("lon_deg"), r.get("height_m")
+    return isinstance(lat, float | int) and isinstance(lon, float | int) and isinstance(h, float | int) and \
+        abs(lat) <= 90.0 and abs(lon) <= 180.0
+
+
 def _sig3(sigma_column: str) -> str:
     """The /nav/error field of a sigma column's 3-sigma bound: ``sig_pos_e_m`` -> ``sig3_pos_e_m``."""
     return "sig3_" + sigma_column.removeprefix("sig_")
@@ -384,18 +405,23 @@ class RunFeeds:
 
     # -- CSV files ---------------------------------------------------------------------------------
     def csv_header(self, name: str, cols: list[str]) -> None:
-        """The header of CSV file ``name`` (a key of :data:`CSV_SOURCES`): its topic's schema."""
+        """The header of CSV file ``name`` (a key of :data:`CSV_SOURCES`): its topic's schema. A header without the
+        columns the conversion needs raises :class:`~emulator.errors.RecordingError`."""
+        missing = [c for c in _REQUIRED_COLUMNS.get(name, ("time_s",)) if c not in cols]
+        if missing:
+            raise RecordingError(f"{name}: not a psns-hil {name} (no column {', '.join(missing)})")
         topic, description = CSV_SOURCES[name]
         schema = TOPICS[topic]
         self.out.schemas[schema] = _columns_schema(schema, cols, description)
         self._cols[name], self._line[name] = cols, 1
 
     def csv_row(self, name: str, cells: list[str]) -> None:
-        """One data line of CSV file ``name``, after its :meth:`csv_header`."""
+        """One data line of CSV file ``name``, after its :meth:`csv_header` (a non-finite cell becomes null; a row
+        without a time is skipped, one without a position has no location or pose)."""
         self._line[name] += 1
-        r: dict[str, Any] = {c: _num(v) for c, v in zip(self._cols[name], cells)}
+        r: dict[str, Any] = {c: _finite(_num(v)) for c, v in zip(self._cols[name], cells)}
         t = r.get("time_s")
-        if not isinstance(t, float | int):
+        if not _time_ok(t):
             return
         if name == "nav.csv":
             self._nav_row(t, r)
@@ -407,10 +433,13 @@ class RunFeeds:
     def _truth_row(self, t: float, r: dict[str, Any]) -> None:
         out = self.out
         out.add("/truth/state", t, r)
+        if not _has_position(r):
+            return
         if self.enu is None:
             self.enu = _Enu(r["lat_deg"], r["lon_deg"], r["height_m"])
         out.add("/truth/location", t, _location(t, r["lat_deg"], r["lon_deg"], r["height_m"], None, "body_truth",
-                                                r["heading_deg"], (r["vel_e_mps"], r["vel_n_mps"], r["vel_u_mps"])))
+                                                r.get("heading_deg"), (r.get("vel_e_mps"), r.get("vel_n_mps"),
+                                                                       r.get("vel_u_mps"))))
         _pose_msgs(out, "/truth/pose", "body_truth", t, r, self.enu)
 
     def _nav_row(self, t: float, r: dict[str, Any]) -> None:
@@ -424,12 +453,13 @@ class RunFeeds:
                                      "message": describe_nav_mode(mode), "name": "firmware", "file": "nav.csv",
                                      "line": self._line["nav.csv"]})
             self._last_mode = mode
-        sig = (r["sig_pos_e_m"], r["sig_pos_n_m"], r["sig_pos_u_m"])
-        ok = all(isinstance(v, float | int) and math.isfinite(v) for v in sig)
-        out.add("/nav/location", t, _location(t, r["lat_deg"], r["lon_deg"], r["height_m"], sig if ok else None,
-                                              "body", r["heading_deg"], (r["vel_e_mps"], r["vel_n_mps"],
-                                                                         r["vel_u_mps"])), pub)
-        _pose_msgs(out, "/nav/pose", "body", t, r, self.enu, pub)
+        sig: tuple[Any, Any, Any] = (r.get("sig_pos_e_m"), r.get("sig_pos_n_m"), r.get("sig_pos_u_m"))
+        ok = all(isinstance(v, float | int) for v in sig)
+        if _has_position(r):
+            out.add("/nav/location", t, _location(t, r["lat_deg"], r["lon_deg"], r["height_m"],
+                                                  sig if ok else None, "body", r.get("heading_deg"),
+                                                  (r.get("vel_e_mps"), r.get("vel_n_mps"), r.get("vel_u_mps"))), pub)
+            _pose_msgs(out, "/nav/pose", "body", t, r, self.enu, pub)
         err: dict[str, Any] = {"timestamp": _stamp(t)}
         for e, s in NAV_ERROR_PAIRS:
             one = r.get(s)
@@ -444,8 +474,10 @@ class RunFeeds:
         self._sensors = SensorDecoder(gyro_is_rate(header))
 
     def capture_record(self, r: CaptureRecord) -> None:
-        """One capture record: its raw bytes, and the sensor frames it completes."""
+        """One capture record: its raw bytes, and the sensor frames it completes (none at an impossible time)."""
         out = self.out
+        if not _time_ok(r.t_s):
+            return
         out.add(f"{RAW_PREFIX}{r.link}/{r.direction}", r.t_s, {"link": r.link, "direction": r.direction,
                                                                 "pitch_s": r.pitch_s,
                                                                 "data": base64.b64encode(r.data).decode("ascii")})
@@ -478,7 +510,7 @@ class RunFeeds:
             ev = json.loads(line)
         except json.JSONDecodeError:
             return
-        if not isinstance(ev, dict) or not isinstance(ev.get("t_s"), float | int):
+        if not isinstance(ev, dict) or not _time_ok(ev.get("t_s")):
             return
         kind = str(ev.get("event", ""))
         rest = {k: v for k, v in ev.items() if k not in ("t_s", "source", "event")}

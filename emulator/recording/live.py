@@ -348,13 +348,16 @@ class LiveServer:
             return
         try:
             msg = json.loads(raw)
-            op = msg["op"] if isinstance(msg, dict) else None
-        except (ValueError, KeyError):
+        except ValueError:
+            msg = None
+        if not isinstance(msg, dict) or not isinstance(msg.get("op"), str):
             self._refuse(client, "malformed message")
             return
-        if op == "subscribe":
+        op = msg["op"]
+        subs, ids = msg.get("subscriptions"), msg.get("subscriptionIds")
+        if op == "subscribe" and isinstance(subs, list):
             known = set(self.channels.values())
-            for s in msg.get("subscriptions", []):
+            for s in subs:
                 if isinstance(s, dict) and isinstance(s.get("id"), int) and s.get("channelId") in known:
                     cid = s["channelId"]
                     client.subs[cid] = s["id"]
@@ -365,9 +368,11 @@ class LiveServer:
                         self._latest[cid] = (log_ns, payload)
                         client.queue.append(struct.pack("<BIQ", _OP_MESSAGE_DATA, s["id"], log_ns) + payload)
                         client.wake.set()
-        elif op == "unsubscribe":
-            ids = set(msg.get("subscriptionIds", []))
-            client.subs = {c: s for c, s in client.subs.items() if s not in ids}
+        elif op == "unsubscribe" and isinstance(ids, list):
+            gone = {i for i in ids if isinstance(i, int)}
+            client.subs = {c: s for c, s in client.subs.items() if s not in gone}
+        elif op in ("subscribe", "unsubscribe"):
+            self._refuse(client, f"malformed {op}")
         else:  # advertise, unadvertise, getParameters, setParameters, subscribeParameterUpdates, ...
             self._refuse(client, str(op))
 

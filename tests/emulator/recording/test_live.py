@@ -16,6 +16,7 @@ import shutil
 import struct
 import subprocess
 import sys
+import threading
 import time
 from collections import Counter, defaultdict
 from pathlib import Path
@@ -185,3 +186,80 @@ def test_a_spec_client_watches_a_realtime_run(tmp_path):
         assert log_ns == round(m["time_s"] * 1e9)
         for col in ("lat_deg", "lon_deg", "height_m", "heading_deg", "arrival_s", "sig_pos_e_m"):
             assert m[col] == float(r[col]), col
+
+
+@pytest.mark.realtime
+def test_the_server_refuses_a_hostile_client_and_serves_the_tail_of_the_run(tmp_path):
+    """In process: a run directory written in two halves while a spec client watches. Malformed and forbidden
+    messages get a status error each and change nothing; after subscribing, the client receives the channel's latest
+    message and then every later one, equal to run.mcap's, to the end of the run (the expectations too)."""
+    from emulator.recording.live import LiveServer
+
+    scn = load_scenario(SCENARIOS / "quickstart.yaml")
+    scn.duration_s = 3.0
+    src = tmp_path / "run"
+    run_scenario(scn, src)
+    write_run_mcap(src)
+    _schemas, mcap_msgs = _mcap(src / "run.mcap")
+    grow = tmp_path / "grow"
+    grow.mkdir()
+    data = {n: (src / n).read_bytes() for n in [*CSV_SOURCES, "events.jsonl", "capture.psnscap"]}
+
+    def write(part):
+        for n, b in data.items():
+            with open(grow / n, "ab") as f:
+                f.write(b[: len(b) // 2] if part == 0 else b[len(b) // 2:])
+
+    server = LiveServer("127.0.0.1", 0)
+    server.follow(grow)
+    port = server.start()
+    frames: dict[str, list[tuple[int, bytes]]] = defaultdict(list)
+    chans: dict[int, dict] = {}
+    by_sub: dict[int, str] = {}
+    status: list[dict] = []
+    try:
+        with connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.websocket.v1"], open_timeout=10,
+                     max_size=None) as ws:
+            assert json.loads(ws.recv(timeout=10))["op"] == "serverInfo"
+            assert json.loads(ws.recv(timeout=10)) == {"op": "advertise", "channels": []}
+            for bad in ("not json", "[1, 2]", '{"op": 3}', '{"op": "subscribe", "subscriptions": 5}',
+                        '{"op": "unsubscribe", "subscriptionIds": "x"}', '{"op": "subscribeParameterUpdates"}'):
+                ws.send(bad)
+            while len(status) < 6:
+                status.append(json.loads(ws.recv(timeout=10)))
+            assert all(s["op"] == "status" and s["level"] == 2 and "read-only" in s["message"] for s in status)
+            write(0)
+            while "/nav/solution" not in by_sub.values():  # the first half is advertised as the server reads it
+                op = json.loads(ws.recv(timeout=10))
+                assert op["op"] == "advertise"
+                _subscribe(ws, op["channels"], chans, by_sub)
+            write(1)
+            try:
+                while True:
+                    msg = ws.recv(timeout=2)  # silence: the server has read the second half (or close() will)
+                    if isinstance(msg, str):
+                        op = json.loads(msg)
+                        assert op["op"] == "advertise"
+                        _subscribe(ws, op["channels"], chans, by_sub)
+                        continue
+                    _code, sub, log_ns = struct.unpack_from("<BIQ", msg)
+                    frames[by_sub[sub]].append((log_ns, bytes(msg[13:])))
+            except TimeoutError:  # the run ends; close() reads what is left and waits for the client
+                shutil.copy(src / "summary.json", grow / "summary.json")
+                closer = threading.Thread(target=server.close)
+                closer.start()
+                for msg in ws:
+                    if isinstance(msg, str):
+                        _subscribe(ws, json.loads(msg)["channels"], chans, by_sub)
+                        continue
+                    _code, sub, log_ns = struct.unpack_from("<BIQ", msg)
+                    frames[by_sub[sub]].append((log_ns, bytes(msg[13:])))
+                closer.join(30)
+    finally:
+        server.close()
+    want = [(log, d) for t, log, d in mcap_msgs if t == "/nav/solution"]
+    got = frames["/nav/solution"]
+    assert len(got) >= len(want) // 2 and got == want[len(want) - len(got):]  # a tail of the run, in order
+    assert frames["/expectations"] and all((t, d) in {(lg, dd) for tt, lg, dd in mcap_msgs if tt == "/expectations"}
+                                           for t, d in frames["/expectations"])
+    assert server.refused == 6 and server.error is None

@@ -46,7 +46,7 @@ from protocols.host import HostFormat, NavMode
 from protocols.imu_frame import ADC_VOLTS_PER_LSB, FpgaFrameFormat, FpgaStatus, ImuFrame
 from protocols.nmea import NMEA_RX_MAX_LEN, NmeaFormat
 from protocols.psns import PsnsFormat
-from protocols.stim import GYRO_ANGLE_LSB_DEG, GYRO_RATE_LSB_DPS
+from protocols.stim import GYRO_ANGLE_LSB_DEG, GYRO_RATE_LSB_DPS, STATUS_SAMPLE_INVALID
 from protocols.stream import StreamDecoder
 from protocols.ubx import UbxFormat
 
@@ -106,6 +106,7 @@ def tick_kernel_cycles(c: c674x.KernelCosts, nav_dp: bool = True) -> dict[str, i
 
 _PPS_VALID = int(FpgaStatus.PPS_VALID)
 _GYRO_MISSING = int(FpgaStatus.GYRO_MISSING)
+_STATUS_INVALID = int(STATUS_SAMPLE_INVALID)
 #: consecutive IMU frames with an out-of-range time-stamp step after which the new time base is taken
 _IMU_RESYNC = 5
 
@@ -219,6 +220,10 @@ class Firmware(HostTask, GnssTask):
         self._gyro_word_max = int(cfg.gyro_range_dps / gyro_lsb_dps) + 1
         amax = [int(r * v / ADC_VOLTS_PER_LSB) + 1 for r, v in zip(cfg.accel_range_g, cfg.accel_volts_per_g)]
         self._accel_code_max = (amax[0], amax[1], amax[2])
+        # the same bounds inside the rails, for the one-expression acceptance of _screen_imu
+        inside = input_guard.S24_MAX - 1
+        self._gyro_fast_max = min(self._gyro_word_max, inside)
+        self._accel_fast_max = (min(amax[0], inside), min(amax[1], inside), min(amax[2], inside))
         self._gnss_reject_run = 0
         #: the innovation gate refused rows of the last GNSS fix (bit 7 of the nav frame's gnss_status)
         self._gnss_gated = False
@@ -351,6 +356,15 @@ class Firmware(HostTask, GnssTask):
             self._imu_resync_run.clear()
         else:
             self._t_base_first_us = self._t_epoch_us + fr.t_trigger_us
+        # the common case in one expression (every word inside the range, which lies inside the rails; STATUS clear)
+        g0, g1, g2 = fr.gyro
+        a0, a1, a2 = fr.accel
+        gm = self._gyro_fast_max
+        am0, am1, am2 = self._accel_fast_max
+        if (not fr.gyro_status & _STATUS_INVALID and -gm <= g0 <= gm and -gm <= g1 <= gm and -gm <= g2 <= gm
+                and -am0 <= a0 <= am0 and -am1 <= a1 <= am1 and -am2 <= a2 <= am2):
+            self._imu_hold = (fr.gyro, fr.accel)
+            return fr
         g_reason = (input_guard.check_gyro_status(fr.gyro_status)
                     or input_guard.check_imu_words(fr.gyro, (0, 0, 0)))
         a_reason = input_guard.check_imu_words((0, 0, 0), fr.accel)

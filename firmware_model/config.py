@@ -74,8 +74,9 @@ class FirmwareConfig:
     nav_state_precision: str = "float64"
     filter: str = "base"
     accel_volts_per_g: tuple[float, float, float] = ACCEL_VOLTS_PER_G
-    #: measurement ranges of the units this build is fitted with, as their datasheets give them (docs/sensors.md):
-    #: the STIM210's +-400 deg/s and the Colibrys MS9030 (x, +-30 g) and the +-25 g parts (y, z). An IMU word
+    #: measurement ranges of the units this build is fitted with (the emulator sets them from the configured IMU,
+    #: emulator/dsp/firmware_setup.py); defaults as the datasheets give them (docs/sensors.md): the STIM210's
+    #: +-400 deg/s and the Colibrys MS9030 (x, +-30 g) and the +-25 g parts (y, z). An IMU word
     #: beyond them (1 LSB of rounding allowed) is no measurement of that unit: refused with ``gyro_range`` /
     #: ``accel_range`` even below the 24-bit rail (firmware_model.input_guard, D-5.46)
     gyro_range_dps: float = 400.0

@@ -48,7 +48,7 @@ from firmware_model.variants.params import (
 
 from ..devices.base import device_rng
 from ..devices.compass import default_mountings, mountings_from_directions, turned_about_view_rays
-from ..devices.sensors import camera_config, compass_config, mag_config
+from ..devices.sensors import accel_errors, camera_config, compass_config, gyro_errors, mag_config
 from ..errors import ScenarioError
 from ..plugins import PLUGIN_ERRORS, plugin, plugin_names
 from ..scenario.schema import Scenario
@@ -366,6 +366,10 @@ def _compass_mountings(scn: Scenario, calibration: Calibration):
         raise ScenarioError(f"firmware.calibration: {exc}") from exc
 
 
+def _vec3(v: Any) -> tuple[float, float, float]:
+    return (float(v[0]), float(v[1]), float(v[2]))
+
+
 def firmware_config(scn: Scenario, calibration: Calibration | None = None) -> FirmwareConfig:
     """The firmware's configuration: the scenario's firmware section and the calibration file (by default the
     one :func:`calibration_for` makes with the scenario's seed)."""
@@ -386,6 +390,10 @@ def firmware_config(scn: Scenario, calibration: Calibration | None = None) -> Fi
         imu_rate_hz=scn.sensors.imu.rate_hz,
         gyro_output=scn.sensors.imu.output,
         gyro_counter_step=round(2000 / scn.sensors.imu.rate_hz),
+        # the fitted units' measurement ranges (a property of the configured variant, like the output and the rate;
+        # no error figure): words beyond them are refused (D-5.46)
+        gyro_range_dps=gyro_errors(scn).range_dps,
+        accel_range_g=_vec3(accel_errors(scn).range_g),
         coning_samples=fw.coning_samples,
         kf_predict_every=fw.kf_predict_every,
         output_rate_hz=fw.output_rate_hz,

@@ -402,7 +402,8 @@ class Firmware(HostTask, GnssTask):
         be told from it). The run's frames must step validly among themselves, with the frame sequence and the
         STIM datagram counter advancing (a repeated counter is a duplicated datagram, not a live gyro)."""
         run = self._imu_resync_run
-        if self._t_base_first_us <= t_new <= t_last and not (fr.seq == 0 or run):
+        from_zero = (run[0][1] if run else fr.seq) == 0  # the run (or this frame, starting one) begins at seq 0
+        if self._t_base_first_us <= t_new <= t_last and not from_zero:
             self.counters["imu_resync_refused"] += 1
             self._reject("imu_time_replay")
             run.clear()

@@ -184,3 +184,14 @@ def test_set_output_rate_outside_its_range_is_refused_and_counted(rate: float, a
     assert len(acks) == 1 and acks[0].token == 7
     assert acks[0].result == (AckResult.ACCEPTED if accepted else AckResult.BAD_ARGUMENT)
     assert fw.counters["commands_rejected_output_rate"] == (0 if accepted else 1)
+
+
+def test_a_replay_after_a_jumped_frame_never_resyncs_the_clock() -> None:
+    """One frame of a forward jump opens a run of candidates; the replayed stretch after it still lies in lived
+    time and is refused frame by frame (a run may hold lived time only when it began at sequence 0)."""
+    fw = Firmware(FirmwareConfig())
+    feed(fw, [frame(k) for k in range(2000)])
+    t_before = fw.now_s()
+    feed(fw, [frame(2000, t_us=2000 * PERIOD_US + 10_000_000)] + [frame(k) for k in range(600, 700)])
+    assert fw.counters["imu_time_resync"] == 0 and fw.now_s() == t_before
+    assert fw.counters["input_rejected_imu_time_replay"] == 100

@@ -228,9 +228,13 @@ def print_summary(s: dict[str, Any]) -> None:
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
+    from ..dsp.firmware_setup import check_firmware
     from ..scenario import load_scenario
 
     scn = load_scenario(args.scenario, args.set or ())
+    # the firmware side, as a run would build it (issue 41): the named filter plugin is a NavFilter, the firmware
+    # plugin a factory, the spec sheet reads and validates; only the named plugins are imported, nothing runs
+    check_firmware(scn)
     if args.json:
         print(scn.model_dump_json(indent=2, exclude_none=True))
     else:

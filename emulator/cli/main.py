@@ -445,6 +445,11 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
 
     stats = run_monitor(args.endpoint, protocol=args.protocol, baud=args.baud, links=args.link or None,
                         count=args.count, duration_s=args.duration, as_json=args.json, port_name=args.port)
+    cap = stats.get("capture")
+    if cap and (cap["bad_time_records"] or cap["backward_time_records"]):  # always said, not only with --stats
+        print(f"warning: {args.endpoint}: {cap['bad_time_records']} record(s) with a time that is not finite or "
+              f"negative, {cap['backward_time_records']} going back in time within their link and direction",
+              file=sys.stderr)  # one line, never wrapped
     if args.stats:
         err = _console(stderr=True)
         err.print(f"{stats['frames']} frames")
@@ -476,6 +481,11 @@ def _cmd_replay(args: argparse.Namespace) -> int:
         console.print(f"replayed {summary['replay']['records']} captured DSP UART records")
     original = Path(args.compare) if args.compare else cap.parent
     rep = summary.get("replay") or {}
+    if rep.get("bad_time_records") or rep.get("backward_time_records"):
+        console.print(f"[yellow]the capture's time stamps are damaged: {rep['bad_time_records']} record(s) with a time "
+                      f"that is not finite or negative (dropped), {rep['backward_time_records']} going back in time "
+                      f"(delivered at the previous record's time); replayed {rep['records']} of "
+                      f"{rep['records_in_capture']} DSP UART records[/]")
     if rep.get("truncated"):
         console.print(f"[yellow]the capture is truncated: it holds {rep['captured_s']:.3f} s of the scenario's "
                       f"{rep['scenario_duration_s']:g} s; replayed that much[/]")

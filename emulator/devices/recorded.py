@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import csv
 import datetime as _dt
-import glob as _glob
 import math
 from collections.abc import Callable
 from pathlib import Path
@@ -443,21 +442,28 @@ class RecordedImages:
     """Timed raw mosaics for the camera (see module docstring); :meth:`mosaic_at` is the camera's source."""
 
     def __init__(self, index: Path | None = None, files: str | None = None, rate_hz: float | None = None,
-                 start_s: float = 0.0, shape: tuple[int, int] = (2048, 2448)) -> None:
+                 start_s: float = 0.0, shape: tuple[int, int] = (2048, 2448),
+                 base_dir: str | Path | None = None) -> None:
+        """``index`` (a confined path) or ``files`` (a glob relative to ``base_dir``, the scenario's directory):
+        every index entry and every glob match is confined to the scenario's directory
+        (:mod:`emulator.scenario.paths`) before it is looked at, with the same message whether it exists or not.
+        Without ``base_dir``: the index's directory, or the working directory for a glob."""
+        from ..scenario.paths import PathNotAllowed, confined_glob, read_frame_index
+
         self.shape = shape
         if index is not None:
-            d = _read_index(Path(index))
+            d = read_frame_index(Path(index), base_dir if base_dir is not None else Path(index).parent)
             self.times = d[0]
             self.files = d[1]
         else:
-            names = sorted(_glob.glob(str(files)))
-            if not names:
+            try:
+                found = confined_glob(base_dir, str(files), "camera frame")
+            except PathNotAllowed as exc:
+                raise RecordingError(f"{files}: {exc}") from None
+            if not found:
                 raise RecordingError(f"{files}: line 1, column 1: no file matches")
-            self.files = [Path(n) for n in names]
-            self.times = start_s + np.arange(len(names)) / float(rate_hz)  # type: ignore[arg-type]
-        for f in self.files:
-            if not f.exists():
-                raise RecordingError(f"{f}: line 1, column 1: file not found")
+            self.files = found
+            self.times = start_s + np.arange(len(found)) / float(rate_hz)  # type: ignore[arg-type]
         self.period = float(np.median(np.diff(self.times))) if len(self.times) > 1 else math.inf
         self._cache: tuple[int, np.ndarray] | None = None
 
@@ -468,32 +474,3 @@ class RecordedImages:
         if self._cache is None or self._cache[0] != i:
             self._cache = (i, read_mosaic(self.files[i], self.shape))
         return self._cache[1]
-
-
-def _read_index(path: Path) -> tuple[np.ndarray, list[Path]]:
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise RecordingError(f"{path}: cannot read: {exc.strerror or exc}") from exc
-    times: list[float] = []
-    files: list[Path] = []
-    header_seen = False
-    for i, ln in enumerate(text.splitlines(), start=1):
-        if not ln.strip() or ln.lstrip().startswith("#"):
-            continue
-        cells = [c.strip() for c in ln.split(",")]
-        if not header_seen:
-            if cells[:2] != ["time_s", "file"]:
-                raise RecordingError(f"{path}: line {i}, column 1: the header must be 'time_s,file'")
-            header_seen = True
-            continue
-        if len(cells) < 2:
-            raise RecordingError(f"{path}: line {i}, column {len(ln) + 1}: expected 'time_s,file'")
-        try:
-            times.append(float(cells[0]))
-        except ValueError:
-            raise RecordingError(f"{path}: line {i}, column 1: time_s is not a number") from None
-        files.append(path.parent / cells[1])
-    if not times:
-        raise RecordingError(f"{path}: line 1, column 1: no frames listed")
-    return np.array(times), files

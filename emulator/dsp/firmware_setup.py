@@ -230,15 +230,22 @@ def spec_sheet_for(scn: Scenario) -> SensorSpecSheet:
         if not path.is_file():
             names = sorted(p.stem for p in SPEC_SHEET_DIR.glob("*.yaml"))
             raise ScenarioError(f"firmware.spec_sheet: no bundled spec sheet {ref!r} (bundled: {', '.join(names)})")
-    else:
-        base = Path(scn.base_dir).resolve() if scn.base_dir is not None else Path.cwd().resolve()
-        path = (base / ref).resolve()
-        if not path.is_relative_to(base):
-            raise ScenarioError(f"firmware.spec_sheet: {ref} is outside the scenario's directory")
+    else:  # the scenario's own file: confined as every file it names, read as boundedly as the scenario itself
+        from ..scenario.paths import PathNotAllowed, confine
+
+        try:
+            path = confine(scn.base_dir, ref, "spec sheet")
+        except PathNotAllowed:
+            raise ScenarioError(f"firmware.spec_sheet: {ref} is outside the scenario's directory") from None
         if not path.is_file():
             raise ScenarioError(f"firmware.spec_sheet: {ref}: no such file")
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        if path.parent == SPEC_SHEET_DIR:
+            data = yaml.safe_load(path.read_text(encoding="utf-8"))  # bundled with the package: trusted
+        else:
+            from ..scenario.loader import load_yaml_file
+
+            data = load_yaml_file(path, f"firmware.spec_sheet: {ref}")
         return SensorSpecSheet.from_dict(data, f"firmware.spec_sheet: {ref}")
     except (OSError, yaml.YAMLError) as exc:
         raise ScenarioError(f"firmware.spec_sheet: {ref}: {exc}") from exc

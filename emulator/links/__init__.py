@@ -69,7 +69,7 @@ _COMMON_OPTIONS = {"baud", "mode", "queue"}
 _SCHEME_OPTIONS: dict[str, frozenset[str]] = {
     "pty": frozenset({"peer_baud"}),
     "serial": frozenset({"pps"}),
-    "zenoh": frozenset({"role", "listen", "connect", "session", "config", "pace", "nav"}),
+    "zenoh": frozenset({"role", "listen", "connect", "session", "config", "pace", "nav", "auth"}),
     "can": frozenset({"dbc", "rate", "bitrate", "fd"}),
 }
 _USAGE = {
@@ -77,7 +77,7 @@ _USAGE = {
     "pty": "pty://NAME[?baud=N&mode=8N1&queue=BYTES&peer_baud=ignore|check]",
     "serial": "serial:///dev/ttyXXX[?baud=N&mode=8N1&queue=BYTES&pps=dcd|cts]",
     "zenoh": "zenoh://RUN/PORT[?role=device|peer&listen=tcp/127.0.0.1:7447&connect=tcp/HOST:PORT"
-             "&session=peer|client&config=FILE&pace=1|0&nav=tx|rx|off&baud=N&mode=8N1&queue=BYTES]",
+             "&session=peer|client&config=FILE&pace=1|0&nav=tx|rx|off&auth=FILE&baud=N&mode=8N1&queue=BYTES]",
     "can": "can://virtual/CHANNEL or can://socketcan/IFACE[?dbc=FILE&rate=HZ&bitrate=N&fd=0|1]",
 }
 

@@ -30,7 +30,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from benchmarks.common import ROOT, load_avg, quick
+from benchmarks.common import ROOT, load_avg, number
 
 #: the three consistency scenarios of the envelope certification (docs/sensors.md "The envelope")
 SCENARIOS = ("quickstart", "static_psns_camera_field", "vehicle_loop_gnss_outage")
@@ -41,9 +41,8 @@ CLUSTER_SIZES = (1, 4, 16)
 
 
 def seeds() -> int:
-    import os
-
-    return int(os.environ.get("PSNS_BENCH_CAMPAIGN_SEEDS") or (2 if quick() else 4))
+    """Members per measured campaign (``PSNS_BENCH_CAMPAIGN_SEEDS``, :mod:`benchmarks.common`)."""
+    return max(1, int(number("PSNS_BENCH_CAMPAIGN_SEEDS")))
 
 
 def command(scenario: str, n_seeds: int, workers: int, out: Path) -> list[str]:
@@ -61,11 +60,11 @@ def measure(scenario: str, n_seeds: int, workers: int, out: Path) -> dict[str, A
     wall = time.perf_counter() - t0
     if p.returncode not in (0, 1):  # 1: a member or a consistency bound failed, which is a result; else an error
         raise RuntimeError(f"campaign {scenario} --workers {workers} exited {p.returncode}: {p.stderr[-2000:]}")
-    info = json.loads((out / "campaign.json").read_text())
-    members_s = float(info["wall_s"])
+    doc = json.loads((out / "campaign.json").read_text())  # {"campaign": info, "statistics": ...} (outputs.py)
+    members_s = float(doc["campaign"]["wall_s"])
     return {"scenario": scenario, "workers": workers, "runs": n_seeds, "wall_s": wall, "members_s": members_s,
             "runs_per_min": 60.0 * n_seeds / members_s, "fixed_s": wall - members_s, "exit": p.returncode,
-            "failed": info.get("stats", {}).get("failed")}
+            "failed": doc.get("statistics", {}).get("failed")}
 
 
 def certification_wall(per: dict[str, dict[int, dict[str, Any]]], workers: int, machines: int = 1) -> float:

@@ -1,5 +1,5 @@
 # psns-hil -- the two commands that matter: `make run` and `make test`.
-# Works on a fresh machine with Python >= 3.11, gcc and make: everything else is installed
+# Works on a fresh machine with Python 3.11 to 3.13, gcc and make: everything else is installed
 # into .venv by `make install` (idempotent: a no-op when pyproject.toml has not changed).
 
 PYTHON ?= python3
@@ -8,10 +8,10 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 SCENARIO ?= scenarios/quickstart.yaml
 
-.PHONY: install geoid-grid run examples test docs test-realtime test-all fuzz lint bench bench-quick golden compiled test-compiled clean distclean check-python
+.PHONY: install geoid-grid run examples test test-py print-test-pythons test-slow docs test-realtime test-all fuzz lint bench bench-quick golden compiled test-compiled clean distclean check-python
 
 check-python:
-	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "psns-hil needs Python >= 3.11, found " + sys.version.split()[0])'
+	@$(PYTHON) -c 'import sys; sys.exit(0 if (3, 11) <= sys.version_info[:2] <= (3, 13) else "psns-hil needs Python 3.11 to 3.13 (requires-python in pyproject.toml), found " + sys.version.split()[0])'
 
 $(STAMP): pyproject.toml | check-python
 	$(PYTHON) -m venv $(VENV)
@@ -43,21 +43,52 @@ examples:
 	else echo "examples: no C compiler (gcc): examples/c_firmware not built, its test will be skipped"; fi
 
 # The suite under coverage, started before anything imports the package (pytest loads the package's own plugin
-# before `--cov` could start it), child processes included ([tool.coverage.run] in pyproject.toml). The floor is the
-# measured figure of the pure-Python tree minus at most one point (README.md): raise it when the figure rises.
+# before `--cov` could start it), child processes included ([tool.coverage.run] in pyproject.toml), over
+# TEST_WORKERS pytest-xdist worker processes (docs/decisions/emulator-runtime.md D-7.31): each worker is a child
+# process, measured from its first line like any other, and `coverage combine` joins their data files. The floor is
+# the measured figure of the pure-Python tree minus at most one point (README.md): raise it when the figure rises.
 # Measured 2026-12-07 on the full suite: 88.0 % (statements and branches; README.md).
 COVERAGE_FLOOR := 87
+#: pytest-xdist worker processes of `make test` and `make test-py` (the CI machine has 2 cores; 1 = one process)
+TEST_WORKERS ?= 2
+#: --dist loadscope keeps a module's tests on one worker, so its module-scoped fixtures (runs, clusters) run once
+XDIST := -n $(TEST_WORKERS) --dist loadscope
 test: install examples
 	$(PY) -m coverage erase
-	$(PY) -m coverage run -m pytest
+	$(PY) -m coverage run -m pytest $(XDIST)
 	$(PY) -m coverage combine --quiet
 	$(PY) -m coverage report --skip-covered --fail-under=$(COVERAGE_FLOOR)
+
+# The linters and the suite on another Python (issue 42 item 8; .ci/run runs it for each of TEST_PYTHONS):
+# `make test-py PYV=3.12`. Its own venv, .venv-3.12, installed like .venv (again when pyproject.toml changes); the
+# interpreter from tools/python_for.sh (PATH, then pyenv, else pyenv builds it, else it says how to get one and
+# fails). No coverage: the figure is .venv's (README.md); the same tests, the same markers, over TEST_WORKERS.
+TEST_PYTHONS := 3.12 3.13
+PYV ?=
+print-test-pythons:
+	@echo $(TEST_PYTHONS)
+test-py: examples geoid-grid
+	@test -n "$(PYV)" || { echo "test-py: say which Python, e.g. make test-py PYV=3.12"; exit 2; }
+	@v=.venv-$(PYV); if [ ! -f $$v/.installed-stamp ] || [ pyproject.toml -nt $$v/.installed-stamp ]; then \
+	  interp=$$(tools/python_for.sh $(PYV)) || exit 2; echo "test-py: $$v from $$interp"; \
+	  $$interp -m venv $$v && $$v/bin/python -m pip install --quiet --upgrade pip && \
+	  $$v/bin/python -m pip install --quiet -e '.[test,dev]' && touch $$v/.installed-stamp; fi
+	.venv-$(PYV)/bin/ruff check .
+	.venv-$(PYV)/bin/mypy --python-version $(PYV)
+	.venv-$(PYV)/bin/lint-imports
+	.venv-$(PYV)/bin/python -m pytest -p no:cacheprovider $(XDIST)
 
 # Tests that follow the wall clock (ptys, sockets, other processes): their own step in .ci/run.
 test-realtime: install examples
 	$(PY) -m pytest -m realtime
 
-test-all: install
+# The tests marked slow (long runs: full library replays, campaigns, hour-long scenarios), not in `make test`:
+# the opt-in step of .ci/run (CI_SLOW=1 .ci/run), over TEST_WORKERS like `make test`, without coverage.
+test-slow: install examples
+	$(PY) -m pytest -p no:cacheprovider -m slow $(XDIST)
+
+# Everything: the suite, the slow and the wall-clock tests, in one process (the wall-clock tests share no core).
+test-all: install examples
 	$(PY) -m pytest -m ''
 
 # Long seeded fuzz of every decoder (byte mutations and hostile field tokens) and of the firmware's input path,

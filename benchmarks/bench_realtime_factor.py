@@ -27,6 +27,14 @@ captures. Its real-time factor is the most the reference could reach with a firm
 (docs/performance.md section 5.14); the row gives it against the 100x target and, in its note, against the
 reference measured above.
 
+What the firmware alone allows (issue 43 item 4) is measured beside the reference: the capture of the last timed
+reference run (``capture.psnscap``: every byte each DSP UART received, at its time) replayed in fast mode
+(:func:`emulator.recording.replay.run_replay`, ``psns-hil replay``): the DSP, its firmware, the FPGA-DSP UARTs'
+receive side, the host port and the recorder, and nothing else (no trajectory, sky, sensors, FPGA or world-side
+links). The replay's ``nav.csv`` must be the reference's, byte for byte, so the number belongs to the same work.
+Its real-time factor is the most the reference could reach with a world that cost nothing; the row gives it beside
+the reference's (its baseline), the same timed repeats.
+
 Environment (see :mod:`benchmarks.common`): ``PSNS_BENCH_REF_S`` simulated seconds of the
 reference run (default 600, the whole scenario), ``PSNS_BENCH_PROFILE_S`` of the profiled run,
 ``PSNS_BENCH_REPEAT`` timed repeats (the median is reported), ``PSNS_BENCH_FIDELITY_S`` simulated seconds of
@@ -35,6 +43,7 @@ each fidelity on / off run (``PSNS_BENCH_REPEAT`` pairs).
 
 from __future__ import annotations
 
+import shutil
 import tempfile
 import time
 from pathlib import Path
@@ -66,15 +75,44 @@ FIDELITY_OFF = (
 WORLD_ONLY = ('dsp.external={"uarts": {"uart0": "pty://bench-no-dsp"}, "silence_s": 3600}',)
 
 
-def _timed(scn: Any, repeat: int) -> tuple[float, list[float], dict[str, Any]]:
+def _timed(scn: Any, repeat: int, keep: Path | None = None,
+           cpus: list[float] | None = None) -> tuple[float, list[float], dict[str, Any]]:
+    """Median wall time of ``repeat`` fast-mode runs; ``keep``: a directory that receives the last run's capture
+    and nav.csv; ``cpus``: a list that receives each run's CPU time (s)."""
     walls = []
     s: dict[str, Any] = {}
     for _ in range(repeat):
         with tempfile.TemporaryDirectory() as d:
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             s = run_scenario(scn, Path(d) / "run", mode="fast")
             walls.append(time.perf_counter() - t0)
+            if cpus is not None:
+                cpus.append(time.process_time() - c0)
+            if keep is not None:
+                for f in ("capture.psnscap", "nav.csv"):
+                    shutil.copyfile(Path(d) / "run" / f, keep / f)
     return median(walls), walls, s
+
+
+def firmware_alone(kept: Path, repeat: int,
+                   cpus: list[float] | None = None) -> tuple[float, list[float], dict[str, Any], bool]:
+    """The reference's capture in ``kept`` replayed in fast mode ``repeat`` times: median wall time, the walls,
+    the last summary, and whether every replay's nav.csv was the reference's byte for byte; ``cpus`` receives each
+    replay's CPU time (s)."""
+    from emulator.recording.replay import run_replay, same_file
+
+    walls = []
+    same = True
+    s: dict[str, Any] = {}
+    for _ in range(repeat):
+        with tempfile.TemporaryDirectory() as d:
+            t0, c0 = time.perf_counter(), time.process_time()
+            s = run_replay(kept / "capture.psnscap", Path(d) / "replay", mode="fast")
+            walls.append(time.perf_counter() - t0)
+            if cpus is not None:
+                cpus.append(time.process_time() - c0)
+            same = same and same_file(kept / "nav.csv", Path(d) / "replay" / "nav.csv")
+    return median(walls), walls, s, same
 
 
 def _cut(scn: Any, duration_s: float) -> Any:
@@ -110,13 +148,21 @@ def run() -> list[dict]:
     repeat = max(1, int(number("PSNS_BENCH_REPEAT")))
     ref = load_scenario(REFERENCE)
     scn = _cut(ref, number("PSNS_BENCH_REF_S"))
-    wall, walls, s = _timed(scn, repeat)
+    kept_dir = tempfile.TemporaryDirectory()
+    kept = Path(kept_dir.name)
+    ref_cpus: list[float] = []
+    wall, walls, s = _timed(scn, repeat, keep=kept, cpus=ref_cpus)
     sim = s["sim_duration_s"]
     rtf = sim / wall
     ticks = round(sim * scn.sensors.imu.rate_hz)
     us_tick = wall / ticks * 1e6
     passed = s.get("passed")
     load = load_avg()
+    # the firmware alone, right after the reference it replays (the same load on the machine)
+    fw_cpus: list[float] = []
+    fwall, fwalls, fs, same = firmware_alone(kept, repeat, fw_cpus)
+    kept_dir.cleanup()
+    frtf = fs["sim_duration_s"] / fwall
     # profile (a shorter cut is as representative per tick, and cProfile doubles the run time)
     pscn = _cut(ref, number("PSNS_BENCH_PROFILE_S"))
     if pscn is scn:
@@ -144,6 +190,16 @@ def run() -> list[dict]:
         rows.append({"name": f"  breakdown: {p['component']}", "value": p["us_per_tick"], "unit": "us/tick",
                      "baseline": None, "ratio": None,
                      "note": f"{100 * p['share']:.1f} % of the profiled run ({pscn.duration_s:.0f} s simulated)"})
+    rows.append({"name": "reference real-time factor, the firmware alone (replay of its capture)", "value": frtf,
+                 "unit": "sim s / wall s", "baseline": rtf, "ratio": frtf / rtf,
+                 "note": f"baseline: the reference above; its capture replayed (psns-hil replay, fast): DSP, firmware, "
+                         f"DSP UARTs, host port, recorder, no world; {fs['sim_duration_s']:.0f} s simulated, median of "
+                         f"{repeat} ({', '.join(f'{w:.1f}' for w in fwalls)} s wall), {fwall / ticks * 1e6:.0f} us per "
+                         f"tick, nav.csv identical to the reference's: {same}, load avg {load_avg()}; CPU time "
+                         f"{median(fw_cpus):.1f} s against the reference's {median(ref_cpus):.1f} s "
+                         f"({median(ref_cpus) / median(fw_cpus):.2f} x); the most a world of zero cost would give",
+                 "walls_s": fwalls, "cpu_s": fw_cpus, "reference_cpu_s": ref_cpus, "sim_s": fs["sim_duration_s"],
+                 "nav_identical": same, "vs_reference": frtf / rtf})
     fid = fidelity_ratio(number("PSNS_BENCH_FIDELITY_S"), repeat)
     rows.append({"name": "reference real-time factor, world fidelity on / off", "value": fid["ratio"],
                  "unit": "ratio", "baseline": TARGET_FIDELITY_RATIO, "ratio": fid["ratio"] / TARGET_FIDELITY_RATIO,

@@ -3,17 +3,18 @@
 ``PSNS_BENCH_QUICK=1`` (``make bench-quick``) shortens every long item so that the whole table
 takes a few minutes; each item's own variable, when set, wins over both defaults:
 
-======================== ============================== ========= ========================
-variable                 what                           default   quick
-======================== ============================== ========= ========================
-PSNS_BENCH_REF_S         reference run, simulated s      600       120
-PSNS_BENCH_PROFILE_S     profiled part of it, simulated  600       60
-PSNS_BENCH_REPEAT        timed repeats (median)          3         1
-PSNS_BENCH_RT_S          realtime pty run, wall s        600       30
-PSNS_BENCH_SCALING_S     scaling durations, simulated s  60,600,3600  30,60,180
-PSNS_BENCH_FIDELITY_S    fidelity on/off runs, sim. s    300       60
-PSNS_BENCH_LOCKSTEP_S    lockstep C firmware runs, sim.  120       30
-======================== ============================== ========= ========================
+========================== ============================== ========= ========================
+variable                   what                           default   quick
+========================== ============================== ========= ========================
+PSNS_BENCH_REF_S           reference run, simulated s      600       120
+PSNS_BENCH_PROFILE_S       profiled part of it, simulated  600       60
+PSNS_BENCH_REPEAT          timed repeats (median)          3         1
+PSNS_BENCH_RT_S            realtime pty run, wall s        600       30
+PSNS_BENCH_SCALING_S       scaling durations, simulated s  60,600,3600  30,60,180
+PSNS_BENCH_FIDELITY_S      fidelity on/off runs, sim. s    300       60
+PSNS_BENCH_LOCKSTEP_S      lockstep C firmware runs, sim.  120       30
+PSNS_BENCH_CAMPAIGN_SEEDS  members per campaign (1-K)     4         2
+========================== ============================== ========= ========================
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ REFERENCE = ROOT / "scenarios" / "bench_vehicle_loop_10min.yaml"
 _DEFAULTS = {"PSNS_BENCH_REF_S": ("600", "120"), "PSNS_BENCH_PROFILE_S": ("600", "60"),
              "PSNS_BENCH_REPEAT": ("3", "1"), "PSNS_BENCH_RT_S": ("600", "30"),
              "PSNS_BENCH_SCALING_S": ("60,600,3600", "30,60,180"), "PSNS_BENCH_FIDELITY_S": ("300", "60"),
-             "PSNS_BENCH_LOCKSTEP_S": ("120", "30")}
+             "PSNS_BENCH_LOCKSTEP_S": ("120", "30"), "PSNS_BENCH_CAMPAIGN_SEEDS": ("4", "2")}
 
 
 def quick() -> bool:

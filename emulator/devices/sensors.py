@@ -9,13 +9,14 @@ recorded file instead of its model when ``recorded:`` is given.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from protocols.constants import DEG
 
 from ..errors import ScenarioError
 from ..links.base import Link
@@ -69,7 +70,6 @@ __all__ = [
     "mag_config",
 ]
 
-DEG = math.pi / 180.0
 
 
 @dataclass

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -43,6 +42,7 @@ from firmware_model.variants.params import (
     SunElevationParams,
     VariantParams,
 )
+from protocols.constants import DEG
 
 from ..devices.base import device_rng
 from ..devices.compass import default_mountings, mountings_from_directions, turned_about_view_rays
@@ -57,7 +57,6 @@ __all__ = ["SPEC_SHEET_DIR", "build_firmware", "calibration_for", "firmware_conf
 #: the spec sheets bundled with the firmware (``firmware.spec_sheet: <name>``)
 SPEC_SHEET_DIR = Path(__file__).resolve().parents[2] / "firmware_model" / "spec_sheets"
 
-DEG = math.pi / 180.0
 
 
 def _rotvec_deg(c: np.ndarray) -> tuple[float, float, float]:

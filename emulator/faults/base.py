@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
@@ -10,10 +9,8 @@ import numpy as np
 from ..errors import ScenarioError, ScenarioIssue
 from .targets import FaultTargets
 
-__all__ = ["AXES", "DEG", "G_STD", "Injector", "bind_error"]
+__all__ = ["AXES", "Injector", "bind_error"]
 
-DEG = math.pi / 180.0
-G_STD = 9.80665
 AXES = {"x": 0, "y": 1, "z": 2}
 
 

@@ -6,7 +6,9 @@ from typing import Any
 
 import numpy as np
 
-from .base import AXES, DEG, G_STD, Injector, bind_error
+from protocols.constants import DEG, G_STD
+
+from .base import AXES, Injector, bind_error
 from .targets import FaultTargets
 
 __all__ = ["ImuBiasStep", "ImuDroppedDatagrams", "ImuSaturation", "ImuStuckAxis"]

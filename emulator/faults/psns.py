@@ -7,8 +7,10 @@ from typing import Any
 
 import numpy as np
 
+from protocols.constants import DEG
+
 from ..world.sky import SkyModel, SunOccluder, textured_cloud
-from .base import DEG, Injector, bind_error
+from .base import Injector, bind_error
 from .targets import FaultTargets
 
 __all__ = ["PsnsCloudCover", "PsnsInstallationError", "PsnsSunOccluded", "PsnsUnitBlocked"]

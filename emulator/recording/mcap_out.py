@@ -45,6 +45,7 @@ from typing import IO, Any
 from mcap.writer import Writer
 
 from protocols import __version__ as VERSION
+from protocols.constants import DEG
 from protocols.host import NavMode, describe_nav_mode
 from protocols.psns import PolarizationObs, PolarizationObsPacked
 
@@ -61,7 +62,6 @@ __all__ = ["CAMPAIGN_MCAP_NAME", "MCAP_NAME", "TOPICS", "McapStats", "attitude_q
 MCAP_NAME = "run.mcap"
 #: the campaign's summary series, beside its members' run directories (:func:`write_campaign_mcap`)
 CAMPAIGN_MCAP_NAME = "campaign.mcap"
-DEG = math.pi / 180.0
 
 _TIME = {"type": "object", "title": "time", "properties": {"sec": {"type": "integer", "minimum": 0},
                                                            "nsec": {"type": "integer", "minimum": 0,

@@ -17,9 +17,9 @@ import pytest
 from emulator.assembly.runner import run_scenario
 from emulator.scenario.presets import preset
 from emulator.testing import load_test_scenario
+from protocols.constants import DEG
 from tests.conftest import ROOT, SCENARIOS
 
-DEG = math.pi / 180.0
 G = 9.80665
 QS = SCENARIOS / "quickstart.yaml"
 CAM = SCENARIOS / "static_psns_camera.yaml"

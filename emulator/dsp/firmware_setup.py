@@ -34,14 +34,6 @@ from firmware_model.registry import (
 )
 from firmware_model.spec_sheet import SensorSpecSheet, SpecSheetError
 from firmware_model.variants.common import compass_mountings
-from firmware_model.variants.params import (
-    DualVectorParams,
-    FederatedParams,
-    KmeansParams,
-    ModeManagerParams,
-    SunElevationParams,
-    VariantParams,
-)
 from protocols.constants import DEG
 
 from ..devices.base import device_rng
@@ -50,6 +42,7 @@ from ..devices.sensors import camera_config, compass_config, mag_config
 from ..errors import ScenarioError
 from ..plugins import PLUGIN_ERRORS, plugin, plugin_names
 from ..scenario.schema import Scenario
+from .variant_params import variant_params
 
 __all__ = ["SPEC_SHEET_DIR", "build_firmware", "calibration_for", "firmware_config", "register_plugins",
            "spec_sheet_for"]
@@ -263,23 +256,6 @@ def _camera(scn: Scenario, calibration: Calibration) -> CameraGeometry:
                    projection=pick(cal.projection, cam.projection), c_c_b=c_c_b)
 
 
-def _variant_params(scn: Scenario) -> VariantParams:
-    """``firmware.variants`` -> :class:`firmware_model.variants.params.VariantParams` (same field names)."""
-    v = scn.firmware.variants
-    fed = v.federated.model_dump()
-    fed["subfilters"] = tuple(fed["subfilters"])
-    if fed["initial_attitude_sigma_deg"] is not None:
-        fed["initial_attitude_sigma_deg"] = tuple(fed["initial_attitude_sigma_deg"])
-    return VariantParams(
-        mode_manager=ModeManagerParams(**v.mode_manager.model_dump()),
-        dual_vector=DualVectorParams(**v.dual_vector.model_dump()),
-        kmeans_3d=KmeansParams(**v.kmeans_3d.model_dump()),
-        federated=FederatedParams(**fed),
-        sun_elevation=SunElevationParams(**v.sun_elevation.model_dump()),
-        plugins=_plugin_params(scn),
-    )
-
-
 def register_plugins() -> None:
     """Enter the ``psns_hil.filters`` and ``psns_hil.firmware`` entry points (:mod:`emulator.plugins`) in the
     firmware's tables (:data:`firmware_model.FILTER_VARIANTS`,
@@ -395,7 +371,7 @@ def firmware_config(scn: Scenario, calibration: Calibration | None = None) -> Fi
         mag_soft_iron=calibration.magnetometer.soft_iron,
         initial_misalignment_deg=(fw.alignment.misalignment_deg[0], fw.alignment.misalignment_deg[1],
                                   fw.alignment.misalignment_deg[2]),
-        variants=_variant_params(scn),
+        variants=variant_params(fw.variants, _plugin_params(scn)),
     )
 
 

@@ -39,7 +39,7 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from emulator.assembly.runner import run_scenario  # noqa: E402
+from emulator.assembly.session import run_scenario  # noqa: E402
 from emulator.testing import load_test_scenario  # noqa: E402
 
 SCENARIOS = ROOT / "scenarios"

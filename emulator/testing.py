@@ -28,7 +28,7 @@ Ports are the emulator's link names (``host``, ``gyro``, ``gnss``, ``psns``, ``m
 ``uart0`` .. ``uart3``). The default direction is the one carrying the port's main traffic:
 ``out`` for ``host``, ``uart0`` and ``monitor`` (leaving the DSP / the box), ``in`` for the
 others (towards the DSP). Frames are decoded with the port's formats
-(:func:`emulator.assembly.runner.port_formats`).
+(:func:`emulator.assembly.ports.port_formats`).
 
 Running the loop: the ``psns_emulator`` marker (this module is a pytest plugin, registered by
 the ``pytest11`` entry point) runs an ``async def`` test on a fresh ``EmulatorLoop`` of its

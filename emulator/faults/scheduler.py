@@ -6,7 +6,7 @@ from typing import Any
 
 from ..devices.base import EventSink, device_rng
 from ..errors import ScenarioError
-from ..scenario.checks_schema import Fault
+from ..scenario.faults_schema import Fault
 from .base import Injector
 from .board import DspExtraLoad, FpgaChannelStall
 from .gnss import GnssDegraded, GnssGlitch, GnssOutage

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from .checks_schema import HookError, check_hook_path
+from .expectations_schema import HookError, check_hook_path
 from .presets import preset
 from .schema import Scenario
 from .sensor_schema import preset_of

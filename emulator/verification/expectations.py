@@ -1,6 +1,6 @@
 """Scenario expectations, evaluated at the end of a run against the recorder's results and the summary.
 
-Every kind of ``expectations:`` item (``emulator.scenario.checks_schema``) has its evaluator here.
+Every kind of ``expectations:`` item (``emulator.scenario.expectations_schema``) has its evaluator here.
 A check that has nothing to measure fails (no navigation frames in the window, a summary value
 that does not exist): nothing measured proves nothing. A Python hook that raises fails with the
 exception's message; it never stops the evaluation of the other checks.
@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from ..recording.psns_error import solar_error_stats
-from ..scenario.checks_schema import NAV_MODE_FLAGS, EventExpectation, FieldRange, HookError, load_hook
+from ..scenario.expectations_schema import NAV_MODE_FLAGS, EventExpectation, FieldRange, HookError, load_hook
 from ..scenario.schema import Expectation
 
 __all__ = ["ExpectationResult", "evaluate_expectations", "matching_events"]

@@ -15,7 +15,7 @@ from re import Pattern
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from ..assembly.runner import Emulator
+    from ..assembly.session import Emulator
     from ..scenario.schema import Scenario
 
 __all__ = ["DEFAULT_DIRECTION", "EmulatorHarness", "PortWatcher", "load_test_scenario", "run", "start_emulator"]
@@ -123,7 +123,7 @@ class EmulatorHarness:
 
     # -- lifecycle ---------------------------------------------------------------------------
     async def start(self) -> EmulatorHarness:
-        from ..assembly.runner import port_formats
+        from ..assembly.ports import port_formats
         from ..clock import EmulatorLoop
         from ..errors import EmulatorError
 
@@ -467,7 +467,7 @@ class _Starter:
     async def _start(self) -> EmulatorHarness:
         import tempfile
 
-        from ..assembly.runner import Emulator
+        from ..assembly.session import Emulator
 
         scenario, run_dir, mode, seed, overrides = self.args
         scn = load_test_scenario(scenario, overrides)

@@ -14,7 +14,7 @@ from typing import ClassVar
 import numpy as np
 import pytest
 
-from emulator.assembly.runner import run_scenario
+from emulator.assembly.session import run_scenario
 from emulator.scenario.presets import preset
 from emulator.testing import load_test_scenario
 from protocols.constants import DEG
@@ -184,7 +184,7 @@ def test_bit_errors_flip_bits_at_the_configured_rate():
     """The injector's bit-error count over many bytes follows Binomial(n bits, BER)."""
     from emulator.faults.link import LinkBitErrors
     from emulator.links import LineConfig, MemHub
-    from emulator.scenario.checks_schema import LinkBitErrorsFault
+    from emulator.scenario.faults_schema import LinkBitErrorsFault
 
     class Emu:
         links: ClassVar[dict] = {}

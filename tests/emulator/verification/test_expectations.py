@@ -11,7 +11,7 @@ from typing import ClassVar
 import pytest
 
 from emulator.recording.nav_error import ErrorStats
-from emulator.scenario.checks_schema import EventExpectation
+from emulator.scenario.expectations_schema import EventExpectation
 from emulator.scenario.schema import Expectation
 from emulator.verification.expectations import evaluate_expectations, matching_events
 from tests.conftest import ROOT, SCENARIOS
@@ -237,7 +237,7 @@ def test_a_broken_library_file_is_a_collection_error_with_every_problem(pytester
 def test_event_expectations_on_a_variants_events_with_an_injected_glitch(tmp_path):
     """"Chi-square isolated GNSS between 60 and 61.5 s": the federated variant's own events, matched by name,
     source, window and count, with the glitch injected as a fault instead of the receiver's schedule."""
-    from emulator.assembly.runner import run_scenario
+    from emulator.assembly.session import run_scenario
     from emulator.testing import load_test_scenario
 
     scn = load_test_scenario(SCENARIOS / "federated_gnss_glitch.yaml", {

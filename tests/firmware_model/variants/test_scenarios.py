@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from emulator.assembly.runner import run_scenario
+from emulator.assembly.session import run_scenario
 from emulator.testing import load_test_scenario
 from protocols.constants import DEG
 from tests.conftest import SCENARIOS

@@ -97,8 +97,11 @@ def _plugin_class(scheme: str) -> type[Link] | None:
 
 
 def _usage(scheme: str) -> str:
-    """The URL syntax the transport of ``scheme`` declares (:attr:`Link.url_usage`)."""
-    return str(getattr(_transport_class(scheme), "url_usage", "") or scheme + "://...")
+    """The URL syntax the transport of ``scheme`` declares (:attr:`Link.url_usage`; a class entered under another
+    scheme than its own, e.g. by a plugin, does not speak for it)."""
+    cls = _transport_class(scheme)
+    usage = str(getattr(cls, "url_usage", "") or "")
+    return usage if usage and getattr(cls, "scheme", "") in ("", scheme) else scheme + "://..."
 
 
 def _options(scheme: str) -> frozenset[str]:

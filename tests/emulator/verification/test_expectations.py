@@ -382,3 +382,12 @@ def test_plain_run_of_a_scenario_with_a_hook_exits_0_and_says_not_run(tmp_path):
     assert r.returncode == 0 and "not run" not in r.stdout, r.stdout + r.stderr
     s = json.loads((tmp_path / "run2" / "summary.json").read_text())
     assert [e["status"] for e in s["expectations"]] == ["pass", "pass"]
+
+
+def test_every_expectation_kind_has_one_registered_evaluator():
+    from emulator.scenario.expectations_schema import EXPECTATION_KINDS
+    from emulator.verification.expectations import EVALUATORS, evaluates
+
+    assert set(EVALUATORS) == set(EXPECTATION_KINDS)
+    with pytest.raises(ValueError, match="already has an evaluator"):
+        evaluates("nav_error")(lambda i, kind, spec, run: None)

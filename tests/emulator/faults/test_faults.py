@@ -370,3 +370,14 @@ def test_a_fault_does_not_change_the_sensors_random_numbers(tmp_path):
     ra = [r for r in read_capture(a / "capture.psnscap")[1] if r.t_s < 3.0]
     rb = [r for r in read_capture(b / "capture.psnscap")[1] if r.t_s < 3.0]
     assert [(r.t_s, r.link, r.data) for r in ra] == [(r.t_s, r.link, r.data) for r in rb]
+
+
+def test_every_fault_kind_has_one_registered_injector():
+    from emulator.faults.base import INJECTORS, Injector, injector_classes, injects
+    from emulator.scenario.faults_schema import FAULT_KINDS
+
+    assert injector_classes() is INJECTORS
+    assert set(INJECTORS) == set(FAULT_KINDS)
+    assert all(issubclass(c, Injector) for c in INJECTORS.values())
+    with pytest.raises(ValueError, match="already has an injector"):
+        injects("gnss_outage")(type("Other", (Injector,), {}))

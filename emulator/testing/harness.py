@@ -1,7 +1,8 @@
 """The test API for port traffic, Renode-style: start an emulator inside a coroutine and wait for what its
 ports carry (:func:`start_emulator`, :class:`EmulatorHarness`, :func:`run`).
 
-``emulator.testing`` (the pytest plugin) re-exports these names; its docstring describes the API.
+The test API is one package, ``emulator.testing``: import these names from there (``from emulator.testing import
+start_emulator``); its docstring describes the API, and it is also the pytest plugin (the ``pytest11`` entry point).
 """
 
 from __future__ import annotations

@@ -1,4 +1,8 @@
-"""Test API for port traffic, Renode-style, and its pytest plugin.
+"""Test API for port traffic, Renode-style, and its pytest plugin: one package, imported as ``emulator.testing``.
+
+The names below are its public API (``from emulator.testing import start_emulator, run, load_test_scenario``); they
+are implemented in :mod:`emulator.testing.harness`. This module is also the pytest plugin (the ``pytest11`` entry
+point ``psns_hil = "emulator.testing"`` in pyproject.toml), which registers the ``psns_emulator`` marker.
 
 Start an emulator from a scenario inside a coroutine running on an
 :class:`~emulator.clock.EmulatorLoop`, then wait for what its ports carry::
@@ -43,7 +47,7 @@ from __future__ import annotations
 import inspect
 from typing import Any
 
-from .verification.harness import (
+from .harness import (
     DEFAULT_DIRECTION,
     EmulatorHarness,
     PortWatcher,

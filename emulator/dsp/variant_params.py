@@ -11,7 +11,7 @@
 
 The schema is generated as source, not built at import time, because the scenario layer sits below the world and
 the sensors, which never import the firmware (the independence rule, ``[tool.importlinter]`` in pyproject.toml):
-the generated module imports only pydantic and the scenario's base model.
+the generated module imports only pydantic and the scenario's base model (D-8.11, docs/decisions/scenarios.md).
 """
 
 from __future__ import annotations

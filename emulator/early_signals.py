@@ -25,10 +25,15 @@ def _early(signum: int, _frame: Any) -> None:
 
 
 def install() -> None:
-    """Remember SIGINT and SIGTERM instead of dying (main thread only; elsewhere nothing happens)."""
+    """Remember SIGINT and SIGTERM instead of dying, and ignore SIGXFSZ (a file at the ``ulimit -f`` size limit
+    then fails its write with EFBIG, reported as a storage error with the summary kept, instead of killing the
+    process); main thread only, elsewhere nothing happens."""
     for sig in (signal.SIGINT, signal.SIGTERM):
         with contextlib.suppress(ValueError, OSError):
             signal.signal(sig, _early)
+    if hasattr(signal, "SIGXFSZ"):
+        with contextlib.suppress(ValueError, OSError):
+            signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
 
 
 def install_for_cli() -> None:

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import errno
+
 from protocols.errors import PsnsHilError
 
 __all__ = [
+    "STORAGE_ERRNOS",
     "EmulatorError",
     "LinkBrokenError",
     "LinkClosedError",
@@ -14,6 +17,7 @@ __all__ = [
     "RecordingError",
     "ScenarioError",
     "ScenarioIssue",
+    "StorageError",
     "WriterProcessError",
 ]
 
@@ -86,3 +90,14 @@ class RecordingError(EmulatorError):
 class WriterProcessError(EmulatorError):
     """The paced writer's process (:mod:`emulator.pacing`) could not be started or died: what it held is lost
     (counted as dropped) and the paced writer writes from its thread instead."""
+
+
+#: ``errno`` of an output that cannot be written for a reason of the machine, not of the program: the disk or the
+#: quota is full, a file reached the size limit (``ulimit -f``, with SIGXFSZ ignored), a read-only file system, no
+#: permission (docs/hostile-input.md section 8)
+STORAGE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.EACCES, errno.EPERM})
+
+
+class StorageError(EmulatorError):
+    """The run directory (or another output) could not be written: disk full, file-size limit, read-only or no
+    permission. The message says what was kept (exit 2 on the command line)."""

@@ -20,7 +20,9 @@ refused and reported). A plugin that fails to import does not stop anything else
 This module imports nothing of the emulator's layers and nothing of the firmware, and loads nothing at import:
 the scenario schema (which the world and the sensors import: the independence rule) and the links read their
 names from it. The firmware's tables are filled where the emulator meets the firmware,
-:func:`emulator.dsp.firmware_setup.register_plugins`.
+:func:`emulator.dsp.firmware_setup.register_plugins`, with the plugins a scenario names only: a run imports no
+plugin it does not use (issue 41), and ``psns-hil validate`` checks the named ones' kinds
+(:func:`emulator.dsp.firmware_setup.check_firmware`).
 """
 
 from __future__ import annotations

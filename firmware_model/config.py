@@ -74,6 +74,13 @@ class FirmwareConfig:
     nav_state_precision: str = "float64"
     filter: str = "base"
     accel_volts_per_g: tuple[float, float, float] = ACCEL_VOLTS_PER_G
+    #: measurement ranges of the units this build is fitted with (the emulator sets them from the configured IMU,
+    #: emulator/dsp/firmware_setup.py); defaults as the datasheets give them (docs/sensors.md): the STIM210's
+    #: +-400 deg/s and the Colibrys MS9030 (x, +-30 g) and the +-25 g parts (y, z). An IMU word
+    #: beyond them (1 LSB of rounding allowed) is no measurement of that unit: refused with ``gyro_range`` /
+    #: ``accel_range`` even below the 24-bit rail (firmware_model.input_guard, D-5.46)
+    gyro_range_dps: float = 400.0
+    accel_range_g: tuple[float, float, float] = (30.0, 25.0, 25.0)
     # process noise (sensor specifications)
     gyro_arw_deg_rt_h: float = 0.15
     gyro_bias_sigma_deg_h: float = 40.0 / 3.0

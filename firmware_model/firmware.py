@@ -46,7 +46,7 @@ from protocols.host import HostFormat, NavMode
 from protocols.imu_frame import ADC_VOLTS_PER_LSB, FpgaFrameFormat, FpgaStatus, ImuFrame
 from protocols.nmea import NMEA_RX_MAX_LEN, NmeaFormat
 from protocols.psns import PsnsFormat
-from protocols.stim import GYRO_ANGLE_LSB_DEG, GYRO_RATE_LSB_DPS
+from protocols.stim import GYRO_ANGLE_LSB_DEG, GYRO_RATE_LSB_DPS, STATUS_SAMPLE_INVALID
 from protocols.stream import StreamDecoder
 from protocols.ubx import UbxFormat
 
@@ -106,6 +106,7 @@ def tick_kernel_cycles(c: c674x.KernelCosts, nav_dp: bool = True) -> dict[str, i
 
 _PPS_VALID = int(FpgaStatus.PPS_VALID)
 _GYRO_MISSING = int(FpgaStatus.GYRO_MISSING)
+_STATUS_INVALID = int(STATUS_SAMPLE_INVALID)
 #: consecutive IMU frames with an out-of-range time-stamp step after which the new time base is taken
 _IMU_RESYNC = 5
 
@@ -202,13 +203,27 @@ class Firmware(HostTask, GnssTask):
                          "psns_updates": 0, "psns_rejected": 0, "psns_invalid": 0, "psns_sun_low": 0,
                          "psns_dropped": 0, "compass_frames": 0, "mag_frames": 0,
                          "gnss_pvt": 0, "commands_accepted": 0, "commands_rejected": 0, "commands_dropped": 0,
-                         "status_frames": 0, "input_rejected": 0, "input_faults": 0}
+                         "status_frames": 0, "input_rejected": 0, "input_faults": 0, "imu_time_resync": 0,
+                         "imu_resync_refused": 0, "psns_stale": 0, "commands_rejected_output_rate": 0}
         #: True: an exception while handling one input message propagates (tests of the emulator itself set
         #: ``PSNS_HIL_STRICT=1``); False (the box): it is contained, counted (``input_faults``) and reported
         self.raise_faults = os.environ.get("PSNS_HIL_STRICT", "") not in ("", "0")
         self._fault_events: list[dict[str, Any]] = []
         self._imu_hold: tuple[tuple[int, int, int], tuple[int, int, int]] | None = None
-        self._imu_bad_steps = 0
+        #: the run of frames whose time-stamp step was refused: (unwrapped time us, seq, gyro counter)
+        self._imu_resync_run: list[tuple[int, int, int]] = []
+        #: unwrapped time (us) of the first frame of the current time base: [first, last] is time lived through
+        self._t_base_first_us = 0
+        # the largest word magnitudes of the fitted units' ranges (cfg.gyro_range_dps, cfg.accel_range_g), 1 LSB
+        # of rounding allowed: a word beyond them is refused even below the 24-bit rail (D-5.46)
+        gyro_lsb_dps = GYRO_RATE_LSB_DPS if cfg.gyro_output == "rate" else GYRO_ANGLE_LSB_DEG / self.T
+        self._gyro_word_max = int(cfg.gyro_range_dps / gyro_lsb_dps) + 1
+        amax = [int(r * v / ADC_VOLTS_PER_LSB) + 1 for r, v in zip(cfg.accel_range_g, cfg.accel_volts_per_g)]
+        self._accel_code_max = (amax[0], amax[1], amax[2])
+        # the same bounds inside the rails, for the one-expression acceptance of _screen_imu
+        inside = input_guard.S24_MAX - 1
+        self._gyro_fast_max = min(self._gyro_word_max, inside)
+        self._accel_fast_max = (min(amax[0], inside), min(amax[1], inside), min(amax[2], inside))
         self._gnss_reject_run = 0
         #: the innovation gate refused rows of the last GNSS fix (bit 7 of the nav frame's gnss_status)
         self._gnss_gated = False
@@ -311,34 +326,101 @@ class Firmware(HostTask, GnssTask):
         return out
 
     def _screen_imu(self, fr: ImuFrame) -> ImuFrame | None:
-        """Validate one IMU frame (:mod:`.input_guard`): a corrupt time stamp drops the frame (after
-        ``_IMU_RESYNC`` consecutive ones, the new time base is taken); saturated words are replaced by the last
-        good sample (hold), so the strapdown never integrates a clipped value."""
+        """Validate one IMU frame (:mod:`.input_guard`, docs/hostile-input.md).
+
+        Time stamp: a corrupt step drops the frame; after ``_IMU_RESYNC`` consecutive frames that form a new time
+        base of their own (valid steps between them, sequence and gyro counter advancing) the new base is taken
+        (:meth:`_imu_resync_candidate`); a frame whose stamp lies in the span the current base has already lived
+        through is a replay and never counts toward a resync.
+
+        Words: a gyro sample flagged invalid by its STATUS byte (overload, channel error, start-up, integrity),
+        beyond the fitted gyro's range or at a 24-bit rail, and an accelerometer code beyond its range or at a
+        rail, are replaced by that triad's last good sample (hold, D-5.46), so the strapdown never integrates a
+        clipped or flagged value; with no good sample yet the frame is dropped."""
         if self._t_last_us is not None:
             t_new = self._unwrap_near(fr.t_trigger_us)
-            reason = input_guard.check_imu_step(t_new - (self._t_epoch_us + self._t_last_us), 1e6 * self.T)
+            t_last = self._t_epoch_us + self._t_last_us
+            reason = input_guard.check_imu_step(t_new - t_last, 1e6 * self.T)
             if reason is not None:
-                self._imu_bad_steps += 1
-                if self._imu_bad_steps < _IMU_RESYNC:
-                    self._reject(reason)
+                if not self._imu_resync_candidate(fr, t_new, t_last):
                     return None
                 # the FPGA time base really moved (a reset): take it, without a KF interval across the jump
-                self.counters["imu_time_resync"] = self.counters.get("imu_time_resync", 0) + 1
+                self.counters["imu_time_resync"] += 1
                 self._t_epoch_us = t_new - fr.t_trigger_us
                 self._t_last_us = None
+                self._t_base_first_us = t_new
                 t_s = (self._t_epoch_us + fr.t_trigger_us) / 1e6
                 self._t_last_predict = t_s - (self._tick % self.cfg.kf_predict_every) * self.T
                 self._hist.clear()
                 self._fault_events.append({"event": "imu_time_resync", "t_fpga_s": t_s})
-            self._imu_bad_steps = 0
-        reason = input_guard.check_imu_words(fr.gyro, fr.accel)
-        if reason is not None:
-            self._reject(reason)
-            if self._imu_hold is None:
+            self._imu_resync_run.clear()
+        else:
+            self._t_base_first_us = self._t_epoch_us + fr.t_trigger_us
+        # the common case in one expression (every word inside the range, which lies inside the rails; STATUS clear)
+        g0, g1, g2 = fr.gyro
+        a0, a1, a2 = fr.accel
+        gm = self._gyro_fast_max
+        am0, am1, am2 = self._accel_fast_max
+        if (not fr.gyro_status & _STATUS_INVALID and -gm <= g0 <= gm and -gm <= g1 <= gm and -gm <= g2 <= gm
+                and -am0 <= a0 <= am0 and -am1 <= a1 <= am1 and -am2 <= a2 <= am2):
+            self._imu_hold = (fr.gyro, fr.accel)
+            return fr
+        g_reason = (input_guard.check_gyro_status(fr.gyro_status)
+                    or input_guard.check_imu_words(fr.gyro, (0, 0, 0)))
+        a_reason = input_guard.check_imu_words((0, 0, 0), fr.accel)
+        g_range, a_range = input_guard.check_imu_range(fr.gyro, fr.accel, self._gyro_word_max, self._accel_code_max)
+        g_reason = g_reason or g_range
+        a_reason = a_reason or a_range
+        hold = self._imu_hold
+        if g_reason is None and a_reason is None:
+            self._imu_hold = (fr.gyro, fr.accel)
+            return fr
+        gyro, accel = fr.gyro, fr.accel
+        if g_reason is not None:
+            self._reject(g_reason)
+            if hold is None:
                 return None
-            return dataclasses.replace(fr, gyro=self._imu_hold[0], accel=self._imu_hold[1])
-        self._imu_hold = (fr.gyro, fr.accel)
-        return fr
+            gyro = hold[0]
+        if a_reason is not None:
+            self._reject(a_reason)
+            if hold is None:
+                return None
+            accel = hold[1]
+        if hold is None:  # one triad good, the other without a good sample yet: nothing to hold
+            return None
+        self._imu_hold = (gyro, accel)
+        return dataclasses.replace(fr, gyro=gyro, accel=accel)
+
+    def _imu_resync_candidate(self, fr: ImuFrame, t_new: int, t_last: int) -> bool:
+        """One frame whose time-stamp step is refused: True when it completes a run of ``_IMU_RESYNC`` frames that
+        form a new time base (the caller takes it), False when it is dropped (counted).
+
+        A frame whose stamp (unwrapped near the current time) lies in ``[first, last]`` of the current time base
+        is a replay of time already lived through (a duplicate, a looped capture): refused as ``imu_time_replay``
+        and counted in ``imu_resync_refused``; it never counts toward a resync. An FPGA that restarted begins again
+        at sequence 0, which a run starting at ``seq == 0`` is taken for (a replay of the run's first frames cannot
+        be told from it). The run's frames must step validly among themselves, with the frame sequence and the
+        STIM datagram counter advancing (a repeated counter is a duplicated datagram, not a live gyro)."""
+        run = self._imu_resync_run
+        from_zero = (run[0][1] if run else fr.seq) == 0  # the run (or this frame, starting one) begins at seq 0
+        if self._t_base_first_us <= t_new <= t_last and not from_zero:
+            self.counters["imu_resync_refused"] += 1
+            self._reject("imu_time_replay")
+            run.clear()
+            return False
+        if run:
+            t_prev, seq_prev, ctr_prev = run[-1]
+            ok = (input_guard.check_imu_step(t_new - t_prev, 1e6 * self.T) is None
+                  and 1 <= (fr.seq - seq_prev) % 65536 <= input_guard.IMU_STEP_MAX_FACTOR
+                  and fr.gyro_counter != ctr_prev)
+            if not ok:
+                self.counters["imu_resync_refused"] += 1
+                run.clear()
+        run.append((t_new, fr.seq, fr.gyro_counter))
+        if len(run) < _IMU_RESYNC:
+            self._reject("imu_time_step")
+            return False
+        return True
 
     def _imu_tick(self, fr: ImuFrame) -> TickResult:
         cfg = self.cfg

@@ -15,6 +15,8 @@ import datetime as _dt
 import math
 from typing import Any
 
+from protocols.stim import STATUS_SAMPLE_INVALID
+
 __all__ = [
     "ALT_MAX_M",
     "ALT_MIN_M",
@@ -24,6 +26,8 @@ __all__ = [
     "S24_MIN",
     "SPEED_MAX_MPS",
     "check_gga",
+    "check_gyro_status",
+    "check_imu_range",
     "check_imu_step",
     "check_imu_words",
     "check_nav_pvt",
@@ -137,6 +141,25 @@ def check_imu_words(gyro: tuple[int, int, int], accel: tuple[int, int, int]) -> 
     if not (S24_MIN < a0 < S24_MAX and S24_MIN < a1 < S24_MAX and S24_MIN < a2 < S24_MAX):
         return "accel_saturated"
     return None
+
+
+def check_gyro_status(status: int) -> str | None:
+    """Reason a gyro sample is refused by its own STATUS byte (``gyro_status``: overload, a measurement-channel
+    error, start-up or a system integrity error, :data:`protocols.stim.STATUS_SAMPLE_INVALID`), or None."""
+    return "gyro_status" if status & STATUS_SAMPLE_INVALID else None
+
+
+def check_imu_range(gyro: tuple[int, int, int], accel: tuple[int, int, int], gyro_max: int,
+                    accel_max: tuple[int, int, int]) -> tuple[str | None, str | None]:
+    """Reasons (gyro, accel) the words of an IMU frame lie beyond the fitted units' measurement ranges, or None
+    each. ``gyro_max``: the largest gyro word magnitude the configured range gives (LSB); ``accel_max``: the largest
+    ADC code magnitude per axis. A word within the 24-bit rails but beyond the range (e.g. 512 deg/s from a
+    +-400 deg/s STIM210) is not a measurement of that unit."""
+    g0, g1, g2 = gyro
+    g = None if max(abs(g0), abs(g1), abs(g2)) <= gyro_max else "gyro_range"
+    a0, a1, a2 = accel
+    a = None if abs(a0) <= accel_max[0] and abs(a1) <= accel_max[1] and abs(a2) <= accel_max[2] else "accel_range"
+    return g, a
 
 
 def check_imu_step(step_us: int, period_us: float) -> str | None:

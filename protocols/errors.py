@@ -20,6 +20,7 @@ subclasses in its own ``errors`` module and maps foreign exceptions at its bound
         |   +-- LinkTimeoutError(TimeoutError)
         +-- RecordingError                    bad capture / recorded-data file (names file, line, column)
         +-- WriterProcessError                the paced writer's process could not start or died
+        +-- StorageError                      an output cannot be written (disk full, ulimit -f, read-only)
 
 Streaming decoders never raise on bad bytes: they count and resynchronise. Only the strict
 one-frame helpers (``parse_frame``) raise :class:`ProtocolError`.

@@ -15,8 +15,8 @@ generated from them):
   its token (echoed) and an :class:`AckResult`. REQUEST_STATUS is answered by ACK, then STATUS.
 * Commands (host -> DSP; ids >= 0x80; :mod:`protocols.host_commands`, re-exported here), every payload
   starting with a host-chosen u8 token (:data:`COMMAND_SPECS`): 0x81 RESET_FILTER (scope), 0x82
-  SELECT_VARIANT (:class:`FilterVariant`), 0x83 SET_OUTPUT_RATE (f32 rate_hz, 200 Hz / k for integer k; 0 stops
-  the output), 0x84 REQUEST_STATUS.
+  SELECT_VARIANT (:class:`FilterVariant`), 0x83 SET_OUTPUT_RATE (f32 rate_hz, 200 Hz / k for integer k, at least
+  :data:`OUTPUT_RATE_MIN_HZ`; 0 stops the output), 0x84 REQUEST_STATUS.
 
 Text output for terminal users (optional, NMEA 0183 framing with checksum, same port): the
 proprietary sentences ``$PSNSPOS`` (time, position, mode), ``$PSNSVEL`` (time, ENU velocity),
@@ -46,6 +46,7 @@ from .host_commands import (
     CMD_SET_OUTPUT_RATE,
     COMMAND_PAYLOAD_LEN,
     COMMAND_SPECS,
+    OUTPUT_RATE_MIN_HZ,
     HostCommand,
     RequestStatus,
     ResetFilter,
@@ -74,6 +75,7 @@ __all__ = [
     "NAV_SOLUTION_SPEC",
     "NAV_VARIANT_BLOCK_ID",
     "NAV_VARIANT_BLOCK_SPEC",
+    "OUTPUT_RATE_MIN_HZ",
     "STATUS_SPEC",
     "TEXT_SENTENCES",
     "VARIANT_MODE_MEANING",

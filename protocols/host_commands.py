@@ -22,6 +22,7 @@ __all__ = [
     "CMD_SET_OUTPUT_RATE",
     "COMMAND_PAYLOAD_LEN",
     "COMMAND_SPECS",
+    "OUTPUT_RATE_MIN_HZ",
     "HostCommand",
     "RequestStatus",
     "ResetFilter",
@@ -36,6 +37,11 @@ CMD_SELECT_VARIANT = 0x82
 CMD_SET_OUTPUT_RATE = 0x83
 CMD_REQUEST_STATUS = 0x84
 
+#: The lowest SET_OUTPUT_RATE rate accepted (besides 0, which stops the output), Hz: one NAV_SOLUTION every 10 s.
+#: A rate below it, not finite, above the IMU rate or not the IMU rate / k is refused with BAD_ARGUMENT
+#: (docs/decisions/protocols.md D-3.11).
+OUTPUT_RATE_MIN_HZ = 0.1
+
 # Field docs are "scale | unit | meaning" (read by protocols.icd for docs/icd.md).
 COMMAND_SPECS = {
     CMD_RESET_FILTER: Struct("token" / Int8ul * " |  | host-chosen, echoed in ACK",
@@ -43,7 +49,7 @@ COMMAND_SPECS = {
     CMD_SELECT_VARIANT: Struct("token" / Int8ul * " |  | host-chosen, echoed in ACK",
                                "variant" / Int8ul * " |  | FilterVariant 1..5"),
     CMD_SET_OUTPUT_RATE: Struct("token" / Int8ul * " |  | host-chosen, echoed in ACK",
-                                "rate_hz" / Float32l * "1 | Hz | 200/k for integer k; 0 stops the output"),
+                                "rate_hz" / Float32l * "1 | Hz | 200/k for integer k, >= 0.1 Hz; 0 stops the output"),
     CMD_REQUEST_STATUS: Struct("token" / Int8ul * " |  | host-chosen, echoed in ACK"),
 }
 
@@ -69,7 +75,8 @@ class SelectVariant:
 @fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class SetOutputRate:
-    """SET_OUTPUT_RATE: NAV_SOLUTION rate, Hz (200 Hz / k; 0 stops the output)."""
+    """SET_OUTPUT_RATE: NAV_SOLUTION rate, Hz (200 Hz / k, at least :data:`OUTPUT_RATE_MIN_HZ`; 0 stops the
+    output)."""
 
     token: int
     rate_hz: float

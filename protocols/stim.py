@@ -72,6 +72,7 @@ __all__ = [
     "INCL_DV_LSB_MPS",
     "INCL_LSB_G",
     "PPS_LSB_US",
+    "STATUS_SAMPLE_INVALID",
     "STIM210_FORMATS",
     "STIM300_ACCEL_DV_LSB_MPS",
     "STIM300_ACCEL_LSB_G",
@@ -85,6 +86,7 @@ __all__ = [
     "StimStatus",
     "counter_step",
     "gyro_port_format",
+    "overload_status",
     "stim210_spec",
     "stim300_spec",
     "utility_mode_crc",
@@ -111,6 +113,22 @@ class StimStatus(enum.IntFlag):
     OUTSIDE_OPERATING_CONDITIONS = 0x20
     STARTUP = 0x40  #: gyro stabilisation after Init Mode: data not valid
     SYSTEM_INTEGRITY_ERROR = 0x80
+
+
+#: STATUS bits that make a datagram's measurement not a valid sample (TS1524 r31 Table 5-23,
+#: docs/reference/wire-formats.md 1.6): an overload (the output is clipped at the range), an error in a
+#: measurement channel, the start-up stabilisation ("data not valid") and a system integrity error. Bit 5,
+#: outside operating conditions, leaves the sample valid (the unit still measures, outside its specified
+#: temperature or supply); the channel bits 0-2 only name the channel of bits 3 and 4.
+STATUS_SAMPLE_INVALID = (StimStatus.OVERLOAD | StimStatus.CHANNEL_ERROR | StimStatus.STARTUP
+                         | StimStatus.SYSTEM_INTEGRITY_ERROR)
+
+
+def overload_status(x: bool, y: bool, z: bool) -> int:
+    """The STATUS byte of a sample whose channels ``x``, ``y``, ``z`` exceed the range (0 when none does):
+    :attr:`StimStatus.OVERLOAD` with the channel bits 0-2 naming them (TS1524 r31 Table 5-23)."""
+    bits = (StimStatus.X_CHANNEL if x else 0) | (StimStatus.Y_CHANNEL if y else 0) | (StimStatus.Z_CHANNEL if z else 0)
+    return int(StimStatus.OVERLOAD | bits) if bits else 0
 
 
 def counter_step(sample_rate_hz: float) -> int:

@@ -40,7 +40,7 @@ from ..dsp.external import DirectionSwap, ExternalDsp, cut_dsp_uarts
 from ..dsp.firmware_setup import calibration_for
 from ..dsp.host import UartRxConfig, VirtualDsp, WatchdogConfig
 from ..dsp.lockstep import LockstepFirmware, open_lockstep
-from ..errors import EmulatorError
+from ..errors import STORAGE_ERRNOS, EmulatorError, StorageError
 from ..faults import FaultScheduler, FaultTargets
 from ..links import Link, MemHub, open_link, parse_link_url
 from ..recording.capture import CaptureRecord
@@ -88,6 +88,10 @@ class Emulator:
 
     #: set by run_emulator's signal handler (or a signal before it existed): the run ends once started
     _interrupt_requested = False
+    #: set when stop() begins: a signal then no longer cancels the run (it is writing its files)
+    _stopping = False
+    #: set when the run directory stopped taking data: (the error, whether summary.json was written)
+    storage_error: tuple[OSError, bool] | None = None
 
 
     def __init__(self, scn: Scenario, run_dir: Path, mode: str | None = None, seed: int | None = None,
@@ -436,6 +440,7 @@ class Emulator:
             self.recorder.close()
 
     async def stop(self, interrupted: bool = False) -> dict[str, Any]:
+        self._stopping = True  # a signal from now on does not cancel the stop (run_emulator's on_signal)
         loop = self.loop
         rec = self.recorder
         if loop is None or rec is None or self._stopped:
@@ -458,6 +463,7 @@ class Emulator:
             with contextlib.suppress(Exception):
                 await link.close()
         wall = loop.wall_elapsed()
+        s: dict[str, Any] = {}
         try:
             self.summary = s = self._summary(sim_t, wall, interrupted)
             s["faults"] = fault_records
@@ -472,10 +478,40 @@ class Emulator:
                 s["lockstep"] = lock.section()
                 s["passed"] = s["passed"] and lock.failed is None
             rec.write_summary(s)
-        finally:
             rec.close()
+        except OSError as exc:
+            if exc.errno not in STORAGE_ERRNOS:
+                rec.abandon()
+                raise
+            s = self._storage_failed(exc, sim_t, wall, interrupted, s, fault_records)
+        except BaseException:  # a second Ctrl-C while the summary is written: keep what can be kept
+            with contextlib.suppress(Exception):
+                rec.close()
+            rec.abandon()
+            raise
         return s
 
+    def _storage_failed(self, exc: OSError, sim_t: float, wall: float, interrupted: bool, s: dict[str, Any],
+                        fault_records: list[dict[str, Any]]) -> dict[str, Any]:
+        """The run directory stopped taking data (disk full, file-size limit): close what is open, write the
+        summary into the space reserved for it (``"storage_error"``, ``"passed": false``) and remember the
+        error for :func:`run_emulator` (which raises :class:`~emulator.errors.StorageError`)."""
+        rec = self.recorder
+        assert rec is not None
+        rec.abandon()  # from here the recorder's files are closed: reading its results writes nothing
+        if "scenario" not in s:  # the error came while the summary was being built: build it again
+            s = self._summary(sim_t, wall, interrupted)
+            s["faults"] = fault_records
+        self.summary = s
+        s["storage_error"] = f"{exc.strerror or exc} (errno {exc.errno}) at t = {sim_t:.3f} s"
+        s["passed"] = False
+        try:
+            rec.write_summary(s)
+            written = True
+        except OSError:
+            written = False
+        self.storage_error = (exc, written)
+        return s
     def _warnings(self, s: dict[str, Any]) -> list[dict[str, Any]]:
         """The fallbacks of this run: the scenario's (:func:`.fallbacks.scenario_warnings`) and the ones its
         events show it took (:func:`.fallbacks.run_fallbacks`)."""
@@ -597,8 +633,13 @@ def _run_emulator(emu: Emulator, speed: float, on_started: Callable[[Emulator], 
         raise KeyboardInterrupt  # a second Ctrl-C: stop at once (emulator.cli.main says what that leaves)
 
     def on_signal() -> None:
-        emu._interrupt_requested = True  # read by Emulator.run after start-up
-        task.cancel()
+        if emu._stopping:  # the run has reached its end and is writing its files: do not cancel that (the
+            # cancellation would surface as a CancelledError traceback); the command learns of the signal
+            # through early_signals.PENDING, drops the report and exits 1 (emulator.cli.main._AfterRun)
+            early_signals.PENDING.append(int(signal.SIGINT))
+        else:
+            emu._interrupt_requested = True  # read by Emulator.run after start-up
+            task.cancel()
         # the next signal must act even while the run writes its summary without returning to the loop (a loop
         # handler would then never run): a plain handler that raises in the main thread wherever it is
         for sig in (signal.SIGINT, signal.SIGTERM):
@@ -609,6 +650,9 @@ def _run_emulator(emu: Emulator, speed: float, on_started: Callable[[Emulator], 
                          "and closing the captures (interrupt again to stop at once)\n")
         sys.stderr.flush()
 
+    # the handlers to give back when the run ends (psns-hil run: emulator.early_signals', which remember a signal
+    # for the command's report stage; a library caller: its own), never Python's defaults in between
+    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
     for sig in (signal.SIGINT, signal.SIGTERM):
         with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):
             loop.add_signal_handler(sig, on_signal)
@@ -617,6 +661,26 @@ def _run_emulator(emu: Emulator, speed: float, on_started: Callable[[Emulator], 
         emu._interrupt_requested = True
     try:
         summary = loop.run_until_complete(task)
+        if failure and emu.storage_error is None:
+            exc0 = failure[0].get("exception")
+            if isinstance(exc0, OSError) and exc0.errno in STORAGE_ERRNOS and emu.recorder is not None:
+                # a write during the run failed, the stop's own writes succeeded: the summary says so
+                summary["storage_error"] = (f"{exc0.strerror or exc0} (errno {exc0.errno}) at t = "
+                                            f"{summary.get('sim_duration_s', 0.0):.3f} s")
+                summary["passed"] = False
+                try:
+                    emu.recorder.write_summary(summary)
+                    written = True
+                except OSError:
+                    written = False
+                emu.storage_error = (exc0, written)
+        if emu.storage_error is not None:
+            err, written = emu.storage_error
+            raise StorageError(
+                f"{emu.run_dir}: cannot write the run directory: {err.strerror or err} (errno {err.errno}); the run "
+                f"stopped at t = {summary.get('sim_duration_s', 0.0):.3f} s (emulated); "
+                + ("summary.json written (\"storage_error\"); " if written else "summary.json could not be written; ")
+                + "the captures hold what was written before") from None
         if failure:
             ctx = failure[0]
             exc = ctx.get("exception")
@@ -628,6 +692,8 @@ def _run_emulator(emu: Emulator, speed: float, on_started: Callable[[Emulator], 
         for sig in (signal.SIGINT, signal.SIGTERM):
             with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):
                 loop.remove_signal_handler(sig)
+            with contextlib.suppress(TypeError, ValueError, OSError):
+                signal.signal(sig, previous[sig])
         asyncio.set_event_loop(None)
         loop.close()
 

@@ -5,8 +5,8 @@
 tracks with faults and outages (:mod:`emulator.recording.tracks`), ``--tables`` the raw sensor tables
 (:mod:`emulator.recording.sensor_tables`). ``psns-hil run`` writes the sensor tables at the end of every run
 (``--no-tables``: not), ``run.mcap`` with ``--mcap``, and serves the run live with ``--foxglove``
-(:mod:`emulator.recording.live`) (its cost is a third of the run: docs/decisions/
-emulator-runtime.md D-7.15).
+(:mod:`emulator.recording.live`: the same channels as run.mcap, D-7.28) (run.mcap's cost is half the run: docs/
+decisions/emulator-runtime.md D-7.15).
 """
 
 from __future__ import annotations
@@ -48,14 +48,11 @@ def on_started(args: argparse.Namespace, emu: Any) -> None:
         return
     import sys
 
-    from ..recording.live import LiveServer, attach, parse_host_port
+    from ..recording.live import LiveServer, parse_host_port
 
     host, port = parse_host_port(spec)
     server = LiveServer(host, port)
-    for name in emu.links:
-        for direction in ("in", "out"):
-            server.add_raw_channel(name, direction)
-    attach(server, emu)
+    server.follow(emu.recorder.run_dir)  # the run directory as the recorder flushes it: run.mcap's channels
     try:
         port = server.start()
     except OSError as exc:  # the run is under way: it goes on, without the live view
@@ -72,6 +69,10 @@ def after_run(args: argparse.Namespace, run_dir: Path) -> list[Path]:
     live = getattr(args, "live_server", None)
     if live is not None:
         live.close()
+        if live.error is not None:
+            import sys
+
+            sys.stderr.write(f"foxglove: the live view stopped following the run: {live.error}\n")
     if not (run_dir / "capture.psnscap").exists():
         return []
     written: list[Path] = []

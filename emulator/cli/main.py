@@ -16,16 +16,19 @@ clear message per problem, no traceback.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
+import signal
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 from protocols import __version__
 from protocols.errors import PsnsHilError
 
+from ..errors import STORAGE_ERRNOS, StorageError
 from . import export
 
 __all__ = ["main"]
@@ -225,9 +228,13 @@ def print_summary(s: dict[str, Any]) -> None:
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
+    from ..dsp.firmware_setup import check_firmware
     from ..scenario import load_scenario
 
     scn = load_scenario(args.scenario, args.set or ())
+    # the firmware side, as a run would build it (issue 41): the named filter plugin is a NavFilter, the firmware
+    # plugin a factory, the spec sheet reads and validates; only the named plugins are imported, nothing runs
+    check_firmware(scn)
     if args.json:
         print(scn.model_dump_json(indent=2, exclude_none=True))
     else:
@@ -335,18 +342,34 @@ def _cmd_run(args: argparse.Namespace) -> int:
                                    progress=on_progress, on_started=on_started, force=args.force)
     if realtime and tty and not args.quiet:
         err.write("\n")
-    export.after_run(args, run_dir)  # the viewer outputs: raw sensor tables, run.mcap (issue 39)
+    after = _AfterRun()  # a signal from here on: the report is dropped, the run's files are complete (exit 1)
     report = None
-    if not args.no_report and (run_dir / "summary.json").exists():
-        from ..recording.report import write_report
+    if not after.signals:
+        try:
+            with after.armed():
+                export.after_run(args, run_dir)  # the viewer outputs: raw sensor tables, run.mcap (issue 39)
+                if not args.no_report and (run_dir / "summary.json").exists():
+                    from ..recording.report import write_report
 
-        report = write_report(run_dir)
+                    report = write_report(run_dir)
+        except _AfterRunInterrupted:
+            report = None
+        except OSError as exc:
+            if exc.errno not in STORAGE_ERRNOS:
+                raise
+            raise StorageError(f"{run_dir}: the run finished (summary.json and captures written) but its report "
+                               f"could not be written: {exc.strerror or exc} (errno {exc.errno})") from None
     if args.json:
         print(strict_json(summary))
     else:
         print_summary(summary)
         if report is not None:
             console.print(f"report: {report}")
+    if after.signals:
+        console.print(f"[yellow]psns-hil run: interrupted after the run ended: summary.json and the captures are "
+                      f"complete; {'report.html was written' if report is not None else 'no report was written'}"
+                      f" (psns-hil report {escape_markup(str(run_dir))} writes it)[/]")
+        return EXIT_FAILED
     if summary.get("interrupted"):
         console.print("[yellow]run interrupted; captures and summary were kept[/]")
         return EXIT_FAILED
@@ -357,6 +380,50 @@ def _cmd_run(args: argparse.Namespace) -> int:
                       style="bold red")
         return EXIT_FAILED
     return EXIT_OK if summary.get("passed", True) else EXIT_FAILED
+
+
+class _AfterRunInterrupted(BaseException):
+    """SIGINT / SIGTERM while the report of a finished run is written (a BaseException: no ``except Exception``
+    in matplotlib or an exporter swallows it)."""
+
+
+class _AfterRun:
+    """SIGINT and SIGTERM once ``psns-hil run``'s run has returned, until the process exits (docs/hostile-input.md
+    section 8). Before (issue 41): the run restored Python's default handlers, so the first Ctrl-C while the report
+    was written said "interrupted again" and one after ``report.html`` existed ended the process with rc -2 (or a
+    traceback from the interpreter's exit handlers with rc 0). Now every such signal is remembered (the command
+    then exits 1 saying that the run's files are complete); while :meth:`armed` it also abandons the report, which
+    is written aside and renamed, so no partial page is left. The handlers stay installed through the
+    interpreter's shutdown. A signal that came between the run's end and this object (``early_signals.PENDING``)
+    counts as well."""
+
+    def __init__(self) -> None:
+        from .. import early_signals
+
+        self.signals: list[int] = list(early_signals.PENDING)
+        early_signals.PENDING.clear()
+        self._armed = False
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            with contextlib.suppress(ValueError, OSError):  # not the main thread: nothing to install
+                signal.signal(sig, self._on_signal)
+
+    def _on_signal(self, signum: int, _frame: Any) -> None:
+        self.signals.append(signum)
+        if self._armed:
+            self._armed = False
+            with contextlib.suppress(OSError, ValueError):
+                sys.stderr.write("\npsns-hil run: interrupted while writing the report: report.html is not written; "
+                                 "the run's summary and captures are complete\n")
+                sys.stderr.flush()
+            raise _AfterRunInterrupted
+
+    @contextlib.contextmanager
+    def armed(self) -> Iterator[None]:
+        self._armed = True
+        try:
+            yield
+        finally:
+            self._armed = False
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
@@ -379,6 +446,11 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
 
     stats = run_monitor(args.endpoint, protocol=args.protocol, baud=args.baud, links=args.link or None,
                         count=args.count, duration_s=args.duration, as_json=args.json, port_name=args.port)
+    cap = stats.get("capture")
+    if cap and (cap["bad_time_records"] or cap["backward_time_records"]):  # always said, not only with --stats
+        print(f"warning: {args.endpoint}: {cap['bad_time_records']} record(s) with a time that is not finite or "
+              f"negative, {cap['backward_time_records']} going back in time within their link and direction",
+              file=sys.stderr)  # one line, never wrapped
     if args.stats:
         err = _console(stderr=True)
         err.print(f"{stats['frames']} frames")
@@ -410,6 +482,11 @@ def _cmd_replay(args: argparse.Namespace) -> int:
         console.print(f"replayed {summary['replay']['records']} captured DSP UART records")
     original = Path(args.compare) if args.compare else cap.parent
     rep = summary.get("replay") or {}
+    if rep.get("bad_time_records") or rep.get("backward_time_records"):
+        console.print(f"[yellow]the capture's time stamps are damaged: {rep['bad_time_records']} record(s) with a time "
+                      f"that is not finite or negative (dropped), {rep['backward_time_records']} going back in time "
+                      f"(delivered at the previous record's time); replayed {rep['records']} of "
+                      f"{rep['records_in_capture']} DSP UART records[/]")
     if rep.get("truncated"):
         console.print(f"[yellow]the capture is truncated: it holds {rep['captured_s']:.3f} s of the scenario's "
                       f"{rep['scenario_duration_s']:g} s; replayed that much[/]")
@@ -533,6 +610,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         install()  # (already done by emulator.cli for the usual entry points)
     if getattr(args, "speed", None) is not None and args.speed <= 0:
         parser.error("--speed must be > 0")
+    if hasattr(signal, "SIGXFSZ"):  # a file at the size limit (ulimit -f): EFBIG, reported below, not a kill
+        with contextlib.suppress(ValueError, OSError):
+            signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
     try:
         return int(args.func(args))
     except BrokenPipeError:
@@ -544,11 +624,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     except PsnsHilError as exc:
         _print_error(exc)
         return EXIT_USAGE
+    except OSError as exc:
+        if exc.errno not in STORAGE_ERRNOS:
+            raise
+        # the machine, not the input: disk full, file-size limit, read-only or forbidden output (one line, no
+        # traceback; the run command says more about what it kept)
+        where = f"{exc.filename}: " if exc.filename else ""
+        _print_error(StorageError(f"{where}cannot write: {exc.strerror or exc} (errno {exc.errno})"))
+        return EXIT_USAGE
     except KeyboardInterrupt:
-        # the first Ctrl-C of a run is handled by the run (it stops and keeps its data); one that gets here is a
-        # second one, or one outside a run: say what happened
-        sys.stderr.write(f"\npsns-hil {args.command}: interrupted again: stopped at once without finishing; the "
-                         "run directory may lack its summary and report (captures written so far are kept)\n")
+        # the first Ctrl-C of a run is handled by the run (it stops and keeps its data; after the run, _AfterRun);
+        # one that gets here during `run` is a second one; in another command (report, monitor) the first
+        if args.command == "run":
+            sys.stderr.write("\npsns-hil run: interrupted again: stopped at once without finishing; the run "
+                             "directory may lack its summary and report (captures written so far are kept)\n")
+        else:
+            sys.stderr.write(f"\npsns-hil {args.command}: interrupted\n")
         return EXIT_FAILED
 
 

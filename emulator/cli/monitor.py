@@ -12,8 +12,9 @@ Endpoints:
 * ``zenoh://RUN/PORT`` (:mod:`emulator.links.zenoh`): what is published on ``psns/RUN/PORT/tx`` (bytes the
   port's owner transmits, shown as ``out``) and ``psns/RUN/PORT/rx`` (bytes it receives, ``in``), decoded as
   they arrive. The zenoh session connects to ``tcp/127.0.0.1:7447`` (where an emulator's zenoh port listens
-  by default) unless the URL says ``connect=``, ``listen=``, ``session=`` or ``config=`` as for a link;
-  scouting is off.
+  by default) unless the URL says ``connect=``, ``listen=``, ``session=``, ``config=`` or ``auth=`` as for a
+  link; scouting is off. The emulator refuses sessions without its credentials: give the run's credentials
+  file with ``auth=FILE`` (its path is in the run's ``ports.json``) or ``PSNS_HIL_ZENOH_AUTH=FILE``.
 
 Decoders: ``--protocol`` names the frame families (``host``, ``imu``, ``stim210`` or
 ``stim210:FMT``, ``nmea``, ``psns``, ``ubx``, ``monitor``); ``auto`` (default) picks them from the port
@@ -247,9 +248,13 @@ def _has_nonfinite(fr: Any) -> bool:
     return False
 
 
-def _capture_rows(path: Path, mon: Monitor, links: set[str] | None) -> Iterator[FrameRow]:
-    """The frames of a capture (``links``: only these; an unknown one is an error, raised here at once)."""
+def _capture_rows(path: Path, mon: Monitor, links: set[str] | None,
+                  info: dict[str, Any] | None = None) -> Iterator[FrameRow]:
+    """The frames of a capture (``links``: only these; an unknown one is an error, raised here at once).
+    ``info`` receives the capture's header dict, whose time-stamp counters fill as the records are read."""
     header, recs = iter_capture(path)
+    if info is not None:
+        info["header"] = header
     known = [str(x) for x in header.get("links", [])]
     unknown = sorted((links or set()) - set(known))
     if unknown:
@@ -369,7 +374,7 @@ def _live_rows(device: str, port: str, mon: Monitor, baud: int, stop: Callable[[
 
 
 #: URL options of ``zenoh://`` that choose the monitor's zenoh session (the other link options do not apply)
-_ZENOH_SESSION_OPTIONS = ("listen", "connect", "session", "config")
+_ZENOH_SESSION_OPTIONS = ("listen", "connect", "session", "config", "auth")
 
 
 def _zenoh_source(endpoint: str) -> tuple[ZenohEndpointConfig, str, str]:
@@ -388,7 +393,8 @@ def _zenoh_source(endpoint: str) -> tuple[ZenohEndpointConfig, str, str]:
     listen, connect, config = eps("listen"), eps("connect"), url.options.get("config")
     if not listen and not connect and config is None:
         connect = (DEFAULT_LISTEN,)  # where an emulator's zenoh port listens by default
-    return ZenohEndpointConfig(listen, connect, url.options.get("session", "peer"), config), port, prefix
+    return (ZenohEndpointConfig(listen, connect, url.options.get("session", "peer"), config, url.options.get("auth")),
+            port, prefix)
 
 
 def _zenoh_rows(cfg: ZenohEndpointConfig, port: str, prefix: str, mon: Monitor,
@@ -439,6 +445,7 @@ def run_monitor(endpoint: str, protocol: str = "auto", baud: int = 460800, links
         return duration_s is not None and time.monotonic() - t_start >= duration_s
 
     rows: Iterator[FrameRow]
+    capture_info: dict[str, Any] = {}
     if endpoint.startswith("zenoh://"):
         cfg, key_port, prefix = _zenoh_source(endpoint)
         name = port_name or key_port
@@ -446,7 +453,7 @@ def run_monitor(endpoint: str, protocol: str = "auto", baud: int = 460800, links
             formats_for(name, "auto")  # fail early with the hint
         rows = _zenoh_rows(cfg, name, prefix, mon, stop)
     elif _is_capture(endpoint):
-        rows = _capture_rows(Path(endpoint), mon, set(links) if links else None)
+        rows = _capture_rows(Path(endpoint), mon, set(links) if links else None, capture_info)
     elif _is_byte_dump(endpoint):
         name = port_name or Path(endpoint).stem
         if protocol == "auto":
@@ -474,4 +481,9 @@ def run_monitor(endpoint: str, protocol: str = "auto", baud: int = 460800, links
         close = getattr(rows, "close", None)
         if close is not None:
             close()
-    return {"frames": n, "decoders": mon.stats()}
+    out_stats: dict[str, Any] = {"frames": n, "decoders": mon.stats()}
+    if "header" in capture_info:  # a capture: its damaged time stamps are reported, never silently used
+        h = capture_info["header"]
+        out_stats["capture"] = {k: h.get(k, 0) for k in ("bad_time_records", "backward_time_records")}
+        out_stats["capture"]["truncated_record"] = bool(h.get("truncated_record"))
+    return out_stats

@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import csv
 import datetime as _dt
-import glob as _glob
 import math
 from collections.abc import Callable
 from pathlib import Path
@@ -62,6 +61,7 @@ if TYPE_CHECKING:
 __all__ = [
     "GNSS_COLUMNS",
     "IMU_COLUMNS",
+    "PHYSICAL_LIMITS",
     "RecordedGnssCsv",
     "RecordedImages",
     "RecordedImu",
@@ -74,15 +74,71 @@ IMU_COLUMNS = ("time_s", "gyro_x_dps", "gyro_y_dps", "gyro_z_dps", "accel_x_mps2
 GNSS_COLUMNS = ("time_s", "lat_deg", "lon_deg", "height_m", "vel_e_mps", "vel_n_mps", "vel_u_mps")
 GNSS_OPTIONAL = ("fix_quality", "num_sats", "hdop")
 
+#: The physical bounds of a recorded value, per column: (lowest, highest, unit, integer). A finite value outside
+#: them is no measurement of anything this box carries (a recorded gyro of 1e300 deg/s, clipped to the STIM210's
+#: range, cost 2.3 km of navigation before issue 41): the file is refused at load, naming file, line, column and
+#: column, never the cell (docs/hostile-input.md). Rates and forces: wider than any IMU a record may come from (the
+#: widest MEMS gyros read +-4000 deg/s, high-g accelerometers +-200 g) [D-4.11]; position, height and speed: the
+#: receiver limits the firmware also applies (height -1 km .. 60 km, COCOM speed 515 m/s plus margin); the GGA
+#: fields' own ranges (quality 0..9, satellites 0..99, HDOP 0..99.99, NMEA 0183 4.11); time: +-10^9 s (31 years).
+PHYSICAL_LIMITS: dict[str, tuple[float, float, str, bool]] = {
+    "time_s": (-1e9, 1e9, "s", False),
+    **{f"gyro_{a}_dps": (-10_000.0, 10_000.0, "deg/s", False) for a in "xyz"},
+    **{f"accel_{a}_mps2": (-2_000.0, 2_000.0, "m/s^2", False) for a in "xyz"},
+    "lat_deg": (-90.0, 90.0, "deg", False),
+    "lon_deg": (-180.0, 180.0, "deg", False),
+    "height_m": (-1_000.0, 60_000.0, "m", False),
+    **{f"vel_{a}_mps": (-600.0, 600.0, "m/s", False) for a in "enu"},
+    "fix_quality": (0.0, 9.0, "", True),
+    "num_sats": (0.0, 99.0, "", True),
+    "hdop": (0.0, 99.99, "", False),
+}
+
+
+def _physical(path: Path, line: int, column: int, name: str, v: float, key: str | None = None) -> None:
+    """Refuse ``v`` of column ``name`` (bounds of ``key``, default ``name``) when it lies outside its physical
+    range (:data:`PHYSICAL_LIMITS`): the error names file, line, column and field, never the value."""
+    lim = PHYSICAL_LIMITS.get(key or name)
+    if lim is None:
+        return
+    lo, hi, unit, integer = lim
+    if not lo <= v <= hi:
+        raise RecordingError(f"{path}: line {line}, column {column}: {name} is outside its physical range "
+                             f"[{lo:g}, {hi:g}]{' ' + unit if unit else ''}")
+    if integer and v != int(v):
+        raise RecordingError(f"{path}: line {line}, column {column}: {name} is not an integer")
+
+
+#: longest line of a recorded CSV (characters); a real row is < 200 (issue 41: a 50 MB line gave a traceback)
+RECORDED_LINE_MAX = 65536
+
+
+def _csv_cells(path: Path, i: int, ln: str) -> list[str]:
+    try:
+        return next(csv.reader([ln]))
+    except csv.Error as exc:  # never the cell's text (docs/hostile-input.md section 6)
+        raise RecordingError(f"{path}: line {i + 1}: not a CSV row ({type(exc).__name__})") from None
+
 
 def _read_csv(path: Path, required: tuple[str, ...], optional: tuple[str, ...] = ()) -> dict[str, np.ndarray]:
-    """Numeric columns of a CSV with a header; errors name file, line and column (1-based)."""
+    """Numeric columns of a CSV with a header; errors name file, line and column (1-based). The file must be UTF-8
+    with lines of at most :data:`RECORDED_LINE_MAX` characters."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        raw = path.read_bytes()
     except OSError as exc:
         raise RecordingError(f"{path}: cannot read: {exc.strerror or exc}") from exc
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw.count(b"\n", 0, exc.start) + 1
+        col = exc.start - (raw.rfind(b"\n", 0, exc.start) + 1) + 1
+        raise RecordingError(f"{path}: line {line}, column {col}: not UTF-8 text (byte offset {exc.start})") from None
     lines = text.splitlines()
+    for i, ln in enumerate(lines):
+        if len(ln) > RECORDED_LINE_MAX:
+            raise RecordingError(f"{path}: line {i + 1}, column {RECORDED_LINE_MAX + 1}: line longer than "
+                                 f"{RECORDED_LINE_MAX} characters ({len(ln)})")
     header_line = None
     for i, ln in enumerate(lines):
         if ln.strip() and not ln.lstrip().startswith("#"):
@@ -90,7 +146,7 @@ def _read_csv(path: Path, required: tuple[str, ...], optional: tuple[str, ...] =
             break
     if header_line is None:
         raise RecordingError(f"{path}: line 1, column 1: empty file (expected a header: {', '.join(required)})")
-    header = [h.strip() for h in next(csv.reader([lines[header_line]]))]
+    header = [h.strip() for h in _csv_cells(path, header_line, lines[header_line])]
     missing = [c for c in required if c not in header]
     if missing:
         raise RecordingError(f"{path}: line {header_line + 1}, column 1: missing column(s) {', '.join(missing)} "
@@ -102,7 +158,7 @@ def _read_csv(path: Path, required: tuple[str, ...], optional: tuple[str, ...] =
         ln = lines[i]
         if not ln.strip() or ln.lstrip().startswith("#"):
             continue
-        cells = next(csv.reader([ln]))
+        cells = _csv_cells(path, i, ln)
         starts = [0]
         for c in cells[:-1]:
             starts.append(starts[-1] + len(c) + 1)
@@ -118,6 +174,7 @@ def _read_csv(path: Path, required: tuple[str, ...], optional: tuple[str, ...] =
                                      f"({len(cells[j])} characters) is not a number") from None
             if not math.isfinite(v):
                 raise RecordingError(f"{path}: line {i + 1}, column {starts[j] + 1}: {c} is not finite")
+            _physical(path, i + 1, starts[j] + 1, c, v)
             rows[c].append(v)
     out = {c: np.array(v, dtype=np.float64) for c, v in rows.items()}
     t = out[required[0]]
@@ -224,6 +281,24 @@ class _NoTruth:
         raise RecordingError("a recorded GNSS source does not use truth")
 
 
+def _nmea_physical(path: Path, line: int, col: int, msg: Gga | Rmc) -> None:
+    """Refuse a GGA or RMC of a recorded log whose position, height or speed is not physical (or not finite)."""
+    kind = type(msg).__name__.upper()
+    vals: list[tuple[str, float | None, str]] = [("latitude", msg.lat_deg, "lat_deg"),
+                                                  ("longitude", msg.lon_deg, "lon_deg")]
+    if isinstance(msg, Gga):
+        h = None if msg.altitude_msl_m is None else msg.altitude_msl_m + (msg.geoid_sep_m or 0.0)
+        vals.append(("height", h, "height_m"))
+    else:
+        vals.append(("speed", msg.speed_mps, "vel_e_mps"))
+    for name, v, key in vals:
+        if v is None:
+            continue
+        if not math.isfinite(v):
+            raise RecordingError(f"{path}: line {line}, column {col}: {kind} {name} is not finite")
+        _physical(path, line, col, f"{kind} {name}", abs(v) if name == "speed" else v, key)
+
+
 class RecordedNmea:
     """An NMEA log grouped into epochs: ``epochs`` is a list of ``(t_s, bytes, has_fix)``."""
 
@@ -253,6 +328,8 @@ class RecordedNmea:
                 msg = fmt.parse(frame)
             except Exception as exc:
                 raise RecordingError(f"{self.path}: line {i}, column {col}: bad NMEA sentence: {exc}") from exc
+            if isinstance(msg, (Gga, Rmc)):
+                _nmea_physical(self.path, i, col, msg)
             tm = msg.time_utc if isinstance(msg, (Gga, Rmc)) else None
             if isinstance(msg, Rmc) and msg.date is not None:
                 date = msg.date
@@ -325,7 +402,8 @@ def read_mosaic(path: Path | str, shape: tuple[int, int]) -> np.ndarray:
                     else:
                         raise RecordingError(f"{path}: line 1, column 1: I{theta} has shape {a.shape}, expected "
                                              f"{(ny // 2, nx // 2)} or {(ny, nx)}")
-                    out[r::2, c::2] = np.clip(np.round(plane), 0, 65535).astype(np.uint16)
+                    _check_dn(path, f"I{theta}", plane)
+                    out[r::2, c::2] = np.round(plane).astype(np.uint16)
                 return out
         if suffix in (".png", ".tif", ".tiff"):
             from PIL import Image
@@ -342,28 +420,50 @@ def read_mosaic(path: Path | str, shape: tuple[int, int]) -> np.ndarray:
         raise RecordingError(f"{path}: line 1, column 1: image has shape {a.shape}, expected a raw mosaic {(ny, nx)}")
     if a.dtype.kind not in "ui":
         raise RecordingError(f"{path}: line 1, column 1: image has dtype {a.dtype}, expected integer DN")
+    _check_dn(path, "image", a)
     return a.astype(np.uint16)
+
+
+def _check_dn(path: Path, name: str, a: np.ndarray) -> None:
+    """Refuse pixel values that no camera gives: not finite, negative, or beyond 16 bits (before issue 41 an NPZ
+    value of -5 or 1e300 was clipped silently into the mosaic)."""
+    if a.size == 0:
+        return
+    if a.dtype.kind == "f" and not np.isfinite(a).all():
+        raise RecordingError(f"{path}: line 1, column 1: {name} holds a value that is not finite")
+    if a.dtype.kind == "b" or a.dtype.kind not in "uif":
+        raise RecordingError(f"{path}: line 1, column 1: {name} has dtype {a.dtype}, expected numeric DN")
+    lo, hi = float(a.min()), float(a.max())
+    if lo < -0.5 or hi >= 65535.5:  # what rounds into 0 .. 65535
+        raise RecordingError(f"{path}: line 1, column 1: {name} holds pixel values outside [0, 65535] DN")
 
 
 class RecordedImages:
     """Timed raw mosaics for the camera (see module docstring); :meth:`mosaic_at` is the camera's source."""
 
     def __init__(self, index: Path | None = None, files: str | None = None, rate_hz: float | None = None,
-                 start_s: float = 0.0, shape: tuple[int, int] = (2048, 2448)) -> None:
+                 start_s: float = 0.0, shape: tuple[int, int] = (2048, 2448),
+                 base_dir: str | Path | None = None) -> None:
+        """``index`` (a confined path) or ``files`` (a glob relative to ``base_dir``, the scenario's directory):
+        every index entry and every glob match is confined to the scenario's directory
+        (:mod:`emulator.scenario.paths`) before it is looked at, with the same message whether it exists or not.
+        Without ``base_dir``: the index's directory, or the working directory for a glob."""
+        from ..scenario.paths import PathNotAllowed, confined_glob, read_frame_index
+
         self.shape = shape
         if index is not None:
-            d = _read_index(Path(index))
+            d = read_frame_index(Path(index), base_dir if base_dir is not None else Path(index).parent)
             self.times = d[0]
             self.files = d[1]
         else:
-            names = sorted(_glob.glob(str(files)))
-            if not names:
+            try:
+                found = confined_glob(base_dir, str(files), "camera frame")
+            except PathNotAllowed as exc:
+                raise RecordingError(f"{files}: {exc}") from None
+            if not found:
                 raise RecordingError(f"{files}: line 1, column 1: no file matches")
-            self.files = [Path(n) for n in names]
-            self.times = start_s + np.arange(len(names)) / float(rate_hz)  # type: ignore[arg-type]
-        for f in self.files:
-            if not f.exists():
-                raise RecordingError(f"{f}: line 1, column 1: file not found")
+            self.files = found
+            self.times = start_s + np.arange(len(found)) / float(rate_hz)  # type: ignore[arg-type]
         self.period = float(np.median(np.diff(self.times))) if len(self.times) > 1 else math.inf
         self._cache: tuple[int, np.ndarray] | None = None
 
@@ -374,32 +474,3 @@ class RecordedImages:
         if self._cache is None or self._cache[0] != i:
             self._cache = (i, read_mosaic(self.files[i], self.shape))
         return self._cache[1]
-
-
-def _read_index(path: Path) -> tuple[np.ndarray, list[Path]]:
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise RecordingError(f"{path}: cannot read: {exc.strerror or exc}") from exc
-    times: list[float] = []
-    files: list[Path] = []
-    header_seen = False
-    for i, ln in enumerate(text.splitlines(), start=1):
-        if not ln.strip() or ln.lstrip().startswith("#"):
-            continue
-        cells = [c.strip() for c in ln.split(",")]
-        if not header_seen:
-            if cells[:2] != ["time_s", "file"]:
-                raise RecordingError(f"{path}: line {i}, column 1: the header must be 'time_s,file'")
-            header_seen = True
-            continue
-        if len(cells) < 2:
-            raise RecordingError(f"{path}: line {i}, column {len(ln) + 1}: expected 'time_s,file'")
-        try:
-            times.append(float(cells[0]))
-        except ValueError:
-            raise RecordingError(f"{path}: line {i}, column 1: time_s is not a number") from None
-        files.append(path.parent / cells[1])
-    if not times:
-        raise RecordingError(f"{path}: line 1, column 1: no frames listed")
-    return np.array(times), files

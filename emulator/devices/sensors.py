@@ -378,8 +378,8 @@ def build_sensors(scn: Scenario, seed: int, traj: Trajectory, internal: dict[str
                 r = cs.recorded
                 src = recorded.RecordedImages(
                     index=_path(scn, r.index) if r.index else None,
-                    files=str(_path(scn, r.files)) if r.files else None,
-                    rate_hz=r.rate_hz, start_s=r.start_s, shape=(model.cfg.ny, model.cfg.nx)).mosaic_at
+                    files=r.files, rate_hz=r.rate_hz, start_s=r.start_s, shape=(model.cfg.ny, model.cfg.nx),
+                    base_dir=scn.base_dir).mosaic_at
             rate = cs.rate_hz if cs is not None else 5.0
             try:
                 camera = PolarizationCamera(internal["psns"], model, rate_hz=rate,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -20,6 +21,7 @@ from firmware_model.calibration import (
     MagnetometerCalibration,
     load_calibration,
 )
+from firmware_model.config import FILTER_VARIANTS
 from firmware_model.psns_geometry import (
     CameraGeometry,
     calibrated_mountings,
@@ -38,14 +40,19 @@ from protocols.constants import DEG
 
 from ..devices.base import device_rng
 from ..devices.compass import default_mountings, mountings_from_directions, turned_about_view_rays
-from ..devices.sensors import InstalledUnit, installed_unit
+from ..devices.sensors import (
+    InstalledUnit,
+    accel_errors,
+    gyro_errors,
+    installed_unit,
+)
 from ..errors import ScenarioError
 from ..plugins import PLUGIN_ERRORS, plugin, plugin_names
 from ..scenario.schema import Scenario
 from .variant_params import variant_params
 
-__all__ = ["SPEC_SHEET_DIR", "build_firmware", "calibration_for", "firmware_config", "register_plugins",
-           "spec_sheet_for"]
+__all__ = ["SPEC_SHEET_DIR", "build_firmware", "calibration_for", "check_firmware", "firmware_config",
+           "register_plugins", "spec_sheet_for"]
 
 #: the spec sheets bundled with the firmware (``firmware.spec_sheet: <name>``)
 SPEC_SHEET_DIR = Path(__file__).resolve().parents[2] / "firmware_model" / "spec_sheets"
@@ -223,15 +230,22 @@ def spec_sheet_for(scn: Scenario) -> SensorSpecSheet:
         if not path.is_file():
             names = sorted(p.stem for p in SPEC_SHEET_DIR.glob("*.yaml"))
             raise ScenarioError(f"firmware.spec_sheet: no bundled spec sheet {ref!r} (bundled: {', '.join(names)})")
-    else:
-        base = Path(scn.base_dir).resolve() if scn.base_dir is not None else Path.cwd().resolve()
-        path = (base / ref).resolve()
-        if not path.is_relative_to(base):
-            raise ScenarioError(f"firmware.spec_sheet: {ref} is outside the scenario's directory")
+    else:  # the scenario's own file: confined as every file it names, read as boundedly as the scenario itself
+        from ..scenario.paths import PathNotAllowed, confine
+
+        try:
+            path = confine(scn.base_dir, ref, "spec sheet")
+        except PathNotAllowed:
+            raise ScenarioError(f"firmware.spec_sheet: {ref} is outside the scenario's directory") from None
         if not path.is_file():
             raise ScenarioError(f"firmware.spec_sheet: {ref}: no such file")
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        if path.parent == SPEC_SHEET_DIR:
+            data = yaml.safe_load(path.read_text(encoding="utf-8"))  # bundled with the package: trusted
+        else:
+            from ..scenario.loader import load_yaml_file
+
+            data = load_yaml_file(path, f"firmware.spec_sheet: {ref}")
         return SensorSpecSheet.from_dict(data, f"firmware.spec_sheet: {ref}")
     except (OSError, yaml.YAMLError) as exc:
         raise ScenarioError(f"firmware.spec_sheet: {ref}: {exc}") from exc
@@ -259,16 +273,19 @@ def _camera(scn: Scenario, calibration: Calibration) -> CameraGeometry:
                    projection=pick(cal.projection, cam.projection), c_c_b=c_c_b)
 
 
-def register_plugins() -> None:
-    """Enter the ``psns_hil.filters`` and ``psns_hil.firmware`` entry points (:mod:`emulator.plugins`) in the
+def register_plugins(filters: Iterable[str] | None = None, firmware: Iterable[str] | None = None) -> None:
+    """Enter ``psns_hil.filters`` and ``psns_hil.firmware`` entry points (:mod:`emulator.plugins`) in the
     firmware's tables (:data:`firmware_model.FILTER_VARIANTS`,
-    :data:`firmware_model.registry.FIRMWARE_IMPLEMENTATIONS`). A built-in name is never replaced; what cannot be
-    entered is kept in :data:`emulator.plugins.PLUGIN_ERRORS`."""
+    :data:`firmware_model.registry.FIRMWARE_IMPLEMENTATIONS`): only the names given (a run imports the plugins its
+    scenario names, nothing else: issue 41), every installed one when a group's names are None. A built-in name is
+    never replaced; what cannot be entered (fails to import, not a ``NavFilter`` subclass, a firmware factory that
+    is not callable) is kept in :data:`emulator.plugins.PLUGIN_ERRORS`."""
     from firmware_model.config import FILTER_VARIANTS
     from firmware_model.filters import NavFilter, register_filter
     from firmware_model.registry import register_firmware
 
-    for name in plugin_names("psns_hil.filters"):
+    installed = plugin_names("psns_hil.filters")
+    for name in installed if filters is None else [n for n in filters if n in installed]:
         if name in FILTER_VARIANTS:
             if getattr(FILTER_VARIANTS[name], "__module__", "").startswith("firmware_model."):
                 PLUGIN_ERRORS.setdefault(("psns_hil.filters", name), f"the name {name!r} is built in; not replaced")
@@ -280,12 +297,32 @@ def register_plugins() -> None:
             PLUGIN_ERRORS[("psns_hil.filters", name)] = "not a firmware_model.filters.NavFilter subclass"
             continue
         register_filter(name)(cls)
-    for name in plugin_names("psns_hil.firmware"):
+    installed = plugin_names("psns_hil.firmware")
+    for name in installed if firmware is None else [n for n in firmware if n in installed]:
         if name in FIRMWARE_IMPLEMENTATIONS:
             continue
         factory = plugin("psns_hil.firmware", name)
         if callable(factory):
             register_firmware(name, factory)
+        elif factory is not None:
+            PLUGIN_ERRORS[("psns_hil.firmware", name)] = "not callable: FirmwareConfig -> FirmwareProtocol expected"
+
+
+def check_firmware(scn: Scenario) -> None:
+    """What ``psns-hil validate`` checks beyond the scenario's schema on the firmware side, without running
+    anything: the named filter and firmware plugins load and are of their kind (a ``NavFilter`` subclass, a
+    callable factory), and the spec sheet reads and validates (:func:`spec_sheet_for`). Raises
+    :class:`ScenarioError` naming the field."""
+    fw = scn.firmware
+    register_plugins((fw.filter,), (fw.implementation,))
+    if fw.filter not in FILTER_VARIANTS:
+        why = PLUGIN_ERRORS.get(("psns_hil.filters", fw.filter), "not registered")
+        raise ScenarioError(f"{scn.source_file}: firmware.filter: {fw.filter!r} cannot be used: {why}")
+    if fw.implementation not in FIRMWARE_IMPLEMENTATIONS:
+        why = PLUGIN_ERRORS.get(("psns_hil.firmware", fw.implementation), "not registered")
+        raise ScenarioError(f"{scn.source_file}: firmware.implementation: {fw.implementation!r} cannot be used: "
+                            f"{why}")
+    spec_sheet_for(scn)
 
 
 def _plugin_params(scn: Scenario) -> dict[str, object]:
@@ -294,7 +331,7 @@ def _plugin_params(scn: Scenario) -> dict[str, object]:
     name = scn.firmware.filter
     if name in BUILTIN_FILTER_PARAMS:
         return {}
-    register_plugins()
+    register_plugins((name,), ())
     model = filter_params_model(name)
     if model is None:
         return {}
@@ -319,6 +356,10 @@ def _compass_mountings(scn: Scenario, calibration: Calibration):
         raise ScenarioError(f"firmware.calibration: {exc}") from exc
 
 
+def _vec3(v: Any) -> tuple[float, float, float]:
+    return (float(v[0]), float(v[1]), float(v[2]))
+
+
 def firmware_config(scn: Scenario, calibration: Calibration | None = None) -> FirmwareConfig:
     """The firmware's configuration: the scenario's firmware section and the calibration file (by default the
     one :func:`calibration_for` makes with the scenario's seed)."""
@@ -339,6 +380,10 @@ def firmware_config(scn: Scenario, calibration: Calibration | None = None) -> Fi
         imu_rate_hz=scn.sensors.imu.rate_hz,
         gyro_output=scn.sensors.imu.output,
         gyro_counter_step=round(2000 / scn.sensors.imu.rate_hz),
+        # the fitted units' measurement ranges (a property of the configured variant, like the output and the rate;
+        # no error figure): words beyond them are refused (D-5.46)
+        gyro_range_dps=gyro_errors(scn).range_dps,
+        accel_range_g=_vec3(accel_errors(scn).range_g),
         coning_samples=fw.coning_samples,
         kf_predict_every=fw.kf_predict_every,
         output_rate_hz=fw.output_rate_hz,
@@ -381,7 +426,7 @@ def firmware_config(scn: Scenario, calibration: Calibration | None = None) -> Fi
 def build_firmware(scn: Scenario, calibration: Calibration | None = None) -> FirmwareProtocol:
     """The firmware the virtual DSP hosts for this scenario (``firmware.implementation``: this package's or a
     ``psns_hil.firmware`` plugin's), configured from its calibration file."""
-    register_plugins()
+    register_plugins((scn.firmware.filter,), (scn.firmware.implementation,))
     try:
         factory = FIRMWARE_IMPLEMENTATIONS[scn.firmware.implementation]
     except KeyError:

@@ -25,6 +25,18 @@ URL options (besides the common ``baud``, ``mode``, ``queue``)::
                               emulator whose line model already paced them
     nav=tx|rx|off             publish decoded NAV_SOLUTION frames found on that stream as JSON
                               on psns/<RUN>/nav (default: tx for a port named ``host``, else off)
+    auth=FILE                 the credentials file (one line ``USER:PASSWORD``, mode 0600) this end
+                              authenticates with and accepts; default: the process's per-run
+                              credentials (:func:`run_credentials`)
+
+Authentication (decision D-9.6): every session is opened with zenoh's user/password
+authentication (``transport/auth/usrpwd``): it presents ``USER:PASSWORD`` when it connects and
+accepts only sessions that present a pair of its dictionary file (the same file). The credentials
+are generated per run (a random 256-bit password in a fresh 0700 directory, file 0600) unless
+``auth=FILE`` or the environment variable ``PSNS_HIL_ZENOH_AUTH`` names a file; a process started
+by the run (the split DSP process) inherits them through that variable. A zenoh session without
+them (an uninvited local process) is refused at the transport: it sees no key and publishes into
+nothing. Applied on top of ``config=FILE`` as listen/connect are.
 
 Default session configuration: peer mode on loopback, multicast AND gossip scouting off (the
 default configuration would send UDP multicast and wait ~0.5 s at open, docs/reference/wire-formats.md section 0.4),
@@ -45,10 +57,16 @@ outlive their Python object otherwise) and releases the session.
 from __future__ import annotations
 
 import asyncio
+import atexit
 import contextlib
 import json
+import os
 import re
+import secrets
+import shutil
+import stat
 import struct
+import tempfile
 import threading
 from collections.abc import Callable
 from typing import Any
@@ -61,27 +79,117 @@ from .base import Link
 from .line import LineConfig
 
 __all__ = [
+    "AUTH_ENV",
     "DEFAULT_LISTEN",
     "ZENOH_OPTIONS",
     "NavJsonPublisher",
+    "ZenohCredentials",
     "ZenohEndpointConfig",
     "ZenohLink",
     "acquire_session",
     "nav_to_json",
     "open_sessions",
     "release_session",
+    "run_credentials",
     "zenoh_key_prefix",
 ]
 
 #: URL options of zenoh:// beyond the common ones.
-ZENOH_OPTIONS = frozenset({"role", "listen", "connect", "session", "config", "pace", "nav"})
+ZENOH_OPTIONS = frozenset({"role", "listen", "connect", "session", "config", "pace", "nav", "auth"})
 #: Endpoint a link listens on when neither ``listen`` nor ``connect`` is given (zenoh's port).
 DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
 _USAGE = ("zenoh://RUN/PORT[?role=device|peer&listen=tcp/127.0.0.1:7447&connect=tcp/HOST:PORT"
-          "&session=peer|client&config=FILE&pace=1|0&nav=tx|rx|off&baud=N&mode=8N1&queue=BYTES]")
+          "&session=peer|client&config=FILE&pace=1|0&nav=tx|rx|off&auth=FILE&baud=N&mode=8N1&queue=BYTES]")
 _CHUNK = re.compile(r"^[A-Za-z0-9_.\-]+$")
 #: zenoh attachment of every chunk: the sender's byte spacing on its line (s, f64 little-endian)
 _PITCH = struct.Struct("<d")
+#: environment variable naming the credentials file the process uses instead of generating its own
+AUTH_ENV = "PSNS_HIL_ZENOH_AUTH"
+#: a credentials file is one short line; anything longer is refused before it is read whole (bytes)
+_AUTH_MAX_BYTES = 4096
+_AUTH_TOKEN = re.compile(r"^[A-Za-z0-9_.\-]{1,256}$")
+
+
+class ZenohCredentials:
+    """One ``USER:PASSWORD`` pair in a file of zenoh's dictionary format (decision D-9.6).
+
+    The file is both what this end presents (``user``, ``password``) and its dictionary of accepted peers
+    (``dictionary_file``): the two ends of a run share one file.
+
+    Parameters
+    ----------
+    user, password:
+        Letters, digits, ``_ . -`` (1-256 characters each).
+    file:
+        Path of the file holding ``USER:PASSWORD``.
+    """
+
+    __slots__ = ("file", "password", "user")
+
+    def __init__(self, user: str, password: str, file: str) -> None:
+        self.user, self.password, self.file = user, password, file
+
+    @classmethod
+    def generate(cls, directory: str | None = None) -> ZenohCredentials:
+        """New credentials: user ``psns-hil``, a random 256-bit password, in ``directory`` (default: a new
+        0700 temporary directory) as ``credentials.txt`` created 0600 (never over an existing file)."""
+        d = directory or tempfile.mkdtemp(prefix="psns-hil-zenoh-")  # mkdtemp: mode 0700
+        path = os.path.join(d, "credentials.txt")
+        user, password = "psns-hil", secrets.token_urlsafe(32)
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+        with os.fdopen(fd, "w", encoding="ascii") as f:
+            f.write(f"{user}:{password}\n")
+        return cls(user, password, path)
+
+    @classmethod
+    def load(cls, path: str) -> ZenohCredentials:
+        """Read a credentials file; refused (LinkConfigError) when missing, readable by group or others, longer
+        than 4 KB or not one ``USER:PASSWORD`` line. The message never quotes the file's content."""
+        try:
+            st = os.stat(path)
+            if not stat.S_ISREG(st.st_mode):
+                raise LinkConfigError(f"zenoh credentials {path}: not a regular file")
+            if st.st_mode & 0o077:
+                raise LinkConfigError(f"zenoh credentials {path}: readable by group or others "
+                                      f"(mode {stat.S_IMODE(st.st_mode):o}); chmod 600 it")
+            with open(path, "rb") as f:
+                raw = f.read(_AUTH_MAX_BYTES + 1)
+        except OSError as exc:
+            raise LinkConfigError(f"zenoh credentials {path}: {exc.strerror or exc}") from exc
+        lines = raw.decode("ascii", errors="replace").split()
+        pair = lines[0].split(":", 1) if len(raw) <= _AUTH_MAX_BYTES and len(lines) == 1 else []
+        if len(pair) != 2 or not all(_AUTH_TOKEN.match(x) for x in pair):
+            raise LinkConfigError(f"zenoh credentials {path}: expected one line USER:PASSWORD "
+                                  "(letters, digits, '_', '.', '-')")
+        return cls(pair[0], pair[1], path)
+
+    def apply(self, cfg: Any) -> None:
+        """Put this pair and its dictionary into a ``zenoh.Config`` (``transport/auth/usrpwd``)."""
+        cfg.insert_json5("transport/auth/usrpwd", json.dumps(
+            {"user": self.user, "password": self.password, "dictionary_file": self.file}))
+
+    def __repr__(self) -> str:  # never the password
+        return f"ZenohCredentials(user={self.user!r}, file={self.file!r})"
+
+
+_run_credentials: ZenohCredentials | None = None
+_cred_lock = threading.Lock()
+
+
+def run_credentials() -> ZenohCredentials:
+    """The process's zenoh credentials: the file named by ``PSNS_HIL_ZENOH_AUTH`` if set, else generated once
+    (and that variable set, so that processes this one starts share them; the directory is removed at exit)."""
+    global _run_credentials
+    with _cred_lock:
+        if _run_credentials is None:
+            named = os.environ.get(AUTH_ENV)
+            if named:
+                _run_credentials = ZenohCredentials.load(named)
+            else:
+                _run_credentials = ZenohCredentials.generate()
+                os.environ[AUTH_ENV] = _run_credentials.file
+                atexit.register(shutil.rmtree, os.path.dirname(_run_credentials.file), True)
+        return _run_credentials
 
 
 def _zenoh() -> Any:
@@ -121,12 +229,14 @@ class ZenohEndpointConfig:
         ``peer`` or ``client``.
     config_file:
         Optional zenoh JSON5 configuration file applied first.
+    auth_file:
+        Credentials file (:class:`ZenohCredentials`); None: the process's :func:`run_credentials`.
     """
 
-    __slots__ = ("config_file", "connect", "listen", "session_mode")
+    __slots__ = ("auth_file", "config_file", "connect", "listen", "session_mode")
 
     def __init__(self, listen: tuple[str, ...] = (), connect: tuple[str, ...] = (), session_mode: str = "peer",
-                 config_file: str | None = None) -> None:
+                 config_file: str | None = None, auth_file: str | None = None) -> None:
         if session_mode not in ("peer", "client"):
             raise LinkConfigError(f"zenoh session mode must be peer or client, got {session_mode!r}")
         if not listen and not connect and config_file is None:
@@ -138,14 +248,21 @@ class ZenohEndpointConfig:
         self.connect = tuple(connect)
         self.session_mode = session_mode
         self.config_file = config_file
+        self.auth_file = auth_file
 
     @property
     def key(self) -> str:
-        return json.dumps([self.listen, self.connect, self.session_mode, self.config_file])
+        return json.dumps([self.listen, self.connect, self.session_mode, self.config_file, self.auth_file])
+
+    def credentials(self) -> ZenohCredentials:
+        """The credentials this session presents and accepts (``auth_file`` or the run's)."""
+        return ZenohCredentials.load(self.auth_file) if self.auth_file is not None else run_credentials()
 
     def build(self) -> Any:
-        """The ``zenoh.Config`` (loopback-safe: scouting off unless a config file says otherwise)."""
+        """The ``zenoh.Config``: loopback-safe (scouting off unless a config file says otherwise) and
+        authenticated (:meth:`credentials`, on top of a config file too)."""
         zenoh = _zenoh()
+        creds = self.credentials()
         try:
             if self.config_file is not None:
                 cfg = zenoh.Config.from_file(self.config_file)
@@ -158,13 +275,14 @@ class ZenohEndpointConfig:
                 cfg.insert_json5("listen/endpoints", json.dumps(list(self.listen)))
             if self.connect or self.config_file is None:
                 cfg.insert_json5("connect/endpoints", json.dumps(list(self.connect)))
+            creds.apply(cfg)
         except zenoh.ZError as exc:
             raise LinkConfigError(f"zenoh configuration rejected: {exc}") from exc
         return cfg
 
     def __repr__(self) -> str:
         return (f"ZenohEndpointConfig(listen={self.listen}, connect={self.connect}, "
-                f"session_mode={self.session_mode!r}, config_file={self.config_file!r})")
+                f"session_mode={self.session_mode!r}, config_file={self.config_file!r}, auth_file={self.auth_file!r})")
 
 
 # -- the per-process session pool -----------------------------------------------------------------
@@ -301,7 +419,7 @@ class ZenohLink(Link):
 
         try:
             self.endpoint = ZenohEndpointConfig(_eps(opts.get("listen")), _eps(opts.get("connect")),
-                                                opts.get("session", "peer"), opts.get("config"))
+                                                opts.get("session", "peer"), opts.get("config"), opts.get("auth"))
         except LinkConfigError as exc:
             raise LinkConfigError(f"{url!r}: {exc}; expected {_USAGE}") from exc
         self.session: Any = None
@@ -411,4 +529,9 @@ class ZenohLink(Link):
 
     def describe(self) -> str:
         eps = [f"listen {e}" for e in self.endpoint.listen] + [f"connect {e}" for e in self.endpoint.connect]
-        return f"zenoh {self.key_prefix}/{{tx,rx}} ({self.role}; {', '.join(eps) or 'config file'})"
+        try:  # the file's path, never its content (the same pair the session uses; made now if not yet)
+            creds = self.endpoint.credentials().file
+        except LinkConfigError:
+            creds = self.endpoint.auth_file or "per run"
+        return (f"zenoh {self.key_prefix}/{{tx,rx}} ({self.role}; {', '.join(eps) or 'config file'}; "
+                f"credentials {creds})")

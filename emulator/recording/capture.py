@@ -5,11 +5,19 @@ Format (little-endian): the 9-byte magic ``PSNSCAP1\\n``, one JSON header line
 <B flags> <I length>``, with flag :data:`FLAG_PITCH` an ``<d pitch_s>`` after it, followed by ``length`` bytes.
 ``docs/capture-format.md`` has the details. :class:`CaptureWriter` writes one (the recorder owns it);
 :func:`iter_capture` and :func:`read_capture` read one, ignoring a truncated last record (an interrupted run).
+
+A capture may come from anyone (docs/hostile-input.md): the reader reads the header line in one bounded piece
+(:data:`MAX_HEADER_BYTES`), checks its nesting (:data:`MAX_HEADER_DEPTH`) before decoding it and the types of the
+fields readers use, refuses a record declaring more than :data:`MAX_RECORD_BYTES` and reads a record's bytes in
+pieces; each is a :class:`~emulator.errors.RecordingError` naming the file and the line, field or byte offset.
+Records whose time is not finite or negative, or earlier than the previous record of the same link and direction,
+are counted in the header dict (``bad_time_records``, ``backward_time_records``) as they are read.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import struct
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -24,6 +32,9 @@ __all__ = [
     "CAPTURE_MAGIC",
     "CAPTURE_VERSION",
     "FLAG_PITCH",
+    "MAX_HEADER_BYTES",
+    "MAX_HEADER_DEPTH",
+    "MAX_RECORD_BYTES",
     "CaptureRecord",
     "CaptureWriter",
     "iter_capture",
@@ -36,6 +47,14 @@ CAPTURE_VERSION = 2
 FLAG_PITCH = 0x01
 _REC = struct.Struct("<dHBBI")
 _PITCH = struct.Struct("<d")
+#: longest header line read (bytes): the scenario spec it carries is tens of KB
+MAX_HEADER_BYTES = 4 << 20
+#: deepest JSON nesting of the header accepted (the scenario spec nests about 8 deep); checked before decoding
+MAX_HEADER_DEPTH = 64
+#: largest record accepted (bytes): a record is one chunk a link delivered at once (a UART burst, KB)
+MAX_RECORD_BYTES = 16 << 20
+#: a record's bytes are read in pieces of at most this (bytes), so a declared length never allocates by itself
+_READ_PIECE = 1 << 20
 
 
 @dataclass
@@ -80,27 +99,91 @@ class CaptureWriter:
             self.file.close()
 
 
+def _json_depth(line: bytes) -> int:
+    """Deepest nesting of ``[``/``{`` in a JSON text, brackets inside strings skipped; linear and vectorised (no
+    recursion, no backtracking: a quote counts when an even run of backslashes precedes it)."""
+    import numpy as np
+
+    a = np.frombuffer(line, dtype=np.uint8)
+    if a.size == 0:
+        return 0
+    pos = np.arange(a.size, dtype=np.int32)
+    bs = a == ord("\\")
+    last_other = np.maximum.accumulate(np.where(bs, -1, pos))  # last non-backslash at or before each position
+    run_before = np.empty(a.size, dtype=np.int32)
+    run_before[0] = 0
+    run_before[1:] = pos[:-1] - last_other[:-1]  # backslashes just before each position
+    quote = (a == ord('"')) & (run_before % 2 == 0)
+    outside = np.cumsum(quote) % 2 == 0  # after an even number of quotes: not inside a string
+    step = ((a == ord("[")) | (a == ord("{"))).astype(np.int32) - ((a == ord("]")) | (a == ord("}")))
+    return int(np.cumsum(np.where(outside, step, 0)).max(initial=0))
+
+
+def _check_header(header: dict[str, Any], path: str | Path) -> None:
+    """The types of the fields that readers use (a wrong one is named, with what it must be)."""
+    def bad(field: str, what: str) -> RecordingError:
+        return RecordingError(f"{path}: line 2, field {field!r}: {what}")
+
+    version = header.get("version", 1)
+    if type(version) is not int or version not in (1, CAPTURE_VERSION):
+        raise bad("version", f"must be 1 or {CAPTURE_VERSION}")
+    links = header.get("links", [])
+    if not isinstance(links, list) or not all(isinstance(x, str) for x in links) or len(links) > 65536:
+        raise bad("links", "must be a list of at most 65536 link names (strings)")
+    for field, types, what in (("scenario_spec", (dict,), "an object"), ("seed", (int,), "an integer"),
+                               ("link_baud", (dict,), "an object"), ("mode", (str,), "a string"),
+                               ("scenario", (str,), "a string"), ("scenario_base_dir", (str,), "a string")):
+        v = header.get(field)
+        if v is not None and (not isinstance(v, types) or isinstance(v, bool)):
+            raise bad(field, f"must be {what}")
+
+
 def _read_header(f: IO[bytes], path: str | Path) -> dict[str, Any]:
     magic = f.read(len(CAPTURE_MAGIC))
     if magic != CAPTURE_MAGIC:
         raise RecordingError(f"{path}: not a psns-hil capture (bad magic)")
-    line = f.readline()
+    line = f.readline(MAX_HEADER_BYTES + 1)  # one bounded piece
+    if len(line) > MAX_HEADER_BYTES:
+        raise RecordingError(f"{path}: line 2: the capture header is longer than {MAX_HEADER_BYTES >> 20} MiB")
     if not line.endswith(b"\n"):
         raise RecordingError(f"{path}: capture header line is incomplete")
+    if _json_depth(line) > MAX_HEADER_DEPTH:
+        raise RecordingError(f"{path}: line 2: the capture header nests deeper than {MAX_HEADER_DEPTH} levels")
     try:
         header = json.loads(line)
     except json.JSONDecodeError as exc:
         raise RecordingError(f"{path}: line 2, column {exc.colno}: bad capture header: {exc.msg}") from None
+    except (UnicodeDecodeError, RecursionError, ValueError) as exc:
+        raise RecordingError(f"{path}: line 2: bad capture header ({type(exc).__name__})") from None
     if not isinstance(header, dict):
         raise RecordingError(f"{path}: line 2: the capture header must be a JSON object")
+    _check_header(header, path)
     return header
+
+
+def _read_exact(f: IO[bytes], n: int) -> bytes:
+    """Up to ``n`` bytes (fewer at the end of the file), read in pieces of at most 1 MiB."""
+    if n <= _READ_PIECE:
+        return f.read(n)
+    parts = []
+    while n > 0:
+        piece = f.read(min(n, _READ_PIECE))
+        if not piece:
+            break
+        parts.append(piece)
+        n -= len(piece)
+    return b"".join(parts)
 
 
 def iter_capture(path: str | Path) -> tuple[dict[str, Any], Iterator[CaptureRecord]]:
     """Header and a lazy iterator over the records (constant memory for any file size).
 
     A truncated last record (interrupted run, a file cut short) ends the iteration; it then sets
-    ``header["truncated_record"] = True`` (the header dict returned here).
+    ``header["truncated_record"] = True`` (the header dict returned here). A malformed header, or a record declaring
+    more than :data:`MAX_RECORD_BYTES`, is a :class:`~emulator.errors.RecordingError` (the latter raised by the
+    iterator, naming the record's byte offset). Time stamps that are not finite or negative, or that go back within
+    one link and direction, are counted in ``header["bad_time_records"]`` and ``header["backward_time_records"]``
+    (the records are still yielded: the reader decides).
     """
     f = open(path, "rb")  # noqa: SIM115 - handed to the generator, which closes it
     try:
@@ -109,17 +192,24 @@ def iter_capture(path: str | Path) -> tuple[dict[str, Any], Iterator[CaptureReco
         f.close()
         raise
     links = header.get("links", [])
+    header["bad_time_records"] = 0
+    header["backward_time_records"] = 0
 
     def gen() -> Iterator[CaptureRecord]:
+        last: dict[tuple[int, int], float] = {}
         with f:
             size = _REC.size
             while True:
+                offset = f.tell()
                 head = f.read(size)
                 if len(head) < size:
                     if head:
                         header["truncated_record"] = True
                     return
                 t, idx, d, flags, n = _REC.unpack(head)
+                if n > MAX_RECORD_BYTES:
+                    raise RecordingError(f"{path}: record at byte {offset}: declares {n} bytes, more than "
+                                         f"{MAX_RECORD_BYTES >> 20} MiB (not a capture record)")
                 pitch = None
                 if flags & FLAG_PITCH:
                     raw = f.read(_PITCH.size)
@@ -127,10 +217,18 @@ def iter_capture(path: str | Path) -> tuple[dict[str, Any], Iterator[CaptureReco
                         header["truncated_record"] = True
                         return
                     pitch = _PITCH.unpack(raw)[0]
-                data = f.read(n)
+                data = _read_exact(f, n)
                 if len(data) < n:
                     header["truncated_record"] = True
                     return
+                if not (math.isfinite(t) and t >= 0.0):
+                    header["bad_time_records"] += 1
+                else:
+                    prev = last.get((idx, d))
+                    if prev is not None and t < prev:
+                        header["backward_time_records"] += 1
+                    else:
+                        last[(idx, d)] = t
                 name = links[idx] if idx < len(links) else f"link{idx}"
                 yield CaptureRecord(t, name, "out" if d == 0 else "in", data, pitch)
 

@@ -4,7 +4,9 @@ Written with the ``mcap`` library (D-7.15, docs/decisions/emulator-runtime.md) f
 into the run directory: the capture (every chunk on every tapped link), nav.csv / truth.csv / psns.csv, timeline.csv,
 filter_state.csv, events.jsonl and summary.json. Nothing here reaches into a device: the recorder is a listener on
 the links and devices, and this module reads only its files, so a finished run and an old run directory
-(``psns-hil export RUN --mcap``) convert the same way.
+(``psns-hil export RUN --mcap``) convert the same way. The conversion, :class:`RunFeeds`, takes the files
+incrementally and is shared with the live view (:mod:`emulator.recording.live`, D-7.28), so both carry the channel
+set declared once in :data:`TOPICS`.
 
 Messages are JSON (``message_encoding`` ``json``) with a JSON Schema each (``schema encoding`` ``jsonschema``):
 the Foxglove well-known schemas where one fits (``foxglove.LocationFix``, ``foxglove.PoseInFrame``,
@@ -40,7 +42,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from itertools import pairwise
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, Any, Protocol, TypeGuard
 
 from mcap.writer import Writer
 
@@ -50,14 +52,16 @@ from protocols.host import NavMode, describe_nav_mode
 from protocols.psns import PolarizationObs, PolarizationObsPacked
 
 from ..devices.camera.geometry import IMX250MZR_NX, IMX250MZR_NY
+from ..errors import RecordingError
 from ..world.geodesy import radii
-from .capture import iter_capture
+from .capture import CaptureRecord, iter_capture
 from .nav_error import _c_bn
 from .rundir import open_no_follow
-from .sensor_tables import decode_sensor_frames, gyro_is_rate
+from .sensor_tables import SensorDecoder, gyro_is_rate
 
-__all__ = ["CAMPAIGN_MCAP_NAME", "MCAP_NAME", "TOPICS", "McapStats", "attitude_quaternion", "write_campaign_mcap",
-           "write_run_mcap"]
+__all__ = ["CAMPAIGN_MCAP_NAME", "CAMPAIGN_TOPICS", "CSV_SOURCES", "MCAP_NAME", "RAW_SCHEMA", "SENSOR_SOURCES",
+           "TOPICS", "McapStats", "MessageSink", "RunFeeds", "attitude_quaternion", "channel_schema", "encode_message",
+           "read_summary", "write_campaign_mcap", "write_run_mcap"]
 
 MCAP_NAME = "run.mcap"
 #: the campaign's summary series, beside its members' run directories (:func:`write_campaign_mcap`)
@@ -126,6 +130,9 @@ TOPICS: dict[str, str] = {
     "/links/counters": "psns_hil.Timeline", "/dsp/filter_state": "psns_hil.FilterState",
     "/events": "foxglove.Log", "/expectations": "psns_hil.Expectation",
 }
+#: the campaign's channels (``campaign.mcap``, :func:`write_campaign_mcap`)
+CAMPAIGN_TOPICS: dict[str, str] = {"/campaign/members": "psns_hil.CampaignMember",
+                                   "/campaign/consistency": "psns_hil.CampaignConsistency"}
 #: the schema of the raw-bytes channels ``/raw/<link>/<direction>``
 RAW_SCHEMA = "psns_hil.RawBytes"
 _RAW_SCHEMA_DEF = {"title": RAW_SCHEMA, "type": "object",
@@ -141,8 +148,17 @@ NAV_ERROR_PAIRS = (("err_pos_e_m", "sig_pos_e_m"), ("err_pos_n_m", "sig_pos_n_m"
                    ("err_vel_e_mps", "sig_vel_e_mps"), ("err_vel_n_mps", "sig_vel_n_mps"),
                    ("err_vel_u_mps", "sig_vel_u_mps"), ("err_pitch_deg", "sig_att_e_deg"),
                    ("err_roll_deg", "sig_att_n_deg"), ("err_heading_deg", "sig_att_u_deg"))
+RAW_PREFIX = "/raw/"
 _DEGRADED = int(NavMode.DEGRADED)
 _LOG_LEVEL = {"fault": 3, "error": 4, "reject": 3, "watchdog": 4, "deadline": 3, "timeout": 3}
+
+
+def channel_schema(topic: str, topics: dict[str, str] = TOPICS) -> str:
+    """The schema name of ``topic``: :data:`TOPICS` (the channel set, declared once for ``run.mcap`` and the live
+    view), :data:`RAW_SCHEMA` for ``/raw/<link>/<direction>``; a topic declared nowhere raises ``KeyError``."""
+    if topics is TOPICS and topic.startswith(RAW_PREFIX):
+        return RAW_SCHEMA
+    return topics[topic]
 
 
 @dataclass
@@ -190,10 +206,8 @@ def _num(cell: str) -> int | float | str | None:
     """A CSV cell as the number it was written from (exact: Python writes floats by ``repr``), None when empty."""
     if cell == "":
         return None
-    try:
+    if cell.isdigit() or (cell[0] == "-" and cell[1:].isdigit()):  # an int (no exception on the float path)
         return int(cell)
-    except ValueError:
-        pass
     try:
         return float(cell)
     except ValueError:
@@ -233,20 +247,40 @@ class _Enu:
                 "y": (lat_deg - self.lat0) * DEG * (self.rm + self.h0), "z": h_m - self.h0}
 
 
+class MessageSink(Protocol):
+    """Where :class:`RunFeeds` puts its messages: ``run.mcap``'s gatherer (:func:`write_run_mcap`) or the live
+    server (:class:`emulator.recording.live.LiveServer`). ``schemas`` holds each schema's JSON Schema by name (filled
+    by the feeds as they learn a file's columns); ``add`` takes one message at log time ``log_s`` (scenario s) and
+    publish time ``publish_s`` (s; None: the log time) on a topic of the channel set (:func:`channel_schema`)."""
+
+    schemas: dict[str, dict[str, Any]]
+
+    def add(self, topic: str, log_s: float, msg: dict[str, Any], publish_s: float | None = None) -> None: ...
+
+
 class _Out:
     """Messages gathered per topic, written time-ordered at the end."""
 
-    def __init__(self) -> None:
+    def __init__(self, topics: dict[str, str] = TOPICS) -> None:
         self.msgs: list[tuple[int, int, str, bytes, int]] = []
-        self.schemas: dict[str, dict[str, Any]] = dict(FOXGLOVE_SCHEMAS)
+        self.schemas: dict[str, dict[str, Any]] = {**FOXGLOVE_SCHEMAS, RAW_SCHEMA: _RAW_SCHEMA_DEF}
         self.topic_schema: dict[str, str] = {}
+        self.topics = topics
 
-    def add(self, topic: str, schema: str, log_s: float, msg: dict[str, Any], publish_s: float | None = None
-            ) -> None:
-        self.topic_schema.setdefault(topic, schema)
+    def add(self, topic: str, log_s: float, msg: dict[str, Any], publish_s: float | None = None) -> None:
+        if topic not in self.topic_schema:
+            self.topic_schema[topic] = channel_schema(topic, self.topics)
         log = _ns(log_s)
-        self.msgs.append((log, len(self.msgs), topic, json.dumps(msg, separators=(",", ":"), allow_nan=False)
-                          .encode(), _ns(publish_s) if publish_s is not None else log))
+        self.msgs.append((log, len(self.msgs), topic, encode_message(msg), _ns(publish_s) if publish_s is not None
+                          else log))
+
+
+_ENCODER = json.JSONEncoder(separators=(",", ":"), allow_nan=False)
+
+
+def encode_message(msg: dict[str, Any]) -> bytes:
+    """A message as its channel carries it: compact, strict JSON (UTF-8)."""
+    return _ENCODER.encode(msg).encode()
 
 
 def _finite(v: Any) -> Any:
@@ -262,135 +296,244 @@ def _location(t: float, lat: float, lon: float, h: float, sig: tuple[float, floa
     msg: dict[str, Any] = {"timestamp": _stamp(t), "frame_id": frame, "latitude": lat, "longitude": lon,
                            "altitude": h, "position_covariance": cov,
                            "position_covariance_type": 2 if sig is not None else 0}
-    if heading_deg is not None:
+    if isinstance(heading_deg, float | int):
         msg["heading"] = heading_deg * DEG
     if vel is not None and all(isinstance(v, float | int) for v in vel):
         msg["velocity"] = {"x": vel[0], "y": vel[1], "z": vel[2]}
     return msg
 
 
-def _pose_msgs(out: _Out, pose_topic: str, child: str, t: float, r: dict[str, Any], enu: _Enu | None,
+def _pose_msgs(out: MessageSink, pose_topic: str, child: str, t: float, r: dict[str, Any], enu: _Enu | None,
                publish: float | None = None) -> None:
     if any(not isinstance(r.get(k), float | int) for k in ("roll_deg", "pitch_deg", "heading_deg", "lat_deg")):
         return
     x, y, z, w = attitude_quaternion(r["roll_deg"], r["pitch_deg"], r["heading_deg"])
     pos = enu(r["lat_deg"], r["lon_deg"], r["height_m"]) if enu is not None else {"x": 0.0, "y": 0.0, "z": 0.0}
     q = {"x": x, "y": y, "z": z, "w": w}
-    out.add(pose_topic, "foxglove.PoseInFrame", t, {"timestamp": _stamp(t), "frame_id": "enu",
-                                                    "pose": {"position": pos, "orientation": q}}, publish)
-    out.add("/tf", "foxglove.FrameTransform", t, {"timestamp": _stamp(t), "parent_frame_id": "enu",
-                                                  "child_frame_id": child, "translation": pos, "rotation": q}, publish)
+    out.add(pose_topic, t, {"timestamp": _stamp(t), "frame_id": "enu", "pose": {"position": pos, "orientation": q}},
+            publish)
+    out.add("/tf", t, {"timestamp": _stamp(t), "parent_frame_id": "enu", "child_frame_id": child,
+                       "translation": pos, "rotation": q}, publish)
 
 
-def _gather_truth(out: _Out, run_dir: Path) -> _Enu | None:
-    cols, rows = _read_csv(run_dir / "truth.csv")
-    out.schemas["psns_hil.Truth"] = _columns_schema("psns_hil.Truth", cols, "truth.csv: the trajectory at the nav "
-                                                    "frames' times of validity (deg, m, m/s)")
-    enu: _Enu | None = None
-    for cells in rows:
-        r: dict[str, Any] = {c: _num(v) for c, v in zip(cols, cells)}
-        t = r["time_s"]
-        if not isinstance(t, float | int):
-            continue
-        out.add("/truth/state", "psns_hil.Truth", t, r)
-        if enu is None:
-            enu = _Enu(r["lat_deg"], r["lon_deg"], r["height_m"])
-        out.add("/truth/location", "foxglove.LocationFix", t,
-                _location(t, r["lat_deg"], r["lon_deg"], r["height_m"], None, "body_truth", r["heading_deg"],
-                          (r["vel_e_mps"], r["vel_n_mps"], r["vel_u_mps"])))
-        _pose_msgs(out, "/truth/pose", "body_truth", t, r, enu)
-    return enu
+#: the run directory's CSV files, in the order they are read (truth before nav: the ENU origin of the poses), with
+#: the topic of their rows and the description of its schema (made from the file's columns)
+CSV_SOURCES: dict[str, tuple[str, str]] = {
+    "truth.csv": ("/truth/state", "truth.csv: the trajectory at the nav frames' times of validity (deg, m, m/s)"),
+    "nav.csv": ("/nav/solution", "nav.csv: one NAV_SOLUTION as the host received it, with its error against truth "
+                "(deg, m, m/s; sig_* the filter's 1-sigma; empty errors: not navigating)"),
+    "psns.csv": ("/psns/solar_vector", "psns.csv: the solved solar vector (body, unit) against the true one, "
+                 "errors (deg)"),
+    "timeline.csv": ("/links/counters", "timeline.csv: cumulative link counters, DSP CPU load (%) and deadline "
+                     "misses, 1 Hz"),
+    "filter_state.csv": ("/dsp/filter_state", "filter_state.csv: firmware mode, covariance diagonal, bias "
+                         "estimates, 1 Hz"),
+}
+#: the decoded sensor streams (:data:`~emulator.recording.sensor_tables.SENSOR_TABLES`): topic and description
+SENSOR_SOURCES: dict[str, tuple[str, str]] = {
+    "imu.csv": ("/imu", "One FPGA IMU frame (UART1): STIM210 gyro words scaled (deg/s or deg), accelerometer ADC "
+                "codes at the nominal scale (g); t_rx_s scenario s"),
+    "gnss.csv": ("/gnss/epoch", "One GNSS epoch (GGA/GNS or UBX-NAV-PVT) as received on the GNSS port (deg, m, m/s)"),
+    "psns_frames.csv": ("/psns/frames", "One frame on the PSNS port: header and, for a solar-vector frame, the "
+                        "vector and its quality"),
+}
+#: the columns the conversion needs in a CSV file (the rest are carried as they are); others: ``time_s``
+_REQUIRED_COLUMNS = {name: ("time_s", "lat_deg", "lon_deg", "height_m") for name in ("truth.csv", "nav.csv")}
 
 
-def _gather_nav(out: _Out, run_dir: Path, enu: _Enu | None) -> None:
-    cols, rows = _read_csv(run_dir / "nav.csv")
-    out.schemas["psns_hil.NavSolution"] = _columns_schema(
-        "psns_hil.NavSolution", cols, "nav.csv: one NAV_SOLUTION as the host received it, with its error against "
-        "truth (deg, m, m/s; sig_* the filter's 1-sigma; empty errors: not navigating)")
-    err_props: dict[str, Any] = {"timestamp": _TIME}
-    for e, s in NAV_ERROR_PAIRS:
-        err_props[e] = err_props[s] = {"type": ["number", "null"]}
-    out.schemas["psns_hil.NavError"] = {
-        "title": "psns_hil.NavError", "type": "object", "properties": err_props,
-        "description": "The error against truth per component beside the filter's 1-sigma of that component "
-                       "(plot err inside +-3 sig); null errors: the frame is not navigating"}
-    last_mode: int | None = None
-    for line, cells in enumerate(rows, start=2):
-        r: dict[str, Any] = {c: _num(v) for c, v in zip(cols, cells)}
-        t, arr = r["time_s"], r.get("arrival_s")
-        if not isinstance(t, float | int):
-            continue
+#: log times past this (s, about 31 years; MCAP's u64 ns end near 585 years) are not a run's: left out
+_MAX_LOG_S = 1e9
+
+
+def _time_ok(t: Any) -> TypeGuard[float]:
+    """Whether ``t`` is a scenario time a message can be logged at (a finite number, |t| < :data:`_MAX_LOG_S`)."""
+    return isinstance(t, float | int) and not isinstance(t, bool) and abs(t) < _MAX_LOG_S
+
+
+def _has_position(r: dict[str, Any]) -> bool:
+    """Whether row ``r`` has a position (finite numbers, latitude and longitude in range) to place on a map."""
+    lat, lon, h = r.get("lat_deg"), r.get("lon_deg"), r.get("height_m")
+    return isinstance(lat, float | int) and isinstance(lon, float | int) and isinstance(h, float | int) and \
+        abs(lat) <= 90.0 and abs(lon) <= 180.0
+
+
+def _sig3(sigma_column: str) -> str:
+    """The /nav/error field of a sigma column's 3-sigma bound: ``sig_pos_e_m`` -> ``sig3_pos_e_m``."""
+    return "sig3_" + sigma_column.removeprefix("sig_")
+
+
+EVENTS_FILE, CAPTURE_FILE, SUMMARY_FILE = "events.jsonl", "capture.psnscap", "summary.json"
+_NAV_ERROR_SCHEMA: dict[str, Any] = {
+    "title": "psns_hil.NavError", "type": "object",
+    "properties": {"timestamp": _TIME, **{c: {"type": ["number", "null"]} for pair in NAV_ERROR_PAIRS for c in pair},
+                   **{_sig3(s): {"type": ["number", "null"]} for _e, s in NAV_ERROR_PAIRS}},
+    "description": "The error against truth per component beside the filter's 1-sigma of that component and its "
+                   "3-sigma bound sig3_* (plot err inside +-sig3); null errors: the frame is not navigating"}
+_EXPECTATION_SCHEMA: dict[str, Any] = {
+    "title": "psns_hil.Expectation", "type": "object",
+    "description": "One of the scenario's expectations as evaluated at the end of the run (summary.json)",
+    "properties": {"timestamp": _TIME, "index": {"type": "integer"}, "passed": {"type": "boolean"},
+                   "result": {"type": "object"}}}
+
+
+class RunFeeds:
+    """A run directory's files as messages on the channel set (:data:`TOPICS`), fed incrementally: one conversion
+    for ``run.mcap`` (:func:`write_run_mcap` hands it each file whole) and the live view (:mod:`.live` hands it the
+    lines and records the recorder has flushed so far), so the two carry the same channels and the same values.
+
+    CSV files (:data:`CSV_SOURCES`): :meth:`csv_header` with the first line's cells, then :meth:`csv_row` per line;
+    the capture: :meth:`capture_header`, then :meth:`capture_record` per record; events.jsonl: :meth:`event_line`;
+    summary.json: :meth:`summary`."""
+
+    def __init__(self, out: MessageSink) -> None:
+        self.out = out
+        out.schemas.update(FOXGLOVE_SCHEMAS)
+        out.schemas[RAW_SCHEMA] = _RAW_SCHEMA_DEF
+        out.schemas["psns_hil.NavError"] = _NAV_ERROR_SCHEMA
+        out.schemas["psns_hil.Expectation"] = _EXPECTATION_SCHEMA
+        #: the ENU origin of the poses: the first truth row
+        self.enu: _Enu | None = None
+        self.header: dict[str, Any] = {}
+        self._cols: dict[str, list[str]] = {}
+        self._line: dict[str, int] = {}
+        self._last_mode: int | None = None
+        self._sensors: SensorDecoder | None = None
+        self._next_image = 0.0
+        self._event_line = 0
+
+    # -- CSV files ---------------------------------------------------------------------------------
+    def csv_header(self, name: str, cols: list[str]) -> None:
+        """The header of CSV file ``name`` (a key of :data:`CSV_SOURCES`): its topic's schema. A header without the
+        columns the conversion needs raises :class:`~emulator.errors.RecordingError`."""
+        missing = [c for c in _REQUIRED_COLUMNS.get(name, ("time_s",)) if c not in cols]
+        if missing:
+            raise RecordingError(f"{name}: not a psns-hil {name} (no column {', '.join(missing)})")
+        topic, description = CSV_SOURCES[name]
+        schema = TOPICS[topic]
+        self.out.schemas[schema] = _columns_schema(schema, cols, description)
+        self._cols[name], self._line[name] = cols, 1
+
+    def csv_row(self, name: str, cells: list[str]) -> None:
+        """One data line of CSV file ``name``, after its :meth:`csv_header` (a non-finite cell becomes null; a row
+        without a time is skipped, one without a position has no location or pose)."""
+        self._line[name] += 1
+        r: dict[str, Any] = {c: _finite(_num(v)) for c, v in zip(self._cols[name], cells)}
+        t = r.get("time_s")
+        if not _time_ok(t):
+            return
+        if name == "nav.csv":
+            self._nav_row(t, r)
+        elif name == "truth.csv":
+            self._truth_row(t, r)
+        else:
+            self.out.add(CSV_SOURCES[name][0], t, r)
+
+    def _truth_row(self, t: float, r: dict[str, Any]) -> None:
+        out = self.out
+        out.add("/truth/state", t, r)
+        if not _has_position(r):
+            return
+        if self.enu is None:
+            self.enu = _Enu(r["lat_deg"], r["lon_deg"], r["height_m"])
+        out.add("/truth/location", t, _location(t, r["lat_deg"], r["lon_deg"], r["height_m"], None, "body_truth",
+                                                r.get("heading_deg"), (r.get("vel_e_mps"), r.get("vel_n_mps"),
+                                                                       r.get("vel_u_mps"))))
+        _pose_msgs(out, "/truth/pose", "body_truth", t, r, self.enu)
+
+    def _nav_row(self, t: float, r: dict[str, Any]) -> None:
+        out = self.out
+        arr = r.get("arrival_s")
         pub = arr if isinstance(arr, float | int) else None
-        out.add("/nav/solution", "psns_hil.NavSolution", t, r, pub)
+        out.add("/nav/solution", t, r, pub)
         mode = r.get("mode")
-        if isinstance(mode, int) and mode != last_mode:  # each change of the mode bits, as a log line
-            out.add("/nav/mode", "foxglove.Log", t, {"timestamp": _stamp(t), "level": 3 if mode & _DEGRADED else 2,
-                                                    "message": describe_nav_mode(mode), "name": "firmware",
-                                                    "file": "nav.csv", "line": line})
-            last_mode = mode
-        sig = (r["sig_pos_e_m"], r["sig_pos_n_m"], r["sig_pos_u_m"])
-        ok = all(isinstance(v, float | int) and math.isfinite(v) for v in sig)
-        out.add("/nav/location", "foxglove.LocationFix", t,
-                _location(t, r["lat_deg"], r["lon_deg"], r["height_m"], sig if ok else None, "body",
-                          r["heading_deg"], (r["vel_e_mps"], r["vel_n_mps"], r["vel_u_mps"])), pub)
-        _pose_msgs(out, "/nav/pose", "body", t, r, enu, pub)
+        if isinstance(mode, int) and mode != self._last_mode:  # each change of the mode bits, as a log line
+            out.add("/nav/mode", t, {"timestamp": _stamp(t), "level": 3 if mode & _DEGRADED else 2,
+                                     "message": describe_nav_mode(mode), "name": "firmware", "file": "nav.csv",
+                                     "line": self._line["nav.csv"]})
+            self._last_mode = mode
+        sig: tuple[Any, Any, Any] = (r.get("sig_pos_e_m"), r.get("sig_pos_n_m"), r.get("sig_pos_u_m"))
+        ok = all(isinstance(v, float | int) for v in sig)
+        if _has_position(r):
+            out.add("/nav/location", t, _location(t, r["lat_deg"], r["lon_deg"], r["height_m"],
+                                                  sig if ok else None, "body", r.get("heading_deg"),
+                                                  (r.get("vel_e_mps"), r.get("vel_n_mps"), r.get("vel_u_mps"))), pub)
+            _pose_msgs(out, "/nav/pose", "body", t, r, self.enu, pub)
         err: dict[str, Any] = {"timestamp": _stamp(t)}
         for e, s in NAV_ERROR_PAIRS:
-            err[e], err[s] = r.get(e), r.get(s)
-        out.add("/nav/error", "psns_hil.NavError", t, err, pub)
+            one = r.get(s)
+            err[e], err[s] = r.get(e), one
+            err[_sig3(s)] = 3.0 * one if isinstance(one, float | int) and math.isfinite(one) else None
+        out.add("/nav/error", t, err, pub)
+
+    # -- the capture -------------------------------------------------------------------------------
+    def capture_header(self, header: dict[str, Any]) -> None:
+        """The capture's header (its scenario tells the IMU's output: rate or incremental angle)."""
+        self.header = header
+        self._sensors = SensorDecoder(gyro_is_rate(header))
+
+    def capture_record(self, r: CaptureRecord) -> None:
+        """One capture record: its raw bytes, and the sensor frames it completes (none at an impossible time)."""
+        out = self.out
+        if not _time_ok(r.t_s):
+            return
+        out.add(f"{RAW_PREFIX}{r.link}/{r.direction}", r.t_s, {"link": r.link, "direction": r.direction,
+                                                                "pitch_s": r.pitch_s,
+                                                                "data": base64.b64encode(r.data).decode("ascii")})
+        if self._sensors is None:
+            self._sensors = SensorDecoder()
+        for fr in self._sensors.feed(r):
+            topic, text = SENSOR_SOURCES[fr.table]
+            schema = TOPICS[topic]
+            if schema not in out.schemas:
+                out.schemas[schema] = _columns_schema(schema, list(fr.row), text)
+            row = {k: _finite(v) for k, v in fr.row.items()}
+            out.add(topic, fr.t_rx_s, row)
+            if isinstance(fr.frame, PolarizationObs | PolarizationObsPacked) and fr.t_rx_s >= self._next_image:
+                w, h, img = aop_image(fr.frame.points)
+                out.add("/psns/aop_image", fr.t_rx_s,
+                        {"timestamp": _stamp(fr.t_rx_s), "frame_id": "camera", "width": w, "height": h,
+                         "encoding": "mono8", "step": w, "data": base64.b64encode(img).decode("ascii")})
+                self._next_image = (fr.t_rx_s // AOP_IMAGE_EVERY_S + 1) * AOP_IMAGE_EVERY_S
+            if fr.table == "gnss.csv" and isinstance(row.get("lat_deg"), float) and \
+                    isinstance(row.get("lon_deg"), float):
+                out.add("/gnss/fix", fr.t_rx_s, _location(fr.t_rx_s, row["lat_deg"], row["lon_deg"],
+                                                          row.get("height_msl_m") or 0.0, None, "gnss"))
+
+    # -- events and the summary --------------------------------------------------------------------
+    def event_line(self, line: str) -> None:
+        """One line of events.jsonl (a line that is not an event object is skipped, and counted in the line
+        numbers)."""
+        self._event_line += 1
+        try:
+            ev = json.loads(line)
+        except json.JSONDecodeError:
+            return
+        if not isinstance(ev, dict) or not _time_ok(ev.get("t_s")):
+            return
+        kind = str(ev.get("event", ""))
+        rest = {k: v for k, v in ev.items() if k not in ("t_s", "source", "event")}
+        level = next((lv for word, lv in _LOG_LEVEL.items() if word in kind), 2)
+        self.out.add("/events", ev["t_s"],
+                     {"timestamp": _stamp(ev["t_s"]), "level": level,
+                      "message": f"{kind} {json.dumps(rest, sort_keys=True, default=str)}" if rest else kind,
+                      "name": str(ev.get("source", "")), "file": EVENTS_FILE, "line": self._event_line})
+
+    def summary(self, summary: dict[str, Any]) -> None:
+        """summary.json: the expectations' results, at the end of the run."""
+        t_end = summary.get("sim_duration_s") or 0.0
+        for i, res in enumerate(summary.get("expectations") or []):
+            if isinstance(res, dict):
+                self.out.add("/expectations", t_end, {"timestamp": _stamp(t_end), "index": i,
+                                                      "passed": bool(res.get("passed")), "result": res})
 
 
-def _gather_table(out: _Out, path: Path, topic: str, schema: str, description: str) -> None:
-    cols, rows = _read_csv(path)
-    if not cols:
-        return
-    out.schemas[schema] = _columns_schema(schema, cols, description)
-    for cells in rows:
-        r: dict[str, Any] = {c: _num(v) for c, v in zip(cols, cells)}
-        t = r.get("time_s")
-        if isinstance(t, float | int):
-            out.add(topic, schema, t, r)
-
-
-def _gather_capture(out: _Out, run_dir: Path) -> dict[str, Any]:
-    path = run_dir / "capture.psnscap"
-    if not path.exists():
-        return {}
-    header, records = iter_capture(path)
-    out.schemas[RAW_SCHEMA] = _RAW_SCHEMA_DEF
-    descr = {"imu.csv": ("/imu", "psns_hil.ImuFrame", "One FPGA IMU frame (UART1): STIM210 gyro words scaled "
-                         "(deg/s or deg), accelerometer ADC codes at the nominal scale (g); t_rx_s scenario s"),
-             "gnss.csv": ("/gnss/epoch", "psns_hil.GnssEpoch", "One GNSS epoch (GGA/GNS or UBX-NAV-PVT) as "
-                          "received on the GNSS port (deg, m, m/s)"),
-             "psns_frames.csv": ("/psns/frames", "psns_hil.PsnsFrame", "One frame on the PSNS port: header and, "
-                                 "for a solar-vector frame, the vector and its quality")}
-
-    def tee() -> Iterator[Any]:
-        for r in records:
-            out.add(f"/raw/{r.link}/{r.direction}", RAW_SCHEMA, r.t_s,
-                    {"link": r.link, "direction": r.direction, "pitch_s": r.pitch_s,
-                     "data": base64.b64encode(r.data).decode("ascii")})
-            yield r
-
-    next_image = 0.0
-    for fr in decode_sensor_frames(tee(), gyro_is_rate(header)):
-        topic, schema, text = descr[fr.table]
-        if schema not in out.schemas:
-            out.schemas[schema] = _columns_schema(schema, list(fr.row), text)
-        row = {k: _finite(v) for k, v in fr.row.items()}
-        out.add(topic, schema, fr.t_rx_s, row)
-        if isinstance(fr.frame, PolarizationObs | PolarizationObsPacked) and fr.t_rx_s >= next_image:
-            w, h, img = aop_image(fr.frame.points)
-            out.add("/psns/aop_image", "foxglove.RawImage", fr.t_rx_s,
-                    {"timestamp": _stamp(fr.t_rx_s), "frame_id": "camera", "width": w, "height": h,
-                     "encoding": "mono8", "step": w, "data": base64.b64encode(img).decode("ascii")})
-            next_image = (fr.t_rx_s // AOP_IMAGE_EVERY_S + 1) * AOP_IMAGE_EVERY_S
-        if fr.table == "gnss.csv" and isinstance(row.get("lat_deg"), float) and isinstance(row.get("lon_deg"),
-                                                                                          float):
-            out.add("/gnss/fix", "foxglove.LocationFix", fr.t_rx_s,
-                    _location(fr.t_rx_s, row["lat_deg"], row["lon_deg"], row.get("height_msl_m") or 0.0, None,
-                              "gnss"))
-    return header
+def read_summary(run_dir: Path) -> dict[str, Any] | None:
+    """summary.json of ``run_dir`` as a dict (None: absent or not a JSON object)."""
+    try:
+        summary = json.loads((Path(run_dir) / SUMMARY_FILE).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return None
+    return summary if isinstance(summary, dict) else None
 
 
 #: the AoP image: camera pixels per image pixel, and the camera frames per image (1 Hz at the usual 5 Hz)
@@ -421,62 +564,31 @@ def aop_image(points: Any, nx: int = IMX250MZR_NX, ny: int = IMX250MZR_NY, binni
     return w, h, bytes(img)
 
 
-def _gather_events(out: _Out, run_dir: Path) -> None:
-    path = run_dir / "events.jsonl"
-    if not path.exists():
-        return
-    with open(path, encoding="utf-8") as f:
-        for i, line in enumerate(f):
-            try:
-                ev = json.loads(line)
-            except json.JSONDecodeError:
-                continue
-            if not isinstance(ev, dict) or not isinstance(ev.get("t_s"), float | int):
-                continue
-            kind = str(ev.get("event", ""))
-            rest = {k: v for k, v in ev.items() if k not in ("t_s", "source", "event")}
-            level = next((lv for word, lv in _LOG_LEVEL.items() if word in kind), 2)
-            out.add("/events", "foxglove.Log", ev["t_s"],
-                    {"timestamp": _stamp(ev["t_s"]), "level": level,
-                     "message": f"{kind} {json.dumps(rest, sort_keys=True, default=str)}" if rest else kind,
-                     "name": str(ev.get("source", "")), "file": "events.jsonl", "line": i + 1})
-
-
-def _gather_summary(out: _Out, run_dir: Path) -> dict[str, Any]:
-    try:
-        summary = json.loads((run_dir / "summary.json").read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError):
-        return {}
-    t_end = summary.get("sim_duration_s") or 0.0
-    out.schemas["psns_hil.Expectation"] = {
-        "title": "psns_hil.Expectation", "type": "object",
-        "description": "One of the scenario's expectations as evaluated at the end of the run (summary.json)",
-        "properties": {"timestamp": _TIME, "index": {"type": "integer"}, "passed": {"type": "boolean"},
-                       "result": {"type": "object"}}}
-    for i, res in enumerate(summary.get("expectations") or []):
-        if isinstance(res, dict):
-            out.add("/expectations", "psns_hil.Expectation", t_end,
-                    {"timestamp": _stamp(t_end), "index": i, "passed": bool(res.get("passed")), "result": res})
-    return summary if isinstance(summary, dict) else {}
-
-
 def write_run_mcap(run_dir: Path, out_path: Path | None = None) -> McapStats:
     """Write ``run.mcap`` (or ``out_path``) from the run directory ``run_dir`` (see module docstring)."""
     wall0 = time.perf_counter()
     run_dir = Path(run_dir)
     path = Path(out_path) if out_path is not None else run_dir / MCAP_NAME
     out = _Out()
-    enu = _gather_truth(out, run_dir)
-    _gather_nav(out, run_dir, enu)
-    _gather_table(out, run_dir / "psns.csv", "/psns/solar_vector", "psns_hil.SolarVector",
-                  "psns.csv: the solved solar vector (body, unit) against the true one, errors (deg)")
-    _gather_table(out, run_dir / "timeline.csv", "/links/counters", "psns_hil.Timeline",
-                  "timeline.csv: cumulative link counters, DSP CPU load (%) and deadline misses, 1 Hz")
-    _gather_table(out, run_dir / "filter_state.csv", "/dsp/filter_state", "psns_hil.FilterState",
-                  "filter_state.csv: firmware mode, covariance diagonal, bias estimates, 1 Hz")
-    header = _gather_capture(out, run_dir)
-    _gather_events(out, run_dir)
-    summary = _gather_summary(out, run_dir)
+    feeds = RunFeeds(out)
+    for name in CSV_SOURCES:
+        cols, rows = _read_csv(run_dir / name)
+        if cols:
+            feeds.csv_header(name, cols)
+            for cells in rows:
+                feeds.csv_row(name, cells)
+    if (run_dir / CAPTURE_FILE).exists():
+        header, records = iter_capture(run_dir / CAPTURE_FILE)
+        feeds.capture_header(header)
+        for r in records:
+            feeds.capture_record(r)
+    if (run_dir / EVENTS_FILE).exists():
+        with open(run_dir / EVENTS_FILE, encoding="utf-8", errors="replace") as f:
+            for line in f:
+                feeds.event_line(line)
+    summary = read_summary(run_dir) or {}
+    feeds.summary(summary)
+    header = feeds.header
     meta = {"scenario": str(summary.get("scenario", header.get("scenario", ""))),
             "seed": str(summary.get("seed", header.get("seed", ""))),
             "epoch_utc": str(summary.get("epoch", header.get("epoch", ""))),
@@ -538,7 +650,7 @@ def write_campaign_mcap(out_dir: Path, rows: list[dict[str, Any]], info: dict[st
     without its per-sample series)."""
     wall0 = time.perf_counter()
     path = Path(out_dir) / CAMPAIGN_MCAP_NAME
-    out = _Out()
+    out = _Out(CAMPAIGN_TOPICS)
     out.schemas["psns_hil.CampaignMember"] = {
         "title": "psns_hil.CampaignMember", "type": "object",
         "description": "One campaign member: runs.csv's row with the member's mean NEES per state group",
@@ -560,7 +672,7 @@ def write_campaign_mcap(out_dir: Path, rows: list[dict[str, Any]], info: dict[st
                "params": r.get("params") or {}, "envelope": r.get("envelope") or {},
                "metrics": {k: r.get(k) for k in cols}, "nees_mean": nees,
                "heading_err_mean_deg": c.get("heading_err_mean_deg")}
-        out.add("/campaign/members", "psns_hil.CampaignMember", float(r["index"]), _json_safe(msg))
+        out.add("/campaign/members", float(r["index"]), _json_safe(msg))
     if consistency is not None:
         brief = {k: v for k, v in consistency.items() if k != "t"}
         for g in (brief.get("groups") or {}).values():
@@ -568,7 +680,7 @@ def write_campaign_mcap(out_dir: Path, rows: list[dict[str, Any]], info: dict[st
                 for key in [k for k, v in g.items() if isinstance(v, list) and len(v) > 32]:
                     del g[key]  # per-sample series stay in consistency.json
         t_end = float(max((int(r["index"]) for r in rows), default=0) + 1)
-        out.add("/campaign/consistency", "psns_hil.CampaignConsistency", t_end, {"consistency": _json_safe(brief)})
+        out.add("/campaign/consistency", t_end, {"consistency": _json_safe(brief)})
     meta = {"scenario": str(info.get("scenario", "")), "campaign_seed": str(info.get("campaign_seed", "")),
             "runs": str(len(rows)), "log_time": "member index, s (member i at i s)", "psns_hil_version": VERSION}
     stats = McapStats(path)

@@ -26,7 +26,14 @@ second, so an interrupted run keeps everything up to the interruption):
     One row per simulated second: the firmware's mode and the diagonal of its filter covariance and
     its bias estimates (the change indicator's state history, ``emulator.recording.golden``).
 ``summary.json``
-    Written at the end (also after an interruption, with ``"interrupted": true``).
+    Written at the end (also after an interruption, with ``"interrupted": true``, and after the disk filled up or
+    a file reached the size limit, with ``"storage_error"``: the space for it is held from the start by a
+    reserve file, :data:`SUMMARY_RESERVE_NAME`, released just before the summary is written).
+
+A SIGKILL leaves the files as last written: ``nav.csv`` and ``truth.csv`` are written (to the OS) at every
+comparison batch, so they trail the capture by at most one batch (:attr:`Recorder.NAV_BATCH` frames, 2 s at
+100 Hz; :attr:`Recorder.NAV_BATCH_REALTIME` in realtime mode), not by the wall-clock flush interval (issue 41:
+15-27 s of emulated time in fast mode before).
 
 Cost: frame counting on the other taps only needs the totals, so their bytes are buffered and
 decoded in batches (at every flush and whenever the summary is read) by counting decoders
@@ -41,8 +48,10 @@ first, so readers always see every frame received so far.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import functools
 import json
+import os
 import time as _time
 from array import array
 from collections import deque
@@ -63,7 +72,7 @@ from .counting import counting_decoder
 from .formatting import csv_row_fast, json_default, strict_json
 from .nav_error import ErrorStats, NavVsTruth
 from .psns_error import SolarVsTruth
-from .rundir import open_no_follow
+from .rundir import SUMMARY_RESERVE_NAME, open_no_follow
 
 __all__ = ["Recorder"]
 
@@ -96,6 +105,7 @@ class Recorder:
                  nav_port: str = "host", sun: SunModel | None = None) -> None:
         self.run_dir = Path(run_dir)
         self.run_dir.mkdir(parents=True, exist_ok=True)
+        self._reserve_summary_space()
         self.traj = trajectory
         self.nav_port = nav_port
         self._taps: dict[str, _Tap] = {}
@@ -283,6 +293,7 @@ class Recorder:
             return
         self._nav_pending = []
         self._compare.add(pend)
+        self._write_nav_rows()  # nav.csv trails the capture by at most one batch after a SIGKILL
         nf = self._compare.nonfinite_frames
         if nf != self._nonfinite_reported:  # counted and shown (events, summary event_counts), never raised
             self.emit(pend[-1][0], "recorder", "nav_nonfinite", frames=nf - self._nonfinite_reported, total=nf)
@@ -333,13 +344,6 @@ class Recorder:
         self._drain_nav()
         for tap in self._taps.values():
             tap.feed_pending()
-        cmp = self._compare
-        if cmp.nav_rows and not self._nav_f.closed:
-            self._nav_f.write("".join(cmp.nav_rows))
-            cmp.nav_rows.clear()
-        if cmp.truth_rows and not self._truth_f.closed:
-            self._truth_f.write("".join(cmp.truth_rows))
-            cmp.truth_rows.clear()
         for f, _cols, rows in self._tables.values():
             if rows and not f.closed:
                 f.write("".join(rows))
@@ -358,10 +362,46 @@ class Recorder:
             if not f.closed:
                 f.flush()
 
+    def _write_nav_rows(self) -> None:
+        """The compared navigation and truth rows to nav.csv / truth.csv, handed to the OS now."""
+        cmp = self._compare
+        if cmp.nav_rows and not self._nav_f.closed:
+            self._nav_f.write("".join(cmp.nav_rows))
+            cmp.nav_rows.clear()
+            self._nav_f.flush()
+        if cmp.truth_rows and not self._truth_f.closed:
+            self._truth_f.write("".join(cmp.truth_rows))
+            cmp.truth_rows.clear()
+            self._truth_f.flush()
+
+    #: bytes held for summary.json from the start of the run (a summary is 10-100 KB)
+    SUMMARY_RESERVE_BYTES = 1 << 18
+
+    def _reserve_summary_space(self) -> None:
+        """Allocate :data:`SUMMARY_RESERVE_NAME` (:attr:`SUMMARY_RESERVE_BYTES`): released before the summary is
+        written, so a run whose disk filled up still writes its summary. No space for it: no reserve."""
+        path = self.run_dir / SUMMARY_RESERVE_NAME
+        try:
+            fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | getattr(os, "O_NOFOLLOW", 0), 0o644)
+        except OSError:
+            return
+        try:
+            os.posix_fallocate(fd, 0, self.SUMMARY_RESERVE_BYTES)
+        except OSError:
+            os.close(fd)
+            path.unlink(missing_ok=True)
+            return
+        os.close(fd)
+
     def write_summary(self, summary: dict[str, Any]) -> Path:
+        (self.run_dir / SUMMARY_RESERVE_NAME).unlink(missing_ok=True)  # its space is the summary's
         path = self.run_dir / "summary.json"
         tmp = path.with_suffix(".json.tmp")
-        tmp.write_text(strict_json(summary) + "\n", encoding="utf-8")
+        try:
+            tmp.write_text(strict_json(summary) + "\n", encoding="utf-8")
+        except OSError:
+            tmp.unlink(missing_ok=True)
+            raise
         tmp.replace(path)
         return path
 
@@ -372,6 +412,18 @@ class Recorder:
         for f in self._text_files():
             if not f.closed:
                 f.close()
+        (self.run_dir / SUMMARY_RESERVE_NAME).unlink(missing_ok=True)
+
+    def abandon(self) -> None:
+        """Close every file after a storage error (disk full, file-size limit): what the OS already has is kept,
+        what is still buffered is dropped (its write would fail again). The summary reserve stays for
+        :meth:`write_summary`."""
+        files: list[Any] = [*self._text_files(), *([self._cap.file] if self._cap is not None else [])]
+        for f in files:
+            if f.closed:
+                continue
+            with contextlib.suppress(OSError, ValueError):
+                f.close()  # a failed flush still closes the file (io's close() closes the raw file regardless)
 
     def _text_files(self) -> list[IO[str]]:
         files = [self._events, self._nav_f, self._truth_f, *(t[0] for t in self._tables.values())]

@@ -9,18 +9,27 @@ replay reproduces the original ``nav.csv`` and host bytes bit for bit; change th
 the same recording shows what the change does.
 
 Every external link is replaced by ``mem://`` (nothing outside takes part in a replay).
+
+A capture may be hostile (docs/hostile-input.md): the reader validates its header
+(:mod:`emulator.recording.capture`); of the records replayed, one whose time is not finite or negative is dropped,
+one whose time goes back is delivered at the time of the record before it (the emulator's clock never goes back),
+and both are counted in the summary's ``replay`` section (``bad_time_records``, ``backward_time_records``,
+``records_in_capture``), so a replay never silently uses part of a capture.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from ..assembly.ports import UART_NUM
 from ..errors import RecordingError
-from .capture import read_capture
+from .capture import CaptureRecord, read_capture
 
-__all__ = ["NavComparison", "compare_nav", "load_replay", "run_replay", "same_file"]
+__all__ = ["NavComparison", "compare_nav", "load_replay", "replay_base_dir", "replayable_records", "run_replay",
+           "same_file"]
 
 #: a capture whose last record is this much before the scenario's end holds less than the run (IMU frames
 #: arrive every 5 ms, so a complete capture ends within a few ms of the end)
@@ -37,10 +46,7 @@ def load_replay(capture: str | Path) -> tuple[Any, list[Any], dict[str, Any]]:
     if not isinstance(spec, dict):
         raise RecordingError(f"{capture}: the capture carries no scenario (recorded by an older psns-hil); "
                              "replay needs the scenario_spec header field")
-    base = header.get("scenario_base_dir")
-    # the scenario's relative files (a spec sheet...) are where the run found them, when that directory is still
-    # there; else next to the capture
-    base_dir = Path(base) if isinstance(base, str) and Path(base).is_dir() else Path(capture).resolve().parent
+    base_dir = replay_base_dir(capture, header.get("scenario_base_dir"))
     try:
         scn: Scenario = validate_scenario_data(spec, {}, f"{capture}#scenario_spec", base_dir=base_dir,
                                                check_environment=False)
@@ -49,13 +55,58 @@ def load_replay(capture: str | Path) -> tuple[Any, list[Any], dict[str, Any]]:
     return scn, records, header
 
 
+def replayable_records(records: list[CaptureRecord]) -> tuple[list[CaptureRecord], dict[str, int]]:
+    """The DSP UARTs' inbound records as the replay delivers them, in file order, and what was done to them.
+
+    A time that is not finite or negative drops its record (``bad_time_records``); a time earlier than the record
+    before it is raised to that record's time (``backward_time_records``): delivery order is file order, and the
+    emulator's clock never goes back. ``records_in_capture`` counts the inbound UART records of the file.
+    """
+    kept: list[CaptureRecord] = []
+    bad = back = total = 0
+    t_prev = 0.0
+    for r in records:
+        if r.link not in UART_NUM or r.direction != "in":
+            continue
+        total += 1
+        if not (math.isfinite(r.t_s) and r.t_s >= 0.0):
+            bad += 1
+            continue
+        if r.t_s < t_prev:
+            back += 1
+            r = CaptureRecord(t_prev, r.link, r.direction, r.data, r.pitch_s)
+        t_prev = r.t_s
+        kept.append(r)
+    return kept, {"records_in_capture": total, "bad_time_records": bad, "backward_time_records": back}
+
+
+def replay_base_dir(capture: str | Path, named: Any) -> Path:
+    """The directory a replayed scenario's relative files (a spec sheet, a calibration file) are confined to.
+
+    The capture's header names where the run found them (``scenario_base_dir``), but a capture may come from anyone:
+    that directory is taken only when it lies inside the working directory or a ``PSNS_HIL_ALLOW_PATHS`` root (the
+    user's trusted roots, :func:`emulator.scenario.paths.allowed_roots`) and still exists; else the capture's own
+    directory. A crafted header naming ``/`` therefore widens nothing.
+    """
+    from ..scenario.paths import allowed_roots
+
+    fallback = Path(capture).resolve().parent
+    if not isinstance(named, str) or "\x00" in named or not Path(named).is_absolute():
+        return fallback
+    base = Path(named).resolve()
+    if any(base == root or base.is_relative_to(root) for root in allowed_roots(Path.cwd())) and base.is_dir():
+        return base
+    return fallback
+
+
 def run_replay(capture: str | Path, run_dir: str | Path, mode: str = "fast", speed: float = 1.0,
                on_started: Callable[[Any], None] | None = None,
                progress: Callable[[float, float], None] | None = None, force: bool = False) -> dict[str, Any]:
     """Replay ``capture`` into a fresh DSP/firmware; returns the run summary."""
     from ..assembly.session import Emulator, run_emulator
 
-    scn, records, header = load_replay(capture)
+    scn, all_records, header = load_replay(capture)
+    records, times = replayable_records(all_records)
     held = max((r.t_s for r in records), default=0.0)
     full = scn.duration_s
     truncated = bool(header.get("truncated_record")) or held < full - TRUNCATION_SLACK_S
@@ -65,7 +116,7 @@ def run_replay(capture: str | Path, run_dir: str | Path, mode: str = "fast", spe
     emu.replay_source = str(capture)
     summary = run_emulator(emu, speed, on_started, force=force)
     if summary.get("replay") is not None:
-        summary["replay"].update(truncated=truncated, captured_s=held, scenario_duration_s=full)
+        summary["replay"].update(truncated=truncated, captured_s=held, scenario_duration_s=full, **times)
         (Path(run_dir) / "summary.json").write_text(_strict(summary) + "\n", encoding="utf-8")
     return summary
 

@@ -14,11 +14,21 @@ writes ``report.html``. The plots are embedded as base64 PNG, so the report is o
 * attitude (roll, pitch, heading), velocity and position errors against truth, each with the
   filter's own +-3 sigma envelope, with the fault windows shaded;
 * the mode timeline (aligning / navigating / GNSS- and PSNS-aided / degraded) with the fault
-  windows as bars and other events marked;
+  windows as bars and other events marked (one line collection per event kind); a kind with more than
+  :data:`MARKS_PER_KIND` events is drawn as a rate histogram in an "Event rate" figure instead;
 * link error counters over time (from ``timeline.csv``) and the link table;
 * DSP load: cycles per task (bars, % of the tick budget), the CPU load and deadline misses over time.
 
 ``psns-hil run`` writes it at the end of every run; ``psns-hil report RUN_DIR`` writes it again.
+
+**Cost bounded by design** (issue 41, docs/hostile-input.md section 8): ``events.jsonl`` is streamed once
+(:func:`digest_events`, never loaded whole) into per-kind aggregates: the fault events, the GNSS updates (three
+numbers each) and, for every other kind, an array of times (8 bytes per event). A line the recorder wrote is
+recognised by its fixed prefix (time, source, kind) without a JSON parse unless its kind is needed in detail. A
+flood of 300 000 host-command events costs at most 1.5 times the report's time and peak memory of the same run
+without them (``tests/emulator/recording/test_report_cost.py``); before, one ``axvline`` per event took 4 min and
+4.76 GB for 348 156 events. ``report.html`` is written to a temporary file and renamed, so an interrupted report
+never leaves a partial page.
 """
 
 from __future__ import annotations
@@ -29,12 +39,99 @@ import html
 import io
 import json
 import math
+import os
+import re
+from array import array
+from collections.abc import Iterable
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from .formatting import readable_number
 
-__all__ = ["fault_spans", "load_nav_csv", "load_psns_csv", "write_report"]
+__all__ = ["MARKS_PER_KIND", "EventDigest", "digest_events", "fault_spans", "load_nav_csv", "load_psns_csv",
+           "write_report"]
+
+#: events of one kind drawn as individual marks on the mode timeline; beyond it, a rate histogram
+MARKS_PER_KIND = 300
+#: bins of an event-rate histogram (the cost of drawing it does not grow with the events)
+RATE_BINS = 400
+#: a line of events.jsonl longer than this is skipped and counted (the recorder's lines are < 1 KB)
+EVENT_LINE_MAX_CHARS = 1 << 20
+#: the prefix :meth:`emulator.recording.recorder.Recorder.emit` writes (``json.dumps`` of t_s, source, event first)
+_PREFIX = re.compile(r'\{"t_s": (-?[0-9][0-9.eE+-]*), "source": "([^"\\]*)", "event": "([^"\\]*)"')
+
+
+@dataclass
+class EventDigest:
+    """What the report needs of ``events.jsonl``, aggregated in one streaming pass (:func:`digest_events`):
+    memory grows by 8 bytes per event (its time, s) plus the detail of the few kinds drawn individually."""
+
+    faults: list[dict[str, Any]] = field(default_factory=list)  #: ``source == "fault"`` events
+    gnss_t: array[float] = field(default_factory=lambda: array("d"))  #: GNSS update times (s)
+    gnss_n: array[float] = field(default_factory=lambda: array("d"))  #: measurements per update
+    gnss_innov: array[float] = field(default_factory=lambda: array("d"))  #: largest normalised innovation (sigma)
+    marks: dict[str, array[float]] = field(default_factory=dict)  #: other kinds: their times (s)
+    total: int = 0  #: events read
+    skipped: int = 0  #: lines that were not an event (truncated, not JSON, too long)
+
+
+_DETAIL_KINDS = ("gnss_update",)
+_UNMARKED_KINDS = ("gnss_update", "psns_update")
+
+
+def _num(x: Any) -> float:
+    try:
+        return float(x)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def digest_events(path: Path) -> EventDigest:
+    """Stream ``path`` (an ``events.jsonl``) into an :class:`EventDigest`; a missing file gives an empty one. A
+    line that is not a JSON object (a truncated last line of an interrupted run, non-UTF-8 bytes, a line longer
+    than :data:`EVENT_LINE_MAX_CHARS`) is skipped and counted."""
+    d = EventDigest()
+    if not path.is_file():
+        return d
+    marks = d.marks
+    with open(path, encoding="utf-8", errors="replace") as f:
+        for line in f:
+            if len(line) > EVENT_LINE_MAX_CHARS:
+                d.skipped += 1
+                continue
+            m = _PREFIX.match(line)
+            if m is not None and m.group(2) != "fault" and m.group(3) not in _DETAIL_KINDS:
+                t = _num(m.group(1))
+                kind = m.group(3)
+                if kind not in _UNMARKED_KINDS and t == t:
+                    marks.setdefault(kind, array("d")).append(t)
+                d.total += 1
+                continue
+            if not line.strip():
+                continue
+            try:
+                ev = json.loads(line)
+            except ValueError:
+                d.skipped += 1
+                continue
+            if not isinstance(ev, dict):
+                d.skipped += 1
+                continue
+            d.total += 1
+            kind = str(ev.get("event", ""))
+            t = _num(ev.get("t_s"))
+            if ev.get("source") == "fault":
+                d.faults.append(ev)
+            elif kind == "gnss_update":
+                if t == t:
+                    d.gnss_t.append(t)
+                    d.gnss_n.append(_num(ev.get("n_meas")))
+                    d.gnss_innov.append(_num(ev.get("max_norm_innov")))
+            elif kind not in _UNMARKED_KINDS and t == t:
+                marks.setdefault(kind, array("d")).append(t)
+    return d
+
 
 _MODE_BITS = [(0x0001, "aligning"), (0x0002, "navigating"), (0x0004, "GNSS-aided"), (0x0008, "PSNS-aided"),
               (0x0010, "degraded")]
@@ -72,7 +169,7 @@ def _png(fig: Any) -> str:
     return base64.b64encode(buf.getvalue()).decode("ascii")
 
 
-def fault_spans(events: list[dict[str, Any]]) -> list[tuple[float, float, str]]:
+def fault_spans(events: Iterable[dict[str, Any]]) -> list[tuple[float, float, str]]:
     """``(start, end, label)`` of every fault in ``events`` (``fault_start`` / ``fault_end`` pairs by index)."""
     starts: dict[Any, tuple[float, str, float | None]] = {}
     spans = []
@@ -106,7 +203,7 @@ def _err_panel(ax: Any, t: list[float], err: list[float], sig: list[float] | Non
     ax.legend(loc="upper right", fontsize=7)
 
 
-def _nav_figures(nav: dict[str, list[float]], events: list[dict[str, Any]]) -> list[tuple[str, str]]:
+def _nav_figures(nav: dict[str, list[float]], digest: EventDigest) -> list[tuple[str, str]]:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -116,7 +213,7 @@ def _nav_figures(nav: dict[str, list[float]], events: list[dict[str, Any]]) -> l
     t = nav.get("time_s", [])
     if not t:
         return out
-    spans = fault_spans(events)
+    spans = fault_spans(digest.faults)
     # The filter's tilt sigmas are about East/North; roll is about the body's forward axis and pitch
     # about its right axis, so rotate them by the heading h: forward = (sin h, cos h), right = (cos h, -sin h).
     sig_roll, sig_pitch = [], []
@@ -157,22 +254,42 @@ def _nav_figures(nav: dict[str, list[float]], events: list[dict[str, Any]]) -> l
         ax.broken_barh([(t0, max(t1 - t0, 1e-3))], (row, 0.8), color="orange", alpha=0.8)
     ax.set_yticks([i + 0.4 for i in range(n_rows)])
     ax.set_yticklabels([n for _, n in _MODE_BITS] + [label for _, _, label in spans], fontsize=8)
-    shown: set[str] = set()
-    for ev in events:
-        kind = ev.get("event", "")
-        if kind in ("gnss_update", "psns_update") or ev.get("source") == "fault":
-            continue
-        tt = ev.get("t_s")
-        if tt is None:
+    many = {k: v for k, v in digest.marks.items() if len(v) > MARKS_PER_KIND}
+    for kind, times in sorted(digest.marks.items()):
+        if kind in many:
             continue
         color = "red" if "fault" in kind or "miss" in kind or "reject" in kind else "k"
-        ax.axvline(tt, color=color, lw=0.6, alpha=0.7, label=None if kind in shown else kind)
-        shown.add(kind)
+        ax.vlines(list(times), 0, n_rows, colors=color, lw=0.6, alpha=0.7, label=kind)  # one collection per kind
     ax.set_xlabel("time (s)")
-    ax.set_title("mode timeline, faults (orange) and events")
+    ax.set_title("mode timeline, faults (orange) and events"
+                 + (f" ({len(many)} kind(s) with more than {MARKS_PER_KIND} events: see Event rate)" if many else ""))
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=6, ncol=1, borderaxespad=0.0)
     out.append(("Mode timeline", _png(fig)))
+    if many:
+        out.append(("Event rate", _event_rate_figure(plt, many, t)))
     return out
+
+
+def _event_rate_figure(plt: Any, many: dict[str, array[float]], t: list[float]) -> str:
+    """Events per second of each kind with more than :data:`MARKS_PER_KIND` events: a step histogram of
+    :data:`RATE_BINS` bins (the cost of drawing it does not depend on the number of events)."""
+    import numpy as np
+
+    fig, ax = plt.subplots(figsize=(10, 2.8))
+    lo = min([min(v) for v in many.values()] + [t[0]])
+    hi = max([max(v) for v in many.values()] + [t[-1]])
+    edges = np.linspace(lo, hi if hi > lo else lo + 1.0, RATE_BINS + 1)
+    width = float(edges[1] - edges[0])
+    for kind, times in sorted(many.items()):
+        counts, _ = np.histogram(np.frombuffer(times, dtype=np.float64), bins=edges)
+        ax.stairs(counts / width, edges, label=f"{kind} ({len(times):,} events)".replace(",", " "))
+    ax.set_yscale("symlog", linthresh=1.0)
+    ax.set_ylabel("events per second")
+    ax.set_xlabel("time (s)")
+    ax.set_title(f"event rate (kinds with more than {MARKS_PER_KIND} events; {RATE_BINS} bins)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=6, borderaxespad=0.0)
+    return _png(fig)
 
 
 def _nees_figure(plt: Any, nav: dict[str, list[float]], spans: list[tuple[float, float, str]]) -> str | None:
@@ -399,11 +516,11 @@ def _error_cdf_figure(nav: dict[str, list[float]]) -> list[tuple[str, str]]:
     return [("Error CDF", _png(fig))]
 
 
-def _gnss_figure(nav: dict[str, list[float]], events: list[dict[str, Any]],
+def _gnss_figure(nav: dict[str, list[float]], digest: EventDigest,
                  series: dict[str, list[float]] | None = None) -> list[tuple[str, str]]:
     """GNSS: updates used (measurements per update, largest normalised innovation), the aided periods, and what the
     receiver reported (satellites used and DOP, decoded from the capture: :func:`sensor_series`)."""
-    ups = [e for e in events if e.get("event") == "gnss_update"]
+    ups = digest.gnss_t
     t = nav.get("time_s", [])
     sv = series or {}
     if not ups and not t and not sv.get("gnss_t"):
@@ -427,11 +544,9 @@ def _gnss_figure(nav: dict[str, list[float]], events: list[dict[str, Any]],
     ax3.grid(True, alpha=0.3)
     ax = axes[0]
     if ups:
-        ax.plot([e["t_s"] for e in ups], [e.get("n_meas", math.nan) for e in ups], "o", ms=3,
-                label="measurements per update")
+        ax.plot(list(ups), list(digest.gnss_n), "o", ms=3, label="measurements per update")
         ax2 = ax.twinx()
-        ax2.plot([e["t_s"] for e in ups], [e.get("max_norm_innov", math.nan) for e in ups], "r.", ms=3,
-                 label="largest normalised innovation")
+        ax2.plot(list(ups), list(digest.gnss_innov), "r.", ms=3, label="largest normalised innovation")
         ax2.set_ylabel("innovation (sigma)")
         ax2.legend(loc="upper right", fontsize=7)
     else:
@@ -776,20 +891,12 @@ def write_report(run_dir: str | Path) -> Path:
 
     summary = load_summary(run_dir).model_dump(mode="json")  # validated: a clear error for a foreign file
     nav = load_nav_csv(run_dir / "nav.csv") if (run_dir / "nav.csv").exists() else {}
-    events: list[dict[str, Any]] = []
-    ev_path = run_dir / "events.jsonl"
-    if ev_path.exists():
-        for line in ev_path.read_text(encoding="utf-8").splitlines():
-            if line.strip():
-                try:
-                    events.append(json.loads(line))
-                except json.JSONDecodeError:
-                    continue  # a truncated last line of an interrupted run
+    digest = digest_events(run_dir / "events.jsonl")  # streamed, aggregated per kind
     truth = load_nav_csv(run_dir / "truth.csv") if (run_dir / "truth.csv").exists() else {}
     series = sensor_series(run_dir)
-    figs = (_trajectory_figure(nav, truth, events) + _attitude_vs_truth_figure(nav, truth, events)
-            + _nav_figures(nav, events) + _error_cdf_figure(nav) + _gnss_figure(nav, events, series)
-            + _psns_figure(nav, events, summary.get("firmware", {}).get("counters"), series,
+    figs = (_trajectory_figure(nav, truth, digest.faults) + _attitude_vs_truth_figure(nav, truth, digest.faults)
+            + _nav_figures(nav, digest) + _error_cdf_figure(nav) + _gnss_figure(nav, digest, series)
+            + _psns_figure(nav, digest.faults, summary.get("firmware", {}).get("counters"), series,
                            _sun_track(summary, truth))
             + _solar_error_figure(load_psns_csv(run_dir / "psns.csv"))
             + _timeline_figures(run_dir / "timeline.csv") + _task_figure(summary))
@@ -875,5 +982,13 @@ def write_report(run_dir: str | Path) -> Path:
     doc = (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>psns-hil "
            f"{html.escape(str(summary.get('scenario')))}</title><style>{style}</style></head><body>{''.join(parts)}</body></html>")
     out = run_dir / "report.html"
-    out.write_text(doc, encoding="utf-8")
+    tmp = run_dir / f".report.html.{os.getpid()}.tmp"
+    try:  # whole or not at all: written aside and renamed (a link named report.html is replaced, never followed)
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | getattr(os, "O_NOFOLLOW", 0), 0o644)
+        with open(fd, "w", encoding="utf-8") as f:
+            f.write(doc)
+        os.replace(tmp, out)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
     return out

@@ -37,8 +37,8 @@ from .capture import CaptureRecord, iter_capture
 from .formatting import csv_row
 from .rundir import open_no_follow
 
-__all__ = ["GNSS_COLUMNS", "PSNS_FRAME_COLUMNS", "SENSOR_TABLES", "SensorFrame", "decode_sensor_frames",
-           "imu_columns", "write_sensor_tables"]
+__all__ = ["GNSS_COLUMNS", "PSNS_FRAME_COLUMNS", "SENSOR_TABLES", "SensorDecoder", "SensorFrame",
+           "decode_sensor_frames", "imu_columns", "write_sensor_tables"]
 
 #: the tables: file name -> (capture link, direction) whose frames it holds
 SENSOR_TABLES = {"imu.csv": ("uart1", "in"), "gnss.csv": ("gnss", "in"), "psns_frames.csv": ("psns", "in")}
@@ -115,29 +115,43 @@ def _psns_row(t: float, f: Any) -> dict[str, Any] | None:
     return row
 
 
-def decode_sensor_frames(records: Iterable[CaptureRecord], gyro_rate: bool = True) -> Iterator[SensorFrame]:
-    """The sensor frames of ``records`` (capture order), decoded as :data:`SENSOR_TABLES` says."""
-    decoders: dict[str, StreamDecoder] = {}
-    for table, (link, _d) in SENSOR_TABLES.items():
-        fm = _formats(link)
-        if fm:
-            decoders[table] = StreamDecoder(fm)
-    by_link = {(link, d): table for table, (link, d) in SENSOR_TABLES.items() if table in decoders}
-    for r in records:
-        tab = by_link.get((r.link, r.direction))
-        if tab is None:
-            continue
-        table = tab
-        for fr in decoders[table].feed(r.data):
+class SensorDecoder:
+    """The sensor streams of a capture, decoded record by record (:meth:`feed`) as :data:`SENSOR_TABLES` says: for
+    a whole capture (:func:`decode_sensor_frames`) or one that is still being written (the live view)."""
+
+    def __init__(self, gyro_rate: bool = True) -> None:
+        self.gyro_rate = gyro_rate
+        self._decoders: dict[str, StreamDecoder] = {}
+        for table, (link, _d) in SENSOR_TABLES.items():
+            fm = _formats(link)
+            if fm:
+                self._decoders[table] = StreamDecoder(fm)
+        self._by_link = {(link, d): table for table, (link, d) in SENSOR_TABLES.items() if table in self._decoders}
+
+    def feed(self, r: CaptureRecord) -> list[SensorFrame]:
+        """The frames capture record ``r`` completes (none for a link that is not a sensor stream)."""
+        table = self._by_link.get((r.link, r.direction))
+        if table is None:
+            return []
+        out: list[SensorFrame] = []
+        for fr in self._decoders[table].feed(r.data):
             row: dict[str, Any] | None
             if table == "imu.csv":
-                row = _imu_row(r.t_s, fr, gyro_rate) if isinstance(fr, ImuFrame) else None
+                row = _imu_row(r.t_s, fr, self.gyro_rate) if isinstance(fr, ImuFrame) else None
             elif table == "gnss.csv":
                 row = _gnss_row(r.t_s, fr)
             else:
                 row = _psns_row(r.t_s, fr)
             if row is not None:
-                yield SensorFrame(table, r.t_s, row, fr)
+                out.append(SensorFrame(table, r.t_s, row, fr))
+        return out
+
+
+def decode_sensor_frames(records: Iterable[CaptureRecord], gyro_rate: bool = True) -> Iterator[SensorFrame]:
+    """The sensor frames of ``records`` (capture order), decoded as :data:`SENSOR_TABLES` says."""
+    dec = SensorDecoder(gyro_rate)
+    for r in records:
+        yield from dec.feed(r)
 
 
 def gyro_is_rate(header: dict[str, Any]) -> bool:

@@ -20,6 +20,7 @@ from __future__ import annotations
 import csv
 import datetime as _dt
 import json
+import math
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -72,11 +73,32 @@ class Tracks:
         return self.truth[-1] if self.truth else None
 
 
+_POINT_COLUMNS = ("time_s", "lat_deg", "lon_deg", "height_m")
+#: scenario times past this (s, about 31 years) are not a run's: left out (a UTC time could not hold them)
+_MAX_T_S = 1e9
+
+
 def _rows(path: Path) -> Iterator[dict[str, str]]:
+    """The rows of a CSV file of the run directory (none when it is absent); a file without the point columns
+    raises :class:`~emulator.errors.RecordingError`."""
     if not path.exists():
         return
-    with open(path, encoding="utf-8", newline="") as f:
-        yield from csv.DictReader(f)
+    with open(path, encoding="utf-8", errors="replace", newline="") as f:
+        rd = csv.DictReader(f)
+        missing = [c for c in _POINT_COLUMNS if c not in (rd.fieldnames or [])]
+        if missing:
+            raise RecordingError(f"{path}: not a psns-hil track source (no column {', '.join(missing)})")
+        yield from rd
+
+
+def _point(r: dict[str, str]) -> Point | None:
+    """A row's (t, lat, lon, h), None when a cell is not a finite number (the row is left out)."""
+    try:
+        p = (float(r["time_s"]), float(r["lat_deg"]), float(r["lon_deg"]), float(r["height_m"]))
+    except (TypeError, ValueError):
+        return None
+    ok = all(math.isfinite(v) for v in p) and abs(p[0]) < _MAX_T_S and abs(p[1]) <= 90.0 and abs(p[2]) <= 180.0
+    return p if ok else None
 
 
 def _thin(points: list[Point], step: float) -> list[Point]:
@@ -100,12 +122,13 @@ def load_tracks(run_dir: Path, step_s: float = TRACK_STEP_S) -> Tracks:
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise RecordingError(f"{run_dir}: no readable summary.json with the run's epoch ({exc})") from None
     tr = Tracks(name, epoch)
-    tr.truth = _thin([(float(r["time_s"]), float(r["lat_deg"]), float(r["lon_deg"]), float(r["height_m"]))
-                      for r in _rows(run_dir / "truth.csv")], step_s)
+    tr.truth = _thin([p for p in map(_point, _rows(run_dir / "truth.csv")) if p is not None], step_s)
     segs: list[tuple[bool, list[Point]]] = []
     for r in _rows(run_dir / "nav.csv"):
         nav = r.get("err_pos_m", "") != ""
-        p = (float(r["time_s"]), float(r["lat_deg"]), float(r["lon_deg"]), float(r["height_m"]))
+        p = _point(r)
+        if p is None:
+            continue
         if not segs or segs[-1][0] != nav:
             segs.append((nav, []))
         segs[-1][1].append(p)
@@ -113,7 +136,7 @@ def load_tracks(run_dir: Path, step_s: float = TRACK_STEP_S) -> Tracks:
     open_faults: dict[tuple[str, int], FaultSpan] = {}
     ev_path = run_dir / "events.jsonl"
     if ev_path.exists():
-        with open(ev_path, encoding="utf-8") as f:
+        with open(ev_path, encoding="utf-8", errors="replace") as f:
             for line in f:
                 try:
                     ev = json.loads(line)
@@ -121,13 +144,19 @@ def load_tracks(run_dir: Path, step_s: float = TRACK_STEP_S) -> Tracks:
                     continue  # an interrupted writer's last line
                 if not isinstance(ev, dict) or ev.get("source") != "fault":
                     continue
-                key = (str(ev.get("fault")), int(ev.get("index", -1)))
+                try:
+                    key = (str(ev.get("fault")), int(ev.get("index", -1)))
+                    t = float(ev["t_s"])
+                except (KeyError, TypeError, ValueError):
+                    continue  # not an event this writer wrote
+                if not abs(t) < _MAX_T_S:
+                    continue
                 if ev.get("event") == "fault_start":
-                    span = FaultSpan(key[0], str(ev.get("target", "")), float(ev["t_s"]), None)
+                    span = FaultSpan(key[0], str(ev.get("target", "")), t, None)
                     open_faults[key] = span
                     tr.faults.append(span)
                 elif ev.get("event") == "fault_end" and key in open_faults:
-                    open_faults.pop(key).end_s = float(ev["t_s"])
+                    open_faults.pop(key).end_s = t
     return tr
 
 

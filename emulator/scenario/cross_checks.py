@@ -224,10 +224,11 @@ def _port_directions(scn: Scenario) -> list[tuple[tuple[Any, ...], str]]:
 
 def _files_and_ports(scn: Scenario, environment: bool) -> list[tuple[tuple[Any, ...], str]]:
     """Referenced files and serial devices exist; no two ports share a pty name or a serial device."""
-    import glob
     from pathlib import Path
 
+    from ..errors import RecordingError
     from ..links import parse_link_url
+    from .paths import PathNotAllowed, confine, confined_glob, read_frame_index
 
     issues: list[tuple[tuple[Any, ...], str]] = []
 
@@ -242,13 +243,31 @@ def _files_and_ports(scn: Scenario, environment: bool) -> list[tuple[tuple[Any, 
         (("sensors", "camera", "recorded", "index"),
          s.camera.recorded.index if s.camera is not None and s.camera.recorded is not None else None),
     ]
+    def confined(name: str) -> bool:  # a path outside is reported by _confined_files, and never looked at here
+        try:
+            confine(scn.base_dir, name)
+        except PathNotAllowed:
+            return False
+        return True
+
     for loc, name in files if environment else []:
-        if name is not None and not path(name).is_file():
+        if name is None or not confined(name):
+            continue
+        if not path(name).is_file():
             issues.append((loc, f"no such file: {path(name)}"))
-    if environment and s.camera is not None and s.camera.recorded is not None and s.camera.recorded.files is not None:
-        pattern = str(path(s.camera.recorded.files))
-        if not glob.glob(pattern):
-            issues.append((("sensors", "camera", "recorded", "files"), f"no file matches {pattern}"))
+        elif loc[1] == "camera":
+            try:  # every entry confined, as the camera will (no existence oracle: emulator.scenario.paths)
+                read_frame_index(path(name), scn.base_dir)
+            except RecordingError as exc:
+                issues.append((loc, str(exc)))
+    if environment and s.camera is not None and s.camera.recorded is not None and s.camera.recorded.files is not None \
+            and confined(s.camera.recorded.files):
+        pattern = s.camera.recorded.files
+        try:  # every match confined before anything behind it is looked at
+            if not confined_glob(scn.base_dir, pattern, "camera frame"):
+                issues.append((("sensors", "camera", "recorded", "files"), f"no file matches {path(pattern)}"))
+        except PathNotAllowed as exc:
+            issues.append((("sensors", "camera", "recorded", "files"), str(exc)))
     seen: dict[tuple[str, str], str] = {}
     for port in ("gyro", "gnss", "psns", "host", "monitor", "host_nmea"):
         spec = getattr(scn.links, port, None)

@@ -19,9 +19,17 @@ from ..errors import ScenarioError, ScenarioIssue
 from .cross_checks import cross_check
 from .schema import Scenario
 
-__all__ = ["apply_overrides", "load_scenario", "load_yaml_with_marks", "validate_scenario_data"]
+__all__ = ["MAX_SCENARIO_BYTES", "MAX_YAML_DEPTH", "apply_overrides", "load_scenario", "load_yaml_file",
+           "load_yaml_with_marks", "read_scenario_text", "validate_scenario_data"]
 
 Loc = tuple[Any, ...]
+
+#: Largest scenario file read (bytes): the library's largest is 4 KB; checked before the YAML parser sees a byte.
+MAX_SCENARIO_BYTES = 1 << 20
+#: Deepest nesting of YAML collections accepted (the schema's deepest path is about 8); checked on the event stream
+#: before anything is composed (PyYAML composes recursively: 100 KB of ``[`` took 294 s, then a RecursionError).
+MAX_YAML_DEPTH = 64
+_MERGE_TAG = "tag:yaml.org,2002:merge"
 
 
 def _construct(node: yaml.Node, path: Loc, marks: dict[Loc, tuple[int, int]], file: str) -> Any:
@@ -29,7 +37,11 @@ def _construct(node: yaml.Node, path: Loc, marks: dict[Loc, tuple[int, int]], fi
     if isinstance(node, yaml.MappingNode):
         out: dict[Any, Any] = {}
         for knode, vnode in node.value:
-            key = _scalar(knode)
+            if knode.tag == _MERGE_TAG:
+                raise ScenarioError(ScenarioIssue(file, knode.start_mark.line + 1, knode.start_mark.column + 1,
+                                                  _fmt_path(path), "YAML merge keys (<<) are not allowed: write the "
+                                                  "keys out (decision D-8.9)"))
+            key = _scalar(knode, file)
             if isinstance(key, (dict, list)):
                 raise ScenarioError(ScenarioIssue(file, knode.start_mark.line + 1, knode.start_mark.column + 1,
                                                   _fmt_path(path), "mapping keys must be plain scalars"))
@@ -45,33 +57,64 @@ def _construct(node: yaml.Node, path: Loc, marks: dict[Loc, tuple[int, int]], fi
             marks[(*path, i)] = (item.start_mark.line + 1, item.start_mark.column + 1)
             items.append(_construct(item, (*path, i), marks, file))
         return items
-    return _scalar(node)
+    return _scalar(node, file)
 
 
-def _scalar(node: yaml.Node) -> Any:
+def _scalar(node: yaml.Node, file: str = "<scenario>") -> Any:
     loader = yaml.SafeLoader("")
     try:
         return loader.construct_object(node, deep=True)
+    except yaml.YAMLError as exc:  # an unknown tag (!!python/...), a bad !!binary...: the node's place, one line
+        m = node.start_mark
+        problem = getattr(exc, "problem", None) or type(exc).__name__
+        raise ScenarioError(ScenarioIssue(file, m.line + 1, m.column + 1, "", f"invalid YAML value: {problem}")) \
+            from None
     finally:
         loader.dispose()
 
 
-def _refuse_aliases(text: str, file: str) -> None:
-    """Scan the event stream (linear in the text; nothing is expanded) and refuse the first alias."""
-    for ev in yaml.parse(text, Loader=yaml.SafeLoader):
-        if isinstance(ev, yaml.AliasEvent):
+def _screen_events(text: str, file: str, stats: dict[str, int] | None = None) -> None:
+    """Scan the event stream before anything is composed (nothing is expanded or built): refuse the first alias and
+    the first collection nested deeper than :data:`MAX_YAML_DEPTH`. The scan stops there, so its cost is bounded by
+    the text read up to that point (PyYAML's scanner reads at most 1024 characters ahead for a simple key).
+    ``stats`` (tests of the bound) receives ``events`` read and ``chars`` of text consumed so far."""
+    loader = yaml.SafeLoader(text)
+    depth = 0
+    st = stats if stats is not None else {}
+    st["events"] = 0
+    try:
+        while loader.check_event():
+            ev = loader.get_event()
+            st["events"] += 1
+            st["chars"] = loader.index  # characters the reader has consumed (the scanner's lookahead included)
             m = ev.start_mark
-            raise ScenarioError(ScenarioIssue(file, m.line + 1 if m else None, m.column + 1 if m else None, "",
-                                              f"YAML aliases are not allowed (*{ev.anchor}): write the value out"))
+            line, col = (m.line + 1, m.column + 1) if m else (None, None)
+            if isinstance(ev, yaml.AliasEvent):
+                raise ScenarioError(ScenarioIssue(file, line, col, "", f"YAML aliases are not allowed "
+                                                  f"(*{ev.anchor}): write the value out"))
+            if isinstance(ev, yaml.CollectionStartEvent):
+                depth += 1
+                if depth > MAX_YAML_DEPTH:
+                    raise ScenarioError(ScenarioIssue(file, line, col, "", f"YAML nested deeper than "
+                                                      f"{MAX_YAML_DEPTH} levels (a scenario needs about 8)"))
+            elif isinstance(ev, yaml.CollectionEndEvent):
+                depth -= 1
+    finally:
+        loader.dispose()
 
 
 def load_yaml_with_marks(text: str, file: str = "<scenario>") -> tuple[Any, dict[Loc, tuple[int, int]]]:
     """Parse YAML text; return the data and a map from field path to (line, column), 1-based.
 
     Aliases (``*name``, also in ``<<: *name``) are refused: a scenario may come from anyone, and aliases expand to
-    exponential size (billion laughs) or refer to themselves (docs/hostile-input.md)."""
+    exponential size (billion laughs) or refer to themselves (docs/hostile-input.md). So are texts longer than
+    :data:`MAX_SCENARIO_BYTES` (before parsing), collections nested deeper than :data:`MAX_YAML_DEPTH` (before
+    composing) and merge keys ``<<`` (decision D-8.9)."""
+    if len(text) > MAX_SCENARIO_BYTES:
+        raise ScenarioError(ScenarioIssue(file, None, None, "", f"larger than {MAX_SCENARIO_BYTES >> 20} MiB "
+                                          "(a scenario is a few KB)"))
     try:
-        _refuse_aliases(text, file)
+        _screen_events(text, file)
         root = yaml.compose(text, Loader=yaml.SafeLoader)
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
@@ -226,20 +269,43 @@ def apply_overrides(data: Any, overrides: list[str] | tuple[str, ...], marks: di
     return where
 
 
-def load_scenario(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Scenario:
-    """Read, parse and validate a scenario file; ``overrides``: ``dotted.key=value`` (:func:`apply_overrides`)."""
-    p = Path(path)
-    file = str(path)
+def read_scenario_text(p: Path, file: str) -> str:
+    """The text of a scenario file, read in one bounded piece: at most :data:`MAX_SCENARIO_BYTES` + 1 bytes are
+    read (a larger file, or an endless one such as ``/dev/zero``, is refused before any parsing)."""
     try:
-        text = p.read_text(encoding="utf-8")
+        if p.is_dir():
+            raise ScenarioError(ScenarioIssue(file, None, None, "", "is a directory, not a scenario file"))
+        with open(p, "rb") as f:
+            raw = f.read(MAX_SCENARIO_BYTES + 1)
     except FileNotFoundError:
         raise ScenarioError(ScenarioIssue(file, None, None, "", "no such file")) from None
     except IsADirectoryError:
         raise ScenarioError(ScenarioIssue(file, None, None, "", "is a directory, not a scenario file")) from None
-    except UnicodeDecodeError as exc:
-        raise ScenarioError(ScenarioIssue(file, None, None, "", f"not UTF-8 text ({exc.reason})")) from None
     except OSError as exc:
         raise ScenarioError(ScenarioIssue(file, None, None, "", f"cannot read: {exc.strerror}")) from None
+    if len(raw) > MAX_SCENARIO_BYTES:
+        raise ScenarioError(ScenarioIssue(file, None, None, "", f"larger than {MAX_SCENARIO_BYTES >> 20} MiB "
+                                          "(a scenario is a few KB)"))
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(ScenarioIssue(file, None, None, "", f"not UTF-8 text ({exc.reason})")) from None
+
+
+def load_yaml_file(path: str | Path, file: str | None = None) -> Any:
+    """Plain data of a YAML file a scenario names (a spec sheet...), bounded as a scenario is: one read of at most
+    :data:`MAX_SCENARIO_BYTES`, nesting and aliases screened before anything is built, merge keys and unknown tags
+    refused; a :class:`~emulator.errors.ScenarioError` with file and line otherwise."""
+    file = file or str(path)
+    data, _marks = load_yaml_with_marks(read_scenario_text(Path(path), file), file)
+    return data
+
+
+def load_scenario(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Scenario:
+    """Read, parse and validate a scenario file; ``overrides``: ``dotted.key=value`` (:func:`apply_overrides`)."""
+    p = Path(path)
+    file = str(path)
+    text = read_scenario_text(p, file)
     data, marks = load_yaml_with_marks(text, file)
     if not overrides:
         return validate_scenario_data(data, marks, file, base_dir=p.resolve().parent)

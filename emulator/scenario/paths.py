@@ -11,10 +11,17 @@ Python hooks (``expectations[].python``) are never imported by ``validate``; ``r
 
 from __future__ import annotations
 
+import fnmatch
 import os
+import re
 from pathlib import Path
 
-__all__ = ["ALLOW_HOOKS_ENV", "ALLOW_PATHS_ENV", "PathNotAllowed", "allowed_roots", "confine", "hooks_allowed"]
+import numpy as np
+
+from ..errors import RecordingError
+
+__all__ = ["ALLOW_HOOKS_ENV", "ALLOW_PATHS_ENV", "PathNotAllowed", "allowed_roots", "confine", "confined_glob",
+           "hooks_allowed", "read_frame_index"]
 
 ALLOW_PATHS_ENV = "PSNS_HIL_ALLOW_PATHS"
 ALLOW_HOOKS_ENV = "PSNS_HIL_ALLOW_HOOKS"
@@ -48,6 +55,89 @@ def confine(base_dir: str | Path | None, name: str, what: str = "file") -> Path:
                          "other directories)")
 
 
+_MAGIC = re.compile(r"[*?[]")
+
+
+def confined_glob(base_dir: str | Path | None, pattern: str, what: str = "file") -> list[Path]:
+    """The files matching ``pattern`` (``*``, ``?``, ``[...]`` per path component, as :func:`glob.glob`; hidden
+    names only by a pattern starting with ``.``), sorted, each confined by :func:`confine`.
+
+    The walk confines every entry a wildcard selects *before* looking inside it, so a component that leads out of
+    the allowed roots (``frames_lin?`` matching a symbolic link to another directory) is refused
+    (:class:`PathNotAllowed`) whatever lies behind it: the result never depends on files outside the roots (no
+    existence oracle). The fixed prefix of the pattern is confined first, the same way.
+    """
+    parts = Path(pattern).expanduser().parts
+    first = next((i for i, part in enumerate(parts) if _MAGIC.search(part)), len(parts))
+    prefix = Path(*parts[:first]) if first else Path(".")
+    start = confine(base_dir, str(prefix), what)  # the fixed part: inside, or refused by name
+    if first == len(parts):
+        return [start] if start.is_file() else []
+    dirs = [start]
+    for k, part in enumerate(parts[first:], start=first):
+        last = k == len(parts) - 1
+        found: list[Path] = []
+        for d in dirs:
+            if _MAGIC.search(part):
+                try:
+                    names = sorted(e.name for e in os.scandir(d))
+                except OSError:
+                    continue
+                names = [n for n in names if fnmatch.fnmatchcase(n, part)
+                         and (part.startswith(".") or not n.startswith("."))]
+            else:
+                names = [part]
+            for n in names:
+                full = confine(base_dir, str(d / n), what)  # before anything behind it is looked at
+                if full.is_file() if last else full.is_dir():
+                    found.append(full)
+        dirs = found
+    return sorted(dirs)
+
+
 def hooks_allowed() -> bool:
     """True when Python hooks may be imported (``psns-hil run --allow-hooks``)."""
     return os.environ.get(ALLOW_HOOKS_ENV, "") not in ("", "0")
+
+
+def read_frame_index(path: Path, base_dir: str | Path | None) -> tuple[np.ndarray, list[Path]]:
+    """``(times, files)`` of a camera index CSV ``time_s,file``; each file is relative to the index and confined to
+    the scenario's directory (``base_dir``); a refused or missing one is reported by line and column, never by its
+    text, and an entry outside is refused before the file system is asked about it (no existence oracle).
+    :class:`emulator.errors.RecordingError` for a bad index; used by the camera and by ``validate``."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise RecordingError(f"{path}: cannot read: {exc.strerror or exc}") from exc
+    except UnicodeDecodeError:
+        raise RecordingError(f"{path}: not UTF-8 text") from None
+    times: list[float] = []
+    files: list[Path] = []
+    header_seen = False
+    for i, ln in enumerate(text.splitlines(), start=1):
+        if not ln.strip() or ln.lstrip().startswith("#"):
+            continue
+        cells = [c.strip() for c in ln.split(",")]
+        if not header_seen:
+            if cells[:2] != ["time_s", "file"]:
+                raise RecordingError(f"{path}: line {i}, column 1: the header must be 'time_s,file'")
+            header_seen = True
+            continue
+        if len(cells) < 2:
+            raise RecordingError(f"{path}: line {i}, column {len(ln) + 1}: expected 'time_s,file'")
+        try:
+            times.append(float(cells[0]))
+        except ValueError:
+            raise RecordingError(f"{path}: line {i}, column 1: time_s is not a number") from None
+        col = ln.index(",") + 2
+        try:  # confined before anything is asked of the file system about it: no existence oracle
+            f = confine(base_dir, str(path.parent / cells[1]), "camera frame")
+        except PathNotAllowed:
+            raise RecordingError(f"{path}: line {i}, column {col}: the frame file is outside the scenario's "
+                                 f"directory (set {ALLOW_PATHS_ENV} to allow other directories)") from None
+        if not f.is_file():
+            raise RecordingError(f"{path}: line {i}, column {col}: the frame file does not exist")
+        files.append(f)
+    if not times:
+        raise RecordingError(f"{path}: line 1, column 1: no frames listed")
+    return np.array(times), files

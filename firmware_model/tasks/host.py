@@ -8,6 +8,7 @@ from typing import Any
 
 from protocols.host import (
     FILTER_VARIANT_NAMES,
+    OUTPUT_RATE_MIN_HZ,
     Ack,
     AckResult,
     HostFrame,
@@ -89,8 +90,13 @@ class HostTask(AlignmentTask, NavOutput):
             if r == 0.0:
                 self._out_every = 0
                 return CMD_SET_OUTPUT_RATE, c.token, AckResult.ACCEPTED
-            k = self.cfg.imu_rate_hz / r if r > 0 and math.isfinite(r) else 0.0
-            if k < 1.0 - 1e-9 or abs(k - round(k)) > 1e-6:
+            # the declared range (OUTPUT_RATE_MIN_HZ .. the IMU rate, D-3.11), then a divisor of the IMU rate:
+            # 1e-30 Hz was a divisor of 2e32 ticks (an output that never comes) and was accepted before issue 41
+            # (the rate arrives as a float32: 0.1 Hz is 0.10000000149, so both tests allow 1e-6 relative)
+            ok = math.isfinite(r) and OUTPUT_RATE_MIN_HZ * (1.0 - 1e-6) <= r <= self.cfg.imu_rate_hz * (1.0 + 1e-6)
+            k = self.cfg.imu_rate_hz / r if ok else 0.0
+            if not ok or abs(k - round(k)) > 1e-6 * k:
+                self.counters["commands_rejected_output_rate"] += 1
                 return CMD_SET_OUTPUT_RATE, c.token, AckResult.BAD_ARGUMENT
             self._out_every = round(k)
             return CMD_SET_OUTPUT_RATE, c.token, AckResult.ACCEPTED

@@ -110,7 +110,10 @@ class PsnsTask(Navigation):
             return self.filter.update_compass(nav, f, t_exp) if cfg.psns_enabled else None
         if self.filter.raw_polarization_obs and isinstance(f, _OBS_FRAMES):
             t_exp = self._psns_frame_in(t_rx, f)
-            if not cfg.psns_enabled or t - t_exp > cfg.psns_max_age_s:
+            if not cfg.psns_enabled:
+                return None
+            if t - t_exp > cfg.psns_max_age_s:
+                self.counters["psns_stale"] += 1  # older than psns_max_age_s when its turn came: dropped, counted
                 return None
             return self.filter.update_polarization_obs(nav, f, t_exp)
         obs = self._psns_observation(t_rx, f)
@@ -122,6 +125,7 @@ class PsnsTask(Navigation):
             return None
         if t - obs.t_exposure_s > cfg.psns_max_age_s:
             solve.use = "stale"
+            self.counters["psns_stale"] += 1
             return None
         days = self.utc_days(obs.t_exposure_s)
         if days is None:

@@ -131,3 +131,66 @@ def test_link_schemes_come_from_entry_points(eps):
     eps("psns_hil.links", "gone", "no_such_module_xyz:Link")
     with pytest.raises(LinkConfigError, match=r"the gone:// transport .* could not be loaded: .*ModuleNotFoundError"):
         parse_link_url("gone://x")
+
+
+# -- issue 41 item 8: validate checks the firmware side; a run imports only the plugins it names --------------------
+
+class NotAFilter:
+    """An entry point of ``psns_hil.filters`` whose object is no NavFilter."""
+
+
+def _validate(path: Path, capsys) -> tuple[int, str]:
+    from emulator.cli.main import main
+
+    rc = main(["validate", str(path)])
+    return rc, capsys.readouterr().err
+
+
+def test_validate_refuses_a_filter_plugin_that_is_not_a_navfilter(eps, tmp_path, capsys):
+    eps("psns_hil.filters", "odd", f"{__name__}:NotAFilter")
+    p = _scenario(tmp_path / "s.yaml", {"filter": "odd"})
+    load_scenario(p)  # the schema knows the name (it imports nothing of the firmware)
+    rc, err = _validate(p, capsys)
+    assert rc == 2 and "Traceback" not in err
+    assert "firmware.filter: 'odd' cannot be used: not a firmware_model.filters.NavFilter subclass" in err
+    assert str(p) in err
+
+
+def test_validate_refuses_a_firmware_plugin_that_is_not_callable(eps, tmp_path, capsys):
+    eps("psns_hil.firmware", "odd_fw", f"{__name__}:ROOT")
+    rc, err = _validate(_scenario(tmp_path / "s.yaml", {"implementation": "odd_fw"}), capsys)
+    assert rc == 2 and "firmware.implementation: 'odd_fw' cannot be used: not callable" in err
+
+
+@pytest.mark.parametrize("sheet, text, expect", [
+    ("nosuch.yaml", None, "firmware.spec_sheet: nosuch.yaml: no such file"),
+    ("bad.yaml", "figures: [1, 2\n", "firmware.spec_sheet: bad.yaml"),
+    ("wrong.yaml", "gyro.arw_deg_rt_h: -3\n", "firmware.spec_sheet: wrong.yaml"),
+])
+def test_validate_reads_the_spec_sheet_file(eps, tmp_path, capsys, sheet, text, expect):
+    """Before issue 41 ``validate`` said ok for a scenario whose spec sheet is missing or invalid; ``run`` then
+    failed."""
+    if text is not None:
+        (tmp_path / sheet).write_text(text)
+    rc, err = _validate(_scenario(tmp_path / "s.yaml", {"spec_sheet": sheet}), capsys)
+    assert rc == 2 and "Traceback" not in err and expect in err
+
+
+def test_validate_accepts_the_default_scenario_firmware(eps, tmp_path, capsys):
+    rc, err = _validate(_scenario(tmp_path / "s.yaml", {"filter": "base"}), capsys)
+    assert rc == 0, err
+
+
+def test_a_run_imports_only_the_plugins_it_names(eps, tmp_path):
+    """Two broken plugins installed, neither named: building the firmware imports neither (a failed import would
+    be recorded in PLUGIN_ERRORS); naming one imports that one only."""
+    from emulator.dsp.firmware_setup import build_firmware
+
+    eps("psns_hil.filters", "broken_f", "no_such_module_xyz:Filter")
+    eps("psns_hil.firmware", "broken_fw", "no_such_module_xyz:Firmware")
+    eps("psns_hil.firmware", "counting", f"{__name__}:CountingFirmware")
+    build_firmware(load_scenario(_scenario(tmp_path / "s.yaml", {"filter": "base"})))
+    assert plugins.PLUGIN_ERRORS == {}
+    fw = build_firmware(load_scenario(_scenario(tmp_path / "c.yaml", {"implementation": "counting"})))
+    assert isinstance(fw, CountingFirmware) and plugins.PLUGIN_ERRORS == {}
+    assert "broken_f" not in FILTER_VARIANTS

@@ -21,6 +21,7 @@ from protocols.constants import DEG
 from protocols.crc import nmea_checksum
 from protocols.host import HostFormat, NavSolution
 from protocols.imu_frame import ImuFrame, ImuFrameFormat
+from protocols.stim import StimStatus
 from protocols.stream import StreamDecoder
 from protocols.ubx import NavPvt, encode_nav_pvt
 
@@ -117,6 +118,14 @@ CASES: dict[str, Callable[[Stream, StaticTruth], Stream]] = {
     "pvt_height_minus_1e6": _replace_gnss(lambda tr, t: _pvt(tr, t, height=-1_000_000_000)),
     "imu_gyro_saturated_1s": _rewrite_imu(lambda fr, t: dataclasses.replace(fr, gyro=(2**23 - 1, -(2**23), 2**23 - 1)),
                                          *T_BAD),
+    # one LSB inside the rail (512 deg/s, beyond the STIM210's +-400 deg/s): passed the rail check before issue 41
+    "imu_gyro_near_rail_1s": _rewrite_imu(lambda fr, t: dataclasses.replace(fr, gyro=(2**23 - 2, -(2**23) + 1,
+                                                                                      2**23 - 2)), *T_BAD),
+    # in range (300 deg/s about z) but flagged by the STIM's STATUS byte (overload on Z, TS1524 Table 5-23): the
+    # firmware did not read STATUS before issue 41
+    "imu_gyro_overload_status_1s": _rewrite_imu(lambda fr, t: dataclasses.replace(
+        fr, gyro=(fr.gyro[0], fr.gyro[1], 300 * 2**14), gyro_status=int(StimStatus.OVERLOAD | StimStatus.Z_CHANNEL)),
+        *T_BAD),
     "imu_accel_saturated_1s": _rewrite_imu(lambda fr, t: dataclasses.replace(fr, accel=(2**23 - 1,) * 3), *T_BAD),
     "imu_time_jump_1000s": _rewrite_imu(_imu_jump, T_BAD[0], T_BAD[0] + 0.004),
 }

@@ -8,7 +8,7 @@ and :class:`Ahead` hands the rows out while nothing else drew from the noise blo
 
 from __future__ import annotations
 
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -88,9 +88,9 @@ class Ahead:
     """Measured means of the coming trigger intervals of one sensor triad (see :func:`measure_ahead`).
 
     ``times[j]`` is the ``(t, t_prev)`` of row ``j``; ``raw[j]`` the measured mean before injected
-    faults; ``post[j]`` what the device makes of it without faults (words / codes as ints, and the
-    clipped value it remembers). Row ``j`` may be used only while the error model's noise block is
-    the one peeked at, at the row ``i0 + j`` (so nothing was drawn in between).
+    faults; ``post[j]`` what the device makes of it without faults (words / codes as ints, the
+    clipped value it remembers and, for the gyro, its STATUS byte). Row ``j`` may be used only while the
+    error model's noise block is the one peeked at, at the row ``i0 + j`` (so nothing was drawn in between).
     """
 
     __slots__ = ("block", "i0", "j", "post", "raw", "stochastic", "times")
@@ -99,7 +99,7 @@ class Ahead:
                  stochastic: bool) -> None:
         self.times = times
         self.raw = raw
-        self.post: list[tuple[tuple[int, int, int], np.ndarray]] = []
+        self.post: list[tuple[Any, ...]] = []
         self.j = 1
         self.block = block
         self.i0 = i0

@@ -15,6 +15,7 @@ from protocols.stim import (
     STIM_COUNTER_HZ,
     TEMP_LSB_DEGC,
     Stim210Format,
+    overload_status,
 )
 
 from ...links.base import Link
@@ -115,8 +116,8 @@ class Stim210Gyro(FaultableTriad):
             ahead = self._ahead
             j = ahead.take(t, t_prev, self.model, dt) if ahead is not None else -1
             if j >= 0 and not self.faults.active:  # the common case: all done in the look-ahead pass
-                gw, self.last_measured = ahead.post[j]  # type: ignore[union-attr]
-                self._transmit(t_edge, t_c, gw)
+                gw, self.last_measured, status = ahead.post[j]  # type: ignore[union-attr]
+                self._transmit(t_edge, t_c, gw, status)
                 return
             if j >= 0:
                 rate = ahead.raw[j]  # type: ignore[union-attr]
@@ -133,6 +134,7 @@ class Stim210Gyro(FaultableTriad):
         lim: np.ndarray | float = self.err.range_dps * DEG
         if self.faults.active:
             rate, lim = self.faults.apply(rate, lim)
+        over = np.abs(rate) > lim  # per axis: the unit saturates and says so (STATUS overload, TS1524 Table 5-23)
         rate = np.clip(rate, -lim, lim)
         self.last_measured = rate
         if self.output == "rate":
@@ -140,11 +142,13 @@ class Stim210Gyro(FaultableTriad):
         else:
             words = np.round(rate * dt / (GYRO_ANGLE_LSB_DEG * DEG))
         words = np.clip(words, -0x800000, 0x7FFFFF).astype(np.int64)
-        self._transmit(t_edge, t_c, (int(words[0]), int(words[1]), int(words[2])))
+        status = overload_status(bool(over[0]), bool(over[1]), bool(over[2])) if over.any() else 0
+        self._transmit(t_edge, t_c, (int(words[0]), int(words[1]), int(words[2])), status)
 
-    def _words(self, ahead: Ahead) -> list[tuple[tuple[int, int, int], np.ndarray]]:
-        """The look-ahead rows as the fault-free path of :meth:`trigger` turns them into words."""
+    def _words(self, ahead: Ahead) -> list[tuple[tuple[int, int, int], np.ndarray, int]]:
+        """The look-ahead rows as the fault-free path of :meth:`trigger` turns them into words and STATUS bytes."""
         lim = self.err.range_dps * DEG
+        over = np.abs(ahead.raw) > lim
         rate = np.clip(ahead.raw, -lim, lim)
         if self.output == "rate":
             words = np.round(rate / (GYRO_RATE_LSB_DPS * DEG))
@@ -152,13 +156,16 @@ class Stim210Gyro(FaultableTriad):
             dts = np.array([a - b for a, b in ahead.times])[:, None]
             words = np.round(rate * dts / (GYRO_ANGLE_LSB_DEG * DEG))
         words = np.clip(words, -0x800000, 0x7FFFFF).astype(np.int64)
-        return [(tuple(w), r) for w, r in zip(words.tolist(), rate)]
+        status = [overload_status(*o) if any(o) else 0 for o in over.tolist()]
+        return [(tuple(w), r, st) for w, r, st in zip(words.tolist(), rate, status)]
 
-    def _transmit(self, t: float, t_c: float, gyro_words: tuple[int, int, int]) -> None:
+    def _transmit(self, t: float, t_c: float, gyro_words: tuple[int, int, int], status: int = 0) -> None:
+        """Send one datagram: ``gyro_words`` (s24), ``status`` the STATUS byte (:class:`protocols.stim.StimStatus`;
+        the overload bits when an axis exceeded the range)."""
         self.counter = (self.counter + self.counter_step) & 0xFF
         tw = round(t_c / TEMP_LSB_DEGC)
-        # the bytes of StimDatagram(ident, gyro_words, 0, counter, latency, (tw, tw, tw)) without the object
-        self._send(t, self.format.build_values(gyro_words, 0, self.counter, self.latency_us, (tw, tw, tw)))
+        # the bytes of StimDatagram(ident, gyro_words, status, counter, latency, (tw, tw, tw)) without the object
+        self._send(t, self.format.build_values(gyro_words, status, self.counter, self.latency_us, (tw, tw, tw)))
 
     def _send(self, t: float, frame: bytes) -> None:
         """Put one datagram on the line ``response_delay_s`` after the trigger at ``t`` (or drop it, counted)."""

@@ -61,7 +61,7 @@ class Stim300Imu(Stim210Gyro):
         w = np.clip(np.round(f / (lsb_g * G_STD)), -0x800000, 0x7FFFFF).astype(np.int64)
         return (int(w[0]), int(w[1]), int(w[2]))
 
-    def _transmit(self, t: float, t_c: float, gyro_words: tuple[int, int, int]) -> None:
+    def _transmit(self, t: float, t_c: float, gyro_words: tuple[int, int, int], status: int = 0) -> None:
         self.counter = (self.counter + self.counter_step) & 0xFF
         tw = round(t_c / TEMP_LSB_DEGC)
         temps = (tw, tw, tw)
@@ -70,7 +70,7 @@ class Stim300Imu(Stim210Gyro):
         incl = self._specific_force_words(INCL_LSB_G) if "incl" in g else None
         has_t = "temp" in g
         d = Stim300Datagram(
-            ident=self.ident, gyro=gyro_words, gyro_status=0, counter=self.counter, latency_us=self.latency_us,
+            ident=self.ident, gyro=gyro_words, gyro_status=status, counter=self.counter, latency_us=self.latency_us,
             accel=acc, accel_status=0 if acc is not None else None,
             incl=incl, incl_status=0 if incl is not None else None,
             gyro_temp=temps if has_t else None, gyro_temp_status=0 if has_t else None,

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from ...assembly.session import Emulator, run_emulator
-from ...links.zenoh import ZenohEndpointConfig, ZenohLink
+from ...links.zenoh import AUTH_ENV, ZenohEndpointConfig, ZenohLink
 from ...scenario.schema import Scenario
 from .control import READY_TIMEOUT_S, STOP_TIMEOUT_S, SplitControl, SplitError, free_tcp_port
 
@@ -87,10 +87,12 @@ class SplitFpgaEmulator(Emulator):
                                    default=str), encoding="utf-8")
         cmd = [self.python, "-m", "emulator.cli.dsp_process", "--spec", str(spec), "--key", self.run_key,
                "--connect", f"tcp/127.0.0.1:{self.zenoh_port}", "--parent-pid", str(os.getpid())]
+        # the run's zenoh credentials (D-9.6): the DSP process presents the file the FPGA's session accepts
+        env = {**os.environ, AUTH_ENV: self.endpoint.credentials().file}
         with open(self.child_log, "wb") as log:  # the child has its own copy of the descriptor
             try:
                 self.child = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                              cwd=os.getcwd())
+                                              cwd=os.getcwd(), env=env)
             except OSError as exc:
                 raise SplitError(f"cannot start the DSP process ({cmd[0]}): {exc}") from exc
 

@@ -210,9 +210,13 @@ def test_a_second_ctrl_c_says_what_it_did(monkeypatch, capsys):
     def boom(args):
         raise KeyboardInterrupt
 
+    monkeypatch.setattr(cli, "_cmd_run", boom)
     monkeypatch.setattr(cli, "_cmd_validate", boom)
-    assert cli.main(["validate", "x.yaml"]) == 1
+    assert cli.main(["run", "x.yaml"]) == 1
     assert "interrupted again" in capsys.readouterr().err
+    assert cli.main(["validate", "x.yaml"]) == 1  # another command: its first Ctrl-C, not "again"
+    err = capsys.readouterr().err
+    assert "psns-hil validate: interrupted" in err and "again" not in err
 
 
 def test_validate_json_omits_unused_keys():

@@ -175,3 +175,72 @@ def test_images_png_tiff_npz_replace_the_rendering(tmp_path):
     (tmp_path / "index2.csv").write_text("time_s,file\nzero,f0.png\n")
     with pytest.raises(RecordingError, match=r"index2\.csv: line 2, column 1"):
         RecordedImages(index=tmp_path / "index2.csv")
+
+
+# -- non-physical values refused at load (issue 41 item 6; docs/hostile-input.md section 6) ------------------------
+
+_IMU_HEAD = "time_s,gyro_x_dps,gyro_y_dps,gyro_z_dps,accel_x_mps2,accel_y_mps2,accel_z_mps2\n"
+
+
+@pytest.mark.parametrize("row, where", [
+    ("0.005,0,0,1e300,0,0,9.8", "line 3, column 11: gyro_z_dps is outside its physical range [-10000, 10000] deg/s"),
+    ("0.005,-20000,0,0,0,0,9.8", "line 3, column 7: gyro_x_dps is outside its physical range"),
+    ("0.005,0,0,0,0,3000,9.8", "line 3, column 15: accel_y_mps2 is outside its physical range [-2000, 2000] m/s^2"),
+    ("1e12,0,0,0,0,0,9.8", "line 3, column 1: time_s is outside its physical range"),
+])
+def test_non_physical_imu_values_are_refused_at_load(tmp_path, row, where):
+    """A recorded gyro of 1e300 deg/s was clipped to the STIM210's range and navigated (2.3 km off) before issue 41;
+    now the file is refused, naming file, line, column and field (never the cell)."""
+    p = tmp_path / "imu.csv"
+    p.write_text(_IMU_HEAD + "0,0,0,0,0,0,9.8\n" + row + "\n")
+    with pytest.raises(RecordingError) as ei:
+        RecordedImu(p)
+    msg = str(ei.value)
+    assert msg.startswith(f"{p}: ") and where in msg and "1e300" not in msg
+
+
+def test_the_largest_physical_imu_values_are_accepted(tmp_path):
+    p = tmp_path / "imu.csv"
+    p.write_text(_IMU_HEAD + "0,10000,-10000,0,2000,-2000,9.8\n0.005,0,0,0,0,0,9.8\n")
+    assert RecordedImu(p).mean_rate(0.0, 0.005) is not None
+
+
+@pytest.mark.parametrize("cols, row, where", [
+    ("", "1,91,116.3,50,0,0,0", "line 3, column 3: lat_deg is outside its physical range [-90, 90] deg"),
+    ("", "1,39.9,116.3,-1e6,0,0,0", "height_m is outside its physical range"),
+    ("", "1,39.9,116.3,50,0,900,0", "vel_n_mps is outside its physical range"),
+    (",fix_quality", "1,39.9,116.3,50,0,0,0,1.5", "fix_quality is not an integer"),
+    (",hdop", "1,39.9,116.3,50,0,0,0,-1", "hdop is outside its physical range"),
+])
+def test_non_physical_gnss_csv_values_are_refused_at_load(tmp_path, cols, row, where):
+    from emulator.devices.recorded import RecordedGnssCsv
+
+    p = tmp_path / "gnss.csv"
+    extra = ",1" if cols == ",fix_quality" else ",0.9" if cols == ",hdop" else ""
+    p.write_text("time_s,lat_deg,lon_deg,height_m,vel_e_mps,vel_n_mps,vel_u_mps" + cols + "\n"
+                 "0,39.9,116.3,50,0,0,0" + extra + "\n" + row + "\n")
+    with pytest.raises(RecordingError) as ei:
+        RecordedGnssCsv(p)
+    assert str(p) in str(ei.value) and where in str(ei.value)
+
+
+def test_non_physical_nmea_log_fields_are_refused_at_load(tmp_path):
+    """A GGA of the log whose height is far below any surface (valid checksum) is refused naming its line."""
+    out = [build_gga(EPOCH.time(), 39.979, 116.339, 50.0, 0.0).decode().strip(),
+           build_gga((EPOCH + dt.timedelta(seconds=1)).time(), 39.979, 116.339, -5e4, 0.0).decode().strip()]
+    p = tmp_path / "gnss.nmea"
+    p.write_text("\n".join(out) + "\n")
+    with pytest.raises(RecordingError, match=r"gnss\.nmea: line 2, column 1: GGA height is outside its physical "
+                                             r"range \[-1000, 60000\] m"):
+        RecordedNmea(p, EPOCH)
+
+
+@pytest.mark.parametrize("value", [-5.0, 1e300, float("nan"), 70000.0])
+def test_non_physical_npz_pixels_are_refused(tmp_path, value):
+    """An NPZ plane with a negative, non-finite or beyond-16-bit value was clipped silently into the mosaic."""
+    planes = {f"I{t}": np.full((4, 4), 100.0) for t in (0, 45, 90, 135)}
+    planes["I90"][1, 2] = value
+    p = tmp_path / "f.npz"
+    np.savez(p, **planes)
+    with pytest.raises(RecordingError, match=r"f\.npz: line 1, column 1: I90 holds"):
+        read_mosaic(p, (8, 8))

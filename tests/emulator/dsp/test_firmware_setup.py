@@ -93,6 +93,16 @@ def test_camera_calibration_perfect_knows_the_truth_and_residuals_are_close_to_i
     assert len({c.cx_px for c in cams}) == 20
 
 
+def test_the_firmware_knows_the_configured_ranges(tmp_path):
+    """The fitted units' measurement ranges reach the firmware (issue 41: words beyond them are refused, D-5.46):
+    the presets' +-400 deg/s and +-30/25/25 g, or what the scenario configures."""
+    cfg = firmware_config(_load(tmp_path))
+    assert cfg.gyro_range_dps == 400.0 and cfg.accel_range_g == (30.0, 25.0, 25.0)
+    cfg = firmware_config(_load(tmp_path, "sensors:\n  imu:\n    gyro: {range_dps: 300}\n"
+                                          "    accel: {range_g: [10, 10, 12]}\n"))
+    assert cfg.gyro_range_dps == 300.0 and cfg.accel_range_g == (10.0, 10.0, 12.0)
+
+
 def test_the_installed_unit_is_drawn_once_and_the_calibration_reads_that_draw(tmp_path, monkeypatch):
     """The compass's true mountings (a random installation error) are drawn once per run and shared: the calibration
     file is made from the very unit the sensor models were built with, not from a second draw under the same key."""

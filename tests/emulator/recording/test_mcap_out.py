@@ -132,6 +132,8 @@ def test_values_equal_nav_csv_to_the_last_digit(mcap_read, run_dir):
         e = em[4]
         assert e["err_pos_n_m"] == (float(r["err_pos_n_m"]) if r["err_pos_n_m"] else None)
         assert e["sig_att_u_deg"] == float(r["sig_att_u_deg"])
+        assert e["sig3_att_u_deg"] == 3.0 * float(r["sig_att_u_deg"]) and e["sig3_pos_e_m"] == 3.0 * float(
+            r["sig_pos_e_m"])  # the +-3 sigma bounds the layout's error plots draw
 
 
 def test_raw_channels_decode_to_the_captures_frames(mcap_read, run_dir):
@@ -232,7 +234,9 @@ def test_the_shipped_foxglove_layout_names_only_what_the_mcap_has(mcap_read):
             checked += 1
         for path in cfg.get("paths", []):
             topic, fld = path["value"].split(".", 1)
+            fld, _, modifier = fld.partition(".@")  # a Foxglove math modifier (.@negative) on a numeric field
             assert topic in schema_of and fld in first[topic], (panel_id, path["value"])
+            assert modifier in ("", "negative"), (panel_id, path["value"])
             checked += 1
         if "followTf" in cfg:
             assert cfg["followTf"] in frames

@@ -1,6 +1,7 @@
 """KML and GPX tracks of a run with a fault: KML valid against the OGC KML 2.2 schema vendored in tests/vectors/kml
-(with the Atom and xAL schemas it imports; no network), GPX read back by gpxpy (an independent parser) with the
-points of truth.csv / nav.csv and the fault's waypoints."""
+(with the Atom and xAL schemas it imports), GPX valid against the Topografix GPX 1.1 schema vendored in
+tests/vectors/gpx (no network); KML read back by fastkml and GPX by gpxpy (independent parsers) with the points of
+truth.csv / nav.csv and the fault's placemarks and waypoints."""
 
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ from emulator.scenario import load_scenario
 from tests.conftest import ROOT, SCENARIOS
 
 KML_XSD = ROOT / "tests" / "vectors" / "kml" / "ogckml22.xsd"
+GPX_XSD = ROOT / "tests" / "vectors" / "gpx" / "gpx.xsd"
 #: the quickstart, 10 s: still for the alignment, then driving off; a 2 s GNSS outage from 5 s
 SCENARIO_EDITS = {
     "duration_s: 120\n": "duration_s: 10\n",
@@ -72,6 +74,46 @@ def test_kml_is_valid_against_the_ogc_schema(run_dir, tmp_path):
     bad = path.read_text().replace("<LineString>", "<LineString><bogus/>", 1)
     (tmp_path / "bad.kml").write_text(bad)
     assert not schema.is_valid(str(tmp_path / "bad.kml"))
+
+
+@pytest.mark.filterwarnings("ignore:Package `lxml` missing")
+def test_kml_reads_back_with_fastkml(run_dir, tmp_path):
+    from fastkml import kml
+
+    tr = load_tracks(run_dir)
+    doc = kml.KML.parse(str(write_kml(tr, tmp_path / "t.kml")))
+
+    def placemarks(node):
+        for f in getattr(node, "features", None) or []:
+            yield from ([f] if type(f).__name__ == "Placemark" else placemarks(f))
+
+    pms = {p.name: p for p in placemarks(doc)}
+    truth = [(lo, la, h) for _t, la, lo, h in tr.truth]
+    # pygeoif's LineString keeps one of each run of equal points (the box stands still for 4 s)
+    assert list(pms["truth"].geometry.coords) == [c for i, c in enumerate(truth) if i == 0 or c != truth[i - 1]]
+    est = [p for name, p in pms.items() if name.startswith("estimate")]
+    assert len(est) == len(tr.estimate) >= 2
+    assert list(est[-1].geometry.coords)[-1] == (tr.estimate[-1][1][-1][2], tr.estimate[-1][1][-1][1],
+                                                 tr.estimate[-1][1][-1][3])
+    fault = pms["gnss_outage"]
+    epoch = _dt.datetime(2019, 9, 18, 8, 14, tzinfo=_dt.UTC)
+    assert fault.times.begin.dt == epoch + _dt.timedelta(seconds=5)
+    assert fault.times.end.dt == epoch + _dt.timedelta(seconds=7)
+
+
+def test_gpx_is_valid_against_the_topografix_schema(run_dir, tmp_path):
+    schema = xmlschema.XMLSchema(str(GPX_XSD))
+    assert schema.target_namespace == "http://www.topografix.com/GPX/1/1"
+    path = write_gpx(load_tracks(run_dir), tmp_path / "t.gpx")
+    schema.validate(str(path))
+    doc = schema.to_dict(str(path))
+    assert [t["name"] for t in doc["trk"]] == ["truth", "estimate"]
+    assert [w["type"] for w in doc["wpt"]] == ["fault", "fault"]
+    # a broken document is caught: an element out of the schema's order, a latitude out of range
+    text = path.read_text()
+    for old, new in (("<ele>", "<bogus/><ele>"), ('lat="', 'lat="9')):
+        (tmp_path / "bad.gpx").write_text(text.replace(old, new, 1))
+        assert not schema.is_valid(str(tmp_path / "bad.gpx")), old
 
 
 def test_gpx_reads_back_with_the_runs_points(run_dir, tmp_path):

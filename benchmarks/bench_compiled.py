@@ -36,7 +36,7 @@ REFERENCE = ROOT / "scenarios" / "bench_vehicle_loop_10min.yaml"
 def _child(duration_s: float, profile: bool) -> dict[str, Any]:
     """One run in this process: CPU s, simulated s, expectations, which files the hot modules came from."""
     from benchmarks.profile_breakdown import breakdown
-    from emulator.assembly.runner import run_scenario
+    from emulator.assembly.session import run_scenario
     from emulator.scenario import load_scenario
     from tools.build_compiled import modules
 

@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from benchmarks.common import ROOT, load_avg, median, number
-from emulator.assembly.runner import run_scenario
+from emulator.assembly.session import run_scenario
 from emulator.dsp.lockstep import ALLOW_FIRMWARE_ENV
 from emulator.scenario import load_scenario
 

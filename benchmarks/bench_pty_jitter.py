@@ -206,7 +206,7 @@ import asyncio, json, os, sys, time
 from pathlib import Path
 from emulator.clock import PacedWriter
 from emulator.links.base import Link
-from emulator.assembly.runner import run_scenario
+from emulator.assembly.session import run_scenario
 from emulator.scenario import load_scenario
 TAPS = {"host": "uart0", "monitor": "uart1"}  # the ptys the reader reads
 # emulator-side lateness: when each tap's chunk really went out (os.write on its pty) against the instant its

@@ -51,7 +51,7 @@ from typing import Any
 
 from benchmarks.common import REFERENCE, ROOT, load_avg, median, number
 from benchmarks.profile_breakdown import breakdown
-from emulator.assembly.runner import run_scenario
+from emulator.assembly.session import run_scenario
 from emulator.scenario import load_scenario
 
 TARGET_RTF = 100.0

@@ -33,7 +33,7 @@ LAP = [{"cruise": {"duration_s": 20}}, {"turn": {"rate_dps": 9, "angle_deg": 90}
 _CHILD = r"""
 import json, os, resource, sys, tempfile, time
 from pathlib import Path
-from emulator.assembly.runner import run_scenario
+from emulator.assembly.session import run_scenario
 from emulator.scenario import load_scenario
 scn = load_scenario(sys.argv[1])
 page = os.sysconf("SC_PAGE_SIZE")

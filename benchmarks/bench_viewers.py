@@ -18,7 +18,7 @@ from benchmarks.common import ROOT, quick, setting
 
 
 def run() -> list[dict]:
-    from emulator.assembly.runner import run_scenario
+    from emulator.assembly.session import run_scenario
     from emulator.recording.mcap_out import write_run_mcap
     from emulator.recording.sensor_tables import write_sensor_tables
     from emulator.scenario import load_scenario

@@ -33,15 +33,16 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from protocols.constants import DEG
+
 ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from emulator.assembly.runner import run_scenario  # noqa: E402
+from emulator.assembly.session import run_scenario  # noqa: E402
 from emulator.testing import load_test_scenario  # noqa: E402
 
 SCENARIOS = ROOT / "scenarios"
-DEG = math.pi / 180.0
 #: WGS-84
 _A, _E2 = 6378137.0, 6.69437999014e-3
 

@@ -115,7 +115,7 @@ def attribute(stats: pstats.Stats) -> dict[str, float]:
 
 def profile_run(scn: Any, mode: str = "fast") -> tuple[dict[str, float], dict[str, Any], int]:
     """cProfile one run of ``scn``; returns (seconds per component, summary, event-loop callbacks run)."""
-    from emulator.assembly.runner import run_scenario
+    from emulator.assembly.session import run_scenario
 
     prof = cProfile.Profile()
     with tempfile.TemporaryDirectory() as d:
@@ -143,7 +143,7 @@ def breakdown(scn: Any, wall_s: float, ticks: int) -> tuple[list[dict[str, Any]]
 
 
 def main(argv: list[str] | None = None) -> int:
-    from emulator.assembly.runner import run_scenario
+    from emulator.assembly.session import run_scenario
     from emulator.scenario import load_scenario
 
     ap = argparse.ArgumentParser(prog="python -m benchmarks.profile_breakdown",

@@ -15,11 +15,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field, fields, is_dataclass
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, Protocol, get_type_hints, runtime_checkable
 
 from .config import FILTER_VARIANTS, FirmwareConfig
 from .tasks.state import SolarSolve, TickResult
-from .variants.params import DualVectorParams, FederatedParams, KmeansParams, SunElevationParams
+from .variants import params as _params
+from .variants.params import VariantParams
 
 __all__ = [
     "BUILTIN_FILTER_PARAMS",
@@ -82,13 +83,11 @@ class FirmwareProtocol(Protocol):
 #: entered by :mod:`firmware_model.firmware`)
 FIRMWARE_IMPLEMENTATIONS: dict[str, Callable[[FirmwareConfig], FirmwareProtocol]] = {}
 
-#: parameter models of the built-in variants (their values also come from ``firmware.variants.NAME``)
+#: parameter models of the built-in variants, by filter name: the sections of :class:`VariantParams` (their values
+#: also come from ``firmware.variants.NAME``); ``mode_manager`` is shared by every variant, ``plugins`` holds the rest
 BUILTIN_FILTER_PARAMS: dict[str, type[Any]] = {
-    "dual_vector": DualVectorParams,
-    "kmeans_3d": KmeansParams,
-    "federated": FederatedParams,
-    "sun_elevation": SunElevationParams,
-}
+    name: tp for name, tp in get_type_hints(VariantParams, vars(_params)).items()
+    if name not in ("mode_manager", "plugins")}
 
 
 def register_firmware(name: str, factory: Callable[[FirmwareConfig], FirmwareProtocol]) -> None:
@@ -110,10 +109,8 @@ def filter_params_model(name: str) -> type[Any] | None:
 def filter_params(cfg: FirmwareConfig, name: str) -> Any:
     """The parameters of filter ``name`` in ``cfg`` (an instance of its :func:`filter_params_model`): the
     scenario's ``firmware.params`` when given, else the model's defaults."""
-    builtin = {"dual_vector": "dual_vector", "kmeans_3d": "kmeans_3d", "federated": "federated",
-               "sun_elevation": "sun_elevation"}
-    if name in builtin:
-        return getattr(cfg.variants, builtin[name])
+    if name in BUILTIN_FILTER_PARAMS:
+        return getattr(cfg.variants, name)
     got = cfg.variants.plugins.get(name)
     if got is not None:
         return got

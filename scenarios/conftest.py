@@ -69,7 +69,7 @@ class _Run:
     def get(self) -> _Run:
         if self.summary is not None or self.error is not None:
             return self
-        from emulator.assembly.runner import run_scenario
+        from emulator.assembly.session import run_scenario
         from emulator.recording.golden import compare_golden
 
         scn = self.scenario
@@ -185,7 +185,7 @@ class SeedsItem(_Item):
         self.seeds = seeds
 
     def runtest(self) -> None:
-        from emulator.assembly.runner import run_scenario
+        from emulator.assembly.session import run_scenario
 
         scn = self.scenario
         lines = []

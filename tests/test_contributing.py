@@ -4,7 +4,7 @@ packages it names imports, every link resolves, and the README and the guide's i
 A path is a backquoted span whose first segment is a top-level entry of the repository (``emulator/faults/base.py``,
 ``tests/vectors/``); a placeholder segment (``emulator/links/<scheme>.py``) is checked up to the folder that holds
 it. A dotted name is a backquoted ``protocols.X``, ``firmware_model.X`` or ``emulator.X``: the longest importable
-module prefix, then attributes (``emulator.faults.scheduler.INJECTORS``, ``firmware_model.filters.NavFilter``).
+module prefix, then attributes (``emulator.faults.base.INJECTORS``, ``firmware_model.filters.NavFilter``).
 """
 
 from __future__ import annotations
@@ -70,7 +70,7 @@ def test_the_extractors_find_paths_and_tell_missing_ones():
     assert got == ["emulator/faults/base.py", "emulator/links/<scheme>.py", "tests/nowhere.py"]
     assert [path_exists(p) for p in got] == [True, True, False]
     assert path_exists("emulator/nowhere/<scheme>.py") is False
-    assert resolves("emulator.faults.scheduler.INJECTORS") and resolves("protocols.stream")
+    assert resolves("emulator.faults.base.INJECTORS") and resolves("protocols.stream")
     assert not resolves("emulator.faults.scheduler.NO_SUCH_TABLE")
 
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import datetime as _dt
+import functools
 import gc
 import json
 import math
@@ -34,7 +35,7 @@ from ..clock import EmulatorLoop, sleep_until
 from ..devices.fpga import VirtualFpga
 from ..devices.gnss import GnssReceiver
 from ..devices.imu import Stim210Gyro
-from ..devices.sensors import build_sensors, build_sun
+from ..devices.sensors import InstalledUnit, build_sensors, build_sun, installed_unit
 from ..dsp.external import DirectionSwap, ExternalDsp, cut_dsp_uarts
 from ..dsp.firmware_setup import calibration_for
 from ..dsp.host import UartRxConfig, VirtualDsp, WatchdogConfig
@@ -178,7 +179,7 @@ class Emulator:
             self.links.update(self.external_uarts)
         # sensors (docs/architecture.md, section "Firmware interface")
         if self.replay is None:
-            sensors = build_sensors(scn, self.seed, traj, internal, pps=self._pps)
+            sensors = build_sensors(scn, self.seed, traj, internal, pps=self._pps, unit=self.unit)
             self.sensors = sensors
             self.gyro, self.gnss = sensors.gyro, sensors.gnss
             gyro, accel = sensors.gyro, sensors.accel
@@ -272,6 +273,12 @@ class Emulator:
         fw = self.fw
         return fw.snapshot().counters if fw is not None else {}
 
+    @functools.cached_property
+    def unit(self) -> InstalledUnit:
+        """The installed unit (mountings, lens, iron: the world's truth a calibration measures), drawn once and
+        shared by the sensor models and the calibration file (:func:`emulator.devices.sensors.installed_unit`)."""
+        return installed_unit(self.scn, self.seed)
+
     def build_dsp(self, uart_dsp: dict[int, Link], rx_cfg: dict[int, UartRxConfig], events: Any) -> VirtualDsp:
         """The virtual DSP hosting this scenario's firmware on ``uart_dsp`` (also used by a split run's DSP
         process, :mod:`emulator.distributed.split`)."""
@@ -285,7 +292,7 @@ class Emulator:
         # directory, and read back: the firmware is configured from the file alone
         path = self.run_dir / "calibration.json"
         self.run_dir.mkdir(parents=True, exist_ok=True)
-        save_calibration(calibration_for(self.scn, self.seed), path)
+        save_calibration(calibration_for(self.scn, self.seed, self.unit), path)
         dsp = build_dsp(self.scn, self.loop, uart_dsp, rx_cfg, events, calibration=load_calibration(path))
         self._fw0 = dsp.fw
         return dsp

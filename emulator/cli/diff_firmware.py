@@ -76,7 +76,7 @@ def _foreign_spec(args: argparse.Namespace, scenario: Path) -> tuple[dict[str, A
 
 def diff_firmware(args: argparse.Namespace) -> dict[str, Any]:
     """Both runs and the comparison (see module docstring); the report (also written to ``--out/diff.json``)."""
-    from ..assembly.runner import run_scenario
+    from ..assembly.session import run_scenario
     from ..dsp.lockstep import ALLOW_FIRMWARE_ENV, FirmwareNotAllowed
     from ..errors import EmulatorError
     from ..scenario import load_scenario

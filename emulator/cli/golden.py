@@ -35,7 +35,7 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     """``psns-hil golden``: 0 unchanged (or updated), 1 some scenario changed, 2 an unknown scenario."""
-    from ..assembly.runner import run_scenario
+    from ..assembly.session import run_scenario
     from ..scenario import load_scenario
 
     gdir = Path(args.golden)

@@ -273,7 +273,8 @@ def _print_scenario_warnings(scn: Any) -> None:
 def _cmd_run(args: argparse.Namespace) -> int:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from ..assembly.runner import default_run_dir, real_time_ports, resolve_mode, run_scenario
+    from ..assembly.ports import real_time_ports, resolve_mode
+    from ..assembly.session import default_run_dir, run_scenario
     from ..errors import EmulatorError
     from ..scenario import load_scenario
     from ..scenario.paths import ALLOW_HOOKS_ENV
@@ -461,7 +462,7 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
 
 
 def _cmd_replay(args: argparse.Namespace) -> int:
-    from ..assembly.runner import default_run_dir
+    from ..assembly.session import default_run_dir
     from ..recording.replay import run_replay
 
     cap = Path(args.capture)

@@ -438,7 +438,7 @@ def run_monitor(endpoint: str, protocol: str = "auto", baud: int = 460800, links
         formats_for(None, protocol)  # an unknown name is an error (exit 2) listing the known ones
     mon = Monitor(protocol)
     if endpoint.startswith("serial://"):
-        endpoint = endpoint[len("serial://"):]
+        endpoint = parse_link_url(endpoint).target
     t_start = time.monotonic()
 
     def stop() -> bool:

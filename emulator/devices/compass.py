@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from protocols.constants import DEG
 from protocols.psns import CompassUnit, PsnsHeader, PsnsStatus, encode_compass
 
 from ..links.base import Link
@@ -50,7 +51,6 @@ from .camera import rotation_vector_matrix, wire_aop_cdeg
 __all__ = ["CompassConfig", "CompassModel", "CompassReading", "PolarizationCompass", "default_mountings",
            "mountings_from_directions", "turned_about_view_rays", "unit_mounting"]
 
-DEG = math.pi / 180.0
 N_UNITS = 9
 RING_ZENITH = 45.0 * DEG
 

@@ -46,7 +46,7 @@ import numpy as np
 import pymap3d
 
 from protocols import ubx_cfg as cfgmsg
-from protocols.constants import A_WGS84, F_WGS84
+from protocols.constants import A_WGS84, DEG, F_WGS84
 from protocols.gnss import NMEA_SENTENCES, UBX_MESSAGES, GnssFix, GnssOutputSet, build_epoch
 from protocols.nmea import NMEA_RX_MAX_LEN, NmeaFormat
 from protocols.stream import StreamDecoder
@@ -59,7 +59,6 @@ from .geoid import egm96_separation_m
 __all__ = ["NO_FIX_ACC_M", "RADIAL_95", "GnssConfig", "GnssErrorModel", "GnssErrors", "GnssGlitch", "GnssOutage",
            "GnssReceiver", "constellation"]
 
-DEG = math.pi / 180.0
 #: PRNs reported in GSA / numSV (a fixed, plausible constellation; the count follows ``num_sats``).
 _SAT_IDS = (2, 5, 6, 12, 13, 15, 17, 19, 24, 25, 29, 30, 1, 3, 7, 9, 10, 14, 18, 20, 21, 22, 23, 26)
 #: satellite numbers per system talker, in NMEA 4.10 numbering (protocols.nmea_build.SV_NUMBERS): GPS as above,

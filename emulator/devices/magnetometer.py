@@ -25,11 +25,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from protocols.constants import DEG
+
 from ..world.trajectory import Trajectory
 
 __all__ = ["BEIJING_FIELD", "MAG_LSB_NT", "MagConfig", "Magnetometer", "field_enu"]
 
-DEG = math.pi / 180.0
 #: MAG frame resolution, nT per LSB.
 MAG_LSB_NT = 0.1
 #: IGRF-13 at 39.979 N, 116.339 E, 50 m, 2019-09-18 (ppigrf): declination, inclination (deg), intensity (nT).

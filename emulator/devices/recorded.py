@@ -46,6 +46,7 @@ from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
+from protocols.constants import DEG
 from protocols.gnss import GnssOutputSet
 from protocols.nmea import Gga, NmeaFormat, Rmc
 
@@ -69,7 +70,6 @@ __all__ = [
     "recorded_gnss",
 ]
 
-DEG = math.pi / 180.0
 IMU_COLUMNS = ("time_s", "gyro_x_dps", "gyro_y_dps", "gyro_z_dps", "accel_x_mps2", "accel_y_mps2", "accel_z_mps2")
 GNSS_COLUMNS = ("time_s", "lat_deg", "lon_deg", "height_m", "vel_e_mps", "vel_n_mps", "vel_u_mps")
 GNSS_OPTIONAL = ("fix_quality", "num_sats", "hdop")

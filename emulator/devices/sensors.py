@@ -9,13 +9,14 @@ recorded file instead of its model when ``recorded:`` is given.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from protocols.constants import DEG
 
 from ..errors import ScenarioError
 from ..links.base import Link
@@ -53,6 +54,7 @@ from .imu.stim300 import Stim300Imu
 from .magnetometer import MagConfig, Magnetometer, soft_iron_matrix
 
 __all__ = [
+    "InstalledUnit",
     "SensorSet",
     "accel_errors",
     "build_sensors",
@@ -66,10 +68,33 @@ __all__ = [
     "gyro_errors",
     "imu_temperature",
     "imu_vibration",
+    "installed_unit",
     "mag_config",
 ]
 
-DEG = math.pi / 180.0
+
+
+@dataclass(frozen=True)
+class InstalledUnit:
+    """The unit as installed: the world's truth of what a bench calibration measures, drawn once per run and shared
+    by the sensor models (:func:`build_sensors`) and the calibration writer
+    (:func:`emulator.dsp.firmware_setup.calibration_for`), so both see the same installation, by construction.
+
+    ``camera``: the lens, the mounting and the polarizer defects; ``compass``: each unit's installed mounting (the
+    nominal layout turned by a draw of the installation error, stream ``compass_mount``); ``magnetometer``: the hard
+    and soft iron. A section the scenario has not fitted holds the default sensor's truth (unused)."""
+
+    camera: CameraConfig
+    compass: CompassConfig
+    magnetometer: MagConfig
+
+
+def installed_unit(scn: Scenario, seed: int | None = None) -> InstalledUnit:
+    """Draw the installed unit of ``scn`` with ``seed`` (default: the scenario's)."""
+    seed = scn.seed if seed is None else seed
+    return InstalledUnit(camera=camera_config(scn, seed),
+                         compass=compass_config(scn, device_rng(seed, "compass_mount")),
+                         magnetometer=mag_config(scn))
 
 
 @dataclass
@@ -303,9 +328,13 @@ def _path(scn: Scenario, name: str) -> Path:
 
 
 def build_sensors(scn: Scenario, seed: int, traj: Trajectory, internal: dict[str, Link],
-                  pps: Callable[[float], None]) -> SensorSet:
-    """Create the sensor models whose ports are wired in-process (``internal`` link ends)."""
+                  pps: Callable[[float], None], unit: InstalledUnit | None = None) -> SensorSet:
+    """Create the sensor models whose ports are wired in-process (``internal`` link ends); ``unit``: the installed
+    unit the calibration writer also gets (default: :func:`installed_unit` of ``scn`` and ``seed``)."""
     from . import recorded
+
+    if unit is None:
+        unit = installed_unit(scn, seed)
 
     s = scn.sensors
     tap = ImuTruthTap(traj, build_vibration(scn, seed) if s.imu.recorded is None else None)
@@ -342,7 +371,7 @@ def build_sensors(scn: Scenario, seed: int, traj: Trajectory, internal: dict[str
         sky, sun = build_sky(scn, seed), build_sun(scn)
         if want_camera:
             cs = s.camera
-            model = PolarizationCameraModel(camera_config(scn, seed), sky, sun, traj,
+            model = PolarizationCameraModel(unit.camera, sky, sun, traj,
                                             device_rng(seed, "psns_camera"))
             src = None
             if cs is not None and cs.recorded is not None:
@@ -362,12 +391,12 @@ def build_sensors(scn: Scenario, seed: int, traj: Trajectory, internal: dict[str
         if want_compass:
             cs2 = s.compass
             assert cs2 is not None
-            cm = CompassModel(compass_config(scn, device_rng(seed, "compass_mount")), sky, sun, traj,
+            cm = CompassModel(unit.compass, sky, sun, traj,
                               device_rng(seed, "compass"))
             compass = PolarizationCompass(internal["psns"], cm, rate_hz=cs2.rate_hz,
                                           integration_s=cs2.integration_ms * 1e-3,
                                           processing_s=cs2.processing_ms * 1e-3)
     mag = None
     if s.magnetometer is not None and s.magnetometer.enabled:
-        mag = Magnetometer(traj, device_rng(seed, "mag"), mag_config(scn))
+        mag = Magnetometer(traj, device_rng(seed, "mag"), unit.magnetometer)
     return SensorSet(gyro, accel, gnss, psns=camera, compass=compass, mag=mag, sky=sky, sun=sun)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable
 from dataclasses import replace
 from pathlib import Path
@@ -37,21 +36,20 @@ from firmware_model.registry import (
 )
 from firmware_model.spec_sheet import SensorSpecSheet, SpecSheetError
 from firmware_model.variants.common import compass_mountings
-from firmware_model.variants.params import (
-    DualVectorParams,
-    FederatedParams,
-    KmeansParams,
-    ModeManagerParams,
-    SunElevationParams,
-    VariantParams,
-)
+from protocols.constants import DEG
 
 from ..devices.base import device_rng
 from ..devices.compass import default_mountings, mountings_from_directions, turned_about_view_rays
-from ..devices.sensors import accel_errors, camera_config, compass_config, gyro_errors, mag_config
+from ..devices.sensors import (
+    InstalledUnit,
+    accel_errors,
+    gyro_errors,
+    installed_unit,
+)
 from ..errors import ScenarioError
 from ..plugins import PLUGIN_ERRORS, plugin, plugin_names
 from ..scenario.schema import Scenario
+from .variant_params import variant_params
 
 __all__ = ["SPEC_SHEET_DIR", "build_firmware", "calibration_for", "check_firmware", "firmware_config",
            "register_plugins", "spec_sheet_for"]
@@ -59,7 +57,6 @@ __all__ = ["SPEC_SHEET_DIR", "build_firmware", "calibration_for", "check_firmwar
 #: the spec sheets bundled with the firmware (``firmware.spec_sheet: <name>``)
 SPEC_SHEET_DIR = Path(__file__).resolve().parents[2] / "firmware_model" / "spec_sheets"
 
-DEG = math.pi / 180.0
 
 
 def _rotvec_deg(c: np.ndarray) -> tuple[float, float, float]:
@@ -67,13 +64,14 @@ def _rotvec_deg(c: np.ndarray) -> tuple[float, float, float]:
     return x, y, z
 
 
-def calibration_for(scn: Scenario, seed: int | None = None) -> Calibration:
+def calibration_for(scn: Scenario, seed: int | None = None, unit: InstalledUnit | None = None) -> Calibration:
     """The calibration file the DSP gets (``firmware.calibration``): the sensors' truth plus residuals drawn with
     the run's seed, the truth itself, the design values, or the user's file (confined to the scenario's
     directory). This is the one place where the world's truth reaches the firmware, and only through the file.
     Sections: the camera (when fitted), the compass's per-unit installation angles (when fitted) and the
     magnetometer's hard and soft iron (when fitted); each residual draw has its own random stream, so adding a
-    sensor does not change another's draw."""
+    sensor does not change another's draw. ``unit``: the installed unit the sensor models were built with (default:
+    :func:`emulator.devices.sensors.installed_unit` of ``scn`` and ``seed``): the truth is drawn once and shared."""
     spec = scn.firmware.calibration
     seed = scn.seed if seed is None else seed
     if spec.source == "file":
@@ -86,15 +84,17 @@ def calibration_for(scn: Scenario, seed: int | None = None) -> Calibration:
             return load_calibration(path)
         except CalibrationError as exc:
             raise ScenarioError(f"firmware.calibration.file: {exc}") from exc
-    return Calibration(camera=_camera_calibration(scn, seed), compass=_compass_calibration(scn, seed),
-                       magnetometer=_mag_calibration(scn, seed))
+    if unit is None:
+        unit = installed_unit(scn, seed)
+    return Calibration(camera=_camera_calibration(scn, seed, unit), compass=_compass_calibration(scn, seed, unit),
+                       magnetometer=_mag_calibration(scn, seed, unit))
 
 
-def _camera_calibration(scn: Scenario, seed: int) -> CameraCalibration:
+def _camera_calibration(scn: Scenario, seed: int, unit: InstalledUnit) -> CameraCalibration:
     spec = scn.firmware.calibration
     if scn.sensors.camera is None:
         return CameraCalibration()
-    cc = camera_config(scn, seed)
+    cc = unit.camera
     m = scn.sensors.camera.mounting
     if spec.source == "nominal":  # the design: the lens drawing and the nominal mount, no bench measurement
         nominal_c_b = a2mat(m.pitch_deg * DEG, m.roll_deg * DEG, yaw_from_heading(m.heading_deg * DEG))
@@ -175,7 +175,7 @@ def lab_lens_fit(cc: Any, rng: np.random.Generator) -> tuple[float, float, float
     return f_px * cc.pixel_m, cx, cy, k1, k2
 
 
-def _compass_calibration(scn: Scenario, seed: int) -> CompassCalibration:
+def _compass_calibration(scn: Scenario, seed: int, unit: InstalledUnit) -> CompassCalibration:
     """Per-unit installation angles: the rotation (about the unit's own axes) from the nominal unit to the installed
     one, ``R_u = C_u,nominal^T C_u,true`` (truth), plus a residual per axis; empty for ``nominal`` (the layout
     drawing) and when no compass is fitted. The scenario's ``aop_offset_deg`` is the E-vector error the calibration
@@ -186,7 +186,7 @@ def _compass_calibration(scn: Scenario, seed: int) -> CompassCalibration:
     c = scn.sensors.compass
     if c is None or not c.enabled or spec.source == "nominal":
         return CompassCalibration()
-    true = compass_config(scn, device_rng(seed, "compass_mount")).mountings
+    true = unit.compass.mountings
     if c.aop_offset_deg is not None:
         true = turned_about_view_rays(true, -np.asarray(c.aop_offset_deg, dtype=np.float64) * DEG)
     nominal = (mountings_from_directions([(u.zenith_deg, u.azimuth_deg) for u in c.units]) if c.units is not None
@@ -199,14 +199,14 @@ def _compass_calibration(scn: Scenario, seed: int) -> CompassCalibration:
         (float(a), float(b), float(g)) for a, b, g in rv))
 
 
-def _mag_calibration(scn: Scenario, seed: int) -> MagnetometerCalibration:
+def _mag_calibration(scn: Scenario, seed: int, unit: InstalledUnit) -> MagnetometerCalibration:
     """Hard and soft iron: the magnetometer's truth plus a residual (hard iron per axis; soft iron per element,
     kept symmetric); the identity for ``nominal`` and when no magnetometer is fitted."""
     spec = scn.firmware.calibration
     m = scn.sensors.magnetometer
     if m is None or not m.enabled or spec.source == "nominal":
         return MagnetometerCalibration()
-    mc = mag_config(scn)
+    mc = unit.magnetometer
     h = np.asarray(mc.hard_iron_nt, dtype=np.float64)
     w = np.asarray(mc.soft_iron, dtype=np.float64)
     if spec.source == "residuals":
@@ -271,23 +271,6 @@ def _camera(scn: Scenario, calibration: Calibration) -> CameraGeometry:
     return replace(cam, nx=pick(cal.nx, cam.nx), ny=pick(cal.ny, cam.ny), dx_m=pixel_m, dy_m=pixel_m,
                    focal_m=cal.focal_mm * 1e-3 if cal.focal_mm is not None else cam.focal_m,
                    projection=pick(cal.projection, cam.projection), c_c_b=c_c_b)
-
-
-def _variant_params(scn: Scenario) -> VariantParams:
-    """``firmware.variants`` -> :class:`firmware_model.variants.params.VariantParams` (same field names)."""
-    v = scn.firmware.variants
-    fed = v.federated.model_dump()
-    fed["subfilters"] = tuple(fed["subfilters"])
-    if fed["initial_attitude_sigma_deg"] is not None:
-        fed["initial_attitude_sigma_deg"] = tuple(fed["initial_attitude_sigma_deg"])
-    return VariantParams(
-        mode_manager=ModeManagerParams(**v.mode_manager.model_dump()),
-        dual_vector=DualVectorParams(**v.dual_vector.model_dump()),
-        kmeans_3d=KmeansParams(**v.kmeans_3d.model_dump()),
-        federated=FederatedParams(**fed),
-        sun_elevation=SunElevationParams(**v.sun_elevation.model_dump()),
-        plugins=_plugin_params(scn),
-    )
 
 
 def register_plugins(filters: Iterable[str] | None = None, firmware: Iterable[str] | None = None) -> None:
@@ -436,7 +419,7 @@ def firmware_config(scn: Scenario, calibration: Calibration | None = None) -> Fi
         mag_soft_iron=calibration.magnetometer.soft_iron,
         initial_misalignment_deg=(fw.alignment.misalignment_deg[0], fw.alignment.misalignment_deg[1],
                                   fw.alignment.misalignment_deg[2]),
-        variants=_variant_params(scn),
+        variants=variant_params(fw.variants, _plugin_params(scn)),
     )
 
 

@@ -10,7 +10,9 @@ and ``fault_end``). Injectors act only through small, explicit capabilities of t
 a :class:`FaultTargets` that the assembly builds: the faults never see the whole emulator.
 
 One module per target: :mod:`.gnss`, :mod:`.psns`, :mod:`.imu`, :mod:`.link`, :mod:`.board` (FPGA and
-DSP); :mod:`.scheduler` binds and schedules them.
+DSP); each injector class is registered for its kind with :func:`.base.injects` (the table
+:data:`.base.INJECTORS`, complete once every module of the package is imported, :func:`.base.injector_classes`);
+:mod:`.scheduler` binds and schedules them.
 
 Evidence. While a fault is active its injector counts what it really did: bytes it corrupted or
 dropped, epochs sent without a fix, samples it clipped, view rays under a cloud, ticks it loaded.
@@ -31,8 +33,11 @@ Every random draw comes from ``device_rng(seed, "fault:<index>:<kind>")``: a run
 adding a fault does not change the random numbers of the sensors.
 """
 
-from .base import Injector
-from .scheduler import FIRMWARE_COUNTERS, INJECTORS, FaultScheduler
+from .base import INJECTORS, Injector, injector_classes, injects
+from .scheduler import FIRMWARE_COUNTERS, FaultScheduler
 from .targets import FaultTargets
 
-__all__ = ["FIRMWARE_COUNTERS", "INJECTORS", "FaultScheduler", "FaultTargets", "Injector"]
+__all__ = ["FIRMWARE_COUNTERS", "INJECTORS", "FaultScheduler", "FaultTargets", "Injector", "injector_classes",
+           "injects"]
+
+injector_classes()  # every module of the package registers its injectors (INJECTORS is complete from here on)

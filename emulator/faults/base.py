@@ -2,19 +2,46 @@
 
 from __future__ import annotations
 
-import math
-from typing import Any
+import functools
+import importlib
+import pkgutil
+from collections.abc import Callable
+from typing import Any, TypeVar
 
 import numpy as np
 
 from ..errors import ScenarioError, ScenarioIssue
 from .targets import FaultTargets
 
-__all__ = ["AXES", "DEG", "G_STD", "Injector", "bind_error"]
+__all__ = ["AXES", "INJECTORS", "Injector", "bind_error", "injector_classes", "injects"]
 
-DEG = math.pi / 180.0
-G_STD = 9.80665
 AXES = {"x": 0, "y": 1, "z": 2}
+
+#: the injector of every fault kind (the field name on :class:`emulator.scenario.faults_schema.Fault`), filled by
+#: :func:`injects` when the modules of this package are imported (:func:`injector_classes` imports them all, once)
+INJECTORS: dict[str, type[Injector]] = {}
+
+_I = TypeVar("_I", bound="type[Injector]")
+
+
+def injects(kind: str) -> Callable[[_I], _I]:
+    """Register the decorated :class:`Injector` subclass as the injector of fault ``kind``: a new kind is its
+    schema model (``emulator/scenario/faults_schema.py``) and one decorated class in a module of this package."""
+    def register(cls: _I) -> _I:
+        if kind in INJECTORS and INJECTORS[kind] is not cls:
+            raise ValueError(f"fault kind {kind!r} already has an injector ({INJECTORS[kind].__name__})")
+        INJECTORS[kind] = cls
+        return cls
+    return register
+
+
+@functools.cache
+def injector_classes() -> dict[str, type[Injector]]:
+    """:data:`INJECTORS` after importing every module of this package (each registers its injectors)."""
+    package = __name__.rpartition(".")[0]
+    for info in pkgutil.iter_modules(importlib.import_module(package).__path__):
+        importlib.import_module(f"{package}.{info.name}")
+    return INJECTORS
 
 
 class Injector:

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 from typing import Any
 
-from .base import Injector, bind_error
+from .base import Injector, bind_error, injects
 from .targets import DspFaultHooks
 
 __all__ = ["DspExtraLoad", "FpgaChannelStall"]
 
 
+@injects("fpga_channel_stall")
 class FpgaChannelStall(Injector):
     effect_keys: tuple[str, ...] = ("held_back",)
 
@@ -34,6 +35,7 @@ class FpgaChannelStall(Injector):
         return {"held_back": self.fpga.stall_counts.get(self.spec.channel, 0)}
 
 
+@injects("dsp_extra_load")
 class DspExtraLoad(Injector):
     effect_keys: tuple[str, ...] = ("ticks_loaded",)
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from .base import Injector, bind_error
+from .base import Injector, bind_error, injects
 from .targets import FaultTargets
 
 __all__ = ["GnssDegraded", "GnssGlitch", "GnssOutage"]
@@ -17,6 +17,7 @@ def _gnss(targets: FaultTargets, kind: str) -> Any:
     return rx
 
 
+@injects("gnss_outage")
 class GnssOutage(Injector):
     effect_keys: tuple[str, ...] = ("epochs_without_fix",)
 
@@ -39,6 +40,7 @@ class GnssOutage(Injector):
         return {"epochs_without_fix": self.rx.no_fix_epochs}
 
 
+@injects("gnss_glitch")
 class GnssGlitch(GnssOutage):
     effect_keys: tuple[str, ...] = ("glitched_fixes",)
 
@@ -50,6 +52,7 @@ class GnssGlitch(GnssOutage):
         return {"glitched_fixes": self.rx.glitched_fixes}
 
 
+@injects("gnss_degraded")
 class GnssDegraded(GnssOutage):
     effect_keys: tuple[str, ...] = ("degraded_fixes", "epochs_without_fix")
 

@@ -6,7 +6,9 @@ from typing import Any
 
 import numpy as np
 
-from .base import AXES, DEG, G_STD, Injector, bind_error
+from protocols.constants import DEG, G_STD
+
+from .base import AXES, Injector, bind_error, injects
 from .targets import FaultTargets
 
 __all__ = ["ImuBiasStep", "ImuDroppedDatagrams", "ImuSaturation", "ImuStuckAxis"]
@@ -21,6 +23,7 @@ def _imu(targets: FaultTargets, kind: str, sensor: str) -> Any:
     return dev
 
 
+@injects("imu_bias_step")
 class ImuBiasStep(Injector):
     effect_keys: tuple[str, ...] = ("samples_biased",)
 
@@ -48,6 +51,7 @@ class ImuBiasStep(Injector):
         return {"samples_biased": self.dev.faults.biased}
 
 
+@injects("imu_stuck_axis")
 class ImuStuckAxis(ImuBiasStep):
     effect_keys: tuple[str, ...] = ("samples_stuck",)
 
@@ -67,6 +71,7 @@ class ImuStuckAxis(ImuBiasStep):
         return {"samples_stuck": self.dev.faults.stuck_samples}
 
 
+@injects("imu_saturation")
 class ImuSaturation(ImuBiasStep):
     effect_keys: tuple[str, ...] = ("samples_clipped",)
 
@@ -82,6 +87,7 @@ class ImuSaturation(ImuBiasStep):
         return {"samples_clipped": self.dev.faults.clipped}
 
 
+@injects("imu_dropped_datagrams")
 class ImuDroppedDatagrams(Injector):
     effect_keys: tuple[str, ...] = ("datagrams_dropped",)
 

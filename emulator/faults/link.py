@@ -9,7 +9,7 @@ import numpy as np
 
 from ..links.base import Link
 from ..links.line import LineConfig
-from .base import Injector, bind_error
+from .base import Injector, bind_error, injects
 from .targets import FaultTargets
 
 __all__ = ["LinkBaudMismatch", "LinkBitErrors", "LinkByteDrops", "LinkDisconnect", "LinkNoiseBurst", "LinkStall"]
@@ -60,6 +60,7 @@ class ByteFault(Injector):
         raise NotImplementedError
 
 
+@injects("link_bit_errors")
 class LinkBitErrors(ByteFault):
     """Bits flip at ``ber`` per bit on the wire. A flipped data bit corrupts the byte; a flipped start or
     stop bit is a framing error and a flipped parity bit a parity error (the receiver drops the byte)."""
@@ -113,6 +114,7 @@ class LinkBitErrors(ByteFault):
         return bytes(out)
 
 
+@injects("link_byte_drops")
 class LinkByteDrops(ByteFault):
     effect_keys: tuple[str, ...] = ("bytes_dropped",)
 
@@ -130,6 +132,7 @@ class LinkByteDrops(ByteFault):
         return bytes(b for i, b in enumerate(data) if i not in gone)
 
 
+@injects("link_noise_burst")
 class LinkNoiseBurst(LinkBitErrors):
     effect_keys: tuple[str, ...] = ("bytes_corrupted", "framing_errors", "parity_errors", "spurious_bytes")
 
@@ -148,6 +151,7 @@ class LinkNoiseBurst(LinkBitErrors):
         return bytes(buf)
 
 
+@injects("link_disconnect")
 class LinkDisconnect(ByteFault):
     effect_keys: tuple[str, ...] = ("bytes_lost",)
     directions = ("in", "out")
@@ -166,6 +170,7 @@ class LinkDisconnect(ByteFault):
         return b""
 
 
+@injects("link_stall")
 class LinkStall(ByteFault):
     """Bytes wait while the line is stalled, up to the transmitter's queue; the rest is lost. They go on
     when the stall ends (delivered at that instant: the line's pacing of the backlog is not modelled)."""
@@ -203,6 +208,7 @@ class LinkStall(ByteFault):
             self.link.deliver_held(self.directions[0], held)
 
 
+@injects("link_baud_mismatch")
 class LinkBaudMismatch(Injector):
     effect_keys: tuple[str, ...] = ("framing_errors", "parity_errors")
 

@@ -7,8 +7,10 @@ from typing import Any
 
 import numpy as np
 
+from protocols.constants import DEG
+
 from ..world.sky import SkyModel, SunOccluder, textured_cloud
-from .base import DEG, Injector, bind_error
+from .base import Injector, bind_error, injects
 from .targets import FaultTargets
 
 __all__ = ["PsnsCloudCover", "PsnsInstallationError", "PsnsSunOccluded", "PsnsUnitBlocked"]
@@ -23,6 +25,7 @@ def _psns(targets: FaultTargets, kind: str) -> tuple[Any, Any]:
     return cam, comp
 
 
+@injects("psns_cloud_cover")
 class PsnsCloudCover(Injector):
     effect_keys: tuple[str, ...] = ("rays_in_cloud",)
 
@@ -60,6 +63,7 @@ class PsnsCloudCover(Injector):
         self.t_on = t
 
 
+@injects("psns_sun_occluded")
 class PsnsSunOccluded(PsnsCloudCover):
     effect_keys: tuple[str, ...] = ("rays_near_sun_hidden",)
 
@@ -80,6 +84,7 @@ class PsnsSunOccluded(PsnsCloudCover):
         return {"rays_near_sun_hidden": self.cloud.hits if self.cloud is not None else 0}
 
 
+@injects("psns_unit_blocked")
 class PsnsUnitBlocked(Injector):
     def __init__(self, *a: Any) -> None:
         super().__init__(*a)
@@ -117,6 +122,7 @@ class PsnsUnitBlocked(Injector):
         return {"frames_blocked": self.cam.frames_blocked}
 
 
+@injects("psns_installation_error")
 class PsnsInstallationError(PsnsUnitBlocked):
     def __init__(self, *a: Any) -> None:
         super().__init__(*a)

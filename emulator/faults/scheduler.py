@@ -6,31 +6,16 @@ from typing import Any
 
 from ..devices.base import EventSink, device_rng
 from ..errors import ScenarioError
-from ..scenario.checks_schema import Fault
-from .base import Injector
-from .board import DspExtraLoad, FpgaChannelStall
-from .gnss import GnssDegraded, GnssGlitch, GnssOutage
-from .imu import ImuBiasStep, ImuDroppedDatagrams, ImuSaturation, ImuStuckAxis
-from .link import LinkBaudMismatch, LinkBitErrors, LinkByteDrops, LinkDisconnect, LinkNoiseBurst, LinkStall
-from .psns import PsnsCloudCover, PsnsInstallationError, PsnsSunOccluded, PsnsUnitBlocked
+from ..scenario.faults_schema import Fault
+from .base import Injector, injector_classes
 from .targets import FaultTargets
 
-__all__ = ["FIRMWARE_COUNTERS", "INJECTORS", "FaultScheduler", "acts_after_the_capture"]
+__all__ = ["FIRMWARE_COUNTERS", "FaultScheduler", "acts_after_the_capture"]
 
 #: firmware counters whose change over a fault's window is reported in ``fault_end``
 FIRMWARE_COUNTERS = ("gnss_fixes", "gnss_updates", "psns_frames", "psns_updates", "psns_rejected", "psns_invalid",
                      "compass_frames", "fpga_gyro_missing", "gyro_counter_jumps", "imu_frames", "imu_time_gaps")
 
-INJECTORS: dict[str, type[Injector]] = {
-    "gnss_outage": GnssOutage, "gnss_glitch": GnssGlitch, "gnss_degraded": GnssDegraded,
-    "psns_cloud_cover": PsnsCloudCover, "psns_unit_blocked": PsnsUnitBlocked,
-    "psns_sun_occluded": PsnsSunOccluded, "psns_installation_error": PsnsInstallationError,
-    "imu_bias_step": ImuBiasStep, "imu_stuck_axis": ImuStuckAxis, "imu_saturation": ImuSaturation,
-    "imu_dropped_datagrams": ImuDroppedDatagrams,
-    "link_bit_errors": LinkBitErrors, "link_byte_drops": LinkByteDrops, "link_noise_burst": LinkNoiseBurst,
-    "link_baud_mismatch": LinkBaudMismatch, "link_disconnect": LinkDisconnect, "link_stall": LinkStall,
-    "fpga_channel_stall": FpgaChannelStall, "dsp_extra_load": DspExtraLoad,
-}
 
 
 def acts_after_the_capture(f: Fault) -> bool:
@@ -62,7 +47,7 @@ class FaultScheduler:
             if replay and not acts_after_the_capture(f):  # its effect is in the captured bytes already
                 continue
             kind = f.kind
-            cls = INJECTORS[kind]
+            cls = injector_classes()[kind]
             try:
                 inj = cls(targets, kind, f.spec, i, device_rng(seed, f"fault:{i}:{kind}"))
             except ScenarioError as exc:

@@ -65,21 +65,6 @@ LINK_SCHEMES: dict[str, str] = {
 }
 
 _COMMON_OPTIONS = {"baud", "mode", "queue"}
-#: options a scheme accepts beyond the common ones (kept here so that validation needs no import)
-_SCHEME_OPTIONS: dict[str, frozenset[str]] = {
-    "pty": frozenset({"peer_baud"}),
-    "serial": frozenset({"pps"}),
-    "zenoh": frozenset({"role", "listen", "connect", "session", "config", "pace", "nav", "auth"}),
-    "can": frozenset({"dbc", "rate", "bitrate", "fd"}),
-}
-_USAGE = {
-    "mem": "mem://NAME[?baud=N&mode=8N1&queue=BYTES]",
-    "pty": "pty://NAME[?baud=N&mode=8N1&queue=BYTES&peer_baud=ignore|check]",
-    "serial": "serial:///dev/ttyXXX[?baud=N&mode=8N1&queue=BYTES&pps=dcd|cts]",
-    "zenoh": "zenoh://RUN/PORT[?role=device|peer&listen=tcp/127.0.0.1:7447&connect=tcp/HOST:PORT"
-             "&session=peer|client&config=FILE&pace=1|0&nav=tx|rx|off&auth=FILE&baud=N&mode=8N1&queue=BYTES]",
-    "can": "can://virtual/CHANNEL or can://socketcan/IFACE[?dbc=FILE&rate=HZ&bitrate=N&fd=0|1]",
-}
 
 
 def link_schemes() -> dict[str, str]:
@@ -112,17 +97,16 @@ def _plugin_class(scheme: str) -> type[Link] | None:
 
 
 def _usage(scheme: str) -> str:
-    if scheme in _USAGE:
-        return _USAGE[scheme]
-    cls = _plugin_class(scheme) if scheme not in LINK_SCHEMES else None
-    return str(getattr(cls, "url_usage", scheme + "://..."))
+    """The URL syntax the transport of ``scheme`` declares (:attr:`Link.url_usage`; a class entered under another
+    scheme than its own, e.g. by a plugin, does not speak for it)."""
+    cls = _transport_class(scheme)
+    usage = str(getattr(cls, "url_usage", "") or "")
+    return usage if usage and getattr(cls, "scheme", "") in ("", scheme) else scheme + "://..."
 
 
 def _options(scheme: str) -> frozenset[str]:
-    if scheme in LINK_SCHEMES:
-        return _SCHEME_OPTIONS.get(scheme, frozenset())
-    cls = _plugin_class(scheme)
-    return frozenset(getattr(cls, "url_options", frozenset()))
+    """The query options the transport of ``scheme`` accepts beyond the common ones (:attr:`Link.url_options`)."""
+    return frozenset(getattr(_transport_class(scheme), "url_options", frozenset()))
 
 
 class LinkUrl:
@@ -159,7 +143,10 @@ class LinkUrl:
 
 
 def parse_link_url(url: str, extra_options: frozenset[str] = frozenset()) -> LinkUrl:
-    """Split and validate a link URL (scheme known, options known)."""
+    """Split and validate a link URL: the one parser of every scheme. The scheme must be known, the options those
+    common to every link or declared by the transport (:attr:`Link.url_options`), and the target one the transport
+    accepts (:meth:`Link.check_target`); every error shows the transport's :attr:`Link.url_usage`. The transport's
+    module is imported to read these (transport modules import their I/O libraries only when a link opens)."""
     parts = urlsplit(url)
     scheme = parts.scheme
     schemes = LINK_SCHEMES if scheme in LINK_SCHEMES else link_schemes()
@@ -180,6 +167,9 @@ def parse_link_url(url: str, extra_options: frozenset[str] = frozenset()) -> Lin
         raise LinkConfigError(
             f"{url!r}: unknown option(s) {', '.join(sorted(unknown))}; expected {_usage(scheme)}"
         )
+    check = getattr(_transport_class(scheme), "check_target", None)
+    if callable(check):
+        check(url, target)
     return LinkUrl(url, scheme, target, options)
 
 

@@ -130,6 +130,10 @@ class Link:
     """
 
     scheme: ClassVar[str] = ""
+    #: The URL syntax this transport accepts, shown in every error about its URL (the one place it is written).
+    url_usage: ClassVar[str] = ""
+    #: Query options it accepts beyond the common ``baud``, ``mode``, ``queue``.
+    url_options: ClassVar[frozenset[str]] = frozenset()
     #: True when bytes arriving from outside are not paced by anyone else (pty, serial, zenoh).
     paces_input: ClassVar[bool] = True
     #: Wire time per write for transports with a real peer (0 = whole chunks).
@@ -137,6 +141,12 @@ class Link:
     #: True when the transport writes through :meth:`_hand_over` (:meth:`_write_out` safe to call from the
     #: paced writer's thread), so the realtime loop may run ahead of the wall clock with it open.
     deferred_write: ClassVar[bool] = False
+
+    @classmethod
+    def check_target(cls, url: str, target: str) -> None:
+        """Raise :class:`~emulator.errors.LinkConfigError` (with :attr:`url_usage`) when ``target``, the part of the
+        URL after ``SCHEME://``, is not one this transport can open. Called when a URL is parsed (a scenario is
+        validated), so a bad target is refused before anything runs; the default accepts any non-empty target."""
 
     def __init__(self, name: str, url: str, line: LineConfig, loop: asyncio.AbstractEventLoop) -> None:
         self.name = name

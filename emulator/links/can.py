@@ -206,17 +206,22 @@ class CanLink(Link):
     """Navigation output on CAN (see module docstring)."""
 
     scheme = "can"
+    url_usage = _USAGE
+    url_options = frozenset({"dbc", "rate", "bitrate", "fd"})
     paces_input = False
 
-    def __init__(self, name: str, url: str, line: LineConfig, loop: asyncio.AbstractEventLoop,
-                 target: str = "", **_: Any) -> None:
-        super().__init__(name, url, line, loop)
-        from . import parse_link_url
-
-        opts = parse_link_url(url).options
+    @classmethod
+    def check_target(cls, url: str, target: str) -> None:
         iface, _sep, channel = target.partition("/")
         if iface not in _INTERFACES or not channel:
             raise LinkConfigError(f"{url!r}: expected {_USAGE}")
+
+    def __init__(self, name: str, url: str, line: LineConfig, loop: asyncio.AbstractEventLoop,
+                 target: str = "", options: dict[str, str] | None = None, **_: Any) -> None:
+        super().__init__(name, url, line, loop)
+        opts = options or {}
+        self.check_target(url, target)
+        iface, _sep, channel = target.partition("/")
         self.interface, self.channel = iface, channel
         self.dbc_path = Path(opts["dbc"]) if "dbc" in opts else None
         try:

@@ -26,6 +26,7 @@ class MemLink(Link):
     """One end of an in-process link."""
 
     scheme = "mem"
+    url_usage = "mem://NAME[?baud=N&mode=8N1&queue=BYTES]"
     paces_input = False
 
     def __init__(self, name: str, url: str, line: LineConfig, loop: asyncio.AbstractEventLoop) -> None:

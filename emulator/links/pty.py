@@ -54,6 +54,8 @@ class PtyLink(Link):
     """A pseudo-terminal endpoint (see module docstring)."""
 
     scheme = "pty"
+    url_usage = "pty://NAME[?baud=N&mode=8N1&queue=BYTES&peer_baud=ignore|check]"
+    url_options = frozenset({"peer_baud"})
     paces_input = True
     slice_s = 0.001
     deferred_write = True

@@ -112,6 +112,8 @@ class SerialLink(Link):
     """A real serial port opened with pyserial."""
 
     scheme = "serial"
+    url_usage = "serial:///dev/ttyXXX[?baud=N&mode=8N1&queue=BYTES&pps=dcd|cts]"
+    url_options = frozenset({"pps"})
     paces_input = True
     slice_s = 0.001
     deferred_write = True

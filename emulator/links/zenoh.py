@@ -385,14 +385,18 @@ class ZenohLink(Link):
     """A link end whose far side is reached through zenoh (see module docstring)."""
 
     scheme = "zenoh"
+    url_usage = _USAGE
+    url_options = ZENOH_OPTIONS
     paces_input = True
 
-    def __init__(self, name: str, url: str, line: LineConfig, loop: asyncio.AbstractEventLoop,
-                 target: str = "", **_: Any) -> None:
-        super().__init__(name, url, line, loop)
-        from . import parse_link_url
+    @classmethod
+    def check_target(cls, url: str, target: str) -> None:
+        zenoh_key_prefix(target)
 
-        opts = parse_link_url(url).options
+    def __init__(self, name: str, url: str, line: LineConfig, loop: asyncio.AbstractEventLoop,
+                 target: str = "", options: dict[str, str] | None = None, **_: Any) -> None:
+        super().__init__(name, url, line, loop)
+        opts = options or {}
         self.run, self.port, self.key_prefix = zenoh_key_prefix(target)
         self.role = opts.get("role", "device")
         if self.role not in ("device", "peer"):

@@ -47,6 +47,7 @@ from typing import IO, Any, Protocol, TypeGuard
 from mcap.writer import Writer
 
 from protocols import __version__ as VERSION
+from protocols.constants import DEG
 from protocols.host import NavMode, describe_nav_mode
 from protocols.psns import PolarizationObs, PolarizationObsPacked
 
@@ -65,7 +66,6 @@ __all__ = ["CAMPAIGN_MCAP_NAME", "CAMPAIGN_TOPICS", "CSV_SOURCES", "MCAP_NAME", 
 MCAP_NAME = "run.mcap"
 #: the campaign's summary series, beside its members' run directories (:func:`write_campaign_mcap`)
 CAMPAIGN_MCAP_NAME = "campaign.mcap"
-DEG = math.pi / 180.0
 
 _TIME = {"type": "object", "title": "time", "properties": {"sec": {"type": "integer", "minimum": 0},
                                                            "nsec": {"type": "integer", "minimum": 0,

@@ -20,6 +20,7 @@ from operator import mul as _mul
 from typing import Any
 
 from firmware_model import earth
+from protocols.constants import DEG
 from protocols.host import NavMode, NavSolution
 
 from ..world.trajectory import Trajectory
@@ -30,7 +31,6 @@ __all__ = [
     "nav_vs_truth_rows_fast",
 ]
 
-DEG = math.pi / 180.0
 
 NAV_COLUMNS = [
     "time_s", "lat_deg", "lon_deg", "height_m", "vel_e_mps", "vel_n_mps", "vel_u_mps",

@@ -37,7 +37,7 @@ TRUNCATION_SLACK_S = 0.5
 
 
 def load_replay(capture: str | Path) -> tuple[Any, list[Any], dict[str, Any]]:
-    """``(scenario, records, header)`` of a capture, ready for :class:`emulator.assembly.runner.Emulator`."""
+    """``(scenario, records, header)`` of a capture, ready for :class:`emulator.assembly.session.Emulator`."""
     from ..scenario.loader import validate_scenario_data
     from ..scenario.schema import Scenario
 
@@ -103,7 +103,7 @@ def run_replay(capture: str | Path, run_dir: str | Path, mode: str = "fast", spe
                on_started: Callable[[Any], None] | None = None,
                progress: Callable[[float, float], None] | None = None, force: bool = False) -> dict[str, Any]:
     """Replay ``capture`` into a fresh DSP/firmware; returns the run summary."""
-    from ..assembly.runner import Emulator, run_emulator
+    from ..assembly.session import Emulator, run_emulator
 
     scn, all_records, header = load_replay(capture)
     records, times = replayable_records(all_records)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from .checks_schema import HookError, check_hook_path
+from .expectations_schema import HookError, check_hook_path
 from .presets import preset
 from .schema import Scenario
 from .sensor_schema import preset_of
@@ -202,6 +202,8 @@ SENSOR_PORTS = ("gyro", "gnss", "psns")
 
 def _port_directions(scn: Scenario) -> list[tuple[tuple[Any, ...], str]]:
     """``direction: out | tee`` needs a sensor port with a real endpoint (docs/runtime.md, "Sensor ports out")."""
+    from ..links import parse_link_url
+
     issues: list[tuple[tuple[Any, ...], str]] = []
     for port in ("gyro", "gnss", "psns", "host", "monitor", "host_nmea"):
         spec = getattr(scn.links, port, None)
@@ -211,10 +213,10 @@ def _port_directions(scn: Scenario) -> list[tuple[tuple[Any, ...], str]]:
         if port not in SENSOR_PORTS:
             issues.append((loc, f"links.{port} is not a sensor port: only {', '.join(SENSOR_PORTS)} can be bound "
                                 f"out (direction: out or tee); remove the direction"))
-        elif spec.url.startswith("mem://"):
+        elif (scheme := parse_link_url(spec.url).scheme) == "mem":
             issues.append((loc, f"direction: {spec.direction} binds the modelled sensor's stream to a real port, "
                                 f"but links.{port}.url is mem:// (in-process); use pty://, serial:// or zenoh://"))
-        elif spec.url.startswith("can://"):
+        elif scheme == "can":
             issues.append((loc, f"links.{port}: a sensor stream cannot go out on can:// (it carries the "
                                 f"navigation solution only)"))
     return issues

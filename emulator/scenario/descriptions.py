@@ -240,7 +240,6 @@ DESCRIPTIONS: dict[str, str] = {
     "AlignmentSpec.psns_heading_sigma_deg": "1 sigma of the initial heading from the polarization sensor, deg",
     "PsnsFirmwareSpec.dop_min": "PSNS frames with a lower degree of polarization are not used",
     "PsnsFirmwareSpec.min_sun_elevation_deg": "below this sun elevation no solar-vector update is made, deg",
-    "ModeManagerSpec.min_sun_elevation_deg": "below this sun elevation the mode manager uses no polarization, deg",
     # expectations
     "NavErrorBound.metric": "which error: attitude_deg, heading_deg, position_m or velocity_mps",
     "NavErrorBound.stat": "rms or max over the window",

@@ -1,5 +1,13 @@
 """The scenario's ``expectations`` section: one model per kind of check, their time windows, and the
-Python hooks (see :mod:`emulator.scenario.checks_schema`)."""
+Python hooks.
+
+Expectations (``emulator.verification.expectations`` evaluates them at the end of the run): a list; each item
+has exactly one key naming the kind of check. Time windows are ``after_s`` / ``until_s`` or
+``between_s: [a, b]`` (scenario seconds, inclusive). Cross-field checks (an expectation on a link the scenario does
+not have, a Python hook that does not import) are in :func:`emulator.scenario.cross_checks.cross_check`. An
+expectation window after the end of the run is not an error here (tests shorten library scenarios by overriding
+``duration_s``); it fails at the end with "nothing measured".
+"""
 
 from __future__ import annotations
 

@@ -1,5 +1,19 @@
-"""The scenario's ``faults`` section: one model per fault kind, each with its schedule (see
-:mod:`emulator.scenario.checks_schema`)."""
+"""The scenario's ``faults`` section: one model per fault kind, each with its schedule.
+
+Faults (``emulator.faults`` injects them): a list; each item has exactly one key naming the
+fault, whose value holds its parameters and its schedule ``start_s`` (default 0) and
+``duration_s`` (omitted: until the end of the run)::
+
+    faults:
+      - gnss_outage: {start_s: 60, duration_s: 30}
+      - link_bit_errors: {link: gnss, ber: 1.0e-3, start_s: 10, duration_s: 20}
+
+Every fault must show evidence that it took effect while it was active (bytes corrupted,
+epochs without a fix, samples clipped...); a fault without evidence makes the run invalid.
+Cross-field checks that need the whole scenario (a fault at a time outside the run, on a link or a sensor the
+scenario does not have) are in :func:`emulator.scenario.cross_checks.cross_check`, which the loader runs after the
+schema validation.
+"""
 
 from __future__ import annotations
 

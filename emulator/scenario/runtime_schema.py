@@ -49,7 +49,9 @@ class LinkSpec(Model):
     @property
     def modelled(self) -> bool:
         """Whether the modelled sensor drives this port (a ``mem://`` URL, or direction ``out`` / ``tee``)."""
-        return self.url.startswith("mem://") or self.direction != "in"
+        from ..links import parse_link_url
+
+        return parse_link_url(self.url).scheme == "mem" or self.direction != "in"
 
     @field_validator("url")
     @classmethod

@@ -12,12 +12,12 @@ A scenario file is one YAML mapping::
     fpga        {routing: {port: uartN}, uarts: {uartN: {baud, queue_bytes}}}
     dsp         {clock_hz}
     firmware    {filter, precision, output_rate_hz, kf_predict_every, alignment: {...}}
-    faults      [ {gnss_outage: {start_s, duration_s}} ... ]    scheduled faults (checks_schema)
-    expectations [ {nav_error: {...}} ... ]                   checks at the end (checks_schema)
+    faults      [ {gnss_outage: {start_s, duration_s}} ... ]    scheduled faults (faults_schema)
+    expectations [ {nav_error: {...}} ... ]                   checks at the end (expectations_schema)
 
 Unknown keys anywhere are errors. ``docs/scenarios.md`` is the guide. Each section lives in the
 module of the subsystem that owns it (``world_schema``, ``sensor_schema``, ``runtime_schema``,
-``firmware_schema``, ``checks_schema``); this module assembles them.
+``firmware_schema``, ``faults_schema``, ``expectations_schema``); this module assembles them.
 """
 
 from __future__ import annotations
@@ -28,11 +28,10 @@ from typing import Any, Literal
 from pydantic import Field, PrivateAttr, field_validator, model_validator
 
 from .base import Model
-from .checks_schema import (
+from .expectations_schema import (
     DspBound,
     EventExpectation,
     Expectation,
-    Fault,
     LinkCounterBound,
     NavErrorBound,
     NavModeExpectation,
@@ -40,6 +39,7 @@ from .checks_schema import (
     PythonHook,
     SummaryValueBound,
 )
+from .faults_schema import Fault
 from .firmware_schema import AlignmentSpec, FirmwareSpec
 from .runtime_schema import DspSpec, FpgaSpec, Links, LinkSpec, UartSpec
 from .sensor_schema import AccelSpec, GnssErrorSpec, GnssSpec, GyroSpec, ImuSpec, Sensors

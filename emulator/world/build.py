@@ -8,6 +8,8 @@ from typing import Any
 
 import numpy as np
 
+from protocols.constants import DEG
+
 from ..errors import ScenarioError
 from ..scenario.schema import Scenario
 from ..scenario.world_schema import MotionSegment
@@ -16,7 +18,6 @@ from .trajectory import Phase, SegmentTrajectory, StaticTrajectory, Trajectory
 
 __all__ = ["build_trajectory", "phases_from_segments", "trajectory_from_segments"]
 
-DEG = math.pi / 180.0
 #: Largest pitch a manoeuvre may reach (the Euler angles are singular at +-90 deg), rad.
 PITCH_LIMIT = 89.0 * DEG
 

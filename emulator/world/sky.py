@@ -68,6 +68,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from protocols.constants import DEG
+
 __all__ = [
     "NEUTRAL_POINT_SEP_DEG",
     "Cloud",
@@ -82,7 +84,6 @@ __all__ = [
     "textured_cloud",
 ]
 
-DEG = math.pi / 180.0
 #: Radiance of the ground relative to the sky (a diffuse, unpolarized surface).
 GROUND_RADIANCE = 0.3
 #: Maximum DOP of pure molecular scattering: (1 - rho) / (1 + rho) with the depolarization factor of air

@@ -25,11 +25,12 @@ import math
 import numpy as np
 from pvlib import spa
 
+from protocols.constants import DEG
+
 from . import geodesy
 
 __all__ = ["AU_M", "SunModel", "sun_vector_from_az_el"]
 
-DEG = math.pi / 180.0
 #: Astronomical unit, m (IAU 2012).
 AU_M = 149_597_870_700.0
 NODE_STEP_S = 60.0

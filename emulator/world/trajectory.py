@@ -54,7 +54,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from protocols.constants import OMEGA_IE
+from protocols.constants import DEG, OMEGA_IE
 
 from . import geodesy
 from .frames import cbn_from_euler, euler_from_cbn, heading_from_yaw, yaw_from_heading
@@ -69,7 +69,6 @@ __all__ = [
     "euler_to_cbn",
 ]
 
-DEG = math.pi / 180.0
 TWO_PI = 2.0 * math.pi
 #: Spacing of the position nodes inside moving phases, s.
 NODE_STEP_S = 0.2

@@ -26,9 +26,10 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.signal import firwin2, lfilter
 
-__all__ = ["G_STD", "VibrationModel", "psd_at", "psd_integral"]
+from protocols.constants import G_STD
 
-G_STD = 9.80665
+__all__ = ["VibrationModel", "psd_at", "psd_integral"]
+
 #: FIR length (odd: linear phase, type I); at 200 Hz a resolution of ~0.4 Hz
 NUMTAPS = 513
 #: samples drawn per block

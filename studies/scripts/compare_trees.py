@@ -36,7 +36,7 @@ _CHILD = """
 import json, sys, tempfile, time
 from pathlib import Path
 sys.path.insert(0, ".")
-from emulator.assembly.runner import run_scenario
+from emulator.assembly.session import run_scenario
 from emulator.scenario import load_scenario
 duration_s, out = float(sys.argv[1]), (sys.argv[2] if len(sys.argv) > 2 else None)
 scn = load_scenario(Path("scenarios/bench_vehicle_loop_10min.yaml")).model_copy(update={"duration_s": duration_s})

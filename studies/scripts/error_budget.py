@@ -37,7 +37,7 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
-from emulator.assembly.runner import run_scenario  # noqa: E402
+from emulator.assembly.session import run_scenario  # noqa: E402
 from emulator.testing import load_test_scenario  # noqa: E402
 
 CLEAR = {"sky.model": "rayleigh"}

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from emulator.assembly.runner import run_scenario
+from emulator.assembly.session import run_scenario
 from emulator.testing import load_test_scenario
 from firmware_model.variants import federated as fed
 

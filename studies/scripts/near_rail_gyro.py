@@ -60,7 +60,7 @@ def corpus() -> None:
 
 
 def e2e(out: Path) -> None:
-    from emulator.assembly.runner import run_scenario
+    from emulator.assembly.session import run_scenario
     from emulator.scenario import load_scenario
 
     data = yaml.safe_load(Path("scenarios/quickstart.yaml").read_text())

@@ -30,7 +30,7 @@ REFERENCE = ROOT / "scenarios" / "bench_vehicle_loop_10min.yaml"
 
 def count(scenario: Path, t0: float, t1: float) -> collections.Counter[tuple[str, int, str]]:
     """Bytecodes executed per function ``(file, first line, name)`` between scenario times ``t0`` and ``t1`` (s)."""
-    from emulator.assembly.runner import run_scenario
+    from emulator.assembly.session import run_scenario
     from emulator.scenario import load_scenario
 
     ops: collections.Counter[tuple[str, int, str]] = collections.Counter()

@@ -41,7 +41,7 @@ def _key(f: FrameType) -> str:
 def sample(scenario: Path, duration_s: float,
            interval_s: float = 0.0005) -> tuple[float, int, dict[str, collections.Counter[str]]]:
     """Run ``scenario`` for ``duration_s`` (fast mode) under the sampler: (CPU s, samples, counters)."""
-    from emulator.assembly.runner import run_scenario
+    from emulator.assembly.session import run_scenario
     from emulator.scenario import load_scenario
 
     own: collections.Counter[str] = collections.Counter()

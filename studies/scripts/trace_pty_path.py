@@ -61,7 +61,7 @@ _EMULATOR = r"""
 import json, os, sys
 from pathlib import Path
 from emulator.clock import PacedWriter
-from emulator.assembly.runner import run_scenario
+from emulator.assembly.session import run_scenario
 from emulator.scenario import load_scenario
 from protocols.host import HostFormat, NavSolution
 from protocols.imu_frame import ImuFrameFormat

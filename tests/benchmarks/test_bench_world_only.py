@@ -7,7 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from benchmarks.bench_realtime_factor import REFERENCE, WORLD_ONLY
-from emulator.assembly.runner import run_scenario
+from emulator.assembly.session import run_scenario
 from emulator.recording.capture import read_capture
 from emulator.scenario import load_scenario
 

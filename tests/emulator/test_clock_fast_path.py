@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from emulator import clock
-from emulator.assembly.runner import run_scenario
+from emulator.assembly.session import run_scenario
 from emulator.clock import FAST_PATH_VERSIONS, EmulatorLoop, fast_path_supported
 from emulator.testing import load_test_scenario
 from tests.conftest import SCENARIOS

@@ -22,7 +22,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from emulator.assembly.runner import run_scenario
+from emulator.assembly.session import run_scenario
 from emulator.plugins import filter_names
 from emulator.scenario import load_scenario
 from protocols.host import HostFormat, NavSolution

@@ -12,7 +12,7 @@ import pytest
 import yaml
 
 import emulator.plugins as plugins
-from emulator.assembly.runner import run_scenario
+from emulator.assembly.session import run_scenario
 from emulator.errors import LinkConfigError
 from emulator.links import parse_link_url
 from emulator.scenario import load_scenario

@@ -9,7 +9,6 @@ dtypes: ``==`` is then bit equality, and running the reference first cannot chan
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from typing import Any
 
@@ -19,10 +18,10 @@ import pytest
 from firmware_model.attitude import a2mat, mat2q, q2mat, q2mat_fast
 from firmware_model.nav_state import NavState
 from firmware_model.strapdown import coning_sculling, coning_sculling_fast, strapdown_step, strapdown_step_fast
+from protocols.constants import DEG
 
 __all__ = ["CASES"]
 
-DEG = math.pi / 180.0
 T = 0.005
 
 #: (pitch, roll, yaw deg; vE, vN, vU m/s; lat, lon deg, h m; a_prev ENU m/s^2)

@@ -17,6 +17,7 @@ import numpy as np
 
 from firmware_model import Firmware, FirmwareConfig, earth
 from firmware_model.attitude import heading_from_yaw, m2att, q2mat
+from protocols.constants import DEG
 from protocols.crc import nmea_checksum
 from protocols.host import HostFormat, NavSolution
 from protocols.imu_frame import ImuFrame, ImuFrameFormat
@@ -26,7 +27,6 @@ from protocols.ubx import NavPvt, encode_nav_pvt
 
 from .synth import SensorErrors, StaticTruth, StreamConfig, static_stream
 
-DEG = math.pi / 180.0
 UART_IMU, UART_GNSS = 1, 3
 Stream = Iterator[tuple[float, int, bytes]]
 

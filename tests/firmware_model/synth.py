@@ -23,6 +23,7 @@ import numpy as np
 from firmware_model import earth, sun
 from firmware_model.attitude import a2mat, yaw_from_heading
 from firmware_model.psns_geometry import CameraGeometry
+from protocols.constants import DEG, DPH, G_STD
 from protocols.imu_frame import ACCEL_VOLTS_PER_G, ADC_VOLTS_PER_LSB, FpgaStatus, ImuFrame, ImuFrameFormat
 from protocols.nmea import build_gga, build_rmc
 from protocols.psns import PolarizationPoint, PsnsHeader, PsnsStatus, encode_polarization_obs, encode_solar_vector
@@ -30,9 +31,6 @@ from protocols.stim import GYRO_ANGLE_LSB_DEG, GYRO_RATE_LSB_DPS
 
 from .sky import observe_sky
 
-DEG = math.pi / 180.0
-DPH = DEG / 3600.0
-G_STD = 9.80665
 UART_HOST, UART_IMU, UART_PSNS, UART_GNSS = 0, 1, 2, 3
 
 

@@ -1,14 +1,13 @@
 """Coarse alignment kernels: levelling and gravity + Sun TRIAD."""
 
-import math
 
 import numpy as np
 import pytest
 
 from firmware_model.alignment import level_from_specific_force, solar_heading_alignment, triad
 from firmware_model.attitude import a2mat, m2att, yaw_from_heading
+from protocols.constants import DEG
 
-DEG = math.pi / 180.0
 S_N = np.array([0.532125, -0.757852, 0.377496])  # Taiyuan case, docs/reference/algorithms.md section 3
 
 

@@ -15,12 +15,11 @@ from firmware_model import Firmware, FirmwareConfig, FirmwareError, earth
 from firmware_model.attitude import heading_from_yaw, m2att, q2mat, qconj, qmul
 from firmware_model.filters import FILTER_VARIANTS, BaseFilter, register_filter
 from firmware_model.tasks.state import FirmwareState
+from protocols.constants import DEG
 from protocols.host import HostFormat, NavMode, NavSolution
 from protocols.stream import StreamDecoder
 
 from .synth import SensorErrors, StaticTruth, StreamConfig, static_stream
-
-DEG = math.pi / 180.0
 
 #: Paper-grade sensors (the sensor figures of docs/architecture.md, one draw), the gyro z bias set to zero so that
 #: "heading stays at its initial misalignment" without PSNS is not blurred by a z-gyro drift.

@@ -11,8 +11,8 @@ from firmware_model.config import FirmwareConfig
 from firmware_model.filters import BaseFilter, GnssMeasurement, SolarObservation
 from firmware_model.kf import N_STATES, kf_update_scalar, solar_vector_residual, solar_vector_rows
 from firmware_model.strapdown import NavState
+from protocols.constants import DEG
 
-DEG = math.pi / 180.0
 S_N = np.array([-0.876416, -0.282797, 0.389770])
 
 

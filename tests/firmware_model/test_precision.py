@@ -11,8 +11,7 @@ import pytest
 from firmware_model.attitude import a2mat, mat2q
 from firmware_model.precision import rounder
 from firmware_model.strapdown import NavState, strapdown_step, strapdown_step_fast
-
-DEG = math.pi / 180.0
+from protocols.constants import DEG
 
 
 def test_rounded_double_operations_are_bit_identical_to_numpy_float32():

@@ -13,10 +13,10 @@ from firmware_model.psns_geometry import (
     compass_unit_mountings,
     compass_view_rays,
 )
+from protocols.constants import DEG
 
 from .sky import observe_sky, rayleigh, render_mosaic
 
-DEG = math.pi / 180.0
 S_BEIJING = np.array([-0.876416, -0.282797, 0.389770])  # docs/reference/algorithms.md section 3 (ENU)
 
 

@@ -14,6 +14,8 @@ import math
 import numpy as np
 import pytest
 
+from protocols.constants import DEG
+
 camera = pytest.importorskip("emulator.devices.camera")
 
 from emulator.world.sky import SkyModel  # noqa: E402
@@ -22,7 +24,6 @@ from emulator.world.trajectory import StaticTrajectory  # noqa: E402
 from firmware_model import psns  # noqa: E402
 from firmware_model.psns_geometry import CameraGeometry  # noqa: E402
 
-DEG = math.pi / 180.0
 EPOCH = dt.datetime(2019, 9, 18, 8, 14, tzinfo=dt.UTC)
 
 

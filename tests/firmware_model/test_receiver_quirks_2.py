@@ -19,6 +19,7 @@ from pyubx2 import GET, UBXMessage
 
 from emulator.devices.geoid import egm96_separation_m
 from firmware_model import Firmware, FirmwareConfig
+from protocols.constants import DEG
 from protocols.nmea_build import build_gga, build_gsa, build_rmc, build_sentence, build_zda
 
 from .synth import SensorErrors, StaticTruth, StreamConfig, static_stream
@@ -26,7 +27,6 @@ from .synth import SensorErrors, StaticTruth, StreamConfig, static_stream
 UART_IMU, UART_GNSS = 1, 3
 BAUD = 9600
 BYTE_S = 10 / BAUD
-DEG = math.pi / 180.0
 TRUTH = StaticTruth()
 
 

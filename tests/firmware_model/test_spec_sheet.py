@@ -34,8 +34,8 @@ from firmware_model.filters import (
 from firmware_model.kf import D_H, D_LON, N_STATES
 from firmware_model.nav_state import NavState
 from firmware_model.spec_sheet import SensorSpecSheet, SpecSheetError
+from protocols.constants import DEG
 
-DEG = math.pi / 180.0
 SHEETS = Path(__file__).resolve().parents[2] / "firmware_model" / "spec_sheets"
 
 

@@ -8,8 +8,7 @@ import pytest
 from firmware_model import earth
 from firmware_model.attitude import a2mat, m2att, mat2q, q2mat, yaw_from_heading
 from firmware_model.strapdown import NavState, strapdown_step
-
-DEG = math.pi / 180
+from protocols.constants import DEG
 
 
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])

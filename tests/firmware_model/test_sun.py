@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 
 from firmware_model import c674x, sun
-
-DEG = math.pi / 180.0
+from protocols.constants import DEG
 
 
 def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:

@@ -9,6 +9,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from protocols.constants import DEG
+
 from ...world.frames import cbn_from_euler, rotvec_matrix, yaw_from_heading
 from .optics import LensModel, SensorDefects
 
@@ -27,7 +29,6 @@ __all__ = [
     "wire_aop_cdeg",
 ]
 
-DEG = math.pi / 180.0
 IMX250MZR_NX = 2448
 IMX250MZR_NY = 2048
 IMX250MZR_PIXEL_M = 3.45e-6

@@ -7,9 +7,10 @@ from typing import Any
 
 import numpy as np
 
+from protocols.constants import G_STD
 from protocols.imu_frame import ADC_CODE_MAX, ADC_VOLTS_PER_LSB
 
-from .error_model import G_STD, AccelErrors, ImuTemperature, accel_error_model
+from .error_model import AccelErrors, ImuTemperature, accel_error_model
 from .injected import FaultableTriad, InjectedFaults
 from .lookahead import Ahead, ImuTruthTap, measure_ahead, sensor_input
 

@@ -10,13 +10,11 @@ from typing import ClassVar
 import numpy as np
 from scipy.signal import lfilter
 
+from protocols.constants import DEG, DPH, G_STD
 from protocols.imu_frame import ACCEL_VOLTS_PER_G
 
 __all__ = [
     "BLOCK",
-    "DEG",
-    "DPH",
-    "G_STD",
     "AccelErrors",
     "FlickerBank",
     "GyroErrors",
@@ -26,9 +24,6 @@ __all__ = [
     "gyro_error_model",
 ]
 
-DEG = math.pi / 180.0
-DPH = DEG / 3600.0
-G_STD = 9.80665
 BLOCK = 200
 
 #: Base-paper limits (docs/architecture.md); the presets use them as 3 sigma.

@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from protocols.constants import DEG
 from protocols.stim import (
     GYRO_ANGLE_LSB_DEG,
     GYRO_RATE_LSB_DPS,
@@ -18,7 +19,7 @@ from protocols.stim import (
 )
 
 from ...links.base import Link
-from .error_model import DEG, GyroErrors, ImuTemperature, gyro_error_model
+from .error_model import GyroErrors, ImuTemperature, gyro_error_model
 from .injected import FaultableTriad, InjectedFaults
 from .lookahead import Ahead, ImuTruthTap, delayed_interval, measure_ahead, sensor_input
 

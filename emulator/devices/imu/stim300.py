@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from protocols.constants import G_STD
 from protocols.stim import TEMP_LSB_DEGC
 from protocols.stim300 import INCL_LSB_G, STIM300_ACCEL_LSB_G, STIM300_DATAGRAMS, Stim300Datagram, Stim300Format
 
@@ -30,7 +31,6 @@ __all__ = ["STIM300_ACCEL_RANGE_G", "Stim300Imu"]
 
 #: accelerometer range option of the modelled unit, g (TS1524 r31: 5, 10, 30 or 80 g)
 STIM300_ACCEL_RANGE_G = 10
-G0 = 9.80665
 
 
 class Stim300Imu(Stim210Gyro):
@@ -58,7 +58,7 @@ class Stim300Imu(Stim210Gyro):
         v = self.tap.vibration_at(t1)
         if v is not None:
             f = f + v
-        w = np.clip(np.round(f / (lsb_g * G0)), -0x800000, 0x7FFFFF).astype(np.int64)
+        w = np.clip(np.round(f / (lsb_g * G_STD)), -0x800000, 0x7FFFFF).astype(np.int64)
         return (int(w[0]), int(w[1]), int(w[2]))
 
     def _transmit(self, t: float, t_c: float, gyro_words: tuple[int, int, int], status: int = 0) -> None:

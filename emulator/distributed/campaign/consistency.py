@@ -42,6 +42,8 @@ from typing import Any
 
 import numpy as np
 
+from protocols.constants import DEG
+
 from ...scenario.consistency_schema import DEFAULT_GROUPS, MEASUREMENT_TYPES, STATE_GROUPS, chi2_bounds, min_runs
 
 __all__ = [
@@ -53,7 +55,6 @@ __all__ = [
     "min_runs",
 ]
 
-DEG = math.pi / 180.0
 
 def _rows(path: Path) -> list[dict[str, str]]:
     with open(path, newline="", encoding="utf-8") as f:

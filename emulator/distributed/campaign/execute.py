@@ -49,7 +49,7 @@ def run_member(task: MemberTask) -> dict[str, Any]:
                            "error": None, "traceback": None, "passed": None, "expectations": [],
                            "run_dir": task.run_dir}
     try:
-        from ...assembly.runner import run_scenario
+        from ...assembly.session import run_scenario
         from ...scenario.loader import validate_scenario_data
 
         base = Path(task.base_dir) if task.base_dir is not None else None
@@ -92,7 +92,7 @@ def run_member(task: MemberTask) -> dict[str, Any]:
 
 def warm_up() -> bool:
     """Import what a member needs (run on every worker with ``client.run(warm_up)`` before timing)."""
-    from ...assembly import runner  # noqa: F401
+    from ...assembly import session  # noqa: F401
     from ...scenario import loader  # noqa: F401
 
     return True

@@ -1,7 +1,7 @@
 """Split-process runs: the virtual DSP in its own OS process, joined to the virtual FPGA over zenoh.
 
 ``psns-hil run --split SCENARIO`` runs the scenario with the same assembly as a single-process run
-(:class:`emulator.assembly.runner.Emulator`), cut at the FPGA-DSP UARTs:
+(:class:`emulator.assembly.session.Emulator`), cut at the FPGA-DSP UARTs:
 
 * the **FPGA process** (this one) holds the world, the sensors, the external ports, the virtual FPGA
   and the recorder. Its ends of UART0-3 are :class:`~emulator.links.zenoh.ZenohLink` s

@@ -14,7 +14,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from ...assembly.runner import UART_NUM, Emulator
+from ...assembly.ports import UART_NUM
+from ...assembly.session import Emulator
 from ...clock import EmulatorLoop
 from ...links import MemHub
 from ...links.zenoh import ZenohEndpointConfig, ZenohLink

@@ -15,7 +15,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from ...assembly.runner import Emulator, run_emulator
+from ...assembly.session import Emulator, run_emulator
 from ...links.zenoh import AUTH_ENV, ZenohEndpointConfig, ZenohLink
 from ...scenario.schema import Scenario
 from .control import READY_TIMEOUT_S, STOP_TIMEOUT_S, SplitControl, SplitError, free_tcp_port
@@ -59,7 +59,7 @@ def _wait_matched_sync(links: list[ZenohLink], timeout_s: float) -> list[str]:
 class SplitFpgaEmulator(Emulator):
     """The FPGA side of a split run (see module docstring); a realtime :class:`Emulator`.
 
-    Parameters are those of :class:`~emulator.assembly.runner.Emulator`; ``python`` is the interpreter that runs
+    Parameters are those of :class:`~emulator.assembly.session.Emulator`; ``python`` is the interpreter that runs
     the DSP process (default this one).
     """
 
@@ -240,6 +240,6 @@ def run_split(scn: Scenario, run_dir: Path, speed: float | None = None, seed: in
               progress: Callable[[float, float], None] | None = None,
               on_started: Callable[[Emulator], None] | None = None) -> dict[str, Any]:
     """Run ``scn`` split in two processes (realtime); returns the summary like
-    :func:`~emulator.assembly.runner.run_scenario`."""
+    :func:`~emulator.assembly.session.run_scenario`."""
     emu = SplitFpgaEmulator(scn, run_dir, seed=seed, progress=progress)
     return run_emulator(emu, speed if speed is not None else scn.speed, on_started)

@@ -5,7 +5,7 @@ import json
 
 import pytest
 
-from emulator.assembly.runner import run_scenario
+from emulator.assembly.session import run_scenario
 from emulator.recording.capture import read_capture
 from emulator.scenario import load_scenario
 from protocols.imu_frame import ImuFrameFormat

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from emulator.assembly.runner import run_scenario
+from emulator.assembly.session import run_scenario
 from emulator.testing import load_test_scenario
 from tests.conftest import SCENARIOS
 

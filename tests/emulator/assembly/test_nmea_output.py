@@ -28,7 +28,7 @@ ALL = ["GGA", "RMC", "VTG", "ZDA", "HDT", "THS", "PASHR"]
 
 
 def _run(tmp_path, **extra):
-    from emulator.assembly.runner import run_scenario
+    from emulator.assembly.session import run_scenario
     from emulator.testing import load_test_scenario
 
     motion = [{"static": {"duration_s": 4.0}}, {"accelerate": {"duration_s": 3.0, "to_speed_mps": 8.0}},
@@ -163,7 +163,7 @@ def test_the_full_box_carries_nmea_on_uart0_and_the_fpga_splits_it(tmp_path):
     """Camera on UART2, GNSS on UART3, ``links.host_nmea`` without a route (issue 38): the firmware writes NMEA and
     NAV_SOLUTION on UART0, the FPGA sends the binary frames to the host port and the sentences to host_nmea; nothing
     is lost or misrouted, and the host's NAV_SOLUTION frames are those of a run without NMEA, bit for bit."""
-    from emulator.assembly.runner import run_scenario
+    from emulator.assembly.session import run_scenario
     from emulator.recording.capture import read_capture
     from emulator.testing import load_test_scenario
 
@@ -236,7 +236,7 @@ def test_host_demux_splits_interleaved_frames_in_any_chunking():
 def test_psns_text_output_switched_on_from_the_scenario(tmp_path):
     """``firmware.text_rate_hz: 10`` with ``links.host_nmea``: the $PSNS text (docs/icd.md 7) of every tenth
     NAV_SOLUTION goes out on the NMEA port, text only, and says what the binary frame says to its printed digits."""
-    from emulator.assembly.runner import run_scenario
+    from emulator.assembly.session import run_scenario
     from emulator.recording.capture import read_capture
     from emulator.testing import load_test_scenario
     from protocols.host import HostFormat, NavSolution

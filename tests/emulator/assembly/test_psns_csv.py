@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from emulator.assembly.runner import run_scenario
+from emulator.assembly.session import run_scenario
 from emulator.errors import ScenarioError
 from emulator.recording.summary_model import load_summary
 from emulator.scenario.loader import load_scenario

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from emulator.assembly.runner import resolve_mode, run_scenario
+from emulator.assembly.ports import resolve_mode
+from emulator.assembly.session import run_scenario
 from emulator.errors import ScenarioError
 from emulator.testing import load_test_scenario
 from tests.conftest import SCENARIOS

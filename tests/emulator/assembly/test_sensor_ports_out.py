@@ -256,7 +256,7 @@ def test_port_map_and_summary_show_each_ports_direction_and_unheard_bytes(tmp_pa
     goes; what the bound port carried is counted as unheard (no_peer_out), not dropped."""
     import io
 
-    from emulator.assembly.runner import run_scenario
+    from emulator.assembly.session import run_scenario
     from emulator.cli.main import print_port_map
 
     scn = load_test_scenario(QS, _ov(3.0, **{"links.gnss.url": "pty://gnss", "links.gnss.direction": "tee"}))
@@ -277,7 +277,7 @@ def test_port_map_and_summary_show_each_ports_direction_and_unheard_bytes(tmp_pa
 def test_a_psns_compass_stream_tees_like_the_others(tmp_path):
     """The polarization compass on links.psns (tee, nobody attached, fast mode): every frame the FPGA got also went
     to the port, and the firmware still solves them."""
-    from emulator.assembly.runner import run_scenario
+    from emulator.assembly.session import run_scenario
 
     scn = load_test_scenario(QS, _ov(3.0, **{"links.psns": {"url": "pty://psns", "direction": "tee"},
                                              "sensors.compass": {"enabled": True, "rate_hz": 5.0}}))

@@ -24,10 +24,10 @@ from emulator.links import LineConfig, MemHub
 from emulator.world.sky import SkyModel
 from emulator.world.sun import SunModel
 from emulator.world.trajectory import StaticTrajectory
+from protocols.constants import DEG
 from protocols.psns import PolarizationObs, PsnsFormat, PsnsStatus, max_points
 from protocols.stream import StreamDecoder
 
-DEG = math.pi / 180.0
 EPOCH = dt.datetime(2019, 9, 18, 8, 14, tzinfo=dt.UTC)  # sun az 252.1, el 22.9 in Beijing
 
 

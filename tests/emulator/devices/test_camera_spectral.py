@@ -10,7 +10,7 @@ import pytest
 
 from emulator.devices.camera.spectral import WireGrid, effective_extinction_ratio, skylight_weights
 from emulator.devices.sensors import camera_config
-from emulator.verification.harness import load_test_scenario
+from emulator.testing import load_test_scenario
 
 SCENARIOS = Path(__file__).resolve().parents[3] / "scenarios"
 LAM = np.arange(400.0, 1000.5, 1.0)

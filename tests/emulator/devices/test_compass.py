@@ -18,7 +18,6 @@ from emulator.world.trajectory import StaticTrajectory
 from protocols.psns import CompassFrame, PsnsFormat, PsnsStatus
 from protocols.stream import StreamDecoder
 
-DEG = math.pi / 180.0
 EPOCH = dt.datetime(2019, 12, 1, 2, 0, tzinfo=dt.UTC)  # Taiyuan reference case
 
 

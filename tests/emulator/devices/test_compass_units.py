@@ -4,7 +4,6 @@ injector maps onto CompassModel.block_units)."""
 from __future__ import annotations
 
 import datetime as dt
-import math
 
 import numpy as np
 import pytest
@@ -18,7 +17,6 @@ from emulator.world.trajectory import StaticTrajectory
 from firmware_model.variants.common import compass_mountings
 from tests.conftest import SCENARIOS
 
-DEG = math.pi / 180.0
 THREE = compass_mountings([(0.0, 0.0), (45.0, 0.0), (45.0, 90.0)])
 
 

@@ -16,8 +16,7 @@ from emulator.scenario.sensor_schema import Sensors, preset_of
 from emulator.world.sky import SkyModel
 from emulator.world.sun import SunModel
 from emulator.world.trajectory import StaticTrajectory
-
-DEG = math.pi / 180.0
+from protocols.constants import DEG
 
 
 class _Scn:

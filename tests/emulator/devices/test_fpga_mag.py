@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from emulator.assembly.runner import run_scenario
+from emulator.assembly.session import run_scenario
 from emulator.recording.capture import read_capture
 from emulator.testing import load_test_scenario
 from protocols import imu_frame

@@ -14,11 +14,11 @@ from emulator.devices.gnss import GnssConfig, GnssErrorModel, GnssErrors, GnssGl
 from emulator.links import LineConfig, MemHub
 from emulator.world.trajectory import StaticTrajectory
 from firmware_model import earth
+from protocols.constants import DEG
 from protocols.nmea import Gga, NmeaFormat, Rmc
 from protocols.stream import StreamDecoder
 
 EPOCH = dt.datetime(2019, 9, 18, 8, 14, tzinfo=dt.UTC)
-DEG = math.pi / 180.0
 
 
 def test_error_statistics_match_the_configured_sigma_within_10_percent():

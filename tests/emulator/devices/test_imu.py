@@ -19,9 +19,8 @@ from emulator.devices.imu import (
 )
 from emulator.scenario.presets import preset, preset_names
 from emulator.scenario.schema import Scenario
+from protocols.constants import DEG, DPH
 
-DEG = math.pi / 180.0
-DPH = DEG / 3600.0
 G = 9.80665
 
 

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from emulator.devices.imu import AccelErrors, AnalogAccelerometers, GyroErrors, ImuTemperature, ImuTruthTap, Stim210Gyro
-from emulator.devices.imu.error_model import DPH
 from emulator.devices.sensors import imu_temperature
 from emulator.scenario import load_scenario
+from protocols.constants import DPH
 from tests.emulator.still_truth import still_truth
 
 SCENARIOS = Path(__file__).resolve().parents[3] / "scenarios"

@@ -18,8 +18,7 @@ from emulator.devices.magnetometer import (
 )
 from emulator.world.trajectory import StaticTrajectory
 from firmware_model.attitude import a2mat, yaw_from_heading
-
-DEG = math.pi / 180.0
+from protocols.constants import DEG
 
 
 def test_beijing_defaults_are_igrf():

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import asyncio
 import datetime as dt
-import math
 
 import numpy as np
 import pytest
@@ -18,11 +17,11 @@ from emulator.links import LineConfig, MemHub
 from emulator.world.sky import SkyModel
 from emulator.world.sun import SunModel
 from emulator.world.trajectory import StaticTrajectory
+from protocols.constants import DEG
 from protocols.nmea import Gga, NmeaFormat, build_gga, build_rmc
 from protocols.stream import StreamDecoder
 
 EPOCH = dt.datetime(2019, 9, 18, 8, 14, tzinfo=dt.UTC)
-DEG = math.pi / 180.0
 
 
 def write_imu(path, t, w_dps, f):

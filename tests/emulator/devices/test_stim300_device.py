@@ -66,7 +66,7 @@ def test_stim300_datagrams_on_the_gyro_link(ident: str) -> None:
 
 
 def test_a_run_with_a_stim300_on_the_gyro_port_navigates(tmp_path) -> None:
-    from emulator.assembly.runner import run_scenario
+    from emulator.assembly.session import run_scenario
 
     scn = _scenario("0x93")
     scn.duration_s = 8.0

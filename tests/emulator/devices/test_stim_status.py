@@ -6,7 +6,6 @@ and the per-trigger path (recorded data, injected faults). The FPGA passes the b
 from __future__ import annotations
 
 import asyncio
-import math
 
 import numpy as np
 
@@ -15,10 +14,9 @@ from emulator.devices.imu import GyroErrors, ImuTruthTap, Stim210Gyro
 from emulator.links import LineConfig, MemHub
 from emulator.scenario.presets import preset
 from emulator.world.trajectory import StaticTrajectory
+from protocols.constants import DEG
 from protocols.stim import GYRO_RATE_LSB_DPS, Stim210Format, StimStatus
 from protocols.stream import StreamDecoder
-
-DEG = math.pi / 180.0
 
 
 def _datagrams(errs: GyroErrors, source=None, n: int = 10):

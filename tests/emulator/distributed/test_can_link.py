@@ -236,7 +236,7 @@ def test_a_run_with_the_host_port_on_can_sends_every_nav_frame(tmp_path, rx_bus)
     """The whole box: DSP UART0 -> FPGA HOST port = can://virtual/CH; CAN frames decode to nav.csv's values."""
     import csv
 
-    from emulator.assembly.runner import run_scenario
+    from emulator.assembly.session import run_scenario
     from emulator.scenario import load_scenario
 
     from .conftest import write_short_scenario

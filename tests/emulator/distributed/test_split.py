@@ -16,7 +16,7 @@ import shutil
 
 import pytest
 
-from emulator.assembly.runner import run_emulator, run_scenario
+from emulator.assembly.session import run_emulator, run_scenario
 from emulator.distributed.split import SplitError, SplitFpgaEmulator
 from emulator.links.zenoh import open_sessions
 from emulator.recording.capture import read_capture

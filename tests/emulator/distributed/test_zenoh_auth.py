@@ -127,7 +127,7 @@ def test_a_split_run_refuses_an_uninvited_session_and_its_gnss_is_unaffected(tmp
     exactly the bytes the FPGA sent on UART3."""
     import zenoh
 
-    from emulator.assembly.runner import run_emulator
+    from emulator.assembly.session import run_emulator
     from emulator.distributed.split import SplitFpgaEmulator
     from emulator.scenario import load_scenario
 

@@ -222,7 +222,7 @@ def test_a_realtime_run_publishes_host_bytes_and_nav_json_over_zenoh(tmp_path):
 
     import zenoh
 
-    from emulator.assembly.runner import run_scenario
+    from emulator.assembly.session import run_scenario
     from emulator.scenario import load_scenario
     from protocols.host import HostFormat
     from protocols.stream import StreamDecoder

@@ -123,7 +123,7 @@ def test_a_boresight_error_the_calibration_knows_vs_one_it_does_not(tmp_path):
     file with the nominal boresight), the heading is off by about 0.5 deg."""
     from dataclasses import replace
 
-    from emulator.assembly.runner import run_scenario
+    from emulator.assembly.session import run_scenario
 
     perfect = calibration_for(_static_camera_scenario(tmp_path, "probe", "{source: perfect}"), 3)
     save_calibration(perfect, tmp_path / "known.json")
@@ -146,7 +146,7 @@ def test_a_polarizer_rotation_the_calibration_knows_vs_one_it_does_not(tmp_path)
     (the solved sun azimuth moves by 0.59 deg for 0.5 deg at this sun elevation of 23 deg, noise-free solve)."""
     from dataclasses import replace
 
-    from emulator.assembly.runner import run_scenario
+    from emulator.assembly.session import run_scenario
 
     turned = "defects: {orientation_bias_deg: [0.6, 0.4, 0.55, 0.45]}"  # the reference preset's + 0.5 deg
     perfect = calibration_for(_static_camera_scenario(tmp_path, "probe", "{source: perfect}", turned), 3)

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from emulator.assembly.runner import dsp_uart_baud
+from emulator.assembly.ports import dsp_uart_baud
 from emulator.dsp.host import UartRxConfig, UartRxModel
 from tests.conftest import SCENARIOS
 
@@ -102,7 +102,7 @@ def test_c6747_divisor_baud():
 
 
 def _short(overrides: dict, duration: float = 6.0):
-    from emulator.assembly.runner import run_scenario
+    from emulator.assembly.session import run_scenario
     from emulator.testing import load_test_scenario
 
     ov = {"duration_s": duration, "motion": [{"static": {"duration_s": duration}}], "expectations": []}
@@ -163,7 +163,7 @@ def test_garbage_on_the_imu_uart_does_not_starve_the_firmware(tmp_path):
     a BER of 0.05 leaves no such chance. The idle main loop empties the ring: the firmware ticks again as soon as
     clean frames arrive. (0.2 s: a gap under the firmware's 50-period time-step limit, so no frame after it is
     refused as a corrupt stamp.)"""
-    from emulator.assembly.runner import run_scenario
+    from emulator.assembly.session import run_scenario
     from emulator.testing import load_test_scenario
 
     dur = 4.0

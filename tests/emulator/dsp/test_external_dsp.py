@@ -27,7 +27,7 @@ import pytest
 import yaml
 from scipy.spatial.transform import Rotation
 
-from emulator.assembly.runner import Emulator, run_emulator
+from emulator.assembly.session import Emulator, run_emulator
 from emulator.recording.summary_model import load_summary
 from emulator.scenario import load_scenario
 from protocols.host import MSG_NAV_SOLUTION, NAV_SOLUTION_LEN, build_host_frame

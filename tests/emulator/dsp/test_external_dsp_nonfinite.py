@@ -11,7 +11,7 @@ import os
 
 import pytest
 
-from emulator.assembly.runner import Emulator, run_emulator
+from emulator.assembly.session import Emulator, run_emulator
 from emulator.scenario import load_scenario
 from protocols.host import NavMode, NavSolution, encode_host
 

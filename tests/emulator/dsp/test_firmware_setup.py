@@ -101,3 +101,34 @@ def test_the_firmware_knows_the_configured_ranges(tmp_path):
     cfg = firmware_config(_load(tmp_path, "sensors:\n  imu:\n    gyro: {range_dps: 300}\n"
                                           "    accel: {range_g: [10, 10, 12]}\n"))
     assert cfg.gyro_range_dps == 300.0 and cfg.accel_range_g == (10.0, 10.0, 12.0)
+
+
+def test_the_installed_unit_is_drawn_once_and_the_calibration_reads_that_draw(tmp_path, monkeypatch):
+    """The compass's true mountings (a random installation error) are drawn once per run and shared: the calibration
+    file is made from the very unit the sensor models were built with, not from a second draw under the same key."""
+    from dataclasses import replace
+
+    from scipy.spatial.transform import Rotation
+
+    import emulator.assembly.session as session
+    from emulator.devices import sensors
+    from emulator.devices.compass import default_mountings
+
+    scn = _load(tmp_path, "links:\n  psns: {url: \"mem://psns\"}\n"
+                          "sensors:\n  compass: {installation_error_sigma_deg: 0.5}\n"
+                          "firmware:\n  calibration: {source: perfect}\n")
+    unit = sensors.installed_unit(scn, 7)
+    # a unit turned by a known rotation: a calibration that re-drew the truth could not see it
+    turn = Rotation.from_rotvec([0.0, 0.0, 2.0], degrees=True).as_matrix()
+    turned = replace(unit, compass=replace(unit.compass, mountings=[m @ turn for m in unit.compass.mountings]))
+    got = np.array(calibration_for(scn, 7, turned).compass.unit_installation_deg)
+    want = np.array([Rotation.from_matrix(n.T @ m @ turn).as_rotvec(degrees=True)
+                     for n, m in zip(default_mountings(), unit.compass.mountings, strict=True)])
+    np.testing.assert_allclose(got, want, atol=1e-9)
+    assert not np.allclose(got, np.array(calibration_for(scn, 7).compass.unit_installation_deg))
+
+    calls = []
+    real = session.installed_unit
+    monkeypatch.setattr(session, "installed_unit", lambda *a: calls.append(a) or real(*a))
+    em = session.Emulator(scn, tmp_path / "run", seed=7)
+    assert em.unit is em.unit and len(calls) == 1

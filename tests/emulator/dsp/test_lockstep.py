@@ -33,7 +33,7 @@ import numpy as np
 import pytest
 import yaml
 
-from emulator.assembly.runner import Emulator, run_emulator
+from emulator.assembly.session import Emulator, run_emulator
 from emulator.cli.main import main as cli_main
 from emulator.dsp.lockstep import ALLOW_FIRMWARE_ENV
 from emulator.scenario import load_scenario

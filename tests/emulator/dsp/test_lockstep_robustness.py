@@ -22,7 +22,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from emulator.assembly.runner import Emulator, run_emulator
+from emulator.assembly.session import Emulator, run_emulator
 from emulator.cli.main import main as cli_main
 from emulator.dsp.lockstep import ALLOW_FIRMWARE_ENV
 from emulator.recording.summary_model import load_summary

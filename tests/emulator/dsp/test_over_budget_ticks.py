@@ -3,7 +3,7 @@ jitter as DSP deadline misses without saying so)."""
 
 from __future__ import annotations
 
-from emulator.assembly.runner import run_scenario
+from emulator.assembly.session import run_scenario
 from emulator.scenario.loader import load_scenario
 from tests.conftest import SCENARIOS
 

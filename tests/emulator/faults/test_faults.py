@@ -14,12 +14,12 @@ from typing import ClassVar
 import numpy as np
 import pytest
 
-from emulator.assembly.runner import run_scenario
+from emulator.assembly.session import run_scenario
 from emulator.scenario.presets import preset
 from emulator.testing import load_test_scenario
+from protocols.constants import DEG
 from tests.conftest import ROOT, SCENARIOS
 
-DEG = math.pi / 180.0
 G = 9.80665
 QS = SCENARIOS / "quickstart.yaml"
 CAM = SCENARIOS / "static_psns_camera.yaml"
@@ -184,7 +184,7 @@ def test_bit_errors_flip_bits_at_the_configured_rate():
     """The injector's bit-error count over many bytes follows Binomial(n bits, BER)."""
     from emulator.faults.link import LinkBitErrors
     from emulator.links import LineConfig, MemHub
-    from emulator.scenario.checks_schema import LinkBitErrorsFault
+    from emulator.scenario.faults_schema import LinkBitErrorsFault
 
     class Emu:
         links: ClassVar[dict] = {}
@@ -370,3 +370,14 @@ def test_a_fault_does_not_change_the_sensors_random_numbers(tmp_path):
     ra = [r for r in read_capture(a / "capture.psnscap")[1] if r.t_s < 3.0]
     rb = [r for r in read_capture(b / "capture.psnscap")[1] if r.t_s < 3.0]
     assert [(r.t_s, r.link, r.data) for r in ra] == [(r.t_s, r.link, r.data) for r in rb]
+
+
+def test_every_fault_kind_has_one_registered_injector():
+    from emulator.faults.base import INJECTORS, Injector, injector_classes, injects
+    from emulator.scenario.faults_schema import FAULT_KINDS
+
+    assert injector_classes() is INJECTORS
+    assert set(INJECTORS) == set(FAULT_KINDS)
+    assert all(issubclass(c, Injector) for c in INJECTORS.values())
+    with pytest.raises(ValueError, match="already has an injector"):
+        injects("gnss_outage")(type("Other", (Injector,), {}))

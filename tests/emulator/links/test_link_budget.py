@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import pytest
 
-from emulator.assembly.runner import run_scenario
+from emulator.assembly.session import run_scenario
 from emulator.links import LineConfig
 from emulator.testing import load_test_scenario
 from protocols.host import NAV_SOLUTION_LEN, STATUS_LEN, build_host_frame

@@ -144,7 +144,7 @@ def test_nan_and_backward_times_are_counted_and_monitor_says_so(tmp_path: Path) 
 
 @pytest.mark.slow
 def test_replay_reports_damaged_time_stamps_and_uses_every_other_record(tmp_path: Path) -> None:
-    from emulator.assembly.runner import run_scenario
+    from emulator.assembly.session import run_scenario
     from emulator.recording.replay import run_replay
     from emulator.scenario import load_scenario
 

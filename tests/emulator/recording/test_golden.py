@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from emulator.assembly.runner import run_scenario
+from emulator.assembly.session import run_scenario
 from emulator.recording.golden import (
     GOLDEN_DIR,
     compare_golden,

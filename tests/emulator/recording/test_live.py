@@ -26,7 +26,7 @@ from mcap.reader import make_reader
 from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import connect
 
-from emulator.assembly.runner import run_scenario
+from emulator.assembly.session import run_scenario
 from emulator.recording.live import RunDirFollower, parse_host_port
 from emulator.recording.mcap_out import CSV_SOURCES, RunFeeds, encode_message, write_run_mcap
 from emulator.scenario import load_scenario

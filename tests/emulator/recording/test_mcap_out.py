@@ -15,7 +15,7 @@ import pytest
 from mcap.reader import make_reader
 
 from emulator.assembly.ports import port_formats
-from emulator.assembly.runner import run_scenario
+from emulator.assembly.session import run_scenario
 from emulator.recording.capture import read_capture
 from emulator.recording.mcap_out import (
     FOXGLOVE_SCHEMAS,

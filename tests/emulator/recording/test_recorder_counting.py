@@ -15,7 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from emulator.assembly.runner import port_formats, run_scenario
+from emulator.assembly.ports import port_formats
+from emulator.assembly.session import run_scenario
 from emulator.recording.capture import read_capture
 from emulator.recording.counting import COUNT_ONLY_FORMATS, counting_format
 from emulator.scenario import load_scenario

@@ -7,7 +7,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from emulator.assembly.runner import run_scenario
+from emulator.assembly.session import run_scenario
 from emulator.recording.capture import CaptureWriter, read_capture
 from emulator.recording.replay import run_replay
 from emulator.scenario import load_scenario

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from emulator.assembly.runner import run_scenario
+from emulator.assembly.session import run_scenario
 from emulator.recording.capture import read_capture
 from emulator.recording.replay import load_replay, run_replay, same_file
 from emulator.scenario.loader import load_scenario

@@ -5,7 +5,7 @@ import re
 
 import pytest
 
-from emulator.assembly.runner import run_scenario
+from emulator.assembly.session import run_scenario
 from emulator.recording.report import write_report
 from emulator.scenario import load_scenario
 from tests.conftest import SCENARIOS

@@ -41,7 +41,7 @@ window.addEventListener('load', () => {
 @pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed (apt-get install chromium; .ci/run installs "
                                              "it as root)")
 def test_report_renders_every_figure_non_empty_in_headless_chromium(tmp_path):
-    from emulator.assembly.runner import run_scenario
+    from emulator.assembly.session import run_scenario
     from emulator.recording.report import write_report
     from emulator.scenario.loader import load_scenario
 
@@ -93,7 +93,7 @@ def test_fresh_run_report_renders_without_console_error_and_map_in_metres(tmp_pa
     """A fresh run of the GNSS-outage loop (shortened to 90 s, the outage 55-85 s inside it): the page renders in
     headless Chromium with no console error, a full-page screenshot is written (tmp_path/report.png), and the map
     is drawn in metres around the navigating track, not around lat = lon = 0."""
-    from emulator.assembly.runner import run_scenario
+    from emulator.assembly.session import run_scenario
     from emulator.recording.report import write_report
     from emulator.scenario.loader import load_scenario
 

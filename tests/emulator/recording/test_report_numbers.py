@@ -140,7 +140,7 @@ def test_formatter_regression_is_caught(tmp_path: Path) -> None:
     ("link_fault_storm.yaml", ["expectations=[]"]),
 ])
 def test_every_number_of_the_page_is_the_summarys(tmp_path: Path, scenario: str, overrides: list[str]) -> None:
-    from emulator.assembly.runner import run_scenario
+    from emulator.assembly.session import run_scenario
     from emulator.scenario.loader import load_scenario
     from tests.conftest import SCENARIOS
 

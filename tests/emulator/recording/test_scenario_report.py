@@ -102,7 +102,7 @@ def test_report_command_rewrites_the_report_and_refuses_a_non_run_directory(cli_
 
 
 def test_an_invalid_run_says_so_in_its_report(tmp_path):
-    from emulator.assembly.runner import run_scenario
+    from emulator.assembly.session import run_scenario
     from emulator.testing import load_test_scenario
 
     scn = load_test_scenario(SCENARIOS / "quickstart.yaml", {

@@ -17,7 +17,7 @@ def test_committed_summary_schema_is_current():
 
 
 def test_a_real_run_summary_validates_and_reads_typed(tmp_path):
-    from emulator.assembly.runner import run_scenario
+    from emulator.assembly.session import run_scenario
 
     scn = load_scenario(ROOT / "scenarios" / "quickstart.yaml", ["duration_s=3", "motion.0.static.duration_s=3"])
     run_scenario(scn, tmp_path / "run")

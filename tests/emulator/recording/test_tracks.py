@@ -13,7 +13,7 @@ import gpxpy
 import pytest
 import xmlschema
 
-from emulator.assembly.runner import run_scenario
+from emulator.assembly.session import run_scenario
 from emulator.recording.tracks import KML_NS, TRACK_STEP_S, load_tracks, write_gpx, write_kml
 from emulator.scenario import load_scenario
 from tests.conftest import ROOT, SCENARIOS

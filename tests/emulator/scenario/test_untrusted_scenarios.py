@@ -11,7 +11,7 @@ import pytest
 
 from emulator.errors import ScenarioError
 from emulator.scenario import load_scenario
-from emulator.scenario.checks_schema import HookError, load_hook
+from emulator.scenario.expectations_schema import HookError, load_hook
 from emulator.scenario.paths import ALLOW_HOOKS_ENV, ALLOW_PATHS_ENV, PathNotAllowed, confine
 
 ROOT = Path(__file__).resolve().parents[3]

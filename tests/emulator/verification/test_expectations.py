@@ -11,7 +11,7 @@ from typing import ClassVar
 import pytest
 
 from emulator.recording.nav_error import ErrorStats
-from emulator.scenario.checks_schema import EventExpectation
+from emulator.scenario.expectations_schema import EventExpectation
 from emulator.scenario.schema import Expectation
 from emulator.verification.expectations import evaluate_expectations, matching_events
 from tests.conftest import ROOT, SCENARIOS
@@ -237,7 +237,7 @@ def test_a_broken_library_file_is_a_collection_error_with_every_problem(pytester
 def test_event_expectations_on_a_variants_events_with_an_injected_glitch(tmp_path):
     """"Chi-square isolated GNSS between 60 and 61.5 s": the federated variant's own events, matched by name,
     source, window and count, with the glitch injected as a fault instead of the receiver's schedule."""
-    from emulator.assembly.runner import run_scenario
+    from emulator.assembly.session import run_scenario
     from emulator.testing import load_test_scenario
 
     scn = load_test_scenario(SCENARIOS / "federated_gnss_glitch.yaml", {
@@ -382,3 +382,12 @@ def test_plain_run_of_a_scenario_with_a_hook_exits_0_and_says_not_run(tmp_path):
     assert r.returncode == 0 and "not run" not in r.stdout, r.stdout + r.stderr
     s = json.loads((tmp_path / "run2" / "summary.json").read_text())
     assert [e["status"] for e in s["expectations"]] == ["pass", "pass"]
+
+
+def test_every_expectation_kind_has_one_registered_evaluator():
+    from emulator.scenario.expectations_schema import EXPECTATION_KINDS
+    from emulator.verification.expectations import EVALUATORS, evaluates
+
+    assert set(EVALUATORS) == set(EXPECTATION_KINDS)
+    with pytest.raises(ValueError, match="already has an evaluator"):
+        evaluates("nav_error")(lambda i, kind, spec, run: None)

@@ -9,8 +9,8 @@ import pytest
 
 from emulator.scenario.world_schema import SkySpec
 from emulator.world.sky import SkyModel, sky_from_spec
+from protocols.constants import DEG
 
-DEG = math.pi / 180.0
 S_BEIJING = np.array([-0.876416, -0.282797, 0.389770])
 S_BEIJING = S_BEIJING / np.linalg.norm(S_BEIJING)
 

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from emulator.world.sky import SkyModel, pan2023_offsets_deg
+from protocols.constants import DEG
 
 VECTORS = Path(__file__).resolve().parents[2] / "vectors" / "sky" / "queen_pyskylumos.json"
-DEG = math.pi / 180.0
 
 
 def _enu(az_deg: np.ndarray, alt_deg: np.ndarray) -> np.ndarray:

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from emulator.world.sun import SunModel
+from protocols.constants import DEG
 
-DEG = math.pi / 180.0
 UTC = dt.UTC
 
 # docs/reference/algorithms.md section 3 (pvlib 0.16.1, delta_t = 69 s, altitude 0)

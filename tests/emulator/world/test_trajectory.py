@@ -15,7 +15,6 @@ from firmware_model import earth
 from firmware_model.attitude import a2mat, mat2q
 from firmware_model.strapdown import NavState, coning_sculling, strapdown_step
 
-DEG = math.pi / 180.0
 LAT, LON, H = 39.979, 116.339, 50.0
 
 MANOEUVRES = [

@@ -13,7 +13,8 @@ from scipy.signal import welch
 
 from emulator.devices.imu import AccelErrors, AnalogAccelerometers, ImuTruthTap
 from emulator.scenario.presets import preset
-from emulator.world.vibration import G_STD, VibrationModel, psd_at, psd_integral
+from emulator.world.vibration import VibrationModel, psd_at, psd_integral
+from protocols.constants import G_STD
 from tests.emulator.still_truth import still_truth
 
 FS = 200.0

@@ -31,6 +31,7 @@ from emulator.world.sun import SunModel
 from emulator.world.trajectory import StaticTrajectory, Trajectory
 from firmware_model import earth
 from firmware_model.psns_geometry import CameraGeometry
+from protocols.constants import DEG, DPH, G_STD
 from protocols.imu_frame import (
     ACCEL_VOLTS_PER_G,
     ADC_VOLTS_PER_LSB,
@@ -52,9 +53,6 @@ from protocols.psns import (
 from protocols.stim import GYRO_RATE_LSB_DPS
 from protocols.ubx import NavPvt, encode_nav_pvt
 
-DEG = math.pi / 180.0
-DPH = DEG / 3600.0
-G_STD = 9.80665
 UART_HOST, UART_IMU, UART_PSNS, UART_GNSS = 0, 1, 2, 3
 EPOCH = dt.datetime(2019, 9, 18, 8, 14, 0, tzinfo=dt.UTC)  # Zhang et al.'s Beijing test (16:14 local)
 BEIJING = (39.979, 116.339, 50.0)

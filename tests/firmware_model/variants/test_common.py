@@ -20,8 +20,7 @@ from firmware_model.variants.common import (
     spd_solve,
     unit_mounting,
 )
-
-DEG = math.pi / 180.0
+from protocols.constants import DEG
 
 
 @pytest.mark.parametrize("alpha", sorted(CHI2_TABLE))

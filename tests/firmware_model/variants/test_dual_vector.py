@@ -20,12 +20,12 @@ from firmware_model.variants.dual_vector import (
     unit_evectors,
 )
 from firmware_model.variants.params import DualVectorParams, VariantParams
+from protocols.constants import DEG
 from protocols.host import HostFormat, NavSolution
 from protocols.stream import StreamDecoder
 
 from .streams import CompassSpec, GnssSpec, ImuErrors, StreamSpec, rayleigh, run, static_trajectory, wire_aop
 
-DEG = math.pi / 180.0
 S_N = np.array([-0.876416, -0.282797, 0.389770])  # Beijing case (docs/reference/algorithms.md 3)
 THREE = compass_mountings([(0.0, 0.0), (45.0, 0.0), (45.0, 90.0)])
 

@@ -11,12 +11,12 @@ import pytest
 from firmware_model import Firmware, FirmwareConfig
 from firmware_model.variants.federated import fuse_common_states
 from firmware_model.variants.params import FederatedParams, VariantParams
+from protocols.constants import DEG
 from protocols.host import HostFormat, NavSolution
 from protocols.stream import StreamDecoder
 
 from .streams import GnssSpec, ImuErrors, StreamSpec, run, segment_trajectory
 
-DEG = math.pi / 180.0
 #: the paper's simulation conditions: gyro drift 25 deg/h, accelerometer bias 800 ug, GPS 2.5 m and 0.1 m/s,
 #: polarization noise 0.01; gyro random noise 20 deg/h and accelerometer noise 600 ug read as densities per rt-Hz
 PAPER_IMU = ImuErrors((25.0, 25.0, 25.0), 20.0 / 60.0, (800.0, 800.0, 800.0), 600.0)

@@ -22,6 +22,7 @@ from firmware_model.variants.kmeans_3d import (
     pitch_roll_from_sun,
 )
 from firmware_model.variants.params import KmeansParams
+from protocols.constants import DEG
 
 from .streams import (
     CameraSpec,
@@ -35,7 +36,6 @@ from .streams import (
     segment_trajectory,
 )
 
-DEG = math.pi / 180.0
 TAIYUAN = (37.59, 112.24, 800.0)
 EPOCH = dt.datetime(2019, 12, 1, 2, 0, tzinfo=dt.UTC)  # the paper's field test: 10:00 local
 # all-sky fisheye (docs/reference/algorithms.md 2.4: f = 1.8 mm)

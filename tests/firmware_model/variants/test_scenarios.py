@@ -12,11 +12,10 @@ from pathlib import Path
 
 import pytest
 
-from emulator.assembly.runner import run_scenario
+from emulator.assembly.session import run_scenario
 from emulator.testing import load_test_scenario
+from protocols.constants import DEG
 from tests.conftest import SCENARIOS
-
-DEG = math.pi / 180.0
 
 
 def _run(name: str, tmp_path: Path, **overrides) -> tuple[dict, list[dict], list[dict]]:

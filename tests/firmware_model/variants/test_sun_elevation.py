@@ -13,10 +13,9 @@ from emulator.world.sun import SunModel
 from firmware_model import Firmware, FirmwareConfig
 from firmware_model.psns_geometry import compass_unit_mountings
 from firmware_model.variants.sun_elevation import SageHusaR, sun_elevation_partials
+from protocols.constants import DEG
 
 from .streams import EPOCH, CompassSpec, GnssSpec, ImuErrors, StreamSpec, run, static_trajectory
-
-DEG = math.pi / 180.0
 
 
 @pytest.mark.parametrize("case, lat, dec, lha, alpha, beta", [

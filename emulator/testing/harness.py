@@ -1,7 +1,8 @@
 """The test API for port traffic, Renode-style: start an emulator inside a coroutine and wait for what its
 ports carry (:func:`start_emulator`, :class:`EmulatorHarness`, :func:`run`).
 
-``emulator.testing`` (the pytest plugin) re-exports these names; its docstring describes the API.
+The test API is one package, ``emulator.testing``: import these names from there (``from emulator.testing import
+start_emulator``); its docstring describes the API, and it is also the pytest plugin (the ``pytest11`` entry point).
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from re import Pattern
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from ..assembly.runner import Emulator
+    from ..assembly.session import Emulator
     from ..scenario.schema import Scenario
 
 __all__ = ["DEFAULT_DIRECTION", "EmulatorHarness", "PortWatcher", "load_test_scenario", "run", "start_emulator"]
@@ -123,7 +124,7 @@ class EmulatorHarness:
 
     # -- lifecycle ---------------------------------------------------------------------------
     async def start(self) -> EmulatorHarness:
-        from ..assembly.runner import port_formats
+        from ..assembly.ports import port_formats
         from ..clock import EmulatorLoop
         from ..errors import EmulatorError
 
@@ -467,7 +468,7 @@ class _Starter:
     async def _start(self) -> EmulatorHarness:
         import tempfile
 
-        from ..assembly.runner import Emulator
+        from ..assembly.session import Emulator
 
         scenario, run_dir, mode, seed, overrides = self.args
         scn = load_test_scenario(scenario, overrides)

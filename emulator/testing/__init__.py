@@ -1,4 +1,8 @@
-"""Test API for port traffic, Renode-style, and its pytest plugin.
+"""Test API for port traffic, Renode-style, and its pytest plugin: one package, imported as ``emulator.testing``.
+
+The names below are its public API (``from emulator.testing import start_emulator, run, load_test_scenario``); they
+are implemented in :mod:`emulator.testing.harness`. This module is also the pytest plugin (the ``pytest11`` entry
+point ``psns_hil = "emulator.testing"`` in pyproject.toml), which registers the ``psns_emulator`` marker.
 
 Start an emulator from a scenario inside a coroutine running on an
 :class:`~emulator.clock.EmulatorLoop`, then wait for what its ports carry::
@@ -28,7 +32,7 @@ Ports are the emulator's link names (``host``, ``gyro``, ``gnss``, ``psns``, ``m
 ``uart0`` .. ``uart3``). The default direction is the one carrying the port's main traffic:
 ``out`` for ``host``, ``uart0`` and ``monitor`` (leaving the DSP / the box), ``in`` for the
 others (towards the DSP). Frames are decoded with the port's formats
-(:func:`emulator.assembly.runner.port_formats`).
+(:func:`emulator.assembly.ports.port_formats`).
 
 Running the loop: the ``psns_emulator`` marker (this module is a pytest plugin, registered by
 the ``pytest11`` entry point) runs an ``async def`` test on a fresh ``EmulatorLoop`` of its
@@ -43,7 +47,7 @@ from __future__ import annotations
 import inspect
 from typing import Any
 
-from .verification.harness import (
+from .harness import (
     DEFAULT_DIRECTION,
     EmulatorHarness,
     PortWatcher,

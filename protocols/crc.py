@@ -32,8 +32,8 @@ import binascii
 import itertools
 import zlib
 
-__all__ = ["CRC8_MEMO_GENERATION", "crc8_stim", "crc8_stim_fast", "crc16_ccitt", "crc32_mpeg2", "crc32_mpeg2_fast",
-           "nmea_checksum", "ubx_fletcher"]
+__all__ = ["CRC8_MEMO_GENERATION", "crc8_stim", "crc8_stim_fast", "crc8_stim_rows", "crc16_ccitt", "crc32_mpeg2",
+           "crc32_mpeg2_fast", "nmea_checksum", "ubx_fletcher"]
 
 
 def _crc8_table(poly: int) -> bytes:
@@ -92,6 +92,27 @@ def crc8_stim_fast(data: bytes | bytearray | memoryview, init: int = 0xFF) -> in
             _CRC8_OLD = _CRC8_NEW
             _CRC8_NEW = {}
         _CRC8_NEW[data] = c
+    return c
+
+
+def crc8_stim_rows(buf: bytes | bytearray, row_len: int, body_len: int, init: int = 0xFF) -> bytes:
+    """:func:`crc8_stim` of each row of ``buf`` (rows of ``row_len`` bytes back to back), over its first
+    ``body_len`` bytes: one byte per row, in row order.
+
+    The same table and the same recurrence ``c = T[c ^ b]``, taken a column at a time over every row at once:
+    the column's bytes (an extended slice) XOR the running CRCs (as one big integer), then ``bytes.translate``
+    looks the table up for the whole column. ``body_len`` C-level passes instead of ``rows * body_len`` Python
+    steps (docs/decisions/performance.md D-10.E21). A single row goes through :func:`crc8_stim_fast`."""
+    if row_len <= 0 or not 0 <= body_len <= row_len or len(buf) % row_len:
+        raise ValueError(f"crc8_stim_rows: {len(buf)} bytes are not rows of {row_len} with a {body_len}-byte body")
+    n = len(buf) // row_len
+    if n == 1:
+        return bytes((crc8_stim_fast(bytes(buf[:body_len]), init),))
+    c = bytes((init,)) * n
+    table = _CRC8_07
+    for i in range(body_len):
+        col = buf[i::row_len]
+        c = (int.from_bytes(c, "big") ^ int.from_bytes(col, "big")).to_bytes(n, "big").translate(table)
     return c
 
 

@@ -42,7 +42,7 @@ over everything from ``$``/``#`` through the last comma: :func:`utility_mode_crc
 from __future__ import annotations
 
 import enum
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from dataclasses import fields as dataclass_fields
 from operator import itemgetter
@@ -52,7 +52,7 @@ from construct import Array, Bytes, Const, Int8ub, Int16sb, Int16ub, Int24sb, St
 
 from ._fastinit import fast_frozen_init
 from .codec import StructCodec, subspec
-from .crc import crc8_stim, crc8_stim_fast
+from .crc import crc8_stim, crc8_stim_fast, crc8_stim_rows
 from .stim300 import (
     INCL_DV_LSB_MPS,
     INCL_LSB_G,
@@ -279,13 +279,48 @@ class Stim210Format:
         """
         return self.build_values(d.gyro, d.status, d.counter, d.latency_us, d.temperature, d.reserved)
 
-    def build_values(self, gyro: tuple[int, int, int], status: int, counter: int | None = None,
-                     latency_us: int | None = None, temperature: tuple[int, int, int] | None = None,
+    def build_values(self, gyro: Sequence[int], status: int, counter: int | None = None,
+                     latency_us: int | None = None, temperature: Sequence[int] | None = None,
                      reserved: bytes | None = None) -> bytes:
         """:meth:`build` of ``StimDatagram(self.ident, gyro, status, ...)`` from the fields, without the object
         (the gyro model's sender, once per datagram); fields this format does not carry are ignored."""
         body: bytes = self._encode_body(*self._pick((gyro, status, counter, latency_us, temperature, reserved)))
         return body + bytes((crc8_stim_fast(body),)) + (b"\r\n" if self.crlf else b"")
+
+    def build_window(self, gyro: Sequence[Sequence[int]], status: Sequence[int],
+                     counter: Sequence[int | None] | None = None, latency_us: Sequence[int | None] | None = None,
+                     temperature: Sequence[Sequence[int] | None] | None = None,
+                     reserved: Sequence[bytes | None] | None = None) -> bytes:
+        """The datagrams of a window of samples, back to back (``len(gyro) * self.length`` bytes): row ``i`` is
+        the datagram of ``(gyro[i], status[i], counter[i], latency_us[i], temperature[i], reserved[i])``, i.e.
+        :meth:`build_values` of that row (a window of one is exactly that call).
+
+        Each argument is a column (one entry per sample; ``None``: the field is absent, encoded as zeros as
+        :meth:`build` does). The bodies are packed by the same derived encoder; their CRC-8s are computed a
+        column at a time over the whole window (:func:`~protocols.crc.crc8_stim_rows`) and the CRC column (and
+        the CR LF columns) are written with extended slices (docs/decisions/performance.md D-10.E21).
+        A gyro word outside s24 raises ``ValueError``."""
+        n = len(gyro)
+        if n == 1:  # a window of one: the row's datagram (its CRC-8 remembered, crc8_stim_fast)
+            return self.build_values(gyro[0], status[0], None if counter is None else counter[0],
+                                     None if latency_us is None else latency_us[0],
+                                     None if temperature is None else temperature[0],
+                                     None if reserved is None else reserved[0])
+        none = (None,) * n
+        enc, pick = self._encode_body, self._pick
+        bodies = b"".join([enc(*pick(r)) for r in zip(
+            gyro, status, none if counter is None else counter, none if latency_us is None else latency_us,
+            none if temperature is None else temperature, none if reserved is None else reserved, strict=True)])
+        nb = self.body_len
+        size = self.length
+        out = bytearray(n * size)
+        for i in range(nb):
+            out[i::size] = bodies[i::nb]
+        out[nb::size] = crc8_stim_rows(bodies, nb, nb)
+        if self.crlf:
+            out[nb + 1::size] = b"\r" * n
+            out[nb + 2::size] = b"\n" * n
+        return bytes(out)
 
     encode = build
 

@@ -6,7 +6,14 @@ import pytest
 
 from protocols.crc import crc8_stim
 from protocols.errors import ChecksumError
-from protocols.stim import GYRO_RATE_LSB_DPS, STIM210_FORMATS, Stim210Format, StimDatagram
+from protocols.stim import (
+    GYRO_RATE_LSB_DPS,
+    STIM210_FORMATS,
+    Stim210Format,
+    StimDatagram,
+    StimStatus,
+    overload_status,
+)
 from protocols.stream import StreamDecoder, parse_one
 
 
@@ -98,3 +105,50 @@ def test_build_values_is_construct_s_bytes_of_the_datagram(letter, crlf):
         body = fmt.spec.build({**values, "crc": 0})[:fmt.body_len]
         assert raw == body + bytes((crc8_stim(body),)) + (b"\r\n" if crlf else b"")
         assert fmt.build(StimDatagram(fmt.ident, gyro, status, counter, latency, temp, reserved)) == raw
+
+
+def _construct_datagram(fmt: Stim210Format, gyro, status, counter, latency, temp, reserved) -> bytes:
+    """The reference: ``construct``'s bytes of the datagram's body, its CRC-8 byte by byte, CR LF if configured."""
+    values = {"gyro": list(gyro), "status": status & 0xFF, "counter": (counter or 0) & 0xFF,
+              "latency_us": latency or 0, "temperature": list(temp or (0, 0, 0)),
+              "reserved": b"\x00\x00\x00" if reserved is None else reserved}
+    body = fmt.spec.build({**values, "crc": 0})[:fmt.body_len]
+    return body + bytes((crc8_stim(body),)) + (b"\r\n" if fmt.crlf else b"")
+
+
+@pytest.mark.parametrize("letter", sorted(STIM210_FORMATS))
+@pytest.mark.parametrize("crlf", [False, True])
+@pytest.mark.parametrize("n", [1, 2, 7, 200, 2000])
+def test_build_window_is_the_per_sample_datagrams_back_to_back(letter, crlf, n):
+    """A window of ``n`` samples (seeded: words at and near the s24 rails, every STATUS overload combination and
+    other STATUS bytes, counters past 255, absent groups) encodes to ``construct``'s datagrams of the same
+    samples back to back, byte for byte (D-10.E21); ``build_values`` of each sample is its row."""
+    fmt = Stim210Format(letter, crlf=crlf)
+    rng = random.Random(f"window{letter}{crlf}{n}")
+    rails = (-2**23, -2**23 + 1, -1, 0, 1, 2**23 - 2, 2**23 - 1)
+    statuses = [overload_status(x, y, z) for x in (False, True) for y in (False, True) for z in (False, True)]
+    statuses += [int(StimStatus.STARTUP), 0x1FF, 0x20]
+    rows = []
+    for _ in range(n):
+        gyro = tuple(rng.choice(rails) if rng.random() < 0.2 else rng.randint(-2**23, 2**23 - 1) for _ in range(3))
+        status = rng.choice(statuses)
+        counter = rng.choice([None, rng.randint(0, 0x1FF)])
+        latency = rng.choice([None, rng.randint(0, 0xFFFF)])
+        temp = rng.choice([None, tuple(rng.randint(-2**15, 2**15 - 1) for _ in range(3))])
+        reserved = rng.choice([None, bytes(rng.randrange(256) for _ in range(3))])
+        rows.append((gyro, status, counter, latency, temp, reserved))
+    window = fmt.build_window(*(list(col) for col in zip(*rows, strict=True)))
+    assert len(window) == n * fmt.length
+    assert window == b"".join(_construct_datagram(fmt, *r) for r in rows)
+    assert window == b"".join(fmt.build_values(*r) for r in rows)
+    # and the decoder reads the same samples back
+    frames = StreamDecoder([fmt]).feed(window)
+    assert [(f.gyro, f.status) for f in frames] == [(r[0], r[1] & 0xFF) for r in rows]
+
+
+def test_build_window_refuses_a_word_outside_s24_and_ragged_columns():
+    fmt = Stim210Format("m")
+    with pytest.raises(ValueError):
+        fmt.build_window([(0, 0, 0), (2**23, 0, 0)], [0, 0], [0, 0], [0, 0])
+    with pytest.raises(ValueError):
+        fmt.build_window([(0, 0, 0), (1, 0, 0)], [0], [0, 0], [0, 0])

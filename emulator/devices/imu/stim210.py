@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -116,9 +116,14 @@ class Stim210Gyro(FaultableTriad):
             ahead = self._ahead
             j = ahead.take(t, t_prev, self.model, dt) if ahead is not None else -1
             if j >= 0 and not self.faults.active:  # the common case: all done in the look-ahead pass
-                gw, self.last_measured, status = ahead.post[j]  # type: ignore[union-attr]
-                self._transmit(t_edge, t_c, gw, status)
-                return
+                post = ahead.post  # type: ignore[union-attr]
+                if j < len(post):  # the row's datagram, if its edge and counter are the ones due
+                    frame, clipped, t_row, counter = post[j]
+                    if t_row == t_edge and counter == (self.counter + self.counter_step) & 0xFF:
+                        self.last_measured = clipped
+                        self.counter = counter
+                        self._send(t_edge, frame)
+                        return
             if j >= 0:
                 rate = ahead.raw[j]  # type: ignore[union-attr]
             elif self._look_ahead:
@@ -126,7 +131,7 @@ class Stim210Gyro(FaultableTriad):
                                             delay=self.group_delay_s)
                 self._ahead = ahead
                 if ahead is not None:
-                    ahead.post = self._words(ahead)
+                    ahead.post = self._window(ahead, t_edge)
             else:
                 dtheta, dv = self.tap.increments(t_prev, t)
                 x, f_b = sensor_input(self.tap, t, dt, dtheta, dv, True, None)
@@ -134,38 +139,55 @@ class Stim210Gyro(FaultableTriad):
         lim: np.ndarray | float = self.err.range_dps * DEG
         if self.faults.active:
             rate, lim = self.faults.apply(rate, lim)
-        over = np.abs(rate) > lim  # per axis: the unit saturates and says so (STATUS overload, TS1524 Table 5-23)
-        rate = np.clip(rate, -lim, lim)
-        self.last_measured = rate
-        if self.output == "rate":
-            words = np.round(rate / (GYRO_RATE_LSB_DPS * DEG))
-        else:
-            words = np.round(rate * dt / (GYRO_ANGLE_LSB_DEG * DEG))
-        words = np.clip(words, -0x800000, 0x7FFFFF).astype(np.int64)
-        status = overload_status(bool(over[0]), bool(over[1]), bool(over[2])) if over.any() else 0
-        self._transmit(t_edge, t_c, (int(words[0]), int(words[1]), int(words[2])), status)
+        counter = (self.counter + self.counter_step) & 0xFF
+        frame, clipped = self._datagrams(rate[None, :], lim, dt, (t_c,), (counter,))
+        self.last_measured = clipped[0]
+        self.counter = counter
+        self._send(t_edge, frame)
 
-    def _words(self, ahead: Ahead) -> list[tuple[tuple[int, int, int], np.ndarray, int]]:
-        """The look-ahead rows as the fault-free path of :meth:`trigger` turns them into words and STATUS bytes."""
-        lim = self.err.range_dps * DEG
-        over = np.abs(ahead.raw) > lim
-        rate = np.clip(ahead.raw, -lim, lim)
-        if self.output == "rate":
-            words = np.round(rate / (GYRO_RATE_LSB_DPS * DEG))
-        else:
-            dts = np.array([a - b for a, b in ahead.times])[:, None]
-            words = np.round(rate * dts / (GYRO_ANGLE_LSB_DEG * DEG))
-        words = np.clip(words, -0x800000, 0x7FFFFF).astype(np.int64)
-        status = [overload_status(*o) if any(o) else 0 for o in over.tolist()]
-        return [(tuple(w), r, st) for w, r, st in zip(words.tolist(), rate, status)]
+    def _datagrams(self, rate: np.ndarray, lim: np.ndarray | float, dt: np.ndarray | float,
+                   temps_c: Sequence[float], counters: Sequence[int]) -> tuple[bytes, np.ndarray]:
+        """The datagrams of ``n`` samples, back to back, and the clipped rates: the one algorithm of both the
+        per-trigger path (a window of one) and the look-ahead window.
 
-    def _transmit(self, t: float, t_c: float, gyro_words: tuple[int, int, int], status: int = 0) -> None:
-        """Send one datagram: ``gyro_words`` (s24), ``status`` the STATUS byte (:class:`protocols.stim.StimStatus`;
-        the overload bits when an axis exceeded the range)."""
-        self.counter = (self.counter + self.counter_step) & 0xFF
-        tw = round(t_c / TEMP_LSB_DEGC)
-        # the bytes of StimDatagram(ident, gyro_words, status, counter, latency, (tw, tw, tw)) without the object
-        self._send(t, self.format.build_values(gyro_words, status, self.counter, self.latency_us, (tw, tw, tw)))
+        ``rate`` (n, 3) rad/s, the measured means before saturation; ``lim`` rad/s, the range (scalar or per
+        axis); ``dt`` s, the measured intervals (scalar or (n, 1); the incremental-angle output integrates over
+        it); ``temps_c`` degC, the temperature at each trigger edge; ``counters`` the datagram counters.
+        Per axis, the unit saturates and says so (STATUS overload bits, TS1524 Table 5-23,
+        :func:`protocols.stim.overload_status`)."""
+        over = np.abs(rate) > lim
+        clipped = np.clip(rate, -lim, lim)
+        if self.output == "rate":
+            words = np.round(clipped / (GYRO_RATE_LSB_DPS * DEG))
+        else:
+            words = np.round(clipped * dt / (GYRO_ANGLE_LSB_DEG * DEG))
+        words = np.clip(words, -0x800000, 0x7FFFFF).astype(np.int64)
+        status = [overload_status(*o) if any(o) else 0 for o in over.tolist()] if over.any() else (0,) * len(rate)
+        return self._encode(words.tolist(), status, counters, temps_c), clipped
+
+    def _encode(self, words: list[list[int]], status: Sequence[int], counters: Sequence[int],
+                temps_c: Sequence[float]) -> bytes:
+        """The datagrams of the rows (s24 gyro words, STATUS bytes, counters, temperatures degC), back to back:
+        one :meth:`~protocols.stim.Stim210Format.build_window`."""
+        tws = [(tw, tw, tw) for tw in (round(t_c / TEMP_LSB_DEGC) for t_c in temps_c)]
+        return self.format.build_window(words, status, counters, (self.latency_us,) * len(words), tws)
+
+    def _window(self, ahead: Ahead, t_edge: float) -> list[tuple[bytes, np.ndarray, float, int]]:
+        """The look-ahead rows as fault-free datagrams (:meth:`_datagrams` over the window), each with its
+        clipped rate, the trigger edge it answers (s) and its counter: ``(frame, clipped, t_edge, counter)``.
+        Row 0 answers ``t_edge``, row ``j`` the ``j``-th trigger of the grid after it; the counters continue
+        from the present one. :meth:`trigger` uses a row only when its edge and counter are the ones due."""
+        n = len(ahead.times)
+        k = round(t_edge / self._period)
+        edges = [t_edge] + [(k + j) * self._period for j in range(1, n)]
+        temp = self.temperature
+        temps = [temp.at(e) for e in edges] if "temperature" in self.format.groups else [0.0] * n
+        step, c0 = self.counter_step, self.counter
+        counters = [(c0 + (j + 1) * step) & 0xFF for j in range(n)]
+        dts = np.array([a - b for a, b in ahead.times])[:, None]
+        frames, clipped = self._datagrams(ahead.raw, self.err.range_dps * DEG, dts, temps, counters)
+        size = self.format.length
+        return [(frames[j * size:(j + 1) * size], clipped[j], edges[j], counters[j]) for j in range(n)]
 
     def _send(self, t: float, frame: bytes) -> None:
         """Put one datagram on the line ``response_delay_s`` after the trigger at ``t`` (or drop it, counted)."""

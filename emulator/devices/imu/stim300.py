@@ -15,6 +15,7 @@ acceleration, inclination; the datasheet's default), CRC-32/MPEG-2 with its dumm
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -24,7 +25,7 @@ from protocols.stim import TEMP_LSB_DEGC
 from protocols.stim300 import INCL_LSB_G, STIM300_ACCEL_LSB_G, STIM300_DATAGRAMS, Stim300Datagram, Stim300Format
 
 from ...links.base import Link
-from .lookahead import ImuTruthTap
+from .lookahead import Ahead, ImuTruthTap
 from .stim210 import Stim210Gyro
 
 __all__ = ["STIM300_ACCEL_RANGE_G", "Stim300Imu"]
@@ -61,16 +62,27 @@ class Stim300Imu(Stim210Gyro):
         w = np.clip(np.round(f / (lsb_g * G_STD)), -0x800000, 0x7FFFFF).astype(np.int64)
         return (int(w[0]), int(w[1]), int(w[2]))
 
-    def _transmit(self, t: float, t_c: float, gyro_words: tuple[int, int, int], status: int = 0) -> None:
-        self.counter = (self.counter + self.counter_step) & 0xFF
-        tw = round(t_c / TEMP_LSB_DEGC)
+    def _window(self, ahead: Ahead, t_edge: float) -> list[tuple[bytes, np.ndarray, float, int]]:
+        """No datagrams ahead: a STIM300 datagram carries the accelerometer and inclinometer words of the interval
+        being triggered, taken from truth at the trigger; each row's gyro words go through :meth:`_encode`."""
+        return []
+
+    def _encode(self, words: list[list[int]], status: Sequence[int], counters: Sequence[int],
+                temps_c: Sequence[float]) -> bytes:
+        """The STIM300 datagram of one trigger (a window of one: the interval is the one being triggered)."""
+        if len(words) != 1:
+            raise ValueError("a STIM300 datagram is built one trigger at a time")
+        w = words[0]
+        gyro_words = (w[0], w[1], w[2])
+        tw = round(temps_c[0] / TEMP_LSB_DEGC)
         temps = (tw, tw, tw)
         g = self.groups
         acc = self._specific_force_words(STIM300_ACCEL_LSB_G[STIM300_ACCEL_RANGE_G]) if "acc" in g else None
         incl = self._specific_force_words(INCL_LSB_G) if "incl" in g else None
         has_t = "temp" in g
         d = Stim300Datagram(
-            ident=self.ident, gyro=gyro_words, gyro_status=status, counter=self.counter, latency_us=self.latency_us,
+            ident=self.ident, gyro=gyro_words, gyro_status=status[0], counter=counters[0],
+            latency_us=self.latency_us,
             accel=acc, accel_status=0 if acc is not None else None,
             incl=incl, incl_status=0 if incl is not None else None,
             gyro_temp=temps if has_t else None, gyro_temp_status=0 if has_t else None,
@@ -80,4 +92,4 @@ class Stim300Imu(Stim210Gyro):
             incl_temp_status=0 if has_t and incl is not None else None,
             aux=0 if "aux" in g else None, aux_status=0 if "aux" in g else None,
         )
-        self._send(t, self.format.build(d))  # type: ignore[arg-type]
+        return self.format.build(d)  # type: ignore[arg-type]

@@ -9,6 +9,7 @@ in the trigger grid, the gyro's datagrams and the accelerometers' ADC codes must
 
 from __future__ import annotations
 
+import dataclasses
 import types
 from pathlib import Path
 
@@ -21,6 +22,7 @@ from emulator.scenario import load_scenario
 from emulator.scenario.presets import preset
 from emulator.world.build import build_trajectory
 from emulator.world.vibration import VibrationModel
+from protocols.stim import STATUS_SAMPLE_INVALID, StimStatus
 
 SCENARIOS = Path(__file__).resolve().parents[3] / "scenarios"
 
@@ -35,8 +37,9 @@ class _Link:
         return len(data)
 
 
-def _run(look_ahead: bool, temp: ImuTemperature, vibration: bool = False,
-         lp_filter_hz: float = 0.0) -> tuple[list[tuple[float, bytes]], list[tuple[int, int, int]], bool]:
+def _run(look_ahead: bool, temp: ImuTemperature, vibration: bool = False, lp_filter_hz: float = 0.0,
+         fmt: str = "m", output: str = "rate",
+         range_dps: float | None = None) -> tuple[list[tuple[float, bytes]], list[tuple[int, int, int]], bool]:
     scn = load_scenario(SCENARIOS / "vehicle_loop_gnss_outage.yaml")
     traj = build_trajectory(scn)
     vib = None
@@ -45,8 +48,11 @@ def _run(look_ahead: bool, temp: ImuTemperature, vibration: bool = False,
         vib = VibrationModel(prof["psd"], [4 * a for a in prof["axes"]], 200.0, np.random.default_rng(7))
     tap = ImuTruthTap(traj, vib)
     link = _Link()
-    gyro = Stim210Gyro(link, tap, np.random.default_rng(5), gyro_errors(scn), temperature=temp,  # type: ignore[arg-type]
-                       lp_filter_hz=lp_filter_hz)
+    errors = gyro_errors(scn)
+    if range_dps is not None:  # a narrow range: the vehicle's turns saturate it inside look-ahead windows
+        errors = dataclasses.replace(errors, range_dps=range_dps)
+    gyro = Stim210Gyro(link, tap, np.random.default_rng(5), errors, temperature=temp,  # type: ignore[arg-type]
+                       lp_filter_hz=lp_filter_hz, fmt=fmt, output=output)
     accel = AnalogAccelerometers(tap, np.random.default_rng(6), accel_errors(scn), temperature=temp)
     gyro._look_ahead = accel._look_ahead = look_ahead
     period = 1.0 / 200.0
@@ -91,3 +97,44 @@ def test_look_ahead_is_bit_identical_to_per_interval(temp: ImuTemperature, vibra
     assert out == ref_out
     # the run is not trivially constant: the vehicle turns, so the words change from tick to tick
     assert len({d for _t, d in ref_out}) > 1000
+
+
+@pytest.mark.parametrize(("fmt", "output", "range_dps"), [
+    ("p", "rate", None),  # temperature words (warming up: they change), counter and latency
+    ("n", "angle", None),  # incremental angle over each (measured) interval
+    ("m", "rate", 0.05),  # STATUS overload bits set inside the look-ahead windows, not only under faults
+    ("j", "angle", 0.05),
+])
+def test_look_ahead_window_datagrams_are_the_per_trigger_bytes(fmt: str, output: str, range_dps: float | None,
+                                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    """The gyro's window of datagrams (one :meth:`~protocols.stim.Stim210Format.build_window` per look-ahead
+    block, D-10.E21) is byte for byte what the per-trigger path (a window of one) sends, in formats with
+    temperature words, counters and latency, in both output modes and with axes saturating inside a window
+    (STATUS overload with its channel bits, protocols.stim.overload_status), across faults switched on and off
+    mid-block, a break in the trigger grid and an interval off the grid."""
+    temp = ImuTemperature(start_c=20.0, rate_c_per_min=0.5, cal_c=25.0, warmup_c=12.0, warmup_tau_s=3.0)
+    ref_out, _, _ = _run(False, temp, fmt=fmt, output=output, range_dps=range_dps)
+    encode = Stim210Gyro._datagrams
+    windows: list[int] = []
+
+    def counted(self: Stim210Gyro, rate: np.ndarray, *args: object) -> tuple[bytes, np.ndarray]:
+        windows.append(len(rate))
+        return encode(self, rate, *args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(Stim210Gyro, "_datagrams", counted)
+    out, _, gyro_ahead = _run(True, temp, fmt=fmt, output=output, range_dps=range_dps)
+    assert gyro_ahead
+    # the windows served most triggers: per-trigger encodes only at a block's first row, under the faults
+    # (k 130-170, 420-460) and around the grid's break and off-grid interval
+    assert windows.count(1) < 120 and max(windows) > 100, windows
+    assert out == ref_out
+    assert len(ref_out) == 1295
+    status = [d[10] for _t, d in ref_out]
+    if range_dps is not None:  # the saturation is exercised, outside the fault window (k 420-460) as well
+        over = [k for k, st in enumerate(status) if st & StimStatus.OVERLOAD]
+        assert len(over) > 50 and any(k > 500 for k in over)
+        assert all(st & STATUS_SAMPLE_INVALID for st in status if st)
+    else:
+        assert not any(s & StimStatus.OVERLOAD for s in status[:400])
+    if fmt in ("p", "j"):  # the temperature words change along the run (warm-up)
+        assert len({d[11:13] for _t, d in ref_out}) > 100

@@ -135,6 +135,11 @@ class FirmwareConfig:
     #: filter forgets their estimate and correlations, D-5.17); 0 = never
     gnss_relock_gap_s: float = 0.0
     gnss_error_states: bool = True
+    #: the receiver's HDOP at which the GNSS figures above hold (docs/decisions/sky-and-sheet-consistency.md D-5.42):
+    #: a fix whose GGA / GNS reports a worse geometry has its position and velocity sigmas (white and correlated)
+    #: scaled by ``HDOP / gnss_hdop_ref``, never below the sheet's (:func:`firmware_model.filters.gnss_dop_scale`);
+    #: 0 = the reported HDOP is not used
+    gnss_hdop_ref: float = 0.0
     #: innovation gate of each GNSS row (normalised innovation squared, 1 dof) (docs/hostile-input.md): chi-square(1)
     #: at alpha = 1e-5 (4.4 sigma), now that the covariance is consistent with the sensors (it was 1e4 = 100 sigma
     #: while the filter treated the correlated GNSS error as white and refused every fix after an outage)

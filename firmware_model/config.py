@@ -148,6 +148,11 @@ class FirmwareConfig:
     #: vectors with none accepted, after which the loop re-aligns (gravity + sun/GNSS); 0 turns a criterion off
     fdir_gnss_reject_limit: int = 30
     fdir_psns_reject_s: float = 30.0
+    #: the solar criterion re-aligns only a box at rest by its own horizontal speed (m/s; D-5.43): the coarse
+    #: alignment levels on the specific force, which in motion (a turn's centripetal acceleration) is not gravity;
+    #: in motion a run of refused solar vectors with the GNSS still accepted is a sky the solve does not model, and the
+    #: filter goes on without them; 0 = at any speed
+    fdir_psns_realign_max_speed_mps: float = 0.5
     # PSNS
     psns_enabled: bool = True
     psns_baud: int = 115200  # DSP UART2 baud (for the exposure time tag, docs/architecture.md "Conventions")

@@ -142,6 +142,11 @@ class FirmwareConfig:
     #: filter forgets their estimate and correlations, D-5.17); 0 = never
     gnss_relock_gap_s: float = 0.0
     gnss_error_states: bool = True
+    #: the receiver's HDOP at which the GNSS figures above hold (docs/decisions/sky-and-sheet-consistency.md D-5.42):
+    #: a fix whose GGA / GNS reports a worse geometry has its position and velocity sigmas (white and correlated)
+    #: scaled by ``HDOP / gnss_hdop_ref``, never below the sheet's (:func:`firmware_model.filters.gnss_dop_scale`);
+    #: 0 = the reported HDOP is not used
+    gnss_hdop_ref: float = 0.0
     #: innovation gate of each GNSS row (normalised innovation squared, 1 dof) (docs/hostile-input.md): chi-square(1)
     #: at alpha = 1e-5 (4.4 sigma), now that the covariance is consistent with the sensors (it was 1e4 = 100 sigma
     #: while the filter treated the correlated GNSS error as white and refused every fix after an outage)
@@ -150,6 +155,11 @@ class FirmwareConfig:
     #: vectors with none accepted, after which the loop re-aligns (gravity + sun/GNSS); 0 turns a criterion off
     fdir_gnss_reject_limit: int = 30
     fdir_psns_reject_s: float = 30.0
+    #: the solar criterion re-aligns only a box at rest by its own horizontal speed (m/s; D-5.43): the coarse
+    #: alignment levels on the specific force, which in motion (a turn's centripetal acceleration) is not gravity;
+    #: in motion a run of refused solar vectors with the GNSS still accepted is a sky the solve does not model, and the
+    #: filter goes on without them; 0 = at any speed
+    fdir_psns_realign_max_speed_mps: float = 0.5
     # PSNS
     psns_enabled: bool = True
     psns_baud: int = 115200  # DSP UART2 baud (for the exposure time tag, docs/architecture.md "Conventions")

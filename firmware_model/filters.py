@@ -92,6 +92,7 @@ __all__ = [
     "SolarObservation",
     "UpdateReport",
     "feedback_cycles",
+    "gnss_dop_scale",
     "gnss_measurement_rows",
     "gyro_bias_walk_psd",
     "gyro_flicker_band",
@@ -334,6 +335,18 @@ def _full_q(qk: FloatArray) -> F64Array:
 ROTATION_NOISE_FLOPS = (45, 36)
 
 
+def gnss_dop_scale(cfg: FirmwareConfig, hdop: float | None) -> float:
+    """The factor (>= 1) on the GNSS sigmas of a fix whose receiver reports ``hdop`` (D-5.42): ``sigma = DOP x
+    UERE`` (Kaplan & Hegarty 2017, ch. 7), so a geometry worse than the one the sheet's figures hold at
+    (``cfg.gnss_hdop_ref``) widens position and velocity alike: ``max(1, hdop / hdop_ref)``. The sheet's figures are
+    the floor: a better geometry never narrows them. 1 without a reference or without a usable HDOP (a NAV-PVT-only
+    stream, an empty field). Cost: one ``divsp`` per fix, charged by the caller."""
+    ref = cfg.gnss_hdop_ref
+    if ref <= 0.0 or hdop is None or not math.isfinite(hdop) or hdop <= 0.0:
+        return 1.0
+    return max(1.0, hdop / ref)
+
+
 def gnss_corr_sigmas(cfg: FirmwareConfig) -> tuple[float, float]:
     """Sigmas (m, horizontal per axis and vertical) of the time-correlated GNSS position error: the spec's
     total less its white part, in quadrature (D-5.12)."""
@@ -349,7 +362,9 @@ class GnssErrorStates:
 
     ``db/dt = -b / tau + w``, ``q = 2 sigma_c^2 / tau`` (sigma_c from :func:`gnss_corr_sigmas`); the position rows
     become ``z = p_INS - p_GNSS = dp - b`` with ``R`` the white part only; P0 correlates the first fix's position
-    error with ``b``; a fix after a gap longer than ``gnss_relock_gap_s`` re-draws them."""
+    error with ``b``; a fix after a gap longer than ``gnss_relock_gap_s`` re-draws them. A fix reporting a worse
+    geometry scales the error's variance by ``level = k^2`` (:func:`gnss_dop_scale`, D-5.42): its white ``R``, the
+    states' process noise and, when the level rises, their variance (:meth:`set_level`)."""
 
     #: state offset of each position row's error component: E for dlambda, N for dL, U for dh
     ROW_OFFSET: ClassVar[dict[int, int]] = {D_LON: 0, D_LAT: 1, D_H: 2}
@@ -364,17 +379,49 @@ class GnssErrorStates:
         self.rate = 1.0 / self.tau
         #: FPGA time of the last position fix (s), for the loss-of-lock re-draw
         self.t_last_fix: float | None = None
+        #: the variance scale of the receiver's error at the last fix (``k^2`` of :func:`gnss_dop_scale`; 1: the sheet)
+        self.level = 1.0
 
     @property
     def psd(self) -> F64Array:
-        """Process-noise PSD (m^2/s) of the three states: ``2 sigma_c^2 / tau``."""
-        return 2.0 * self.var / self.tau
+        """Process-noise PSD (m^2/s) of the three states: ``2 level sigma_c^2 / tau``."""
+        return 2.0 * self.level * self.var / self.tau
+
+    def set_level(self, P: FloatArray, level: float, prior: tuple[float, float] | None = None) -> bool:
+        """The receiver's error variance is now ``level`` times the sheet's (D-5.42). When it rises, the correlated
+        error that the states hold gains the difference ``d = level - old``: ``d var`` on their diagonal (an
+        independent addition: ``P`` stays positive semi-definite); when it falls, the states keep their variance and
+        decay towards the new stationary level through their smaller process noise. ``prior = (R_Mh, R_Nh cos L)``
+        (m) on the first fix after :meth:`set_prior`: the position prior came from a fix of the same geometry (the
+        alignment's), so it rises with it as :meth:`set_prior` would have set it at this level: the position
+        variance by ``d`` times the sheet's total (``gnss_pos_sigma_*``), its covariance with the states by ``d var``
+        (per axis ``[[d s^2, d v], [d v, d v]]``, positive semi-definite since ``s^2 >= v``). True when the level
+        changed (the caller updates its process noise from :attr:`psd`)."""
+        if level == self.level:
+            return False
+        d = level - self.level
+        if d > 0.0:
+            i = self.i
+            idx = np.arange(i, i + 3)
+            P[idx, idx] += (d * self.var).astype(P.dtype)
+            if prior is not None:
+                rmh, rnh_cl = prior
+                sh, sv = self.cfg.gnss_pos_sigma_h_m, self.cfg.gnss_pos_sigma_v_m
+                for pos_idx, off, scale, s in ((D_LON, 0, 1.0 / rnh_cl, sh), (D_LAT, 1, 1.0 / rmh, sh),
+                                               (D_H, 2, 1.0, sv)):
+                    P[pos_idx, pos_idx] += d * s * s * scale * scale
+                    c = d * float(self.var[off]) * scale
+                    P[pos_idx, i + off] += c
+                    P[i + off, pos_idx] += c
+        self.level = level
+        return True
 
     def set_prior(self, P: F64Array, rmh: float, rnh_cl: float) -> None:
         """Stationary variances on the diagonal and the first fix's correlation with the position states:
         the position comes from a fix, ``dp = b + w``, so ``cov(dp, b) = var(b)`` (in the states' units:
         ``dL = dN / R_Mh``, ``dlambda = dE / (R_Nh cos L)``)."""
         i = self.i
+        self.level = 1.0
         P[i:i + 3, i:i + 3] = np.diag(self.var)
         for pos_idx, off, scale in ((D_LON, 0, 1.0 / rnh_cl), (D_LAT, 1, 1.0 / rmh), (D_H, 2, 1.0)):
             P[pos_idx, i + off] = P[i + off, pos_idx] = self.var[off] * scale
@@ -383,7 +430,7 @@ class GnssErrorStates:
         """Put ``-1`` for the GNSS error of position row ``idx`` into ``h``; the row's R (m^2), the white part."""
         h[self.i + self.ROW_OFFSET[idx]] = -1.0
         w = self.cfg.gnss_pos_white_sigma_v_m if idx == D_H else self.cfg.gnss_pos_white_sigma_h_m
-        return w * w
+        return w * w * self.level
 
     def relock(self, x: FloatArray, P: FloatArray, t_fix: float) -> bool:
         """After a loss of lock (no position fix for more than ``gnss_relock_gap_s``) the receiver's correlated error is
@@ -399,7 +446,7 @@ class GnssErrorStates:
         x[i:i + 3] = 0.0
         P[i:i + 3, :] = 0.0
         P[:, i:i + 3] = 0.0
-        P[i:i + 3, i:i + 3] = np.diag(self.var).astype(P.dtype)
+        P[i:i + 3, i:i + 3] = np.diag(self.level * self.var).astype(P.dtype)
         return True
 
 
@@ -588,6 +635,8 @@ class GnssMeasurement:
     sigma_pos_h_m: float | None = None
     sigma_pos_v_m: float | None = None
     sigma_vel_mps: float | None = None
+    #: the receiver's HDOP (GGA / GNS) when it reported one: scales the sigmas (:func:`gnss_dop_scale`, D-5.42)
+    hdop: float | None = None
 
 
 def gnss_measurement_rows(cfg: FirmwareConfig, meter: c674x.CycleMeter, meas: GnssMeasurement,
@@ -598,8 +647,12 @@ def gnss_measurement_rows(cfg: FirmwareConfig, meter: c674x.CycleMeter, meas: Gn
     charging the residual's cycles on ``meter``; velocity (Eq. 28-30): ``Z_v = v_INS - v_GNSS`` (ENU m/s),
     ``H_v = [0 I 0]``, the vertical only when measured (UBX velD). ``p_ins`` = (lat rad, lon rad, h m) and
     ``v_ins`` (ENU m/s) are the INS at the fix's time of validity. Shared by every filter with GNSS updates.
+    Every R is the sheet's times ``k^2``, ``k`` from the fix's HDOP (:func:`gnss_dop_scale`, D-5.42).
     """
     rows: list[tuple[int, float, float, float]] = []
+    k2 = gnss_dop_scale(cfg, meas.hdop) ** 2
+    if cfg.gnss_hdop_ref > 0.0 and meas.hdop is not None:
+        meter.charge("gnss_dop_scale", c674x.mathlib("divsp") + c674x.flops(1, 0))
     if meas.pos is not None:
         lat = float(p_ins[0])
         rm, rn = earth.radii(lat)
@@ -608,19 +661,19 @@ def gnss_measurement_rows(cfg: FirmwareConfig, meter: c674x.CycleMeter, meas: Gn
         sh = meas.sigma_pos_h_m or cfg.gnss_pos_sigma_h_m
         sv = meas.sigma_pos_v_m or cfg.gnss_pos_sigma_v_m
         rows += [
-            (D_LAT, rmh, (float(p_ins[0]) - meas.pos[0]) * rmh, sh**2),
-            (D_LON, rnh * cl, (float(p_ins[1]) - meas.pos[1]) * rnh * cl, sh**2),
+            (D_LAT, rmh, (float(p_ins[0]) - meas.pos[0]) * rmh, sh**2 * k2),
+            (D_LON, rnh * cl, (float(p_ins[1]) - meas.pos[1]) * rnh * cl, sh**2 * k2),
         ]
         if meas.pos_up:
-            rows.append((D_H, 1.0, float(p_ins[2]) - meas.pos[2], sv**2))
+            rows.append((D_H, 1.0, float(p_ins[2]) - meas.pos[2], sv**2 * k2))
         meter.charge("gnss_residual", c674x.dp_flops(8, 6) + c674x.mathlib("cosdp") + c674x.mathlib("sqrtdp")
                      + c674x.mathlib("divdp"))
     if meas.vel is not None:
         svh = meas.sigma_vel_mps or cfg.gnss_vel_sigma_h_mps
-        rows.append((DV_E, 1.0, float(v_ins[0]) - float(meas.vel[0]), svh**2))
-        rows.append((DV_N, 1.0, float(v_ins[1]) - float(meas.vel[1]), svh**2))
+        rows.append((DV_E, 1.0, float(v_ins[0]) - float(meas.vel[0]), svh**2 * k2))
+        rows.append((DV_N, 1.0, float(v_ins[1]) - float(meas.vel[1]), svh**2 * k2))
         if meas.vel_up:
-            rows.append((DV_U, 1.0, float(v_ins[2]) - float(meas.vel[2]), cfg.gnss_vel_sigma_v_mps**2))
+            rows.append((DV_U, 1.0, float(v_ins[2]) - float(meas.vel[2]), cfg.gnss_vel_sigma_v_mps**2 * k2))
     return rows
 
 
@@ -839,6 +892,8 @@ class BaseFilter(NavFilter):
             rm, rn = earth.radii(lat)
             self.gnss_states.set_prior(P, rm + h, (rn + h) * math.cos(lat))
             self.gnss_states.t_last_fix = None
+            self.q[self.gnss_states.i:self.gnss_states.i + 3] = self.gnss_states.psd  # the sheet's level again
+            self._qk_interval = math.nan
         if self.sun_states is not None:
             self.sun_states.reset(P)
         if self.flicker_states is not None:
@@ -929,10 +984,28 @@ class BaseFilter(NavFilter):
             self.counters["gnss_relock_redraws"] = self.counters.get("gnss_relock_redraws", 0) + 1
             self.meter.charge("gnss_relock", self.cost.flops(0, 6 * self.n))
 
+    def _gnss_level(self, meas: GnssMeasurement, p_first: FloatArray | None = None) -> None:
+        """The GNSS error states follow the fix's reported geometry (:meth:`GnssErrorStates.set_level`, D-5.42):
+        their process noise is re-read when the level changes (charged). ``p_first`` (lat rad, lon rad, h m): the
+        first fix since the prior, whose position variance rises with the level too."""
+        gs = self.gnss_states
+        prior = None
+        if p_first is not None:
+            lat, h = float(p_first[0]), float(p_first[2])
+            rm, rn = earth.radii(lat)
+            prior = (rm + h, (rn + h) * math.cos(lat))
+        if gs is not None and gs.set_level(self.P, gnss_dop_scale(self.cfg, meas.hdop) ** 2, prior):
+            self.q[gs.i:gs.i + 3] = gs.psd
+            self._qk_interval = math.nan  # Q_k = q T_k is recomputed at the next predict
+            self.counters["gnss_level_changes"] = self.counters.get("gnss_level_changes", 0) + 1
+            self.meter.charge("gnss_level", self.cost.flops(6, 6))
+
     def update_gnss(self, nav: NavState, meas: GnssMeasurement, p_ins: FloatArray, v_ins: FloatArray) -> UpdateReport:
         dt = self.dtype
         if meas.pos is not None:
+            first = self.gnss_states is not None and self.gnss_states.t_last_fix is None
             self._gnss_relock(meas.t_fpga_s)
+            self._gnss_level(meas, p_ins if first else None)
         rows = gnss_measurement_rows(self.cfg, self.meter, meas, p_ins, v_ins)
         innov = []
         h = np.zeros(self.n, dtype=dt)

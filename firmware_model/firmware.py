@@ -36,6 +36,7 @@ The filter itself is a variant (:mod:`firmware_model.filters`), picked by ``Firm
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 from collections import deque
 from typing import Any
@@ -590,7 +591,8 @@ class Firmware(HostTask, GnssTask):
         if cfg.fdir_gnss_reject_limit and self._gnss_reject_run >= cfg.fdir_gnss_reject_limit:
             reason = "gnss_rejected"
         elif (cfg.fdir_psns_reject_s and self._psns_reject_since is not None
-              and t - self._psns_reject_since >= cfg.fdir_psns_reject_s and t - self._last_gnss_update_t < 5.0):
+              and t - self._psns_reject_since >= cfg.fdir_psns_reject_s and t - self._last_gnss_update_t < 5.0
+              and self._at_rest_for_realign()):
             reason = "psns_rejected"
         elif self._tick % cfg.kf_predict_every == 0:
             nav = self.nav
@@ -606,6 +608,15 @@ class Firmware(HostTask, GnssTask):
         self._gnss_reject_run = 0
         self._psns_reject_since = None
         self._restart_alignment()
+
+    def _at_rest_for_realign(self) -> bool:
+        """Whether the solar criterion may re-align: the navigation solution's horizontal speed under
+        ``fdir_psns_realign_max_speed_mps`` (D-5.43; 0 = always)."""
+        vmax = self.cfg.fdir_psns_realign_max_speed_mps
+        nav = self.nav
+        if vmax <= 0.0 or nav is None:
+            return True
+        return math.hypot(float(nav.v[0]), float(nav.v[1])) < vmax
 
     # -- introspection (tests, reports) ----------------------------------------------------------------
     @property

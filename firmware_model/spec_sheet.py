@@ -21,7 +21,8 @@ package does no file I/O. :meth:`SensorSpecSheet.config_fields` derives the filt
   white part (``white_sigma_h_m`` / ``_v_m``: receiver noise and fast multipath) and a time-correlated remainder
   (atmosphere, orbit) of correlation time ``corr_time_s``, estimated as three augmented Gauss-Markov states
   (docs/decisions/filter-consistency.md); a gap of fixes longer than ``relock_gap_s`` is a loss of lock after which
-  they restart as a fresh draw (D-5.17);
+  they restart as a fresh draw (D-5.17); a fix whose receiver reports an HDOP above ``hdop_ref`` has all of these
+  sigmas scaled by ``HDOP / hdop_ref`` (D-5.42, :func:`firmware_model.filters.gnss_dop_scale`);
 * PSNS: the solve's own noise from its eigenvalues (``noise_scale * lambda_min / lambda_mid / n_used``, see
   :func:`firmware_model.filters.solar_noise_variance`), a floor, and the systematic solar-vector error (camera
   mount residual and lens-model residual of the calibration plus the sky's departure from the Rayleigh pattern, in
@@ -98,6 +99,9 @@ class GnssSpec:
     #: a gap of position fixes longer than this (s) is a loss of lock: the receiver's solution after re-acquisition
     #: (another satellite set, a restarted code smoother) carries a fresh draw of the correlated error (0 = never)
     relock_gap_s: float = 5.0
+    #: the HDOP at which the figures above hold: a fix reporting a larger HDOP has its sigmas scaled by
+    #: ``HDOP / hdop_ref`` (sigma = DOP x UERE, the sheet's figures a floor; D-5.42); 0 = not used
+    hdop_ref: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -222,6 +226,7 @@ class SensorSpecSheet:
             "gnss_vel_sigma_v_mps": max(n.velocity_v_95_mps / 2.0, 0.01),
             "gnss_latency_s": n.output_latency_s,
             "gnss_relock_gap_s": n.relock_gap_s,
+            "gnss_hdop_ref": max(n.hdop_ref, 0.0),
             "psns_noise_scale": p.noise_scale,
             "psns_sigma_deg": max(p.noise_floor_deg, 0.001),
             "psns_bias_sigma_deg": math.hypot(p.mount_residual_deg, p.lens_residual_deg, p.sky_bias_deg),

@@ -150,6 +150,7 @@ class _Epoch:
     vel_ecef: Any = None             # NAV-SOL velocity (m/s), used when no NAV-VELNED came
     ubx_fix: int | None = None       # NAV-SOL / NAV-STATUS fix type (with gpsFixOK)
     gsa_best: int = 0                # best GSA fix type of the epoch (0: no GSA; 1 no fix, 2 2-D, 3 3-D)
+    hdop: float | None = None        # GGA / GNS HDOP of the fix (scales its sigmas, D-5.42)
 
 
 class GnssTask(TimeKeeping):
@@ -230,6 +231,7 @@ class GnssTask(TimeKeeping):
                 e.refused = {7: "gnss_manual_refused", 8: "gnss_sim_refused"}.get(s.quality, "gnss_fix_type_unknown")
                 return
             self._nmea_fix(e, s.lat_deg, s.lon_deg, s.altitude_msl_m, s.geoid_sep_m, s.num_sats, s.quality)
+            e.hdop = s.hdop
         elif isinstance(s, Gns):
             reason = input_guard.check_gns(s) if s.lat_deg is not None else None
             if reason is not None:
@@ -251,6 +253,7 @@ class GnssTask(TimeKeeping):
                 return
             best = max((_GNS_QUALITY[c] for c in modes & _GNS_FIX), key=lambda q: (q in (4, 5), q))
             self._nmea_fix(e, s.lat_deg, s.lon_deg, s.altitude_msl_m, s.geoid_sep_m, s.num_sats, best)
+            e.hdop = s.hdop
         elif isinstance(s, Rmc):
             reason = input_guard.check_rmc(s)
             if reason is not None:
@@ -672,7 +675,7 @@ class GnssTask(TimeKeeping):
             m.pos = (lat, lon, 0.0)
             m.pos_up = False
             self.counters["gnss_2d_fixes"] += 1
-        m.vel, m.vel_up, m.quality = e.vel, e.vel_up, e.quality
+        m.vel, m.vel_up, m.quality, m.hdop = e.vel, e.vel_up, e.quality, e.hdop
         if m.pos is None and m.vel is None:
             self.counters["gnss_no_fix_epochs"] += 1
             return

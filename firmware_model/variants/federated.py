@@ -79,6 +79,7 @@ from ..filters import (
     SolarObservation,
     UpdateReport,
     feedback_cycles,
+    gnss_dop_scale,
     gnss_measurement_rows,
     kf_predict_cycles,
     kf_scalar_update_cycles,
@@ -272,6 +273,7 @@ class FederatedFilter(NavFilter):
             rm, rn = earth.radii(lat)
             self.gnss_states.set_prior(P1, rm + h, (rn + h) * math.cos(lat))
             self.gnss_states.t_last_fix = None
+            self.q1[self.gnss_states.i:self.gnss_states.i + 3] = self.gnss_states.psd  # the sheet's level again
         P2 = np.zeros((self.n2, self.n2))
         P2[np.ix_(S2, S2)] = p15[np.ix_(B2, B2)]
         P2[X2_MOTION, X2_MOTION] = np.eye(3) * p.motion_accel_sigma_mps2**2
@@ -386,10 +388,20 @@ class FederatedFilter(NavFilter):
         if m == 0:
             return UpdateReport("gnss", False, 0, 0.0, {"reason": "empty"})
         gs = self.gnss_states
+        prior = None
+        if meas.pos is not None and gs is not None and gs.t_last_fix is None:  # the first fix since the prior
+            lat, h = float(p_ins[0]), float(p_ins[2])
+            rm, rn = earth.radii(lat)
+            prior = (rm + h, (rn + h) * math.cos(lat))
         if meas.pos is not None and gs is not None and gs.relock(self.x1, self.P1, meas.t_fpga_s):
             # a loss of lock: the receiver's correlated error is a fresh draw (D-5.17, as the base filter)
             self.counters["gnss_relock_redraws"] = self.counters.get("gnss_relock_redraws", 0) + 1
             self.meter.charge("gnss_relock", self.cost.flops(0, 6 * self.n1))
+        if meas.pos is not None and gs is not None and gs.set_level(self.P1, gnss_dop_scale(self.cfg, meas.hdop) ** 2,
+                                                                     prior):
+            # the fix's geometry scales the receiver's error (D-5.42, as the base filter; the states are local)
+            self.q1[gs.i:gs.i + 3] = gs.psd
+            self.meter.charge("gnss_level", self.cost.flops(6, 6))
         # the rows as H (m, n1): position rows z = dp - b with R the white part when the GNSS error is a state
         H = np.zeros((m, self.n1))
         z = np.array([r[2] for r in rows])

@@ -101,3 +101,20 @@ def test_imu_words_refused_exactly_at_the_24_bit_rails():
             assert check_imu_words(v, ok) == ("gyro_saturated" if bad else None)
             assert check_imu_words(ok, v) == ("accel_saturated" if bad else None)
             assert check_imu_words(v, v) == ("gyro_saturated" if bad else None)
+
+
+def test_the_solar_criterion_re_aligns_only_a_box_at_rest() -> None:
+    """D-5.43: the coarse alignment levels on the specific force, which is not gravity in a turn; so a run of refused
+    solar vectors re-aligns a box at rest only (by its own horizontal speed), and at any speed when the limit is 0.
+    The heading flip above (at rest) still re-aligns."""
+    import numpy as np
+
+    from firmware_model.nav_state import NavState
+
+    fw = Firmware()
+    fw.nav = NavState(q=np.array([1.0, 0.0, 0.0, 0.0]), v=np.array([0.3, 0.3, 2.0]), pos=np.zeros(3))
+    assert fw._at_rest_for_realign()  # 0.42 m/s horizontal (the vertical does not count)
+    fw.nav.v = np.array([0.4, 0.4, 0.0])
+    assert not fw._at_rest_for_realign()  # 0.57 m/s: moving
+    fw.cfg = FirmwareConfig(fdir_psns_realign_max_speed_mps=0.0)
+    assert fw._at_rest_for_realign()

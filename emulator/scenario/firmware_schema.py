@@ -114,6 +114,8 @@ class KmeansSpec(Model):
                                      description="constant part of the magnetometer heading error (bias state), deg")
     heading_noise_deg: float = Field(0.03, gt=0, le=30,
                                      description="white part of the magnetometer heading's error, deg")
+    fix_events: bool = Field(False, description="every fix as an event kmeans_fix (pitch, roll, heading, t_meas_s), "
+                             "admitted or not; the event log only")
 
 
 #: The federated filter's sub-filters.

@@ -84,6 +84,10 @@ class KmeansParams:
     #: horizontal field, 0.03 deg). The tilt's noise comes from the solve's own quality (D-5.23).
     heading_sigma_deg: float = 0.3
     heading_noise_deg: float = 0.03
+    #: every fix as an event ``kmeans_fix`` (its pitch, roll and heading, ``t_meas_s``), whether the gate admits it
+    #: or not: the single fixes of the paper's field table (benchmarks/paper_reproductions.py yang). Off by default:
+    #: the other events are logged on a change only, and this one changes nothing but the event log
+    fix_events: bool = False
 
 
 @dataclass

@@ -42,6 +42,10 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+from emulator.numeric_baseline import pin, pinned  # noqa: E402
+
+pin()  # before numpy loads: the arithmetic of psns-hil and of the tests (emulator.numeric_baseline)
+
 from emulator.assembly.runner import run_scenario  # noqa: E402
 from emulator.testing import load_test_scenario  # noqa: E402
 
@@ -61,9 +65,15 @@ YANG_PAPER = {"pitch_rms_deg": 0.23, "roll_rms_deg": 0.43}
 CHECKPOINT: Path | None = None
 
 
+def numerics() -> str:
+    """``baseline`` when this process runs the pinned numeric baseline (:mod:`emulator.numeric_baseline`, as the
+    tests and ``psns-hil`` do), else ``native`` (the machine's own kernels: the last bits differ)."""
+    return "baseline" if pinned() else "native"
+
+
 def _checkpoint(seeds: list[int], per: list[dict[str, Any]]) -> None:
     if CHECKPOINT is not None:
-        CHECKPOINT.write_text(json.dumps({"seeds": seeds, "members": per}, indent=1))
+        CHECKPOINT.write_text(json.dumps({"seeds": seeds, "members": per, "numerics": numerics()}, indent=1))
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -561,7 +571,7 @@ def main(argv: list[str] | None = None) -> int:
         res = ge(seeds, log=log, figures=a.figures)
     print(res["markdown"])
     if a.json:
-        Path(a.json).write_text(json.dumps(res, indent=1))
+        Path(a.json).write_text(json.dumps({**res, "numerics": numerics()}, indent=1))
     return 0
 
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -192,8 +193,23 @@ def test_a_stored_member_is_what_its_seed_runs_again(path):
     its seed and set-up, gives the stored numbers exactly (every run is seeded and deterministic; no tolerance)."""
     data = json.loads(path.read_text())
     stored = data["members"][0]
-    again = pr.rerun_member(stored)
-    assert json.dumps(again, sort_keys=True) == json.dumps(stored, sort_keys=True)  # NaN (no draw) equals NaN
+    again = json.loads(json.dumps(pr.rerun_member(stored)))
+    if data.get("numerics") == "baseline":  # the tests' arithmetic (the root conftest pins it): bit for bit
+        # compared as JSON text: a NaN (no draw) equals a NaN; the keys that differ are named
+        assert [k for k in sorted(set(again) | set(stored)) if json.dumps(again.get(k), sort_keys=True) !=
+                json.dumps(stored.get(k), sort_keys=True)] == []
+    else:  # recorded with the machine's own OpenBLAS / numpy kernels: the last bits differ and a closed-loop filter
+        # carries them on (up to 5e-3 relative in the golden histories between kernels, D-8.8)
+        a, b = _flat(again), _flat(stored)
+        num = {k for k, v in b.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
+        assert {k: a.get(k) for k in num} == pytest.approx({k: b[k] for k in num}, rel=5e-3, abs=1e-9, nan_ok=True)
+        assert {k: v for k, v in a.items() if k not in num} == {k: v for k, v in b.items() if k not in num}
+
+
+def _flat(d: Any, key: str = "") -> dict[str, Any]:
+    if isinstance(d, dict):
+        return {k: v for kk, vv in d.items() for k, v in _flat(vv, f"{key}.{kk}").items()}
+    return {key: d}
 
 
 @pytest.mark.slow

@@ -1,22 +1,27 @@
-"""Like-for-like reproductions of the variants' papers (issue 15 item 4): one function per paper, a Markdown table each.
+"""Like-for-like reproductions of the variants' papers (issue 15 item 4, issue 36 item 5): one function per paper.
 
-    python benchmarks/paper_reproductions.py zhang [--seeds 1-10] [--json out.json] [--set KEY=JSON ...]
-    python benchmarks/paper_reproductions.py ge    [--seeds 1-10]
-    python benchmarks/paper_reproductions.py yang  [--seeds 1-10]
+    python benchmarks/paper_reproductions.py zhang [--seeds 1-10] [--skies rayleigh,realistic,envelope] [--json F]
+    python benchmarks/paper_reproductions.py ge    [--seeds 1-10] [--figures paper|field] [--json F]
+    python benchmarks/paper_reproductions.py yang  [--seeds 1-10] [--sky realistic|rayleigh] [--json F]
+    python benchmarks/paper_reproductions.py PAPER --merge F1 [F2 ...]     # the table of stored members, no runs
 
 Every member runs the library scenario in fast mode with the run seed (``seed`` of the scenario replaced), one after
-the other on one core; the tables of docs/variants.md section 6 are these functions' output.
+the other on one core; ``--json`` writes the members after every seed (a stopped run keeps what it measured). The
+tables of docs/variants.md section 6 are ``--merge`` outputs of the files in ``benchmarks/paper_results/``, each
+giving the median and inter-quartile range over the seeds beside the paper's one run (D-6.11);
+``tests/benchmarks/test_paper_reproductions.py`` prints them again and compares them with the page.
 
 * :func:`zhang`: ``scenarios/sun_elevation_paper_like_for_like.yaml`` (Zhang et al. 2021, Table 1 sensors, Table 2
-  compass residuals, GNSS for the initial fix only) with the sun-elevation update and without it (pure SINS, the same
-  world and seed): latitude / longitude MAE over the 20 GNSS-free minutes and the change against pure SINS, next to
-  the paper's 0.058 / 0.009 deg and -59.4 % / -98.1 %.
-* :func:`ge`: ``scenarios/federated_paper_comparison.yaml`` under the ``field`` presets, the master fusing both
-  sub-filters, polarization/MIMU only and SINS/GNSS only, on the same stream (``subfilters``): heading RMS and how
-  many seeds keep the paper's ordering fused < pol/MIMU < SINS/GNSS.
-* :func:`yang`: ``scenarios/kmeans_tilt_series.yaml`` field-like (realistic sky, the ``field`` camera, a magnetometer
-  with hard and soft iron the firmware does not know): pitch / roll RMS and max of the navigation output while fixes
-  are answered, against the paper's field table (RMS 0.23 / 0.43 deg).
+  compass residuals, GNSS for the initial fix only): pure SINS once per seed and the sun-elevation filter under each
+  sky of :data:`ZHANG_SKIES`; latitude / longitude MAE over the 20 GNSS-free minutes, the change against pure SINS and
+  the error along / across the Sun's azimuth, next to the paper's 0.058 / 0.009 deg and -59.4 % / -98.1 %.
+* :func:`ge`: ``scenarios/federated_paper_comparison.yaml`` under the paper's figures (:data:`GE_PAPER`) or the
+  ``field`` presets, the master fusing both sub-filters, polarization/MIMU only and SINS/GNSS only, on the same stream
+  (``subfilters``): heading RMS / max and how many seeds keep the paper's ordering fused < pol/MIMU < SINS/GNSS.
+* :func:`yang`: ``scenarios/kmeans_field_tilt_series.yaml`` (realistic or Rayleigh sky, the ``field`` camera, a
+  magnetometer with hard and soft iron the firmware does not know): the single K-means fixes (``kmeans_fix`` events)
+  against the truth at their exposure, beside the paper's field table (RMS 0.23 / 0.43 deg), and the navigation
+  output's pitch / roll error apart.
 """
 
 from __future__ import annotations
@@ -39,6 +44,10 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+from emulator.numeric_baseline import pin, pinned  # noqa: E402
+
+pin()  # before numpy loads: the arithmetic of psns-hil and of the tests (emulator.numeric_baseline)
+
 from emulator.assembly.session import run_scenario  # noqa: E402
 from emulator.testing import load_test_scenario  # noqa: E402
 
@@ -57,9 +66,15 @@ YANG_PAPER = {"pitch_rms_deg": 0.23, "roll_rms_deg": 0.43}
 CHECKPOINT: Path | None = None
 
 
+def numerics() -> str:
+    """``baseline`` when this process runs the pinned numeric baseline (:mod:`emulator.numeric_baseline`, as the
+    tests and ``psns-hil`` do), else ``native`` (the machine's own kernels: the last bits differ)."""
+    return "baseline" if pinned() else "native"
+
+
 def _checkpoint(seeds: list[int], per: list[dict[str, Any]]) -> None:
     if CHECKPOINT is not None:
-        CHECKPOINT.write_text(json.dumps({"seeds": seeds, "members": per}, indent=1))
+        CHECKPOINT.write_text(json.dumps({"seeds": seeds, "members": per, "numerics": numerics()}, indent=1))
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -188,8 +203,8 @@ def zhang_member(seed: int, elevation_update: bool, after_s: float = 10.0,
     across the Sun's azimuth (MAE, km) and the end point's angle off the azimuth line (deg). ``overrides``: dotted
     scenario keys for an attribution run (e.g. ``sensors.compass.aop_offset_deg``)."""
     name = "sun_elevation_paper_like_for_like"
-    _s, nav, _ev = run_nav(name, seed, {**(overrides or {}),
-                                        "firmware.variants.sun_elevation.elevation_update": elevation_update})
+    summary, nav, _ev = run_nav(name, seed, {**(overrides or {}),
+                                             "firmware.variants.sun_elevation.elevation_update": elevation_update})
     m_lat, m_lon = degrees_of_position(39.979, 50.0)
     lat, lon, along, across, last = [], [], [], [], -1.0
     end = (0.0, 0.0)
@@ -208,77 +223,128 @@ def zhang_member(seed: int, elevation_update: bool, after_s: float = 10.0,
             "lat_max_deg": max(lat), "lon_max_deg": max(lon), "samples": len(lat),
             "along_mae_km": statistics.fmean(along), "across_mae_km": statistics.fmean(across),
             "end_along_km": end[0] / 1e3, "end_across_km": end[1] / 1e3,
-            "end_off_azimuth_deg": drift_off_azimuth_deg(*end)}
+            "end_off_azimuth_deg": drift_off_azimuth_deg(*end), **_envelope_of(summary)}
 
 
-def zhang(seeds: list[int], log: Callable[[str], None] = print,
-          overrides: dict[str, Any] | None = None) -> dict[str, Any]:
-    """Zhang et al. like for like: per seed the sun-elevation filter and pure SINS on the same world and seed."""
+def _envelope_of(summary: dict[str, Any]) -> dict[str, Any]:
+    """``{"envelope": the drawn values as flat columns}`` of a run drawn from an envelope, else ``{}``."""
+    env = summary.get("envelope")
+    if not env:
+        return {}
+    from emulator.world.envelope import flat_draws
+
+    return {"envelope": flat_draws(env.get("draws") or {})}
+
+
+def merge_zhang(members: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Members of several ``zhang --json`` files joined by seed (each file may carry other skies of the same seeds);
+    a seed's pure SINS must be the same in every file (the run is deterministic), else ValueError."""
+    by: dict[int, dict[str, Any]] = {}
+    for m in members:
+        r = by.setdefault(m["seed"], {"seed": m["seed"], "sins": m["sins"], "se": {}})
+        if r["sins"] != m["sins"]:
+            raise ValueError(f"seed {m['seed']}: the pure-SINS members of the merged files differ")
+        r["se"].update(m["se"])
+    return [by[k] for k in sorted(by)]
+
+
+#: the skies of the Zhang comparison (scenario overrides on top of the like-for-like file): ``rayleigh`` the file's
+#: own (clear single scattering, the sky the firmware's compass model inverts exactly), ``realistic`` the emulator's
+#: default sky, ``envelope`` the published sky envelope (docs/sensors.md "The envelope": neutral points 10-30 deg from
+#: the sun, turbidity 2-6, aerosol, thin cloud), only its ``sky`` group: the paper's own sensors stay (Table 1), the
+#: condition is drawn (D-6.11)
+ZHANG_SKIES: dict[str, dict[str, Any]] = {
+    "rayleigh": {},
+    "realistic": {"sky": {"model": "realistic"}},
+    "envelope": {"sky": {"model": "realistic"}, "envelope": {"preset": "published", "groups": ["sky"]}},
+}
+
+
+def zhang(seeds: list[int], log: Callable[[str], None] = print, overrides: dict[str, Any] | None = None,
+          skies: list[str] | None = None, sins: dict[int, dict[str, Any]] | None = None) -> dict[str, Any]:
+    """Zhang et al. like for like: per seed pure SINS once (its world without the update: no sky reaches it) and the
+    sun-elevation filter under each of ``skies`` (:data:`ZHANG_SKIES`, default all three). ``sins``: pure-SINS members
+    by seed already run (``--sins-from``), taken instead of running them again."""
+    skies = list(ZHANG_SKIES) if skies is None else skies
     per: list[dict[str, Any]] = []
     for seed in seeds:
         t0 = time.monotonic()
-        se = zhang_member(seed, True, overrides=overrides)
-        ins = zhang_member(seed, False, overrides=overrides)
-        row = {"seed": seed, "se": se, "sins": ins,
-               "lat_change": se["lat_mae_deg"] / ins["lat_mae_deg"] - 1.0,
-               "lon_change": se["lon_mae_deg"] / ins["lon_mae_deg"] - 1.0}
+        ins = sins[seed] if sins and seed in sins else zhang_member(seed, False, overrides=overrides)
+        row: dict[str, Any] = {"seed": seed, "sins": ins, "se": {}}
+        for sky in skies:
+            se = zhang_member(seed, True, overrides={**ZHANG_SKIES[sky], **(overrides or {})})
+            se["lat_change"] = se["lat_mae_deg"] / ins["lat_mae_deg"] - 1.0
+            se["lon_change"] = se["lon_mae_deg"] / ins["lon_mae_deg"] - 1.0
+            row["se"][sky] = se
+            log(f"seed {seed} {sky}: SE lat/lon MAE {se['lat_mae_deg']:.4f}/{se['lon_mae_deg']:.4f} deg, SINS "
+                f"{ins['lat_mae_deg']:.4f}/{ins['lon_mae_deg']:.4f} deg, change {se['lat_change']:+.0%}/"
+                f"{se['lon_change']:+.0%}; along/across MAE SE {se['along_mae_km']:.1f}/{se['across_mae_km']:.1f} "
+                f"km, SINS {ins['along_mae_km']:.1f}/{ins['across_mae_km']:.1f} km")
         per.append(row)
         _checkpoint(seeds, per)
-        log(f"seed {seed}: SE lat/lon MAE {se['lat_mae_deg']:.4f}/{se['lon_mae_deg']:.4f} deg, SINS "
-            f"{ins['lat_mae_deg']:.4f}/{ins['lon_mae_deg']:.4f} deg, change {row['lat_change']:+.0%}/"
-            f"{row['lon_change']:+.0%}; along/across MAE SE {se['along_mae_km']:.1f}/{se['across_mae_km']:.1f} km, "
-            f"SINS {ins['along_mae_km']:.1f}/{ins['across_mae_km']:.1f} km, SINS drift "
-            f"{ins['end_off_azimuth_deg']:.0f} deg off the azimuth ({time.monotonic() - t0:.0f} s)")
+        log(f"seed {seed}: SINS drift {ins['end_off_azimuth_deg']:.0f} deg off the azimuth "
+            f"({time.monotonic() - t0:.0f} s)")
     return {"seeds": seeds, "members": per, "markdown": zhang_table(per)}
 
 
-def _pooled(per: list[dict[str, Any]], key: str) -> float:
-    """The change of the mean MAE over the seeds (SE against SINS), not the mean of the per-seed changes."""
-    return statistics.fmean(r["se"][key] for r in per) / statistics.fmean(r["sins"][key] for r in per) - 1.0
+def quartiles(xs: list[float]) -> tuple[float, float, float]:
+    """(first quartile, median, third quartile) of ``xs``, linear interpolation between order statistics
+    (``statistics.quantiles(method="inclusive")``, numpy's default)."""
+    if len(xs) == 1:
+        return xs[0], xs[0], xs[0]
+    q1, q2, q3 = statistics.quantiles(xs, n=4, method="inclusive")
+    return q1, q2, q3
+
+
+def _med(xs: list[float], digits: int = 3, scale: float = 1.0) -> str:
+    """``median [q1 .. q3]`` of ``xs`` times ``scale``."""
+    if not xs:
+        return "-"
+    q1, q2, q3 = quartiles([x * scale for x in xs])
+    return f"{q2:.{digits}f} [{q1:.{digits}f} .. {q3:.{digits}f}]"
+
+
+def _both_fall(se: dict[str, Any]) -> bool:
+    return bool(se["lat_change"] < 0 and se["lon_change"] < 0)
 
 
 def zhang_table(per: list[dict[str, Any]]) -> str:
-    """The Markdown table: mean (min .. max) over seeds next to the paper; with the along / across-azimuth split
-    (members that carry it) and the seeds whose pure SINS drifted along the Sun's azimuth as the paper's did."""
-    col = lambda f: [f(r) for r in per]  # noqa: E731
-    n = len(per)
-    better = sum(1 for r in per if r["lat_change"] < 0 and r["lon_change"] < 0)
-    lines = [f"| quantity ({n} seeds: mean (min .. max)) | ours | paper |", "|---|---|---|",
-             f"| latitude MAE, sun elevation (deg) | {_fmt(col(lambda r: r['se']['lat_mae_deg']), 4)} | 0.058 |",
-             f"| longitude MAE, sun elevation (deg) | {_fmt(col(lambda r: r['se']['lon_mae_deg']), 4)} | 0.009 |",
-             f"| latitude MAE, pure SINS (deg) | {_fmt(col(lambda r: r['sins']['lat_mae_deg']), 4)} | 0.143 |",
-             f"| longitude MAE, pure SINS (deg) | {_fmt(col(lambda r: r['sins']['lon_mae_deg']), 4)} | 0.47 |",
-             f"| latitude change against pure SINS | {_fmt(col(lambda r: r['lat_change']), 0, 100)} % | -59.4 % |",
-             f"| longitude change against pure SINS | {_fmt(col(lambda r: r['lon_change']), 0, 100)} % | -98.1 % |",
-             f"| seeds where both MAE fall | {better} of {n} | |"]
-    lines.append(f"| change of the mean MAE over the seeds, latitude / longitude | "
-                 f"{_pooled(per, 'lat_mae_deg'):+.0%} / {_pooled(per, 'lon_mae_deg'):+.0%} | |")
-    if all("end_off_azimuth_deg" in r["sins"] for r in per):
-        pd = zhang_paper_drift()
-        lines += [
-            f"| pure SINS at 20 min, angle off the Sun's azimuth line (deg) | "
-            f"{_fmt(col(lambda r: r['sins']['end_off_azimuth_deg']), 0)} | {pd['sins_off_azimuth_deg']:.0f} |",
-            f"| along the azimuth, MAE sun elevation / pure SINS (km) | "
-            f"{_fmt(col(lambda r: r['se']['along_mae_km']), 1)} / {_fmt(col(lambda r: r['sins']['along_mae_km']), 1)}"
-            f" | (end {abs(pd['sins_along_km']):.0f} km SINS) |",
-            f"| across the azimuth, MAE sun elevation / pure SINS (km) | "
-            f"{_fmt(col(lambda r: r['se']['across_mae_km']), 1)} / {_fmt(col(lambda r: r['sins']['across_mae_km']), 1)}"
-            f" | (end {abs(pd['sins_across_km']):.0f} km SINS) |"]
-        like = [r for r in per if zhang_paper_like(r)]
-        if like:
-            lines.append(
-                f"| seeds whose pure SINS ended within {ZHANG_PAPER_LIKE_DEG:.0f} deg of the paper's drift line "
-                f"({', '.join(str(r['seed']) for r in like)}): latitude / longitude change | "
-                f"{_fmt([r['lat_change'] for r in like], 0, 100)} % / "
-                f"{_fmt([r['lon_change'] for r in like], 0, 100)} % | -59.4 % / -98.1 % |")
-        else:
-            lines.append(f"| seeds whose pure SINS ended within {ZHANG_PAPER_LIKE_DEG:.0f} deg of the paper's drift "
-                         f"line | none of {n} | |")
+    """The Markdown table: median [inter-quartile range] over the seeds of pure SINS and of the sun-elevation filter
+    under each sky the members carry, beside the paper's one run."""
+    per = sorted(per, key=lambda r: r["seed"])
+    skies = [s for s in ZHANG_SKIES if any(s in r["se"] for r in per)]
+    like = [r for r in per if zhang_paper_like(r)]
+    pd = zhang_paper_drift()
+
+    def row(label: str, sins: str, f: Callable[[dict[str, Any]], float], digits: int, scale: float, paper: str,
+            members: list[dict[str, Any]] | None = None) -> str:
+        ms = per if members is None else members
+        cells = [_med([f(r["se"][s]) for r in ms if s in r["se"]], digits, scale) for s in skies]
+        return f"| {label} | {sins} | " + " | ".join(cells) + f" | {paper} |"
+
+    n_sky = {s: sum(1 for r in per if s in r["se"]) for s in skies}
+    sins = lambda k, d=4, sc=1.0, ms=None: _med([r["sins"][k] for r in (per if ms is None else ms)], d, sc)  # noqa: E731
+    head = (f"| median [inter-quartile range] over the seeds | pure SINS ({len(per)} seeds) | "
+            + " | ".join(f"sun elevation, {s} sky ({n_sky[s]} seeds)" for s in skies) + " | paper (one run) |")
+    lines = [head, "|---|---|" + "---|" * len(skies) + "---|",
+             row("latitude MAE (deg)", sins("lat_mae_deg"), lambda m: m["lat_mae_deg"], 4, 1.0, "0.058 (SINS 0.143)"),
+             row("longitude MAE (deg)", sins("lon_mae_deg"), lambda m: m["lon_mae_deg"], 4, 1.0, "0.009 (SINS 0.47)"),
+             row("latitude change against pure SINS (%)", "", lambda m: m["lat_change"], 0, 100.0, "-59.4"),
+             row("longitude change against pure SINS (%)", "", lambda m: m["lon_change"], 0, 100.0, "-98.1"),
+             row("MAE along the Sun's azimuth (km)", sins("along_mae_km", 1), lambda m: m["along_mae_km"], 1, 1.0,
+                 f"(SINS end {abs(pd['sins_along_km']):.0f})"),
+             row("MAE across the Sun's azimuth (km)", sins("across_mae_km", 1), lambda m: m["across_mae_km"], 1, 1.0,
+                 f"(SINS end {abs(pd['sins_across_km']):.0f})"),
+             "| seeds where both MAE fall | | " + " | ".join(
+                 f"{sum(1 for r in per if s in r['se'] and _both_fall(r['se'][s]))} of {n_sky[s]}" for s in skies)
+             + " | |",
+             f"| pure SINS at 20 min, angle off the Sun's azimuth line (deg) | {sins('end_off_azimuth_deg', 0)} | "
+             + " | " * (len(skies) - 1) + f" | {pd['sins_off_azimuth_deg']:.0f} |"]
+    if like:
+        tag = f"seeds like the paper's draw ({len(like)}: pure SINS within {ZHANG_PAPER_LIKE_DEG:.0f} deg of its line)"
+        lines += [row(f"{tag}: latitude change (%)", "", lambda m: m["lat_change"], 0, 100.0, "-59.4", like),
+                  row(f"{tag}: longitude change (%)", "", lambda m: m["lon_change"], 0, 100.0, "-98.1", like)]
     return "\n".join(lines)
-
-
-def _rms(xs: list[float]) -> float:
-    return math.sqrt(statistics.fmean([x * x for x in xs]))
 
 
 #: Ge et al. under the ``field`` presets: the library scenario's motion, alignment and filter; the world's sensors
@@ -297,29 +363,37 @@ GE_FIELD: dict[str, Any] = {
     "firmware.psns.sigma_deg": None,
 }
 GE_CONFIGS = {"fused": ["sins_gnss", "pol_mimu"], "pol_mimu": ["pol_mimu"], "sins_gnss": ["sins_gnss"]}
+#: Ge et al.'s own simulation conditions (section 3 (1)-(2): gyro drift 25 deg/h, accelerometer bias 800 ug, GPS 2.5 m
+#: and 0.1 m/s, gyro noise 20 deg/h, accelerometer noise 600 ug, polarization noise 0.01, initial misalignment (-0.9,
+#: 0.6, 0.7) deg, 400 s static and a 300 s half circle, a Rayleigh sky) are the library scenario as written; their
+#: Figs. 5/6 compare the configurations without a GNSS fault, so the scenario's glitch at 200 s is taken out
+GE_PAPER: dict[str, Any] = {"sensors.gnss.glitches": []}
+GE_FIGURES = {"paper": GE_PAPER, "field": GE_FIELD}
 
 
-def ge_overrides(subfilters: list[str], overrides: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The scenario overrides of one Ge member: the field presets, its sub-filters, then ``overrides`` (dotted keys)."""
-    return {**GE_FIELD, "firmware.variants.federated.subfilters": subfilters, **(overrides or {})}
+def ge_overrides(subfilters: list[str], overrides: dict[str, Any] | None = None,
+                 figures: str = "field") -> dict[str, Any]:
+    """The scenario overrides of one Ge member: the ``figures`` (:data:`GE_FIGURES`), its sub-filters, then
+    ``overrides`` (dotted keys)."""
+    return {**GE_FIGURES[figures], "firmware.variants.federated.subfilters": subfilters, **(overrides or {})}
 
 
-def ge_member(seed: int, subfilters: list[str], after_s: float = 20.0) -> dict[str, float]:
-    """One member of ``federated_paper_comparison`` under the field presets: heading RMS / max after ``after_s``."""
-    over = ge_overrides(subfilters)
+def ge_member(seed: int, subfilters: list[str], after_s: float = 20.0, figures: str = "field") -> dict[str, float]:
+    """One member of ``federated_paper_comparison`` under ``figures``: heading RMS / max after ``after_s``."""
+    over = ge_overrides(subfilters, figures=figures)
     _s, nav, _ev = run_nav("federated_paper_comparison", seed, over)
     h = [v for r in nav if float(r["time_s"]) >= after_s and (v := _f(r, "err_heading_deg")) is not None]
     return {"heading_rms_deg": _rms(h), "heading_max_deg": max(abs(x) for x in h), "samples": len(h)}
 
 
-def ge(seeds: list[int], log: Callable[[str], None] = print) -> dict[str, Any]:
+def ge(seeds: list[int], log: Callable[[str], None] = print, figures: str = "field") -> dict[str, Any]:
     """Ge et al.: the three configurations on each seed's stream; does fused < pol/MIMU < SINS/GNSS hold?"""
     per: list[dict[str, Any]] = []
     for seed in seeds:
         t0 = time.monotonic()
-        row: dict[str, Any] = {"seed": seed}
+        row: dict[str, Any] = {"seed": seed, "figures": figures}
         for cfg, subs in GE_CONFIGS.items():
-            row[cfg] = ge_member(seed, subs)
+            row[cfg] = ge_member(seed, subs, figures=figures)
         f, p, g = (row[c]["heading_rms_deg"] for c in GE_CONFIGS)
         row["ordered"] = f < p < g
         per.append(row)
@@ -330,27 +404,61 @@ def ge(seeds: list[int], log: Callable[[str], None] = print) -> dict[str, Any]:
 
 
 def ge_table(per: list[dict[str, Any]]) -> str:
+    """The Markdown table of one set of figures: median [inter-quartile range] over the seeds per configuration, and
+    the seeds that keep the paper's ordering (its Figs. 5/6 give the ordering, no figure)."""
     n = len(per)
-    lines = [f"| heading error after 20 s ({n} seeds: mean (min .. max)), deg | fused (three-way) | pol/MIMU | "
-             "SINS/GNSS |", "|---|---|---|---|"]
+    figures = "/".join(sorted({r.get("figures", "field") for r in per}))
+    lines = [f"| heading error after 20 s, deg ({figures} figures, {n} seeds: median [inter-quartile range]) | "
+             "fused (three-way) | pol/MIMU | SINS/GNSS |", "|---|---|---|---|"]
     for stat in ("heading_rms_deg", "heading_max_deg"):
-        cells = [_fmt([r[c][stat] for r in per], 3) for c in GE_CONFIGS]
+        cells = [_med([r[c][stat] for r in per], 3) for c in GE_CONFIGS]
         lines.append(f"| {stat.split('_')[1].upper()} | " + " | ".join(cells) + " |")
     fp = sum(1 for r in per if r["fused"]["heading_rms_deg"] < r["pol_mimu"]["heading_rms_deg"])
     pg = sum(1 for r in per if r["pol_mimu"]["heading_rms_deg"] < r["sins_gnss"]["heading_rms_deg"])
-    lines.append(f"| seeds with fused < pol/MIMU; pol/MIMU < SINS/GNSS; both | {fp} of {n} | {pg} of {n} | "
+    lines.append(f"| seeds with fused < pol/MIMU; pol/MIMU < SINS/GNSS; both (RMS) | {fp} of {n} | {pg} of {n} | "
                  f"{sum(1 for r in per if r['ordered'])} of {n} |")
+    lines.append("| paper (Figs. 5/6, no figure given) | best | second | worst (heading unobservable at rest) |")
     return "\n".join(lines)
 
 
+def _rms(xs: list[float]) -> float:
+    return math.sqrt(statistics.fmean([x * x for x in xs]))
+
+
+#: the Yang member's scenario and the override that makes the variant log every fix it solves (``kmeans_fix``)
+YANG_SCENARIO = "kmeans_field_tilt_series"
+YANG_FIX_EVENTS = {"firmware.variants.kmeans_3d.fix_events": True}
+
+
+def _wrap_deg(x: float) -> float:
+    return (x + 180.0) % 360.0 - 180.0
+
+
+def fix_errors(fixes: list[dict[str, Any]], scn: Any) -> list[dict[str, float]]:
+    """Each ``kmeans_fix`` event against the truth at its exposure time (``t_meas_us``; the scenario's trajectory,
+    the clock the nav frames' truth is taken at): pitch, roll and heading error, deg."""
+    from emulator.world.build import build_trajectory
+
+    times = [e["t_meas_us"] * 1e-6 for e in fixes]
+    states = build_trajectory(scn).states(times)
+    return [{"t_s": t, "pitch": _wrap_deg(e["pitch_deg"] - st.pitch / DEG),
+             "roll": _wrap_deg(e["roll_deg"] - st.roll / DEG),
+             "heading": _wrap_deg(e["heading_deg"] - st.heading / DEG)} for t, e, st in zip(times, fixes, states)]
+
+
 def yang_member(seed: int, after_s: float = 25.0, sky: str = "realistic") -> dict[str, Any]:
-    """One member of ``kmeans_field_tilt_series``: pitch / roll error of the navigation output after alignment and
-    the fixes answered / refused (with the refusal reasons); ``sky`` rayleigh isolates the magnetometer's iron."""
-    summary, nav, ev = run_nav("kmeans_field_tilt_series", seed, {} if sky == "realistic" else {"sky": {"model": sky}})
+    """One member of ``kmeans_field_tilt_series``: the single K-means fixes against the truth at their exposure
+    (the paper's field table is of single fixes) and, apart, the pitch / roll error of the navigation output (the
+    IMU/GNSS filter weighing the fixes), after the alignment; the fixes answered / refused (with the refusal reasons);
+    ``sky`` rayleigh isolates the magnetometer's iron."""
+    over = {**YANG_FIX_EVENTS, **({} if sky == "realistic" else {"sky": {"model": sky}})}
+    summary, nav, ev = run_nav(YANG_SCENARIO, seed, over)
     rows = [r for r in nav if float(r["time_s"]) >= after_s and _f(r, "err_pitch_deg") is not None]
     pitch = [float(r["err_pitch_deg"]) for r in rows]
     roll = [float(r["err_roll_deg"]) for r in rows]
     head = [float(r["err_heading_deg"]) for r in rows]
+    scn = load_test_scenario(SCENARIOS / f"{YANG_SCENARIO}.yaml", {"seed": seed, "expectations": [], **over})
+    fx = fix_errors([e for e in ev if e.get("event") == "kmeans_fix" and e["t_meas_s"] >= after_s], scn)
     # every camera frame's decision is counted (the events are logged on a change only), over the whole run
     counters = summary.get("firmware", {}).get("counters", {})
     solved, refused = int(counters.get("camera_admitted", 0)), int(counters.get("camera_rejected", 0))
@@ -358,37 +466,69 @@ def yang_member(seed: int, after_s: float = 25.0, sky: str = "realistic") -> dic
     for e in ev:  # the reasons the refusals changed to after the alignment
         if e.get("event") == "kmeans_refused" and e["t_fpga_s"] >= after_s:
             reasons[e["reason"]] = reasons.get(e["reason"], 0) + 1
-    return {"pitch_rms_deg": _rms(pitch), "roll_rms_deg": _rms(roll), "pitch_max_deg": max(map(abs, pitch)),
-            "roll_max_deg": max(map(abs, roll)), "heading_rms_deg": _rms(head), "solved": solved,
-            "refused": refused, "refusals": reasons}
+    out: dict[str, Any] = {
+        "pitch_rms_deg": _rms(pitch), "roll_rms_deg": _rms(roll), "pitch_max_deg": max(map(abs, pitch)),
+        "roll_max_deg": max(map(abs, roll)), "heading_rms_deg": _rms(head), "solved": solved,
+        "refused": refused, "refusals": reasons, "fixes": len(fx)}
+    for k in ("pitch", "roll", "heading"):
+        xs = [f[k] for f in fx]
+        out[f"fix_{k}_rms_deg"] = _rms(xs) if xs else math.nan
+        out[f"fix_{k}_max_deg"] = max(map(abs, xs)) if xs else math.nan
+        out[f"fix_{k}_mean_deg"] = statistics.fmean(xs) if xs else math.nan
+    return out
 
 
 def yang(seeds: list[int], log: Callable[[str], None] = print, sky: str = "realistic") -> dict[str, Any]:
-    """Yang et al. field-like: pitch / roll RMS and max over the tilt series, per seed."""
+    """Yang et al. field-like: the single fixes' and the navigation output's pitch / roll error, per seed."""
     per: list[dict[str, Any]] = []
     for seed in seeds:
         t0 = time.monotonic()
         row = {"seed": seed, "sky": sky, **yang_member(seed, sky=sky)}
         per.append(row)
         _checkpoint(seeds, per)
-        log(f"seed {seed}: pitch RMS/max {row['pitch_rms_deg']:.3f}/{row['pitch_max_deg']:.3f}, roll "
-            f"{row['roll_rms_deg']:.3f}/{row['roll_max_deg']:.3f} deg, heading RMS {row['heading_rms_deg']:.2f}, "
-            f"fixes {row['solved']} solved / {row['refused']} refused {row['refusals']} "
+        log(f"seed {seed}: fixes {row['fixes']}: pitch/roll/heading RMS {row['fix_pitch_rms_deg']:.3f}/"
+            f"{row['fix_roll_rms_deg']:.3f}/{row['fix_heading_rms_deg']:.3f} deg; nav pitch/roll RMS "
+            f"{row['pitch_rms_deg']:.3f}/{row['roll_rms_deg']:.3f} deg, refusals {row['refusals']} "
             f"({time.monotonic() - t0:.0f} s)")
     return {"seeds": seeds, "members": per, "markdown": yang_table(per)}
 
 
 def yang_table(per: list[dict[str, Any]]) -> str:
-    n, sky = len(per), "/".join(sorted({r.get("sky", "realistic") for r in per}))
-    col = lambda k: [r[k] for r in per]  # noqa: E731
-    return "\n".join([
-        f"| quantity ({n} seeds, {sky} sky: mean (min .. max)) | ours | paper, field table |", "|---|---|---|",
-        f"| pitch RMS (deg) | {_fmt(col('pitch_rms_deg'))} | 0.23 |",
-        f"| roll RMS (deg) | {_fmt(col('roll_rms_deg'))} | 0.43 |",
-        f"| pitch max (deg) | {_fmt(col('pitch_max_deg'))} | |",
-        f"| roll max (deg) | {_fmt(col('roll_max_deg'))} | |",
-        f"| heading RMS (deg) | {_fmt(col('heading_rms_deg'))} | |",
-        f"| fixes answered / refused | {_fmt(col('solved'), 0)} / {_fmt(col('refused'), 0)} | |"])
+    """The Markdown table: median [inter-quartile range] over the seeds, one column per sky, the single fixes
+    against the paper's field table and the navigation output below them (not the paper's quantity)."""
+    skies = [s for s in ("realistic", "rayleigh") if any(r.get("sky", "realistic") == s for r in per)]
+    by = {s: [r for r in per if r.get("sky", "realistic") == s] for s in skies}
+    rows = [("single fix: pitch RMS (deg)", "fix_pitch_rms_deg", 3, "0.23"),
+            ("single fix: roll RMS (deg)", "fix_roll_rms_deg", 3, "0.43"),
+            ("single fix: heading RMS (deg)", "fix_heading_rms_deg", 3, ""),
+            ("single fix: pitch / roll mean (deg)", ("fix_pitch_mean_deg", "fix_roll_mean_deg"), 3, ""),
+            ("single fix: pitch / roll max (deg)", ("fix_pitch_max_deg", "fix_roll_max_deg"), 3, ""),
+            ("fixes after the alignment", "fixes", 0, ""),
+            ("frames answered / refused (whole run)", ("solved", "refused"), 0, ""),
+            ("navigation output (the filter weighing the fixes): pitch / roll RMS (deg)",
+             ("pitch_rms_deg", "roll_rms_deg"), 3, "")]
+    lines = ["| median [inter-quartile range] over the seeds | "
+             + " | ".join(f"{s} sky ({len(by[s])} seeds)" for s in skies) + " | paper, field table |",
+             "|---|" + "---|" * len(skies) + "---|"]
+    for label, key, d, paper in rows:
+        keys = key if isinstance(key, tuple) else (key,)
+        cells = [" / ".join(_med([r[k] for r in by[s]], d) for k in keys) for s in skies]
+        lines.append(f"| {label} | " + " | ".join(cells) + f" | {paper} |")
+    return "\n".join(lines)
+
+
+def rerun_member(stored: dict[str, Any]) -> dict[str, Any]:
+    """A stored member (one seed of a ``--json`` file) run again with its seed and set-up: a Zhang member with the
+    skies it holds, a Yang member with its sky, a Ge member with its figures (tests compare it with the stored one)."""
+    quiet = lambda _s: None  # noqa: E731
+    seed = int(stored["seed"])
+    if "sins" in stored:
+        out: dict[str, Any] = zhang([seed], log=quiet, skies=list(stored["se"]))["members"][0]
+    elif "fix_pitch_rms_deg" in stored:
+        out = yang([seed], log=quiet, sky=stored.get("sky", "realistic"))["members"][0]
+    else:
+        out = ge([seed], log=quiet, figures=stored.get("figures", "field"))["members"][0]
+    return out
 
 
 # -------------------------------------------------------------------------------------------------------- main
@@ -399,6 +539,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", default=None, help="also write the members and the table to this file")
     ap.add_argument("--sky", default="realistic", choices=["realistic", "rayleigh"],
                     help="yang: the sky (rayleigh: the clear sky of the simulation, to isolate the iron)")
+    ap.add_argument("--skies", default=None, metavar="S1,S2",
+                    help="zhang: the skies of the sun-elevation runs (rayleigh, realistic, envelope; default all)")
+    ap.add_argument("--figures", default="field", choices=list(GE_FIGURES),
+                    help="ge: the sensor figures (paper: Ge et al.'s simulation conditions; field: the field presets)")
+    ap.add_argument("--sins-from", nargs="+", default=None, metavar="JSON",
+                    help="zhang: take the pure-SINS members of these earlier --json files instead of running them "
+                         "(merging checks that they are the same)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=JSON",
                     help="zhang: a dotted scenario override for both members (attribution runs), value as JSON")
     ap.add_argument("--merge", nargs="+", default=None, metavar="JSON",
@@ -406,6 +553,8 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     if a.merge:
         per = [m for f in a.merge for m in json.loads(Path(f).read_text())["members"]]
+        if a.paper == "zhang":
+            per = merge_zhang(per)
         print({"zhang": zhang_table, "ge": ge_table}[a.paper](per) if a.paper != "yang" else yang_table(per))
         return 0
     global CHECKPOINT
@@ -416,12 +565,14 @@ def main(argv: list[str] | None = None) -> int:
     if a.paper == "yang":
         res = yang(seeds, log=log, sky=a.sky)
     elif a.paper == "zhang":
-        res = zhang(seeds, log=log, overrides=overrides)
+        sins = ({m["seed"]: m["sins"] for f in a.sins_from for m in json.loads(Path(f).read_text())["members"]}
+                if a.sins_from else None)
+        res = zhang(seeds, log=log, overrides=overrides, skies=a.skies.split(",") if a.skies else None, sins=sins)
     else:
-        res = ge(seeds, log=log)
+        res = ge(seeds, log=log, figures=a.figures)
     print(res["markdown"])
     if a.json:
-        Path(a.json).write_text(json.dumps(res, indent=1))
+        Path(a.json).write_text(json.dumps({**res, "numerics": numerics()}, indent=1))
     return 0
 
 

@@ -48,6 +48,7 @@ class KmeansSpec(Model):
     attitude_iterations: int = Field(3, ge=1, le=20)
     heading_sigma_deg: float = Field(0.3, gt=0, le=30, description="constant part of the magnetometer heading error (bias state), deg")
     heading_noise_deg: float = Field(0.03, gt=0, le=30, description="white part of the magnetometer heading's error, deg")
+    fix_events: bool = Field(False, description="every fix as an event kmeans_fix (pitch, roll, heading, t_meas_s), admitted or not; the event log only")
 
 
 class FederatedSpec(Model):

@@ -539,6 +539,11 @@ class Kmeans3dFilter(BaseFilter):
             self._set_state(t, False, "degenerate_sun_geometry")
             return UpdateReport("kmeans", False, 0, 0.0, {"reason": "degenerate_sun_geometry"})
         self.last_fix, self.last_fix_t = fix, t_exposure_s
+        if self.p.fix_events:  # the single fix itself, before the filter weighs it (the paper's field table)
+            # the exposure time also in whole microseconds: event floats keep 6 significant digits (1 ms at 300 s)
+            mm.event(t, "kmeans_fix", fix.heading_source, t_meas_s=t_exposure_s,
+                     t_meas_us=round(t_exposure_s * 1e6), pitch_deg=fix.pitch / DEG,
+                     roll_deg=fix.roll / DEG, heading_deg=heading_from_yaw(fix.yaw) / DEG)
         # the fix as a measurement: Z = phi - phi_fix, H = [I3 0 .. -G on the solar-bias states] (D-5.23)
         cbn_fix = a2mat(fix.pitch, fix.roll, fix.yaw)
         z = misalignment_between(cbn, cbn_fix).astype(np.float64)

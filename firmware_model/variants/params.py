@@ -137,6 +137,11 @@ class KmeansParams:
         0.3, gt=0, le=30, description="constant part of the magnetometer heading error (bias state), deg")
     heading_noise_deg: float = param(0.03, gt=0, le=30,
                                      description="white part of the magnetometer heading's error, deg")
+    #: every fix as an event ``kmeans_fix`` (its pitch, roll and heading, ``t_meas_s``), whether the gate admits it
+    #: or not: the single fixes of the paper's field table (benchmarks/paper_reproductions.py yang). Off by default:
+    #: the other events are logged on a change only, and this one changes nothing but the event log
+    fix_events: bool = param(False, description="every fix as an event kmeans_fix (pitch, roll, heading, t_meas_s), "
+                             "admitted or not; the event log only")
 
 
 @dataclass

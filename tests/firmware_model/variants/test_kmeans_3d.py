@@ -264,3 +264,45 @@ def test_mag_fix_measurement_is_the_first_order_error_of_the_self_consistent_fix
         assert m2att(a2mat(fix.pitch, fix.roll, fix.yaw))[0] == pytest.approx(fix.pitch, abs=1e-12)
     assert worst_new < 0.01  # second order: a few 1e-3 of the error at 1e-3 rad
     assert worst_old > 0.3
+
+
+def test_fix_events_report_every_single_fix_and_change_nothing_else():
+    """``fix_events`` (the single fixes of Yang et al.'s field table, benchmarks/paper_reproductions.py yang): one
+    ``kmeans_fix`` event per solved frame, carrying the fix the filter weighed at its exposure time; the navigation
+    output and every other event are the same with it off, and off there is no such event."""
+    traj = segment_trajectory([{"static": {"duration_s": 8}},
+                               {"pitch": {"to_deg": -10, "rate_dps": 5, "duration_s": 8}}],
+                              heading_deg=144.9, duration=16.0, where=TAIYUAN)
+    spec = StreamSpec(traj, 16.0, epoch=EPOCH, imu=ImuErrors((9, -7, 3), 0.15, (1500, -1000, 2000), 100),
+                      gnss=GnssSpec(True, 3.0, 0.03), psns="camera", psns_rate_hz=2,
+                      camera=CameraSpec(CAM, stride_px=64, aop_sigma_deg=0.1), mag=MAG)
+    out = {}
+    for on in (False, True):
+        cfg = FirmwareConfig(filter="kmeans_3d", camera=CAM, initial_heading_deg=145.5)
+        cfg.variants.kmeans_3d.mag_declination_deg = MAG.declination_deg
+        cfg.variants.kmeans_3d.mag_inclination_deg = MAG.inclination_deg
+        cfg.variants.kmeans_3d.fix_events = on
+        fw = Firmware(cfg)
+        fixes = []
+
+        def on_tick(fw, r, fixes=fixes):
+            f = fw.filter
+            if f.last_fix is not None and (not fixes or fixes[-1][0] != f.last_fix_t):
+                fixes.append((f.last_fix_t, f.last_fix.pitch / DEG, f.last_fix.roll / DEG,
+                              heading_from_yaw(f.last_fix.yaw) / DEG))
+
+        samples, events = run(fw, spec, on_tick=on_tick)
+        out[on] = (samples, events, fixes)
+    (s_off, ev_off, fx_off), (s_on, ev_on, fx_on) = out[False], out[True]
+    assert not [e for e in ev_off if e["event"] == "kmeans_fix"]
+    logged = [e for e in ev_on if e["event"] == "kmeans_fix"]
+    assert len(fx_on) >= 20 and len(logged) == len(fx_on)
+    for e, (t, p, r, h) in zip(logged, fx_on):
+        assert e["t_meas_us"] == round(t * 1e6) and e["reason"] == "magnetometer"
+        # event floats keep 6 significant digits (mode_manager._clean)
+        assert (e["t_meas_s"], e["pitch_deg"], e["roll_deg"], e["heading_deg"]) == pytest.approx((t, p, r, h),
+                                                                                                  rel=6e-6)
+    assert fx_on == fx_off
+    assert [e for e in ev_on if e["event"] != "kmeans_fix"] == ev_off
+    assert [(s.t, s.pitch_err_deg, s.roll_err_deg) for s in s_on] == [(s.t, s.pitch_err_deg, s.roll_err_deg)
+                                                                       for s in s_off]

@@ -12,19 +12,32 @@ Python hooks (``expectations[].python``) are never imported by ``validate``; ``r
 from __future__ import annotations
 
 import fnmatch
+import json
 import os
 import re
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from ..errors import RecordingError
 
-__all__ = ["ALLOW_HOOKS_ENV", "ALLOW_PATHS_ENV", "PathNotAllowed", "allowed_roots", "confine", "confined_glob",
-           "hooks_allowed", "read_frame_index"]
+__all__ = ["ALLOW_HOOKS_ENV", "ALLOW_PATHS_ENV", "FRAME_INDEX_MAX_BYTES", "MAX_JSON_DEPTH", "RECORDED_LINE_MAX",
+           "PathNotAllowed", "allowed_roots", "confine", "confined_glob", "hooks_allowed", "json_depth",
+           "read_bounded", "read_frame_index", "read_json_bounded"]
 
 ALLOW_PATHS_ENV = "PSNS_HIL_ALLOW_PATHS"
 ALLOW_HOOKS_ENV = "PSNS_HIL_ALLOW_HOOKS"
+
+#: longest line of a recorded CSV or a camera index (characters); a real row is < 200 (issue 41: a 50 MB line gave
+#: a traceback)
+RECORDED_LINE_MAX = 65536
+#: largest camera index CSV read (bytes): one ``time_s,file`` line is about 40 bytes, so 64 MiB lists over a
+#: million frames (an hour at 300 frames/s); checked while reading, never after
+FRAME_INDEX_MAX_BYTES = 64 << 20
+#: deepest JSON nesting accepted in a file a scenario names or a capture header (the deepest real one, a capture's
+#: scenario spec, nests about 8 deep); checked before decoding (Python's decoder recurses)
+MAX_JSON_DEPTH = 64
 
 
 class PathNotAllowed(ValueError):
@@ -141,3 +154,69 @@ def read_frame_index(path: Path, base_dir: str | Path | None) -> tuple[np.ndarra
     if not times:
         raise RecordingError(f"{path}: line 1, column 1: no frames listed")
     return np.array(times), files
+
+
+def read_bounded(path: Path, limit: int, what: str = "file") -> bytes:
+    """The bytes of ``path`` in one bounded read: at most ``limit`` + 1 bytes are read, so a larger file (or an
+    endless one such as ``/dev/zero``, or a FIFO) is refused by its size, never read whole.
+    :class:`emulator.errors.RecordingError` naming the file (never its content)."""
+    try:
+        if path.is_dir():
+            raise RecordingError(f"{path}: is a directory, not a {what}")
+        with open(path, "rb") as f:
+            raw = f.read(limit + 1)
+    except FileNotFoundError:
+        raise RecordingError(f"{path}: no such file") from None
+    except OSError as exc:
+        raise RecordingError(f"{path}: cannot read: {exc.strerror or type(exc).__name__}") from None
+    if len(raw) > limit:
+        raise RecordingError(f"{path}: larger than {_size(limit)} (a {what} is a few KB)")
+    return raw
+
+
+def _size(n: int) -> str:
+    return f"{n >> 20} MiB" if n >= 1 << 20 and n % (1 << 20) == 0 else f"{n} bytes"
+
+
+def json_depth(text: bytes) -> int:
+    """Deepest nesting of ``[``/``{`` in a JSON text, brackets inside strings skipped; linear and vectorised (no
+    recursion, no backtracking: a quote counts when an even run of backslashes precedes it)."""
+    a = np.frombuffer(text, dtype=np.uint8)
+    if a.size == 0:
+        return 0
+    pos = np.arange(a.size, dtype=np.int64)
+    bs = a == ord("\\")
+    last_other = np.maximum.accumulate(np.where(bs, -1, pos))  # last non-backslash at or before each position
+    run_before = np.empty(a.size, dtype=np.int64)
+    run_before[0] = 0
+    run_before[1:] = pos[:-1] - last_other[:-1]  # backslashes just before each position
+    quote = (a == ord('"')) & (run_before % 2 == 0)
+    outside = np.cumsum(quote) % 2 == 0  # after an even number of quotes: not inside a string
+    step = ((a == ord("[")) | (a == ord("{"))).astype(np.int64) - ((a == ord("]")) | (a == ord("}")))
+    return int(np.cumsum(np.where(outside, step, 0)).max(initial=0))
+
+
+def _no_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not JSON")
+
+
+def read_json_bounded(path: Path, limit: int, what: str = "JSON file") -> Any:
+    """The data of a JSON file a scenario names (a calibration file), bounded as a scenario is: one read of at most
+    ``limit`` bytes (:func:`read_bounded`), UTF-8, nesting checked (:data:`MAX_JSON_DEPTH`) before decoding,
+    strict JSON (``NaN``/``Infinity`` refused). :class:`emulator.errors.RecordingError` naming file, line and column,
+    never the content."""
+    raw = read_bounded(path, limit, what)
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw.count(b"\n", 0, exc.start) + 1
+        col = exc.start - (raw.rfind(b"\n", 0, exc.start) + 1) + 1
+        raise RecordingError(f"{path}: line {line}, column {col}: not UTF-8 text") from None
+    if json_depth(raw) > MAX_JSON_DEPTH:
+        raise RecordingError(f"{path}: nests deeper than {MAX_JSON_DEPTH} levels (a {what} needs about 3)")
+    try:
+        return json.loads(text, parse_constant=_no_constant)
+    except json.JSONDecodeError as exc:
+        raise RecordingError(f"{path}: line {exc.lineno}, column {exc.colno}: not JSON ({exc.msg})") from None
+    except (ValueError, RecursionError) as exc:
+        raise RecordingError(f"{path}: not JSON ({exc if isinstance(exc, ValueError) else 'too deep'})") from None

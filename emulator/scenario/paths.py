@@ -15,6 +15,7 @@ import fnmatch
 import json
 import os
 import re
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -113,21 +114,45 @@ def hooks_allowed() -> bool:
     return os.environ.get(ALLOW_HOOKS_ENV, "") not in ("", "0")
 
 
+def _index_lines(path: Path) -> Iterator[tuple[int, str]]:
+    """``(line number, text)`` of a camera index, read in bounded pieces (:func:`read_frame_index`)."""
+    piece = 4 * RECORDED_LINE_MAX + 2  # a UTF-8 character is at most 4 bytes
+    try:
+        if path.is_dir():
+            raise RecordingError(f"{path}: is a directory, not a camera index")
+        with open(path, "rb") as f:
+            total = 0
+            for i, raw in enumerate(iter(lambda: f.readline(piece), b""), start=1):
+                total += len(raw)
+                if total > FRAME_INDEX_MAX_BYTES:
+                    raise RecordingError(f"{path}: line {i}: the index is larger than "
+                                         f"{FRAME_INDEX_MAX_BYTES >> 20} MiB")
+                too_long = f"{path}: line {i}, column {RECORDED_LINE_MAX + 1}: line longer than " \
+                           f"{RECORDED_LINE_MAX} characters"
+                if len(raw) == piece and not raw.endswith(b"\n"):
+                    raise RecordingError(too_long)
+                try:
+                    ln = raw.decode("utf-8").rstrip("\r\n")
+                except UnicodeDecodeError as exc:
+                    raise RecordingError(f"{path}: line {i}, column {exc.start + 1}: not UTF-8 text") from None
+                if len(ln) > RECORDED_LINE_MAX:
+                    raise RecordingError(too_long)
+                yield i, ln
+    except OSError as exc:
+        raise RecordingError(f"{path}: cannot read: {exc.strerror or type(exc).__name__}") from None
+
+
 def read_frame_index(path: Path, base_dir: str | Path | None) -> tuple[np.ndarray, list[Path]]:
     """``(times, files)`` of a camera index CSV ``time_s,file``; each file is relative to the index and confined to
     the scenario's directory (``base_dir``); a refused or missing one is reported by line and column, never by its
     text, and an entry outside is refused before the file system is asked about it (no existence oracle).
+    The index is read line by line, bounded: at most :data:`FRAME_INDEX_MAX_BYTES` in all and
+    :data:`RECORDED_LINE_MAX` characters a line, UTF-8 (issue 41: it was read whole).
     :class:`emulator.errors.RecordingError` for a bad index; used by the camera and by ``validate``."""
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise RecordingError(f"{path}: cannot read: {exc.strerror or exc}") from exc
-    except UnicodeDecodeError:
-        raise RecordingError(f"{path}: not UTF-8 text") from None
     times: list[float] = []
     files: list[Path] = []
     header_seen = False
-    for i, ln in enumerate(text.splitlines(), start=1):
+    for i, ln in _index_lines(path):
         if not ln.strip() or ln.lstrip().startswith("#"):
             continue
         cells = [c.strip() for c in ln.split(",")]

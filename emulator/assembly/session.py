@@ -18,6 +18,7 @@ import datetime as _dt
 import gc
 import json
 import math
+import os
 import signal
 import sys
 from collections.abc import Callable, Sequence
@@ -138,6 +139,17 @@ class Emulator:
         return self.dsp.fw if self.dsp is not None else self._fw0
 
     # -- construction ------------------------------------------------------------------------
+    def _publish_clock(self, loop: EmulatorLoop) -> None:
+        """``clock.json`` in the run directory: the scenario clock's origin for a tool on a real port (``psns-hil
+        monitor`` on a pty shows ``t_s`` on the scenario clock with it): ``mode``, ``speed`` and
+        ``t0_monotonic_s`` (:attr:`EmulatorLoop.wall_origin`: CLOCK_MONOTONIC of scenario time 0, s). Written aside
+        and renamed: whole or absent."""
+        doc = {"mode": loop.mode, "speed": loop.speed, "t0_monotonic_s": loop.wall_origin,
+               "clock": "CLOCK_MONOTONIC"}
+        tmp = self.run_dir / ".clock.json.tmp"
+        tmp.write_text(json.dumps(doc) + "\n")
+        os.replace(tmp, self.run_dir / "clock.json")
+
     async def start(self) -> None:
         loop = asyncio.get_running_loop()
         if not isinstance(loop, EmulatorLoop):
@@ -247,6 +259,8 @@ class Emulator:
                 loop.set_lead(lead)
         loop.restart_clock()
         self._wall0 = loop.wall_elapsed()
+        if isinstance(loop, EmulatorLoop):
+            self._publish_clock(loop)
         if self.faults is not None:
             self.faults.start()
         loop.call_at(1.0 + SAMPLE_OFFSET_S, self._sample_tick)

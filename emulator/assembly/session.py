@@ -46,6 +46,7 @@ from ..links import Link, MemHub, open_link, parse_link_url
 from ..recording.capture import CaptureRecord
 from ..recording.recorder import Recorder
 from ..recording.rundir import claim_run_dir
+from ..scenario.paths import confined_link_url
 from ..scenario.schema import Scenario
 from ..verification.expectations import evaluate_expectations
 from ..world.build import build_trajectory
@@ -175,10 +176,12 @@ class Emulator:
                 ext[port], internal[port] = a, b
                 self.device_ends[port] = b
                 if bound_out:  # the modelled sensor's stream also (tee) or only (out) on the real port
-                    x = open_link(spec.url, port, loop, default_line=line, hub=hub, run_dir=port_dir)
+                    x = open_link(confined_link_url(spec.url, scn.base_dir), port, loop, default_line=line,
+                                  hub=hub, run_dir=port_dir)
                     self.bindings[port] = SensorPortBinding(port, spec.direction, a, x)
             else:
-                ext[port] = open_link(spec.url, port, loop, default_line=line, hub=hub, run_dir=port_dir)
+                ext[port] = open_link(confined_link_url(spec.url, scn.base_dir), port, loop, default_line=line,
+                                      hub=hub, run_dir=port_dir)
             self.links[port] = ext[port]
         uart_fpga, uart_dsp, rx_cfg = self._build_uarts(hub, loop, ext)
         if scn.dsp.external is not None and scn.dsp.external.uarts and self.replay is None:  # the DSP outside
@@ -186,7 +189,9 @@ class Emulator:
             if type(self)._build_uarts is not Emulator._build_uarts:
                 raise EmulatorError("dsp.external puts the DSP outside; a split run also cuts its UARTs: "
                                     "run it without --split")
-            self.external_uarts = cut_dsp_uarts(scn.dsp.external.uarts, uart_fpga, loop, hub, port_dir)
+            self.external_uarts = cut_dsp_uarts({u: confined_link_url(url, scn.base_dir)
+                                                 for u, url in scn.dsp.external.uarts.items()},
+                                                uart_fpga, loop, hub, port_dir)
             self.links.update(self.external_uarts)
         # sensors (docs/architecture.md, section "Firmware interface")
         if self.replay is None:

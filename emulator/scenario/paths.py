@@ -23,9 +23,9 @@ import numpy as np
 
 from ..errors import RecordingError
 
-__all__ = ["ALLOW_HOOKS_ENV", "ALLOW_PATHS_ENV", "FRAME_INDEX_MAX_BYTES", "MAX_JSON_DEPTH", "RECORDED_LINE_MAX",
-           "PathNotAllowed", "allowed_roots", "confine", "confined_glob", "hooks_allowed", "json_depth",
-           "read_bounded", "read_frame_index", "read_json_bounded"]
+__all__ = ["ALLOW_HOOKS_ENV", "ALLOW_PATHS_ENV", "FRAME_INDEX_MAX_BYTES", "LINK_FILE_OPTIONS", "MAX_JSON_DEPTH",
+           "RECORDED_LINE_MAX", "PathNotAllowed", "allowed_roots", "confine", "confined_glob", "confined_link_url",
+           "hooks_allowed", "json_depth", "read_bounded", "read_frame_index", "read_json_bounded"]
 
 ALLOW_PATHS_ENV = "PSNS_HIL_ALLOW_PATHS"
 ALLOW_HOOKS_ENV = "PSNS_HIL_ALLOW_HOOKS"
@@ -245,3 +245,29 @@ def read_json_bounded(path: Path, limit: int, what: str = "JSON file") -> Any:
         raise RecordingError(f"{path}: line {exc.lineno}, column {exc.colno}: not JSON ({exc.msg})") from None
     except (ValueError, RecursionError) as exc:
         raise RecordingError(f"{path}: not JSON ({exc if isinstance(exc, ValueError) else 'too deep'})") from None
+
+
+#: options of a link URL that name a file: zenoh's ``auth=FILE`` (credentials) and ``config=FILE`` (session
+#: configuration); in a scenario they are confined as every file it names (decision D-7.32)
+LINK_FILE_OPTIONS = ("auth", "config")
+
+
+def confined_link_url(url: str, base_dir: str | Path | None) -> str:
+    """``url`` of a link a scenario names with each file option (:data:`LINK_FILE_OPTIONS`) resolved against the
+    scenario's directory and confined by :func:`confine` (:class:`PathNotAllowed` when one lies outside). A
+    scenario may come from anyone: ``auth=~/.other-run/credentials.txt`` with ``connect=tcp/far-host`` would hand
+    another run's password to a far host, ``config=`` would parse any file. The command line's own URLs
+    (``psns-hil monitor zenoh://...?auth=FILE``) and ``PSNS_HIL_ZENOH_AUTH`` are the user's and are not confined."""
+    from urllib.parse import parse_qsl, quote, urlsplit, urlunsplit
+
+    parts = urlsplit(url)
+    pieces = parts.query.split("&") if parts.query else []
+    out, changed = [], False
+    for piece in pieces:  # the other options keep their text as written
+        kv = parse_qsl(piece, keep_blank_values=True)
+        if len(kv) == 1 and kv[0][0] in LINK_FILE_OPTIONS:
+            key, value = kv[0]
+            piece = f"{key}={quote(str(confine(base_dir, value, f'link {key} file')), safe='/:')}"
+            changed = True
+        out.append(piece)
+    return urlunsplit(parts._replace(query="&".join(out))) if changed else url

@@ -693,6 +693,12 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
         """Wall-clock seconds since the clock was (re)started (the outside world's clock: without the lead)."""
         return _time.monotonic() - self._wall0
 
+    @property
+    def wall_origin(self) -> float:
+        """``time.monotonic()`` (CLOCK_MONOTONIC, s, one per host) of scenario time 0 as the outside world sees it:
+        in realtime mode a byte of scenario time ``t`` reaches a real port at ``wall_origin + t / speed``."""
+        return self._wall0
+
 
 def new_loop(mode: str = "fast", speed: float = 1.0) -> EmulatorLoop:
     """Create an :class:`EmulatorLoop` (not set as the current loop)."""

@@ -24,11 +24,13 @@ from .errors import FirmwareError
 #: on-chip Stokes processing assumes and the calibration's measured angles deviate from
 NOMINAL_POLARIZER_DEG: tuple[float, float, float, float] = (0.0, 45.0, 90.0, 135.0)
 
-__all__ = ["Calibration", "CalibrationError", "CameraCalibration", "CompassCalibration", "MagnetometerCalibration",
-           "load_calibration", "save_calibration"]
+__all__ = ["MAX_CALIBRATION_BYTES", "Calibration", "CalibrationError", "CameraCalibration", "CompassCalibration",
+           "MagnetometerCalibration", "calibration_from_data", "load_calibration", "save_calibration"]
 
 FORMAT = "psns-hil-calibration"
 VERSION = 1
+#: largest calibration file read (bytes): a full one is about 2 KB; a larger file is refused after one bounded read
+MAX_CALIBRATION_BYTES = 1 << 20
 
 
 class CalibrationError(FirmwareError):
@@ -171,16 +173,33 @@ def save_calibration(cal: Calibration, path: str | Path) -> None:
     Path(path).write_text(json.dumps(d, indent=2) + "\n")
 
 
-def load_calibration(path: str | Path) -> Calibration:
-    """Read and check a calibration file; :class:`CalibrationError` on anything unusable."""
-    try:
-        data = json.loads(Path(path).read_text())
-    except (OSError, ValueError) as exc:
-        raise CalibrationError(f"{path}: cannot read a calibration file: {exc}") from exc
+def calibration_from_data(data: Any, where: str = "calibration") -> Calibration:
+    """A :class:`Calibration` from the decoded JSON of a calibration file (``where`` names it in errors); the
+    reading of a user's file is the emulator's (bounded and confined: ``emulator.dsp.firmware_setup``)."""
     cam = data.get("camera") if isinstance(data, dict) else None
     if isinstance(cam, dict) and cam.get("exit_pupil_m") == "inf":
-        cam["exit_pupil_m"] = math.inf
+        cam = dict(cam, exit_pupil_m=math.inf)
+        data = dict(data, camera=cam)
     try:
         return Calibration.from_dict(data)
     except CalibrationError as exc:
-        raise CalibrationError(f"{path}: {exc}") from exc
+        raise CalibrationError(f"{where}: {exc}") from exc
+
+
+def load_calibration(path: str | Path) -> Calibration:
+    """Read and check a calibration file (the run's own, written by :func:`save_calibration`); at most
+    :data:`MAX_CALIBRATION_BYTES` are read; :class:`CalibrationError` on anything unusable."""
+    try:
+        with open(path, "rb") as f:
+            raw = f.read(MAX_CALIBRATION_BYTES + 1)
+        if len(raw) > MAX_CALIBRATION_BYTES:
+            raise CalibrationError(f"{path}: larger than {MAX_CALIBRATION_BYTES >> 20} MiB (a calibration file "
+                                   "is a few KB)")
+        data = json.loads(raw)
+    except json.JSONDecodeError as exc:
+        raise CalibrationError(f"{path}: line {exc.lineno}, column {exc.colno}: not JSON ({exc.msg})") from None
+    except OSError as exc:
+        raise CalibrationError(f"{path}: cannot read a calibration file: {exc.strerror or exc}") from None
+    except (ValueError, RecursionError) as exc:
+        raise CalibrationError(f"{path}: cannot read a calibration file ({type(exc).__name__})") from None
+    return calibration_from_data(data, str(path))

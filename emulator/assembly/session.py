@@ -19,6 +19,7 @@ import functools
 import gc
 import json
 import math
+import os
 import signal
 import sys
 from collections.abc import Callable, Sequence
@@ -46,6 +47,7 @@ from ..links import Link, MemHub, open_link, parse_link_url
 from ..recording.capture import CaptureRecord
 from ..recording.recorder import Recorder
 from ..recording.rundir import claim_run_dir
+from ..scenario.paths import confined_link_url
 from ..scenario.schema import Scenario
 from ..verification.expectations import evaluate_expectations
 from ..world.build import build_trajectory
@@ -139,6 +141,17 @@ class Emulator:
         return self.dsp.fw if self.dsp is not None else self._fw0
 
     # -- construction ------------------------------------------------------------------------
+    def _publish_clock(self, loop: EmulatorLoop) -> None:
+        """``clock.json`` in the run directory: the scenario clock's origin for a tool on a real port (``psns-hil
+        monitor`` on a pty shows ``t_s`` on the scenario clock with it): ``mode``, ``speed`` and
+        ``t0_monotonic_s`` (:attr:`EmulatorLoop.wall_origin`: CLOCK_MONOTONIC of scenario time 0, s). Written aside
+        and renamed: whole or absent."""
+        doc = {"mode": loop.mode, "speed": loop.speed, "t0_monotonic_s": loop.wall_origin,
+               "clock": "CLOCK_MONOTONIC"}
+        tmp = self.run_dir / ".clock.json.tmp"
+        tmp.write_text(json.dumps(doc) + "\n")
+        os.replace(tmp, self.run_dir / "clock.json")
+
     async def start(self) -> None:
         loop = asyncio.get_running_loop()
         if not isinstance(loop, EmulatorLoop):
@@ -164,10 +177,12 @@ class Emulator:
                 ext[port], internal[port] = a, b
                 self.device_ends[port] = b
                 if bound_out:  # the modelled sensor's stream also (tee) or only (out) on the real port
-                    x = open_link(spec.url, port, loop, default_line=line, hub=hub, run_dir=port_dir)
+                    x = open_link(confined_link_url(spec.url, scn.base_dir), port, loop, default_line=line,
+                                  hub=hub, run_dir=port_dir)
                     self.bindings[port] = SensorPortBinding(port, spec.direction, a, x)
             else:
-                ext[port] = open_link(spec.url, port, loop, default_line=line, hub=hub, run_dir=port_dir)
+                ext[port] = open_link(confined_link_url(spec.url, scn.base_dir), port, loop, default_line=line,
+                                      hub=hub, run_dir=port_dir)
             self.links[port] = ext[port]
         uart_fpga, uart_dsp, rx_cfg = self._build_uarts(hub, loop, ext)
         if scn.dsp.external is not None and scn.dsp.external.uarts and self.replay is None:  # the DSP outside
@@ -175,7 +190,9 @@ class Emulator:
             if type(self)._build_uarts is not Emulator._build_uarts:
                 raise EmulatorError("dsp.external puts the DSP outside; a split run also cuts its UARTs: "
                                     "run it without --split")
-            self.external_uarts = cut_dsp_uarts(scn.dsp.external.uarts, uart_fpga, loop, hub, port_dir)
+            self.external_uarts = cut_dsp_uarts({u: confined_link_url(url, scn.base_dir)
+                                                 for u, url in scn.dsp.external.uarts.items()},
+                                                uart_fpga, loop, hub, port_dir)
             self.links.update(self.external_uarts)
         # sensors (docs/architecture.md, section "Firmware interface")
         if self.replay is None:
@@ -248,6 +265,8 @@ class Emulator:
                 loop.set_lead(lead)
         loop.restart_clock()
         self._wall0 = loop.wall_elapsed()
+        if isinstance(loop, EmulatorLoop):
+            self._publish_clock(loop)
         if self.faults is not None:
             self.faults.start()
         loop.call_at(1.0 + SAMPLE_OFFSET_S, self._sample_tick)

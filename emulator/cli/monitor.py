@@ -6,7 +6,9 @@ Endpoints:
   recorded time and direction;
 * a serial device or a pseudo-terminal path (``/dev/ttyUSB0``, ``runs/x/ports/uart0``,
   ``serial:///dev/ttyUSB0``): opened with pyserial at ``--baud`` and decoded as bytes arrive --
-  the same tool works on the real box's connectors; ``t_s`` counts from when the monitor opened it;
+  the same tool works on the real box's connectors; ``t_s`` counts from when the monitor opened it, except on a
+  pty of a realtime run (``<run_dir>/ports/NAME``): there it is the scenario clock, from the run's ``clock.json``
+  (:func:`run_clock_origin`; before the run has started, from the monitor's start until it has);
 * a plain file of bytes (a dump of a port, ``cat /dev/ttyUSB0 > dump.bin``): decoded from start to end, ``t_s``
   the time of each chunk's first byte at ``--baud`` (10 bits a byte) from the file's start;
 * ``zenoh://RUN/PORT`` (:mod:`emulator.links.zenoh`): what is published on ``psns/RUN/PORT/tx`` (bytes the
@@ -35,6 +37,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import json
+import math
 import os
 import queue
 import select
@@ -346,6 +349,33 @@ def port_of_run_pty(endpoint: str) -> str | None:
     return None
 
 
+#: largest clock.json read (a run writes about 100 bytes)
+_CLOCK_JSON_MAX = 4096
+
+
+def run_clock_origin(endpoint: str) -> tuple[float, float] | None:
+    """``(t0_monotonic_s, speed)`` of the realtime run whose pty ``<run_dir>/ports/NAME`` is ``endpoint``, from
+    ``<run_dir>/clock.json`` (written by the run when its scenario clock starts): the scenario time of a byte read
+    at ``time.monotonic() = m`` is ``(m - t0) * speed``. None when it is not a run's pty, the run has not started,
+    it runs in fast mode (its clock is not the wall's), or the file is malformed or oversized."""
+    p = Path(endpoint)
+    if p.parent.name != "ports":
+        return None
+    try:
+        with open(p.parent.parent / "clock.json", "rb") as f:
+            raw = f.read(_CLOCK_JSON_MAX + 1)
+        doc = json.loads(raw) if len(raw) <= _CLOCK_JSON_MAX else None
+    except (OSError, ValueError, RecursionError):
+        return None
+    if not isinstance(doc, dict) or doc.get("mode") != "realtime":
+        return None
+    t0, speed = doc.get("t0_monotonic_s"), doc.get("speed")
+    if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in (t0, speed)) \
+            or not speed > 0 or not 0 <= t0 <= time.monotonic():  # type: ignore[operator]
+        return None
+    return float(t0), float(speed)  # type: ignore[arg-type]
+
+
 def _live_rows(device: str, port: str, mon: Monitor, baud: int, stop: Callable[[], bool]) -> Iterator[FrameRow]:
     import serial
 
@@ -354,9 +384,17 @@ def _live_rows(device: str, port: str, mon: Monitor, baud: int, stop: Callable[[
     except (serial.SerialException, OSError, ValueError) as exc:
         raise EmulatorError(f"cannot open {device}: {exc}") from exc
     t0 = time.monotonic()
+    speed = 1.0
+    origin = run_clock_origin(device)
+    looked = t0
     try:
         fd = ser.fileno()
         while not stop():
+            if origin is None and time.monotonic() - looked >= 0.2:  # the run may start after the monitor
+                looked = time.monotonic()
+                origin = run_clock_origin(device)
+            if origin is not None:
+                t0, speed = origin
             r, _w, _x = select.select([fd], [], [], 0.1)
             if not r:
                 continue
@@ -368,7 +406,7 @@ def _live_rows(device: str, port: str, mon: Monitor, baud: int, stop: Callable[[
                 raise EmulatorError(f"{device}: {exc} (the other end went away?)") from exc
             if not data:
                 raise EmulatorError(f"{device}: end of file (the other end went away)")
-            yield from mon.feed(time.monotonic() - t0, port, "in", data)
+            yield from mon.feed((time.monotonic() - t0) * speed, port, "in", data)
     finally:
         ser.close()
 

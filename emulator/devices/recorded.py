@@ -52,6 +52,7 @@ from protocols.nmea import Gga, NmeaFormat, Rmc
 
 from ..errors import RecordingError
 from ..links.base import Link
+from ..scenario.paths import RECORDED_LINE_MAX
 from .camera import CHANNEL_OFFSETS
 from .gnss import GnssConfig, GnssReceiver
 
@@ -109,8 +110,6 @@ def _physical(path: Path, line: int, column: int, name: str, v: float, key: str 
         raise RecordingError(f"{path}: line {line}, column {column}: {name} is not an integer")
 
 
-#: longest line of a recorded CSV (characters); a real row is < 200 (issue 41: a 50 MB line gave a traceback)
-RECORDED_LINE_MAX = 65536
 
 
 def _csv_cells(path: Path, i: int, ln: str) -> list[str]:

@@ -13,13 +13,14 @@ from scipy.spatial.transform import Rotation
 from firmware_model import FirmwareConfig
 from firmware_model.attitude import a2mat, yaw_from_heading
 from firmware_model.calibration import (
+    MAX_CALIBRATION_BYTES,
     NOMINAL_POLARIZER_DEG,
     Calibration,
     CalibrationError,
     CameraCalibration,
     CompassCalibration,
     MagnetometerCalibration,
-    load_calibration,
+    calibration_from_data,
 )
 from firmware_model.config import FILTER_VARIANTS
 from firmware_model.psns_geometry import (
@@ -46,8 +47,9 @@ from ..devices.sensors import (
     gyro_errors,
     installed_unit,
 )
-from ..errors import ScenarioError
+from ..errors import RecordingError, ScenarioError
 from ..plugins import PLUGIN_ERRORS, plugin, plugin_names
+from ..scenario.paths import PathNotAllowed, confine, read_json_bounded
 from ..scenario.schema import Scenario
 from .variant_params import variant_params
 
@@ -76,14 +78,12 @@ def calibration_for(scn: Scenario, seed: int | None = None, unit: InstalledUnit 
     seed = scn.seed if seed is None else seed
     if spec.source == "file":
         assert spec.file is not None
-        base = Path(scn.base_dir).resolve() if scn.base_dir is not None else Path.cwd().resolve()
-        path = (base / spec.file).resolve()
-        if not path.is_relative_to(base):
-            raise ScenarioError(f"firmware.calibration.file: {spec.file} is outside the scenario's directory")
-        try:
-            return load_calibration(path)
-        except CalibrationError as exc:
-            raise ScenarioError(f"firmware.calibration.file: {exc}") from exc
+        try:  # confined and bounded as every file a scenario names (docs/hostile-input.md section 6)
+            path = confine(scn.base_dir, spec.file, "calibration file")
+            data = read_json_bounded(path, MAX_CALIBRATION_BYTES, "calibration file")
+            return calibration_from_data(data, str(path))
+        except (PathNotAllowed, RecordingError, CalibrationError) as exc:
+            raise ScenarioError(f"{scn.source_file}: firmware.calibration.file: {exc}") from None
     if unit is None:
         unit = installed_unit(scn, seed)
     return Calibration(camera=_camera_calibration(scn, seed, unit), compass=_compass_calibration(scn, seed, unit),
@@ -311,8 +311,8 @@ def register_plugins(filters: Iterable[str] | None = None, firmware: Iterable[st
 def check_firmware(scn: Scenario) -> None:
     """What ``psns-hil validate`` checks beyond the scenario's schema on the firmware side, without running
     anything: the named filter and firmware plugins load and are of their kind (a ``NavFilter`` subclass, a
-    callable factory), and the spec sheet reads and validates (:func:`spec_sheet_for`). Raises
-    :class:`ScenarioError` naming the field."""
+    callable factory), the spec sheet and a user's calibration file read and validate (:func:`spec_sheet_for`,
+    :func:`calibration_for`). Raises :class:`ScenarioError` naming the field."""
     fw = scn.firmware
     register_plugins((fw.filter,), (fw.implementation,))
     if fw.filter not in FILTER_VARIANTS:
@@ -323,6 +323,8 @@ def check_firmware(scn: Scenario) -> None:
         raise ScenarioError(f"{scn.source_file}: firmware.implementation: {fw.implementation!r} cannot be used: "
                             f"{why}")
     spec_sheet_for(scn)
+    if fw.calibration.source == "file":
+        calibration_for(scn)
 
 
 def _plugin_params(scn: Scenario) -> dict[str, object]:

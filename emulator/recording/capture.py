@@ -25,6 +25,8 @@ from pathlib import Path
 from typing import IO, Any
 
 from ..errors import RecordingError
+from ..scenario.paths import MAX_JSON_DEPTH
+from ..scenario.paths import json_depth as _json_depth
 from .formatting import json_default
 from .rundir import open_no_follow
 
@@ -50,7 +52,7 @@ _PITCH = struct.Struct("<d")
 #: longest header line read (bytes): the scenario spec it carries is tens of KB
 MAX_HEADER_BYTES = 4 << 20
 #: deepest JSON nesting of the header accepted (the scenario spec nests about 8 deep); checked before decoding
-MAX_HEADER_DEPTH = 64
+MAX_HEADER_DEPTH = MAX_JSON_DEPTH
 #: largest record accepted (bytes): a record is one chunk a link delivered at once (a UART burst, KB)
 MAX_RECORD_BYTES = 16 << 20
 #: a record's bytes are read in pieces of at most this (bytes), so a declared length never allocates by itself
@@ -97,26 +99,6 @@ class CaptureWriter:
     def close(self) -> None:
         if not self.file.closed:
             self.file.close()
-
-
-def _json_depth(line: bytes) -> int:
-    """Deepest nesting of ``[``/``{`` in a JSON text, brackets inside strings skipped; linear and vectorised (no
-    recursion, no backtracking: a quote counts when an even run of backslashes precedes it)."""
-    import numpy as np
-
-    a = np.frombuffer(line, dtype=np.uint8)
-    if a.size == 0:
-        return 0
-    pos = np.arange(a.size, dtype=np.int32)
-    bs = a == ord("\\")
-    last_other = np.maximum.accumulate(np.where(bs, -1, pos))  # last non-backslash at or before each position
-    run_before = np.empty(a.size, dtype=np.int32)
-    run_before[0] = 0
-    run_before[1:] = pos[:-1] - last_other[:-1]  # backslashes just before each position
-    quote = (a == ord('"')) & (run_before % 2 == 0)
-    outside = np.cumsum(quote) % 2 == 0  # after an even number of quotes: not inside a string
-    step = ((a == ord("[")) | (a == ord("{"))).astype(np.int32) - ((a == ord("]")) | (a == ord("}")))
-    return int(np.cumsum(np.where(outside, step, 0)).max(initial=0))
 
 
 def _check_header(header: dict[str, Any], path: str | Path) -> None:

@@ -43,7 +43,7 @@ LOCK_NAME = ".psns-hil.lock"
 SUMMARY_RESERVE_NAME = ".psns-hil.summary-reserve"
 #: files a run writes (named in the refusal of a finished run; not proof of a run: :func:`is_run_dir`)
 RUN_FILES = ("summary.json", "nav.csv", "truth.csv", "events.jsonl", "capture.psnscap", "ports.json",
-             "timeline.csv", "report.html", LOCK_NAME)
+             "clock.json", "timeline.csv", "report.html", LOCK_NAME)
 
 
 class RunDirError(EmulatorError):

@@ -305,8 +305,9 @@ def _files_and_ports(scn: Scenario, environment: bool) -> list[tuple[tuple[Any, 
 
 
 def _confined_files(scn: Scenario) -> list[tuple[tuple[Any, ...], str]]:
-    """Every recorded-data path must lie in the scenario's directory (:mod:`emulator.scenario.paths`)."""
-    from .paths import PathNotAllowed, confine
+    """Every file a scenario names must lie in the scenario's directory (:mod:`emulator.scenario.paths`): recorded
+    data, a lockstep firmware, a link's ``auth=`` and ``config=`` files."""
+    from .paths import PathNotAllowed, confine, confined_link_url
 
     s = scn.sensors
     named: list[tuple[tuple[Any, ...], str | None]] = []
@@ -332,6 +333,15 @@ def _confined_files(scn: Scenario) -> list[tuple[tuple[Any, ...], str]]:
         what = "lockstep firmware" if loc[:3] == ("dsp", "external", "lockstep") else "recorded file"
         try:
             confine(scn.base_dir, name, what)
+        except PathNotAllowed as exc:
+            out.append((loc, str(exc)))
+    urls: list[tuple[tuple[Any, ...], str]] = [(("links", port, "url"), spec.url) for port in
+                                               ("gyro", "gnss", "psns", "host", "monitor", "host_nmea")
+                                               if (spec := getattr(scn.links, port, None)) is not None]
+    urls += [(("dsp", "external", "uarts", u), url) for u, url in (ext.uarts.items() if ext is not None else ())]
+    for loc, url in urls:  # zenoh auth=FILE and config=FILE (decision D-7.32)
+        try:
+            confined_link_url(url, scn.base_dir)
         except PathNotAllowed as exc:
             out.append((loc, str(exc)))
     return out

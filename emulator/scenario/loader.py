@@ -20,7 +20,7 @@ from .cross_checks import cross_check
 from .schema import Scenario
 
 __all__ = ["MAX_SCENARIO_BYTES", "MAX_YAML_DEPTH", "apply_overrides", "load_scenario", "load_yaml_file",
-           "load_yaml_with_marks", "read_scenario_text", "validate_scenario_data"]
+           "load_yaml_with_marks", "read_scenario_text", "scenario_from_text", "validate_scenario_data"]
 
 Loc = tuple[Any, ...]
 
@@ -304,16 +304,21 @@ def load_yaml_file(path: str | Path, file: str | None = None) -> Any:
 def load_scenario(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Scenario:
     """Read, parse and validate a scenario file; ``overrides``: ``dotted.key=value`` (:func:`apply_overrides`)."""
     p = Path(path)
-    file = str(path)
-    text = read_scenario_text(p, file)
+    return scenario_from_text(read_scenario_text(p, str(path)), str(path), p.resolve().parent, overrides)
+
+
+def scenario_from_text(text: str, file: str, base_dir: Path, overrides: list[str] | tuple[str, ...] = ()) -> Scenario:
+    """Parse and validate the ``text`` of scenario ``file`` (read by :func:`read_scenario_text`; ``base_dir`` its
+    directory), as :func:`load_scenario` does: for a caller that needs the text itself too (a campaign), so the
+    file is read once, bounded."""
     data, marks = load_yaml_with_marks(text, file)
     if not overrides:
-        return validate_scenario_data(data, marks, file, base_dir=p.resolve().parent)
+        return validate_scenario_data(data, marks, file, base_dir=base_dir)
     if not isinstance(data, dict):
         raise ScenarioError(ScenarioIssue(file, 1, 1, "", "a scenario must be a mapping of keys to values"))
     where = apply_overrides(data, overrides, marks)
     try:
-        return validate_scenario_data(data, marks, file, base_dir=p.resolve().parent)
+        return validate_scenario_data(data, marks, file, base_dir=base_dir)
     except ScenarioError as exc:
         by_path = {_fmt_path(loc): raw for loc, raw in where.items()}
         for issue in exc.issues:

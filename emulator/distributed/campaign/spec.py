@@ -246,10 +246,12 @@ class CampaignConfig:
 def load_campaign_scenario(path: Path, overrides: Sequence[str] = ()) -> tuple[dict[str, Any], Any, str, str]:
     """``(data, validated scenario, source name, base directory)`` of a campaign's scenario file, with the
     ``--set dotted.key=value`` ``overrides`` applied to every member (the same rules as ``psns-hil run --set``)."""
-    from ...scenario.loader import apply_overrides, load_scenario, load_yaml_with_marks
+    from ...scenario.loader import apply_overrides, load_yaml_with_marks, read_scenario_text, scenario_from_text
 
-    scn = load_scenario(path, tuple(overrides))  # every problem of the file itself, with file:line:column
-    data, marks = load_yaml_with_marks(Path(path).read_text(encoding="utf-8"), str(path))
+    # one bounded read (at most MAX_SCENARIO_BYTES, as every scenario), then every problem with file:line:column
+    text = read_scenario_text(Path(path), str(path))
+    scn = scenario_from_text(text, str(path), Path(path).resolve().parent, tuple(overrides))
+    data, marks = load_yaml_with_marks(text, str(path))
     if overrides:
         apply_overrides(data, tuple(overrides), marks)
     return data, scn, str(path), str(Path(path).resolve().parent)

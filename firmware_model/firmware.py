@@ -62,6 +62,7 @@ from .tasks.gnss import GnssTask
 from .tasks.host import HostTask
 from .tasks.psns import psns_frame_len
 from .tasks.state import FirmwareState, TickResult
+from .tasks.timekeeping import Clock
 from .units import DEG, G_STD
 from .variants import dual_vector, federated, kmeans_3d, sun_elevation  # noqa: F401  (the variants of this build)
 
@@ -153,15 +154,7 @@ class Firmware(HostTask, GnssTask):
         self._pending_imu = deque()
         self._pending_psns = deque(maxlen=8)
         self._rx_other = {}
-        # time keeping (FPGA time base; UTC from GNSS)
-        self._t_last_us = None
-        self._t_epoch_us = 0
-        self._t_pps_s = None
-        self._pps_count = None
-        self._last_counter = None
-        self._utc_days_ref = None  # Grena days (UT) at _utc_t_ref
-        self._utc_t_ref = 0.0
-        self._date = None
+        self._last_counter: int | None = None  # the STIM datagram counter of the last IMU frame
         # mode manager
         self.state = FirmwareState.COARSE_ALIGN
         self.mode = NavMode.ALIGNING
@@ -198,13 +191,14 @@ class Firmware(HostTask, GnssTask):
         self._next_status_t = 1.0
         self._status_seq = 0
         self._heading_sigma0 = cfg.initial_heading_sigma_deg * DEG
-        self.counters = {"imu_frames": 0, "gnss_fixes": 0, "gnss_updates": 0, "gyro_counter_jumps": 0,
+        self.counters: dict[str, int] = {"imu_frames": 0, "gnss_fixes": 0, "gnss_updates": 0, "gyro_counter_jumps": 0,
                          "fpga_gyro_missing": 0, "imu_time_gaps": 0, "psns_frames": 0, "psns_solutions": 0,
                          "psns_updates": 0, "psns_rejected": 0, "psns_invalid": 0, "psns_sun_low": 0,
                          "psns_dropped": 0, "compass_frames": 0, "mag_frames": 0,
                          "gnss_pvt": 0, "commands_accepted": 0, "commands_rejected": 0, "commands_dropped": 0,
                          "status_frames": 0, "input_rejected": 0, "input_faults": 0, "imu_time_resync": 0,
                          "imu_resync_refused": 0, "psns_stale": 0, "commands_rejected_output_rate": 0}
+        self.clock = Clock(cfg, self.counters)
         #: True: an exception while handling one input message propagates (tests of the emulator itself set
         #: ``PSNS_HIL_STRICT=1``); False (the box): it is contained, counted (``input_faults``) and reported
         self.raise_faults = os.environ.get("PSNS_HIL_STRICT", "") not in ("", "0")
@@ -238,7 +232,7 @@ class Firmware(HostTask, GnssTask):
         self.counters["input_faults"] += 1
         if len(self._fault_events) < 16:
             self._fault_events.append({"event": "firmware_fault", "where": where, "error": type(exc).__name__,
-                                       "t_fpga_s": self._now_s()})
+                                       "t_fpga_s": self.clock.now_s()})
 
     # -- ISR side -------------------------------------------------------------------------------------
     def receive(self, uart: int, data: bytes, t_rx_s: float | None = None) -> None:
@@ -261,7 +255,7 @@ class Firmware(HostTask, GnssTask):
                     self.last_mag = f
                     self.counters["mag_frames"] += 1
                     if not f.status & 0x01:  # not over range: into the history a variant may average
-                        self._mag_hist.append((self._unwrap_near(f.t_sample_us) / 1e6, f.field))
+                        self._mag_hist.append((self.clock.unwrap_near(f.t_sample_us) / 1e6, f.field))
         elif uart == UART_GNSS:
             self._on_gnss_bytes(data, t_rx_s)
         elif uart == UART_HOST:
@@ -272,7 +266,7 @@ class Firmware(HostTask, GnssTask):
         elif uart == UART_PSNS:
             frames = self._dec_psns.feed(data)
             if frames:
-                t_end = t_rx_s if t_rx_s is not None else self._now_s()
+                t_end = t_rx_s if t_rx_s is not None else self.clock.now_s()
                 # the last frame ended with the chunk; earlier ones ended earlier by the later frames' bytes
                 byte_s = self.cfg.psns_bits_per_byte / self.cfg.psns_baud
                 tags = []
@@ -337,25 +331,25 @@ class Firmware(HostTask, GnssTask):
         beyond the fitted gyro's range or at a 24-bit rail, and an accelerometer code beyond its range or at a
         rail, are replaced by that triad's last good sample (hold, D-5.46), so the strapdown never integrates a
         clipped or flagged value; with no good sample yet the frame is dropped."""
-        if self._t_last_us is not None:
-            t_new = self._unwrap_near(fr.t_trigger_us)
-            t_last = self._t_epoch_us + self._t_last_us
+        t_last_opt = self.clock.last_us()
+        if t_last_opt is not None:
+            t_last = t_last_opt
+            t_new = self.clock.unwrap_near(fr.t_trigger_us)
             reason = input_guard.check_imu_step(t_new - t_last, 1e6 * self.T)
             if reason is not None:
                 if not self._imu_resync_candidate(fr, t_new, t_last):
                     return None
                 # the FPGA time base really moved (a reset): take it, without a KF interval across the jump
                 self.counters["imu_time_resync"] += 1
-                self._t_epoch_us = t_new - fr.t_trigger_us
-                self._t_last_us = None
+                epoch = self.clock.rebase(t_new, fr.t_trigger_us)
                 self._t_base_first_us = t_new
-                t_s = (self._t_epoch_us + fr.t_trigger_us) / 1e6
+                t_s = (epoch + fr.t_trigger_us) / 1e6
                 self._t_last_predict = t_s - (self._tick % self.cfg.kf_predict_every) * self.T
                 self._hist.clear()
                 self._fault_events.append({"event": "imu_time_resync", "t_fpga_s": t_s})
             self._imu_resync_run.clear()
         else:
-            self._t_base_first_us = self._t_epoch_us + fr.t_trigger_us
+            self._t_base_first_us = self.clock.epoch_us() + fr.t_trigger_us
         # the common case in one expression (every word inside the range, which lies inside the rails; STATUS clear)
         g0, g1, g2 = fr.gyro
         a0, a1, a2 = fr.accel
@@ -428,16 +422,12 @@ class Firmware(HostTask, GnssTask):
         m.begin("imu_tick", self.T)
         m.begin("imu", self.T)
         m.charge("imu_decode", self._cyc_decode)
-        t_us = self._unwrap_us(fr.t_trigger_us)
+        t_us = self.clock.unwrap_us(fr.t_trigger_us)
         t = t_us / 1e6
         res = TickResult(t, 0)
         self.counters["imu_frames"] += 1
-        if fr.fpga_status & _PPS_VALID and fr.pps_count != self._pps_count:
-            self._pps_count = fr.pps_count
-            full = (t_us & ~0xFFFFFFFF) | fr.t_pps_us
-            if full > t_us:
-                full -= 2**32
-            self._t_pps_s = full / 1e6
+        if fr.fpga_status & _PPS_VALID:
+            self.clock.pps_edge(t_us, fr.pps_count, fr.t_pps_us)
         if self._gnss_epoch is not None:
             self._gnss_hold(t)
         if fr.fpga_status & _GYRO_MISSING:

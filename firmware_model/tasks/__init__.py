@@ -5,7 +5,7 @@ methods of one task and reads and writes the loop's state declared once in :clas
 
 ==========================  ====================================================================
 :mod:`.state`               mode-manager states, ``TickResult``, the loop's shared state
-:mod:`.timekeeping`         FPGA time base (32-bit unwrap), PPS, UTC from GNSS
+:mod:`.timekeeping`         FPGA time base (32-bit unwrap), PPS, UTC from GNSS (:class:`Clock`, a task object)
 :mod:`.gnss`                GNSS staging: NMEA GGA/RMC and UBX NAV-PVT to a pending measurement
 :mod:`.navigation`          bias compensation, coning/sculling, strapdown, INS history, MAG history
 :mod:`.psns`                PSNS staging: exposure time, solve, body frame, solar-vector update

@@ -41,7 +41,7 @@ class AlignmentTask(PsnsTask):
         heading_sigma = cfg.initial_heading_sigma_deg * DEG
         cbn = None
         want_psns = cfg.psns_enabled and cfg.alignment_heading in ("auto", "psns")
-        if want_psns and self._align_sun and self.utc_days(t) is not None:
+        if want_psns and self._align_sun and self.clock.utc_days(t) is not None:
             cbn, _sun_el = self._solar_alignment(fm, lat, lon)
             if cbn is not None:
                 source = "psns"
@@ -93,7 +93,7 @@ class AlignmentTask(PsnsTask):
             acc += s if float(s @ up) >= 0 else -s
             t_mean += o.t_exposure_s
         t_mean /= len(self._align_sun)
-        days = self.utc_days(t_mean)
+        days = self.clock.utc_days(t_mean)
         assert days is not None
         s_n = sun.sun_vector_enu(days, lat, lon, dtype=self.dtype).astype(np.float64)
         self.meter.charge("sun_ephemeris", sun.ephemeris_cycles())

@@ -65,7 +65,7 @@ from ..earth import ecef_to_geodetic
 from ..filters import GnssMeasurement
 from ..geoid import geoid_separation_m
 from ..units import DEG
-from .timekeeping import TimeKeeping
+from .state import LoopState
 
 __all__ = ["GNSS_COUNTERS", "GnssTask"]
 
@@ -152,9 +152,9 @@ class _Epoch:
     gsa_best: int = 0                # best GSA fix type of the epoch (0: no GSA; 1 no fix, 2 2-D, 3 3-D)
 
 
-class GnssTask(TimeKeeping):
+class GnssTask(LoopState):
     """Parse GNSS messages into one measurement per epoch; the date and time set UTC
-    (:class:`~.timekeeping.TimeKeeping`)."""
+    (:class:`~.timekeeping.Clock`)."""
 
     def _gnss_init(self) -> None:
         """State of the GNSS path (called from ``Firmware.__init__``)."""
@@ -179,7 +179,7 @@ class GnssTask(TimeKeeping):
     def _on_gnss_bytes(self, data: bytes, t_rx_s: float | None) -> None:
         """One chunk from UART3: ``t_rx_s`` is when its last byte arrived (the ISR's time stamp)."""
         dec = self._dec_gnss
-        t_rx = t_rx_s if t_rx_s is not None else self._now_s()
+        t_rx = t_rx_s if t_rx_s is not None else self.clock.now_s()
         self._gnss_chunk += 1
         self._gnss_chunk_t_rx = t_rx
         if dec.pending() == 0:
@@ -533,7 +533,7 @@ class GnssTask(TimeKeeping):
             if math.isnan(t_first):
                 # not the first message of its chunk: its first byte arrived no later than the chunk's end (a
                 # bound from above, as every sample of the minimum must be)
-                t_first = self._gnss_chunk_t_rx if self._gnss_chunk else self._now_s()
+                t_first = self._gnss_chunk_t_rx if self._gnss_chunk else self.clock.now_s()
             e = self._gnss_epoch = _Epoch(utc_s=utc, t_first=t_first, t_rx=self._gnss_chunk_t_rx)
             e.tod = utc_tod
             if utc is not None:
@@ -588,7 +588,7 @@ class GnssTask(TimeKeeping):
     def _gnss_time_of_validity(self, e: _Epoch) -> float:
         """FPGA time (s) at which the epoch's fix is valid (module docstring)."""
         t_ref = e.t_first
-        t_pps = self._t_pps_s
+        t_pps = self.clock.t_pps_s
         if e.utc_s is None:
             self.counters["gnss_no_utc"] += 1
             return t_ref - self.cfg.gnss_latency_s
@@ -626,19 +626,19 @@ class GnssTask(TimeKeeping):
             # valid after its own bytes arrived: a tag in the future (a clock the time base does not follow)
             self.counters["gnss_tag_future"] += 1
             return
-        if self._now_s() - t_meas > self.cfg.gnss_max_age_s:
+        if self.clock.now_s() - t_meas > self.cfg.gnss_max_age_s:
             self.counters["gnss_tag_stale"] += 1
             return
         simulated = e.refused in _NOT_REAL  # a simulator's or a manual fix: neither its place nor its time
-        if e.date is not None and not simulated and self._gnss_date_ok(e.date):
-            self._date = e.date
-        date = self._date
+        if e.date is not None and not simulated:
+            self.clock.take_date(e.date)
+        date = self.clock.date
         if date is not None and e.tod is not None and not simulated and (
                 e.date is not None or e.pos3 is not None or e.pos2 is not None):
             h, rem = divmod(e.tod % 86400.0, 3600.0)
             mi, sec = divmod(rem, 60.0)
             whole = min(int(sec), 59)
-            self._set_utc(t_meas, date, _dt.time(int(h), int(mi), whole, min(999_999, round((sec - whole) * 1e6))),
+            self.clock.set_utc(t_meas, date, _dt.time(int(h), int(mi), whole, min(999_999, round((sec - whole) * 1e6))),
                           pps=e.tag_pps)
         if e.dr:
             self.counters["gnss_dr_refused"] += 1

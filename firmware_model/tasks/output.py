@@ -18,8 +18,7 @@ from ..attitude import heading_from_yaw
 from ..kf import D_H, D_LAT, D_LON, DV_E, DV_N, DV_U, N_NAV_ERRORS, PHI_E, PHI_N, PHI_U
 from ..nav_state import POS, Q, V
 from ..units import DEG
-from .state import FirmwareState
-from .timekeeping import TimeKeeping
+from .state import FirmwareState, LoopState
 
 __all__ = ["NavOutput", "utc_from_grena_days"]
 
@@ -38,7 +37,7 @@ _GNSS_AIDED, _PSNS_AIDED, _DEGRADED = int(NavMode.GNSS_AIDED), int(NavMode.PSNS_
 _sqrt = math.sqrt
 
 
-class NavOutput(TimeKeeping):
+class NavOutput(LoopState):
     """NAV_SOLUTION frames (attitude from the quaternion, sigmas from the filter's P)."""
     def cpu_load_pct(self) -> float:
         """Worst tick of the last second, % of the tick budget (NAV_SOLUTION / STATUS ``cpu_load``)."""
@@ -74,7 +73,7 @@ class NavOutput(TimeKeeping):
         mode ``A`` / ``E`` and THS ``A`` / ``E`` likewise. The firmware has no geoid model: GGA carries the ellipsoidal
         height as altitude with a geoid separation of 0, so a reader's MSL + separation is the WGS-84 height.
         """
-        days = self.utc_days(t)
+        days = self.clock.utc_days(t)
         if days is None:
             return b""
         cfg = self.cfg

@@ -6,7 +6,6 @@ classes derive from it so that each task module is type-checked against the same
 
 from __future__ import annotations
 
-import datetime as _dt
 import struct
 from collections import deque
 from collections.abc import Callable, Sequence
@@ -22,6 +21,7 @@ from ..arrays import F64Array, FloatArray, FloatDtype
 from ..config import FirmwareConfig
 from ..filters import GnssMeasurement, NavFilter, SolarObservation
 from ..nav_state import NavFloats, NavState
+from .timekeeping import Clock
 
 __all__ = ["FirmwareState", "LoopState", "SolarSolve", "TickResult"]
 
@@ -115,15 +115,9 @@ class LoopState:
     _mag_hist: deque[tuple[float, tuple[int, int, int]]]  # (t_sample_s, field)
     _mag_w_inv: F64Array
     _mag_h: F64Array
-    # time keeping (FPGA time base; UTC from GNSS)
-    _t_last_us: int | None
-    _t_epoch_us: int
-    _t_pps_s: float | None
-    _pps_count: int | None
     _last_counter: int | None
-    _utc_days_ref: float | None  # Grena days (UT) at _utc_t_ref
-    _utc_t_ref: float
-    _date: _dt.date | None
+    #: the FPGA time base and UTC (a task object of its own, :class:`~.timekeeping.Clock`)
+    clock: Clock
     # mode manager and alignment
     state: str
     mode: NavMode

@@ -132,7 +132,7 @@ def test_a_tag_in_the_future_and_a_stale_one_are_refused_and_counted() -> None:
     e.t_first, e.t_rx = 4.0, 4.1  # bytes arrived before the tag: a future tag
     fw._gnss_close(e)
     assert fw.counters["gnss_tag_future"] == 1 and fw.counters["gnss_fixes"] == 0
-    fw._t_last_us = 9_000_000  # now = 9 s: the epoch at 6.02 s is 2.98 s old at its close
+    fw.clock._t_last_us = 9_000_000  # now = 9 s: the epoch at 6.02 s is 2.98 s old at its close
     fw._gnss_chunk_start = 6.1
     e = fw._gnss_epoch_for("GGA", tod0 + 6.0)
     assert e is not None
@@ -190,14 +190,14 @@ def test_the_2019_rollover_rmc_does_not_move_the_date() -> None:
     _feed_lines(fw, _rmc_lines(1, 12, date_of={k: b"220899" for k in range(6, 12)}))
     assert fw.counters["gnss_date_refused"] >= 5
     assert fw.utc_days(10.0) == pytest.approx(_grena(_utc(10.0)), abs=0.2 / 86400.0)
-    assert fw._date == _utc(10).date()
+    assert fw.clock.date == _utc(10).date()
 
 
 def test_a_rollover_date_first_is_refused_too() -> None:
     """Without a running clock the firmware's GPS week era alone refuses the rollover date: no UTC from it."""
     fw = Firmware(FirmwareConfig(gnss_baud=BAUD, gnss_latency_s=0.05))
     _feed_lines(fw, _rmc_lines(1, 6, date_of={k: b"220899" for k in range(1, 6)}))
-    assert fw.utc_days(4.0) is None and fw._date is None and fw.counters["gnss_date_refused"] >= 4
+    assert fw.utc_days(4.0) is None and fw.clock.date is None and fw.counters["gnss_date_refused"] >= 4
 
 
 def test_a_void_rmc_with_an_rtc_date_does_not_move_the_date() -> None:
@@ -205,7 +205,7 @@ def test_a_void_rmc_with_an_rtc_date_does_not_move_the_date() -> None:
     fw = Firmware(FirmwareConfig(gnss_baud=BAUD, gnss_latency_s=0.05))
     rtc = {k: b"010607" for k in range(6, 12)}
     _feed_lines(fw, _rmc_lines(1, 12, date_of=rtc, valid_of=dict.fromkeys(range(6, 12), False)))
-    assert fw._date == _utc(10).date()
+    assert fw.clock.date == _utc(10).date()
     assert fw.utc_days(10.0) == pytest.approx(_grena(_utc(10.0)), abs=1.5 / 86400.0)
 
 
@@ -496,7 +496,7 @@ def test_a_simulator_fix_sets_no_utc() -> None:
                                                                     0.0, 0.0, valid=True, mode="S")))
     _feed_lines(fw, lines)
     assert fw.counters["gnss_fixes"] == 0 and fw.counters["gnss_sim_refused"] >= 4
-    assert fw.utc_days(4.0) is None and fw._date is None
+    assert fw.utc_days(4.0) is None and fw.clock.date is None
 
 
 def test_ubx_without_a_valid_time_gives_no_time_base_sample() -> None:
@@ -543,5 +543,5 @@ def test_nav_pvt_date_only_when_fully_resolved_and_confirmed() -> None:
                            confirmedTime=(flags2 >> 7) & 1, fixType=3, gnssFixOk=1, numSV=10, lon=TRUTH.lon_deg,
                            lat=TRUTH.lat_deg, height=50000, hMSL=58000, hAcc=2000, vAcc=3000).serialize()
             fw.receive(UART_GNSS, b, k + 0.3)
-        assert (fw._date is not None) is want, (resolved, flags2)
+        assert (fw.clock.date is not None) is want, (resolved, flags2)
         assert fw.counters["gnss_fixes"] >= 3  # the fix is used either way

@@ -112,7 +112,7 @@ _STATUS_INVALID = int(STATUS_SAMPLE_INVALID)
 _IMU_RESYNC = 5
 
 
-class Firmware(HostTask, GnssTask):
+class Firmware(HostTask):
     """The firmware (see module docstring). Interface to the DSP host (docs/architecture.md, section "Firmware
     interface"): :meth:`receive`, :meth:`service`, :meth:`note_deadline_miss`, :attr:`meter`, :attr:`counters`,
     :meth:`decoder_stats`."""
@@ -178,8 +178,6 @@ class Firmware(HostTask, GnssTask):
         self._rot_sum = [0.0, 0.0, 0.0]  # sum of |phi_m| per body axis over the KF interval (rad)
         self._fn_n = 0
         self._hist = deque(maxlen=int(2 * cfg.imu_rate_hz))
-        self._gnss_pending = None
-        self._last_fix = None
         self._last_gnss_update_t = -1e9
         self._last_psns_t = -1e9
         self._last_psns_reject_t = -1e9
@@ -222,7 +220,7 @@ class Firmware(HostTask, GnssTask):
         #: the innovation gate refused rows of the last GNSS fix (bit 7 of the nav frame's gnss_status)
         self._gnss_gated = False
         self._psns_reject_since: float | None = None
-        self._gnss_init()
+        self.gnss = GnssTask(cfg, self.counters, self.clock, self._fault)
 
     # -- input validation and fault containment (docs/hostile-input.md) --------------------------------
     def _fault(self, where: str, exc: BaseException) -> None:
@@ -257,7 +255,7 @@ class Firmware(HostTask, GnssTask):
                     if not f.status & 0x01:  # not over range: into the history a variant may average
                         self._mag_hist.append((self.clock.unwrap_near(f.t_sample_us) / 1e6, f.field))
         elif uart == UART_GNSS:
-            self._on_gnss_bytes(data, t_rx_s)
+            self.gnss.on_bytes(self._dec_gnss, data, t_rx_s)
         elif uart == UART_HOST:
             for c in self._dec_host.feed(data):
                 if len(self._pending_cmd) == self._pending_cmd.maxlen:
@@ -282,7 +280,7 @@ class Firmware(HostTask, GnssTask):
 
     def decoder_stats(self) -> dict[str, dict[str, Any]]:
         return {"uart0": self._dec_host.stats.as_dict(), "uart1": self._dec_imu.stats.as_dict(),
-                "uart2": self._dec_psns.stats.as_dict(), "uart3": self._gnss_decoder_stats()}
+                "uart2": self._dec_psns.stats.as_dict(), "uart3": self.gnss.decoder_stats(self._dec_gnss)}
 
     def note_deadline_miss(self) -> None:
         """Called by the host DSP when a tick started after its deadline."""
@@ -428,8 +426,7 @@ class Firmware(HostTask, GnssTask):
         self.counters["imu_frames"] += 1
         if fr.fpga_status & _PPS_VALID:
             self.clock.pps_edge(t_us, fr.pps_count, fr.t_pps_us)
-        if self._gnss_epoch is not None:
-            self._gnss_hold(t)
+        self.gnss.hold(t)
         if fr.fpga_status & _GYRO_MISSING:
             self.counters["fpga_gyro_missing"] += 1
         if self._last_counter is not None and (fr.gyro_counter - self._last_counter) % 256 != cfg.gyro_counter_step:
@@ -519,10 +516,9 @@ class Firmware(HostTask, GnssTask):
         nav = self.nav
         assert nav is not None  # measurement tasks run after the coarse alignment
         updated = False
-        self._gnss_poll(t)
-        g = self._gnss_pending
+        g = self.gnss.pending(t)
         if g is not None and (g.pos is not None or g.vel is not None) and self._hist:
-            self._gnss_pending = None
+            self.gnss.take()
             if t - g.t_fpga_s > cfg.gnss_max_age_s:
                 self.counters["gnss_tag_stale"] += 1  # grew too old waiting for the loop (docs/icd.md 5.1.3)
             else:

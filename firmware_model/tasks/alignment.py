@@ -33,10 +33,10 @@ class AlignmentTask(PsnsTask):
         self._align_sum += f_b
         self._align_n += 1
         self.meter.charge("align_accumulate", c674x.flops(0, 3))
-        if t - self._align_t0 < cfg.align_time_s or self._last_fix is None:
+        if t - self._align_t0 < cfg.align_time_s or self.gnss.last_fix is None:
             return
         fm = self._align_sum / self._align_n
-        lat, lon, h, _ = self._last_fix
+        lat, lon, h, _ = self.gnss.last_fix
         source = "config"
         heading_sigma = cfg.initial_heading_sigma_deg * DEG
         cbn = None
@@ -64,7 +64,7 @@ class AlignmentTask(PsnsTask):
         self.mode = NavMode.NAVIGATING | NavMode.ALIGNING
         self._t_aligned = t
         self._t_last_predict = t
-        self._gnss_pending = None
+        self.gnss.take()
         p, r, y = m2att(cbn)
         res.events.append({"event": "alignment_done", "t_fpga_s": t, "pitch_deg": p / DEG, "roll_deg": r / DEG,
                            "heading_deg": heading_from_yaw(y) / DEG, "heading_source": source,
@@ -122,4 +122,4 @@ class AlignmentTask(PsnsTask):
         self._rot_sum = [0.0, 0.0, 0.0]
         self._fn_n = 0
         self._hist.clear()
-        self._gnss_pending = None
+        self.gnss.take()

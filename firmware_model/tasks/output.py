@@ -50,7 +50,7 @@ class NavOutput(LoopState):
     def _gnss_status_byte(self) -> int:
         """``gnss_status``: the last fix's GGA quality (bits 0-6), bit 7 when the innovation gate refused rows of
         the last GNSS fix (docs/hostile-input.md)."""
-        quality = self._last_fix[3] & 0x7F if self._last_fix is not None else 0
+        quality = self.gnss.last_fix[3] & 0x7F if self.gnss.last_fix is not None else 0
         return quality | (0x80 if self._gnss_gated else 0)
 
     def _euler_deg(self, x: Sequence[float]) -> tuple[float, float, float]:
@@ -110,7 +110,7 @@ class NavOutput(LoopState):
                 roll, pitch, heading = self._euler_deg(x)
             for n in names:
                 if n == "GGA":
-                    fix = self._last_fix
+                    fix = self.gnss.last_fix
                     out.append(build_gga(tm, lat / DEG, lon / DEG, h, 0.0, quality=1 if aided else 6,
                                          num_sats=12 if fix is not None else 0, hdop=1.0, talker=talker))
                 elif n == "RMC":
@@ -151,8 +151,8 @@ class NavOutput(LoopState):
         mode = int(self.mode) | (self.filter.variant_id & 0xF) << 8
         if s is None:
             lat = lon = h = 0.0
-            if self._last_fix is not None:
-                lat, lon, h = self._last_fix[0], self._last_fix[1], self._last_fix[2]
+            if self.gnss.last_fix is not None:
+                lat, lon, h = self.gnss.last_fix[0], self.gnss.last_fix[1], self.gnss.last_fix[2]
             vel = (0.0, 0.0, 0.0)
             roll = pitch = heading = 0.0
             sigma = (0.0,) * 9

@@ -10,6 +10,7 @@ dropped and inserted bytes, fed in chunks of random size: every counter must agr
 
 from __future__ import annotations
 
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -63,7 +64,9 @@ def test_counting_decoder_counts_like_the_full_decoder(streams: dict[str, bytes]
 
         fmts = [Stim210Format("m")]
     assert all(type(f) in COUNT_ONLY_FORMATS for f in fmts)  # the formats the recorder counts without parsing
-    rng = np.random.default_rng(hash((link, rate)) & 0xFFFF)
+    # a fixed seed per case (``hash`` of a str is salted per process: PYTHONHASHSEED; about 2.5 % of seeds flip
+    # no checked bit of the 6 s gyro stream at 1e-4, so a salted seed made this case fail now and then)
+    rng = np.random.default_rng(zlib.crc32(f"{link}:{rate}".encode()))
     data = _damage(streams[link], rng, rate)
     full = StreamDecoder(fmts)
     counted = StreamDecoder([counting_format(f) for f in fmts])

@@ -63,6 +63,7 @@ from .tasks.gnss import GnssTask
 from .tasks.host import HostTask
 from .tasks.psns import psns_frame_len
 from .tasks.state import FirmwareState, TickResult
+from .tasks.timekeeping import Clock
 from .units import DEG, G_STD
 from .variants import dual_vector, federated, kmeans_3d, sun_elevation  # noqa: F401  (the variants of this build)
 
@@ -112,7 +113,7 @@ _STATUS_INVALID = int(STATUS_SAMPLE_INVALID)
 _IMU_RESYNC = 5
 
 
-class Firmware(HostTask, GnssTask):
+class Firmware(HostTask):
     """The firmware (see module docstring). Interface to the DSP host (docs/architecture.md, section "Firmware
     interface"): :meth:`receive`, :meth:`service`, :meth:`note_deadline_miss`, :attr:`meter`, :attr:`counters`,
     :meth:`decoder_stats`."""
@@ -154,15 +155,7 @@ class Firmware(HostTask, GnssTask):
         self._pending_imu = deque()
         self._pending_psns = deque(maxlen=8)
         self._rx_other = {}
-        # time keeping (FPGA time base; UTC from GNSS)
-        self._t_last_us = None
-        self._t_epoch_us = 0
-        self._t_pps_s = None
-        self._pps_count = None
-        self._last_counter = None
-        self._utc_days_ref = None  # Grena days (UT) at _utc_t_ref
-        self._utc_t_ref = 0.0
-        self._date = None
+        self._last_counter: int | None = None  # the STIM datagram counter of the last IMU frame
         # mode manager
         self.state = FirmwareState.COARSE_ALIGN
         self.mode = NavMode.ALIGNING
@@ -186,8 +179,6 @@ class Firmware(HostTask, GnssTask):
         self._rot_sum = [0.0, 0.0, 0.0]  # sum of |phi_m| per body axis over the KF interval (rad)
         self._fn_n = 0
         self._hist = deque(maxlen=int(2 * cfg.imu_rate_hz))
-        self._gnss_pending = None
-        self._last_fix = None
         self._last_gnss_update_t = -1e9
         self._last_psns_t = -1e9
         self._last_psns_reject_t = -1e9
@@ -200,13 +191,14 @@ class Firmware(HostTask, GnssTask):
         self._status_seq = 0
         self._heading_sigma0 = cfg.initial_heading_sigma_deg * DEG
         self._heading_placeholder = False
-        self.counters = {"imu_frames": 0, "gnss_fixes": 0, "gnss_updates": 0, "gyro_counter_jumps": 0,
+        self.counters: dict[str, int] = {"imu_frames": 0, "gnss_fixes": 0, "gnss_updates": 0, "gyro_counter_jumps": 0,
                          "fpga_gyro_missing": 0, "imu_time_gaps": 0, "psns_frames": 0, "psns_solutions": 0,
                          "psns_updates": 0, "psns_rejected": 0, "psns_invalid": 0, "psns_sun_low": 0,
                          "psns_dropped": 0, "compass_frames": 0, "mag_frames": 0,
                          "gnss_pvt": 0, "commands_accepted": 0, "commands_rejected": 0, "commands_dropped": 0,
                          "status_frames": 0, "input_rejected": 0, "input_faults": 0, "imu_time_resync": 0,
                          "imu_resync_refused": 0, "psns_stale": 0, "commands_rejected_output_rate": 0}
+        self.clock = Clock(cfg, self.counters)
         #: True: an exception while handling one input message propagates (tests of the emulator itself set
         #: ``PSNS_HIL_STRICT=1``); False (the box): it is contained, counted (``input_faults``) and reported
         self.raise_faults = os.environ.get("PSNS_HIL_STRICT", "") not in ("", "0")
@@ -230,7 +222,7 @@ class Firmware(HostTask, GnssTask):
         #: the innovation gate refused rows of the last GNSS fix (bit 7 of the nav frame's gnss_status)
         self._gnss_gated = False
         self._psns_reject_since: float | None = None
-        self._gnss_init()
+        self.gnss = GnssTask(cfg, self.counters, self.clock, self._fault)
 
     # -- input validation and fault containment (docs/hostile-input.md) --------------------------------
     def _fault(self, where: str, exc: BaseException) -> None:
@@ -240,7 +232,7 @@ class Firmware(HostTask, GnssTask):
         self.counters["input_faults"] += 1
         if len(self._fault_events) < 16:
             self._fault_events.append({"event": "firmware_fault", "where": where, "error": type(exc).__name__,
-                                       "t_fpga_s": self._now_s()})
+                                       "t_fpga_s": self.clock.now_s()})
 
     # -- ISR side -------------------------------------------------------------------------------------
     def receive(self, uart: int, data: bytes, t_rx_s: float | None = None) -> None:
@@ -263,9 +255,9 @@ class Firmware(HostTask, GnssTask):
                     self.last_mag = f
                     self.counters["mag_frames"] += 1
                     if not f.status & 0x01:  # not over range: into the history a variant may average
-                        self._mag_hist.append((self._unwrap_near(f.t_sample_us) / 1e6, f.field))
+                        self._mag_hist.append((self.clock.unwrap_near(f.t_sample_us) / 1e6, f.field))
         elif uart == UART_GNSS:
-            self._on_gnss_bytes(data, t_rx_s)
+            self.gnss.on_bytes(self._dec_gnss, data, t_rx_s)
         elif uart == UART_HOST:
             for c in self._dec_host.feed(data):
                 if len(self._pending_cmd) == self._pending_cmd.maxlen:
@@ -274,7 +266,7 @@ class Firmware(HostTask, GnssTask):
         elif uart == UART_PSNS:
             frames = self._dec_psns.feed(data)
             if frames:
-                t_end = t_rx_s if t_rx_s is not None else self._now_s()
+                t_end = t_rx_s if t_rx_s is not None else self.clock.now_s()
                 # the last frame ended with the chunk; earlier ones ended earlier by the later frames' bytes
                 byte_s = self.cfg.psns_bits_per_byte / self.cfg.psns_baud
                 tags = []
@@ -290,7 +282,7 @@ class Firmware(HostTask, GnssTask):
 
     def decoder_stats(self) -> dict[str, dict[str, Any]]:
         return {"uart0": self._dec_host.stats.as_dict(), "uart1": self._dec_imu.stats.as_dict(),
-                "uart2": self._dec_psns.stats.as_dict(), "uart3": self._gnss_decoder_stats()}
+                "uart2": self._dec_psns.stats.as_dict(), "uart3": self.gnss.decoder_stats(self._dec_gnss)}
 
     def note_deadline_miss(self) -> None:
         """Called by the host DSP when a tick started after its deadline."""
@@ -339,25 +331,25 @@ class Firmware(HostTask, GnssTask):
         beyond the fitted gyro's range or at a 24-bit rail, and an accelerometer code beyond its range or at a
         rail, are replaced by that triad's last good sample (hold, D-5.46), so the strapdown never integrates a
         clipped or flagged value; with no good sample yet the frame is dropped."""
-        if self._t_last_us is not None:
-            t_new = self._unwrap_near(fr.t_trigger_us)
-            t_last = self._t_epoch_us + self._t_last_us
+        t_last_opt = self.clock.last_us()
+        if t_last_opt is not None:
+            t_last = t_last_opt
+            t_new = self.clock.unwrap_near(fr.t_trigger_us)
             reason = input_guard.check_imu_step(t_new - t_last, 1e6 * self.T)
             if reason is not None:
                 if not self._imu_resync_candidate(fr, t_new, t_last):
                     return None
                 # the FPGA time base really moved (a reset): take it, without a KF interval across the jump
                 self.counters["imu_time_resync"] += 1
-                self._t_epoch_us = t_new - fr.t_trigger_us
-                self._t_last_us = None
+                epoch = self.clock.rebase(t_new, fr.t_trigger_us)
                 self._t_base_first_us = t_new
-                t_s = (self._t_epoch_us + fr.t_trigger_us) / 1e6
+                t_s = (epoch + fr.t_trigger_us) / 1e6
                 self._t_last_predict = t_s - (self._tick % self.cfg.kf_predict_every) * self.T
                 self._hist.clear()
                 self._fault_events.append({"event": "imu_time_resync", "t_fpga_s": t_s})
             self._imu_resync_run.clear()
         else:
-            self._t_base_first_us = self._t_epoch_us + fr.t_trigger_us
+            self._t_base_first_us = self.clock.epoch_us() + fr.t_trigger_us
         # the common case in one expression (every word inside the range, which lies inside the rails; STATUS clear)
         g0, g1, g2 = fr.gyro
         a0, a1, a2 = fr.accel
@@ -430,18 +422,13 @@ class Firmware(HostTask, GnssTask):
         m.begin("imu_tick", self.T)
         m.begin("imu", self.T)
         m.charge("imu_decode", self._cyc_decode)
-        t_us = self._unwrap_us(fr.t_trigger_us)
+        t_us = self.clock.unwrap_us(fr.t_trigger_us)
         t = t_us / 1e6
         res = TickResult(t, 0)
         self.counters["imu_frames"] += 1
-        if fr.fpga_status & _PPS_VALID and fr.pps_count != self._pps_count:
-            self._pps_count = fr.pps_count
-            full = (t_us & ~0xFFFFFFFF) | fr.t_pps_us
-            if full > t_us:
-                full -= 2**32
-            self._t_pps_s = full / 1e6
-        if self._gnss_epoch is not None:
-            self._gnss_hold(t)
+        if fr.fpga_status & _PPS_VALID:
+            self.clock.pps_edge(t_us, fr.pps_count, fr.t_pps_us)
+        self.gnss.hold(t)
         if fr.fpga_status & _GYRO_MISSING:
             self.counters["fpga_gyro_missing"] += 1
         if self._last_counter is not None and (fr.gyro_counter - self._last_counter) % 256 != cfg.gyro_counter_step:
@@ -531,10 +518,9 @@ class Firmware(HostTask, GnssTask):
         nav = self.nav
         assert nav is not None  # measurement tasks run after the coarse alignment
         updated = False
-        self._gnss_poll(t)
-        g = self._gnss_pending
+        g = self.gnss.pending(t)
         if g is not None and (g.pos is not None or g.vel is not None) and self._hist:
-            self._gnss_pending = None
+            self.gnss.take()
             if t - g.t_fpga_s > cfg.gnss_max_age_s:
                 self.counters["gnss_tag_stale"] += 1  # grew too old waiting for the loop (docs/icd.md 5.1.3)
             else:

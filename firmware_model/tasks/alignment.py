@@ -33,15 +33,15 @@ class AlignmentTask(PsnsTask):
         self._align_sum += f_b
         self._align_n += 1
         self.meter.charge("align_accumulate", c674x.flops(0, 3))
-        if t - self._align_t0 < cfg.align_time_s or self._last_fix is None:
+        if t - self._align_t0 < cfg.align_time_s or self.gnss.last_fix is None:
             return
         fm = self._align_sum / self._align_n
-        lat, lon, h, _ = self._last_fix
+        lat, lon, h, _ = self.gnss.last_fix
         source = "config"
         heading_sigma = cfg.initial_heading_sigma_deg * DEG
         cbn = None
         want_psns = cfg.psns_enabled and cfg.alignment_heading in ("auto", "psns")
-        if want_psns and self._align_sun and self.utc_days(t) is not None:
+        if want_psns and self._align_sun and self.clock.utc_days(t) is not None:
             cbn, _sun_el = self._solar_alignment(fm, lat, lon)
             if cbn is not None:
                 source = "psns"
@@ -67,7 +67,7 @@ class AlignmentTask(PsnsTask):
         self.mode = NavMode.NAVIGATING | NavMode.ALIGNING
         self._t_aligned = t
         self._t_last_predict = t
-        self._gnss_pending = None
+        self.gnss.take()
         p, r, y = m2att(cbn)
         res.events.append({"event": "alignment_done", "t_fpga_s": t, "pitch_deg": p / DEG, "roll_deg": r / DEG,
                            "heading_deg": heading_from_yaw(y) / DEG, "heading_source": source,
@@ -96,7 +96,7 @@ class AlignmentTask(PsnsTask):
             acc += s if float(s @ up) >= 0 else -s
             t_mean += o.t_exposure_s
         t_mean /= len(self._align_sun)
-        days = self.utc_days(t_mean)
+        days = self.clock.utc_days(t_mean)
         assert days is not None
         s_n = sun.sun_vector_enu(days, lat, lon, dtype=self.dtype).astype(np.float64)
         self.meter.charge("sun_ephemeris", sun.ephemeris_cycles())
@@ -125,4 +125,4 @@ class AlignmentTask(PsnsTask):
         self._rot_sum = [0.0, 0.0, 0.0]
         self._fn_n = 0
         self._hist.clear()
-        self._gnss_pending = None
+        self.gnss.take()

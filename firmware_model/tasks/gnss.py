@@ -52,20 +52,24 @@ from __future__ import annotations
 import datetime as _dt
 import math
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from protocols.nmea import Gga, Gns, Gsa, NmeaSentence, Rmc, Zda
+from protocols.stream import StreamDecoder
 from protocols.ubx import NavPosllh, NavPvt, NavSol, NavStatus, NavTimeGps, NavTimeUtc, NavVelned, UbxFrame
 
 from .. import input_guard
+from ..config import FirmwareConfig
 from ..earth import ecef_to_geodetic
 from ..filters import GnssMeasurement
 from ..geoid import geoid_separation_m
 from ..units import DEG
-from .timekeeping import TimeKeeping
+from .state import count_rejection
+from .timekeeping import Clock
 
 __all__ = ["GNSS_COUNTERS", "GnssTask"]
 
@@ -153,12 +157,31 @@ class _Epoch:
     hdop: float | None = None        # GGA / GNS HDOP of the fix (scales its sigmas, D-5.42)
 
 
-class GnssTask(TimeKeeping):
+class GnssTask:
     """Parse GNSS messages into one measurement per epoch; the date and time set UTC
-    (:class:`~.timekeeping.TimeKeeping`)."""
+    (:class:`~.timekeeping.Clock`).
+
+    A task object of the cyclic executive: its state is its own; collaborators ``cfg``, ``counters`` (the loop's
+    table, shared), ``clock`` and ``fault`` (the loop's containment of an exception in one message). The loop
+    owns the UART3 decoder and hands it to :meth:`on_bytes`."""
+
+    def __init__(self, cfg: FirmwareConfig, counters: dict[str, int], clock: Clock,
+                 fault: Callable[[str, BaseException], None]) -> None:
+        self.cfg = cfg
+        self.counters = counters
+        self.clock = clock
+        self._fault = fault
+        #: the latest fix: (lat rad, lon rad, h m, GGA quality); None before the first
+        self._last_fix: tuple[float, float, float, int] | None = None
+        #: the measurement handed to the update (:meth:`pending`), until the loop takes it
+        self._gnss_pending: GnssMeasurement | None = None
+        self._gnss_init()
+
+    def _reject(self, reason: str) -> None:
+        count_rejection(self.counters, reason)
 
     def _gnss_init(self) -> None:
-        """State of the GNSS path (called from ``Firmware.__init__``)."""
+        """State of the GNSS path (called from ``__init__``)."""
         self._gnss_epoch: _Epoch | None = None
         self._gnss_ready: deque[tuple[GnssMeasurement, _Epoch]] = deque(maxlen=8)
         self._gnss_kinds_last: frozenset[str] = frozenset()
@@ -177,10 +200,10 @@ class GnssTask(TimeKeeping):
             self.counters.setdefault(k, 0)
 
     # -- bytes in -------------------------------------------------------------------------------------
-    def _on_gnss_bytes(self, data: bytes, t_rx_s: float | None) -> None:
-        """One chunk from UART3: ``t_rx_s`` is when its last byte arrived (the ISR's time stamp)."""
-        dec = self._dec_gnss
-        t_rx = t_rx_s if t_rx_s is not None else self._now_s()
+    def _on_gnss_bytes(self, dec: StreamDecoder, data: bytes, t_rx_s: float | None) -> None:
+        """One chunk from UART3 for the decoder ``dec``: ``t_rx_s`` is when its last byte arrived (the ISR's time
+        stamp)."""
+        t_rx = t_rx_s if t_rx_s is not None else self.clock.now_s()
         self._gnss_chunk += 1
         self._gnss_chunk_t_rx = t_rx
         if dec.pending() == 0:
@@ -198,14 +221,13 @@ class GnssTask(TimeKeeping):
                 else:
                     self._on_nmea(s)
             except Exception as e:
-                self._fault("gnss message", e)  # type: ignore[attr-defined]  # Firmware's containment
+                self._fault("gnss message", e)  # the loop's containment
             self._gnss_after_message()
             # the next message of this chunk started after this one: only the first is dated by the chunk
             self._gnss_chunk_start = math.nan
 
-    def _gnss_decoder_stats(self) -> dict[str, Any]:
+    def _gnss_decoder_stats(self, dec: StreamDecoder) -> dict[str, Any]:
         """UART3 decoder counters plus ``lf_only`` (NMEA lines accepted with an LF-only end)."""
-        dec = self._dec_gnss
         return {**dec.stats.as_dict(), "lf_only": getattr(dec.formats[0], "lf_only", 0)}
 
     # -- messages --------------------------------------------------------------------------------------
@@ -536,7 +558,7 @@ class GnssTask(TimeKeeping):
             if math.isnan(t_first):
                 # not the first message of its chunk: its first byte arrived no later than the chunk's end (a
                 # bound from above, as every sample of the minimum must be)
-                t_first = self._gnss_chunk_t_rx if self._gnss_chunk else self._now_s()
+                t_first = self._gnss_chunk_t_rx if self._gnss_chunk else self.clock.now_s()
             e = self._gnss_epoch = _Epoch(utc_s=utc, t_first=t_first, t_rx=self._gnss_chunk_t_rx)
             e.tod = utc_tod
             if utc is not None:
@@ -591,7 +613,7 @@ class GnssTask(TimeKeeping):
     def _gnss_time_of_validity(self, e: _Epoch) -> float:
         """FPGA time (s) at which the epoch's fix is valid (module docstring)."""
         t_ref = e.t_first
-        t_pps = self._t_pps_s
+        t_pps = self.clock.t_pps_s
         if e.utc_s is None:
             self.counters["gnss_no_utc"] += 1
             return t_ref - self.cfg.gnss_latency_s
@@ -629,19 +651,19 @@ class GnssTask(TimeKeeping):
             # valid after its own bytes arrived: a tag in the future (a clock the time base does not follow)
             self.counters["gnss_tag_future"] += 1
             return
-        if self._now_s() - t_meas > self.cfg.gnss_max_age_s:
+        if self.clock.now_s() - t_meas > self.cfg.gnss_max_age_s:
             self.counters["gnss_tag_stale"] += 1
             return
         simulated = e.refused in _NOT_REAL  # a simulator's or a manual fix: neither its place nor its time
-        if e.date is not None and not simulated and self._gnss_date_ok(e.date):
-            self._date = e.date
-        date = self._date
+        if e.date is not None and not simulated:
+            self.clock.take_date(e.date)
+        date = self.clock.date
         if date is not None and e.tod is not None and not simulated and (
                 e.date is not None or e.pos3 is not None or e.pos2 is not None):
             h, rem = divmod(e.tod % 86400.0, 3600.0)
             mi, sec = divmod(rem, 60.0)
             whole = min(int(sec), 59)
-            self._set_utc(t_meas, date, _dt.time(int(h), int(mi), whole, min(999_999, round((sec - whole) * 1e6))),
+            self.clock.set_utc(t_meas, date, _dt.time(int(h), int(mi), whole, min(999_999, round((sec - whole) * 1e6))),
                           pps=e.tag_pps)
         if e.dr:
             self.counters["gnss_dr_refused"] += 1
@@ -700,6 +722,34 @@ class GnssTask(TimeKeeping):
             self._gnss_hold(t)
         if self._gnss_pending is None and self._gnss_ready:
             self._gnss_pending = self._gnss_ready.popleft()[0]
+
+    # -- the task's interface to the loop ---------------------------------------------------------------
+    def on_bytes(self, dec: StreamDecoder, data: bytes, t_rx_s: float | None) -> None:
+        """Bytes from UART3 (the loop's decoder ``dec``; ``t_rx_s``: the ISR's time of the last byte, s)."""
+        self._on_gnss_bytes(dec, data, t_rx_s)
+
+    def decoder_stats(self, dec: StreamDecoder) -> dict[str, Any]:
+        """The UART3 decoder's counters plus ``lf_only``."""
+        return self._gnss_decoder_stats(dec)
+
+    def hold(self, t: float) -> None:
+        """Every tick (also while aligning; ``t``: tick time, s): close an epoch held too long."""
+        if self._gnss_epoch is not None:
+            self._gnss_hold(t)
+
+    def pending(self, t: float) -> GnssMeasurement | None:
+        """The measurement due for the update at tick time ``t`` (s), kept until :meth:`take`."""
+        self._gnss_poll(t)
+        return self._gnss_pending
+
+    def take(self) -> None:
+        """The loop took (or dropped) the pending measurement."""
+        self._gnss_pending = None
+
+    @property
+    def last_fix(self) -> tuple[float, float, float, int] | None:
+        """The latest fix: (lat rad, lon rad, h m, GGA quality); None before the first."""
+        return self._last_fix
 
 
 def _ecef_to_enu(v: Any, lat: float, lon: float) -> Any:

@@ -16,12 +16,12 @@ from ..config import FILTER_VARIANTS
 from ..filters import NavFilter
 from ..nav_state import FE, FN, FU, POS, Q, V
 from ..strapdown import coning_sculling, coning_sculling_fast
-from .timekeeping import TimeKeeping
+from .state import LoopState
 
 __all__ = ["Navigation"]
 
 
-class Navigation(TimeKeeping):
+class Navigation(LoopState):
     """Mechanization per IMU sample; the filter and the services it uses (a ``FilterHost``)."""
 
     def _new_filter(self, name: str) -> NavFilter:
@@ -97,6 +97,15 @@ class Navigation(TimeKeeping):
         T_w = self.dtype(self.T)
         self._bias_cache = (gb, ab, tuple((gb * T_w).tolist() + (ab * T_w).tolist()))
         return self._bias_cache
+
+    def now_s(self) -> float:
+        """FPGA time of the latest IMU frame, s (:meth:`.timekeeping.Clock.now_s`)."""
+        return self.clock.now_s()
+
+    def utc_days(self, t_fpga_s: float) -> float | None:
+        """Grena days (UT) at FPGA time ``t_fpga_s`` once GNSS gave date and time
+        (:meth:`.timekeeping.Clock.utc_days`)."""
+        return self.clock.utc_days(t_fpga_s)
 
     def ins_at(self, t_meas: float) -> tuple[F64Array, FloatArray, FloatArray]:
         """INS position, velocity and attitude quaternion at ``t_meas`` (2 s history, nearest entry)."""

@@ -18,8 +18,7 @@ from ..attitude import heading_from_yaw
 from ..kf import D_H, D_LAT, D_LON, DV_E, DV_N, DV_U, N_NAV_ERRORS, PHI_E, PHI_N, PHI_U
 from ..nav_state import POS, Q, V
 from ..units import DEG
-from .state import FirmwareState
-from .timekeeping import TimeKeeping
+from .state import FirmwareState, LoopState
 
 __all__ = ["NavOutput", "utc_from_grena_days"]
 
@@ -38,7 +37,7 @@ _GNSS_AIDED, _PSNS_AIDED, _DEGRADED = int(NavMode.GNSS_AIDED), int(NavMode.PSNS_
 _sqrt = math.sqrt
 
 
-class NavOutput(TimeKeeping):
+class NavOutput(LoopState):
     """NAV_SOLUTION frames (attitude from the quaternion, sigmas from the filter's P)."""
     def cpu_load_pct(self) -> float:
         """Worst tick of the last second, % of the tick budget (NAV_SOLUTION / STATUS ``cpu_load``)."""
@@ -51,7 +50,7 @@ class NavOutput(TimeKeeping):
     def _gnss_status_byte(self) -> int:
         """``gnss_status``: the last fix's GGA quality (bits 0-6), bit 7 when the innovation gate refused rows of
         the last GNSS fix (docs/hostile-input.md)."""
-        quality = self._last_fix[3] & 0x7F if self._last_fix is not None else 0
+        quality = self.gnss.last_fix[3] & 0x7F if self.gnss.last_fix is not None else 0
         return quality | (0x80 if self._gnss_gated else 0)
 
     def _euler_deg(self, x: Sequence[float]) -> tuple[float, float, float]:
@@ -74,7 +73,7 @@ class NavOutput(TimeKeeping):
         mode ``A`` / ``E`` and THS ``A`` / ``E`` likewise. The firmware has no geoid model: GGA carries the ellipsoidal
         height as altitude with a geoid separation of 0, so a reader's MSL + separation is the WGS-84 height.
         """
-        days = self.utc_days(t)
+        days = self.clock.utc_days(t)
         if days is None:
             return b""
         cfg = self.cfg
@@ -111,7 +110,7 @@ class NavOutput(TimeKeeping):
                 roll, pitch, heading = self._euler_deg(x)
             for n in names:
                 if n == "GGA":
-                    fix = self._last_fix
+                    fix = self.gnss.last_fix
                     out.append(build_gga(tm, lat / DEG, lon / DEG, h, 0.0, quality=1 if aided else 6,
                                          num_sats=12 if fix is not None else 0, hdop=1.0, talker=talker))
                 elif n == "RMC":
@@ -152,8 +151,8 @@ class NavOutput(TimeKeeping):
         mode = int(self.mode) | (self.filter.variant_id & 0xF) << 8
         if s is None:
             lat = lon = h = 0.0
-            if self._last_fix is not None:
-                lat, lon, h = self._last_fix[0], self._last_fix[1], self._last_fix[2]
+            if self.gnss.last_fix is not None:
+                lat, lon, h = self.gnss.last_fix[0], self.gnss.last_fix[1], self.gnss.last_fix[2]
             vel = (0.0, 0.0, 0.0)
             roll = pitch = heading = 0.0
             sigma = (0.0,) * 9

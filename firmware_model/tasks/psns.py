@@ -127,7 +127,7 @@ class PsnsTask(Navigation):
             solve.use = "stale"
             self.counters["psns_stale"] += 1
             return None
-        days = self.utc_days(obs.t_exposure_s)
+        days = self.clock.utc_days(obs.t_exposure_s)
         if days is None:
             solve.use = "no_utc"
             return None

@@ -6,12 +6,11 @@ classes derive from it so that each task module is type-checked against the same
 
 from __future__ import annotations
 
-import datetime as _dt
 import struct
 from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from protocols.host import NavMode
 from protocols.imu_frame import ImuFrame, MagFrame
@@ -20,10 +19,14 @@ from protocols.stream import StreamDecoder
 from .. import c674x
 from ..arrays import F64Array, FloatArray, FloatDtype
 from ..config import FirmwareConfig
-from ..filters import GnssMeasurement, NavFilter, SolarObservation
+from ..filters import NavFilter, SolarObservation
 from ..nav_state import NavFloats, NavState
+from .timekeeping import Clock
 
-__all__ = ["FirmwareState", "LoopState", "SolarSolve", "TickResult"]
+if TYPE_CHECKING:  # gnss.py imports count_rejection from here
+    from .gnss import GnssTask
+
+__all__ = ["FirmwareState", "LoopState", "SolarSolve", "TickResult", "count_rejection"]
 
 
 class FirmwareState:
@@ -115,15 +118,9 @@ class LoopState:
     _mag_hist: deque[tuple[float, tuple[int, int, int]]]  # (t_sample_s, field)
     _mag_w_inv: F64Array
     _mag_h: F64Array
-    # time keeping (FPGA time base; UTC from GNSS)
-    _t_last_us: int | None
-    _t_epoch_us: int
-    _t_pps_s: float | None
-    _pps_count: int | None
     _last_counter: int | None
-    _utc_days_ref: float | None  # Grena days (UT) at _utc_t_ref
-    _utc_t_ref: float
-    _date: _dt.date | None
+    #: the FPGA time base and UTC (a task object of its own, :class:`~.timekeeping.Clock`)
+    clock: Clock
     # mode manager and alignment
     state: str
     mode: NavMode
@@ -146,8 +143,8 @@ class LoopState:
     _fn_n: int
     _rot_sum: list[float]  # sum of |phi_m| per body axis over the KF interval (rad, Python floats)
     _hist: deque[tuple[float, NavFloats]]  # INS history: (t, NavState.as_floats())
-    _gnss_pending: GnssMeasurement | None
-    _last_fix: tuple[float, float, float, int] | None  # (lat rad, lon rad, h m, quality)
+    #: the GNSS staging (a task object of its own, :class:`~.gnss.GnssTask`)
+    gnss: GnssTask
     _last_gnss_update_t: float
     _gnss_gated: bool  # the innovation gate refused rows of the last GNSS fix
     _last_psns_t: float
@@ -162,7 +159,12 @@ class LoopState:
 
     def _reject(self, reason: str) -> None:
         """Count one message refused by :mod:`firmware_model.input_guard` (``input_rejected_<reason>``)."""
-        c = self.counters
-        c["input_rejected"] += 1
-        key = "input_rejected_" + reason
-        c[key] = c.get(key, 0) + 1
+        count_rejection(self.counters, reason)
+
+
+def count_rejection(counters: dict[str, int], reason: str) -> None:
+    """Count one message refused by :mod:`firmware_model.input_guard` in ``counters`` (``input_rejected`` and
+    ``input_rejected_<reason>``)."""
+    counters["input_rejected"] += 1
+    key = "input_rejected_" + reason
+    counters[key] = counters.get(key, 0) + 1

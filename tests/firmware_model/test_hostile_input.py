@@ -75,7 +75,7 @@ _RMC = sentence("GPRMC,020020.00,A,3958.74626,N,11620.34682,E,9.723,10.0,180919,
 def test_exception_on_one_message_is_contained_counted_reported(monkeypatch: pytest.MonkeyPatch) -> None:
     fw = Firmware(FirmwareConfig())
     fw.raise_faults = False
-    monkeypatch.setattr(fw, "_on_nmea", _boom)
+    monkeypatch.setattr(fw.gnss, "_on_nmea", _boom)
     fw.receive(3, _RMC + _RMC)  # both messages reach the handler: one fault each, the second still handled
     assert fw.counters["input_faults"] == 2
     assert fw._fault_events[0]["event"] == "firmware_fault" and fw._fault_events[0]["error"] == "_Boom"
@@ -84,7 +84,7 @@ def test_exception_on_one_message_is_contained_counted_reported(monkeypatch: pyt
 def test_strict_mode_fails_loudly(monkeypatch: pytest.MonkeyPatch) -> None:
     fw = Firmware(FirmwareConfig())
     fw.raise_faults = True
-    monkeypatch.setattr(fw, "_on_nmea", _boom)
+    monkeypatch.setattr(fw.gnss, "_on_nmea", _boom)
     with pytest.raises(_Boom):
         fw.receive(3, _RMC)
 

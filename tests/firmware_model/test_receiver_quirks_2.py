@@ -124,21 +124,21 @@ def test_a_tag_in_the_future_and_a_stale_one_are_refused_and_counted() -> None:
     cfg = FirmwareConfig(gnss_baud=BAUD, gnss_latency_s=0.08, align_time_s=2.0)
     fw = Firmware(cfg)
     tod0 = 8 * 3600.0 + 14 * 60.0  # the truth's epoch, UTC time of day
-    fw._gnss_offsets.extend([0.1 - tod0])  # the time base: first byte at FPGA time (UTC - epoch) + 0.1 s
-    fw._gnss_chunk_start = 5.1  # the epoch's first byte, on the time base
-    e = fw._gnss_epoch_for("GGA", tod0 + 5.0)  # UTC epoch + 5 s: tag 5.02 s
+    fw.gnss._gnss_offsets.extend([0.1 - tod0])  # the time base: first byte at FPGA time (UTC - epoch) + 0.1 s
+    fw.gnss._gnss_chunk_start = 5.1  # the epoch's first byte, on the time base
+    e = fw.gnss._gnss_epoch_for("GGA", tod0 + 5.0)  # UTC epoch + 5 s: tag 5.02 s
     assert e is not None
     e.pos3 = (0.7, 2.0, 50.0)
     e.t_first, e.t_rx = 4.0, 4.1  # bytes arrived before the tag: a future tag
-    fw._gnss_close(e)
+    fw.gnss._gnss_close(e)
     assert fw.counters["gnss_tag_future"] == 1 and fw.counters["gnss_fixes"] == 0
-    fw._t_last_us = 9_000_000  # now = 9 s: the epoch at 6.02 s is 2.98 s old at its close
-    fw._gnss_chunk_start = 6.1
-    e = fw._gnss_epoch_for("GGA", tod0 + 6.0)
+    fw.clock._t_last_us = 9_000_000  # now = 9 s: the epoch at 6.02 s is 2.98 s old at its close
+    fw.gnss._gnss_chunk_start = 6.1
+    e = fw.gnss._gnss_epoch_for("GGA", tod0 + 6.0)
     assert e is not None
     e.pos3 = (0.7, 2.0, 50.0)
     e.t_first = e.t_rx = 6.2
-    fw._gnss_close(e)
+    fw.gnss._gnss_close(e)
     assert fw.counters["gnss_tag_stale"] == 1 and fw.counters["gnss_fixes"] == 0
     assert fw.counters.get("utc_stale_pps", 0) == 0
 
@@ -147,7 +147,7 @@ def test_a_tag_in_the_future_and_a_stale_one_are_refused_and_counted() -> None:
 def _feed_lines(fw: Firmware, lines: list[tuple[float, bytes]]) -> None:
     for t, b in lines:
         fw.receive(UART_GNSS, b, t)
-        fw._gnss_poll(t)
+        fw.gnss._gnss_poll(t)
 
 
 def _grena(u: dt.datetime) -> float:
@@ -190,14 +190,14 @@ def test_the_2019_rollover_rmc_does_not_move_the_date() -> None:
     _feed_lines(fw, _rmc_lines(1, 12, date_of={k: b"220899" for k in range(6, 12)}))
     assert fw.counters["gnss_date_refused"] >= 5
     assert fw.utc_days(10.0) == pytest.approx(_grena(_utc(10.0)), abs=0.2 / 86400.0)
-    assert fw._date == _utc(10).date()
+    assert fw.clock.date == _utc(10).date()
 
 
 def test_a_rollover_date_first_is_refused_too() -> None:
     """Without a running clock the firmware's GPS week era alone refuses the rollover date: no UTC from it."""
     fw = Firmware(FirmwareConfig(gnss_baud=BAUD, gnss_latency_s=0.05))
     _feed_lines(fw, _rmc_lines(1, 6, date_of={k: b"220899" for k in range(1, 6)}))
-    assert fw.utc_days(4.0) is None and fw._date is None and fw.counters["gnss_date_refused"] >= 4
+    assert fw.utc_days(4.0) is None and fw.clock.date is None and fw.counters["gnss_date_refused"] >= 4
 
 
 def test_a_void_rmc_with_an_rtc_date_does_not_move_the_date() -> None:
@@ -205,7 +205,7 @@ def test_a_void_rmc_with_an_rtc_date_does_not_move_the_date() -> None:
     fw = Firmware(FirmwareConfig(gnss_baud=BAUD, gnss_latency_s=0.05))
     rtc = {k: b"010607" for k in range(6, 12)}
     _feed_lines(fw, _rmc_lines(1, 12, date_of=rtc, valid_of=dict.fromkeys(range(6, 12), False)))
-    assert fw._date == _utc(10).date()
+    assert fw.clock.date == _utc(10).date()
     assert fw.utc_days(10.0) == pytest.approx(_grena(_utc(10.0)), abs=1.5 / 86400.0)
 
 
@@ -323,8 +323,8 @@ def _filled_height_errors(sites: list[tuple[float, float]]) -> np.ndarray:
         g = build_gga(u.time(), lat, lon, h_true - egm96_separation_m(lat, lon), None, 1, 10, 0.9)
         assert b",M,,," in g  # the separation and its unit empty
         fw.receive(UART_GNSS, g, k + 0.2)
-        assert fw._last_fix is not None and fw._last_fix[0] == pytest.approx(lat * DEG, abs=1e-7)
-        errs.append(fw._last_fix[2] - h_true)
+        assert fw.gnss._last_fix is not None and fw.gnss._last_fix[0] == pytest.approx(lat * DEG, abs=1e-7)
+        errs.append(fw.gnss._last_fix[2] - h_true)
     assert fw.counters["gnss_geoid_filled"] == len(sites)
     return np.array(errs)
 
@@ -353,7 +353,7 @@ def test_a_reported_geoid_separation_is_used_as_sent() -> None:
     fw = Firmware(FirmwareConfig(gnss_baud=BAUD, gnss_latency_s=0.05))
     u = _utc(1)
     fw.receive(UART_GNSS, build_gga(u.time(), 6.0, 77.0, 222.33, -102.33, 1, 10, 0.9), 1.2)
-    assert fw._last_fix is not None and fw._last_fix[2] == pytest.approx(120.0, abs=1e-6)
+    assert fw.gnss._last_fix is not None and fw.gnss._last_fix[2] == pytest.approx(120.0, abs=1e-6)
     assert fw.counters["gnss_geoid_filled"] == 0
 
 
@@ -416,8 +416,8 @@ def test_legacy_ubx_sets_form_epochs_with_position_velocity_and_utc(msgs: tuple[
     got = []
     for k in range(1, 8):
         fw.receive(UART_GNSS, _legacy_epoch(k, msgs), k + 0.3)
-        got.extend(m for m, _e in fw._gnss_ready)
-        fw._gnss_ready.clear()
+        got.extend(m for m, _e in fw.gnss._gnss_ready)
+        fw.gnss._gnss_ready.clear()
     assert len(got) >= 5 and fw.counters["gnss_legacy_ubx"] >= 5 * len(msgs)
     assert fw.counters["gnss_ubx_other"] == 0
     for m in got:
@@ -496,7 +496,7 @@ def test_a_simulator_fix_sets_no_utc() -> None:
                                                                     0.0, 0.0, valid=True, mode="S")))
     _feed_lines(fw, lines)
     assert fw.counters["gnss_fixes"] == 0 and fw.counters["gnss_sim_refused"] >= 4
-    assert fw.utc_days(4.0) is None and fw._date is None
+    assert fw.utc_days(4.0) is None and fw.clock.date is None
 
 
 def test_ubx_without_a_valid_time_gives_no_time_base_sample() -> None:
@@ -507,8 +507,8 @@ def test_ubx_without_a_valid_time_gives_no_time_base_sample() -> None:
         b = UBXMessage("NAV", "NAV-PVT", GET, iTOW=k * 1000, year=2000, month=1, day=1, validDate=0, validTime=0,
                        fixType=0, numSV=0).serialize()
         fw.receive(UART_GNSS, b, k + 0.3)
-        fw._gnss_poll(k + 0.3 + 1.0)  # the hold closes each epoch (no time to tell them apart)
-    assert not fw._gnss_offsets and fw.utc_days(3.0) is None
+        fw.gnss._gnss_poll(k + 0.3 + 1.0)  # the hold closes each epoch (no time to tell them apart)
+    assert not fw.gnss._gnss_offsets and fw.utc_days(3.0) is None
     assert fw.counters["gnss_no_utc"] >= 3 and fw.counters["gnss_no_fix_epochs"] >= 3
 
 
@@ -543,5 +543,5 @@ def test_nav_pvt_date_only_when_fully_resolved_and_confirmed() -> None:
                            confirmedTime=(flags2 >> 7) & 1, fixType=3, gnssFixOk=1, numSV=10, lon=TRUTH.lon_deg,
                            lat=TRUTH.lat_deg, height=50000, hMSL=58000, hAcc=2000, vAcc=3000).serialize()
             fw.receive(UART_GNSS, b, k + 0.3)
-        assert (fw._date is not None) is want, (resolved, flags2)
+        assert (fw.clock.date is not None) is want, (resolved, flags2)
         assert fw.counters["gnss_fixes"] >= 3  # the fix is used either way

@@ -315,7 +315,7 @@ def fuzz_firmware(n: int, seed: int, seeds: dict[int, list[bytes]]) -> tuple[int
                         elif kind == 1:
                             fw.receive(UART_GNSS, hostile_pvt(rng, pvt_seed), t)
                         elif kind == 2:
-                            fr = dataclasses.replace(imu_seed, t_trigger_us=fw._t_last_us or 0)
+                            fr = dataclasses.replace(imu_seed, t_trigger_us=fw.clock._t_last_us or 0)
                             fw.receive(UART_IMU, imu_fmt.build(hostile_imu(rng, fr)), t)
                         elif kind == 3:
                             fw.receive(rng.randrange(4), mutate(rng, rng.choice(all_seeds)), t)

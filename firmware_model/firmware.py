@@ -190,6 +190,7 @@ class Firmware(HostTask):
         self._next_status_t = 1.0
         self._status_seq = 0
         self._heading_sigma0 = cfg.initial_heading_sigma_deg * DEG
+        self._heading_placeholder = False
         self.counters: dict[str, int] = {"imu_frames": 0, "gnss_fixes": 0, "gnss_updates": 0, "gyro_counter_jumps": 0,
                          "fpga_gyro_missing": 0, "imu_time_gaps": 0, "psns_frames": 0, "psns_solutions": 0,
                          "psns_updates": 0, "psns_rejected": 0, "psns_invalid": 0, "psns_sun_low": 0,

@@ -3,17 +3,22 @@
 A receiver's error budget depends less on the receiver than on where its antenna is. Each environment changes the
 ``field`` receiver (:mod:`emulator.devices.gnss`) in four ways:
 
-- **multipath**: the Gauss-Markov multipath process (per axis, ENU) takes the environment's level and correlation
-  time (code multipath of decimetres in open sky, metres in suburbs, several metres in a street canyon);
+- **geometry and the DOP law**: fewer satellites and a worse HDOP (drawn once per run in the environment's range;
+  Kaplan & Hegarty, *Understanding GPS/GNSS*, 3rd ed. 2017, ch. 7, for DOP against visible satellites). The receiver
+  reports that HDOP and its errors follow it: a position error is the range error mapped through the geometry,
+  sigma = DOP x UERE (Kaplan & Hegarty ch. 7; GPS SPS Performance Standard, 5th ed. 2020, whose position accuracy is
+  stated the same way). The receiver's own figures (slow part, white part, velocity) are its errors at the geometry
+  its configuration reports (``hdop``, 0.8 for ``field``) and scale by ``HDOP / hdop``; the environment's code
+  multipath is a range error (1 sigma, m: decimetres in open sky, metres in suburbs, several metres in a street
+  canyon) that replaces the receiver's own, a Gauss-Markov process per axis of HDOP x range / sqrt(2) horizontally
+  and the receiver's vertical-to-horizontal ratio times that vertically;
 - **a NLOS bias**: in a canyon the signals that arrive only by reflection are all delayed, so the solution is pushed
   away from the buildings by a bias that lasts as long as the geometry (Groves 2011, "Shadow matching", J. Navig.
   64(3) 417: across-street errors of tens of metres): a constant horizontal offset per run, its size drawn from the
   environment's range and its direction uniform;
 - **NLOS outliers**: episodes (Poisson in time, each 3-20 s long) during which a reflected-only satellite enters the
   solution and the position jumps by a Gaussian offset of the environment's size (Hsu 2018, "Analysis and modeling
-  GPS NLOS effect in highly urbanized area", GPS Solut. 22:7: NLOS pseudorange errors of tens of metres);
-- **geometry**: fewer satellites and a worse HDOP (drawn once per run in the environment's range; Kaplan & Hegarty,
-  *Understanding GPS/GNSS*, 3rd ed. 2017, ch. 7, for DOP against visible satellites), and a noisier velocity.
+  GPS NLOS effect in highly urbanized area", GPS Solut. 22:7: NLOS pseudorange errors of tens of metres).
 
 The figures are in :data:`ENVIRONMENTS` (ranges from the papers above, the exact values are design values [D]).
 The receiver calls :meth:`GnssEnvironmentProcess.position_offset` once per fix (a small hook in ``gnss.py``).
@@ -36,10 +41,9 @@ class GnssEnvironment:
     """One kind of surroundings (see module docstring). Lengths m (1 sigma per axis unless a range), times s."""
 
     name: str
-    multipath_sigma_h_m: float
-    multipath_sigma_v_m: float
+    #: code multipath, a range error (1 sigma, m); in position HDOP x this / sqrt(2) per horizontal axis
+    multipath_range_m: float
     multipath_corr_time_s: float
-    vel_scale: float
     nlos_bias_h_m: tuple[float, float]
     nlos_rate_hz: float
     nlos_sigma_h_m: float
@@ -51,21 +55,30 @@ class GnssEnvironment:
 
 #: the environments of the envelope (module docstring; docs/sensors.md "The envelope" gives the sources)
 ENVIRONMENTS: dict[str, GnssEnvironment] = {
-    "open_sky": GnssEnvironment("open_sky", 0.5, 0.8, 15.0, 1.0, (0.0, 0.0), 0.0, 0.0, 0.0, (0.0, 0.0),
+    "open_sky": GnssEnvironment("open_sky", 0.5, 15.0, (0.0, 0.0), 0.0, 0.0, 0.0, (0.0, 0.0),
                                 (10, 14), (0.7, 1.0)),
-    "suburban": GnssEnvironment("suburban", 2.0, 3.5, 20.0, 2.0, (0.0, 3.0), 1.0 / 300.0, 8.0, 12.0, (3.0, 15.0),
+    "suburban": GnssEnvironment("suburban", 2.0, 20.0, (0.0, 3.0), 1.0 / 300.0, 8.0, 12.0, (3.0, 15.0),
                                 (7, 10), (1.2, 2.0)),
-    "urban_canyon": GnssEnvironment("urban_canyon", 5.0, 8.0, 30.0, 4.0, (3.0, 15.0), 1.0 / 60.0, 20.0, 30.0,
+    "urban_canyon": GnssEnvironment("urban_canyon", 5.0, 30.0, (3.0, 15.0), 1.0 / 60.0, 20.0, 30.0,
                                     (3.0, 20.0), (4, 7), (2.0, 5.0)),
 }
 
 
-def environment_errors(env: GnssEnvironment, e: GnssErrors) -> GnssErrors:
-    """The receiver's figures in ``env``: its multipath process at the environment's level and correlation time,
-    its velocity noise scaled (the slow atmospheric part and the white part are the receiver's own)."""
-    return replace(e, multipath_sigma_h_m=env.multipath_sigma_h_m, multipath_sigma_v_m=env.multipath_sigma_v_m,
-                   multipath_corr_time_s=env.multipath_corr_time_s, vel_sigma_h_mps=e.vel_sigma_h_mps * env.vel_scale,
-                   vel_sigma_v_mps=e.vel_sigma_v_mps * env.vel_scale)
+def environment_errors(env: GnssEnvironment, e: GnssErrors, hdop: float, hdop_receiver: float) -> GnssErrors:
+    """The receiver's figures in ``env`` under the geometry ``hdop`` it reports (sigma = DOP x UERE, module
+    docstring): its own position (slow and white parts) and velocity figures, stated at ``hdop_receiver``, times
+    ``hdop / hdop_receiver``; its multipath process replaced by the environment's range error through ``hdop``
+    (per horizontal axis HDOP x range / sqrt(2), vertically times the receiver's vertical-to-horizontal ratio) at the
+    environment's correlation time."""
+    if not (hdop > 0.0 and hdop_receiver > 0.0):
+        raise ValueError(f"HDOP must be > 0 (got {hdop}, receiver's {hdop_receiver})")
+    k = hdop / hdop_receiver
+    mp_h = hdop * env.multipath_range_m / math.sqrt(2.0)
+    v_over_h = e.pos_sigma_v_m / e.pos_sigma_h_m if e.pos_sigma_h_m > 0.0 else 1.0
+    return replace(e, pos_sigma_h_m=e.pos_sigma_h_m * k, pos_sigma_v_m=e.pos_sigma_v_m * k,
+                   multipath_sigma_h_m=mp_h, multipath_sigma_v_m=mp_h * v_over_h,
+                   multipath_corr_time_s=env.multipath_corr_time_s, vel_sigma_h_mps=e.vel_sigma_h_mps * k,
+                   vel_sigma_v_mps=e.vel_sigma_v_mps * k)
 
 
 class GnssEnvironmentProcess:

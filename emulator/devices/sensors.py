@@ -210,8 +210,9 @@ def gnss_config(scn: Scenario, seed: int | None = None) -> GnssConfig:
     num_sats, hdop = g.num_sats, g.hdop
     if g.environment is not None:
         env = ENVIRONMENTS[g.environment]
-        err = environment_errors(env, err)
         env_process = GnssEnvironmentProcess(env, device_rng(scn.seed if seed is None else seed, "gnss_environment"))
+        # the receiver reports the geometry it solved with, and its errors follow it (DOP law)
+        err = environment_errors(env, err, env_process.hdop, g.hdop)
         num_sats, hdop = env_process.num_sats, env_process.hdop
     return GnssConfig(
         rate_hz=g.rate_hz, latency_s=g.latency_s if g.latency_s is not None else float(p.get("latency_s", 0.05)),

@@ -53,6 +53,8 @@ class AlignmentTask(PsnsTask):
         self.meter.charge("coarse_level", self._cyc["level"])
         if cbn is None:
             cbn = a2mat(pitch, roll, yaw_from_heading(cfg.initial_heading_deg * DEG))
+            if cfg.alignment_heading == "psns":  # timed out: the heading is a placeholder, uniform on the circle
+                heading_sigma = math.pi / math.sqrt(3.0)  # (D-5.50)
         if any(cfg.initial_misalignment_deg):  # C_b^{n'} = rv2m(-phi) C_b^n: the computed frame is off by phi
             cbn = q2mat_fast(rv2q(-np.asarray(cfg.initial_misalignment_deg, dtype=np.float64) * DEG)) @ cbn
         nd = self.nav_dtype
@@ -60,6 +62,7 @@ class AlignmentTask(PsnsTask):
                             a_prev=np.zeros(3, dtype=nd))
         self.filter.initialise(self.nav, heading_sigma)
         self._heading_sigma0 = heading_sigma
+        self._heading_placeholder = source == "config" and cfg.alignment_heading == "psns"  # timed out: D-5.50
         self.state = FirmwareState.FINE_ALIGN
         self.mode = NavMode.NAVIGATING | NavMode.ALIGNING
         self._t_aligned = t

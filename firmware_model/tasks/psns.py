@@ -14,7 +14,7 @@ import numpy as np
 from protocols.psns import CompassFrame, PolarizationObs, PolarizationObsPacked, PsnsStatus, SolarVectorFrame
 
 from .. import c674x, psns, sun
-from ..attitude import q2mat_fast
+from ..attitude import mat2q, q2mat_fast
 from ..filters import SolarObservation, UpdateReport
 from ..units import DEG
 from .navigation import Navigation
@@ -138,6 +138,38 @@ class PsnsTask(Navigation):
             self.counters["psns_sun_low"] += 1  # night or twilight: not an error, no update
             solve.use = "sun_low"
             return None
+        if self._heading_placeholder and self._late_solar_heading(obs, s_n, q_exp):
+            solve.use = "alignment"
+            return None
         rep = self.filter.update_solar(nav, obs, s_n, q2mat_fast(q_exp))
         solve.use = "accepted" if rep.accepted else "refused"
         return rep
+
+    def _late_solar_heading(self, obs: SolarObservation, s_n: Any, q_exp: Any) -> bool:
+        """The heading from the first solar vector after a PSNS alignment that timed out (D-5.50).
+
+        The alignment asked for the sun (``alignment_heading: psns``) and, without a valid solve within
+        ``psns_align_timeout_s``, started from the configured heading, a placeholder the filter must not trust at
+        ``initial_heading_sigma_deg``. The first solar vector turns the attitude about the vertical so that the
+        solved sun has the ephemeris' azimuth (levels kept) and restarts the filter at ``psns_heading_sigma_deg``.
+        False (nothing done) when the sun is within 10 deg of the zenith (its azimuth undefined)."""
+        if float(s_n[2]) > math.sin(80.0 * DEG):
+            return False
+        nav = self.nav
+        assert nav is not None
+        c_exp = q2mat_fast(np.asarray(q_exp, dtype=np.float64))
+        s_b = obs.s_b.astype(np.float64)
+        if float(s_b @ c_exp[2, :]) < 0.0:  # the solve's sign: the sun above the horizon
+            s_b = -s_b
+        s_m = c_exp @ s_b
+        d = math.atan2(float(s_n[1]), float(s_n[0])) - math.atan2(float(s_m[1]), float(s_m[0]))
+        cd, sd = math.cos(d), math.sin(d)
+        rz = np.array([[cd, -sd, 0.0], [sd, cd, 0.0], [0.0, 0.0, 1.0]])  # about Up (ENU), counter-clockwise
+        nav.q = mat2q(rz @ q2mat_fast(np.asarray(nav.q, dtype=np.float64))).astype(nav.q.dtype)
+        sigma = self.cfg.psns_heading_sigma_deg * DEG
+        self.filter.initialise(nav, sigma)
+        self._heading_sigma0 = sigma
+        self._heading_placeholder = False
+        self._fault_events.append({"event": "late_solar_heading", "t_fpga_s": obs.t_exposure_s,
+                                   "heading_change_deg": -math.degrees(math.atan2(sd, cd))})
+        return True

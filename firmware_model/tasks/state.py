@@ -131,6 +131,9 @@ class LoopState:
     _t_aligned: float
     _t_last_predict: float
     _heading_sigma0: float
+    #: the heading is the configured placeholder of a PSNS alignment that timed out (D-5.50)
+    _heading_placeholder: bool
+    _fault_events: list[dict[str, Any]]
     # navigation
     nav: NavState | None
     filter: NavFilter

@@ -442,3 +442,33 @@ def test_mag_frames_on_uart1_are_decoded_beside_imu_frames():
     assert fw.counters["mag_frames"] == 600 and fw.counters["imu_frames"] == 600
     assert fw.last_mag.field == (200000, 300000, -400000)
     assert fw.decoder_stats()["uart1"]["crc_errors"] == 0
+
+
+def test_a_psns_alignment_that_timed_out_takes_its_heading_from_the_first_solar_vector():
+    """D-5.50: the sun comes only after the alignment gave up; until then the heading is a placeholder (sigma of a
+    uniform circle, not the configured 1 deg), and the first solar vector sets it."""
+    from firmware_model.attitude import q2mat_fast
+
+    truth = StaticTruth(heading_deg=75.0)
+    cfg = FirmwareConfig(alignment_heading="psns", psns_align_timeout_s=1.0, initial_heading_deg=0.0)
+    fw = Firmware(cfg)
+    events: list[dict] = []
+    sigma_at_align = None
+    for t_rx, uart, data in static_stream(truth, PAPER_ERRORS, StreamConfig(psns="solar_vector"), 14.0):
+        if uart == 2 and t_rx < 8.0:
+            continue  # no solar vector until 8 s (a cloud)
+        fw.receive(uart, data, t_rx)
+        if uart == 1:
+            for r in fw.service():
+                events.extend(r.events)
+                if sigma_at_align is None and fw.nav is not None:
+                    sigma_at_align = math.sqrt(float(fw.filter.P[2, 2])) / DEG
+    al = [e for e in events if e["event"] == "alignment_done"]
+    late = [e for e in events if e["event"] == "late_solar_heading"]
+    assert al and al[0]["heading_source"] == "config"
+    assert sigma_at_align == pytest.approx(180.0 / math.sqrt(3.0), rel=1e-3)
+    assert len(late) == 1 and late[0]["t_fpga_s"] >= 8.0
+    assert abs(_wrap180(late[0]["heading_change_deg"] - 75.0)) < 2.0
+    _, _, y = m2att(q2mat_fast(fw.nav.q.astype(np.float64)))
+    assert abs(_wrap180(heading_from_yaw(y) / DEG - 75.0)) < 1.0
+    assert math.sqrt(float(fw.filter.P[2, 2])) / DEG < 1.0

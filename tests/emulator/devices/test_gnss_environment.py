@@ -21,7 +21,7 @@ def _offsets(name: str, seed: int, hours: float = 2.0) -> tuple[GnssEnvironmentP
 
 def test_environments_order_from_benign_to_hostile():
     o, s, u = (ENVIRONMENTS[k] for k in ("open_sky", "suburban", "urban_canyon"))
-    assert o.multipath_sigma_h_m < s.multipath_sigma_h_m < u.multipath_sigma_h_m
+    assert o.multipath_range_m < s.multipath_range_m < u.multipath_range_m
     assert o.nlos_rate_hz == 0.0 < s.nlos_rate_hz < u.nlos_rate_hz
     assert o.num_sats[0] > s.num_sats[0] > u.num_sats[0] >= 4
     assert o.hdop[1] <= s.hdop[0] and s.hdop[1] <= u.hdop[0]
@@ -45,16 +45,42 @@ def test_open_sky_adds_nothing_but_geometry():
     assert np.all(off == 0.0) and p.episodes == 0 and p.num_sats >= 10
 
 
-def test_environment_errors_replace_multipath_and_scale_velocity():
-    e = environment_errors(ENVIRONMENTS["urban_canyon"], GnssErrors(vel_sigma_h_mps=0.05, vel_sigma_v_mps=0.1))
-    assert (e.multipath_sigma_h_m, e.multipath_corr_time_s) == (5.0, 30.0)
-    assert e.vel_sigma_h_mps == pytest.approx(0.2)
+def test_environment_errors_follow_the_reported_hdop():
+    base = GnssErrors(pos_sigma_h_m=3.5, pos_sigma_v_m=7.0, vel_sigma_h_mps=0.05, vel_sigma_v_mps=0.1)
+    e = environment_errors(ENVIRONMENTS["urban_canyon"], base, hdop=4.0, hdop_receiver=0.8)
+    # sigma = DOP x UERE: the receiver's figures (stated at HDOP 0.8) times 5, the canyon's 5 m range multipath
+    # through HDOP 4 (per horizontal axis 4 x 5 / sqrt 2), vertically in the receiver's ratio 2
+    assert (e.pos_sigma_h_m, e.pos_sigma_v_m) == pytest.approx((17.5, 35.0))
+    assert e.multipath_sigma_h_m == pytest.approx(20.0 / math.sqrt(2.0))
+    assert e.multipath_sigma_v_m == pytest.approx(40.0 / math.sqrt(2.0)) and e.multipath_corr_time_s == 30.0
+    assert (e.vel_sigma_h_mps, e.vel_sigma_v_mps) == pytest.approx((0.25, 0.5))
+    # twice the HDOP, twice every sigma
+    e2 = environment_errors(ENVIRONMENTS["urban_canyon"], base, hdop=2.0, hdop_receiver=0.8)
+    assert e.pos_sigma_h_m == pytest.approx(2 * e2.pos_sigma_h_m)
+    assert e.multipath_sigma_h_m == pytest.approx(2 * e2.multipath_sigma_h_m)
+    with pytest.raises(ValueError, match="HDOP"):
+        environment_errors(ENVIRONMENTS["suburban"], base, hdop=0.0, hdop_receiver=0.8)
+
+
+def test_the_receivers_error_follows_the_hdop_it_reports():
+    """Over many runs of a suburban receiver, the horizontal error grows with the HDOP its GGA reports."""
+    scn = load_scenario(ROOT / "scenarios" / "quickstart.yaml", overrides=["sensors.gnss.environment=suburban"])
+    rows = []
+    for seed in range(40):
+        cfg = gnss_config(scn, seed)
+        e = cfg.errors
+        sig_h = math.hypot(e.pos_sigma_h_m, e.multipath_sigma_h_m)
+        rows.append((cfg.hdop, sig_h))
+    h, s = np.array(rows).T
+    assert np.all((h >= 1.2) & (h <= 2.0))
+    assert np.allclose(s / h, s[0] / h[0])  # one UERE: sigma / HDOP is the same in every run
 
 
 def test_the_scenario_key_reaches_the_receiver_and_the_fix():
     scn = load_scenario(ROOT / "scenarios" / "quickstart.yaml", overrides=["sensors.gnss.environment=urban_canyon"])
     a, b = gnss_config(scn, 9), gnss_config(scn, 9)
     assert a.environment is not None and np.array_equal(a.environment.bias_enu, b.environment.bias_enu)
-    assert 4 <= a.num_sats <= 7 and a.errors.multipath_sigma_h_m == 5.0
+    assert 4 <= a.num_sats <= 7
+    assert a.errors.multipath_sigma_h_m == pytest.approx(a.hdop * 5.0 / math.sqrt(2.0))
     plain = gnss_config(load_scenario(ROOT / "scenarios" / "quickstart.yaml"))
     assert plain.environment is None and plain.num_sats == 12

@@ -52,7 +52,7 @@ from protocols.nmea import Gga, NmeaFormat, Rmc
 
 from ..errors import RecordingError
 from ..links.base import Link
-from ..scenario.paths import RECORDED_LINE_MAX
+from ..scenario.paths import RECORDED_LINE_MAX, decode_utf8
 from .camera import CHANNEL_OFFSETS
 from .gnss import GnssConfig, GnssReceiver
 
@@ -127,13 +127,7 @@ def _read_csv(path: Path, required: tuple[str, ...], optional: tuple[str, ...] =
         raw = path.read_bytes()
     except OSError as exc:
         raise RecordingError(f"{path}: cannot read: {exc.strerror or exc}") from exc
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        line = raw.count(b"\n", 0, exc.start) + 1
-        col = exc.start - (raw.rfind(b"\n", 0, exc.start) + 1) + 1
-        raise RecordingError(f"{path}: line {line}, column {col}: not UTF-8 text (byte offset {exc.start})") from None
-    lines = text.splitlines()
+    lines = decode_utf8(raw, path).splitlines()
     for i, ln in enumerate(lines):
         if len(ln) > RECORDED_LINE_MAX:
             raise RecordingError(f"{path}: line {i + 1}, column {RECORDED_LINE_MAX + 1}: line longer than "

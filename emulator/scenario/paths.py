@@ -25,7 +25,7 @@ from ..errors import RecordingError
 
 __all__ = ["ALLOW_HOOKS_ENV", "ALLOW_PATHS_ENV", "FRAME_INDEX_MAX_BYTES", "LINK_FILE_OPTIONS", "MAX_JSON_DEPTH",
            "RECORDED_LINE_MAX", "PathNotAllowed", "allowed_roots", "confine", "confined_glob", "confined_link_url",
-           "hooks_allowed", "json_depth", "read_bounded", "read_frame_index", "read_json_bounded"]
+           "decode_utf8", "hooks_allowed", "json_depth", "read_bounded", "read_frame_index", "read_json_bounded"]
 
 ALLOW_PATHS_ENV = "PSNS_HIL_ALLOW_PATHS"
 ALLOW_HOOKS_ENV = "PSNS_HIL_ALLOW_HOOKS"
@@ -225,18 +225,24 @@ def _no_constant(name: str) -> Any:
     raise ValueError(f"{name} is not JSON")
 
 
+def decode_utf8(raw: bytes, path: Path | str) -> str:
+    """``raw`` as UTF-8 text, or :class:`emulator.errors.RecordingError` naming file, line and column (1-based) and
+    the byte offset of the first byte that is not UTF-8, never the content."""
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw.count(b"\n", 0, exc.start) + 1
+        col = exc.start - (raw.rfind(b"\n", 0, exc.start) + 1) + 1
+        raise RecordingError(f"{path}: line {line}, column {col}: not UTF-8 text (byte offset {exc.start})") from None
+
+
 def read_json_bounded(path: Path, limit: int, what: str = "JSON file") -> Any:
     """The data of a JSON file a scenario names (a calibration file), bounded as a scenario is: one read of at most
     ``limit`` bytes (:func:`read_bounded`), UTF-8, nesting checked (:data:`MAX_JSON_DEPTH`) before decoding,
     strict JSON (``NaN``/``Infinity`` refused). :class:`emulator.errors.RecordingError` naming file, line and column,
     never the content."""
     raw = read_bounded(path, limit, what)
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        line = raw.count(b"\n", 0, exc.start) + 1
-        col = exc.start - (raw.rfind(b"\n", 0, exc.start) + 1) + 1
-        raise RecordingError(f"{path}: line {line}, column {col}: not UTF-8 text") from None
+    text = decode_utf8(raw, path)
     if json_depth(raw) > MAX_JSON_DEPTH:
         raise RecordingError(f"{path}: nests deeper than {MAX_JSON_DEPTH} levels (a {what} needs about 3)")
     try:

@@ -68,6 +68,7 @@ def _writer_run(n: int, step_s: float, hold_s: float = 0.0) -> tuple[list[float]
     return late, order
 
 
+@pytest.mark.realtime  # wall-clock lateness: its own CI step, not beside `make test`'s xdist workers
 def test_writer_writes_in_order_at_the_instants():
     late, order = _writer_run(40, 0.002)
     assert order == list(range(40))
@@ -75,6 +76,7 @@ def test_writer_writes_in_order_at_the_instants():
     assert statistics.median(late) < 0.5
 
 
+@pytest.mark.realtime  # wall-clock lateness: its own CI step, not beside `make test`'s xdist workers
 def test_writer_gets_the_gil_from_a_busy_thread():
     switch0 = sys.getswitchinterval()
     late, order = _writer_run(40, 0.002, hold_s=0.1)  # every write falls while this thread runs Python

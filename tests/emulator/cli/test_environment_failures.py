@@ -33,9 +33,15 @@ def _scenario(tmp_path: Path, duration_s: int = 60) -> str:
     return str(p)
 
 
-def _run(*args: str, preexec_fn=None) -> subprocess.CompletedProcess[str]:
+def _run(*args: str, preexec_fn=None, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
     return subprocess.run([sys.executable, "-m", "emulator", "run", *args, "--fast", "--quiet"], cwd=ROOT,
-                          capture_output=True, text=True, preexec_fn=preexec_fn, timeout=300)
+                          capture_output=True, text=True, preexec_fn=preexec_fn, env=env, timeout=300)
+
+
+def _untraced_env() -> dict[str, str]:
+    """This environment without coverage's child-process measurement (``make test``): under a file-size limit the
+    tracer's own data file cannot be written either, and its traceback at exit is not psns-hil's."""
+    return {k: v for k, v in os.environ.items() if not k.startswith("COVERAGE_")}
 
 
 def _one_error(r: subprocess.CompletedProcess[str]) -> str:
@@ -81,7 +87,7 @@ def _fsize_limit() -> None:
 
 def test_file_size_limit_exits_2_instead_of_sigxfsz(tmp_path):
     out = tmp_path / "run"
-    r = _run(_scenario(tmp_path), "--out", str(out), preexec_fn=_fsize_limit)
+    r = _run(_scenario(tmp_path), "--out", str(out), preexec_fn=_fsize_limit, env=_untraced_env())
     line = _one_error(r)  # before: killed by SIGXFSZ (rc -25), nothing said
     assert "File too large" in line and "summary.json written" in line
     _kept_summary_and_capture(out, "errno 27")

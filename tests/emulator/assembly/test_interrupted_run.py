@@ -86,6 +86,10 @@ def test_a_second_interrupt_stops_at_once_and_says_what_it_left(tmp_path):
             proc.wait()
     stderr = "".join(err_lines)
     assert proc.returncode == 1, stderr
-    assert "interrupted again: stopped at once" in stderr and "Traceback" not in stderr
+    # the second signal lands while the run finishes (it stops at once) or, on a fast machine, once the run has
+    # ended and the command writes the report (the report is dropped: docs/hostile-input.md section 8); both say so
+    assert ("interrupted again: stopped at once" in stderr
+            or "interrupted while writing the report: report.html is not written" in stderr), stderr
+    assert "Traceback" not in stderr
     header, records = read_capture(cap)
     assert header["scenario"] == "quickstart" and records

@@ -2,7 +2,18 @@
 
 from __future__ import annotations
 
+import sys
+
+import pytest
+
+from emulator.clock import FAST_PATH_VERSIONS
 from studies.scripts.opcode_profile import REFERENCE, count, main
+
+# The study counts the fast loop's bytecodes (its batch, _run_fast_batch), a loop taken on CPython 3.11 only; on
+# 3.12 its per-opcode trace of that run counted nothing (measured 2026-12-07 in .venv-3.12; the cause not traced).
+pytestmark = pytest.mark.skipif(sys.version_info[:2] not in FAST_PATH_VERSIONS,
+                                reason="the study profiles the fast loop, taken on CPython "
+                                       f"{sorted(FAST_PATH_VERSIONS)} only (emulator.clock.FAST_PATH_VERSIONS)")
 
 
 def test_counts_the_window_only():

@@ -396,7 +396,11 @@ class ZenohLink(Link):
     def __init__(self, name: str, url: str, line: LineConfig, loop: asyncio.AbstractEventLoop,
                  target: str = "", options: dict[str, str] | None = None, **_: Any) -> None:
         super().__init__(name, url, line, loop)
-        opts = options or {}
+        if options is None:  # built from a URL alone (the split run's UARTs): its options through the one parser
+            from . import parse_link_url
+
+            options = parse_link_url(url).options
+        opts = options
         self.run, self.port, self.key_prefix = zenoh_key_prefix(target)
         self.role = opts.get("role", "device")
         if self.role not in ("device", "peer"):

@@ -93,6 +93,7 @@ __all__ = [
     "UpdateReport",
     "feedback_cycles",
     "gnss_dop_scale",
+    "gnss_fix_scale",
     "gnss_measurement_rows",
     "gyro_bias_walk_psd",
     "gyro_flicker_band",
@@ -345,6 +346,19 @@ def gnss_dop_scale(cfg: FirmwareConfig, hdop: float | None) -> float:
     if ref <= 0.0 or hdop is None or not math.isfinite(hdop) or hdop <= 0.0:
         return 1.0
     return max(1.0, hdop / ref)
+
+
+def gnss_fix_scale(cfg: FirmwareConfig, meas: GnssMeasurement) -> float:
+    """The factor (>= 1) on every GNSS sigma of the fix ``meas`` (D-5.51): the larger of the geometry's
+    (:func:`gnss_dop_scale`) and the receiver's own estimate of its horizontal error (GST, per axis) over the sheet's
+    horizontal figure, ``reported_sigma_h_m / gnss_pos_sigma_h_m``. A receiver sees its multipath in its
+    pseudorange residuals where the HDOP cannot show it (a street canyon); the sheet stays the floor. Cost: one more
+    ``divsp`` when the fix carries GST, charged by the caller."""
+    k = gnss_dop_scale(cfg, meas.hdop)
+    r = meas.reported_sigma_h_m
+    if r is not None and math.isfinite(r) and r > 0.0 and cfg.gnss_pos_sigma_h_m > 0.0:
+        k = max(k, r / cfg.gnss_pos_sigma_h_m)
+    return k
 
 
 def gnss_corr_sigmas(cfg: FirmwareConfig) -> tuple[float, float]:
@@ -637,6 +651,9 @@ class GnssMeasurement:
     sigma_vel_mps: float | None = None
     #: the receiver's HDOP (GGA / GNS) when it reported one: scales the sigmas (:func:`gnss_dop_scale`, D-5.42)
     hdop: float | None = None
+    #: the receiver's own estimate of its horizontal position error per axis (GST latitude and longitude error,
+    #: m, 1 sigma) when it sent one: scales the sigmas too (:func:`gnss_fix_scale`, D-5.51)
+    reported_sigma_h_m: float | None = None
 
 
 def gnss_measurement_rows(cfg: FirmwareConfig, meter: c674x.CycleMeter, meas: GnssMeasurement,
@@ -647,12 +664,14 @@ def gnss_measurement_rows(cfg: FirmwareConfig, meter: c674x.CycleMeter, meas: Gn
     charging the residual's cycles on ``meter``; velocity (Eq. 28-30): ``Z_v = v_INS - v_GNSS`` (ENU m/s),
     ``H_v = [0 I 0]``, the vertical only when measured (UBX velD). ``p_ins`` = (lat rad, lon rad, h m) and
     ``v_ins`` (ENU m/s) are the INS at the fix's time of validity. Shared by every filter with GNSS updates.
-    Every R is the sheet's times ``k^2``, ``k`` from the fix's HDOP (:func:`gnss_dop_scale`, D-5.42).
+    Every R is the sheet's times ``k^2``, ``k`` from the fix's HDOP and GST (:func:`gnss_fix_scale`, D-5.42, D-5.51).
     """
     rows: list[tuple[int, float, float, float]] = []
-    k2 = gnss_dop_scale(cfg, meas.hdop) ** 2
+    k2 = gnss_fix_scale(cfg, meas) ** 2
     if cfg.gnss_hdop_ref > 0.0 and meas.hdop is not None:
         meter.charge("gnss_dop_scale", c674x.mathlib("divsp") + c674x.flops(1, 0))
+    if meas.reported_sigma_h_m is not None:
+        meter.charge("gnss_reported_scale", c674x.mathlib("divsp") + c674x.flops(1, 0))
     if meas.pos is not None:
         lat = float(p_ins[0])
         rm, rn = earth.radii(lat)
@@ -994,7 +1013,7 @@ class BaseFilter(NavFilter):
             lat, h = float(p_first[0]), float(p_first[2])
             rm, rn = earth.radii(lat)
             prior = (rm + h, (rn + h) * math.cos(lat))
-        if gs is not None and gs.set_level(self.P, gnss_dop_scale(self.cfg, meas.hdop) ** 2, prior):
+        if gs is not None and gs.set_level(self.P, gnss_fix_scale(self.cfg, meas) ** 2, prior):
             self.q[gs.i:gs.i + 3] = gs.psd
             self._qk_interval = math.nan  # Q_k = q T_k is recomputed at the next predict
             self.counters["gnss_level_changes"] = self.counters.get("gnss_level_changes", 0) + 1

@@ -21,11 +21,13 @@ __all__ = [
     "ALT_MAX_M",
     "ALT_MIN_M",
     "GEOID_MAX_M",
+    "GST_STD_MAX_M",
     "IMU_STEP_MAX_FACTOR",
     "S24_MAX",
     "S24_MIN",
     "SPEED_MAX_MPS",
     "check_gga",
+    "check_gst",
     "check_gyro_status",
     "check_imu_range",
     "check_imu_step",
@@ -39,6 +41,9 @@ __all__ = [
 #: ceiling with margin: COCOM limits a receiver to 18 km anyway).
 ALT_MIN_M = -1000.0
 ALT_MAX_M = 60_000.0
+#: A receiver's own estimate of its position error (GST standard deviations) accepted, m: worse than 10 km is not
+#: a fix (a value above it is refused, not clipped: the sentence says nothing usable).
+GST_STD_MAX_M = 10_000.0
 #: ``|geoid separation|`` accepted, m (EGM96 spans -107 .. +86 m).
 GEOID_MAX_M = 200.0
 #: Ground speed accepted, m/s (COCOM limit 515 m/s plus margin).
@@ -80,6 +85,16 @@ def check_gns(s: Any) -> str | None:
         return "height"
     if s.altitude_msl_m is not None and not ALT_MIN_M <= s.altitude_msl_m + (s.geoid_sep_m or 0.0) <= ALT_MAX_M:
         return "height"
+    return None
+
+
+def check_gst(s: Any) -> str | None:
+    """Reason a GST's latitude and longitude error estimates are refused, or None: finite, and 0 to
+    :data:`GST_STD_MAX_M` (the caller reads a zero as no estimate: a receiver without redundancy, a placeholder)."""
+    if not _finite(s.lat_m, s.lon_m):
+        return "not_finite"
+    if not (0.0 <= s.lat_m <= GST_STD_MAX_M and 0.0 <= s.lon_m <= GST_STD_MAX_M):
+        return "gst_range"
     return None
 
 

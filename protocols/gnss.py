@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 from .constants import A_WGS84, F_WGS84
 from .nmea import build_gga, build_gsa, build_gsv, build_rmc, build_vtg, build_zda
-from .nmea_build import NMEA_SYSTEM_ID
+from .nmea_build import NMEA_SYSTEM_ID, build_gst
 from .ubx import (
     NavPosllh,
     NavPvt,
@@ -74,7 +74,7 @@ def gps_utc_offset_s(utc: _dt.datetime | _dt.date) -> int:
             break
         n = leap
     return n
-NMEA_SENTENCES = ("RMC", "VTG", "GGA", "GSA", "GSV", "ZDA")
+NMEA_SENTENCES = ("RMC", "VTG", "GGA", "GSA", "GSV", "GST", "ZDA")
 #: NMEA layouts: 2.3 (mode indicator) and 4.10 (RMC navStatus, GSA systemId, GSV signalId)
 NMEA_VERSIONS = ("2.3", "4.10")
 #: NMEA 2.3 mode indicator (RMC/VTG) for each GGA fix quality.
@@ -117,6 +117,10 @@ class GnssFix:
     #: satellites in view for GSV: (system talker GP/GL/GA/GB, NMEA 4.10 number, elevation deg, azimuth deg,
     #: C/N0 dBHz or None); empty: GSV lists none
     sky: tuple[tuple[str, int, int, int, int | None], ...] = ()
+    #: GST: the receiver's own estimate of its latitude, longitude and altitude errors (m, 1 sigma) and of its range
+    #: errors (RMS, m); None: GST derives them from ``h_acc_m`` / ``v_acc_m`` and ``hdop``
+    gst_std_m: tuple[float, float, float] | None = None
+    gst_range_rms_m: float | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -275,6 +279,15 @@ def build_epoch(fix: GnssFix, output: GnssOutputSet = GnssOutputSet()) -> bytes:
             for sys_tk in systems:
                 sats = [(e[1], e[2], e[3], e[4]) for e in fix.sky if e[0] == sys_tk]
                 out += build_gsv(sats, talker=sys_tk if tk == "GN" else tk, signal_id=1 if v410 else None)
+        elif s == "GST":
+            if ok:
+                std_lat, std_lon, std_alt = fix.gst_std_m or (fix.h_acc_m / math.sqrt(2.0),) * 2 + (fix.v_acc_m,)
+                h = math.hypot(std_lat, std_lon)
+                rms = fix.gst_range_rms_m if fix.gst_range_rms_m is not None else h / max(fix.hdop, 1e-3)
+                out += build_gst(t, rms, max(std_lat, std_lon), min(std_lat, std_lon),
+                                 0.0 if std_lat >= std_lon else 90.0, std_lat, std_lon, std_alt, talker=tk)
+            else:  # no fix: the statistics' fields empty (as u-blox receivers send them without a fix)
+                out += build_gst(t, None, None, None, None, None, None, None, talker=tk)
         else:  # ZDA
             out += build_zda(t, d, 0, 0, talker=tk)
     for m in output.ubx:

@@ -251,6 +251,8 @@ What the firmware (`firmware_model/tasks/gnss.py`) takes from real receivers, an
 | NAV-POSLLH, NAV-SOL, NAV-VELNED, NAV-TIMEUTC, NAV-TIMEGPS, NAV-STATUS (u-blox 5/6/7) | one epoch per iTOW (5.1.3) \
 | `gnss_legacy_ubx` |
 | ZDA (date, time); GST, GBS, GRS, GLL (time) | open the epoch, UTC (5.1.3) | - |
+| GST latitude and longitude error (m) | the fix's sigmas times ``max(1, HDOP / hdop_ref, GST / sheet)`` (D-5.51) \
+| `input_rejected_gst_range` above 10 km |
 | other UBX (ACK, MON ...) | not used | `gnss_ubx_other` |
 | other NMEA (VTG, GSV, TXT, proprietary) | not used | `gnss_nmea_other` |
 | out-of-range field (latitude, height, speed, date ...) | refused | `input_rejected_<reason>` |

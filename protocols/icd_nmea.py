@@ -26,8 +26,11 @@ status | yes | - |
 | RMC | `Rmc`: time, status, position, speed, course, date, mode, 4.10 status | yes | - |
 | GSA | `Gsa`: mode, fix type, 12 satellite slots, PDOP/HDOP/VDOP, 4.10 system id | fix type | - |
 | ZDA | `Zda`: time, day, month, year, zone | date and time (5.1.3) | - |
+| GST | `Gst`: time, range RMS, error ellipse (semi-major, semi-minor, orientation), latitude, longitude and \
+altitude error (m, 1 sigma) | time (it opens an epoch, 5.1.3); the latitude and longitude errors widen the fix's \
+sigmas (D-5.51) | - |
 | VTG, GSV | `Vtg`, `Gsv` | no | `gnss_nmea_other` |
-| GST, GBS, GRS, GLL | `NmeaSentence` (talker, kind, raw fields) | time only: they open an epoch (5.1.3) | - |
+| GBS, GRS, GLL | `NmeaSentence` (talker, kind, raw fields) | time only: they open an epoch (5.1.3) | - |
 | any other `$ttsss` (TXT ...) | `NmeaSentence` (talker, kind, raw fields) | no | `gnss_nmea_other` |
 | proprietary `$P` + maker, whatever the length (`$PGRME`, `$PUBX`, `$PMTKCHN` 204 characters, \
 `$PSRFTXTVersion GSW3.2.2 ...` with spaces and \
@@ -57,6 +60,9 @@ N/S/E/W; out-of-range degrees are passed on for the firmware to refuse and count
 | position without a fix (GGA quality 0, RMC `V`, GNS mode `N`) | kept when it is well formed and in range | \
 placeholders (`36000.0000,N,72000.0000,E`, `8960.0000,N`) and malformed values: read as absent (None); the \
 sentence's time and date are kept |
+| GST statistics | empty (None), or a finite number >= 0 (the orientation any finite number, taken modulo 360); the \
+firmware refuses latitude and longitude errors above 10 km (`input_rejected_gst_range`) and reads a zero as no \
+estimate | `inf`, `nan`, a negative standard deviation: refused |
 | GSA 18th field | one hex digit 1..F: the NMEA 4.10 system id | anything else (`...,4.9,3.3`): not read |
 | GSV satellite block | PRN, elevation, azimuth, C/N0 (empty: None); a last block cut short is padded | a block \
 with an empty PRN (`$GPGSV,3,1,00,,,,,,,,,,,,,,,,`) is skipped |

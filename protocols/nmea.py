@@ -23,6 +23,7 @@ builders ``encode_nmea(parse(b)) == b`` holds byte for byte (the golden vectors 
 from __future__ import annotations
 
 import datetime as _dt
+import math
 import re
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -35,6 +36,7 @@ from .nmea_build import (
     NMEA_MAX_LEN,
     build_gga,
     build_gsa,
+    build_gst,
     build_gsv,
     build_rmc,
     build_sentence,
@@ -58,6 +60,7 @@ __all__ = [
     "Gga",
     "Gns",
     "Gsa",
+    "Gst",
     "Gsv",
     "NmeaFormat",
     "NmeaSentence",
@@ -172,6 +175,25 @@ class Gsa:
 
 @fast_frozen_init
 @dataclass(frozen=True, slots=True)
+class Gst:
+    """GST pseudorange error statistics (NMEA 0183, the sentence that supports RAIM): ``rms_m`` the RMS of the
+    standard deviations of the range inputs (m); the error ellipse's semi-major and semi-minor standard deviations
+    (m) and the semi-major axis' orientation (deg from true north); the standard deviations of the latitude,
+    longitude and altitude errors (m, 1 sigma). Empty fields are None."""
+
+    talker: str
+    time_utc: _dt.time | None
+    rms_m: float | None
+    major_m: float | None
+    minor_m: float | None
+    orient_deg: float | None
+    lat_m: float | None
+    lon_m: float | None
+    alt_m: float | None
+
+
+@fast_frozen_init
+@dataclass(frozen=True, slots=True)
 class Gsv:
     """One GSV sentence: ``sats`` = (number, elevation deg, azimuth deg, C/N0 dBHz) with None for empty fields;
     ``signal_id`` (NMEA 4.10) or None."""
@@ -232,7 +254,7 @@ def _parse_time(s: str) -> _dt.time | None:
     return t
 
 
-def encode_nmea(obj: Gga | Gns | Gsv | Rmc | Vtg | Gsa | Zda | NmeaSentence) -> bytes:
+def encode_nmea(obj: Gga | Gns | Gsv | Rmc | Vtg | Gsa | Gst | Zda | NmeaSentence) -> bytes:
     """Encode any object :class:`NmeaFormat` decodes (the inverse of its ``parse``)."""
     if isinstance(obj, Gsv):
         fields = [str(obj.num_msgs), str(obj.msg_num), f"{obj.num_sv:02d}"]
@@ -266,6 +288,9 @@ def encode_nmea(obj: Gga | Gns | Gsv | Rmc | Vtg | Gsa | Zda | NmeaSentence) -> 
     if isinstance(obj, Gsa):
         return build_gsa(obj.fix_type, obj.sat_ids, obj.pdop, obj.hdop, obj.vdop, obj.mode, obj.talker,
                          system_id=obj.system_id)
+    if isinstance(obj, Gst):
+        return build_gst(obj.time_utc or _dt.time(), obj.rms_m, obj.major_m, obj.minor_m, obj.orient_deg, obj.lat_m,
+                         obj.lon_m, obj.alt_m, obj.talker)
     if isinstance(obj, Zda):
         return build_zda(obj.time_utc or _dt.time(), obj.date or _dt.date(2000, 1, 1), obj.zone_hours,
                          obj.zone_minutes, obj.talker)
@@ -443,6 +468,28 @@ def _gsa(talker: str, f: list[str]) -> Gsa:
                int(sys_id, 16) if len(sys_id) == 1 and sys_id in "123456789ABCDEFabcdef" else None)
 
 
+def _stat_m(s: str) -> float | None:
+    """A GST statistic: empty -> None; else a finite number >= 0 (``ValueError`` otherwise: ``inf``, ``nan``, a
+    negative standard deviation)."""
+    if not s:
+        return None
+    v = float(s)
+    if not (math.isfinite(v) and v >= 0.0):
+        raise ValueError(f"bad GST statistic {s!r}")
+    return v
+
+
+def _gst(talker: str, f: list[str]) -> Gst:
+    """GST: time, range RMS, semi-major, semi-minor, orientation (finite, taken modulo 360), latitude, longitude and
+    altitude error (finite, >= 0); trailing fields may be omitted."""
+    f = _pad(f, 9)
+    orient = float(f[5]) if f[5] else None
+    if orient is not None and not math.isfinite(orient):
+        raise ValueError(f"bad GST orientation {f[5]!r}")
+    return Gst(talker, _TIME_CACHE.get(f[1]) or _parse_time(f[1]), _stat_m(f[2]), _stat_m(f[3]), _stat_m(f[4]),
+               None if orient is None else orient % 360.0, _stat_m(f[6]), _stat_m(f[7]), _stat_m(f[8]))
+
+
 def _gsv(talker: str, f: list[str]) -> Gsv:
     """GSV: blocks of (PRN, elevation, azimuth, C/N0). A block with an empty PRN (``$GPGSV,3,1,00,,,,,...``: a
     receiver's empty slots) is skipped; a last block cut short has its omitted fields None; one field beyond whole
@@ -510,8 +557,8 @@ _HEX2 = {**{f"{i:02X}".encode(): i for i in range(256)}, **{f"{i:02x}".encode():
 #: The same, pre-XORed with the framing bytes '$', '*', the two hex digits, CR and LF.
 _HEX2_FRAMED = {k: v ^ 0x24 ^ 0x2A ^ k[0] ^ k[1] ^ 0x0D ^ 0x0A for k, v in _HEX2.items()}
 
-_PARSERS: dict[str, Callable[[str, list[str]], Gga | Gns | Gsv | Rmc | Vtg | Gsa | Zda]] = {
-    "GGA": _gga, "GNS": _gns, "GSV": _gsv, "RMC": _rmc, "VTG": _vtg, "GSA": _gsa, "ZDA": _zda}
+_PARSERS: dict[str, Callable[[str, list[str]], Gga | Gns | Gsv | Rmc | Vtg | Gsa | Gst | Zda]] = {
+    "GGA": _gga, "GNS": _gns, "GSV": _gsv, "RMC": _rmc, "VTG": _vtg, "GSA": _gsa, "GST": _gst, "ZDA": _zda}
 
 
 def sentence_ok(frame: bytes) -> bool:
@@ -551,8 +598,8 @@ def sentence_ok_fast(frame: bytes) -> bool:
 class NmeaFormat:
     """:class:`~protocols.stream.FrameFormat` for NMEA 0183 sentences.
 
-    Parses GGA, RMC, VTG, GSA and ZDA into :class:`Gga`, :class:`Rmc`, :class:`Vtg`,
-    :class:`Gsa` and :class:`Zda`; any other checked sentence (also proprietary ``$P...``)
+    Parses GGA, GNS, RMC, VTG, GSA, GSV, GST and ZDA into :class:`Gga`, :class:`Gns`, :class:`Rmc`, :class:`Vtg`,
+    :class:`Gsa`, :class:`Gsv`, :class:`Gst` and :class:`Zda`; any other checked sentence (also proprietary ``$P...``)
     comes out as :class:`NmeaSentence`.
     """
 
@@ -600,7 +647,7 @@ class NmeaFormat:
         want = _HEX2.get(frame[-3:-1])
         return want is not None and nmea_checksum(frame[1:-4]) == want
 
-    def parse(self, frame: bytes) -> NmeaSentence | Gga | Gns | Gsv | Rmc | Vtg | Gsa | Zda:
+    def parse(self, frame: bytes) -> NmeaSentence | Gga | Gns | Gsv | Rmc | Vtg | Gsa | Gst | Zda:
         if frame[-2] != 0x0D:
             obj = self._parse(frame, -4)
             self.lf_only += 1  # counted once the sentence is accepted (parse errors are counted as such)
@@ -608,7 +655,7 @@ class NmeaFormat:
         return self._parse(frame, -5)
 
     @staticmethod
-    def _parse(frame: bytes, end: int) -> NmeaSentence | Gga | Gns | Gsv | Rmc | Vtg | Gsa | Zda:
+    def _parse(frame: bytes, end: int) -> NmeaSentence | Gga | Gns | Gsv | Rmc | Vtg | Gsa | Gst | Zda:
         parts = frame[1:end].decode("ascii").split(",")
         head = _HEADS.get(parts[0])
         if head is None:
@@ -626,7 +673,7 @@ _LONG_LINE = 128
 _NOT_IN_LONG_LINE = re.compile(rb"[^\x20-\x23\x25-\x7e\r]")
 
 #: A typed sentence parser: (talker, the split sentence) -> the sentence object.
-_Parser = Callable[[str, list[str]], Gga | Gns | Gsv | Rmc | Vtg | Gsa | Zda]
+_Parser = Callable[[str, list[str]], Gga | Gns | Gsv | Rmc | Vtg | Gsa | Gst | Zda]
 _HEADS: dict[str, tuple[str, str, _Parser | None]] = {}
 
 

@@ -36,6 +36,7 @@ __all__ = [
     "SV_NUMBERS",
     "build_gga",
     "build_gsa",
+    "build_gst",
     "build_gsv",
     "build_rmc",
     "build_sentence",
@@ -272,3 +273,23 @@ def build_zda(
     zm = "" if zone_minutes is None else f"{zone_minutes:02d}"
     return build_sentence(talker, "ZDA", [_format_time(time_utc), f"{date.day:02d}", f"{date.month:02d}",
                                           f"{date.year:04d}", zh, zm])
+
+
+def build_gst(
+    time_utc: _dt.time,
+    rms_m: float | None,
+    major_m: float | None,
+    minor_m: float | None,
+    orient_deg: float | None,
+    lat_m: float | None,
+    lon_m: float | None,
+    alt_m: float | None,
+    talker: str = "GP",
+) -> bytes:
+    """GST sentence (pseudorange error statistics, NMEA 0183): UTC time of the fix, the RMS of the range inputs'
+    standard deviations, the error ellipse's semi-major and semi-minor standard deviations, the semi-major axis'
+    orientation (deg from true north), the latitude, longitude and altitude error standard deviations (m, 1 sigma),
+    each with one decimal as u-blox receivers print them (``None``: an empty field)."""
+    return build_sentence(talker, "GST", [_format_time(time_utc), _opt(rms_m, ".1f"), _opt(major_m, ".1f"),
+                                          _opt(minor_m, ".1f"), _opt(orient_deg, ".1f"), _opt(lat_m, ".1f"),
+                                          _opt(lon_m, ".1f"), _opt(alt_m, ".1f")])

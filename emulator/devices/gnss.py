@@ -98,6 +98,7 @@ WGS84 = pymap3d.Ellipsoid(A_WGS84, A_WGS84 * (1.0 - F_WGS84), "WGS-84 (protocols
 #: (class, id) of every message the receiver can output (NMEA standard messages are UBX class 0xF0)
 MESSAGE_IDS: dict[str, tuple[int, int]] = {
     "GGA": (0xF0, 0x00), "GSA": (0xF0, 0x02), "GSV": (0xF0, 0x03), "RMC": (0xF0, 0x04), "VTG": (0xF0, 0x05),
+    "GST": (0xF0, 0x07),
     "ZDA": (0xF0, 0x08), "NAV-STATUS": (0x01, 0x03), "NAV-PVT": (0x01, 0x07), "NAV-POSLLH": (0x01, 0x02),
     "NAV-SOL": (0x01, 0x06), "NAV-VELNED": (0x01, 0x12), "NAV-TIMEGPS": (0x01, 0x20), "NAV-TIMEUTC": (0x01, 0x21)}
 #: the receiver's port number (UBX-CFG-PRT portID): the link is its UART1
@@ -483,6 +484,8 @@ class GnssReceiver:
             sat_ids=tuple(e[1] for e in sky), sky=sky, hdop=hdop,
             h_acc_m=e.pos_sigma_h_m * math.sqrt(2.0), v_acc_m=e.pos_sigma_v_m,
             s_acc_mps=e.vel_sigma_h_mps * math.sqrt(2.0), ttff_ms=ttff, msss_ms=msss,
+            # GST: in an environment the receiver's residuals show (part of) its multipath (D-4.14)
+            gst_std_m=cfg.environment.reported_std_m(e, num_sats) if cfg.environment is not None else None,
         )
 
     def sentences(self, t: float, fix: bool = True, output: GnssOutputSet | None = None) -> bytes:

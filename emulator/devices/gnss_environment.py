@@ -20,6 +20,15 @@ A receiver's error budget depends less on the receiver than on where its antenna
   solution and the position jumps by a Gaussian offset of the environment's size (Hsu 2018, "Analysis and modeling
   GPS NLOS effect in highly urbanized area", GPS Solut. 22:7: NLOS pseudorange errors of tens of metres).
 
+What the receiver *reports* of its errors (GST, D-4.14): its own figures at the geometry it reports, plus the
+multipath as it sees it in its pseudorange residuals (:meth:`GnssEnvironmentProcess.reported_std_m`): a variance
+estimated from the residuals' ``n - 4`` degrees of freedom per epoch over a smoothing window of
+:data:`RESIDUAL_WINDOW_EPOCHS` epochs, so a scaled chi-square draw around the truth; with 4 satellites or fewer there
+is no redundancy and no multipath in the estimate (RAIM needs a fifth satellite: Kaplan & Hegarty ch. 11). An
+outlier episode (one reflected-only satellite in an overdetermined solution) raises the residuals the same way, so
+its size enters the estimate while it lasts (the residual test of RAIM: Kaplan & Hegarty ch. 11); the constant NLOS
+bias does not: a solution whose every signal is delayed alike has consistent residuals (Groves 2011).
+
 The figures are in :data:`ENVIRONMENTS` (ranges from the papers above, the exact values are design values [D]).
 The receiver calls :meth:`GnssEnvironmentProcess.position_offset` once per fix (a small hook in ``gnss.py``).
 """
@@ -33,7 +42,11 @@ import numpy as np
 
 from .gnss import GnssErrors
 
-__all__ = ["ENVIRONMENTS", "GnssEnvironment", "GnssEnvironmentProcess", "environment_errors"]
+__all__ = ["ENVIRONMENTS", "RESIDUAL_WINDOW_EPOCHS", "GnssEnvironment", "GnssEnvironmentProcess",
+           "environment_errors"]
+
+#: epochs over which the receiver smooths its residual-based estimate of its range errors (GST) [D]
+RESIDUAL_WINDOW_EPOCHS = 10
 
 
 @dataclass(frozen=True)
@@ -88,11 +101,15 @@ class GnssEnvironmentProcess:
     ----------
     env : the environment.
     rng : its own random stream (the receiver's stream is not touched).
+    residual_rng : the stream of the receiver's residual-based estimate (:meth:`reported_std_m`; its own, so reporting
+        GST or not leaves the errors unchanged); None: the estimate is the multipath's sigma itself (no draw).
     """
 
-    def __init__(self, env: GnssEnvironment, rng: np.random.Generator) -> None:
+    def __init__(self, env: GnssEnvironment, rng: np.random.Generator,
+                 residual_rng: np.random.Generator | None = None) -> None:
         self.env = env
         self.rng = rng
+        self.residual_rng = residual_rng
         az = rng.uniform(0.0, 2.0 * math.pi)
         size = rng.uniform(*env.nlos_bias_h_m)
         #: the constant NLOS bias, ENU m
@@ -104,6 +121,28 @@ class GnssEnvironmentProcess:
         #: outlier episodes started so far, and fixes they touched
         self.episodes = 0
         self.outlier_fixes = 0
+        #: the last fix was inside an outlier episode
+        self.in_episode = False
+
+    def reported_std_m(self, e: GnssErrors, num_sats: int) -> tuple[float, float, float]:
+        """The receiver's own estimate of its latitude, longitude and altitude errors (m, 1 sigma) for GST, given its
+        figures ``e`` at the reported geometry and ``num_sats`` satellites (module docstring, D-4.14):
+        ``sqrt(sigma^2 + m^2 chi2_k / k)`` with ``m`` the multipath's sigma (and an outlier episode's, while the
+        last :meth:`position_offset` was in one) and ``k = (num_sats - 4)`` x :data:`RESIDUAL_WINDOW_EPOCHS` (``m``
+        not seen with ``num_sats <= 4``)."""
+        k = max(num_sats - 4, 0) * RESIDUAL_WINDOW_EPOCHS
+        f = 1.0  # without a stream of its own: the multipath's sigma itself
+        if k == 0:
+            f = 0.0
+        elif self.residual_rng is not None:
+            f = float(self.residual_rng.chisquare(k)) / k
+        mh2, mv2 = e.multipath_sigma_h_m**2, e.multipath_sigma_v_m**2
+        if self.in_episode:  # a reflected-only satellite in the solution: its residual shows (module docstring)
+            mh2 += self.env.nlos_sigma_h_m**2
+            mv2 += self.env.nlos_sigma_v_m**2
+        h = math.sqrt(e.pos_sigma_h_m**2 + f * mh2)
+        v = math.sqrt(e.pos_sigma_v_m**2 + f * mv2)
+        return h, h, v
 
     def position_offset(self, t: float, dt: float) -> np.ndarray:
         """What the surroundings add to the fix at ``t`` (s) after ``dt`` (s) since the last one: ENU m, (3,)."""
@@ -114,7 +153,8 @@ class GnssEnvironmentProcess:
                 self._episode_end = t + self.rng.uniform(*env.nlos_duration_s)
                 self._episode_offset = self.rng.standard_normal(3) * np.array(
                     [env.nlos_sigma_h_m, env.nlos_sigma_h_m, env.nlos_sigma_v_m])
-        if t < self._episode_end:
+        self.in_episode = t < self._episode_end
+        if self.in_episode:
             self.outlier_fixes += 1
             return self.bias_enu + self._episode_offset
         return self.bias_enu.copy()

@@ -210,7 +210,8 @@ def gnss_config(scn: Scenario, seed: int | None = None) -> GnssConfig:
     num_sats, hdop = g.num_sats, g.hdop
     if g.environment is not None:
         env = ENVIRONMENTS[g.environment]
-        env_process = GnssEnvironmentProcess(env, device_rng(scn.seed if seed is None else seed, "gnss_environment"))
+        s = scn.seed if seed is None else seed
+        env_process = GnssEnvironmentProcess(env, device_rng(s, "gnss_environment"), device_rng(s, "gnss_residuals"))
         # the receiver reports the geometry it solved with, and its errors follow it (DOP law)
         err = environment_errors(env, err, env_process.hdop, g.hdop)
         num_sats, hdop = env_process.num_sats, env_process.hdop

@@ -168,7 +168,7 @@ class RecordedGnssSpec(Model):
 
 
 #: NMEA sentences the modelled receiver can emit.
-NmeaSentenceName = Literal["GGA", "RMC", "VTG", "GSA", "GSV", "ZDA"]
+NmeaSentenceName = Literal["GGA", "RMC", "VTG", "GSA", "GSV", "GST", "ZDA"]
 DEFAULT_NMEA_SENTENCES: tuple[NmeaSentenceName, ...] = ("GGA", "RMC")
 #: UBX messages the modelled receiver can emit (NAV-PVT, or the set of u-blox 5/6/7).
 UbxMessageName = Literal["NAV-PVT", "NAV-STATUS", "NAV-SOL", "NAV-POSLLH", "NAV-VELNED", "NAV-TIMEUTC", "NAV-TIMEGPS"]

@@ -58,7 +58,7 @@ from typing import Any
 
 import numpy as np
 
-from protocols.nmea import Gga, Gns, Gsa, NmeaSentence, Rmc, Zda
+from protocols.nmea import Gga, Gns, Gsa, Gst, NmeaSentence, Rmc, Zda
 from protocols.stream import StreamDecoder
 from protocols.ubx import NavPosllh, NavPvt, NavSol, NavStatus, NavTimeGps, NavTimeUtc, NavVelned, UbxFrame
 
@@ -80,7 +80,7 @@ _CONTENT_KINDS = frozenset({"GGA", "GNS", "RMC", "GSA", "PVT", "ZDA", "TIME", "P
                             "TIMEGPS", "STATUS"})
 #: NMEA sentences carrying only a UTC time of day (field index): they open an epoch like GGA (Ashtech, Septentrio
 #: and SiRF bursts open with GST or ZDA)
-_TIME_ONLY = {"GST": 1, "GBS": 1, "GRS": 1, "GLL": 5}
+_TIME_ONLY = {"GBS": 1, "GRS": 1, "GLL": 5}
 #: GPS - UTC (s) assumed for UBX messages that carry only GPS time until the receiver reports its own (NAV-TIMEGPS
 #: leapS, or NAV-PVT / NAV-TIMEUTC UTC against iTOW): IERS Bulletin C, since 2017-01-01
 _LEAP_DEFAULT_S = 18
@@ -155,6 +155,7 @@ class _Epoch:
     ubx_fix: int | None = None       # NAV-SOL / NAV-STATUS fix type (with gpsFixOK)
     gsa_best: int = 0                # best GSA fix type of the epoch (0: no GSA; 1 no fix, 2 2-D, 3 3-D)
     hdop: float | None = None        # GGA / GNS HDOP of the fix (scales its sigmas, D-5.42)
+    gst_h: float | None = None       # GST: the receiver's horizontal error estimate per axis, m (D-5.51)
 
 
 class GnssTask:
@@ -309,6 +310,20 @@ class GnssTask:
             e = self._gnss_epoch_for("ZDA", *self._nmea_key(s.time_utc))
             if e is not None and s.date is not None and s.time_utc is not None:
                 e.date = s.date
+        elif isinstance(s, Gst):
+            # time (it opens an epoch, 5.1.3) and the receiver's own error estimate (D-5.51)
+            if s.time_utc is None:
+                self.counters["gnss_nmea_other"] += 1
+                return
+            e = self._gnss_epoch_for("TIME", *self._nmea_key(s.time_utc))
+            if e is None or s.lat_m is None or s.lon_m is None:
+                return
+            reason = input_guard.check_gst(s)
+            if reason is not None:
+                self._reject(reason)
+                return
+            if s.lat_m > 0.0 and s.lon_m > 0.0:  # zero: no estimate
+                e.gst_h = math.sqrt(0.5 * (s.lat_m * s.lat_m + s.lon_m * s.lon_m))
         elif isinstance(s, NmeaSentence) and s.kind in _TIME_ONLY:
             tod = _field_tod(s.fields, _TIME_ONLY[s.kind] - 1)
             if tod is None:
@@ -697,7 +712,7 @@ class GnssTask:
             m.pos = (lat, lon, 0.0)
             m.pos_up = False
             self.counters["gnss_2d_fixes"] += 1
-        m.vel, m.vel_up, m.quality, m.hdop = e.vel, e.vel_up, e.quality, e.hdop
+        m.vel, m.vel_up, m.quality, m.hdop, m.reported_sigma_h_m = e.vel, e.vel_up, e.quality, e.hdop, e.gst_h
         if m.pos is None and m.vel is None:
             self.counters["gnss_no_fix_epochs"] += 1
             return

@@ -79,7 +79,7 @@ from ..filters import (
     SolarObservation,
     UpdateReport,
     feedback_cycles,
-    gnss_dop_scale,
+    gnss_fix_scale,
     gnss_measurement_rows,
     kf_predict_cycles,
     kf_scalar_update_cycles,
@@ -397,7 +397,7 @@ class FederatedFilter(NavFilter):
             # a loss of lock: the receiver's correlated error is a fresh draw (D-5.17, as the base filter)
             self.counters["gnss_relock_redraws"] = self.counters.get("gnss_relock_redraws", 0) + 1
             self.meter.charge("gnss_relock", self.cost.flops(0, 6 * self.n1))
-        if meas.pos is not None and gs is not None and gs.set_level(self.P1, gnss_dop_scale(self.cfg, meas.hdop) ** 2,
+        if meas.pos is not None and gs is not None and gs.set_level(self.P1, gnss_fix_scale(self.cfg, meas) ** 2,
                                                                      prior):
             # the fix's geometry scales the receiver's error (D-5.42, as the base filter; the states are local)
             self.q1[gs.i:gs.i + 3] = gs.psd

@@ -147,6 +147,10 @@ class FirmwareConfig:
     #: scaled by ``HDOP / gnss_hdop_ref``, never below the sheet's (:func:`firmware_model.filters.gnss_dop_scale`);
     #: 0 = the reported HDOP is not used
     gnss_hdop_ref: float = 0.0
+    #: the code multipath (range, 1 sigma, m) assumed on a fix from 4 satellites or fewer, whose GST cannot show it
+    #: (no redundancy): ``HDOP x this / sqrt(2)`` per horizontal axis is added to the fix's figure in quadrature
+    #: (:func:`firmware_model.filters.gnss_fix_scale`, D-5.51); 0 = none
+    gnss_unverified_multipath_m: float = 0.0
     #: innovation gate of each GNSS row (normalised innovation squared, 1 dof) (docs/hostile-input.md): chi-square(1)
     #: at alpha = 1e-5 (4.4 sigma), now that the covariance is consistent with the sensors (it was 1e4 = 100 sigma
     #: while the filter treated the correlated GNSS error as white and refused every fix after an outage)

@@ -352,12 +352,20 @@ def gnss_fix_scale(cfg: FirmwareConfig, meas: GnssMeasurement) -> float:
     """The factor (>= 1) on every GNSS sigma of the fix ``meas`` (D-5.51): the larger of the geometry's
     (:func:`gnss_dop_scale`) and the receiver's own estimate of its horizontal error (GST, per axis) over the sheet's
     horizontal figure, ``reported_sigma_h_m / gnss_pos_sigma_h_m``. A receiver sees its multipath in its
-    pseudorange residuals where the HDOP cannot show it (a street canyon); the sheet stays the floor. Cost: one more
+    pseudorange residuals where the HDOP cannot show it (a street canyon); the sheet stays the floor. A fix from 4
+    satellites or fewer has no residual to show it: the sheet's ``gnss_unverified_multipath_m`` (a range error)
+    through the fix's HDOP is added in quadrature, ``k^2 + (HDOP m / sqrt(2) / sheet)^2``. Cost: one more
     ``divsp`` when the fix carries GST, charged by the caller."""
     k = gnss_dop_scale(cfg, meas.hdop)
+    sheet = cfg.gnss_pos_sigma_h_m
     r = meas.reported_sigma_h_m
-    if r is not None and math.isfinite(r) and r > 0.0 and cfg.gnss_pos_sigma_h_m > 0.0:
-        k = max(k, r / cfg.gnss_pos_sigma_h_m)
+    if r is not None and math.isfinite(r) and r > 0.0 and sheet > 0.0:
+        k = max(k, r / sheet)
+    mp, n, hdop = cfg.gnss_unverified_multipath_m, meas.num_sats, meas.hdop
+    if mp > 0.0 and n is not None and n <= 4 and hdop is not None and math.isfinite(hdop) and hdop > 0.0 \
+            and sheet > 0.0:
+        # no fifth satellite: the receiver's residuals cannot show its multipath, so the sheet's is assumed
+        k = math.sqrt(k * k + (hdop * mp / math.sqrt(2.0) / sheet) ** 2)
     return k
 
 
@@ -654,6 +662,8 @@ class GnssMeasurement:
     #: the receiver's own estimate of its horizontal position error per axis (GST latitude and longitude error,
     #: m, 1 sigma) when it sent one: scales the sigmas too (:func:`gnss_fix_scale`, D-5.51)
     reported_sigma_h_m: float | None = None
+    #: satellites used (GGA / GNS / NAV-PVT) when reported: 4 or fewer leave no residual (:func:`gnss_fix_scale`)
+    num_sats: int | None = None
 
 
 def gnss_measurement_rows(cfg: FirmwareConfig, meter: c674x.CycleMeter, meas: GnssMeasurement,

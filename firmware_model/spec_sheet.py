@@ -102,6 +102,9 @@ class GnssSpec:
     #: the HDOP at which the figures above hold: a fix reporting a larger HDOP has its sigmas scaled by
     #: ``HDOP / hdop_ref`` (sigma = DOP x UERE, the sheet's figures a floor; D-5.42); 0 = not used
     hdop_ref: float = 0.0
+    #: the code multipath (range, 1 sigma, m) a fix from 4 satellites or fewer is assumed to carry: without a fifth
+    #: satellite the receiver's residuals (and its GST) cannot show it (D-5.51); 0 = not assumed
+    unverified_multipath_m: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -227,6 +230,7 @@ class SensorSpecSheet:
             "gnss_latency_s": n.output_latency_s,
             "gnss_relock_gap_s": n.relock_gap_s,
             "gnss_hdop_ref": max(n.hdop_ref, 0.0),
+            "gnss_unverified_multipath_m": max(n.unverified_multipath_m, 0.0),
             "psns_noise_scale": p.noise_scale,
             "psns_sigma_deg": max(p.noise_floor_deg, 0.001),
             "psns_bias_sigma_deg": math.hypot(p.mount_residual_deg, p.lens_residual_deg, p.sky_bias_deg),

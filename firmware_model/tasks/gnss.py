@@ -156,6 +156,7 @@ class _Epoch:
     gsa_best: int = 0                # best GSA fix type of the epoch (0: no GSA; 1 no fix, 2 2-D, 3 3-D)
     hdop: float | None = None        # GGA / GNS HDOP of the fix (scales its sigmas, D-5.42)
     gst_h: float | None = None       # GST: the receiver's horizontal error estimate per axis, m (D-5.51)
+    num_sats: int | None = None      # satellites used (GGA / GNS / NAV-PVT)
 
 
 class GnssTask:
@@ -353,6 +354,7 @@ class GnssTask:
             e.pos3 = (lat, lon, alt_msl + sep)
             self._last_fix = (*e.pos3, quality)
         e.quality = quality
+        e.num_sats = num_sats
 
     def _on_nav_pvt(self, p: NavPvt) -> None:
         """UBX NAV-PVT (any protocol version: 84-byte protocol 14 and 92-byte 15+): position, 3-D velocity
@@ -713,6 +715,7 @@ class GnssTask:
             m.pos_up = False
             self.counters["gnss_2d_fixes"] += 1
         m.vel, m.vel_up, m.quality, m.hdop, m.reported_sigma_h_m = e.vel, e.vel_up, e.quality, e.hdop, e.gst_h
+        m.num_sats = e.num_sats
         if m.pos is None and m.vel is None:
             self.counters["gnss_no_fix_epochs"] += 1
             return

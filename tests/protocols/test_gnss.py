@@ -66,3 +66,26 @@ def test_output_set_validation():
         GnssOutputSet(version="4.1")
     with pytest.raises(ValueError):
         GnssOutputSet(rate_hz=0)
+
+
+def test_gst_carries_the_receivers_estimate_and_agrees_with_pynmea2():
+    """GST in an epoch: the fix's own estimate when given, else its accuracies (h_acc per axis, v_acc); the range RMS
+    is the horizontal sigma over the HDOP; empty without a fix. Read back by pynmea2 (an independent parser)."""
+    import pynmea2
+
+    from protocols.nmea import Gst
+
+    utc = dt.datetime(2024, 3, 1, 12, 0, 1, tzinfo=dt.timezone.utc)
+    out = GnssOutputSet(nmea=("GGA", "GST"))
+    fix = GnssFix(utc=utc, lat_deg=40.0, lon_deg=116.0, height_m=50.0, hdop=2.0, gst_std_m=(9.0, 12.0, 20.0))
+    lines = build_epoch(fix, out).decode().split("\r\n")
+    msg = pynmea2.parse(lines[1])
+    assert (float(msg.std_dev_latitude), float(msg.std_dev_longitude), float(msg.std_dev_altitude)) == (9.0, 12.0, 20.0)
+    assert float(msg.rms) == pytest.approx(15.0 / 2.0, abs=0.05)
+    assert (float(msg.std_dev_major), float(msg.std_dev_minor), float(msg.orientation)) == (12.0, 9.0, 90.0)
+    plain = GnssFix(utc=utc, lat_deg=40.0, lon_deg=116.0, height_m=50.0, h_acc_m=5.0, v_acc_m=7.5)
+    parsed = StreamDecoder([NmeaFormat()]).feed(build_epoch(plain, out))
+    gst = [m for m in parsed if isinstance(m, Gst)]
+    assert len(gst) == 1 and gst[0].lat_m == pytest.approx(3.5) and gst[0].alt_m == 7.5
+    none = GnssFix(utc=utc, lat_deg=0.0, lon_deg=0.0, height_m=0.0, fix_type=0, quality=0)
+    assert build_epoch(none, GnssOutputSet(nmea=("GST",))).startswith(b"$GPGST,120001.00,,,,,,,*")

@@ -53,8 +53,11 @@ def test_one_megabyte_flood_decodes_in_linear_time(decoder: str, flood: str, chu
         return dt
 
     data = FLOODS[flood]
-    quarter = min(decode_s(data[: len(data) // 4]) for _ in range(2))  # best of two: less scheduler noise
+    # best of two of each: a loaded machine (CI beside a campaign) stalls one pass, rarely two
+    quarter = min(decode_s(data[: len(data) // 4]) for _ in range(2))
     whole = decode_s(data)
+    if whole / quarter > MAX_SCALING:
+        whole = min(whole, decode_s(data))
     # (a flood skipped by a C-level search takes microseconds: too short for a ratio, and nothing quadratic there)
     assert whole < 0.02 or whole / quarter <= MAX_SCALING, \
         f"{decoder} on {flood}: 1 MB took {whole / quarter:.1f}x as long as 256 KB"

@@ -119,3 +119,25 @@ def test_a_stray_dollar_does_not_hold_ubx_back() -> None:
         dec = StreamDecoder([NmeaFormat(NMEA_RX_MAX_LEN)])
         assert [o for i in range(0, len(bad), chunk) for o in dec.feed(bad[i : i + chunk])] == []
         assert dec.stats.length_errors == 1 and dec.stats.crc_errors == 0
+
+
+def test_gst_parses_to_its_statistics_and_round_trips() -> None:
+    from protocols.nmea import Gst, encode_nmea
+    from protocols.nmea_build import build_gst
+
+    frame = build_gst(dt.time(12, 0, 1, 500000), 5.2, 4.1, 3.0, 372.5, 4.0, 3.5, 7.2, "GN")
+    assert frame == s("GNGST,120001.50,5.2,4.1,3.0,372.5,4.0,3.5,7.2")
+    out, dec = decode(frame)
+    assert out == [Gst("GN", dt.time(12, 0, 1, 500000), 5.2, 4.1, 3.0, 12.5, 4.0, 3.5, 7.2)]  # orientation mod 360
+    assert encode_nmea(out[0]) == build_gst(dt.time(12, 0, 1, 500000), 5.2, 4.1, 3.0, 12.5, 4.0, 3.5, 7.2, "GN")
+    # a receiver without a fix sends the fields empty; trailing fields may be omitted
+    assert decode(s("GPGST,120002.00,,,,,,,"))[0] == [Gst("GP", dt.time(12, 0, 2), *([None] * 7))]
+    assert decode(s("GPGST,120002.00,1.5"))[0] == [Gst("GP", dt.time(12, 0, 2), 1.5, *([None] * 6))]
+
+
+@pytest.mark.parametrize("stats", [
+    "inf,1,1,0,1,1,1", "1,1,1,0,nan,1,1", "1,1,1,0,-1.0,1,1", "1,1,1,inf,1,1,1", "1,1,1,0,1,1,1e999", "1,x,1,0,1,1,1",
+])
+def test_gst_refused(stats: str) -> None:
+    out, dec = decode(s(f"GPGST,120001.00,{stats}"))
+    assert out == [] and dec.stats.parse_errors == 1 and dec.stats.format_faults == 0

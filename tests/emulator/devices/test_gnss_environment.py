@@ -84,3 +84,38 @@ def test_the_scenario_key_reaches_the_receiver_and_the_fix():
     assert a.errors.multipath_sigma_h_m == pytest.approx(a.hdop * 5.0 / math.sqrt(2.0))
     plain = gnss_config(load_scenario(ROOT / "scenarios" / "quickstart.yaml"))
     assert plain.environment is None and plain.num_sats == 12
+
+
+def test_the_receivers_gst_estimate_sees_its_multipath_through_its_residuals():
+    """D-4.14: GST reports the receiver's figures plus the multipath as a chi-square estimate with ``(n - 4) x 10``
+    degrees of freedom (mean the truth, relative spread sqrt(2 / k)); nothing with 4 satellites; an outlier episode
+    adds its size while it lasts; the NLOS bias never shows."""
+    from emulator.devices.gnss_environment import RESIDUAL_WINDOW_EPOCHS
+
+    env = ENVIRONMENTS["urban_canyon"]
+    e = environment_errors(env, GnssErrors(), hdop=3.0, hdop_receiver=0.8)
+    proc = GnssEnvironmentProcess(env, np.random.default_rng(1), np.random.default_rng(2))
+    k = 3 * RESIDUAL_WINDOW_EPOCHS
+    draws = np.array([proc.reported_std_m(e, 7) for _ in range(4000)])
+    f = (draws[:, 0] ** 2 - e.pos_sigma_h_m**2) / e.multipath_sigma_h_m**2
+    assert f.mean() == pytest.approx(1.0, abs=0.03) and f.std() == pytest.approx(math.sqrt(2.0 / k), rel=0.1)
+    assert np.all(draws[:, 0] == draws[:, 1])
+    assert proc.reported_std_m(e, 4) == pytest.approx((e.pos_sigma_h_m, e.pos_sigma_h_m, e.pos_sigma_v_m))
+    # without a stream of its own the estimate is the truth; an outlier episode widens it
+    plain = GnssEnvironmentProcess(env, np.random.default_rng(1))
+    h0 = math.hypot(e.pos_sigma_h_m, e.multipath_sigma_h_m)
+    assert plain.reported_std_m(e, 6)[0] == pytest.approx(h0)
+    plain.in_episode = True
+    assert plain.reported_std_m(e, 6)[0] == pytest.approx(math.sqrt(h0**2 + env.nlos_sigma_h_m**2))
+
+
+def test_gst_leaves_the_receivers_errors_unchanged():
+    """The residual estimate draws from its own stream: a receiver that sends GST makes the same errors."""
+    scn = load_scenario(ROOT / "scenarios" / "quickstart.yaml", overrides=["sensors.gnss.environment=urban_canyon"])
+    a, b = gnss_config(scn, 5), gnss_config(scn, 5)
+    assert a.environment is not None and b.environment is not None
+    for _ in range(50):
+        a.environment.reported_std_m(a.errors, a.num_sats)
+    for t in range(1, 200):
+        np.testing.assert_array_equal(a.environment.position_offset(float(t), 1.0),
+                                      b.environment.position_offset(float(t), 1.0))

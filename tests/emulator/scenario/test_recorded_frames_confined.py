@@ -21,6 +21,8 @@ from emulator.scenario.paths import ALLOW_HOOKS_ENV, ALLOW_PATHS_ENV, PathNotAll
 ROOT = Path(__file__).resolve().parents[3]
 QUICKSTART = (ROOT / "scenarios" / "quickstart.yaml").read_text()
 CAMERA_LINE = "  camera: {preset: reference, fidelity: binned, rate_hz: 5}"
+#: the camera's line in the scenario (1-based), which the messages name
+CAMERA_LINENO = QUICKSTART.splitlines().index(CAMERA_LINE) + 1
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess[str]:
@@ -71,13 +73,13 @@ def _validate_both_ways(tmp_path: Path, recorded: str, index_text: str | None = 
 
 def test_a_glob_through_a_symlink_is_refused_whatever_lies_behind_it(tmp_path: Path) -> None:
     line = _validate_both_ways(tmp_path, "{files: 'frames_lin?/x.npz', rate_hz: 5}")
-    assert "s.yaml:22:" in line and "sensors.camera.recorded.files" in line and "frames_link" in line
+    assert f"s.yaml:{CAMERA_LINENO}:" in line and "sensors.camera.recorded.files" in line and "frames_link" in line
 
 
 @pytest.mark.parametrize("entry", ["OUT/x.npz", "frames_link/x.npz", "../secret/x.npz"])
 def test_an_index_entry_outside_is_refused_by_line_never_by_existence(tmp_path: Path, entry: str) -> None:
     line = _validate_both_ways(tmp_path, "{index: index.csv}", f"time_s,file\n0.0,good.npz\n0.2,{entry}\n")
-    assert "s.yaml:22:" in line and "index.csv: line 3, column 5" in line
+    assert f"s.yaml:{CAMERA_LINENO}:" in line and "index.csv: line 3, column 5" in line
     assert "secret" not in line.replace("TMP", "")  # the entry's text is not echoed
 
 

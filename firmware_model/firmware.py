@@ -58,9 +58,9 @@ from .config import UART_GNSS, UART_HOST, UART_IMU, UART_PSNS, FirmwareConfig
 from .kf import N_STATES
 from .precision import rounder
 from .registry import FirmwareSnapshot, register_firmware
-from .strapdown import strapdown_kernel
 from .tasks.gnss import GnssTask
 from .tasks.host import HostTask
+from .tasks.navigation import NavCore
 from .tasks.psns import psns_frame_len
 from .tasks.state import FirmwareState, TickResult
 from .tasks.timekeeping import Clock
@@ -123,23 +123,14 @@ class Firmware(HostTask):
         self.dtype = np.float32 if cfg.precision == "float32" else np.float64
         #: dtype of the strapdown state (q, v); position is always float64
         self.nav_dtype = np.float64 if cfg.nav_state_precision == "float64" else self.dtype
-        self._strapdown = strapdown_kernel(self.nav_dtype)
         self.meter = c674x.CycleMeter(cfg.clock_hz, cfg.imu_rate_hz)
         self.cost = c674x.KernelCosts(cfg.precision)
         self._cyc = tick_kernel_cycles(self.cost, nav_dp=self.nav_dtype is np.float64)
         self._cyc_decode, self._cyc_convert = self._cyc["imu_decode"], self._cyc["imu_convert"]
-        self._cyc_coning1, self._cyc_strapdown = self._cyc["coning1"], self._cyc["strapdown"]
         self.T = 1.0 / cfg.imu_rate_hz
-        self._nsub = cfg.subsamples
         # IMU conversion constants in the working precision (Python floats holding dtype values)
-        dt = self.dtype
-        lsb = GYRO_RATE_LSB_DPS * DEG * self.T if cfg.gyro_output == "rate" else GYRO_ANGLE_LSB_DEG * DEG
-        self._gyro_k = float(dt(lsb))
-        self._T_w = float(dt(self.T))
         self._kv = ADC_VOLTS_PER_LSB * G_STD
-        self._round3 = rounder(dt, 3)
-        self._pack6, self._unpack6 = rounder(dt, 6).pack, rounder(dt, 6).unpack
-        self._bias_cache = (None, None, ())
+        self._round3 = rounder(self.dtype, 3)
         self._out_every = round(cfg.imu_rate_hz / cfg.output_rate_hz)
         pos = any(n in ("GGA", "RMC", "VTG", "ZDA") for n in cfg.nmea_sentences)
         att = any(n in ("HDT", "THS", "PASHR") for n in cfg.nmea_sentences)
@@ -164,21 +155,7 @@ class Firmware(HostTask):
         self._align_t0 = None
         self._align_sun = []
         self._t_aligned = 0.0
-        self._t_last_predict = 0.0
-        # navigation
-        self.nav = None
-        self.filter = self._new_filter(cfg.filter)
-        self._mag_hist = deque(maxlen=128)  # (t_sample_s, field)
-        # magnetometer calibration: W^-1 and h, inverted once at start-up (docs/calibration.md)
-        self._mag_w_inv = np.asarray(np.linalg.inv(np.asarray(cfg.mag_soft_iron, dtype=np.float64).reshape(3, 3)),
-                                     dtype=np.float64)
-        self._mag_h = np.asarray(cfg.mag_hard_iron_nt, dtype=np.float64)
         self._tick = 0
-        self._sub = []
-        self._fn_sum = [0.0, 0.0, 0.0]  # sum of f^n over the KF interval (Python floats, float64)
-        self._rot_sum = [0.0, 0.0, 0.0]  # sum of |phi_m| per body axis over the KF interval (rad)
-        self._fn_n = 0
-        self._hist = deque(maxlen=int(2 * cfg.imu_rate_hz))
         self._last_gnss_update_t = -1e9
         self._last_psns_t = -1e9
         self._last_psns_reject_t = -1e9
@@ -199,6 +176,7 @@ class Firmware(HostTask):
                          "status_frames": 0, "input_rejected": 0, "input_faults": 0, "imu_time_resync": 0,
                          "imu_resync_refused": 0, "psns_stale": 0, "commands_rejected_output_rate": 0}
         self.clock = Clock(cfg, self.counters)
+        self.core = NavCore(cfg, self.meter, self.clock, self._cyc, self.dtype, self.nav_dtype)
         #: True: an exception while handling one input message propagates (tests of the emulator itself set
         #: ``PSNS_HIL_STRICT=1``); False (the box): it is contained, counted (``input_faults``) and reported
         self.raise_faults = os.environ.get("PSNS_HIL_STRICT", "") not in ("", "0")
@@ -255,7 +233,7 @@ class Firmware(HostTask):
                     self.last_mag = f
                     self.counters["mag_frames"] += 1
                     if not f.status & 0x01:  # not over range: into the history a variant may average
-                        self._mag_hist.append((self.clock.unwrap_near(f.t_sample_us) / 1e6, f.field))
+                        self.core.add_mag(self.clock.unwrap_near(f.t_sample_us) / 1e6, f.field)
         elif uart == UART_GNSS:
             self.gnss.on_bytes(self._dec_gnss, data, t_rx_s)
         elif uart == UART_HOST:
@@ -344,8 +322,7 @@ class Firmware(HostTask):
                 epoch = self.clock.rebase(t_new, fr.t_trigger_us)
                 self._t_base_first_us = t_new
                 t_s = (epoch + fr.t_trigger_us) / 1e6
-                self._t_last_predict = t_s - (self._tick % self.cfg.kf_predict_every) * self.T
-                self._hist.clear()
+                self.core.rebase(t_s, self._tick % self.cfg.kf_predict_every)
                 self._fault_events.append({"event": "imu_time_resync", "t_fpga_s": t_s})
             self._imu_resync_run.clear()
         else:
@@ -447,21 +424,10 @@ class Firmware(HostTask):
             self._align(t, np.array(f_b, dtype=self.dtype), res)
             m.end()
         else:
-            self._mechanize(t, g, f_b)
-            if self._tick % cfg.kf_predict_every == 0 and self._fn_n:
-                assert self.nav is not None  # the coarse alignment made it
-                m.begin("kf_predict", cfg.kf_predict_every * self.T)
-                n = self._fn_n
-                fn = np.array([x / n for x in self._fn_sum])
-                rot = (self._rot_sum[0], self._rot_sum[1], self._rot_sum[2])
-                self._fn_sum = [0.0, 0.0, 0.0]
-                self._rot_sum = [0.0, 0.0, 0.0]
-                self._fn_n = 0
-                Tk = t - self._t_last_predict  # the first interval after alignment may be shorter
-                self._t_last_predict = t
-                self.filter.rotation_b_rad = rot
-                self.filter.predict(self.nav, fn, Tk)
-                m.end()
+            core = self.core
+            core.mechanize(t, g, f_b)
+            if self._tick % cfg.kf_predict_every == 0 and core.predict_due():
+                core.predict(t)
             m.end()
             self._measurement_tasks(t, res)
             if self.state == FirmwareState.FINE_ALIGN and t - self._t_aligned >= cfg.fine_align_time_s:
@@ -519,13 +485,13 @@ class Firmware(HostTask):
         assert nav is not None  # measurement tasks run after the coarse alignment
         updated = False
         g = self.gnss.pending(t)
-        if g is not None and (g.pos is not None or g.vel is not None) and self._hist:
+        if g is not None and (g.pos is not None or g.vel is not None) and self.core.has_history():
             self.gnss.take()
             if t - g.t_fpga_s > cfg.gnss_max_age_s:
                 self.counters["gnss_tag_stale"] += 1  # grew too old waiting for the loop (docs/icd.md 5.1.3)
             else:
                 m.begin("gnss_update", 1.0)
-                p_ins, v_ins, _ = self._ins_at(g.t_fpga_s)
+                p_ins, v_ins, _ = self.core.ins_at(g.t_fpga_s)
                 rep = self.filter.update_gnss(nav, g, p_ins, v_ins)
                 m.end()
                 self._gnss_gated = not rep.accepted or bool((rep.detail or {}).get("gated_rows"))
@@ -540,7 +506,7 @@ class Firmware(HostTask):
                     updated = True
                     res.events.append({"event": "gnss_update", "t_fpga_s": t, "t_meas_s": g.t_fpga_s,
                                        "n_meas": rep.n_rows, "max_norm_innov": rep.max_norm_innov})
-        while self._pending_psns and self._hist:
+        while self._pending_psns and self.core.has_history():
             t_rx, f = self._pending_psns.popleft()
             m.begin("psns_update", 0.0)
             prep = self._psns_update(t, t_rx, f)

@@ -58,15 +58,13 @@ class AlignmentTask(PsnsTask):
         if any(cfg.initial_misalignment_deg):  # C_b^{n'} = rv2m(-phi) C_b^n: the computed frame is off by phi
             cbn = q2mat_fast(rv2q(-np.asarray(cfg.initial_misalignment_deg, dtype=np.float64) * DEG)) @ cbn
         nd = self.nav_dtype
-        self.nav = NavState(q=mat2q(cbn).astype(nd), v=np.zeros(3, dtype=nd), pos=np.array([lat, lon, h]), t=t,
-                            a_prev=np.zeros(3, dtype=nd))
-        self.filter.initialise(self.nav, heading_sigma)
+        self.core.start(NavState(q=mat2q(cbn).astype(nd), v=np.zeros(3, dtype=nd), pos=np.array([lat, lon, h]), t=t,
+                                 a_prev=np.zeros(3, dtype=nd)), heading_sigma, t)
         self._heading_sigma0 = heading_sigma
         self._heading_placeholder = source == "config" and cfg.alignment_heading == "psns"  # timed out: D-5.50
         self.state = FirmwareState.FINE_ALIGN
         self.mode = NavMode.NAVIGATING | NavMode.ALIGNING
         self._t_aligned = t
-        self._t_last_predict = t
         self.gnss.take()
         p, r, y = m2att(cbn)
         res.events.append({"event": "alignment_done", "t_fpga_s": t, "pitch_deg": p / DEG, "roll_deg": r / DEG,
@@ -114,15 +112,9 @@ class AlignmentTask(PsnsTask):
         """RESET_FILTER scope 0: back to coarse alignment with a fresh filter (biases included)."""
         self.state = FirmwareState.COARSE_ALIGN
         self.mode = NavMode.ALIGNING
-        self.nav = None
-        self.filter = self._new_filter(self.cfg.filter)
+        self.core.reset()
         self._align_sum[:] = 0.0
         self._align_n = 0
         self._align_t0 = None
         self._align_sun.clear()
-        self._sub.clear()
-        self._fn_sum = [0.0, 0.0, 0.0]
-        self._rot_sum = [0.0, 0.0, 0.0]
-        self._fn_n = 0
-        self._hist.clear()
         self.gnss.take()

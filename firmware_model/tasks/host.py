@@ -80,7 +80,7 @@ class HostTask(AlignmentTask, NavOutput):
                 return CMD_SELECT_VARIANT, c.token, AckResult.BAD_ARGUMENT
             if name not in FILTER_VARIANTS:
                 return CMD_SELECT_VARIANT, c.token, AckResult.NOT_ALLOWED  # not in this firmware build
-            self.filter = self._new_filter(name)
+            self.core.filter = self.core.new_filter(name)
             self.cfg.filter = name
             if self.nav is not None:  # the new filter starts from the current navigation state
                 self.filter.initialise(self.nav, self._heading_sigma0)

@@ -17,8 +17,7 @@ from .. import c674x, psns, sun
 from ..attitude import mat2q, q2mat_fast
 from ..filters import SolarObservation, UpdateReport
 from ..units import DEG
-from .navigation import Navigation
-from .state import SolarSolve
+from .state import LoopState, SolarSolve
 
 __all__ = ["PsnsTask", "psns_frame_len"]
 
@@ -37,7 +36,7 @@ def psns_frame_len(f: Any) -> int:
     return 7 + 13 + 16
 
 
-class PsnsTask(Navigation):
+class PsnsTask(LoopState):
     """Decode-side work and measurement update of the PSNS frames (UART2)."""
 
     def _psns_frame_in(self, t_rx: float, f: Any) -> float:
@@ -131,7 +130,7 @@ class PsnsTask(Navigation):
         if days is None:
             solve.use = "no_utc"
             return None
-        p_ins, _, q_exp = self._ins_at(obs.t_exposure_s)
+        p_ins, _, q_exp = self.core.ins_at(obs.t_exposure_s)
         s_n = sun.sun_vector_enu(days, float(p_ins[0]), float(p_ins[1]), dtype=self.dtype)
         self.meter.charge("sun_ephemeris", sun.ephemeris_cycles())
         if float(s_n[2]) < math.sin(cfg.psns_min_sun_elevation_deg * DEG):

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import struct
 from collections import deque
-from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -17,14 +16,15 @@ from protocols.imu_frame import ImuFrame, MagFrame
 from protocols.stream import StreamDecoder
 
 from .. import c674x
-from ..arrays import F64Array, FloatArray, FloatDtype
+from ..arrays import FloatArray, FloatDtype
 from ..config import FirmwareConfig
 from ..filters import NavFilter, SolarObservation
-from ..nav_state import NavFloats, NavState
+from ..nav_state import NavState
 from .timekeeping import Clock
 
 if TYPE_CHECKING:  # gnss.py imports count_rejection from here
     from .gnss import GnssTask
+    from .navigation import NavCore
 
 __all__ = ["FirmwareState", "LoopState", "SolarSolve", "TickResult", "count_rejection"]
 
@@ -81,8 +81,6 @@ class LoopState:
     #: working precision of the filters and kernels; ``nav_dtype``: of the strapdown state (q, v)
     dtype: FloatDtype
     nav_dtype: FloatDtype
-    #: the strapdown step in nav_dtype (strapdown.strapdown_kernel): step(state, phi_m, dv_m, T)
-    _strapdown: Callable[[NavState, Sequence[float], Sequence[float], float], NavState]
     meter: c674x.CycleMeter
     cost: c674x.KernelCosts
     counters: dict[str, int]
@@ -91,17 +89,9 @@ class LoopState:
     _cyc: dict[str, int]
     _cyc_decode: int
     _cyc_convert: int
-    _cyc_coning1: int
-    _cyc_strapdown: int
     T: float  # IMU sample interval, s
-    _nsub: int  # IMU samples per strapdown update
-    _gyro_k: float
-    _T_w: float
     _kv: float
     _round3: struct.Struct
-    _pack6: Callable[..., bytes]
-    _unpack6: Callable[[bytes], tuple[Any, ...]]
-    _bias_cache: tuple[Any, Any, tuple[float, ...]]
     _out_every: int  # IMU ticks per NAV_SOLUTION (0: off)
     _nmea_every: int  # IMU ticks per NMEA position/velocity/time group (0: off)
     _nmea_att_every: int  # IMU ticks per NMEA heading/attitude group (0: off)
@@ -115,9 +105,6 @@ class LoopState:
     _pending_psns: deque[tuple[float, Any]]  # (t_rx_s, frame)
     _rx_other: dict[int, int]
     last_mag: MagFrame | None
-    _mag_hist: deque[tuple[float, tuple[int, int, int]]]  # (t_sample_s, field)
-    _mag_w_inv: F64Array
-    _mag_h: F64Array
     _last_counter: int | None
     #: the FPGA time base and UTC (a task object of its own, :class:`~.timekeeping.Clock`)
     clock: Clock
@@ -129,20 +116,13 @@ class LoopState:
     _align_t0: float | None
     _align_sun: list[SolarObservation]
     _t_aligned: float
-    _t_last_predict: float
     _heading_sigma0: float
     #: the heading is the configured placeholder of a PSNS alignment that timed out (D-5.50)
     _heading_placeholder: bool
     _fault_events: list[dict[str, Any]]
-    # navigation
-    nav: NavState | None
-    filter: NavFilter
+    #: the navigation core (state, filter, mechanization, INS history; :class:`~.navigation.NavCore`)
+    core: NavCore
     _tick: int
-    _sub: list[tuple[FloatArray, FloatArray]]
-    _fn_sum: list[float]  # sum of f^n over the KF interval (Python floats, float64)
-    _fn_n: int
-    _rot_sum: list[float]  # sum of |phi_m| per body axis over the KF interval (rad, Python floats)
-    _hist: deque[tuple[float, NavFloats]]  # INS history: (t, NavState.as_floats())
     #: the GNSS staging (a task object of its own, :class:`~.gnss.GnssTask`)
     gnss: GnssTask
     _last_gnss_update_t: float
@@ -156,6 +136,20 @@ class LoopState:
     _load_max: int
     _next_status_t: float
     _status_seq: int
+
+    @property
+    def nav(self) -> NavState | None:
+        """The navigation state (:attr:`.navigation.NavCore.nav`)."""
+        return self.core.nav
+
+    @nav.setter
+    def nav(self, value: NavState | None) -> None:
+        self.core.nav = value
+
+    @property
+    def filter(self) -> NavFilter:
+        """The filter of the selected variant (:attr:`.navigation.NavCore.filter`)."""
+        return self.core.filter
 
     def _reject(self, reason: str) -> None:
         """Count one message refused by :mod:`firmware_model.input_guard` (``input_rejected_<reason>``)."""

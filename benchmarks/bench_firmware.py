@@ -108,7 +108,7 @@ def _parts_us_per_tick(cfg: FirmwareConfig, events: list[tuple[float, int, bytes
     receive = _timed(fw.receive, acc["decode"])
     fw.core.mechanize = _timed(fw.core.mechanize, acc["strapdown"])  # type: ignore[method-assign]
     fw._measurement_tasks = _timed(fw._measurement_tasks, acc["updates"])  # type: ignore[method-assign]
-    fw._nav_output = _timed(fw._nav_output, acc["output"])  # type: ignore[method-assign]
+    fw.output.nav_solution = _timed(fw.output.nav_solution, acc["output"])  # type: ignore[method-assign]
     flt = None
     n = 0
     t_service = 0.0

@@ -61,8 +61,9 @@ from .registry import FirmwareSnapshot, register_firmware
 from .tasks.gnss import GnssTask
 from .tasks.host import HostTask
 from .tasks.navigation import NavCore
+from .tasks.output import OutputTask
 from .tasks.psns import psns_frame_len
-from .tasks.state import FirmwareState, TickResult
+from .tasks.state import CpuLoad, FirmwareState, LoopStatus, TickResult
 from .tasks.timekeeping import Clock
 from .units import DEG, G_STD
 from .variants import dual_vector, federated, kmeans_3d, sun_elevation  # noqa: F401  (the variants of this build)
@@ -131,12 +132,6 @@ class Firmware(HostTask):
         # IMU conversion constants in the working precision (Python floats holding dtype values)
         self._kv = ADC_VOLTS_PER_LSB * G_STD
         self._round3 = rounder(self.dtype, 3)
-        self._out_every = round(cfg.imu_rate_hz / cfg.output_rate_hz)
-        pos = any(n in ("GGA", "RMC", "VTG", "ZDA") for n in cfg.nmea_sentences)
-        att = any(n in ("HDT", "THS", "PASHR") for n in cfg.nmea_sentences)
-        self._nmea_every = round(cfg.imu_rate_hz / cfg.nmea_rate_hz) if pos else 0
-        self._nmea_att_every = round(cfg.imu_rate_hz / cfg.nmea_attitude_rate_hz) if att else 0
-        self._text_every = round(cfg.imu_rate_hz / cfg.text_rate_hz) if cfg.text_rate_hz else 0
         self._dec_imu = StreamDecoder([FpgaFrameFormat()])
         self._dec_gnss = StreamDecoder([NmeaFormat(NMEA_RX_MAX_LEN), UbxFormat()])
         self._dec_host = StreamDecoder([HostFormat()])
@@ -147,23 +142,15 @@ class Firmware(HostTask):
         self._pending_psns = deque(maxlen=8)
         self._rx_other = {}
         self._last_counter: int | None = None  # the STIM datagram counter of the last IMU frame
-        # mode manager
-        self.state = FirmwareState.COARSE_ALIGN
-        self.mode = NavMode.ALIGNING
+        # mode manager and aiding times (written by the alignment and the measurement tasks, reported by the output)
+        self.status = LoopStatus()
         self._align_sum = np.zeros(3)
         self._align_n = 0
         self._align_t0 = None
         self._align_sun = []
-        self._t_aligned = 0.0
         self._tick = 0
-        self._last_gnss_update_t = -1e9
-        self._last_psns_t = -1e9
-        self._last_psns_reject_t = -1e9
         self._solar_solves = []
-        self._out_seq = 0
-        self.deadline_misses = 0
-        self._load_window = deque()
-        self._load_max = 0
+        self.load = CpuLoad(self.meter.tick_budget)
         self._next_status_t = 1.0
         self._status_seq = 0
         self._heading_sigma0 = cfg.initial_heading_sigma_deg * DEG
@@ -197,10 +184,10 @@ class Firmware(HostTask):
         self._gyro_fast_max = min(self._gyro_word_max, inside)
         self._accel_fast_max = (min(amax[0], inside), min(amax[1], inside), min(amax[2], inside))
         self._gnss_reject_run = 0
-        #: the innovation gate refused rows of the last GNSS fix (bit 7 of the nav frame's gnss_status)
-        self._gnss_gated = False
         self._psns_reject_since: float | None = None
         self.gnss = GnssTask(cfg, self.counters, self.clock, self._fault)
+        self.output = OutputTask(cfg, self.meter, self.core, self.gnss, self.clock, self.status, self.load,
+                                 self._cyc["nav_output"])
 
     # -- input validation and fault containment (docs/hostile-input.md) --------------------------------
     def _fault(self, where: str, exc: BaseException) -> None:
@@ -264,14 +251,15 @@ class Firmware(HostTask):
 
     def note_deadline_miss(self) -> None:
         """Called by the host DSP when a tick started after its deadline."""
-        self.deadline_misses += 1
+        self.load.note_miss()
 
     def snapshot(self) -> FirmwareSnapshot:
         """What the recorder and the report read (:class:`firmware_model.registry.FirmwareSnapshot`)."""
         flt = self.filter
         gb, ab = flt.gyro_bias, flt.accel_bias
         return FirmwareSnapshot(
-            state=str(self.state), mode=int(self.mode), filter=self.cfg.filter, precision=self.cfg.precision,
+            state=str(self.status.state), mode=int(self.status.mode), filter=self.cfg.filter,
+            precision=self.cfg.precision,
             covariance_diag=tuple(float(v) for v in np.asarray(flt.P).diagonal()),
             gyro_bias_rad_s=(float(gb[0]), float(gb[1]), float(gb[2])),
             accel_bias_mps2=(float(ab[0]), float(ab[1]), float(ab[2])),
@@ -420,7 +408,7 @@ class Firmware(HostTask):
         f_b = r3.unpack(r3.pack(a[0] * kv / vpg[0], a[1] * kv / vpg[1], a[2] * kv / vpg[2]))
         m.charge("imu_convert", self._cyc_convert)
 
-        if self.state == FirmwareState.COARSE_ALIGN:
+        if self.status.state == FirmwareState.COARSE_ALIGN:
             self._align(t, np.array(f_b, dtype=self.dtype), res)
             m.end()
         else:
@@ -430,33 +418,14 @@ class Firmware(HostTask):
                 core.predict(t)
             m.end()
             self._measurement_tasks(t, res)
-            if self.state == FirmwareState.FINE_ALIGN and t - self._t_aligned >= cfg.fine_align_time_s:
-                self.state = FirmwareState.NAVIGATE
-                self.mode = NavMode.NAVIGATING
+            if self.status.state == FirmwareState.FINE_ALIGN and t - self.status.t_aligned >= cfg.fine_align_time_s:
+                self.status.state = FirmwareState.NAVIGATE
+                self.status.mode = NavMode.NAVIGATING
                 res.events.append({"event": "fine_alignment_done", "t_fpga_s": t})
-        if self.state == FirmwareState.COARSE_ALIGN:
+        if self.status.state == FirmwareState.COARSE_ALIGN:
             self._drain_psns_for_alignment(t)
         self._tick += 1
-        if self._out_every and self._tick % self._out_every == 0:
-            m.begin("output", self._out_every * self.T)
-            frame = self._nav_output(t)
-            m.charge("nav_output", self._cyc["nav_output"])
-            m.end()
-            res.outputs.append((UART_HOST, frame, m.elapsed))
-            if self._text_every and self._tick % self._text_every == 0:  # $PSNS text of the same solution
-                m.begin("text_output", self._text_every * self.T)
-                text = self._text_output(frame)
-                m.end()
-                res.outputs.append((cfg.nmea_uart, text, m.elapsed))
-        if self._nmea_every or self._nmea_att_every:
-            nmea_pos = bool(self._nmea_every) and self._tick % self._nmea_every == 0
-            nmea_att = bool(self._nmea_att_every) and self._tick % self._nmea_att_every == 0
-            if nmea_pos or nmea_att:
-                m.begin("nmea_output", min(e for e in (self._nmea_every, self._nmea_att_every) if e) * self.T)
-                text = self._nmea_output(t, nmea_pos, nmea_att)
-                m.end()
-                if text:
-                    res.outputs.append((cfg.nmea_uart, text, m.elapsed))
+        self.output.run(t, self._tick, res)
         ev = self.filter.drain_events()
         if ev:
             res.events.extend(ev)
@@ -469,13 +438,7 @@ class Firmware(HostTask):
         if self._solar_solves:  # the solves of this tick, for the host (contract C3)
             res.solar_solves = self._solar_solves
             self._solar_solves = []
-        # worst tick of the last second (sliding maximum) and since start, for NAV_SOLUTION / STATUS
-        while self._load_window and self._load_window[-1][1] <= res.cycles:
-            self._load_window.pop()
-        self._load_window.append((t, res.cycles))
-        while self._load_window[0][0] <= t - 1.0:
-            self._load_window.popleft()
-        self._load_max = max(self._load_max, res.cycles)
+        self.load.record(t, res.cycles)  # worst tick of the last second and since start, for NAV_SOLUTION / STATUS
         return res
 
     def _measurement_tasks(self, t: float, res: TickResult) -> None:
@@ -494,7 +457,7 @@ class Firmware(HostTask):
                 p_ins, v_ins, _ = self.core.ins_at(g.t_fpga_s)
                 rep = self.filter.update_gnss(nav, g, p_ins, v_ins)
                 m.end()
-                self._gnss_gated = not rep.accepted or bool((rep.detail or {}).get("gated_rows"))
+                self.status.gnss_gated = not rep.accepted or bool((rep.detail or {}).get("gated_rows"))
                 if not rep.accepted:
                     self._gnss_reject_run += 1
                     self.counters["gnss_rejected"] = self.counters.get("gnss_rejected", 0) + 1
@@ -502,7 +465,7 @@ class Firmware(HostTask):
                     self._gnss_reject_run = 0
                 if rep.accepted:  # a variant may refuse a fix (federated: chi-square isolation)
                     self.counters["gnss_updates"] += 1
-                    self._last_gnss_update_t = t
+                    self.status.last_gnss_update_t = t
                     updated = True
                     res.events.append({"event": "gnss_update", "t_fpga_s": t, "t_meas_s": g.t_fpga_s,
                                        "n_meas": rep.n_rows, "max_norm_innov": rep.max_norm_innov})
@@ -515,7 +478,7 @@ class Firmware(HostTask):
                 if prep.accepted:
                     updated = True
                     self.counters["psns_updates"] += 1
-                    self._last_psns_t = t
+                    self.status.last_psns_t = t
                     self._psns_reject_since = None
                 else:
                     # divergence evidence only from an innovation test (a geometric refusal, e.g. the sun outside
@@ -523,10 +486,10 @@ class Firmware(HostTask):
                     if self._psns_reject_since is None and prep.max_norm_innov > 0.0:
                         self._psns_reject_since = t
                     self.counters["psns_rejected"] += 1
-                    if t - self._last_psns_reject_t >= 1.0:  # at most one event per second
+                    if t - self.status.last_psns_reject_t >= 1.0:  # at most one event per second
                         res.events.append({"event": "psns_rejected", "t_fpga_s": t, "measurement": prep.kind,
                                            "norm_innov": prep.max_norm_innov, **(prep.detail or {})})
-                    self._last_psns_reject_t = t
+                    self.status.last_psns_reject_t = t
         if updated:
             m.begin("kf_feedback", 0.0)
             self.filter.feedback(nav)
@@ -544,7 +507,7 @@ class Firmware(HostTask):
         if cfg.fdir_gnss_reject_limit and self._gnss_reject_run >= cfg.fdir_gnss_reject_limit:
             reason = "gnss_rejected"
         elif (cfg.fdir_psns_reject_s and self._psns_reject_since is not None
-              and t - self._psns_reject_since >= cfg.fdir_psns_reject_s and t - self._last_gnss_update_t < 5.0
+              and t - self._psns_reject_since >= cfg.fdir_psns_reject_s and t - self.status.last_gnss_update_t < 5.0
               and self._at_rest_for_realign()):
             reason = "psns_rejected"
         elif self._tick % cfg.kf_predict_every == 0:
@@ -581,6 +544,21 @@ class Firmware(HostTask):
     @property
     def P(self) -> FloatArray:
         return self.filter.P
+
+    @property
+    def state(self) -> str:
+        """The mode manager's state (:class:`~.tasks.state.FirmwareState`)."""
+        return self.status.state
+
+    @property
+    def mode(self) -> NavMode:
+        """The NavMode bits of the mode manager (NAV_SOLUTION adds the aiding bits)."""
+        return self.status.mode
+
+    @property
+    def deadline_misses(self) -> int:
+        """Ticks the DSP host found late (:meth:`note_deadline_miss`)."""
+        return self.load.deadline_misses
 
 
 register_firmware("psns_hil", Firmware)

@@ -62,9 +62,9 @@ class AlignmentTask(PsnsTask):
                                  a_prev=np.zeros(3, dtype=nd)), heading_sigma, t)
         self._heading_sigma0 = heading_sigma
         self._heading_placeholder = source == "config" and cfg.alignment_heading == "psns"  # timed out: D-5.50
-        self.state = FirmwareState.FINE_ALIGN
-        self.mode = NavMode.NAVIGATING | NavMode.ALIGNING
-        self._t_aligned = t
+        self.status.state = FirmwareState.FINE_ALIGN
+        self.status.mode = NavMode.NAVIGATING | NavMode.ALIGNING
+        self.status.t_aligned = t
         self.gnss.take()
         p, r, y = m2att(cbn)
         res.events.append({"event": "alignment_done", "t_fpga_s": t, "pitch_deg": p / DEG, "roll_deg": r / DEG,
@@ -110,8 +110,8 @@ class AlignmentTask(PsnsTask):
 
     def _restart_alignment(self) -> None:
         """RESET_FILTER scope 0: back to coarse alignment with a fresh filter (biases included)."""
-        self.state = FirmwareState.COARSE_ALIGN
-        self.mode = NavMode.ALIGNING
+        self.status.state = FirmwareState.COARSE_ALIGN
+        self.status.mode = NavMode.ALIGNING
         self.core.reset()
         self._align_sum[:] = 0.0
         self._align_n = 0

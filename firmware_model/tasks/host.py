@@ -25,7 +25,6 @@ from protocols.stream import StreamDecoder
 from .. import c674x
 from ..config import FILTER_VARIANTS, UART_HOST
 from .alignment import AlignmentTask
-from .output import NavOutput
 from .state import TickResult
 
 __all__ = ["FW_VERSION", "HostTask"]
@@ -34,7 +33,7 @@ __all__ = ["FW_VERSION", "HostTask"]
 FW_VERSION = 0x0105
 
 
-class HostTask(AlignmentTask, NavOutput):
+class HostTask(AlignmentTask):
     """Host commands and STATUS."""
     def _host_task(self, t: float, res: TickResult) -> None:
         """Execute pending host commands (one ACK each) and send STATUS at 1 Hz (protocols/host.py, D-3.2)."""
@@ -88,7 +87,7 @@ class HostTask(AlignmentTask, NavOutput):
         if isinstance(c, SetOutputRate):
             r = float(c.rate_hz)
             if r == 0.0:
-                self._out_every = 0
+                self.output.set_every(0)
                 return CMD_SET_OUTPUT_RATE, c.token, AckResult.ACCEPTED
             # the declared range (OUTPUT_RATE_MIN_HZ .. the IMU rate, D-3.11), then a divisor of the IMU rate:
             # 1e-30 Hz was a divisor of 2e32 ticks (an output that never comes) and was accepted before issue 41
@@ -98,7 +97,7 @@ class HostTask(AlignmentTask, NavOutput):
             if not ok or abs(k - round(k)) > 1e-6 * k:
                 self.counters["commands_rejected_output_rate"] += 1
                 return CMD_SET_OUTPUT_RATE, c.token, AckResult.BAD_ARGUMENT
-            self._out_every = round(k)
+            self.output.set_every(round(k))
             return CMD_SET_OUTPUT_RATE, c.token, AckResult.ACCEPTED
         if isinstance(c, RequestStatus):
             return CMD_REQUEST_STATUS, c.token, AckResult.ACCEPTED
@@ -118,12 +117,10 @@ class HostTask(AlignmentTask, NavOutput):
             return st.crc_errors + st.length_errors + st.parse_errors
 
         st = HostStatus(
-            seq=self._status_seq, time_s=t, filter_variant=self.filter.variant_id, mode=int(self.mode),
-            output_rate_hz=self.cfg.imu_rate_hz / self._out_every if self._out_every else 0.0,
-            gnss_status=self._gnss_status_byte(),
-            psns_status=self._psns_status_now(t), cpu_load_pct=self.cpu_load_pct(),
-            cpu_load_max_pct=100.0 * self._load_max / self.meter.tick_budget, fw_version=FW_VERSION,
-            deadline_misses=self.deadline_misses,
+            seq=self._status_seq, time_s=t, filter_variant=self.filter.variant_id, mode=int(self.status.mode),
+            output_rate_hz=self.output.rate_hz(), gnss_status=self.output.gnss_status_byte(),
+            psns_status=self.status.psns_status(t), cpu_load_pct=self.load.load_pct(),
+            cpu_load_max_pct=self.load.max_pct(), fw_version=FW_VERSION, deadline_misses=self.load.deadline_misses,
             uart1_frames=self._dec_imu.stats.frames, uart1_errors=errs(self._dec_imu),
             uart2_frames=self._dec_psns.stats.frames, uart2_errors=errs(self._dec_psns),
             uart3_frames=self._dec_gnss.stats.frames, uart3_errors=errs(self._dec_gnss),

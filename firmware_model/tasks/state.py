@@ -25,8 +25,9 @@ from .timekeeping import Clock
 if TYPE_CHECKING:  # gnss.py imports count_rejection from here
     from .gnss import GnssTask
     from .navigation import NavCore
+    from .output import OutputTask
 
-__all__ = ["FirmwareState", "LoopState", "SolarSolve", "TickResult", "count_rejection"]
+__all__ = ["CpuLoad", "FirmwareState", "LoopState", "LoopStatus", "SolarSolve", "TickResult", "count_rejection"]
 
 
 class FirmwareState:
@@ -74,6 +75,66 @@ class TickResult:
     solar_solves: list[SolarSolve] = field(default_factory=list)
 
 
+@dataclass
+class LoopStatus:
+    """The mode manager's state and the aiding times: written by the alignment and the measurement tasks, reported
+    by the output and host tasks (a record the executive owns and hands to them; times in s, FPGA time base)."""
+
+    state: str = FirmwareState.COARSE_ALIGN
+    mode: NavMode = NavMode.ALIGNING
+    #: end of the coarse alignment (start of FINE_ALIGN)
+    t_aligned: float = 0.0
+    #: latest accepted GNSS update; the innovation gate refused rows of the last GNSS fix (gnss_status bit 7)
+    last_gnss_update_t: float = -1e9
+    gnss_gated: bool = False
+    #: latest accepted solar update and latest refused one
+    last_psns_t: float = -1e9
+    last_psns_reject_t: float = -1e9
+
+    def psns_status(self, t: float) -> int:
+        """``psns_status`` of NAV_SOLUTION / STATUS at ``t``: 1 aiding, 2 refused lately, 0 none."""
+        return 1 if t - self.last_psns_t < 2.0 else 2 if t - self.last_psns_reject_t < 2.0 else 0
+
+    def gnss_status_byte(self, last_fix: tuple[float, float, float, int] | None) -> int:
+        """``gnss_status``: the last fix's GGA quality (bits 0-6), bit 7 when the innovation gate refused rows of
+        the last GNSS fix (docs/hostile-input.md)."""
+        quality = last_fix[3] & 0x7F if last_fix is not None else 0
+        return quality | (0x80 if self.gnss_gated else 0)
+
+
+class CpuLoad:
+    """The CPU load the firmware reports: the worst tick of the last second (sliding maximum), the worst since
+    start, and the deadline misses the DSP host noted. Collaborator: ``tick_budget`` (cycles per IMU tick)."""
+
+    def __init__(self, tick_budget: int) -> None:
+        self._tick_budget = tick_budget
+        self._window: deque[tuple[float, int]] = deque()
+        self._max = 0
+        self.deadline_misses = 0
+
+    def record(self, t: float, cycles: int) -> None:
+        """The tick at ``t`` (s) charged ``cycles``."""
+        while self._window and self._window[-1][1] <= cycles:
+            self._window.pop()
+        self._window.append((t, cycles))
+        while self._window[0][0] <= t - 1.0:
+            self._window.popleft()
+        self._max = max(self._max, cycles)
+
+    def load_pct(self) -> float:
+        """Worst tick of the last second, % of the tick budget (NAV_SOLUTION / STATUS ``cpu_load``)."""
+        worst = self._window[0][1] if self._window else 0
+        return 100.0 * worst / self._tick_budget
+
+    def max_pct(self) -> float:
+        """Worst tick since start, % of the tick budget (STATUS ``cpu_load_max``)."""
+        return 100.0 * self._max / self._tick_budget
+
+    def note_miss(self) -> None:
+        """The DSP host found a tick late."""
+        self.deadline_misses += 1
+
+
 class LoopState:
     """The state of the loop that its tasks share (set by ``Firmware.__init__``; units in the comments)."""
 
@@ -84,7 +145,6 @@ class LoopState:
     meter: c674x.CycleMeter
     cost: c674x.KernelCosts
     counters: dict[str, int]
-    deadline_misses: int
     # per-tick kernel cycles (firmware.tick_kernel_cycles) and IMU conversion constants
     _cyc: dict[str, int]
     _cyc_decode: int
@@ -92,9 +152,6 @@ class LoopState:
     T: float  # IMU sample interval, s
     _kv: float
     _round3: struct.Struct
-    _out_every: int  # IMU ticks per NAV_SOLUTION (0: off)
-    _nmea_every: int  # IMU ticks per NMEA position/velocity/time group (0: off)
-    _nmea_att_every: int  # IMU ticks per NMEA heading/attitude group (0: off)
     # UART decoders and what they staged
     _dec_imu: StreamDecoder
     _dec_gnss: StreamDecoder
@@ -108,14 +165,12 @@ class LoopState:
     _last_counter: int | None
     #: the FPGA time base and UTC (a task object of its own, :class:`~.timekeeping.Clock`)
     clock: Clock
-    # mode manager and alignment
-    state: str
-    mode: NavMode
+    # mode manager (and the aiding times) and alignment
+    status: LoopStatus
     _align_sum: FloatArray
     _align_n: int
     _align_t0: float | None
     _align_sun: list[SolarObservation]
-    _t_aligned: float
     _heading_sigma0: float
     #: the heading is the configured placeholder of a PSNS alignment that timed out (D-5.50)
     _heading_placeholder: bool
@@ -125,15 +180,11 @@ class LoopState:
     _tick: int
     #: the GNSS staging (a task object of its own, :class:`~.gnss.GnssTask`)
     gnss: GnssTask
-    _last_gnss_update_t: float
-    _gnss_gated: bool  # the innovation gate refused rows of the last GNSS fix
-    _last_psns_t: float
-    _last_psns_reject_t: float
     _solar_solves: list[SolarSolve]  # solved in the current tick (TickResult.solar_solves)
     # output and status
-    _out_seq: int
-    _load_window: deque[tuple[float, int]]
-    _load_max: int
+    #: the outputs (a task object, :class:`~.output.OutputTask`); the CPU load it and STATUS report
+    output: OutputTask
+    load: CpuLoad
     _next_status_t: float
     _status_seq: int
 

@@ -5,9 +5,10 @@ The virtual DSP (``emulator.devices.dsp``) hosts one :class:`Firmware`: the UART
 :meth:`Firmware.service`, driven by the FPGA's 200 Hz IMU frames, and returns per tick the bytes to
 transmit and the cycles charged, which the DSP turns into time.
 
-UART map: :mod:`firmware_model.config`. The tasks of the loop are one module each in
-:mod:`firmware_model.tasks`; this module is the loop itself: reception, the tick's schedule and the
-measurement updates.
+UART map: :mod:`firmware_model.config`. The tasks of the loop are objects, one module each in
+:mod:`firmware_model.tasks`, built here with their collaborators; this module is the loop itself (no base class):
+reception into the decoders, IMU screening and conversion, the tick's schedule and the measurement updates'
+bookkeeping.
 
 Mode manager (one state per tick)::
 
@@ -20,8 +21,9 @@ when a valid solar vector has arrived by the end of the levelling window, else t
 
 Tasks of one IMU tick (the whole tick is the task ``imu_tick``), each metered (``meter.table()``):
 
-* ``imu``: decode the IMU frame, convert to SI, coarse-align accumulation (:mod:`.tasks.alignment`) or bias
-  compensation, coning/sculling (two-sample with angle increments) and strapdown (:mod:`.tasks.navigation`);
+* ``imu``: decode the IMU frame, convert to SI, coarse-align accumulation (``alignment``, :mod:`.tasks.alignment`)
+  or bias compensation, coning/sculling (two-sample with angle increments) and strapdown (``core``,
+  :mod:`.tasks.navigation`);
 * ``kf_predict`` (inside ``imu``): every ``kf_predict_every`` ticks, the filter's time update;
 * ``gnss_update``: a fix is pending (1 Hz): Eqs. 23-30 at the PPS time of validity (2 s INS history);
 * ``psns_update``: a PSNS frame is pending (frame rate): E-vectors -> K -> ``+-S^b``
@@ -44,7 +46,7 @@ from typing import Any
 import numpy as np
 
 from protocols.host import HostFormat, NavMode
-from protocols.imu_frame import ADC_VOLTS_PER_LSB, FpgaFrameFormat, FpgaStatus, ImuFrame
+from protocols.imu_frame import ADC_VOLTS_PER_LSB, FpgaFrameFormat, FpgaStatus, ImuFrame, MagFrame
 from protocols.nmea import NMEA_RX_MAX_LEN, NmeaFormat
 from protocols.psns import PsnsFormat
 from protocols.stim import GYRO_ANGLE_LSB_DEG, GYRO_RATE_LSB_DPS, STATUS_SAMPLE_INVALID
@@ -53,17 +55,20 @@ from protocols.ubx import UbxFormat
 
 from . import c674x, input_guard
 from .alignment import level_cycles, triad_cycles
-from .arrays import FloatArray
+from .arrays import FloatArray, FloatDtype
 from .config import UART_GNSS, UART_HOST, UART_IMU, UART_PSNS, FirmwareConfig
+from .filters import NavFilter
 from .kf import N_STATES
+from .nav_state import NavState
 from .precision import rounder
 from .registry import FirmwareSnapshot, register_firmware
+from .tasks.alignment import AlignmentTask
 from .tasks.gnss import GnssTask
 from .tasks.host import HostTask
 from .tasks.navigation import NavCore
 from .tasks.output import OutputTask
-from .tasks.psns import psns_frame_len
-from .tasks.state import CpuLoad, FirmwareState, LoopStatus, TickResult
+from .tasks.psns import PsnsTask, psns_frame_len
+from .tasks.state import CpuLoad, FirmwareState, LoopStatus, TickResult, count_rejection
 from .tasks.timekeeping import Clock
 from .units import DEG, G_STD
 from .variants import dual_vector, federated, kmeans_3d, sun_elevation  # noqa: F401  (the variants of this build)
@@ -114,16 +119,17 @@ _STATUS_INVALID = int(STATUS_SAMPLE_INVALID)
 _IMU_RESYNC = 5
 
 
-class Firmware(HostTask):
+class Firmware:
     """The firmware (see module docstring). Interface to the DSP host (docs/architecture.md, section "Firmware
     interface"): :meth:`receive`, :meth:`service`, :meth:`note_deadline_miss`, :attr:`meter`, :attr:`counters`,
     :meth:`decoder_stats`."""
 
     def __init__(self, cfg: FirmwareConfig | None = None) -> None:
         self.cfg = cfg = cfg or FirmwareConfig()
-        self.dtype = np.float32 if cfg.precision == "float32" else np.float64
+        #: working precision of the filters and kernels
+        self.dtype: FloatDtype = np.float32 if cfg.precision == "float32" else np.float64
         #: dtype of the strapdown state (q, v); position is always float64
-        self.nav_dtype = np.float64 if cfg.nav_state_precision == "float64" else self.dtype
+        self.nav_dtype: FloatDtype = np.float64 if cfg.nav_state_precision == "float64" else self.dtype
         self.meter = c674x.CycleMeter(cfg.clock_hz, cfg.imu_rate_hz)
         self.cost = c674x.KernelCosts(cfg.precision)
         self._cyc = tick_kernel_cycles(self.cost, nav_dp=self.nav_dtype is np.float64)
@@ -135,26 +141,16 @@ class Firmware(HostTask):
         self._dec_imu = StreamDecoder([FpgaFrameFormat()])
         self._dec_gnss = StreamDecoder([NmeaFormat(NMEA_RX_MAX_LEN), UbxFormat()])
         self._dec_host = StreamDecoder([HostFormat()])
-        self._pending_cmd = deque(maxlen=16)
-        self.last_mag = None
+        self.last_mag: MagFrame | None = None
         self._dec_psns = StreamDecoder([PsnsFormat(packed_points=True)])  # the points' bytes: no object per point
-        self._pending_imu = deque()
-        self._pending_psns = deque(maxlen=8)
-        self._rx_other = {}
+        self._pending_imu: deque[ImuFrame] = deque()
+        self._pending_psns: deque[tuple[float, Any]] = deque(maxlen=8)  # (t_rx_s, frame)
+        self._rx_other: dict[int, int] = {}
         self._last_counter: int | None = None  # the STIM datagram counter of the last IMU frame
         # mode manager and aiding times (written by the alignment and the measurement tasks, reported by the output)
-        self.status = LoopStatus()
-        self._align_sum = np.zeros(3)
-        self._align_n = 0
-        self._align_t0 = None
-        self._align_sun = []
+        self.status = LoopStatus(heading_sigma0=cfg.initial_heading_sigma_deg * DEG)
         self._tick = 0
-        self._solar_solves = []
         self.load = CpuLoad(self.meter.tick_budget)
-        self._next_status_t = 1.0
-        self._status_seq = 0
-        self._heading_sigma0 = cfg.initial_heading_sigma_deg * DEG
-        self._heading_placeholder = False
         self.counters: dict[str, int] = {"imu_frames": 0, "gnss_fixes": 0, "gnss_updates": 0, "gyro_counter_jumps": 0,
                          "fpga_gyro_missing": 0, "imu_time_gaps": 0, "psns_frames": 0, "psns_solutions": 0,
                          "psns_updates": 0, "psns_rejected": 0, "psns_invalid": 0, "psns_sun_low": 0,
@@ -186,10 +182,20 @@ class Firmware(HostTask):
         self._gnss_reject_run = 0
         self._psns_reject_since: float | None = None
         self.gnss = GnssTask(cfg, self.counters, self.clock, self._fault)
+        self.psns = PsnsTask(cfg, self.meter, self.cost, self._cyc, self.counters, self.core, self.clock, self.status,
+                             self._fault_events, self.dtype)
+        self.alignment = AlignmentTask(cfg, self.meter, self._cyc, self.core, self.gnss, self.clock, self.psns,
+                                       self.status, self.dtype, self.nav_dtype)
         self.output = OutputTask(cfg, self.meter, self.core, self.gnss, self.clock, self.status, self.load,
                                  self._cyc["nav_output"])
+        self.host = HostTask(cfg, self.meter, self.counters, self.core, self.alignment, self.output, self.status,
+                             self.load, self._uart_counts)
 
     # -- input validation and fault containment (docs/hostile-input.md) --------------------------------
+    def _reject(self, reason: str) -> None:
+        """Count one message refused by :mod:`firmware_model.input_guard` (``input_rejected_<reason>``)."""
+        count_rejection(self.counters, reason)
+
     def _fault(self, where: str, exc: BaseException) -> None:
         """An exception while handling one input message: counted, reported as an event, the run goes on."""
         if self.raise_faults:
@@ -225,9 +231,7 @@ class Firmware(HostTask):
             self.gnss.on_bytes(self._dec_gnss, data, t_rx_s)
         elif uart == UART_HOST:
             for c in self._dec_host.feed(data):
-                if len(self._pending_cmd) == self._pending_cmd.maxlen:
-                    self.counters["commands_dropped"] += 1
-                self._pending_cmd.append(c)
+                self.host.queue(c)
         elif uart == UART_PSNS:
             frames = self._dec_psns.feed(data)
             if frames:
@@ -248,6 +252,14 @@ class Firmware(HostTask):
     def decoder_stats(self) -> dict[str, dict[str, Any]]:
         return {"uart0": self._dec_host.stats.as_dict(), "uart1": self._dec_imu.stats.as_dict(),
                 "uart2": self._dec_psns.stats.as_dict(), "uart3": self.gnss.decoder_stats(self._dec_gnss)}
+
+    def _uart_counts(self) -> tuple[int, int, int, int, int, int]:
+        """Frames and errors (CRC, length, parse) of the UART1, UART2 and UART3 decoders, for STATUS."""
+        out: list[int] = []
+        for d in (self._dec_imu, self._dec_psns, self._dec_gnss):
+            st = d.stats
+            out += [st.frames, st.crc_errors + st.length_errors + st.parse_errors]
+        return out[0], out[1], out[2], out[3], out[4], out[5]
 
     def note_deadline_miss(self) -> None:
         """Called by the host DSP when a tick started after its deadline."""
@@ -409,7 +421,7 @@ class Firmware(HostTask):
         m.charge("imu_convert", self._cyc_convert)
 
         if self.status.state == FirmwareState.COARSE_ALIGN:
-            self._align(t, np.array(f_b, dtype=self.dtype), res)
+            self.alignment.accumulate(t, np.array(f_b, dtype=self.dtype), res)
             m.end()
         else:
             core = self.core
@@ -423,21 +435,22 @@ class Firmware(HostTask):
                 self.status.mode = NavMode.NAVIGATING
                 res.events.append({"event": "fine_alignment_done", "t_fpga_s": t})
         if self.status.state == FirmwareState.COARSE_ALIGN:
-            self._drain_psns_for_alignment(t)
+            while self._pending_psns:  # solved and kept for the TRIAD heading
+                t_rx, f = self._pending_psns.popleft()
+                self.alignment.psns_frame(t_rx, f)
         self._tick += 1
         self.output.run(t, self._tick, res)
         ev = self.filter.drain_events()
         if ev:
             res.events.extend(ev)
             self.counters.update(self.filter.counters)
-        if self._pending_cmd or t >= self._next_status_t:
+        if self.host.due(t):
             m.begin("host", 1.0)
-            self._host_task(t, res)
+            self.host.run(t, res)
             m.end()
         res.cycles = m.end()
-        if self._solar_solves:  # the solves of this tick, for the host (contract C3)
-            res.solar_solves = self._solar_solves
-            self._solar_solves = []
+        if self.psns.has_solves():  # the solves of this tick, for the host (contract C3)
+            res.solar_solves = self.psns.take_solves()
         self.load.record(t, res.cycles)  # worst tick of the last second and since start, for NAV_SOLUTION / STATUS
         return res
 
@@ -472,7 +485,7 @@ class Firmware(HostTask):
         while self._pending_psns and self.core.has_history():
             t_rx, f = self._pending_psns.popleft()
             m.begin("psns_update", 0.0)
-            prep = self._psns_update(t, t_rx, f)
+            prep = self.psns.update(t, t_rx, f)
             m.end()
             if prep is not None:
                 if prep.accepted:
@@ -523,7 +536,7 @@ class Firmware(HostTask):
                            "action": "re-alignment", "filter": self.cfg.filter})
         self._gnss_reject_run = 0
         self._psns_reject_since = None
-        self._restart_alignment()
+        self.alignment.restart()
 
     def _at_rest_for_realign(self) -> bool:
         """Whether the solar criterion may re-align: the navigation solution's horizontal speed under
@@ -544,6 +557,20 @@ class Firmware(HostTask):
     @property
     def P(self) -> FloatArray:
         return self.filter.P
+
+    @property
+    def nav(self) -> NavState | None:
+        """The navigation state (:attr:`.tasks.navigation.NavCore.nav`; None before the coarse alignment)."""
+        return self.core.nav
+
+    @nav.setter
+    def nav(self, value: NavState | None) -> None:
+        self.core.nav = value
+
+    @property
+    def filter(self) -> NavFilter:
+        """The filter of the selected variant (:attr:`.tasks.navigation.NavCore.filter`)."""
+        return self.core.filter
 
     @property
     def state(self) -> str:

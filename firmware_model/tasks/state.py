@@ -1,33 +1,21 @@
-"""The cyclic executive's shared state: mode-manager states, :class:`TickResult` and :class:`LoopState`.
+"""What the cyclic executive shares with its tasks: mode-manager states, :class:`TickResult`, the
+:class:`LoopStatus` record (mode manager, aiding times, the heading's standing) and the :class:`CpuLoad`.
 
-:class:`LoopState` declares, once, every attribute the tasks share (``Firmware.__init__`` sets them); the task
-classes derive from it so that each task module is type-checked against the same declarations.
+``Firmware.__init__`` makes one of each and hands them to the tasks that write or report them.
 """
 
 from __future__ import annotations
 
-import struct
 from collections import deque
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from protocols.host import NavMode
-from protocols.imu_frame import ImuFrame, MagFrame
-from protocols.stream import StreamDecoder
-
-from .. import c674x
-from ..arrays import FloatArray, FloatDtype
-from ..config import FirmwareConfig
-from ..filters import NavFilter, SolarObservation
-from ..nav_state import NavState
-from .timekeeping import Clock
 
 if TYPE_CHECKING:  # gnss.py imports count_rejection from here
-    from .gnss import GnssTask
-    from .navigation import NavCore
-    from .output import OutputTask
+    pass
 
-__all__ = ["CpuLoad", "FirmwareState", "LoopState", "LoopStatus", "SolarSolve", "TickResult", "count_rejection"]
+__all__ = ["CpuLoad", "FirmwareState", "LoopStatus", "SolarSolve", "TickResult", "count_rejection"]
 
 
 class FirmwareState:
@@ -90,6 +78,10 @@ class LoopStatus:
     #: latest accepted solar update and latest refused one
     last_psns_t: float = -1e9
     last_psns_reject_t: float = -1e9
+    #: the heading's sigma the filter started from (rad; a reset starts from it again) and whether the heading is
+    #: the configured placeholder of a PSNS alignment that timed out (D-5.50)
+    heading_sigma0: float = 0.0
+    heading_placeholder: bool = False
 
     def psns_status(self, t: float) -> int:
         """``psns_status`` of NAV_SOLUTION / STATUS at ``t``: 1 aiding, 2 refused lately, 0 none."""
@@ -133,78 +125,6 @@ class CpuLoad:
     def note_miss(self) -> None:
         """The DSP host found a tick late."""
         self.deadline_misses += 1
-
-
-class LoopState:
-    """The state of the loop that its tasks share (set by ``Firmware.__init__``; units in the comments)."""
-
-    cfg: FirmwareConfig
-    #: working precision of the filters and kernels; ``nav_dtype``: of the strapdown state (q, v)
-    dtype: FloatDtype
-    nav_dtype: FloatDtype
-    meter: c674x.CycleMeter
-    cost: c674x.KernelCosts
-    counters: dict[str, int]
-    # per-tick kernel cycles (firmware.tick_kernel_cycles) and IMU conversion constants
-    _cyc: dict[str, int]
-    _cyc_decode: int
-    _cyc_convert: int
-    T: float  # IMU sample interval, s
-    _kv: float
-    _round3: struct.Struct
-    # UART decoders and what they staged
-    _dec_imu: StreamDecoder
-    _dec_gnss: StreamDecoder
-    _dec_host: StreamDecoder
-    _dec_psns: StreamDecoder
-    _pending_cmd: deque[Any]
-    _pending_imu: deque[ImuFrame]
-    _pending_psns: deque[tuple[float, Any]]  # (t_rx_s, frame)
-    _rx_other: dict[int, int]
-    last_mag: MagFrame | None
-    _last_counter: int | None
-    #: the FPGA time base and UTC (a task object of its own, :class:`~.timekeeping.Clock`)
-    clock: Clock
-    # mode manager (and the aiding times) and alignment
-    status: LoopStatus
-    _align_sum: FloatArray
-    _align_n: int
-    _align_t0: float | None
-    _align_sun: list[SolarObservation]
-    _heading_sigma0: float
-    #: the heading is the configured placeholder of a PSNS alignment that timed out (D-5.50)
-    _heading_placeholder: bool
-    _fault_events: list[dict[str, Any]]
-    #: the navigation core (state, filter, mechanization, INS history; :class:`~.navigation.NavCore`)
-    core: NavCore
-    _tick: int
-    #: the GNSS staging (a task object of its own, :class:`~.gnss.GnssTask`)
-    gnss: GnssTask
-    _solar_solves: list[SolarSolve]  # solved in the current tick (TickResult.solar_solves)
-    # output and status
-    #: the outputs (a task object, :class:`~.output.OutputTask`); the CPU load it and STATUS report
-    output: OutputTask
-    load: CpuLoad
-    _next_status_t: float
-    _status_seq: int
-
-    @property
-    def nav(self) -> NavState | None:
-        """The navigation state (:attr:`.navigation.NavCore.nav`)."""
-        return self.core.nav
-
-    @nav.setter
-    def nav(self, value: NavState | None) -> None:
-        self.core.nav = value
-
-    @property
-    def filter(self) -> NavFilter:
-        """The filter of the selected variant (:attr:`.navigation.NavCore.filter`)."""
-        return self.core.filter
-
-    def _reject(self, reason: str) -> None:
-        """Count one message refused by :mod:`firmware_model.input_guard` (``input_rejected_<reason>``)."""
-        count_rejection(self.counters, reason)
 
 
 def count_rejection(counters: dict[str, int], reason: str) -> None:

@@ -9,7 +9,7 @@ as the virtual DSP does. Rows:
 * ``Firmware per tick, base filter, nav <dtype> (receive + service)``: everything the firmware does per
   tick, decoding of every UART included; CPU time (``time.process_time``), median of ``REPEAT`` runs;
 * ``... part: <part>``: the same run split by part (median of ``REPEAT`` instrumented runs): ``decode``
-  (receive(): framing, CRC, parse of every UART), ``strapdown`` (``_mechanize``: bias compensation,
+  (receive(): framing, CRC, parse of every UART), ``strapdown`` (``NavCore.mechanize``: bias compensation,
   coning/sculling, mechanization, INS history), ``kf_predict`` (the filter's time update, every 20th
   tick), ``updates`` (GNSS / PSNS measurement tasks, solve, feedback), ``output`` (NAV_SOLUTION build and
   encode, every 2nd tick), ``rest`` (the tick's own bookkeeping: time, PPS, counters, raw-to-SI, load
@@ -106,9 +106,9 @@ def _parts_us_per_tick(cfg: FirmwareConfig, events: list[tuple[float, int, bytes
     fw = Firmware(cfg)
     acc = {p: [0.0] for p in PARTS}
     receive = _timed(fw.receive, acc["decode"])
-    fw._mechanize = _timed(fw._mechanize, acc["strapdown"])  # type: ignore[method-assign]
+    fw.core.mechanize = _timed(fw.core.mechanize, acc["strapdown"])  # type: ignore[method-assign]
     fw._measurement_tasks = _timed(fw._measurement_tasks, acc["updates"])  # type: ignore[method-assign]
-    fw._nav_output = _timed(fw._nav_output, acc["output"])  # type: ignore[method-assign]
+    fw.output.nav_solution = _timed(fw.output.nav_solution, acc["output"])  # type: ignore[method-assign]
     flt = None
     n = 0
     t_service = 0.0

@@ -729,7 +729,7 @@ class UpdateReport:
 
 
 class FilterHost(Protocol):
-    """What the main loop offers a variant (:class:`firmware_model.Firmware` implements it)."""
+    """What the main loop offers a variant (:class:`firmware_model.tasks.navigation.NavCore` implements it)."""
 
     def utc_days(self, t_fpga_s: float) -> float | None:
         """Grena days (UT) at FPGA time ``t_fpga_s``, once GNSS gave date and time (else None)."""

@@ -5,9 +5,10 @@ The virtual DSP (``emulator.devices.dsp``) hosts one :class:`Firmware`: the UART
 :meth:`Firmware.service`, driven by the FPGA's 200 Hz IMU frames, and returns per tick the bytes to
 transmit and the cycles charged, which the DSP turns into time.
 
-UART map: :mod:`firmware_model.config`. The tasks of the loop are one module each in
-:mod:`firmware_model.tasks`; this module is the loop itself: reception, the tick's schedule and the
-measurement updates.
+UART map: :mod:`firmware_model.config`. The tasks of the loop are objects, one module each in
+:mod:`firmware_model.tasks`, built here with their collaborators; this module is the loop itself (no base class):
+reception into the decoders, IMU screening and conversion, the tick's schedule and the measurement updates'
+bookkeeping.
 
 Mode manager (one state per tick)::
 
@@ -20,8 +21,9 @@ when a valid solar vector has arrived by the end of the levelling window, else t
 
 Tasks of one IMU tick (the whole tick is the task ``imu_tick``), each metered (``meter.table()``):
 
-* ``imu``: decode the IMU frame, convert to SI, coarse-align accumulation (:mod:`.tasks.alignment`) or bias
-  compensation, coning/sculling (two-sample with angle increments) and strapdown (:mod:`.tasks.navigation`);
+* ``imu``: decode the IMU frame, convert to SI, coarse-align accumulation (``alignment``, :mod:`.tasks.alignment`)
+  or bias compensation, coning/sculling (two-sample with angle increments) and strapdown (``core``,
+  :mod:`.tasks.navigation`);
 * ``kf_predict`` (inside ``imu``): every ``kf_predict_every`` ticks, the filter's time update;
 * ``gnss_update``: a fix is pending (1 Hz): Eqs. 23-30 at the PPS time of validity (2 s INS history);
 * ``psns_update``: a PSNS frame is pending (frame rate): E-vectors -> K -> ``+-S^b``
@@ -44,7 +46,7 @@ from typing import Any
 import numpy as np
 
 from protocols.host import HostFormat, NavMode
-from protocols.imu_frame import ADC_VOLTS_PER_LSB, FpgaFrameFormat, FpgaStatus, ImuFrame
+from protocols.imu_frame import ADC_VOLTS_PER_LSB, FpgaFrameFormat, FpgaStatus, ImuFrame, MagFrame
 from protocols.nmea import NMEA_RX_MAX_LEN, NmeaFormat
 from protocols.psns import PsnsFormat
 from protocols.stim import GYRO_ANGLE_LSB_DEG, GYRO_RATE_LSB_DPS, STATUS_SAMPLE_INVALID
@@ -53,16 +55,20 @@ from protocols.ubx import UbxFormat
 
 from . import c674x, input_guard
 from .alignment import level_cycles, triad_cycles
-from .arrays import FloatArray
+from .arrays import FloatArray, FloatDtype
 from .config import UART_GNSS, UART_HOST, UART_IMU, UART_PSNS, FirmwareConfig
+from .filters import NavFilter
 from .kf import N_STATES
+from .nav_state import NavState
 from .precision import rounder
 from .registry import FirmwareSnapshot, register_firmware
-from .strapdown import strapdown_kernel
+from .tasks.alignment import AlignmentTask
 from .tasks.gnss import GnssTask
 from .tasks.host import HostTask
-from .tasks.psns import psns_frame_len
-from .tasks.state import FirmwareState, TickResult
+from .tasks.navigation import NavCore
+from .tasks.output import OutputTask
+from .tasks.psns import PsnsTask, psns_frame_len
+from .tasks.state import CpuLoad, FirmwareState, LoopStatus, TickResult, count_rejection
 from .tasks.timekeeping import Clock
 from .units import DEG, G_STD
 from .variants import dual_vector, federated, kmeans_3d, sun_elevation  # noqa: F401  (the variants of this build)
@@ -113,84 +119,38 @@ _STATUS_INVALID = int(STATUS_SAMPLE_INVALID)
 _IMU_RESYNC = 5
 
 
-class Firmware(HostTask):
+class Firmware:
     """The firmware (see module docstring). Interface to the DSP host (docs/architecture.md, section "Firmware
     interface"): :meth:`receive`, :meth:`service`, :meth:`note_deadline_miss`, :attr:`meter`, :attr:`counters`,
     :meth:`decoder_stats`."""
 
     def __init__(self, cfg: FirmwareConfig | None = None) -> None:
         self.cfg = cfg = cfg or FirmwareConfig()
-        self.dtype = np.float32 if cfg.precision == "float32" else np.float64
+        #: working precision of the filters and kernels
+        self.dtype: FloatDtype = np.float32 if cfg.precision == "float32" else np.float64
         #: dtype of the strapdown state (q, v); position is always float64
-        self.nav_dtype = np.float64 if cfg.nav_state_precision == "float64" else self.dtype
-        self._strapdown = strapdown_kernel(self.nav_dtype)
+        self.nav_dtype: FloatDtype = np.float64 if cfg.nav_state_precision == "float64" else self.dtype
         self.meter = c674x.CycleMeter(cfg.clock_hz, cfg.imu_rate_hz)
         self.cost = c674x.KernelCosts(cfg.precision)
         self._cyc = tick_kernel_cycles(self.cost, nav_dp=self.nav_dtype is np.float64)
         self._cyc_decode, self._cyc_convert = self._cyc["imu_decode"], self._cyc["imu_convert"]
-        self._cyc_coning1, self._cyc_strapdown = self._cyc["coning1"], self._cyc["strapdown"]
         self.T = 1.0 / cfg.imu_rate_hz
-        self._nsub = cfg.subsamples
         # IMU conversion constants in the working precision (Python floats holding dtype values)
-        dt = self.dtype
-        lsb = GYRO_RATE_LSB_DPS * DEG * self.T if cfg.gyro_output == "rate" else GYRO_ANGLE_LSB_DEG * DEG
-        self._gyro_k = float(dt(lsb))
-        self._T_w = float(dt(self.T))
         self._kv = ADC_VOLTS_PER_LSB * G_STD
-        self._round3 = rounder(dt, 3)
-        self._pack6, self._unpack6 = rounder(dt, 6).pack, rounder(dt, 6).unpack
-        self._bias_cache = (None, None, ())
-        self._out_every = round(cfg.imu_rate_hz / cfg.output_rate_hz)
-        pos = any(n in ("GGA", "RMC", "VTG", "ZDA") for n in cfg.nmea_sentences)
-        att = any(n in ("HDT", "THS", "PASHR") for n in cfg.nmea_sentences)
-        self._nmea_every = round(cfg.imu_rate_hz / cfg.nmea_rate_hz) if pos else 0
-        self._nmea_att_every = round(cfg.imu_rate_hz / cfg.nmea_attitude_rate_hz) if att else 0
-        self._text_every = round(cfg.imu_rate_hz / cfg.text_rate_hz) if cfg.text_rate_hz else 0
+        self._round3 = rounder(self.dtype, 3)
         self._dec_imu = StreamDecoder([FpgaFrameFormat()])
         self._dec_gnss = StreamDecoder([NmeaFormat(NMEA_RX_MAX_LEN), UbxFormat()])
         self._dec_host = StreamDecoder([HostFormat()])
-        self._pending_cmd = deque(maxlen=16)
-        self.last_mag = None
+        self.last_mag: MagFrame | None = None
         self._dec_psns = StreamDecoder([PsnsFormat(packed_points=True)])  # the points' bytes: no object per point
-        self._pending_imu = deque()
-        self._pending_psns = deque(maxlen=8)
-        self._rx_other = {}
+        self._pending_imu: deque[ImuFrame] = deque()
+        self._pending_psns: deque[tuple[float, Any]] = deque(maxlen=8)  # (t_rx_s, frame)
+        self._rx_other: dict[int, int] = {}
         self._last_counter: int | None = None  # the STIM datagram counter of the last IMU frame
-        # mode manager
-        self.state = FirmwareState.COARSE_ALIGN
-        self.mode = NavMode.ALIGNING
-        self._align_sum = np.zeros(3)
-        self._align_n = 0
-        self._align_t0 = None
-        self._align_sun = []
-        self._t_aligned = 0.0
-        self._t_last_predict = 0.0
-        # navigation
-        self.nav = None
-        self.filter = self._new_filter(cfg.filter)
-        self._mag_hist = deque(maxlen=128)  # (t_sample_s, field)
-        # magnetometer calibration: W^-1 and h, inverted once at start-up (docs/calibration.md)
-        self._mag_w_inv = np.asarray(np.linalg.inv(np.asarray(cfg.mag_soft_iron, dtype=np.float64).reshape(3, 3)),
-                                     dtype=np.float64)
-        self._mag_h = np.asarray(cfg.mag_hard_iron_nt, dtype=np.float64)
+        # mode manager and aiding times (written by the alignment and the measurement tasks, reported by the output)
+        self.status = LoopStatus(heading_sigma0=cfg.initial_heading_sigma_deg * DEG)
         self._tick = 0
-        self._sub = []
-        self._fn_sum = [0.0, 0.0, 0.0]  # sum of f^n over the KF interval (Python floats, float64)
-        self._rot_sum = [0.0, 0.0, 0.0]  # sum of |phi_m| per body axis over the KF interval (rad)
-        self._fn_n = 0
-        self._hist = deque(maxlen=int(2 * cfg.imu_rate_hz))
-        self._last_gnss_update_t = -1e9
-        self._last_psns_t = -1e9
-        self._last_psns_reject_t = -1e9
-        self._solar_solves = []
-        self._out_seq = 0
-        self.deadline_misses = 0
-        self._load_window = deque()
-        self._load_max = 0
-        self._next_status_t = 1.0
-        self._status_seq = 0
-        self._heading_sigma0 = cfg.initial_heading_sigma_deg * DEG
-        self._heading_placeholder = False
+        self.load = CpuLoad(self.meter.tick_budget)
         self.counters: dict[str, int] = {"imu_frames": 0, "gnss_fixes": 0, "gnss_updates": 0, "gyro_counter_jumps": 0,
                          "fpga_gyro_missing": 0, "imu_time_gaps": 0, "psns_frames": 0, "psns_solutions": 0,
                          "psns_updates": 0, "psns_rejected": 0, "psns_invalid": 0, "psns_sun_low": 0,
@@ -199,6 +159,7 @@ class Firmware(HostTask):
                          "status_frames": 0, "input_rejected": 0, "input_faults": 0, "imu_time_resync": 0,
                          "imu_resync_refused": 0, "psns_stale": 0, "commands_rejected_output_rate": 0}
         self.clock = Clock(cfg, self.counters)
+        self.core = NavCore(cfg, self.meter, self.clock, self._cyc, self.dtype, self.nav_dtype)
         #: True: an exception while handling one input message propagates (tests of the emulator itself set
         #: ``PSNS_HIL_STRICT=1``); False (the box): it is contained, counted (``input_faults``) and reported
         self.raise_faults = os.environ.get("PSNS_HIL_STRICT", "") not in ("", "0")
@@ -219,12 +180,22 @@ class Firmware(HostTask):
         self._gyro_fast_max = min(self._gyro_word_max, inside)
         self._accel_fast_max = (min(amax[0], inside), min(amax[1], inside), min(amax[2], inside))
         self._gnss_reject_run = 0
-        #: the innovation gate refused rows of the last GNSS fix (bit 7 of the nav frame's gnss_status)
-        self._gnss_gated = False
         self._psns_reject_since: float | None = None
         self.gnss = GnssTask(cfg, self.counters, self.clock, self._fault)
+        self.psns = PsnsTask(cfg, self.meter, self.cost, self._cyc, self.counters, self.core, self.clock, self.status,
+                             self._fault_events, self.dtype)
+        self.alignment = AlignmentTask(cfg, self.meter, self._cyc, self.core, self.gnss, self.clock, self.psns,
+                                       self.status, self.dtype, self.nav_dtype)
+        self.output = OutputTask(cfg, self.meter, self.core, self.gnss, self.clock, self.status, self.load,
+                                 self._cyc["nav_output"])
+        self.host = HostTask(cfg, self.meter, self.counters, self.core, self.alignment, self.output, self.status,
+                             self.load, self._uart_counts)
 
     # -- input validation and fault containment (docs/hostile-input.md) --------------------------------
+    def _reject(self, reason: str) -> None:
+        """Count one message refused by :mod:`firmware_model.input_guard` (``input_rejected_<reason>``)."""
+        count_rejection(self.counters, reason)
+
     def _fault(self, where: str, exc: BaseException) -> None:
         """An exception while handling one input message: counted, reported as an event, the run goes on."""
         if self.raise_faults:
@@ -255,14 +226,12 @@ class Firmware(HostTask):
                     self.last_mag = f
                     self.counters["mag_frames"] += 1
                     if not f.status & 0x01:  # not over range: into the history a variant may average
-                        self._mag_hist.append((self.clock.unwrap_near(f.t_sample_us) / 1e6, f.field))
+                        self.core.add_mag(self.clock.unwrap_near(f.t_sample_us) / 1e6, f.field)
         elif uart == UART_GNSS:
             self.gnss.on_bytes(self._dec_gnss, data, t_rx_s)
         elif uart == UART_HOST:
             for c in self._dec_host.feed(data):
-                if len(self._pending_cmd) == self._pending_cmd.maxlen:
-                    self.counters["commands_dropped"] += 1
-                self._pending_cmd.append(c)
+                self.host.queue(c)
         elif uart == UART_PSNS:
             frames = self._dec_psns.feed(data)
             if frames:
@@ -284,16 +253,25 @@ class Firmware(HostTask):
         return {"uart0": self._dec_host.stats.as_dict(), "uart1": self._dec_imu.stats.as_dict(),
                 "uart2": self._dec_psns.stats.as_dict(), "uart3": self.gnss.decoder_stats(self._dec_gnss)}
 
+    def _uart_counts(self) -> tuple[int, int, int, int, int, int]:
+        """Frames and errors (CRC, length, parse) of the UART1, UART2 and UART3 decoders, for STATUS."""
+        out: list[int] = []
+        for d in (self._dec_imu, self._dec_psns, self._dec_gnss):
+            st = d.stats
+            out += [st.frames, st.crc_errors + st.length_errors + st.parse_errors]
+        return out[0], out[1], out[2], out[3], out[4], out[5]
+
     def note_deadline_miss(self) -> None:
         """Called by the host DSP when a tick started after its deadline."""
-        self.deadline_misses += 1
+        self.load.note_miss()
 
     def snapshot(self) -> FirmwareSnapshot:
         """What the recorder and the report read (:class:`firmware_model.registry.FirmwareSnapshot`)."""
         flt = self.filter
         gb, ab = flt.gyro_bias, flt.accel_bias
         return FirmwareSnapshot(
-            state=str(self.state), mode=int(self.mode), filter=self.cfg.filter, precision=self.cfg.precision,
+            state=str(self.status.state), mode=int(self.status.mode), filter=self.cfg.filter,
+            precision=self.cfg.precision,
             covariance_diag=tuple(float(v) for v in np.asarray(flt.P).diagonal()),
             gyro_bias_rad_s=(float(gb[0]), float(gb[1]), float(gb[2])),
             accel_bias_mps2=(float(ab[0]), float(ab[1]), float(ab[2])),
@@ -344,8 +322,7 @@ class Firmware(HostTask):
                 epoch = self.clock.rebase(t_new, fr.t_trigger_us)
                 self._t_base_first_us = t_new
                 t_s = (epoch + fr.t_trigger_us) / 1e6
-                self._t_last_predict = t_s - (self._tick % self.cfg.kf_predict_every) * self.T
-                self._hist.clear()
+                self.core.rebase(t_s, self._tick % self.cfg.kf_predict_every)
                 self._fault_events.append({"event": "imu_time_resync", "t_fpga_s": t_s})
             self._imu_resync_run.clear()
         else:
@@ -443,73 +420,38 @@ class Firmware(HostTask):
         f_b = r3.unpack(r3.pack(a[0] * kv / vpg[0], a[1] * kv / vpg[1], a[2] * kv / vpg[2]))
         m.charge("imu_convert", self._cyc_convert)
 
-        if self.state == FirmwareState.COARSE_ALIGN:
-            self._align(t, np.array(f_b, dtype=self.dtype), res)
+        if self.status.state == FirmwareState.COARSE_ALIGN:
+            self.alignment.accumulate(t, np.array(f_b, dtype=self.dtype), res)
             m.end()
         else:
-            self._mechanize(t, g, f_b)
-            if self._tick % cfg.kf_predict_every == 0 and self._fn_n:
-                assert self.nav is not None  # the coarse alignment made it
-                m.begin("kf_predict", cfg.kf_predict_every * self.T)
-                n = self._fn_n
-                fn = np.array([x / n for x in self._fn_sum])
-                rot = (self._rot_sum[0], self._rot_sum[1], self._rot_sum[2])
-                self._fn_sum = [0.0, 0.0, 0.0]
-                self._rot_sum = [0.0, 0.0, 0.0]
-                self._fn_n = 0
-                Tk = t - self._t_last_predict  # the first interval after alignment may be shorter
-                self._t_last_predict = t
-                self.filter.rotation_b_rad = rot
-                self.filter.predict(self.nav, fn, Tk)
-                m.end()
+            core = self.core
+            core.mechanize(t, g, f_b)
+            if self._tick % cfg.kf_predict_every == 0 and core.predict_due():
+                core.predict(t)
             m.end()
             self._measurement_tasks(t, res)
-            if self.state == FirmwareState.FINE_ALIGN and t - self._t_aligned >= cfg.fine_align_time_s:
-                self.state = FirmwareState.NAVIGATE
-                self.mode = NavMode.NAVIGATING
+            if self.status.state == FirmwareState.FINE_ALIGN and t - self.status.t_aligned >= cfg.fine_align_time_s:
+                self.status.state = FirmwareState.NAVIGATE
+                self.status.mode = NavMode.NAVIGATING
                 res.events.append({"event": "fine_alignment_done", "t_fpga_s": t})
-        if self.state == FirmwareState.COARSE_ALIGN:
-            self._drain_psns_for_alignment(t)
+        if self.status.state == FirmwareState.COARSE_ALIGN:
+            while self._pending_psns:  # solved and kept for the TRIAD heading
+                t_rx, f = self._pending_psns.popleft()
+                self.alignment.psns_frame(t_rx, f)
         self._tick += 1
-        if self._out_every and self._tick % self._out_every == 0:
-            m.begin("output", self._out_every * self.T)
-            frame = self._nav_output(t)
-            m.charge("nav_output", self._cyc["nav_output"])
-            m.end()
-            res.outputs.append((UART_HOST, frame, m.elapsed))
-            if self._text_every and self._tick % self._text_every == 0:  # $PSNS text of the same solution
-                m.begin("text_output", self._text_every * self.T)
-                text = self._text_output(frame)
-                m.end()
-                res.outputs.append((cfg.nmea_uart, text, m.elapsed))
-        if self._nmea_every or self._nmea_att_every:
-            nmea_pos = bool(self._nmea_every) and self._tick % self._nmea_every == 0
-            nmea_att = bool(self._nmea_att_every) and self._tick % self._nmea_att_every == 0
-            if nmea_pos or nmea_att:
-                m.begin("nmea_output", min(e for e in (self._nmea_every, self._nmea_att_every) if e) * self.T)
-                text = self._nmea_output(t, nmea_pos, nmea_att)
-                m.end()
-                if text:
-                    res.outputs.append((cfg.nmea_uart, text, m.elapsed))
+        self.output.run(t, self._tick, res)
         ev = self.filter.drain_events()
         if ev:
             res.events.extend(ev)
             self.counters.update(self.filter.counters)
-        if self._pending_cmd or t >= self._next_status_t:
+        if self.host.due(t):
             m.begin("host", 1.0)
-            self._host_task(t, res)
+            self.host.run(t, res)
             m.end()
         res.cycles = m.end()
-        if self._solar_solves:  # the solves of this tick, for the host (contract C3)
-            res.solar_solves = self._solar_solves
-            self._solar_solves = []
-        # worst tick of the last second (sliding maximum) and since start, for NAV_SOLUTION / STATUS
-        while self._load_window and self._load_window[-1][1] <= res.cycles:
-            self._load_window.pop()
-        self._load_window.append((t, res.cycles))
-        while self._load_window[0][0] <= t - 1.0:
-            self._load_window.popleft()
-        self._load_max = max(self._load_max, res.cycles)
+        if self.psns.has_solves():  # the solves of this tick, for the host (contract C3)
+            res.solar_solves = self.psns.take_solves()
+        self.load.record(t, res.cycles)  # worst tick of the last second and since start, for NAV_SOLUTION / STATUS
         return res
 
     def _measurement_tasks(self, t: float, res: TickResult) -> None:
@@ -519,16 +461,16 @@ class Firmware(HostTask):
         assert nav is not None  # measurement tasks run after the coarse alignment
         updated = False
         g = self.gnss.pending(t)
-        if g is not None and (g.pos is not None or g.vel is not None) and self._hist:
+        if g is not None and (g.pos is not None or g.vel is not None) and self.core.has_history():
             self.gnss.take()
             if t - g.t_fpga_s > cfg.gnss_max_age_s:
                 self.counters["gnss_tag_stale"] += 1  # grew too old waiting for the loop (docs/icd.md 5.1.3)
             else:
                 m.begin("gnss_update", 1.0)
-                p_ins, v_ins, _ = self._ins_at(g.t_fpga_s)
+                p_ins, v_ins, _ = self.core.ins_at(g.t_fpga_s)
                 rep = self.filter.update_gnss(nav, g, p_ins, v_ins)
                 m.end()
-                self._gnss_gated = not rep.accepted or bool((rep.detail or {}).get("gated_rows"))
+                self.status.gnss_gated = not rep.accepted or bool((rep.detail or {}).get("gated_rows"))
                 if not rep.accepted:
                     self._gnss_reject_run += 1
                     self.counters["gnss_rejected"] = self.counters.get("gnss_rejected", 0) + 1
@@ -536,20 +478,20 @@ class Firmware(HostTask):
                     self._gnss_reject_run = 0
                 if rep.accepted:  # a variant may refuse a fix (federated: chi-square isolation)
                     self.counters["gnss_updates"] += 1
-                    self._last_gnss_update_t = t
+                    self.status.last_gnss_update_t = t
                     updated = True
                     res.events.append({"event": "gnss_update", "t_fpga_s": t, "t_meas_s": g.t_fpga_s,
                                        "n_meas": rep.n_rows, "max_norm_innov": rep.max_norm_innov})
-        while self._pending_psns and self._hist:
+        while self._pending_psns and self.core.has_history():
             t_rx, f = self._pending_psns.popleft()
             m.begin("psns_update", 0.0)
-            prep = self._psns_update(t, t_rx, f)
+            prep = self.psns.update(t, t_rx, f)
             m.end()
             if prep is not None:
                 if prep.accepted:
                     updated = True
                     self.counters["psns_updates"] += 1
-                    self._last_psns_t = t
+                    self.status.last_psns_t = t
                     self._psns_reject_since = None
                 else:
                     # divergence evidence only from an innovation test (a geometric refusal, e.g. the sun outside
@@ -557,10 +499,10 @@ class Firmware(HostTask):
                     if self._psns_reject_since is None and prep.max_norm_innov > 0.0:
                         self._psns_reject_since = t
                     self.counters["psns_rejected"] += 1
-                    if t - self._last_psns_reject_t >= 1.0:  # at most one event per second
+                    if t - self.status.last_psns_reject_t >= 1.0:  # at most one event per second
                         res.events.append({"event": "psns_rejected", "t_fpga_s": t, "measurement": prep.kind,
                                            "norm_innov": prep.max_norm_innov, **(prep.detail or {})})
-                    self._last_psns_reject_t = t
+                    self.status.last_psns_reject_t = t
         if updated:
             m.begin("kf_feedback", 0.0)
             self.filter.feedback(nav)
@@ -578,7 +520,7 @@ class Firmware(HostTask):
         if cfg.fdir_gnss_reject_limit and self._gnss_reject_run >= cfg.fdir_gnss_reject_limit:
             reason = "gnss_rejected"
         elif (cfg.fdir_psns_reject_s and self._psns_reject_since is not None
-              and t - self._psns_reject_since >= cfg.fdir_psns_reject_s and t - self._last_gnss_update_t < 5.0
+              and t - self._psns_reject_since >= cfg.fdir_psns_reject_s and t - self.status.last_gnss_update_t < 5.0
               and self._at_rest_for_realign()):
             reason = "psns_rejected"
         elif self._tick % cfg.kf_predict_every == 0:
@@ -594,7 +536,7 @@ class Firmware(HostTask):
                            "action": "re-alignment", "filter": self.cfg.filter})
         self._gnss_reject_run = 0
         self._psns_reject_since = None
-        self._restart_alignment()
+        self.alignment.restart()
 
     def _at_rest_for_realign(self) -> bool:
         """Whether the solar criterion may re-align: the navigation solution's horizontal speed under
@@ -615,6 +557,35 @@ class Firmware(HostTask):
     @property
     def P(self) -> FloatArray:
         return self.filter.P
+
+    @property
+    def nav(self) -> NavState | None:
+        """The navigation state (:attr:`.tasks.navigation.NavCore.nav`; None before the coarse alignment)."""
+        return self.core.nav
+
+    @nav.setter
+    def nav(self, value: NavState | None) -> None:
+        self.core.nav = value
+
+    @property
+    def filter(self) -> NavFilter:
+        """The filter of the selected variant (:attr:`.tasks.navigation.NavCore.filter`)."""
+        return self.core.filter
+
+    @property
+    def state(self) -> str:
+        """The mode manager's state (:class:`~.tasks.state.FirmwareState`)."""
+        return self.status.state
+
+    @property
+    def mode(self) -> NavMode:
+        """The NavMode bits of the mode manager (NAV_SOLUTION adds the aiding bits)."""
+        return self.status.mode
+
+    @property
+    def deadline_misses(self) -> int:
+        """Ticks the DSP host found late (:meth:`note_deadline_miss`)."""
+        return self.load.deadline_misses
 
 
 register_firmware("psns_hil", Firmware)

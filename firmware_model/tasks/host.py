@@ -4,6 +4,8 @@ and STATUS at 1 Hz (protocols/host.py, docs/decisions/protocols.md D-3.2)."""
 from __future__ import annotations
 
 import math
+from collections import deque
+from collections.abc import Callable
 from typing import Any
 
 from protocols.host import (
@@ -20,13 +22,13 @@ from protocols.host import (
     encode_ack,
     encode_status,
 )
-from protocols.stream import StreamDecoder
 
 from .. import c674x
-from ..config import FILTER_VARIANTS, UART_HOST
+from ..config import FILTER_VARIANTS, UART_HOST, FirmwareConfig
 from .alignment import AlignmentTask
-from .output import NavOutput
-from .state import TickResult
+from .navigation import NavCore
+from .output import OutputTask
+from .state import CpuLoad, LoopStatus, TickResult
 
 __all__ = ["FW_VERSION", "HostTask"]
 
@@ -34,9 +36,42 @@ __all__ = ["FW_VERSION", "HostTask"]
 FW_VERSION = 0x0105
 
 
-class HostTask(AlignmentTask, NavOutput):
-    """Host commands and STATUS."""
-    def _host_task(self, t: float, res: TickResult) -> None:
+class HostTask:
+    """Host commands and STATUS.
+
+    A task object of the cyclic executive: its state (the queue of commands, the STATUS schedule and sequence) is
+    its own; collaborators ``cfg`` (its ``filter`` is set by SELECT_VARIANT), ``meter``, ``counters`` (the loop's
+    table, shared), ``core`` (the filter it resets or replaces), ``alignment`` (restarted by RESET_FILTER scope 0),
+    ``output`` (its rate), ``status`` (mode, heading sigma), ``load`` (CPU load, deadline misses) and
+    ``uart_counts`` (the executive's UART1-3 decoders' frames and errors, for STATUS)."""
+
+    def __init__(self, cfg: FirmwareConfig, meter: c674x.CycleMeter, counters: dict[str, int], core: NavCore,
+                 alignment: AlignmentTask, output: OutputTask, status: LoopStatus, load: CpuLoad,
+                 uart_counts: Callable[[], tuple[int, int, int, int, int, int]]) -> None:
+        self.cfg = cfg
+        self.meter = meter
+        self.counters = counters
+        self.core = core
+        self.alignment = alignment
+        self.output = output
+        self.status = status
+        self.load = load
+        self._uart_counts = uart_counts
+        self._pending_cmd: deque[Any] = deque(maxlen=16)
+        self._next_status_t = 1.0
+        self._status_seq = 0
+
+    def queue(self, c: Any) -> None:
+        """A frame decoded on the host UART, for the next run (the oldest dropped, counted, when 16 wait)."""
+        if len(self._pending_cmd) == self._pending_cmd.maxlen:
+            self.counters["commands_dropped"] += 1
+        self._pending_cmd.append(c)
+
+    def due(self, t: float) -> bool:
+        """Whether a command waits or STATUS is due at tick time ``t`` (s)."""
+        return bool(self._pending_cmd) or t >= self._next_status_t
+
+    def run(self, t: float, res: TickResult) -> None:
         """Execute pending host commands (one ACK each) and send STATUS at 1 Hz (protocols/host.py, D-3.2)."""
         m = self.meter
         while self._pending_cmd:
@@ -65,12 +100,12 @@ class HostTask(AlignmentTask, NavOutput):
 
         if isinstance(c, ResetFilter):
             if c.scope == 0:
-                self._restart_alignment()
+                self.alignment.restart()
                 return CMD_RESET_FILTER, c.token, AckResult.ACCEPTED
             if c.scope == 1:
-                if self.nav is None:
+                if self.core.nav is None:
                     return CMD_RESET_FILTER, c.token, AckResult.NOT_ALLOWED
-                self.filter.initialise(self.nav, self._heading_sigma0)
+                self.core.filter.initialise(self.core.nav, self.status.heading_sigma0)
                 return CMD_RESET_FILTER, c.token, AckResult.ACCEPTED
             return CMD_RESET_FILTER, c.token, AckResult.BAD_ARGUMENT
         if isinstance(c, SelectVariant):
@@ -80,15 +115,15 @@ class HostTask(AlignmentTask, NavOutput):
                 return CMD_SELECT_VARIANT, c.token, AckResult.BAD_ARGUMENT
             if name not in FILTER_VARIANTS:
                 return CMD_SELECT_VARIANT, c.token, AckResult.NOT_ALLOWED  # not in this firmware build
-            self.filter = self._new_filter(name)
+            self.core.filter = self.core.new_filter(name)
             self.cfg.filter = name
-            if self.nav is not None:  # the new filter starts from the current navigation state
-                self.filter.initialise(self.nav, self._heading_sigma0)
+            if self.core.nav is not None:  # the new filter starts from the current navigation state
+                self.core.filter.initialise(self.core.nav, self.status.heading_sigma0)
             return CMD_SELECT_VARIANT, c.token, AckResult.ACCEPTED
         if isinstance(c, SetOutputRate):
             r = float(c.rate_hz)
             if r == 0.0:
-                self._out_every = 0
+                self.output.set_every(0)
                 return CMD_SET_OUTPUT_RATE, c.token, AckResult.ACCEPTED
             # the declared range (OUTPUT_RATE_MIN_HZ .. the IMU rate, D-3.11), then a divisor of the IMU rate:
             # 1e-30 Hz was a divisor of 2e32 ticks (an output that never comes) and was accepted before issue 41
@@ -98,7 +133,7 @@ class HostTask(AlignmentTask, NavOutput):
             if not ok or abs(k - round(k)) > 1e-6 * k:
                 self.counters["commands_rejected_output_rate"] += 1
                 return CMD_SET_OUTPUT_RATE, c.token, AckResult.BAD_ARGUMENT
-            self._out_every = round(k)
+            self.output.set_every(round(k))
             return CMD_SET_OUTPUT_RATE, c.token, AckResult.ACCEPTED
         if isinstance(c, RequestStatus):
             return CMD_REQUEST_STATUS, c.token, AckResult.ACCEPTED
@@ -108,25 +143,19 @@ class HostTask(AlignmentTask, NavOutput):
 
     def _status_frame(self, t: float) -> bytes:
         self.counters["status_frames"] += 1
-        vs = self.filter.variant_status()
+        vs = self.core.filter.variant_status()
         if vs is not None:
-            self.counters.update(self.filter.counters)
+            self.counters.update(self.core.filter.counters)
         self.meter.charge("status", 64 * 2 + 71 * 4 + c674x.CALL_OVERHEAD)  # pack + CRC-16 by table [E]
 
-        def errs(d: StreamDecoder) -> int:
-            st = d.stats
-            return st.crc_errors + st.length_errors + st.parse_errors
-
+        u1_frames, u1_errors, u2_frames, u2_errors, u3_frames, u3_errors = self._uart_counts()
         st = HostStatus(
-            seq=self._status_seq, time_s=t, filter_variant=self.filter.variant_id, mode=int(self.mode),
-            output_rate_hz=self.cfg.imu_rate_hz / self._out_every if self._out_every else 0.0,
-            gnss_status=self._gnss_status_byte(),
-            psns_status=self._psns_status_now(t), cpu_load_pct=self.cpu_load_pct(),
-            cpu_load_max_pct=100.0 * self._load_max / self.meter.tick_budget, fw_version=FW_VERSION,
-            deadline_misses=self.deadline_misses,
-            uart1_frames=self._dec_imu.stats.frames, uart1_errors=errs(self._dec_imu),
-            uart2_frames=self._dec_psns.stats.frames, uart2_errors=errs(self._dec_psns),
-            uart3_frames=self._dec_gnss.stats.frames, uart3_errors=errs(self._dec_gnss),
+            seq=self._status_seq, time_s=t, filter_variant=self.core.filter.variant_id, mode=int(self.status.mode),
+            output_rate_hz=self.output.rate_hz(), gnss_status=self.output.gnss_status_byte(),
+            psns_status=self.status.psns_status(t), cpu_load_pct=self.load.load_pct(),
+            cpu_load_max_pct=self.load.max_pct(), fw_version=FW_VERSION, deadline_misses=self.load.deadline_misses,
+            uart1_frames=u1_frames, uart1_errors=u1_errors, uart2_frames=u2_frames, uart2_errors=u2_errors,
+            uart3_frames=u3_frames, uart3_errors=u3_errors,
             commands_accepted=self.counters["commands_accepted"], commands_rejected=self.counters["commands_rejected"],
             variant_mode=vs[0] if vs is not None else 0,
         )

@@ -15,12 +15,16 @@ from protocols.nmea_nav import build_hdt, build_pashr, build_ths
 
 from .. import c674x, earth
 from ..attitude import heading_from_yaw
+from ..config import UART_HOST, FirmwareConfig
 from ..kf import D_H, D_LAT, D_LON, DV_E, DV_N, DV_U, N_NAV_ERRORS, PHI_E, PHI_N, PHI_U
 from ..nav_state import POS, Q, V
 from ..units import DEG
-from .state import FirmwareState, LoopState
+from .gnss import GnssTask
+from .navigation import NavCore
+from .state import CpuLoad, FirmwareState, LoopStatus, TickResult
+from .timekeeping import Clock
 
-__all__ = ["NavOutput", "utc_from_grena_days"]
+__all__ = ["OutputTask", "utc_from_grena_days"]
 
 #: Grena's day count starts at 2060-01-01 00:00 UT (firmware_model.sun.grena_days)
 _GRENA_EPOCH = _dt.datetime(2060, 1, 1)
@@ -37,21 +41,71 @@ _GNSS_AIDED, _PSNS_AIDED, _DEGRADED = int(NavMode.GNSS_AIDED), int(NavMode.PSNS_
 _sqrt = math.sqrt
 
 
-class NavOutput(LoopState):
-    """NAV_SOLUTION frames (attitude from the quaternion, sigmas from the filter's P)."""
-    def cpu_load_pct(self) -> float:
-        """Worst tick of the last second, % of the tick budget (NAV_SOLUTION / STATUS ``cpu_load``)."""
-        worst = self._load_window[0][1] if self._load_window else 0
-        return 100.0 * worst / self.meter.tick_budget
+class OutputTask:
+    """NAV_SOLUTION frames (attitude from the quaternion, sigmas from the filter's P), their ``$PSNS`` text and the
+    NMEA sentences, each at its rate.
 
-    def _psns_status_now(self, t: float) -> int:
-        return 1 if t - self._last_psns_t < 2.0 else 2 if t - self._last_psns_reject_t < 2.0 else 0
+    A task object of the cyclic executive: its state (the rates as IMU ticks, the frame sequence) is its own;
+    collaborators ``cfg``, ``meter``, ``core`` (the navigation state and the filter), ``gnss`` (the last fix),
+    ``clock`` (UTC), ``status`` (mode and aiding times) and ``load`` (the CPU load and deadline misses reported)."""
 
-    def _gnss_status_byte(self) -> int:
-        """``gnss_status``: the last fix's GGA quality (bits 0-6), bit 7 when the innovation gate refused rows of
-        the last GNSS fix (docs/hostile-input.md)."""
-        quality = self.gnss.last_fix[3] & 0x7F if self.gnss.last_fix is not None else 0
-        return quality | (0x80 if self._gnss_gated else 0)
+    def __init__(self, cfg: FirmwareConfig, meter: c674x.CycleMeter, core: NavCore, gnss: GnssTask, clock: Clock,
+                 status: LoopStatus, load: CpuLoad, nav_output_cycles: int) -> None:
+        self.cfg = cfg
+        self.meter = meter
+        self.core = core
+        self.gnss = gnss
+        self.clock = clock
+        self.status = status
+        self.load = load
+        self._cyc_nav_output = nav_output_cycles
+        self._T = 1.0 / cfg.imu_rate_hz
+        self._out_every = round(cfg.imu_rate_hz / cfg.output_rate_hz)  # IMU ticks per NAV_SOLUTION (0: off)
+        pos = any(n in _POSITION_SENTENCES for n in cfg.nmea_sentences)
+        att = any(n in ("HDT", "THS", "PASHR") for n in cfg.nmea_sentences)
+        #: IMU ticks per NMEA position/velocity/time group and per heading/attitude group (0: off)
+        self._nmea_every = round(cfg.imu_rate_hz / cfg.nmea_rate_hz) if pos else 0
+        self._nmea_att_every = round(cfg.imu_rate_hz / cfg.nmea_attitude_rate_hz) if att else 0
+        self._text_every = round(cfg.imu_rate_hz / cfg.text_rate_hz) if cfg.text_rate_hz else 0
+        self._out_seq = 0
+
+    # -- the task's interface to the loop ---------------------------------------------------------------
+    def run(self, t: float, tick: int, res: TickResult) -> None:
+        """The outputs due at the ``tick``-th IMU tick (time ``t``, s), each metered as its task, into ``res``."""
+        m = self.meter
+        cfg = self.cfg
+        if self._out_every and tick % self._out_every == 0:
+            m.begin("output", self._out_every * self._T)
+            frame = self.nav_solution(t)
+            m.charge("nav_output", self._cyc_nav_output)
+            m.end()
+            res.outputs.append((UART_HOST, frame, m.elapsed))
+            if self._text_every and tick % self._text_every == 0:  # $PSNS text of the same solution
+                m.begin("text_output", self._text_every * self._T)
+                text = self._text_output(frame)
+                m.end()
+                res.outputs.append((cfg.nmea_uart, text, m.elapsed))
+        if self._nmea_every or self._nmea_att_every:
+            nmea_pos = bool(self._nmea_every) and tick % self._nmea_every == 0
+            nmea_att = bool(self._nmea_att_every) and tick % self._nmea_att_every == 0
+            if nmea_pos or nmea_att:
+                m.begin("nmea_output", min(e for e in (self._nmea_every, self._nmea_att_every) if e) * self._T)
+                text = self._nmea_output(t, nmea_pos, nmea_att)
+                m.end()
+                if text:
+                    res.outputs.append((cfg.nmea_uart, text, m.elapsed))
+
+    def set_every(self, ticks: int) -> None:
+        """NAV_SOLUTION every ``ticks`` IMU ticks (0: off; SET_OUTPUT_RATE)."""
+        self._out_every = ticks
+
+    def rate_hz(self) -> float:
+        """The NAV_SOLUTION rate (Hz; 0: off)."""
+        return self.cfg.imu_rate_hz / self._out_every if self._out_every else 0.0
+
+    def gnss_status_byte(self) -> int:
+        """``gnss_status`` of NAV_SOLUTION / STATUS (:meth:`.state.LoopStatus.gnss_status_byte`)."""
+        return self.status.gnss_status_byte(self.gnss.last_fix)
 
     def _euler_deg(self, x: Sequence[float]) -> tuple[float, float, float]:
         """``(roll, pitch, heading)`` in degrees from the quaternion of the state floats ``x`` (PSINS m2att from
@@ -82,7 +136,7 @@ class NavOutput(LoopState):
         utc += _dt.timedelta(microseconds=round(utc.microsecond, -4) - utc.microsecond)
         tm, date = utc.time(), utc.date()
         talker = cfg.nmea_talker
-        s = self.nav
+        s = self.core.nav
         out: list[bytes] = []
         # heading and attitude first, the position group last: readers such as gpsd end their reporting cycle at
         # the last timed sentence of a burst, and a heading sentence after GGA/RMC split gpsd's cycle (no TPV)
@@ -102,7 +156,7 @@ class NavOutput(LoopState):
             x = s.as_floats()
             lat, lon, h = x[POS]
             ve, vn, _vu = x[V]
-            aided = t - self._last_gnss_update_t < 2.0
+            aided = t - self.status.last_gnss_update_t < 2.0
             speed = math.hypot(ve, vn)
             course = math.atan2(ve, vn) / DEG % 360.0
             roll = pitch = heading = 0.0
@@ -125,7 +179,7 @@ class NavOutput(LoopState):
                 elif n == "THS":
                     out.append(build_ths(heading, "A" if aided else "E", talker=talker))
                 elif n == "PASHR":
-                    d = [_sqrt(0.0 if v < 0.0 else v) for v in self.filter.P.diagonal()[:3].tolist()]
+                    d = [_sqrt(0.0 if v < 0.0 else v) for v in self.core.filter.P.diagonal()[:3].tolist()]
                     # roll/pitch sigma: the level misalignments (about N and E), heading: about U
                     out.append(build_pashr(tm, heading, roll, pitch, 0.0, d[PHI_N] / DEG, d[PHI_E] / DEG,
                                            d[PHI_U] / DEG, aiding=1 if aided else 0))
@@ -144,11 +198,12 @@ class NavOutput(LoopState):
             return b""
         for n_chars, n_scaled in _TEXT_SIZE:
             self.meter.charge("text_format", c674x.nmea_sentence(n_chars, n_scaled))
-        return nav_text_sentences(nav, self.filter.variant_id & 0xF)
+        return nav_text_sentences(nav, self.core.filter.variant_id & 0xF)
 
-    def _nav_output(self, t: float) -> bytes:
-        s = self.nav
-        mode = int(self.mode) | (self.filter.variant_id & 0xF) << 8
+    def nav_solution(self, t: float) -> bytes:
+        """The NAV_SOLUTION frame at tick time ``t`` (s), the next sequence number."""
+        s = self.core.nav
+        mode = int(self.status.mode) | (self.core.filter.variant_id & 0xF) << 8
         if s is None:
             lat = lon = h = 0.0
             if self.gnss.last_fix is not None:
@@ -157,13 +212,14 @@ class NavOutput(LoopState):
             roll = pitch = heading = 0.0
             sigma = (0.0,) * 9
         else:
-            if t - self._last_gnss_update_t < 2.0:
+            st = self.status
+            if t - st.last_gnss_update_t < 2.0:
                 mode |= _GNSS_AIDED
-            elif self.state != FirmwareState.COARSE_ALIGN and t - self._t_aligned > 3.0:
+            elif st.state != FirmwareState.COARSE_ALIGN and t - st.t_aligned > 3.0:
                 mode |= _DEGRADED  # GNSS missing or stale
-            if t - self._last_psns_t < 2.0:
+            if t - st.last_psns_t < 2.0:
                 mode |= _PSNS_AIDED
-            if t - self._last_psns_reject_t < 2.0:
+            if t - st.last_psns_reject_t < 2.0:
                 mode |= _DEGRADED
             x = s.as_floats()
             lat, lon, h = x[POS]
@@ -171,13 +227,13 @@ class NavOutput(LoopState):
             vel = (ve, vn, vu)
             roll, pitch, heading = self._euler_deg(x)
             # sqrt(max(v, 0)) of the navigation errors' variances (kf layout)
-            d = [_sqrt(0.0 if v < 0.0 else v) for v in self.filter.P.diagonal()[:N_NAV_ERRORS].tolist()]
+            d = [_sqrt(0.0 if v < 0.0 else v) for v in self.core.filter.P.diagonal()[:N_NAV_ERRORS].tolist()]
             rm, rn = earth.radii(lat)
             sigma = (
                 d[PHI_E] / DEG, d[PHI_N] / DEG, d[PHI_U] / DEG, d[DV_E], d[DV_N], d[DV_U],
                 d[D_LAT] * (rm + h), d[D_LON] * (rn + h) * math.cos(lat), d[D_H],
             )
-        vs = self.filter.variant_status()
+        vs = self.core.filter.variant_status()
         if vs is not None:  # VARIANT block: pack 4 bytes + CRC over 6 more [E]
             self.meter.charge("nav_variant_block", 6 * 4 + 4 * 2)
         seq = self._out_seq
@@ -185,7 +241,7 @@ class NavOutput(LoopState):
         # the NavSolution fields in order (protocols.host.nav_solution_frame), without building the object
         return nav_solution_frame(
             seq, t, lat / DEG, lon / DEG, h, vel, roll, pitch, heading, sigma, int(mode),
-            self._gnss_status_byte(), self._psns_status_now(t), self.cpu_load_pct(), self.deadline_misses,
+            self.gnss_status_byte(), self.status.psns_status(t), self.load.load_pct(), self.load.deadline_misses,
             *(vs if vs is not None else (None, 0, 0)))
 
 

@@ -1,32 +1,21 @@
-"""The cyclic executive's shared state: mode-manager states, :class:`TickResult` and :class:`LoopState`.
+"""What the cyclic executive shares with its tasks: mode-manager states, :class:`TickResult`, the
+:class:`LoopStatus` record (mode manager, aiding times, the heading's standing) and the :class:`CpuLoad`.
 
-:class:`LoopState` declares, once, every attribute the tasks share (``Firmware.__init__`` sets them); the task
-classes derive from it so that each task module is type-checked against the same declarations.
+``Firmware.__init__`` makes one of each and hands them to the tasks that write or report them.
 """
 
 from __future__ import annotations
 
-import struct
 from collections import deque
-from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from protocols.host import NavMode
-from protocols.imu_frame import ImuFrame, MagFrame
-from protocols.stream import StreamDecoder
-
-from .. import c674x
-from ..arrays import F64Array, FloatArray, FloatDtype
-from ..config import FirmwareConfig
-from ..filters import NavFilter, SolarObservation
-from ..nav_state import NavFloats, NavState
-from .timekeeping import Clock
 
 if TYPE_CHECKING:  # gnss.py imports count_rejection from here
-    from .gnss import GnssTask
+    pass
 
-__all__ = ["FirmwareState", "LoopState", "SolarSolve", "TickResult", "count_rejection"]
+__all__ = ["CpuLoad", "FirmwareState", "LoopStatus", "SolarSolve", "TickResult", "count_rejection"]
 
 
 class FirmwareState:
@@ -74,92 +63,68 @@ class TickResult:
     solar_solves: list[SolarSolve] = field(default_factory=list)
 
 
-class LoopState:
-    """The state of the loop that its tasks share (set by ``Firmware.__init__``; units in the comments)."""
+@dataclass
+class LoopStatus:
+    """The mode manager's state and the aiding times: written by the alignment and the measurement tasks, reported
+    by the output and host tasks (a record the executive owns and hands to them; times in s, FPGA time base)."""
 
-    cfg: FirmwareConfig
-    #: working precision of the filters and kernels; ``nav_dtype``: of the strapdown state (q, v)
-    dtype: FloatDtype
-    nav_dtype: FloatDtype
-    #: the strapdown step in nav_dtype (strapdown.strapdown_kernel): step(state, phi_m, dv_m, T)
-    _strapdown: Callable[[NavState, Sequence[float], Sequence[float], float], NavState]
-    meter: c674x.CycleMeter
-    cost: c674x.KernelCosts
-    counters: dict[str, int]
-    deadline_misses: int
-    # per-tick kernel cycles (firmware.tick_kernel_cycles) and IMU conversion constants
-    _cyc: dict[str, int]
-    _cyc_decode: int
-    _cyc_convert: int
-    _cyc_coning1: int
-    _cyc_strapdown: int
-    T: float  # IMU sample interval, s
-    _nsub: int  # IMU samples per strapdown update
-    _gyro_k: float
-    _T_w: float
-    _kv: float
-    _round3: struct.Struct
-    _pack6: Callable[..., bytes]
-    _unpack6: Callable[[bytes], tuple[Any, ...]]
-    _bias_cache: tuple[Any, Any, tuple[float, ...]]
-    _out_every: int  # IMU ticks per NAV_SOLUTION (0: off)
-    _nmea_every: int  # IMU ticks per NMEA position/velocity/time group (0: off)
-    _nmea_att_every: int  # IMU ticks per NMEA heading/attitude group (0: off)
-    # UART decoders and what they staged
-    _dec_imu: StreamDecoder
-    _dec_gnss: StreamDecoder
-    _dec_host: StreamDecoder
-    _dec_psns: StreamDecoder
-    _pending_cmd: deque[Any]
-    _pending_imu: deque[ImuFrame]
-    _pending_psns: deque[tuple[float, Any]]  # (t_rx_s, frame)
-    _rx_other: dict[int, int]
-    last_mag: MagFrame | None
-    _mag_hist: deque[tuple[float, tuple[int, int, int]]]  # (t_sample_s, field)
-    _mag_w_inv: F64Array
-    _mag_h: F64Array
-    _last_counter: int | None
-    #: the FPGA time base and UTC (a task object of its own, :class:`~.timekeeping.Clock`)
-    clock: Clock
-    # mode manager and alignment
-    state: str
-    mode: NavMode
-    _align_sum: FloatArray
-    _align_n: int
-    _align_t0: float | None
-    _align_sun: list[SolarObservation]
-    _t_aligned: float
-    _t_last_predict: float
-    _heading_sigma0: float
-    #: the heading is the configured placeholder of a PSNS alignment that timed out (D-5.50)
-    _heading_placeholder: bool
-    _fault_events: list[dict[str, Any]]
-    # navigation
-    nav: NavState | None
-    filter: NavFilter
-    _tick: int
-    _sub: list[tuple[FloatArray, FloatArray]]
-    _fn_sum: list[float]  # sum of f^n over the KF interval (Python floats, float64)
-    _fn_n: int
-    _rot_sum: list[float]  # sum of |phi_m| per body axis over the KF interval (rad, Python floats)
-    _hist: deque[tuple[float, NavFloats]]  # INS history: (t, NavState.as_floats())
-    #: the GNSS staging (a task object of its own, :class:`~.gnss.GnssTask`)
-    gnss: GnssTask
-    _last_gnss_update_t: float
-    _gnss_gated: bool  # the innovation gate refused rows of the last GNSS fix
-    _last_psns_t: float
-    _last_psns_reject_t: float
-    _solar_solves: list[SolarSolve]  # solved in the current tick (TickResult.solar_solves)
-    # output and status
-    _out_seq: int
-    _load_window: deque[tuple[float, int]]
-    _load_max: int
-    _next_status_t: float
-    _status_seq: int
+    state: str = FirmwareState.COARSE_ALIGN
+    mode: NavMode = NavMode.ALIGNING
+    #: end of the coarse alignment (start of FINE_ALIGN)
+    t_aligned: float = 0.0
+    #: latest accepted GNSS update; the innovation gate refused rows of the last GNSS fix (gnss_status bit 7)
+    last_gnss_update_t: float = -1e9
+    gnss_gated: bool = False
+    #: latest accepted solar update and latest refused one
+    last_psns_t: float = -1e9
+    last_psns_reject_t: float = -1e9
+    #: the heading's sigma the filter started from (rad; a reset starts from it again) and whether the heading is
+    #: the configured placeholder of a PSNS alignment that timed out (D-5.50)
+    heading_sigma0: float = 0.0
+    heading_placeholder: bool = False
 
-    def _reject(self, reason: str) -> None:
-        """Count one message refused by :mod:`firmware_model.input_guard` (``input_rejected_<reason>``)."""
-        count_rejection(self.counters, reason)
+    def psns_status(self, t: float) -> int:
+        """``psns_status`` of NAV_SOLUTION / STATUS at ``t``: 1 aiding, 2 refused lately, 0 none."""
+        return 1 if t - self.last_psns_t < 2.0 else 2 if t - self.last_psns_reject_t < 2.0 else 0
+
+    def gnss_status_byte(self, last_fix: tuple[float, float, float, int] | None) -> int:
+        """``gnss_status``: the last fix's GGA quality (bits 0-6), bit 7 when the innovation gate refused rows of
+        the last GNSS fix (docs/hostile-input.md)."""
+        quality = last_fix[3] & 0x7F if last_fix is not None else 0
+        return quality | (0x80 if self.gnss_gated else 0)
+
+
+class CpuLoad:
+    """The CPU load the firmware reports: the worst tick of the last second (sliding maximum), the worst since
+    start, and the deadline misses the DSP host noted. Collaborator: ``tick_budget`` (cycles per IMU tick)."""
+
+    def __init__(self, tick_budget: int) -> None:
+        self._tick_budget = tick_budget
+        self._window: deque[tuple[float, int]] = deque()
+        self._max = 0
+        self.deadline_misses = 0
+
+    def record(self, t: float, cycles: int) -> None:
+        """The tick at ``t`` (s) charged ``cycles``."""
+        while self._window and self._window[-1][1] <= cycles:
+            self._window.pop()
+        self._window.append((t, cycles))
+        while self._window[0][0] <= t - 1.0:
+            self._window.popleft()
+        self._max = max(self._max, cycles)
+
+    def load_pct(self) -> float:
+        """Worst tick of the last second, % of the tick budget (NAV_SOLUTION / STATUS ``cpu_load``)."""
+        worst = self._window[0][1] if self._window else 0
+        return 100.0 * worst / self._tick_budget
+
+    def max_pct(self) -> float:
+        """Worst tick since start, % of the tick budget (STATUS ``cpu_load_max``)."""
+        return 100.0 * self._max / self._tick_budget
+
+    def note_miss(self) -> None:
+        """The DSP host found a tick late."""
+        self.deadline_misses += 1
 
 
 def count_rejection(counters: dict[str, int], reason: str) -> None:

@@ -209,7 +209,7 @@ def run_case(name: str, variant: str = "base", duration_s: float = 70.0, gnss_ou
         fw.receive(uart, data, t_rx)
         if uart != UART_IMU:
             continue
-        if upset is not None and fw.nav is not None and fw.now_s() >= T_BAD[0]:
+        if upset is not None and fw.nav is not None and fw.clock.now_s() >= T_BAD[0]:
             upset(fw)
             upset = None
         for r in fw.service():

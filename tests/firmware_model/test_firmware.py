@@ -118,7 +118,7 @@ def test_psns_exposure_time_tag_uses_latency_and_line_time():
     cfg = FirmwareConfig(psns_baud=57600)
     fw = Firmware(cfg)
     got = []
-    orig = fw._psns_observation
+    orig = fw.psns.observation
 
     def spy(t_rx, f):
         obs = orig(t_rx, f)
@@ -126,7 +126,7 @@ def test_psns_exposure_time_tag_uses_latency_and_line_time():
             got.append(obs.t_exposure_s)
         return obs
 
-    fw._psns_observation = spy  # type: ignore[method-assign]
+    fw.psns.observation = spy  # type: ignore[method-assign]
     for t_rx, uart, data in static_stream(truth, SensorErrors(), stream, 5.0):
         fw.receive(uart, data, t_rx)
         if uart == 1:

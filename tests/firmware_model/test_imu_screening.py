@@ -117,7 +117,7 @@ def test_a_new_time_base_is_taken_after_five_consistent_frames() -> None:
     jump = 1_000_000_000
     feed(fw, [frame(k, t_us=k * PERIOD_US + jump) for k in range(400, 406)])
     assert fw.counters["imu_time_resync"] == 1
-    assert fw.now_s() == pytest.approx((405 * PERIOD_US + jump) / 1e6)
+    assert fw.clock.now_s() == pytest.approx((405 * PERIOD_US + jump) / 1e6)
     assert fw.counters["imu_resync_refused"] == 0
 
 
@@ -126,14 +126,14 @@ def test_a_replayed_time_base_never_resyncs_the_clock() -> None:
     in ``imu_resync_refused``, and the clock stays; the live stream goes on afterwards."""
     fw = Firmware(FirmwareConfig())
     feed(fw, [frame(k) for k in range(2000)])  # 10 s
-    t_before = fw.now_s()
+    t_before = fw.clock.now_s()
     feed(fw, [frame(k) for k in range(600, 1000)])  # 2 s replayed from t = 3 s
     assert fw.counters["imu_time_resync"] == 0
-    assert fw.now_s() == t_before
+    assert fw.clock.now_s() == t_before
     assert fw.counters["imu_resync_refused"] == 400
     assert fw.counters["input_rejected_imu_time_replay"] == 400
     feed(fw, [frame(k) for k in range(2000, 2010)])
-    assert fw.counters["imu_frames"] == 2010 and fw.now_s() == pytest.approx(2009 * PERIOD_US / 1e6)
+    assert fw.counters["imu_frames"] == 2010 and fw.clock.now_s() == pytest.approx(2009 * PERIOD_US / 1e6)
 
 
 def test_a_duplicated_frame_never_resyncs_the_clock() -> None:
@@ -162,7 +162,7 @@ def test_an_fpga_restart_from_sequence_zero_is_taken() -> None:
     feed(fw, [frame(k) for k in range(2000)])
     feed(fw, [frame(k) for k in range(0, 6)])
     assert fw.counters["imu_time_resync"] == 1 and fw.counters["imu_resync_refused"] == 0
-    assert fw.now_s() == pytest.approx(5 * PERIOD_US / 1e6)
+    assert fw.clock.now_s() == pytest.approx(5 * PERIOD_US / 1e6)
 
 
 # -- SET_OUTPUT_RATE ---------------------------------------------------------------------------------------------
@@ -191,7 +191,7 @@ def test_a_replay_after_a_jumped_frame_never_resyncs_the_clock() -> None:
     time and is refused frame by frame (a run may hold lived time only when it began at sequence 0)."""
     fw = Firmware(FirmwareConfig())
     feed(fw, [frame(k) for k in range(2000)])
-    t_before = fw.now_s()
+    t_before = fw.clock.now_s()
     feed(fw, [frame(2000, t_us=2000 * PERIOD_US + 10_000_000)] + [frame(k) for k in range(600, 700)])
-    assert fw.counters["imu_time_resync"] == 0 and fw.now_s() == t_before
+    assert fw.counters["imu_time_resync"] == 0 and fw.clock.now_s() == t_before
     assert fw.counters["input_rejected_imu_time_replay"] == 100

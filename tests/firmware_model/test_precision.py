@@ -141,7 +141,7 @@ def test_firmware_steps_with_the_kernel_of_strapdown_step_fast(nav):
 
     fw = Firmware(FirmwareConfig(nav_state_precision=nav))
     dt = np.float64 if nav == "float64" else np.float32
-    assert fw._strapdown is strapdown_kernel(dt)
+    assert fw.core._strapdown is strapdown_kernel(dt)
     rng = np.random.default_rng(3)
     q = mat2q(a2mat(0.01, -0.02, 0.7))
     a = NavState(q.astype(dt), np.array([3.0, -1.0, 0.1], dtype=dt), np.array([0.7, 2.0, 50.0]), 0.0)
@@ -149,6 +149,6 @@ def test_firmware_steps_with_the_kernel_of_strapdown_step_fast(nav):
     for _ in range(50):
         phi = rng.normal(0, 1e-3, 3).astype(dt).tolist()
         dv = rng.normal(0, 5e-2, 3).astype(dt).tolist()
-        fw._strapdown(a, phi, dv, 0.005)
+        fw.core._strapdown(a, phi, dv, 0.005)
         strapdown_step_fast(b, phi, dv, 0.005, dt)
     assert a.as_floats() == b.as_floats()

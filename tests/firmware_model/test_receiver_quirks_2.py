@@ -91,7 +91,7 @@ def test_receiver_clock_step_is_followed_after_n_epochs_and_no_wrong_tag_is_used
     # UTC follows the receiver: the firmware's clock at FPGA time t reads the receiver's (stepped) UTC
     t = 50.0
     want = (_utc(t, step_s) - dt.datetime(2060, 1, 1, tzinfo=dt.UTC)).total_seconds() / 86400.0
-    assert fw.utc_days(t) == pytest.approx(want, abs=0.05 / 86400.0)
+    assert fw.clock.utc_days(t) == pytest.approx(want, abs=0.05 / 86400.0)
 
 
 def test_a_single_stepped_epoch_moves_neither_the_time_base_nor_utc() -> None:
@@ -102,7 +102,7 @@ def test_a_single_stepped_epoch_moves_neither_the_time_base_nor_utc() -> None:
     fw, events = _run(cfg, _chunks(epochs, latency, 0.004, seed=6), duration)
     assert fw.counters["gnss_clock_steps"] == 0 and fw.counters["gnss_clock_step_refused"] == 1
     want = (_utc(25.0) - dt.datetime(2060, 1, 1, tzinfo=dt.UTC)).total_seconds() / 86400.0
-    assert fw.utc_days(25.0) == pytest.approx(want, abs=0.05 / 86400.0)
+    assert fw.clock.utc_days(25.0) == pytest.approx(want, abs=0.05 / 86400.0)
     ups = [e["t_meas_s"] for e in events if e["event"] == "gnss_update"]
     assert 15.0 not in np.round(ups) and all(abs(t - round(t)) < 0.05 for t in ups)
 
@@ -163,7 +163,7 @@ def test_gga_and_zda_streams_give_utc() -> None:
         lines.append((k + 0.2, build_gga(u.time(), TRUTH.lat_deg, TRUTH.lon_deg, 50.0, 0.0, 1, 10, 0.9)
                       + build_zda(u.time(), u.date(), 0, 0)))
     _feed_lines(fw, lines)
-    assert fw.utc_days(4.0) == pytest.approx(_grena(_utc(4.0)), abs=0.2 / 86400.0)
+    assert fw.clock.utc_days(4.0) == pytest.approx(_grena(_utc(4.0)), abs=0.2 / 86400.0)
 
 
 def _rmc_lines(k0: int, k1: int, date_of: dict[int, bytes | None] | None = None, valid_of: dict[int, bool] | None
@@ -189,7 +189,7 @@ def test_the_2019_rollover_rmc_does_not_move_the_date() -> None:
     fw = Firmware(FirmwareConfig(gnss_baud=BAUD, gnss_latency_s=0.05))
     _feed_lines(fw, _rmc_lines(1, 12, date_of={k: b"220899" for k in range(6, 12)}))
     assert fw.counters["gnss_date_refused"] >= 5
-    assert fw.utc_days(10.0) == pytest.approx(_grena(_utc(10.0)), abs=0.2 / 86400.0)
+    assert fw.clock.utc_days(10.0) == pytest.approx(_grena(_utc(10.0)), abs=0.2 / 86400.0)
     assert fw.clock.date == _utc(10).date()
 
 
@@ -197,7 +197,7 @@ def test_a_rollover_date_first_is_refused_too() -> None:
     """Without a running clock the firmware's GPS week era alone refuses the rollover date: no UTC from it."""
     fw = Firmware(FirmwareConfig(gnss_baud=BAUD, gnss_latency_s=0.05))
     _feed_lines(fw, _rmc_lines(1, 6, date_of={k: b"220899" for k in range(1, 6)}))
-    assert fw.utc_days(4.0) is None and fw.clock.date is None and fw.counters["gnss_date_refused"] >= 4
+    assert fw.clock.utc_days(4.0) is None and fw.clock.date is None and fw.counters["gnss_date_refused"] >= 4
 
 
 def test_a_void_rmc_with_an_rtc_date_does_not_move_the_date() -> None:
@@ -206,7 +206,7 @@ def test_a_void_rmc_with_an_rtc_date_does_not_move_the_date() -> None:
     rtc = {k: b"010607" for k in range(6, 12)}
     _feed_lines(fw, _rmc_lines(1, 12, date_of=rtc, valid_of=dict.fromkeys(range(6, 12), False)))
     assert fw.clock.date == _utc(10).date()
-    assert fw.utc_days(10.0) == pytest.approx(_grena(_utc(10.0)), abs=1.5 / 86400.0)
+    assert fw.clock.utc_days(10.0) == pytest.approx(_grena(_utc(10.0)), abs=1.5 / 86400.0)
 
 
 def test_a_date_jump_against_the_running_clock_is_refused() -> None:
@@ -220,7 +220,7 @@ def test_a_date_jump_against_the_running_clock_is_refused() -> None:
                                                                          50.0, 0.0, 1, 10, 0.9)))
     _feed_lines(fw, lines)
     assert fw.counters["gnss_date_refused"] >= 4
-    assert fw.utc_days(8.0) == pytest.approx(_grena(_utc(8.0)), abs=0.2 / 86400.0)
+    assert fw.clock.utc_days(8.0) == pytest.approx(_grena(_utc(8.0)), abs=0.2 / 86400.0)
 
 
 # -- 3. fix quality -----------------------------------------------------------------------------------------------
@@ -427,7 +427,7 @@ def test_legacy_ubx_sets_form_epochs_with_position_velocity_and_utc(msgs: tuple[
         assert h == pytest.approx(TRUTH.height_m, abs=0.02) and m.pos_up
         assert np.allclose(m.vel, (3.0, -4.0, 0.5), atol=0.011) and m.vel_up
     if "NAV-TIMEUTC" in msgs:
-        assert fw.utc_days(5.0) == pytest.approx(_grena(_utc(5.0)), abs=0.2 / 86400.0)
+        assert fw.clock.utc_days(5.0) == pytest.approx(_grena(_utc(5.0)), abs=0.2 / 86400.0)
 
 
 def test_legacy_ubx_without_a_fix_type_is_not_used() -> None:
@@ -456,7 +456,7 @@ def test_a_leap_second_from_the_receivers_own_data_is_no_clock_step() -> None:
     t = np.array([e["t_meas_s"] for e in events if e["event"] == "gnss_update"])
     assert np.abs(t - np.round(t))[5:].max() < 2e-3
     assert set(range(k_leap, int(duration) - 3)) <= set(np.round(t).astype(int))
-    assert fw.utc_days(30.0) == pytest.approx(_grena(_utc(29.0)), abs=0.2 / 86400.0)
+    assert fw.clock.utc_days(30.0) == pytest.approx(_grena(_utc(29.0)), abs=0.2 / 86400.0)
 
 
 def _legacy_epoch_utc_shift(k: int, leap: int) -> bytes:
@@ -496,7 +496,7 @@ def test_a_simulator_fix_sets_no_utc() -> None:
                                                                     0.0, 0.0, valid=True, mode="S")))
     _feed_lines(fw, lines)
     assert fw.counters["gnss_fixes"] == 0 and fw.counters["gnss_sim_refused"] >= 4
-    assert fw.utc_days(4.0) is None and fw.clock.date is None
+    assert fw.clock.utc_days(4.0) is None and fw.clock.date is None
 
 
 def test_ubx_without_a_valid_time_gives_no_time_base_sample() -> None:
@@ -508,7 +508,7 @@ def test_ubx_without_a_valid_time_gives_no_time_base_sample() -> None:
                        fixType=0, numSV=0).serialize()
         fw.receive(UART_GNSS, b, k + 0.3)
         fw.gnss._gnss_poll(k + 0.3 + 1.0)  # the hold closes each epoch (no time to tell them apart)
-    assert not fw.gnss._gnss_offsets and fw.utc_days(3.0) is None
+    assert not fw.gnss._gnss_offsets and fw.clock.utc_days(3.0) is None
     assert fw.counters["gnss_no_utc"] >= 3 and fw.counters["gnss_no_fix_epochs"] >= 3
 
 

@@ -3,10 +3,13 @@ code reads another task's attributes.
 
 Checked on the source (AST), so a breach fails whatever the run does:
 
-* a task object's class has no base class (its MRO is the class and ``object``);
+* neither ``Firmware`` (the cyclic executive) nor a task object's class has a base class (its MRO is the class and
+  ``object``): no mixins;
 * every ``self.X`` a task class reads is its own: assigned in the class or defined by it (a method, a property);
-* nobody (the executive, the other tasks, the mixins not yet extracted) reaches into a task object's private
-  state: ``<something>.<task>._X`` does not occur outside the task's own class, only its public methods are used.
+  what it uses of the others it receives as collaborators in its constructor;
+* nobody (the executive, the other tasks) reaches into a task object's private state: ``<something>.<task>._X``
+  does not occur outside the task's own class, only its public methods (and the navigation core's ``nav`` and
+  ``filter``) are used.
 """
 
 from __future__ import annotations
@@ -19,14 +22,18 @@ import pytest
 
 import firmware_model
 from firmware_model.firmware import Firmware
+from firmware_model.tasks.alignment import AlignmentTask
 from firmware_model.tasks.gnss import GnssTask
+from firmware_model.tasks.host import HostTask
+from firmware_model.tasks.navigation import NavCore
+from firmware_model.tasks.output import OutputTask
+from firmware_model.tasks.psns import PsnsTask
 from firmware_model.tasks.timekeeping import Clock
 
 PKG = Path(firmware_model.__file__).parent
 #: the task objects: (class, the attribute of the executive that holds it)
-TASKS = [(Clock, "clock"), (GnssTask, "gnss")]
-#: the mixins of the tower not extracted yet (issue 42 item 3): this list only shrinks
-REMAINING_MIXINS = {"HostTask", "AlignmentTask", "PsnsTask", "Navigation", "NavOutput", "LoopState"}
+TASKS = [(Clock, "clock"), (GnssTask, "gnss"), (NavCore, "core"), (OutputTask, "output"),
+         (PsnsTask, "psns"), (AlignmentTask, "alignment"), (HostTask, "host")]
 
 
 def _class_node(cls: type) -> ast.ClassDef:
@@ -84,14 +91,18 @@ def test_nobody_reads_a_task_objects_private_state() -> None:
     assert not breaches, "private state of a task object read from outside it: " + ", ".join(breaches)
 
 
-def test_the_tower_only_shrinks() -> None:
-    """The firmware's bases are the mixins not yet extracted, none of the task objects."""
-    names = {c.__name__ for c in Firmware.__mro__} - {"Firmware", "object"}
-    assert names <= REMAINING_MIXINS, names - REMAINING_MIXINS
-    assert not {c for c, _ in TASKS} & set(Firmware.__mro__)
+def test_the_executive_has_no_mixin_base_and_holds_every_task() -> None:
+    """Issue 42 item 3's done-when: ``Firmware``'s MRO is the class and ``object``; each task is an object it holds,
+    and the tasks share one navigation core, one clock and one status record (explicit collaborators)."""
+    assert Firmware.__mro__ == (Firmware, object)
     fw = Firmware()
     for cls, attr in TASKS:
         assert isinstance(getattr(fw, attr), cls)
+    for task in (fw.psns, fw.alignment, fw.output, fw.host):
+        assert task.core is fw.core
+    for task in (fw.psns, fw.alignment, fw.output):
+        assert task.clock is fw.clock and task.status is fw.status
+    assert fw.filter is fw.core.filter and fw.filter.host is fw.core
 
 
 def test_the_check_sees_a_breach(tmp_path: Path) -> None:

@@ -294,8 +294,8 @@ def test_magnetometer_iron_reaches_the_firmware(tmp_path):
         s = scn.model_copy(update={"firmware": scn.firmware.model_copy(update={
             "calibration": scn.firmware.calibration.model_copy(update={"source": source})})})
         fw = Firmware(firmware_config(s, calibration_for(s)))
-        fw._mag_hist.append((1.0, words))
-        b, n = fw.mag_mean_nt(1.0)
+        fw.core.add_mag(1.0, words)
+        b, n = fw.core.mag_mean_nt(1.0)
         assert n == 1
         err[source] = float(np.linalg.norm(b - truth))
     assert err["perfect"] < 0.2, err

@@ -100,7 +100,7 @@ def test_select_variant_command_switches_to_a_registered_variant_that_keeps_navi
             for r in fw.service():
                 for _, out, _ in r.outputs:
                     navs.extend(f for f in dec.feed(out) if isinstance(f, NavSolution))
-    assert fw.filter.name == "dual_vector" and fw.filter.host is fw
+    assert fw.filter.name == "dual_vector" and fw.filter.host is fw.core
     assert navs[-1].variant_mode == 2 and navs[-1].psns_q_mask == 0b111  # sun-error-vector mode, all reliable
     assert fw.counters.get("sun_vector_admitted", 0) > 20
 

@@ -7,10 +7,11 @@ creates that loop, installs the Ctrl-C / SIGTERM handlers (an interrupted run st
 and a summary with ``"interrupted": true``) and returns the summary.
 
 The build reads one resolved configuration (:attr:`Emulator.cfg`, :func:`.build.resolve_run`): every sensor
-preset merged and every port's URL parsed once, before anything is built. :meth:`Emulator.start` is the build's
-order; the steps a variant of the run changes are methods of their own (:meth:`Emulator._open_ports`,
-:meth:`~Emulator._build_uarts`, :meth:`~Emulator._cut_dsp_uarts`, :meth:`~Emulator._build_sensors`,
-:meth:`~Emulator.build_dsp`, :meth:`~Emulator._start_sources`): a split run
+preset merged and every port's URL parsed once, before anything is built. :meth:`Emulator.build` is the build's
+order, nothing started; :meth:`Emulator.start` builds, then starts the clock and the sources. The steps a variant
+of the run changes are methods of their own (:meth:`Emulator._open_ports`, :meth:`~Emulator._build_uarts`,
+:meth:`~Emulator._cut_dsp_uarts`, :meth:`~Emulator._build_sensors`, :meth:`~Emulator.build_dsp`,
+:meth:`~Emulator._start_sources`): a split run
 (:mod:`emulator.distributed.split`) and a replay (:class:`emulator.recording.replay.ReplayEmulator`: the same
 assembly without sensors and FPGA acquisition, the captured DSP-UART bytes handed to the DSP at their recorded
 times) override those, and the build itself has no branch for either.
@@ -155,8 +156,34 @@ class Emulator:
         os.replace(tmp, self.run_dir / "clock.json")
 
     async def start(self) -> None:
-        """Build the run from :attr:`cfg` and start it: ports, FPGA-DSP UARTs, sensors, FPGA, DSP, faults, recorder
-        taps; then open the real ports, write ``ports.json``, start the clock and the sources."""
+        """Build the run (:meth:`build`) and start it: the capture's header, the clock, the faults, the 1 Hz
+        samples and the sources."""
+        await self.build()
+        loop, rec = self.loop, self.recorder
+        assert isinstance(loop, EmulatorLoop) and rec is not None
+        rec.start(self._run_header())
+        if self.mode == "realtime":
+            # everything built so far (modules, scenario, models) lives for the whole run: move it out of
+            # the collector's generations, so a full collection no longer walks it (tens of ms, a late frame)
+            gc.collect()
+            gc.freeze()
+            lead = realtime_lead_s(self._all_links())
+            if lead:
+                loop.set_lead(lead)
+        loop.restart_clock()
+        self._wall0 = loop.wall_elapsed()
+        self._publish_clock(loop)
+        if self.faults is not None:
+            self.faults.start()
+        loop.call_at(1.0 + SAMPLE_OFFSET_S, self._sample_tick)
+        self._start_sources()
+        if self.progress is not None:
+            self._progress_tick()
+        self._started = True
+
+    async def build(self) -> None:
+        """Build the run from :attr:`cfg` on the running :class:`EmulatorLoop`, nothing started: ports, FPGA-DSP
+        UARTs, sensors, FPGA, DSP, faults, recorder taps; the real ports opened and ``ports.json`` written."""
         loop = asyncio.get_running_loop()
         if not isinstance(loop, EmulatorLoop):
             raise EmulatorError("the emulator runs on an emulator.clock.EmulatorLoop")
@@ -192,25 +219,6 @@ class Emulator:
             if link.scheme != "mem":
                 await link.open()
         self._write_port_map(uart_fpga)
-        rec.start(self._run_header())
-        if self.mode == "realtime":
-            # everything built so far (modules, scenario, models) lives for the whole run: move it out of
-            # the collector's generations, so a full collection no longer walks it (tens of ms, a late frame)
-            gc.collect()
-            gc.freeze()
-            lead = realtime_lead_s(self._all_links())
-            if lead:
-                loop.set_lead(lead)
-        loop.restart_clock()
-        self._wall0 = loop.wall_elapsed()
-        self._publish_clock(loop)
-        if self.faults is not None:
-            self.faults.start()
-        loop.call_at(1.0 + SAMPLE_OFFSET_S, self._sample_tick)
-        self._start_sources()
-        if self.progress is not None:
-            self._progress_tick()
-        self._started = True
 
     # -- the build's steps (a split run and a replay override some) -------------------------------------------
     def _pair_port(self, hub: MemHub, loop: EmulatorLoop, rp: ResolvedPort, ext: dict[str, Link],

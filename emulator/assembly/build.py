@@ -1,8 +1,10 @@
-"""Assembly: the scenario turned into the FPGA-DSP UARTs, the FPGA configuration, the virtual DSP with its
-firmware, and the port map printed at start. The session (:mod:`.session`) calls these in order."""
+"""Assembly: the scenario resolved once (:func:`resolve_run`), then turned into the FPGA-DSP UARTs, the FPGA
+configuration, the virtual DSP with its firmware, and the port map printed at start. The session
+(:mod:`.session`) calls these in order."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any, cast
 
 from firmware_model.calibration import Calibration
@@ -11,7 +13,16 @@ from ..devices.fpga import FpgaConfig
 from ..dsp.firmware_setup import build_firmware
 from ..dsp.host import UartRxConfig, VirtualDsp, WatchdogConfig
 from ..links import LineConfig, Link, MemHub, parse_mode
+from ..scenario.resolved import (
+    ResolvedPort,
+    ResolvedScenario,
+    ResolvedSensors,
+    effective_routing,
+    resolve_ports,
+    resolve_scenario,
+)
 from ..scenario.schema import Scenario
+from ..world.envelope import envelope_scenario, pinned_keys
 from .ports import (
     EMIFA_BYTE_TIME_S,
     PORT_BAUD,
@@ -24,16 +35,19 @@ from .ports import (
     port_specs,
 )
 
-__all__ = ["build_dsp", "build_uarts", "effective_routing", "fpga_config", "port_map"]
+__all__ = ["build_dsp", "build_uarts", "effective_routing", "fpga_config", "port_map", "resolve_run"]
 
 
-def effective_routing(scn: Scenario) -> dict[str, str]:
-    """``fpga.routing`` as the FPGA applies it: ``links.host_nmea`` without a route of its own shares UART0 with
-    the host port (the FPGA demultiplexes the firmware's NMEA sentences from its binary frames; docs/runtime.md 3)."""
-    routing = {str(k): str(v) for k, v in scn.fpga.routing.items()}
-    if scn.links.host_nmea is not None and "host_nmea" not in routing:
-        routing["host_nmea"] = routing.get("host", "uart0")
-    return routing
+def resolve_run(scn: Scenario, seed: int | None = None, mode: str | None = None) -> ResolvedScenario:
+    """The configuration one run is built from, resolved once (:mod:`emulator.scenario.resolved`): the envelope's
+    draw for ``seed`` (default: the scenario's) written into the scenario first (docs/sensors.md "The envelope"),
+    then every preset merged and every URL parsed; ``mode``: the command line's (None: the scenario's rule).
+    ``psns-hil validate --effective`` prints what this returns."""
+    seed = scn.seed if seed is None else seed
+    pinned = pinned_keys(scn)
+    drawn, draws = envelope_scenario(scn, seed)
+    return resolve_scenario(drawn, seed, mode, envelope_draws=draws if scn.envelope.preset is not None else None,
+                            envelope_pinned=tuple(pinned))
 
 
 def _routed_from(scn: Scenario) -> dict[str, str]:
@@ -102,24 +116,27 @@ def build_uarts(scn: Scenario, hub: MemHub, loop: Any
 
 
 def build_dsp(scn: Scenario, loop: Any, uart_dsp: dict[int, Link], rx_cfg: dict[int, UartRxConfig], events: Any,
-              calibration: Calibration | None = None) -> VirtualDsp:
-    """The virtual DSP hosting the scenario's firmware on ``uart_dsp`` (a watchdog reset builds a new one)."""
+              calibration: Calibration | None = None, sensors: ResolvedSensors | None = None) -> VirtualDsp:
+    """The virtual DSP hosting the scenario's firmware on ``uart_dsp`` (a watchdog reset builds a new one);
+    ``sensors``: the run's merged presets (the firmware's configuration reads the fitted units' ranges)."""
     wd = scn.dsp.watchdog
-    return VirtualDsp(loop, build_firmware(scn, calibration), uart_dsp, scn.dsp.clock_hz, events,
+    return VirtualDsp(loop, build_firmware(scn, calibration, sensors), uart_dsp, scn.dsp.clock_hz, events,
                       tick_period_s=1.0 / scn.sensors.imu.rate_hz, rx=rx_cfg,
                       watchdog=WatchdogConfig(wd.enabled, wd.overrun_multiple, wd.action, wd.reset_time_s),
-                      firmware_factory=lambda: build_firmware(scn, calibration))
+                      firmware_factory=lambda: build_firmware(scn, calibration, sensors))
 
 
 def port_map(scn: Scenario, links: dict[str, Link], uart_fpga: dict[str, Link],
-             bound: dict[str, Link] | None = None) -> list[PortInfo]:
+             bound: dict[str, Link] | None = None, resolved: Mapping[str, ResolvedPort] | None = None
+             ) -> list[PortInfo]:
     """One row per external port, then one per FPGA-DSP UART (``ports.json`` and the table printed at start).
 
     ``bound``: the real ports that modelled sensors' streams are bound to (``direction: out | tee``), by port; each
-    row's ``direction`` says which way the port goes (:func:`.ports.port_direction`)."""
+    row's ``direction`` says which way the port goes (:func:`.ports.port_direction`); ``resolved``: the run's
+    resolved ports (default: resolved here)."""
     ports: list[PortInfo] = []
     bound = bound or {}
-    specs = port_specs(scn)
+    specs = resolved if resolved is not None else resolve_ports(scn)
     for port, link in links.items():
         if port.startswith("uart"):
             continue

@@ -25,6 +25,7 @@ from protocols.stim import Stim210Format
 from protocols.ubx import UbxFormat
 
 from ..links import LineConfig, Link, parse_link_url, parse_mode
+from ..scenario.resolved import ResolvedPort, port_specs, resolve_ports, run_mode
 from ..scenario.schema import LinkSpec, Scenario
 
 __all__ = [
@@ -82,7 +83,7 @@ class PortInfo(dict[str, Any]):
     """One row of the port map printed at start: name, role, url, baud, mode, path, direction."""
 
 
-def port_direction(port: str, spec: LinkSpec | None) -> str:
+def port_direction(port: str, rp: ResolvedPort | None) -> str:
     """The port map's ``direction`` of an external port: for a sensor port ``model`` (in-process, the modelled
     sensor feeds the FPGA), ``in`` (an outside device feeds the FPGA), ``out`` or ``tee`` (the modelled sensor's
     stream goes out on the real port; with tee also to the FPGA); ``in/out`` for the host port, ``out`` for the
@@ -91,11 +92,11 @@ def port_direction(port: str, spec: LinkSpec | None) -> str:
         return "in/out"
     if port in ("monitor", "host_nmea"):
         return "out"
-    if spec is None:
+    if rp is None:
         return ""
-    if spec.direction == "in" and parse_link_url(spec.url).scheme == "mem":
+    if rp.spec.direction == "in" and rp.scheme == "mem":
         return "model"
-    return spec.direction
+    return rp.spec.direction
 
 
 class SensorPortBinding:
@@ -130,17 +131,9 @@ class SensorPortBinding:
 
 
 def resolve_mode(scn: Scenario, requested: str | None = None) -> str:
-    """The time mode of a run (see module docstring)."""
-    if requested:
-        return requested
-    if "mode" in scn.model_fields_set:
-        return scn.mode
-    for spec in port_specs(scn).values():
-        if parse_link_url(spec.url).scheme != "mem":
-            return "realtime"
-    if scn.dsp.external is not None and scn.dsp.external.uarts:  # the DSP outside on ports is a real peer
-        return "realtime"
-    return "fast"
+    """The time mode of a run (see module docstring; a run reads it from its resolved scenario,
+    :attr:`emulator.scenario.resolved.ResolvedScenario.mode`, decided by the same rule)."""
+    return run_mode(scn, resolve_ports(scn), requested)
 
 
 def real_time_ports(scn: Scenario) -> list[str]:
@@ -158,18 +151,6 @@ def dsp_uart_baud(nominal: int, uart_clock_hz: float | None, oversampling: int) 
         return nominal
     div = max(1, min(65535, round(uart_clock_hz / (oversampling * nominal))))
     return round(uart_clock_hz / (oversampling * div))
-
-
-def port_specs(scn: Scenario) -> dict[str, LinkSpec]:
-    """The scenario's external ports that are wired (gyro, gnss, host; psns and monitor when given)."""
-    specs = {"gyro": scn.links.gyro, "gnss": scn.links.gnss, "host": scn.links.host}
-    if scn.links.psns is not None:
-        specs["psns"] = scn.links.psns
-    if scn.links.monitor is not None:
-        specs["monitor"] = scn.links.monitor
-    if scn.links.host_nmea is not None:
-        specs["host_nmea"] = scn.links.host_nmea
-    return specs
 
 
 def port_line(spec: LinkSpec, default_baud: int) -> LineConfig:

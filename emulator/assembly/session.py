@@ -6,8 +6,15 @@ writes the summary (:mod:`.summary`). It lives inside an :class:`~emulator.clock
 creates that loop, installs the Ctrl-C / SIGTERM handlers (an interrupted run still writes its captures
 and a summary with ``"interrupted": true``) and returns the summary.
 
-Replay (:mod:`emulator.recording.replay`): the same assembly without sensors and FPGA acquisition; the
-bytes a capture says each DSP UART received are handed to the DSP at their recorded times.
+The build reads one resolved configuration (:attr:`Emulator.cfg`, :func:`.build.resolve_run`): every sensor
+preset merged and every port's URL parsed once, before anything is built. :meth:`Emulator.build` is the build's
+order, nothing started; :meth:`Emulator.start` builds, then starts the clock and the sources. The steps a variant
+of the run changes are methods of their own (:meth:`Emulator._open_ports`, :meth:`~Emulator._build_uarts`,
+:meth:`~Emulator._cut_dsp_uarts`, :meth:`~Emulator._build_sensors`, :meth:`~Emulator.build_dsp`,
+:meth:`~Emulator._start_sources`): a split run
+(:mod:`emulator.distributed.split`) and a replay (:class:`emulator.recording.replay.ReplayEmulator`: the same
+assembly without sensors and FPGA acquisition, the captured DSP-UART bytes handed to the DSP at their recorded
+times) override those, and the build itself has no branch for either.
 """
 
 from __future__ import annotations
@@ -43,26 +50,21 @@ from ..dsp.host import UartRxConfig, VirtualDsp, WatchdogConfig
 from ..dsp.lockstep import LockstepFirmware, open_lockstep
 from ..errors import STORAGE_ERRNOS, EmulatorError, StorageError
 from ..faults import FaultScheduler, FaultTargets
-from ..links import Link, MemHub, open_link, parse_link_url
-from ..recording.capture import CaptureRecord
+from ..links import Link, MemHub, open_link
 from ..recording.recorder import Recorder
 from ..recording.rundir import claim_run_dir
-from ..scenario.paths import confined_link_url
+from ..scenario.resolved import ResolvedPort, ResolvedScenario
 from ..scenario.schema import Scenario
 from ..verification.expectations import evaluate_expectations
 from ..world.build import build_trajectory
-from ..world.envelope import envelope_scenario, pinned_keys
-from .build import build_dsp, build_uarts, effective_routing, fpga_config, port_map
+from .build import build_dsp, build_uarts, fpga_config, port_map, resolve_run
 from .ports import (
     PORT_BAUD,
-    UART_NUM,
     PortInfo,
     SensorPortBinding,
     device_line,
     port_formats,
     port_line,
-    port_specs,
-    resolve_mode,
 )
 from .summary import SAMPLE_OFFSET_S, dsp_sections, fpga_section, take_sample
 
@@ -82,11 +84,13 @@ class Emulator:
     ----------
     scn : the validated scenario.
     run_dir : where the recorder writes.
-    mode : ``fast`` / ``realtime`` (None: :func:`resolve_mode`).
+    mode : ``fast`` / ``realtime`` (None: :func:`.ports.resolve_mode`'s rule).
     seed : overrides the scenario's seed.
     progress : called once per simulated second with ``(t, duration)``.
-    replay : capture records to replay into the DSP instead of running sensors.
     """
+
+    #: a replay of a capture (:class:`emulator.recording.replay.ReplayEmulator`) rather than a run of sensors
+    replaying = False
 
     #: set by run_emulator's signal handler (or a signal before it existed): the run ends once started
     _interrupt_requested = False
@@ -97,19 +101,20 @@ class Emulator:
 
 
     def __init__(self, scn: Scenario, run_dir: Path, mode: str | None = None, seed: int | None = None,
-                 progress: Callable[[float, float], None] | None = None,
-                 replay: list[CaptureRecord] | None = None) -> None:
-        self.seed = scn.seed if seed is None else seed
+                 progress: Callable[[float, float], None] | None = None) -> None:
         # the envelope (docs/sensors.md "The envelope"): this seed's draw of the world (and of how the unit was
-        # calibrated), written into the scenario before anything is built from it; the firmware's sheet is untouched
+        # calibrated), written into the scenario before anything is built from it; the firmware's sheet is untouched.
+        # Then every preset merged and every URL parsed, once: the build reads nothing else (.build.resolve_run)
         self.envelope = scn.envelope
-        self.envelope_pinned = pinned_keys(scn)
-        scn, self.envelope_draws = envelope_scenario(scn, self.seed)
-        self.scn = scn
+        cfg: ResolvedScenario = resolve_run(scn, seed, mode)
+        self.cfg = cfg
+        self.seed = cfg.seed
+        self.envelope_pinned = list(cfg.envelope_pinned)
+        self.envelope_draws = cfg.envelope_draws if cfg.envelope_draws is not None else {}
+        self.scn = cfg.scenario
         self.run_dir = Path(run_dir)
-        self.mode = resolve_mode(scn, mode)
+        self.mode = cfg.mode
         self.progress = progress
-        self.replay = replay
         self.loop: EmulatorLoop | None = None
         self.links: dict[str, Link] = {}
         self.device_ends: dict[str, Link] = {}
@@ -123,8 +128,6 @@ class Emulator:
         self.gnss: GnssReceiver | None = None
         self.sensors: Any = None
         self.summary: dict[str, Any] = {}
-        self.replayed_records = 0
-        self.replay_source: str | None = None
         self._fw0: FirmwareProtocol | None = None
         self.faults: Any = None
         self._last_sample_t = 0.0
@@ -153,6 +156,34 @@ class Emulator:
         os.replace(tmp, self.run_dir / "clock.json")
 
     async def start(self) -> None:
+        """Build the run (:meth:`build`) and start it: the capture's header, the clock, the faults, the 1 Hz
+        samples and the sources."""
+        await self.build()
+        loop, rec = self.loop, self.recorder
+        assert isinstance(loop, EmulatorLoop) and rec is not None
+        rec.start(self._run_header())
+        if self.mode == "realtime":
+            # everything built so far (modules, scenario, models) lives for the whole run: move it out of
+            # the collector's generations, so a full collection no longer walks it (tens of ms, a late frame)
+            gc.collect()
+            gc.freeze()
+            lead = realtime_lead_s(self._all_links())
+            if lead:
+                loop.set_lead(lead)
+        loop.restart_clock()
+        self._wall0 = loop.wall_elapsed()
+        self._publish_clock(loop)
+        if self.faults is not None:
+            self.faults.start()
+        loop.call_at(1.0 + SAMPLE_OFFSET_S, self._sample_tick)
+        self._start_sources()
+        if self.progress is not None:
+            self._progress_tick()
+        self._started = True
+
+    async def build(self) -> None:
+        """Build the run from :attr:`cfg` on the running :class:`EmulatorLoop`, nothing started: ports, FPGA-DSP
+        UARTs, sensors, FPGA, DSP, faults, recorder taps; the real ports opened and ``ports.json`` written."""
         loop = asyncio.get_running_loop()
         if not isinstance(loop, EmulatorLoop):
             raise EmulatorError("the emulator runs on an emulator.clock.EmulatorLoop")
@@ -161,55 +192,17 @@ class Emulator:
         traj = self.trajectory = build_trajectory(scn)
         rec = self.recorder = Recorder(self.run_dir, traj, sun=build_sun(scn))
         hub = MemHub()
-        port_dir = self.run_dir / "ports"
-        ext: dict[str, Link] = {}
-        internal: dict[str, Link] = {}
-        specs = port_specs(scn)
-        if self.replay is not None:
-            specs = {"host": specs["host"]}  # sensors are replaced by the capture
-        for port, spec in specs.items():
-            line = port_line(spec, PORT_BAUD[port])
-            u = parse_link_url(spec.url)
-            bound_out = spec.direction != "in" and u.scheme != "mem" and self.replay is None
-            if u.scheme == "mem" or self.replay is not None or bound_out:
-                a, b = hub.pair(port, line, loop, line_b=device_line(spec, line), key=f"{port}:{u.target}")
-                a.url = b.url = spec.url if u.scheme == "mem" else f"mem://{port}"
-                ext[port], internal[port] = a, b
-                self.device_ends[port] = b
-                if bound_out:  # the modelled sensor's stream also (tee) or only (out) on the real port
-                    x = open_link(confined_link_url(spec.url, scn.base_dir), port, loop, default_line=line,
-                                  hub=hub, run_dir=port_dir)
-                    self.bindings[port] = SensorPortBinding(port, spec.direction, a, x)
-            else:
-                ext[port] = open_link(confined_link_url(spec.url, scn.base_dir), port, loop, default_line=line,
-                                      hub=hub, run_dir=port_dir)
-            self.links[port] = ext[port]
+        ext, internal = self._open_ports(hub, loop)
+        self.links.update(ext)
         uart_fpga, uart_dsp, rx_cfg = self._build_uarts(hub, loop, ext)
-        if scn.dsp.external is not None and scn.dsp.external.uarts and self.replay is None:  # the DSP outside
-            # on ports (docs/runtime.md, DSP out); a lockstep firmware keeps the DSP-side UARTs (docs/icd.md 10)
-            if type(self)._build_uarts is not Emulator._build_uarts:
-                raise EmulatorError("dsp.external puts the DSP outside; a split run also cuts its UARTs: "
-                                    "run it without --split")
-            self.external_uarts = cut_dsp_uarts({u: confined_link_url(url, scn.base_dir)
-                                                 for u, url in scn.dsp.external.uarts.items()},
-                                                uart_fpga, loop, hub, port_dir)
-            self.links.update(self.external_uarts)
-        # sensors (docs/architecture.md, section "Firmware interface")
-        if self.replay is None:
-            sensors = build_sensors(scn, self.seed, traj, internal, pps=self._pps, unit=self.unit)
-            self.sensors = sensors
-            self.gyro, self.gnss = sensors.gyro, sensors.gnss
-            gyro, accel = sensors.gyro, sensors.accel
-        else:
-            gyro = accel = None
-        fcfg = fpga_config(scn)
+        self._cut_dsp_uarts(uart_fpga, hub, loop)
+        gyro, accel, mag = self._build_sensors(traj, internal)
         fpga_ports = {k: v for k, v in ext.items() if k != "monitor"}
         for port, bnd in self.bindings.items():
             if bnd.direction == "out":  # the FPGA's port stays idle: its sensor drives the real port only
                 fpga_ports[port] = hub.pair(f"{port}:idle", ext[port].line, loop)[0]
-        mag = getattr(self.sensors, "mag", None) if self.replay is None else None
-        self.fpga = VirtualFpga(loop, fcfg, fpga_ports, uart_fpga, gyro, accel, rec, monitor=ext.get("monitor"),
-                                mag=mag)
+        self.fpga = VirtualFpga(loop, fpga_config(scn), fpga_ports, uart_fpga, gyro, accel, rec,
+                                monitor=ext.get("monitor"), mag=mag)
         gnss_port = ext.get("gnss")
         if gnss_port is not None and getattr(gnss_port, "pps_line", None):
             # an external receiver's PPS on a modem line (serial:// ?pps=dcd|cts): latched like the modelled one's
@@ -220,13 +213,79 @@ class Emulator:
         if scn.faults:  # bound now: a fault on a missing device fails before the run
             # a replay applies again the faults that act after the captured DSP input (host link, DSP load), with
             # the original's indices and random streams
-            self.faults = FaultScheduler(self.fault_targets(), scn.faults, self.seed, rec,
-                                         replay=self.replay is not None)
-        # recorder taps
-        nmea_route = effective_routing(scn).get("host_nmea")  # None: NMEA (if any) on the host port with NAV
+            self.faults = FaultScheduler(self.fault_targets(), scn.faults, self.seed, rec, replay=self.replaying)
+        self._tap_links(rec)
+        for link in [*ext.values(), *(bnd.port for bnd in self.bindings.values()), *self.external_uarts.values()]:
+            if link.scheme != "mem":
+                await link.open()
+        self._write_port_map(uart_fpga)
+
+    # -- the build's steps (a split run and a replay override some) -------------------------------------------
+    def _pair_port(self, hub: MemHub, loop: EmulatorLoop, rp: ResolvedPort, ext: dict[str, Link],
+                   internal: dict[str, Link]) -> Link:
+        """An in-process pair for port ``rp``: the FPGA's end in ``ext``, the device's in ``internal``."""
+        port, spec = rp.name, rp.spec
+        line = port_line(spec, PORT_BAUD[port])
+        a, b = hub.pair(port, line, loop, line_b=device_line(spec, line), key=f"{port}:{rp.url.target}")
+        a.url = b.url = spec.url if rp.scheme == "mem" else f"mem://{port}"
+        ext[port], internal[port] = a, b
+        self.device_ends[port] = b
+        return a
+
+    def _open_ports(self, hub: MemHub, loop: EmulatorLoop) -> tuple[dict[str, Link], dict[str, Link]]:
+        """The external ports (FPGA ends by name) and the device ends of those wired in-process: a ``mem://`` port
+        is a pair; a sensor port bound out (``direction: out | tee``) is a pair whose stream is also copied to its
+        real port (:class:`.ports.SensorPortBinding`); any other port is its link."""
+        ext: dict[str, Link] = {}
+        internal: dict[str, Link] = {}
+        for port, rp in self.cfg.ports.items():
+            line = port_line(rp.spec, PORT_BAUD[port])
+            if rp.scheme == "mem" or rp.bound_out:
+                a = self._pair_port(hub, loop, rp, ext, internal)
+                if rp.bound_out:  # the modelled sensor's stream also (tee) or only (out) on the real port
+                    x = open_link(rp.url, port, loop, default_line=line, hub=hub, run_dir=self.run_dir / "ports")
+                    self.bindings[port] = SensorPortBinding(port, rp.spec.direction, a, x)
+            else:
+                ext[port] = open_link(rp.url, port, loop, default_line=line, hub=hub, run_dir=self.run_dir / "ports")
+        return ext, internal
+
+    def _cut_dsp_uarts(self, uart_fpga: dict[str, Link], hub: MemHub, loop: EmulatorLoop) -> None:
+        """The DSP outside on ports (``dsp.external.uarts``, docs/runtime.md, DSP out): those FPGA-DSP UARTs cut
+        and their FPGA ends put on the ports (:attr:`external_uarts`); a lockstep firmware keeps the DSP-side UARTs
+        (docs/icd.md 10)."""
+        if not self.cfg.external_uarts:
+            return
+        if type(self)._build_uarts is not Emulator._build_uarts:
+            raise EmulatorError("dsp.external puts the DSP outside; a split run also cuts its UARTs: "
+                                "run it without --split")
+        self.external_uarts = cut_dsp_uarts(dict(self.cfg.external_uarts), uart_fpga, loop, hub,
+                                            self.run_dir / "ports")
+        self.links.update(self.external_uarts)
+
+    def _build_sensors(self, traj: Any, internal: dict[str, Link]) -> tuple[Any, Any, Any]:
+        """The sensor models (docs/architecture.md, section "Firmware interface"): ``(gyro, accelerometers,
+        magnetometer)`` for the FPGA; the rest drive their ports."""
+        sensors = build_sensors(self.scn, self.seed, traj, internal, pps=self._pps, unit=self.unit,
+                                sensors=self.cfg.sensors)
+        self.sensors = sensors
+        self.gyro, self.gnss = sensors.gyro, sensors.gnss
+        return sensors.gyro, sensors.accel, sensors.mag
+
+    def _start_sources(self) -> None:
+        """Start what feeds the DSP: the FPGA's acquisition, the sensors, a DSP outside on ports."""
+        assert self.fpga is not None
+        self.fpga.start()
+        self.sensors.start()
+        if isinstance(self.dsp, ExternalDsp):
+            self.dsp.start()
+
+    def _tap_links(self, rec: Recorder) -> None:
+        """The recorder's taps on every link, each with the stream formats its port carries."""
+        scn = self.scn
+        nmea_route = self.cfg.routing.get("host_nmea")  # None: NMEA (if any) on the host port with NAV
+        nmea_on = bool(scn.firmware.nmea.sentences) or bool(scn.firmware.text_rate_hz)
         for name, link in self.links.items():
             nmea_here = (name == "host" and nmea_route is None) or (name == "uart0" and nmea_route in (None, "uart0"))
-            nmea_on = bool(scn.firmware.nmea.sentences) or bool(scn.firmware.text_rate_hz)
             fm: dict[str, Sequence[Any]] = dict(port_formats(name, nmea_out=nmea_on and nmea_here))
             if name == "gyro":
                 fm = {"in": [gyro_port_format(scn.sensors.imu.device, scn.sensors.imu.format,
@@ -235,51 +294,34 @@ class Emulator:
             rec.tap(name, link, fm)
             if name in self.external_uarts:  # a cut UART is recorded from the DSP's side, as with the virtual DSP
                 link.listeners[n0:] = [DirectionSwap(lst) for lst in link.listeners[n0:]]
-        for link in [*ext.values(), *(bnd.port for bnd in self.bindings.values()), *self.external_uarts.values()]:
-            if link.scheme != "mem":
-                await link.open()
-        self.ports.extend(port_map(scn, self.links, uart_fpga, {p: b.port for p, b in self.bindings.items()}))
+
+    def _write_port_map(self, uart_fpga: dict[str, Link]) -> None:
+        """:attr:`ports` and ``ports.json``: every external port, then every FPGA-DSP UART."""
+        self.ports.extend(port_map(self.scn, self.links, uart_fpga, {p: b.port for p, b in self.bindings.items()},
+                                   self.cfg.ports))
         for p in self.ports:
             cut = self.external_uarts.get(p["name"])
             if cut is not None:
                 p["url"], p["path"] = cut.url, cut.describe()
                 p["role"] = f"FPGA -> external DSP {p['name'].upper()}"
         (self.run_dir / "ports.json").write_text(json.dumps([dict(p) for p in self.ports], indent=2) + "\n")
-        rec.start({"scenario": scn.name, "seed": self.seed, "epoch": scn.epoch.isoformat(),
-                   "mode": self.mode, "link_baud": {k: v.line.baud for k, v in self.links.items()},
-                   "psns_hil_version": VERSION, "replay": self.replay is not None,
-                   # the fields the file set, not every default: a re-validated full dump would take each
-                   # sensor's default preset for one the file chose (a suite preset is chosen where a sensor
-                   # names none), and the run would not be the one replayed (issue 38)
-                   "scenario_spec": scn.model_dump(mode="json", exclude_unset=True),
-                   # where the scenario's relative files are (a spec sheet, recorded data): a replay reads them there
-                   "scenario_base_dir": str(Path(scn.base_dir).resolve()) if scn.base_dir is not None else None})
-        if self.mode == "realtime":
-            # everything built so far (modules, scenario, models) lives for the whole run: move it out of
-            # the collector's generations, so a full collection no longer walks it (tens of ms, a late frame)
-            gc.collect()
-            gc.freeze()
-        if self.mode == "realtime" and isinstance(loop, EmulatorLoop):
-            lead = realtime_lead_s(self._all_links())
-            if lead:
-                loop.set_lead(lead)
-        loop.restart_clock()
-        self._wall0 = loop.wall_elapsed()
-        if isinstance(loop, EmulatorLoop):
-            self._publish_clock(loop)
-        if self.faults is not None:
-            self.faults.start()
-        loop.call_at(1.0 + SAMPLE_OFFSET_S, self._sample_tick)
-        if self.replay is None:
-            self.fpga.start()
-            self.sensors.start()
-            if isinstance(self.dsp, ExternalDsp):
-                self.dsp.start()
-        else:
-            self._start_replay()
-        if self.progress is not None:
-            self._progress_tick()
-        self._started = True
+
+    def _run_header(self) -> dict[str, Any]:
+        """The capture's header: what a replay needs to build this run again."""
+        scn = self.scn
+        return {"scenario": scn.name, "seed": self.seed, "epoch": scn.epoch.isoformat(),
+                "mode": self.mode, "link_baud": {k: v.line.baud for k, v in self.links.items()},
+                "psns_hil_version": VERSION, "replay": self.replaying,
+                # the fields the file set, not every default: a re-validated full dump would take each
+                # sensor's default preset for one the file chose (a suite preset is chosen where a sensor
+                # names none), and the run would not be the one replayed (issue 38)
+                "scenario_spec": scn.model_dump(mode="json", exclude_unset=True),
+                # where the scenario's relative files are (a spec sheet, recorded data): a replay reads them there
+                "scenario_base_dir": str(Path(scn.base_dir).resolve()) if scn.base_dir is not None else None}
+
+    def _replay_section(self) -> dict[str, Any] | None:
+        """The summary's ``replay`` section (None: not a replay)."""
+        return None
 
     def fault_targets(self) -> FaultTargets:
         """What the scenario's faults may touch (:mod:`emulator.faults`): sensors, links, FPGA, DSP."""
@@ -296,23 +338,30 @@ class Emulator:
     def unit(self) -> InstalledUnit:
         """The installed unit (mountings, lens, iron: the world's truth a calibration measures), drawn once and
         shared by the sensor models and the calibration file (:func:`emulator.devices.sensors.installed_unit`)."""
-        return installed_unit(self.scn, self.seed)
+        return installed_unit(self.scn, self.seed, self.cfg.sensors)
 
     def build_dsp(self, uart_dsp: dict[int, Link], rx_cfg: dict[int, UartRxConfig], events: Any) -> VirtualDsp:
         """The virtual DSP hosting this scenario's firmware on ``uart_dsp`` (also used by a split run's DSP
         process, :mod:`emulator.distributed.split`)."""
         assert self.loop is not None
         ext = self.scn.dsp.external
-        if ext is not None and ext.lockstep is not None and self.replay is None:
+        if ext is not None and ext.lockstep is not None:
             return self._build_lockstep_dsp(uart_dsp, rx_cfg, events)
-        if ext is not None and self.replay is None:  # the DSP is outside: nothing of the firmware model runs
+        if ext is not None:  # the DSP is outside: nothing of the firmware model runs
             return ExternalDsp(self.loop, self.external_uarts, ext.silence_s, events)  # type: ignore[return-value]
+        return self._build_model_dsp(uart_dsp, rx_cfg, events)
+
+    def _build_model_dsp(self, uart_dsp: dict[int, Link], rx_cfg: dict[int, UartRxConfig], events: Any
+                         ) -> VirtualDsp:
+        """The virtual DSP with this package's firmware model (or a ``psns_hil.firmware`` plugin)."""
+        assert self.loop is not None
         # the calibration file: made from the world's truth plus residuals (or handed in), written into the run
         # directory, and read back: the firmware is configured from the file alone
         path = self.run_dir / "calibration.json"
         self.run_dir.mkdir(parents=True, exist_ok=True)
         save_calibration(calibration_for(self.scn, self.seed, self.unit), path)
-        dsp = build_dsp(self.scn, self.loop, uart_dsp, rx_cfg, events, calibration=load_calibration(path))
+        dsp = build_dsp(self.scn, self.loop, uart_dsp, rx_cfg, events, calibration=load_calibration(path),
+                        sensors=self.cfg.sensors)
         self._fw0 = dsp.fw
         return dsp
 
@@ -349,30 +398,6 @@ class Emulator:
         uart_fpga, dsp_ends, uart_dsp, rx_cfg = build_uarts(self.scn, hub, loop)
         self.links.update(dsp_ends)
         return uart_fpga, uart_dsp, rx_cfg
-
-    def _start_replay(self) -> None:
-        """Schedule the captured DSP-UART input (see :mod:`emulator.recording.replay`)."""
-        assert self.loop is not None and self.replay is not None
-        recs = [r for r in self.replay if r.link in UART_NUM and r.direction == "in"]
-        self._replay_recs = recs
-        self._replay_i = 0
-        if recs:
-            self.loop.call_at(recs[0].t_s, self._replay_step)
-
-    def _replay_step(self) -> None:
-        recs = self._replay_recs
-        i = self._replay_i
-        t = recs[i].t_s
-        while i < len(recs) and recs[i].t_s == t:
-            r = recs[i]
-            link = self.links[r.link]
-            link.last_rx_pitch = r.pitch_s if r.pitch_s is not None else link.line.byte_time
-            link._deliver(r.data)
-            self.replayed_records += 1
-            i += 1
-        self._replay_i = i
-        if i < len(recs) and self.loop is not None:
-            self.loop.call_at(recs[i].t_s, self._replay_step)
 
     def _progress_tick(self) -> None:
         assert self.loop is not None and self.progress is not None
@@ -559,8 +584,7 @@ class Emulator:
             # realtime with a lead: who wrote to the real ports, and whether the writer process died (D-10.E11)
             "paced_writer": self.loop.writer_summary() if isinstance(self.loop, EmulatorLoop) else None,
             "interrupted": interrupted,
-            "replay": {"source": self.replay_source, "records": self.replayed_records} if self.replay is not None
-            else None,
+            "replay": self._replay_section(),
             "run_dir": str(self.run_dir),
             "nav_error": {k: v.as_dict() for k, v in rec.errors.items()},
             "nav_error_by_phase": {ph: {k: v.as_dict() for k, v in e.items()} for ph, e in rec.errors_by_phase.items()},

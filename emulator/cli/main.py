@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import json
 import math
 import os
 import signal
@@ -235,7 +236,13 @@ def _cmd_validate(args: argparse.Namespace) -> int:
     # the firmware side, as a run would build it (issue 41): the named filter plugin is a NavFilter, the firmware
     # plugin a factory, the spec sheet reads and validates; only the named plugins are imported, nothing runs
     check_firmware(scn)
-    if args.json:
+    if getattr(args, "effective", False):
+        # what a run builds from (emulator.scenario.resolved): the envelope's draw for the seed, every sensor preset
+        # merged with the file's overrides, every port's URL parsed; the same function the run calls
+        from ..assembly.build import resolve_run
+
+        print(json.dumps(resolve_run(scn, args.seed).as_dict(), indent=2))
+    elif args.json:
         print(scn.model_dump_json(indent=2, exclude_none=True))
     else:
         _console().print(f"{args.scenario}: ok ({scn.name}, {scn.duration_s:g} s, mode {scn.mode})")
@@ -558,6 +565,11 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--set", action="append", metavar="KEY=VALUE", help="override one value, as for run (repeatable)")
     v.add_argument("--json", action="store_true",
                    help="print the validated scenario with defaults (keys left unset, null, are omitted)")
+    v.add_argument("--effective", action="store_true",
+                   help="print, as JSON, the resolved configuration a run is built from: each sensor's preset merged "
+                        "with the file's overrides, each port's URL parsed, the routing, the time mode, the "
+                        "envelope's draws")
+    v.add_argument("--seed", type=int, default=None, help="with --effective: the run's seed (default the scenario's)")
     v.set_defaults(func=_cmd_validate)
 
     mo = sub.add_parser("monitor", help="decode a port live (pty, serial device, zenoh key), a capture file or a "

@@ -1,15 +1,18 @@
-"""Build the sensor devices of a scenario (presets + overrides -> error models -> devices).
+"""Build the sensor devices of a scenario (merged presets -> error models -> devices).
 
 :func:`build_sensors` is the assembly's single call site (docs/architecture.md, section "Firmware
 interface"). It creates every sensor whose port is wired in-process (an ``internal`` link end) and the
-FPGA-sampled devices (accelerometers, magnetometer), from the scenario's ``sensors`` section: each sensor takes its
-named preset (``emulator/presets/*.yaml``), applies the scenario's overrides, and reads a
-recorded file instead of its model when ``recorded:`` is given.
+FPGA-sampled devices (accelerometers, magnetometer), from the scenario's ``sensors`` section and each sensor's
+merged preset (its named preset, ``emulator/presets/*.yaml``, with the scenario's overrides applied:
+:mod:`emulator.scenario.resolved`), and reads a recorded file instead of its model when ``recorded:`` is given.
+
+Every function here takes ``sensors``, the run's :class:`~emulator.scenario.resolved.ResolvedSensors` (merged once
+per run); without it, it merges the one preset it needs itself (a caller building one sensor's configuration).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -20,9 +23,8 @@ from protocols.constants import DEG
 
 from ..errors import ScenarioError
 from ..links.base import Link
-from ..scenario.presets import merged, preset
+from ..scenario.resolved import MergedPreset, ResolvedSensors, resolve_sensor, resolve_sensors
 from ..scenario.schema import Scenario
-from ..scenario.sensor_schema import preset_of
 from ..world.sky import SkyModel, sky_from_spec
 from ..world.sun import SunModel
 from ..world.trajectory import Trajectory
@@ -89,12 +91,12 @@ class InstalledUnit:
     magnetometer: MagConfig
 
 
-def installed_unit(scn: Scenario, seed: int | None = None) -> InstalledUnit:
+def installed_unit(scn: Scenario, seed: int | None = None, sensors: ResolvedSensors | None = None) -> InstalledUnit:
     """Draw the installed unit of ``scn`` with ``seed`` (default: the scenario's)."""
     seed = scn.seed if seed is None else seed
-    return InstalledUnit(camera=camera_config(scn, seed),
-                         compass=compass_config(scn, device_rng(seed, "compass_mount")),
-                         magnetometer=mag_config(scn))
+    return InstalledUnit(camera=camera_config(scn, seed, sensors),
+                         compass=compass_config(scn, device_rng(seed, "compass_mount"), sensors),
+                         magnetometer=mag_config(scn, sensors))
 
 
 @dataclass
@@ -148,64 +150,54 @@ def _dataclass_from(cls: type, values: dict[str, Any]) -> Any:
     return obj
 
 
-def gyro_errors(scn: Scenario) -> GyroErrors:
-    imu = scn.sensors.imu
-    return _dataclass_from(GyroErrors, merged(preset("imu", _imu_preset(scn))["gyro"], imu.gyro.model_dump()))
+def _merged(scn: Scenario, kind: str, sensors: ResolvedSensors | None) -> Mapping[str, Any]:
+    """The merged preset of sensor ``kind``: the run's (``sensors``), else merged now for this one sensor."""
+    m: MergedPreset = sensors.of(kind) if sensors is not None else resolve_sensor(scn.sensors, kind)
+    return m.values
 
 
-def accel_errors(scn: Scenario) -> AccelErrors:
-    imu = scn.sensors.imu
-    return _dataclass_from(AccelErrors, merged(preset("imu", _imu_preset(scn))["accel"], imu.accel.model_dump()))
+def gyro_errors(scn: Scenario, sensors: ResolvedSensors | None = None) -> GyroErrors:
+    return _dataclass_from(GyroErrors, _merged(scn, "imu", sensors)["gyro"])
 
 
-def _imu_preset(scn: Scenario) -> str:
-    return preset_of(scn.sensors, "imu", scn.sensors.imu)
+def accel_errors(scn: Scenario, sensors: ResolvedSensors | None = None) -> AccelErrors:
+    return _dataclass_from(AccelErrors, _merged(scn, "imu", sensors)["accel"])
 
 
-def gyro_lp_filter_hz(scn: Scenario) -> float:
+def gyro_lp_filter_hz(scn: Scenario, sensors: ResolvedSensors | None = None) -> float:
     """The STIM210 low-pass setting (-3 dB, Hz; 0 = none): the scenario's, else the IMU preset's."""
-    f = scn.sensors.imu.lp_filter_hz
-    return float(f if f is not None else preset("imu", _imu_preset(scn)).get("lp_filter_hz", 0))
+    return float(_merged(scn, "imu", sensors)["lp_filter_hz"])
 
 
-def imu_temperature(scn: Scenario) -> ImuTemperature:
+def imu_temperature(scn: Scenario, sensors: ResolvedSensors | None = None) -> ImuTemperature:
     """The IMU temperature profile: the scenario's ``sensors.imu.temperature``, the warm-up from the IMU preset
     where the scenario leaves it out (docs/sensors.md, "IMU temperature")."""
     t = scn.sensors.imu.temperature
-    p = merged(preset("imu", _imu_preset(scn)).get("temperature", {}),
-               {"warmup_c": t.warmup_c, "warmup_tau_s": t.warmup_tau_s})
-    return ImuTemperature(t.start_c, t.rate_c_per_min, t.cal_c, warmup_c=float(p.get("warmup_c", 0.0)),
-                          warmup_tau_s=float(p.get("warmup_tau_s", 600.0)))
+    w = _merged(scn, "imu", sensors)["temperature"]
+    return ImuTemperature(t.start_c, t.rate_c_per_min, t.cal_c, warmup_c=w["warmup_c"],
+                          warmup_tau_s=w["warmup_tau_s"])
 
 
-def imu_vibration(scn: Scenario) -> dict[str, Any] | None:
+def imu_vibration(scn: Scenario, sensors: ResolvedSensors | None = None) -> dict[str, Any] | None:
     """The vibration profile ``{psd, axes}`` of the scenario (its ``sensors.imu.vibration`` over the IMU preset's),
     or None when there is none or it is disabled."""
-    v = scn.sensors.imu.vibration
-    base = dict(preset("imu", _imu_preset(scn)).get("vibration") or {})
-    # the preset says whether its profile is on when the scenario does not mention vibration (field: off)
-    on_by_default = bool(base.pop("enabled", True))
-    if not (v.enabled if v is not None else on_by_default):
-        return None
-    p = merged(base, {} if v is None else {"psd": v.psd, "axes": v.axes})
-    if not p.get("psd"):
-        return None
-    return {"psd": [(float(f), float(g)) for f, g in p["psd"]], "axes": tuple(p.get("axes", (1.0, 1.0, 1.0)))}
+    prof: dict[str, Any] | None = _merged(scn, "imu", sensors)["vibration"]
+    return prof
 
 
-def build_vibration(scn: Scenario, seed: int) -> VibrationModel | None:
+def build_vibration(scn: Scenario, seed: int, sensors: ResolvedSensors | None = None) -> VibrationModel | None:
     """The world's vibration (:mod:`emulator.world.vibration`) of ``scn``, None without a profile."""
-    prof = imu_vibration(scn)
+    prof = imu_vibration(scn, sensors)
     if prof is None:
         return None
     return VibrationModel(prof["psd"], prof["axes"], scn.sensors.imu.rate_hz, device_rng(seed, "vibration"))
 
 
-def gnss_config(scn: Scenario, seed: int | None = None) -> GnssConfig:
+def gnss_config(scn: Scenario, seed: int | None = None, sensors: ResolvedSensors | None = None) -> GnssConfig:
     """The receiver of ``scn``; ``seed`` (default the scenario's) draws its environment's run (``environment``)."""
     g = scn.sensors.gnss
-    p = preset("gnss", preset_of(scn.sensors, "gnss", g))
-    err = _dataclass_from(GnssErrors, merged(p["errors"], g.errors.model_dump()))
+    p = _merged(scn, "gnss", sensors)
+    err = _dataclass_from(GnssErrors, p["errors"])
     env_process = None
     num_sats, hdop = g.num_sats, g.hdop
     if g.environment is not None:
@@ -216,11 +208,10 @@ def gnss_config(scn: Scenario, seed: int | None = None) -> GnssConfig:
         err = environment_errors(env, err, env_process.hdop, g.hdop)
         num_sats, hdop = env_process.num_sats, env_process.hdop
     return GnssConfig(
-        rate_hz=g.rate_hz, latency_s=g.latency_s if g.latency_s is not None else float(p.get("latency_s", 0.05)),
+        rate_hz=g.rate_hz, latency_s=p["latency_s"],
         sentences=tuple(g.sentences), ubx=tuple(g.ubx), talker=g.talker, nmea_version=g.nmea_version,
         geoid_sep_m=g.geoid_sep_m, geoid_sep_field=g.geoid_sep_field,
-        fix_quality=g.fix_quality if g.fix_quality is not None else int(p.get("fix_quality", 1)),
-        reacquisition_s=g.reacquisition_s if g.reacquisition_s is not None else float(p.get("reacquisition_s", 0.8)),
+        fix_quality=p["fix_quality"], reacquisition_s=p["reacquisition_s"],
         num_sats=num_sats, hdop=hdop,
         outages=tuple(GnssOutage(o.start_s, o.duration_s) for o in g.outages),
         glitches=tuple(GnssGlitch(x.start_s, x.duration_s, _enu3(x.offset_enu_m)) for x in g.glitches),
@@ -232,7 +223,7 @@ def _defect_args(d: dict[str, Any]) -> dict[str, Any]:
     return {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}
 
 
-def camera_extinction_ratio(p: dict[str, Any]) -> float:
+def camera_extinction_ratio(p: Mapping[str, Any]) -> float:
     """The camera's extinction ratio: the scenario's or preset's ``extinction_ratio`` if given (an override), else
     the effective ratio of the preset's ``wire_grid`` under a Rayleigh sky (:mod:`.camera.spectral`)."""
     if p.get("extinction_ratio") is not None:
@@ -240,21 +231,16 @@ def camera_extinction_ratio(p: dict[str, Any]) -> float:
     return effective_extinction_ratio(WireGrid(**{k: float(v) for k, v in p["wire_grid"].items()}))
 
 
-def camera_config(scn: Scenario, seed: int | None = None) -> CameraConfig:
+def camera_config(scn: Scenario, seed: int | None = None, sensors: ResolvedSensors | None = None) -> CameraConfig:
     """The camera of ``scn`` (the world's truth); ``seed`` picks the physical sensor's fixed pattern."""
     c = scn.sensors.camera
     if c is None:
         from ..scenario.sensor_schema import CameraSpec
 
         c = CameraSpec()
-    p = merged(preset("camera", preset_of(scn.sensors, "camera", scn.sensors.camera)), {k: getattr(c, k) for k in (
-        "full_well_e", "read_noise_e", "adc_bits", "extinction_ratio", "signal_e", "lens", "noise")})
-    if c.focal_length_mm is not None:
-        p["focal_length_mm"] = c.focal_length_mm
+    p = _merged(scn, "camera", sensors)  # the preset, the scenario's figures and its lens (the envelope's lenses)
     m = c.mounting
-    o = c.optics  # the lens over the preset's (the envelope's lenses)
-    p = merged(p, {k: getattr(o, k) for k in ("principal_point_offset_px", "distortion_k1", "distortion_k2",
-                                               "exit_pupil_mm")})
+    o = c.optics
     pp = p.get("principal_point_offset_px", (0.0, 0.0))
     return CameraConfig(
         lens=p["lens"], focal_m=p["focal_length_mm"] * 1e-3, fisheye_max_theta=c.fisheye_max_theta_deg * DEG,
@@ -275,20 +261,18 @@ def camera_config(scn: Scenario, seed: int | None = None) -> CameraConfig:
     )
 
 
-def compass_config(scn: Scenario, rng: np.random.Generator | None = None) -> CompassConfig:
+def compass_config(scn: Scenario, rng: np.random.Generator | None = None,
+                   sensors: ResolvedSensors | None = None) -> CompassConfig:
     c = scn.sensors.compass
     if c is None:
         from ..scenario.sensor_schema import CompassSpec
 
         c = CompassSpec()
-    p = merged(preset("compass", preset_of(scn.sensors, "compass", scn.sensors.compass)), {k: getattr(c, k) for k in (
-        "aop_sigma_deg", "dop_ref", "extinction_ratio", "fov_half_deg")})
+    p = _merged(scn, "compass", sensors)
     mounts = default_mountings()
     if c.units is not None:  # a compass with its own unit layout (e.g. the dual-vector study's three sensors)
         mounts = mountings_from_directions([(u.zenith_deg, u.azimuth_deg) for u in c.units])
-    inst = c.installation_error_sigma_deg
-    if inst is None:
-        inst = float(p.get("installation_error_sigma_deg", 0.0))
+    inst = p["installation_error_sigma_deg"]
     if inst > 0:
         mounts = perturbed_mountings(mounts, inst * DEG, rng or np.random.default_rng(0))
     if c.aop_offset_deg is not None:  # calibration residual: each unit turned about its view ray (AOP + offset)
@@ -296,19 +280,17 @@ def compass_config(scn: Scenario, rng: np.random.Generator | None = None) -> Com
     return CompassConfig(mountings=mounts, aop_sigma=p["aop_sigma_deg"] * DEG, dop_ref=p["dop_ref"],
                          extinction_ratio=p["extinction_ratio"], fov_half=p["fov_half_deg"] * DEG,
                          min_sun_elevation=c.min_sun_elevation_deg * DEG, noise=p["aop_sigma_deg"] > 0,
-                         dop_noise_model=c.dop_noise_model or p.get("dop_noise_model", "inverse"),
+                         dop_noise_model=p["dop_noise_model"],
                          blocked=tuple((tuple(b.units), b.start_s, b.start_s + b.duration_s) for b in c.blocked))
 
 
-def mag_config(scn: Scenario) -> MagConfig:
+def mag_config(scn: Scenario, sensors: ResolvedSensors | None = None) -> MagConfig:
     c = scn.sensors.magnetometer
     if c is None:
         from ..scenario.sensor_schema import MagnetometerSpec
 
         c = MagnetometerSpec()
-    name = preset_of(scn.sensors, "magnetometer", scn.sensors.magnetometer)
-    p = merged(preset("magnetometer", name), {k: getattr(c, k) for k in (
-        "noise_nt", "hard_iron_nt", "soft_iron_scale", "soft_iron_cross")})
+    p = _merged(scn, "magnetometer", sensors)
     return MagConfig(declination_deg=c.declination_deg, inclination_deg=c.inclination_deg,
                      intensity_nt=c.intensity_nt, noise_nt=p["noise_nt"], hard_iron_nt=tuple(p["hard_iron_nt"]),
                      soft_iron=soft_iron_matrix(tuple(p["soft_iron_scale"]), tuple(p["soft_iron_cross"])))
@@ -330,17 +312,21 @@ def _path(scn: Scenario, name: str) -> Path:
 
 
 def build_sensors(scn: Scenario, seed: int, traj: Trajectory, internal: dict[str, Link],
-                  pps: Callable[[float], None], unit: InstalledUnit | None = None) -> SensorSet:
+                  pps: Callable[[float], None], unit: InstalledUnit | None = None,
+                  sensors: ResolvedSensors | None = None) -> SensorSet:
     """Create the sensor models whose ports are wired in-process (``internal`` link ends); ``unit``: the installed
-    unit the calibration writer also gets (default: :func:`installed_unit` of ``scn`` and ``seed``)."""
+    unit the calibration writer also gets (default: :func:`installed_unit` of ``scn`` and ``seed``); ``sensors``:
+    the run's merged presets (default: merged here, once)."""
     from . import recorded
 
+    if sensors is None:
+        sensors = resolve_sensors(scn.sensors)
     if unit is None:
-        unit = installed_unit(scn, seed)
+        unit = installed_unit(scn, seed, sensors)
 
     s = scn.sensors
-    tap = ImuTruthTap(traj, build_vibration(scn, seed) if s.imu.recorded is None else None)
-    temp = imu_temperature(scn)
+    tap = ImuTruthTap(traj, build_vibration(scn, seed, sensors) if s.imu.recorded is None else None)
+    temp = imu_temperature(scn, sensors)
     gyro_src = accel_src = None
     if s.imu.recorded is not None:
         rec = recorded.RecordedImu(_path(scn, s.imu.recorded.file), s.imu.recorded.time_offset_s)
@@ -349,20 +335,20 @@ def build_sensors(scn: Scenario, seed: int, traj: Trajectory, internal: dict[str
     if "gyro" in internal:
         kw: dict[str, Any] = {"ident": int(s.imu.stim300_datagram, 16)} if s.imu.device == "stim300" else {}
         gyro = (Stim300Imu if s.imu.device == "stim300" else Stim210Gyro)(
-            internal["gyro"], tap, device_rng(seed, "gyro"), gyro_errors(scn),
+            internal["gyro"], tap, device_rng(seed, "gyro"), gyro_errors(scn, sensors),
             fmt=s.imu.format, output=s.imu.output, trigger_rate_hz=s.imu.rate_hz,
-            temperature=temp, source=gyro_src, lp_filter_hz=gyro_lp_filter_hz(scn), **kw)
-    accel = AnalogAccelerometers(tap, device_rng(seed, "accel"), accel_errors(scn), temperature=temp,
+            temperature=temp, source=gyro_src, lp_filter_hz=gyro_lp_filter_hz(scn, sensors), **kw)
+    accel = AnalogAccelerometers(tap, device_rng(seed, "accel"), accel_errors(scn, sensors), temperature=temp,
                                  source=accel_src, trigger_rate_hz=s.imu.rate_hz)
     gnss: Any = None
     if "gnss" in internal and s.gnss.enabled:
         if s.gnss.recorded is not None:
             gnss = recorded.recorded_gnss(internal["gnss"], _path(scn, s.gnss.recorded.file), s.gnss.recorded.format,
-                                          scn.epoch, gnss_config(scn), s.gnss.recorded.time_offset_s, pps=pps,
-                                          rng=device_rng(seed, "gnss"))
+                                          scn.epoch, gnss_config(scn, None, sensors), s.gnss.recorded.time_offset_s,
+                                          pps=pps, rng=device_rng(seed, "gnss"))
         else:
-            gnss = GnssReceiver(internal["gnss"], traj, scn.epoch, device_rng(seed, "gnss"), gnss_config(scn, seed),
-                                pps=pps)
+            gnss = GnssReceiver(internal["gnss"], traj, scn.epoch, device_rng(seed, "gnss"),
+                                gnss_config(scn, seed, sensors), pps=pps)
     sky = sun = None
     camera = compass = None
     want_camera = s.camera is not None and s.camera.enabled

@@ -25,7 +25,7 @@ from protocols.host import HostFormat, NavSolution
 from protocols.stream import StreamDecoder
 
 from ..devices.base import EventSink, NullEvents
-from ..links import LineConfig, Link, MemHub, open_link
+from ..links import LineConfig, Link, LinkUrl, MemHub, open_link
 
 __all__ = ["DirectionSwap", "ExternalDsp", "UartWatch", "cut_dsp_uarts"]
 
@@ -33,10 +33,11 @@ __all__ = ["DirectionSwap", "ExternalDsp", "UartWatch", "cut_dsp_uarts"]
 SILENCE_POLL_S = 0.25
 
 
-def cut_dsp_uarts(external: Mapping[Any, str], uart_fpga: dict[str, Link], loop: asyncio.AbstractEventLoop,
+def cut_dsp_uarts(external: Mapping[Any, str | LinkUrl], uart_fpga: dict[str, Link], loop: asyncio.AbstractEventLoop,
                   hub: MemHub, run_dir: Path) -> dict[str, Link]:
-    """Replace the FPGA end of each UART in ``external`` (name -> URL) by a link to that URL, with the FPGA end's
-    line; ``uart_fpga`` is changed in place. Returns the new links by UART name (not yet open)."""
+    """Replace the FPGA end of each UART in ``external`` (name -> URL, or its parsed :class:`LinkUrl`) by a link to
+    that URL, with the FPGA end's line; ``uart_fpga`` is changed in place. Returns the new links by UART name (not
+    yet open)."""
     cut: dict[str, Link] = {}
     for uname, url in external.items():
         old = uart_fpga[uname]

@@ -50,6 +50,7 @@ from ..devices.sensors import (
 from ..errors import RecordingError, ScenarioError
 from ..plugins import PLUGIN_ERRORS, plugin, plugin_names
 from ..scenario.paths import PathNotAllowed, confine, read_json_bounded
+from ..scenario.resolved import ResolvedSensors
 from ..scenario.schema import Scenario
 from .variant_params import variant_params
 
@@ -362,9 +363,11 @@ def _vec3(v: Any) -> tuple[float, float, float]:
     return (float(v[0]), float(v[1]), float(v[2]))
 
 
-def firmware_config(scn: Scenario, calibration: Calibration | None = None) -> FirmwareConfig:
+def firmware_config(scn: Scenario, calibration: Calibration | None = None,
+                    sensors: ResolvedSensors | None = None) -> FirmwareConfig:
     """The firmware's configuration: the scenario's firmware section and the calibration file (by default the
-    one :func:`calibration_for` makes with the scenario's seed)."""
+    one :func:`calibration_for` makes with the scenario's seed); ``sensors``: the run's merged presets (the fitted
+    units' ranges; default: merged here)."""
     if calibration is None:
         calibration = calibration_for(scn)
     fw = scn.firmware
@@ -384,8 +387,8 @@ def firmware_config(scn: Scenario, calibration: Calibration | None = None) -> Fi
         gyro_counter_step=round(2000 / scn.sensors.imu.rate_hz),
         # the fitted units' measurement ranges (a property of the configured variant, like the output and the rate;
         # no error figure): words beyond them are refused (D-5.46)
-        gyro_range_dps=gyro_errors(scn).range_dps,
-        accel_range_g=_vec3(accel_errors(scn).range_g),
+        gyro_range_dps=gyro_errors(scn, sensors).range_dps,
+        accel_range_g=_vec3(accel_errors(scn, sensors).range_g),
         coning_samples=fw.coning_samples,
         kf_predict_every=fw.kf_predict_every,
         output_rate_hz=fw.output_rate_hz,
@@ -425,12 +428,13 @@ def firmware_config(scn: Scenario, calibration: Calibration | None = None) -> Fi
     )
 
 
-def build_firmware(scn: Scenario, calibration: Calibration | None = None) -> FirmwareProtocol:
+def build_firmware(scn: Scenario, calibration: Calibration | None = None,
+                   sensors: ResolvedSensors | None = None) -> FirmwareProtocol:
     """The firmware the virtual DSP hosts for this scenario (``firmware.implementation``: this package's or a
-    ``psns_hil.firmware`` plugin's), configured from its calibration file."""
+    ``psns_hil.firmware`` plugin's), configured from its calibration file (``sensors``: :func:`firmware_config`)."""
     register_plugins((scn.firmware.filter,), (scn.firmware.implementation,))
     try:
         factory = FIRMWARE_IMPLEMENTATIONS[scn.firmware.implementation]
     except KeyError:
         raise ScenarioError(f"firmware.implementation: {scn.firmware.implementation!r} is not registered") from None
-    return factory(firmware_config(scn, calibration))
+    return factory(firmware_config(scn, calibration, sensors))

@@ -191,7 +191,7 @@ DEFAULT_LINE = LineConfig()
 
 
 def open_link(
-    url: str,
+    url: str | LinkUrl,
     name: str,
     loop: asyncio.AbstractEventLoop,
     default_line: LineConfig = DEFAULT_LINE,
@@ -200,10 +200,12 @@ def open_link(
 ) -> Link:
     """Create (not yet open) the link for port ``name`` at ``url``.
 
-    ``hub`` pairs ``mem://`` ends; ``transport_kw`` goes to the transport (e.g. ``run_dir``
-    for ptys).
+    ``url``: the URL's text, or the :class:`LinkUrl` it was parsed into (a resolved scenario's port,
+    :mod:`emulator.scenario.resolved`: parsed once, not again here). ``hub`` pairs ``mem://`` ends;
+    ``transport_kw`` goes to the transport (e.g. ``run_dir`` for ptys).
     """
-    u = parse_link_url(url)
+    u = url if isinstance(url, LinkUrl) else parse_link_url(url)
+    url = u.url
     line = u.line_config(default_line)
     cls = _transport_class(u.scheme)
     if u.scheme == "mem":

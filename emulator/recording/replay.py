@@ -8,7 +8,10 @@ cycle-to-time model, the host port, the recorder) runs as in the original, so in
 replay reproduces the original ``nav.csv`` and host bytes bit for bit; change the firmware and
 the same recording shows what the change does.
 
-Every external link is replaced by ``mem://`` (nothing outside takes part in a replay).
+Every external link is replaced by ``mem://`` (nothing outside takes part in a replay). The replay is its own
+builder, :class:`ReplayEmulator`: the run's :class:`~emulator.assembly.session.Emulator` with the build steps a
+replay changes overridden (the host port only, no sensors, no DSP outside, the built-in firmware; the captured
+bytes instead of the sources).
 
 A capture may be hostile (docs/hostile-input.md): the reader validates its header
 (:mod:`emulator.recording.capture`); of the records replayed, one whose time is not finite or negative is dropped,
@@ -25,11 +28,15 @@ from pathlib import Path
 from typing import Any
 
 from ..assembly.ports import UART_NUM
+from ..assembly.session import Emulator
+from ..clock import EmulatorLoop
 from ..errors import RecordingError
+from ..links import Link, MemHub
+from ..scenario.schema import Scenario
 from .capture import CaptureRecord, read_capture
 
-__all__ = ["NavComparison", "compare_nav", "load_replay", "replay_base_dir", "replayable_records", "run_replay",
-           "same_file"]
+__all__ = ["NavComparison", "ReplayEmulator", "compare_nav", "load_replay", "replay_base_dir", "replayable_records",
+           "run_replay", "same_file"]
 
 #: a capture whose last record is this much before the scenario's end holds less than the run (IMU frames
 #: arrive every 5 ms, so a complete capture ends within a few ms of the end)
@@ -39,7 +46,6 @@ TRUNCATION_SLACK_S = 0.5
 def load_replay(capture: str | Path) -> tuple[Any, list[Any], dict[str, Any]]:
     """``(scenario, records, header)`` of a capture, ready for :class:`emulator.assembly.session.Emulator`."""
     from ..scenario.loader import validate_scenario_data
-    from ..scenario.schema import Scenario
 
     header, records = read_capture(capture)
     spec = header.get("scenario_spec")
@@ -99,11 +105,73 @@ def replay_base_dir(capture: str | Path, named: Any) -> Path:
     return fallback
 
 
+class ReplayEmulator(Emulator):
+    """A replay's build (see the module docstring): ``records`` (a capture's, :func:`replayable_records`) are
+    handed to the DSP's UARTs at their times instead of running sensors and FPGA acquisition."""
+
+    replaying = True
+
+    def __init__(self, scn: Scenario, run_dir: Path, records: list[CaptureRecord], mode: str | None = None,
+                 seed: int | None = None, progress: Callable[[float, float], None] | None = None,
+                 source: str | None = None) -> None:
+        super().__init__(scn, run_dir, mode=mode, seed=seed, progress=progress)
+        self.records = records
+        #: the capture replayed (the summary's ``replay.source``) and how many records reached the DSP
+        self.replay_source = source
+        self.replayed_records = 0
+        self._replay_recs: list[CaptureRecord] = []
+        self._replay_i = 0
+
+    def _open_ports(self, hub: MemHub, loop: EmulatorLoop) -> tuple[dict[str, Link], dict[str, Link]]:
+        """The host port only, in-process: the sensors are replaced by the capture, nothing outside takes part."""
+        ext: dict[str, Link] = {}
+        internal: dict[str, Link] = {}
+        self._pair_port(hub, loop, self.cfg.ports["host"], ext, internal)
+        return ext, internal
+
+    def _cut_dsp_uarts(self, uart_fpga: dict[str, Link], hub: MemHub, loop: EmulatorLoop) -> None:
+        """The DSP's UARTs stay in-process (the captured bytes are what it received)."""
+
+    def _build_sensors(self, traj: Any, internal: dict[str, Link]) -> tuple[Any, Any, Any]:
+        return None, None, None
+
+    def build_dsp(self, uart_dsp: dict[int, Any], rx_cfg: dict[int, Any], events: Any) -> Any:
+        """The firmware model, whatever ``dsp.external`` says: the replay re-runs this package's firmware."""
+        return self._build_model_dsp(uart_dsp, rx_cfg, events)
+
+    def _start_sources(self) -> None:
+        """Schedule the captured DSP-UART input."""
+        assert self.loop is not None
+        recs = [r for r in self.records if r.link in UART_NUM and r.direction == "in"]
+        self._replay_recs = recs
+        self._replay_i = 0
+        if recs:
+            self.loop.call_at(recs[0].t_s, self._replay_step)
+
+    def _replay_step(self) -> None:
+        recs = self._replay_recs
+        i = self._replay_i
+        t = recs[i].t_s
+        while i < len(recs) and recs[i].t_s == t:
+            r = recs[i]
+            link = self.links[r.link]
+            link.last_rx_pitch = r.pitch_s if r.pitch_s is not None else link.line.byte_time
+            link._deliver(r.data)
+            self.replayed_records += 1
+            i += 1
+        self._replay_i = i
+        if i < len(recs) and self.loop is not None:
+            self.loop.call_at(recs[i].t_s, self._replay_step)
+
+    def _replay_section(self) -> dict[str, Any] | None:
+        return {"source": self.replay_source, "records": self.replayed_records}
+
+
 def run_replay(capture: str | Path, run_dir: str | Path, mode: str = "fast", speed: float = 1.0,
                on_started: Callable[[Any], None] | None = None,
                progress: Callable[[float, float], None] | None = None, force: bool = False) -> dict[str, Any]:
     """Replay ``capture`` into a fresh DSP/firmware; returns the run summary."""
-    from ..assembly.session import Emulator, run_emulator
+    from ..assembly.session import run_emulator
 
     scn, all_records, header = load_replay(capture)
     records, times = replayable_records(all_records)
@@ -112,8 +180,8 @@ def run_replay(capture: str | Path, run_dir: str | Path, mode: str = "fast", spe
     truncated = bool(header.get("truncated_record")) or held < full - TRUNCATION_SLACK_S
     if truncated:  # replay what the capture holds, and say so
         scn = scn.model_copy(update={"duration_s": max(held, 1e-3)})
-    emu = Emulator(scn, Path(run_dir), mode=mode, seed=header.get("seed"), progress=progress, replay=records)
-    emu.replay_source = str(capture)
+    emu = ReplayEmulator(scn, Path(run_dir), records, mode=mode, seed=header.get("seed"), progress=progress,
+                         source=str(capture))
     summary = run_emulator(emu, speed, on_started, force=force)
     if summary.get("replay") is not None:
         summary["replay"].update(truncated=truncated, captured_s=held, scenario_duration_s=full, **times)

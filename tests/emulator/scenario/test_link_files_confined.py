@@ -93,8 +93,9 @@ def test_the_run_opens_the_link_with_the_confined_path(tmp_path: Path, monkeypat
     class Stop(Exception):
         pass
 
-    def fake_open_link(url: str, *args, **kwargs):
-        opened.append(url)
+    def fake_open_link(url, *args, **kwargs):  # the run hands over the URL it parsed once (D-11.R1)
+        opened.append(url.url)
+        assert url.options["auth"] == f"{scen.resolve()}/creds.txt"
         raise Stop
 
     monkeypatch.setattr(session, "open_link", fake_open_link)

@@ -24,7 +24,7 @@ FORBIDDEN = re.compile(r"benchmarks?[/ .]|\bD-\d|\bD\d\b|decisions?[/ ]|decision
 #: a deliberate edit of this table, with its source, in the same commit
 FROZEN = {
     "default": "0fe30c01c4ff176bde2b16bff3ceb109d49c52330de690f379639891cb5c1f2a",
-    "field": "218c8e69bed162dffdae917600b6d308c399e05e184ed885acb6fbe95b875c9d",  # + gnss.unverified_multipath_m (D-5.51)
+    "field": "218c8e69bed162dffdae917600b6d308c399e05e184ed885acb6fbe95b875c9d",  # + unverified_multipath_m
 }
 
 

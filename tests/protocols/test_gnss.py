@@ -75,7 +75,7 @@ def test_gst_carries_the_receivers_estimate_and_agrees_with_pynmea2():
 
     from protocols.nmea import Gst
 
-    utc = dt.datetime(2024, 3, 1, 12, 0, 1, tzinfo=dt.timezone.utc)
+    utc = dt.datetime(2024, 3, 1, 12, 0, 1, tzinfo=dt.UTC)
     out = GnssOutputSet(nmea=("GGA", "GST"))
     fix = GnssFix(utc=utc, lat_deg=40.0, lon_deg=116.0, height_m=50.0, hdop=2.0, gst_std_m=(9.0, 12.0, 20.0))
     lines = build_epoch(fix, out).decode().split("\r\n")

@@ -128,6 +128,7 @@ def test_gst_parses_to_its_statistics_and_round_trips() -> None:
     frame = build_gst(dt.time(12, 0, 1, 500000), 5.2, 4.1, 3.0, 372.5, 4.0, 3.5, 7.2, "GN")
     assert frame == s("GNGST,120001.50,5.2,4.1,3.0,372.5,4.0,3.5,7.2")
     out, dec = decode(frame)
+    assert dec.stats.parse_errors == 0
     assert out == [Gst("GN", dt.time(12, 0, 1, 500000), 5.2, 4.1, 3.0, 12.5, 4.0, 3.5, 7.2)]  # orientation mod 360
     assert encode_nmea(out[0]) == build_gst(dt.time(12, 0, 1, 500000), 5.2, 4.1, 3.0, 12.5, 4.0, 3.5, 7.2, "GN")
     # a receiver without a fix sends the fields empty; trailing fields may be omitted

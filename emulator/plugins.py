@@ -4,7 +4,7 @@ installed next to psns-hil adds to the emulator's registries without editing it 
 =========================  ====================================================  ================================
 group                      value                                                 merged into
 =========================  ====================================================  ================================
-``psns_hil.filters``       a :class:`firmware_model.filters.NavFilter` subclass  ``firmware.filter`` names
+``psns_hil.filters``       a :class:`firmware_model.filters.interface.NavFilter` subclass  ``firmware.filter`` names
                            (``params_model``: its parameter dataclass)           (:func:`filter_names`)
 ``psns_hil.links``         a :class:`emulator.links.base.Link` subclass          URL schemes (:mod:`emulator.links`)
                            (``url_options``, ``url_usage``)

@@ -47,7 +47,7 @@ __all__ = [
 _THETA_REF_RAD = math.pi / 2.0
 #: Allan-deviation floor of flicker bias noise per unit bias instability B (IEEE Std 952: 0.664 B)
 _ALLAN_FLOOR = math.sqrt(2.0 * math.log(2.0) / math.pi)
-#: interval of the GNSS velocity aiding (s): 1 Hz fixes (for the flicker's matching time, BaseFilter._flicker_match_s)
+#: interval of the GNSS velocity aiding (s): 1 Hz fixes (for the flicker's matching time, flicker_match_s)
 _VEL_AID_INTERVAL_S = 1.0
 #: a first-order Gauss-Markov of sigma s and correlation time c has the Allan variance
 #: ``s^2 (c / T)^2 (2 x - 3 + 4 exp(-x) - exp(-2 x))``, ``x = T / c`` (from its autocorrelation ``s^2 exp(-|t| / c)``);

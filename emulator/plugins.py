@@ -1,16 +1,16 @@
 """Plugins by entry point, as python-can finds its interfaces (``can.interface`` entry points): a package
 installed next to psns-hil adds to the emulator's registries without editing it (docs/plugins.md).
 
-=========================  ====================================================  ================================
-group                      value                                                 merged into
-=========================  ====================================================  ================================
-``psns_hil.filters``       a :class:`firmware_model.filters.NavFilter` subclass  ``firmware.filter`` names
-                           (``params_model``: its parameter dataclass)           (:func:`filter_names`)
-``psns_hil.links``         a :class:`emulator.links.base.Link` subclass          URL schemes (:mod:`emulator.links`)
+=========================  ======================================================  ================================
+group                      value                                                   merged into
+=========================  ======================================================  ================================
+``psns_hil.filters``       a :class:`~firmware_model.filters.interface.NavFilter`  ``firmware.filter`` names
+                           subclass (``params_model``: its parameter dataclass)    (:func:`filter_names`)
+``psns_hil.links``         a :class:`emulator.links.base.Link` subclass            URL schemes (:mod:`emulator.links`)
                            (``url_options``, ``url_usage``)
-``psns_hil.firmware``      ``(FirmwareConfig) -> FirmwareProtocol``              ``firmware.implementation``
-                                                                                 (:func:`firmware_names`)
-=========================  ====================================================  ================================
+``psns_hil.firmware``      ``(FirmwareConfig) -> FirmwareProtocol``                ``firmware.implementation``
+                                                                                   (:func:`firmware_names`)
+=========================  ======================================================  ================================
 
 The entry point's name is the registered name. Built-in names cannot be replaced (a plugin that tries is
 refused and reported). A plugin that fails to import does not stop anything else: the failure is kept in

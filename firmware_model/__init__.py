@@ -8,9 +8,10 @@ describes the tasks, kernels, equations and the cycle budget.
 
 from __future__ import annotations
 
-from .config import UART_GNSS, UART_HOST, UART_IMU, UART_PSNS, FirmwareConfig
+from .config import FILTER_VARIANTS, UART_GNSS, UART_HOST, UART_IMU, UART_PSNS, FirmwareConfig
 from .errors import FirmwareError
-from .filters import FILTER_VARIANTS, BaseFilter, NavFilter, register_filter
+from .filters.base import BaseFilter
+from .filters.interface import NavFilter, register_filter
 from .firmware import Firmware
 from .tasks.state import FirmwareState, TickResult
 

@@ -6,7 +6,7 @@ frames from the FPGA, UART2 PSNS (POLARIZATION_OBS / SOLAR_VECTOR / COMPASS fram
 
 :data:`FILTER_VARIANTS` is the table of filter variants built into this firmware. It lives here, below the
 filters, because the configuration validates ``FirmwareConfig.filter`` against it while every filter takes a
-:class:`FirmwareConfig`; :func:`firmware_model.filters.register_filter` fills it (the base filter and the
+:class:`FirmwareConfig`; :func:`firmware_model.filters.interface.register_filter` fills it (the base filter and the
 variants of :mod:`firmware_model.variants`, which :mod:`firmware_model.firmware` imports).
 """
 
@@ -31,9 +31,10 @@ UART_HOST, UART_IMU, UART_PSNS, UART_GNSS = 0, 1, 2, 3
 #: NMEA sentences the firmware can write on the host UART: position/velocity/time, then heading and attitude
 NMEA_NAV_SENTENCES = ("GGA", "RMC", "VTG", "ZDA", "HDT", "THS", "PASHR")
 
-#: The filter variants of this build by ``FirmwareConfig.filter`` name: :class:`firmware_model.filters.NavFilter`
-#: subclasses, entered by :func:`firmware_model.filters.register_filter` (typed loosely here, as the filter
-#: interface sits above the configuration that selects it).
+#: The filter variants of this build by ``FirmwareConfig.filter`` name:
+#: :class:`firmware_model.filters.interface.NavFilter` subclasses, entered by
+#: :func:`firmware_model.filters.interface.register_filter` (typed loosely here, as the filter interface sits above
+#: the configuration that selects it).
 FILTER_VARIANTS: dict[str, type[Any]] = {}
 
 
@@ -86,18 +87,18 @@ class FirmwareConfig:
     gyro_bias_sigma_deg_h: float = 40.0 / 3.0
     gyro_bias_instability_deg_h: float = 20.0 / 3.0
     #: gyro scale-factor error (ppm) and misalignment (mrad), 1 sigma: attitude process noise per rotation angle
-    #: (filters.BaseFilter.predict, "rotation-dependent noise")
+    #: (filters.base.BaseFilter.predict, "rotation-dependent noise")
     gyro_scale_factor_ppm: float = 0.0
     gyro_misalignment_mrad: float = 0.0
     #: the gyro bias the box's temperature gradient drives (deg/h, 1 sigma, in P0 with the turn-on bias) and the box's
     #: warm-up time constant (s) over which that gradient, and the bias with it, decays after power-on: > 0 adds
-    #: the bias's in-run change to the gyro-bias rows of Q (filters.warmup_gyro_bias_variance, D-5.27); 0: a
+    #: the bias's in-run change to the gyro-bias rows of Q (filters.noise_model.warmup_gyro_bias_variance, D-5.27); 0: a
     #: constant gradient, the bias a turn-on constant (P0 only)
     gyro_temp_gradient_deg_h: float = 0.0
     gyro_temp_gradient_time_s: float = 0.0
     #: the gyro bias's flicker between the white equivalent's matching time and the random walk's correlation time as
     #: three augmented Gauss-Markov states (time constant and sigma from the bias instability and its correlation
-    #: time, filters.gyro_flicker_band, docs/decisions/filter-consistency.md D-5.28)
+    #: time, filters.noise_model.gyro_flicker_band, docs/decisions/filter-consistency.md D-5.28)
     gyro_flicker_states: bool = True
     accel_noise_ug_rt_hz: float = 100.0
     accel_bias_sigma_mg: float = 7.0 / 3.0
@@ -144,12 +145,12 @@ class FirmwareConfig:
     gnss_error_states: bool = True
     #: the receiver's HDOP at which the GNSS figures above hold (docs/decisions/sky-and-sheet-consistency.md D-5.42):
     #: a fix whose GGA / GNS reports a worse geometry has its position and velocity sigmas (white and correlated)
-    #: scaled by ``HDOP / gnss_hdop_ref``, never below the sheet's (:func:`firmware_model.filters.gnss_dop_scale`);
+    #: scaled by ``HDOP / gnss_hdop_ref``, never below the sheet's (:func:`firmware_model.filters.gnss.gnss_dop_scale`);
     #: 0 = the reported HDOP is not used
     gnss_hdop_ref: float = 0.0
     #: the code multipath (range, 1 sigma, m) assumed on a fix from 4 satellites or fewer, whose GST cannot show it
     #: (no redundancy): ``HDOP x this / sqrt(2)`` per horizontal axis is added to the fix's figure in quadrature
-    #: (:func:`firmware_model.filters.gnss_fix_scale`, D-5.51); 0 = none
+    #: (:func:`firmware_model.filters.gnss.gnss_fix_scale`, D-5.51); 0 = none
     gnss_unverified_multipath_m: float = 0.0
     #: innovation gate of each GNSS row (normalised innovation squared, 1 dof) (docs/hostile-input.md): chi-square(1)
     #: at alpha = 1e-5 (4.4 sigma), now that the covariance is consistent with the sensors (it was 1e4 = 100 sigma
@@ -176,7 +177,7 @@ class FirmwareConfig:
     psns_bias_sigma_deg: float = 0.2
     #: the part of ``psns_bias_sigma_deg`` that is the sky's (the rest is the camera mount's, isotropic in the body):
     #: the sky is symmetric about the solar meridian, so the filter puts its variance of both axes across the sun into
-    #: the elevation axis (filters.BaseFilter, docs/decisions/filter-consistency.md D-5.16); 0 = isotropic
+    #: the elevation axis (filters.base.BaseFilter, docs/decisions/filter-consistency.md D-5.16); 0 = isotropic
     psns_sky_bias_deg: float = 0.0
     #: the sky's error along the solar meridian (the solved sun's elevation), 1 sigma, in place of the
     #: ``psns_sky_bias_deg`` of that axis (D-5.33); 0 = ``sqrt(2) psns_sky_bias_deg`` (D-5.16's shape)

@@ -57,7 +57,7 @@ from . import c674x, input_guard
 from .alignment import level_cycles, triad_cycles
 from .arrays import FloatArray, FloatDtype
 from .config import UART_GNSS, UART_HOST, UART_IMU, UART_PSNS, FirmwareConfig
-from .filters import NavFilter
+from .filters.interface import NavFilter
 from .kf import N_STATES
 from .nav_state import NavState
 from .precision import rounder

@@ -5,7 +5,7 @@ The registries are plain tables; the emulator fills them from the ``psns_hil.fil
 entry points at start-up (:mod:`emulator.plugins`, docs/plugins.md), so a package installed next to psns-hil adds
 a filter or a whole firmware without editing this one. Nothing here does I/O.
 
-* A **filter** is a :class:`firmware_model.filters.NavFilter` subclass. It declares its parameter model as the
+* A **filter** is a :class:`firmware_model.filters.interface.NavFilter` subclass. It declares its parameter model as the
   class attribute ``params_model`` (a dataclass whose fields have defaults); the scenario's ``firmware.params``
   is validated against it, and the filter reads its instance with :func:`filter_params`.
 * A **firmware implementation** is a callable ``(FirmwareConfig) -> FirmwareProtocol``.

@@ -14,17 +14,17 @@ package does no file I/O. :meth:`SensorSpecSheet.config_fields` derives the filt
   the environmental terms the datasheet gives (g-sensitivity at 1 g, temperature-gradient bias, scale factor at
   1 g for the accelerometers), all added in quadrature; the temperature-gradient bias changes in-run as the box
   warms up (``temp_gradient_time_s``, its warm-up time constant): that change as gyro-bias process noise (D-5.27,
-  :func:`firmware_model.filters.warmup_gyro_bias_variance`); the flicker's short-term motion (Allan floor 0.664 B at
-  every averaging time) as a white-noise equivalent on the attitude and velocity rows, matched at the
+  :func:`firmware_model.filters.noise_model.warmup_gyro_bias_variance`); the flicker's short-term motion (Allan
+  floor 0.664 B at every averaging time) as a white-noise equivalent on the attitude and velocity rows, matched at the
   velocity-aiding time constant (docs/decisions/filter-consistency.md D-5.15);
 * GNSS: the receiver's 95 % figures (horizontal 2DRMS -> sigma per axis = X / 2.448, vertical X / 2) split into a
   white part (``white_sigma_h_m`` / ``_v_m``: receiver noise and fast multipath) and a time-correlated remainder
   (atmosphere, orbit) of correlation time ``corr_time_s``, estimated as three augmented Gauss-Markov states
   (docs/decisions/filter-consistency.md); a gap of fixes longer than ``relock_gap_s`` is a loss of lock after which
   they restart as a fresh draw (D-5.17); a fix whose receiver reports an HDOP above ``hdop_ref`` has all of these
-  sigmas scaled by ``HDOP / hdop_ref`` (D-5.42, :func:`firmware_model.filters.gnss_dop_scale`);
+  sigmas scaled by ``HDOP / hdop_ref`` (D-5.42, :func:`firmware_model.filters.gnss.gnss_dop_scale`);
 * PSNS: the solve's own noise from its eigenvalues (``noise_scale * lambda_min / lambda_mid / n_used``, see
-  :func:`firmware_model.filters.solar_noise_variance`), a floor, and the systematic solar-vector error (camera
+  :func:`firmware_model.filters.solar.solar_noise_variance`), a floor, and the systematic solar-vector error (camera
   mount residual and lens-model residual of the calibration plus the sky's departure from the Rayleigh pattern, in
   quadrature) as three augmented states in
   the local-level frame, the sky's part once more on the axis across the solar meridian (D-5.16);

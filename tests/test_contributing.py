@@ -4,7 +4,7 @@ packages it names imports, every link resolves, and the README and the guide's i
 A path is a backquoted span whose first segment is a top-level entry of the repository (``emulator/faults/base.py``,
 ``tests/vectors/``); a placeholder segment (``emulator/links/<scheme>.py``) is checked up to the folder that holds
 it. A dotted name is a backquoted ``protocols.X``, ``firmware_model.X`` or ``emulator.X``: the longest importable
-module prefix, then attributes (``emulator.faults.base.INJECTORS``, ``firmware_model.filters.NavFilter``).
+module prefix, then attributes (``emulator.faults.base.INJECTORS``, ``firmware_model.filters.interface.NavFilter``).
 """
 
 from __future__ import annotations

@@ -282,7 +282,7 @@ def register_plugins(filters: Iterable[str] | None = None, firmware: Iterable[st
     never replaced; what cannot be entered (fails to import, not a ``NavFilter`` subclass, a firmware factory that
     is not callable) is kept in :data:`emulator.plugins.PLUGIN_ERRORS`."""
     from firmware_model.config import FILTER_VARIANTS
-    from firmware_model.filters import NavFilter, register_filter
+    from firmware_model.filters.interface import NavFilter, register_filter
     from firmware_model.registry import register_firmware
 
     installed = plugin_names("psns_hil.filters")
@@ -295,7 +295,7 @@ def register_plugins(filters: Iterable[str] | None = None, firmware: Iterable[st
         if cls is None:
             continue
         if not (isinstance(cls, type) and issubclass(cls, NavFilter)):
-            PLUGIN_ERRORS[("psns_hil.filters", name)] = "not a firmware_model.filters.NavFilter subclass"
+            PLUGIN_ERRORS[("psns_hil.filters", name)] = "not a firmware_model.filters.interface.NavFilter subclass"
             continue
         register_filter(name)(cls)
     installed = plugin_names("psns_hil.firmware")

@@ -18,7 +18,7 @@ from ..alignment import level_from_specific_force, solar_heading_alignment
 from ..arrays import FloatArray, FloatDtype
 from ..attitude import a2mat, heading_from_yaw, m2att, mat2q, q2mat_fast, rv2q, yaw_from_heading
 from ..config import FirmwareConfig
-from ..filters import SolarObservation
+from ..filters.solar import SolarObservation
 from ..nav_state import NavState
 from ..units import DEG
 from .gnss import GnssTask

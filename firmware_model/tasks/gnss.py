@@ -65,7 +65,7 @@ from protocols.ubx import NavPosllh, NavPvt, NavSol, NavStatus, NavTimeGps, NavT
 from .. import input_guard
 from ..config import FirmwareConfig
 from ..earth import ecef_to_geodetic
-from ..filters import GnssMeasurement
+from ..filters.gnss import GnssMeasurement
 from ..geoid import geoid_separation_m
 from ..units import DEG
 from .state import count_rejection

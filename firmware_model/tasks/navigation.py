@@ -2,8 +2,9 @@
 
 :class:`NavCore` is not a task of the loop's schedule but the collaborator the tasks share: the executive runs its
 mechanization and time update every tick, the measurement tasks update its filter, the alignment starts it, the
-output reads it. It is also what a filter variant asks of the loop (:class:`firmware_model.filters.FilterHost`):
-the INS state at a measurement's time (2 s history), the mean of the MAG frames around a given time, the time.
+output reads it. It is also what a filter variant asks of the loop
+(:class:`firmware_model.filters.interface.FilterHost`): the INS state at a measurement's time (2 s history), the mean
+of the MAG frames around a given time, the time.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from protocols.stim import GYRO_ANGLE_LSB_DEG, GYRO_RATE_LSB_DPS
 from .. import c674x
 from ..arrays import F64Array, FloatArray, FloatDtype
 from ..config import FILTER_VARIANTS, FirmwareConfig
-from ..filters import NavFilter
+from ..filters.interface import NavFilter
 from ..nav_state import FE, FN, FU, POS, NavFloats, NavState, Q, V
 from ..precision import rounder
 from ..strapdown import coning_sculling, coning_sculling_fast, strapdown_kernel

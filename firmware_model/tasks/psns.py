@@ -17,7 +17,8 @@ from .. import c674x, psns, sun
 from ..arrays import FloatDtype
 from ..attitude import mat2q, q2mat_fast
 from ..config import FirmwareConfig
-from ..filters import SolarObservation, UpdateReport
+from ..filters.interface import UpdateReport
+from ..filters.solar import SolarObservation
 from ..units import DEG
 from .navigation import NavCore
 from .state import LoopStatus, SolarSolve

@@ -21,7 +21,7 @@ _GPS_EPOCH = _dt.date(1980, 1, 6)
 
 class Clock:
     """FPGA time and UTC (the services :meth:`now_s` and :meth:`utc_days` of
-    :class:`firmware_model.filters.FilterHost`).
+    :class:`firmware_model.filters.interface.FilterHost`).
 
     Collaborators: ``cfg`` (GPS week era, date-jump tolerance) and ``counters`` (the loop's counter table, shared:
     ``gnss_date_refused``, ``utc_stale_pps``, ``utc_stale_tag``)."""

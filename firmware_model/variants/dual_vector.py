@@ -55,7 +55,8 @@ from protocols.psns import CompassFrame, PsnsStatus
 from .. import c674x, sun
 from ..arrays import F64Array, FloatArray, FloatDtype
 from ..attitude import q2mat_fast, skew
-from ..filters import BaseFilter, UpdateReport, register_filter
+from ..filters.base import BaseFilter
+from ..filters.interface import UpdateReport, register_filter
 from ..kf import IDX_ATT
 from ..nav_state import NavState
 from ..psns_geometry import compass_unit_mountings

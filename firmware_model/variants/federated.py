@@ -46,13 +46,13 @@ both (the three-way combination), ``pol_mimu`` (polarization/MIMU) and ``sins_gn
 
 **What the box knows of its sensors** (docs/decisions/filter-consistency.md D-5.18, D-5.19): the sub-filters are
 configured as the base filter is, by the same code (:mod:`firmware_model.filters`): Q and P0 of the common model
-from the spec sheet (:func:`~firmware_model.filters.spec_process_noise`,
-:func:`~firmware_model.filters.spec_initial_covariance`, the turns' rotation noise
-:func:`~firmware_model.filters.rotation_attitude_noise`); the SINS/GNSS sub-filter carries the three Gauss-Markov
-GNSS-error states (:class:`~firmware_model.filters.GnssErrorStates`: ``x1 = [15 | b_E b_N b_U]``) when
+from the spec sheet (:func:`~firmware_model.filters.noise_model.spec_process_noise`,
+:func:`~firmware_model.filters.noise_model.spec_initial_covariance`, the turns' rotation noise
+:func:`~firmware_model.filters.noise_model.rotation_attitude_noise`); the SINS/GNSS sub-filter carries the three
+Gauss-Markov GNSS-error states (:class:`~firmware_model.filters.gnss.GnssErrorStates`: ``x1 = [15 | b_E b_N b_U]``) when
 ``gnss_error_states``; the MIMU/polarization sub-filter takes the solar vector's noise from the solve's quality
-(:func:`~firmware_model.filters.solar_noise_variance`) unless ``sun_sigma`` fixes it, and carries the three
-solar-bias states (:class:`~firmware_model.filters.SolarBiasStates`: ``x2 = [phi | eps | a^b | nabla | mu]``) when
+(:func:`~firmware_model.filters.solar.solar_noise_variance`) unless ``sun_sigma`` fixes it, and carries the three
+solar-bias states (:class:`~firmware_model.filters.solar.SolarBiasStates`: ``x2 = [phi | eps | a^b | nabla | mu]``) when
 ``psns_bias_states``. The augmented states are local to their sub-filter: the master fuses ``[phi, eps]`` only, and
 they are never fed back. Sub-filter 2's accelerometer bias ``nabla`` is the base model's bias state (spec-sheet P0 with
 the level's correlation, random-walk Q), apart from the 5 s motion acceleration, which would forget a turn-on bias
@@ -69,27 +69,18 @@ import numpy as np
 from .. import c674x, earth
 from ..arrays import FloatArray, FloatDtype
 from ..attitude import q2mat_fast, qmul, qnormalize, rv2q
-from ..filters import (
+from ..filters.cycles import feedback_cycles, kf_predict_cycles, kf_scalar_update_cycles
+from ..filters.gnss import GnssErrorStates, GnssMeasurement, gnss_fix_scale, gnss_measurement_rows
+from ..filters.interface import NavFilter, UpdateReport, register_filter
+from ..filters.noise_model import (
     ROTATION_NOISE_FLOPS,
     WARMUP_NOISE_CYCLES,
-    GnssErrorStates,
-    GnssMeasurement,
-    NavFilter,
-    SolarBiasStates,
-    SolarObservation,
-    UpdateReport,
-    feedback_cycles,
-    gnss_fix_scale,
-    gnss_measurement_rows,
-    kf_predict_cycles,
-    kf_scalar_update_cycles,
-    register_filter,
     rotation_attitude_noise,
-    solar_noise_variance,
     spec_initial_covariance,
     spec_process_noise,
     warmup_gyro_bias_variance,
 )
+from ..filters.solar import SolarBiasStates, SolarObservation, solar_noise_variance
 from ..kf import (
     D_H,
     D_LAT,

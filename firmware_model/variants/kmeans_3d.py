@@ -50,7 +50,9 @@ from protocols.psns import PolarizationObs, PolarizationObsPacked, PsnsStatus
 from .. import c674x, psns, sun
 from ..arrays import BoolArray, F64Array, FloatArray, FloatDtype, IntArray
 from ..attitude import a2mat, heading_from_yaw, m2att, q2mat_fast
-from ..filters import BaseFilter, UpdateReport, register_filter, solar_noise_variance
+from ..filters.base import BaseFilter
+from ..filters.interface import UpdateReport, register_filter
+from ..filters.solar import solar_noise_variance
 from ..kf import IDX_ATT
 from ..nav_state import NavState
 from ..psns_geometry import CameraGeometry

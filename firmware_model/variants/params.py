@@ -162,7 +162,7 @@ class FederatedParams:
     #: accelerometer gravity measurement noise (1 sigma over one KF interval), m/s^2
     gravity_sigma_mps2: float = param(0.02, gt=0)
     #: sun-vector noise per component of the MIMU/polarization sub-filter, fixed (Ge et al.'s simulation: 0.01);
-    #: None: the solve's own quality and the spec sheet's floor, as the base filter (filters.solar_noise_variance,
+    #: None: the solve's own quality and the spec sheet's floor, as the base filter (filters.solar.solar_noise_variance,
     #: docs/decisions/filter-consistency.md D-5.18)
     sun_sigma: float | None = param(
         None, gt=0, le=1, description="fixed sun-vector noise per component (Ge et al.'s simulation: 0.01); "

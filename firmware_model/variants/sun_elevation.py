@@ -68,7 +68,9 @@ from .. import c674x, psns, sun
 from ..arrays import FloatArray, FloatDtype
 from ..attitude import q2mat_fast
 from ..config import FirmwareConfig
-from ..filters import BaseFilter, SolarObservation, UpdateReport, register_filter
+from ..filters.base import BaseFilter
+from ..filters.interface import UpdateReport, register_filter
+from ..filters.solar import SolarObservation
 from ..kf import D_LAT, D_LON, N_STATES, PHI_E, PHI_N
 from ..nav_state import NavState
 from ..psns_geometry import compass_unit_mountings

@@ -5,9 +5,10 @@ aided by a
 velocity measurement of sigma ``r`` at 1 Hz (the GNSS velocity), the accelerometer error the world's model draws
 (a turn-on bias, the flicker bank of ``emulator.devices.imu.FlickerBank`` with the paper accelerometer's B = 1.333 mg
 and 600 s, white noise of 100 ug/sqrt(Hz)), and the filter's model of it (``[dv, nabla]``: velocity white PSD
-``VRW^2 + (0.664 B)^2 T_m``, the bias a random walk of ``2 B^2 / tau``, as ``firmware_model.filters.spec_process_noise``
-builds the rows). For the horizontal (0.041 m/s: the world's paper GNSS; 0.053: the default sheet's) and the vertical
-(0.1 m/s) figures, the matching time ``T_m = (r / (0.664 B)^2)^(1/3)`` (``flicker_match_s``) times each factor: prints
+``VRW^2 + (0.664 B)^2 T_m``, the bias a random walk of ``2 B^2 / tau``, as
+``firmware_model.filters.noise_model.spec_process_noise`` builds the rows). For the horizontal (0.041 m/s: the
+world's paper GNSS; 0.053: the default sheet's) and the vertical (0.1 m/s) figures, the matching time
+``T_m = (r / (0.664 B)^2)^(1/3)`` (``flicker_match_s``) times each factor: prints
 the velocity NEES (mean of ``(e / sigma)^2`` after 10 s over ``runs`` 120 s runs), the RMS error and the mean sigma.
 A one-dimensional check (no level, no height): docs/decisions/filter-consistency.md D-5.25 quotes it.
 """

@@ -152,7 +152,7 @@ def test_validate_refuses_a_filter_plugin_that_is_not_a_navfilter(eps, tmp_path,
     load_scenario(p)  # the schema knows the name (it imports nothing of the firmware)
     rc, err = _validate(p, capsys)
     assert rc == 2 and "Traceback" not in err
-    assert "firmware.filter: 'odd' cannot be used: not a firmware_model.filters.NavFilter subclass" in err
+    assert "firmware.filter: 'odd' cannot be used: not a firmware_model.filters.interface.NavFilter subclass" in err
     assert str(p) in err
 
 

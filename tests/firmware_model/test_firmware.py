@@ -13,7 +13,9 @@ import pytest
 
 from firmware_model import Firmware, FirmwareConfig, FirmwareError, earth
 from firmware_model.attitude import heading_from_yaw, m2att, q2mat, qconj, qmul
-from firmware_model.filters import FILTER_VARIANTS, BaseFilter, register_filter
+from firmware_model.config import FILTER_VARIANTS
+from firmware_model.filters.base import BaseFilter
+from firmware_model.filters.interface import register_filter
 from firmware_model.tasks.state import FirmwareState
 from protocols.constants import DEG
 from protocols.host import HostFormat, NavMode, NavSolution

@@ -14,7 +14,8 @@ import yaml
 
 from firmware_model import Firmware, FirmwareConfig, c674x
 from firmware_model.attitude import a2mat, mat2q, yaw_from_heading
-from firmware_model.filters import BaseFilter, GnssMeasurement, gnss_corr_sigmas, gnss_dop_scale, gnss_measurement_rows
+from firmware_model.filters.base import BaseFilter
+from firmware_model.filters.gnss import GnssMeasurement, gnss_corr_sigmas, gnss_dop_scale, gnss_measurement_rows
 from firmware_model.kf import D_H, D_LAT, D_LON, DV_E
 from firmware_model.nav_state import NavState
 from firmware_model.spec_sheet import SensorSpecSheet

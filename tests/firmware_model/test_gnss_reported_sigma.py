@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from firmware_model import Firmware, FirmwareConfig, c674x, input_guard
-from firmware_model.filters import GnssMeasurement, gnss_fix_scale, gnss_measurement_rows
+from firmware_model.filters.gnss import GnssMeasurement, gnss_fix_scale, gnss_measurement_rows
 from protocols.nmea import Gst
 from protocols.nmea_build import build_gga, build_gst, build_rmc
 

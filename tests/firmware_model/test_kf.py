@@ -8,7 +8,9 @@ import pytest
 from firmware_model import c674x, earth
 from firmware_model.attitude import a2mat, mat2q, q2mat, rv2q, skew, yaw_from_heading
 from firmware_model.config import FirmwareConfig
-from firmware_model.filters import BaseFilter, GnssMeasurement, SolarObservation
+from firmware_model.filters.base import BaseFilter
+from firmware_model.filters.gnss import GnssMeasurement
+from firmware_model.filters.solar import SolarObservation
 from firmware_model.kf import N_STATES, kf_update_scalar, solar_vector_residual, solar_vector_rows
 from firmware_model.strapdown import NavState
 from protocols.constants import DEG

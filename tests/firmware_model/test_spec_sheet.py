@@ -13,24 +13,19 @@ import yaml
 
 from firmware_model import FirmwareConfig, c674x
 from firmware_model.attitude import a2mat, mat2q, yaw_from_heading
-from firmware_model.filters import (
+from firmware_model.filters.base import BaseFilter
+from firmware_model.filters.cycles import kf_predict_cycles, kf_scalar_update_cycles
+from firmware_model.filters.gnss import GnssMeasurement, gnss_corr_sigmas
+from firmware_model.filters.noise_model import (
     GM_ALLAN_PEAK,
     GM_ALLAN_PEAK_X,
-    SOLAR_VECTOR_DOF,
     WARMUP_NOISE_CYCLES,
-    BaseFilter,
-    GnssMeasurement,
-    SolarObservation,
     flicker_b_accel,
     flicker_match_s,
-    gnss_corr_sigmas,
     gyro_flicker_band,
-    kf_predict_cycles,
-    kf_scalar_update_cycles,
-    solar_fix_nis,
-    solar_noise_variance,
     warmup_gyro_bias_variance,
 )
+from firmware_model.filters.solar import SOLAR_VECTOR_DOF, SolarObservation, solar_fix_nis, solar_noise_variance
 from firmware_model.kf import D_H, D_LON, N_STATES
 from firmware_model.nav_state import NavState
 from firmware_model.spec_sheet import SensorSpecSheet, SpecSheetError

@@ -14,12 +14,12 @@ diagonal of P), so ``eps`` here is the diagonal form: it equals the full-covaria
 are uncorrelated and is a close proxy otherwise (its expectation is still ``n``).
 
 ``NIS`` (normalised innovation squared) of a measurement type: the firmware accumulates ``nu^2 / s`` of every
-scalar row it processes (:attr:`firmware_model.filters.NavFilter.innovation_stats`, in the run summary under
+scalar row it processes (:attr:`firmware_model.filters.interface.NavFilter.innovation_stats`, in the run summary under
 ``firmware.innovation``); a row's NIS is chi-square with 1 dof, so the average over ``M`` rows of all runs lies
 inside ``[chi2.ppf(alpha/2, M) / M, chi2.ppf(1 - alpha/2, M) / M]``. ``rows`` counts degrees of freedom: a solar
 vector fix is three scalar rows carrying two (its residual has no first-order part along the sun), counted as 2 rows
-with its NIS across the sun (:func:`firmware_model.filters.solar_fix_nis`, D-5.32). Sequential rows of one fix are not
-independent of the previous fixes when the GNSS error is correlated in time; the bound is then optimistic,
+with its NIS across the sun (:func:`firmware_model.filters.solar.solar_fix_nis`, D-5.32). Sequential rows of one fix
+are not independent of the previous fixes when the GNSS error is correlated in time; the bound is then optimistic,
 which is said in the table.
 
 State groups (the names a ``consistency:`` expectation may use, :data:`STATE_GROUPS`): ``attitude`` (phi E, N, U,

@@ -139,7 +139,7 @@ def _pair(beta: float = 0.5, fed_kw=None, **cfg_kw):
     """A base filter and a federated filter on the same configuration and navigation state, both initialised."""
     from firmware_model import c674x
     from firmware_model.attitude import a2mat, mat2q, yaw_from_heading
-    from firmware_model.filters import BaseFilter
+    from firmware_model.filters.base import BaseFilter
     from firmware_model.nav_state import NavState
     from firmware_model.variants.federated import FederatedFilter
 
@@ -162,7 +162,7 @@ def test_subfilters_take_the_base_filters_spec_sheet_q_p0_and_augmented_states()
     the sub-filter, D-5.32); sub-filter 2's attitude / gyro blocks are the base's times 1 / beta, and so is its
     accelerometer bias with the level's correlation with it (D-5.20), apart from the motion acceleration's stationary
     variance; its solar-bias states are the base's, unshared; the cycle meter charges the added states."""
-    from firmware_model.filters import kf_predict_cycles, kf_scalar_update_cycles
+    from firmware_model.filters.cycles import kf_predict_cycles, kf_scalar_update_cycles
     from firmware_model.kf import IDX_ACC, IDX_ATT, IDX_GYRO
     from firmware_model.variants.federated import (
         N2,
@@ -253,7 +253,7 @@ def test_imposed_misalignment_sigma_adds_to_the_attitude_prior_and_keeps_the_lev
 def test_subfilters_share_the_warmup_gyro_bias_noise_by_beta():
     """D-5.27: the temperature-gradient bias's in-run change while the box warms up enters both sub-filters' gyro-bias
     rows as Q does, times 1 / beta_i; the ``field`` sheet carries the warm-up figure."""
-    from firmware_model.filters import warmup_gyro_bias_variance
+    from firmware_model.filters.noise_model import warmup_gyro_bias_variance
     from firmware_model.kf import IDX_GYRO
     from firmware_model.variants.federated import X2_GYRO
 
@@ -279,7 +279,7 @@ def test_sins_gnss_subfilter_predicts_and_updates_gnss_as_the_base_filter():
     """With beta = 1 and no solar-bias states the SINS/GNSS sub-filter is the base filter's 18-state model: the same
     predict (GNSS-error Gauss-Markov, turns' rotation noise) and the same GNSS update (position rows ``dp - b`` with
     the white R) give the same covariance and estimate."""
-    from firmware_model.filters import GnssMeasurement
+    from firmware_model.filters.gnss import GnssMeasurement
 
     # the master fuses SINS/GNSS only, and not before its first fix: nothing of sub-filter 2 reaches the reference
     base, fed, nav, _ = _pair(beta=1.0, fed_kw={"subfilters": ("sins_gnss",)}, psns_bias_states=False)
@@ -308,7 +308,7 @@ def test_pol_mimu_solar_update_uses_the_solve_quality_noise_and_the_bias_states(
     """The MIMU/polarization sub-filter's sun-vector update by closed form: ``P+ = P - P H^T (H P H^T + r I)^-1 H P``
     with ``H = [-[S^n x] | 0 | 0 | [S^n x] C_b^n]`` (body-frame solar bias, no sky figure) and ``r`` from the solve
     (:func:`solar_noise_variance`) or, when the study fixes it, ``sun_sigma^2``."""
-    from firmware_model.filters import SolarObservation, solar_noise_variance
+    from firmware_model.filters.solar import SolarObservation, solar_noise_variance
     from firmware_model.variants.federated import N2, X2_ATT
 
     _, fed, nav, cbn = _pair(fed_kw={"sun_sigma": sun_sigma}, psns_sky_bias_deg=0.0)
@@ -327,7 +327,7 @@ def test_pol_mimu_solar_update_uses_the_solve_quality_noise_and_the_bias_states(
     rep = fed.update_solar(nav, obs, s_n, cbn)
     assert rep.accepted
     np.testing.assert_allclose(fed.P2, want, rtol=1e-6, atol=1e-16)
-    # the fix counts its two dof across the sun (D-5.32, filters.solar_fix_nis); a perfect solve here: NIS 0
+    # the fix counts its two dof across the sun (D-5.32, filters.solar.solar_fix_nis); a perfect solve here: NIS 0
     assert fed.innovation_stats["solar_vector"]["rows"] == 2
     assert fed.innovation_stats["solar_vector"]["nis_sum"] == pytest.approx(0.0, abs=1e-9)
 
@@ -338,7 +338,7 @@ def test_pol_mimu_solar_bias_states_are_local_not_shared_by_beta():
     their Q stays the Gauss-Markov's own, so a stationary prior stays stationary through a predict:
     ``P_mu' = (1 - T / tau)^2 P_mu + (2 T / tau) P_mu`` (with the old ``/ beta_2`` on both it grew by ``1 / beta_2``
     at the first sun and its Q was twice the sheet's)."""
-    from firmware_model.filters import SolarObservation
+    from firmware_model.filters.solar import SolarObservation
 
     _, fed, nav, cbn = _pair()
     sun = fed.sun_states

@@ -222,7 +222,7 @@ def test_elevation_noise_variance_matches_finite_differences_of_the_two_unit_sol
 
 
 class _Host:
-    """The main loop's services (firmware_model.filters.FilterHost) for one static epoch."""
+    """The main loop's services (firmware_model.filters.interface.FilterHost) for one static epoch."""
 
     def __init__(self, days: float, nav) -> None:
         self.days, self.nav = days, nav

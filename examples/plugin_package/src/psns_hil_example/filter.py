@@ -1,7 +1,7 @@
 """``scaled_q``: the base filter with its process-noise power spectral density scaled by ``q_scale``.
 
 A study knob (how much does the navigation lean on the IMU model?) and the smallest filter a plugin can add:
-a :class:`firmware_model.filters.BaseFilter` subclass that declares its parameter model (``params_model``, a
+a :class:`firmware_model.filters.base.BaseFilter` subclass that declares its parameter model (``params_model``, a
 dataclass); the scenario's ``firmware.params`` is validated against it and reaches the filter through
 :func:`firmware_model.registry.filter_params`.
 """
@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from firmware_model.filters import BaseFilter
+from firmware_model.filters.base import BaseFilter
 from firmware_model.registry import filter_params
 
 

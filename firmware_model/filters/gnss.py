@@ -57,6 +57,9 @@ class GnssMeasurement:
     reported_sigma_h_m: float | None = None
     #: satellites used (GGA / GNS / NAV-PVT) when reported: 4 or fewer leave no residual (:func:`gnss_fix_scale`)
     num_sats: int | None = None
+    #: the receiver's PDOP (NAV-PVT pDOP) when it reported no HDOP: the 4-satellite rule's geometry, an upper bound
+    #: of the HDOP (PDOP^2 = HDOP^2 + VDOP^2), so never narrower than the HDOP would give
+    pdop: float | None = None
 
 
 def gnss_dop_scale(cfg: FirmwareConfig, hdop: float | None) -> float:
@@ -77,14 +80,16 @@ def gnss_fix_scale(cfg: FirmwareConfig, meas: GnssMeasurement) -> float:
     horizontal figure, ``reported_sigma_h_m / gnss_pos_sigma_h_m``. A receiver sees its multipath in its
     pseudorange residuals where the HDOP cannot show it (a street canyon); the sheet stays the floor. A fix from 4
     satellites or fewer has no residual to show it: the sheet's ``gnss_unverified_multipath_m`` (a range error)
-    through the fix's HDOP is added in quadrature, ``k^2 + (HDOP m / sqrt(2) / sheet)^2``. Cost: one more
+    through the fix's HDOP is added in quadrature, ``k^2 + (HDOP m / sqrt(2) / sheet)^2`` (a NAV-PVT fix, which
+    reports no HDOP, through its PDOP: an upper bound). Cost: one more
     ``divsp`` when the fix carries GST, charged by the caller."""
     k = gnss_dop_scale(cfg, meas.hdop)
     sheet = cfg.gnss_pos_sigma_h_m
     r = meas.reported_sigma_h_m
     if r is not None and math.isfinite(r) and r > 0.0 and sheet > 0.0:
         k = max(k, r / sheet)
-    mp, n, hdop = cfg.gnss_unverified_multipath_m, meas.num_sats, meas.hdop
+    mp, n = cfg.gnss_unverified_multipath_m, meas.num_sats
+    hdop = meas.hdop if meas.hdop is not None else meas.pdop  # NAV-PVT: PDOP >= HDOP, the conservative side
     if mp > 0.0 and n is not None and n <= 4 and hdop is not None and math.isfinite(hdop) and hdop > 0.0 \
             and sheet > 0.0:
         # no fifth satellite: the receiver's residuals cannot show its multipath, so the sheet's is assumed

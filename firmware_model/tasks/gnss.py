@@ -157,6 +157,7 @@ class _Epoch:
     hdop: float | None = None        # GGA / GNS HDOP of the fix (scales its sigmas, D-5.42)
     gst_h: float | None = None       # GST: the receiver's horizontal error estimate per axis, m (D-5.51)
     num_sats: int | None = None      # satellites used (GGA / GNS / NAV-PVT)
+    pdop: float | None = None        # NAV-PVT pDOP (the 4-satellite rule's geometry without an HDOP)
 
 
 class GnssTask:
@@ -410,6 +411,8 @@ class GnssTask:
             self._last_fix = (*e.pos3, e.quality)
         e.vel = np.array([p.velE * 1e-3, p.velN * 1e-3, -p.velD * 1e-3])
         e.vel_up = p.fixType != 2
+        # the 4-satellite rule (D-5.51) reads numSV and pDOP; hAcc is not taken as a sigma (D-5.52)
+        e.num_sats, e.pdop = p.numSV, p.pDOP * 0.01
 
     def _on_ubx_legacy(self, m: Any) -> None:
         """The NAV messages of u-blox 5/6/7 (no NAV-PVT): NAV-POSLLH position, NAV-VELNED velocity, NAV-SOL fix
@@ -715,7 +718,7 @@ class GnssTask:
             m.pos_up = False
             self.counters["gnss_2d_fixes"] += 1
         m.vel, m.vel_up, m.quality, m.hdop, m.reported_sigma_h_m = e.vel, e.vel_up, e.quality, e.hdop, e.gst_h
-        m.num_sats = e.num_sats
+        m.num_sats, m.pdop = e.num_sats, e.pdop
         if m.pos is None and m.vel is None:
             self.counters["gnss_no_fix_epochs"] += 1
             return

@@ -124,3 +124,36 @@ def test_a_fix_without_redundancy_assumes_the_sheets_multipath_through_its_hdop(
 def test_ggas_satellite_count_reaches_the_update():
     _, seen = _run((12.0, 16.0), with_sats=True)
     assert seen and all(n == 9 for n in seen)  # _run's GGA reports 9 satellites
+
+
+def test_a_nav_pvt_fix_without_redundancy_goes_through_its_pdop():
+    """NAV-PVT reports no HDOP: the 4-satellite rule takes its PDOP, an upper bound of the HDOP (D-5.52)."""
+    cfg = FirmwareConfig(gnss_hdop_ref=1.0, gnss_pos_sigma_h_m=4.0, gnss_unverified_multipath_m=4.85)
+    m4 = GnssMeasurement(t_fpga_s=1.0, pos=(0.7, 2.0, 50.0), num_sats=4, pdop=2.5)
+    assert gnss_fix_scale(cfg, m4) == pytest.approx(math.hypot(1.0, 2.5 * 4.85 / math.sqrt(2.0) / 4.0))
+    # an HDOP, when one came, is the geometry (the smaller, truer figure)
+    both = GnssMeasurement(t_fpga_s=1.0, pos=(0.7, 2.0, 50.0), num_sats=4, pdop=2.5, hdop=1.2)
+    assert gnss_fix_scale(cfg, both) == pytest.approx(math.hypot(1.2, 1.2 * 4.85 / math.sqrt(2.0) / 4.0))
+    # 5 satellites: nothing assumed; pDOP 0 (unknown): nothing assumed
+    assert gnss_fix_scale(cfg, GnssMeasurement(t_fpga_s=1.0, num_sats=5, pdop=2.5)) == 1.0
+    assert gnss_fix_scale(cfg, GnssMeasurement(t_fpga_s=1.0, num_sats=4, pdop=0.0)) == 1.0
+
+
+def test_nav_pvts_numsv_and_pdop_reach_the_update_and_hacc_does_not():
+    truth = StaticTruth()
+    fw = Firmware(FirmwareConfig(gnss_baud=115200, gnss_latency_s=0.05, align_time_s=2.0))
+    seen: list = []
+    update = fw.filter.update_gnss
+
+    def record(nav, meas, p_ins, v_ins):
+        seen.append((meas.num_sats, meas.pdop, meas.hdop, meas.reported_sigma_h_m))
+        return update(nav, meas, p_ins, v_ins)
+
+    fw.filter.update_gnss = record  # type: ignore[method-assign]
+    stream = StreamConfig(gnss_output="ubx", gnss_baud=115200, psns=None)
+    for _t_rx, uart, data in static_stream(truth, SensorErrors(), stream, 8.0):
+        fw.receive(uart, data, _t_rx)
+        if uart == 1:
+            fw.service()
+    # synth's NAV-PVT: numSV 12, pDOP 1.50, hAcc 3 m (not a sigma: no HDOP, no reported sigma)
+    assert len(seen) >= 4 and all(s == (12, pytest.approx(1.5), None, None) for s in seen)

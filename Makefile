@@ -136,7 +136,7 @@ compiled: install
 # the tree is pure Python again. A few minutes.
 COMPILED_TESTS := tests/tools/test_build_compiled.py tests/test_fast_paths.py tests/emulator/test_numeric_baseline.py \
 	tests/firmware_model/test_strapdown.py tests/firmware_model/test_hostile_input.py tests/protocols/test_crc.py \
-	tests/emulator/recording/test_nav_error.py tests/emulator/recording/test_golden.py \
+	tests/emulator/recording/test_nav_error.py tests/emulator/postrun/test_golden.py \
 	tests/emulator/links/test_links_mem.py tests/emulator/links/test_framing.py \
 	tests/emulator/devices/test_imu.py tests/emulator/devices/test_imu_lookahead.py \
 	tests/emulator/devices/test_imu_temperature.py tests/emulator/devices/test_field_models.py

@@ -29,7 +29,7 @@ reference measured above.
 
 What the firmware alone allows (issue 43 item 4) is measured beside the reference: the capture of the last timed
 reference run (``capture.psnscap``: every byte each DSP UART received, at its time) replayed in fast mode
-(:func:`emulator.recording.replay.run_replay`, ``psns-hil replay``): the DSP, its firmware, the FPGA-DSP UARTs'
+(:func:`emulator.postrun.replay.run_replay`, ``psns-hil replay``): the DSP, its firmware, the FPGA-DSP UARTs'
 receive side, the host port and the recorder, and nothing else (no trajectory, sky, sensors, FPGA or world-side
 links). The replay's ``nav.csv`` must be the reference's, byte for byte, so the number belongs to the same work.
 Its real-time factor is the most the reference could reach with a world that cost nothing; the row gives it beside
@@ -99,7 +99,7 @@ def firmware_alone(kept: Path, repeat: int,
     """The reference's capture in ``kept`` replayed in fast mode ``repeat`` times: median wall time, the walls,
     the last summary, and whether every replay's nav.csv was the reference's byte for byte; ``cpus`` receives each
     replay's CPU time (s)."""
-    from emulator.recording.replay import run_replay, same_file
+    from emulator.postrun.replay import run_replay, same_file
 
     walls = []
     same = True

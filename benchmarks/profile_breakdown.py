@@ -44,7 +44,8 @@ HOMES: tuple[tuple[str, str], ...] = (
     ("/emulator/devices/", "devices: other (sensors, recorded)"),
     ("/emulator/links/", "links (line model, mem transport)"),
     # the recorder's per-run-time work: the listener, the capture file, nav vs truth, solar vectors vs truth, the
-    # counting decoders and the CSV cells; the rest of recording/ (summary, report, golden, replay) is the runner's
+    # counting decoders and the CSV cells; the rest of recording/ (summary) and postrun/ (report, golden, replay)
+    # are the runner's
     ("/emulator/recording/recorder.py", RECORDER),
     ("/emulator/recording/capture.py", RECORDER),
     ("/emulator/recording/nav_error.py", RECORDER),

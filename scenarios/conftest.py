@@ -16,7 +16,7 @@ run directory):
     expectation is checked there too: the average NEES of its groups (and NIS of its measurements) over its first
     ``runs`` seeds (seeds after 10 are added when it asks for more) must lie inside the chi-square bounds.
 ``<name>[golden]``
-    the change indicator (``emulator.recording.golden``): the captured input bytes must match
+    the change indicator (``emulator.postrun.golden``): the captured input bytes must match
     ``tests/golden/<name>.inputs.txt`` exactly and the estimator's state history
     ``tests/golden/<name>.state.csv`` within float noise. Regenerate on purpose with ``make golden``.
 
@@ -70,7 +70,7 @@ class _Run:
         if self.summary is not None or self.error is not None:
             return self
         from emulator.assembly.session import run_scenario
-        from emulator.recording.golden import compare_golden
+        from emulator.postrun.golden import compare_golden
 
         scn = self.scenario
         base = Path(tempfile.mkdtemp(prefix=f"scn-{scn.name}-"))
@@ -91,7 +91,7 @@ class _Run:
             self.kept = True
             if self.summary is not None:
                 try:
-                    from emulator.recording.report import write_report
+                    from emulator.postrun.report import write_report
 
                     write_report(self.run_dir)
                 except Exception:

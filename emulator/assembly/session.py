@@ -12,7 +12,7 @@ order, nothing started; :meth:`Emulator.start` builds, then starts the clock and
 of the run changes are methods of their own (:meth:`Emulator._open_ports`, :meth:`~Emulator._build_uarts`,
 :meth:`~Emulator._cut_dsp_uarts`, :meth:`~Emulator._build_sensors`, :meth:`~Emulator.build_dsp`,
 :meth:`~Emulator._start_sources`): a split run
-(:mod:`emulator.distributed.split`) and a replay (:class:`emulator.recording.replay.ReplayEmulator`: the same
+(:mod:`emulator.distributed.split`) and a replay (:class:`emulator.postrun.replay.ReplayEmulator`: the same
 assembly without sensors and FPGA acquisition, the captured DSP-UART bytes handed to the DSP at their recorded
 times) override those, and the build itself has no branch for either.
 """
@@ -89,7 +89,7 @@ class Emulator:
     progress : called once per simulated second with ``(t, duration)``.
     """
 
-    #: a replay of a capture (:class:`emulator.recording.replay.ReplayEmulator`) rather than a run of sensors
+    #: a replay of a capture (:class:`emulator.postrun.replay.ReplayEmulator`) rather than a run of sensors
     replaying = False
 
     #: set by run_emulator's signal handler (or a signal before it existed): the run ends once started

@@ -1,5 +1,5 @@
 """``psns-hil golden [NAME ...] [--update]``: check or regenerate the change-indicator records of the scenario
-library (:mod:`emulator.recording.golden`).
+library (:mod:`emulator.postrun.golden`).
 
 Each named scenario (default: every file of the library) runs in fast mode in a temporary directory; without
 ``--update`` its record is compared with ``tests/golden/`` and the differences are printed (exit 1 when any
@@ -15,7 +15,7 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-from ..recording.golden import GOLDEN_DIR, LIBRARY_DIR, ROOT, compare_golden, library, write_golden
+from ..postrun.golden import GOLDEN_DIR, LIBRARY_DIR, ROOT, compare_golden, library, write_golden
 
 __all__ = ["add_parser", "run"]
 

@@ -356,7 +356,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             with after.armed():
                 export.after_run(args, run_dir)  # the viewer outputs: raw sensor tables, run.mcap (issue 39)
                 if not args.no_report and (run_dir / "summary.json").exists():
-                    from ..recording.report import write_report
+                    from ..postrun.report import write_report
 
                     report = write_report(run_dir)
         except _AfterRunInterrupted:
@@ -434,7 +434,7 @@ class _AfterRun:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from ..recording.report import write_report
+    from ..postrun.report import write_report
     from ..recording.summary_model import load_summary
 
     run_dir = Path(args.run_dir)
@@ -470,7 +470,7 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
 
 def _cmd_replay(args: argparse.Namespace) -> int:
     from ..assembly.session import default_run_dir
-    from ..recording.replay import run_replay
+    from ..postrun.replay import run_replay
 
     cap = Path(args.capture)
     if not cap.exists():
@@ -502,7 +502,7 @@ def _cmd_replay(args: argparse.Namespace) -> int:
         console.print(f"{len(na)} expectation(s) not applicable to a replay (not counted)")
     rc = EXIT_OK if summary.get("passed", True) else EXIT_FAILED
     if (original / "nav.csv").exists():
-        from ..recording.replay import compare_nav
+        from ..postrun.replay import compare_nav
 
         cmp = compare_nav(original / "nav.csv", run_dir / "nav.csv")
         same = bool(cmp["identical"])

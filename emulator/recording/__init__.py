@@ -1,7 +1,7 @@
-"""Recording: what a run leaves behind and what is made of it.
+"""Recording: what a run leaves behind, written while it runs (below the assembly that wires it in).
 
 :mod:`.recorder` (the run directory's listener), :mod:`.capture` (the capture file), :mod:`.nav_error`
 (navigation output against truth), :mod:`.counting` (the recorder's counting decoders), :mod:`.formatting`
-(CSV rows and JSON values), :mod:`.golden` (the change indicator), :mod:`.report` (``report.html``),
-:mod:`.replay` (the firmware re-run on a capture).
+(CSV rows and JSON values), and the run directory's exports (:mod:`.mcap_out`, :mod:`.live`, :mod:`.tracks`,
+:mod:`.sensor_tables`). What is made of a run afterwards (golden, replay, report) is :mod:`emulator.postrun`.
 """

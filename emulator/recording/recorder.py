@@ -21,10 +21,10 @@ second, so an interrupted run keeps everything up to the interruption):
 ``timeline.csv``
     One row per simulated second: cumulative link counters (frames, CRC errors, dropped bytes,
     garbage bytes, framing errors per link), the DSP's CPU load in that second and its deadline
-    misses (written by the runner through :meth:`Recorder.table_row`; ``emulator.recording.report`` plots it).
+    misses (written by the runner through :meth:`Recorder.table_row`; ``emulator.postrun.report`` plots it).
 ``filter_state.csv``
     One row per simulated second: the firmware's mode and the diagonal of its filter covariance and
-    its bias estimates (the change indicator's state history, ``emulator.recording.golden``).
+    its bias estimates (the change indicator's state history, ``emulator.postrun.golden``).
 ``summary.json``
     Written at the end (also after an interruption, with ``"interrupted": true``, and after the disk filled up or
     a file reached the size limit, with ``"storage_error"``: the space for it is held from the start by a

@@ -6,7 +6,7 @@ writes ``scenarios/data/drive_imu.csv`` (gyro in deg/s and specific force in m/s
 100 Hz: each row the interval mean of the emulator's paper-preset STIM210 / accelerometer error
 models over the trajectory of the scenario) and ``scenarios/data/drive_gnss.nmea`` (GGA + RMC at
 1 Hz from the paper-preset receiver model). Re-running it reproduces the files byte for byte
-(``tests/emulator/recording/test_golden.py::test_the_committed_recording_is_what_its_generator_makes``).
+(``tests/emulator/postrun/test_golden.py::test_the_committed_recording_is_what_its_generator_makes``).
 """
 
 from __future__ import annotations

@@ -21,8 +21,8 @@ RUNNER = "runner (setup, 1 Hz samples, summary, expectations)"
     ("/w/emulator/recording/formatting.py", RECORDER),
     # after the run: the runner's
     ("/w/emulator/recording/summary_model.py", RUNNER),
-    ("/w/emulator/recording/report.py", RUNNER),
-    ("/w/emulator/recording/golden.py", RUNNER),
+    ("/w/emulator/postrun/report.py", RUNNER),
+    ("/w/emulator/postrun/golden.py", RUNNER),
     ("/w/emulator/assembly/runner.py", RUNNER),
     ("/w/emulator/links/base.py", "links (line model, mem transport)"),
     ("/w/protocols/stream.py", "protocols (frame build / stream decode)"),

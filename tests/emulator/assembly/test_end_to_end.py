@@ -99,7 +99,7 @@ def test_same_seed_gives_identical_bytes(tmp_path):
 
 
 def test_replay_reproduces_the_navigation_output_bit_for_bit(short_run, tmp_path):
-    from emulator.recording.replay import run_replay, same_file
+    from emulator.postrun.replay import run_replay, same_file
 
     _scn, s, run_dir = short_run
     r = run_replay(run_dir / "capture.psnscap", tmp_path / "replay")

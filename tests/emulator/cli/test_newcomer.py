@@ -171,7 +171,7 @@ def test_replay_marks_sensor_link_expectations_not_applicable_and_reports_trunca
 
 
 def test_compare_nav_names_columns_and_arrival_only(tmp_path):
-    from emulator.recording.replay import compare_nav
+    from emulator.postrun.replay import compare_nav
 
     a, b, c = tmp_path / "a.csv", tmp_path / "b.csv", tmp_path / "c.csv"
     a.write_text("time_s,lat_deg,arrival_s\n1,2,3\n")

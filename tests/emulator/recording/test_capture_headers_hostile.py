@@ -145,7 +145,7 @@ def test_nan_and_backward_times_are_counted_and_monitor_says_so(tmp_path: Path) 
 @pytest.mark.slow
 def test_replay_reports_damaged_time_stamps_and_uses_every_other_record(tmp_path: Path) -> None:
     from emulator.assembly.session import run_scenario
-    from emulator.recording.replay import run_replay
+    from emulator.postrun.replay import run_replay
     from emulator.scenario import load_scenario
 
     scn = load_scenario(ROOT / "scenarios" / "quickstart.yaml").model_copy(update={"duration_s": 3.0})
@@ -172,7 +172,7 @@ def test_the_header_cannot_widen_where_a_replay_reads_files(tmp_path: Path, monk
     """``scenario_base_dir`` (where the run found the scenario's relative files) is taken only inside the user's
     trusted roots (the working directory, ``PSNS_HIL_ALLOW_PATHS``); a crafted ``/`` falls back to the capture's
     directory, so ``firmware.spec_sheet: home/...`` cannot reach the whole file system."""
-    from emulator.recording.replay import replay_base_dir
+    from emulator.postrun.replay import replay_base_dir
     from emulator.scenario.paths import ALLOW_PATHS_ENV
 
     monkeypatch.chdir(ROOT)

@@ -158,7 +158,7 @@ def test_cli_validate_reports_everything_and_run_runs_nothing(tmp_path):
 
 
 def test_the_library_and_its_faults_validate(tmp_path):
-    from emulator.recording.golden import library
+    from emulator.postrun.golden import library
 
     for p in library():
         scn = load_scenario(p)
@@ -189,7 +189,7 @@ def test_the_exported_json_schema_accepts_the_library_and_rejects_broken_items()
     import jsonschema
     import yaml
 
-    from emulator.recording.golden import library
+    from emulator.postrun.golden import library
 
     schema = json.loads((ROOT / "docs" / "scenario.schema.json").read_text())
     v = jsonschema.Draft202012Validator(schema)

@@ -32,8 +32,8 @@ from ..assembly.session import Emulator
 from ..clock import EmulatorLoop
 from ..errors import RecordingError
 from ..links import Link, MemHub
+from ..recording.capture import CaptureRecord, read_capture
 from ..scenario.schema import Scenario
-from .capture import CaptureRecord, read_capture
 
 __all__ = ["NavComparison", "ReplayEmulator", "compare_nav", "load_replay", "replay_base_dir", "replayable_records",
            "run_replay", "same_file"]
@@ -190,7 +190,7 @@ def run_replay(capture: str | Path, run_dir: str | Path, mode: str = "fast", spe
 
 
 def _strict(summary: dict[str, Any]) -> str:
-    from .formatting import strict_json
+    from ..recording.formatting import strict_json
 
     return strict_json(summary)
 

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from emulator.recording.report import MARKS_PER_KIND, digest_events
+from emulator.postrun.report import MARKS_PER_KIND, digest_events
 from tests.conftest import ROOT
 
 #: host commands per second in the flood: the host port runs at 460 800 baud 8N1 (46 080 bytes/s), a
@@ -69,7 +69,7 @@ def test_a_kind_with_many_events_is_one_histogram_not_one_line_each(monkeypatch)
     matplotlib.use("Agg")
     from array import array
 
-    import emulator.recording.report as rep
+    import emulator.postrun.report as rep
 
     digest = rep.EventDigest(marks={"command": array("d", [0.001 * k for k in range(50_000)]),
                                     "watchdog": array("d", [1.0, 2.0])})

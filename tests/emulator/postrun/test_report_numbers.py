@@ -18,8 +18,8 @@ from typing import Any
 
 import pytest
 
+from emulator.postrun.report import write_report
 from emulator.recording.formatting import readable_number
-from emulator.recording.report import write_report
 
 THIN = "\u2009"
 NUMBER = re.compile(r"^[+-]?(\d{1,3}(\u2009\d{3})+|\d+(\.\d+)?([eE][+-]?\d+)?)$")

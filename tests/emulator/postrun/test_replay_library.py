@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from emulator.assembly.session import run_scenario
+from emulator.postrun.replay import load_replay, run_replay, same_file
 from emulator.recording.capture import read_capture
-from emulator.recording.replay import load_replay, run_replay, same_file
 from emulator.scenario.loader import load_scenario
 from tests.conftest import SCENARIOS
 

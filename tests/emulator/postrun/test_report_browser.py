@@ -42,7 +42,7 @@ window.addEventListener('load', () => {
                                              "it as root)")
 def test_report_renders_every_figure_non_empty_in_headless_chromium(tmp_path):
     from emulator.assembly.session import run_scenario
-    from emulator.recording.report import write_report
+    from emulator.postrun.report import write_report
     from emulator.scenario.loader import load_scenario
 
     scn = load_scenario(ROOT / "scenarios" / "static_psns_camera.yaml", ["duration_s=6"])
@@ -94,7 +94,7 @@ def test_fresh_run_report_renders_without_console_error_and_map_in_metres(tmp_pa
     headless Chromium with no console error, a full-page screenshot is written (tmp_path/report.png), and the map
     is drawn in metres around the navigating track, not around lat = lon = 0."""
     from emulator.assembly.session import run_scenario
-    from emulator.recording.report import write_report
+    from emulator.postrun.report import write_report
     from emulator.scenario.loader import load_scenario
 
     scn = load_scenario(ROOT / "scenarios" / "vehicle_loop_gnss_outage.yaml", ["duration_s=90", "expectations=[]"])
@@ -124,7 +124,7 @@ def test_map_spans_the_navigating_track_in_metres():
     static box's map spans metres, not the 10 000 km to (0, 0)."""
     import numpy as np
 
-    import emulator.recording.report as rep
+    import emulator.postrun.report as rep
 
     n = 400
     t = [0.01 * k for k in range(n)]

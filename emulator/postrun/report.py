@@ -26,7 +26,7 @@ writes ``report.html``. The plots are embedded as base64 PNG, so the report is o
 numbers each) and, for every other kind, an array of times (8 bytes per event). A line the recorder wrote is
 recognised by its fixed prefix (time, source, kind) without a JSON parse unless its kind is needed in detail. A
 flood of 300 000 host-command events costs at most 1.5 times the report's time and peak memory of the same run
-without them (``tests/emulator/recording/test_report_cost.py``); before, one ``axvline`` per event took 4 min and
+without them (``tests/emulator/postrun/test_report_cost.py``); before, one ``axvline`` per event took 4 min and
 4.76 GB for 348 156 events. ``report.html`` is written to a temporary file and renamed, so an interrupted report
 never leaves a partial page.
 """
@@ -47,7 +47,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .formatting import readable_number
+from ..recording.formatting import readable_number
 
 __all__ = ["MARKS_PER_KIND", "EventDigest", "digest_events", "fault_spans", "load_nav_csv", "load_psns_csv",
            "write_report"]
@@ -581,7 +581,7 @@ def sensor_series(run_dir: Path) -> dict[str, list[float]]:
     from protocols.ubx import NavPvt
 
     from ..assembly.ports import port_formats
-    from .capture import iter_capture
+    from ..recording.capture import iter_capture
 
     out: dict[str, list[float]] = {k: [] for k in ("gnss_t", "gnss_sats", "gnss_dop", "psns_t", "psns_points",
                                                     "psns_dop")}
@@ -887,7 +887,7 @@ def _hz(x: Any) -> str:
 def write_report(run_dir: str | Path) -> Path:
     """Write ``report.html`` into ``run_dir`` and return its path."""
     run_dir = Path(run_dir)
-    from .summary_model import load_summary
+    from ..recording.summary_model import load_summary
 
     summary = load_summary(run_dir).model_dump(mode="json")  # validated: a clear error for a foreign file
     nav = load_nav_csv(run_dir / "nav.csv") if (run_dir / "nav.csv").exists() else {}

@@ -12,7 +12,7 @@ import sys
 
 import pytest
 
-from emulator.recording.report import fault_spans, write_report
+from emulator.postrun.report import fault_spans, write_report
 from tests.conftest import ROOT, SCENARIOS
 
 

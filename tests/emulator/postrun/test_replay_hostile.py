@@ -8,8 +8,8 @@ import json
 from pathlib import Path
 
 from emulator.assembly.session import run_scenario
+from emulator.postrun.replay import run_replay
 from emulator.recording.capture import CaptureWriter, read_capture
-from emulator.recording.replay import run_replay
 from emulator.scenario import load_scenario
 
 SCENARIOS = Path(__file__).resolve().parents[3] / "scenarios"

@@ -137,7 +137,7 @@ def render_state(header: list[str], rows: list[list[Any]]) -> str:
 
 def input_digest(capture: str | Path, duration_s: float) -> list[str]:
     """Digest lines of the captured input bytes (see module docstring)."""
-    from .capture import iter_capture
+    from ..recording.capture import iter_capture
 
     block = max(10, 10 * math.ceil(duration_s / 20.0 / 10.0))
     n_blocks = max(1, math.ceil(duration_s / block))

@@ -9,7 +9,7 @@ import sys
 import pytest
 
 from emulator.assembly.session import run_scenario
-from emulator.recording.golden import (
+from emulator.postrun.golden import (
     GOLDEN_DIR,
     compare_golden,
     compare_inputs,
@@ -138,7 +138,7 @@ def test_the_committed_recording_is_what_its_generator_makes(tmp_path):
 @pytest.mark.slow
 def test_every_library_scenario_matches_its_golden_twice_in_a_row(tmp_path):
     """The change indicator is deterministic: two replays of each scenario give identical records."""
-    from emulator.recording.golden import record
+    from emulator.postrun.golden import record
 
     for p in library():
         scn = load_scenario(p)

@@ -6,7 +6,7 @@ import re
 import pytest
 
 from emulator.assembly.session import run_scenario
-from emulator.recording.report import write_report
+from emulator.postrun.report import write_report
 from emulator.scenario import load_scenario
 from tests.conftest import SCENARIOS
 
@@ -45,7 +45,7 @@ def test_report_decodes_what_the_sensors_sent_from_the_capture(run_dir):
     """The GNSS and PSNS panels read the capture with the ports' own decoders: the quickstart's receiver sends one
     GGA a second with the GnssConfig defaults (12 satellites, HDOP 0.8) and the camera 5 frames a second."""
     from emulator.devices.gnss import GnssConfig
-    from emulator.recording.report import sensor_series
+    from emulator.postrun.report import sensor_series
 
     s = sensor_series(run_dir)
     assert len(s["gnss_t"]) in (5, 6, 7) and set(s["gnss_sats"]) == {GnssConfig.num_sats}
@@ -57,7 +57,7 @@ def test_report_decodes_what_the_sensors_sent_from_the_capture(run_dir):
 
 
 def test_sensor_series_of_a_run_without_capture_is_empty(tmp_path):
-    from emulator.recording.report import sensor_series
+    from emulator.postrun.report import sensor_series
 
     assert all(v == [] for v in sensor_series(tmp_path).values())
 
@@ -67,7 +67,7 @@ def test_report_shows_the_solved_solar_vector_against_truth(run_dir):
     rows of psns.csv, and the reader keeps the text columns."""
     import json
 
-    from emulator.recording.report import load_psns_csv
+    from emulator.postrun.report import load_psns_csv
 
     summary = json.loads((run_dir / "summary.json").read_text())
     psns = summary["psns"]
@@ -76,17 +76,17 @@ def test_report_shows_the_solved_solar_vector_against_truth(run_dir):
     assert len(rows["time_s"]) == psns["solves"]
     assert set(rows["use"]) <= set(psns["uses"]) and set(rows["source"]) == {"camera"}  # solved from images
     assert max(rows["err_deg"]) == pytest.approx(psns["solar_vector_error_deg"]["max"], rel=1e-6)
-    from emulator.recording.report import _solar_error_figure
+    from emulator.postrun.report import _solar_error_figure
 
     assert len(_solar_error_figure(rows)) == 1 and _solar_error_figure({}) == []
     doc = write_report(run_dir).read_text()
     assert "Solved solar vector against truth" in doc and "Solar vector against truth" in doc
-    from emulator.recording.report import _fmt
+    from emulator.postrun.report import _fmt
 
     assert _fmt(psns["solar_vector_error_deg"]["median"]) in doc
 
 
 def test_psns_csv_reader_without_the_file_is_empty(tmp_path):
-    from emulator.recording.report import load_psns_csv
+    from emulator.postrun.report import load_psns_csv
 
     assert load_psns_csv(tmp_path / "psns.csv") == {}

@@ -15,8 +15,9 @@ from __future__ import annotations
 import datetime as dt
 import heapq
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -208,3 +209,25 @@ def _psns_frame(truth: StaticTruth, err: SensorErrors, cfg: StreamConfig, t_exp:
     pts = [PolarizationPoint(int(x), int(y), round(a * 100), round(d * 65535), int(i))
            for x, y, a, d, i in zip(obs.x_px, obs.y_px, obs.aop_deg, obs.dop, obs.s0_dn)]
     return encode_polarization_obs(hdr, pts)
+
+
+def gnss_updates_seen(fw: Any, pick: Callable[[Any], Any], gnss_chunks: list[tuple[float, int, bytes]] | None = None,
+                      stream: StreamConfig | None = None, duration_s: float = 8.0) -> list[Any]:
+    """Feed ``fw`` a static stream (IMU on UART1, serviced per frame; ``stream`` chooses what else it carries) merged
+    with ``gnss_chunks`` ``(t_rx, uart, bytes)``, and return ``pick(measurement)`` for every GNSS update the filter
+    made: what of a receiver's message reached the update."""
+    seen: list[Any] = []
+    update = fw.filter.update_gnss
+
+    def spy(nav: Any, meas: Any, p_ins: Any, v_ins: Any) -> Any:
+        seen.append(pick(meas))
+        return update(nav, meas, p_ins, v_ins)
+
+    fw.filter.update_gnss = spy
+    cfg = stream if stream is not None else StreamConfig(gnss=False, psns=None, pps=False)
+    imu = list(static_stream(StaticTruth(), SensorErrors(), cfg, duration_s))
+    for t_rx, uart, data in heapq.merge(imu, gnss_chunks or [], key=lambda x: x[0]):
+        fw.receive(uart, data, t_rx)
+        if uart == 1:
+            fw.service()
+    return seen

@@ -5,7 +5,6 @@ whose geometry is no worse than the sheet's leaves the filter exactly as before;
 from __future__ import annotations
 
 import datetime as dt
-import heapq
 import math
 
 import numpy as np
@@ -21,7 +20,7 @@ from firmware_model.nav_state import NavState
 from firmware_model.spec_sheet import SensorSpecSheet
 from protocols.nmea_build import build_gga, build_rmc
 
-from .synth import SensorErrors, StaticTruth, StreamConfig, static_stream
+from .synth import StaticTruth, gnss_updates_seen
 from .test_spec_sheet import SHEETS
 
 DEG = math.pi / 180.0
@@ -126,26 +125,13 @@ def test_a_worse_geometry_widens_the_error_states_and_the_first_fixs_position_pr
 
 def test_ggas_hdop_reaches_the_gnss_update():
     truth = StaticTruth()
-    cfg = FirmwareConfig(gnss_baud=115200, gnss_latency_s=0.05, align_time_s=2.0, gnss_hdop_ref=1.0)
-    fw = Firmware(cfg)
-    seen: list[float | None] = []
-    update = fw.filter.update_gnss
-
-    def spy(nav, meas, p_ins, v_ins):
-        seen.append(meas.hdop)
-        return update(nav, meas, p_ins, v_ins)
-
-    fw.filter.update_gnss = spy  # type: ignore[method-assign]
+    fw = Firmware(FirmwareConfig(gnss_baud=115200, gnss_latency_s=0.05, align_time_s=2.0, gnss_hdop_ref=1.0))
     chunks = []
     for k in range(1, 8):
         utc = truth.epoch + dt.timedelta(seconds=k)
         gga = build_gga(utc.time(), truth.lat_deg, truth.lon_deg, truth.height_m, 0.0, 1, 6, 2.7, "GP")
         rmc = build_rmc(utc.time(), utc.date(), truth.lat_deg, truth.lon_deg, 0.0, 0.0, valid=True, mode="A")
         chunks.append((k + 0.05 + len(gga + rmc) * 10 / 115200, 3, gga + rmc))
-    imu = list(static_stream(truth, SensorErrors(), StreamConfig(gnss=False, psns=None, pps=False), 8.0))
-    for t_rx, uart, data in heapq.merge(imu, chunks, key=lambda x: x[0]):
-        fw.receive(uart, data, t_rx)
-        if uart == 1:
-            fw.service()
+    seen = gnss_updates_seen(fw, lambda m: m.hdop, chunks)
     assert seen and all(h == pytest.approx(2.7) for h in seen)
     assert fw.filter.gnss_states is not None and fw.filter.gnss_states.level == pytest.approx(2.7**2)

@@ -5,7 +5,6 @@ longitude errors reach the update through the one NMEA parser; hostile values ar
 from __future__ import annotations
 
 import datetime as dt
-import heapq
 import math
 
 import numpy as np
@@ -16,7 +15,7 @@ from firmware_model.filters.gnss import GnssMeasurement, gnss_fix_scale, gnss_me
 from protocols.nmea import Gst
 from protocols.nmea_build import build_gga, build_gst, build_rmc
 
-from .synth import SensorErrors, StaticTruth, StreamConfig, static_stream
+from .synth import StaticTruth, StreamConfig, gnss_updates_seen
 
 DEG = math.pi / 180.0
 
@@ -62,16 +61,7 @@ def _run(gst_lat_lon: tuple[float, float] | None, with_sats: bool = False) -> tu
     """A static box fed GGA + RMC (+ GST) at 1 Hz through UART3 bytes; the GST values (or, ``with_sats``, the
     satellite counts) each update saw."""
     truth = StaticTruth()
-    cfg = FirmwareConfig(gnss_baud=115200, gnss_latency_s=0.05, align_time_s=2.0, gnss_hdop_ref=1.0)
-    fw = Firmware(cfg)
-    seen: list = []
-    update = fw.filter.update_gnss
-
-    def record(nav, meas, p_ins, v_ins):
-        seen.append(meas.num_sats if with_sats else meas.reported_sigma_h_m)
-        return update(nav, meas, p_ins, v_ins)
-
-    fw.filter.update_gnss = record  # type: ignore[method-assign]
+    fw = Firmware(FirmwareConfig(gnss_baud=115200, gnss_latency_s=0.05, align_time_s=2.0, gnss_hdop_ref=1.0))
     chunks = []
     for k in range(1, 8):
         utc = truth.epoch + dt.timedelta(seconds=k)
@@ -80,12 +70,8 @@ def _run(gst_lat_lon: tuple[float, float] | None, with_sats: bool = False) -> tu
         if gst_lat_lon is not None:
             data += build_gst(utc.time(), 6.0, max(gst_lat_lon), min(gst_lat_lon), 0.0, *gst_lat_lon, 20.0)
         chunks.append((k + 0.05 + len(data) * 10 / 115200, 3, data))
-    imu = list(static_stream(truth, SensorErrors(), StreamConfig(gnss=False, psns=None, pps=False), 8.0))
-    for t_rx, uart, data in heapq.merge(imu, chunks, key=lambda x: x[0]):
-        fw.receive(uart, data, t_rx)
-        if uart == 1:
-            fw.service()
-    return fw, seen
+    pick = (lambda m: m.num_sats) if with_sats else (lambda m: m.reported_sigma_h_m)
+    return fw, gnss_updates_seen(fw, pick, chunks)
 
 
 def test_gsts_latitude_and_longitude_errors_reach_the_gnss_update():
@@ -140,20 +126,8 @@ def test_a_nav_pvt_fix_without_redundancy_goes_through_its_pdop():
 
 
 def test_nav_pvts_numsv_and_pdop_reach_the_update_and_hacc_does_not():
-    truth = StaticTruth()
     fw = Firmware(FirmwareConfig(gnss_baud=115200, gnss_latency_s=0.05, align_time_s=2.0))
-    seen: list = []
-    update = fw.filter.update_gnss
-
-    def record(nav, meas, p_ins, v_ins):
-        seen.append((meas.num_sats, meas.pdop, meas.hdop, meas.reported_sigma_h_m))
-        return update(nav, meas, p_ins, v_ins)
-
-    fw.filter.update_gnss = record  # type: ignore[method-assign]
-    stream = StreamConfig(gnss_output="ubx", gnss_baud=115200, psns=None)
-    for _t_rx, uart, data in static_stream(truth, SensorErrors(), stream, 8.0):
-        fw.receive(uart, data, _t_rx)
-        if uart == 1:
-            fw.service()
+    seen = gnss_updates_seen(fw, lambda m: (m.num_sats, m.pdop, m.hdop, m.reported_sigma_h_m),
+                             stream=StreamConfig(gnss_output="ubx", gnss_baud=115200, psns=None))
     # synth's NAV-PVT: numSV 12, pDOP 1.50, hAcc 3 m (not a sigma: no HDOP, no reported sigma)
     assert len(seen) >= 4 and all(s == (12, pytest.approx(1.5), None, None) for s in seen)

@@ -1,8 +1,8 @@
 """The cost of the viewer outputs (issue 39) as a ratio to the run: raw sensor tables and run.mcap on quickstart.
 
 The quickstart (120 s simulated; ``make bench-quick``: 30 s) runs in this process in fast mode; the CPU time
-(``time.process_time``: user + system of this process) of the run, of :func:`~emulator.recording.sensor_tables.
-write_sensor_tables` and of :func:`~emulator.recording.mcap_out.write_run_mcap` on its run directory are taken,
+(``time.process_time``: user + system of this process) of the run, of :func:`~emulator.postrun.sensor_tables.
+write_sensor_tables` and of :func:`~emulator.postrun.mcap_out.write_run_mcap` on its run directory are taken,
 the median of ``PSNS_BENCH_REPEAT`` repeats each. The 10 % of the run that an output may cost to be on by default
 (docs/decisions/emulator-runtime.md D-7.15) is the ratio's bound.
 """
@@ -19,8 +19,8 @@ from benchmarks.common import ROOT, quick, setting
 
 def run() -> list[dict]:
     from emulator.assembly.session import run_scenario
-    from emulator.recording.mcap_out import write_run_mcap
-    from emulator.recording.sensor_tables import write_sensor_tables
+    from emulator.postrun.mcap_out import write_run_mcap
+    from emulator.postrun.sensor_tables import write_sensor_tables
     from emulator.scenario import load_scenario
 
     duration = 30.0 if quick() else 120.0

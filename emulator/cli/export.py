@@ -1,11 +1,11 @@
 """``psns-hil export RUN --kml / --gpx / --mcap``, and the viewer outputs of ``psns-hil run``.
 
 ``export`` converts an existing run directory (an old run, a campaign member kept with ``--keep-all``):
-``--mcap`` writes ``run.mcap`` (:mod:`emulator.recording.mcap_out`), ``--kml`` / ``--gpx`` the truth and estimated
-tracks with faults and outages (:mod:`emulator.recording.tracks`), ``--tables`` the raw sensor tables
-(:mod:`emulator.recording.sensor_tables`). ``psns-hil run`` writes the sensor tables at the end of every run
+``--mcap`` writes ``run.mcap`` (:mod:`emulator.postrun.mcap_out`), ``--kml`` / ``--gpx`` the truth and estimated
+tracks with faults and outages (:mod:`emulator.postrun.tracks`), ``--tables`` the raw sensor tables
+(:mod:`emulator.postrun.sensor_tables`). ``psns-hil run`` writes the sensor tables at the end of every run
 (``--no-tables``: not), ``run.mcap`` with ``--mcap``, and serves the run live with ``--foxglove``
-(:mod:`emulator.recording.live`: the same channels as run.mcap, D-7.28) (run.mcap's cost is half the run: docs/
+(:mod:`emulator.postrun.live`: the same channels as run.mcap, D-7.28) (run.mcap's cost is half the run: docs/
 decisions/emulator-runtime.md D-7.15).
 """
 
@@ -32,7 +32,7 @@ def add_run_arguments(r: argparse.ArgumentParser) -> None:
 
 
 def _host_port(text: str) -> str:
-    from ..recording.live import parse_host_port
+    from ..postrun.live import parse_host_port
 
     try:
         parse_host_port(text)
@@ -48,7 +48,7 @@ def on_started(args: argparse.Namespace, emu: Any) -> None:
         return
     import sys
 
-    from ..recording.live import LiveServer, parse_host_port
+    from ..postrun.live import LiveServer, parse_host_port
 
     host, port = parse_host_port(spec)
     server = LiveServer(host, port)
@@ -77,11 +77,11 @@ def after_run(args: argparse.Namespace, run_dir: Path) -> list[Path]:
         return []
     written: list[Path] = []
     if not getattr(args, "no_tables", False):
-        from ..recording.sensor_tables import write_sensor_tables
+        from ..postrun.sensor_tables import write_sensor_tables
 
         written += [run_dir / name for name in write_sensor_tables(run_dir)]
     if getattr(args, "mcap", False):
-        from ..recording.mcap_out import write_run_mcap
+        from ..postrun.mcap_out import write_run_mcap
 
         written.append(write_run_mcap(run_dir).path)
     return written
@@ -112,7 +112,7 @@ def run(args: argparse.Namespace) -> int:
         raise EmulatorError("psns-hil export: say what to write (--kml, --gpx, --mcap, --tables)")
     console = Console(highlight=False)
     if args.kml is not None or args.gpx is not None:
-        from ..recording.tracks import load_tracks, write_gpx, write_kml
+        from ..postrun.tracks import load_tracks, write_gpx, write_kml
 
         tracks = load_tracks(run_dir)
         if args.kml is not None:
@@ -120,12 +120,12 @@ def run(args: argparse.Namespace) -> int:
         if args.gpx is not None:
             console.print(f"gpx: {write_gpx(tracks, Path(args.gpx) if args.gpx else run_dir / 'tracks.gpx')}")
     if args.mcap is not None:
-        from ..recording.mcap_out import write_run_mcap
+        from ..postrun.mcap_out import write_run_mcap
 
         st = write_run_mcap(run_dir, Path(args.mcap) if args.mcap else None)
         console.print(f"mcap: {st.path} ({sum(st.messages.values())} messages on {len(st.messages)} channels)")
     if args.tables:
-        from ..recording.sensor_tables import write_sensor_tables
+        from ..postrun.sensor_tables import write_sensor_tables
 
         for name, n in write_sensor_tables(run_dir).items():
             console.print(f"{name}: {n} rows")

@@ -78,7 +78,7 @@ def run_member(task: MemberTask) -> dict[str, Any]:
                 if p.exists():
                     p.unlink()
         else:  # a kept member opens in Foxglove like a single run (issue 39)
-            from ...recording.mcap_out import write_run_mcap
+            from ...postrun.mcap_out import write_run_mcap
 
             write_run_mcap(Path(task.run_dir))
     except BaseException as exc:  # a member's failure is data, never lost

@@ -1,5 +1,5 @@
 """A campaign's result and its files: ``runs.csv``, ``stats.csv``, ``campaign.json``, ``campaign.mcap`` (the
-per-member series for Foxglove, :func:`emulator.recording.mcap_out.write_campaign_mcap`) and the plots
+per-member series for Foxglove, :func:`emulator.postrun.mcap_out.write_campaign_mcap`) and the plots
 ``campaign.png`` (histograms of every error metric) and ``sensitivity.png`` (error against each varied key)."""
 
 from __future__ import annotations
@@ -84,7 +84,7 @@ def write_outputs(res: CampaignResult, plots: bool = True) -> None:
            "failures": [{"index": r["index"], "seed": r["seed"], "params": r["params"], "error": r["error"],
                          "traceback": r.get("traceback")} for r in res.failed]}
     (out / "campaign.json").write_text(json.dumps(doc, indent=2, default=str) + "\n", encoding="utf-8")
-    from ...recording.mcap_out import write_campaign_mcap
+    from ...postrun.mcap_out import write_campaign_mcap
 
     write_campaign_mcap(out, rows, res.info, res.consistency, metric_cols)  # the series, beside members' run.mcap
     if plots:

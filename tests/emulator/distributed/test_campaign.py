@@ -364,7 +364,7 @@ def test_campaign_mcap_carries_each_members_mean_nees_and_the_consistency_verdic
     null (strict JSON); the consistency check is one message after the last member, without its series."""
     from mcap.reader import make_reader
 
-    from emulator.recording.mcap_out import write_campaign_mcap
+    from emulator.postrun.mcap_out import write_campaign_mcap
 
     rows = [{"index": i, "seed": 10 + i, "ok": True, "passed": i != 1, "params": {}, "position_m_rms": 1.5 * i,
              "consistency": {"nees": {"heading": [1.0, 3.0 + i], "attitude": []}, "heading_err_mean_deg": 0.1 * i}}

@@ -16,8 +16,7 @@ from mcap.reader import make_reader
 
 from emulator.assembly.ports import port_formats
 from emulator.assembly.session import run_scenario
-from emulator.recording.capture import read_capture
-from emulator.recording.mcap_out import (
+from emulator.postrun.mcap_out import (
     FOXGLOVE_SCHEMAS,
     RAW_SCHEMA,
     TOPICS,
@@ -25,7 +24,8 @@ from emulator.recording.mcap_out import (
     attitude_quaternion,
     write_run_mcap,
 )
-from emulator.recording.sensor_tables import write_sensor_tables
+from emulator.postrun.sensor_tables import write_sensor_tables
+from emulator.recording.capture import read_capture
 from emulator.scenario import load_scenario
 from protocols.imu_frame import ImuFrame
 from protocols.nmea import Gga

@@ -27,8 +27,8 @@ from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import connect
 
 from emulator.assembly.session import run_scenario
-from emulator.recording.live import RunDirFollower, parse_host_port
-from emulator.recording.mcap_out import CSV_SOURCES, RunFeeds, encode_message, write_run_mcap
+from emulator.postrun.live import RunDirFollower, parse_host_port
+from emulator.postrun.mcap_out import CSV_SOURCES, RunFeeds, encode_message, write_run_mcap
 from emulator.scenario import load_scenario
 from tests.conftest import ROOT, SCENARIOS
 
@@ -193,7 +193,7 @@ def test_the_server_refuses_a_hostile_client_and_serves_the_tail_of_the_run(tmp_
     """In process: a run directory written in two halves while a spec client watches. Malformed and forbidden
     messages get a status error each and change nothing; after subscribing, the client receives the channel's latest
     message and then every later one, equal to run.mcap's, to the end of the run (the expectations too)."""
-    from emulator.recording.live import LiveServer
+    from emulator.postrun.live import LiveServer
 
     scn = load_scenario(SCENARIOS / "quickstart.yaml")
     scn.duration_s = 3.0

@@ -33,9 +33,9 @@ from protocols.stim import GYRO_ANGLE_LSB_DEG, GYRO_RATE_LSB_DPS
 from protocols.stream import StreamDecoder
 from protocols.ubx import NavPvt
 
-from .capture import CaptureRecord, iter_capture
-from .formatting import csv_row
-from .rundir import open_no_follow
+from ..recording.capture import CaptureRecord, iter_capture
+from ..recording.formatting import csv_row
+from ..recording.rundir import open_no_follow
 
 __all__ = ["GNSS_COLUMNS", "PSNS_FRAME_COLUMNS", "SENSOR_TABLES", "SensorDecoder", "SensorFrame",
            "decode_sensor_frames", "imu_columns", "write_sensor_tables"]

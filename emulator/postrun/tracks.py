@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import RecordingError
-from .rundir import open_no_follow
+from ..recording.rundir import open_no_follow
 
 __all__ = ["TRACK_STEP_S", "FaultSpan", "Tracks", "load_tracks", "write_gpx", "write_kml"]
 

@@ -13,8 +13,8 @@ told otherwise.
 **The same channels as run.mcap, by the same code** (docs/decisions/emulator-runtime.md D-7.28): the server follows
 the run directory as the recorder flushes it (:class:`RunDirFollower`: the complete lines of truth.csv, nav.csv,
 psns.csv, timeline.csv, filter_state.csv and events.jsonl, the complete records of capture.psnscap, summary.json at
-the end) and hands them to :class:`~emulator.recording.mcap_out.RunFeeds`, the conversion ``run.mcap`` is written
-with; the channel set is :data:`~emulator.recording.mcap_out.TOPICS` (and ``/raw/<link>/<direction>``) for both.
+the end) and hands them to :class:`~emulator.postrun.mcap_out.RunFeeds`, the conversion ``run.mcap`` is written
+with; the channel set is :data:`~emulator.postrun.mcap_out.TOPICS` (and ``/raw/<link>/<direction>``) for both.
 So nothing here reaches into a device (the recorder is the listener on the links and devices), and every value is
 the one nav.csv holds. Latency: the recorder's flush interval (1 s of wall time) plus :data:`POLL_S`. Log time is the
 scenario clock. The server runs on its own thread and asyncio loop, so the emulator's loop (virtual or paced time)
@@ -34,7 +34,7 @@ import threading
 from pathlib import Path
 from typing import Any
 
-from .capture import _PITCH, _REC, CAPTURE_MAGIC, FLAG_PITCH, CaptureRecord
+from ..recording.capture import _PITCH, _REC, CAPTURE_MAGIC, FLAG_PITCH, CaptureRecord
 from .mcap_out import (
     CAPTURE_FILE,
     CSV_SOURCES,
@@ -99,7 +99,7 @@ class _Tail:
 
 
 class RunDirFollower:
-    """Follows a run directory as the recorder writes it and feeds :class:`~emulator.recording.mcap_out.RunFeeds`
+    """Follows a run directory as the recorder writes it and feeds :class:`~emulator.postrun.mcap_out.RunFeeds`
     with what is complete: CSV lines (nav.csv and truth.csv in step, row for row, as the recorder writes them, so the
     poses have their ENU origin and ``/tf`` stays time-ordered), events.jsonl lines and capture records.
     :meth:`poll` takes what is new; ``final=True`` (the run is over) takes everything and summary.json."""
@@ -190,7 +190,7 @@ class LiveServer:
     """The live Foxglove WebSocket server (see module docstring): :meth:`follow` names the run directory,
     :meth:`start` binds and returns the port, :meth:`close` (after the run) sends the rest and stops.
 
-    It is also the :class:`~emulator.recording.mcap_out.MessageSink` of its feeds: :meth:`add` runs on the server's
+    It is also the :class:`~emulator.postrun.mcap_out.MessageSink` of its feeds: :meth:`add` runs on the server's
     thread, inside a poll."""
 
     def __init__(self, host: str = "127.0.0.1", port: int = 8765) -> None:

@@ -14,7 +14,7 @@ import pytest
 import xmlschema
 
 from emulator.assembly.session import run_scenario
-from emulator.recording.tracks import KML_NS, TRACK_STEP_S, load_tracks, write_gpx, write_kml
+from emulator.postrun.tracks import KML_NS, TRACK_STEP_S, load_tracks, write_gpx, write_kml
 from emulator.scenario import load_scenario
 from tests.conftest import ROOT, SCENARIOS
 

@@ -5,7 +5,7 @@ into the run directory: the capture (every chunk on every tapped link), nav.csv 
 filter_state.csv, events.jsonl and summary.json. Nothing here reaches into a device: the recorder is a listener on
 the links and devices, and this module reads only its files, so a finished run and an old run directory
 (``psns-hil export RUN --mcap``) convert the same way. The conversion, :class:`RunFeeds`, takes the files
-incrementally and is shared with the live view (:mod:`emulator.recording.live`, D-7.28), so both carry the channel
+incrementally and is shared with the live view (:mod:`emulator.postrun.live`, D-7.28), so both carry the channel
 set declared once in :data:`TOPICS`.
 
 Messages are JSON (``message_encoding`` ``json``) with a JSON Schema each (``schema encoding`` ``jsonschema``):
@@ -23,7 +23,7 @@ Topics (:data:`TOPICS`; README, "Run directory"):
 * ``/truth/state``, ``/truth/location``, ``/truth/pose``; ``/tf`` (FrameTransform ``enu`` -> ``body`` and
   ``enu`` -> ``body_truth``);
 * ``/imu``, ``/gnss/epoch``, ``/gnss/fix`` (LocationFix), ``/psns/frames``: the decoded sensor streams
-  (:mod:`emulator.recording.sensor_tables`); ``/psns/aop_image`` (foxglove.RawImage, 1 Hz): the angle of
+  (:mod:`emulator.postrun.sensor_tables`); ``/psns/aop_image`` (foxglove.RawImage, 1 Hz): the angle of
   polarization the camera reported at its observation points, on the sensor (:func:`aop_image`);
   ``/psns/solar_vector``: the solved solar vector against the true one;
 * ``/links/counters`` (timeline.csv: link counters and DSP load), ``/dsp/filter_state`` (mode, covariance
@@ -53,10 +53,10 @@ from protocols.psns import PolarizationObs, PolarizationObsPacked
 
 from ..devices.camera.geometry import IMX250MZR_NX, IMX250MZR_NY
 from ..errors import RecordingError
+from ..recording.capture import CaptureRecord, iter_capture
+from ..recording.nav_error import _c_bn
+from ..recording.rundir import open_no_follow
 from ..world.geodesy import radii
-from .capture import CaptureRecord, iter_capture
-from .nav_error import _c_bn
-from .rundir import open_no_follow
 from .sensor_tables import SensorDecoder, gyro_is_rate
 
 __all__ = ["CAMPAIGN_MCAP_NAME", "CAMPAIGN_TOPICS", "CSV_SOURCES", "MCAP_NAME", "RAW_SCHEMA", "SENSOR_SOURCES",
@@ -249,7 +249,7 @@ class _Enu:
 
 class MessageSink(Protocol):
     """Where :class:`RunFeeds` puts its messages: ``run.mcap``'s gatherer (:func:`write_run_mcap`) or the live
-    server (:class:`emulator.recording.live.LiveServer`). ``schemas`` holds each schema's JSON Schema by name (filled
+    server (:class:`emulator.postrun.live.LiveServer`). ``schemas`` holds each schema's JSON Schema by name (filled
     by the feeds as they learn a file's columns); ``add`` takes one message at log time ``log_s`` (scenario s) and
     publish time ``publish_s`` (s; None: the log time) on a topic of the channel set (:func:`channel_schema`)."""
 
@@ -329,7 +329,7 @@ CSV_SOURCES: dict[str, tuple[str, str]] = {
     "filter_state.csv": ("/dsp/filter_state", "filter_state.csv: firmware mode, covariance diagonal, bias "
                          "estimates, 1 Hz"),
 }
-#: the decoded sensor streams (:data:`~emulator.recording.sensor_tables.SENSOR_TABLES`): topic and description
+#: the decoded sensor streams (:data:`~emulator.postrun.sensor_tables.SENSOR_TABLES`): topic and description
 SENSOR_SOURCES: dict[str, tuple[str, str]] = {
     "imu.csv": ("/imu", "One FPGA IMU frame (UART1): STIM210 gyro words scaled (deg/s or deg), accelerometer ADC "
                 "codes at the nominal scale (g); t_rx_s scenario s"),

@@ -308,6 +308,12 @@ def _both_fall(se: dict[str, Any]) -> bool:
     return bool(se["lat_change"] < 0 and se["lon_change"] < 0)
 
 
+def _equals_sins(se: dict[str, Any], sins: dict[str, Any]) -> bool:
+    """Whether a sun-elevation member's error is pure SINS's to the last bit (its update never changed the state:
+    the mode manager's chi-square gate refused every fix; traced on seed 10 of the envelope sky)."""
+    return all(se[k] == sins[k] for k in ("lat_mae_deg", "lon_mae_deg", "along_mae_km", "across_mae_km"))
+
+
 def zhang_table(per: list[dict[str, Any]]) -> str:
     """The Markdown table: median [inter-quartile range] over the seeds of pure SINS and of the sun-elevation filter
     under each sky the members carry, beside the paper's one run."""
@@ -338,6 +344,9 @@ def zhang_table(per: list[dict[str, Any]]) -> str:
              "| seeds where both MAE fall | | " + " | ".join(
                  f"{sum(1 for r in per if s in r['se'] and _both_fall(r['se'][s]))} of {n_sky[s]}" for s in skies)
              + " | |",
+             "| seeds where the error equals pure SINS's (no fix let in) | | " + " | ".join(
+                 f"{sum(1 for r in per if s in r['se'] and _equals_sins(r['se'][s], r['sins']))} of {n_sky[s]}"
+                 for s in skies) + " | |",
              f"| pure SINS at 20 min, angle off the Sun's azimuth line (deg) | {sins('end_off_azimuth_deg', 0)} | "
              + " | " * (len(skies) - 1) + f" | {pd['sins_off_azimuth_deg']:.0f} |"]
     if like:

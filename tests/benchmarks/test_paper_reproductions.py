@@ -121,6 +121,12 @@ def test_zhang_table_splits_along_and_across_and_picks_the_paper_like_draws():
     assert "| pure SINS at 20 min, angle off the Sun's azimuth line (deg) | 13 [13 .. 51] |  | 13 |" in md
     assert "| seeds where both MAE fall | | 1 of 3 | |" in md
     assert "(1: pure SINS within 15 deg of its line): latitude change (%) |  | -60 [-60 .. -60] | -59.4 |" in md
+    assert "| seeds where the error equals pure SINS's (no fix let in) | | 0 of 3 | |" in md
+    # a member whose update never changed the state (the gate refused every fix) has pure SINS's error to the bit
+    refused = _zhang_member(4, -40.0, 9.0, 0.0)
+    refused["se"]["realistic"].update({k: refused["sins"][k] for k in
+                                       ("lat_mae_deg", "lon_mae_deg", "along_mae_km", "across_mae_km")})
+    assert "| seeds where the error equals pure SINS's (no fix let in) | | 1 of 4 | |" in pr.zhang_table(rows + [refused])
 
 
 def test_merging_zhang_files_joins_the_skies_of_a_seed_and_refuses_a_different_pure_sins():

@@ -126,7 +126,8 @@ def test_zhang_table_splits_along_and_across_and_picks_the_paper_like_draws():
     refused = _zhang_member(4, -40.0, 9.0, 0.0)
     refused["se"]["realistic"].update({k: refused["sins"][k] for k in
                                        ("lat_mae_deg", "lon_mae_deg", "along_mae_km", "across_mae_km")})
-    assert "| seeds where the error equals pure SINS's (no fix let in) | | 1 of 4 | |" in pr.zhang_table(rows + [refused])
+    md_refused = pr.zhang_table([*rows, refused])
+    assert "| seeds where the error equals pure SINS's (no fix let in) | | 1 of 4 | |" in md_refused
 
 
 def test_merging_zhang_files_joins_the_skies_of_a_seed_and_refuses_a_different_pure_sins():

@@ -215,20 +215,17 @@ TAPS = {"host": "uart0", "monitor": "uart1"}  # the ptys the reader reads
 # (earlier by the lead when there is one): what the lead has to absorb.
 late = {"uart0": [], "uart1": []}
 loop_late = {"uart0": [], "uart1": []}
-_orig = asyncio.TimerHandle._run
-def _run(self, _orig=_orig, _emit=Link._emit, mono=time.monotonic):
-    cb = self._callback
-    if getattr(cb, "__func__", None) is _emit:
-        name = cb.__self__.name
-        tap = "uart0" if name == "host" else "uart1" if name == "uart1" else None
-        if tap is not None:
-            loop = self._loop
-            t = mono() - (loop._wall0 + self._when / loop.speed)
-            loop_late[tap].append(t + loop.lead_s)
-            if loop.writer is None:
-                late[tap].append(t)
-    return _orig(self)
-asyncio.TimerHandle._run = _run
+_orig = Link._emit
+def _emit(self, data, start, pitch, _orig=_orig, mono=time.monotonic):
+    tap = "uart0" if self.name == "host" else "uart1" if self.name == "uart1" else None
+    if tap is not None:  # a chunk's last stop bit, run by the loop at its scenario time (time(): its own instant)
+        loop = self.loop
+        t = mono() - loop.wall_at(loop.time())
+        loop_late[tap].append(t + loop.lead_s)
+        if loop.writer is None:
+            late[tap].append(t)
+    return _orig(self, data, start, pitch)
+Link._emit = _emit
 if os.environ.get("PSNS_BENCH_RT_LEAD_S"):  # the lead of the realtime loop (wall s; 0: none, the loop writes)
     import emulator.assembly.session as _session
     _session.REALTIME_LEAD_S = float(os.environ["PSNS_BENCH_RT_LEAD_S"])

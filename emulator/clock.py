@@ -30,14 +30,16 @@ scenario clock in seconds since scenario start.
     delays the bytes; what the outside sends is stamped on arrival with the loop's (early) clock,
     so it takes effect up to ``lead_s`` later than without the lead.
 
-Fast path. In fast mode with no file descriptor of its own, the loop runs batches of iterations
-(:meth:`EmulatorLoop._run_fast`) instead of asyncio's ``BaseEventLoop._run_once``, and ``call_at``
-builds lighter timer handles: both re-implement asyncio steps on CPython's private fields
-(``_scheduled``, ``_ready``, the timer handles' slots). They are used only on the CPython versions in
-:data:`FAST_PATH_VERSIONS`, where those fields were checked, and only when the fields are really there
-(:func:`fast_path_supported`); elsewhere the loop runs asyncio's own iteration and ``call_at``, with the
-same results, more slowly. (The virtual clock itself needs only the timer heap, ``_scheduled``, and its
-handles' ``_when``, which every asyncio since 3.4 has.)
+Own timers and callbacks (docs/decisions/performance-windows.md D-10.E22). The loop keeps its timers in a heap of
+its own and its ready callbacks in a queue of its own (:class:`LoopCall`): ``call_at``, ``call_later`` and
+``call_soon`` put them there. asyncio's own iteration then holds nothing but the callbacks of file descriptors,
+other threads and signals; each time it asks the selector to wait, the loop runs its own iterations there
+(:meth:`EmulatorLoop._iterate`: asyncio's steps, in asyncio's order, on the loop's data) -- in fast mode up to
+:attr:`EmulatorLoop.ITERATIONS_PER_POLL` of them, the clock jumping to each next timer, before the self-pipe is
+polled; in realtime mode one, after the wait. No private field of asyncio is read or written (a test greps every
+module for them), so the same loop runs on every Python the project supports. Where an iteration also has
+callbacks of file descriptors, the loop's own run first (asyncio's order is the reverse; such runs are not
+repeatable anyway).
 
 Devices use only ``loop.time()`` and ``loop.call_at()`` / ``asyncio.sleep``, so the same code
 runs in both modes. :func:`sleep_until` waits for an absolute scenario time without the drift
@@ -49,46 +51,34 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import heapq
+import logging
 import os
 import selectors
 import sys
 import threading
 import time as _time
-from asyncio import events as _events
-from asyncio.format_helpers import _format_callback_source
 from collections import deque
 from collections.abc import Callable, Hashable
-from contextvars import copy_context as _copy_context
-from typing import TYPE_CHECKING, Any
+from contextvars import Context, copy_context
+from typing import Any
 
 from .errors import LinkConfigError, WriterProcessError
 from .pacing import TIMER_SLACK_NS, PacedPeer, WriterProcess, ask_rt_priority, set_timer_slack
 
-__all__ = ["FAST_PATH_VERSIONS", "TIMER_SLACK_NS", "WRITER_BACKENDS", "EmulatorLoop", "PacedWriter",
-           "default_writer_backend", "fast_path_supported", "new_loop", "set_timer_slack", "sleep_until"]
+__all__ = ["CLOCK_RESOLUTION_S", "TIMER_SLACK_NS", "WRITER_BACKENDS", "EmulatorLoop", "LoopCall", "PacedWriter",
+           "default_writer_backend", "new_loop", "set_timer_slack", "sleep_until"]
 
-#: CPython versions whose asyncio internals the fast path was checked against (the steps of
-#: ``BaseEventLoop._run_once``, the fields of ``TimerHandle``); 3.11 is the version the project is tested on.
-FAST_PATH_VERSIONS: frozenset[tuple[int, int]] = frozenset({(3, 11)})
-#: private loop fields the fast path reads and writes
-_LOOP_FIELDS = ("_scheduled", "_ready", "_stopping", "_timer_cancelled_count", "_clock_resolution", "_debug", "_closed")
-#: private timer-handle fields :class:`_Timer` sets and the fast path reads
-_HANDLE_FIELDS = ("_context", "_loop", "_callback", "_args", "_cancelled", "_repr", "_source_traceback", "_when",
-                  "_scheduled")
-
-
-def fast_path_supported(loop: asyncio.AbstractEventLoop) -> bool:
-    """True when ``loop`` may take the fast path: a CPython version of :data:`FAST_PATH_VERSIONS` whose
-    event loop and timer handles have the private fields the fast path uses."""
-    if sys.implementation.name != "cpython" or sys.version_info[:2] not in FAST_PATH_VERSIONS:
-        return False
-    slots: set[str] = set()
-    for cls in _events.TimerHandle.__mro__:
-        s = cls.__dict__.get("__slots__", ())
-        slots.update((s,) if isinstance(s, str) else s)
-    return (callable(getattr(asyncio.BaseEventLoop, "_run_once", None))
-            and all(f in slots for f in _HANDLE_FIELDS)
-            and all(hasattr(loop, f) for f in _LOOP_FIELDS))
+#: the clock resolution (s) an iteration adds to "now" when it decides which timers are due: asyncio takes the
+#: monotonic clock's, 1 ns on Linux; the virtual clock has none, so the same 1 ns everywhere
+CLOCK_RESOLUTION_S = 1e-9
+#: asyncio's rule for its timer heap (``BaseEventLoop``): rebuilt without its cancelled timers when it holds more than
+#: this many and more than this fraction of them is cancelled, else only the cancelled ones at its head dropped. The
+#: loop's own heap follows the same rule, so timers with equal deadlines pop in asyncio's order.
+HEAP_REBUILD_MIN = 100
+HEAP_REBUILD_FRACTION = 0.5
+#: the longest wait (s) asyncio asks of a selector (its ``MAXIMUM_SELECT_TIMEOUT``)
+_MAX_WAIT_S = 24 * 3600.0
+_asyncio_log = logging.getLogger("asyncio")
 
 
 #: the paced writer's backends: ``process`` (a writer process, :mod:`emulator.pacing`) for links whose peer is a file
@@ -312,136 +302,110 @@ def _own_priority() -> int:
         return 0
 
 
-class _ClockSelector(selectors.BaseSelector):
-    """Selector wrapper that implements virtual or scaled time for :class:`EmulatorLoop`."""
+class LoopCall:
+    """A callback the loop runs: at a deadline (what :meth:`EmulatorLoop.call_at` and ``call_later`` return) or
+    in its next iteration (``call_soon``). The methods asyncio's handles offer: :meth:`when`, :meth:`cancel`,
+    :meth:`cancelled`, :meth:`get_context`. The loop's timer heap orders calls by deadline alone, as asyncio's
+    orders its ``TimerHandle`` objects, so calls with equal deadlines leave the heap in the order its operations
+    give, the same order as asyncio's (docs/decisions/performance-windows.md D-10.E22)."""
 
-    #: In fast mode with no file descriptor but the loop's own self-pipe registered, poll that
-    #: pipe (signals, call_soon_threadsafe) only every this many iterations: nothing else can
-    #: become ready, and the syscall is a large share of an iteration's cost.
-    SELF_PIPE_POLL_EVERY = 64
-    #: realtime: waits shorter than this are slept precisely (epoll has 1 ms resolution)
-    FINE_S = 0.0015
+    __slots__ = ("args", "callback", "context", "deadline", "in_heap", "is_cancelled", "loop")
+
+    def __init__(self, deadline: float, callback: Callable[..., object], args: tuple[Any, ...], context: Context,
+                 loop: EmulatorLoop) -> None:
+        self.deadline = deadline  # scenario time (s) it is due at (call_soon: the fast clock when made)
+        self.callback: Callable[..., object] | None = callback
+        self.args: tuple[Any, ...] | None = args
+        self.context = context
+        self.loop = loop
+        self.is_cancelled = False
+        self.in_heap = False
+
+    def __lt__(self, other: LoopCall) -> bool:
+        return self.deadline < other.deadline
+
+    def when(self) -> float:
+        """The scenario time (s) the call is due at."""
+        return self.deadline
+
+    def cancel(self) -> None:
+        """Do not run it; the callback and its arguments are released. A cancelled timer stays in the heap until
+        it reaches the head, or until more than half the heap is cancelled (asyncio's rule)."""
+        if self.is_cancelled:
+            return
+        self.is_cancelled = True
+        if self.in_heap:
+            self.loop.cancelled_in_heap += 1
+        self.callback = None
+        self.args = None
+
+    def cancelled(self) -> bool:
+        return self.is_cancelled
+
+    def get_context(self) -> Context:
+        return self.context
+
+    def describe(self) -> str:
+        """The callback and its arguments, as asyncio's messages name a handle's callback."""
+        return _describe(self.callback, self.args or ())
+
+    def __repr__(self) -> str:
+        state = " cancelled" if self.is_cancelled else ""
+        return f"<LoopCall{state} when={self.deadline!r} {self.describe()}>"
+
+
+def _describe(callback: Callable[..., object] | None, args: tuple[Any, ...]) -> str:
+    """``name(arg, ...)`` of a callback, for the exception handler's message."""
+    name = getattr(callback, "__qualname__", None) or repr(callback)
+    return f"{name}({', '.join(map(repr, args))})"
+
+
+class _ClockSelector(selectors.BaseSelector):
+    """The real selector, wrapped: each ``select`` asyncio's iteration makes is where :class:`EmulatorLoop` runs its
+    own iterations (its timers and callbacks) on its clock, then polls or waits for file descriptors."""
 
     def __init__(self, loop: EmulatorLoop) -> None:
-        self._real = selectors.DefaultSelector()
+        self.real = selectors.DefaultSelector()
         self._loop = loop
-        self._nfds = 0
-        self._skipped = 0
+        #: file descriptors registered (asyncio's self-pipe is the first)
+        self.nfds = 0
 
     # delegation ------------------------------------------------------------------
     def register(self, fileobj: Any, events: int, data: Any = None) -> selectors.SelectorKey:
-        key = self._real.register(fileobj, events, data)
-        self._nfds += 1
+        key = self.real.register(fileobj, events, data)
+        self.nfds += 1
         return key
 
     def unregister(self, fileobj: Any) -> selectors.SelectorKey:
-        key = self._real.unregister(fileobj)
-        self._nfds -= 1
+        key = self.real.unregister(fileobj)
+        self.nfds -= 1
         return key
 
     def modify(self, fileobj: Any, events: int, data: Any = None) -> selectors.SelectorKey:
-        return self._real.modify(fileobj, events, data)
+        return self.real.modify(fileobj, events, data)
 
     def get_key(self, fileobj: Any) -> selectors.SelectorKey:
-        return self._real.get_key(fileobj)
+        return self.real.get_key(fileobj)
 
     def get_map(self) -> Any:
-        return self._real.get_map()
+        return self.real.get_map()
 
     def close(self) -> None:
-        self._real.close()
+        self.real.close()
 
-    # the clock -------------------------------------------------------------------
     def select(self, timeout: float | None = None) -> list[tuple[selectors.SelectorKey, int]]:
         loop = self._loop
         if loop.mode == "fast":
-            sched = loop._scheduled
-            if self._nfds > 1 or self._skipped >= self.SELF_PIPE_POLL_EVERY or not sched:
-                self._skipped = 0
-                events = self._real.select(0)
-                if events:
-                    return events
-            else:
-                self._skipped += 1
-                events = []
-            if timeout == 0:
-                return events
-            if sched:
-                when = sched[0]._when
-                if when > loop._now:
-                    loop._now = when
-                return events
-            # Nothing scheduled and nothing ready: only I/O or another thread can wake us.
-            return self._real.select(timeout)
-        if timeout is not None and timeout > 0:
-            timeout = timeout / loop.speed
-            if timeout > self.FINE_S:
-                # epoll rounds its timeout up to whole milliseconds: wake a bit early and let
-                # the next iteration sleep the rest precisely
-                events = self._real.select(timeout - self.FINE_S)
-            else:
-                events = self._real.select(0)
-                if not events:
-                    _time.sleep(timeout)  # sub-millisecond precision; no I/O for < FINE_S
-                    events = self._real.select(0)
-        else:
-            events = self._real.select(timeout)
-        # One reading of the clock decides the iteration's instant (D-7.7, D-10.E12): the earliest timer's own when it
-        # is due, else this moment; time() reads it until the iteration ends, so asyncio's test of which timers are
-        # due (time() + resolution) agrees with this one, and every timer's callback sees exactly its own instant.
-        # (Read twice, a timer falling due between the two readings ran at the second one, behind the callbacks
-        # already ready -- a DSP tick of 0.3-0.7 ms -- and what it sent took that late instant as its own.)
-        now = loop.time()
-        sched = loop._scheduled
-        loop._cap = sched[0]._when if sched and sched[0]._when <= now else now
-        return events
-
-
-class _Timer(_events.TimerHandle):
-    """A :class:`asyncio.TimerHandle` built and compared with less work (fast-mode hot path).
-
-    The same fields and behaviour (``cancel``, ``when``, ``_run`` are inherited); the constructor sets the
-    fields directly (no debug-mode source traceback: the loop uses it only when debug is off) and ``<``
-    compares the deadlines without the type check (the timer heap holds only timer handles).
-    """
-
-    __slots__ = ()
-    if TYPE_CHECKING:
-        _when: float
-
-    def __init__(self, when: float, callback: Any, args: Any, loop: Any, context: Any = None) -> None:
-        self._context = _copy_context() if context is None else context
-        self._loop = loop
-        self._callback = callback
-        self._args = args
-        self._cancelled = False
-        self._repr = None
-        self._source_traceback = None
-        self._when = when
-        self._scheduled = False
-
-    def __lt__(self, other: _Timer) -> bool:  # type: ignore[override]  # the heap holds timer handles only
-        return self._when < other._when
-
-    def cancel(self) -> None:
-        """:meth:`asyncio.TimerHandle.cancel` in one frame when the loop is not in debug mode (the fast path's
-        handles: made only then): the loop's count of cancelled scheduled timers (``_timer_handle_cancelled``),
-        the flag, the callback and its arguments released; in debug mode asyncio's own (it keeps a repr)."""
-        if self._cancelled:
-            return
-        loop = self._loop
-        if loop._debug:
-            super().cancel()
-            return
-        if self._scheduled:
-            loop._timer_cancelled_count += 1
-        self._cancelled = True
-        self._callback = None
-        self._args = None  # type: ignore[assignment]  # as asyncio.Handle.cancel does
+            return loop._select_fast(self.real, timeout, self.nfds)
+        return loop._select_realtime(self.real, timeout)
 
 
 class EmulatorLoop(asyncio.SelectorEventLoop):
     """Selector event loop whose clock is the scenario clock (s since scenario start).
+
+    Its timers and callbacks are its own (:class:`LoopCall`, a heap and a queue): ``call_at``, ``call_later`` and
+    ``call_soon`` put them there, and each of asyncio's iterations runs the loop's own iterations from the
+    selector's ``select`` (module docstring), so no private field of asyncio is read or written.
 
     Parameters
     ----------
@@ -451,15 +415,11 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
         Real-time scale factor; only used in realtime mode.
     """
 
-    if TYPE_CHECKING:  # asyncio's private fields the clock and the fast path use (see the module docstring)
-        _scheduled: list[Any]  # asyncio.TimerHandle, read through its private _when / _scheduled
-        _ready: deque[Any]
-        _stopping: bool
-        _timer_cancelled_count: int
-        _clock_resolution: float
-        _debug: bool
-        _closed: bool
-        _selector: _ClockSelector
+    #: fast mode, no file descriptor but asyncio's self-pipe: the loop's iterations run per ``select`` at most
+    #: before the self-pipe (signals, ``call_soon_threadsafe``) is polled
+    ITERATIONS_PER_POLL = 64
+    #: realtime: waits shorter than this are slept precisely (epoll has 1 ms resolution)
+    FINE_S = 0.0015
 
     def __init__(self, mode: str = "fast", speed: float = 1.0) -> None:
         if mode not in ("fast", "realtime"):
@@ -477,14 +437,20 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
         self.writer: PacedWriter | None = None
         #: realtime: the timer slack in force for the loop's thread (ns; None where it cannot be set)
         self.timer_slack_ns = set_timer_slack() if mode == "realtime" else None
-        self.fast_path = False  # decided below, once asyncio has set up its fields
-        #: inside :meth:`_run_fast`, where :meth:`call_next` may keep a callback to run after the current one
+        #: the timer heap (:class:`LoopCall` by deadline) and the calls ready to run, in order
+        self._timer_heap: list[LoopCall] = []
+        self._ready_calls: deque[LoopCall] = deque()
+        #: cancelled timers still in the heap (asyncio's rule for rebuilding it)
+        self.cancelled_in_heap = 0
+        self._stop_asked = False
+        self._shut = False
+        self._debug_on = False
+        #: inside the loop's own iterations in fast mode, where :meth:`call_next` may keep a callback to run after
+        #: the current one
         self._inline_ok = False
         self._next: tuple[Callable[..., object], tuple[Any, ...]] | None = None
-        super().__init__(selector=_ClockSelector(self))
-        self._clock_resolution = 1e-9
-        #: the fast path (batched iterations, light timer handles) is used: see :func:`fast_path_supported`
-        self.fast_path = fast_path_supported(self)
+        self._clock_selector = _ClockSelector(self)
+        super().__init__(selector=self._clock_selector)
 
     def time(self) -> float:
         if self.mode == "fast":
@@ -529,152 +495,233 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
         (realtime; the clock itself runs :attr:`lead_s` ahead of it)."""
         return self._wall0 + t / self.speed
 
+    # -- scheduling ---------------------------------------------------------------------
+    def call_at(self, when: float, callback: Callable[..., object], *args: Any,  # type: ignore[override]
+                context: Context | None = None) -> LoopCall:
+        """Run ``callback(*args)`` at scenario time ``when`` (s); the returned :class:`LoopCall` cancels it."""
+        if self._shut:
+            raise RuntimeError("Event loop is closed")
+        if when is None:
+            raise TypeError("when cannot be None")
+        call = LoopCall(when, callback, args, copy_context() if context is None else context, self)
+        heapq.heappush(self._timer_heap, call)
+        call.in_heap = True
+        return call
+
+    def call_soon(self, callback: Callable[..., object], *args: Any,  # type: ignore[override]
+                  context: Context | None = None) -> LoopCall:
+        """Run ``callback(*args)`` in the loop's next iteration, after the calls already queued."""
+        if self._shut:
+            raise RuntimeError("Event loop is closed")
+        call = LoopCall(self._now, callback, args, copy_context() if context is None else context, self)
+        self._ready_calls.append(call)
+        return call
+
+    def call_next(self, callback: Callable[..., object], *args: Any) -> None:
+        """``call_soon(callback, *args)``, for a callback that uses no context variables; in fast mode it is run
+        right after the current callback instead, without a :class:`LoopCall` and an iteration, where that is the
+        same thing.
+
+        ``call_soon`` queues a call for the next iteration; when nothing else is queued, it is that iteration's
+        first callback. Where that iteration would run nothing else before it -- nothing else queued since, no
+        timer due within the clock resolution (they would come after it, and the clock does not move while
+        something is queued), the loop not stopping -- the callback runs at once after the current one
+        (:meth:`_run_next`), at the same ``time()``, and what it schedules is scheduled in the same order;
+        otherwise it is queued where ``call_soon`` would have queued it (first). Exceptions reach the exception
+        handler as from a call. Elsewhere (realtime, debug, file descriptors polled, outside the loop, something
+        already queued, a second call within one callback): ``call_soon``. The DSP's tick after each IMU frame
+        (one per 5 ms tick) is the user (D-10.E7); ``tests/emulator/test_clock_fast_path.py`` compares the traces.
+        """
+        if self._inline_ok and self._next is None and not self._ready_calls:
+            self._next = (callback, args)
+        else:
+            self.call_soon(callback, *args)
+
+    def call_later(self, delay: float, callback: Callable[..., object], *args: Any,  # type: ignore[override]
+                   context: Context | None = None) -> LoopCall:
+        """Run ``callback(*args)`` ``delay`` s (scenario time) from now."""
+        if delay is None:
+            raise TypeError("delay must not be None")
+        return self.call_at(self.time() + delay, callback, *args, context=context)
+
+    def stop(self) -> None:
+        self._stop_asked = True
+        super().stop()
+
+    def set_debug(self, enabled: bool) -> None:
+        self._debug_on = bool(enabled)
+        super().set_debug(enabled)
+
     def close(self) -> None:
         if self.writer is not None:
             self.writer.close()
             self.writer = None
         super().close()
+        self._shut = True
+        self._timer_heap.clear()
+        self._ready_calls.clear()
+        self.cancelled_in_heap = 0
 
-    def _run_once(self) -> None:
-        self._cap = None
-        sel = self._selector
-        if self.mode != "fast" or self._debug or not self.fast_path or sel._nfds > 1:
-            super()._run_once()  # type: ignore[misc]
+    # -- the loop's own iteration --------------------------------------------------------
+    def _drop_cancelled(self) -> None:
+        """asyncio's clean-up of its timer heap, on the loop's own: rebuilt without the cancelled timers when more
+        than :data:`HEAP_REBUILD_MIN` are in it and more than half are cancelled, else the cancelled ones at its
+        head popped."""
+        heap = self._timer_heap
+        n = len(heap)
+        if n > HEAP_REBUILD_MIN and self.cancelled_in_heap / n > HEAP_REBUILD_FRACTION:
+            kept = []
+            for call in heap:
+                if call.is_cancelled:
+                    call.in_heap = False
+                else:
+                    kept.append(call)
+            heapq.heapify(kept)
+            self._timer_heap = kept
+            self.cancelled_in_heap = 0
             return
-        self._run_fast(sel)
+        while heap and heap[0].is_cancelled:
+            self.cancelled_in_heap -= 1
+            heapq.heappop(heap).in_heap = False
 
-    #: fast mode: loop iterations run per call of :meth:`_run_once` at most
-    FAST_BATCH = 256
-
-    def _run_fast(self, sel: _ClockSelector) -> None:
-        """Fast mode, no file descriptor but the self-pipe: up to :attr:`FAST_BATCH` iterations of
-        :meth:`asyncio.BaseEventLoop._run_once` in one call, step for step the same (cancelled-timer
-        clean-up, the virtual clock's jump to the earliest timer, every timer due within the clock
-        resolution made ready in heap order, then exactly the callbacks ready at that moment), without
-        the per-iteration selector call, timeout arithmetic and method lookups. Every
-        ``SELF_PIPE_POLL_EVERY``-th iteration, and any iteration with nothing scheduled (which
-        must block in the real selector), goes through the ordinary path, which polls the self-pipe."""
-        self._inline_ok = True
-        try:
-            self._run_fast_batch(sel)
-        finally:
-            self._inline_ok = False
-            if self._next is not None:  # a callback of asyncio's own iteration (below) kept one: queue it
-                callback, args = self._next
-                self._next = None
-                self._ready.appendleft(_events.Handle(callback, args, self))
-
-    def _run_fast_batch(self, sel: _ClockSelector) -> None:
-        ready = self._ready
-        heappop = heapq.heappop
-        res = self._clock_resolution
-        every = sel.SELF_PIPE_POLL_EVERY
-        for _ in range(self.FAST_BATCH):
-            if sel._skipped >= every or sel._nfds > 1:
-                super()._run_once()  # type: ignore[misc]
-                return
-            sched = self._scheduled
-            n_sched = len(sched)
-            if n_sched > 100 and self._timer_cancelled_count / n_sched > 0.5:
-                super()._run_once()  # type: ignore[misc]  # the rare full clean-up
-                return
-            while sched and sched[0]._cancelled:
-                self._timer_cancelled_count -= 1
-                heappop(sched)._scheduled = False
-            if not ready and not self._stopping:
-                if not sched:
-                    super()._run_once()  # type: ignore[misc]  # waits in the real selector
-                    return
-                when = sched[0]._when
+    def _iterate(self, jump: bool) -> bool:
+        """One iteration, asyncio's steps on the loop's own heap and queue: drop cancelled timers (asyncio's rule);
+        with nothing queued and ``jump`` (fast mode, asyncio holding nothing of its own), move the clock to the
+        earliest timer; queue, in heap order, every timer due within :data:`CLOCK_RESOLUTION_S`; run exactly the
+        calls queued at that moment (what they queue runs in the next iteration). False, having done nothing, when
+        nothing is queued or scheduled: only a file descriptor or another thread can bring work then."""
+        self._drop_cancelled()
+        heap = self._timer_heap
+        ready = self._ready_calls
+        if not ready:
+            if not heap:
+                return False
+            if jump:
+                when = heap[0].deadline
                 if when > self._now:
                     self._now = when
-            sel._skipped += 1
-            end_time = self._now + res
-            while sched and sched[0]._when < end_time:
-                h = heappop(sched)
-                h._scheduled = False
-                ready.append(h)
-            for _i in range(len(ready)):
-                h = ready.popleft()
-                if h._cancelled:
-                    continue
-                try:  # asyncio.Handle._run, without its frame
-                    h._context.run(h._callback, *h._args)
-                except (SystemExit, KeyboardInterrupt):
-                    raise
-                except BaseException as exc:
-                    self._handle_failed(h, exc)
-                while self._next is not None:  # (the kept callback may keep another)
-                    self._run_next(res)
-            h = None
-            if self._stopping:
-                return
+        end = self.time() + CLOCK_RESOLUTION_S
+        heappop = heapq.heappop
+        while heap and heap[0].deadline < end:
+            call = heappop(heap)
+            call.in_heap = False
+            ready.append(call)
+        debug = self._debug_on
+        for _i in range(len(ready)):
+            call = ready.popleft()
+            if call.is_cancelled:
+                continue
+            t0 = _time.monotonic() if debug else 0.0
+            try:
+                call.context.run(call.callback, *call.args)  # type: ignore[arg-type,misc]
+            except (SystemExit, KeyboardInterrupt):
+                raise
+            except BaseException as exc:
+                self.call_exception_handler({"message": f"Exception in callback {call.describe()}",
+                                             "exception": exc, "handle": call})
+            if debug:
+                took = _time.monotonic() - t0
+                if took >= self.slow_callback_duration:
+                    _asyncio_log.warning("Executing %r took %.3f seconds", call, took)
+            while self._next is not None:  # (the kept callback may keep another)
+                self._run_next()
+        return True
 
-    def _handle_failed(self, h: Any, exc: BaseException) -> None:
-        """A handle's callback raised ``exc`` (the fast path runs handles inline): reported as
-        :meth:`asyncio.Handle._run` reports it (the same message and context)."""
-        cb = _format_callback_source(h._callback, h._args)
-        context: dict[str, Any] = {"message": f"Exception in callback {cb}", "exception": exc, "handle": h}
-        if h._source_traceback:
-            context["source_traceback"] = h._source_traceback
-        self.call_exception_handler(context)
-
-    def call_next(self, callback: Callable[..., object], *args: Any) -> None:
-        """``call_soon(callback, *args)``, for a callback that uses no context variables; on the fast path it is
-        run right after the current callback instead, without a handle and a loop iteration, where that is the
-        same thing.
-
-        ``call_soon`` makes a handle that runs in a later iteration; when nothing was ready when it was called,
-        it is that iteration's first callback. Where that iteration would run nothing else before it -- nothing
-        else made ready since, no timer due within the clock resolution (they would come after it, and the clock
-        does not move while something is ready), the loop not stopping -- the callback runs at once after the
-        current one (:meth:`_run_next`), at the same ``time()``, and what it schedules is scheduled in the same
-        order; otherwise the handle is put where ``call_soon`` would have put it (first). Exceptions reach the
-        exception handler as from a handle. Outside the fast path (realtime, debug, outside the loop, something
-        already ready, a second call within one callback): ``call_soon``. The DSP's tick after each IMU frame
-        (one per 5 ms tick) is the user; ``tests/emulator/test_clock_fast_path.py`` compares the traces.
-        """
-        if self._inline_ok and self._next is None and not self._ready:
-            self._next = (callback, args)
-        else:
-            self.call_soon(callback, *args)
-
-    def _run_next(self, res: float) -> None:
+    def _run_next(self) -> None:
         """Run (or queue first) the callback :meth:`call_next` kept during the callback that just ended."""
         callback, args = self._next  # type: ignore[misc]
         self._next = None
-        sched = self._scheduled
-        n_sched = len(sched)
-        if not (self._ready or self._stopping or self._selector._nfds > 1
-                or (n_sched > 100 and self._timer_cancelled_count / n_sched > 0.5)):
+        heap = self._timer_heap
+        n = len(heap)
+        if not (self._ready_calls or self._stop_asked or self._clock_selector.nfds > 1
+                or (n > HEAP_REBUILD_MIN and self.cancelled_in_heap / n > HEAP_REBUILD_FRACTION)):
             # the next iteration's first steps, in its order (the heap's order of equal deadlines depends on the
             # sequence of its operations): drop the cancelled timers at the head; then a due timer would run after
             # the callback, so the callback waits for the iteration
-            while sched and sched[0]._cancelled:
-                self._timer_cancelled_count -= 1
-                heapq.heappop(sched)._scheduled = False
-            if not (sched and sched[0]._when < self._now + res):
+            while heap and heap[0].is_cancelled:
+                self.cancelled_in_heap -= 1
+                heapq.heappop(heap).in_heap = False
+            if not (heap and heap[0].deadline < self._now + CLOCK_RESOLUTION_S):
                 try:
                     callback(*args)
                 except (SystemExit, KeyboardInterrupt):
                     raise
-                except BaseException as exc:  # as asyncio.Handle._run reports it
-                    self.call_exception_handler({"message": f"Exception in callback {callback!r}{args!r}",
+                except BaseException as exc:  # as a call's failure is reported
+                    self.call_exception_handler({"message": f"Exception in callback {_describe(callback, args)}",
                                                  "exception": exc})
                 return
-        self._ready.appendleft(_events.Handle(callback, args, self))  # where call_soon put it
+        self._ready_calls.appendleft(LoopCall(self._now, callback, args, copy_context(), self))
 
-    def call_at(self, when: float, callback: Any, *args: Any, context: Any = None) -> asyncio.TimerHandle:  # type: ignore[override]
-        """:meth:`asyncio.BaseEventLoop.call_at` without its debug-mode checks (when debug is off, on the fast
-        path)."""
-        if self._debug or when is None or not self.fast_path:
-            return super().call_at(when, callback, *args, context=context)
-        if self._closed:
-            raise RuntimeError("Event loop is closed")
-        timer = _Timer(when, callback, args, self, context)
-        heapq.heappush(self._scheduled, timer)
-        timer._scheduled = True
-        return timer
+    def _select_fast(self, real: selectors.BaseSelector, timeout: float | None,
+                     nfds: int) -> list[tuple[selectors.SelectorKey, int]]:
+        """Fast mode: asyncio's iteration asks to wait ``timeout`` (0: it holds callbacks of its own -- from a file
+        descriptor, another thread, a signal -- or is stopping; None: nothing). The loop runs its iterations here,
+        the clock jumping to each next timer, and returns what the real selector has ready."""
+        if timeout == 0:
+            events = real.select(0)
+            self._iterate(jump=False)
+            return events
+        self._stop_asked = False  # asyncio asks for a wait only when it is not stopping
+        if nfds > 1:  # a real file descriptor: polled on every iteration; with events, the clock stays
+            events = real.select(0)
+            if events:
+                self._iterate(jump=False)
+                return events
+            if self._iterate(jump=True):
+                return []
+            return real.select(timeout)
+        self._inline_ok = not self._debug_on
+        try:
+            for _i in range(self.ITERATIONS_PER_POLL):
+                if not self._iterate(jump=True):
+                    return real.select(timeout)  # only the self-pipe can bring work now
+                if self._stop_asked or self._clock_selector.nfds > 1:  # stopping, or a descriptor to poll
+                    break
+        finally:
+            self._inline_ok = False
+        return real.select(0)
+
+    def _select_realtime(self, real: selectors.BaseSelector,
+                         timeout: float | None) -> list[tuple[selectors.SelectorKey, int]]:
+        """Realtime: wait (scaled by ``speed``) for the earliest timer or a file descriptor; one reading of the
+        clock then decides the iteration's instant (D-7.7, D-10.E12): the earliest timer's own deadline when it is
+        due, else this moment. The loop's iteration runs here; callbacks of file descriptors after it (asyncio runs
+        them when this returns)."""
+        self._cap = None
+        if timeout != 0:
+            self._stop_asked = False  # asyncio asks for a wait only when it is not stopping
+        self._drop_cancelled()
+        heap = self._timer_heap
+        if timeout == 0 or self._ready_calls:
+            wait: float | None = 0.0
+        elif heap:
+            wait = min(max(0.0, heap[0].deadline - self.time()), _MAX_WAIT_S)
+        else:
+            wait = None
+        events = self._wait_scaled(real, wait)
+        # time() reads the cap until the iteration ends, so the test of which timers are due (time() + resolution)
+        # agrees with this one, and every timer's callback sees exactly its own instant. (Read twice, a timer
+        # falling due between the two readings ran at the second one, behind the callbacks already queued -- a
+        # DSP tick of 0.3-0.7 ms -- and what it sent took that late instant as its own.)
+        now = self.time()
+        self._cap = heap[0].deadline if heap and heap[0].deadline <= now else now
+        self._iterate(jump=False)
+        return events
+
+    def _wait_scaled(self, real: selectors.BaseSelector,
+                     wait: float | None) -> list[tuple[selectors.SelectorKey, int]]:
+        if wait is None or wait <= 0:
+            return real.select(wait)
+        wait = wait / self.speed
+        if wait > self.FINE_S:
+            # epoll rounds its timeout up to whole milliseconds: wake a bit early and let the next iteration sleep
+            # the rest precisely
+            return real.select(wait - self.FINE_S)
+        events = real.select(0)
+        if not events:
+            _time.sleep(wait)  # sub-millisecond precision; no I/O for < FINE_S
+            events = real.select(0)
+        return events
 
     def restart_clock(self) -> None:
         """Make the current instant scenario time 0 (realtime) or reset virtual time to 0 (fast).
@@ -683,8 +730,8 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
         origin), so a pty's attach poll set up before the restart still runs 20 ms later.
         """
         delta = self.time()
-        for h in self._scheduled:  # a uniform shift keeps the heap ordered
-            h._when -= delta
+        for call in self._timer_heap:  # a uniform shift keeps the heap ordered
+            call.deadline -= delta
         self._cap = None
         self._wall0 = _time.monotonic()
         self._now = 0.0

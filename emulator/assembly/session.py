@@ -95,7 +95,7 @@ class Emulator:
     #: set by run_emulator's signal handler (or a signal before it existed): the run ends once started
     _interrupt_requested = False
     #: set when stop() begins: a signal then no longer cancels the run (it is writing its files)
-    _stopping = False
+    _writing_files = False
     #: set when the run directory stopped taking data: (the error, whether summary.json was written)
     storage_error: tuple[OSError, bool] | None = None
 
@@ -484,7 +484,7 @@ class Emulator:
             self.recorder.close()
 
     async def stop(self, interrupted: bool = False) -> dict[str, Any]:
-        self._stopping = True  # a signal from now on does not cancel the stop (run_emulator's on_signal)
+        self._writing_files = True  # a signal from now on does not cancel the stop (run_emulator's on_signal)
         loop = self.loop
         rec = self.recorder
         if loop is None or rec is None or self._stopped:
@@ -676,7 +676,7 @@ def _run_emulator(emu: Emulator, speed: float, on_started: Callable[[Emulator], 
         raise KeyboardInterrupt  # a second Ctrl-C: stop at once (emulator.cli.main says what that leaves)
 
     def on_signal() -> None:
-        if emu._stopping:  # the run has reached its end and is writing its files: do not cancel that (the
+        if emu._writing_files:  # the run has reached its end and is writing its files: do not cancel that (the
             # cancellation would surface as a CancelledError traceback); the command learns of the signal
             # through early_signals.PENDING, drops the report and exits 1 (emulator.cli.main._AfterRun)
             early_signals.PENDING.append(int(signal.SIGINT))

@@ -234,7 +234,7 @@ class VirtualDsp:
         self.extra_cycles_per_tick = 0
         self.extra_load_ticks = 0
         self.extra_cycles_total = 0
-        self._scheduled = False
+        self._tick_queued = False
         self._arrival = 0.0
         self.busy_per_second: dict[int, float] = {}
         #: called with the solar vectors each tick solved (``TickResult.solar_solves``; the recorder's psns.csv)
@@ -281,15 +281,15 @@ class VirtualDsp:
                 if not kept:
                     return
             self.fw.receive(uart, kept, now)
-            if is_imu and not self._scheduled:
-                self._scheduled = True
+            if is_imu and not self._tick_queued:
+                self._tick_queued = True
                 self._arrival = now
                 self._soon(self._run)
 
         return rx
 
     def _run(self) -> None:
-        self._scheduled = False
+        self._tick_queued = False
         now = self.loop.time()
         arrival = self._arrival
         wd = self.watchdog

@@ -204,7 +204,7 @@ with open(out_path, "w") as f:
 _EMULATOR = r"""
 import asyncio, json, os, sys, time
 from pathlib import Path
-from emulator.clock import PacedWriter
+from emulator.paced_writer import PacedWriter
 from emulator.links.base import Link
 from emulator.assembly.session import run_scenario
 from emulator.scenario import load_scenario
@@ -458,7 +458,7 @@ def _emulator_rows() -> list[dict]:
     dur = number("PSNS_BENCH_RT_S")
     u0, u1, cpu, result = _measure_emulator(dur)
     lead = os.environ.get("PSNS_BENCH_RT_LEAD_S") or str(REALTIME_LEAD_S)
-    from emulator.clock import default_writer_backend
+    from emulator.paced_writer import default_writer_backend
 
     how = (f"the paced writer ({default_writer_backend()} backend), the loop {float(lead) * 1e3:g} ms ahead"
            if float(lead) > 0 else "no lead: the loop's callback writes")

@@ -1,7 +1,7 @@
 """Writing to real peers at their instants: the OS helpers and the paced writer's process backend.
 
 The realtime loop computing ahead (:meth:`emulator.clock.EmulatorLoop.set_lead`, docs/decisions/performance.md
-D-10.E6) hands each chunk for a real peer to :class:`emulator.clock.PacedWriter`, which writes it at the
+D-10.E6) hands each chunk for a real peer to :class:`emulator.paced_writer.PacedWriter`, which writes it at the
 ``CLOCK_MONOTONIC`` instant its scenario time stands for. Its thread backend shares the interpreter (the GIL) with
 the loop, busy in Python and numpy: woken on time, it may still wait for the lock (D-10.E11). This module holds the
 other backend, a **writer process**: a small child (``python -m emulator.pacing``, importing only this module and
@@ -29,7 +29,7 @@ record's payload follows it in the same message). The child
 The parent side, :class:`WriterProcess`, sends the records from the loop's thread and reads the reports in a
 thread of its own (not time-critical: the lateness samples and the losses reach the links a few ms late). When
 the child dies, :class:`~emulator.errors.WriterProcessError` says so, what it held is counted as lost
-(``dropped_out``), and :class:`~emulator.clock.PacedWriter` falls back to its thread.
+(``dropped_out``), and :class:`~emulator.paced_writer.PacedWriter` falls back to its thread.
 """
 
 from __future__ import annotations

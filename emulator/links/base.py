@@ -25,7 +25,7 @@ Three ways to transmit:
 
 Transports with a real peer write through :meth:`Link._hand_over`: at once, or, when the realtime
 loop runs ahead of the wall clock (:meth:`emulator.clock.EmulatorLoop.set_lead`), from the loop's
-:class:`~emulator.clock.PacedWriter` at the wall instant of the bytes' scenario time. Fault hooks,
+:class:`~emulator.paced_writer.PacedWriter` at the wall instant of the bytes' scenario time. Fault hooks,
 listeners (captures) and statistics stay in the loop, at the bytes' scenario time, either way.
 
 Baud mismatch: when the receiving end's settings differ from the transmitter's beyond the UART

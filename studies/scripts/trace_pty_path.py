@@ -60,7 +60,7 @@ SLOW_S = 3e-4  # a step that took longer is listed with what ran on its CPU mean
 _EMULATOR = r"""
 import json, os, sys
 from pathlib import Path
-from emulator.clock import PacedWriter
+from emulator.paced_writer import PacedWriter
 from emulator.assembly.session import run_scenario
 from emulator.scenario import load_scenario
 from protocols.host import HostFormat, NavSolution

@@ -12,7 +12,8 @@ from pathlib import Path
 import pytest
 
 from emulator.assembly.session import REALTIME_LEAD_S, realtime_lead_s
-from emulator.clock import TIMER_SLACK_NS, EmulatorLoop, PacedWriter, set_timer_slack
+from emulator.clock import TIMER_SLACK_NS, EmulatorLoop, set_timer_slack
+from emulator.paced_writer import PacedWriter
 
 LINUX = sys.platform.startswith("linux")
 _SLACK = Path("/proc/self/timerslack_ns")  # the main thread's slack (the thread the tests run in)

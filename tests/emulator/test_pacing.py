@@ -1,4 +1,5 @@
-"""The paced writer's process backend (emulator/pacing.py) and its place behind :class:`emulator.clock.PacedWriter`.
+"""The paced writer's process backend (emulator/pacing.py) and its place behind
+:class:`emulator.paced_writer.PacedWriter`.
 
 A real child process writes to real descriptors (pipes, a pty with a reader process); deadlines are
 ``CLOCK_MONOTONIC`` instants a few ms ahead, lateness is what the child measured after each ``os.write``
@@ -19,10 +20,11 @@ import time
 
 import pytest
 
-from emulator.clock import WRITER_ENV, EmulatorLoop, PacedWriter, default_writer_backend
+from emulator.clock import EmulatorLoop
 from emulator.errors import EmulatorError, LinkConfigError, WriterProcessError
 from emulator.links import LineConfig
 from emulator.links.base import Link
+from emulator.paced_writer import WRITER_ENV, PacedWriter, default_writer_backend
 from emulator.pacing import (
     DATA,
     DRAINED,

@@ -96,7 +96,7 @@ async def test_pyserial_decodes_nav_frames_from_uart0_pty_at_the_configured_rate
         st = emu.link_stats("host")
         assert st["dropped_out"] <= 10 * 109
         # the paced writer wrote them: its process on Linux (D-10.E11), alive to the end
-        from emulator.clock import default_writer_backend
+        from emulator.paced_writer import default_writer_backend
 
         ws = emu.emulator.loop.writer_summary()
         assert ws is not None and ws["writing"] == default_writer_backend() and ws["error"] is None

@@ -25,27 +25,12 @@ from emulator.testing import load_test_scenario
 from tests.conftest import SCENARIOS
 
 
-class _JumpingSelector(selectors.BaseSelector):
+class _JumpingSelector(selectors.DefaultSelector):  # type: ignore[misc,valid-type]
     """The real selector; a wait asyncio asks for (the time to its earliest timer) jumps the virtual clock there."""
 
     def __init__(self, loop: Any) -> None:
-        self.real = selectors.DefaultSelector()
+        super().__init__()
         self.loop = loop
-
-    def register(self, fileobj: Any, events: int, data: Any = None) -> selectors.SelectorKey:
-        return self.real.register(fileobj, events, data)
-
-    def unregister(self, fileobj: Any) -> selectors.SelectorKey:
-        return self.real.unregister(fileobj)
-
-    def get_key(self, fileobj: Any) -> selectors.SelectorKey:
-        return self.real.get_key(fileobj)
-
-    def get_map(self) -> Any:
-        return self.real.get_map()
-
-    def close(self) -> None:
-        self.real.close()
 
     def select(self, timeout: float | None = None) -> list[tuple[selectors.SelectorKey, int]]:
         loop = self.loop
@@ -53,7 +38,7 @@ class _JumpingSelector(selectors.BaseSelector):
             live = [h for h in loop.timers if not h.cancelled() and h.when() > loop.now]
             loop.now = min(h.when() for h in live)
             loop.timers = [h for h in live if h.when() > loop.now]
-        return self.real.select(0)
+        return super().select(0)
 
 
 class _AsyncioReference(EmulatorLoop):

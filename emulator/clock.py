@@ -23,10 +23,10 @@ scenario clock in seconds since scenario start.
 
     **Compute ahead** (:meth:`EmulatorLoop.set_lead`, docs/decisions/performance.md D-10.E6): the
     clock may run ``lead_s`` (wall seconds) ahead of the outside world. Everything inside the loop
-    happens that much early; what leaves for a real peer is handed to a :class:`~emulator.paced_writer.PacedWriter`, which
-    performs each write at the wall instant its scenario time stands for (:meth:`EmulatorLoop.wall_at`):
-    from a writer process (:mod:`emulator.pacing`, D-10.E11) for ptys and serial devices on Linux, else
-    from a thread. A callback that holds the loop for a few ms then no longer
+    happens that much early; what leaves for a real peer is handed to a
+    :class:`~emulator.paced_writer.PacedWriter`, which performs each write at the wall instant its scenario
+    time stands for (:meth:`EmulatorLoop.wall_at`): from a writer process (:mod:`emulator.pacing`, D-10.E11)
+    for ptys and serial devices on Linux, else from a thread. A callback that holds the loop for a few ms then no longer
     delays the bytes; what the outside sends is stamped on arrival with the loop's (early) clock,
     so it takes effect up to ``lead_s`` later than without the lead.
 
@@ -305,7 +305,7 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
         otherwise it is queued where ``call_soon`` would have queued it (first). Exceptions reach the exception
         handler as from a call. Elsewhere (realtime, debug, file descriptors polled, outside the loop, something
         already queued, a second call within one callback): ``call_soon``. The DSP's tick after each IMU frame
-        (one per 5 ms tick) is the user (D-10.E7); ``tests/emulator/test_clock_fast_path.py`` compares the traces.
+        (one per 5 ms tick) is the user (D-10.E7); ``tests/emulator/test_clock_own_iteration.py`` compares the traces.
         """
         if self._inline_ok and self._next is None and not self._ready_calls:
             self._next = (callback, args)

@@ -51,6 +51,7 @@ from __future__ import annotations
 import asyncio
 import heapq
 import logging
+import reprlib
 import selectors
 import time as _time
 from collections import deque
@@ -130,9 +131,10 @@ class LoopCall:
 
 
 def _describe(callback: Callable[..., object] | None, args: tuple[Any, ...]) -> str:
-    """``name(arg, ...)`` of a callback, for the exception handler's message."""
+    """``name(arg, ...)`` of a callback, for the exception handler's message (long arguments shortened, as asyncio
+    shortens them)."""
     name = getattr(callback, "__qualname__", None) or repr(callback)
-    return f"{name}({', '.join(map(repr, args))})"
+    return f"{name}({', '.join(map(reprlib.repr, args))})"
 
 
 class _ClockSelector(selectors.BaseSelector):

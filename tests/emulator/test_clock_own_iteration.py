@@ -281,3 +281,19 @@ def test_scenario_run_writes_the_same_files_as_on_asyncios_own_iteration(tmp_pat
     wall = {"wall_s", "realtime_factor", "run_dir"}
     assert {k: v for k, v in s_own.items() if k not in wall} == {k: v for k, v in s_ref.items() if k not in wall}
     assert s_own["nav_frames"] > 400
+
+
+def test_a_failing_callbacks_long_arguments_are_shortened_in_the_message() -> None:
+    """A chunk of 10 000 bytes does not make a 10 000-character message (asyncio shortens with ``reprlib`` too)."""
+    def fail(_data: bytes) -> None:
+        raise ValueError("bad chunk")
+
+    loop = EmulatorLoop("fast")
+    seen: list[dict[str, Any]] = []
+    loop.set_exception_handler(lambda _loop, ctx: seen.append(ctx))
+    try:
+        loop.call_at(0.1, fail, b"x" * 10_000)
+        loop.run_until_complete(asyncio.sleep(0.2))
+    finally:
+        loop.close()
+    assert len(seen) == 1 and "fail(b'xxx" in seen[0]["message"] and len(seen[0]["message"]) < 200

@@ -75,3 +75,17 @@ def test_set_overrides_the_scenario_before_the_profile(capsys):
     assert "firmware (firmware_model)" in with_dsp and "DSP host" in with_dsp
     assert "firmware (firmware_model)" not in world_only and "DSP host" not in world_only
     assert "device: IMU" in world_only and "FPGA" in world_only
+
+
+def test_profile_run_counts_the_loops_callbacks():
+    """The event-loop callbacks a run made are counted (each runs in its context: ``Context.run``, D-10.E22): the
+    quickstart's 200 Hz trigger, the gyro's datagram and the frames it carries give a few per tick, not none."""
+    from benchmarks.profile_breakdown import profile_run
+    from emulator.testing import load_test_scenario
+    from tests.conftest import SCENARIOS
+
+    scn = load_test_scenario(SCENARIOS / "quickstart.yaml", {"duration_s": 2.0})
+    _acc, summary, callbacks = profile_run(scn)
+    ticks = round(summary["sim_duration_s"] * scn.sensors.imu.rate_hz)
+    assert ticks == 400
+    assert 2.0 < callbacks / ticks < 10.0

@@ -173,8 +173,8 @@ class _ClockSelector(selectors.BaseSelector):
     def select(self, timeout: float | None = None) -> list[tuple[selectors.SelectorKey, int]]:
         loop = self._loop
         if loop.mode == "fast":
-            return loop._select_fast(self.real, timeout, self.nfds)
-        return loop._select_realtime(self.real, timeout)
+            return loop._select_fast(timeout)
+        return loop._select_realtime(timeout)
 
 
 class EmulatorLoop(asyncio.SelectorEventLoop):
@@ -341,22 +341,29 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
 
     # -- the loop's own iteration --------------------------------------------------------
     def _drop_cancelled(self) -> None:
-        """asyncio's clean-up of its timer heap, on the loop's own: rebuilt without the cancelled timers when more
-        than :data:`HEAP_REBUILD_MIN` are in it and more than half are cancelled, else the cancelled ones at its
-        head popped."""
-        heap = self._timer_heap
-        n = len(heap)
-        if n > HEAP_REBUILD_MIN and self.cancelled_in_heap / n > HEAP_REBUILD_FRACTION:
-            kept = []
-            for call in heap:
-                if call.is_cancelled:
-                    call.in_heap = False
-                else:
-                    kept.append(call)
-            heapq.heapify(kept)
-            self._timer_heap = kept
-            self.cancelled_in_heap = 0
+        """asyncio's clean-up of its timer heap, on the loop's own: rebuilt without the cancelled timers when
+        :meth:`_rebuild_due`, else the cancelled ones at its head popped."""
+        if not self._rebuild_due():
+            self._pop_cancelled_head()
             return
+        kept = []
+        for call in self._timer_heap:
+            if call.is_cancelled:
+                call.in_heap = False
+            else:
+                kept.append(call)
+        heapq.heapify(kept)
+        self._timer_heap = kept
+        self.cancelled_in_heap = 0
+
+    def _rebuild_due(self) -> bool:
+        """asyncio's rule: more than :data:`HEAP_REBUILD_MIN` timers in the heap and more than
+        :data:`HEAP_REBUILD_FRACTION` of them cancelled."""
+        n = len(self._timer_heap)
+        return n > HEAP_REBUILD_MIN and self.cancelled_in_heap / n > HEAP_REBUILD_FRACTION
+
+    def _pop_cancelled_head(self) -> None:
+        heap = self._timer_heap
         while heap and heap[0].is_cancelled:
             self.cancelled_in_heap -= 1
             heapq.heappop(heap).in_heap = False
@@ -408,16 +415,12 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
         """Run (or queue first) the callback :meth:`call_next` kept during the callback that just ended."""
         callback, args = self._next  # type: ignore[misc]
         self._next = None
-        heap = self._timer_heap
-        n = len(heap)
-        if not (self._ready_calls or self._stop_asked or self._clock_selector.nfds > 1
-                or (n > HEAP_REBUILD_MIN and self.cancelled_in_heap / n > HEAP_REBUILD_FRACTION)):
+        if not (self._ready_calls or self._stop_asked or self._clock_selector.nfds > 1 or self._rebuild_due()):
             # the next iteration's first steps, in its order (the heap's order of equal deadlines depends on the
             # sequence of its operations): drop the cancelled timers at the head; then a due timer would run after
             # the callback, so the callback waits for the iteration
-            while heap and heap[0].is_cancelled:
-                self.cancelled_in_heap -= 1
-                heapq.heappop(heap).in_heap = False
+            self._pop_cancelled_head()
+            heap = self._timer_heap
             if not (heap and heap[0].deadline < self._now + CLOCK_RESOLUTION_S):
                 try:
                     callback(*args)
@@ -429,17 +432,18 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
                 return
         self._ready_calls.appendleft(LoopCall(self._now, callback, args, copy_context(), self))
 
-    def _select_fast(self, real: selectors.BaseSelector, timeout: float | None,
-                     nfds: int) -> list[tuple[selectors.SelectorKey, int]]:
+    def _select_fast(self, timeout: float | None) -> list[tuple[selectors.SelectorKey, int]]:
         """Fast mode: asyncio's iteration asks to wait ``timeout`` (0: it holds callbacks of its own -- from a file
         descriptor, another thread, a signal -- or is stopping; None: nothing). The loop runs its iterations here,
         the clock jumping to each next timer, and returns what the real selector has ready."""
+        sel = self._clock_selector
+        real = sel.real
         if timeout == 0:
             events = real.select(0)
             self._iterate(jump=False)
             return events
         self._stop_asked = False  # asyncio asks for a wait only when it is not stopping
-        if nfds > 1:  # a real file descriptor: polled on every iteration; with events, the clock stays
+        if sel.nfds > 1:  # a real file descriptor: polled on every iteration; with events, the clock stays
             events = real.select(0)
             if events:
                 self._iterate(jump=False)
@@ -452,14 +456,13 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
             for _i in range(self.ITERATIONS_PER_POLL):
                 if not self._iterate(jump=True):
                     return real.select(timeout)  # only the self-pipe can bring work now
-                if self._stop_asked or self._clock_selector.nfds > 1:  # stopping, or a descriptor to poll
+                if self._stop_asked or sel.nfds > 1:  # stopping, or a descriptor to poll
                     break
         finally:
             self._inline_ok = False
         return real.select(0)
 
-    def _select_realtime(self, real: selectors.BaseSelector,
-                         timeout: float | None) -> list[tuple[selectors.SelectorKey, int]]:
+    def _select_realtime(self, timeout: float | None) -> list[tuple[selectors.SelectorKey, int]]:
         """Realtime: wait (scaled by ``speed``) for the earliest timer or a file descriptor; one reading of the
         clock then decides the iteration's instant (D-7.7, D-10.E12): the earliest timer's own deadline when it is
         due, else this moment. The loop's iteration runs here; callbacks of file descriptors after it (asyncio runs
@@ -475,7 +478,7 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
             wait = min(max(0.0, heap[0].deadline - self.time()), _MAX_WAIT_S)
         else:
             wait = None
-        events = self._wait_scaled(real, wait)
+        events = self._wait_scaled(self._clock_selector.real, wait)
         # time() reads the cap until the iteration ends, so the test of which timers are due (time() + resolution)
         # agrees with this one, and every timer's callback sees exactly its own instant. (Read twice, a timer
         # falling due between the two readings ran at the second one, behind the callbacks already queued -- a

@@ -83,7 +83,9 @@ class LoopCall:
     in its next iteration (``call_soon``). The methods asyncio's handles offer: :meth:`when`, :meth:`cancel`,
     :meth:`cancelled`, :meth:`get_context`. The loop's timer heap orders calls by deadline alone, as asyncio's
     orders its ``TimerHandle`` objects, so calls with equal deadlines leave the heap in the order its operations
-    give, the same order as asyncio's (docs/decisions/performance-windows.md D-10.E22)."""
+    give, the same order as asyncio's (docs/decisions/performance-windows.md D-10.E22). The heap holds
+    ``(deadline, call)`` pairs: the pairs compare as the calls do (equal deadlines fall through to
+    :meth:`__lt__`, which says False both ways), with the deadlines compared in C (D-10.E23)."""
 
     __slots__ = ("args", "callback", "context", "deadline", "in_heap", "is_cancelled", "loop")
 
@@ -214,8 +216,9 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
         self.writer: PacedWriter | None = None
         #: realtime: the timer slack in force for the loop's thread (ns; None where it cannot be set)
         self.timer_slack_ns = set_timer_slack() if mode == "realtime" else None
-        #: the timer heap (:class:`LoopCall` by deadline) and the calls ready to run, in order
-        self._timer_heap: list[LoopCall] = []
+        #: the timer heap (``(deadline, call)`` pairs, ordered as the calls by deadline) and the calls ready to run,
+        #: in order
+        self._timer_heap: list[tuple[float, LoopCall]] = []
         self._ready_calls: deque[LoopCall] = deque()
         #: cancelled timers still in the heap (asyncio's rule for rebuilding it)
         self.cancelled_in_heap = 0
@@ -281,7 +284,7 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
         if when is None:
             raise TypeError("when cannot be None")
         call = LoopCall(when, callback, args, copy_context() if context is None else context, self)
-        heapq.heappush(self._timer_heap, call)
+        heapq.heappush(self._timer_heap, (when, call))
         call.in_heap = True
         return call
 
@@ -347,11 +350,11 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
             self._pop_cancelled_head()
             return
         kept = []
-        for call in self._timer_heap:
-            if call.is_cancelled:
-                call.in_heap = False
+        for entry in self._timer_heap:
+            if entry[1].is_cancelled:
+                entry[1].in_heap = False
             else:
-                kept.append(call)
+                kept.append(entry)
         heapq.heapify(kept)
         self._timer_heap = kept
         self.cancelled_in_heap = 0
@@ -364,9 +367,9 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
 
     def _pop_cancelled_head(self) -> None:
         heap = self._timer_heap
-        while heap and heap[0].is_cancelled:
+        while heap and heap[0][1].is_cancelled:
             self.cancelled_in_heap -= 1
-            heapq.heappop(heap).in_heap = False
+            heapq.heappop(heap)[1].in_heap = False
 
     def _iterate(self, jump: bool) -> bool:
         """One iteration, asyncio's steps on the loop's own heap and queue: drop cancelled timers (asyncio's rule);
@@ -374,20 +377,21 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
         earliest timer; queue, in heap order, every timer due within :data:`CLOCK_RESOLUTION_S`; run exactly the
         calls queued at that moment (what they queue runs in the next iteration). False, having done nothing, when
         nothing is queued or scheduled: only a file descriptor or another thread can bring work then."""
-        self._drop_cancelled()
+        if self.cancelled_in_heap:  # (else there is nothing to drop)
+            self._drop_cancelled()
         heap = self._timer_heap
         ready = self._ready_calls
         if not ready:
             if not heap:
                 return False
             if jump:
-                when = heap[0].deadline
+                when = heap[0][0]
                 if when > self._now:
                     self._now = when
         end = self.time() + CLOCK_RESOLUTION_S
         heappop = heapq.heappop
-        while heap and heap[0].deadline < end:
-            call = heappop(heap)
+        while heap and heap[0][0] < end:
+            call = heappop(heap)[1]
             call.in_heap = False
             ready.append(call)
         debug = self._debug_on
@@ -415,13 +419,15 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
         """Run (or queue first) the callback :meth:`call_next` kept during the callback that just ended."""
         callback, args = self._next  # type: ignore[misc]
         self._next = None
-        if not (self._ready_calls or self._stop_asked or self._clock_selector.nfds > 1 or self._rebuild_due()):
+        if not (self._ready_calls or self._stop_asked or self._clock_selector.nfds > 1
+                or (self.cancelled_in_heap and self._rebuild_due())):
             # the next iteration's first steps, in its order (the heap's order of equal deadlines depends on the
             # sequence of its operations): drop the cancelled timers at the head; then a due timer would run after
             # the callback, so the callback waits for the iteration
-            self._pop_cancelled_head()
+            if self.cancelled_in_heap:
+                self._pop_cancelled_head()
             heap = self._timer_heap
-            if not (heap and heap[0].deadline < self._now + CLOCK_RESOLUTION_S):
+            if not (heap and heap[0][0] < self._now + CLOCK_RESOLUTION_S):
                 try:
                     callback(*args)
                 except (SystemExit, KeyboardInterrupt):
@@ -475,7 +481,7 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
         if timeout == 0 or self._ready_calls:
             wait: float | None = 0.0
         elif heap:
-            wait = min(max(0.0, heap[0].deadline - self.time()), _MAX_WAIT_S)
+            wait = min(max(0.0, heap[0][0] - self.time()), _MAX_WAIT_S)
         else:
             wait = None
         events = self._wait_scaled(self._clock_selector.real, wait)
@@ -484,7 +490,7 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
         # falling due between the two readings ran at the second one, behind the callbacks already queued -- a
         # DSP tick of 0.3-0.7 ms -- and what it sent took that late instant as its own.)
         now = self.time()
-        self._cap = heap[0].deadline if heap and heap[0].deadline <= now else now
+        self._cap = heap[0][0] if heap and heap[0][0] <= now else now
         self._iterate(jump=False)
         return events
 
@@ -510,8 +516,9 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
         origin), so a pty's attach poll set up before the restart still runs 20 ms later.
         """
         delta = self.time()
-        for call in self._timer_heap:  # a uniform shift keeps the heap ordered
-            call.deadline -= delta
+        for i, (when, call) in enumerate(self._timer_heap):  # a uniform shift keeps the heap ordered
+            call.deadline = when - delta
+            self._timer_heap[i] = (call.deadline, call)
         self._cap = None
         self._wall0 = _time.monotonic()
         self._now = 0.0

@@ -6,7 +6,8 @@ tree, the same interpreter, the same ``nice``), each timing the same cut of the 
 each pair, the per-pair speed-up (other's CPU / this tree's CPU) and its median.
 
 Identity (``--cmp``): the same cut run once in each tree; every file of the two run directories compared byte for
-byte, ``summary.json`` without its wall-clock fields (``wall_s``, ``realtime_factor``, ``run_dir``).
+byte, ``summary.json`` and ``clock.json`` without their wall-clock fields, the capture record by record with its
+header but for the scenario directory (the tree's path) (:func:`compare_run_dirs`).
 
 The other tree is any checkout, e.g. ``git worktree add --detach /tmp/base 800dabd`` or
 ``git archive 800dabd | tar -x -C /tmp/base``. Usage (docs/performance.md section 5.6)::
@@ -16,6 +17,7 @@ The other tree is any checkout, e.g. ``git worktree add --detach /tmp/base 800da
 
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import subprocess
@@ -28,6 +30,10 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[2]
 #: summary fields that differ between any two runs (wall clock, where the run was written)
 WALL_FIELDS = ("wall_s", "realtime_factor", "run_dir")
+#: per JSON file of a run directory, its fields that differ between any two runs (the wall-clock origin)
+JSON_WALL_FIELDS = {"summary.json": WALL_FIELDS, "clock.json": ("t0_monotonic_s",)}
+#: capture header fields that name the tree the run was made in (the scenario's directory)
+CAPTURE_TREE_FIELDS = ("scenario_base_dir",)
 
 
 #: what each child runs, with the tree's own packages (the other tree need not have this module): one run of the
@@ -58,20 +64,39 @@ def _spawn(tree: Path, duration_s: float, nice: int, out: Path | None = None) ->
 
 
 def compare_run_dirs(a: Path, b: Path) -> list[str]:
-    """The files that differ between two run directories (``summary.json`` without :data:`WALL_FIELDS`)."""
+    """The files that differ between two run directories: byte for byte, except ``summary.json`` and
+    ``clock.json`` without their wall-clock fields (:data:`JSON_WALL_FIELDS`) and ``capture.psnscap``, whose
+    records must be equal and whose header may differ only in the tree's path (:data:`CAPTURE_TREE_FIELDS`)."""
     diff = []
     for name in sorted({p.name for p in a.iterdir()} | {p.name for p in b.iterdir()}):
         fa, fb = a / name, b / name
         if not (fa.is_file() and fb.is_file()):
             diff.append(name)
-        elif name == "summary.json":
+        elif fa.read_bytes() == fb.read_bytes():
+            continue
+        elif name in JSON_WALL_FIELDS:
+            skip = JSON_WALL_FIELDS[name]
             sa, sb = (json.loads(f.read_text()) for f in (fa, fb))
-            if {k: v for k, v in sa.items() if k not in WALL_FIELDS} != \
-                    {k: v for k, v in sb.items() if k not in WALL_FIELDS}:
+            if {k: v for k, v in sa.items() if k not in skip} != {k: v for k, v in sb.items() if k not in skip}:
                 diff.append(name)
-        elif fa.read_bytes() != fb.read_bytes():
+        elif name.endswith(".psnscap"):
+            if not _same_capture(fa, fb):
+                diff.append(name)
+        else:
             diff.append(name)
     return diff
+
+
+def _same_capture(fa: Path, fb: Path) -> bool:
+    """Two captures with the same records, in order, and the same header but for :data:`CAPTURE_TREE_FIELDS`."""
+    from emulator.recording.capture import iter_capture
+
+    ha, ra = iter_capture(fa)
+    hb, rb = iter_capture(fb)
+    if {k: v for k, v in ha.items() if k not in CAPTURE_TREE_FIELDS} != \
+            {k: v for k, v in hb.items() if k not in CAPTURE_TREE_FIELDS}:
+        return False
+    return all(x == y for x, y in itertools.zip_longest(ra, rb, fillvalue=None))
 
 
 def main(argv: list[str] | None = None) -> int:

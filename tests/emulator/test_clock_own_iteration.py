@@ -154,6 +154,34 @@ def test_heap_rebuild_keeps_asyncios_order() -> None:
     assert len(traces[0]) == 133 and traces[1] == traces[0]
 
 
+def test_heap_of_pairs_pops_in_the_order_of_a_heap_of_calls() -> None:
+    """The timer heap holds ``(deadline, call)`` pairs (D-10.E23): the same random pushes and pops, most of them ties,
+    pop the calls in the same order as a heap of the calls themselves (ordered by deadline alone, as asyncio's
+    handles), because a pair's tie falls through to ``LoopCall.__lt__``, False both ways."""
+    import heapq
+
+    loop = EmulatorLoop("fast")
+    rng = np.random.default_rng(7)
+    try:
+        a, b = (LoopCall(1.0, print, (), None, loop) for _ in range(2))  # type: ignore[arg-type]
+        assert not (1.0, a) < (1.0, b) and not (1.0, b) < (1.0, a) and (0.5, b) < (1.0, a)
+        calls: list[LoopCall] = []
+        pairs: list[tuple[float, LoopCall]] = []
+        popped_calls, popped_pairs = [], []
+        for _ in range(5000):
+            if calls and rng.random() < 0.45:
+                popped_calls.append(heapq.heappop(calls))
+                popped_pairs.append(heapq.heappop(pairs)[1])
+            else:
+                call = LoopCall(float(rng.integers(0, 6)) * 0.005, print, (), None, loop)  # type: ignore[arg-type]
+                heapq.heappush(calls, call)
+                heapq.heappush(pairs, (call.deadline, call))
+        assert len(popped_calls) > 1500
+        assert popped_pairs == popped_calls
+    finally:
+        loop.close()
+
+
 class _CountingLoop(EmulatorLoop):
     """Counts the callbacks ``call_next`` ran after the current one and the ones it queued (as ``call_soon``)."""
 

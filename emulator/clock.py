@@ -351,8 +351,9 @@ class EmulatorLoop(asyncio.SelectorEventLoop):
             return
         kept = []
         for entry in self._timer_heap:
-            if entry[1].is_cancelled:
-                entry[1].in_heap = False
+            call = entry[1]
+            if call.is_cancelled:
+                call.in_heap = False
             else:
                 kept.append(entry)
         heapq.heapify(kept)

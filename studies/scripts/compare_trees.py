@@ -56,11 +56,17 @@ print(json.dumps({"cpu_s": cpu, "sim_s": s["sim_duration_s"], "passed": bool(s.g
 """
 
 
-def _spawn(tree: Path, duration_s: float, nice: int, out: Path | None = None) -> dict[str, Any]:
+def run_child(tree: Path, child: str, args: list[str], nice: int = 0) -> dict[str, Any]:
+    """Run the program ``child`` (Python source) with ``args`` in a fresh process on ``tree``'s packages (its
+    working directory and ``PYTHONPATH``), under ``nice``; its last output line, parsed as JSON."""
     env = dict(os.environ, PYTHONPATH=str(tree))
-    cmd = ["nice", "-n", str(nice), sys.executable, "-c", _CHILD, str(duration_s)] + ([str(out)] if out else [])
+    cmd = ["nice", "-n", str(nice), sys.executable, "-c", child, *args]
     res = subprocess.run(cmd, cwd=tree, env=env, capture_output=True, text=True, check=True)
     return dict(json.loads(res.stdout.strip().splitlines()[-1]))
+
+
+def _spawn(tree: Path, duration_s: float, nice: int, out: Path | None = None) -> dict[str, Any]:
+    return run_child(tree, _CHILD, [str(duration_s)] + ([str(out)] if out else []), nice)
 
 
 def compare_run_dirs(a: Path, b: Path) -> list[str]:
@@ -77,7 +83,7 @@ def compare_run_dirs(a: Path, b: Path) -> list[str]:
         elif name in JSON_WALL_FIELDS:
             skip = JSON_WALL_FIELDS[name]
             sa, sb = (json.loads(f.read_text()) for f in (fa, fb))
-            if {k: v for k, v in sa.items() if k not in skip} != {k: v for k, v in sb.items() if k not in skip}:
+            if _without(sa, skip) != _without(sb, skip):
                 diff.append(name)
         elif name.endswith(".psnscap"):
             if not _same_capture(fa, fb):
@@ -93,10 +99,14 @@ def _same_capture(fa: Path, fb: Path) -> bool:
 
     ha, ra = iter_capture(fa)
     hb, rb = iter_capture(fb)
-    if {k: v for k, v in ha.items() if k not in CAPTURE_TREE_FIELDS} != \
-            {k: v for k, v in hb.items() if k not in CAPTURE_TREE_FIELDS}:
+    if _without(ha, CAPTURE_TREE_FIELDS) != _without(hb, CAPTURE_TREE_FIELDS):
         return False
     return all(x == y for x, y in itertools.zip_longest(ra, rb, fillvalue=None))
+
+
+def _without(d: dict[str, Any], keys: tuple[str, ...]) -> dict[str, Any]:
+    """``d`` without ``keys``."""
+    return {k: v for k, v in d.items() if k not in keys}
 
 
 def main(argv: list[str] | None = None) -> int:

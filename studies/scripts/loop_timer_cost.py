@@ -16,12 +16,11 @@ order in which the callbacks ran, which must be the same in both trees (the heap
 
 from __future__ import annotations
 
-import json
-import os
-import subprocess
 import sys
 from pathlib import Path
 from statistics import median
+
+from studies.scripts.compare_trees import run_child
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -76,10 +75,7 @@ print(json.dumps({"cpu_s": cpu, "us_per_tick": cpu / ticks * 1e6, "order": order
 
 
 def _spawn(tree: Path, ticks: int) -> dict[str, float | str]:
-    env = dict(os.environ, PYTHONPATH=str(tree))
-    res = subprocess.run([sys.executable, "-c", _CHILD, str(ticks)], cwd=tree, env=env, capture_output=True,
-                         text=True, check=True)
-    return dict(json.loads(res.stdout.strip().splitlines()[-1]))
+    return run_child(tree, _CHILD, [str(ticks)])
 
 
 def main(argv: list[str] | None = None) -> int:

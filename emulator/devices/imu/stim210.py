@@ -102,7 +102,6 @@ class Stim210Gyro(FaultableTriad):
     def trigger(self, t: float, t_prev: float) -> None:
         """External-trigger falling edge at ``t`` (scenario s); interval started at ``t_prev``."""
         temp = self.temperature
-        t_c = temp.at(t)
         t_edge, t_prev_edge = t, t_prev
         if self.group_delay_s > 0.0:  # the filtered output describes the motion one group delay ago
             t, t_prev = delayed_interval(t, t_prev, self.group_delay_s)
@@ -140,7 +139,7 @@ class Stim210Gyro(FaultableTriad):
         if self.faults.active:
             rate, lim = self.faults.apply(rate, lim)
         counter = (self.counter + self.counter_step) & 0xFF
-        frame, clipped = self._datagrams(rate[None, :], lim, dt, (t_c,), (counter,))
+        frame, clipped = self._datagrams(rate[None, :], lim, dt, (temp.at(t_edge),), (counter,))
         self.last_measured = clipped[0]
         self.counter = counter
         self._send(t_edge, frame)

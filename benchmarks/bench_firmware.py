@@ -10,13 +10,16 @@ as the virtual DSP does. Rows:
   tick, decoding of every UART included; CPU time (``time.process_time``), median of ``REPEAT`` runs;
 * ``... part: <part>``: the same run split by part (median of ``REPEAT`` instrumented runs): ``decode``
   (receive(): framing, CRC, parse of every UART), ``strapdown`` (``NavCore.mechanize``: bias compensation,
-  coning/sculling, mechanization, INS history), ``kf_predict`` (the filter's time update, every 20th
-  tick), ``updates`` (GNSS / PSNS measurement tasks, solve, feedback), ``output`` (NAV_SOLUTION build and
+  coning/sculling, mechanization, INS history), ``kf_predict`` (``NavCore.predict``: the filter's time update,
+  every 20th tick), ``updates`` (GNSS / PSNS measurement tasks, solve, feedback), ``output`` (NAV_SOLUTION build and
   encode, every 2nd tick), ``rest`` (the tick's own bookkeeping: time, PPS, counters, raw-to-SI, load
   window). ``cycle meter`` is the cost of the tick's CycleMeter calls replayed on a fresh meter
   (already contained in the parts above; shown for its own sake). The parts are wall time
   (``perf_counter`` around each call: a CPU-time clock costs 1.5 us per read here), so on a loaded machine
-  their sum can exceed the CPU-time total.
+  their sum can exceed the CPU-time total. The parts are timed by wrapping the methods of
+  :data:`PART_METHODS` at their classes (:func:`timed_methods`), so :func:`firmware_in_replay` times the same parts
+  of the firmware inside a replay of the reference's capture (the reference's own input: ``benchmarks
+  .bench_realtime_factor``'s rows ``reference's firmware ...``).
 
 Wall times on a shared 2-core machine are noisy: compare medians, not single runs.
 Run: ``.venv/bin/python -c "from benchmarks.bench_firmware import main; main()"``.
@@ -24,12 +27,13 @@ Run: ``.venv/bin/python -c "from benchmarks.bench_firmware import main; main()"`
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
 import statistics
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -42,6 +46,8 @@ if str(ROOT) not in sys.path:
 from firmware_model import Firmware, FirmwareConfig, psns  # noqa: E402
 from firmware_model.c674x import CycleMeter  # noqa: E402
 from firmware_model.psns_geometry import CameraGeometry  # noqa: E402
+from firmware_model.tasks.navigation import NavCore  # noqa: E402
+from firmware_model.tasks.output import OutputTask  # noqa: E402
 from tests.firmware_model.sky import observe_sky  # noqa: E402
 from tests.firmware_model.synth import SensorErrors, StaticTruth, StreamConfig, static_stream  # noqa: E402
 
@@ -88,43 +94,56 @@ def _total_us_per_tick(cfg: FirmwareConfig, events: list[tuple[float, int, bytes
     return (time.process_time() - t0) / n * 1e6
 
 
-def _timed(fn: Callable[..., Any], acc: list[float]) -> Callable[..., Any]:
+#: the parts of :data:`PARTS` as the methods that do them, for a run this module does not drive itself (the replay
+#: of the reference's capture): ``kf_predict`` is ``NavCore.predict`` (the filter's time update with its schedule)
+PART_METHODS: dict[str, tuple[type, str]] = {
+    "decode": (Firmware, "receive"), "strapdown": (NavCore, "mechanize"), "kf_predict": (NavCore, "predict"),
+    "updates": (Firmware, "_measurement_tasks"), "output": (OutputTask, "nav_solution")}
+
+
+@contextlib.contextmanager
+def timed_methods(methods: dict[str, tuple[type, str]]) -> Iterator[dict[str, float]]:
+    """Each ``(class, method)`` of ``methods`` timed at its class while the block runs: the dict it yields holds,
+    under the same keys, the wall seconds (``perf_counter``) spent in the calls, nested calls included; the classes
+    get their methods back on exit."""
+    acc = dict.fromkeys(methods, 0.0)
+    saved = [(cls, name, cls.__dict__[name]) for cls, name in methods.values()]
     pc = time.perf_counter
+    try:
+        for key, (cls, name) in methods.items():
+            orig = cls.__dict__[name]
 
-    def wrapper(*a: Any, **k: Any) -> Any:
-        t0 = pc()
-        try:
-            return fn(*a, **k)
-        finally:
-            acc[0] += pc() - t0
+            def timed(*a: Any, _orig: Callable[..., Any] = orig, _key: str = key) -> Any:
+                t0 = pc()
+                try:
+                    return _orig(*a)
+                finally:
+                    acc[_key] += pc() - t0
 
-    return wrapper
+            setattr(cls, name, timed)
+        yield acc
+    finally:
+        for cls, name, orig in saved:
+            setattr(cls, name, orig)
 
 
 def _parts_us_per_tick(cfg: FirmwareConfig, events: list[tuple[float, int, bytes]]) -> dict[str, float]:
-    """One instrumented run: us per tick of each part (see module docstring)."""
+    """One instrumented run: us per tick of each part (see module docstring; :data:`PART_METHODS` timed)."""
     fw = Firmware(cfg)
-    acc = {p: [0.0] for p in PARTS}
-    receive = _timed(fw.receive, acc["decode"])
-    fw.core.mechanize = _timed(fw.core.mechanize, acc["strapdown"])  # type: ignore[method-assign]
-    fw._measurement_tasks = _timed(fw._measurement_tasks, acc["updates"])  # type: ignore[method-assign]
-    fw.output.nav_solution = _timed(fw.output.nav_solution, acc["output"])  # type: ignore[method-assign]
-    flt = None
     n = 0
-    t_service = 0.0
-    pc = time.perf_counter
-    for t, uart, data in events:
-        receive(uart, data, t)
-        if uart == 1:
-            if fw.filter is not flt:  # the filter object is replaced at alignment / reset
-                flt = fw.filter
-                flt.predict = _timed(flt.predict, acc["kf_predict"])  # type: ignore[method-assign]
-            t0 = pc()
-            n += len(fw.service())
-            t_service += pc() - t0
-    out = {p: acc[p][0] / n * 1e6 for p in PARTS if p != "rest"}
-    # kf_predict runs inside _imu_tick, output inside it too; updates and strapdown as well
-    out["rest"] = t_service / n * 1e6 - (out["strapdown"] + out["kf_predict"] + out["updates"] + out["output"])
+    with timed_methods({**PART_METHODS, "service": (Firmware, "service")}) as acc:
+        for t, uart, data in events:
+            fw.receive(uart, data, t)
+            if uart == 1:
+                n += len(fw.service())
+    return _parts_of(acc, n)
+
+
+def _parts_of(acc: dict[str, float], ticks: int) -> dict[str, float]:
+    """us per tick of each part of :data:`PARTS` from the seconds :func:`timed_methods` accumulated for
+    :data:`PART_METHODS` and ``service``: ``rest`` is ``service`` less the parts inside it."""
+    out = {p: acc[p] / ticks * 1e6 for p in PART_METHODS}
+    out["rest"] = acc["service"] / ticks * 1e6 - sum(v for p, v in out.items() if p != "decode")
     return out
 
 
@@ -159,6 +178,22 @@ def _meter_us_per_tick(cfg: FirmwareConfig, events: list[tuple[float, int, bytes
             f(*a)
         best = min(best, (t1 - t0) - (time.perf_counter() - t1))
     return max(best, 0.0) / n * 1e6, len(calls) / n
+
+
+def firmware_in_replay(capture: Path, out: Path, ticks: int) -> dict[str, float]:
+    """The firmware's cost per tick on a recorded input: ``capture`` replayed in fast mode twice (into ``out``/a
+    and ``out``/b, :func:`emulator.postrun.replay.run_replay`), ``ticks`` IMU ticks long. Returns us per tick of
+    ``total`` (``Firmware.receive`` + ``Firmware.service``, the only two methods timed in the first replay) and of
+    each part of :data:`PARTS` (the second replay, :data:`PART_METHODS` timed; ``rest`` is ``service`` less the
+    parts inside it: the tick's own bookkeeping). Wall time (``perf_counter``), as the synthetic stream's parts."""
+    from emulator.postrun.replay import run_replay
+
+    with timed_methods({"receive": (Firmware, "receive"), "service": (Firmware, "service")}) as acc:
+        run_replay(capture, out / "a", mode="fast")
+    total = acc["receive"] + acc["service"]
+    with timed_methods({**PART_METHODS, "service": (Firmware, "service")}) as acc:
+        run_replay(capture, out / "b", mode="fast")
+    return {"total": total / ticks * 1e6, **_parts_of(acc, ticks)}
 
 
 def firmware_tick_rows(seconds: float = SECONDS, repeat: int = REPEAT) -> list[dict]:

@@ -49,12 +49,15 @@ import time
 from pathlib import Path
 from typing import Any
 
+from benchmarks.bench_firmware import PARTS, firmware_in_replay
 from benchmarks.common import REFERENCE, ROOT, load_avg, median, number
 from benchmarks.profile_breakdown import breakdown
 from emulator.assembly.session import run_scenario
 from emulator.scenario import load_scenario
 
 TARGET_RTF = 100.0
+#: the firmware's share of a 5 ms tick at 100x (us; docs/performance.md section 4)
+FIRMWARE_TARGET_US = 20.0
 #: the fidelity row's target: the world's instrument fidelity may cost at most 15 % of the real-time factor
 TARGET_FIDELITY_RATIO = 0.85
 #: scenario overrides that switch the world's instrument fidelity off (docs/performance.md section 2)
@@ -161,6 +164,8 @@ def run() -> list[dict]:
     # the firmware alone, right after the reference it replays (the same load on the machine)
     fw_cpus: list[float] = []
     fwall, fwalls, fs, same = firmware_alone(kept, repeat, fw_cpus)
+    with tempfile.TemporaryDirectory() as d:
+        fw_parts = firmware_in_replay(kept / "capture.psnscap", Path(d), ticks)
     kept_dir.cleanup()
     frtf = fs["sim_duration_s"] / fwall
     # profile (a shorter cut is as representative per tick, and cProfile doubles the run time)
@@ -200,6 +205,18 @@ def run() -> list[dict]:
                          f"({median(ref_cpus) / median(fw_cpus):.2f} x); the most a world of zero cost would give",
                  "walls_s": fwalls, "cpu_s": fw_cpus, "reference_cpu_s": ref_cpus, "sim_s": fs["sim_duration_s"],
                  "nav_identical": same, "vs_reference": frtf / rtf})
+    fw_total = fw_parts["total"]
+    rows.append({"name": "reference's firmware per tick, on its own input (receive + service)", "value": fw_total,
+                 "unit": "us", "baseline": FIRMWARE_TARGET_US, "ratio": fw_total / FIRMWARE_TARGET_US,
+                 "note": f"the replay above with Firmware.receive and .service timed (wall); baseline: the "
+                         f"firmware's {FIRMWARE_TARGET_US:.0f} us share of a 5 ms tick at 100x (the synthetic "
+                         f"stream's rows: benchmarks.bench_firmware); alone it caps the reference at "
+                         f"{5000.0 / fw_total:.0f}x",
+                 "parts": fw_parts})
+    for part in PARTS:
+        rows.append({"name": f"  reference's firmware part: {part}", "value": fw_parts[part], "unit": "us",
+                     "baseline": fw_total, "ratio": fw_parts[part] / fw_total,
+                     "note": "us per tick (a second replay, the parts timed); ratio: share of the total"})
     fid = fidelity_ratio(number("PSNS_BENCH_FIDELITY_S"), repeat)
     rows.append({"name": "reference real-time factor, world fidelity on / off", "value": fid["ratio"],
                  "unit": "ratio", "baseline": TARGET_FIDELITY_RATIO, "ratio": fid["ratio"] / TARGET_FIDELITY_RATIO,

@@ -51,7 +51,7 @@ def observe_sky(s_c: np.ndarray, cam: CameraGeometry, stride_px: int = 32, rng: 
     ys = np.arange(1 + stride_px // 2, cam.ny + 1, stride_px)
     xx, yy = np.meshgrid(xs, ys)
     x, y = xx.ravel(), yy.ravel()
-    v = cam.view_rays(x, y)
+    v = cam.view_rays(x.astype(np.float64), y.astype(np.float64))  # pixel numbers, exact as doubles
     dop, e = rayleigh(np.asarray(s_c, dtype=np.float64), v, p_max)
     psi = np.arctan2(e[:, 1], e[:, 0])
     s0_e = signal_fraction * full_well_e * np.ones_like(dop)
@@ -78,7 +78,7 @@ def render_mosaic(s_c: np.ndarray, cam: CameraGeometry, rng: np.random.Generator
                   bits: int = 12, signal_fraction: float = 0.8) -> np.ndarray:
     """A raw IMX250MZR mosaic (ny, nx) in DN: (0,0)=90, (0,1)=45, (1,0)=135, (1,1)=0 deg (the conventions)."""
     yy, xx = np.meshgrid(np.arange(1, cam.ny + 1), np.arange(1, cam.nx + 1), indexing="ij")
-    v = cam.view_rays(xx.ravel(), yy.ravel())
+    v = cam.view_rays(xx.ravel().astype(np.float64), yy.ravel().astype(np.float64))
     dop, e = rayleigh(np.asarray(s_c, dtype=np.float64), v, p_max)
     psi = np.arctan2(e[:, 1], e[:, 0]).reshape(cam.ny, cam.nx)
     dop = dop.reshape(cam.ny, cam.nx)

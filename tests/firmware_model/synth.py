@@ -134,9 +134,9 @@ def static_stream(truth: StaticTruth, err: SensorErrors, cfg: StreamConfig, dura
         pps = math.floor(t + 1e-9)
         counter = (counter + 10) & 0xFF
         fr = ImuFrame(seq=k & 0xFFFF, t_trigger_us=round(t * 1e6) & 0xFFFFFFFF,
-                      t_pps_us=(pps * 1_000_000) & 0xFFFFFFFF, pps_count=pps & 0xFF, gyro=gyro,  # type: ignore[arg-type]
+                      t_pps_us=(pps * 1_000_000) & 0xFFFFFFFF, pps_count=pps & 0xFF, gyro=gyro,
                       gyro_status=0, gyro_counter=counter, gyro_latency_us=500,
-                      accel=accel, fpga_status=int(FpgaStatus.PPS_VALID) if pps >= 1 and cfg.pps else 0)  # type: ignore[arg-type]
+                      accel=accel, fpga_status=int(FpgaStatus.PPS_VALID) if pps >= 1 and cfg.pps else 0)
         push(t + 40 * 10 / 460800 + 0.0004, UART_IMU, fmt.build(fr))
         while heap and heap[0][0] <= t:
             tt, _, uart, data = heapq.heappop(heap)

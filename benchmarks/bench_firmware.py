@@ -103,9 +103,9 @@ PART_METHODS: dict[str, tuple[type, str]] = {
 
 @contextlib.contextmanager
 def timed_methods(methods: dict[str, tuple[type, str]]) -> Iterator[dict[str, float]]:
-    """Each ``(class, method)`` of ``methods`` timed at its class while the block runs: the dict it yields holds,
-    under the same keys, the wall seconds (``perf_counter``) spent in the calls, nested calls included; the classes
-    get their methods back on exit."""
+    """Each ``(class, method)`` of ``methods`` (a method the class itself defines) timed at its class, for every
+    instance, while the block runs: the dict it yields holds, under the same keys, the wall seconds (``perf_counter``)
+    spent in the calls, nested calls included; the classes get their methods back on exit."""
     acc = dict.fromkeys(methods, 0.0)
     saved = [(cls, name, cls.__dict__[name]) for cls, name in methods.values()]
     pc = time.perf_counter
@@ -113,10 +113,10 @@ def timed_methods(methods: dict[str, tuple[type, str]]) -> Iterator[dict[str, fl
         for key, (cls, name) in methods.items():
             orig = cls.__dict__[name]
 
-            def timed(*a: Any, _orig: Callable[..., Any] = orig, _key: str = key) -> Any:
+            def timed(*a: Any, _orig: Callable[..., Any] = orig, _key: str = key, **k: Any) -> Any:
                 t0 = pc()
                 try:
-                    return _orig(*a)
+                    return _orig(*a, **k)
                 finally:
                     acc[_key] += pc() - t0
 

@@ -208,7 +208,7 @@ def run() -> list[dict]:
     fw_total = fw_parts["total"]
     rows.append({"name": "reference's firmware per tick, on its own input (receive + service)", "value": fw_total,
                  "unit": "us", "baseline": FIRMWARE_TARGET_US, "ratio": fw_total / FIRMWARE_TARGET_US,
-                 "note": f"the replay above with Firmware.receive and .service timed (wall); baseline: the "
+                 "note": f"its capture replayed once more, Firmware.receive and .service timed (wall); baseline: the "
                          f"firmware's {FIRMWARE_TARGET_US:.0f} us share of a 5 ms tick at 100x (the synthetic "
                          f"stream's rows: benchmarks.bench_firmware); alone it caps the reference at "
                          f"{5000.0 / fw_total:.0f}x",

@@ -51,7 +51,7 @@ def test_timed_methods_times_at_the_class_passes_calls_through_and_restores() ->
     c = _Counter()
     with timed_methods({"step": (_Counter, "step")}) as acc:
         assert _Counter.__dict__["step"] is not orig
-        assert [c.step(2), c.step(3)] == [2, 5]  # the arguments and the results pass through
+        assert [c.step(2), c.step(k=3)] == [2, 5]  # the arguments, keywords too, and the results pass through
     assert _Counter.__dict__["step"] is orig and c.step(1) == 6
     assert acc["step"] > 0.0
     try:

@@ -99,6 +99,8 @@ def _total_us_per_tick(cfg: FirmwareConfig, events: list[tuple[float, int, bytes
 PART_METHODS: dict[str, tuple[type, str]] = {
     "decode": (Firmware, "receive"), "strapdown": (NavCore, "mechanize"), "kf_predict": (NavCore, "predict"),
     "updates": (Firmware, "_measurement_tasks"), "output": (OutputTask, "nav_solution")}
+#: what a run split by part times: the parts and ``service``, which holds all of them but ``decode`` (:func:`_parts_of`)
+_PARTS_TIMED = {**PART_METHODS, "service": (Firmware, "service")}
 
 
 @contextlib.contextmanager
@@ -131,7 +133,7 @@ def _parts_us_per_tick(cfg: FirmwareConfig, events: list[tuple[float, int, bytes
     """One instrumented run: us per tick of each part (see module docstring; :data:`PART_METHODS` timed)."""
     fw = Firmware(cfg)
     n = 0
-    with timed_methods({**PART_METHODS, "service": (Firmware, "service")}) as acc:
+    with timed_methods(_PARTS_TIMED) as acc:
         for t, uart, data in events:
             fw.receive(uart, data, t)
             if uart == 1:
@@ -191,7 +193,7 @@ def firmware_in_replay(capture: Path, out: Path, ticks: int) -> dict[str, float]
     with timed_methods({"receive": (Firmware, "receive"), "service": (Firmware, "service")}) as acc:
         run_replay(capture, out / "a", mode="fast")
     total = acc["receive"] + acc["service"]
-    with timed_methods({**PART_METHODS, "service": (Firmware, "service")}) as acc:
+    with timed_methods(_PARTS_TIMED) as acc:
         run_replay(capture, out / "b", mode="fast")
     return {"total": total / ticks * 1e6, **_parts_of(acc, ticks)}
 
